@@ -1,0 +1,236 @@
+"""Configuration: typed schemas, registration, composition and validation.
+
+Schemas live next to their code (``sphri/<stage>/schema.py``); each stage's
+module calls :func:`store` for its components. YAML files under ``conf/`` opt
+into a schema through their defaults list (``- ellipse_schema``), so a wrong
+key or type fails at composition. Value ranges are checked by each schema's
+``__post_init__``, which :func:`validate` triggers for every group before any
+stage runs, re-raising problems as :class:`ConfigError` naming the key.
+"""
+
+from __future__ import annotations
+
+import importlib
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+#: The repository's config directory (``conf/`` beside the package).
+CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
+
+#: Config groups of the pipeline, in stage order. Each is a component with a
+#: ``_target_`` inside ``sphri.``.
+STAGE_GROUPS: tuple[str, ...] = (
+    "data",
+    "hand",
+    "robot",
+    "contact",
+    "surface",
+    "layout",
+    "encoder",
+    "noise",
+    "window",
+    "model",
+    "cv",
+    "tracking",
+)
+
+#: Groups that the primary config lists in its defaults; ``+group=x`` on the
+#: command line is accepted for these and means ``group=x`` (see
+#: :func:`normalize_overrides`).
+DEFAULT_GROUPS: tuple[str, ...] = STAGE_GROUPS + ("debug", "experiment")
+
+#: Modules whose import registers schemas in the ConfigStore.
+SCHEMA_MODULES: tuple[str, ...] = (
+    "sphri.data.schema",
+    "sphri.hand.schema",
+    "sphri.robots.schema",
+    "sphri.contact.schema",
+    "sphri.surface.schema",
+    "sphri.layout.schema",
+    "sphri.encode.schema",
+    "sphri.noise.schema",
+    "sphri.window.schema",
+    "sphri.models.schema",
+    "sphri.evaluate.schema",
+    "sphri.tracking.schema",
+)
+
+
+class ConfigError(ValueError):
+    """A configuration value is invalid; the message names the key."""
+
+
+def store(group: str, name: str, node: type) -> None:
+    """Register a component schema ``node`` as ``<group>/<name>``.
+
+    YAML files pick it up with ``defaults: [<name>]``; by convention ``name``
+    ends in ``_schema``.
+    """
+    ConfigStore.instance().store(group=group, name=name, node=node)
+
+
+def require(ok: bool, key: str, value: Any, expected: str) -> None:
+    """Raise :class:`ConfigError` unless ``ok``: ``key=value is invalid: expected``."""
+    if not ok:
+        raise ConfigError(f"{key}={value!r} is invalid: {expected}")
+
+
+def require_range(
+    key: str,
+    value: float,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open: bool = False,
+    hi_open: bool = False,
+) -> None:
+    """Check ``lo <= value <= hi`` (open ends with ``*_open``)."""
+    ok = True
+    if lo is not None:
+        ok &= value > lo if lo_open else value >= lo
+    if hi is not None:
+        ok &= value < hi if hi_open else value <= hi
+    lb = "(" if lo_open else "["
+    rb = ")" if hi_open else "]"
+    lo_s = "-inf" if lo is None else f"{lo:g}"
+    hi_s = "inf" if hi is None else f"{hi:g}"
+    require(bool(ok), key, value, f"must be in {lb}{lo_s}, {hi_s}{rb}")
+
+
+def require_choice(key: str, value: Any, choices: Iterable[Any]) -> None:
+    choices = list(choices)
+    require(value in choices, key, value, f"allowed values: {choices}")
+
+
+@dataclass
+class CacheConfig:
+    """On-disk stage cache (``outputs/cache/`` by default)."""
+
+    enabled: bool = True
+    dir: str = "outputs/cache"
+
+
+@dataclass
+class RootConfig:
+    """Top-level keys of ``conf/config.yaml`` besides the component groups."""
+
+    seed: int = 0
+    cache: CacheConfig = field(default_factory=CacheConfig)
+    output_dir: str = "outputs"
+    """Where runs, the cache and the MLflow store live (relative to cwd)."""
+    data: Any = None
+    hand: Any = None
+    robot: Any = None
+    contact: Any = None
+    surface: Any = None
+    layout: Any = None
+    encoder: Any = None
+    noise: Any = None
+    window: Any = None
+    model: Any = None
+    cv: Any = None
+    tracking: Any = None
+    debug: Any = None
+    experiment: Any = None
+
+
+_registered = False
+
+
+def register_schemas() -> None:
+    """Import every stage's schema module (idempotent)."""
+    global _registered
+    if _registered:
+        return
+    store(group=None, name="sphri_root", node=RootConfig)  # type: ignore[arg-type]
+    for mod in SCHEMA_MODULES:
+        importlib.import_module(mod)
+    _registered = True
+
+
+_PLUS_GROUP = re.compile(r"^\+(?P<group>[A-Za-z_][\w/]*)=(?P<value>.*)$")
+
+
+def normalize_overrides(overrides: Sequence[str]) -> list[str]:
+    """Accept ``+robot=reachy`` as well as ``robot=reachy``.
+
+    ``robot`` (like every stage group and ``debug``) is in the primary
+    defaults list so that plain ``python -m sphri`` runs on the built-in
+    robot. Hydra refuses to *append* a group that is already there, so
+    ``+group=value`` for such a group is rewritten to ``group=value``;
+    anything else passes through untouched.
+    """
+    out = []
+    for o in overrides:
+        m = _PLUS_GROUP.match(o)
+        if m and m.group("group") in DEFAULT_GROUPS:
+            out.append(f"{m.group('group')}={m.group('value')}")
+        else:
+            out.append(o)
+    return out
+
+
+def compose(overrides: Sequence[str] = (), config_name: str = "config") -> DictConfig:
+    """Compose the config outside a Hydra app (CLI, tests, notebooks).
+
+    Raises :class:`ConfigError` with the offending key on any problem.
+    """
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    register_schemas()
+    overrides = normalize_overrides(overrides)
+    if GlobalHydra.instance().is_initialized():
+        GlobalHydra.instance().clear()
+    try:
+        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+            cfg = hydra_compose(config_name=config_name, overrides=list(overrides), return_hydra_config=False)
+    except ConfigError:
+        raise
+    except Exception as exc:  # hydra raises several types; all are config problems
+        raise ConfigError(_explain(exc)) from exc
+    validate(cfg)
+    return cfg
+
+
+def _explain(exc: BaseException) -> str:
+    msg = str(exc).strip()
+    if isinstance(exc, OmegaConfBaseException) and getattr(exc, "full_key", None):
+        return f"{exc.full_key}: {msg.splitlines()[0]}"
+    return msg.splitlines()[0] if msg else type(exc).__name__
+
+
+def validate(cfg: DictConfig) -> None:
+    """Check every component's values before any stage runs.
+
+    Instantiating each group's structured node runs its schema's
+    ``__post_init__`` range checks; a ``_target_`` outside ``sphri.`` is
+    refused.
+    """
+    for group in STAGE_GROUPS:
+        node = cfg.get(group)
+        if node is None:
+            raise ConfigError(f"{group}: no component chosen (pick one with {group}=NAME)")
+        target = node.get("_target_") if isinstance(node, DictConfig) else None
+        if not isinstance(target, str) or not target.startswith("sphri."):
+            raise ConfigError(f"{group}._target_={target!r} is invalid: must name a class inside sphri.")
+        try:
+            OmegaConf.to_object(node)
+        except ConfigError as exc:
+            msg = str(exc)
+            raise ConfigError(msg if msg.startswith(group + ".") else f"{group}.{msg}") from None
+        except OmegaConfBaseException as exc:
+            raise ConfigError(_explain(exc)) from None
+    if cfg.seed < 0:
+        raise ConfigError(f"seed={cfg.seed} is invalid: must be >= 0")
+
+
+def subtree(cfg: DictConfig, *keys: str) -> dict[str, Any]:
+    """Resolved plain-dict view of ``cfg[key]`` for each key (cache hashing)."""
+    return {k: OmegaConf.to_container(cfg[k], resolve=True) if isinstance(cfg[k], DictConfig) else cfg[k] for k in keys}
