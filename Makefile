@@ -1,0 +1,40 @@
+# sphri: `make run` and `make test` are all a newcomer needs.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.sphri-installed
+ARGS   ?=
+
+.PHONY: install run test test-all bench sweep report ui clean
+
+# Installs only when pyproject.toml changed since the last install (quick otherwise).
+# torch is pinned to the CPU build first: an unpinned torch pulls gigabytes of CUDA.
+$(STAMP): pyproject.toml
+	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install -q --upgrade pip
+	$(BIN)/python -m pip install -q "torch==2.13.0"
+	$(BIN)/python -m pip install -q -e ".[dev]"
+	@touch $(STAMP)
+
+install: $(STAMP)
+
+run: install          ## the main job on the built-in defaults
+	$(BIN)/python -m sphri +robot=reachy encoder.res=18 $(ARGS)
+
+test: install         ## the test suite without slow tests
+	$(BIN)/python -m pytest -m "not slow" -q $(ARGS)
+
+test-all: install     ## every test, slow ones and deep property tests included
+	SPHRI_DEEP_TESTS=1 $(BIN)/python -m pytest -q $(ARGS)
+
+bench: install        ## benchmarks -> outputs/bench/*.json, summary.md, plots
+	$(BIN)/python bench/run_all.py $(ARGS)
+
+sweep: install        ## the resolution sweep (Random Forest, 50 resolutions)
+	$(BIN)/python -m sphri -m +experiment=resolution_sweep model=rf $(ARGS)
+
+ui: install           ## MLflow UI on http://127.0.0.1:5000
+	$(BIN)/mlflow ui --backend-store-uri sqlite:///$(CURDIR)/outputs/mlflow.db --host 127.0.0.1 --port 5000
+
+clean:                ## remove outputs (runs, cache, MLflow store) and test caches
+	rm -rf outputs .pytest_cache .hypothesis

@@ -1,0 +1,121 @@
+"""``python -m sphri``: run one experiment job, or a sweep with ``-m``.
+
+Examples::
+
+    python -m sphri                                  # built-in defaults (robot=reachy)
+    python -m sphri +robot=reachy encoder.res=18     # the paper's resolution
+    python -m sphri -m +robot=reachy encoder.res=4,8,18
+    python -m sphri +debug=fast                      # seconds-long smoke run
+
+Each job validates its config before any stage runs, runs the pipeline
+(stages cached under ``outputs/cache``), logs one MLflow run and prints a
+one-screen summary. In a multirun, a failing job is recorded as FAILED in
+MLflow and the sweep goes on.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import sys
+import traceback
+from pathlib import Path
+
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
+from omegaconf import DictConfig
+
+from sphri.config import ConfigError, normalize_overrides, register_schemas, validate
+
+log = logging.getLogger("sphri")
+
+
+def limit_threads(n: int) -> None:
+    """Cap BLAS/OpenMP/torch threads (parallel sweep jobs share the cores)."""
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
+        os.environ[var] = str(n)
+    try:
+        from threadpoolctl import threadpool_limits
+
+        threadpool_limits(n)
+    except ImportError:  # pragma: no cover - threadpoolctl ships with scikit-learn
+        pass
+    import torch
+
+    torch.set_num_threads(n)
+
+
+def _write_status(job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None) -> None:
+    job_dir.mkdir(parents=True, exist_ok=True)
+    info = {"job": job, "status": status, "error": error, "mlflow_run_id": run_id}
+    (job_dir / "sphri_status.json").write_text(json.dumps(info))
+
+
+def run_job(cfg: DictConfig) -> dict | None:
+    """One job: validate, run the pipeline, track, summarize."""
+    from sphri import pipeline
+    from sphri.tracking.callbacks import read_parent
+    from sphri.tracking.mlflow_tracker import summary_text
+
+    hc = HydraConfig.get()
+    job_dir = Path(hc.runtime.output_dir)
+    choices = {k: v for k, v in hc.runtime.choices.items() if v is not None and not k.startswith("hydra")}
+    multirun = hc.mode == RunMode.MULTIRUN
+    job_num = int(hc.job.num) if multirun else 0
+    parent = read_parent(hc.sweep.dir) if multirun else None
+    if multirun:
+        cores = os.cpu_count() or 1
+        n_jobs = int(hc.launcher.get("n_jobs", 1) or 1)
+        n_jobs = cores if n_jobs < 0 else n_jobs
+        if n_jobs > 1:
+            limit_threads(max(1, cores // n_jobs))
+
+    tracker = None
+    try:
+        validate(cfg)
+        pipeline.chain_region(cfg)
+        tracker = pipeline.build(cfg.tracking)
+        result = pipeline.run(cfg)
+    except Exception as exc:
+        error = f"{type(exc).__name__}: {exc}"
+        if tracker is None:
+            try:
+                tracker = pipeline.build(cfg.tracking)
+            except Exception:  # the tracking config itself is broken
+                tracker = None
+        run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if tracker and tracker.enabled else None
+        _write_status(job_dir, job_num, "FAILED", error, run_id)
+        if multirun:
+            log.error("job %d FAILED: %s\n%s", job_num, error, traceback.format_exc())
+            return None
+        if isinstance(exc, ConfigError):
+            log.error("invalid config: %s", exc)
+            print(f"sphri: invalid config: {exc}", file=sys.stderr)
+            sys.exit(2)
+        raise
+
+    run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices) if tracker.enabled else None
+    _write_status(job_dir, job_num, "FINISHED", None, run_id)
+    text = summary_text(result)
+    log.info("summary\n%s", text)
+    where = f"MLflow run {run_id} in {tracker.resolve_uri(cfg.output_dir)} (see it with `make ui`)" if run_id else "MLflow tracking disabled"
+    print("\n" + "=" * 78 + "\n" + text + f"\ntracking    {where}\njob dir     {job_dir}\n" + "=" * 78)
+    return {"run_id": run_id, **result.summary()}
+
+
+@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+def _hydra_main(cfg: DictConfig) -> dict | None:
+    return run_job(cfg)
+
+
+def main() -> None:
+    """Console entry point (``sphri`` or ``python -m sphri``)."""
+    register_schemas()
+    sys.argv = [sys.argv[0], *normalize_overrides(sys.argv[1:])]
+    _hydra_main()
+
+
+if __name__ == "__main__":
+    main()

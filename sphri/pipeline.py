@@ -1,0 +1,254 @@
+"""The pipeline runner: stages in order, each a pure function of its inputs
+and its config subtree, with outputs cached on disk.
+
+Every stage's cache key is known *before* anything runs (it hashes the
+stage's config subtree, the keys of its inputs and the component's
+``VERSION``), so evaluation is lazy: the runner asks for the final result
+and only computes, or loads, what a missing entry needs. Running the same
+command twice loads one small entry; changing ``encoder.res`` recomputes the
+layout, encoder and below, never data or contact.
+
+Which stages are kept on disk (``PERSISTED``) is a cost decision: data,
+contact, surface, layout, the window plan and the evaluation are worth
+storing; encoded frames are cheap to recompute and large at fine
+resolutions (a res-50 grid is ~0.4 GB per sweep point), noise is cheaper
+still.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+from hydra.utils import instantiate
+from omegaconf import DictConfig, OmegaConf
+
+from sphri.cache import StageCache, stable_hash, stage_key
+from sphri.config import ConfigError
+from sphri.types import CVResult, GestureDataset, TaxelGeometry
+
+log = logging.getLogger(__name__)
+
+#: Stages whose outputs are written to the on-disk cache.
+PERSISTED = frozenset({"data", "contact", "surface", "layout", "plan", "evaluate"})
+
+
+def build(node: DictConfig, **kwargs: Any) -> Any:
+    """Instantiate a component from its config node (plain Python containers)."""
+    return instantiate(node, _convert_="all", **kwargs)
+
+
+def plain(node: Any) -> Any:
+    """Resolved plain-Python copy of a config node (for hashing and logging)."""
+    return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
+
+
+@dataclass
+class StageRecord:
+    """How one stage was obtained in this run."""
+
+    name: str
+    key: str
+    source: str  # "computed", "cache" or "skipped" (not needed: downstream was cached)
+    seconds: float = 0.0
+
+
+@dataclass
+class RunResult:
+    """Everything a job reports: the evaluation and where it came from."""
+
+    cv: CVResult
+    meta: dict[str, Any]
+    """Dataset, robot, resolution (physical units) and window facts."""
+    stages: dict[str, StageRecord]
+    config_hash: str
+
+    def summary(self) -> dict[str, float]:
+        from sphri.evaluate.metrics import summarize
+
+        return summarize(self.cv)
+
+
+@dataclass
+class _Node:
+    name: str
+    key: str
+    compute: Callable[[], Any]
+    persist: bool
+    value: Any = None
+    done: bool = False
+
+
+@dataclass
+class Pipeline:
+    """Lazy graph of the chain's stages for one composed config."""
+
+    cfg: DictConfig
+    cache: StageCache
+    nodes: dict[str, _Node] = field(default_factory=dict)
+    records: dict[str, StageRecord] = field(default_factory=dict)
+
+    def add(self, name: str, version: str, config: Any, inputs: dict[str, str], compute: Callable[[], Any]) -> str:
+        key = stage_key(name, version, config, inputs)
+        self.nodes[name] = _Node(name, key, compute, persist=name in PERSISTED)
+        return key
+
+    def get(self, name: str) -> Any:
+        node = self.nodes[name]
+        if node.done:
+            return node.value
+        t0 = time.perf_counter()
+        computed: list[bool] = []
+
+        def compute() -> Any:
+            computed.append(True)
+            log.info("stage %-9s computing (key %s)", name, node.key)
+            return node.compute()
+
+        if node.persist:
+            node.value = self.cache.get_or_compute(name, node.key, compute)
+        else:
+            node.value = compute()
+        node.done = True
+        source = "computed" if computed else "cache"
+        dt = time.perf_counter() - t0
+        self.records[name] = StageRecord(name, node.key, source, dt)
+        log.info("stage %-9s %s in %.2f s", name, "from cache" if source == "cache" else "computed", dt)
+        return node.value
+
+
+def chain_region(cfg: DictConfig) -> str:
+    """The one skin region the classification chain evaluates."""
+    regions = list(cfg.data.regions)
+    if len(regions) != 1:
+        raise ConfigError(
+            f"data.regions={regions} is invalid: the classification chain runs on one skin region "
+            "at a time (e.g. data.regions=[arm]); compare regions with a multirun"
+        )
+    return regions[0]
+
+
+def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
+    """Wire the stages for ``cfg``; nothing is computed until :meth:`Pipeline.get`."""
+    region = chain_region(cfg)
+    p = Pipeline(cfg, cache)
+    comp = {g: build(cfg[g]) for g in ("hand", "robot", "data", "contact", "surface", "layout", "encoder", "noise", "window", "cv")}
+    ver = {g: str(getattr(type(c), "VERSION", "0")) for g, c in comp.items()}
+    res = int(cfg.encoder.res)
+    seed = int(cfg.seed)
+
+    k_hand = p.add("hand", ver["hand"], plain(cfg.hand), {}, lambda: comp["hand"].build())
+    k_robot = p.add("robot", ver["robot"], plain(cfg.robot), {}, lambda: comp["robot"].build())
+    data_inputs = {"hand": k_hand}
+    if getattr(comp["data"], "USES_ROBOT", False):
+        data_inputs["robot"] = k_robot
+    k_data = p.add("data", ver["data"], plain(cfg.data), data_inputs, lambda: comp["data"].load(hand=p.get("hand"), robot=p.get("robot")))
+    k_contact = p.add(
+        "contact", ver["contact"], plain(cfg.contact), {"data": k_data, "robot": k_robot, "hand": k_hand},
+        lambda: comp["contact"].compute(p.get("data"), p.get("robot")),
+    )
+
+    def link():
+        return p.get("robot").link_for(region)
+
+    k_surface = p.add("surface", ver["surface"], plain(cfg.surface), {"robot": k_robot, "region": region}, lambda: comp["surface"].fit(link()))
+    k_layout = p.add(
+        "layout", ver["layout"], {"layout": plain(cfg.layout), "res": res}, {"surface": k_surface, "robot": k_robot},
+        lambda: comp["layout"].build(link(), p.get("surface"), res),
+    )
+    k_plan = p.add("plan", ver["window"], plain(cfg.window), {"contact": k_contact, "data": k_data}, lambda: comp["window"].plan(p.get("contact"), p.get("data")))
+
+    def encode():
+        return comp["encoder"].encode(p.get("contact"), link(), p.get("surface"), p.get("layout"), p.get("plan").selected_frames())
+
+    k_encode = p.add("encode", ver["encoder"], plain(cfg.encoder), {"contact": k_contact, "layout": k_layout, "plan": k_plan}, encode)
+
+    def noise():
+        plan = p.get("plan")
+        frame_index = plan.selected_frames()
+        trial_key = trial_keys(p.get("data"))[p.get("data").frame_trial_index()[frame_index]]
+        return comp["noise"].apply(p.get("encode"), frame_index, trial_key, seed)
+
+    k_noise = p.add("noise", ver["noise"], {"noise": plain(cfg.noise), "seed": seed}, {"encode": k_encode}, noise)
+
+    def evaluate():
+        dataset: GestureDataset = p.get("data")
+        windows = comp["window"].assemble(p.get("noise"), p.get("plan"), dataset, p.get("layout"), p.get("surface"))
+        geometry: TaxelGeometry = windows.geometry
+
+        def make_model():
+            return build(cfg.model, geometry=geometry)
+
+        result = comp["cv"].run(make_model, windows, seed)
+        return result, run_meta(cfg, dataset, p.get("robot"), region, p.get("surface"), p.get("layout"), windows)
+
+    p.add(
+        "evaluate", f"{ver['cv']}", {"model": plain(cfg.model), "cv": plain(cfg.cv), "seed": seed},
+        {"noise": k_noise, "plan": k_plan, "layout": k_layout}, evaluate,
+    )
+    return p
+
+
+def trial_keys(dataset: GestureDataset) -> np.ndarray:
+    """(N,) int64 stable id of each trial: a hash of (participant, region, ordinal).
+
+    Seeds per-trial randomness (noise) so that a trial's noise does not depend
+    on which other trials are loaded.
+    """
+    t = dataset.trials
+    keys = [
+        int(stable_hash([str(pp), str(rg), int(o)])[:15], 16)
+        for pp, rg, o in zip(t["participant"], t["region"], t["trial_ordinal"])
+    ]
+    return np.asarray(keys, dtype=np.int64)
+
+
+def run_meta(cfg, dataset, robot, region, surface, layout, windows) -> dict[str, Any]:
+    """Facts about the run reported in the summary, MLflow and the report."""
+    from sphri.layout.units import describe
+
+    return {
+        "dataset": dataset.name,
+        "synthetic": bool(dataset.synthetic),
+        "n_participants": int(dataset.trials["participant"].nunique()),
+        "n_trials": int(len(dataset.trials)),
+        "n_frames": int(dataset.n_frames),
+        "frame_rate_hz": float(dataset.frame_rate_hz),
+        "repairs": dict(dataset.repairs),
+        "robot": robot.name,
+        "region": region,
+        "link": robot.regions[region],
+        "surface": surface.kind,
+        "surface_fit_residual_mm": float(surface.fit_residual_m * 1e3),
+        "resolution": describe(layout, surface),
+        "n_windows": int(windows.x.shape[0]),
+        "n_dropped_no_contact": int(windows.n_dropped),
+        "window_frames": int(windows.x.shape[1]),
+    }
+
+
+def run(cfg: DictConfig, cache: StageCache | None = None) -> RunResult:
+    """Run the whole chain for a composed, validated config."""
+    if cache is None:
+        cache = StageCache(root=cfg.cache.dir, enabled=bool(cfg.cache.enabled))
+    p = make_pipeline(cfg, cache)
+    cv, meta = p.get("evaluate")
+    for name, node in p.nodes.items():
+        if name not in p.records:
+            p.records[name] = StageRecord(name, node.key, "skipped")
+    cached = [n for n, r in p.records.items() if r.source == "cache"]
+    skipped = [n for n, r in p.records.items() if r.source == "skipped"]
+    if cached:
+        log.info("from cache: %s; not needed: %s", ", ".join(cached), ", ".join(skipped) or "none")
+    return RunResult(cv=cv, meta=meta, stages=dict(p.records), config_hash=config_hash(cfg))
+
+
+def config_hash(cfg: DictConfig) -> str:
+    """Hash of the experiment-defining config (everything but tracking/cache/hydra)."""
+    c = OmegaConf.to_container(cfg, resolve=True)
+    for k in ("tracking", "cache", "output_dir", "hydra", "debug", "experiment"):
+        c.pop(k, None)
+    return stable_hash(c)

@@ -1,0 +1,304 @@
+"""MLflow tracking of jobs and sweeps.
+
+One job = one MLflow run: a curated, flattened set of params (component
+choices and their scalar settings, the resolution in physical units), tags
+(config hash, git commit, sweep id, dataset and whether it is synthetic),
+per-fold metrics (``fold_accuracy``/``fold_macro_f1`` with step = fold
+index, and per participant), summary metrics, and artifacts (composed config,
+per-participant CSV, confusion matrix PNG, summary text).
+
+A multirun is one parent run (created by :class:`sphri.tracking.callbacks.
+MlflowSweepCallback` before any worker starts, so the SQLite database and the
+experiment are created once) with the jobs as children.
+
+The default store is SQLite at an absolute path (``<output_dir>/mlflow.db``),
+artifacts beside it in ``<output_dir>/mlartifacts``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import random
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, TypeVar
+
+import numpy as np
+
+from sphri import __version__
+
+if TYPE_CHECKING:
+    from mlflow.tracking import MlflowClient
+    from omegaconf import DictConfig
+
+    from sphri.pipeline import RunResult
+
+log = logging.getLogger(__name__)
+T = TypeVar("T")
+
+PARENT_FILE = "mlflow_parent_run.json"
+"""Written into a sweep directory: the parent run id and tracking URI."""
+
+#: Groups whose component choice and scalar settings become MLflow params.
+PARAM_GROUPS = ("data", "robot", "contact", "surface", "layout", "encoder", "noise", "window", "model", "cv")
+_SKIP_PARAM_KEYS = {"_target_", "root", "path", "definition_path", "density_path", "capsules", "links", "joints"}
+
+
+def default_uri(output_dir: str | os.PathLike) -> str:
+    return f"sqlite:///{Path(output_dir).resolve() / 'mlflow.db'}"
+
+
+def git_commit() -> str:
+    try:
+        out = subprocess.run(
+            ["git", "rev-parse", "--short=12", "HEAD"],
+            capture_output=True, text=True, timeout=5, cwd=Path(__file__).resolve().parent,
+        )
+        return out.stdout.strip() or "unknown"
+    except (OSError, subprocess.SubprocessError):
+        return "unknown"
+
+
+def component_name(node: Any, choice: str | None = None) -> str:
+    """The YAML choice if known, else the ``_target_`` class name."""
+    if choice:
+        return choice
+    target = node.get("_target_", "") if hasattr(node, "get") else ""
+    return str(target).rsplit(".", 1)[-1] or "?"
+
+
+def flatten_params(cfg: "DictConfig", choices: dict[str, str] | None = None) -> dict[str, str]:
+    """Curated params: ``<group>`` = component, ``<group>.<key>`` = scalar settings."""
+    from omegaconf import OmegaConf
+
+    choices = choices or {}
+    params: dict[str, str] = {"seed": str(cfg.seed)}
+    for group in PARAM_GROUPS:
+        node = cfg[group]
+        params[group] = component_name(node, choices.get(group))
+        values = OmegaConf.to_container(node, resolve=True)
+        for key, value in values.items():
+            if key in _SKIP_PARAM_KEYS or isinstance(value, dict):
+                continue
+            if isinstance(value, list) and len(value) > 12:
+                continue
+            params[f"{group}.{key}"] = str(value)[:500]
+    return params
+
+
+class MlflowTracker:
+    """Logs jobs to MLflow; built from the ``tracking`` config group."""
+
+    VERSION = "1"
+
+    def __init__(self, enabled: bool = True, uri: str | None = None, experiment: str = "sphri",
+                 artifacts: bool = True, retries: int = 8) -> None:
+        self.enabled = enabled
+        self.uri = uri
+        self.experiment = experiment
+        self.artifacts = artifacts
+        self.retries = retries
+        self._client: MlflowClient | None = None
+
+    # -- setup -------------------------------------------------------------
+    def resolve_uri(self, output_dir: str | os.PathLike) -> str:
+        return self.uri or default_uri(output_dir)
+
+    def client(self, output_dir: str | os.PathLike) -> "MlflowClient":
+        if self._client is None:
+            from mlflow.tracking import MlflowClient
+
+            uri = self.resolve_uri(output_dir)
+            if uri.startswith("sqlite:///"):
+                Path(uri[len("sqlite:///"):]).parent.mkdir(parents=True, exist_ok=True)
+            self._client = MlflowClient(tracking_uri=uri)
+        return self._client
+
+    def experiment_id(self, output_dir: str | os.PathLike) -> str:
+        """Get or create the experiment (artifacts under ``<output_dir>/mlartifacts``)."""
+        client = self.client(output_dir)
+
+        def get_or_create() -> str:
+            exp = client.get_experiment_by_name(self.experiment)
+            if exp is not None:
+                return exp.experiment_id
+            location = (Path(output_dir).resolve() / "mlartifacts").as_uri()
+            try:
+                return client.create_experiment(self.experiment, artifact_location=location)
+            except Exception:  # created concurrently by another process
+                exp = client.get_experiment_by_name(self.experiment)
+                if exp is None:
+                    raise
+                return exp.experiment_id
+
+        return self._retry(get_or_create)
+
+    def _retry(self, fn: Callable[[], T]) -> T:
+        """Retry a write that hit a locked SQLite database (parallel jobs)."""
+        for attempt in range(self.retries + 1):
+            try:
+                return fn()
+            except Exception as exc:  # sqlalchemy OperationalError is wrapped by MLflow
+                if "locked" not in str(exc).lower() or attempt == self.retries:
+                    raise
+                time.sleep(0.2 * (2**attempt) * (0.5 + random.random()))
+        raise AssertionError("unreachable")
+
+    # -- sweeps --------------------------------------------------------------
+    def start_parent(self, output_dir: str, sweep_dir: str, sweep_id: str, overrides: list[str]) -> str:
+        client = self.client(output_dir)
+        exp_id = self.experiment_id(output_dir)
+        tags = {
+            "sphri.kind": "sweep",
+            "sphri.sweep_id": sweep_id,
+            "sphri.sweep_dir": str(Path(sweep_dir).resolve()),
+            "sphri.git_commit": git_commit(),
+            "sphri.version": __version__,
+            "mlflow.note.content": "sweep: " + " ".join(overrides),
+        }
+        run = self._retry(lambda: client.create_run(exp_id, tags=tags, run_name=f"sweep-{sweep_id}"))
+        return run.info.run_id
+
+    def end_parent(self, output_dir: str, run_id: str, n_jobs: int, n_failed: int) -> None:
+        client = self.client(output_dir)
+        self._retry(lambda: client.set_tag(run_id, "sphri.jobs", f"{n_jobs - n_failed}/{n_jobs} finished"))
+        self._retry(lambda: client.set_terminated(run_id, "FAILED" if n_failed == n_jobs and n_jobs else "FINISHED"))
+
+    # -- jobs ----------------------------------------------------------------
+    def _start_job(self, cfg: "DictConfig", job_dir: Path, parent: dict | None, run_name: str, tags: dict[str, str]) -> str:
+        output_dir = cfg.output_dir
+        client = self.client(output_dir)
+        exp_id = self.experiment_id(output_dir)
+        tags = {
+            "sphri.kind": "job",
+            "sphri.git_commit": git_commit(),
+            "sphri.version": __version__,
+            "sphri.job_dir": str(job_dir),
+            **tags,
+        }
+        if parent:
+            tags["mlflow.parentRunId"] = parent["run_id"]
+            tags["sphri.sweep_id"] = parent["sweep_id"]
+        run = self._retry(lambda: client.create_run(exp_id, tags=tags, run_name=run_name))
+        return run.info.run_id
+
+    def log_job(self, cfg: "DictConfig", result: "RunResult", job_dir: Path, parent: dict | None = None,
+                run_name: str | None = None, choices: dict[str, str] | None = None) -> str:
+        """Log a finished job; returns the MLflow run id."""
+        from mlflow.entities import Metric, Param, RunTag
+
+        from sphri.evaluate.metrics import summarize
+
+        meta = result.meta
+        tags = {
+            "sphri.config_hash": result.config_hash,
+            "sphri.dataset": meta["dataset"],
+            "sphri.synthetic": str(meta["synthetic"]).lower(),
+            "sphri.cv_scheme": result.cv.scheme,
+            "sphri.from_cache": ",".join(n for n, r in result.stages.items() if r.source == "cache") or "none",
+        }
+        run_id = self._start_job(cfg, job_dir, parent, run_name or self._run_name(cfg, meta, choices), tags)
+        client = self.client(cfg.output_dir)
+        params = flatten_params(cfg, choices)
+        for k, v in meta["resolution"].items():
+            params[f"resolution.{k}"] = f"{v:.6g}" if isinstance(v, float) else str(v)
+        for k in ("robot", "region", "link", "n_participants", "n_trials", "n_windows", "n_dropped_no_contact", "frame_rate_hz"):
+            params[f"meta.{k}"] = str(meta[k])
+        now = int(time.time() * 1000)
+        metrics = []
+        for i, fold in enumerate(result.cv.folds):
+            metrics += [
+                Metric("fold_accuracy", float(fold.accuracy), now, i),
+                Metric("fold_macro_f1", float(fold.macro_f1), now, i),
+                Metric(f"participant/{fold.fold}/accuracy", float(fold.accuracy), now, 0),
+            ]
+        summary = summarize(result.cv)
+        for k, v in summary.items():
+            if isinstance(v, (int, float)) and np.isfinite(v):
+                metrics.append(Metric(k, float(v), now, 0))
+        for name, rec in result.stages.items():
+            metrics.append(Metric(f"time/{name}_s", float(rec.seconds), now, 0))
+        plist = [Param(k, v) for k, v in params.items()]
+        for start in range(0, max(len(metrics), len(plist)), 100):
+            self._retry(lambda s=start: client.log_batch(run_id, metrics=metrics[s:s + 100], params=plist[s:s + 100]))
+        self._retry(lambda: client.set_tag(run_id, "mlflow.note.content", summary_text(result)))
+        if self.artifacts:
+            self._log_artifacts(client, run_id, cfg, result)
+        self._retry(lambda: client.set_terminated(run_id, "FINISHED"))
+        return run_id
+
+    def log_failure(self, cfg: "DictConfig", exc: BaseException, job_dir: Path, parent: dict | None = None,
+                    choices: dict[str, str] | None = None) -> str | None:
+        """Record a failed job as a FAILED run carrying its error."""
+        try:
+            from mlflow.entities import Param
+
+            tags = {"sphri.error": f"{type(exc).__name__}: {exc}"[:5000]}
+            run_id = self._start_job(cfg, job_dir, parent, "failed", tags)
+            client = self.client(cfg.output_dir)
+            params = [Param(k, v) for k, v in flatten_params(cfg, choices).items()]
+            self._retry(lambda: client.log_batch(run_id, params=params[:100]))
+            self._retry(lambda: client.set_terminated(run_id, "FAILED"))
+            return run_id
+        except Exception as log_exc:  # never mask the job's own error
+            log.error("could not record the failure in MLflow: %s", log_exc)
+            return None
+
+    @staticmethod
+    def _run_name(cfg: "DictConfig", meta: dict, choices: dict[str, str] | None) -> str:
+        model = component_name(cfg.model, (choices or {}).get("model"))
+        return f"{meta['robot']}-{meta['region']}-res{cfg.encoder.res}-{model}"
+
+    def _log_artifacts(self, client: "MlflowClient", run_id: str, cfg: "DictConfig", result: "RunResult") -> None:
+        from omegaconf import OmegaConf
+
+        from sphri.tracking.artifacts import write_confusion_png, write_fold_csv
+
+        with tempfile.TemporaryDirectory(prefix="sphri-artifacts-") as tmp:
+            tmp_path = Path(tmp)
+            (tmp_path / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))
+            write_fold_csv(result.cv, tmp_path / "per_participant.csv")
+            write_confusion_png(result.cv, tmp_path / "confusion.png")
+            (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
+            (tmp_path / "meta.json").write_text(json.dumps(result.meta, indent=2, default=str))
+            self._retry(lambda: client.log_artifacts(run_id, str(tmp_path)))
+
+
+def summary_text(result: "RunResult") -> str:
+    """The one-screen summary printed at the end of a run."""
+    from sphri.evaluate.metrics import summarize
+
+    m = result.meta
+    s = summarize(result.cv)
+    r = m["resolution"]
+    label = "SYNTHETIC" if m["synthetic"] else "real"
+    lines = [
+        f"dataset     {m['dataset']} ({label}): {m['n_participants']} participants, {m['n_trials']} trials, "
+        f"{m['n_windows']} windows of {m['window_frames']} frames ({m['n_dropped_no_contact']} trials without contact dropped)",
+        f"robot       {m['robot']}, region {m['region']} (link {m['link']}), surface {m['surface']} "
+        f"(fit residual {m['surface_fit_residual_mm']:.1f} mm)",
+        "resolution  " + ", ".join(_fmt_resolution(r)),
+        f"model       {result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
+        f"accuracy    {s['accuracy_mean']:.3f} +/- {s['accuracy_std']:.3f}   "
+        f"(95% CI {s.get('accuracy_ci_low', float('nan')):.3f}-{s.get('accuracy_ci_high', float('nan')):.3f})",
+        f"macro-F1    {s['macro_f1_mean']:.3f} +/- {s['macro_f1_std']:.3f}   (mean +/- std over participants; chance 0.125)",
+    ]
+    return "\n".join(lines)
+
+
+def _fmt_resolution(r: dict[str, Any]) -> list[str]:
+    out = []
+    if "n_taxels" in r:
+        shape = r.get("grid_shape")
+        out.append(f"{r['n_taxels']} taxels" + (f" ({shape[0]} x {shape[1]})" if shape else ""))
+    if r.get("pitch_u_mm"):
+        out.append(f"pitch {r['pitch_u_mm']:.1f} mm along x {r.get('pitch_v_mm', float('nan')):.1f} mm around")
+    if r.get("area_per_taxel_cm2"):
+        out.append(f"{r['area_per_taxel_cm2']:.2f} cm^2/taxel")
+    if r.get("taxels_per_24cm"):
+        out.append(f"{r['taxels_per_24cm']:.1f} taxels per 24 cm")
+    return out

@@ -1,0 +1,33 @@
+"""Schema of the ``tracking`` group."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+from sphri.config import require, store
+
+
+@dataclass
+class MlflowTrackingConfig:
+    _target_: str = "sphri.tracking.mlflow_tracker.MlflowTracker"
+    enabled: bool = True
+    uri: Optional[str] = None
+    """Tracking URI; None = SQLite at ``<output_dir>/mlflow.db`` (absolute path).
+    Any MLflow URI works, e.g. ``http://127.0.0.1:5000`` for a local server."""
+    experiment: str = "sphri"
+    """MLflow experiment name."""
+    artifacts: bool = True
+    """Log the composed config, per-participant CSV and confusion matrix PNG."""
+    retries: int = 8
+    """Retries of a tracking write that hits a locked SQLite database."""
+
+    def __post_init__(self) -> None:
+        require(bool(self.experiment.strip()), "tracking.experiment", self.experiment, "must be a non-empty name")
+        require(self.retries >= 0, "tracking.retries", self.retries, "must be >= 0")
+        if self.uri is not None:
+            ok = self.uri.startswith(("sqlite:///", "http://", "https://", "postgresql", "mysql", "databricks", "file:"))
+            require(ok, "tracking.uri", self.uri, "must be an MLflow tracking URI (sqlite:///ABS.db, http://127.0.0.1:PORT, ...)")
+
+
+store(group="tracking", name="mlflow_schema", node=MlflowTrackingConfig)
