@@ -278,26 +278,60 @@ class WindowPlan:
         return idx[idx >= 0]
 
 
+@dataclass(frozen=True)
+class TaxelGeometry:
+    """What a model may know about the skin: where its N taxels are.
+
+    Models take it as a constructor argument (``geometry=``) so that features
+    and network shapes follow the layout without reading global state.
+    """
+
+    grid_shape: tuple[int, int] | None
+    """(H, W) when the taxels form a grid (then x reshapes to (..., H, W))."""
+    uv: np.ndarray | None
+    """(N, 2) float64 chart coordinates in [0, 1], or None without a chart."""
+    position_m: np.ndarray
+    """(N, 3) float64 taxel centres (metres, link frame)."""
+    wrap_v: bool
+    """True when v wraps (features use circular statistics around the link)."""
+    metres_per_u: float
+    """Metres per unit of u (0 without a chart)."""
+    metres_per_v: float
+    """Metres per unit of v (0 without a chart)."""
+
+    @property
+    def n_taxels(self) -> int:
+        return int(self.position_m.shape[0])
+
+    @classmethod
+    def from_layout(cls, layout: "Layout", surface: "SurfaceMap") -> "TaxelGeometry":
+        return cls(
+            grid_shape=layout.grid_shape,
+            uv=layout.uv,
+            position_m=layout.position_m,
+            wrap_v=surface.wrap_v,
+            metres_per_u=surface.metres_per_u,
+            metres_per_v=surface.metres_per_v,
+        )
+
+
 @dataclass
 class WindowedFrames:
     """Per-trial windows aligned to contact onset: the models' input."""
 
     x: np.ndarray
-    """(N_trials, L, N_taxels) float32 readings, L = window length in frames."""
+    """(N_trials, L, N_taxels) float32 readings, L = window length in frames.
+    Only kept trials have rows: N_trials = WindowPlan.kept.sum()."""
     y: np.ndarray
     """(N_trials,) int64 gesture index into :data:`GESTURES`."""
     groups: np.ndarray
     """(N_trials,) participant of each trial (LOSO key)."""
-    grid_shape: tuple[int, int] | None
-    """(H, W) when the taxels form a grid (then x reshapes to (N, L, H, W))."""
-    uv: np.ndarray | None
-    """(N_taxels, 2) taxel chart coordinates (for features on any layout)."""
-    wrap_v: bool
-    """True when the v coordinate wraps (features use circular statistics)."""
-    onset: np.ndarray
-    """(N_trials,) int64 frame of first contact within the trial, -1 if none."""
-    kept: np.ndarray
-    """(N_trials,) bool: trial kept (False = dropped by the no-contact rule)."""
+    geometry: TaxelGeometry
+    """Where the N taxels are (grid shape, chart coordinates, 3-D positions)."""
+    trial_row: np.ndarray
+    """(N_trials,) int64 row of each window's trial in ``GestureDataset.trials``."""
+    n_dropped: int
+    """Trials dropped by the window's no-contact rule."""
 
 
 @dataclass
