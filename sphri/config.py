@@ -200,10 +200,11 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config") -> DictC
 
 
 def _explain(exc: BaseException) -> str:
-    msg = str(exc).strip()
+    lines = [ln.strip() for ln in str(exc).strip().splitlines() if ln.strip()]
     if isinstance(exc, OmegaConfBaseException) and getattr(exc, "full_key", None):
-        return f"{exc.full_key}: {msg.splitlines()[0]}"
-    return msg.splitlines()[0] if msg else type(exc).__name__
+        return f"{exc.full_key}: {lines[0]}"
+    # keep Hydra's lists of available options, one line
+    return " ".join(lines[:20]) if lines else type(exc).__name__
 
 
 def validate(cfg: DictConfig) -> None:
