@@ -1,0 +1,94 @@
+"""The whole chain in debug mode, and what the stage cache recomputes."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sphri import pipeline
+from sphri.cache import StageCache
+from sphri.config import compose
+
+FAST = ["+debug=fast", "tracking.enabled=false"]
+
+
+def run(cache: StageCache, *overrides: str) -> pipeline.RunResult:
+    cfg = compose([*FAST, f"cache.dir={cache.root}", *overrides])
+    return pipeline.run(cfg, cache)
+
+
+def sources(result: pipeline.RunResult) -> dict[str, str]:
+    return {name: rec.source for name, rec in result.stages.items()}
+
+
+def test_debug_chain_runs_end_to_end(tmp_path: Path):
+    result = run(StageCache(tmp_path), "encoder.res=6")
+    assert set(sources(result).values()) == {"computed"}
+    assert len(result.cv.folds) == 3, "LOSO over the 3 debug participants"
+    s = result.summary()
+    assert 0.0 <= s["accuracy_mean"] <= 1.0
+    assert result.meta["synthetic"] is True
+    assert result.meta["resolution"]["n_taxels"] > 0
+    for fold in result.cv.folds:
+        assert fold.confusion.shape == (8, 8)
+        assert np.isfinite(fold.accuracy)
+
+
+def test_resolution_change_reuses_data_and_contact(tmp_path: Path):
+    cache = StageCache(tmp_path)
+    r4 = run(cache, "encoder.res=4")
+    assert sources(r4)["contact"] == "computed"
+    r8 = run(cache, "encoder.res=8")
+    s8 = sources(r8)
+    assert s8["data"] == "cache" and s8["contact"] == "cache" and s8["plan"] == "cache"
+    assert s8["layout"] == "computed" and s8["encode"] == "computed" and s8["evaluate"] == "computed"
+    assert r8.meta["resolution"]["n_taxels"] > r4.meta["resolution"]["n_taxels"]
+    # the same command again recomputes nothing and does not even load contact
+    again = sources(run(cache, "encoder.res=8"))
+    assert again["evaluate"] == "cache"
+    assert "computed" not in again.values()
+    assert again["contact"] == "skipped" and again["data"] == "skipped"
+
+
+def test_contact_change_recomputes_contact_and_below(tmp_path: Path):
+    cache = StageCache(tmp_path)
+    run(cache, "encoder.res=4")
+    changed = sources(run(cache, "encoder.res=4", "contact=spheres"))
+    assert changed["data"] == "cache"
+    for stage in ("contact", "plan", "encode", "noise", "evaluate"):
+        assert changed[stage] == "computed", stage
+    assert changed["surface"] == "cache" and changed["layout"] == "cache"
+
+
+def test_cache_disabled_computes_everything(tmp_path: Path):
+    cfg = compose([*FAST, f"cache.dir={tmp_path}", "cache.enabled=false", "encoder.res=3"])
+    result = pipeline.run(cfg)
+    assert set(sources(result).values()) == {"computed"}
+    assert not any(tmp_path.iterdir())
+
+
+def test_command_line_run_twice_says_from_cache(tmp_path: Path):
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    args = [sys.executable, "-m", "sphri", "+robot=reachy", "encoder.res=5", "+debug=fast", f"output_dir={tmp_path}"]
+    first = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert first.returncode == 0, first.stderr[-3000:]
+    assert "accuracy" in first.stdout and "SYNTHETIC" in first.stdout
+    second = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert second.returncode == 0, second.stderr[-3000:]
+    log = second.stdout + second.stderr
+    assert "from cache" in log and "computing" not in log
+
+
+def test_wrong_value_fails_before_any_stage(tmp_path: Path):
+    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
+    args = [sys.executable, "-m", "sphri", "encoder.res=0", f"output_dir={tmp_path}"]
+    proc = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2
+    assert "encoder.res" in proc.stderr
+    assert "computing" not in proc.stdout + proc.stderr
+    assert not (tmp_path / "cache").exists()

@@ -1,0 +1,121 @@
+"""MLflow tracking: one run per job, one parent per sweep, failures recorded."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sphri.cache import StageCache
+from sphri.config import compose
+from sphri.pipeline import RunResult, StageRecord
+from sphri.tracking.mlflow_tracker import MlflowTracker, default_uri, flatten_params, summary_text
+from sphri.types import GESTURES, CVResult, FoldResult
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def fake_result() -> RunResult:
+    rng = np.random.default_rng(0)
+    folds = []
+    for i in range(3):
+        conf = rng.integers(0, 5, size=(8, 8))
+        acc = float(np.trace(conf) / conf.sum())
+        folds.append(FoldResult(f"participant_0{i + 1}", int(conf.sum()), acc, acc * 0.9, conf, np.diag(conf) / conf.sum(1)))
+    meta = {
+        "dataset": "synthetic", "synthetic": True, "n_participants": 3, "n_trials": 48, "n_frames": 4800,
+        "frame_rate_hz": 30.0, "repairs": {}, "robot": "reachy", "region": "arm", "link": "arm", "surface": "cylinder",
+        "surface_fit_residual_mm": 1.2, "n_windows": 48, "n_dropped_no_contact": 0, "window_frames": 50,
+        "resolution": {"n_taxels": 342, "grid_shape": (18, 19), "pitch_u_mm": 13.4, "pitch_v_mm": 13.2,
+                       "area_per_taxel_cm2": 1.77, "taxels_per_24cm": 17.9},
+    }
+    return RunResult(CVResult("loso", "rf", folds), meta, {"contact": StageRecord("contact", "k", "cache", 0.1)}, "abc123")
+
+
+def test_default_store_is_absolute_sqlite(tmp_path: Path):
+    uri = default_uri("outputs")
+    assert uri.startswith("sqlite:////") and uri.endswith("outputs/mlflow.db")
+
+
+def test_log_job_writes_params_tags_metrics_artifacts(tmp_path: Path):
+    from mlflow.tracking import MlflowClient
+
+    cfg = compose([f"output_dir={tmp_path}"])
+    tracker = MlflowTracker()
+    run_id = tracker.log_job(cfg, fake_result(), tmp_path / "job")
+    client = MlflowClient(default_uri(tmp_path))
+    run = client.get_run(run_id)
+    assert run.info.status == "FINISHED"
+    assert run.data.tags["sphri.synthetic"] == "true"
+    assert run.data.tags["sphri.config_hash"] == "abc123"
+    assert run.data.params["encoder.res"] == "18"
+    assert run.data.params["robot"] not in ("", "?")  # the class name when no Hydra choice is known
+    assert "resolution.pitch_u_mm" in run.data.params
+    assert len(run.data.params) < 120, "params are curated, not the whole config"
+    assert 0 <= run.data.metrics["accuracy_mean"] <= 1
+    history = client.get_metric_history(run_id, "fold_accuracy")
+    assert sorted(m.step for m in history) == [0, 1, 2]
+    names = {a.path for a in client.list_artifacts(run_id)}
+    assert {"config.yaml", "per_participant.csv", "confusion.png", "summary.txt"} <= names
+    assert "SYNTHETIC" in summary_text(fake_result())
+
+
+def test_failure_is_recorded(tmp_path: Path):
+    from mlflow.tracking import MlflowClient
+
+    cfg = compose([f"output_dir={tmp_path}"])
+    run_id = MlflowTracker().log_failure(cfg, ValueError("bad thing"), tmp_path)
+    run = MlflowClient(default_uri(tmp_path)).get_run(run_id)
+    assert run.info.status == "FAILED"
+    assert "bad thing" in run.data.tags["sphri.error"]
+
+
+def test_params_are_flat_scalars():
+    params = flatten_params(compose([]), {"robot": "reachy"})
+    assert params["robot"] == "reachy"
+    assert all(isinstance(v, str) for v in params.values())
+    assert not any(k.endswith("_target_") for k in params)
+
+
+def _sphri(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1"}
+    return subprocess.run([sys.executable, "-m", "sphri", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+
+
+def test_parallel_multirun_makes_one_parent_with_four_children(tmp_path: Path):
+    from mlflow.tracking import MlflowClient
+
+    out = tmp_path / "outputs"
+    proc = _sphri(["-m", "+robot=reachy", "+debug=fast", "encoder.res=1,2,3,4", f"output_dir={out}",
+                   "hydra/launcher=local", "hydra.launcher.n_jobs=2"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    client = MlflowClient(default_uri(out))
+    exp = client.get_experiment_by_name("sphri")
+    runs = client.search_runs([exp.experiment_id])
+    parents = [r for r in runs if r.data.tags.get("sphri.kind") == "sweep"]
+    children = [r for r in runs if r.data.tags.get("sphri.kind") == "job"]
+    assert len(parents) == 1
+    assert parents[0].info.status == "FINISHED"
+    assert len(children) == 4
+    assert all(c.data.tags["mlflow.parentRunId"] == parents[0].info.run_id for c in children)
+    assert all(c.info.status == "FINISHED" for c in children)
+    assert sorted(c.data.params["encoder.res"] for c in children) == ["1", "2", "3", "4"]
+    assert "4 of 4 jobs finished" in proc.stdout
+
+
+def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path):
+    from mlflow.tracking import MlflowClient
+
+    out = tmp_path / "outputs"
+    proc = _sphri(["-m", "+debug=fast", "window.frames=0,10", f"output_dir={out}", "hydra/launcher=serial"], cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    client = MlflowClient(default_uri(out))
+    runs = client.search_runs([client.get_experiment_by_name("sphri").experiment_id])
+    jobs = {r.data.params.get("window.frames"): r for r in runs if r.data.tags.get("sphri.kind") == "job"}
+    assert jobs["0"].info.status == "FAILED" and "window.frames" in jobs["0"].data.tags["sphri.error"]
+    assert jobs["10"].info.status == "FINISHED"
+    assert "1 of 2 jobs finished" in proc.stdout
