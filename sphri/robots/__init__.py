@@ -1,0 +1,1 @@
+"""Robot morphologies: parametric built-ins, mesh files and URDFs -> :class:`sphri.types.Robot`."""

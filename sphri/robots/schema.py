@@ -1,0 +1,199 @@
+"""Config schemas of the ``robot`` group and their range checks.
+
+Three kinds of robot, one schema each: ``parametric_schema`` (built-in
+morphologies from dimensions: ``robot=reachy``, ``nao_child``,
+``service_bot``), ``mesh_schema`` (mesh files: ``robot=mesh``,
+``robot=reachy_vr``) and ``urdf_schema`` (``robot=urdf``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Optional
+
+from omegaconf import MISSING
+
+from sphri.config import require, require_choice, require_range, store
+
+#: Long-axis names of parametric links.
+AXES: tuple[str, ...] = ("x", "y", "z")
+#: Mesh units a robot may declare (``auto``: mm when a link is larger than 5 m).
+UNITS: tuple[str, ...] = ("auto", "m", "mm")
+#: Which URDF geometry to read.
+GEOMETRIES: tuple[str, ...] = ("collision", "visual")
+
+
+def _get(spec: Any, key: str) -> Any:
+    return spec[key] if isinstance(spec, Mapping) or hasattr(spec, "keys") else getattr(spec, key)
+
+
+def check_parametric_link(spec: Any, key: str) -> None:
+    """Range-check one parametric link (mapping or :class:`ParametricLinkSpec`); ``key`` e.g. ``robot.links.l_arm``."""
+    size = list(_get(spec, "size_m"))
+    require(len(size) == 3 and all(s > 0 for s in size), f"{key}.size_m", size, "3 extents (x, y, z) in metres, all > 0")
+    centre = list(_get(spec, "center_m"))
+    require(len(centre) == 3, f"{key}.center_m", centre, "3 coordinates (x, y, z) in metres")
+    require_choice(f"{key}.axis", _get(spec, "axis"), AXES)
+    require_range(f"{key}.exponent", float(_get(spec, "exponent")), lo=1.0)
+    n = int(_get(spec, "n_around"))
+    require(n >= 8 and n % 4 == 0, f"{key}.n_around", n, "a multiple of 4, >= 8 (vertices per cross-section ring)")
+    prof = [list(row) for row in _get(spec, "profile")]
+    require(len(prof) >= 2, f"{key}.profile", prof, "at least 2 stations [t, scale_a, scale_b]")
+    for i, row in enumerate(prof):
+        require(len(row) == 3, f"{key}.profile[{i}]", row, "[t, scale_a, scale_b]: 3 numbers")
+        require(0.0 < row[1] <= 1.0 and 0.0 < row[2] <= 1.0, f"{key}.profile[{i}]", row,
+                "scales must lie in (0, 1] (fractions of size_m)")
+    ts = [row[0] for row in prof]
+    require(ts[0] == 0.0 and ts[-1] == 1.0 and all(b > a for a, b in zip(ts, ts[1:])), f"{key}.profile", ts,
+            "stations t must rise strictly from 0 to 1 (fractions of the length along axis)")
+    for col, label in ((1, "scale_a"), (2, "scale_b")):
+        top = max(row[col] for row in prof)
+        require(abs(top - 1.0) < 1e-9, f"{key}.profile", prof,
+                f"the largest {label} must be 1 so that size_m is the link's true size (found {top:g})")
+
+
+def check_str_map(value: Any, key: str, what: str) -> dict[str, str]:
+    """``value`` as a plain ``{str: str}`` dict, or :class:`ConfigError` naming ``key``."""
+    ok = value is not None and (isinstance(value, Mapping) or hasattr(value, "items"))
+    require(ok, key, value, f"a mapping {what}, e.g. {key}={{arm: l_arm}}")
+    out = dict(value.items())
+    for k, v in out.items():
+        require(isinstance(k, str) and isinstance(v, str) and v != "", f"{key}.{k}", v, "a non-empty string")
+    return out
+
+
+def check_regions(regions: Mapping[str, str], links: list[str], key: str = "robot.regions") -> None:
+    """Every region must name one of ``links``; at least one region."""
+    require(len(regions) > 0, key, dict(regions), "at least one skin region, e.g. {arm: <link name>}")
+    for region, link in regions.items():
+        require(link in links, f"{key}.{region}", link, f"must name one of the robot's links {sorted(links)}")
+
+
+@dataclass
+class ParametricLinkSpec:
+    """A link built by sphri: a loft of superellipse cross-sections along one axis.
+
+    Cross-section axes (``a``, ``b``) are the two other axes in x, y, z
+    order (axis z: a = x, b = y; axis y: a = x, b = z; axis x: a = y, b = z).
+    """
+
+    size_m: list[float] = MISSING
+    """Bounding-box extents (x, y, z) in metres."""
+    center_m: list[float] = field(default_factory=lambda: [0.0, 0.0, 0.0])
+    """Bounding-box centre in the link frame (metres)."""
+    axis: str = "z"
+    """Long axis of the loft: x, y or z."""
+    profile: list[list[float]] = field(default_factory=lambda: [[0.0, 1.0, 1.0], [1.0, 1.0, 1.0]])
+    """Stations ``[t, scale_a, scale_b]``: t in [0, 1] along the axis; scales of
+    the cross-section's half-extents, fractions of ``size_m`` (largest = 1)."""
+    exponent: float = 2.0
+    """Superellipse exponent of the cross-section: 2 ellipse, larger -> rounded rectangle."""
+    n_around: int = 32
+    """Vertices per cross-section ring (multiple of 4)."""
+
+
+@dataclass
+class ParametricRobotSchema:
+    """A built-in morphology from dimensions (no files)."""
+
+    _target_: str = "sphri.robots.parametric.ParametricRobot"
+    name: str = MISSING
+    links: dict[str, ParametricLinkSpec] = field(default_factory=dict)
+    regions: dict[str, str] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        require(len(self.links) > 0, "robot.links", {}, "at least one link")
+        for name, spec in self.links.items():
+            check_parametric_link(spec, f"robot.links.{name}")
+        check_regions(self.regions, list(self.links))
+
+
+@dataclass
+class MeshRobotSchema:
+    """A robot from mesh files, one per link (obj, stl, ply, dae, ...)."""
+
+    _target_: str = "sphri.robots.mesh.MeshRobot"
+    name: str = "mesh"
+    # ``Any`` rather than ``dict[str, str]``: Hydra cannot add keys to a typed
+    # dict from the command line (``robot.links={arm: a.obj}``); values are
+    # checked in ``__post_init__``.
+    links: Any = None
+    """Link name -> mesh file (relative paths are relative to ``root``)."""
+    regions: Any = None
+    """Skin region -> link name."""
+    root: Optional[str] = None
+    """Folder that relative paths start from (None: the working directory)."""
+    root_required: bool = False
+    """Refuse to build when ``root`` is None (robots whose meshes come with a dataset)."""
+    units: str = "auto"
+    """Mesh units: auto (mm when larger than 5 m), m or mm."""
+
+    def __post_init__(self) -> None:
+        links = check_str_map(self.links, "robot.links", "link name -> mesh file")
+        require(len(links) > 0, "robot.links", {}, "at least one link: {name: path}")
+        check_regions(check_str_map(self.regions, "robot.regions", "skin region -> link"), list(links))
+        require_choice("robot.units", self.units, UNITS)
+
+
+@dataclass
+class UrdfRobotSchema:
+    """A robot from a URDF file, read with yourdfpy."""
+
+    _target_: str = "sphri.robots.urdf.UrdfRobot"
+    name: str = "urdf"
+    path: str = MISSING
+    """The URDF file; ``package://`` mesh URIs resolve relative to its folder."""
+    links: list[str] = MISSING
+    """URDF links to load (each mesh in that link's own frame)."""
+    regions: Any = None
+    """Skin region -> link name (``Any``: see :class:`MeshRobotSchema`)."""
+    geometry: str = "collision"
+    """Which geometry to read: collision or visual."""
+    joints: Any = None
+    """Joint name -> angle (radians; metres for prismatic joints), others 0; used only by ``merge``."""
+    merge: Any = None
+    """Link -> descendant links whose geometry joins it, placed at ``joints``."""
+    units: str = "auto"
+    """Mesh units after the URDF's own scale: auto, m or mm."""
+
+    def __post_init__(self) -> None:
+        require(len(self.links) > 0, "robot.links", [], "at least one URDF link name")
+        require(len(set(self.links)) == len(self.links), "robot.links", list(self.links), "names must be unique")
+        check_regions(check_str_map(self.regions, "robot.regions", "skin region -> link"), list(self.links))
+        require_choice("robot.geometry", self.geometry, GEOMETRIES)
+        require_choice("robot.units", self.units, UNITS)
+        check_joints(self.joints)
+        check_merge(self.merge, list(self.links))
+
+
+def check_joints(joints: Any) -> dict[str, float]:
+    """``robot.joints`` as ``{name: float}`` (None -> {})."""
+    if joints is None:
+        return {}
+    require(isinstance(joints, Mapping) or hasattr(joints, "items"), "robot.joints", joints,
+            "a mapping joint name -> value (radians), e.g. robot.joints={r_elbow: 1.57}")
+    out = {}
+    for k, v in joints.items():
+        require(isinstance(v, (int, float)) and not isinstance(v, bool), f"robot.joints.{k}", v, "a number (radians or metres)")
+        out[str(k)] = float(v)
+    return out
+
+
+def check_merge(merge: Any, links: list[str]) -> dict[str, list[str]]:
+    """``robot.merge`` as ``{link: [descendant links]}`` (None -> {})."""
+    if merge is None:
+        return {}
+    require(isinstance(merge, Mapping) or hasattr(merge, "items"), "robot.merge", merge,
+            "a mapping link -> [descendant links], e.g. robot.merge={l_upper_arm: [l_forearm]}")
+    out = {}
+    for link, extra in merge.items():
+        require(link in links, f"robot.merge.{link}", link, f"must be one of robot.links {links}")
+        extra = [extra] if isinstance(extra, str) else list(extra)
+        require(link not in extra, f"robot.merge.{link}", extra, "must not list the link itself")
+        out[str(link)] = [str(x) for x in extra]
+    return out
+
+
+store(group="robot", name="parametric_schema", node=ParametricRobotSchema)
+store(group="robot", name="mesh_schema", node=MeshRobotSchema)
+store(group="robot", name="urdf_schema", node=UrdfRobotSchema)

@@ -1,0 +1,271 @@
+"""``UrdfRobot``: robot links read from a URDF with yourdfpy (``robot=urdf``).
+
+Each requested link becomes one mesh in that link's own frame: the link's
+``collision`` (or ``visual``) elements, each placed by its ``<origin>``, mesh
+files scaled by their ``scale``. Mesh URIs (``package://pkg/dir/file``,
+``file://``, relative) resolve against the URDF's folder: every tail of the
+URI's path is tried under that folder and its parent, then the file name is
+looked up anywhere below the folder (case-insensitively, e.g. ``.STL`` vs
+``.stl``); a note records such matches. A link whose mesh file cannot be
+found falls back to its collision primitives (box, cylinder, sphere) with a
+warning (without primitives: the elements found, with a warning; none: an
+error naming the files tried). Joint values (``joints``) matter only for ``merge``, which adds
+descendant links' geometry to a link, placed at that joint configuration;
+without ``merge`` every link stays in its own frame and joints are unused.
+"""
+
+from __future__ import annotations
+
+import logging
+from functools import cached_property
+from pathlib import Path
+from typing import Any, Mapping, Optional, Sequence
+
+import numpy as np
+import trimesh
+
+from sphri.config import ConfigError, require_choice
+from sphri.robots.schema import GEOMETRIES, UNITS, check_joints, check_merge, check_regions, check_str_map
+from sphri.robots.validate import MeshError, make_link
+from sphri.types import Robot
+
+log = logging.getLogger(__name__)
+
+#: Segments around a cylinder primitive; subdivisions of a sphere primitive.
+CYLINDER_SECTIONS = 32
+SPHERE_SUBDIVISIONS = 2
+
+
+class MeshResolver:
+    """Finds the files behind a URDF's mesh URIs (see the module docstring)."""
+
+    def __init__(self, urdf_dir: Path):
+        self.dir = urdf_dir
+
+    @cached_property
+    def _by_name(self) -> dict[str, list[Path]]:
+        index: dict[str, list[Path]] = {}
+        for p in sorted(self.dir.rglob("*")):
+            if p.is_file():
+                index.setdefault(p.name.lower(), []).append(p)
+        return index
+
+    def resolve(self, uri: str) -> tuple[Optional[Path], list[Path], str]:
+        """``(path or None, candidates tried, note)``; the note is empty for a direct hit."""
+        rel = uri
+        for prefix in ("package://", "file://", "model://"):
+            if rel.startswith(prefix):
+                rel = rel[len(prefix):]
+                break
+        direct = Path(rel)
+        if direct.is_absolute():
+            if direct.is_file():
+                return direct, [direct], ""
+            parts = direct.parts[1:]
+        else:
+            parts = direct.parts
+        tried = []
+        for k in range(len(parts)):
+            tail = Path(*parts[k:])
+            for base in (self.dir, self.dir.parent):
+                cand = base / tail
+                tried.append(cand)
+                if cand.is_file():
+                    return cand, tried, "" if k == 0 and base == self.dir else f"{uri} -> {cand}"
+        if parts:
+            hits = self._by_name.get(parts[-1].lower(), [])
+            if hits:
+                # prefer the hit sharing the longest path tail with the URI
+                def shared(p: Path) -> int:
+                    a, b = [s.lower() for s in reversed(p.parts)], [s.lower() for s in reversed(parts)]
+                    n = 0
+                    while n < min(len(a), len(b)) and a[n] == b[n]:
+                        n += 1
+                    return n
+
+                best = max(hits, key=shared)
+                return best, tried, f"{uri} -> {best} (matched by file name)"
+        return None, tried, ""
+
+
+def primitive_mesh(geometry: Any) -> Optional[trimesh.Trimesh]:
+    """Trimesh of a URDF box/cylinder/sphere geometry (metres), None for a mesh or a zero-size primitive."""
+    if geometry.box is not None:
+        size = np.asarray(geometry.box.size, dtype=np.float64)
+        return trimesh.creation.box(extents=size) if np.all(size > 0) else None
+    if geometry.cylinder is not None:
+        r, h = float(geometry.cylinder.radius), float(geometry.cylinder.length)
+        return trimesh.creation.cylinder(radius=r, height=h, sections=CYLINDER_SECTIONS) if r > 0 and h > 0 else None
+    if geometry.sphere is not None:
+        r = float(geometry.sphere.radius)
+        return trimesh.creation.icosphere(subdivisions=SPHERE_SUBDIVISIONS, radius=r) if r > 0 else None
+    return None
+
+
+def _kind(geometry: Any) -> str:
+    for k in ("mesh", "box", "cylinder", "sphere"):
+        if getattr(geometry, k, None) is not None:
+            return k
+    return "empty"
+
+
+class UrdfRobot:
+    """Links of a URDF as a :class:`Robot` (``robot=urdf``).
+
+    ``path``: the URDF; ``links``: link names to load; ``regions``: skin
+    region -> link; ``geometry``: ``collision`` or ``visual``; ``joints``:
+    joint name -> value (radians / metres, others 0), used by ``merge``
+    (link -> descendant links added to it); ``units``: auto, m or mm (after
+    the URDF's own mesh scale).
+    """
+
+    VERSION = "1"
+
+    def __init__(
+        self,
+        path: str,
+        links: Sequence[str],
+        regions: Optional[Mapping[str, str]],
+        name: str = "urdf",
+        geometry: str = "collision",
+        joints: Optional[Mapping[str, float]] = None,
+        merge: Optional[Mapping[str, Sequence[str]]] = None,
+        units: str = "auto",
+    ):
+        self.path = str(path)
+        self.name = str(name)
+        self.links = [str(x) for x in links]
+        self.regions = check_str_map(regions, "robot.regions", "skin region -> link")
+        self.geometry = str(geometry)
+        self.joints = check_joints(joints)
+        self.merge = check_merge(merge, self.links)
+        self.units = str(units)
+        if not self.links:
+            raise ConfigError("robot.links=[] is invalid: at least one URDF link name")
+        if len(set(self.links)) != len(self.links):
+            raise ConfigError(f"robot.links={self.links} is invalid: names must be unique")
+        check_regions(self.regions, self.links)
+        require_choice("robot.geometry", self.geometry, GEOMETRIES)
+        require_choice("robot.units", self.units, UNITS)
+
+    def _load(self):
+        import yourdfpy
+
+        path = Path(self.path).expanduser()
+        if not path.is_file():
+            raise FileNotFoundError(f"robot.path: URDF file not found: {path}")
+        try:
+            urdf = yourdfpy.URDF.load(
+                str(path),
+                build_scene_graph=bool(self.merge),
+                load_meshes=False,
+                build_collision_scene_graph=False,
+                load_collision_meshes=False,
+            )
+        except Exception as exc:
+            raise ValueError(f"robot.path: cannot parse URDF {path}: {exc}") from exc
+        return path, urdf
+
+    def build(self) -> Robot:
+        """The :class:`Robot`; unknown links or joints raise ``ConfigError`` listing what the URDF has."""
+        path, urdf = self._load()
+        known = set(urdf.link_map)
+        wanted = set(self.links) | {c for extra in self.merge.values() for c in extra}
+        unknown = sorted(wanted - known)
+        if unknown:
+            raise ConfigError(f"robot.links: {unknown} not in {path}; its links: {sorted(known)}")
+        if self.joints:
+            actuated = set(urdf.actuated_joint_names)
+            bad = sorted(set(self.joints) - actuated)
+            if bad:
+                raise ConfigError(f"robot.joints: {bad} are not movable joints of {path}; they are: {sorted(actuated)}")
+            if not self.merge:
+                log.info("robot %s: joints are unused without robot.merge (each link is in its own frame)", self.name)
+            else:
+                urdf.update_cfg({k: v for k, v in self.joints.items()})
+        resolver = MeshResolver(path.parent)
+        links = {}
+        for name in self.links:
+            notes: list[str] = []
+            parts = self._link_parts(urdf, name, resolver, notes)
+            for child in self.merge.get(name, []):
+                try:
+                    tf = urdf.get_transform(frame_to=child, frame_from=name)
+                except Exception as exc:
+                    raise ConfigError(f"robot.merge.{name}: cannot place {child!r} in {name!r}'s frame: {exc}") from exc
+                child_parts = self._link_parts(urdf, child, resolver, notes)
+                for p in child_parts:
+                    p.apply_transform(tf)
+                parts += child_parts
+                notes.append(f"merged link {child!r} (placed at robot.joints, others 0)")
+            if not parts:
+                raise MeshError(
+                    f"link {name!r} of {path} has no usable {self.geometry} geometry (nor collision primitives)"
+                )
+            mesh = trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
+            if len(parts) > 1:
+                notes.append(f"{len(parts)} geometry elements concatenated (they may overlap)")
+            links[name] = make_link(name, mesh.vertices, mesh.faces, units=self.units,
+                                    source=f"{path.name} {self.geometry}", notes=notes)
+        return Robot(name=self.name, links=links, regions=dict(self.regions))
+
+    def _link_parts(self, urdf: Any, name: str, resolver: MeshResolver, notes: list[str]) -> list[trimesh.Trimesh]:
+        """The link's geometry elements as meshes in the link frame (metres)."""
+        link = urdf.link_map[name]
+        elements = link.collisions if self.geometry == "collision" else link.visuals
+        parts: list[trimesh.Trimesh] = []
+        missing: list[str] = []
+        for el in elements:
+            g = el.geometry
+            if g is None or _kind(g) == "empty":
+                continue
+            if g.mesh is not None:
+                found, tried, how = resolver.resolve(g.mesh.filename)
+                if found is None:
+                    missing.append(f"{g.mesh.filename} (tried {tried[0]} and {len(tried) - 1} more)")
+                    continue
+                if how:
+                    notes.append(f"resolved {how}")
+                try:
+                    m = trimesh.load(str(found), process=False, force="mesh")
+                except Exception as exc:
+                    raise MeshError(f"link {name!r}: cannot read mesh file {found}: {exc}") from exc
+                if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
+                    raise MeshError(f"link {name!r}: mesh file {found} holds no triangles")
+                if g.mesh.scale is not None:
+                    scale = np.broadcast_to(np.asarray(g.mesh.scale, dtype=np.float64), (3,))
+                    m.apply_transform(np.diag(np.append(scale, 1.0)))
+            else:
+                m = primitive_mesh(g)
+                if m is None:
+                    notes.append(f"skipped a zero-size {_kind(g)} primitive")
+                    continue
+            if el.origin is not None:
+                m.apply_transform(np.asarray(el.origin, dtype=np.float64))
+            parts.append(m)
+        if missing:
+            fallback = []
+            for el in link.collisions:
+                if el.geometry is not None and el.geometry.mesh is None:
+                    m = primitive_mesh(el.geometry)
+                    if m is not None:
+                        if el.origin is not None:
+                            m.apply_transform(np.asarray(el.origin, dtype=np.float64))
+                        fallback.append(m)
+            if not fallback and parts:
+                msg = (f"{self.geometry} mesh file(s) missing ({'; '.join(missing)}) and no collision primitives: "
+                       f"using the {len(parts)} element(s) found")
+                log.warning("robot %s: link %s: %s", self.name, name, msg)
+                notes.append(msg)
+                return parts
+            if not fallback:
+                raise FileNotFoundError(
+                    f"link {name!r}: {self.geometry} mesh file(s) not found: {'; '.join(missing)}; "
+                    f"and the link has no collision primitives to fall back to"
+                )
+            msg = (f"{self.geometry} mesh file(s) missing ({'; '.join(missing)}): "
+                   f"using the link's {len(fallback)} collision primitive(s) instead")
+            log.warning("robot %s: link %s: %s", self.name, name, msg)
+            notes.append(msg)
+            parts = fallback
+        return parts

@@ -1,0 +1,247 @@
+"""Mesh validation and repair for robot links (every loader ends here).
+
+:func:`make_link` turns raw vertices and faces into a :class:`sphri.types.Link`:
+it checks shapes and values, fixes units (mm -> m), merges duplicate
+vertices, drops degenerate and duplicate faces, and orients faces outward:
+closed meshes get consistent winding and positive signed volume; open meshes
+whose faces all lie on (within 1% of the extent of) their convex hull, like
+the real study's hulls, get each face turned away from an interior point;
+other open meshes get consistent winding (only where it is inconsistent) and
+are inverted as a whole when most of their area faces the centroid.
+Open boundaries are kept (``watertight=False``).
+What was found and done goes to ``Link.notes`` and the log.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Sequence
+
+import numpy as np
+import trimesh
+
+from sphri.config import require_choice
+from sphri.robots.schema import UNITS
+from sphri.types import Link
+
+log = logging.getLogger(__name__)
+
+#: A link whose largest extent exceeds this (metres) is taken to be in mm under ``units=auto``.
+MM_EXTENT_THRESHOLD_M = 5.0
+
+#: An open mesh whose face centres all lie within this fraction of its largest
+#: extent from its convex hull is treated as a (slightly inexact) convex hull.
+CONVEX_TOL = 0.01
+
+
+
+class MeshError(ValueError):
+    """A link mesh cannot be used; the message names its source."""
+
+
+def _edges_sorted(faces: np.ndarray) -> np.ndarray:
+    e = faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2)
+    return np.sort(e, axis=1)
+
+
+def edge_defects(faces: np.ndarray) -> tuple[int, int]:
+    """``(boundary, non_manifold)``: edges used by one face, and by more than two."""
+    if len(faces) == 0:
+        return 0, 0
+    _, counts = np.unique(_edges_sorted(faces), axis=0, return_counts=True)
+    return int((counts == 1).sum()), int((counts > 2).sum())
+
+
+def is_closed(faces: np.ndarray) -> bool:
+    """True when every edge is shared by exactly two faces."""
+    if len(faces) == 0:
+        return False
+    _, counts = np.unique(_edges_sorted(faces), axis=0, return_counts=True)
+    return bool((counts == 2).all())
+
+
+def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
+    """Signed volume (m^3) enclosed by the faces; > 0 when wound counter-clockwise from outside."""
+    t = vertices[faces]
+    return float(np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() / 6.0)
+
+
+def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F, 3) unit normals (right-hand rule) and (F,) areas in m^2."""
+    t = vertices[faces]
+    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+    norm = np.linalg.norm(n, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        unit = n / norm[:, None]
+    return unit, 0.5 * norm
+
+
+def _on_convex_hull(vertices: np.ndarray, faces: np.ndarray, tol: float) -> tuple[bool, np.ndarray | None]:
+    """Whether every face centroid lies within ``tol`` (m) of the vertices' convex hull; also an interior point."""
+    try:
+        hull = trimesh.convex.convex_hull(vertices)
+    except Exception:  # qhull fails on flat or too few points
+        return False, None
+    if hull.volume <= 0:
+        return False, None
+    normals = hull.face_normals
+    offsets = np.einsum("ij,ij->i", normals, hull.vertices[hull.faces[:, 0]])
+    centres = vertices[faces].mean(axis=1)
+    worst = -np.inf
+    for start in range(0, len(centres), 4096):  # chunked: (chunk, hull faces)
+        d = centres[start : start + 4096] @ normals.T - offsets  # signed distance to each plane (<= 0 inside)
+        worst = max(worst, float(np.abs(d.max(axis=1)).max()))
+    return worst <= tol, hull.vertices.mean(axis=0)
+
+
+def make_link(
+    name: str,
+    vertices: np.ndarray,
+    faces: np.ndarray,
+    units: str = "auto",
+    source: str = "",
+    notes: Sequence[str] = (),
+) -> Link:
+    """Validate and repair a triangle mesh into a :class:`Link`.
+
+    ``vertices`` (V, 3) in the file's units, ``faces`` (F, 3) vertex indices;
+    ``units`` is ``auto`` (mm when the largest extent is over
+    :data:`MM_EXTENT_THRESHOLD_M`), ``m`` or ``mm``. ``source`` (a path or a
+    description) names the mesh in errors and notes; ``notes`` are prepended
+    to what validation adds. Raises :class:`MeshError` for unusable input.
+    """
+    require_choice("robot.units", units, UNITS)
+    where = f"link {name!r}" + (f" ({source})" if source else "")
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces)
+    if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
+        raise MeshError(f"{where}: vertices must have shape (V, 3) with V > 0, got {v.shape}")
+    if f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
+        raise MeshError(f"{where}: faces must be triangles of shape (F, 3) with F > 0, got {f.shape}")
+    if not np.issubdtype(f.dtype, np.integer):
+        if not np.all(np.mod(f, 1) == 0):
+            raise MeshError(f"{where}: face indices must be integers")
+    f = f.astype(np.int64)
+    if f.min() < 0 or f.max() >= len(v):
+        raise MeshError(f"{where}: face indices must lie in [0, {len(v)}), found {f.min()}..{f.max()}")
+    bad_v = ~np.isfinite(v).all(axis=1)
+    if bad_v.any():
+        raise MeshError(f"{where}: {int(bad_v.sum())} vertices are NaN/inf (first at index {int(np.argmax(bad_v))})")
+    out: list[str] = list(notes)
+
+    def note(msg: str, level: int = logging.INFO) -> None:
+        out.append(msg)
+        log.log(level, "%s: %s", where, msg)
+
+    # units
+    extent = float((v.max(axis=0) - v.min(axis=0)).max())
+    if units == "mm":
+        v = v * 1e-3
+        note("scaled by 0.001 (units=mm)")
+    elif units == "auto" and extent > MM_EXTENT_THRESHOLD_M:
+        v = v * 1e-3
+        note(
+            f"largest extent {extent:g} > {MM_EXTENT_THRESHOLD_M:g} m: taken as millimetres and scaled by 0.001 "
+            f"(set units=m to keep it)",
+            logging.WARNING,
+        )
+    elif extent > MM_EXTENT_THRESHOLD_M:
+        note(f"largest extent {extent:g} m with units=m: kept; is it in millimetres?", logging.WARNING)
+    extent = float((v.max(axis=0) - v.min(axis=0)).max())
+    if extent <= 0:
+        raise MeshError(f"{where}: all vertices coincide")
+
+    # duplicate vertices (exact after rounding to 1e-9 of the extent), then unreferenced ones
+    key = np.round(v / (extent * 1e-9)).astype(np.int64)
+    _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
+    inverse = inverse.reshape(-1)
+    if len(first) < len(v):
+        note(f"merged {len(v) - len(first)} duplicate vertices")
+    order = np.argsort(first)  # keep the original order of first occurrences
+    rank = np.empty_like(order)
+    rank[order] = np.arange(len(order))
+    v = v[first[order]]
+    f = rank[inverse[f]]
+
+    # degenerate faces: repeated vertex or (near) zero area
+    _, area = face_normals(v, f)
+    repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
+    degenerate = repeated | (area <= (extent * 1e-7) ** 2)
+    if degenerate.any():
+        note(f"removed {int(degenerate.sum())} degenerate faces (repeated vertex or zero area)")
+        f = f[~degenerate]
+    if len(f) == 0:
+        raise MeshError(f"{where}: no faces left after removing degenerate ones")
+
+    # duplicate faces (same vertex set, either winding): keep the first
+    _, keep = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
+    if len(keep) < len(f):
+        note(f"removed {len(f) - len(keep)} duplicate faces")
+        f = f[np.sort(keep)]
+
+    used = np.zeros(len(v), dtype=bool)
+    used[f.ravel()] = True
+    if not used.all():
+        note(f"removed {int((~used).sum())} unreferenced vertices")
+        remap = np.cumsum(used) - 1
+        v = v[used]
+        f = remap[f]
+
+    # orientation
+    closed = is_closed(f)
+    before = f.copy()
+    if closed:
+        mesh = trimesh.Trimesh(v, f, process=False)
+        trimesh.repair.fix_normals(mesh, multibody=True)
+        f = np.asarray(mesh.faces, dtype=np.int64)
+        if signed_volume(v, f) < 0:
+            f = f[:, ::-1].copy()
+        changed = int((f != before).any(axis=1).sum())
+        if changed:
+            note(f"closed mesh: re-oriented {changed} faces outward (consistent winding, positive volume)")
+    else:
+        nb, nm = edge_defects(f)
+        what = f"{nb} boundary edges" + (f", {nm} edges shared by more than two faces" if nm else "")
+        note(f"not closed ({what}); kept as is (watertight=False)")
+        normals, area = face_normals(v, f)
+        convex, inner = _on_convex_hull(v, f, tol=extent * CONVEX_TOL)
+        if convex:
+            away = np.einsum("ij,ij->i", normals, v[f].mean(axis=1) - inner) < 0
+            if away.any():
+                f[away] = f[away][:, ::-1]
+                note(f"open (near-)convex surface: turned {int(away.sum())} inward faces away from its interior")
+        else:
+            mesh = trimesh.Trimesh(v, f, process=False)
+            if not mesh.is_winding_consistent:
+                trimesh.repair.fix_winding(mesh)
+                f = np.asarray(mesh.faces, dtype=np.int64).copy()
+            normals, area = face_normals(v, f)
+            centroid = (v[f].mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
+            outward = np.einsum("ij,ij->i", normals, v[f].mean(axis=1) - centroid)
+            if float((np.sign(outward) * area).sum()) < 0:  # most area faces the centroid: inverted
+                f = f[:, ::-1].copy()
+            changed = int((f != before).any(axis=1).sum())
+            if changed:
+                note(f"open surface: re-oriented {changed} faces (consistent winding, most area facing away from the centroid)")
+    return Link(name=name, vertices=v, faces=f, watertight=closed, notes=tuple(out))
+
+
+def load_mesh_file(path, name: str, units: str = "auto", key: str = "") -> Link:
+    """Read a mesh file (obj, stl, ply, dae, ...) into a validated :class:`Link`.
+
+    ``key`` names the config entry in errors (e.g. ``robot.links.l_arm``).
+    Scenes (several meshes, e.g. COLLADA) are flattened with their transforms.
+    """
+    from pathlib import Path
+
+    path = Path(path)
+    label = f"{key}: " if key else ""
+    if not path.is_file():
+        raise FileNotFoundError(f"{label}mesh file not found: {path}")
+    try:
+        loaded = trimesh.load(str(path), process=False, force="mesh")
+    except Exception as exc:
+        raise MeshError(f"{label}cannot read mesh file {path}: {exc}") from exc
+    if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
+        raise MeshError(f"{label}mesh file {path} holds no triangles")
+    return make_link(name, loaded.vertices, loaded.faces, units=units, source=str(path))
