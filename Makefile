@@ -31,7 +31,8 @@ bench: install        ## benchmarks -> outputs/bench/*.json, summary.md, plots
 	$(BIN)/python bench/run_all.py $(ARGS)
 
 sweep: install        ## the resolution sweep (Random Forest, 50 resolutions)
-	$(BIN)/python -m sphri -m +experiment=resolution_sweep model=rf $(ARGS)
+	$(BIN)/python -m sphri -m +experiment=resolution_sweep model=rf hydra.sweep.dir=outputs/sweeps/resolution_rf $(ARGS)
+	$(BIN)/python -m sphri.report outputs/sweeps/resolution_rf
 
 ui: install           ## MLflow UI on http://127.0.0.1:5000
 	$(BIN)/mlflow ui --backend-store-uri sqlite:///$(CURDIR)/outputs/mlflow.db --host 127.0.0.1 --port 5000

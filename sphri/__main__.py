@@ -77,6 +77,12 @@ def run_job(cfg: DictConfig) -> dict | None:
         validate(cfg)
         pipeline.chain_region(cfg)
         tracker = pipeline.build(cfg.tracking)
+        if multirun and cfg.resume and tracker.enabled:
+            done = tracker.find_finished(cfg.output_dir, pipeline.config_hash(cfg))
+            if done:
+                log.info("job %d skipped: MLflow run %s already finished with this config", job_num, done)
+                _write_status(job_dir, job_num, "SKIPPED", None, done)
+                return {"run_id": done, "skipped": True}
         result = pipeline.run(cfg)
     except Exception as exc:
         error = f"{type(exc).__name__}: {exc}"

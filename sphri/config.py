@@ -123,6 +123,8 @@ class RootConfig:
     cache: CacheConfig = field(default_factory=CacheConfig)
     output_dir: str = "outputs"
     """Where runs, the cache and the MLflow store live (relative to cwd)."""
+    resume: bool = True
+    """In a multirun, skip jobs whose config already has a FINISHED MLflow run."""
     data: Any = None
     hand: Any = None
     robot: Any = None

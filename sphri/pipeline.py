@@ -249,6 +249,6 @@ def run(cfg: DictConfig, cache: StageCache | None = None) -> RunResult:
 def config_hash(cfg: DictConfig) -> str:
     """Hash of the experiment-defining config (everything but tracking/cache/hydra)."""
     c = OmegaConf.to_container(cfg, resolve=True)
-    for k in ("tracking", "cache", "output_dir", "hydra", "debug", "experiment"):
+    for k in ("tracking", "cache", "output_dir", "resume", "hydra", "debug", "experiment"):
         c.pop(k, None)
     return stable_hash(c)

@@ -10,7 +10,7 @@ from sphri.config import CONF_DIR, STAGE_GROUPS, ConfigError, compose, normalize
 
 #: Components that need a value only a user can give; the test supplies one.
 REQUIRED = {
-    "robot/urdf": ["robot.path=/nonexistent/robot.urdf"],
+    "robot/urdf": ["robot.path=/nonexistent/robot.urdf", "robot.links=[base_link]"],
     "robot/mesh": [],
     "robot/reachy_vr": ["data=vr_gesture", "data.root=/nonexistent/dataset"],
     "data/vr_gesture": ["data.root=/nonexistent/dataset"],

@@ -48,6 +48,14 @@ class MlflowSweepCallback(Callback):
         if not config.tracking.enabled:
             return
         tracker = build(config.tracking)
+        for old in sweep_dir.glob(f"*/{STATUS_FILE}"):  # statuses of an earlier attempt
+            old.unlink()
+        previous = read_parent(sweep_dir)
+        if previous and previous.get("uri") == tracker.resolve_uri(config.output_dir) and tracker.reopen_parent(
+            config.output_dir, previous["run_id"]
+        ):
+            log.info("resuming sweep %s in MLflow parent run %s", previous["sweep_id"], previous["run_id"])
+            return
         sweep_id = sweep_id_of(sweep_dir)
         overrides = list(config.hydra.overrides.task)
         run_id = tracker.start_parent(config.output_dir, str(sweep_dir), sweep_id, overrides)
@@ -58,15 +66,19 @@ class MlflowSweepCallback(Callback):
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
         statuses = [json.loads(p.read_text()) for p in sorted(sweep_dir.glob(f"*/{STATUS_FILE}"))]
-        n_failed = sum(1 for s in statuses if s.get("status") != "FINISHED")
+        n_failed = sum(1 for s in statuses if s.get("status") == "FAILED")
+        n_skipped = sum(1 for s in statuses if s.get("status") == "SKIPPED")
         parent = read_parent(sweep_dir)
         if parent and config.tracking.enabled:
+            # a resumed sweep's parent is FINISHED when every job is (skipped ones included)
             from sphri.pipeline import build
 
             build(config.tracking).end_parent(config.output_dir, parent["run_id"], len(statuses), n_failed)
         msg = f"sweep {sweep_id_of(sweep_dir)}: {len(statuses) - n_failed} of {len(statuses)} jobs finished"
+        if n_skipped:
+            msg += f" ({n_skipped} skipped: a finished MLflow run with the same config hash exists)"
         if n_failed:
-            failed = ", ".join(f"#{s['job']}: {s.get('error', '?')}" for s in statuses if s.get("status") != "FINISHED")
+            failed = ", ".join(f"#{s['job']}: {s.get('error', '?')}" for s in statuses if s.get("status") == "FAILED")
             msg += f"; FAILED: {failed}"
         log.info(msg)
         print(msg)

@@ -168,6 +168,27 @@ class MlflowTracker:
         self._retry(lambda: client.set_tag(run_id, "sphri.jobs", f"{n_jobs - n_failed}/{n_jobs} finished"))
         self._retry(lambda: client.set_terminated(run_id, "FAILED" if n_failed == n_jobs and n_jobs else "FINISHED"))
 
+    def reopen_parent(self, output_dir: str, run_id: str) -> bool:
+        """Mark an existing parent run RUNNING again (a resumed sweep); False if gone."""
+        client = self.client(output_dir)
+        try:
+            self._retry(lambda: client.get_run(run_id))
+        except Exception:
+            return False
+        self._retry(lambda: client.update_run(run_id, status="RUNNING"))
+        return True
+
+    def find_finished(self, output_dir: str, config_hash: str) -> str | None:
+        """Run id of a FINISHED job with this config hash, if any (sweep resume)."""
+        client = self.client(output_dir)
+        exp = self._retry(lambda: client.get_experiment_by_name(self.experiment))
+        if exp is None:
+            return None
+        query = (f"tags.`sphri.config_hash` = '{config_hash}' and tags.`sphri.kind` = 'job' "
+                 "and attributes.status = 'FINISHED'")
+        runs = self._retry(lambda: client.search_runs([exp.experiment_id], query, max_results=1))
+        return runs[0].info.run_id if runs else None
+
     # -- jobs ----------------------------------------------------------------
     def _start_job(self, cfg: "DictConfig", job_dir: Path, parent: dict | None, run_name: str, tags: dict[str, str]) -> str:
         output_dir = cfg.output_dir
