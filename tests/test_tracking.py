@@ -119,3 +119,20 @@ def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path):
     assert jobs["0"].info.status == "FAILED" and "window.frames" in jobs["0"].data.tags["sphri.error"]
     assert jobs["10"].info.status == "FINISHED"
     assert "1 of 2 jobs finished" in proc.stdout
+
+
+def test_rerun_of_a_sweep_skips_finished_jobs_into_the_same_parent(tmp_path: Path):
+    from mlflow.tracking import MlflowClient
+
+    out = tmp_path / "outputs"
+    args = ["-m", "+debug=fast", "encoder.res=2,3", f"output_dir={out}", "hydra/launcher=serial",
+            f"hydra.sweep.dir={out}/sweeps/s"]
+    first = _sphri(args, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr[-3000:]
+    second = _sphri(args, cwd=tmp_path)
+    assert second.returncode == 0, second.stderr[-3000:]
+    assert "2 of 2 jobs finished (2 skipped" in second.stdout
+    client = MlflowClient(default_uri(out))
+    runs = client.search_runs([client.get_experiment_by_name("sphri").experiment_id])
+    assert len([r for r in runs if r.data.tags.get("sphri.kind") == "sweep"]) == 1
+    assert len([r for r in runs if r.data.tags.get("sphri.kind") == "job"]) == 2
