@@ -105,7 +105,7 @@ def run_job(cfg: DictConfig) -> dict | None:
     run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices) if tracker.enabled else None
     _write_status(job_dir, job_num, "FINISHED", None, run_id)
     text = summary_text(result)
-    log.info("summary\n%s", text)
+    (job_dir / "summary.txt").write_text(text + "\n")
     where = f"MLflow run {run_id} in {tracker.resolve_uri(cfg.output_dir)} (see it with `make ui`)" if run_id else "MLflow tracking disabled"
     print("\n" + "=" * 78 + "\n" + text + f"\ntracking    {where}\njob dir     {job_dir}\n" + "=" * 78)
     return {"run_id": run_id, **result.summary()}

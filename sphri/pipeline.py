@@ -179,8 +179,11 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         windows = comp["window"].assemble(p.get("noise"), p.get("plan"), dataset, p.get("layout"), p.get("surface"))
         geometry: TaxelGeometry = windows.geometry
 
+        # instantiate() would turn a dataclass argument into a dict: bind it after.
+        model_factory = instantiate(cfg.model, _partial_=True, _convert_="all")
+
         def make_model():
-            return build(cfg.model, geometry=geometry)
+            return model_factory(geometry=geometry)
 
         result = comp["cv"].run(make_model, windows, seed)
         return result, run_meta(cfg, dataset, p.get("robot"), region, p.get("surface"), p.get("layout"), windows)

@@ -10,8 +10,8 @@ from sphri.config import CONF_DIR, STAGE_GROUPS, ConfigError, compose, normalize
 
 #: Components that need a value only a user can give; the test supplies one.
 REQUIRED = {
-    "robot/urdf": ["robot.path=/nonexistent/robot.urdf", "robot.links=[base_link]"],
-    "robot/mesh": [],
+    "robot/urdf": ["robot.path=/nonexistent/robot.urdf", "robot.links=[base_link]", "robot.regions={arm:base_link}"],
+    "robot/mesh": ["robot.links={l_arm:/nonexistent/arm.obj}", "robot.regions={arm:l_arm}"],
     "robot/reachy_vr": ["data=vr_gesture", "data.root=/nonexistent/dataset"],
     "data/vr_gesture": ["data.root=/nonexistent/dataset"],
 }

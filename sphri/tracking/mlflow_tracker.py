@@ -317,7 +317,7 @@ def _fmt_resolution(r: dict[str, Any]) -> list[str]:
         shape = r.get("grid_shape")
         out.append(f"{r['n_taxels']} taxels" + (f" ({shape[0]} x {shape[1]})" if shape else ""))
     if r.get("pitch_u_mm"):
-        out.append(f"pitch {r['pitch_u_mm']:.1f} mm along x {r.get('pitch_v_mm', float('nan')):.1f} mm around")
+        out.append(f"pitch {r['pitch_u_mm']:.1f} mm along / {r.get('pitch_v_mm', float('nan')):.1f} mm around")
     if r.get("area_per_taxel_cm2"):
         out.append(f"{r['area_per_taxel_cm2']:.2f} cm^2/taxel")
     if r.get("taxels_per_24cm"):
