@@ -1,0 +1,82 @@
+"""Config schemas of the ``data`` group: ``synthetic`` (default) and ``vr_gesture``."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+from sphri.config import require, require_range, store
+from sphri.types import GESTURES
+
+
+def _check_common(seed: int, participants: Optional[int], repetitions: Optional[int], regions: list, gestures: list) -> None:
+    require_range("data.seed", seed, lo=0)
+    if participants is not None:
+        require_range("data.participants", participants, lo=1)
+    if repetitions is not None:
+        require_range("data.repetitions", repetitions, lo=1)
+    regions = list(regions)
+    require(len(regions) > 0, "data.regions", regions, "at least one skin region, e.g. [arm]")
+    require(len(set(regions)) == len(regions), "data.regions", regions, "regions must not repeat")
+    require(all(isinstance(r, str) and r for r in regions), "data.regions", regions, "non-empty region names")
+    gestures = list(gestures)
+    require(len(gestures) > 0, "data.gestures", gestures, f"at least one of {list(GESTURES)}")
+    unknown = [g for g in gestures if g not in GESTURES]
+    require(not unknown, "data.gestures", gestures, f"unknown {unknown}; allowed: {list(GESTURES)}")
+    require(len(set(gestures)) == len(gestures), "data.gestures", gestures, "gestures must not repeat")
+
+
+@dataclass
+class SyntheticDataSchema:
+    """``data=synthetic``: calibrated synthetic gestures (:class:`sphri.data.synthetic.SyntheticData`)."""
+
+    _target_: str = "sphri.data.synthetic.SyntheticData"
+    seed: int = 0
+    participants: Optional[int] = 18
+    repetitions: Optional[int] = 20
+    regions: list[str] = field(default_factory=lambda: ["arm"])
+    gestures: list[str] = field(default_factory=lambda: list(GESTURES))
+    root: Optional[str] = None
+    frame_rate_hz: float = 30.0
+    tracking_rate_hz: float = 30.0
+    jitter_m: float = 0.001
+    dropouts_per_trial: float = 0.3
+    hand_scale_sd: float = 0.05
+
+    def __post_init__(self) -> None:
+        _check_common(self.seed, self.participants, self.repetitions, self.regions, self.gestures)
+        require(self.root is None, "data.root", self.root, "only data=vr_gesture reads a folder; leave it null here")
+        require_range("data.frame_rate_hz", self.frame_rate_hz, lo=1.0, hi=1000.0)
+        require_range("data.tracking_rate_hz", self.tracking_rate_hz, lo=1.0, hi=1000.0)
+        require_range("data.jitter_m", self.jitter_m, lo=0.0, hi=0.05)
+        require_range("data.dropouts_per_trial", self.dropouts_per_trial, lo=0.0, hi=10.0)
+        require_range("data.hand_scale_sd", self.hand_scale_sd, lo=0.0, hi=0.1)
+
+
+@dataclass
+class VRGestureDataSchema:
+    """``data=vr_gesture``: the recorded VR gesture dataset (:class:`sphri.data.vr_gesture.VRGestureData`)."""
+
+    _target_: str = "sphri.data.vr_gesture.VRGestureData"
+    root: Optional[str] = None
+    seed: int = 0
+    participants: Optional[int] = None
+    repetitions: Optional[int] = None
+    regions: list[str] = field(default_factory=lambda: ["arm"])
+    gestures: list[str] = field(default_factory=lambda: list(GESTURES))
+    min_frames: int = 10
+    frame_rate_hz: Optional[float] = None
+    quat_tolerance: float = 1e-3
+
+    def __post_init__(self) -> None:
+        require(isinstance(self.root, str) and self.root != "", "data.root", self.root,
+                "set the dataset folder (the one holding arm/, torso/ and assets/), e.g. data.root=/data/VR-gesture-dataset")
+        _check_common(self.seed, self.participants, self.repetitions, self.regions, self.gestures)
+        require_range("data.min_frames", self.min_frames, lo=1)
+        if self.frame_rate_hz is not None:
+            require_range("data.frame_rate_hz", self.frame_rate_hz, lo=1.0, hi=1000.0)
+        require_range("data.quat_tolerance", self.quat_tolerance, lo=0.0, lo_open=True, hi=0.5)
+
+
+store(group="data", name="synthetic_schema", node=SyntheticDataSchema)
+store(group="data", name="vr_gesture_schema", node=VRGestureDataSchema)

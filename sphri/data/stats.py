@@ -1,0 +1,278 @@
+"""Contact statistics of any gesture dataset, side by side with published references.
+
+``python -m sphri.data.stats [overrides]`` composes the config (e.g.
+``data=vr_gesture data.root=DIR``, ``data.participants=4``), loads the
+dataset, runs the configured contact stage and prints, per region and
+gesture:
+
+- trial length: median length of the whole trial (rest to rest) in frames
+  at the references' 30 Hz, against the VR study's manifests;
+- contact duration: first to last frame with any capsule in contact with the
+  link, inclusive, divided by the frame rate (ms), mean over trials with
+  contact, against CoST;
+- contact area: per frame, the link surface area inside the union of the
+  contact patches (disks of ``Contacts.patch_radius_m`` around
+  ``Contacts.point_m``, measured on area-weighted surface samples), averaged
+  over up to :data:`AREA_FRAMES` evenly spaced contact frames of the trial,
+  then over trials (cm^2, and as a fraction of CoST's 160 x 160 mm sensor);
+  only its ordering across gestures is comparable to CoST's;
+- how many trials have no contact at all.
+
+Extra arguments: ``json=PATH`` writes the per-gesture table as JSON.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pandas as pd
+from scipy.spatial import cKDTree
+
+from sphri.data.linkgeom import LinkSurface
+from sphri.data.reference_stats import (
+    COST_AREA_FRACTION,
+    COST_DURATION_MS,
+    COST_SENSOR_AREA_M2,
+    DURATION_TOLERANCE,
+    TRIAL_LENGTH_TOLERANCE,
+    VR_FRAME_RATE_HZ,
+    median_trial_frames,
+)
+from sphri.types import GESTURES, Contacts, GestureDataset, Robot
+
+log = logging.getLogger(__name__)
+
+#: Contact frames per trial over which the contact area is averaged.
+AREA_FRAMES = 8
+
+
+def trial_statistics(dataset: GestureDataset, contacts: Contacts, robot: Robot) -> pd.DataFrame:
+    """One row per trial: participant, region, gesture, n_frames, trial_s (seconds), contact (bool),
+    first/last contact frame (within the trial, -1 if none), duration_s,
+    area_m2 (mean union patch area over sampled contact frames, NaN if none)
+    and n_capsules (distinct capsules that ever touch)."""
+    trials = dataset.trials
+    owner = dataset.frame_trial_index()
+    n_trials = len(trials)
+    start = trials["start"].to_numpy(np.int64)
+    cf = contacts.frame.astype(np.int64)
+    ct = owner[cf] if cf.size else np.zeros(0, np.int64)
+    first = np.full(n_trials, -1, np.int64)
+    last = np.full(n_trials, -1, np.int64)
+    if cf.size:
+        # contacts are sorted by frame, so the first/last row per trial gives first/last frame
+        uniq, idx_first = np.unique(ct, return_index=True)
+        idx_last = len(ct) - 1 - np.unique(ct[::-1], return_index=True)[1]
+        first[uniq] = cf[idx_first] - start[uniq]
+        last[uniq] = cf[idx_last] - start[uniq]
+    has = first >= 0
+    duration = np.where(has, (last - first + 1) / dataset.frame_rate_hz, 0.0)
+    ncap = np.zeros(n_trials, np.int64)
+    if cf.size:
+        pairs = np.unique(ct * 10000 + contacts.capsule.astype(np.int64))
+        np.add.at(ncap, pairs // 10000, 1)
+    area = _trial_areas(dataset, contacts, robot, ct)
+    return pd.DataFrame(
+        {
+            "participant": trials["participant"].to_numpy(),
+            "region": trials["region"].to_numpy(),
+            "gesture": trials["gesture"].to_numpy(),
+            "n_frames": trials["n_frames"].to_numpy(np.int64),
+            "trial_s": trials["n_frames"].to_numpy(np.int64) / dataset.frame_rate_hz,
+            "contact": has,
+            "first_contact": first,
+            "last_contact": last,
+            "duration_s": duration,
+            "area_m2": area,
+            "n_capsules": ncap,
+        }
+    )
+
+
+def _trial_areas(dataset: GestureDataset, contacts: Contacts, robot: Robot, ct: np.ndarray) -> np.ndarray:
+    trials = dataset.trials
+    area = np.full(len(trials), np.nan)
+    if contacts.n_contacts == 0:
+        return area
+    cf = contacts.frame.astype(np.int64)
+    # pick up to AREA_FRAMES evenly spaced contact frames per trial
+    frames, fi = np.unique(cf, return_index=True)
+    ftrial = ct[fi]
+    keep = np.zeros(len(frames), bool)
+    bounds = np.flatnonzero(np.r_[True, np.diff(ftrial) != 0, True])
+    seg_a, seg_len = bounds[:-1], np.diff(bounds)
+    steps = np.linspace(0.0, 1.0, AREA_FRAMES)
+    keep[(seg_a[:, None] + np.round(steps[None, :] * (seg_len[:, None] - 1)).astype(np.int64)).ravel()] = True
+    sel_frames = frames[keep]
+    rows = np.isin(cf, sel_frames)
+    regions = trials["region"].to_numpy()
+    owner = dataset.frame_trial_index()
+    for region in np.unique(regions):
+        surf = LinkSurface(robot.link_for(str(region)), n_samples=6000)
+        per_sample = surf.area_m2 / 6000.0
+        tree = cKDTree(surf.points)
+        r_rows = rows & (regions[ct] == region)
+        idx = np.flatnonzero(r_rows)
+        if idx.size == 0:
+            continue
+        radius = np.maximum(contacts.patch_radius_m[idx], 0.0)
+        hits = tree.query_ball_point(contacts.point_m[idx], radius, return_sorted=False)
+        counts = np.fromiter((len(h) for h in hits), np.int64, len(hits))
+        samples = np.concatenate([np.asarray(h, np.int64) for h in hits]) if counts.sum() else np.zeros(0, np.int64)
+        fr = np.repeat(cf[idx], counts)
+        n_s = len(surf.points)
+        key = _unique(fr * n_s + samples)
+        uf, n_in = _unique_counts(key // n_s)
+        frames_r = np.unique(cf[idx])
+        frame_area = np.zeros(len(frames_r))
+        frame_area[np.searchsorted(frames_r, uf)] = n_in * per_sample
+        t_of = owner[frames_r]
+        sums = np.bincount(t_of, weights=frame_area, minlength=len(trials))
+        cnt = np.bincount(t_of, minlength=len(trials))
+        got = cnt > 0
+        area[got] = sums[got] / cnt[got]
+    return area
+
+
+def _unique(x: np.ndarray) -> np.ndarray:
+    """Sorted unique values of an int array (sort-based; faster than np.unique's hash for large arrays)."""
+    x = np.sort(x)
+    return x[np.r_[True, x[1:] != x[:-1]]] if x.size else x
+
+
+def _unique_counts(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(unique values, counts) of an already sorted int array."""
+    if x.size == 0:
+        return x, np.zeros(0, np.int64)
+    edges = np.flatnonzero(np.r_[True, x[1:] != x[:-1], True])
+    return x[edges[:-1]], np.diff(edges)
+
+
+def gesture_summary(stats: pd.DataFrame) -> pd.DataFrame:
+    """Per (region, gesture): measured statistics and their references (see the module docstring)."""
+    rows = []
+    for (region, gesture), g in stats.groupby(["region", "gesture"], sort=False):
+        touched = g[g["contact"]]
+        ref_len = median_trial_frames(str(region), str(gesture))
+        rows.append(
+            {
+                "region": region,
+                "gesture": gesture,
+                "trials": len(g),
+                "no_contact": int((~g["contact"]).sum()),
+                "median_frames": float(g["trial_s"].median() * VR_FRAME_RATE_HZ),
+                "ref_median_frames": ref_len,
+                "duration_ms": float(touched["duration_s"].mean() * 1000.0) if len(touched) else float("nan"),
+                "ref_duration_ms": COST_DURATION_MS[gesture][0],
+                "area_cm2": float(touched["area_m2"].mean() * 1e4) if len(touched) else float("nan"),
+                "area_fraction": float(touched["area_m2"].mean() / COST_SENSOR_AREA_M2) if len(touched) else float("nan"),
+                "ref_area_fraction": COST_AREA_FRACTION[gesture][0],
+                "capsules": float(touched["n_capsules"].mean()) if len(touched) else float("nan"),
+            }
+        )
+    out = pd.DataFrame(rows)
+    order = {g: i for i, g in enumerate(GESTURES)}
+    if len(out):
+        out = out.sort_values(["region", "gesture"], key=lambda s: s.map(order) if s.name == "gesture" else s)
+    return out.reset_index(drop=True)
+
+
+def calibration_checks(summary: pd.DataFrame) -> list[tuple[str, bool, str]]:
+    """(check, passed, detail) for the generator's calibration targets, per region.
+
+    Mean contact duration within +/- :data:`DURATION_TOLERANCE` of CoST per
+    gesture; median trial length within +/- :data:`TRIAL_LENGTH_TOLERANCE` of
+    the VR manifests; contact area largest for grab and smallest for poke
+    (when both are present).
+    """
+    out = []
+    for region, s in summary.groupby("region", sort=False):
+        for _, r in s.iterrows():
+            rel = r["duration_ms"] / r["ref_duration_ms"] - 1.0
+            out.append((f"{region}/{r['gesture']} duration", bool(abs(rel) <= DURATION_TOLERANCE),
+                        f"{r['duration_ms']:.0f} ms vs CoST {r['ref_duration_ms']:.0f} ms ({rel:+.0%})"))
+            rel = r["median_frames"] / r["ref_median_frames"] - 1.0
+            out.append((f"{region}/{r['gesture']} trial length", bool(abs(rel) <= TRIAL_LENGTH_TOLERANCE),
+                        f"median {r['median_frames']:.1f} vs VR {r['ref_median_frames']:.1f} frames ({rel:+.0%})"))
+        areas = s.set_index("gesture")["area_cm2"]
+        if "grab" in areas and "poke" in areas and len(areas) > 1:
+            out.append((f"{region} area: grab largest", bool(areas.idxmax() == "grab"),
+                        f"largest {areas.idxmax()} ({areas.max():.1f} cm2)"))
+            out.append((f"{region} area: poke smallest", bool(areas.idxmin() == "poke"),
+                        f"smallest {areas.idxmin()} ({areas.min():.1f} cm2)"))
+    return out
+
+
+def format_summary(summary: pd.DataFrame, dataset_name: str = "", frame_rate_hz: float = 0.0) -> str:
+    """A fixed-width text table of :func:`gesture_summary` with the references beside each value."""
+    head = (
+        f"{'region':7s} {'gesture':7s} {'trials':>6s} {'none':>5s} | {'len med':>7s} {'VR':>6s} | "
+        f"{'dur ms':>7s} {'CoST':>6s} | {'area cm2':>8s} {'frac':>5s} {'CoST':>5s} | {'caps':>4s}"
+    )
+    lines = []
+    if dataset_name:
+        lines.append(f"dataset: {dataset_name} ({frame_rate_hz:g} Hz frames)")
+    lines += [head, "-" * len(head)]
+    for _, r in summary.iterrows():
+        lines.append(
+            f"{r['region']:7s} {r['gesture']:7s} {r['trials']:6d} {r['no_contact']:5d} | "
+            f"{r['median_frames']:7.1f} {r['ref_median_frames']:6.1f} | {r['duration_ms']:7.0f} {r['ref_duration_ms']:6.0f} | "
+            f"{r['area_cm2']:8.1f} {r['area_fraction']:5.2f} {r['ref_area_fraction']:5.2f} | {r['capsules']:4.1f}"
+        )
+    lines.append("references: trial length = VR gesture dataset manifests (median, ~30 Hz frames); "
+                 "duration and area = CoST (Jung et al. 2017, Table 4); see sphri/data/reference_stats.py")
+    return "\n".join(lines)
+
+
+def dataset_statistics(overrides: Sequence[str] = ()) -> tuple[GestureDataset, pd.DataFrame, pd.DataFrame]:
+    """Compose the config, build hand, robot, dataset and contacts; return (dataset, trial stats, summary)."""
+    from hydra.utils import instantiate
+
+    from sphri.config import compose
+
+    cfg = compose(list(overrides))
+    hand = instantiate(cfg.hand).build()
+    robot = instantiate(cfg.robot).build()
+    dataset = instantiate(cfg.data).load(hand=hand, robot=robot)
+    contacts = instantiate(cfg.contact).compute(dataset, robot)
+    stats = trial_statistics(dataset, contacts, robot)
+    return dataset, stats, gesture_summary(stats)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    json_out = None
+    overrides = []
+    for a in argv:
+        if a.startswith("json="):
+            json_out = a.split("=", 1)[1]
+        elif a in ("-h", "--help"):
+            print(__doc__)
+            return 0
+        else:
+            overrides.append(a)
+    dataset, stats, summary = dataset_statistics(overrides)
+    label = f"{dataset.name} ({'generated by sphri' if dataset.synthetic else 'recorded'})"
+    print(format_summary(summary, label, dataset.frame_rate_hz))
+    if dataset.repairs:
+        print(f"repairs on load: {dataset.repairs}")
+    if dataset.synthetic:
+        checks = calibration_checks(summary)
+        failed = [c for c in checks if not c[1]]
+        print(f"calibration: {len(checks) - len(failed)}/{len(checks)} checks pass")
+        for name, _, detail in failed:
+            print(f"  FAIL {name}: {detail}")
+    if json_out:
+        Path(json_out).parent.mkdir(parents=True, exist_ok=True)
+        Path(json_out).write_text(json.dumps(summary.to_dict(orient="records"), indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,343 @@
+"""``SyntheticData`` (``data=synthetic``, the default): calibrated synthetic gesture trials.
+
+Each trial is a kinematic right hand (:mod:`sphri.data.handfk`) that rests
+away from the link, approaches a touch point sampled on the link's real
+surface (along the surface normal, tilted by the participant's approach
+direction), performs the gesture (:mod:`sphri.data.gestures`) and returns to
+rest, like the reference study's self-paced trials. Motions are min-jerk
+interpolations between keyframes, evaluated for all frames of a trial at
+once; forward kinematics runs once per (participant, region).
+
+Timing. Frames are at ``frame_rate_hz`` (30 Hz by default: the rate that the
+study's trial lengths are counted in, see
+:mod:`sphri.data.reference_stats`). Hand tracking updates at about
+``tracking_rate_hz`` with jittered intervals; each frame holds the latest
+tracking sample (so some frames repeat the previous pose), and about
+``dropouts_per_trial`` short dropouts per trial (3-12 frames) freeze the hand
+as a lost tracker does. Tracking noise: ``jitter_m`` (SD, metres) on the hand
+position, 0.4 degrees on its rotation, 1 degree on finger joints, 0.3 mm per
+joint.
+
+Timing of a trial: rest (about 20 % of the non-contact time), approach (30 %),
+contact (CoST's mean duration for the gesture, per participant and per trial
+variation), retreat (30 %), rest (20 %); the non-contact time is set so that
+the median trial length matches the study's median for the gesture and
+region (:data:`sphri.data.reference_stats.VR_MEDIAN_TRIAL_FRAMES`).
+
+Determinism. Participant ``k``'s style (hand size, speed, depth, approach,
+preferred variants) comes from the stream ``(seed, k, 0)`` and its trials in
+a region from ``(seed, k, crc32(region))``: generating only the arm gives
+exactly the arm trials of arm + torso, and 4 participants are the first 4 of
+18.
+"""
+
+from __future__ import annotations
+
+import logging
+import zlib
+from dataclasses import dataclass
+from typing import Optional, Sequence
+
+import numpy as np
+
+from sphri.data.format import make_trials_frame, participant_id, trial_id
+from sphri.data.gestures import RELAXED, ContactPlan, Style, plan_contact
+from sphri.data.handfk import EFFECTORS, HandRig, effectors_from_bones, rotvec_to_matrix
+from sphri.data.linkgeom import LinkSurface
+from sphri.data.reference_stats import COST_DURATION_MS, VR_FRAME_RATE_HZ, median_trial_frames
+from sphri.types import GESTURES, GestureDataset, HandModel, Robot
+
+log = logging.getLogger(__name__)
+
+#: Study size: participants and repetitions per gesture.
+DEFAULT_PARTICIPANTS = 18
+DEFAULT_REPETITIONS = 20
+
+_S_GRID = np.linspace(0.0, 1.0, 2001)
+_SMOOTH = _S_GRID**3 * (10.0 - 15.0 * _S_GRID + 6.0 * _S_GRID**2)
+
+
+def smoothstep(s: np.ndarray) -> np.ndarray:
+    """Min-jerk profile 10 s^3 - 15 s^4 + 6 s^5 on [0, 1]."""
+    s = np.clip(s, 0.0, 1.0)
+    return s**3 * (10.0 - 15.0 * s + 6.0 * s**2)
+
+
+def inverse_smoothstep(y: float) -> float:
+    """The s in [0, 1] where :func:`smoothstep` reaches ``y``."""
+    return float(np.interp(y, _SMOOTH, _S_GRID))
+
+
+def interpolate(t: np.ndarray, knot_t: Sequence[float], knot_v: np.ndarray) -> np.ndarray:
+    """(T, D) min-jerk interpolation of knots (K,) -> (K, D) at times ``t`` (T,); held outside the knots."""
+    kt = np.asarray(knot_t, dtype=np.float64)
+    kv = np.asarray(knot_v, dtype=np.float64).reshape(len(kt), -1)
+    if len(kt) == 1:
+        return np.broadcast_to(kv[0], (len(t), kv.shape[1])).copy()
+    i = np.clip(np.searchsorted(kt, t, side="right") - 1, 0, len(kt) - 2)
+    dt = kt[i + 1] - kt[i]
+    s = np.where(dt > 0, (t - kt[i]) / np.where(dt > 0, dt, 1.0), 1.0)
+    w = smoothstep(s)[:, None]
+    return kv[i] + (kv[i + 1] - kv[i]) * w
+
+
+def height_knots(plan: ContactPlan) -> list[tuple[float, float]]:
+    """(time s, effector height m) knots of the touches: crossing the surface exactly at each touch's start and end."""
+    knots: list[tuple[float, float]] = []
+    touches = plan.touches
+    h = plan.hover_m
+    for i, (a, b, d) in enumerate(touches):
+        q = inverse_smoothstep(h / (h + d))
+        r = plan.ramp_s
+        if b - a < 2 * (1 - q) * r:
+            r = (b - a) / (2 * (1 - q))
+        if i > 0:
+            r = min(r, (a - touches[i - 1][1]) / (2 * q))
+        if i < len(touches) - 1:
+            r = min(r, (touches[i + 1][0] - b) / (2 * q))
+        knots += [(a - q * r, h), (a + (1 - q) * r, -d), (b - (1 - q) * r, -d), (b + q * r, h)]
+    return knots
+
+
+def region_stream(region: str) -> int:
+    """Stable integer key of a region name for seeding (crc32)."""
+    return zlib.crc32(region.encode("utf-8")) & 0x7FFFFFFF
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.sqrt(v @ v)
+
+
+def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
+    """``v`` (3,) rotated by ``angle`` radians about ``axis`` (Rodrigues)."""
+    k = _unit(axis)
+    c, s = np.cos(angle), np.sin(angle)
+    return v * c + _cross(k, v) * s + k * (k @ v) * (1.0 - c)
+
+
+@dataclass
+class _TrialMotion:
+    """Per-frame hand parameters of one trial before forward kinematics."""
+
+    fingers: np.ndarray  # (T, 5, 4) radians
+    rot: np.ndarray  # (T, 3, 3) hand frame -> link frame
+    target: np.ndarray  # (T, 3) where the effector point goes (metres, link frame)
+    effector: int  # index into EFFECTORS
+    pos_noise: np.ndarray  # (T, 3) metres
+    joint_noise: np.ndarray  # (T, C, 3) metres
+
+
+class SyntheticData:
+    """Synthetic gesture trials (see the module docstring); ``load`` returns a :class:`GestureDataset`.
+
+    ``participants``/``repetitions``: None = the study's 18 / 20.
+    ``regions``: skin regions of the robot to touch. ``root`` must be None
+    (it belongs to ``data=vr_gesture``). Other fields: see
+    ``conf/data/synthetic.yaml``.
+    """
+
+    VERSION = "1"
+
+    def __init__(
+        self,
+        seed: int = 0,
+        participants: Optional[int] = DEFAULT_PARTICIPANTS,
+        repetitions: Optional[int] = DEFAULT_REPETITIONS,
+        regions: Sequence[str] = ("arm",),
+        gestures: Sequence[str] = GESTURES,
+        root: Optional[str] = None,
+        frame_rate_hz: float = 30.0,
+        tracking_rate_hz: float = 30.0,
+        jitter_m: float = 0.001,
+        dropouts_per_trial: float = 0.3,
+        hand_scale_sd: float = 0.05,
+    ):
+        self.seed = int(seed)
+        self.participants = DEFAULT_PARTICIPANTS if participants is None else int(participants)
+        self.repetitions = DEFAULT_REPETITIONS if repetitions is None else int(repetitions)
+        self.regions = list(regions)
+        self.gestures = list(gestures)
+        unknown = [g for g in self.gestures if g not in GESTURES]
+        if unknown:
+            raise ValueError(f"data.gestures: unknown gesture(s) {unknown}; known: {list(GESTURES)}")
+        if root is not None:
+            raise ValueError(f"data.root={root!r} is only read by data=vr_gesture; data=synthetic generates its trials")
+        self.frame_rate_hz = float(frame_rate_hz)
+        self.tracking_rate_hz = float(tracking_rate_hz)
+        self.jitter_m = float(jitter_m)
+        self.dropouts_per_trial = float(dropouts_per_trial)
+        self.hand_scale_sd = float(hand_scale_sd)
+
+    # ------------------------------------------------------------------ public
+    def load(self, hand: HandModel, robot: Robot) -> GestureDataset:
+        """Generate the trials (participant-major, regions in configured order, ordinals 1..n)."""
+        rig = HandRig.from_hand(hand)
+        surfaces = {r: LinkSurface(robot.link_for(r)) for r in self.regions}
+        records: list[dict] = []
+        chunks: list[np.ndarray] = []
+        start = 0
+        for k in range(1, self.participants + 1):
+            style = Style.draw(np.random.default_rng([self.seed, k, 0]), self.hand_scale_sd)
+            pid = participant_id(k)
+            for region in self.regions:
+                rng = np.random.default_rng([self.seed, k, region_stream(region)])
+                gestures, poses, lengths = self._participant_region(rng, style, rig, surfaces[region], region)
+                for o, (g, n) in enumerate(zip(gestures, lengths), 1):
+                    records.append(dict(participant=pid, region=region, trial_ordinal=o, trial_id=trial_id(o, g),
+                                        gesture=g, start=start, n_frames=int(n)))
+                    start += int(n)
+                chunks.append(poses)
+        poses = np.concatenate(chunks, axis=0) if chunks else np.zeros((0, hand.n_capsules, 7), np.float32)
+        return GestureDataset(
+            name="synthetic",
+            synthetic=True,
+            hand=hand,
+            trials=make_trials_frame(records),
+            poses=np.ascontiguousarray(poses, dtype=np.float32),
+            frame_rate_hz=self.frame_rate_hz,
+            repairs={},
+        )
+
+    # --------------------------------------------------------------- internals
+    def _participant_region(
+        self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str
+    ) -> tuple[list[str], np.ndarray, list[int]]:
+        sampler = surf.sampler(surf.preference(
+            axial_frac=float(rng.uniform(0.3, 0.7)), axial_sd=float(rng.uniform(0.1, 0.25)),
+            angle=float(rng.uniform(0, 2 * np.pi)), angle_kappa=float(rng.uniform(0.5, 2.0))))
+        order = [g for g in self.gestures for _ in range(self.repetitions)]
+        order = [order[i] for i in rng.permutation(len(order))]
+        if not order:
+            return [], np.zeros((0, rig.hand.n_capsules, 7), np.float32), []
+        finger_r = float(rig.hand.radius_m[rig.chain_slot[2, 0]])
+        plans, points = [], []
+        for g in order:
+            if g == "grab":
+                i = sampler.draw(rng, margin_m=0.03)
+                plan = plan_contact(g, rng, style, float(np.clip(surf.radius[i], 0.025, 0.2)), finger_r)
+            else:
+                plan = plan_contact(g, rng, style, 0.05, finger_r)
+                margin = 0.015 + plan.slide_extent_m * abs(np.cos(plan.slide_angle))
+                i = sampler.draw(rng, margin_m=min(margin, 0.45 * surf.length_m))
+            plans.append(plan)
+            points.append(i)
+        # effector normal and forward of every trial's touching hand shape, in one batch
+        kind = np.array([EFFECTORS.index(p.effector) for p in plans])
+        _, nrm, fwd = effectors_from_bones(rig, *rig.bones(np.stack([p.fingers for p in plans]), style.scale))
+        rows = np.arange(len(plans))
+        m_l, f_l = nrm[rows, kind], fwd[rows, kind]
+        motions = [self._trial(rng, style, rig, surf, region, plans[k], points[k], m_l[k], f_l[k]) for k in rows]
+        fingers = np.concatenate([m.fingers for m in motions])
+        rot = np.concatenate([m.rot for m in motions])
+        target = np.concatenate([m.target for m in motions])
+        kind = np.concatenate([np.full(len(m.fingers), m.effector) for m in motions])
+        start, frame, length = rig.bones(fingers, style.scale)
+        pts, _, _ = effectors_from_bones(rig, start, frame, length)
+        e = pts[np.arange(len(kind)), kind]
+        pos = target - np.einsum("tij,tj->ti", rot, e) + np.concatenate([m.pos_noise for m in motions])
+        poses = rig.poses_from_bones(start, frame, length, rot, pos)
+        poses[..., :3] += np.concatenate([m.joint_noise for m in motions])
+        return order, poses.astype(np.float32), [len(m.fingers) for m in motions]
+
+    def _trial(
+        self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str,
+        plan: ContactPlan, i: int, m_l: np.ndarray, f_l: np.ndarray,
+    ) -> _TrialMotion:
+        hand = rig.hand
+        gesture = plan.gesture
+        p, n, t1, t2 = surf.frame_at(i)
+
+        # hand orientation while touching: effector normal against the (tilted) surface normal
+        tilt_axis = np.cos(plan.tilt_azimuth) * t1 + np.sin(plan.tilt_azimuth) * t2
+        press = _rotate(-n, tilt_axis, plan.tilt)
+        tau = np.cos(plan.yaw) * t1 + np.sin(plan.yaw) * t2
+        tau = _unit(tau - (tau @ press) * press)
+        world = np.stack([press, tau, _cross(press, tau)], axis=1)
+        local = np.stack([m_l, f_l, _cross(m_l, f_l)], axis=1)
+        r_contact = world @ local.T
+
+        # timeline (seconds): rest, approach, contact phase, retreat, rest
+        hk = height_knots(plan)
+        c0, c1 = hk[0][0], hk[-1][0]
+        ref_s = median_trial_frames(region, gesture) / VR_FRAME_RATE_HZ  # reference length in seconds
+        mean_contact = COST_DURATION_MS[gesture][0] / 1000.0
+        overhead = 0.93 * max(1.2, ref_s - 0.9 * mean_contact - 0.15)
+
+        def lognormal(median: float, sd: float) -> float:
+            return float(median * np.exp(rng.normal(0.0, sd)))
+
+        rest1 = lognormal(0.2 * overhead * style.pause, 0.45)
+        approach = max(0.3, lognormal(0.3 * overhead / style.speed, 0.25))
+        retreat = max(0.3, lognormal(0.3 * overhead / style.speed, 0.25))
+        rest2 = lognormal(0.2 * overhead * style.pause, 0.45)
+        t_hover = rest1 + approach
+        shift = t_hover - c0
+        t_leave = shift + c1
+        t_gone = t_leave + retreat
+        t_end = t_gone + rest2
+        n_frames = max(int(round(t_end * self.frame_rate_hz)), 2)
+
+        # tracking: jittered ~tracking_rate_hz samples held between frames; dropouts freeze the hand
+        frame_t = np.arange(n_frames) / self.frame_rate_hz
+        period = 1.0 / self.tracking_rate_hz
+        n_samples = int(n_frames * self.tracking_rate_hz / self.frame_rate_hz * 1.6) + 8
+        steps = period * np.clip(1.0 + 0.15 * rng.standard_normal(n_samples), 0.4, 2.0)
+        sample_t = rng.uniform(0.0, period) + np.concatenate([[0.0], np.cumsum(steps[:-1])])
+        held = np.clip(np.searchsorted(sample_t, frame_t, side="right") - 1, 0, None)
+        for _ in range(rng.poisson(self.dropouts_per_trial)):
+            a = int(rng.integers(0, n_frames))
+            held[a : a + int(rng.integers(3, 13))] = held[a]
+        t = np.minimum(sample_t[held], frame_t)
+
+        # tracks
+        beta = interpolate(t, [rest1, t_hover, t_leave, t_gone], np.array([0.0, 1.0, 1.0, 0.0]))[:, 0]
+        h = interpolate(t, [k + shift for k, _ in hk], np.array([v for _, v in hk]))[:, 0]
+        angle = plan.slide_angle
+        slide_dir = np.cos(angle) * t1 + np.sin(angle) * t2
+        if plan.slide:
+            s = interpolate(t, [k + shift for k, _ in plan.slide], np.array([v for _, v in plan.slide]))[:, 0]
+            ext = plan.slide_extent_m + 0.01
+            grid = np.linspace(-ext, ext, 17)
+            s_h = np.interp(s, grid, surf.height_profile(p, n, slide_dir, grid))
+        else:
+            s = np.zeros(n_frames)
+            s_h = np.zeros(n_frames)
+        tilt_app = style.tilt + rng.normal(0.0, np.radians(8.0))
+        az = style.tilt_azimuth + rng.normal(0.0, np.radians(25.0))
+        d_app = _rotate(n, np.cos(az) * t1 + np.sin(az) * t2, tilt_app)
+        rest = p + d_app * style.rest_m * float(rng.uniform(0.9, 1.1))
+        drift = rng.normal(0.0, 0.015, size=(3, 3))
+        rest_t = [0.0, rest1, t_gone, t_end]
+        rest_v = np.stack([rest, rest + drift[0], rest + drift[1], rest + drift[1] + drift[2]])
+        rest_track = interpolate(t, rest_t, rest_v)
+        touch = p + n * (h + s_h)[:, None] + slide_dir * s[:, None]
+        target = (1.0 - beta)[:, None] * rest_track + beta[:, None] * touch
+
+        relaxed = RELAXED + rng.normal(0.0, 0.05, size=RELAXED.shape)
+        f_t = [0.0, rest1, t_hover]
+        f_v = [relaxed, relaxed, plan.fingers]
+        for k, v in plan.finger_knots:
+            f_t.append(k + shift)
+            f_v.append(v)
+        f_t += [t_leave, t_gone]
+        f_v += [plan.fingers if not plan.finger_knots else plan.finger_knots[-1][1], relaxed]
+        order = np.argsort(f_t, kind="stable")
+        fingers = interpolate(t, np.asarray(f_t)[order], np.stack(f_v)[order].reshape(len(f_t), -1)).reshape(-1, 5, 4)
+
+        w_rest1 = rng.normal(0.0, 0.3, size=3)
+        w_rest2 = rng.normal(0.0, 0.3, size=3)
+        omega = interpolate(t, [rest1, t_hover, t_leave, t_gone], np.stack([w_rest1, np.zeros(3), np.zeros(3), w_rest2]))
+
+        # tracking noise, one draw per tracking sample (held with it)
+        ns = n_samples
+        omega = omega + np.radians(0.4) * rng.standard_normal((ns, 3))[held]
+        fingers = fingers + np.radians(1.0) * rng.standard_normal((ns, 5, 4))[held]
+        rot = r_contact[None] @ rotvec_to_matrix(omega)
+        pos_noise = self.jitter_m * rng.standard_normal((ns, 3))[held]
+        joint_noise = 0.0003 * rng.standard_normal((ns, hand.n_capsules, 3))[held]
+        return _TrialMotion(fingers=fingers, rot=rot, target=target, effector=EFFECTORS.index(plan.effector),
+                            pos_noise=pos_noise, joint_noise=joint_noise)

@@ -1,0 +1,396 @@
+"""``VRGestureData`` (``data=vr_gesture``): the reference study's recorded dataset.
+
+Reads ``ROOT/{region}/participant_XX/participant_XX.parquet`` and its
+manifest (layout in :mod:`sphri.data.format`), lazily: only the selected
+regions' folders, participants' files, the hand's pose columns and the rows of
+the selected trials (a pyarrow filter on ``trial_ordinal``) are read.
+
+Validation. Errors (:class:`DatasetError`, naming file, trial and column):
+missing or misnamed columns, an unknown gesture label, duplicated or missing
+``frame_index_in_trial``, a manifest that disagrees with its parquet file
+(row total, a trial's rows, frame count, label or id). Repairs (counted in
+``GestureDataset.repairs`` and logged per file, never silent):
+
+- ``held_invalid_pose``: a capsule pose with a NaN/inf position or a NaN,
+  infinite or zero quaternion (tracking loss) takes the last valid pose of the
+  same capsule in the same trial (the first valid one for leading frames);
+- ``normalized_quaternion``: a quaternion whose norm is off 1 by more than
+  ``quat_tolerance`` is scaled to unit norm;
+- ``dropped_short_trial``: a trial with fewer than ``min_frames`` frames (the
+  real data has three 1-frame trials) is dropped, by its manifest entry,
+  before anything is read;
+- ``dropped_untracked_trial``: a trial where some capsule is never valid is
+  dropped (nothing to hold);
+- ``frame_range_mismatch``: a trial whose ``frame`` column does not span the
+  manifest's ``start_frame``..``end_frame`` (kept; the poses are unaffected).
+"""
+
+from __future__ import annotations
+
+import difflib
+import logging
+from collections import Counter
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from sphri.data.format import (
+    GENERATOR_KEY,
+    GENERATOR_VALUE,
+    META_COLUMNS,
+    PARTICIPANT_RE,
+    POSE_SUFFIXES,
+    ManifestError,
+    make_trials_frame,
+    manifest_path,
+    parquet_path,
+    pose_columns,
+    read_manifest,
+)
+from sphri.data.repair import hold_last_valid
+from sphri.types import GESTURES, GestureDataset, HandModel, Robot
+
+log = logging.getLogger(__name__)
+
+#: Frame rate assumed for recorded data without a ``frame_rate_hz`` manifest
+#: key: the study's hand tracking ran at about 30 Hz, and its trial lengths
+#: (median 96-157 frames rest to rest) only fit CoST's contact durations at
+#: that rate (see :mod:`sphri.data.reference_stats`).
+DEFAULT_FRAME_RATE_HZ = 30.0
+
+
+class DatasetError(ValueError):
+    """Recorded data is malformed; the message names the file, trial and column."""
+
+
+class _Notes:
+    """Repairs of one file: counted in ``repairs`` and logged as one warning per kind."""
+
+    SHOWN = 5
+
+    def __init__(self, path: Path, repairs: Counter):
+        self.path = path
+        self.repairs = repairs
+        self.items: dict[str, list[str]] = {}
+
+    def add(self, kind: str, count: int, detail: str) -> None:
+        self.repairs[kind] += count
+        self.items.setdefault(kind, []).append(detail)
+
+    def flush(self) -> None:
+        for kind, details in self.items.items():
+            more = f"; and {len(details) - self.SHOWN} more trial(s)" if len(details) > self.SHOWN else ""
+            log.warning("%s: %s: %s%s", self.path, kind, "; ".join(details[: self.SHOWN]), more)
+        self.items.clear()
+
+
+def find_participants(root: Path, regions: Sequence[str]) -> list[str]:
+    """Sorted participant ids found under any of ``root/{region}``.
+
+    Raises :class:`DatasetError` naming the folder when ``root`` or a region
+    folder does not exist (listing the regions that do).
+    """
+    root = Path(root)
+    if not root.is_dir():
+        raise DatasetError(f"data.root={str(root)!r}: no such directory")
+    found: set[str] = set()
+    for region in regions:
+        rdir = root / region
+        if not rdir.is_dir():
+            have = sorted(p.name for p in root.iterdir() if p.is_dir() and p.name != "assets")
+            raise DatasetError(f"{rdir}: no such region folder (data.regions={list(regions)}; found {have})")
+        found.update(p.name for p in rdir.iterdir() if p.is_dir() and PARTICIPANT_RE.match(p.name))
+    return sorted(found, key=lambda s: (int(PARTICIPANT_RE.match(s).group(1)), s))
+
+
+class VRGestureData:
+    """The recorded VR gesture dataset at ``root`` (see the module docstring).
+
+    ``participants``: first N participants (sorted ids; None = all).
+    ``repetitions``: at most this many trials per gesture per participant and
+    region, first by ordinal (None = all). ``regions``/``gestures``: what to
+    read. ``min_frames``: shorter trials are dropped. ``frame_rate_hz``: None
+    takes the manifests' ``frame_rate_hz`` (sphri-written datasets) or
+    :data:`DEFAULT_FRAME_RATE_HZ`. ``quat_tolerance``: allowed deviation of a
+    quaternion norm from 1 before it is re-normalized. ``seed`` is unused
+    (recorded data); it is accepted so every data component shares the keys.
+    """
+
+    VERSION = "1"
+
+    def __init__(
+        self,
+        root: Optional[str] = None,
+        seed: int = 0,
+        participants: Optional[int] = None,
+        repetitions: Optional[int] = None,
+        regions: Sequence[str] = ("arm",),
+        gestures: Sequence[str] = GESTURES,
+        min_frames: int = 10,
+        frame_rate_hz: Optional[float] = None,
+        quat_tolerance: float = 1e-3,
+    ):
+        if root is None:
+            raise DatasetError("data.root is not set: give the dataset folder, e.g. data.root=/path/to/VR-gesture-dataset")
+        self.root = Path(root)
+        self.seed = int(seed)
+        self.participants = participants
+        self.repetitions = repetitions
+        self.regions = list(regions)
+        self.gestures = list(gestures)
+        unknown = [g for g in self.gestures if g not in GESTURES]
+        if unknown:
+            raise DatasetError(f"data.gestures: unknown gesture(s) {unknown}; known: {list(GESTURES)}")
+        self.min_frames = int(min_frames)
+        self.frame_rate_hz = frame_rate_hz
+        self.quat_tolerance = float(quat_tolerance)
+
+    # ------------------------------------------------------------------ public
+    def load(self, hand: HandModel, robot: Optional[Robot] = None) -> GestureDataset:
+        """Read the selected trials into a :class:`GestureDataset` (poses float32, link frames)."""
+        if robot is not None:
+            for region in self.regions:
+                robot.link_for(region)  # KeyError naming the robot's regions
+        pids = find_participants(self.root, self.regions)
+        if not pids:
+            raise DatasetError(f"{self.root}: no participant_XX folders under {self.regions}")
+        if self.participants is not None:
+            pids = pids[: self.participants]
+        repairs: Counter[str] = Counter()
+        records: list[dict] = []
+        chunks: list[np.ndarray] = []
+        generators: set[bool] = set()
+        rates: set[float] = set()
+        start = 0
+        for pid in pids:
+            for region in self.regions:
+                if not (self.root / region / pid).is_dir():
+                    log.info("%s has no %s folder; skipped", pid, region)
+                    continue
+                manifest, trials, poses = self._load_one(pid, region, hand, repairs)
+                generators.add(manifest.get(GENERATOR_KEY) == GENERATOR_VALUE)
+                if "frame_rate_hz" in manifest:
+                    rates.add(float(manifest["frame_rate_hz"]))
+                for t, p in zip(trials, poses):
+                    records.append(
+                        dict(participant=pid, region=region, trial_ordinal=t["trial_ordinal"], trial_id=t["trial_id"],
+                             gesture=t["gesture_label"], start=start, n_frames=len(p))
+                    )
+                    chunks.append(p)
+                    start += len(p)
+        if len(generators) > 1:
+            raise DatasetError(f"{self.root}: mixes sphri-generated and recorded manifests ('{GENERATOR_KEY}' key)")
+        synthetic = generators == {True}
+        if len(rates) > 1:
+            raise DatasetError(f"{self.root}: manifests disagree on frame_rate_hz: {sorted(rates)}")
+        rate = self._frame_rate(rates)
+        c = hand.n_capsules
+        poses = np.concatenate(chunks, axis=0) if chunks else np.zeros((0, c, 7), np.float32)
+        if repairs:
+            log.warning("%s: repairs applied on load: %s", self.root, dict(repairs))
+        return GestureDataset(
+            name="synthetic" if synthetic else "vr_gesture",
+            synthetic=synthetic,
+            hand=hand,
+            trials=make_trials_frame(records),
+            poses=np.ascontiguousarray(poses, dtype=np.float32),
+            frame_rate_hz=rate,
+            repairs=dict(repairs),
+        )
+
+    # --------------------------------------------------------------- internals
+    def _frame_rate(self, rates: set[float]) -> float:
+        if self.frame_rate_hz is not None:
+            if rates and float(self.frame_rate_hz) not in rates:
+                log.warning("data.frame_rate_hz=%s overrides the manifests' frame_rate_hz=%s", self.frame_rate_hz, rates)
+            return float(self.frame_rate_hz)
+        return rates.pop() if rates else DEFAULT_FRAME_RATE_HZ
+
+    def _select(self, mpath: Path, manifest: dict, notes: _Notes) -> list[dict]:
+        """Manifest trials to read: selected gestures, long enough, capped per gesture."""
+        per_gesture: Counter[str] = Counter()
+        out = []
+        for t in sorted(manifest["trials"], key=lambda t: t["trial_ordinal"]):
+            g = t["gesture_label"]
+            if g not in GESTURES:
+                raise DatasetError(
+                    f"{mpath}: trial {t['trial_ordinal']}: column gesture_label={g!r} is not a known gesture "
+                    f"({list(GESTURES)})"
+                )
+            if g not in self.gestures:
+                continue
+            if t["frame_count"] < self.min_frames:
+                notes.add("dropped_short_trial", 1, f"trial {t['trial_ordinal']} ({t['trial_id']}) has "
+                          f"{t['frame_count']} frame(s) < data.min_frames={self.min_frames}, dropped")
+                continue
+            if self.repetitions is not None and per_gesture[g] >= self.repetitions:
+                continue
+            per_gesture[g] += 1
+            out.append(t)
+        return out
+
+    def _check_columns(self, ppath: Path, schema: pa.Schema, hand: HandModel) -> list[str]:
+        have = list(schema.names)
+        want = list(META_COLUMNS) + pose_columns(hand.names)
+        missing = [c for c in want if c not in have]
+        if missing:
+            extra = [c for c in have if c not in want]
+            hints = []
+            for m in missing[:10]:
+                close = difflib.get_close_matches(m, extra, n=1, cutoff=0.75)
+                if close:
+                    hints.append(f"{close[0]!r} for {m!r}")
+            hint = f"; misnamed? found {', '.join(hints)}" if hints else ""
+            more = f" (and {len(missing) - 10} more)" if len(missing) > 10 else ""
+            raise DatasetError(f"{ppath}: missing column(s) {missing[:10]}{more}{hint}")
+        for col in want:
+            typ = schema.field(col).type
+            numeric = pa.types.is_integer(typ) or pa.types.is_floating(typ)
+            if col in ("trial_id", "gesture_label"):
+                if not (pa.types.is_string(typ) or pa.types.is_large_string(typ) or pa.types.is_dictionary(typ)):
+                    raise DatasetError(f"{ppath}: column {col} has type {typ}, expected strings")
+            elif not numeric:
+                raise DatasetError(f"{ppath}: column {col} has type {typ}, expected numbers")
+            elif col in ("trial_ordinal", "frame", "frame_index_in_trial") and not pa.types.is_integer(typ):
+                raise DatasetError(f"{ppath}: column {col} has type {typ}, expected integers")
+        return want
+
+    def _load_one(
+        self, pid: str, region: str, hand: HandModel, repairs: Counter
+    ) -> tuple[dict, list[dict], list[np.ndarray]]:
+        mpath = manifest_path(self.root, region, pid)
+        ppath = parquet_path(self.root, region, pid)
+        manifest = read_manifest(mpath)
+        if manifest["participant_id"] != pid or manifest["body_region"] != region:
+            raise ManifestError(
+                f"{mpath}: participant_id={manifest['participant_id']!r}, body_region={manifest['body_region']!r} "
+                f"disagree with its folder ({region}/{pid})"
+            )
+        notes = _Notes(mpath, repairs)
+        wanted = self._select(mpath, manifest, notes)
+        notes.flush()
+        if not ppath.is_file():
+            raise FileNotFoundError(f"pose file missing: {ppath} (its manifest {mpath.name} is there)")
+        try:
+            with pq.ParquetFile(ppath) as pf:
+                schema, n_rows = pf.schema_arrow, pf.metadata.num_rows
+        except (pa.ArrowException, OSError) as exc:
+            raise DatasetError(f"{ppath}: not a readable parquet file ({exc})") from None
+        columns = self._check_columns(ppath, schema, hand)
+        if n_rows != manifest["num_frames_total"]:
+            raise ManifestError(
+                f"{mpath}: num_frames_total={manifest['num_frames_total']} but {ppath.name} has {n_rows} rows"
+            )
+        if not wanted:
+            return manifest, [], []
+        ordinals = [int(t["trial_ordinal"]) for t in wanted]
+        table = pq.read_table(ppath, columns=columns, filters=[("trial_ordinal", "in", ordinals)])
+        notes = _Notes(ppath, repairs)
+        try:
+            return manifest, *self._trials_from_table(ppath, table, wanted, hand, notes)
+        finally:
+            notes.flush()
+
+    def _trials_from_table(
+        self, ppath: Path, table: pa.Table, wanted: list[dict], hand: HandModel, notes: _Notes
+    ) -> tuple[list[dict], list[np.ndarray]]:
+        c = hand.n_capsules
+        ordinal = table.column("trial_ordinal").to_numpy().astype(np.int64)
+        fidx = table.column("frame_index_in_trial").to_numpy().astype(np.int64)
+        frame = table.column("frame").to_numpy().astype(np.int64)
+        order = np.lexsort((fidx, ordinal))
+        ordinal, fidx, frame = ordinal[order], fidx[order], frame[order]
+        labels = np.asarray(table.column("gesture_label").to_pylist(), dtype=object)[order]
+        tids = np.asarray(table.column("trial_id").to_pylist(), dtype=object)[order]
+        cols = pose_columns(hand.names)
+        flat = np.empty((len(order), len(cols)), dtype=np.float32)
+        for j, col in enumerate(cols):
+            flat[:, j] = table.column(col).to_numpy(zero_copy_only=False).astype(np.float32, copy=False)
+        poses = flat[order].reshape(len(order), c, len(POSE_SUFFIXES))
+
+        uniq, first, counts = np.unique(ordinal, return_index=True, return_counts=True)
+        where = {int(o): (int(s), int(n)) for o, s, n in zip(uniq, first, counts)}
+
+        # frame_index_in_trial must be 0..n-1 in every trial
+        pos_in_trial = np.arange(len(ordinal)) - np.repeat(first, counts)
+        broken = np.unique(ordinal[fidx != pos_in_trial])
+        if broken.size:
+            o = int(broken[0])
+            s, n = where[o]
+            idx = fidx[s : s + n]
+            dup = np.unique(idx[np.r_[False, np.diff(idx) == 0]])
+            missing = np.setdiff1d(np.arange(idx.max() + 1 if n else 0), idx)
+            what = []
+            if dup.size:
+                what.append(f"duplicated values {dup[:10].tolist()}")
+            if missing.size:
+                what.append(f"missing values {missing[:10].tolist()}")
+            if idx.min() < 0:
+                what.append("negative values")
+            raise DatasetError(
+                f"{ppath}: trial {o}: column frame_index_in_trial has {'; '.join(what)} "
+                f"(expected 0..{n - 1}; {broken.size} trial(s) affected)"
+            )
+
+        out_trials: list[dict] = []
+        out_poses: list[np.ndarray] = []
+        for t in wanted:
+            o = int(t["trial_ordinal"])
+            if o not in where:
+                raise ManifestError(f"{ppath}: trial {o} ({t['trial_id']}) is in the manifest but has no rows")
+            s, n = where[o]
+            if n != t["frame_count"]:
+                raise ManifestError(f"{ppath}: trial {o}: {n} rows but the manifest's frame_count is {t['frame_count']}")
+            lab = set(labels[s : s + n].tolist())
+            if len(lab) != 1:
+                raise DatasetError(f"{ppath}: trial {o}: column gesture_label has several values {sorted(map(str, lab))}")
+            g = lab.pop()
+            if g not in GESTURES:
+                raise DatasetError(f"{ppath}: trial {o}: column gesture_label={g!r} is not a known gesture ({list(GESTURES)})")
+            if g != t["gesture_label"]:
+                raise ManifestError(f"{ppath}: trial {o}: gesture_label {g!r} but the manifest says {t['gesture_label']!r}")
+            ids = set(tids[s : s + n].tolist())
+            if ids != {t["trial_id"]}:
+                raise ManifestError(f"{ppath}: trial {o}: column trial_id {sorted(map(str, ids))} but the manifest says {t['trial_id']!r}")
+            if "start_frame" in t and "end_frame" in t and n:
+                if frame[s] != t["start_frame"] or frame[s + n - 1] != t["end_frame"]:
+                    notes.add("frame_range_mismatch", 1, f"trial {o}: column frame spans {frame[s]}..{frame[s + n - 1]}, "
+                              f"the manifest says {t['start_frame']}..{t['end_frame']} (kept)")
+            p, ok = self._repair(o, poses[s : s + n], hand, notes)
+            if ok:
+                out_trials.append(t)
+                out_poses.append(p)
+        return out_trials, out_poses
+
+    def _repair(self, o: int, p: np.ndarray, hand: HandModel, notes: _Notes) -> tuple[np.ndarray, bool]:
+        """Hold invalid capsule poses, normalize off-unit quaternions; False when unrepairable."""
+        q64 = p[..., 3:].astype(np.float64)
+        finite = np.isfinite(p).all(axis=-1)
+        with np.errstate(invalid="ignore", over="ignore"):
+            norm = np.sqrt((q64 * q64).sum(axis=-1))
+        bad = ~finite | ~(norm >= 1e-8)
+        if bad.any():
+            fixed, orphan = hold_last_valid(p, bad, np.array([0]))
+            if orphan.any():
+                caps = [hand.names[i] for i in np.flatnonzero(orphan.any(axis=0))]
+                notes.add("dropped_untracked_trial", 1, f"trial {o}: capsule(s) {caps} never have a valid pose "
+                          f"(columns {caps[0]}_pos_*/rot_*), trial dropped")
+                return p, False
+            nb = int(bad.sum())
+            caps = sorted({hand.names[i] for i in np.nonzero(bad)[1]})
+            notes.add("held_invalid_pose", nb, f"trial {o}: {nb} capsule pose(s) with NaN/inf/zero values "
+                      f"(capsules {caps}) held from the last valid frame")
+            p = fixed
+            q64 = p[..., 3:].astype(np.float64)
+            norm = np.sqrt((q64 * q64).sum(axis=-1))
+        off = np.abs(norm - 1.0) > self.quat_tolerance
+        if off.any():
+            p = p.copy()
+            p[..., 3:][off] = (q64[off] / norm[off][:, None]).astype(np.float32)
+            caps = sorted({hand.names[i] for i in np.nonzero(off)[1]})
+            notes.add("normalized_quaternion", int(off.sum()), f"trial {o}: {int(off.sum())} quaternion(s) with |q| "
+                      f"off 1 by > {self.quat_tolerance:g} (capsules {caps}, columns *_rot_*) normalized")
+        return p, True

@@ -1,0 +1,83 @@
+"""Fixtures of the data stage tests: the study's hand, the parametric Reachy, small datasets."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hydra.utils import instantiate
+from omegaconf import OmegaConf
+
+from sphri.config import CONF_DIR
+from sphri.types import Contacts, GestureDataset, Robot
+
+
+def load_component(group: str, name: str, **overrides):
+    """Instantiate ``conf/<group>/<name>.yaml`` without composing the whole config."""
+    cfg = OmegaConf.load(CONF_DIR / group / f"{name}.yaml")
+    cfg.pop("defaults", None)
+    for k, v in overrides.items():
+        cfg[k] = v
+    return instantiate(cfg, _convert_="all")
+
+
+@pytest.fixture(scope="session")
+def hand():
+    return load_component("hand", "quest_capsules").build()
+
+
+@pytest.fixture(scope="session")
+def robot() -> Robot:
+    return load_component("robot", "reachy").build()
+
+
+@pytest.fixture(scope="session")
+def small(hand, robot) -> GestureDataset:
+    """3 participants x 2 repetitions x 8 gestures on arm and torso."""
+    from sphri.data.synthetic import SyntheticData
+
+    return SyntheticData(seed=7, participants=3, repetitions=2, regions=["arm", "torso"]).load(hand=hand, robot=robot)
+
+
+def compute_contacts(dataset: GestureDataset, robot: Robot) -> Contacts:
+    """Exact capsule-vs-link contacts (sphri.contact.capsule_mesh_query) as a Contacts table."""
+    from sphri.contact import capsule_mesh_query
+    from sphri.hand.kinematics import capsule_segments
+
+    p0, p1 = capsule_segments(dataset.poses, dataset.hand)
+    c = dataset.hand.n_capsules
+    region_of_frame = dataset.trials["region"].to_numpy()[dataset.frame_trial_index()]
+    parts = []
+    for region in np.unique(region_of_frame):
+        link = robot.link_for(str(region))
+        fr = np.flatnonzero(region_of_frame == region)
+        q = capsule_mesh_query(link.vertices, link.faces, p0[fr].reshape(-1, 3), p1[fr].reshape(-1, 3),
+                               np.tile(dataset.hand.radius_m, len(fr)))
+        i = np.flatnonzero(q.in_contact)
+        parts.append((fr[i // c], i % c, q.distance[i], q.inside[i], q.point[i], q.segment_point[i], q.triangle[i],
+                      q.barycentric[i], q.normal[i], q.patch_radius[i], q.depth[i]))
+    cols = [np.concatenate(x) for x in zip(*parts)]
+    order = np.lexsort((cols[1], cols[0]))
+    cols = [x[order] for x in cols]
+    return Contacts(dataset.n_frames, cols[0].astype(np.int64), cols[1].astype(np.int16), *cols[2:])
+
+
+@pytest.fixture(scope="session")
+def contacts_of():
+    """The :func:`compute_contacts` function, for tests that build their own datasets."""
+    return compute_contacts
+
+
+@pytest.fixture(scope="session")
+def small_contacts(small, robot) -> Contacts:
+    return compute_contacts(small, robot)
+
+
+@pytest.fixture()
+def written(tmp_path, small, robot) -> Path:
+    """``small`` written in the recorded layout under a fresh folder."""
+    from sphri.data.writer import write_dataset
+
+    write_dataset(small, robot, tmp_path / "ds")
+    return tmp_path / "ds"
