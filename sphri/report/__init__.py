@@ -1,0 +1,19 @@
+"""The sweep report: from a resolution sweep to "this skin needs a taxel every N mm".
+
+``python -m sphri.report SWEEP_DIR`` (or a parent run id) reads the sweep's
+MLflow runs and writes ``SWEEP_DIR/report/``: a self-contained
+``report.html`` (figures embedded), the PNG figures, ``summary.txt``,
+``saturation.csv``/``saturation.json``/``points.csv``; it logs them to the
+sweep's parent run. The saturation rule and its bootstrap are pure
+functions in :mod:`sphri.report.saturation`.
+"""
+
+from sphri.report.analysis import RuleSettings, SweepReport, analyze
+from sphri.report.build import ReportFiles, make_report
+from sphri.report.saturation import Saturation, curve_stats, physical_interval, saturation, saturation_index
+from sphri.report.sweep import ReportError, Sweep, load_sweep
+
+__all__ = [
+    "ReportError", "ReportFiles", "RuleSettings", "Saturation", "Sweep", "SweepReport", "analyze",
+    "curve_stats", "load_sweep", "make_report", "physical_interval", "saturation", "saturation_index",
+]

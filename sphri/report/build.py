@@ -1,0 +1,221 @@
+"""Write a sweep's report: HTML, PNG figures, text and tables in ``<sweep_dir>/report/``,
+logged to the sweep's MLflow parent run.
+
+:func:`make_report` is what ``python -m sphri.report`` runs: load the sweep
+(:mod:`sphri.report.sweep`), analyse it (:mod:`sphri.report.analysis`),
+draw (:mod:`sphri.report.figures`), render (:mod:`sphri.report.render`),
+then log the folder to the parent run under ``report/``, set the parent's
+description (``mlflow.note.content``) to the text summary, its
+``sphri.synthetic`` tag, and one metric per group and number of the
+saturation point (``saturation/<group>/pitch_mm`` ...).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from sphri.report.analysis import RuleSettings, SweepReport, analyze
+from sphri.report.figures import plot_bootstrap, plot_curves, plot_recall
+from sphri.report.render import comparison_rows, render_html, render_text
+from sphri.report.sweep import ReportError, Sweep, load_sweep
+
+log = logging.getLogger(__name__)
+
+
+#: Figure files the report writes (besides ``confusion_<group>.png``).
+FIGURE_FILES = ("accuracy_vs_resolution.png", "recall_vs_resolution.png", "saturation_bootstrap.png")
+
+
+@dataclass
+class ReportFiles:
+    """Where the report was written."""
+
+    out_dir: Path
+    html: Path
+    text: Path
+    figures: dict[str, Path]
+    confusions: dict[str, Path]
+    tables: dict[str, Path]
+    logged_to: str | None
+    """Parent run id the report was logged to (None when not logged)."""
+
+
+def slug(label: str) -> str:
+    """A file- and MLflow-safe name for a group label."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", label).strip("_") or "all"
+
+
+def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path) -> dict[str, Path]:
+    from mlflow.tracking import MlflowClient
+
+    client = MlflowClient(tracking_uri=sweep.uri)
+    out = {}
+    for g in report.groups:
+        run_id = g.recommended["run_id"]
+        dst = out_dir / f"confusion_{slug(g.label)}.png"
+        try:
+            import shutil
+            import tempfile
+
+            with tempfile.TemporaryDirectory(prefix="sphri-report-") as tmp:
+                src = client.download_artifacts(run_id, "confusion.png", tmp)
+                if g.context["synthetic"]:
+                    _label_synthetic(Path(src), dst)
+                else:
+                    shutil.copyfile(src, dst)
+            out[g.label] = dst
+        except Exception as exc:  # artifacts disabled for the job
+            report.notes.append(f"{g.label}: no confusion.png artifact in run {run_id} ({type(exc).__name__})")
+    return out
+
+
+def _label_synthetic(src: Path, dst: Path) -> Path:
+    """Copy the PNG ``src`` to ``dst`` with a "SYNTHETIC DATA" banner above it."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    img = plt.imread(src)
+    h, w = img.shape[:2]
+    dpi = 100
+    fig = plt.figure(figsize=(w / dpi, (h + 40) / dpi), dpi=dpi)
+    ax = fig.add_axes((0, 0, 1, h / (h + 40)))
+    ax.imshow(img)
+    ax.axis("off")
+    fig.text(0.5, 1 - 20 / (h + 40), "SYNTHETIC DATA", ha="center", va="center", color="firebrick",
+             fontsize=12, fontweight="bold")
+    fig.savefig(dst, dpi=dpi)
+    plt.close(fig)
+    return dst
+
+
+def write_report(report: SweepReport, out_dir: Path) -> ReportFiles:
+    """Figures, confusion matrices, tables, HTML and text of ``report`` into ``out_dir``."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    for name in FIGURE_FILES:  # figures of an earlier report that may not be redrawn
+        (out_dir / name).unlink(missing_ok=True)
+    for old in out_dir.glob("confusion_*.png"):
+        old.unlink()
+    figures = {"curves": plot_curves(report, out_dir / "accuracy_vs_resolution.png")}
+    for name, fig in (("recall", plot_recall(report, out_dir / "recall_vs_resolution.png")),
+                      ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png"))):
+        if fig is not None:
+            figures[name] = fig
+    confusions = _confusions(report.sweep, report, out_dir)
+
+    tables = {"comparison": out_dir / "saturation.csv", "points": out_dir / "points.csv", "json": out_dir / "saturation.json"}
+    pd.DataFrame(comparison_rows(report)).to_csv(tables["comparison"], index=False, float_format="%.6g")
+    pts = []
+    for g in report.groups:
+        p = g.points.copy()
+        p.insert(0, "group", g.label)
+        p["saturation"] = np.arange(len(p)) == g.sat.index
+        p["synthetic"] = bool(g.context["synthetic"])
+        pts.append(p)
+    pd.concat(pts, ignore_index=True).to_csv(tables["points"], index=False, float_format="%.6g")
+    tables["json"].write_text(json.dumps(_json(report), indent=2))
+
+    html_path = out_dir / "report.html"
+    html_path.write_text(render_html(report, figures, confusions), encoding="utf-8")
+    text_path = out_dir / "summary.txt"
+    text_path.write_text(render_text(report, html_path) + "\n", encoding="utf-8")
+    return ReportFiles(out_dir, html_path, text_path, figures, confusions, tables, None)
+
+
+def _plain(x):
+    """JSON-safe copy: numpy scalars and arrays to Python, non-finite floats to None."""
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return _plain(x.tolist())
+    if isinstance(x, (bool, np.bool_)):
+        return bool(x)
+    if isinstance(x, (int, np.integer)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        return float(x) if np.isfinite(x) else None
+    if x is None or isinstance(x, str):
+        return x
+    return str(x)
+
+
+def _json(report: SweepReport) -> dict:
+    return _plain({
+        "sweep_id": report.sweep.sweep_id,
+        "parent_run_id": report.sweep.parent_id,
+        "synthetic": report.synthetic,
+        "rule": report.rule.describe(),
+        "n_se": report.rule.n_se, "tolerance": report.rule.tolerance, "n_boot": report.rule.n_boot,
+        "ci": report.rule.ci, "seed": report.rule.seed,
+        "groups": [
+            {**row, "requirement": g.requirement, "interval": g.interval_text, "facts": g.facts,
+             "warnings": g.warnings, "saturation_index": g.sat.index, "best_index": g.sat.best_index,
+             "interval_index": g.sat.interval, "note": g.sat.note}
+            for g, row in zip(report.groups, comparison_rows(report))
+        ],
+        "notes": report.notes,
+        "failed": report.sweep.failed,
+    })
+
+
+def log_report(report: SweepReport, files: ReportFiles, text: str) -> str:
+    """Log ``files`` to the sweep's parent run (artifacts under ``report/``, description, tags, metrics)."""
+    from mlflow.entities import Metric, RunTag
+    from mlflow.tracking import MlflowClient
+
+    s = report.sweep
+    client = MlflowClient(tracking_uri=s.uri)
+    client.log_artifacts(s.parent_id, str(files.out_dir), artifact_path="report")
+    tags = [RunTag("mlflow.note.content", text[:50000]),
+            RunTag("sphri.synthetic", {"all": "true", "some": "mixed", "none": "false"}[report.synthetic]),
+            RunTag("sphri.report.requirement", " | ".join(g.requirement for g in report.groups)[:5000])]
+    note = s.parent_tags.get("mlflow.note.content", "")
+    if note.startswith("sweep:") and "sphri.sweep_note" not in s.parent_tags:
+        tags.append(RunTag("sphri.sweep_note", note[:5000]))  # keep the sweep command the report replaces
+    metrics = []
+    import time
+
+    now = int(time.time() * 1000)
+    for row in comparison_rows(report):
+        name = slug(str(row["group"]))
+        for key in ("saturation_pitch_mm", "pitch_low_mm", "pitch_high_mm", "area_per_taxel_cm2",
+                    "saturation_res", "accuracy", "tolerance", "best_accuracy", "gap_to_best"):
+            v = float(row[key]) if row[key] is not None else float("nan")
+            if np.isfinite(v):
+                metrics.append(Metric(f"saturation/{name}/{key}", v, now, 0))
+    client.log_batch(s.parent_id, metrics=metrics[:1000], tags=tags)
+    return s.parent_id
+
+
+def make_report(source: str | Path, uri: str | None = None, output_dir: str | Path = "outputs",
+                out_dir: str | Path | None = None, rule: RuleSettings = RuleSettings(),
+                log_to_mlflow: bool = True) -> tuple[SweepReport, ReportFiles, str]:
+    """Report on the sweep ``source`` (its directory or parent run id); returns (report, files, text).
+
+    ``out_dir`` defaults to ``<sweep_dir>/report``; it is required when the
+    sweep directory is unknown (a run id from another machine).
+    """
+    sweep = load_sweep(source, uri=uri, output_dir=output_dir)
+    if out_dir is None:
+        if sweep.sweep_dir is None:
+            raise ReportError(
+                f"the sweep directory of run {sweep.parent_id} is not on this machine "
+                f"({sweep.parent_tags.get('sphri.sweep_dir', 'not recorded')}); pass --out DIR"
+            )
+        out_dir = sweep.sweep_dir / "report"
+    report = analyze(sweep, rule)
+    files = write_report(report, Path(out_dir))
+    text = render_text(report, files.html)
+    if log_to_mlflow:
+        files.logged_to = log_report(report, files, text)
+    return report, files, text

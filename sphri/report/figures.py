@@ -1,0 +1,265 @@
+"""The report's figures as PNG files (matplotlib, Agg backend).
+
+- :func:`plot_curves`: accuracy and macro F1 against resolution for each
+  group, mean with a +/- std band over participants, x axis the taxel pitch
+  along the link (mm, log scale, fine to the right) with taxels per 24 cm on
+  top and the taxel count below when every group shares it; the saturation
+  point (star) with its bootstrap interval (horizontal bar).
+- :func:`plot_recall`: per-gesture recall against resolution, one panel per
+  group, each gesture's own saturation point marked.
+- :func:`plot_bootstrap`: how often each resolution was chosen by the rule
+  over the bootstrap resamples.
+
+Every figure carries "SYNTHETIC DATA" in its title when the runs did.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from sphri.report.analysis import CHANCE, SweepReport
+from sphri.types import GESTURES
+
+#: The reference study's saturation: 18 taxels along the 24 cm arm.
+STUDY_TAXELS_PER_24CM = 18.0
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _title(report: SweepReport, what: str) -> str:
+    tag = {"all": "SYNTHETIC DATA: ", "some": "PARTLY SYNTHETIC DATA: ", "none": ""}[report.synthetic]
+    return f"{tag}{what} (sweep {report.sweep.sweep_id})"
+
+
+def _x(report: SweepReport) -> tuple[str, str]:
+    """(column, label) of the x axis shared by all groups."""
+    if report.groups and all(g.has_pitch for g in report.groups):
+        return "pitch_u_mm", "taxel pitch along the link (mm, log scale; finer to the right)"
+    return "n_taxels", "taxels (log scale)"
+
+
+def _shared_count_map(report: SweepReport) -> tuple[np.ndarray, np.ndarray] | None:
+    """(pitch_u, n_taxels) sorted by pitch when every group has the same mapping, else None."""
+    pairs = None
+    for g in report.groups:
+        p = g.points[["pitch_u_mm", "n_taxels"]].to_numpy(float)
+        p = p[np.argsort(p[:, 0])]
+        if not np.all(np.isfinite(p)) or np.any(np.diff(p[:, 0]) <= 0):
+            return None
+        key = {(round(a, 6), int(b)) for a, b in p}
+        if pairs is None:
+            pairs = key
+        elif key != pairs and not (key <= pairs or pairs <= key):
+            return None
+        else:
+            pairs |= key
+    if not pairs or len(pairs) < 2:
+        return None
+    arr = np.array(sorted(pairs), dtype=float)
+    if np.any(np.diff(arr[:, 0]) <= 0) or np.any(np.diff(arr[:, 1]) > 0):  # count must fall as pitch grows
+        return None
+    return arr[:, 0], arr[:, 1]
+
+
+def _all(report: SweepReport, col: str) -> np.ndarray:
+    v = np.concatenate([g.points[col].to_numpy(float) for g in report.groups])
+    return v[np.isfinite(v) & (v > 0)]
+
+
+def _nice_log_ticks(axis, values: np.ndarray) -> None:
+    """Plain-number ticks (1, 2, 5 x 10^k) spanning ``values`` on a log axis."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
+
+    if values.size == 0:
+        return
+    lo, hi = values.min(), values.max()
+    ticks = [m * 10.0**k for k in range(int(np.floor(np.log10(lo))) - 1, int(np.ceil(np.log10(hi))) + 1)
+             for m in (1, 2, 5)]
+    ticks = [x for x in ticks if lo / 1.5 <= x <= hi * 1.5]
+    axis.set_major_locator(FixedLocator(ticks))
+    axis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+    axis.set_minor_formatter(NullFormatter())
+
+
+def _interp_extrap(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
+    """Piecewise-linear interpolation with linear extrapolation past both ends (``xp`` increasing).
+
+    A secondary axis needs exact inverse functions over the whole view, also
+    beyond the first and last sweep points, so clamping (``np.interp``) will not do.
+    """
+    x = np.asarray(x, dtype=np.float64)
+    y = np.interp(x, xp, fp)
+    lo_slope = (fp[1] - fp[0]) / (xp[1] - xp[0])
+    hi_slope = (fp[-1] - fp[-2]) / (xp[-1] - xp[-2])
+    y = np.where(x < xp[0], fp[0] + (x - xp[0]) * lo_slope, y)
+    return np.where(x > xp[-1], fp[-1] + (x - xp[-1]) * hi_slope, y)
+
+
+def _count_ticks(axis, pitch: np.ndarray, count: np.ndarray, max_ticks: int = 9) -> None:
+    """Ticks at the sweep's taxel counts, thinned so that labels do not overlap on the log pitch axis."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter, NullLocator
+
+    order = np.argsort(-pitch)  # left (coarse) to right (fine)
+    keep, last = [], None
+    span = np.log(pitch.max() / pitch.min()) if pitch.size > 1 else 1.0
+    for i in order:
+        if last is None or np.log(last / pitch[i]) >= span / max_ticks:
+            keep.append(count[i])
+            last = pitch[i]
+    axis.set_major_locator(FixedLocator(keep))
+    axis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:.0f}"))
+    axis.set_minor_locator(NullLocator())
+    axis.set_minor_formatter(NullFormatter())
+
+
+def plot_curves(report: SweepReport, path: Path) -> Path:
+    """Accuracy and macro F1 against resolution (two panels) -> ``path`` (PNG)."""
+    plt = _plt()
+    xcol, xlabel = _x(report)
+    fig, axes = plt.subplots(2, 1, figsize=(9.5, 9.0), dpi=110, sharex=True)
+    colors = plt.get_cmap("tab10")
+    for i, g in enumerate(report.groups):
+        color = colors(i % 10)
+        x = g.points[xcol].to_numpy(float)
+        for ax, metric in zip(axes, ("accuracy", "macro_f1")):
+            m = g.points[f"{metric}_mean"].to_numpy(float)
+            s = g.points[f"{metric}_std"].to_numpy(float)
+            ax.plot(x, m, "o-", color=color, ms=3.5, lw=1.6, label=f"{g.label} (n={g.sat.n_participants})")
+            ax.fill_between(x, m - s, m + s, color=color, alpha=0.15, lw=0)
+        rec = g.recommended
+        ax = axes[0]
+        ax.plot([rec[xcol]], [rec["accuracy_mean"]], marker="*", ms=16, color=color, mec="black", zorder=5,
+                label=f"saturation: {g.label}")
+        if g.sat.interval is not None:  # the interval as a bar in the panel's empty lower band
+            ends = g.points[xcol].iloc[list(g.sat.interval)].to_numpy(float)
+            y = 0.04 + 0.045 * i
+            ax.plot([ends.min(), ends.max()], [y, y], "-", color=color, lw=3, solid_capstyle="butt", zorder=4)
+            ax.plot([ends.min(), ends.max()], [y, y], "|", color=color, ms=9, mew=2, zorder=4)
+            ax.plot([rec[xcol]], [y], marker="*", ms=10, color=color, mec="black", zorder=5)
+    for ax, name in zip(axes, ("accuracy", "macro F1")):
+        ax.axhline(CHANCE, color="0.4", ls="--", lw=1)
+        ax.text(0.01, CHANCE + 0.01, "chance", transform=ax.get_yaxis_transform(), ha="left", va="bottom",
+                fontsize=8, color="0.3")
+        ax.set_ylabel(f"{name} (mean +/- std over participants)")
+        ax.set_ylim(0, 1.02)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.set_xscale("log")
+        _nice_log_ticks(ax.xaxis, _all(report, xcol))
+    if xcol == "pitch_u_mm":
+        study = 240.0 / STUDY_TAXELS_PER_24CM
+        for ax in axes:
+            ax.axvline(study, color="0.2", ls=":", lw=1.2)
+        axes[0].text(study, 0.3, " study: 18 taxels / 24 cm", rotation=90, fontsize=8, color="0.2", va="bottom",
+                     ha="right")
+        axes[0].invert_xaxis()
+        top = axes[0].secondary_xaxis("top", functions=(lambda p: 240.0 / np.maximum(p, 1e-9),
+                                                        lambda t: 240.0 / np.maximum(t, 1e-9)))
+        top.set_xlabel("taxels per 24 cm along the link (the study's axis)")
+        _nice_log_ticks(top.xaxis, 240.0 / _all(report, xcol))
+        cmap = _shared_count_map(report)
+        if cmap is not None:
+            lp, n = np.log(cmap[0]), np.log(cmap[1])
+
+            def to_count(p):
+                return np.exp(_interp_extrap(np.log(np.maximum(p, 1e-9)), lp, n))
+
+            def to_pitch(c):
+                return np.exp(_interp_extrap(-np.log(np.maximum(c, 1e-9)), -n, lp))
+
+            bottom = axes[1].secondary_xaxis(-0.22, functions=(to_count, to_pitch))
+            bottom.set_xlabel("taxel count (at the sweep's points)")
+            _count_ticks(bottom.xaxis, cmap[0], cmap[1])
+    axes[1].set_xlabel(xlabel)
+    if any(g.sat.interval is not None for g in report.groups):
+        axes[0].text(0.99, 0.04 + 0.045 * len(report.groups), f"saturation point, {report.rule.ci:.0%} bootstrap interval",
+                     transform=axes[0].get_yaxis_transform(), ha="right", va="bottom", fontsize=8, color="0.3")
+    axes[0].legend(fontsize=8, loc="upper left", ncol=1 if len(report.groups) < 4 else 2)
+    fig.suptitle(_title(report, "accuracy against skin resolution"), fontsize=11,
+                 color="firebrick" if report.synthetic != "none" else "black")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def plot_recall(report: SweepReport, path: Path, max_groups: int = 6) -> Path | None:
+    """Per-gesture recall against resolution, one panel per group (first ``max_groups``) -> ``path``.
+
+    None when no job logged per-gesture recall (``per_participant.csv`` missing).
+    """
+    if not any(g.gesture_sat for g in report.groups):
+        return None
+    plt = _plt()
+    xcol, xlabel = _x(report)
+    groups = report.groups[:max_groups]
+    ncol = min(3, len(groups))
+    nrow = int(np.ceil(len(groups) / ncol))
+    fig, axes = plt.subplots(nrow, ncol, figsize=(5.2 * ncol, 4.2 * nrow + 0.6), dpi=110, squeeze=False)
+    colors = plt.get_cmap("tab10")
+    for ax, g in zip(axes.ravel(), groups):
+        x = g.points[xcol].to_numpy(float)
+        for k, gest in enumerate(GESTURES):
+            y = g.points[f"recall_{gest}"].to_numpy(float)
+            if not np.isfinite(y).any():
+                continue
+            ax.plot(x, y, "-", color=colors(k), lw=1.4, label=gest)
+            s = g.gesture_sat.get(gest)
+            if s is not None:
+                ax.plot([x[s.index]], [y[s.index]], "o", color=colors(k), mec="black", ms=6)
+        ax.set_xscale("log")
+        _nice_log_ticks(ax.xaxis, x[np.isfinite(x) & (x > 0)])
+        if xcol == "pitch_u_mm":
+            ax.invert_xaxis()
+        ax.set_ylim(0, 1.02)
+        ax.set_title(g.label, fontsize=10)
+        ax.set_xlabel(xlabel.split(" (")[0] + (" (mm)" if xcol == "pitch_u_mm" else ""))
+        ax.set_ylabel("recall (mean over participants)")
+        ax.grid(True, which="both", alpha=0.3)
+    for ax in axes.ravel()[len(groups):]:
+        ax.set_visible(False)
+    if axes[0, 0].get_legend_handles_labels()[0]:
+        axes[0, 0].legend(fontsize=8, ncol=2, loc="lower right")
+    fig.suptitle(_title(report, "per-gesture recall against resolution (dots: each gesture's saturation point)"),
+                 fontsize=10, color="firebrick" if report.synthetic != "none" else "black")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def plot_bootstrap(report: SweepReport, path: Path) -> Path | None:
+    """Share of bootstrap resamples choosing each resolution, per group -> ``path`` (None without any bootstrap)."""
+    groups = [g for g in report.groups if g.sat.boot_index is not None and len(g.points) > 1]
+    if not groups:
+        return None
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(9.5, 3.6), dpi=110)
+    colors = plt.get_cmap("tab10")
+    width = 0.8 / len(groups)
+    union = sorted({int(r) for g in groups for r in g.points["res"]})
+    where = {r: k for k, r in enumerate(union)}
+    for i, g in enumerate(groups):
+        counts = np.bincount(g.sat.boot_index, minlength=len(g.points)) / len(g.sat.boot_index)
+        pos = np.array([where[int(r)] for r in g.points["res"]]) + (i - (len(groups) - 1) / 2) * width
+        ax.bar(pos, counts, width=width, color=colors(report.groups.index(g) % 10), label=g.label)
+    step = max(1, len(union) // 25)
+    ax.set_xticks(np.arange(len(union))[::step], [str(r) for r in union][::step])
+    ax.set_xlabel("encoder.res (taxels along the link)")
+    ax.set_ylabel("share of resamples")
+    ax.legend(fontsize=8)
+    ax.grid(True, axis="y", alpha=0.3)
+    ax.set_title(_title(report, "saturation point over bootstrap resamples of participants"), fontsize=10,
+                 color="firebrick" if report.synthetic != "none" else "black")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path

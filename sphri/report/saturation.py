@@ -1,0 +1,262 @@
+"""The saturation rule and its bootstrap over participants (pure functions).
+
+Input everywhere is a score matrix ``scores`` of shape (P, R): one row per
+participant (a LOSO fold), one column per sweep point, the columns ordered
+**coarse to fine** (fewest taxels first). Entries are accuracies (or any
+score in which higher is better); NaN marks a missing value (a failed job,
+a fold without that gesture, ...).
+
+The rule (a one-standard-error rule, as in Breiman et al.'s CART pruning):
+
+1. For each sweep point r, the curve is the mean of the finite scores over
+   participants, ``mean[r]``, with standard error
+   ``se[r] = std(ddof=1) / sqrt(n[r])`` (n[r] finite scores; undefined, and
+   taken as 0, when n[r] < 2). Points with no finite score are ineligible.
+2. The best point b is the one with the highest mean (the coarsest among
+   ties). The tolerance is ``n_se * se[b]`` (one standard error of the best
+   by default), or a fixed ``tolerance`` in score units when given.
+3. The saturation point is the **coarsest** point whose mean is within the
+   tolerance of the best: the first r with ``mean[r] >= mean[b] - tolerance``.
+
+Consequences: a flat curve saturates at the coarsest point; a curve that
+still rises by more than the tolerance at its finest point saturates at the
+finest point (the sweep did not reach saturation; :attr:`Saturation.at_finest`
+says so).
+
+Participants without any finite score are dropped first.
+
+The interval is a participant bootstrap: draw P participants with
+replacement (whole rows, so each participant's scores stay paired across
+resolutions), recompute the curve, its standard errors and the rule, and
+record the selected point; the interval is the (1 - ci)/2 and (1 + ci)/2
+percentiles (``inverted_cdf``, so both ends are sweep points) of the
+selected point over ``n_boot`` resamples. :func:`physical_interval` turns it
+into a pitch (or any per-point quantity). With fewer than two participants
+there is no standard error and no bootstrap: the interval is ``None`` and
+:attr:`Saturation.note` says why.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Slack for float comparisons of means (scores are in [0, 1]).
+_EPS = 1e-12
+
+
+@dataclass(frozen=True)
+class CurveStats:
+    """Per-point summary of a (P, R) score matrix over participants."""
+
+    mean: np.ndarray
+    """(R,) float64 mean of the finite scores (NaN where none)."""
+    std: np.ndarray
+    """(R,) float64 sample standard deviation, ddof=1 (0 where n < 2, NaN where n = 0)."""
+    se: np.ndarray
+    """(R,) float64 standard error ``std / sqrt(n)`` (0 where n < 2, NaN where n = 0)."""
+    n: np.ndarray
+    """(R,) int64 number of finite scores (participants) per point."""
+
+
+@dataclass(frozen=True)
+class Saturation:
+    """Outcome of the saturation rule on one curve (indices into the R points)."""
+
+    index: int
+    """Selected (saturation) point, index into the coarse-to-fine order."""
+    best_index: int
+    """Point with the highest mean."""
+    tolerance: float
+    """Allowed shortfall from the best mean (score units, e.g. accuracy)."""
+    stats: CurveStats
+    n_participants: int
+    """Participants (rows) with at least one finite score."""
+    interval: tuple[int, int] | None
+    """(low, high) percentile indices of the bootstrap, or None (see ``note``)."""
+    ci: float
+    n_boot: int
+    """Bootstrap resamples drawn (0 when no interval)."""
+    boot_index: np.ndarray | None
+    """(n_boot,) int64 selected index per resample, or None."""
+    gap: float
+    """Mean paired shortfall of the selected point from the best (score units; >= 0 up to noise)."""
+    gap_interval: tuple[float, float] | None
+    """Bootstrap percentile interval of ``gap`` (paired over participants), or None."""
+    note: str
+    """Why something is missing or degenerate ("" when all is well)."""
+
+    @property
+    def at_finest(self) -> bool:
+        """True when the rule picked the finest point: the sweep may not have saturated."""
+        return self.index == self.stats.mean.shape[0] - 1 and self.stats.mean.shape[0] > 1
+
+
+def curve_stats(scores: np.ndarray) -> CurveStats:
+    """Mean, std (ddof=1), standard error and count per column of ``scores`` (P, R), NaNs skipped."""
+    mean, std, se, n = _batch_stats(_as_matrix(scores)[None])
+    return CurveStats(mean[0], std[0], se[0], n[0])
+
+
+def _as_matrix(scores: np.ndarray) -> np.ndarray:
+    s = np.asarray(scores, dtype=np.float64)
+    if s.ndim != 2:
+        raise ValueError(f"scores must be a (participants, points) matrix, got shape {s.shape}")
+    if s.shape[0] == 0 or s.shape[1] == 0:
+        raise ValueError(f"scores is empty (shape {s.shape}): no participants or no sweep points")
+    s = np.where(np.isfinite(s), s, np.nan)
+    return s
+
+
+def _batch_stats(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(B, P, R) scores with NaNs -> mean, std, se (B, R) float64 and n (B, R) int64."""
+    finite = np.isfinite(s)
+    n = finite.sum(axis=1)
+    filled = np.where(finite, s, 0.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = filled.sum(axis=1) / n
+        dev = np.where(finite, s - mean[:, None, :], 0.0)
+        var = (dev**2).sum(axis=1) / (n - 1)
+    std = np.where(n >= 2, np.sqrt(np.maximum(var, 0.0)), 0.0)
+    std = np.where(n == 0, np.nan, std)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        se = np.where(n >= 2, std / np.sqrt(np.maximum(n, 1)), 0.0)
+    se = np.where(n == 0, np.nan, se)
+    mean = np.where(n == 0, np.nan, mean)
+    return mean, std, se, n.astype(np.int64)
+
+
+def _rule(mean: np.ndarray, se: np.ndarray, n_se: float, tolerance: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Vectorized rule on (B, R) curves -> (selected, best, tolerance) each (B,); -1 where no finite point."""
+    valid = np.isfinite(mean)
+    any_valid = valid.any(axis=1)
+    masked = np.where(valid, mean, -np.inf)
+    best = np.argmax(masked, axis=1)  # first maximum = coarsest among ties
+    rows = np.arange(mean.shape[0])
+    best_mean = masked[rows, best]
+    if tolerance is None:
+        best_se = se[rows, best]
+        tol = n_se * np.where(np.isfinite(best_se), best_se, 0.0)
+    else:
+        tol = np.full(mean.shape[0], float(tolerance))
+    eligible = valid & (masked >= (best_mean - tol - _EPS)[:, None])
+    selected = np.argmax(eligible, axis=1)  # first True = coarsest
+    selected = np.where(any_valid, selected, -1)
+    best = np.where(any_valid, best, -1)
+    return selected, best, tol
+
+
+def saturation_index(scores: np.ndarray, n_se: float = 1.0, tolerance: float | None = None) -> int:
+    """Index of the saturation point of ``scores`` (P, R), columns coarse to fine (see module doc)."""
+    return saturation(scores, n_se=n_se, tolerance=tolerance, n_boot=0).index
+
+
+def saturation(
+    scores: np.ndarray,
+    n_se: float = 1.0,
+    tolerance: float | None = None,
+    n_boot: int = 2000,
+    ci: float = 0.95,
+    seed: int = 0,
+) -> Saturation:
+    """Apply the saturation rule to ``scores`` (P, R) and bootstrap it over participants.
+
+    ``n_se``: the tolerance in standard errors of the best point's mean
+    (used when ``tolerance`` is None). ``tolerance``: a fixed allowed
+    shortfall in score units instead. ``n_boot``: bootstrap resamples (0 =
+    no interval). ``ci``: interval coverage. ``seed``: the resampling seed
+    (same seed, same interval). Raises ValueError for a malformed matrix or
+    when no point has a finite score.
+    """
+    if not np.isfinite(n_se) or n_se < 0:
+        raise ValueError(f"n_se={n_se!r} is invalid: must be a finite number >= 0")
+    if tolerance is not None and (not np.isfinite(tolerance) or tolerance < 0):
+        raise ValueError(f"tolerance={tolerance!r} is invalid: must be a finite number >= 0 (score units)")
+    if not 0.0 < ci < 1.0:
+        raise ValueError(f"ci={ci!r} is invalid: must be in (0, 1)")
+    if n_boot < 0:
+        raise ValueError(f"n_boot={n_boot!r} is invalid: must be >= 0")
+    s = _as_matrix(scores)
+    s = s[np.isfinite(s).any(axis=1)]  # participants with no score at all carry no information
+    if s.shape[0] == 0:
+        raise ValueError("no finite score at any sweep point: nothing to find a saturation point on")
+    mean, std, se, n = _batch_stats(s[None])
+    stats = CurveStats(mean[0], std[0], se[0], n[0])
+    sel, best, tol = _rule(mean, se, n_se, tolerance)
+    index, best_index = int(sel[0]), int(best[0])
+    n_part = int(s.shape[0])
+    gap_vals = s[:, best_index] - s[:, index]
+    gap = float(np.nanmean(gap_vals)) if np.isfinite(gap_vals).any() else float(stats.mean[best_index] - stats.mean[index])
+
+    notes = []
+    n_missing = int((~np.isfinite(s)).sum())
+    if n_missing:
+        notes.append(f"{n_missing} of {s.size} participant x point scores are missing (NaN) and were skipped")
+    if n_part < 2:
+        notes.append(
+            "only one participant: no standard error and no bootstrap interval; the rule's tolerance is "
+            + ("the fixed tolerance" if tolerance is not None else "0, so the saturation point is the best point")
+        )
+        return Saturation(index, best_index, float(tol[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes))
+    if n_boot == 0:
+        notes.append("no bootstrap requested (n_boot=0): no interval")
+        return Saturation(index, best_index, float(tol[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes))
+
+    rng = np.random.default_rng(seed)
+    boot_sel = np.empty(n_boot, dtype=np.int64)
+    boot_gap = np.empty(n_boot, dtype=np.float64)
+    chunk = max(1, int(4e6 // max(s.size, 1)))  # bound memory to ~32 MB per chunk
+    for start in range(0, n_boot, chunk):
+        b = min(chunk, n_boot - start)
+        rows = rng.integers(0, n_part, size=(b, n_part))
+        sb = s[rows]  # (b, P, R)
+        m, _, e, _ = _batch_stats(sb)
+        sel_b, _, _ = _rule(m, e, n_se, tolerance)
+        boot_sel[start:start + b] = sel_b
+        d = sb[:, :, best_index] - sb[:, :, index]
+        with np.errstate(invalid="ignore"), _quiet():
+            boot_gap[start:start + b] = np.nanmean(d, axis=1)
+    ok = boot_sel >= 0
+    if not ok.all():
+        notes.append(f"{int((~ok).sum())} of {n_boot} resamples had no finite point and were dropped")
+    lo_q, hi_q = (1.0 - ci) / 2.0, (1.0 + ci) / 2.0
+    picked = boot_sel[ok]
+    interval = (int(np.quantile(picked, lo_q, method="inverted_cdf")), int(np.quantile(picked, hi_q, method="inverted_cdf")))
+    g = boot_gap[np.isfinite(boot_gap)]
+    gap_interval = (float(np.quantile(g, lo_q)), float(np.quantile(g, hi_q))) if g.size else None
+    if n_part < 5:
+        notes.append(f"only {n_part} participants: the bootstrap interval is coarse")
+    return Saturation(index, best_index, float(tol[0]), stats, n_part, interval, ci, int(ok.sum()), picked, gap,
+                      gap_interval, "; ".join(notes))
+
+
+class _quiet:
+    """Silence numpy's 'Mean of empty slice' warnings inside a block."""
+
+    def __enter__(self):
+        import warnings
+
+        self._w = warnings.catch_warnings()
+        self._w.__enter__()
+        warnings.simplefilter("ignore", RuntimeWarning)
+        return self
+
+    def __exit__(self, *exc):
+        return self._w.__exit__(*exc)
+
+
+def physical_interval(values: np.ndarray, sat: Saturation) -> tuple[float, float] | None:
+    """The bootstrap interval of ``sat`` in a per-point quantity ``values`` (R,), e.g. pitch in mm.
+
+    Returns (min, max) of ``values`` over the two interval end points (a
+    pitch falls as the index rises, so its low end comes from the fine end),
+    or None when ``sat`` has no interval.
+    """
+    if sat.interval is None:
+        return None
+    v = np.asarray(values, dtype=np.float64)
+    if v.shape != sat.stats.mean.shape:
+        raise ValueError(f"values has shape {v.shape}, expected one per sweep point {sat.stats.mean.shape}")
+    a, b = v[sat.interval[0]], v[sat.interval[1]]
+    return (float(min(a, b)), float(max(a, b)))

@@ -1,0 +1,317 @@
+"""Read a finished sweep back from MLflow: its parent run, jobs and per-participant scores.
+
+A sweep is found from its directory (``<sweep_dir>/mlflow_parent_run.json``
+names the parent run and the tracking URI) or from the parent's run id and a
+tracking URI. Its jobs are the parent's children (tag ``mlflow.parentRunId``)
+plus any run named by a job's ``sphri_status.json`` (a resumed sweep's
+skipped jobs point at an earlier finished run). Per-participant scores come
+from each job's ``per_participant.csv`` artifact, else from its
+``participant/<id>/accuracy`` metrics.
+
+Jobs are grouped by the parameters that vary across the sweep other than the
+resolution (``encoder.res`` and the derived ``resolution.*``/``meta.*``
+params): e.g. ``model`` in a model comparison, ``robot`` in a morphology
+sweep, ``layout`` or ``noise``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import re
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from sphri.tracking.mlflow_tracker import PARENT_FILE, default_uri
+from sphri.types import GESTURES
+
+log = logging.getLogger(__name__)
+
+STATUS_FILE = "sphri_status.json"
+_RUN_ID = re.compile(r"^[0-9a-f]{32}$")
+
+#: Group keys shown first, in this order, when they vary.
+KEY_ORDER = ("robot", "data", "surface", "layout", "encoder", "noise", "window", "contact", "model", "cv", "seed")
+
+#: Per-resolution columns read from the jobs' ``resolution.*`` params (floats).
+RESOLUTION_PARAMS = ("n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm", "area_per_taxel_cm2",
+                     "taxels_per_24cm", "link_length_mm", "circumference_mm")
+
+
+class ReportError(ValueError):
+    """The sweep cannot be reported on; the message says what is missing."""
+
+
+@dataclass
+class Sweep:
+    """A sweep's jobs and their per-participant scores."""
+
+    parent_id: str
+    uri: str
+    sweep_id: str
+    sweep_dir: Path | None
+    parent_tags: dict[str, str]
+    runs: pd.DataFrame
+    """One row per finished job: run_id, res, group, ``key.<k>`` per group key, context
+    (robot, region, link, dataset, synthetic, cv_scheme, model) and the
+    ``RESOLUTION_PARAMS`` (mm, cm^2, counts)."""
+    folds: pd.DataFrame
+    """One row per (job, participant): run_id, participant, n_test, accuracy,
+    macro_f1, recall_<gesture> (NaN where unknown)."""
+    group_keys: list[str]
+    failed: list[dict[str, Any]]
+    """Jobs that failed: run_id, res, group, error."""
+    notes: list[str] = field(default_factory=list)
+
+    @property
+    def synthetic(self) -> str:
+        """"all", "some" or "none": whether the jobs ran on SYNTHETIC data."""
+        flags = self.runs["synthetic"].astype(bool)
+        return "all" if flags.all() else ("some" if flags.any() else "none")
+
+    def groups(self) -> list[tuple[str, pd.DataFrame]]:
+        """(label, its jobs sorted by res) for each group, labels in natural sort order."""
+        out = []
+        for label in sorted(self.runs["group"].unique(), key=_natural):
+            rows = self.runs[self.runs["group"] == label].sort_values("res", kind="stable")
+            out.append((label, rows.reset_index(drop=True)))
+        return out
+
+
+def _natural(s: str) -> list[Any]:
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]
+
+
+def resolve_source(source: str | Path, uri: str | None = None, output_dir: str | Path = "outputs") -> tuple[str, str, Path | None]:
+    """(parent run id, tracking URI, sweep dir or None) for a sweep dir or a parent run id."""
+    path = Path(source)
+    if path.is_dir():
+        parent_file = path / PARENT_FILE
+        if not parent_file.exists():
+            raise ReportError(
+                f"{path}: no {PARENT_FILE} here, so this is not a tracked sphri sweep directory "
+                "(run the sweep with `python -m sphri -m ...` and tracking.enabled=true, or pass the parent run id)"
+            )
+        try:
+            info = json.loads(parent_file.read_text())
+            run_id = str(info["run_id"])
+        except (ValueError, KeyError) as exc:
+            raise ReportError(f"{parent_file}: unreadable ({type(exc).__name__}: {exc}); expected {{run_id, sweep_id, uri}}") from None
+        return run_id, uri or str(info.get("uri") or default_uri(output_dir)), path.resolve()
+    text = str(source).strip()
+    if _RUN_ID.match(text):
+        return text, uri or default_uri(output_dir), None
+    if path.exists() or "/" in text or "\\" in text:
+        raise ReportError(f"{source}: no such sweep directory")
+    raise ReportError(
+        f"{source!r} is neither a sweep directory (with {PARENT_FILE}) nor an MLflow run id (32 hex characters)"
+    )
+
+
+def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Path = "outputs") -> Sweep:
+    """Read the sweep named by ``source`` (sweep dir or parent run id) from MLflow."""
+    from mlflow.tracking import MlflowClient
+
+    os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")  # one bar per job is noise here
+    parent_id, uri, sweep_dir = resolve_source(source, uri, output_dir)
+    if uri.startswith("sqlite:///") and not Path(uri[len("sqlite:///"):]).exists():
+        raise ReportError(f"tracking store {uri} does not exist (wrong --output-dir or --uri?)")
+    client = MlflowClient(tracking_uri=uri)
+    try:
+        parent = client.get_run(parent_id)
+    except Exception as exc:
+        raise ReportError(f"parent run {parent_id} not found in {uri}: {exc}") from None
+    ptags = dict(parent.data.tags)
+    if sweep_dir is None and ptags.get("sphri.sweep_dir"):
+        d = Path(ptags["sphri.sweep_dir"])
+        sweep_dir = d if d.is_dir() else None
+    sweep_id = ptags.get("sphri.sweep_id", parent_id[:8])
+
+    runs = _children(client, parent.info.experiment_id, parent_id)
+    notes: list[str] = []
+    if sweep_dir is not None:
+        known = {r.info.run_id for r in runs}
+        for status in sorted(sweep_dir.glob(f"*/{STATUS_FILE}")):
+            try:
+                rid = json.loads(status.read_text()).get("mlflow_run_id")
+            except ValueError:
+                notes.append(f"{status}: unreadable job status file, ignored")
+                continue
+            if rid and rid not in known:
+                try:
+                    runs.append(client.get_run(rid))
+                    known.add(rid)
+                except Exception:
+                    notes.append(f"{status}: run {rid} not found in the tracking store")
+    if not runs:
+        raise ReportError(f"sweep {sweep_id} (parent run {parent_id}) has no job runs in {uri}")
+
+    finished = [r for r in runs if r.info.status == "FINISHED"]
+    failed_runs = [r for r in runs if r.info.status == "FAILED"]
+    other = [r for r in runs if r.info.status not in ("FINISHED", "FAILED")]
+    if other:
+        notes.append(f"{len(other)} job(s) not finished ({', '.join(sorted({r.info.status for r in other}))}): left out")
+    if not finished:
+        raise ReportError(f"sweep {sweep_id}: none of its {len(runs)} jobs finished; nothing to report")
+
+    table = pd.DataFrame([_run_row(r) for r in finished])
+    table = table.sort_values("start_time", kind="stable")
+    n_before = len(table)
+    table = table.drop_duplicates("config_hash", keep="last")
+    if len(table) < n_before:
+        notes.append(f"{n_before - len(table)} duplicate job(s) with the same config hash: the latest run of each is used")
+
+    params = {r.info.run_id: dict(r.data.params) for r in finished}
+    keys = group_keys([params[rid] for rid in table["run_id"]])
+    for k in keys:  # "key.robot" (the component choice) beside "robot" (the robot's name)
+        table[f"key.{k}"] = [params[rid].get(k, "") for rid in table["run_id"]]
+    table["group"] = [group_label({k: params[rid].get(k, "") for k in keys}, model)
+                      for rid, model in zip(table["run_id"], table["model"])]
+    n_before = len(table)
+    table = table.drop_duplicates(["group", "res"], keep="last")
+    if len(table) < n_before:
+        notes.append(f"{n_before - len(table)} job(s) repeat a (group, resolution) with a different config: the latest is used")
+    table = table.reset_index(drop=True)
+
+    folds = pd.concat([_fold_rows(client, r) for r in finished if r.info.run_id in set(table["run_id"])], ignore_index=True)
+    no_scores = sorted(set(table["run_id"]) - set(folds["run_id"]))
+    if no_scores:
+        notes.append(f"{len(no_scores)} job(s) logged no per-participant scores: left out")
+        table = table[~table["run_id"].isin(no_scores)].reset_index(drop=True)
+    if table.empty:
+        raise ReportError(f"sweep {sweep_id}: no finished job has per-participant scores (per_participant.csv or participant/<id>/accuracy)")
+
+    failed = []
+    done = set(zip(table["group"], table["res"].astype(str)))
+    n_superseded = 0
+    for r in failed_runs:
+        p = dict(r.data.params)
+        label = group_label({k: p.get(k, "") for k in keys}, p.get("model", "?"))
+        if (label, p.get("encoder.res", "?")) in done:
+            n_superseded += 1  # failed once, finished on a resumed run
+            continue
+        failed.append({
+            "run_id": r.info.run_id,
+            "res": p.get("encoder.res", "?"),
+            "group": label,
+            "error": r.data.tags.get("sphri.error", "no error recorded"),
+        })
+    if n_superseded:
+        notes.append(f"{n_superseded} failed job run(s) were superseded by a finished run of the same point")
+    return Sweep(parent_id, uri, sweep_id, sweep_dir, ptags, table, folds, keys, failed, notes)
+
+
+def _children(client: Any, experiment_id: str, parent_id: str) -> list[Any]:
+    runs, token = [], None
+    query = f"tags.`mlflow.parentRunId` = '{parent_id}'"
+    while True:
+        page = client.search_runs([experiment_id], query, max_results=1000, page_token=token)
+        runs.extend(page)
+        token = page.token
+        if not token:
+            return runs
+
+
+def _float(value: Any) -> float:
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def _run_row(run: Any) -> dict[str, Any]:
+    p, t, m = run.data.params, run.data.tags, run.data.metrics
+    try:
+        res = int(p["encoder.res"])
+    except (KeyError, ValueError):
+        raise ReportError(f"job run {run.info.run_id} has no integer param encoder.res (got {p.get('encoder.res')!r})") from None
+    row: dict[str, Any] = {
+        "run_id": run.info.run_id,
+        "start_time": int(run.info.start_time or 0),
+        "config_hash": t.get("sphri.config_hash", run.info.run_id),
+        "res": res,
+        "model": p.get("model", "?"),
+        "robot": p.get("meta.robot", p.get("robot", "?")),
+        "region": p.get("meta.region", "?"),
+        "link": p.get("meta.link", "?"),
+        "dataset": t.get("sphri.dataset", p.get("data", "?")),
+        "synthetic": t.get("sphri.synthetic", "false").lower() == "true",
+        "cv_scheme": t.get("sphri.cv_scheme", p.get("cv", "?")),
+        "layout_kind": p.get("resolution.layout_kind", p.get("layout", "?")),
+        "n_participants": _float(p.get("meta.n_participants")),
+        "job_dir": t.get("sphri.job_dir", ""),
+    }
+    for k in RESOLUTION_PARAMS:
+        row[k] = _float(p.get(f"resolution.{k}"))
+    for k in ("accuracy_mean", "accuracy_std", "macro_f1_mean", "macro_f1_std"):
+        row[f"logged_{k}"] = _float(m.get(k))
+    return row
+
+
+def group_keys(params: list[dict[str, str]]) -> list[str]:
+    """Params that vary across jobs, other than the resolution: the grouping of a sweep.
+
+    Component choices (``robot``, ``model``, ...) come first; a setting
+    (``model.n_estimators``) is kept only when the chosen components do not
+    already determine it.
+    """
+    if not params:
+        return []
+    candidates = sorted({k for p in params for k in p
+                         if k != "encoder.res" and not k.startswith(("resolution.", "meta."))})
+    varying = [k for k in candidates if len({p.get(k, "") for p in params}) > 1]
+    top = [k for k in varying if "." not in k]
+    top.sort(key=lambda k: (KEY_ORDER.index(k) if k in KEY_ORDER else len(KEY_ORDER), k))
+    keys = list(top)
+    for k in (k for k in varying if "." in k):
+        by_group: dict[tuple[str, ...], set[str]] = {}
+        for p in params:
+            by_group.setdefault(tuple(p.get(g, "") for g in keys), set()).add(p.get(k, ""))
+        if any(len(v) > 1 for v in by_group.values()):
+            keys.append(k)
+    return keys
+
+
+def group_label(values: dict[str, str], model: str) -> str:
+    """Readable name of a group: ``rf``, or ``robot=nao_child, model=rf``."""
+    if not values or not any(values.values()):
+        return model
+    if len(values) == 1:
+        (k, v), = values.items()
+        return v if "." not in k else f"{k}={v}"
+    return ", ".join(f"{k}={v}" for k, v in values.items())
+
+
+def _fold_rows(client: Any, run: Any) -> pd.DataFrame:
+    """Per-participant scores of one job: its CSV artifact, else its participant metrics."""
+    rid = run.info.run_id
+    cols = ["participant", "n_test", "accuracy", "macro_f1"] + [f"recall_{g}" for g in GESTURES]
+    df = None
+    try:
+        with tempfile.TemporaryDirectory(prefix="sphri-report-") as tmp:
+            path = client.download_artifacts(rid, "per_participant.csv", tmp)
+            df = pd.read_csv(path, dtype={"fold": str})
+    except Exception as exc:  # no artifact (tracking.artifacts=false) or unreadable
+        log.debug("run %s: no per_participant.csv (%s); using participant metrics", rid, exc)
+    if df is not None and {"fold", "accuracy"} <= set(df.columns):
+        df = df.rename(columns={"fold": "participant"})
+    else:
+        pat = re.compile(r"^participant/(?P<p>.+)/accuracy$")
+        rows = [{"participant": m.group("p"), "accuracy": float(v)}
+                for k, v in run.data.metrics.items() if (m := pat.match(k))]
+        df = pd.DataFrame(rows, columns=["participant", "accuracy"])
+    for c in cols:
+        if c not in df.columns:
+            df[c] = np.nan
+    df = df[cols].copy()
+    df["participant"] = df["participant"].astype(str)
+    for c in cols[1:]:
+        df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
+    df.insert(0, "run_id", rid)
+    return df

@@ -1,0 +1,275 @@
+"""The sweep report end to end, on fake sweeps logged through the real MLflow tracker."""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import re
+from html.parser import HTMLParser
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sphri.report import RuleSettings, load_sweep, make_report, saturation
+from sphri.report.__main__ import main
+from sphri.report.sweep import ReportError, group_keys
+
+from fake_sweep import grid_resolution, make_sweep
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+RULE = RuleSettings(n_boot=400, seed=0)
+
+
+class _Page(HTMLParser):
+    def __init__(self):
+        super().__init__()
+        self.imgs: list[str] = []
+        self.tags: set[str] = set()
+        self.urls: list[str] = []
+        self.tables: list[list[list[str]]] = []
+        self._cell: list[str] | None = None
+
+    def handle_starttag(self, tag, attrs):
+        self.tags.add(tag)
+        if tag == "table":
+            self.tables.append([])
+        elif tag == "tr" and self.tables:
+            self.tables[-1].append([])
+        elif tag in ("td", "th"):
+            self._cell = []
+        a = dict(attrs)
+        if tag == "img":
+            self.imgs.append(a.get("src", ""))
+        for k in ("href", "src"):
+            if a.get(k) and not a[k].startswith("data:"):
+                self.urls.append(a[k])
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell.append(data)
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self.tables[-1][-1].append("".join(self._cell).strip())
+            self._cell = None
+
+
+@pytest.fixture(scope="module")
+def built(two_model_sweep):
+    report, files, text = make_report(two_model_sweep.sweep_dir, rule=RULE)
+    return two_model_sweep, report, files, text
+
+
+def test_load_sweep_groups_by_model_and_reads_participants(two_model_sweep):
+    sw = load_sweep(two_model_sweep.sweep_dir)
+    assert sw.group_keys == ["model"], "model varies; model.n_estimators/model.hidden follow from it"
+    assert sorted(sw.runs["group"].unique()) == ["cnn_gru", "rf"]
+    assert len(sw.runs) == 15 and len(sw.failed) == 1
+    assert sw.failed[0]["res"] == "36" and "boom" in sw.failed[0]["error"]
+    assert sw.synthetic == "all"
+    assert set(sw.folds["participant"]) == set(two_model_sweep.participants)
+    assert {f"recall_{g}" for g in ("hit", "poke", "grab")} <= set(sw.folds.columns)
+    rf = sw.runs[sw.runs["group"] == "rf"].sort_values("res")
+    assert rf["pitch_u_mm"].to_numpy() == pytest.approx([grid_resolution(r)["pitch_u_mm"] for r in rf["res"]], rel=1e-5)
+    # the same sweep by parent run id and tracking URI
+    by_id = load_sweep(two_model_sweep.parent_id, uri=two_model_sweep.uri)
+    assert set(by_id.runs["run_id"]) == set(sw.runs["run_id"]) and by_id.sweep_dir == sw.sweep_dir
+
+
+def test_saturation_numbers_match_the_logged_scores(built):
+    truth, report, files, text = built
+    rf = next(g for g in report.groups if g.label == "rf")
+    # recompute from the generated per-participant accuracies, without MLflow in between
+    expected = saturation(truth.accuracy["rf"], n_boot=RULE.n_boot, seed=RULE.seed)
+    assert rf.sat.index == expected.index and rf.sat.interval == expected.interval
+    assert rf.accuracy == pytest.approx(truth.accuracy["rf"], abs=1e-6)
+    res = truth.res[expected.index]
+    r = grid_resolution(res)
+    pitch = max(r["pitch_u_mm"], r["pitch_v_mm"])
+    assert f"A taxel pitch of at most {pitch:.1f} mm ({r['area_per_taxel_cm2']:.2f} cm^2 per taxel) keeps accuracy within" in rf.requirement
+    assert "of the best on this link" in rf.requirement
+    lo_res, hi_res = truth.res[expected.interval[0]], truth.res[expected.interval[1]]
+    pitches = [max(grid_resolution(x)["pitch_u_mm"], grid_resolution(x)["pitch_v_mm"]) for x in (hi_res, lo_res)]
+    assert rf.pitch_interval_mm == pytest.approx(sorted(pitches), rel=1e-5)  # params keep 6 digits
+    assert f"{min(pitches):.1f} to {max(pitches):.1f} mm pitch" in rf.interval_text
+    # mean +/- std over participants, as the study's figure
+    m = truth.accuracy["rf"].mean(0)
+    assert rf.points["accuracy_mean"].to_numpy() == pytest.approx(m, abs=1e-6)
+    assert rf.points["accuracy_std"].to_numpy() == pytest.approx(truth.accuracy["rf"].std(0, ddof=1), abs=1e-6)
+    saved = json.loads(files.tables["json"].read_text())
+    row = next(g for g in saved["groups"] if g["group"] == "rf")
+    assert row["saturation_res"] == res and row["saturation_pitch_mm"] == pytest.approx(pitch, rel=1e-5)
+    assert row["pitch_low_mm"] == pytest.approx(min(pitches), rel=1e-5) and row["interval_index"] == list(expected.interval)
+    assert isinstance(row["tolerance"], float) and isinstance(row["synthetic"], bool)
+
+
+def test_html_is_self_contained_with_figures_sentence_and_synthetic_label(built):
+    truth, report, files, text = built
+    page = files.html.read_text(encoding="utf-8")
+    parser = _Page()
+    parser.feed(page)
+    assert not parser.urls, f"external resources: {parser.urls}"
+    assert "script" not in parser.tags and "link" not in parser.tags
+    assert len(parser.imgs) >= 5, "curves, bootstrap, recall and two confusion matrices"
+    for src in parser.imgs:
+        assert src.startswith("data:image/png;base64,")
+        assert base64.b64decode(src.split(",", 1)[1])[:8] == PNG_MAGIC
+    assert "SYNTHETIC DATA" in page
+    for g in report.groups:
+        assert html.escape(g.requirement) in page
+    assert "A taxel pitch of at most" in page and "bootstrap interval over 8 participants" in page
+    assert page.count('class="req"') == 2
+    assert "FAILED job" in page and "boom at res 36" in page
+    # the comparison table: one row per model, with the saturation pitch of each
+    comp = next(t for t in parser.tables if t[0][0] == "model")
+    head = comp[0]
+    rows = {r[0]: dict(zip(head, r)) for r in comp[1:]}
+    assert sorted(rows) == ["cnn_gru", "rf"]
+    for g in report.groups:
+        assert rows[g.label]["saturation pitch (mm)"] == f"{g.recommended['pitch_mm']:.1f}"
+        assert rows[g.label]["participants"] == "8"
+
+
+def test_files_text_and_mlflow_parent(built):
+    from mlflow.tracking import MlflowClient
+
+    truth, report, files, text = built
+    assert files.out_dir == truth.sweep_dir / "report"
+    for name in ("report.html", "summary.txt", "accuracy_vs_resolution.png", "recall_vs_resolution.png",
+                 "saturation_bootstrap.png", "confusion_rf.png", "confusion_cnn_gru.png", "saturation.csv",
+                 "points.csv", "saturation.json"):
+        assert (files.out_dir / name).is_file(), name
+    assert (files.out_dir / "accuracy_vs_resolution.png").read_bytes()[:8] == PNG_MAGIC
+    assert text.startswith("sphri skin resolution report")
+    assert "SYNTHETIC DATA" in text and "A taxel pitch of at most" in text
+    assert "gestures, finest need first:" in text
+    assert (files.out_dir / "summary.txt").read_text().strip() == text.strip()
+    client = MlflowClient(truth.uri)
+    parent = client.get_run(truth.parent_id)
+    assert parent.data.tags["mlflow.note.content"].startswith("sphri skin resolution report")
+    assert parent.data.tags["sphri.synthetic"] == "true"
+    assert parent.data.tags["sphri.sweep_note"].startswith("sweep: encoder.res=")
+    assert "A taxel pitch of at most" in parent.data.tags["sphri.report.requirement"]
+    logged = {a.path for a in client.list_artifacts(truth.parent_id, "report")}
+    assert {"report/report.html", "report/accuracy_vs_resolution.png", "report/summary.txt"} <= logged
+    rf = next(g for g in report.groups if g.label == "rf")
+    assert parent.data.metrics["saturation/rf/saturation_pitch_mm"] == pytest.approx(rf.recommended["pitch_mm"])
+
+
+def test_per_gesture_recall_finds_the_gestures_that_need_fine_skin(built):
+    _, report, _, _ = built
+    rf = next(g for g in report.groups if g.label == "rf")
+    # the fake folds give poke the slowest-rising recall
+    order = {g: rf.gesture_sat[g].index for g in rf.gesture_sat}
+    assert order["poke"] >= np.median(list(order.values()))
+    assert set(rf.gesture_sat) == {"hit", "pat", "poke", "push", "rub", "stroke", "tap", "grab"}
+
+
+def test_morphology_sweep_compares_robots_and_real_data_is_not_labelled_synthetic(store, tmp_path):
+    truth = make_sweep(store, tmp_path / "morph", [2, 6, 18], robots=["reachy", "nao_child"], synthetic=False,
+                       n_participants=4)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False)
+    assert report.sweep.group_keys == ["robot"]
+    assert [g.label for g in report.groups] == ["nao_child", "reachy"]
+    comp = pd.read_csv(files.tables["comparison"])
+    assert sorted(comp["robot"]) == ["nao_child", "reachy"] and "saturation_pitch_mm" in comp.columns
+    page = files.html.read_text()
+    assert "SYNTHETIC" not in page and "SYNTHETIC" not in text
+    assert "only 4 participants" in page
+
+
+def test_one_participant_sweep_reports_no_interval_with_a_note(store, tmp_path):
+    truth = make_sweep(store, tmp_path / "one", [1, 4, 12], n_participants=1)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, out_dir=tmp_path / "rep", log_to_mlflow=False)
+    g = report.groups[0]
+    assert g.sat.interval is None and g.pitch_interval_mm is None
+    assert "No bootstrap interval: only one participant" in g.interval_text
+    assert "only one participant" in files.html.read_text()
+    assert "A taxel pitch of at most" in text
+
+
+def test_without_artifacts_scores_come_from_participant_metrics(store, tmp_path):
+    truth = make_sweep(store, tmp_path / "noart", [1, 3, 9], artifacts=False, n_participants=3)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False)
+    g = report.groups[0]
+    assert g.accuracy == pytest.approx(truth.accuracy["rf"], abs=1e-6)
+    assert np.isnan(g.macro_f1).all() and not g.gesture_sat
+    assert any("no confusion.png" in n for n in report.notes)
+    assert "No confusion matrix artifact" in files.html.read_text()
+
+
+def test_resumed_sweep_finds_jobs_through_status_files(store, tmp_path, two_model_sweep):
+    """A re-run sweep whose jobs were skipped points at runs of an earlier parent."""
+    from sphri.tracking.mlflow_tracker import PARENT_FILE, MlflowTracker
+
+    tracker = MlflowTracker()
+    new_dir = tmp_path / "resumed"
+    new_dir.mkdir()
+    pid = tracker.start_parent(str(two_model_sweep.output_dir), str(new_dir), "resumed", ["encoder.res=1,2"])
+    (new_dir / PARENT_FILE).write_text(json.dumps({"run_id": pid, "sweep_id": "resumed", "uri": two_model_sweep.uri}))
+    old = load_sweep(two_model_sweep.sweep_dir).runs
+    for i, rid in enumerate(old[old["group"] == "rf"]["run_id"][:3]):
+        (new_dir / str(i)).mkdir()
+        (new_dir / str(i) / "sphri_status.json").write_text(json.dumps({"job": i, "status": "SKIPPED", "mlflow_run_id": rid}))
+    sw = load_sweep(new_dir)
+    assert len(sw.runs) == 3 and set(sw.runs["run_id"]) <= set(old["run_id"])
+
+
+def test_cli_prints_the_summary_and_fails_clearly(two_model_sweep, tmp_path, capsys):
+    assert main([str(two_model_sweep.sweep_dir), "--n-boot", "100", "--no-log", "--out", str(tmp_path / "r")]) == 0
+    out = capsys.readouterr().out
+    assert "A taxel pitch of at most" in out and str(tmp_path / "r" / "report.html") in out
+    assert main([str(tmp_path)]) == 2
+    assert "mlflow_parent_run.json" in capsys.readouterr().err
+    assert main(["not-a-run"]) == 2
+    assert "neither a sweep directory" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main([str(tmp_path), "--ci", "2"])
+
+
+def test_group_keys_keep_only_settings_not_fixed_by_components():
+    params = [
+        {"model": "rf", "model.n_estimators": "100", "robot": "reachy", "encoder.res": "1", "resolution.n_taxels": "1"},
+        {"model": "cnn_gru", "model.hidden": "32", "robot": "reachy", "encoder.res": "2", "resolution.n_taxels": "4"},
+        {"model": "rf", "model.n_estimators": "300", "robot": "reachy", "encoder.res": "1", "resolution.n_taxels": "1"},
+    ]
+    assert group_keys(params) == ["model", "model.n_estimators"]
+    assert group_keys(params[:2]) == ["model"]
+    with pytest.raises(ReportError, match="neither"):
+        load_sweep("nope")
+
+
+def test_one_resolution_per_group_is_a_comparison_without_saturation(store, tmp_path):
+    """A noise or layout comparison at a fixed resolution: a table, no curve to saturate."""
+    truth = make_sweep(store, tmp_path / "fixed", [18], models=["rf", "cnn_gru"], n_participants=3)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False)
+    assert len(report.groups) == 2
+    for g in report.groups:
+        assert g.requirement.startswith("One resolution only (encoder.res=18")
+        assert "A taxel pitch of at most" not in g.requirement
+    assert "bootstrap" not in files.figures
+    assert len(pd.read_csv(files.tables["comparison"])) == 2
+
+
+@pytest.mark.slow
+def test_real_sweep_end_to_end(tmp_path):
+    """A real (tiny) multirun of the pipeline, then ``python -m sphri.report`` on its directory."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1"}
+    out, sweep = tmp_path / "outputs", tmp_path / "outputs" / "sweep"
+    run = subprocess.run([sys.executable, "-m", "sphri", "-m", "+debug=fast", "encoder.res=1,3,6", f"output_dir={out}",
+                          f"hydra.sweep.dir={sweep}", "hydra/launcher=serial"],
+                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0 and "3 of 3 jobs finished" in run.stdout, run.stderr[-3000:]
+    rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), "--n-boot", "200"],
+                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert rep.returncode == 0, rep.stderr[-3000:]
+    assert "A taxel pitch of at most" in rep.stdout and "SYNTHETIC" in rep.stdout
+    parser = _Page()
+    parser.feed((sweep / "report" / "report.html").read_text())
+    assert len(parser.imgs) >= 3 and not parser.urls
