@@ -1,0 +1,179 @@
+"""Do two conditions produce different touch distributions? Paired SWD tests.
+
+Design (per pair of conditions a, b and per participant i). Each
+condition's trials of participant i are split into two halves of equal trial
+count ``k = min(n_a, n_b) // 2`` (alternating by trial order: 1st, 3rd, ...
+vs 2nd, 4th, ...; extra trials are left out so that all four halves hold
+``k`` trials). With surface densities a1, a2, b1, b2 of the halves:
+
+    between_i = (SW(a1, b2) + SW(a2, b1)) / 2      cross-condition
+    within_i  = (SW(a1, a2) + SW(b1, b2)) / 2      split-half baseline
+    d_i       = between_i - within_i
+
+If a and b produce the same distribution for participant i, the four
+halves are exchangeable; swapping a2 with b2 maps d_i to -d_i, so d_i is
+symmetric about 0 whatever the participant's own distribution, and the
+sign-flip test over participants (:func:`sphri.analysis.stats.sign_flip_test`,
+one-sided: differences make ``between`` exceed ``within``) is exact under
+the null. All pairs of one analysis are Holm-corrected together.
+
+A participant enters a pair's test only with >= 2 trials with contact in
+both conditions (so that each half has one); the count used is reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from itertools import combinations
+from pathlib import Path
+from typing import Callable, Sequence
+
+import numpy as np
+import pandas as pd
+
+from sphri.analysis.stats import holm, sign_flip_test
+from sphri.analysis.swd import SharedSupportSW
+
+#: (participant, cond_a, cond_b) -> (halves of a (2, P), halves of b (2, P)) or None.
+HalvesFn = Callable[[str, str, str], "tuple[np.ndarray, np.ndarray] | None"]
+
+TABLE_COLUMNS = (
+    "cond_a", "cond_b", "n_participants", "mean_between_swd_mm", "mean_within_swd_mm",
+    "mean_diff_swd_mm", "p_value", "p_holm", "significant", "exact", "n_permutations",
+)
+
+
+@dataclass
+class PairwiseComparison:
+    """All pairwise condition tests of one analysis.
+
+    ``table``: one row per pair (columns :data:`TABLE_COLUMNS`; SWD in mm,
+    ``p_holm`` Holm-adjusted over the pairs, ``significant`` = p_holm <=
+    alpha). ``per_participant``: participant, cond_a, cond_b, between_mm,
+    within_a_mm, within_b_mm, diff_mm.
+    """
+
+    conditions: list[str]
+    table: pd.DataFrame
+    per_participant: pd.DataFrame
+    alpha: float
+    alternative: str
+    swd_p: float
+    n_projections: int
+
+    def matrix(self, column: str) -> pd.DataFrame:
+        """(C, C) symmetric matrix of a table column; diagonal: within-condition
+        baseline for ``mean_between_swd_mm``, NaN otherwise."""
+        c = self.conditions
+        m = pd.DataFrame(np.nan, index=c, columns=c, dtype=float)
+        for row in self.table.itertuples(index=False):
+            v = float(getattr(row, column))
+            m.loc[row.cond_a, row.cond_b] = v
+            m.loc[row.cond_b, row.cond_a] = v
+        if column == "mean_between_swd_mm":
+            for cond, val in self.within_baseline().items():
+                m.loc[cond, cond] = val
+        return m
+
+    def within_baseline(self) -> dict[str, float]:
+        """Mean split-half SWD (mm) of each condition over participants and pairs."""
+        pp = self.per_participant
+        out = {}
+        for cond in self.conditions:
+            vals = np.concatenate([
+                pp.loc[pp["cond_a"] == cond, "within_a_mm"].to_numpy(float),
+                pp.loc[pp["cond_b"] == cond, "within_b_mm"].to_numpy(float),
+            ])
+            out[cond] = float(vals.mean()) if vals.size else float("nan")
+        return out
+
+    def write_csv(self, out_dir: str | Path, prefix: str = "swd") -> list[Path]:
+        """``<prefix>_pairs.csv``, ``<prefix>_participants.csv``, ``<prefix>_matrix_mm.csv``,
+        ``<prefix>_p_holm_matrix.csv``."""
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = [out / f"{prefix}_pairs.csv", out / f"{prefix}_participants.csv",
+                 out / f"{prefix}_matrix_mm.csv", out / f"{prefix}_p_holm_matrix.csv"]
+        self.table.to_csv(paths[0], index=False, float_format="%.6g")
+        self.per_participant.to_csv(paths[1], index=False, float_format="%.6g")
+        self.matrix("mean_between_swd_mm").to_csv(paths[2], float_format="%.6g")
+        self.matrix("p_holm").to_csv(paths[3], float_format="%.6g")
+        return paths
+
+
+def split_halves(ordinals: Sequence[int], k: int) -> tuple[np.ndarray, np.ndarray]:
+    """Positions (into ``ordinals``) of two alternating halves of ``k`` trials each.
+
+    Trials are ordered by ``ordinals`` (ties by position); the first ``2 k``
+    are dealt alternately to half 0 and half 1.
+    """
+    o = np.asarray(ordinals)
+    if k < 1 or 2 * k > o.size:
+        raise ValueError(f"cannot split {o.size} trials into two halves of {k}")
+    pos = np.argsort(o, kind="stable")[: 2 * k]
+    return pos[0::2], pos[1::2]
+
+
+def paired_swd_tests(
+    sw: SharedSupportSW,
+    participants: Sequence[str],
+    conditions: Sequence[str],
+    halves: HalvesFn,
+    alpha: float = 0.05,
+    alternative: str = "greater",
+    exact_max: int = 12,
+    n_permutations: int = 9999,
+    seed: int = 0,
+) -> PairwiseComparison:
+    """Test every pair of ``conditions`` with the split-half paired design.
+
+    ``halves(participant, a, b)`` returns the two halves' masses on
+    ``sw.support`` for each condition (built with :func:`split_halves` at
+    the pair's common ``k``), or None to leave the participant out.
+    """
+    conditions = list(conditions)
+    if len(conditions) < 2:
+        raise ValueError(f"need at least two conditions to compare, got {conditions}")
+    rows, prows = [], []
+    for idx, (a, b) in enumerate(combinations(conditions, 2)):
+        used, wa_list, wb_list = [], [], []
+        for part in participants:
+            h = halves(part, a, b)
+            if h is None:
+                continue
+            ha, hb = (np.asarray(x, dtype=np.float64) for x in h)
+            if ha.shape != (2, sw.support.shape[0]) or hb.shape != ha.shape:
+                raise ValueError(f"halves({part!r}, {a!r}, {b!r}) must be two (2, {sw.support.shape[0]}) arrays")
+            # the four comparisons: a1-b2, a2-b1, a1-a2, b1-b2
+            wa_list += [ha[0], ha[1], ha[0], hb[0]]
+            wb_list += [hb[1], hb[0], ha[1], hb[1]]
+            used.append(part)
+        n = len(used)
+        row = {"cond_a": a, "cond_b": b, "n_participants": n}
+        if n == 0:
+            row.update(mean_between_swd_mm=np.nan, mean_within_swd_mm=np.nan, mean_diff_swd_mm=np.nan,
+                       p_value=np.nan, exact=False, n_permutations=0)
+            rows.append(row)
+            continue
+        dist = sw.distances(np.stack(wa_list), np.stack(wb_list)).reshape(n, 4) * 1e3  # mm
+        between = dist[:, :2].mean(axis=1)
+        within = dist[:, 2:].mean(axis=1)
+        diff = between - within
+        res = sign_flip_test(diff, alternative=alternative, exact_max=exact_max,
+                             n_permutations=n_permutations, seed=seed + idx)
+        row.update(
+            mean_between_swd_mm=float(between.mean()), mean_within_swd_mm=float(within.mean()),
+            mean_diff_swd_mm=res.statistic, p_value=res.p_value, exact=res.exact,
+            n_permutations=res.n_permutations,
+        )
+        rows.append(row)
+        for part, bt, wa_, wb_, df in zip(used, between, dist[:, 2], dist[:, 3], diff):
+            prows.append({"participant": part, "cond_a": a, "cond_b": b, "between_mm": bt,
+                          "within_a_mm": wa_, "within_b_mm": wb_, "diff_mm": df})
+    table = pd.DataFrame(rows)
+    table["p_holm"] = holm(table["p_value"].to_numpy(float))
+    table["significant"] = table["p_holm"].to_numpy(float) <= alpha
+    table = table[list(TABLE_COLUMNS)]
+    per = pd.DataFrame(prows, columns=["participant", "cond_a", "cond_b", "between_mm", "within_a_mm",
+                                       "within_b_mm", "diff_mm"])
+    return PairwiseComparison(conditions, table, per, float(alpha), alternative, sw.p, sw.n_projections)

@@ -1,0 +1,370 @@
+"""Coverage analysis of one skin region: maps, placement and condition tests.
+
+:class:`CoverageAnalysis` (settings: :class:`~sphri.analysis.schema.CoverageSchema`)
+turns a dataset's contacts on one link into
+
+- a contact density per group of trials (``by``: any trial column) and
+  overall (``"all"``), on surface samples (:mod:`sphri.analysis.density`);
+- the greedy coverage curve and the placement recommendation per group, with
+  a leave-one-participant-out check (:mod:`sphri.analysis.placement`);
+- paired sliced-Wasserstein tests between every pair of groups across
+  participants, Holm-corrected (:mod:`sphri.analysis.compare`).
+
+:func:`write_region` writes the files (PNG, PLY, .npz for ``layout=density``,
+CSV, JSON); :mod:`sphri.coverage` is the command line.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import re
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from sphri.analysis.compare import PairwiseComparison, paired_swd_tests, split_halves
+from sphri.analysis.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
+from sphri.analysis.placement import (
+    CoverageCurve,
+    coverage_curve,
+    describe_regions,
+    heldout_capture,
+    recommendation,
+)
+from sphri.analysis.schema import CoverageSchema
+from sphri.analysis.swd import SharedSupportSW
+from sphri.types import GESTURES, Contacts, GestureDataset, Link, SurfaceMap
+
+log = logging.getLogger(__name__)
+
+ALL = "all"
+
+
+@dataclass
+class RegionCoverage:
+    """Everything the analysis found on one link."""
+
+    region: str
+    link: str
+    by: str
+    groups: list[str]
+    """Group values in display order (without ``"all"``)."""
+    samples: SurfaceSamples
+    uv: np.ndarray | None
+    """(P, 2) chart coordinates of the samples, None without a chart."""
+    surface_kind: str
+    counts: dict[str, np.ndarray]
+    """Group (and ``"all"``) -> (P,) contact frames touching each element."""
+    densities: dict[str, np.ndarray]
+    """Group (and ``"all"``) -> (P,) density in 1/m^2 (integrates to 1)."""
+    curves: dict[str, CoverageCurve]
+    regions: dict[str, list[dict]]
+    """Group -> connected parts of the recommended placement (see describe_regions)."""
+    sentences: dict[str, str]
+    heldout: pd.DataFrame
+    """group, unit, area_share, captured, n_frames (leave-one-participant-out)."""
+    comparison: PairwiseComparison | None
+    notes: list[str] = field(default_factory=list)
+    seconds: dict[str, float] = field(default_factory=dict)
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready numbers of the region."""
+        out: dict[str, Any] = {
+            "region": self.region, "link": self.link, "by": self.by,
+            "n_elements": self.samples.n, "area_cm2": self.samples.total_area_m2 * 1e4,
+            "element_spacing_mm": self.samples.spacing_m * 1e3, "notes": self.notes,
+            "seconds": self.seconds, "groups": {},
+        }
+        for g, c in self.curves.items():
+            entry = {
+                "n_contact_frames": c.n_frames,
+                "capture": c.capture,
+                "area_share_at_capture": c.area_at_capture,
+                "recommendation": self.sentences[g],
+                "regions": self.regions[g],
+            }
+            h = self.heldout[self.heldout["group"] == g] if len(self.heldout) else self.heldout
+            if len(h):
+                entry["heldout_captured_mean"] = float(h["captured"].mean())
+                entry["heldout_captured_min"] = float(h["captured"].min())
+                entry["heldout_area_share_mean"] = float(h["area_share"].mean())
+            out["groups"][g] = entry
+        if self.comparison is not None:
+            t = self.comparison.table
+            out["comparison"] = {
+                "n_pairs": int(len(t)), "n_significant": int(t["significant"].sum()), "alpha": self.comparison.alpha,
+                "swd_p": self.comparison.swd_p, "n_projections": self.comparison.n_projections,
+                "exact": bool(t["exact"].all()) if len(t) else True,
+                "n_permutations": sorted({int(x) for x in t["n_permutations"]}),
+            }
+        return out
+
+
+def group_order(values: pd.Series, by: str) -> list[str]:
+    """Group values in display order: the study's gesture order for gestures, sorted otherwise."""
+    present = [str(v) for v in pd.unique(values.astype(str))]
+    if by == "gesture":
+        return [g for g in GESTURES if g in present] + sorted(set(present) - set(GESTURES))
+    return sorted(present)
+
+
+class CoverageAnalysis:
+    """Contact maps, placement and condition tests on one link (see module)."""
+
+    VERSION = "1"
+
+    def __init__(
+        self,
+        by: str = "gesture",
+        pair_by: str = "participant",
+        bandwidth_mm: float = 10.0,
+        kernel: str = "geodesic",
+        footprint: str = "patch",
+        spacing_mm: float = 4.0,
+        capture: float = 0.9,
+        n_projections: int = 128,
+        swd_p: float = 1.0,
+        alpha: float = 0.05,
+        alternative: str = "greater",
+        exact_max: int = 12,
+        n_permutations: int = 9999,
+        seed: int = 0,
+        views: int = 4,
+        render: bool = True,
+        heldout: bool = True,
+    ) -> None:
+        CoverageSchema(by=by, pair_by=pair_by, bandwidth_mm=bandwidth_mm, kernel=kernel, footprint=footprint,
+                       spacing_mm=spacing_mm, capture=capture, n_projections=n_projections, swd_p=swd_p,
+                       alpha=alpha, alternative=alternative, exact_max=exact_max, n_permutations=n_permutations,
+                       seed=seed, views=views, render=render, heldout=heldout)
+        self.by, self.pair_by = by, pair_by
+        self.bandwidth_mm, self.kernel, self.footprint, self.spacing_mm = bandwidth_mm, kernel, footprint, spacing_mm
+        self.capture, self.n_projections, self.swd_p, self.alpha = capture, n_projections, swd_p, alpha
+        self.alternative, self.exact_max, self.n_permutations = alternative, exact_max, n_permutations
+        self.seed, self.views, self.render, self.heldout = seed, views, render, heldout
+
+    # ------------------------------------------------------------------ analysis
+    def analyze(self, dataset: GestureDataset, contacts: Contacts, link: Link, surface: SurfaceMap | None,
+                region: str | None = None) -> RegionCoverage:
+        """Maps, curves and tests for the trials of ``region`` (all trials when None) on ``link``."""
+        t0 = time.perf_counter()
+        trials = dataset.trials
+        for col, key in ((self.by, "coverage.by"), (self.pair_by, "coverage.pair_by")):
+            if col not in trials.columns:
+                raise ValueError(f"{key}={col!r} is not a column of dataset {dataset.name!r}'s trials; "
+                                 f"columns: {list(trials.columns)}")
+        if contacts.n_frames != dataset.n_frames:
+            raise ValueError(f"contacts cover {contacts.n_frames} frames but dataset {dataset.name!r} has "
+                             f"{dataset.n_frames}: they come from different datasets")
+        notes: list[str] = []
+        in_region = np.ones(len(trials), dtype=bool)
+        if region is not None and "region" in trials.columns:
+            in_region = (trials["region"] == region).to_numpy()
+            if not in_region.any():
+                raise ValueError(f"dataset {dataset.name!r} has no trials in region {region!r}; "
+                                 f"regions: {sorted(pd.unique(trials['region']))}")
+        frame_trial = dataset.frame_trial_index()
+        row_trial = frame_trial[contacts.frame]
+        sel = in_region[row_trial]
+        samples = sample_link(link, self.spacing_mm, self.seed)
+        kernel = SurfaceKernel(samples, self.bandwidth_mm, self.kernel)
+        t1 = time.perf_counter()
+        frames, elements = touched_elements(
+            samples, contacts.frame[sel], contacts.point_m[sel], contacts.normal[sel],
+            contacts.patch_radius_m[sel], self.footprint,
+        )
+        t2 = time.perf_counter()
+        trial_of = frame_trial[frames]
+        labels = trials[self.by].astype(str).to_numpy()
+        units = trials[self.pair_by].astype(str).to_numpy()
+        groups = group_order(trials.loc[in_region, self.by], self.by)
+        code = {g: i for i, g in enumerate(groups)}
+        pair_group = np.array([code.get(v, -1) for v in labels], dtype=np.int64)[trial_of]  # group index per pair
+        unit_codes, unit_names = pd.factorize(units)
+        pair_unit = unit_codes[trial_of]
+
+        counts: dict[str, np.ndarray] = {ALL: np.bincount(elements, minlength=samples.n).astype(float)}
+        for i, g in enumerate(groups):
+            counts[g] = np.bincount(elements[pair_group == i], minlength=samples.n).astype(float)
+        names = [ALL] + groups
+        dens_mat = kernel.smooth(np.stack([counts[n] for n in names]))
+        densities = {n: dens_mat[i] for i, n in enumerate(names)}
+
+        uv = None
+        kind = surface.kind if surface is not None else "mesh"
+        if surface is not None and surface.has_uv:
+            from sphri.surface.charts import to_uv
+
+            uv = to_uv(surface, samples.points_m)
+        curves, regions, sentences, held = {}, {}, {}, []
+        for n in names:
+            m = slice(None) if n == ALL else pair_group == code[n]
+            curve = coverage_curve(densities[n], samples.area_m2, frames[m], elements[m], self.capture, group=n)
+            curves[n] = curve
+            regions[n] = describe_regions(samples, curve.mask, uv, kind, weight=densities[n] * samples.area_m2)
+            sentences[n] = recommendation(curve, regions[n], kind, link.name)
+            if self.heldout and curve.n_frames and np.count_nonzero(np.bincount(pair_unit[m])) >= 2:
+                h = heldout_capture(kernel, frames[m], elements[m], pair_unit[m], self.capture)
+                h["unit"] = np.asarray(unit_names)[h["unit"].to_numpy(dtype=np.int64)]
+                h.insert(0, "group", n)
+                held.append(h)
+            if curve.n_frames == 0:
+                notes.append(f"group {n!r} has no contact frames on {link.name}")
+        heldout = pd.concat(held, ignore_index=True) if held else pd.DataFrame(
+            columns=["group", "unit", "area_share", "captured", "n_frames"])
+        t3 = time.perf_counter()
+
+        comparison = None
+        if self.pair_by == self.by:
+            notes.append(f"no condition tests: coverage.by and coverage.pair_by are both {self.by!r}")
+        elif len(groups) < 2:
+            notes.append(f"no condition tests: only {len(groups)} value(s) of {self.by!r}")
+        else:
+            comparison = self._compare(kernel, trials, in_region, frames, elements, trial_of, groups, labels, units)
+            n_max = int(comparison.table["n_participants"].max())
+            if n_max <= self.exact_max and 2.0**-n_max > self.alpha:
+                notes.append(f"with {n_max} {self.pair_by} value(s) the exact sign-flip test cannot reach "
+                             f"p <= {self.alpha:g} (smallest p = 2^-{n_max} = {2.0**-n_max:.3g})")
+        t4 = time.perf_counter()
+        return RegionCoverage(
+            region=region or ALL, link=link.name, by=self.by, groups=groups, samples=samples, uv=uv,
+            surface_kind=kind, counts=counts, densities=densities, curves=curves, regions=regions,
+            sentences=sentences, heldout=heldout, comparison=comparison, notes=notes,
+            seconds={"surface": t1 - t0, "contacts": t2 - t1, "maps_and_curves": t3 - t2, "tests": t4 - t3},
+        )
+
+    def _compare(self, kernel: SurfaceKernel, trials: pd.DataFrame, in_region: np.ndarray, frames: np.ndarray,
+                 elements: np.ndarray, trial_of: np.ndarray, groups: list[str], labels: np.ndarray,
+                 units: np.ndarray) -> PairwiseComparison:
+        """Split-half paired SWD tests between every pair of groups (see :mod:`sphri.analysis.compare`)."""
+        s = kernel.samples
+        n_trials = len(trials)
+        # per-trial element counts, only for trials with contact
+        has = np.zeros(n_trials, dtype=bool)
+        has[trial_of] = True
+        ordinal = (trials["trial_ordinal"].to_numpy() if "trial_ordinal" in trials.columns
+                   else np.arange(n_trials))
+        order = np.argsort(trial_of, kind="stable")
+        starts = np.searchsorted(trial_of[order], np.arange(n_trials + 1))
+
+        def trial_counts(tr: np.ndarray) -> np.ndarray:
+            el = np.concatenate([elements[order[starts[t]:starts[t + 1]]] for t in tr])
+            return np.bincount(el, minlength=s.n).astype(float)
+
+        members: dict[tuple[str, str], np.ndarray] = {}
+        for t in np.flatnonzero(in_region & has):
+            members.setdefault((units[t], labels[t]), []).append(t)
+        members = {k: np.asarray(v) for k, v in members.items()}
+        cache: dict[tuple[str, str, int], np.ndarray] = {}
+
+        def half_masses(unit: str, cond: str, k: int) -> np.ndarray:
+            key = (unit, cond, k)
+            if key not in cache:
+                tr = members[(unit, cond)]
+                h0, h1 = split_halves(ordinal[tr], k)
+                rho = kernel.smooth(np.stack([trial_counts(tr[h0]), trial_counts(tr[h1])]))
+                cache[key] = rho * s.area_m2
+            return cache[key]
+
+        def halves(unit: str, a: str, b: str):
+            if (unit, a) not in members or (unit, b) not in members:
+                return None
+            k = min(members[(unit, a)].size, members[(unit, b)].size) // 2
+            if k < 1:
+                return None
+            return half_masses(unit, a, k), half_masses(unit, b, k)
+
+        participants = sorted({u for u, _ in members})
+        sw = SharedSupportSW(s.points_m, self.n_projections, self.swd_p, self.seed)
+        return paired_swd_tests(sw, participants, groups, halves, alpha=self.alpha, alternative=self.alternative,
+                                exact_max=self.exact_max, n_permutations=self.n_permutations, seed=self.seed)
+
+
+# ----------------------------------------------------------------------------- files
+
+
+def safe_name(value: str) -> str:
+    """A group value usable in file names."""
+    return re.sub(r"[^\w.-]+", "_", str(value)).strip("_") or "group"
+
+
+def write_density_npz(result: RegionCoverage, group: str, path: str | Path) -> Path:
+    """``points_m (P,3)``, ``density (P,)`` (1/m^2), ``mask (P,)`` (the placement),
+    ``area_m2 (P,)``, ``normal (P,3)`` and ``uv (P,2)`` where charted: the
+    format ``layout=density`` reads (``layout.density_path``)."""
+    s = result.samples
+    arrays = {
+        "points_m": s.points_m, "density": result.densities[group], "mask": result.curves[group].mask,
+        "area_m2": s.area_m2, "normal": s.normal, "counts": result.counts[group],
+    }
+    if result.uv is not None:
+        arrays["uv"] = result.uv
+    path = Path(path)
+    np.savez_compressed(path, **arrays)
+    return path
+
+
+def write_region(result: RegionCoverage, out_dir: str | Path, link: Link, surface: SurfaceMap | None,
+                 render: bool = True, views: int = 4) -> list[Path]:
+    """Write a region's files under ``out_dir``; returns their paths."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    names = [ALL] + result.groups
+    paths: list[Path] = []
+    for n in names:
+        paths.append(write_density_npz(result, n, out / f"density_{safe_name(n)}.npz"))
+    curve_rows = pd.concat([result.curves[n].resampled() for n in names], ignore_index=True)
+    curve_rows.to_csv(out / "coverage_curve.csv", index=False, float_format="%.6g")
+    paths.append(out / "coverage_curve.csv")
+    if len(result.heldout):
+        result.heldout.to_csv(out / "heldout.csv", index=False, float_format="%.6g")
+        paths.append(out / "heldout.csv")
+    text = "\n".join(result.sentences[n] for n in names) + "\n"
+    (out / "recommendation.txt").write_text(text)
+    paths.append(out / "recommendation.txt")
+    if result.comparison is not None:
+        paths += result.comparison.write_csv(out)
+    if render:
+        from sphri.analysis import render as rd
+
+        t0 = time.perf_counter()
+        view = rd.LinkView(link, result.samples)
+        title = f"{result.region} ({result.link})"
+        grid = rd.uv_grid(surface, result.samples) if surface is not None and surface.has_uv else None
+        for n in names:
+            dens = result.densities[n]
+            label = f"{title}: {result.by} = {n}" if n != ALL else f"{title}: all trials"
+            paths.append(view.render(dens, out / f"map_{safe_name(n)}.png", label, views=views))
+            paths.append(view.write_ply(dens, out / f"map_{safe_name(n)}.ply"))
+            if grid is not None:
+                paths.append(rd.render_uv(surface, result.samples, dens, out / f"uv_{safe_name(n)}.png", label, grid))
+        small = rd.LinkView(link, result.samples, target_faces=4000)
+        paths.append(rd.plot_overview(small, {n: result.densities[n] for n in names}, out / "overview.png",
+                                      f"{title}: contact density by {result.by}", views=views, surface=surface,
+                                      samples=result.samples, grid=grid))
+        paths.append(rd.plot_coverage_curves([result.curves[n] for n in names], out / "coverage_curve.png",
+                                             f"{title}: greedy skin placement"))
+        if result.comparison is not None:
+            paths.append(rd.plot_swd_heatmap(result.comparison, out / "swd_heatmap.png",
+                                             f"{title}: touch distributions by {result.by}"))
+        result.seconds["render"] = time.perf_counter() - t0
+    (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_json_default))
+    paths.append(out / "summary.json")
+    return paths
+
+
+def _json_default(o: Any) -> Any:
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, tuple):
+        return list(o)
+    return str(o)

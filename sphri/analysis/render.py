@@ -1,0 +1,367 @@
+"""Pictures and meshes of contact densities (matplotlib Agg, trimesh).
+
+- :class:`LinkView`: the link subdivided for display (edges about 1/80 of
+  its size), turned so that its long axis is vertical, with the
+  interpolation from surface samples to faces and vertices computed once;
+  ``render`` draws several views around the long axis with a colour bar,
+  ``write_ply`` writes a vertex-coloured PLY that any viewer opens.
+- :func:`render_uv`: the unwrapped (u, v) map where the surface has a chart.
+- :func:`plot_overview`: groups x views grid, one picture for all gestures.
+- :func:`plot_coverage_curves`, :func:`plot_swd_heatmap`.
+
+Densities are shown as % of contact per cm^2 (density in 1/m^2 times 0.01).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Sequence
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import trimesh  # noqa: E402
+
+from sphri.analysis.compare import PairwiseComparison  # noqa: E402
+from sphri.analysis.density import SurfaceSamples  # noqa: E402
+from sphri.analysis.placement import CoverageCurve  # noqa: E402
+from sphri.types import Link, SurfaceMap  # noqa: E402
+
+#: density (1/m^2) -> % of contact per cm^2
+PERCENT_PER_CM2 = 0.01
+CMAP = "YlOrRd"
+_AXES = ("x", "y", "z")
+
+
+def _direction_name(v: np.ndarray) -> str:
+    i = int(np.argmax(np.abs(v)))
+    return ("+" if v[i] >= 0 else "-") + _AXES[i]
+
+
+def display_rotation(points: np.ndarray) -> np.ndarray:
+    """(3, 3) rotation whose rows are the display x, y, z axes in the link frame.
+
+    Display z is the long (first principal) axis. When that lies within 25
+    degrees of a link axis, the display uses the link's own axes (long axis
+    positive up, the other two in cyclic order), so that views look along
+    link axes; otherwise the principal axes, signs fixed.
+    """
+    pts = np.asarray(points, dtype=np.float64)
+    _, _, vt = np.linalg.svd(pts - pts.mean(axis=0), full_matrices=False)
+    long = vt[0]
+    i = int(np.argmax(np.abs(long)))
+    if abs(long[i]) >= np.cos(np.radians(25.0)):
+        eye = np.eye(3)
+        return np.stack([eye[(i + 1) % 3], eye[(i + 2) % 3], eye[i]])
+    rows = [vt[1], vt[2], vt[0]]
+    for r in rows:
+        if r[np.argmax(np.abs(r))] < 0:
+            r *= -1
+    rot = np.stack(rows)
+    if np.linalg.det(rot) < 0:
+        rot[1] = -rot[1]
+    return rot
+
+
+def _bisect(v: np.ndarray, f: np.ndarray, max_edge: float, max_faces: int) -> tuple[np.ndarray, np.ndarray]:
+    """Split triangles at the midpoint of their longest edge until no edge exceeds
+    ``max_edge`` (or ``max_faces`` is reached). Keeps the winding; neighbours
+    share midpoints where they split the same edge (else a T-junction, harmless
+    for display)."""
+    v = v.copy()
+    for _ in range(40):
+        tri = v[f]
+        lengths = np.linalg.norm(tri[:, [1, 2, 0]] - tri, axis=2)  # edge i: vertex i -> i+1
+        longest = lengths.argmax(axis=1)
+        split = lengths.max(axis=1) > max_edge
+        if not split.any() or f.shape[0] + split.sum() > max_faces:
+            break
+        rows = np.flatnonzero(split)
+        k = longest[rows]
+        a = f[rows, k]
+        b = f[rows, (k + 1) % 3]
+        c = f[rows, (k + 2) % 3]
+        key = np.sort(np.stack([a, b], axis=1), axis=1)
+        uniq, inv = np.unique(key, axis=0, return_inverse=True)
+        mids = v.shape[0] + np.arange(uniq.shape[0])
+        v = np.concatenate([v, 0.5 * (v[uniq[:, 0]] + v[uniq[:, 1]])])
+        m = mids[inv.ravel()]
+        keep = f[~split]
+        f = np.concatenate([keep, np.stack([a, m, c], axis=1), np.stack([m, b, c], axis=1)])
+    return v, f
+
+
+def _subdivide(v: np.ndarray, f: np.ndarray, area: float, target_faces: int) -> tuple[np.ndarray, np.ndarray]:
+    """Faces small enough to show a density: about ``target_faces`` of them."""
+    if f.shape[0] >= target_faces:
+        return v, f
+    edge = float(np.sqrt(4.0 * area / (np.sqrt(3.0) * target_faces))) * 1.2
+    return _bisect(v, f, edge, 2 * target_faces)
+
+
+class LinkView:
+    """A link prepared for display of sample-based densities."""
+
+    def __init__(self, link: Link, samples: SurfaceSamples, target_faces: int = 8000) -> None:
+        v = np.asarray(link.vertices, dtype=np.float64)
+        f = np.asarray(link.faces, dtype=np.int64)
+        used = v[np.unique(f)]
+        centre = 0.5 * (used.min(axis=0) + used.max(axis=0))
+        v, f = _subdivide(v, f, samples.total_area_m2, target_faces)
+        mesh = trimesh.Trimesh(v, f, process=False, validate=False)
+        self.link = link.name
+        self.vertices = v
+        self.faces = f
+        self.centre = centre
+        rot = display_rotation(samples.points_m)
+        self.rotation = rot
+        self.display = (v - centre) @ rot.T
+        tri = v[f]
+        self.face_normal = np.asarray(mesh.face_normals)
+        self.face_idx, self.face_w = samples.interpolation(tri.mean(axis=1), self.face_normal)
+        self.vert_idx, self.vert_w = samples.interpolation(v, np.asarray(mesh.vertex_normals))
+
+    def face_values(self, density: np.ndarray) -> np.ndarray:
+        """(F,) density at the display faces."""
+        return np.einsum("fk,fk->f", np.asarray(density)[self.face_idx], self.face_w)
+
+    def vertex_values(self, density: np.ndarray) -> np.ndarray:
+        return np.einsum("vk,vk->v", np.asarray(density)[self.vert_idx], self.vert_w)
+
+    @staticmethod
+    def _eye(azim_deg: float, elev_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Display-frame camera direction (towards the viewer), screen right and up."""
+        a, e = np.radians(azim_deg), np.radians(elev_deg)
+        eye = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+        right = np.array([-np.sin(a), np.cos(a), 0.0])
+        return eye, right, np.cross(eye, right)
+
+    def camera(self, azim_deg: float, elev_deg: float = 12.0) -> str:
+        """Link-frame axis the camera looks from, e.g. ``+x``."""
+        return _direction_name(self.rotation.T @ self._eye(azim_deg, elev_deg)[0])
+
+    def draw(self, ax, density: np.ndarray, azim_deg: float, vmax: float, elev_deg: float = 12.0) -> None:
+        """Orthographic view from ``azim_deg`` around the long axis (vertical) on a 2-D axis.
+
+        Back faces are culled and the rest painted far to near, faces
+        coloured by density and lightly shaded by their angle to the viewer.
+        """
+        from matplotlib.collections import PolyCollection
+
+        vals = self.face_values(density) * PERCENT_PER_CM2
+        cmap = plt.get_cmap(CMAP)
+        colours = cmap(np.clip(vals / vmax, 0.0, 1.0) if vmax > 0 else np.zeros_like(vals))
+        eye, right, up = self._eye(azim_deg, elev_deg)
+        facing = (self.face_normal @ self.rotation.T) @ eye
+        colours[:, :3] *= (0.72 + 0.28 * np.clip(facing, 0.0, 1.0))[:, None]
+        tris = self.display[self.faces]
+        depth = tris.mean(axis=1) @ eye
+        keep = np.flatnonzero(facing > -0.02)
+        keep = keep[np.argsort(depth[keep], kind="stable")]
+        xy = np.stack([tris[keep] @ right, tris[keep] @ up], axis=-1)
+        ax.add_collection(PolyCollection(xy, facecolors=colours[keep], edgecolors=colours[keep], linewidths=0.3))
+        span_x = np.abs(self.display[:, :2]).max() * 1.05
+        span_z = np.abs(self.display[:, 2]).max() * 1.05
+        ax.set_xlim(-span_x, span_x)
+        ax.set_ylim(-span_z - span_x * np.sin(np.radians(elev_deg)), span_z + span_x * np.sin(np.radians(elev_deg)))
+        ax.set_aspect("equal")
+        ax.set_axis_off()
+
+    def render(self, density: np.ndarray, path: str | Path, title: str, views: int = 4) -> Path:
+        """PNG of ``views`` views around the long axis with a shared colour bar."""
+        vmax = _vmax([density])
+        span = np.abs(self.display).max(axis=0)
+        tall = float(np.clip(span[2] / max(span[0], span[1], 1e-9), 0.5, 5.0))
+        width = 2.2
+        fig_w = width * views + 1.4
+        fig, axes = plt.subplots(1, views, figsize=(fig_w, min(width * tall + 0.9, 8.0)), dpi=110, squeeze=False)
+        right = 1.0 - 1.3 / fig_w
+        fig.subplots_adjust(left=0.01, right=right, bottom=0.02, top=0.86, wspace=0.04)
+        for i, az in enumerate(self.azimuths(views)):
+            ax = axes[0, i]
+            self.draw(ax, density, az, vmax)
+            ax.set_title(f"from {self.camera(az)}", fontsize=9)
+        _colourbar(fig, vmax, cax=fig.add_axes((right + 0.2 / fig_w, 0.12, 0.18 / fig_w, 0.66)))
+        fig.suptitle(title, fontsize=11)
+        path = Path(path)
+        fig.savefig(path)
+        plt.close(fig)
+        return path
+
+    @staticmethod
+    def azimuths(views: int) -> list[float]:
+        """View azimuths (degrees) around the long axis, starting at display +x."""
+        return [360.0 * i / views for i in range(views)]
+
+    def write_ply(self, density: np.ndarray, path: str | Path, vmax: float | None = None) -> Path:
+        """Vertex-coloured PLY (link frame, metres) of ``density``."""
+        vals = self.vertex_values(density) * PERCENT_PER_CM2
+        vmax = vmax if vmax is not None else float(vals.max())
+        rgba = (plt.get_cmap(CMAP)(np.clip(vals / vmax, 0, 1) if vmax > 0 else np.zeros_like(vals)) * 255).astype(np.uint8)
+        mesh = trimesh.Trimesh(self.vertices, self.faces, vertex_colors=rgba, process=False, validate=False)
+        path = Path(path)
+        mesh.export(path)
+        return path
+
+
+def _vmax(densities: Sequence[np.ndarray]) -> float:
+    """Colour scale top: the 99.5th percentile of the densities (% per cm^2)."""
+    vals = np.concatenate([np.ravel(d) for d in densities]) * PERCENT_PER_CM2
+    v = float(np.percentile(vals, 99.5)) if vals.size else 0.0
+    return v if v > 0 else float(vals.max(initial=0.0)) or 1.0
+
+
+def _colourbar(fig, vmax: float, ax=None, cax=None) -> None:
+    sm = plt.cm.ScalarMappable(cmap=CMAP, norm=plt.Normalize(0, vmax))
+    if cax is not None:
+        cb = fig.colorbar(sm, cax=cax)
+    else:
+        cb = fig.colorbar(sm, ax=ax if ax is not None else fig.axes, shrink=0.7, pad=0.02)
+    cb.set_label("contact density (% per cm$^2$)")
+
+
+def uv_grid(surface: SurfaceMap, samples: SurfaceSamples, n_u: int = 120) -> dict:
+    """Points of a (u, v) grid on the chart and their interpolation from samples.
+
+    ``n_v`` follows the chart's aspect so that cells are square in metres.
+    """
+    from sphri.surface.charts import from_uv
+
+    if not surface.has_uv:
+        raise ValueError(f"surface kind {surface.kind!r} has no 2-D chart to unwrap")
+    aspect = surface.metres_per_v / surface.metres_per_u if surface.metres_per_u > 0 else 1.0
+    n_v = int(np.clip(round(n_u * aspect), 24, 600))
+    u = (np.arange(n_u) + 0.5) / n_u
+    v = (np.arange(n_v) + 0.5) / n_v
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    uv = np.stack([uu.ravel(), vv.ravel()], axis=1)
+    pts, nrm, valid = from_uv(surface, uv, return_normal=True, return_valid=True)
+    idx, w = samples.interpolation(pts, nrm)
+    return {"idx": idx, "w": w, "valid": valid.reshape(n_u, n_v), "shape": (n_u, n_v)}
+
+
+def draw_uv(ax, grid: dict, surface: SurfaceMap, density: np.ndarray, vmax: float, labels: bool = True):
+    img = np.einsum("kj,kj->k", np.asarray(density)[grid["idx"]], grid["w"]).reshape(grid["shape"]) * PERCENT_PER_CM2
+    img = np.where(grid["valid"], img, np.nan)
+    extent = (0.0, surface.metres_per_v * 100, 0.0, surface.metres_per_u * 100)
+    im = ax.imshow(img, origin="lower", extent=extent, cmap=CMAP, vmin=0, vmax=vmax, aspect="equal",
+                   interpolation="nearest")
+    if labels:
+        if surface.kind == "cylinder":
+            ax.set_xlabel("around: a (cm of arc from the seam, 360 deg)")
+            ax.set_ylabel("along: h (cm from the u_min end)")
+        else:
+            ax.set_xlabel("v (cm)")
+            ax.set_ylabel("u (cm)")
+    return im
+
+
+def render_uv(surface: SurfaceMap, samples: SurfaceSamples, density: np.ndarray, path: str | Path, title: str,
+              grid: dict | None = None) -> Path:
+    """PNG of the unwrapped (u, v) map of ``density`` with a colour bar."""
+    grid = grid or uv_grid(surface, samples)
+    vmax = _vmax([density])
+    fig, ax = plt.subplots(figsize=(6.4, 5.2), dpi=110)
+    draw_uv(ax, grid, surface, density, vmax)
+    _colourbar(fig, vmax, ax=ax)
+    ax.set_title(title, fontsize=10)
+    path = Path(path)
+    fig.savefig(path, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def plot_overview(view: LinkView, densities: dict[str, np.ndarray], path: str | Path, title: str,
+                  views: int = 4, surface: SurfaceMap | None = None, samples: SurfaceSamples | None = None,
+                  grid: dict | None = None) -> Path:
+    """One row per group: ``views`` views (and the (u, v) map with a chart),
+    each row on its own colour scale (its peak printed)."""
+    names = list(densities)
+    with_uv = surface is not None and surface.has_uv and samples is not None
+    cols = views + (1 if with_uv else 0)
+    fig = plt.figure(figsize=(2.0 * cols + 0.6, 2.5 * len(names)), dpi=90)
+    azims = view.azimuths(views)
+    if with_uv and grid is None:
+        grid = uv_grid(surface, samples)
+    for r, name in enumerate(names):
+        d = densities[name]
+        vmax = _vmax([d])
+        for c, az in enumerate(azims):
+            ax = fig.add_subplot(len(names), cols, r * cols + c + 1)
+            view.draw(ax, d, az, vmax)
+            if r == 0:
+                ax.set_title(f"from {view.camera(az)}", fontsize=9)
+            if c == 0:
+                ax.text(-0.05, 0.5, f"{name}\npeak {vmax:.2g} %/cm$^2$", transform=ax.transAxes,
+                          rotation=90, va="center", ha="right", fontsize=9)
+        if with_uv:
+            ax = fig.add_subplot(len(names), cols, r * cols + cols)
+            draw_uv(ax, grid, surface, d, vmax, labels=False)
+            ax.tick_params(labelsize=6)
+            if r == 0:
+                ax.set_title("unwrapped (cm)", fontsize=9)
+    fig.suptitle(title, fontsize=11)
+    fig.tight_layout(rect=(0.02, 0, 1, 0.98))
+    path = Path(path)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def plot_coverage_curves(curves: Sequence[CoverageCurve], path: str | Path, title: str) -> Path:
+    """Share of contact frames captured vs share of area covered, one line per group."""
+    fig, ax = plt.subplots(figsize=(6.4, 5.0), dpi=110)
+    ax.plot([0, 1], [0, 1], color="0.75", lw=1, ls=":", label="uniform")
+    for c in curves:
+        if c.n_frames == 0:
+            continue
+        lw, colour = (2.6, "black") if c.group == "all" else (1.3, None)
+        r = c.resampled(401)
+        line, = ax.plot(r["area_share"], r["frame_share"], lw=lw, color=colour,
+                        label=f"{c.group} ({100 * c.area_at_capture:.0f} %)")
+        ax.plot([c.area_at_capture], [c.capture], "o", color=line.get_color(), ms=4)
+    if curves:
+        ax.axhline(curves[0].capture, color="0.5", lw=0.8, ls="--")
+    ax.set_xlabel("share of link area covered (greedy by density)")
+    ax.set_ylabel("share of contact frames captured")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1.01)
+    ax.legend(fontsize=8, title="group (area for target)", title_fontsize=8, loc="lower right")
+    ax.set_title(title, fontsize=10)
+    path = Path(path)
+    fig.savefig(path, bbox_inches="tight")
+    plt.close(fig)
+    return path
+
+
+def plot_swd_heatmap(comp: PairwiseComparison, path: str | Path, title: str) -> Path:
+    """Mean paired SWD (mm; diagonal: within-condition split-half baseline)
+    with Holm-corrected p-values in the cells (* where <= alpha)."""
+    m = comp.matrix("mean_between_swd_mm")
+    p = comp.matrix("p_holm")
+    c = comp.conditions
+    fig, ax = plt.subplots(figsize=(1.0 * len(c) + 2.6, 0.85 * len(c) + 1.8), dpi=110)
+    im = ax.imshow(m.to_numpy(float), cmap="viridis")
+    for i in range(len(c)):
+        for j in range(len(c)):
+            val = m.iat[i, j]
+            if not np.isfinite(val):
+                continue
+            text = f"{val:.1f}"
+            if i != j and np.isfinite(p.iat[i, j]):
+                pv = p.iat[i, j]
+                text += f"\np={pv:.3f}" if pv >= 0.001 else "\np<.001"
+                text += " *" if pv <= comp.alpha else ""
+            ax.text(j, i, text, ha="center", va="center", fontsize=7,
+                    color="white" if val < np.nanmean(m.to_numpy(float)) else "black")
+    ax.set_xticks(range(len(c)), c, rotation=45, ha="right")
+    ax.set_yticks(range(len(c)), c)
+    cb = fig.colorbar(im, ax=ax, shrink=0.8)
+    cb.set_label(f"mean paired SW{comp.swd_p:g} distance (mm)")
+    ax.set_title(title + f"\nHolm-corrected p (* <= {comp.alpha:g}); diagonal: split-half baseline", fontsize=9)
+    path = Path(path)
+    fig.savefig(path, bbox_inches="tight")
+    plt.close(fig)
+    return path

@@ -1,0 +1,120 @@
+"""``python -m sphri.coverage``: argument split, settings checks, a run logged to MLflow."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from omegaconf import OmegaConf
+
+from sphri.analysis import cli
+from sphri.config import ConfigError
+from sphri.types import Robot
+
+
+def test_split_args_routes_each_key():
+    ov, dot, run = cli.split_args(
+        ["+debug=fast", "data.regions=[torso]", "by=gesture", "out=/x", "coverage.bandwidth_mm=8", "mlflow=false"])
+    assert ov == ["+debug=fast", "data.regions=[torso]"]
+    assert dot == ["by=gesture", "bandwidth_mm=8"]
+    assert run == {"out": "/x", "mlflow": "false"}
+    with pytest.raises(ConfigError, match="coverage.nope"):
+        cli.split_args(["coverage.nope=1"])
+    with pytest.raises(ConfigError, match="key=value"):
+        cli.split_args(["by"])
+
+
+@pytest.mark.parametrize(
+    "arg,key",
+    [("bandwidth_mm=abc", "bandwidth_mm"), ("kernel=manhattan", "coverage.kernel"), ("capture=1.5", "coverage.capture"),
+     ("n_permutations=5", "coverage.n_permutations"), ("exact_max=25", "coverage.exact_max")],
+)
+def test_bad_settings_name_the_key(arg, key):
+    with pytest.raises(ConfigError) as err:
+        cli.load_settings([arg])
+    assert key in str(err.value)
+
+
+def test_settings_defaults_and_overrides():
+    s = cli.load_settings(["by=scenario", "bandwidth_mm=8", "render=false"])
+    assert s.by == "scenario" and s.bandwidth_mm == 8.0 and s.render is False and s.capture == 0.9
+
+
+def test_main_reports_config_errors(capsys):
+    assert cli.main(["kernel=manhattan"]) == 2
+    assert "coverage.kernel" in capsys.readouterr().err
+    assert cli.main(["--help"]) == 0
+
+
+class FakePipeline:
+    def __init__(self, study, surface):
+        self.values = {
+            "data": study.dataset, "contact": study.contacts, "surface": surface,
+            "robot": Robot("handmade", {"cyl": study.link}, {"arm": "cyl"}),
+        }
+
+    def get(self, name):
+        return self.values[name]
+
+
+def fake_cfg(tmp_path: Path):
+    groups = {g: {"_target_": f"sphri.fake.{g}"} for g in
+              ("robot", "contact", "surface", "layout", "encoder", "noise", "window", "model", "cv")}
+    return OmegaConf.create({
+        "seed": 0, "output_dir": str(tmp_path), "cache": {"dir": str(tmp_path / "cache"), "enabled": False},
+        "data": {"_target_": "sphri.fake.data", "regions": ["arm"]},
+        "tracking": {"_target_": "sphri.tracking.mlflow_tracker.MlflowTracker", "enabled": True, "uri": None,
+                     "experiment": "sphri", "artifacts": True, "retries": 2},
+        **groups,
+    })
+
+
+def test_run_writes_region_files_and_logs_an_mlflow_run(study, tmp_path, monkeypatch):
+    from mlflow.tracking import MlflowClient
+
+    from sphri.surface.cylinder import CylinderSurface
+    from sphri.tracking.mlflow_tracker import default_uri
+
+    surface = CylinderSurface().fit(study.link)
+    seen = []
+
+    def compose(overrides):
+        seen.append(list(overrides))
+        return fake_cfg(tmp_path)
+
+    monkeypatch.setattr(cli, "compose", compose)
+    monkeypatch.setattr("sphri.pipeline.make_pipeline", lambda cfg, cache: FakePipeline(study, surface))
+    settings = cli.load_settings(["render=false", "n_projections=32", "heldout=false"])
+    res = cli.run(["+debug=fast", "data.regions=[arm,torso]"], settings, tmp_path / "cov")
+    assert seen[1] == ["+debug=fast", "data.regions=[arm]"]  # one composition per region
+    assert (tmp_path / "cov" / "arm" / "density_all.npz").is_file()
+    assert (tmp_path / "cov" / "arm" / "swd_pairs.csv").is_file()
+    assert "poke: covering" in (tmp_path / "cov" / "recommendation.txt").read_text()
+    assert json.loads((tmp_path / "cov" / "settings.json").read_text())["coverage"]["by"] == "gesture"
+    client = MlflowClient(default_uri(tmp_path))
+    run = client.get_run(res.mlflow_run_id)
+    assert run.info.status == "FINISHED"
+    assert run.data.tags["sphri.kind"] == "coverage"
+    assert run.data.params["coverage.by"] == "gesture"
+    assert 0 < run.data.metrics["arm/area_share_at_capture/poke"] < 0.05
+    assert run.data.metrics["arm/n_significant_pairs"] == 3
+    artifacts = {a.path for a in client.list_artifacts(res.mlflow_run_id, "arm")}
+    assert "arm/density_poke.npz" in artifacts and "arm/summary.json" in artifacts
+
+
+def test_real_pipeline_debug_fast(tmp_path):
+    """The built-in data and contact stages (skipped until they compose)."""
+    from sphri.config import compose
+
+    overrides = [f"output_dir={tmp_path}", "+debug=fast", "data.regions=[arm]"]
+    try:
+        compose(overrides)
+    except ConfigError as exc:
+        pytest.skip(f"pipeline does not compose yet: {exc}")
+    settings = cli.load_settings(["render=false", "n_projections=32"])
+    res = cli.run(overrides, settings, tmp_path / "cov", log_mlflow=False)
+    r = res.regions["arm"]
+    assert r.curves["all"].n_frames > 0
+    assert 0 < r.curves["all"].area_at_capture < 1
+    assert len(r.comparison.table) == len(r.groups) * (len(r.groups) - 1) // 2
