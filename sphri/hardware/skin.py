@@ -1,0 +1,353 @@
+"""Read a tactile skin over serial: record frames, or classify touch live.
+
+::
+
+    python -m sphri.hardware.skin record port=/dev/ttyACM0 out=rec.npz grid=18x6 duration_s=60
+    python -m sphri.hardware.skin live port=/dev/ttyACM0 model=outputs/models/rf.sphrimodel
+    python -m sphri.hardware.skin live port=socket://127.0.0.1:7777 model=runs:/<run_id>/model/rf.sphrimodel
+
+:class:`SkinReader` turns a port into a stream of :class:`ReceivedFrame`
+(decoded by :class:`~sphri.hardware.skin_protocol.SkinDecoder`: garbage,
+truncated frames, bad checksums, wrong taxel counts and sequence gaps are
+counted, logged and skipped; a reconnect resets the stream). ``record``
+saves the frames with timestamps (:mod:`sphri.hardware.recording`);
+``live`` runs a model file on them (:mod:`sphri.hardware.live`).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+import time
+from dataclasses import dataclass
+from typing import Callable, Iterator, Sequence
+
+import numpy as np
+
+from sphri.config import ConfigError
+from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, parse_cli, parse_grid
+from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, encode_control
+from sphri.hardware.transport import Link, PortError, PortLost
+
+log = logging.getLogger(__name__)
+
+#: Refuse a stream after this many frames of the wrong taxel count and no good one.
+WRONG_COUNT_LIMIT = 20
+
+
+class StreamMismatch(RuntimeError):
+    """The skin streams frames that can never be used (e.g. another taxel count)."""
+
+
+@dataclass(frozen=True)
+class ReceivedFrame:
+    """A decoded frame and when the host got it."""
+
+    frame: SkinFrame
+    host_time_s: float
+    """Unix time (s) when the bytes completing the frame were read."""
+    received: float
+    """``time.perf_counter()`` at the same moment (for latencies)."""
+    segment: int
+    """Connection number: 0, then +1 after each reconnect."""
+
+
+class SkinReader:
+    """Frames from a skin on ``port`` (context manager).
+
+    ``taxels``: expected count (0 = the first valid frame's). ``reconnect``:
+    retry a vanished port (up to ``reconnect_timeout_s``, 0 = forever)
+    instead of raising :class:`~sphri.hardware.transport.PortLost`.
+    ``start_command``: send START on every (re)connection.
+    """
+
+    def __init__(
+        self,
+        port: str,
+        baud: int = 1_000_000,
+        taxels: int = 0,
+        reconnect: bool = False,
+        reconnect_timeout_s: float = 30.0,
+        reconnect_interval_s: float = 0.2,
+        start_command: bool = True,
+        read_timeout_s: float = 0.02,
+    ) -> None:
+        self.decoder = SkinDecoder(expected_taxels=taxels or None)
+        self.start_command = start_command
+        self.link = Link(
+            port,
+            baud,
+            read_timeout_s=read_timeout_s,
+            reconnect=reconnect,
+            reconnect_interval_s=reconnect_interval_s,
+            reconnect_timeout_s=reconnect_timeout_s,
+            on_connect=self._on_connect,
+        )
+        self.segment = 0
+        self.stop_reason = ""
+
+    def _on_connect(self, link: Link) -> None:
+        if self.start_command:
+            link.write(encode_control(CMD_START))
+
+    def __enter__(self) -> "SkinReader":
+        self.link.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.link.close()
+        self.decoder.flush()
+
+    @property
+    def stats(self):
+        return self.decoder.stats
+
+    def frames(self, max_frames: int = 0, duration_s: float = 0.0, idle_s: float = 0.0) -> Iterator[ReceivedFrame]:
+        """Yield good frames until ``max_frames``, ``duration_s`` or ``idle_s`` without a frame (0 = no limit).
+
+        Sets :attr:`stop_reason`. Raises ``PortLost`` (no reconnect) and
+        :class:`StreamMismatch` when only wrong-count frames arrive.
+        """
+        t_start = time.monotonic()
+        last = t_start
+        count = 0
+        seen_reconnects = self.link.reconnects
+        while True:
+            data = self.link.read()
+            now = time.monotonic()
+            if self.link.reconnects != seen_reconnects:
+                seen_reconnects = self.link.reconnects
+                self.decoder.reset_stream()
+                self.segment += 1
+                last = now
+            if data:
+                wall, perf = time.time(), time.perf_counter()
+                for f in self.decoder.feed(data):
+                    count += 1
+                    last = now
+                    yield ReceivedFrame(f, wall, perf, self.segment)
+                    if max_frames and count >= max_frames:
+                        self.stop_reason = f"{count} frames"
+                        return
+                st = self.decoder.stats
+                if st.frames == 0 and st.wrong_count >= WRONG_COUNT_LIMIT:
+                    raise StreamMismatch(
+                        f"{self.link.port}: {st.wrong_count} frames with the wrong taxel count and none with "
+                        f"the expected {self.decoder.expected_taxels}; is this the skin the model/layout was made for?"
+                    )
+            if duration_s and now - t_start >= duration_s:
+                self.stop_reason = f"{duration_s:g} s elapsed"
+                return
+            if idle_s and now - last >= idle_s:
+                self.stop_reason = f"no frame for {idle_s:g} s"
+                return
+
+
+def _error_line(stats) -> str:
+    keys = ("skipped_bytes", "bad_header", "bad_checksum", "truncated", "wrong_count", "bad_message",
+            "duplicates", "seq_gaps", "seq_missing", "seq_restarts", "resets")
+    d = stats.as_dict()
+    return ", ".join(f"{k}={d[k]}" for k in keys)
+
+
+# --------------------------------------------------------------------------- record
+def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> dict:
+    """``skin record``: read frames until a stop condition, save them; returns a summary."""
+    from sphri.hardware.recording import SkinRecording, save_recording
+
+    grid = parse_grid(settings.grid)
+    reader = SkinReader(settings.port, settings.baud, settings.taxels, settings.reconnect,
+                        settings.reconnect_timeout_s, start_command=settings.start_command)
+    values: list[np.ndarray] = []
+    host_t: list[float] = []
+    dev_t: list[int] = []
+    seqs: list[int] = []
+    segs: list[int] = []
+    error: BaseException | None = None
+    started = time.time()
+    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop)")
+    try:
+        with reader:
+            for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s):
+                values.append(rf.frame.values)
+                host_t.append(rf.host_time_s)
+                dev_t.append(rf.frame.device_time_us)
+                seqs.append(rf.frame.seq)
+                segs.append(rf.segment)
+                if len(values) % 500 == 0:
+                    out(f"  {len(values)} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
+    except KeyboardInterrupt:
+        reader.stop_reason = "interrupted"
+    except (PortLost, StreamMismatch) as exc:
+        error = exc
+        reader.stop_reason = str(exc)
+    n = reader.decoder.expected_taxels or settings.taxels or (grid[0] * grid[1] if grid else 0)
+    arr = np.stack(values) if values else np.zeros((0, n), dtype=np.float32)
+    if grid is not None and arr.shape[1] != grid[0] * grid[1]:
+        out(f"warning: grid={settings.grid} holds {grid[0] * grid[1]} taxels but the skin streams "
+            f"{arr.shape[1]}; saved without a grid shape")
+        grid = None
+    stats = reader.stats.as_dict()
+    meta = {
+        "port": settings.port,
+        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
+        "stop_reason": reader.stop_reason,
+        "reconnects": reader.link.reconnects,
+        "decoder": stats,
+        "protocol": "sphri-skin/1",
+    }
+    rec = SkinRecording(arr, np.asarray(host_t), np.asarray(dev_t), np.asarray(seqs), np.asarray(segs), grid, meta)
+    path = save_recording(rec, settings.out)
+    out(f"saved {rec.n_frames} frames x {rec.n_taxels} taxels to {path} ({reader.stop_reason}); "
+        f"rate {rec.rate_hz:.1f} Hz; reconnects {reader.link.reconnects}")
+    out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}")
+    if error is not None:
+        out(f"stopped early: {error}")
+    return {"frames": rec.n_frames, "path": str(path), "decoder": stats, "error": str(error) if error else None,
+            "reconnects": reader.link.reconnects}
+
+
+# --------------------------------------------------------------------------- live
+def default_tracking_uri() -> str | None:
+    try:
+        from sphri.tracking.mlflow_tracker import default_uri
+
+        return default_uri("outputs")
+    except Exception:  # tracking not importable: plain MLflow defaults
+        return None
+
+
+def live(settings: SkinLiveSettings, out: Callable[[str], None] = print) -> dict:
+    """``skin live``: classify the streamed frames; returns a summary with latencies."""
+    from sphri.hardware.live import LiveClassifier, auto_stride
+    from sphri.hardware.model_file import load_model, resolve_model_path
+
+    bundle = load_model(resolve_model_path(settings.model, settings.tracking_uri or default_tracking_uri()))
+    stride = settings.stride or auto_stride(bundle.frame_rate_hz)
+    clf = LiveClassifier(bundle, stride, settings.onset_taxels, settings.calibrate_frames, settings.release_frames,
+                         min(settings.persist, bundle.window_length), cluster_taxels=settings.cluster_taxels)
+    out(f"model {bundle.meta.get('model', type(bundle.estimator).__name__)}: {bundle.n_taxels} taxels, "
+        f"window {bundle.window_length} frames at {bundle.frame_rate_hz:g} Hz; a prediction every {stride} frames")
+    reader = SkinReader(settings.port, settings.baud, bundle.n_taxels, settings.reconnect,
+                        settings.reconnect_timeout_s, start_command=settings.start_command)
+    sink = open(settings.out, "w") if settings.out else None
+    preds = []
+    error: BaseException | None = None
+    t0 = time.perf_counter()
+    n_frames = 0
+    first_t = last_t = None
+    segment = 0
+    announced = False
+    last_seq: int | None = None
+    last_values: np.ndarray | None = None
+    filled = 0
+    try:
+        with reader:
+            for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s):
+                if rf.segment != segment:
+                    segment = rf.segment
+                    clf.reset()
+                    last_seq = last_values = None
+                    out("(reconnected: window restarted)")
+                n_frames += 1
+                first_t = rf.host_time_s if first_t is None else first_t
+                last_t = rf.host_time_s
+                got = []
+                if last_seq is not None and settings.fill_gaps:
+                    # frames lost on the way: hold the last one so windows keep the stream's timing
+                    lost = ((rf.frame.seq - last_seq) & 0xFFFF) - 1
+                    if 0 < lost <= settings.fill_gaps:
+                        for _ in range(lost):
+                            got += clf.push(last_values, rf.received)
+                        filled += lost
+                last_seq, last_values = rf.frame.seq, rf.frame.values
+                got += clf.push(rf.frame.values, rf.received)
+                if not announced and clf.threshold is not None:
+                    announced = True
+                    how = "calibrated from the first frames" if settings.onset_taxels == 0 else "set"
+                    out(f"touch onset at activity >= {clf.threshold:.2f} ({how})")
+                for p in got:
+                    preds.append(p)
+                    if settings.show == "all" or (settings.show == "touches" and p.kind == "touch"):
+                        out(p.line())
+                    if sink is not None:
+                        sink.write(json.dumps({**p.as_dict(), "seq": rf.frame.seq, "host_time_s": rf.host_time_s}) + "\n")
+    except KeyboardInterrupt:
+        reader.stop_reason = "interrupted"
+    except (PortLost, StreamMismatch) as exc:
+        error = exc
+    finally:
+        if sink is not None:
+            sink.close()
+    wall = time.perf_counter() - t0
+    lat = np.asarray([p.latency_ms for p in preds])
+    comp = np.asarray(clf.compute_ms)
+    stream_rate = (n_frames - 1) / (last_t - first_t) if n_frames > 1 and last_t > first_t else 0.0
+    summary = {
+        "frames": n_frames,
+        "predictions": len(preds),
+        "touches": sum(p.kind == "touch" for p in preds),
+        "filled_frames": filled,
+        "stream_rate_hz": stream_rate,
+        "predictions_per_s": len(preds) / wall if wall > 0 else 0.0,
+        "latency_ms_median": float(np.median(lat)) if lat.size else float("nan"),
+        "latency_ms_p95": float(np.percentile(lat, 95)) if lat.size else float("nan"),
+        "model_ms_mean": float(comp.mean()) if comp.size else float("nan"),
+        "capacity_predictions_per_s": float(1000.0 / comp.mean()) if comp.size and comp.mean() > 0 else float("nan"),
+        "decoder": reader.stats.as_dict(),
+        "error": str(error) if error else None,
+    }
+    if bundle.frame_rate_hz and stream_rate and abs(stream_rate / bundle.frame_rate_hz - 1) > 0.2:
+        out(f"warning: the skin streams at {stream_rate:.1f} Hz but the model was trained at {bundle.frame_rate_hz:g} Hz")
+    out(f"{n_frames} frames, {len(preds)} predictions ({summary['touches']} touches) in {wall:.1f} s: "
+        f"{summary['predictions_per_s']:.1f} predictions/s; latency median {summary['latency_ms_median']:.1f} ms, "
+        f"p95 {summary['latency_ms_p95']:.1f} ms; model {summary['model_ms_mean']:.1f} ms per window "
+        f"(up to {summary['capacity_predictions_per_s']:.0f} predictions/s)")
+    out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}; "
+        f"{filled} lost frame(s) filled by holding the previous one")
+    if error is not None:
+        out(f"stopped early: {error}")
+    return summary
+
+
+USAGE = """usage: python -m sphri.hardware.skin record|live [key=value ...]
+
+record: port=... out=rec.npz [taxels=0 grid=HxW frames=0 duration_s=0 idle_s=0
+        reconnect=false reconnect_timeout_s=30 start_command=true baud=1000000]
+live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [stride=0 onset_taxels=0
+        calibrate_frames=30 release_frames=10 out=predictions.jsonl show=all|touches|off
+        frames=0 duration_s=0 idle_s=0 reconnect=false ...]
+(defaults and meanings: sphri/hardware/settings.py, SkinRecordSettings / SkinLiveSettings)
+"""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(USAGE)
+        return 0 if argv else 2
+    cmd, args = argv[0], argv[1:]
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        if cmd == "record":
+            summary = record(parse_cli(args, SkinRecordSettings, pipeline=False)[0])
+        elif cmd == "live":
+            summary = live(parse_cli(args, SkinLiveSettings, pipeline=False)[0])
+        else:
+            print(f"sphri.hardware.skin: unknown command {cmd!r} (record or live)\n\n{USAGE}", file=sys.stderr)
+            return 2
+    except ConfigError as exc:
+        print(f"sphri.hardware.skin: invalid setting: {exc}", file=sys.stderr)
+        return 2
+    except PortError as exc:
+        print(f"sphri.hardware.skin: {exc}", file=sys.stderr)
+        return 1
+    except (OSError, ValueError) as exc:  # model or output files
+        print(f"sphri.hardware.skin: {exc}", file=sys.stderr)
+        return 1
+    return 1 if summary.get("error") else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,135 @@
+"""Fit the configured model on the configured pipeline's windows and save a model file.
+
+::
+
+    python -m sphri.hardware.train_export out=outputs/models/rf.sphrimodel +robot=reachy encoder.res=18
+    python -m sphri.hardware.train_export out=m.sphrimodel holdout=participant_03 +debug=fast mlflow=true
+
+The windows are exactly those the cross-validation sees (data, contact,
+layout, encoder, noise and window stages, all cached), but the model is fit
+once on every kept trial (minus ``holdout``'s). The file
+(:mod:`sphri.hardware.model_file`) carries the estimator, the skin's
+geometry, the window length and frame rate, for ``skin live``.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional, Sequence
+
+import numpy as np
+
+from sphri.config import ConfigError, require
+from sphri.hardware.model_file import ModelBundle, save_model
+from sphri.hardware.settings import parse_cli
+from sphri.types import GESTURES, WindowedFrames
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class TrainExportSettings:
+    """Settings of ``train_export`` (everything else is a pipeline override)."""
+
+    out: str = "???"
+    """Model file to write, e.g. outputs/models/rf.sphrimodel."""
+    holdout: Optional[str] = None
+    """Participant left out of training (to try the model live on their trials)."""
+    mlflow: bool = False
+    """Also log the file as an artifact (model/<name>) of a new MLflow run."""
+
+    def __post_init__(self) -> None:
+        require(self.out not in ("", "???"), "out", self.out, "an output path, e.g. out=model.sphrimodel")
+
+
+def training_windows(pipeline) -> WindowedFrames:
+    """The pipeline's windows (as the CV sees them): plan, encode, noise, assemble."""
+    from sphri.pipeline import build
+
+    window = build(pipeline.cfg.window)
+    return window.assemble(pipeline.get("noise"), pipeline.get("plan"), pipeline.get("data"),
+                           pipeline.get("layout"), pipeline.get("surface"))
+
+
+def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = ()) -> ModelBundle:
+    """Fit ``cfg.model`` on all windows (except ``holdout``'s participant) -> :class:`ModelBundle`."""
+    from sphri.pipeline import build, config_hash
+
+    cfg = pipeline.cfg
+    windows = training_windows(pipeline)
+    train = np.ones(len(windows.y), dtype=bool)
+    if holdout is not None:
+        train = windows.groups != holdout
+        if train.all():
+            raise ConfigError(f"holdout={holdout!r} is invalid: no such participant among {sorted(set(windows.groups))}")
+    if train.sum() < 2 or len(np.unique(windows.y[train])) < 2:
+        raise ConfigError("the pipeline gives fewer than two gestures to train on; use more data (data.participants)")
+    # instantiate a partial and pass the geometry in the call: hydra would turn a
+    # dataclass kwarg of instantiate() into a dict
+    model = build(cfg.model, _partial_=True)(geometry=windows.geometry)
+    model.fit(windows.x[train], windows.y[train])
+    acc = float(np.mean(model.predict(windows.x[train]) == windows.y[train]))
+    dataset = pipeline.get("data")
+    meta = {
+        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "model": str(cfg.model._target_).rsplit(".", 1)[-1],
+        "overrides": list(overrides),
+        "config_hash": config_hash(cfg),
+        "n_train": int(train.sum()),
+        "train_accuracy": acc,
+        "holdout": holdout,
+        "participants": sorted(set(windows.groups[train].tolist())),
+        "dataset": dataset.name,
+        "region": list(cfg.data.regions)[0],
+        "encoder": str(cfg.encoder._target_).rsplit(".", 1)[-1],
+        "encoder_res": int(cfg.encoder.res),
+    }
+    log.info("trained %s on %d windows (train accuracy %.3f)", meta["model"], meta["n_train"], acc)
+    return ModelBundle(model, windows.geometry, int(windows.x.shape[1]), float(dataset.frame_rate_hz), GESTURES, meta)
+
+
+def log_to_mlflow(pipeline, path: Path) -> str:
+    """Log ``path`` as artifact ``model/<name>`` of a new run; returns its ``runs:/`` URI."""
+    from mlflow import MlflowClient
+
+    from sphri.pipeline import build
+
+    tracker = build(pipeline.cfg.tracking)
+    uri = tracker.resolve_uri(pipeline.cfg.output_dir)
+    client = MlflowClient(tracking_uri=uri)
+    exp = tracker.experiment_id(pipeline.cfg.output_dir)
+    run = client.create_run(exp, run_name=f"train_export {path.stem}", tags={"sphri.kind": "model_export"})
+    client.log_artifact(run.info.run_id, str(path), artifact_path="model")
+    client.set_terminated(run.info.run_id)
+    return f"runs:/{run.info.run_id}/model/{path.name}"
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in ("-h", "--help", "help"):
+        print(__doc__)
+        return 0
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        settings, overrides = parse_cli(argv, TrainExportSettings, pipeline=True)
+        from sphri.hardware.source import open_pipeline
+
+        p = open_pipeline(overrides)
+        bundle = fit_bundle(p, settings.holdout, overrides)
+    except ConfigError as exc:
+        print(f"sphri.hardware.train_export: invalid setting: {exc}", file=sys.stderr)
+        return 2
+    path = save_model(bundle, settings.out)
+    print(f"saved {bundle.meta['model']} ({bundle.meta['n_train']} windows, train accuracy "
+          f"{bundle.meta['train_accuracy']:.3f}; {bundle.n_taxels} taxels, L={bundle.window_length}) to {path}")
+    if settings.mlflow:
+        print(f"logged to MLflow: model={log_to_mlflow(p, path)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

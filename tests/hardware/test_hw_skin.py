@@ -1,0 +1,188 @@
+"""Skin: `record` against the simulator (faults, unplug/replug), the recording format."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from sphri.config import ConfigError
+from sphri.hardware.recording import RecordingError, SkinRecording, load_recording, save_recording
+from sphri.hardware.settings import SimulateSettings, SkinRecordSettings, parse_cli
+from sphri.hardware.simulate import SkinSimulator, make_endpoint, pattern_stream, start_in_thread
+from sphri.hardware.skin import record
+from sphri.hardware.skin_protocol import ValueFormat, quantize
+
+
+def run_record(tmp_path, sim_kw: dict, rec_kw: dict | None = None, frames: int = 400, seed: int = 1):
+    """Start a pattern-source skin simulator, record from it, return (ledger, summary, recording, stream)."""
+    settings = SimulateSettings(source="pattern", frames=frames, seed=seed, **{"realtime": False, "hold_s": 3.0, **sim_kw})
+    stream = pattern_stream((18, 6), frames, seed)
+    sim = SkinSimulator(stream, settings, make_endpoint(settings), say=lambda m: None)
+    th = start_in_thread(sim)
+    out = tmp_path / "rec.npz"
+    lines: list[str] = []
+    try:
+        summary = record(SkinRecordSettings(port=sim.endpoint.url, out=str(out), **{"idle_s": 0.6, "grid": "18x6", **(rec_kw or {})}),
+                         out=lines.append)
+    finally:
+        sim.stop.set()
+        th.join(10)
+    return sim.ledger, summary, load_recording(out), stream, lines
+
+
+def check_good_frames_kept(ledger, rec, stream) -> None:
+    assert rec.n_frames == ledger.good
+    np.testing.assert_array_equal(rec.seq, ledger.good_seq)
+    sent = stream.values[ledger.good_index]
+    np.testing.assert_array_equal(rec.values, quantize(sent, ValueFormat.BITS).astype(np.float32))
+
+
+def trailing_lost(ledger) -> int:
+    """Slots lost after the last intact frame: no later sequence number reveals them."""
+    return ledger.slots - 1 - ledger.good_seq[-1]
+
+
+@pytest.mark.parametrize("port", ["pty", "socket://127.0.0.1:0"])
+def test_record_keeps_every_good_frame_with_5_percent_corrupt(tmp_path, port):
+    ledger, summary, rec, stream, lines = run_record(tmp_path, {"port": port, "corrupt_rate": 0.05})
+    dec = summary["decoder"]
+    assert ledger.corrupt >= 10
+    check_good_frames_kept(ledger, rec, stream)
+    # every corrupt frame is reported, as a bad header or a bad checksum, and as a missing sequence number
+    assert dec["bad_header"] == ledger.corrupt_header
+    assert dec["bad_checksum"] == ledger.corrupt_body
+    assert dec["truncated"] == 0 and dec["wrong_count"] == 0
+    assert dec["seq_missing"] == ledger.corrupt - trailing_lost(ledger)
+    assert dec["skipped_bytes"] == ledger.bytes_sent - ledger.good_bytes
+    assert rec.grid_shape == (18, 6) and rec.meta["decoder"] == dec
+    assert any("skipped" in ln and f"bad_checksum={ledger.corrupt_body}" in ln for ln in lines)
+
+
+def test_record_survives_every_kind_of_fault(tmp_path):
+    ledger, summary, rec, stream, _ = run_record(
+        tmp_path,
+        {"port": "socket://127.0.0.1:0", "garbage_rate": 0.05, "corrupt_rate": 0.04, "drop_rate": 0.03,
+         "truncate_rate": 0.04, "wrong_count_rate": 0.03},
+        frames=600,
+    )
+    dec = summary["decoder"]
+    assert min(ledger.garbage_bursts, ledger.corrupt, ledger.dropped, ledger.truncated, ledger.wrong_count) > 0
+    check_good_frames_kept(ledger, rec, stream)
+    assert dec["wrong_count"] == ledger.wrong_count
+    # truncated vs corrupted is a heuristic; their total is exact
+    assert dec["bad_header"] + dec["bad_checksum"] + dec["truncated"] == ledger.corrupt + ledger.truncated
+    assert dec["seq_missing"] == ledger.lost - trailing_lost(ledger)
+    assert dec["skipped_bytes"] == ledger.bytes_sent - ledger.good_bytes - ledger.wrong_count_bytes
+
+
+@pytest.mark.parametrize("port", ["pty", "socket://127.0.0.1:0"])
+def test_unplugged_and_plugged_back_with_reconnect(tmp_path, port):
+    ledger, summary, rec, stream, _ = run_record(
+        tmp_path,
+        {"port": port, "link": str(tmp_path / "skin.tty") if port == "pty" else "", "realtime": True,
+         "rate_hz": 500.0, "unplug_after_s": 0.25, "unplug_s": 0.4, "hold_s": 2.0},
+        {"reconnect": True, "reconnect_timeout_s": 5.0},
+    )
+    assert ledger.unplugs == 1 and ledger.starts == 2
+    check_good_frames_kept(ledger, rec, stream)
+    assert summary["reconnects"] == 1 and summary["error"] is None
+    dec = summary["decoder"]
+    assert dec["truncated"] == ledger.truncated_by_unplug == 1
+    assert dec["resets"] == 1 and dec["seq_restarts"] == 0
+    seg0, seg1 = (rec.segment == 0).sum(), (rec.segment == 1).sum()
+    assert seg0 > 0 and seg1 > 0 and rec.seq[seg0] == 0  # the device restarted its sequence
+
+
+def test_vanished_port_without_reconnect_saves_and_says_so(tmp_path):
+    ledger, summary, rec, stream, lines = run_record(
+        tmp_path,
+        {"port": "pty", "link": str(tmp_path / "skin.tty"), "realtime": True, "rate_hz": 500.0,
+         "unplug_after_s": 0.2, "unplug_s": 0.5, "hold_s": 0.5},
+    )
+    assert summary["error"] is not None
+    assert "skin.tty" in summary["error"] and "vanished" in summary["error"] and "reconnect=true" in summary["error"]
+    assert ledger.unplugs == 1 and ledger.slots < 400  # the recorder stopped while the device was away
+    check_good_frames_kept(ledger, rec, stream)  # every frame before the unplug is saved
+    assert rec.meta["stop_reason"] == summary["error"]
+    assert any("stopped early" in ln for ln in lines)
+
+
+def test_wrong_skin_is_refused_with_a_clear_message(tmp_path):
+    ledger, summary, rec, _, _ = run_record(tmp_path, {"port": "socket://127.0.0.1:0"}, {"taxels": 50, "grid": ""},
+                                           frames=100)
+    assert "50" in summary["error"] and "wrong taxel count" in summary["error"]
+    assert rec.n_frames == 0
+
+
+def test_record_settings():
+    s, _ = parse_cli(["port=/dev/ttyACM0", "out=x.npz", "grid=18x6", "taxels=108"], SkinRecordSettings, pipeline=False)
+    assert s.grid == "18x6"
+    with pytest.raises(ConfigError, match="grid"):
+        parse_cli(["port=p", "out=x.npz", "grid=18x6", "taxels=100"], SkinRecordSettings, pipeline=False)
+    with pytest.raises(ConfigError, match="grid"):
+        parse_cli(["port=p", "out=x.npz", "grid=eighteen"], SkinRecordSettings, pipeline=False)
+    with pytest.raises(ConfigError, match="robot"):
+        parse_cli(["port=p", "out=x.npz", "robot=reachy"], SkinRecordSettings, pipeline=False)
+    with pytest.raises(ConfigError, match="out"):
+        parse_cli(["port=p"], SkinRecordSettings, pipeline=False)
+
+
+# ------------------------------------------------------------------ recording format
+def _recording(n: int = 30) -> SkinRecording:
+    rng = np.random.default_rng(0)
+    return SkinRecording(
+        values=(rng.random((n, 12)) > 0.5).astype(np.float32),
+        host_time_s=1.7e9 + np.arange(n) / 90.0,
+        device_time_us=np.arange(n) * 11111,
+        seq=np.arange(n),
+        segment=np.zeros(n, dtype=np.int64),
+        grid_shape=(4, 3),
+        meta={"port": "loop://"},
+    )
+
+
+def test_recording_round_trip_and_windows(tmp_path):
+    rec = _recording()
+    path = save_recording(rec, tmp_path / "sub" / "r.npz")
+    back = load_recording(path)
+    np.testing.assert_array_equal(back.values, rec.values)
+    np.testing.assert_array_equal(back.seq, rec.seq)
+    assert back.grid_shape == (4, 3) and back.meta["port"] == "loop://"
+    assert back.rate_hz == pytest.approx(90.0)
+    assert back.frames().as_grid().shape == (30, 4, 3)
+    w = back.windows(10, stride=5)
+    assert w.shape == (5, 10, 12) and w.dtype == np.float32
+    np.testing.assert_array_equal(w[1], rec.values[5:15])
+
+
+def test_recording_errors_name_the_file_and_field(tmp_path):
+    with pytest.raises(RecordingError, match="not found"):
+        load_recording(tmp_path / "nope.npz")
+    p = tmp_path / "partial.npz"
+    np.savez(p, values=np.zeros((2, 3), np.float32))
+    with pytest.raises(RecordingError, match=r"partial\.npz.*missing"):
+        load_recording(p)
+    rec = _recording()
+    rec.values[0, 0] = 2.0
+    bad = tmp_path / "bad.npz"
+    save_recording(rec, bad)
+    with pytest.raises(RecordingError, match=r"bad\.npz.*values"):
+        load_recording(bad)
+    with pytest.raises(RecordingError, match="grid_shape"):
+        SkinRecording(np.zeros((2, 12)), np.zeros(2), np.zeros(2), np.zeros(2), np.zeros(2), (5, 5))
+    with pytest.raises(RecordingError, match="seq"):
+        SkinRecording(np.zeros((2, 12)), np.zeros(2), np.zeros(2), np.zeros(3), np.zeros(2), None)
+    blob = tmp_path / "junk.npz"
+    blob.write_bytes(b"not a zip")
+    with pytest.raises(RecordingError, match="junk"):
+        load_recording(blob)
+    meta_bad = tmp_path / "meta.npz"
+    save_recording(_recording(), meta_bad)
+    with np.load(meta_bad) as z:
+        d = dict(z)
+    d["meta"] = np.asarray(json.dumps({"format": "other/9"}))
+    np.savez(meta_bad, **d)
+    with pytest.raises(RecordingError, match="other/9"):
+        load_recording(meta_bad)
