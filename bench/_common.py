@@ -1,0 +1,51 @@
+"""Tiny helpers shared by benchmarks: timing and JSON output under outputs/bench/."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+#: Where benchmarks write their JSON and plots.
+OUT = Path(__file__).resolve().parent.parent / "outputs" / "bench"
+
+
+def timeit(fn: Callable[[], Any], repeat: int = 3) -> dict[str, float]:
+    """Run ``fn`` ``repeat`` times: best and median wall seconds, and CPU seconds of the best run.
+
+    CPU time (all threads of this process) is less sensitive than wall time
+    to other processes competing for the cores.
+    """
+    walls, cpus = [], []
+    for _ in range(repeat):
+        c0, t0 = time.process_time(), time.perf_counter()
+        fn()
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    i = int(np.argmin(walls))
+    return {"best_s": walls[i], "median_s": float(np.median(walls)), "cpu_s": cpus[i]}
+
+
+def machine() -> dict[str, Any]:
+    """Cores and load average, to read timings against."""
+    return {"cpu_count": os.cpu_count(), "loadavg_1min": os.getloadavg()[0]}
+
+
+def write_json(name: str, data: dict[str, Any]) -> Path:
+    """Write ``outputs/bench/<name>.json`` (pretty, numpy scalars converted)."""
+    OUT.mkdir(parents=True, exist_ok=True)
+    path = OUT / f"{name}.json"
+
+    def conv(x):
+        if isinstance(x, np.generic):
+            return x.item()
+        if isinstance(x, np.ndarray):
+            return x.tolist()
+        raise TypeError(f"not JSON serializable: {type(x)}")
+
+    path.write_text(json.dumps(data, indent=2, default=conv) + "\n")
+    return path
