@@ -1,0 +1,82 @@
+"""Config schemas of the encoder group (``conf/encoder/*.yaml``).
+
+Every encoder has ``res``: taxels along the link's long axis (1..1000), which
+the pipeline also passes to the layout.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from sphri.config import require_choice, require_range, store
+
+MAX_RES = 1000
+
+
+def _res(value: int) -> None:
+    require_range("encoder.res", value, lo=1, hi=MAX_RES)
+
+
+@dataclass
+class EllipseEncoderSchema:
+    """The paper's encoder: contact patches as ellipses rasterized on the (u, v) grid."""
+
+    _target_: str = "sphri.encode.ellipse.EllipseEncoder"
+    res: int = 18
+    """Taxels along the link's long axis (the paper saturates near 18 per 24 cm)."""
+    binary: bool = True
+    """True: uint8 0/1 readings; False: float32 covered fraction of each taxel."""
+    threshold: float = 0.5
+    """Binary: a taxel is on when at least this fraction of its cell is covered
+    (the taxel holding a patch centre is always on)."""
+    subsamples: int = 8
+    """Sub-rows per taxel row for the raster (exact along v); more = finer."""
+
+    def __post_init__(self) -> None:
+        _res(self.res)
+        require_range("encoder.threshold", self.threshold, lo=0.0, hi=1.0, lo_open=True)
+        require_range("encoder.subsamples", self.subsamples, lo=1, hi=64)
+
+
+@dataclass
+class CoverageEncoderSchema:
+    """Fraction of each taxel's area covered by contact (float32), any layout."""
+
+    _target_: str = "sphri.encode.coverage.CoverageEncoder"
+    res: int = 18
+    """Taxels along the link's long axis."""
+    subsamples: int = 8
+    """Grid layouts: sub-rows per taxel row of the chart raster."""
+    samples_per_taxel: int = 32
+    """Other layouts: points sampled on each taxel's disc (area fraction resolution)."""
+
+    def __post_init__(self) -> None:
+        _res(self.res)
+        require_range("encoder.subsamples", self.subsamples, lo=1, hi=64)
+        require_range("encoder.samples_per_taxel", self.samples_per_taxel, lo=1, hi=1024)
+
+
+@dataclass
+class ProximityEncoderSchema:
+    """A taxel senses a capsule surface within ``sensing_distance_m``, any layout."""
+
+    _target_: str = "sphri.encode.proximity.ProximityEncoder"
+    res: int = 18
+    """Taxels along the link's long axis."""
+    sensing_distance_m: float = 0.005
+    """Range of the taxel (metres): active when a capsule surface is this close."""
+    intensity: str = "binary"
+    """binary (uint8 0/1) or depth (float32 pressure proxy, 0 at the range, 1 at depth_scale_m deep)."""
+    depth_scale_m: float = 0.01
+    """Penetration (metres) that reads 1.0 with intensity=depth."""
+
+    def __post_init__(self) -> None:
+        _res(self.res)
+        require_range("encoder.sensing_distance_m", self.sensing_distance_m, lo=0.0, hi=0.5)
+        require_choice("encoder.intensity", self.intensity, ("binary", "depth"))
+        require_range("encoder.depth_scale_m", self.depth_scale_m, lo=0.0, hi=0.5, lo_open=True)
+
+
+store(group="encoder", name="ellipse_schema", node=EllipseEncoderSchema)
+store(group="encoder", name="coverage_schema", node=CoverageEncoderSchema)
+store(group="encoder", name="proximity_schema", node=ProximityEncoderSchema)

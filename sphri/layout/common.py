@@ -1,0 +1,140 @@
+"""Helpers shared by the layouts: grid sizing, taxel areas, spacing, projection."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from sphri.surface.charts import from_uv, to_uv
+from sphri.surface.meshutil import face_areas, face_normals, project_along, sample_surface
+from sphri.types import Link, SurfaceMap
+
+MAX_RES = 1000
+
+
+def check_res(res: int, who: str) -> int:
+    """Validate ``res`` (taxels along the long axis) for component ``who``."""
+    if isinstance(res, bool) or int(res) != res or not 1 <= int(res) <= MAX_RES:
+        raise ValueError(f"{who}: res={res!r} is invalid: must be an integer in [1, {MAX_RES}] (encoder.res)")
+    return int(res)
+
+
+def long_axis_length_m(surface: SurfaceMap) -> float:
+    """Length of the link along its long axis (metres): what ``res`` divides."""
+    if surface.kind == "cylinder":
+        return float(surface.metres_per_u)
+    if surface.kind == "box":
+        return float(surface.params["extents"][0])
+    if "length_m" in surface.params:
+        return float(surface.params["length_m"])
+    if surface.metres_per_u > 0:
+        return float(surface.metres_per_u)
+    raise ValueError(f"surface kind {surface.kind!r} records no long-axis length")
+
+
+def grid_dims(surface: SurfaceMap, res: int, aspect: float = 1.0, hex_rows: bool = False) -> tuple[int, int]:
+    """(H, W) of a grid with ``res`` taxels along the long axis.
+
+    Pitch along ``p = length / res``; ``H = round(metres_per_u / p)`` (= res
+    for a cylinder); around ``W = max(1, round(metres_per_v / (p * aspect)))``.
+    Hex lattices use an in-row spacing of ``2 p / sqrt(3)`` (equilateral).
+    """
+    if not surface.has_uv:
+        raise ValueError(f"a grid needs a surface with a 2-D chart; surface kind {surface.kind!r} has none")
+    pitch = long_axis_length_m(surface) / res
+    h = max(1, int(round(surface.metres_per_u / pitch)))
+    step_v = pitch * aspect * (2.0 / np.sqrt(3.0) if hex_rows else 1.0)
+    w = max(1, int(round(surface.metres_per_v / step_v)))
+    return h, w
+
+
+def grid_uv(h: int, w: int, hex_rows: bool = False) -> np.ndarray:
+    """(H*W, 2) cell-centre chart coordinates in row-major (u, v) order."""
+    i, j = np.meshgrid(np.arange(h), np.arange(w), indexing="ij")
+    off = 0.5 * (i % 2) if hex_rows else 0.0
+    u = (i + 0.5) / h
+    v = np.mod((j + 0.5 + off) / w, 1.0)
+    return np.column_stack([u.ravel(), v.ravel()]).astype(np.float64)
+
+
+def row_offsets(layout_uv: np.ndarray, grid_shape: tuple[int, int]) -> np.ndarray:
+    """(H,) float64 column offset of each row's cells, in cells (0 = plain grid, 0.5 = shifted)."""
+    h, w = grid_shape
+    first = layout_uv.reshape(h, w, 2)[:, 0, 1]
+    return np.mod(first * w - 0.5 + 1e-9, 1.0) - 1e-9
+
+
+def grid_equivalent_count(link: Link, surface: SurfaceMap, res: int, aspect: float = 1.0) -> int:
+    """Taxels a square grid at ``res`` would put on the link (its non-void cells).
+
+    Without a chart: ``round(area / (p * p * aspect))`` with ``p = length / res``.
+    """
+    if surface.has_uv:
+        h, w = grid_dims(surface, res, aspect)
+        if surface.kind == "cylinder":
+            return h * w
+        _, valid = from_uv(surface, grid_uv(h, w), return_valid=True)
+        return max(1, int(valid.sum()))
+    pitch = long_axis_length_m(surface) / res
+    area = float(face_areas(link).sum())
+    return max(1, int(round(area / (pitch * pitch * aspect))))
+
+
+def n_area_samples(n_taxels: int) -> int:
+    """Surface samples used to measure taxel areas (about 30 per taxel)."""
+    return int(np.clip(30 * n_taxels, 100_000, 3_000_000))
+
+
+def grid_cell_areas(link: Link, surface: SurfaceMap, grid_shape: tuple[int, int], offsets: np.ndarray, seed: int) -> np.ndarray:
+    """(H*W,) float64 mesh area (m^2) mapping into each chart cell (area-weighted samples)."""
+    h, w = grid_shape
+    n = n_area_samples(h * w)
+    pts, _ = sample_surface(link, n, seed)
+    uv = to_uv(surface, pts)
+    row = np.clip((uv[:, 0] * h).astype(np.int64), 0, h - 1)
+    colf = uv[:, 1] * w - offsets[row]
+    col = np.floor(colf).astype(np.int64)
+    col = np.mod(col, w) if surface.wrap_v else np.clip(col, 0, w - 1)
+    counts = np.bincount(row * w + col, minlength=h * w).astype(np.float64)
+    return counts * (face_areas(link).sum() / n)
+
+
+def project_chart_points(link: Link, surface: SurfaceMap, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Taxels at chart points ``uv (K, 2)`` moved onto the mesh along the primitive normal.
+
+    Returns ``position (K, 3)``, outward ``normal (K, 3)`` and ``valid (K,)``
+    (False in void chart cells).
+    """
+    prim, pn, valid = from_uv(surface, uv, return_normal=True, return_valid=True)
+    v = np.asarray(link.vertices)
+    reach = float(np.linalg.norm(v.max(axis=0) - v.min(axis=0)))
+    pos, face, _ = project_along(link, prim, pn, max_dist_m=reach)
+    nrm = face_normals(link)[face]
+    flip = np.einsum("ij,ij->i", nrm, pn) < 0
+    nrm[flip] *= -1
+    bad = np.linalg.norm(nrm, axis=1) < 0.5
+    nrm[bad] = pn[bad]
+    return pos, nrm, valid
+
+
+def nn_spacing(points: np.ndarray) -> np.ndarray:
+    """(N,) float64 distance from each point to its nearest other point (metres; 0 if N = 1)."""
+    if len(points) < 2:
+        return np.zeros(len(points))
+    d, _ = cKDTree(points).query(points, k=2)
+    return d[:, 1]
+
+
+def voronoi_areas(link: Link, positions: np.ndarray, seed: int, max_dist_m: float | None = None) -> np.ndarray:
+    """(N,) float64 surface area (m^2) nearer to each taxel than to any other.
+
+    Samples farther than ``max_dist_m`` from every taxel are unassigned
+    (a skin patch that does not cover the whole link).
+    """
+    n = n_area_samples(len(positions))
+    pts, _ = sample_surface(link, n, seed)
+    d, idx = cKDTree(positions).query(pts)
+    if max_dist_m is not None:
+        idx = idx[d <= max_dist_m]
+    counts = np.bincount(idx, minlength=len(positions)).astype(np.float64)
+    return counts * (face_areas(link).sum() / n)

@@ -1,0 +1,252 @@
+"""Noise components: ``apply(frames, frame_index, trial_key, seed) -> Frames``.
+
+Every random draw is a pure function of (seed, trial_key, frame, taxel)
+(:mod:`sphri.noise.hashing`), so results repeat exactly and a frame's noise
+does not depend on which other frames are encoded. Inputs are never mutated.
+
+- ``salt_pepper`` (paper: p = 0.02): with probability p a reading is replaced
+  by salt (1) or pepper (0), each with probability 1/2 by default - the
+  standard definition (e.g. scikit-image ``random_noise(mode="s&p")``), so on
+  average p/2 of the readings actually change. ``mode: flip`` inverts the
+  corrupted readings instead. The dtype is kept.
+- ``gaussian``: add N(0, sigma^2), clip to [0, 1], float32.
+- ``dead_taxels``: round(fraction * N) taxels, chosen from ``seed`` alone (the
+  same sensor in every trial), always read ``value``. The dtype is kept.
+- ``crosstalk``: ``y = clip(x + alpha * sum of neighbours' x, 0, 1)`` float32;
+  grid neighbours are the 4 adjacent cells (v wraps when the chart does), other
+  layouts use the k nearest taxels in 3-D (needs the frames' geometry).
+- ``none``: unchanged.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from numba import njit, prange
+from scipy.spatial import cKDTree
+
+from sphri.encode.common import SkinFrames
+from sphri.noise.hashing import frame_key, uniform, uniform24
+from sphri.noise.schema import (
+    CrosstalkNoiseSchema,
+    DeadTaxelsNoiseSchema,
+    GaussianNoiseSchema,
+    NoNoiseSchema,
+    SaltPepperNoiseSchema,
+)
+from sphri.types import Frames
+
+log = logging.getLogger(__name__)
+
+#: Stream ids: different noise kinds draw independent numbers for the same key.
+STREAM_SALT_PEPPER = 1
+STREAM_GAUSSIAN = 2
+
+
+def _check(frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int, who: str):
+    v = np.asarray(frames.values)
+    if v.ndim != 2:
+        raise ValueError(f"{who}: frames.values must be (M, N), got shape {v.shape}")
+    fi = np.asarray(frame_index)
+    tk = np.asarray(trial_key)
+    for name, a in (("frame_index", fi), ("trial_key", tk)):
+        if a.shape != (v.shape[0],):
+            raise ValueError(f"{who}: {name} must be ({v.shape[0]},) like frames.values rows, got {a.shape}")
+        if a.size and not np.issubdtype(a.dtype, np.integer):
+            raise ValueError(f"{who}: {name} must hold integers, got dtype {a.dtype}")
+    if fi.size and fi.min() < 0:
+        raise ValueError(f"{who}: frame_index must be >= 0")
+    if isinstance(seed, bool) or int(seed) != seed or seed < 0:
+        raise ValueError(f"{who}: seed={seed!r} must be an integer >= 0")
+    return v, fi.astype(np.int64).view(np.uint64), tk.astype(np.int64).view(np.uint64), int(seed)
+
+
+def _like(frames: Frames, values: np.ndarray) -> Frames:
+    """New Frames of the same kind (geometry kept) holding ``values``."""
+    geom = getattr(frames, "geometry", None)
+    if geom is not None or isinstance(frames, SkinFrames):
+        return SkinFrames(values=values, grid_shape=frames.grid_shape, geometry=geom)
+    return Frames(values=values, grid_shape=frames.grid_shape)
+
+
+@njit(cache=True, parallel=True)
+def _salt_pepper(values, out, fi, tk, seed, p, svp, flip):  # pragma: no cover - numba
+    m, n = values.shape
+    for i in prange(m):
+        key = frame_key(seed, 1, tk[i], fi[i])
+        for j in range(n):
+            u = uniform(key, j)
+            if u < p:
+                if flip:
+                    out[i, j] = 1 - values[i, j]
+                else:
+                    out[i, j] = 1 if u < p * svp else 0
+            else:
+                out[i, j] = values[i, j]
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def _gaussian(values, out, fi, tk, seed, sigma):  # pragma: no cover - numba
+    m, n = values.shape
+    one = np.float32(1.0)
+    zero = np.float32(0.0)
+    two_pi = np.float32(2.0 * np.pi)
+    for i in prange(m):
+        key = frame_key(seed, 2, tk[i], fi[i])
+        for j in range(0, n, 2):  # Box-Muller in float32: one pair of uniforms -> two normals
+            u1 = uniform24(key, j)
+            u2 = uniform24(key, j + 1)
+            r = sigma * np.sqrt(np.float32(-2.0) * np.log(one - u1))
+            a = two_pi * u2
+            out[i, j] = min(max(np.float32(values[i, j]) + r * np.cos(a), zero), one)
+            if j + 1 < n:
+                out[i, j + 1] = min(max(np.float32(values[i, j + 1]) + r * np.sin(a), zero), one)
+
+
+@njit(cache=True, parallel=True)
+def _crosstalk(values, out, nb, alpha):  # pragma: no cover - numba
+    m, n = values.shape
+    for i in prange(m):
+        for t in range(n):
+            acc = np.float32(values[i, t])
+            for c in range(nb.shape[1]):
+                j = nb[t, c]
+                if j >= 0:
+                    acc += alpha * np.float32(values[i, j])
+            out[i, t] = min(max(acc, np.float32(0.0)), np.float32(1.0))
+
+
+class SaltPepperNoise:
+    """``noise=salt_pepper``: corrupt each reading with probability p (see module)."""
+
+    VERSION = "1"
+
+    def __init__(self, p: float = 0.02, mode: str = "replace", salt_vs_pepper: float = 0.5) -> None:
+        SaltPepperNoiseSchema(p=p, mode=mode, salt_vs_pepper=salt_vs_pepper)
+        self.p = p
+        self.mode = mode
+        self.salt_vs_pepper = salt_vs_pepper
+
+    def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
+        """Noisy copy of ``frames`` (M, N), same dtype."""
+        v, fi, tk, seed = _check(frames, frame_index, trial_key, seed, "noise=salt_pepper")
+        out = np.empty_like(v)
+        if v.size:
+            _salt_pepper(v, out, fi, tk, np.uint64(seed), float(self.p), float(self.salt_vs_pepper), self.mode == "flip")
+        return _like(frames, out)
+
+
+class GaussianNoise:
+    """``noise=gaussian``: additive N(0, sigma^2), clipped to [0, 1], float32."""
+
+    VERSION = "1"
+
+    def __init__(self, sigma: float = 0.05) -> None:
+        GaussianNoiseSchema(sigma=sigma)
+        self.sigma = sigma
+
+    def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
+        """Noisy float32 copy of ``frames``."""
+        v, fi, tk, seed = _check(frames, frame_index, trial_key, seed, "noise=gaussian")
+        out = np.empty(v.shape, dtype=np.float32)
+        if v.size:
+            _gaussian(v, out, fi, tk, np.uint64(seed), np.float32(self.sigma))
+        return _like(frames, out)
+
+
+def dead_taxel_index(n_taxels: int, fraction: float, seed: int) -> np.ndarray:
+    """Sorted indices of the round(fraction * N) dead taxels (depends on seed and N only)."""
+    k = int(round(fraction * n_taxels))
+    rng = np.random.default_rng([int(seed), 0xDEAD])
+    return np.sort(rng.permutation(n_taxels)[:k])
+
+
+class DeadTaxelsNoise:
+    """``noise=dead_taxels``: a fixed set of taxels always reads ``value``."""
+
+    VERSION = "1"
+
+    def __init__(self, fraction: float = 0.05, value: float = 0.0) -> None:
+        DeadTaxelsNoiseSchema(fraction=fraction, value=value)
+        self.fraction = fraction
+        self.value = value
+
+    def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
+        """Copy of ``frames`` with the dead taxels' columns set to ``value``."""
+        v, _, _, seed = _check(frames, frame_index, trial_key, seed, "noise=dead_taxels")
+        dead = dead_taxel_index(v.shape[1], self.fraction, seed)
+        out = v.copy()
+        val = self.value
+        if np.issubdtype(out.dtype, np.integer):
+            val = int(round(val))
+        out[:, dead] = val
+        return _like(frames, out)
+
+
+def neighbour_lists(frames: Frames, k: int) -> np.ndarray:
+    """(N, K) int64 neighbour taxels (-1 = none) for crosstalk."""
+    geom = getattr(frames, "geometry", None)
+    n = frames.values.shape[1]
+    if frames.grid_shape is not None:
+        h, w = frames.grid_shape
+        wrap = bool(geom.wrap_v) if geom is not None else False
+        if geom is None:
+            log.info("noise=crosstalk: frames carry no geometry; grid v treated as not wrapping")
+        i, j = np.divmod(np.arange(n), w)
+        nb = np.full((n, 4), -1, dtype=np.int64)
+        nb[:, 0] = np.where(i > 0, (i - 1) * w + j, -1)
+        nb[:, 1] = np.where(i < h - 1, (i + 1) * w + j, -1)
+        if wrap and w > 1:
+            nb[:, 2] = i * w + (j - 1) % w
+            nb[:, 3] = i * w + (j + 1) % w
+            if w == 2:
+                nb[:, 3] = -1  # the left and right neighbour are the same taxel
+        else:
+            nb[:, 2] = np.where(j > 0, i * w + j - 1, -1)
+            nb[:, 3] = np.where(j < w - 1, i * w + j + 1, -1)
+        return nb
+    if geom is None:
+        raise ValueError(
+            "noise=crosstalk on a non-grid layout needs taxel positions: pass the encoder's "
+            "SkinFrames (frames.geometry) rather than bare Frames"
+        )
+    kk = min(k, n - 1)
+    if kk <= 0:
+        return np.full((n, 1), -1, dtype=np.int64)
+    _, idx = cKDTree(geom.position_m).query(geom.position_m, k=kk + 1)
+    return np.asarray(idx[:, 1:], dtype=np.int64).reshape(n, kk)
+
+
+class CrosstalkNoise:
+    """``noise=crosstalk``: readings leak ``alpha`` into neighbouring taxels (float32)."""
+
+    VERSION = "1"
+
+    def __init__(self, alpha: float = 0.1, k: int = 4) -> None:
+        CrosstalkNoiseSchema(alpha=alpha, k=k)
+        self.alpha = alpha
+        self.k = k
+
+    def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
+        """``clip(x + alpha * sum over neighbours, 0, 1)`` as float32 (deterministic)."""
+        v, _, _, _ = _check(frames, frame_index, trial_key, seed, "noise=crosstalk")
+        nb = neighbour_lists(frames, self.k)
+        out = np.empty(v.shape, dtype=np.float32)
+        if v.size:
+            _crosstalk(v, out, np.ascontiguousarray(nb), np.float32(self.alpha))
+        return _like(frames, out)
+
+
+class NoNoise:
+    """``noise=none``: readings unchanged (the same array, never mutated downstream)."""
+
+    VERSION = "1"
+
+    def __init__(self) -> None:
+        NoNoiseSchema()
+
+    def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
+        """``frames`` as they are (a new Frames object sharing the values)."""
+        v, _, _, _ = _check(frames, frame_index, trial_key, seed, "noise=none")
+        return _like(frames, v)

@@ -1,0 +1,52 @@
+"""``surface=mesh``: no 2-D chart; taxels live on the 3-D mesh surface.
+
+The map only records the link's principal (long) axis, its extent along it
+and its surface area, which layouts use to size a grid-equivalent count.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from sphri.surface.meshutil import check_link, face_areas, principal_axes, sample_surface
+from sphri.surface.schema import MeshSurfaceSchema
+from sphri.types import Link, SurfaceMap
+
+
+def fit_mesh(link: Link, n_samples: int = 20000, seed: int = 0) -> SurfaceMap:
+    """Chart-less surface of ``link``: params ``long_axis``, ``length_m``, ``area_m2``, ``centroid``."""
+    check_link(link)
+    pts, _ = sample_surface(link, n_samples, seed)
+    centroid, _, axes = principal_axes(pts)
+    used = np.asarray(link.vertices, dtype=np.float64)[np.unique(np.asarray(link.faces))]
+    t = (used - centroid) @ axes[0]
+    return SurfaceMap(
+        kind="mesh",
+        has_uv=False,
+        metres_per_u=0.0,
+        metres_per_v=0.0,
+        wrap_v=False,
+        fit_residual_m=0.0,
+        params={
+            "long_axis": axes[0],
+            "length_m": float(t.max() - t.min()),
+            "area_m2": float(face_areas(link).sum()),
+            "centroid": centroid,
+            "notes": (),
+        },
+    )
+
+
+class MeshSurface:
+    """``surface=mesh``: taxels on the 3-D surface, no (u, v)."""
+
+    VERSION = "1"
+
+    def __init__(self, n_samples: int = 20000, seed: int = 0) -> None:
+        MeshSurfaceSchema(n_samples=n_samples, seed=seed)
+        self.n_samples = n_samples
+        self.seed = seed
+
+    def fit(self, link: Link) -> SurfaceMap:
+        """Record the link's long axis and area (no chart)."""
+        return fit_mesh(link, self.n_samples, self.seed)

@@ -1,0 +1,114 @@
+"""``window=onset``: per-trial windows aligned to the first contact frame.
+
+:meth:`OnsetWindow.plan` decides from contacts alone which global frames each
+trial's window holds (so that only those frames are encoded):
+slot ``k`` of trial ``t`` is frame ``start_t + onset_t + k`` while that stays
+inside the trial, else padding (-1, read as zeros). Trials with no contact at
+all are counted and logged; ``no_contact: drop`` removes them,
+``keep`` gives them a window starting at the trial's frame 0 (all zero before
+noise, since nothing touches the skin). :meth:`OnsetWindow.assemble` scatters
+the encoded frames (in ``plan.selected_frames()`` order) into
+``x (n_kept, L, N)`` float32.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+
+from sphri.types import Contacts, Frames, GestureDataset, Layout, SurfaceMap, TaxelGeometry, WindowedFrames, WindowPlan
+from sphri.window.schema import OnsetWindowSchema
+
+log = logging.getLogger(__name__)
+
+
+def trial_onsets(contacts: Contacts, dataset: GestureDataset) -> np.ndarray:
+    """(N_trials,) int64 first contact frame of each trial, 0-based within the trial (-1 if none)."""
+    if contacts.n_frames != dataset.n_frames:
+        raise ValueError(
+            f"window: contacts.n_frames={contacts.n_frames} differs from the dataset's {dataset.n_frames} frames"
+        )
+    trials = dataset.trials
+    starts = trials["start"].to_numpy(dtype=np.int64)
+    counts = trials["n_frames"].to_numpy(dtype=np.int64)
+    if np.any(counts < 0) or np.any(starts < 0) or np.any(starts + counts > dataset.n_frames):
+        raise ValueError("window: dataset.trials has start/n_frames outside the dataset's frames")
+    onset = np.full(len(trials), -1, dtype=np.int64)
+    fr = np.asarray(contacts.frame, dtype=np.int64)
+    if fr.size == 0 or len(trials) == 0:
+        return onset
+    # first contact row at or after each trial's start, kept when inside the trial
+    pos = np.searchsorted(fr, starts, side="left")
+    ok = pos < fr.size
+    first = np.full(len(trials), -1, dtype=np.int64)
+    first[ok] = fr[pos[ok]]
+    inside = ok & (first < starts + counts)
+    onset[inside] = first[inside] - starts[inside]
+    return onset
+
+
+class OnsetWindow:
+    """``window=onset``: align to contact onset, clip or pad to ``frames``."""
+
+    VERSION = "1"
+
+    def __init__(self, frames: int = 50, no_contact: str = "drop") -> None:
+        OnsetWindowSchema(frames=frames, no_contact=no_contact)
+        self.frames = frames
+        self.no_contact = no_contact
+
+    def plan(self, contacts: Contacts, dataset: GestureDataset) -> WindowPlan:
+        """Which global frames fill each trial's window (see module docstring)."""
+        fr = np.asarray(contacts.frame)
+        if fr.size > 1 and np.any(np.diff(fr) < 0):
+            raise ValueError("window: contacts.frame must be sorted (rows sorted by frame, then capsule)")
+        onset = trial_onsets(contacts, dataset)
+        starts = dataset.trials["start"].to_numpy(dtype=np.int64)
+        counts = dataset.trials["n_frames"].to_numpy(dtype=np.int64)
+        none = onset < 0
+        n_none = int(none.sum())
+        if n_none:
+            log.warning(
+                "window: %d of %d trials have no contact at all (%s them, window.no_contact=%s)",
+                n_none, len(onset), "dropped" if self.no_contact == "drop" else "kept as zero windows",
+                self.no_contact,
+            )
+        kept = ~none if self.no_contact == "drop" else np.ones(len(onset), dtype=bool)
+        first = np.where(none, 0, onset)
+        k = np.arange(self.frames, dtype=np.int64)[None, :]
+        rel = first[:, None] + k
+        idx = np.where(rel < counts[:, None], starts[:, None] + rel, -1)
+        idx[~kept] = -1
+        return WindowPlan(frame_index=idx.astype(np.int64), onset=onset, kept=kept)
+
+    def assemble(
+        self, frames: Frames, plan: WindowPlan, dataset: GestureDataset, layout: Layout, surface: SurfaceMap
+    ) -> WindowedFrames:
+        """Windows ``x (n_kept, L, N)`` float32 from frames encoded in ``plan.selected_frames()`` order."""
+        values = np.asarray(frames.values)
+        sel = plan.frame_index[plan.kept]
+        mask = sel >= 0
+        n_sel = int(mask.sum())
+        if values.ndim != 2 or values.shape[0] != n_sel:
+            raise ValueError(
+                f"window.assemble: frames.values has shape {values.shape}; expected ({n_sel}, N) "
+                "rows in plan.selected_frames() order"
+            )
+        if values.shape[1] != layout.n_taxels:
+            raise ValueError(
+                f"window.assemble: frames have {values.shape[1]} taxels but the layout has {layout.n_taxels}"
+            )
+        if len(plan.kept) != len(dataset.trials):
+            raise ValueError(f"window.assemble: plan covers {len(plan.kept)} trials, dataset has {len(dataset.trials)}")
+        x = np.zeros((sel.shape[0], plan.length, values.shape[1]), dtype=np.float32)
+        x[mask] = values
+        rows = np.flatnonzero(plan.kept).astype(np.int64)
+        return WindowedFrames(
+            x=x,
+            y=dataset.labels[rows],
+            groups=dataset.groups[rows],
+            geometry=TaxelGeometry.from_layout(layout, surface),
+            trial_row=rows,
+            n_dropped=int((~plan.kept).sum()),
+        )
