@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import RADIUS, make_study
+from coverage_fixtures import RADIUS, make_study
 
 from sphri.analysis.coverage import ALL, CoverageAnalysis, group_order, write_region
 from sphri.surface.cylinder import CylinderSurface
@@ -54,7 +54,7 @@ def test_placement_follows_the_spread_of_each_gesture(result):
 
 
 def test_different_gestures_differ_and_identical_ones_do_not(surface):
-    from conftest import TARGETS
+    from coverage_fixtures import TARGETS
 
     targets = {"poke": TARGETS["poke"], "tap": TARGETS["poke"], "stroke": TARGETS["stroke"]}
     st = make_study(participants=8, repetitions=4, seed=3, targets=targets)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
-from conftest import cylinder_link, plate_link
+from coverage_fixtures import cylinder_link, plate_link
 
 from sphri.analysis.density import SurfaceKernel, graph_stretch, sample_link, touched_elements
 from sphri.surface.meshutil import face_areas
