@@ -24,7 +24,14 @@ run: install          ## the main job on the built-in defaults
 test: install         ## the test suite without slow tests
 	$(BIN)/python -m pytest -m "not slow" -q $(ARGS)
 
-test-all: install     ## every test, slow ones and deep property tests included
+# The cluster launchers (Ray, SLURM) are tested by test-all only: installed once,
+# again only when pyproject.toml (or the base install) changed.
+CLUSTER_STAMP := $(VENV)/.sphri-cluster-installed
+$(CLUSTER_STAMP): pyproject.toml $(STAMP)
+	$(BIN)/python -m pip install -q -e ".[dev,cluster]"
+	@touch $(CLUSTER_STAMP)
+
+test-all: install $(CLUSTER_STAMP)  ## every test, slow ones, cluster launchers and deep property tests included
 	SPHRI_DEEP_TESTS=1 $(BIN)/python -m pytest -q $(ARGS)
 
 bench: install        ## benchmarks -> outputs/bench/*.json, summary.md, plots

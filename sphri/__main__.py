@@ -20,6 +20,7 @@ import logging
 import os
 import sys
 import traceback
+import warnings
 from pathlib import Path
 
 import hydra
@@ -27,7 +28,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
-from sphri.config import ConfigError, normalize_overrides, register_schemas, validate
+from sphri.config import CONF_DIR, ConfigError, normalize_overrides, register_schemas, validate
 
 log = logging.getLogger("sphri")
 
@@ -111,13 +112,18 @@ def run_job(cfg: DictConfig) -> dict | None:
     return {"run_id": run_id, **result.summary()}
 
 
-@hydra.main(config_path="../conf", config_name="config", version_base="1.3")
+@hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")
 def _hydra_main(cfg: DictConfig) -> dict | None:
     return run_job(cfg)
 
 
 def main() -> None:
     """Console entry point (``sphri`` or ``python -m sphri``)."""
+    # hydra-ray-launcher registers its own `ray` launcher schema; sphri's
+    # conf/hydra/launcher/ray.yaml extends it on purpose.
+    warnings.filterwarnings(
+        "ignore", message=r"(?s).*'hydra/launcher/ray' is validated against ConfigStore schema", category=UserWarning
+    )
     register_schemas()
     sys.argv = [sys.argv[0], *normalize_overrides(sys.argv[1:])]
     _hydra_main()

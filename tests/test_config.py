@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from sphri.config import CONF_DIR, STAGE_GROUPS, ConfigError, compose, normalize_overrides
+from sphri.config import CONF_DIR, STAGE_GROUPS, ConfigError, compose, normalize_overrides, register_schemas
 
 #: Components that need a value only a user can give; the test supplies one.
 REQUIRED = {
@@ -48,6 +48,7 @@ def test_every_yaml_composes_and_validates(group: str, name: str):
 
     ov = overrides_for(group, name)
     if group.startswith("hydra/"):
+        register_schemas()
         with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
             cfg = hydra_compose("config", overrides=[f"{group}={name}"], return_hydra_config=True)
         assert cfg.hydra.launcher is not None
