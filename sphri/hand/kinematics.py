@@ -69,8 +69,9 @@ def repair_quaternions(
     ones take the first valid one after; a series with none takes the
     identity. ``starts`` (sorted frame indices, e.g. trial starts) cuts the
     time axis into independent segments, so values never cross a trial
-    boundary. Returns ``(repaired, bad)``: a unit-norm float64 copy of ``q``
-    and the (F, ...) bool mask of entries that were replaced
+    boundary (a start equal to F, an empty last trial, is allowed).
+    Returns ``(repaired, bad)``: a unit-norm float64 copy of ``q`` and the
+    (F, ...) bool mask of entries that were replaced
     (``bad.sum()`` is the repair count).
     """
     q = np.asarray(q, dtype=np.float64)
@@ -85,9 +86,9 @@ def repair_quaternions(
     seg_end = np.full(n, n - 1, dtype=np.int64)
     if starts is not None:
         st = np.unique(np.asarray(starts, dtype=np.int64))
-        if st.size and (st[0] < 0 or st[-1] >= n):
-            raise ValueError(f"starts must lie in [0, {n}), got {st[0]}..{st[-1]}")
-        st = np.union1d(st, [0])
+        if st.size and (st[0] < 0 or st[-1] > n):
+            raise ValueError(f"starts must lie in [0, {n}], got {st[0]}..{st[-1]}")
+        st = np.union1d(st[st < n], [0])  # an empty last trial starts at n: it cuts nothing
         owner = np.searchsorted(st, np.arange(n), side="right") - 1
         seg_start = st[owner]
         ends = np.append(st[1:] - 1, n - 1)
