@@ -1,0 +1,148 @@
+"""Benchmark: Random Forest and CNN-GRU leave-one-subject-out at full size.
+
+Targets (2 cores, about 2,800 trials, 18 folds, res 18 -> 18 x 19 grid,
+L = 50): RF LOSO < 60 s, CNN-GRU LOSO < 15 min. Writes
+``outputs/bench/models.json``.
+
+Wall times depend on what else runs on the machine; ``fold_cpu_s`` (CPU
+seconds of all folds) / workers gives ``cpu_bound_wall_s``, the wall time on
+idle cores, and ``cpu_bound_wall_all_folds_s`` extrapolates a ``--cnn-folds``
+subset to every participant.
+
+Data: ``--data pipeline`` (default) runs the sphri chain on the built-in
+synthetic gestures (``data=synthetic``, 18 participants x 20 repetitions,
+cached under outputs/cache); ``--data toy`` uses
+:func:`sphri.models.toydata.blob_windows` (moving blobs, same size). If the
+pipeline fails the toy data is used and the JSON says so.
+
+    python bench/bench_models.py            # full size
+    python bench/bench_models.py --quick    # 6 participants, CNN on 3 folds
+"""
+
+from __future__ import annotations
+
+import argparse
+import functools
+import logging
+import os
+import platform
+import sys
+import time
+import traceback
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from _common import machine, write_json  # noqa: E402
+
+from sphri.evaluate.cv import LeaveOneSubjectOut  # noqa: E402
+from sphri.evaluate.metrics import summarize  # noqa: E402
+from sphri.models.cnn_gru import CnnGru  # noqa: E402
+from sphri.models.rf import RandomForest  # noqa: E402
+from sphri.models.toydata import blob_windows  # noqa: E402
+from sphri.types import WindowedFrames  # noqa: E402
+
+log = logging.getLogger("bench_models")
+
+
+def pipeline_windows(res: int, participants: int, repetitions: int, seed: int) -> WindowedFrames:
+    """Windows from the sphri chain (synthetic data, arm), stages cached on disk."""
+    from sphri.cache import StageCache
+    from sphri.config import compose
+    from sphri.pipeline import build, make_pipeline
+
+    cfg = compose([
+        "data=synthetic", "data.regions=[arm]", f"data.participants={participants}",
+        f"data.repetitions={repetitions}", f"encoder.res={res}", f"seed={seed}",
+    ])
+    p = make_pipeline(cfg, StageCache(root=cfg.cache.dir, enabled=bool(cfg.cache.enabled)))
+    window = build(cfg.window)
+    return window.assemble(p.get("noise"), p.get("plan"), p.get("data"), p.get("layout"), p.get("surface"))
+
+
+def get_windows(source: str, res: int, participants: int, repetitions: int, seed: int) -> tuple[WindowedFrames, str, str]:
+    if source == "pipeline":
+        try:
+            return pipeline_windows(res, participants, repetitions, seed), "pipeline", ""
+        except Exception as exc:  # the chain is optional here: fall back, say why
+            note = f"pipeline failed ({type(exc).__name__}: {exc}); used toy data"
+            log.warning("%s\n%s", note, traceback.format_exc())
+            return blob_windows(participants, repetitions, res, seed=seed), "toy", note
+    return blob_windows(participants, repetitions, res, seed=seed), "toy", ""
+
+
+def timed_loso(make, windows: WindowedFrames, workers: int, threads: int, max_folds: int | None) -> dict:
+    cv = LeaveOneSubjectOut(workers=workers, threads_per_worker=threads, max_folds=max_folds, progress=True)
+    timings: list[dict] = []
+    c0, t0 = time.process_time(), time.perf_counter()
+    result = cv.run(make, windows, seed=0, on_fold=lambda res, timing: timings.append(timing))
+    wall = time.perf_counter() - t0
+    s = summarize(result, seed=0)
+    fold_cpu = sum(t["cpu_s"] for t in timings)
+    n_all = len(set(windows.groups))
+    return {
+        "wall_s": round(wall, 2),
+        "parent_cpu_s": round(time.process_time() - c0, 2),
+        # load-independent: the folds' CPU seconds spread over the workers
+        "fold_cpu_s": round(fold_cpu, 1),
+        "cpu_bound_wall_s": round(fold_cpu / min(workers, len(timings)), 1),
+        "cpu_bound_wall_all_folds_s": round(fold_cpu / len(timings) * n_all / workers, 1),
+        "fold_wall_s": [round(t["wall_s"], 1) for t in timings],
+        "folds": len(result.folds),
+        "accuracy_mean": s["accuracy_mean"],
+        "accuracy_std": s["accuracy_std"],
+        "accuracy_ci": [s["accuracy_ci_low"], s["accuracy_ci_high"]],
+        "macro_f1_mean": s["macro_f1_mean"],
+        "per_fold_accuracy": [round(f.accuracy, 4) for f in result.folds],
+    }
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="6 participants x 5 repetitions; CNN on 3 folds")
+    ap.add_argument("--data", choices=["pipeline", "toy"], default="pipeline")
+    ap.add_argument("--res", type=int, default=18)
+    ap.add_argument("--participants", type=int, default=None)
+    ap.add_argument("--repetitions", type=int, default=None)
+    ap.add_argument("--workers", type=int, default=2, help="fold processes (default 2)")
+    ap.add_argument("--threads", type=int, default=1, help="threads per fold process (default 1)")
+    ap.add_argument("--skip-cnn", action="store_true")
+    ap.add_argument("--cnn-folds", type=int, default=None, help="CNN on the first K folds only")
+    args = ap.parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
+
+    participants = args.participants or (6 if args.quick else 18)
+    repetitions = args.repetitions or (5 if args.quick else 20)
+    cnn_folds = args.cnn_folds or (3 if args.quick else None)
+    t0 = time.perf_counter()
+    win, source, note = get_windows(args.data, args.res, participants, repetitions, seed=0)
+    data_s = time.perf_counter() - t0
+    log.info("windows %s from %s in %.1f s", win.x.shape, source, data_s)
+
+    out: dict = {
+        "machine": {**machine(), "platform": platform.processor() or platform.machine(),
+                    "affinity_cores": len(os.sched_getaffinity(0))},
+        "quick": args.quick,
+        "data": {"source": source, "note": note, "n_trials": int(win.x.shape[0]), "L": int(win.x.shape[1]),
+                 "n_taxels": int(win.x.shape[2]), "grid_shape": win.geometry.grid_shape,
+                 "participants": int(len(set(win.groups))), "res": args.res, "seconds": round(data_s, 1)},
+        "cv": {"scheme": "loso", "workers": args.workers, "threads_per_worker": args.threads},
+        "targets_s": {"rf": 60, "cnn_gru": 900},
+    }
+    rf = functools.partial(RandomForest, geometry=win.geometry)
+    out["rf"] = timed_loso(rf, win, args.workers, args.threads, None)
+    log.info("rf: %s", {k: v for k, v in out["rf"].items() if k != "per_fold_accuracy"})
+    write_json("models", out)
+    if not args.skip_cnn:
+        cnn = functools.partial(CnnGru, geometry=win.geometry)
+        out["cnn_gru"] = timed_loso(cnn, win, args.workers, args.threads, cnn_folds)
+        out["cnn_gru"]["params"] = {k: v for k, v in CnnGru().get_params().items() if k != "geometry"}
+        log.info("cnn_gru: %s", {k: v for k, v in out["cnn_gru"].items() if k != "per_fold_accuracy"})
+    out["machine"]["loadavg_1min_end"] = os.getloadavg()[0]
+    path = write_json("models", out)
+    print(f"wrote {path}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

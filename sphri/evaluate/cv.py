@@ -1,0 +1,285 @@
+"""Cross-validation of gesture models: leave-one-subject-out and within-subject k-fold.
+
+``instantiate(cfg.cv).run(make_model, windows, seed) -> CVResult``, where
+``make_model()`` returns a fresh, unfitted sklearn-like estimator for every
+fold. Models see only the training side of a fold: ``fit(x[train],
+y[train], groups=groups[train])`` (``groups`` when ``fit`` accepts it, so
+that early stopping or tuning splits training participants), then
+``predict(x[test])``. Folds run one after another or in ``workers``
+processes (loky), each limited to its share of the cores (BLAS/OpenMP via
+threadpoolctl, torch threads, and the model's ``n_jobs``/``threads``).
+"""
+
+from __future__ import annotations
+
+import inspect
+import logging
+import os
+import sys
+import time
+from dataclasses import dataclass
+from typing import Any, Callable, Optional
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+from tqdm.auto import tqdm
+
+from sphri.evaluate.metrics import fold_metrics
+from sphri.types import GESTURES, CVResult, FoldResult, WindowedFrames
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Fold:
+    """One split: held-out name and (train, test) trial indices into the windows."""
+
+    name: str
+    train: np.ndarray
+    """(n_train,) int64 row indices of ``WindowedFrames``."""
+    test: np.ndarray
+    """(n_test,) int64 row indices of ``WindowedFrames``."""
+
+
+def available_cores() -> int:
+    """CPU cores this process may use (affinity-aware)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def model_name(est: Any) -> str:
+    """Short name of an estimator: its class's ``NAME`` or the class name."""
+    return str(getattr(type(est), "NAME", type(est).__name__))
+
+
+def _cap_threads(est: Any, threads: int) -> None:
+    """Limit an estimator's own parallelism (``n_jobs``, ``threads``) to ``threads``."""
+    if not hasattr(est, "get_params") or not hasattr(est, "set_params"):
+        return
+    params = est.get_params(deep=False)
+    updates = {}
+    for key in ("n_jobs", "threads"):
+        if key in params:
+            v = params[key]
+            if v is None or not isinstance(v, (int, np.integer)) or v <= 0 or v > threads:
+                updates[key] = threads
+    if updates:
+        est.set_params(**updates)
+
+
+def _accepts_groups(est: Any) -> bool:
+    try:
+        sig = inspect.signature(est.fit)
+    except (TypeError, ValueError):
+        return False
+    return "groups" in sig.parameters or any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values())
+
+
+def run_fold(
+    make_model: Callable[[], Any],
+    x: np.ndarray,
+    y: np.ndarray,
+    groups: np.ndarray,
+    fold: Fold,
+    threads: int,
+) -> tuple[FoldResult, dict[str, float]]:
+    """Fit a fresh model on ``fold.train``, score it on ``fold.test``.
+
+    Returns the fold's metrics and its timing: ``wall_s`` and ``cpu_s`` (CPU
+    seconds of this process, all its threads; less sensitive than wall time
+    to other processes competing for the cores). Runs with BLAS, OpenMP and
+    torch limited to ``threads``.
+    """
+    t0, c0 = time.perf_counter(), time.process_time()
+    with threadpool_limits(limits=threads):
+        est = make_model()
+        _cap_threads(est, threads)
+        torch = sys.modules.get("torch")
+        prev = torch.get_num_threads() if torch is not None else None
+        if torch is not None:
+            torch.set_num_threads(threads)
+        try:
+            kw = {"groups": groups[fold.train]} if _accepts_groups(est) else {}
+            est.fit(x[fold.train], y[fold.train], **kw)
+            pred = np.asarray(est.predict(x[fold.test]))
+        finally:
+            if torch is not None and prev is not None:
+                torch.set_num_threads(prev)
+    timing = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
+    return fold_metrics(fold.name, y[fold.test], pred), timing
+
+
+def _check_windows(windows: WindowedFrames) -> None:
+    x, y, g = windows.x, windows.y, windows.groups
+    if x.ndim != 3:
+        raise ValueError(f"windows.x must be (n_trials, L, N_taxels), got shape {x.shape}")
+    n = x.shape[0]
+    if np.shape(y) != (n,) or np.shape(g) != (n,):
+        raise ValueError(f"windows.y {np.shape(y)} and windows.groups {np.shape(g)} must both be ({n},)")
+    if n == 0:
+        raise ValueError("windows hold no trials (every trial dropped?); nothing to cross-validate")
+    y = np.asarray(y)
+    if y.min() < 0 or y.max() >= len(GESTURES):
+        raise ValueError(f"windows.y holds labels outside 0..{len(GESTURES) - 1}: {np.unique(y)}")
+
+
+class CrossValidation:
+    """Runs a model over folds; subclasses define :meth:`splits` and ``SCHEME``."""
+
+    SCHEME = ""
+    VERSION = "1"
+
+    def __init__(
+        self,
+        workers: int = 1,
+        threads_per_worker: Optional[int] = None,
+        max_folds: Optional[int] = None,
+        progress: bool = True,
+    ):
+        if workers < 1:
+            raise ValueError(f"cv.workers={workers} is invalid: must be >= 1")
+        if threads_per_worker is not None and threads_per_worker < 1:
+            raise ValueError(f"cv.threads_per_worker={threads_per_worker} is invalid: must be >= 1 or None")
+        if max_folds is not None and max_folds < 1:
+            raise ValueError(f"cv.max_folds={max_folds} is invalid: must be >= 1 or None")
+        self.workers = workers
+        self.threads_per_worker = threads_per_worker
+        self.max_folds = max_folds
+        self.progress = progress
+
+    def splits(self, windows: WindowedFrames, seed: int = 0) -> list[Fold]:
+        raise NotImplementedError
+
+    def _check_fold(self, fold: Fold, groups: np.ndarray) -> None:
+        """Refuse a fold whose train and test sides share trials."""
+        if np.intersect1d(fold.train, fold.test).size:
+            raise RuntimeError(f"fold {fold.name!r}: a trial is on both the train and the test side")
+
+    def run(
+        self,
+        make_model: Callable[[], Any],
+        windows: WindowedFrames,
+        seed: int = 0,
+        on_fold: Optional[Callable[[FoldResult, dict[str, float]], None]] = None,
+    ) -> CVResult:
+        """Evaluate ``make_model()`` on every fold (the first ``max_folds``) -> :class:`CVResult`.
+
+        ``on_fold(result, timing)`` is called as each fold finishes (in fold
+        order), with ``timing = {"wall_s": ..., "cpu_s": ...}`` of that fold.
+        """
+        _check_windows(windows)
+        folds = self.splits(windows, seed)
+        if self.max_folds is not None:
+            folds = folds[: self.max_folds]
+        groups = np.asarray(windows.groups)
+        for f in folds:
+            self._check_fold(f, groups)
+        name = model_name(make_model())
+        workers = min(self.workers, len(folds))
+        threads = self.threads_per_worker or max(1, available_cores() // workers)
+        x, y = windows.x, np.asarray(windows.y, dtype=np.int64)
+        bar = tqdm(
+            total=len(folds),
+            desc=f"{self.SCHEME} {name}",
+            unit="fold",
+            disable=not (self.progress and sys.stderr.isatty()),
+        )
+        results: list[FoldResult] = []
+        try:
+            if workers == 1:
+                outputs = (run_fold(make_model, x, y, groups, f, threads) for f in folds)
+            else:
+                from joblib import Parallel, delayed
+
+                outputs = Parallel(n_jobs=workers, backend="loky", return_as="generator")(
+                    delayed(run_fold)(make_model, x, y, groups, f, threads) for f in folds
+                )
+            for res, timing in outputs:
+                log.debug("%s %s fold %s: accuracy %.3f in %.1f s (%.1f CPU s)", self.SCHEME, name, res.fold,
+                          res.accuracy, timing["wall_s"], timing["cpu_s"])
+                results.append(res)
+                if on_fold is not None:
+                    on_fold(res, timing)
+                bar.update(1)
+                bar.set_postfix(acc=f"{np.mean([r.accuracy for r in results]):.3f}")
+        finally:
+            bar.close()
+        return CVResult(scheme=self.SCHEME, model=name, folds=results)
+
+
+class LeaveOneSubjectOut(CrossValidation):
+    """``cv=loso``: each participant is the test set once; the others train.
+
+    Folds are in sorted participant order, named by participant. ``seed`` is
+    unused (the split is deterministic; models carry their own seed).
+    """
+
+    SCHEME = "loso"
+
+    def splits(self, windows: WindowedFrames, seed: int = 0) -> list[Fold]:
+        groups = np.asarray(windows.groups)
+        uniq = np.unique(groups)
+        if uniq.size < 2:
+            raise ValueError(
+                f"leave-one-subject-out needs at least 2 participants, windows have {uniq.size}: {list(uniq)}"
+            )
+        idx = np.arange(groups.shape[0], dtype=np.int64)
+        return [Fold(name=str(g), train=idx[groups != g], test=idx[groups == g]) for g in uniq]
+
+    def _check_fold(self, fold: Fold, groups: np.ndarray) -> None:
+        super()._check_fold(fold, groups)
+        shared = np.intersect1d(groups[fold.train], groups[fold.test])
+        if shared.size:
+            raise RuntimeError(f"fold {fold.name!r}: participants {list(shared)} on both train and test side")
+
+
+class WithinSubjectKFold(CrossValidation):
+    """``cv=kfold``: stratified k folds inside each participant, pooled.
+
+    Fold i tests every participant's i-th share of trials (stratified by
+    gesture) and trains on all the rest, so the same people are on both
+    sides: within-subject accuracy, NOT comparable to leave-one-subject-out
+    (the result's ``scheme`` is ``"kfold"``). Shuffled with ``seed``.
+    """
+
+    SCHEME = "kfold"
+
+    def __init__(
+        self,
+        k: int = 5,
+        workers: int = 1,
+        threads_per_worker: Optional[int] = None,
+        max_folds: Optional[int] = None,
+        progress: bool = True,
+    ):
+        super().__init__(workers=workers, threads_per_worker=threads_per_worker, max_folds=max_folds, progress=progress)
+        if k < 2:
+            raise ValueError(f"cv.k={k} is invalid: must be >= 2")
+        self.k = k
+
+    def assign(self, y: np.ndarray, groups: np.ndarray, seed: int = 0) -> np.ndarray:
+        """(n,) int64 fold of each trial: per participant, gestures dealt round-robin."""
+        rng = np.random.default_rng(seed)
+        fold = np.empty(y.shape[0], dtype=np.int64)
+        idx = np.arange(y.shape[0])
+        for g in np.unique(groups):
+            members = idx[groups == g]
+            # class by class, shuffled within class, dealt 0, 1, ..., k-1, 0, ...
+            order = np.concatenate([rng.permutation(members[y[members] == c]) for c in np.unique(y[members])])
+            fold[order] = (int(rng.integers(self.k)) + np.arange(order.size)) % self.k
+        return fold
+
+    def splits(self, windows: WindowedFrames, seed: int = 0) -> list[Fold]:
+        y = np.asarray(windows.y)
+        fold = self.assign(y, np.asarray(windows.groups), seed)
+        idx = np.arange(y.shape[0], dtype=np.int64)
+        out = []
+        for i in range(self.k):
+            test, train = idx[fold == i], idx[fold != i]
+            if test.size and train.size:
+                out.append(Fold(name=f"fold_{i + 1}", train=train, test=test))
+        if not out:
+            raise ValueError(f"within-subject {self.k}-fold: too few trials ({y.shape[0]}) for any fold")
+        return out

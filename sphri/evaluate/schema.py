@@ -1,0 +1,59 @@
+"""Config schemas of the ``cv`` group (``conf/cv/*.yaml``)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Optional
+
+from sphri.config import require_range, store
+
+
+def _check_common(self) -> None:
+    require_range("cv.workers", self.workers, lo=1)
+    if self.threads_per_worker is not None:
+        require_range("cv.threads_per_worker", self.threads_per_worker, lo=1)
+    if self.max_folds is not None:
+        require_range("cv.max_folds", self.max_folds, lo=1)
+
+
+@dataclass
+class LosoSchema:
+    """``cv=loso``: leave-one-subject-out over participants."""
+
+    _target_: str = "sphri.evaluate.cv.LeaveOneSubjectOut"
+    workers: int = 1
+    """Folds run in parallel processes (1: in this process)."""
+    threads_per_worker: Optional[int] = None
+    """Threads each fold may use (None: available cores // workers)."""
+    max_folds: Optional[int] = None
+    """Evaluate only the first k folds (debugging; None: all)."""
+    progress: bool = True
+    """Progress bar over folds (shown only on a terminal)."""
+
+    def __post_init__(self) -> None:
+        _check_common(self)
+
+
+@dataclass
+class KFoldSchema:
+    """``cv=kfold``: stratified k-fold within each participant, pooled (not comparable to LOSO)."""
+
+    _target_: str = "sphri.evaluate.cv.WithinSubjectKFold"
+    k: int = 5
+    """Number of folds (each participant's trials split k ways, stratified by gesture)."""
+    workers: int = 1
+    """Folds run in parallel processes (1: in this process)."""
+    threads_per_worker: Optional[int] = None
+    """Threads each fold may use (None: available cores // workers)."""
+    max_folds: Optional[int] = None
+    """Evaluate only the first k folds (debugging; None: all)."""
+    progress: bool = True
+    """Progress bar over folds (shown only on a terminal)."""
+
+    def __post_init__(self) -> None:
+        require_range("cv.k", self.k, lo=2)
+        _check_common(self)
+
+
+store(group="cv", name="loso_schema", node=LosoSchema)
+store(group="cv", name="kfold_schema", node=KFoldSchema)

@@ -1,0 +1,423 @@
+"""``model=cnn_gru``: a per-frame CNN, a GRU over time and a linear classifier.
+
+Each frame (H x W grid) goes through three 3x3 convolutions with ReLU
+(channels 16, 32, 64 by default, strides 2, 2, 1 for speed; zero padding 1
+along u, circular along v when v wraps, so every size from 1 x 1 works),
+then adaptive average pooling to ``embed_size`` x ``embed_size``; the frame
+embeddings of a window feed a single-layer GRU (128 hidden units) whose last
+hidden state a linear layer maps to gesture logits. Layouts that are not
+grids use a per-frame MLP over the N taxels instead of the CNN. All frames
+of a batch go through the encoder at once, as (B * L, 1, H, W).
+
+Training: AdamW, cross-entropy, early stopping on a validation split of the
+training data (whole participants when ``groups`` are given), best epoch
+restored. Inputs are standardised with the mean and standard deviation of
+the training split only. Deterministic for a seed on a given CPU.
+
+``precision="bf16"`` runs the network under bfloat16 autocast (about 1.8x
+faster on CPUs with native bf16, AVX512-BF16 or AMX; slow on CPUs without
+it); ``"auto"`` (default) picks bf16 only where it is native, else float32,
+and ``precision_`` records the choice after ``fit``.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from contextlib import contextmanager
+from typing import Iterator, Optional
+
+import numpy as np
+import torch
+import torch.nn as nn
+import torch.nn.functional as F
+from sklearn.base import BaseEstimator, ClassifierMixin
+from sklearn.utils.validation import check_is_fitted
+
+from sphri.models.features import check_windows
+from sphri.types import TaxelGeometry
+
+
+def adaptive_pool_matrix(h: int, w: int, size: int) -> torch.Tensor:
+    """(h * w, size * size) float32 matrix doing ``adaptive_avg_pool2d(., size)`` as a product.
+
+    Same bins as torch (start floor(i n / size), end ceil((i + 1) n / size));
+    a matrix product is much faster than the pooling kernel's backward on CPU.
+    """
+
+    def axis(n: int) -> torch.Tensor:
+        m = torch.zeros(n, size)
+        for i in range(size):
+            lo, hi = (i * n) // size, -((-(i + 1) * n) // size)
+            m[lo:hi, i] = 1.0 / (hi - lo)
+        return m
+
+    return torch.einsum("ai,bj->abij", axis(h), axis(w)).reshape(h * w, size * size)
+
+
+class GridEncoder(nn.Module):
+    """(B, 1, H, W) frames -> (B, channels[-1] * embed_size^2) embeddings.
+
+    3x3 convolutions with ReLU; padding 1 with zeros along H (u) and, when
+    ``wrap_v``, circular along W (v), so any H, W >= 1 works.
+    """
+
+    def __init__(self, grid_shape: tuple[int, int], channels: list[int], strides: list[int], wrap_v: bool, embed_size: int):
+        super().__init__()
+        cin = 1
+        h, w = grid_shape
+        self.convs = nn.ModuleList()
+        for c, s in zip(channels, strides):
+            # zero padding along u inside the conv; along v circular (forward) or zero
+            pad = (1, 0) if wrap_v else (1, 1)
+            self.convs.append(nn.Conv2d(cin, c, kernel_size=3, stride=s, padding=pad))
+            h, w = (h - 1) // s + 1, (w - 1) // s + 1
+            cin = c
+        self.wrap_v = wrap_v
+        self.embed_size = embed_size
+        self.out_dim = cin * embed_size * embed_size
+        self.register_buffer("pool", adaptive_pool_matrix(h, w, embed_size), persistent=False)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        for conv in self.convs:
+            if self.wrap_v:  # circular pad of 1 along v (cat: cheaper backward than F.pad)
+                x = torch.cat([x[..., -1:], x, x[..., :1]], dim=-1)
+            x = F.relu(conv(x))
+        return (x.flatten(2) @ self.pool).flatten(1)
+
+
+class MlpEncoder(nn.Module):
+    """(B, N) frames of a non-grid layout -> (B, widths[-1]) embeddings."""
+
+    def __init__(self, n_taxels: int, widths: list[int]):
+        super().__init__()
+        layers: list[nn.Module] = []
+        cin = n_taxels
+        for c in widths:
+            layers += [nn.Linear(cin, c), nn.ReLU()]
+            cin = c
+        self.net = nn.Sequential(*layers)
+        self.out_dim = cin
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.net(x)
+
+
+class CnnGruNet(nn.Module):
+    """Windows (B, L, N) -> logits (B, n_classes)."""
+
+    def __init__(
+        self,
+        n_taxels: int,
+        grid_shape: tuple[int, int] | None,
+        wrap_v: bool,
+        channels: list[int],
+        strides: list[int],
+        embed_size: int,
+        hidden: int,
+        n_classes: int,
+    ):
+        super().__init__()
+        self.grid_shape = grid_shape
+        if grid_shape is not None:
+            self.encoder: nn.Module = GridEncoder(grid_shape, channels, strides, wrap_v, embed_size)
+        else:
+            self.encoder = MlpEncoder(n_taxels, channels)
+        self.gru = nn.GRU(self.encoder.out_dim, hidden, num_layers=1, batch_first=True)
+        self.head = nn.Linear(hidden, n_classes)
+        self.register_buffer("x_mean", torch.zeros(()))
+        self.register_buffer("x_std", torch.ones(()))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, length, n = x.shape
+        x = (x - self.x_mean) / self.x_std
+        frames = x.reshape(b * length, n)
+        if self.grid_shape is not None:
+            frames = frames.reshape(b * length, 1, *self.grid_shape)
+        emb = self.encoder(frames).reshape(b, length, -1)
+        _, h = self.gru(emb)
+        return self.head(h[-1])
+
+
+@contextmanager
+def _torch_state(threads: int, device: torch.device) -> Iterator[None]:
+    """Set thread count and deterministic algorithms for a block; restore after."""
+    prev_threads = torch.get_num_threads()
+    prev_det = torch.are_deterministic_algorithms_enabled()
+    prev_warn = torch.is_deterministic_algorithms_warn_only_enabled()
+    try:
+        if threads > 0:
+            torch.set_num_threads(threads)
+        # on CUDA some kernels (adaptive pooling backward) have no
+        # deterministic version: warn instead of failing there.
+        torch.use_deterministic_algorithms(True, warn_only=device.type != "cpu")
+        yield
+    finally:
+        torch.use_deterministic_algorithms(prev_det, warn_only=prev_warn)
+        torch.set_num_threads(prev_threads)
+
+
+def resolve_device(device: str) -> torch.device:
+    """``"cpu"``, ``"cuda"`` or ``"cuda:K"`` -> torch.device; clear error when CUDA is absent."""
+    if device == "cpu":
+        return torch.device("cpu")
+    if device == "cuda" or device.startswith("cuda:"):
+        if not torch.cuda.is_available():
+            raise RuntimeError(
+                f"model.device={device!r} but CUDA is not available to this torch "
+                f"({torch.__version__}); use model.device=cpu"
+            )
+        dev = torch.device(device)
+        if dev.index is not None and dev.index >= torch.cuda.device_count():
+            raise RuntimeError(f"model.device={device!r} but only {torch.cuda.device_count()} CUDA device(s) exist")
+        return dev
+    raise ValueError(f"model.device={device!r} is invalid: allowed values: cpu, cuda, cuda:K")
+
+
+#: Allowed values of ``precision``.
+PRECISIONS: tuple[str, ...] = ("auto", "float32", "bf16")
+
+
+def native_bf16(device: torch.device) -> bool:
+    """Whether ``device`` computes bfloat16 natively (CPU: AVX512-BF16 or AMX; CUDA: bf16 support)."""
+    if device.type == "cuda":
+        return bool(torch.cuda.is_bf16_supported())
+    if device.type == "cpu":
+        cpu = torch.cpu
+        checks = [getattr(cpu, "_is_avx512_bf16_supported", None), getattr(cpu, "_is_amx_tile_supported", None)]
+        return any(bool(f()) for f in checks if f is not None)
+    return False
+
+
+def resolve_precision(precision: str, device: torch.device) -> str:
+    """``"auto"`` -> ``"bf16"`` where :func:`native_bf16`, else ``"float32"``; others unchanged."""
+    if precision == "auto":
+        return "bf16" if native_bf16(device) else "float32"
+    return precision
+
+
+def validation_split(
+    y: np.ndarray, groups: np.ndarray | None, fraction: float, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """Indices (train, val) of a held-out split of the training data.
+
+    With ``groups``: whole groups (participants) go to validation, about
+    ``fraction`` of them (at least one, never all). Without: a stratified
+    random split (each class with >= 2 trials contributes). ``fraction`` 0
+    gives an empty validation set.
+    """
+    n = y.shape[0]
+    idx = np.arange(n)
+    if fraction <= 0 or n < 2:
+        return idx, idx[:0]
+    rng = np.random.default_rng(seed)
+    if groups is not None:
+        groups = np.asarray(groups)
+        if groups.shape != (n,):
+            raise ValueError(f"groups must be (n_trials,) = ({n},), got shape {groups.shape}")
+        uniq = np.unique(groups)
+        if uniq.size >= 2:
+            k = min(uniq.size - 1, max(1, int(round(fraction * uniq.size))))
+            val_groups = rng.choice(uniq, size=k, replace=False)
+            is_val = np.isin(groups, val_groups)
+            return idx[~is_val], idx[is_val]
+    is_val = np.zeros(n, dtype=bool)
+    for c in np.unique(y):
+        members = idx[y == c]
+        if members.size < 2:
+            continue
+        k = min(members.size - 1, max(1, int(round(fraction * members.size))))
+        is_val[rng.choice(members, size=k, replace=False)] = True
+    return idx[~is_val], idx[is_val]
+
+
+class CnnGru(ClassifierMixin, BaseEstimator):
+    """CNN-GRU gesture classifier on windows (n_trials, L, N_taxels).
+
+    Hyperparameters: see ``conf/model/cnn_gru.yaml``. ``geometry`` gives the
+    grid shape and wrap (None: a per-frame MLP over the N taxels).
+    ``fit(x, y, groups=None)``: ``groups`` (participants of the training
+    trials) make the early-stopping split group-wise. After ``fit``:
+    ``classes_``, ``net_``, ``history_`` (per epoch: train loss, validation
+    loss and accuracy), ``best_epoch_``.
+    """
+
+    NAME = "cnn_gru"
+    VERSION = "1"
+
+    def __init__(
+        self,
+        max_epochs: int = 20,
+        batch_size: int = 32,
+        lr: float = 1e-3,
+        weight_decay: float = 1e-2,
+        patience: int = 4,
+        val_fraction: float = 0.15,
+        hidden: int = 128,
+        channels: tuple[int, ...] | list[int] = (16, 32, 64),
+        strides: tuple[int, ...] | list[int] = (2, 2, 1),
+        embed_size: int = 2,
+        device: str = "cpu",
+        precision: str = "auto",
+        seed: int = 0,
+        threads: int = 0,
+        geometry: TaxelGeometry | None = None,
+    ):
+        self.max_epochs = max_epochs
+        self.batch_size = batch_size
+        self.lr = lr
+        self.weight_decay = weight_decay
+        self.patience = patience
+        self.val_fraction = val_fraction
+        self.hidden = hidden
+        self.channels = channels
+        self.strides = strides
+        self.embed_size = embed_size
+        self.device = device
+        self.precision = precision
+        self.seed = seed
+        self.threads = threads
+        self.geometry = geometry
+
+    # -- helpers -----------------------------------------------------------
+    def _check_params(self) -> None:
+        if len(self.channels) < 1 or any(int(c) < 1 for c in self.channels):
+            raise ValueError(f"model.channels={list(self.channels)} is invalid: positive widths, at least one")
+        if len(self.strides) != len(self.channels) or any(int(s) < 1 for s in self.strides):
+            raise ValueError(
+                f"model.strides={list(self.strides)} is invalid: one positive stride per channel entry "
+                f"({len(self.channels)})"
+            )
+        for key in ("max_epochs", "batch_size", "hidden", "embed_size"):
+            if int(getattr(self, key)) < 1:
+                raise ValueError(f"model.{key}={getattr(self, key)!r} is invalid: must be >= 1")
+        if self.precision not in PRECISIONS:
+            raise ValueError(f"model.precision={self.precision!r} is invalid: allowed values: {list(PRECISIONS)}")
+        if not 0.0 <= self.val_fraction < 1.0:
+            raise ValueError(f"model.val_fraction={self.val_fraction!r} is invalid: must be in [0, 1)")
+
+    def _layout(self, n_taxels: int) -> tuple[tuple[int, int] | None, bool]:
+        g = self.geometry
+        if g is None:
+            return None, False
+        if g.n_taxels != n_taxels:
+            raise ValueError(f"x has {n_taxels} taxels per frame but the geometry has {g.n_taxels}")
+        if g.grid_shape is None:
+            return None, False
+        h, w = int(g.grid_shape[0]), int(g.grid_shape[1])
+        if h * w != n_taxels:
+            raise ValueError(f"geometry.grid_shape={g.grid_shape} does not hold {n_taxels} taxels")
+        return (h, w), bool(g.wrap_v)
+
+    def _autocast(self, dev: torch.device) -> torch.autocast:
+        """bf16 autocast of the network's forward when the resolved precision is bf16."""
+        use = getattr(self, "precision_", None) or resolve_precision(self.precision, dev)
+        return torch.autocast(device_type=dev.type, dtype=torch.bfloat16, enabled=use == "bf16")
+
+    def _batches(self, n: int, gen: torch.Generator | None) -> list[torch.Tensor]:
+        order = torch.randperm(n, generator=gen) if gen is not None else torch.arange(n)
+        return list(torch.split(order, int(self.batch_size)))
+
+    def _loss_acc(self, net: CnnGruNet, x: torch.Tensor, y: torch.Tensor, dev: torch.device) -> tuple[float, float]:
+        net.eval()
+        total, correct = 0.0, 0
+        with torch.no_grad():
+            for b in torch.split(torch.arange(x.shape[0]), 256):
+                with self._autocast(dev):
+                    logits = net(x[b].to(dev)).float()
+                yb = y[b].to(dev)
+                total += float(F.cross_entropy(logits, yb, reduction="sum"))
+                correct += int((logits.argmax(1) == yb).sum())
+        return total / max(1, x.shape[0]), correct / max(1, x.shape[0])
+
+    # -- estimator API -----------------------------------------------------
+    def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> "CnnGru":
+        """Train on windows x (n, L, N) float32 and labels y (n,) int64."""
+        self._check_params()
+        x = check_windows(x)
+        y = np.asarray(y)
+        if y.ndim != 1 or y.shape[0] != x.shape[0]:
+            raise ValueError(f"y must be (n_trials,) = ({x.shape[0]},), got shape {y.shape}")
+        grid, wrap = self._layout(x.shape[2])
+        dev = resolve_device(self.device)
+        self.precision_ = resolve_precision(self.precision, dev)
+        self.classes_, y_idx = np.unique(y, return_inverse=True)
+        tr, va = validation_split(y_idx, groups, self.val_fraction, self.seed)
+
+        with _torch_state(int(self.threads), dev), torch.random.fork_rng(devices=[]):
+            torch.manual_seed(self.seed)
+            gen = torch.Generator().manual_seed(self.seed)
+            net = CnnGruNet(
+                x.shape[2], grid, wrap, [int(c) for c in self.channels], [int(s) for s in self.strides],
+                int(self.embed_size), int(self.hidden), len(self.classes_),
+            )
+            xt = torch.from_numpy(np.ascontiguousarray(x))
+            yt = torch.from_numpy(y_idx.astype(np.int64))
+            x_tr = xt[torch.from_numpy(tr)]
+            mean = float(x_tr.mean(dtype=torch.float64))
+            std = float(x_tr.std().double()) if x_tr.numel() > 1 else 1.0
+            net.x_mean.fill_(mean)
+            net.x_std.fill_(std if std > 1e-6 else 1.0)
+            net.to(dev)
+            opt = torch.optim.AdamW(net.parameters(), lr=self.lr, weight_decay=self.weight_decay)
+            has_val = va.size > 0
+            x_va, y_va = xt[torch.from_numpy(va)], yt[torch.from_numpy(va)]
+            y_tr = yt[torch.from_numpy(tr)]
+            best, best_state, best_epoch, stale = math.inf, None, 0, 0
+            history = []
+            for epoch in range(1, int(self.max_epochs) + 1):
+                net.train()
+                run_loss = 0.0
+                for b in self._batches(x_tr.shape[0], gen):
+                    xb, yb = x_tr[b].to(dev), y_tr[b].to(dev)
+                    with self._autocast(dev):
+                        logits = net(xb).float()
+                    loss = F.cross_entropy(logits, yb)
+                    opt.zero_grad(set_to_none=True)
+                    loss.backward()
+                    opt.step()
+                    run_loss += loss.detach().item() * b.numel()
+                train_loss = run_loss / max(1, x_tr.shape[0])
+                if has_val:
+                    val_loss, val_acc = self._loss_acc(net, x_va, y_va, dev)
+                else:
+                    val_loss, val_acc = float("nan"), float("nan")
+                history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss, "val_accuracy": val_acc})
+                score = val_loss if has_val else train_loss
+                if score < best - 1e-4:
+                    best, best_epoch, stale = score, epoch, 0
+                    best_state = copy.deepcopy(net.state_dict())
+                else:
+                    stale += 1
+                    if has_val and stale >= int(self.patience):
+                        break
+            if best_state is not None:
+                net.load_state_dict(best_state)
+        net.eval()
+        self.net_ = net
+        self.history_ = history
+        self.best_epoch_ = best_epoch
+        self.n_train_, self.n_val_ = int(tr.size), int(va.size)
+        return self
+
+    def predict_proba(self, x: np.ndarray) -> np.ndarray:
+        """(n, n_classes) softmax probabilities, columns in ``classes_`` order."""
+        check_is_fitted(self, "net_")
+        x = check_windows(x)
+        self._layout(x.shape[2])
+        dev = next(self.net_.parameters()).device
+        out = []
+        with _torch_state(int(self.threads), dev), torch.no_grad():
+            self.net_.eval()
+            xt = torch.from_numpy(np.ascontiguousarray(x))
+            for b in torch.split(torch.arange(xt.shape[0]), 256):
+                with self._autocast(dev):
+                    logits = self.net_(xt[b].to(dev)).float()
+                out.append(torch.softmax(logits, dim=1).cpu().double().numpy())
+        if not out:
+            return np.zeros((0, len(self.classes_)))
+        return np.concatenate(out)
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """(n,) predicted labels (values of ``classes_``)."""
+        return self.classes_[np.argmax(self.predict_proba(x), axis=1)]

@@ -1,0 +1,101 @@
+"""``model=rf``: the reference study's Random Forest on 32 touch features."""
+
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+from sklearn.base import BaseEstimator, ClassifierMixin
+from sklearn.ensemble import RandomForestClassifier
+from sklearn.utils.validation import check_is_fitted
+
+from sphri.models.features import FEATURE_NAMES, TaxelCoords, extract_features, taxel_coords
+from sphri.types import TaxelGeometry
+
+
+class RandomForest(ClassifierMixin, BaseEstimator):
+    """Random Forest on the 32 features of :mod:`sphri.models.features`.
+
+    ``fit(x, y)`` / ``predict(x)`` / ``predict_proba(x)`` take windows x of
+    shape (n_trials, L, N_taxels) (``WindowedFrames.x``) and labels y (n,)
+    int64. The features need the skin's ``geometry`` (taxel positions).
+    Hyperparameters: see ``conf/model/rf.yaml``. ``seed`` seeds the forest.
+    """
+
+    NAME = "rf"
+    VERSION = "1"
+
+    def __init__(
+        self,
+        n_estimators: int = 100,
+        max_depth: Optional[int] = None,
+        min_samples_leaf: int = 1,
+        max_features: str = "sqrt",
+        class_weight: Optional[str] = None,
+        n_jobs: int = -1,
+        seed: int = 0,
+        active_threshold: float = 0.5,
+        geometry: TaxelGeometry | None = None,
+    ):
+        self.n_estimators = n_estimators
+        self.max_depth = max_depth
+        self.min_samples_leaf = min_samples_leaf
+        self.max_features = max_features
+        self.class_weight = class_weight
+        self.n_jobs = n_jobs
+        self.seed = seed
+        self.active_threshold = active_threshold
+        self.geometry = geometry
+
+    def _coords(self) -> TaxelCoords:
+        if self.geometry is None:
+            raise ValueError(
+                "RandomForest needs geometry=TaxelGeometry(...) (the pipeline passes windows.geometry); "
+                "its features are computed from taxel positions"
+            )
+        cached = getattr(self, "_coords_cache", None)
+        if cached is None or cached[0] is not self.geometry:
+            cached = (self.geometry, taxel_coords(self.geometry))
+            self._coords_cache = cached
+        return cached[1]
+
+    def transform(self, x: np.ndarray) -> np.ndarray:
+        """(n, L, N) windows -> (n, 32) float64 features (:data:`FEATURE_NAMES`)."""
+        return extract_features(x, self.geometry, self.active_threshold, coords=self._coords())
+
+    def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> "RandomForest":
+        """Fit the forest on windows x (n, L, N) and labels y (n,). ``groups`` is unused."""
+        y = np.asarray(y)
+        if y.ndim != 1 or y.shape[0] != np.shape(x)[0]:
+            raise ValueError(f"y must be (n_trials,) = ({np.shape(x)[0]},), got shape {y.shape}")
+        feats = self.transform(x)
+        n_jobs = None if self.n_jobs == 0 else self.n_jobs
+        self.forest_ = RandomForestClassifier(
+            n_estimators=self.n_estimators,
+            max_depth=self.max_depth,
+            min_samples_leaf=self.min_samples_leaf,
+            max_features=self.max_features,
+            class_weight=self.class_weight,
+            n_jobs=n_jobs,
+            random_state=self.seed,
+        ).fit(feats, y)
+        self.classes_ = self.forest_.classes_
+        self.n_features_in_ = len(FEATURE_NAMES)
+        self.feature_names_ = FEATURE_NAMES
+        return self
+
+    @property
+    def feature_importances_(self) -> np.ndarray:
+        """(32,) impurity importances of :data:`FEATURE_NAMES`."""
+        check_is_fitted(self, "forest_")
+        return self.forest_.feature_importances_
+
+    def predict_proba(self, x: np.ndarray) -> np.ndarray:
+        """(n, n_classes) class probabilities, columns in ``classes_`` order."""
+        check_is_fitted(self, "forest_")
+        return self.forest_.predict_proba(self.transform(x))
+
+    def predict(self, x: np.ndarray) -> np.ndarray:
+        """(n,) predicted labels."""
+        check_is_fitted(self, "forest_")
+        return self.forest_.predict(self.transform(x))

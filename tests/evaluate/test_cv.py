@@ -1,0 +1,163 @@
+"""Cross-validation: no participant on both sides, training-only fitting, k-fold, workers."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+from sklearn.base import BaseEstimator, ClassifierMixin
+
+from sphri.evaluate.cv import LeaveOneSubjectOut, WithinSubjectKFold
+from sphri.models.rf import RandomForest
+from sphri.models.toydata import blob_windows
+from sphri.types import GESTURES, TaxelGeometry, WindowedFrames
+
+
+class SpyModel(ClassifierMixin, BaseEstimator):
+    """Records what it was fit and asked to predict on; 'scales' inputs like a StandardScaler.
+
+    Trial ids are read from x[:, 0, 0]; the rest of x is the data.
+    """
+
+    fitted: list["SpyModel"] = []
+
+    def __init__(self, geometry: TaxelGeometry | None = None):
+        self.geometry = geometry
+
+    def fit(self, x, y, groups=None):
+        self.fit_ids_ = x[:, 0, 0].astype(np.int64)
+        self.fit_groups_ = None if groups is None else np.asarray(groups)
+        self.mean_ = float(x[:, :, 1:].mean())  # the "scaler", fit here only
+        self.classes_, counts = np.unique(y, return_counts=True)
+        self.majority_ = self.classes_[np.argmax(counts)]
+        self.predicted_ids_ = []
+        self.predict_means_ = []
+        SpyModel.fitted.append(self)
+        return self
+
+    def predict(self, x):
+        self.predicted_ids_.append(x[:, 0, 0].astype(np.int64))
+        self.predict_means_.append(self.mean_)  # uses the stored scaler, never refits
+        return np.full(x.shape[0], self.majority_)
+
+
+def spy_windows(participants: int = 5, per_class: int = 3) -> WindowedFrames:
+    rng = np.random.default_rng(0)
+    n = participants * per_class * len(GESTURES)
+    groups = np.repeat([f"participant_{p + 1:02d}" for p in range(participants)], per_class * len(GESTURES))
+    y = np.tile(np.repeat(np.arange(len(GESTURES)), per_class), participants)
+    x = rng.random((n, 4, 6)).astype(np.float32)
+    offset = (np.arange(participants) + 1.0) ** 2  # per person; leaving anyone out moves the mean
+    x += np.repeat(offset, per_class * len(GESTURES))[:, None, None].astype(np.float32)
+    x[:, 0, 0] = np.arange(n)
+    geom = TaxelGeometry(grid_shape=(2, 3), uv=None, position_m=rng.random((6, 3)), wrap_v=False,
+                         metres_per_u=0.0, metres_per_v=0.0)
+    return WindowedFrames(x=x, y=y.astype(np.int64), groups=groups, geometry=geom,
+                          trial_row=np.arange(n, dtype=np.int64), n_dropped=0)
+
+
+@pytest.fixture
+def spy():
+    SpyModel.fitted.clear()
+    yield SpyModel
+    SpyModel.fitted.clear()
+
+
+def test_loso_never_puts_a_participant_on_both_sides(spy):
+    win = spy_windows()
+    result = LeaveOneSubjectOut().run(lambda: spy(geometry=win.geometry), win, seed=0)
+    assert result.scheme == "loso" and result.model == "SpyModel"
+    assert [f.fold for f in result.folds] == sorted(set(win.groups))
+    assert len(spy.fitted) == 5
+    seen_test = []
+    for fold, model in zip(result.folds, spy.fitted):
+        (test_ids,) = model.predicted_ids_
+        assert set(win.groups[test_ids]) == {fold.fold}
+        assert fold.fold not in set(win.groups[model.fit_ids_])
+        assert not set(model.fit_ids_) & set(test_ids)
+        assert len(model.fit_ids_) + len(test_ids) == len(win.y)
+        # groups handed to fit are those of the training trials (for inner splits)
+        np.testing.assert_array_equal(model.fit_groups_, win.groups[model.fit_ids_])
+        # the scaler saw training data only, and predict used it as fitted
+        assert model.mean_ == pytest.approx(float(win.x[model.fit_ids_, :, 1:].mean()), rel=1e-6)
+        assert model.mean_ != pytest.approx(float(win.x[:, :, 1:].mean()), rel=1e-3)
+        assert model.predict_means_ == [model.mean_]
+        seen_test.extend(test_ids)
+        assert fold.n_test == len(test_ids)
+    assert sorted(seen_test) == list(range(len(win.y)))
+
+
+def test_loso_refuses_a_single_participant():
+    win = spy_windows(participants=1)
+    with pytest.raises(ValueError, match="at least 2 participants"):
+        LeaveOneSubjectOut().run(lambda: SpyModel(), win, seed=0)
+
+
+def test_max_folds_limits_the_folds_and_on_fold_reports_each(spy):
+    win = spy_windows()
+    seen = []
+    result = LeaveOneSubjectOut(max_folds=2).run(lambda: spy(), win, seed=0, on_fold=lambda r, t: seen.append((r, t)))
+    assert [f.fold for f in result.folds] == ["participant_01", "participant_02"]
+    assert [r.fold for r, _ in seen] == ["participant_01", "participant_02"]
+    assert all(t["wall_s"] >= 0 and t["cpu_s"] >= 0 for _, t in seen)
+
+
+def test_kfold_is_within_subject_stratified_and_labelled(spy):
+    win = spy_windows(participants=3, per_class=5)
+    cv = WithinSubjectKFold(k=5)
+    fold_of = cv.assign(win.y, win.groups, seed=1)
+    for g in np.unique(win.groups):
+        for c in range(len(GESTURES)):
+            counts = np.bincount(fold_of[(win.groups == g) & (win.y == c)], minlength=5)
+            assert counts.max() - counts.min() <= 1
+    result = cv.run(lambda: spy(), win, seed=1)
+    assert result.scheme == "kfold" and len(result.folds) == 5
+    for model in spy.fitted:
+        (test_ids,) = model.predicted_ids_
+        assert not set(model.fit_ids_) & set(test_ids)
+        # within-subject: every participant is on both sides
+        assert set(win.groups[test_ids]) == set(win.groups) == set(win.groups[model.fit_ids_])
+    # deterministic in the seed, different across seeds
+    np.testing.assert_array_equal(cv.assign(win.y, win.groups, seed=1), fold_of)
+    assert not np.array_equal(cv.assign(win.y, win.groups, seed=2), fold_of)
+
+
+def test_kfold_with_fewer_trials_than_folds_still_runs(spy):
+    win = spy_windows(participants=2, per_class=1)
+    result = WithinSubjectKFold(k=3).run(lambda: spy(), win, seed=0)
+    assert sum(f.n_test for f in result.folds) == len(win.y)
+
+
+def test_parallel_workers_give_the_same_result_as_one_process():
+    win = blob_windows(participants=3, repetitions=2, res=6, seed=2)
+    make = functools.partial(RandomForest, n_estimators=20, geometry=win.geometry)
+    one = LeaveOneSubjectOut(workers=1).run(make, win, seed=0)
+    two = LeaveOneSubjectOut(workers=2, threads_per_worker=1).run(make, win, seed=0)
+    assert [f.fold for f in two.folds] == [f.fold for f in one.folds]
+    for a, b in zip(one.folds, two.folds):
+        assert a.accuracy == b.accuracy
+        np.testing.assert_array_equal(a.confusion, b.confusion)
+
+
+def test_thread_caps_reach_the_model(spy):
+    from sphri.evaluate.cv import _cap_threads
+
+    rf = RandomForest(n_jobs=-1)
+    _cap_threads(rf, 1)
+    assert rf.n_jobs == 1
+    rf = RandomForest(n_jobs=1)
+    _cap_threads(rf, 2)
+    assert rf.n_jobs == 1  # a smaller request is kept
+
+
+def test_bad_windows_are_refused():
+    win = spy_windows()
+    win.y = win.y.copy()
+    win.y[0] = 8
+    with pytest.raises(ValueError, match="labels outside"):
+        LeaveOneSubjectOut().run(lambda: SpyModel(), win, seed=0)
+    with pytest.raises(ValueError, match="workers"):
+        LeaveOneSubjectOut(workers=0)
+    with pytest.raises(ValueError, match="cv.k"):
+        WithinSubjectKFold(k=1)

@@ -1,0 +1,168 @@
+"""model=cnn_gru: any grid size, circular padding, determinism, training-only splits."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+import torch.nn.functional as F
+from sklearn.base import clone
+
+from sphri.models.cnn_gru import CnnGru, GridEncoder, native_bf16, resolve_precision, validation_split
+from sphri.models.toydata import blob_windows
+from sphri.types import TaxelGeometry
+
+TINY = dict(max_epochs=2, batch_size=8, hidden=8, channels=[4, 4, 4], threads=1)
+
+
+def geometry(shape: tuple[int, int] | None, n: int, wrap: bool) -> TaxelGeometry:
+    rng = np.random.default_rng(0)
+    return TaxelGeometry(grid_shape=shape, uv=rng.random((n, 2)), position_m=rng.random((n, 3)), wrap_v=wrap,
+                         metres_per_u=0.24, metres_per_v=0.26)
+
+
+def toy_xy(n_taxels: int, n: int = 24, length: int = 6, seed: int = 0):
+    rng = np.random.default_rng(seed)
+    x = (rng.random((n, length, n_taxels)) < 0.3).astype(np.float32)
+    y = np.arange(n) % 4
+    return x, y
+
+
+@pytest.mark.parametrize("shape", [(1, 1), (1, 5), (3, 1), (2, 2), (7, 8), None])
+@pytest.mark.parametrize("wrap", [False, True])
+def test_any_grid_size_and_non_grid(shape, wrap):
+    n_tax = 6 if shape is None else shape[0] * shape[1]
+    x, y = toy_xy(n_tax)
+    m = CnnGru(geometry=geometry(shape, n_tax, wrap), **TINY).fit(x, y)
+    p = m.predict_proba(x)
+    assert p.shape == (24, 4)
+    np.testing.assert_allclose(p.sum(axis=1), 1.0, rtol=1e-5)
+    np.testing.assert_array_equal(m.classes_, np.arange(4))
+    assert len(m.history_) >= 1 and m.best_epoch_ >= 1
+
+
+def test_no_geometry_uses_the_mlp():
+    x, y = toy_xy(5)
+    m = CnnGru(**TINY).fit(x, y)
+    assert m.predict(x).shape == (24,)
+
+
+def test_circular_padding_wraps_around_v():
+    """With stride 1 and global pooling, rolling frames around v leaves embeddings unchanged."""
+    torch.manual_seed(0)
+    frames = (torch.rand(5, 1, 4, 7) < 0.3).float()
+    rolled = torch.roll(frames, shifts=3, dims=3)
+    wrap = GridEncoder((4, 7), [4, 8, 8], [1, 1, 1], wrap_v=True, embed_size=1)
+    torch.testing.assert_close(wrap(rolled), wrap(frames), rtol=1e-5, atol=1e-6)
+    flat = GridEncoder((4, 7), [4, 8, 8], [1, 1, 1], wrap_v=False, embed_size=1)
+    flat.load_state_dict(wrap.state_dict())
+    assert not torch.allclose(flat(rolled), flat(frames), atol=1e-4)
+
+
+@pytest.mark.parametrize("shape,strides", [((1, 1), [2, 2, 1]), ((18, 19), [2, 2, 1]), ((5, 3), [1, 2, 3]), ((4, 7), [1, 1, 1])])
+@pytest.mark.parametrize("size", [1, 2, 3])
+def test_pooling_matrix_equals_adaptive_average_pooling(shape, strides, size):
+    torch.manual_seed(1)
+    enc = GridEncoder(shape, [3, 4, 5], strides, wrap_v=True, embed_size=size)
+    frames = torch.rand(6, 1, *shape)
+    feats = frames
+    for conv in enc.convs:
+        feats = torch.relu(conv(torch.cat([feats[..., -1:], feats, feats[..., :1]], dim=-1)))
+    expected = F.adaptive_avg_pool2d(feats, size).flatten(1)
+    torch.testing.assert_close(enc(frames), expected, rtol=1e-5, atol=1e-6)
+
+
+def test_deterministic_for_a_seed():
+    x, y = toy_xy(12, seed=1)
+    g = geometry((3, 4), 12, True)
+    a = CnnGru(geometry=g, seed=5, **TINY).fit(x, y)
+    b = clone(a).fit(x, y)
+    np.testing.assert_array_equal(a.predict_proba(x), b.predict_proba(x))
+    c = clone(a).set_params(seed=6).fit(x, y)
+    assert not np.array_equal(a.predict_proba(x), c.predict_proba(x))
+
+
+@pytest.mark.parametrize("precision", ["float32", "bf16", "auto"])
+def test_each_precision_runs_and_is_deterministic(precision):
+    x, y = toy_xy(12, seed=1)
+    a = CnnGru(geometry=geometry((3, 4), 12, True), precision=precision, **TINY).fit(x, y)
+    expected = resolve_precision(precision, torch.device("cpu"))
+    assert a.precision_ == expected
+    assert expected == ("bf16" if precision == "bf16" or (precision == "auto" and native_bf16(torch.device("cpu")))
+                        else "float32")
+    b = clone(a).fit(x, y)
+    p = a.predict_proba(x)
+    assert p.dtype == np.float64 and np.all(np.isfinite(p))
+    np.testing.assert_array_equal(p, b.predict_proba(x))
+
+
+def test_validation_split_holds_out_whole_training_participants():
+    y = np.tile(np.arange(4), 30)
+    groups = np.repeat([f"p{i}" for i in range(6)], 20)
+    tr, va = validation_split(y, groups, 0.3, seed=0)
+    assert not set(groups[tr]) & set(groups[va])
+    assert len(set(groups[va])) == 2 and set(groups[tr])  # round(0.3 * 6), never all
+    assert sorted(np.concatenate([tr, va])) == list(range(120))
+    tr2, va2 = validation_split(y, None, 0.25, seed=0)  # stratified
+    assert np.all(np.bincount(y[va2]) == 8)
+    tr3, va3 = validation_split(y, groups[:1].repeat(120), 0.3, seed=0)  # one group: stratified
+    assert va3.size > 0
+    assert validation_split(y, groups, 0.0, seed=0)[1].size == 0
+
+
+def test_input_scaling_is_fit_on_the_training_split_only():
+    rng = np.random.default_rng(2)
+    groups = np.repeat(["a", "b", "c", "d"], 10)
+    x = rng.random((40, 5, 6)).astype(np.float32) + np.repeat([0.0, 1.0, 3.0, 7.0], 10)[:, None, None]
+    y = np.arange(40) % 4
+    m = CnnGru(geometry=geometry((2, 3), 6, False), val_fraction=0.25, seed=1, **TINY).fit(x, y, groups=groups)
+    tr, va = validation_split(np.unique(y, return_inverse=True)[1], groups, 0.25, seed=1)
+    assert m.n_val_ == va.size == 10
+    assert float(m.net_.x_mean) == pytest.approx(float(x[tr].mean()), rel=1e-5)
+    assert float(m.net_.x_mean) != pytest.approx(float(x.mean()), rel=1e-2)
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="CUDA present: the error path cannot be exercised")
+def test_cuda_requested_without_cuda_fails_clearly():
+    x, y = toy_xy(4)
+    with pytest.raises(RuntimeError, match="model.device='cuda'.*not available"):
+        CnnGru(device="cuda", **TINY).fit(x, y)
+
+
+def test_bad_parameters_are_named():
+    x, y = toy_xy(4)
+    with pytest.raises(ValueError, match="model.strides"):
+        CnnGru(channels=[4, 4], strides=[1], geometry=geometry((2, 2), 4, False)).fit(x, y)
+    with pytest.raises(ValueError, match="taxels"):
+        CnnGru(geometry=geometry((2, 3), 6, False), **TINY).fit(x, y)
+    with pytest.raises(ValueError, match="model.device"):
+        CnnGru(device="tpu", **TINY).fit(x, y)
+    with pytest.raises(ValueError, match="model.precision"):
+        CnnGru(precision="fp8", **TINY).fit(x, y)
+
+
+def test_cnn_gru_learns_synthetic_gestures():
+    """Fits synthetic arm touches (3 participants, res 6) far above chance (12.5 %)."""
+    win = blob_windows(participants=3, repetitions=4, res=6, seed=21)
+    m = CnnGru(geometry=win.geometry, max_epochs=15, batch_size=8, hidden=64, val_fraction=0.0, threads=1, seed=0)
+    m.fit(win.x, win.y)
+    losses = [h["train_loss"] for h in m.history_]
+    assert losses[-1] < 0.6 * losses[0], losses
+    assert float(np.mean(m.predict(win.x) == win.y)) > 0.5
+
+
+@pytest.mark.slow
+def test_cnn_gru_generalises_to_new_participants_and_resolution_matters():
+    """LOSO (3 folds) at res 12 well above chance; res 1 clearly lower."""
+    import functools
+
+    from sphri.evaluate.cv import LeaveOneSubjectOut
+
+    acc = {}
+    for res in (1, 12):
+        win = blob_windows(participants=6, repetitions=8, res=res, seed=22)
+        make = functools.partial(CnnGru, geometry=win.geometry, max_epochs=30, patience=6, seed=0)
+        result = LeaveOneSubjectOut(max_folds=3).run(make, win, seed=0)
+        acc[res] = result.summary()["accuracy_mean"]
+    assert acc[12] > 0.5, acc
+    assert acc[1] < acc[12] - 0.1, acc

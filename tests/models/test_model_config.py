@@ -1,0 +1,69 @@
+"""conf/model/*.yaml compose, instantiate to estimators, and bad values name their key."""
+
+from __future__ import annotations
+
+import pytest
+from hydra.utils import instantiate
+
+from sphri.config import ConfigError, compose
+from sphri.models.cnn_gru import CnnGru
+from sphri.models.rf import RandomForest
+from sphri.models.schema import CnnGruSchema, RandomForestSchema
+from sphri.models.toydata import arm_geometry
+
+
+@pytest.mark.parametrize("name,cls", [("rf", RandomForest), ("cnn_gru", CnnGru)])
+def test_model_yaml_instantiates_with_geometry(name, cls):
+    cfg = compose([f"model={name}", "seed=7"])
+    geom = arm_geometry(3)
+    est = instantiate(cfg.model, _partial_=True, _convert_="all")(geometry=geom)
+    assert isinstance(est, cls)
+    assert est.seed == 7  # the model follows the run's seed
+    assert est.geometry is geom
+    assert cls.VERSION == "1" and cls.NAME == name
+    # the YAML holds every schema field, and the estimator takes exactly those
+    schema = RandomForestSchema if name == "rf" else CnnGruSchema
+    fields = set(schema.__dataclass_fields__) - {"_target_"}
+    assert set(cfg.model) - {"_target_"} == fields
+    assert set(est.get_params()) == fields | {"geometry"}
+
+
+def test_bad_values_fail_at_composition():
+    with pytest.raises(ConfigError, match="model.n_estimators"):
+        compose(["model=rf", "model.n_estimators=0"])
+    with pytest.raises(ConfigError, match="model.strides"):
+        compose(["model=cnn_gru", "model.strides=[1,1]"])
+
+
+@pytest.mark.parametrize(
+    "kwargs,key",
+    [
+        ({"n_estimators": 0}, "model.n_estimators"),
+        ({"max_depth": 0}, "model.max_depth"),
+        ({"max_features": "all"}, "model.max_features"),
+        ({"class_weight": "heavy"}, "model.class_weight"),
+        ({"n_jobs": 0}, "model.n_jobs"),
+        ({"active_threshold": 0.0}, "model.active_threshold"),
+    ],
+)
+def test_rf_schema_ranges(kwargs, key):
+    with pytest.raises(ConfigError, match=key):
+        RandomForestSchema(**kwargs)
+
+
+@pytest.mark.parametrize(
+    "kwargs,key",
+    [
+        ({"lr": 0.0}, "model.lr"),
+        ({"val_fraction": 1.0}, "model.val_fraction"),
+        ({"strides": [1, 1]}, "model.strides"),
+        ({"channels": []}, "model.channels"),
+        ({"device": "tpu"}, "model.device"),
+        ({"precision": "fp8"}, "model.precision"),
+        ({"hidden": 0}, "model.hidden"),
+        ({"patience": 0}, "model.patience"),
+    ],
+)
+def test_cnn_schema_ranges(kwargs, key):
+    with pytest.raises(ConfigError, match=key):
+        CnnGruSchema(**kwargs)
