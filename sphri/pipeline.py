@@ -142,8 +142,10 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
 
     k_hand = p.add("hand", ver["hand"], plain(cfg.hand), {}, lambda: comp["hand"].build())
     k_robot = p.add("robot", ver["robot"], plain(cfg.robot), {}, lambda: comp["robot"].build())
+    # Data depends on the robot unless its component says otherwise (synthetic
+    # gestures are placed on the robot's surface; a recorded dataset is not).
     data_inputs = {"hand": k_hand}
-    if getattr(comp["data"], "USES_ROBOT", False):
+    if getattr(comp["data"], "USES_ROBOT", True):
         data_inputs["robot"] = k_robot
     k_data = p.add("data", ver["data"], plain(cfg.data), data_inputs, lambda: comp["data"].load(hand=p.get("hand"), robot=p.get("robot")))
     k_contact = p.add(

@@ -92,3 +92,12 @@ def test_wrong_value_fails_before_any_stage(tmp_path: Path):
     assert "encoder.res" in proc.stderr
     assert "computing" not in proc.stdout + proc.stderr
     assert not (tmp_path / "cache").exists()
+
+
+def test_synthetic_data_is_keyed_on_the_robot(tmp_path: Path):
+    """Synthetic gestures are placed on the robot: another robot is other data."""
+    cache = StageCache(tmp_path)
+    nao = run(cache, "robot=nao_child", "encoder.res=3")
+    reachy = sources(run(cache, "robot=reachy", "encoder.res=3"))
+    assert reachy["data"] == "computed"
+    assert nao.stages["data"].key != run(cache, "robot=reachy", "encoder.res=3").stages["data"].key

@@ -120,6 +120,8 @@ class VRGestureData:
     """
 
     VERSION = "1"
+    #: Recorded poses do not depend on the robot config (its cache key omits it).
+    USES_ROBOT = False
 
     def __init__(
         self,
