@@ -51,7 +51,9 @@ def _fit_for_axis(
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Least-squares cylinder around an initial axis: (point on axis, axis, radius)."""
     lateral = np.abs(nrm @ axis0) < 0.7
-    use = pts[lateral] if lateral.sum() >= max(30, 0.1 * len(pts)) else pts
+    # a short (disc-like) link has few side points for its true axis, yet enough to fit its circle:
+    # falling back to every point there fits a huge circle to the flat faces instead
+    use = pts[lateral] if lateral.sum() >= max(30, 0.01 * len(pts)) else pts
     if len(use) > _MAX_FIT_POINTS:
         use = use[np.linspace(0, len(use) - 1, _MAX_FIT_POINTS).astype(int)]
     m = use.mean(axis=0)
