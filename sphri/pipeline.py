@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 import numpy as np
-from hydra.utils import instantiate
+from hydra.utils import get_class, instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from sphri.cache import StageCache, stable_hash, stage_key
@@ -190,8 +190,9 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         result = comp["cv"].run(make_model, windows, seed)
         return result, run_meta(cfg, dataset, p.get("robot"), region, p.get("surface"), p.get("layout"), windows)
 
+    model_version = str(getattr(get_class(cfg.model._target_), "VERSION", "0"))
     p.add(
-        "evaluate", f"{ver['cv']}", {"model": plain(cfg.model), "cv": plain(cfg.cv), "seed": seed},
+        "evaluate", f"{ver['cv']}-{model_version}", {"model": plain(cfg.model), "cv": plain(cfg.cv), "seed": seed},
         {"noise": k_noise, "plan": k_plan, "layout": k_layout}, evaluate,
     )
     return p
