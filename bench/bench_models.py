@@ -2,7 +2,7 @@
 
 Targets (2 cores, about 2,800 trials, 18 folds, res 18 -> 18 x 19 grid,
 L = 50): RF LOSO < 60 s, CNN-GRU LOSO < 15 min. Writes
-``outputs/bench/models.json``.
+``outputs/bench/models.json`` (``models_quick.json`` with ``--quick``).
 
 Wall times depend on what else runs on the machine; ``fold_cpu_s`` (CPU
 seconds of all folds) / workers gives ``cpu_bound_wall_s``, the wall time on
@@ -111,6 +111,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
 
+    name = "models_quick" if args.quick else "models"  # a quick run never overwrites the full numbers
     participants = args.participants or (6 if args.quick else 18)
     repetitions = args.repetitions or (5 if args.quick else 20)
     cnn_folds = args.cnn_folds or (3 if args.quick else None)
@@ -132,14 +133,14 @@ def main(argv: list[str] | None = None) -> int:
     rf = functools.partial(RandomForest, geometry=win.geometry)
     out["rf"] = timed_loso(rf, win, args.workers, args.threads, None)
     log.info("rf: %s", {k: v for k, v in out["rf"].items() if k != "per_fold_accuracy"})
-    write_json("models", out)
+    write_json(name, out)
     if not args.skip_cnn:
         cnn = functools.partial(CnnGru, geometry=win.geometry)
         out["cnn_gru"] = timed_loso(cnn, win, args.workers, args.threads, cnn_folds)
         out["cnn_gru"]["params"] = {k: v for k, v in CnnGru().get_params().items() if k != "geometry"}
         log.info("cnn_gru: %s", {k: v for k, v in out["cnn_gru"].items() if k != "per_fold_accuracy"})
     out["machine"]["loadavg_1min_end"] = os.getloadavg()[0]
-    path = write_json("models", out)
+    path = write_json(name, out)
     print(f"wrote {path}")
     return 0
 

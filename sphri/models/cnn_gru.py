@@ -25,7 +25,7 @@ from __future__ import annotations
 import copy
 import math
 from contextlib import contextmanager
-from typing import Iterator, Optional
+from typing import Iterator
 
 import numpy as np
 import torch
