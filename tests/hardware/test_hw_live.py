@@ -180,7 +180,7 @@ def test_live_fills_lost_frames_to_keep_the_timing(tmp_path, make_geometry):
     th = start_in_thread(sim)
     out = tmp_path / "pred.jsonl"
     try:
-        summary = live(SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=0.5, out=str(out),
+        summary = live(SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=3.0, out=str(out),
                                         stride=50, show="off"), out=lambda m: None)
     finally:
         sim.stop.set()
