@@ -13,32 +13,31 @@
 - :mod:`sphri.analysis.cli`: ``python -m sphri.coverage``.
 """
 
-from sphri.analysis.compare import PairwiseComparison, paired_swd_tests, split_halves
-from sphri.analysis.coverage import CoverageAnalysis, RegionCoverage, write_density_npz, write_region
-from sphri.analysis.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
-from sphri.analysis.placement import CoverageCurve, coverage_curve, heldout_capture
-from sphri.analysis.stats import SignFlipResult, holm, sign_flip_test
-from sphri.analysis.swd import SharedSupportSW, sliced_wasserstein, wasserstein_1d
+from sphri._lazy import lazy_exports
 
-__all__ = [
-    "CoverageAnalysis",
-    "CoverageCurve",
-    "PairwiseComparison",
-    "RegionCoverage",
-    "SharedSupportSW",
-    "SignFlipResult",
-    "SurfaceKernel",
-    "SurfaceSamples",
-    "coverage_curve",
-    "heldout_capture",
-    "holm",
-    "paired_swd_tests",
-    "sample_link",
-    "sign_flip_test",
-    "sliced_wasserstein",
-    "split_halves",
-    "touched_elements",
-    "wasserstein_1d",
-    "write_density_npz",
-    "write_region",
-]
+# Lazy: importing the package (e.g. for its config schema) imports no heavy module.
+__getattr__, __all__ = lazy_exports(
+    "sphri.analysis",
+    {
+        "PairwiseComparison": "sphri.analysis.compare",
+        "paired_swd_tests": "sphri.analysis.compare",
+        "split_halves": "sphri.analysis.compare",
+        "CoverageAnalysis": "sphri.analysis.coverage",
+        "RegionCoverage": "sphri.analysis.coverage",
+        "write_density_npz": "sphri.analysis.coverage",
+        "write_region": "sphri.analysis.coverage",
+        "SurfaceKernel": "sphri.analysis.density",
+        "SurfaceSamples": "sphri.analysis.density",
+        "sample_link": "sphri.analysis.density",
+        "touched_elements": "sphri.analysis.density",
+        "CoverageCurve": "sphri.analysis.placement",
+        "coverage_curve": "sphri.analysis.placement",
+        "heldout_capture": "sphri.analysis.placement",
+        "SignFlipResult": "sphri.analysis.stats",
+        "holm": "sphri.analysis.stats",
+        "sign_flip_test": "sphri.analysis.stats",
+        "SharedSupportSW": "sphri.analysis.swd",
+        "sliced_wasserstein": "sphri.analysis.swd",
+        "wasserstein_1d": "sphri.analysis.swd",
+    },
+)

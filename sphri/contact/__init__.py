@@ -13,15 +13,18 @@ Public API:
   benchmark's capsule sets.
 """
 
-from sphri.contact.mesh import INSIDE_MODES, MeshAccel, prepare_mesh
-from sphri.contact.query import ContactQuery, capsule_mesh_query, sphere_mesh_query, winding_number
+from sphri._lazy import lazy_exports
 
-__all__ = [
-    "INSIDE_MODES",
-    "ContactQuery",
-    "MeshAccel",
-    "capsule_mesh_query",
-    "prepare_mesh",
-    "sphere_mesh_query",
-    "winding_number",
-]
+# Lazy: importing the package (e.g. for its config schema) imports no heavy module.
+__getattr__, __all__ = lazy_exports(
+    "sphri.contact",
+    {
+        "INSIDE_MODES": "sphri.contact.mesh",
+        "MeshAccel": "sphri.contact.mesh",
+        "prepare_mesh": "sphri.contact.mesh",
+        "ContactQuery": "sphri.contact.query",
+        "capsule_mesh_query": "sphri.contact.query",
+        "sphere_mesh_query": "sphri.contact.query",
+        "winding_number": "sphri.contact.query",
+    },
+)

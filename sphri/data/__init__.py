@@ -10,9 +10,17 @@ contact statistics with published references
 and ``python -m sphri.data.stats``.
 """
 
-from sphri.data.format import ManifestError, read_manifest
-from sphri.data.synthetic import SyntheticData
-from sphri.data.vr_gesture import DatasetError, VRGestureData
-from sphri.data.writer import write_dataset
+from sphri._lazy import lazy_exports
 
-__all__ = ["DatasetError", "ManifestError", "SyntheticData", "VRGestureData", "read_manifest", "write_dataset"]
+# Lazy: importing the package (e.g. for its config schema) imports no heavy module.
+__getattr__, __all__ = lazy_exports(
+    "sphri.data",
+    {
+        "ManifestError": "sphri.data.format",
+        "read_manifest": "sphri.data.format",
+        "SyntheticData": "sphri.data.synthetic",
+        "DatasetError": "sphri.data.vr_gesture",
+        "VRGestureData": "sphri.data.vr_gesture",
+        "write_dataset": "sphri.data.writer",
+    },
+)

@@ -7,6 +7,12 @@ frame_index) -> Frames``): ``ellipse`` (the paper's chart raster,
 :class:`~sphri.encode.common.SkinFrames` (Frames + taxel geometry).
 """
 
-from sphri.encode.common import SkinFrames
+from sphri._lazy import lazy_exports
 
-__all__ = ["SkinFrames"]
+# Lazy: importing the package (e.g. for its config schema) imports no heavy module.
+__getattr__, __all__ = lazy_exports(
+    "sphri.encode",
+    {
+        "SkinFrames": "sphri.encode.common",
+    },
+)

@@ -7,21 +7,16 @@
   :func:`summarize`.
 """
 
-import importlib
-from typing import Any
+from sphri._lazy import lazy_exports
 
-# Lazy: importing the package (e.g. for its config schema) stays cheap.
-_LAZY = {
-    "LeaveOneSubjectOut": "sphri.evaluate.cv",
-    "WithinSubjectKFold": "sphri.evaluate.cv",
-    "bootstrap_ci": "sphri.evaluate.metrics",
-    "fold_metrics": "sphri.evaluate.metrics",
-    "summarize": "sphri.evaluate.metrics",
-}
-__all__ = list(_LAZY)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'sphri.evaluate' has no attribute {name!r}")
+# Lazy: importing the package (e.g. for its config schema) imports no heavy module.
+__getattr__, __all__ = lazy_exports(
+    "sphri.evaluate",
+    {
+        "LeaveOneSubjectOut": "sphri.evaluate.cv",
+        "WithinSubjectKFold": "sphri.evaluate.cv",
+        "bootstrap_ci": "sphri.evaluate.metrics",
+        "fold_metrics": "sphri.evaluate.metrics",
+        "summarize": "sphri.evaluate.metrics",
+    },
+)

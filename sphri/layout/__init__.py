@@ -6,6 +6,12 @@ Components (``layout=...``, ``build(link, surface, res) -> Layout``):
 :func:`sphri.layout.units.describe` states a layout's resolution in mm.
 """
 
-from sphri.layout.units import describe
+from sphri._lazy import lazy_exports
 
-__all__ = ["describe"]
+# Lazy: importing the package (e.g. for its config schema) imports no heavy module.
+__getattr__, __all__ = lazy_exports(
+    "sphri.layout",
+    {
+        "describe": "sphri.layout.units",
+    },
+)

@@ -12,20 +12,15 @@ fields + ``geometry``. :mod:`sphri.models.toydata` draws synthetic windows
 for tests and benchmarks.
 """
 
-import importlib
-from typing import Any
+from sphri._lazy import lazy_exports
 
-# Lazy: importing the package (e.g. for its config schema) must not import torch.
-_LAZY = {
-    "CnnGru": "sphri.models.cnn_gru",
-    "RandomForest": "sphri.models.rf",
-    "FEATURE_NAMES": "sphri.models.features",
-    "extract_features": "sphri.models.features",
-}
-__all__ = list(_LAZY)
-
-
-def __getattr__(name: str) -> Any:
-    if name in _LAZY:
-        return getattr(importlib.import_module(_LAZY[name]), name)
-    raise AttributeError(f"module 'sphri.models' has no attribute {name!r}")
+# Lazy: importing the package (e.g. for its config schema) imports no heavy module.
+__getattr__, __all__ = lazy_exports(
+    "sphri.models",
+    {
+        "CnnGru": "sphri.models.cnn_gru",
+        "RandomForest": "sphri.models.rf",
+        "FEATURE_NAMES": "sphri.models.features",
+        "extract_features": "sphri.models.features",
+    },
+)

@@ -6,6 +6,15 @@ Components (``surface=...``): :class:`~sphri.surface.cylinder.CylinderSurface`
 :mod:`sphri.surface.charts`.
 """
 
-from sphri.surface.charts import from_uv, jacobian, primitive_distance, to_uv
+from sphri._lazy import lazy_exports
 
-__all__ = ["to_uv", "jacobian", "from_uv", "primitive_distance"]
+# Lazy: importing the package (e.g. for its config schema) imports no heavy module.
+__getattr__, __all__ = lazy_exports(
+    "sphri.surface",
+    {
+        "from_uv": "sphri.surface.charts",
+        "jacobian": "sphri.surface.charts",
+        "primitive_distance": "sphri.surface.charts",
+        "to_uv": "sphri.surface.charts",
+    },
+)
