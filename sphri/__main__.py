@@ -43,8 +43,10 @@ def limit_threads(n: int) -> None:
         threadpool_limits(n)
     except ImportError:  # pragma: no cover - threadpoolctl ships with scikit-learn
         pass
+    import numba
     import torch
 
+    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))  # the env var is read only at import
     torch.set_num_threads(n)
 
 

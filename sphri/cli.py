@@ -21,9 +21,6 @@ import yaml
 
 from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, compose
 
-EXTRA_GROUPS = ("debug_model", "hydra/launcher")
-
-
 def components(group: str) -> list[tuple[str, str]]:
     """(name, one-line description) of each YAML file in ``conf/<group>/``."""
     folder = CONF_DIR / group

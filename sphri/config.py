@@ -233,7 +233,3 @@ def validate(cfg: DictConfig) -> None:
     if cfg.seed < 0:
         raise ConfigError(f"seed={cfg.seed} is invalid: must be >= 0")
 
-
-def subtree(cfg: DictConfig, *keys: str) -> dict[str, Any]:
-    """Resolved plain-dict view of ``cfg[key]`` for each key (cache hashing)."""
-    return {k: OmegaConf.to_container(cfg[k], resolve=True) if isinstance(cfg[k], DictConfig) else cfg[k] for k in keys}
