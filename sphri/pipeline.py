@@ -90,6 +90,8 @@ class Pipeline:
     cache: StageCache
     nodes: dict[str, _Node] = field(default_factory=dict)
     records: dict[str, StageRecord] = field(default_factory=dict)
+    _upstream_s: list[float] = field(default_factory=list, repr=False)
+    """Per stage being computed (a stack): wall seconds its upstream stages took."""
 
     def add(self, name: str, version: str, config: Any, inputs: dict[str, str], compute: Callable[[], Any]) -> str:
         key = stage_key(name, version, config, inputs)
@@ -97,10 +99,16 @@ class Pipeline:
         return key
 
     def get(self, name: str) -> Any:
+        """The stage's value: computed, or loaded from the cache, once per pipeline.
+
+        Its :class:`StageRecord` holds the stage's exclusive wall seconds: the
+        time spent in the upstream stages it asked for is not counted.
+        """
         node = self.nodes[name]
         if node.done:
             return node.value
         t0 = time.perf_counter()
+        self._upstream_s.append(0.0)
         computed: list[bool] = []
 
         def compute() -> Any:
@@ -108,13 +116,18 @@ class Pipeline:
             log.info("stage %-9s computing (key %s)", name, node.key)
             return node.compute()
 
-        if node.persist:
-            node.value = self.cache.get_or_compute(name, node.key, compute)
-        else:
-            node.value = compute()
+        try:
+            if node.persist:
+                node.value = self.cache.get_or_compute(name, node.key, compute)
+            else:
+                node.value = compute()
+        finally:
+            total = time.perf_counter() - t0
+            dt = max(0.0, total - self._upstream_s.pop())
+            if self._upstream_s:
+                self._upstream_s[-1] += total
         node.done = True
         source = "computed" if computed else "cache"
-        dt = time.perf_counter() - t0
         self.records[name] = StageRecord(name, node.key, source, dt)
         log.info("stage %-9s %s in %.2f s", name, "from cache" if source == "cache" else "computed", dt)
         return node.value

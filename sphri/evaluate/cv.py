@@ -5,7 +5,12 @@
 fold. Models see only the training side of a fold: ``fit(x[train],
 y[train], groups=groups[train])`` (``groups`` when ``fit`` accepts it, so
 that early stopping or tuning splits training participants), then
-``predict(x[test])``. Folds run one after another or in ``workers``
+``predict(x[test])``. A model whose ``transform`` is a fixed per-trial
+function (class attribute ``TRANSFORM_PER_TRIAL = True``, e.g. the Random
+Forest's features) has it computed once for all trials; each fold then calls
+``fit_features`` / ``predict_features`` on its rows of the result, which
+cannot leak across folds since nothing in the transform is fitted.
+Folds run one after another or in ``workers``
 processes (loky), each limited to its share of the cores (BLAS/OpenMP via
 threadpoolctl, torch threads, and the model's ``n_jobs``/``threads``).
 """
@@ -84,8 +89,13 @@ def run_fold(
     groups: np.ndarray,
     fold: Fold,
     threads: int,
+    featurized: bool = False,
 ) -> tuple[FoldResult, dict[str, float]]:
     """Fit a fresh model on ``fold.train``, score it on ``fold.test``.
+
+    With ``featurized``, ``x`` holds the model's per-trial features
+    (:func:`transform_once`) and the fold calls ``fit_features`` /
+    ``predict_features`` instead of ``fit`` / ``predict``.
 
     Returns the fold's metrics and its timing: ``wall_s`` and ``cpu_s`` (CPU
     seconds of this process, all its threads; less sensitive than wall time
@@ -101,14 +111,36 @@ def run_fold(
         if torch is not None:
             torch.set_num_threads(threads)
         try:
+            fit = est.fit_features if featurized else est.fit
+            predict = est.predict_features if featurized else est.predict
             kw = {"groups": groups[fold.train]} if _accepts_groups(est) else {}
-            est.fit(x[fold.train], y[fold.train], **kw)
-            pred = np.asarray(est.predict(x[fold.test]))
+            fit(x[fold.train], y[fold.train], **kw)
+            pred = np.asarray(predict(x[fold.test]))
         finally:
             if torch is not None and prev is not None:
                 torch.set_num_threads(prev)
     timing = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
     return fold_metrics(fold.name, y[fold.test], pred), timing
+
+
+def transforms_per_trial(est: Any) -> bool:
+    """Whether ``est`` declares a fold-independent per-trial ``transform`` (see the module doc)."""
+    return bool(getattr(est, "TRANSFORM_PER_TRIAL", False)) and all(
+        callable(getattr(est, m, None)) for m in ("transform", "fit_features", "predict_features")
+    )
+
+
+def transform_once(est: Any, x: np.ndarray, threads: int) -> tuple[np.ndarray, dict[str, float]]:
+    """``est.transform(x)`` for all trials at once, with ``threads`` threads -> (features, timing)."""
+    t0, c0 = time.perf_counter(), time.process_time()
+    with threadpool_limits(limits=threads):
+        feats = np.asarray(est.transform(x))
+    if feats.shape[0] != x.shape[0]:
+        raise RuntimeError(
+            f"{type(est).__name__}.transform returned {feats.shape[0]} rows for {x.shape[0]} trials; "
+            "a per-trial transform must keep one row per trial"
+        )
+    return feats, {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
 
 
 def _check_windows(windows: WindowedFrames) -> None:
@@ -176,10 +208,17 @@ class CrossValidation:
         groups = np.asarray(windows.groups)
         for f in folds:
             self._check_fold(f, groups)
-        name = model_name(make_model())
+        probe = make_model()
+        name = model_name(probe)
         workers = min(self.workers, len(folds))
         threads = self.threads_per_worker or max(1, available_cores() // workers)
         x, y = windows.x, np.asarray(windows.y, dtype=np.int64)
+        featurized = transforms_per_trial(probe)
+        if featurized:
+            x, timing = transform_once(probe, x, threads=self.threads_per_worker or available_cores())
+            log.info("%s %s: per-trial features %s computed once in %.1f s (%.1f CPU s)", self.SCHEME, name,
+                     x.shape, timing["wall_s"], timing["cpu_s"])
+        del probe
         bar = tqdm(
             total=len(folds),
             desc=f"{self.SCHEME} {name}",
@@ -189,12 +228,12 @@ class CrossValidation:
         results: list[FoldResult] = []
         try:
             if workers == 1:
-                outputs = (run_fold(make_model, x, y, groups, f, threads) for f in folds)
+                outputs = (run_fold(make_model, x, y, groups, f, threads, featurized) for f in folds)
             else:
                 from joblib import Parallel, delayed
 
                 outputs = Parallel(n_jobs=workers, backend="loky", return_as="generator")(
-                    delayed(run_fold)(make_model, x, y, groups, f, threads) for f in folds
+                    delayed(run_fold)(make_model, x, y, groups, f, threads, featurized) for f in folds
                 )
             for res, timing in outputs:
                 log.debug("%s %s fold %s: accuracy %.3f in %.1f s (%.1f CPU s)", self.SCHEME, name, res.fold,

@@ -140,6 +140,47 @@ def test_parallel_workers_give_the_same_result_as_one_process():
         np.testing.assert_array_equal(a.confusion, b.confusion)
 
 
+class PerFoldForest(RandomForest):
+    """The Random Forest with its per-trial transform hidden: features recomputed inside every fold."""
+
+    TRANSFORM_PER_TRIAL = False
+
+
+class CountingForest(RandomForest):
+    """Counts the trials its features are computed on (across all instances)."""
+
+    transformed: list[int] = []
+
+    def transform(self, x):
+        CountingForest.transformed.append(int(np.shape(x)[0]))
+        return super().transform(x)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_features_computed_once_give_the_same_folds_as_per_fold_features(workers):
+    win = blob_windows(participants=4, repetitions=2, res=6, seed=3)
+    cv = LeaveOneSubjectOut(workers=workers, threads_per_worker=1)
+    per_fold = cv.run(functools.partial(PerFoldForest, n_estimators=15, geometry=win.geometry), win, seed=0)
+    CountingForest.transformed.clear()
+    once = cv.run(functools.partial(CountingForest, n_estimators=15, geometry=win.geometry), win, seed=0)
+    assert CountingForest.transformed == [len(win.y)]  # one pass over all trials, none inside the folds
+    assert [f.fold for f in once.folds] == [f.fold for f in per_fold.folds]
+    for a, b in zip(per_fold.folds, once.folds):
+        assert a.accuracy == b.accuracy
+        np.testing.assert_array_equal(a.confusion, b.confusion)
+
+
+def test_forest_refuses_features_of_the_wrong_shape():
+    win = blob_windows(participants=2, repetitions=1, res=4, seed=0)
+    rf = RandomForest(n_estimators=5, geometry=win.geometry)
+    with pytest.raises(ValueError, match=r"features must be \(n_trials, 32\)"):
+        rf.fit_features(win.x, win.y)
+    feats = rf.transform(win.x)
+    with pytest.raises(ValueError, match="y must be"):
+        rf.fit_features(feats, win.y[:-1])
+    np.testing.assert_array_equal(rf.fit_features(feats, win.y).predict_features(feats), rf.predict(win.x))
+
+
 def test_thread_caps_reach_the_model(spy):
     from sphri.evaluate.cv import _cap_threads
 
