@@ -66,6 +66,18 @@ class ConfigError(ValueError):
     """A configuration value is invalid; the message names the key."""
 
 
+#: Checks across groups (``fn(cfg)`` raising :class:`ConfigError`), registered
+#: by the schema modules with :func:`cross_check`; :func:`validate` runs them.
+CROSS_CHECKS: list = []
+
+
+def cross_check(fn):
+    """Register ``fn(cfg)``, a check of how components combine (e.g. encoder and layout)."""
+    if fn not in CROSS_CHECKS:
+        CROSS_CHECKS.append(fn)
+    return fn
+
+
 def store(group: str, name: str, node: type) -> None:
     """Register a component schema ``node`` as ``<group>/<name>``.
 
@@ -232,4 +244,6 @@ def validate(cfg: DictConfig) -> None:
             raise ConfigError(_explain(exc)) from None
     if cfg.seed < 0:
         raise ConfigError(f"seed={cfg.seed} is invalid: must be >= 0")
+    for check in CROSS_CHECKS:
+        check(cfg)
 

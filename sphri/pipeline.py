@@ -170,10 +170,15 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         return p.get("robot").link_for(region)
 
     k_surface = p.add("surface", ver["surface"], plain(cfg.surface), {"robot": k_robot, "region": region}, lambda: comp["surface"].fit(link()))
-    k_layout = p.add(
-        "layout", ver["layout"], {"layout": plain(cfg.layout), "res": res}, {"surface": k_surface, "robot": k_robot},
-        lambda: comp["layout"].build(link(), p.get("surface"), res),
-    )
+    # A layout placed by contact density (layout=density without a file) reads the contacts.
+    layout_uses_contacts = bool(getattr(comp["layout"], "uses_contacts", False))
+    layout_inputs = {"surface": k_surface, "robot": k_robot, **({"contact": k_contact} if layout_uses_contacts else {})}
+
+    def layout():
+        extra = {"contacts": p.get("contact")} if layout_uses_contacts else {}
+        return comp["layout"].build(link(), p.get("surface"), res, **extra)
+
+    k_layout = p.add("layout", ver["layout"], {"layout": plain(cfg.layout), "res": res}, layout_inputs, layout)
     k_plan = p.add("plan", ver["window"], plain(cfg.window), {"contact": k_contact, "data": k_data}, lambda: comp["window"].plan(p.get("contact"), p.get("data")))
 
     def encode():

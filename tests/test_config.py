@@ -14,6 +14,11 @@ REQUIRED = {
     "robot/mesh": ["robot.links={l_arm:/nonexistent/arm.obj}", "robot.regions={arm:l_arm}"],
     "robot/reachy_vr": ["data=vr_gesture", "data.root=/nonexistent/dataset"],
     "data/vr_gesture": ["data.root=/nonexistent/dataset"],
+    # irregular layouts and chartless surfaces need an encoder that works on any layout
+    "layout/random": ["encoder=coverage"],
+    "layout/density": ["encoder=coverage"],
+    "layout/file": ["encoder=coverage", "layout.path=/nonexistent/taxels.npz"],
+    "surface/mesh": ["encoder=coverage", "layout=random"],
 }
 
 
@@ -56,6 +61,20 @@ def test_every_yaml_composes_and_validates(group: str, name: str):
     cfg = compose(ov)
     if group in STAGE_GROUPS:
         assert cfg[group]._target_.startswith("sphri.")
+
+
+@pytest.mark.parametrize(
+    "overrides,named",
+    [
+        (["layout=random"], "RandomLayout"),
+        (["layout=density"], "DensityLayout"),
+        (["surface=mesh", "layout=grid"], "MeshSurface"),
+    ],
+)
+def test_grid_encoder_on_an_irregular_layout_fails_at_composition(overrides, named):
+    with pytest.raises(ConfigError, match=rf"encoder=ellipse .* needs layout=grid\|hex .*{named}.*encoder=coverage"):
+        compose(overrides)
+    compose([*overrides, "encoder=coverage"])  # the suggested fix composes
 
 
 def test_plus_and_plain_group_overrides_are_equivalent():

@@ -65,6 +65,16 @@ def test_contact_change_recomputes_contact_and_below(tmp_path: Path):
     assert changed["surface"] == "cache" and changed["layout"] == "cache"
 
 
+def test_density_layout_from_contacts_is_keyed_on_them(tmp_path: Path):
+    cache = StageCache(tmp_path)
+    dens = ["layout=density", "encoder=coverage", "encoder.res=4"]
+    first = run(cache, *dens)
+    assert first.meta["resolution"]["layout_kind"] == "density"
+    assert sources(run(cache, *dens, "seed=1"))["layout"] == "cache"
+    # other contacts, another placement: the layout is recomputed (a grid layout would be reused)
+    assert sources(run(cache, *dens, "contact=spheres"))["layout"] == "computed"
+
+
 def test_cache_disabled_computes_everything(tmp_path: Path):
     cfg = compose([*FAST, f"cache.dir={tmp_path}", "cache.enabled=false", "encoder.res=3"])
     result = pipeline.run(cfg)

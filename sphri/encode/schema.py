@@ -8,9 +8,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sphri.config import require_choice, require_range, store
+from sphri.config import ConfigError, cross_check, require_choice, require_range, store
 
 MAX_RES = 1000
+
+#: Encoders that rasterize on a regular (H, W) grid of a 2-D chart.
+GRID_ENCODERS = {"sphri.encode.ellipse.EllipseEncoder": "ellipse"}
+#: Layouts that are such a grid, and surfaces that have such a chart.
+GRID_LAYOUTS = {"sphri.layout.grid.GridLayout", "sphri.layout.grid.HexLayout"}
+CHART_SURFACES = {"sphri.surface.cylinder.CylinderSurface", "sphri.surface.box.BoxSurface"}
 
 
 def _res(value: int) -> None:
@@ -75,6 +81,21 @@ class ProximityEncoderSchema:
         require_range("encoder.sensing_distance_m", self.sensing_distance_m, lo=0.0, hi=0.5)
         require_choice("encoder.intensity", self.intensity, ("binary", "depth"))
         require_range("encoder.depth_scale_m", self.depth_scale_m, lo=0.0, hi=0.5, lo_open=True)
+
+
+@cross_check
+def grid_encoder_needs_grid_layout(cfg) -> None:
+    """``encoder=ellipse`` rasterizes on the chart grid: refuse irregular layouts and chartless surfaces."""
+    name = GRID_ENCODERS.get(cfg.encoder.get("_target_"))
+    if name is None:
+        return
+    layout, surface = cfg.layout.get("_target_", "?"), cfg.surface.get("_target_", "?")
+    if layout not in GRID_LAYOUTS or surface not in CHART_SURFACES:
+        raise ConfigError(
+            f"encoder={name} rasterizes on a taxel grid: it needs layout=grid|hex on surface=cylinder|box, "
+            f"got layout {layout.rsplit('.', 1)[-1]} on surface {surface.rsplit('.', 1)[-1]}; "
+            "for any layout use encoder=coverage (covered area fraction) or encoder=proximity"
+        )
 
 
 store(group="encoder", name="ellipse_schema", node=EllipseEncoderSchema)

@@ -7,6 +7,14 @@ Sample Sets"): draw ``candidates x N`` area-weighted surface points, then
 repeatedly drop the point most crowded by its neighbours. ``density`` draws
 candidates in proportion to a contact-density map and shrinks the Poisson
 radius where contact is frequent, so taxels crowd there. Seeded.
+
+The density map is either a file (``layout.density_path``, e.g. exported by
+``python -m sphri.coverage``) or, with ``density_path`` empty, the run's own
+contacts: the number of contact points (capsule-frames) within
+``bandwidth_mm`` of each surface point. The latter is built from every
+participant, held-out ones included, so under leave-one-subject-out it is an
+optimistic placement; for a held-out one, export the density from other
+participants or another study and pass its file.
 """
 
 from __future__ import annotations
@@ -14,6 +22,7 @@ from __future__ import annotations
 import heapq
 import logging
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from numba import njit
@@ -23,7 +32,7 @@ from sphri.layout.common import check_res, grid_equivalent_count, nn_spacing, vo
 from sphri.layout.schema import DensityLayoutSchema, RandomLayoutSchema
 from sphri.surface.charts import to_uv
 from sphri.surface.meshutil import face_areas, face_normals, sample_surface
-from sphri.types import Layout, Link, SurfaceMap
+from sphri.types import Contacts, Layout, Link, SurfaceMap
 
 log = logging.getLogger(__name__)
 
@@ -134,30 +143,69 @@ def load_density(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return pts, dens
 
 
+def density_from_file(density_path: str, link: Link) -> "DensityAt":
+    """Density at surface points from a map file: each point takes its nearest map point's value."""
+    dpts, dens = load_density(density_path)
+    tree = cKDTree(dpts)
+    scale = np.sqrt(float(face_areas(link).sum()))
+
+    def at(points: np.ndarray) -> np.ndarray:
+        dist, nearest = tree.query(points)
+        if np.median(dist) > 0.1 * scale:
+            log.warning(
+                "layout.density: density points lie %.1f mm (median) from link %r's surface; is density_path for this link?",
+                np.median(dist) * 1e3, link.name,
+            )
+        return dens[nearest]
+
+    return at
+
+
+#: Contact points used for a density from contacts (a seeded subsample beyond this).
+MAX_DENSITY_POINTS = 200_000
+
+
+def density_from_contacts(contacts: Contacts, link: Link, bandwidth_m: float, seed: int = 0) -> "DensityAt":
+    """Density at surface points: how many contact points (capsule-frames) lie within ``bandwidth_m``."""
+    pts = np.asarray(contacts.point_m, dtype=np.float64).reshape(-1, 3)
+    pts = pts[np.all(np.isfinite(pts), axis=1)]
+    if pts.shape[0] == 0:
+        raise ValueError(
+            f"layout=density with an empty layout.density_path places taxels by this run's contacts, "
+            f"but there is no contact on link {link.name!r}; set layout.density_path to a density .npz"
+        )
+    if pts.shape[0] > MAX_DENSITY_POINTS:
+        pts = pts[np.random.default_rng(seed).choice(pts.shape[0], MAX_DENSITY_POINTS, replace=False)]
+    tree = cKDTree(pts)
+
+    def at(points: np.ndarray) -> np.ndarray:
+        return tree.query_ball_point(points, r=bandwidth_m, return_length=True).astype(np.float64)
+
+    return at
+
+
+DensityAt = Callable[[np.ndarray], np.ndarray]
+"""Density (>= 0, any scale) at (P, 3) surface points (metres) -> (P,)."""
+
+
 def build_density(
     link: Link,
     surface: SurfaceMap,
     res: int,
-    density_path: str,
+    density_at: DensityAt,
     aspect: float = 1.0,
     seed: int = 0,
     candidates: int = 5,
     min_density_fraction: float = 0.05,
 ) -> Layout:
-    """Grid-equivalent count of taxels, denser where the density map is high."""
+    """Grid-equivalent count of taxels, denser where ``density_at`` is high."""
     res = check_res(res, "layout.density")
-    dpts, dens = load_density(density_path)
     n = grid_equivalent_count(link, surface, res, aspect)
     area = float(face_areas(link).sum())
     pool, face = sample_surface(link, candidates * n * 4, seed)
-    dist, nearest = cKDTree(dpts).query(pool)
-    scale = np.sqrt(area)
-    if np.median(dist) > 0.1 * scale:
-        log.warning(
-            "layout.density: density points lie %.1f mm (median) from link %r's surface; is density_path for this link?",
-            np.median(dist) * 1e3, link.name,
-        )
-    rho_pool = dens[nearest]
+    rho_pool = np.asarray(density_at(pool), dtype=np.float64)
+    if rho_pool.max() <= 0:
+        raise ValueError(f"layout.density: the density is zero everywhere on link {link.name!r}")
     rho_pool = np.maximum(rho_pool, min_density_fraction * rho_pool.mean())
     mean_rho = rho_pool.mean()  # integral(rho dA) ~ mean_rho * area (uniform pool)
     rng = np.random.default_rng(seed + 7)
@@ -187,30 +235,52 @@ class RandomLayout:
 
 
 class DensityLayout:
-    """``layout=density``: more taxels where contact is frequent (reads ``density_path``)."""
+    """``layout=density``: more taxels where contact is frequent.
 
-    VERSION = "1"
+    The density comes from ``density_path`` (an .npz from the coverage
+    analysis) or, when that is empty, from the run's contacts
+    (``uses_contacts``: the pipeline then passes them and keys the layout on
+    them; see the module doc for why that placement is optimistic under LOSO).
+    """
+
+    VERSION = "2"
 
     def __init__(
         self,
         density_path: str = "",
+        bandwidth_mm: float = 10.0,
         aspect: float = 1.0,
         seed: int = 0,
         candidates: int = 5,
         min_density_fraction: float = 0.05,
     ) -> None:
         DensityLayoutSchema(
-            density_path=density_path, aspect=aspect, seed=seed, candidates=candidates,
+            density_path=density_path, bandwidth_mm=bandwidth_mm, aspect=aspect, seed=seed, candidates=candidates,
             min_density_fraction=min_density_fraction,
         )
         self.density_path = density_path
+        self.bandwidth_mm = bandwidth_mm
         self.aspect = aspect
         self.seed = seed
         self.candidates = candidates
         self.min_density_fraction = min_density_fraction
 
-    def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
-        """Grid-equivalent count of taxels placed by the density map."""
+    @property
+    def uses_contacts(self) -> bool:
+        """True when the density comes from the run's contacts (no ``density_path``)."""
+        return not str(self.density_path)
+
+    def build(self, link: Link, surface: SurfaceMap, res: int, contacts: Contacts | None = None) -> Layout:
+        """Grid-equivalent count of taxels placed by the density map (file or ``contacts``)."""
+        if self.uses_contacts:
+            if contacts is None:
+                raise ValueError(
+                    "layout=density needs layout.density_path (an .npz from python -m sphri.coverage) "
+                    "or the run's contacts (the pipeline passes them when density_path is empty)"
+                )
+            density_at = density_from_contacts(contacts, link, self.bandwidth_mm * 1e-3, self.seed)
+        else:
+            density_at = density_from_file(self.density_path, link)
         return build_density(
-            link, surface, res, self.density_path, self.aspect, self.seed, self.candidates, self.min_density_fraction
+            link, surface, res, density_at, self.aspect, self.seed, self.candidates, self.min_density_fraction
         )

@@ -69,7 +69,10 @@ class DensityLayoutSchema:
 
     _target_: str = "sphri.layout.poisson.DensityLayout"
     density_path: str = ""
-    """.npz with ``points_m (P, 3)`` and ``density (P,)`` (exported by the coverage analysis)."""
+    """.npz with ``points_m (P, 3)`` and ``density (P,)`` (exported by the coverage analysis);
+    empty: the density of this run's own contacts."""
+    bandwidth_mm: float = 10.0
+    """Radius (mm) within which contact points count towards the density from contacts."""
     aspect: float = 1.0
     """Aspect of the grid whose taxel count is matched."""
     seed: int = 0
@@ -80,6 +83,7 @@ class DensityLayoutSchema:
     """Floor of the density as a fraction of its mean, so untouched areas keep a few taxels."""
 
     def __post_init__(self) -> None:
+        require_range("layout.bandwidth_mm", self.bandwidth_mm, lo=0.5, hi=500.0)
         _aspect(self.aspect)
         require_range("layout.seed", self.seed, lo=0)
         require_range("layout.candidates", self.candidates, lo=2, hi=50)

@@ -45,7 +45,7 @@ def test_yaml_matches_schema_and_instantiates(path):
     cfg = compose_one(path)
     obj = instantiate(cfg)
     assert type(obj).__module__ + "." + type(obj).__name__ == cfg._target_
-    assert obj.VERSION == "1"
+    assert isinstance(obj.VERSION, str) and obj.VERSION  # part of every cache key
     if path.parent.name == "encoder":
         assert 1 <= obj.res <= 1000
 

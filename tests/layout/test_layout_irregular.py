@@ -58,9 +58,46 @@ def test_density_layout_crowds_where_touched(cyl_link, cyl_map, tmp_path):
     assert top > 2.5 * (lay.n_taxels - top)
 
 
+def contacts_at(points: np.ndarray):
+    """Contacts (one per point, one frame each) at surface points: only ``point_m`` matters here."""
+    import dataclasses
+
+    from sphri.contact.stage import empty_contacts
+
+    k = points.shape[0]
+    base = empty_contacts(k)
+    return dataclasses.replace(
+        base, frame=np.arange(k, dtype=np.int64), capsule=np.zeros(k, dtype=np.int16), distance_m=np.zeros(k),
+        inside=np.zeros(k, dtype=bool), point_m=points, segment_point_m=points, triangle=np.zeros(k, dtype=np.int64),
+        barycentric=np.full((k, 3), 1 / 3), normal=np.tile([1.0, 0.0, 0.0], (k, 1)), patch_radius_m=np.full(k, 0.005),
+        depth_m=np.full(k, 0.001),
+    )
+
+
+def test_density_from_contacts_crowds_where_touched(cyl_link, cyl_map):
+    rng = np.random.default_rng(0)
+    # contacts on the +x side of the upper half of the cylinder (radius 0.04 m, z in -0.12..0.12)
+    z = rng.uniform(0.02, 0.11, 3000)
+    ang = rng.uniform(-0.6, 0.6, 3000)
+    pts = np.column_stack([0.04 * np.cos(ang), 0.04 * np.sin(ang), z])
+    layout = DensityLayout(seed=0)
+    assert layout.uses_contacts
+    lay = layout.build(cyl_link, cyl_map, 18, contacts=contacts_at(pts))
+    assert lay.n_taxels == grid_equivalent_count(cyl_link, cyl_map, 18)
+    touched = (lay.position_m[:, 2] > 0.01) & (lay.position_m[:, 0] > 0.02)
+    # the touched patch is about 1/6 of the area; it gets far more than 1/6 of the taxels
+    assert touched.mean() > 0.5
+    again = layout.build(cyl_link, cyl_map, 18, contacts=contacts_at(pts))
+    np.testing.assert_array_equal(lay.position_m, again.position_m)
+
+
 def test_density_layout_errors(cyl_link, cyl_map, tmp_path):
-    with pytest.raises(ValueError, match="density_path is empty"):
+    with pytest.raises(ValueError, match="needs layout.density_path"):
         DensityLayout().build(cyl_link, cyl_map, 6)
+    with pytest.raises(ValueError, match="no contact on link"):
+        DensityLayout().build(cyl_link, cyl_map, 6, contacts=contacts_at(np.zeros((0, 3))))
+    with pytest.raises(ConfigError, match="bandwidth_mm"):
+        DensityLayout(bandwidth_mm=0.0)
     with pytest.raises(FileNotFoundError, match="nope.npz"):
         DensityLayout(density_path=str(tmp_path / "nope.npz")).build(cyl_link, cyl_map, 6)
     bad = tmp_path / "bad.npz"
