@@ -34,8 +34,8 @@ log = logging.getLogger("sphri")
 
 
 def limit_threads(n: int) -> None:
-    """Cap BLAS/OpenMP/torch threads (parallel sweep jobs share the cores)."""
-    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    """Cap BLAS/OpenMP/numba/torch threads and sphri's own (parallel sweep jobs share the cores)."""
+    for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "SPHRI_THREADS"):
         os.environ[var] = str(n)
     try:
         from threadpoolctl import threadpool_limits

@@ -46,12 +46,28 @@ class Fold:
     """(n_test,) int64 row indices of ``WindowedFrames``."""
 
 
+#: Environment variable holding this process's thread budget (set by parallel sweep jobs).
+THREADS_ENV = "SPHRI_THREADS"
+
+
 def available_cores() -> int:
-    """CPU cores this process may use (affinity-aware)."""
+    """CPU cores this process may use: its affinity, capped by ``$SPHRI_THREADS`` when set.
+
+    A parallel sweep job sets ``SPHRI_THREADS`` to its share of the cores
+    (``sphri.__main__.limit_threads``), so the folds and forests of two jobs
+    on two cores use one thread each instead of two.
+    """
     try:
-        return max(1, len(os.sched_getaffinity(0)))
+        cores = max(1, len(os.sched_getaffinity(0)))
     except AttributeError:  # pragma: no cover - not on Linux
-        return max(1, os.cpu_count() or 1)
+        cores = max(1, os.cpu_count() or 1)
+    budget = os.environ.get(THREADS_ENV, "")
+    if budget:
+        try:
+            cores = min(cores, max(1, int(budget)))
+        except ValueError:
+            raise ValueError(f"${THREADS_ENV}={budget!r} is invalid: must be a positive integer") from None
+    return cores
 
 
 def model_name(est: Any) -> str:

@@ -37,15 +37,27 @@ def grid_dims(surface: SurfaceMap, res: int, aspect: float = 1.0, hex_rows: bool
 
     Pitch along ``p = length / res``; ``H = round(metres_per_u / p)`` (= res
     for a cylinder); around ``W = max(1, round(metres_per_v / (p * aspect)))``.
-    Hex lattices use an in-row spacing of ``2 p / sqrt(3)`` (equilateral).
+
+    Hex lattices keep the square grid's area per taxel (``p^2 * aspect``, so
+    about the same taxel count: layouts compare at matched counts) on an
+    equilateral lattice: rows ``sqrt(3)/2 * c`` apart with in-row spacing
+    ``c = p * sqrt(2 / sqrt(3)) * aspect``, i.e. about ``1.075 res`` rows.
     """
     if not surface.has_uv:
         raise ValueError(f"a grid needs a surface with a 2-D chart; surface kind {surface.kind!r} has none")
     pitch = long_axis_length_m(surface) / res
     h = max(1, int(round(surface.metres_per_u / pitch)))
-    step_v = pitch * aspect * (2.0 / np.sqrt(3.0) if hex_rows else 1.0)
-    w = max(1, int(round(surface.metres_per_v / step_v)))
-    return h, w
+    w = max(1, int(round(surface.metres_per_v / (pitch * aspect))))
+    if not hex_rows:
+        return h, w
+    stretch = np.sqrt(2.0 / np.sqrt(3.0))  # in-row spacing / p, keeping the area per taxel
+    rows = surface.metres_per_u * stretch / pitch  # rows sqrt(3)/2 * in-row spacing apart
+    cols = surface.metres_per_v / (pitch * aspect * stretch)
+    # of the integer (rows, cols) around the ideal, the one closest to the square grid's count,
+    # then the closest to equilateral
+    options = [(max(1, a), max(1, b)) for a in {int(np.floor(rows)), int(np.ceil(rows))}
+               for b in {int(np.floor(cols)), int(np.ceil(cols))}]
+    return min(options, key=lambda o: (abs(o[0] * o[1] - h * w), abs(np.log(o[0] / rows)) + abs(np.log(o[1] / cols)), o))
 
 
 def grid_uv(h: int, w: int, hex_rows: bool = False) -> np.ndarray:

@@ -1,8 +1,10 @@
 """Regular chart grids: ``layout=grid`` (the paper's) and ``layout=hex``.
 
-``res`` taxels along the link's long axis; the count around follows from the
-chart's circumference so taxels are square (grid) or equilateral (hex) unless
-``layout.aspect`` says otherwise. Taxel centres are chart-cell centres moved
+``res`` taxels along the link's long axis (grid); the count around follows
+from the chart's circumference so taxels are square unless ``layout.aspect``
+says otherwise. Hex lattices are equilateral with the square grid's area per
+taxel, so both have about the same taxel count at a ``res`` (the hex has
+about 1.075 ``res`` rows; see :func:`sphri.layout.common.grid_dims`). Taxel centres are chart-cell centres moved
 onto the mesh along the primitive's normal (Embree rays); each taxel's area is
 the mesh area that maps into its cell.
 """
@@ -71,9 +73,9 @@ class GridLayout:
 
 
 class HexLayout:
-    """``layout=hex``: a triangular lattice (odd rows shifted half a taxel around)."""
+    """``layout=hex``: a triangular lattice (odd rows shifted half a taxel around), the grid's taxel count."""
 
-    VERSION = "1"
+    VERSION = "2"
 
     def __init__(self, aspect: float = 1.0, seed: int = 0) -> None:
         HexLayoutSchema(aspect=aspect, seed=seed)
@@ -81,5 +83,5 @@ class HexLayout:
         self.seed = seed
 
     def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
-        """Taxels of a ``res``-row hex lattice on ``link``."""
+        """An equilateral lattice on ``link`` with the ``res`` grid's area per taxel."""
         return build_grid(link, surface, res, self.aspect, hex_rows=True, seed=self.seed)

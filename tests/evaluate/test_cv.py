@@ -181,6 +181,37 @@ def test_forest_refuses_features_of_the_wrong_shape():
     np.testing.assert_array_equal(rf.fit_features(feats, win.y).predict_features(feats), rf.predict(win.x))
 
 
+class ThreadSpy(SpyModel):
+    """Records the thread count the CV gave it."""
+
+    seen: list[int] = []
+
+    def __init__(self, geometry: TaxelGeometry | None = None, n_jobs: int = -1):
+        super().__init__(geometry)
+        self.n_jobs = n_jobs
+
+    def fit(self, x, y, groups=None):
+        ThreadSpy.seen.append(self.n_jobs)
+        return super().fit(x, y, groups)
+
+
+def test_a_sweep_jobs_thread_budget_caps_the_folds(monkeypatch, spy):
+    from sphri.evaluate.cv import available_cores
+
+    monkeypatch.delenv("SPHRI_THREADS", raising=False)
+    cores = available_cores()
+    monkeypatch.setenv("SPHRI_THREADS", "1")
+    assert available_cores() == 1
+    ThreadSpy.seen.clear()
+    LeaveOneSubjectOut(progress=False).run(lambda: ThreadSpy(), spy_windows(participants=3), seed=0)
+    assert ThreadSpy.seen == [1, 1, 1]
+    monkeypatch.setenv("SPHRI_THREADS", str(cores + 5))
+    assert available_cores() == cores  # a budget never exceeds the machine
+    monkeypatch.setenv("SPHRI_THREADS", "two")
+    with pytest.raises(ValueError, match="SPHRI_THREADS='two'"):
+        available_cores()
+
+
 def test_thread_caps_reach_the_model(spy):
     from sphri.evaluate.cv import _cap_threads
 

@@ -11,7 +11,7 @@ from sphri.config import CONF_DIR, normalize_overrides, register_schemas
 
 RAY_TARGET = "hydra_plugins.hydra_ray_launcher.ray_launcher.RayLauncher"
 SLURM_TARGET = "hydra_plugins.hydra_submitit_launcher.submitit_launcher.SlurmLauncher"
-THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS")
+THREAD_VARS = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "SPHRI_THREADS")
 SETUP_THREADS = "export OMP_NUM_THREADS=$(( SLURM_CPUS_PER_TASK > 0 ? SLURM_CPUS_PER_TASK : 1 ))"
 #: hydra-ray-launcher registers a `hydra/launcher/ray` node of its own; our
 #: ray.yaml has the same name, so Hydra merges the two and warns about it.

@@ -72,6 +72,16 @@ def test_hex_rows_are_shifted(cyl_link, cyl_map):
     assert lay.pitch_v_m == pytest.approx(lay.pitch_u_m * 2 / np.sqrt(3), rel=0.1)
 
 
+@pytest.mark.parametrize("res", [3, 6, 12, 18, 30, 50])
+def test_hex_matches_the_grids_taxel_count(cyl_link, cyl_map, res):
+    grid = GridLayout().build(cyl_link, cyl_map, res)
+    hexa = HexLayout().build(cyl_link, cyl_map, res)
+    assert abs(hexa.n_taxels - grid.n_taxels) <= 0.02 * grid.n_taxels + 1
+    # the same area per taxel: the hex nearest-neighbour spacing is sqrt(2/sqrt(3)) ~ 1.075 x the grid pitch
+    h, w = hexa.grid_shape
+    assert cyl_map.metres_per_v / w == pytest.approx(grid.pitch_u_m * np.sqrt(2 / np.sqrt(3)), rel=0.12)
+
+
 def test_grid_needs_a_chart(cyl_link):
     with pytest.raises(ValueError, match="layout.grid needs a surface with a 2-D chart"):
         GridLayout().build(cyl_link, MeshSurface().fit(cyl_link), 18)
