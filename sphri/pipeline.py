@@ -270,9 +270,24 @@ def run(cfg: DictConfig, cache: StageCache | None = None) -> RunResult:
     return RunResult(cv=cv, meta=meta, stages=dict(p.records), config_hash=config_hash(cfg))
 
 
+def component_versions(cfg: DictConfig) -> dict[str, str]:
+    """``VERSION`` of each stage group's component class (what its results depend on besides config)."""
+    from sphri.config import STAGE_GROUPS
+
+    out = {}
+    for group in STAGE_GROUPS:
+        node = cfg.get(group)
+        target = node.get("_target_") if isinstance(node, DictConfig) else None
+        if group != "tracking" and isinstance(target, str):
+            out[group] = str(getattr(get_class(target), "VERSION", "0"))
+    return out
+
+
 def config_hash(cfg: DictConfig) -> str:
-    """Hash of the experiment-defining config (everything but tracking/cache/hydra)."""
+    """Hash of what defines a job's result: its config (everything but tracking/cache/hydra) and the
+    ``VERSION`` of every component, so that a sweep resumed after a component changed reruns its jobs."""
     c = OmegaConf.to_container(cfg, resolve=True)
     for k in ("tracking", "cache", "output_dir", "resume", "hydra", "debug", "experiment"):
         c.pop(k, None)
+    c["_component_versions"] = component_versions(cfg)
     return stable_hash(c)

@@ -111,3 +111,18 @@ def test_synthetic_data_is_keyed_on_the_robot(tmp_path: Path):
     reachy = sources(run(cache, "robot=reachy", "encoder.res=3"))
     assert reachy["data"] == "computed"
     assert nao.stages["data"].key != run(cache, "robot=reachy", "encoder.res=3").stages["data"].key
+
+
+def test_config_hash_follows_component_versions(monkeypatch):
+    """Resume finds finished jobs by this hash: a changed component must not reuse their results."""
+    from sphri.layout.grid import HexLayout
+
+    cfg = compose(["layout=hex", *FAST])
+    before = pipeline.config_hash(cfg)
+    assert pipeline.config_hash(compose(["layout=hex", *FAST])) == before
+    assert pipeline.component_versions(cfg)["layout"] == HexLayout.VERSION
+    monkeypatch.setattr(HexLayout, "VERSION", HexLayout.VERSION + "-changed")
+    assert pipeline.config_hash(cfg) != before
+    # tracking is not part of a job's result
+    assert "tracking" not in pipeline.component_versions(cfg)
+
