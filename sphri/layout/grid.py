@@ -4,9 +4,10 @@
 from the chart's circumference so taxels are square unless ``layout.aspect``
 says otherwise. Hex lattices are equilateral with the square grid's area per
 taxel, so both have about the same taxel count at a ``res`` (the hex has
-about 1.075 ``res`` rows; see :func:`sphri.layout.common.grid_dims`). Taxel centres are chart-cell centres moved
-onto the mesh along the primitive's normal (Embree rays); each taxel's area is
-the mesh area that maps into its cell.
+about 1.075 ``res`` rows; see :func:`sphri.layout.common.grid_dims`). Taxel
+centres are chart-cell centres moved onto the mesh along the primitive's
+normal (Embree rays); each taxel's area is the mesh area that maps into its
+cell.
 """
 
 from __future__ import annotations

@@ -10,8 +10,9 @@ radius where contact is frequent, so taxels crowd there. Seeded.
 
 The density map is either a file (``layout.density_path``, e.g. exported by
 ``python -m sphri.coverage``) or, with ``density_path`` empty, the run's own
-contacts: the number of contact points (capsule-frames) within
-``bandwidth_mm`` of each surface point. The latter is built from every
+contacts: the same density the coverage analysis exports (frames touching
+each surface element, smoothed along the surface by ``bandwidth_mm``;
+:func:`density_from_contacts`). The latter is built from every
 participant, held-out ones included, so under leave-one-subject-out it is an
 optimistic placement; for a held-out one, export the density from other
 participants or another study and pass its file.
@@ -143,49 +144,46 @@ def load_density(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return pts, dens
 
 
-def density_from_file(density_path: str, link: Link) -> "DensityAt":
-    """Density at surface points from a map file: each point takes its nearest map point's value."""
-    dpts, dens = load_density(density_path)
-    tree = cKDTree(dpts)
+DensityAt = Callable[[np.ndarray], np.ndarray]
+"""Density (>= 0, any scale) at (P, 3) surface points (metres) -> (P,)."""
+
+
+def nearest_density(points_m: np.ndarray, density: np.ndarray, link: Link, source: str) -> DensityAt:
+    """Density at surface points from a sampled map: each point takes its nearest map point's value."""
+    tree = cKDTree(points_m)
     scale = np.sqrt(float(face_areas(link).sum()))
 
     def at(points: np.ndarray) -> np.ndarray:
         dist, nearest = tree.query(points)
         if np.median(dist) > 0.1 * scale:
             log.warning(
-                "layout.density: density points lie %.1f mm (median) from link %r's surface; is density_path for this link?",
-                np.median(dist) * 1e3, link.name,
+                "layout.density: the density map (%s) lies %.1f mm (median) from link %r's surface; is it for this link?",
+                source, np.median(dist) * 1e3, link.name,
             )
-        return dens[nearest]
+        return density[nearest]
 
     return at
 
 
-#: Contact points used for a density from contacts (a seeded subsample beyond this).
-MAX_DENSITY_POINTS = 200_000
+def density_from_contacts(contacts: Contacts, link: Link, bandwidth_mm: float, seed: int = 0) -> DensityAt:
+    """The coverage analysis's contact density of ``contacts`` on ``link`` (``python -m sphri.coverage``'s map).
 
+    Surface samples about 4 mm apart; each frame counts once per element its
+    contact patches touch; geodesic Gaussian smoothing of ``bandwidth_mm``
+    (:mod:`sphri.analysis.density`).
+    """
+    from sphri.analysis.density import SurfaceKernel, sample_link, touched_elements
 
-def density_from_contacts(contacts: Contacts, link: Link, bandwidth_m: float, seed: int = 0) -> "DensityAt":
-    """Density at surface points: how many contact points (capsule-frames) lie within ``bandwidth_m``."""
-    pts = np.asarray(contacts.point_m, dtype=np.float64).reshape(-1, 3)
-    pts = pts[np.all(np.isfinite(pts), axis=1)]
-    if pts.shape[0] == 0:
+    if contacts.n_contacts == 0:
         raise ValueError(
             f"layout=density with an empty layout.density_path places taxels by this run's contacts, "
             f"but there is no contact on link {link.name!r}; set layout.density_path to a density .npz"
         )
-    if pts.shape[0] > MAX_DENSITY_POINTS:
-        pts = pts[np.random.default_rng(seed).choice(pts.shape[0], MAX_DENSITY_POINTS, replace=False)]
-    tree = cKDTree(pts)
-
-    def at(points: np.ndarray) -> np.ndarray:
-        return tree.query_ball_point(points, r=bandwidth_m, return_length=True).astype(np.float64)
-
-    return at
-
-
-DensityAt = Callable[[np.ndarray], np.ndarray]
-"""Density (>= 0, any scale) at (P, 3) surface points (metres) -> (P,)."""
+    samples = sample_link(link, spacing_mm=4.0, seed=seed)
+    _, elements = touched_elements(samples, contacts.frame, contacts.point_m, contacts.normal, contacts.patch_radius_m)
+    counts = np.bincount(elements, minlength=samples.n).astype(np.float64)
+    density = SurfaceKernel(samples, bandwidth_mm=bandwidth_mm).smooth(counts)
+    return nearest_density(samples.points_m, density, link, "this run's contacts")
 
 
 def build_density(
@@ -243,7 +241,7 @@ class DensityLayout:
     them; see the module doc for why that placement is optimistic under LOSO).
     """
 
-    VERSION = "2"
+    VERSION = "3"
 
     def __init__(
         self,
@@ -278,9 +276,9 @@ class DensityLayout:
                     "layout=density needs layout.density_path (an .npz from python -m sphri.coverage) "
                     "or the run's contacts (the pipeline passes them when density_path is empty)"
                 )
-            density_at = density_from_contacts(contacts, link, self.bandwidth_mm * 1e-3, self.seed)
+            density_at = density_from_contacts(contacts, link, self.bandwidth_mm, self.seed)
         else:
-            density_at = density_from_file(self.density_path, link)
+            density_at = nearest_density(*load_density(self.density_path), link, self.density_path)
         return build_density(
             link, surface, res, density_at, self.aspect, self.seed, self.candidates, self.min_density_fraction
         )

@@ -72,7 +72,7 @@ class DensityLayoutSchema:
     """.npz with ``points_m (P, 3)`` and ``density (P,)`` (exported by the coverage analysis);
     empty: the density of this run's own contacts."""
     bandwidth_mm: float = 10.0
-    """Radius (mm) within which contact points count towards the density from contacts."""
+    """Density from contacts: standard deviation (mm) of the coverage analysis's smoothing kernel."""
     aspect: float = 1.0
     """Aspect of the grid whose taxel count is matched."""
     seed: int = 0

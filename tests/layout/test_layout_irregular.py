@@ -58,8 +58,8 @@ def test_density_layout_crowds_where_touched(cyl_link, cyl_map, tmp_path):
     assert top > 2.5 * (lay.n_taxels - top)
 
 
-def contacts_at(points: np.ndarray):
-    """Contacts (one per point, one frame each) at surface points: only ``point_m`` matters here."""
+def contacts_at(points: np.ndarray, normals: np.ndarray | None = None):
+    """Contacts (one per point, one frame each) at surface points with outward ``normals`` (default +x)."""
     import dataclasses
 
     from sphri.contact.stage import empty_contacts
@@ -69,7 +69,8 @@ def contacts_at(points: np.ndarray):
     return dataclasses.replace(
         base, frame=np.arange(k, dtype=np.int64), capsule=np.zeros(k, dtype=np.int16), distance_m=np.zeros(k),
         inside=np.zeros(k, dtype=bool), point_m=points, segment_point_m=points, triangle=np.zeros(k, dtype=np.int64),
-        barycentric=np.full((k, 3), 1 / 3), normal=np.tile([1.0, 0.0, 0.0], (k, 1)), patch_radius_m=np.full(k, 0.005),
+        barycentric=np.full((k, 3), 1 / 3), normal=np.tile([1.0, 0.0, 0.0], (k, 1)) if normals is None else normals,
+        patch_radius_m=np.full(k, 0.005),
         depth_m=np.full(k, 0.001),
     )
 
@@ -82,12 +83,12 @@ def test_density_from_contacts_crowds_where_touched(cyl_link, cyl_map):
     pts = np.column_stack([0.04 * np.cos(ang), 0.04 * np.sin(ang), z])
     layout = DensityLayout(seed=0)
     assert layout.uses_contacts
-    lay = layout.build(cyl_link, cyl_map, 18, contacts=contacts_at(pts))
+    lay = layout.build(cyl_link, cyl_map, 18, contacts=contacts_at(pts, normals=pts * [25.0, 25.0, 0.0]))
     assert lay.n_taxels == grid_equivalent_count(cyl_link, cyl_map, 18)
     touched = (lay.position_m[:, 2] > 0.01) & (lay.position_m[:, 0] > 0.02)
     # the touched patch is about 1/6 of the area; it gets far more than 1/6 of the taxels
     assert touched.mean() > 0.5
-    again = layout.build(cyl_link, cyl_map, 18, contacts=contacts_at(pts))
+    again = layout.build(cyl_link, cyl_map, 18, contacts=contacts_at(pts, normals=pts * [25.0, 25.0, 0.0]))
     np.testing.assert_array_equal(lay.position_m, again.position_m)
 
 
