@@ -149,7 +149,7 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
     region = chain_region(cfg)
     p = Pipeline(cfg, cache)
     comp = {g: build(cfg[g]) for g in ("hand", "robot", "data", "contact", "surface", "layout", "encoder", "noise", "window", "cv")}
-    ver = {g: str(getattr(type(c), "VERSION", "0")) for g, c in comp.items()}
+    ver = component_versions(cfg)
     res = int(cfg.encoder.res)
     seed = int(cfg.seed)
 
@@ -208,9 +208,8 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         result = comp["cv"].run(make_model, windows, seed)
         return result, run_meta(cfg, dataset, p.get("robot"), region, p.get("surface"), p.get("layout"), windows)
 
-    model_version = str(getattr(get_class(cfg.model._target_), "VERSION", "0"))
     p.add(
-        "evaluate", f"{ver['cv']}-{model_version}", {"model": plain(cfg.model), "cv": plain(cfg.cv), "seed": seed},
+        "evaluate", f"{ver['cv']}-{ver['model']}", {"model": plain(cfg.model), "cv": plain(cfg.cv), "seed": seed},
         {"noise": k_noise, "plan": k_plan, "layout": k_layout}, evaluate,
     )
     return p
