@@ -7,16 +7,14 @@ the pipeline also passes to the layout.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
+
+from omegaconf import OmegaConf
 
 from sphri.config import ConfigError, cross_check, require_choice, require_range, store
 
 MAX_RES = 1000
 
-#: Encoders that rasterize on a regular (H, W) grid of a 2-D chart.
-GRID_ENCODERS = {"sphri.encode.ellipse.EllipseEncoder": "ellipse"}
-#: Layouts that are such a grid, and surfaces that have such a chart.
-GRID_LAYOUTS = {"sphri.layout.grid.GridLayout", "sphri.layout.grid.HexLayout"}
-CHART_SURFACES = {"sphri.surface.cylinder.CylinderSurface", "sphri.surface.box.BoxSurface"}
 
 
 def _res(value: int) -> None:
@@ -28,6 +26,8 @@ class EllipseEncoderSchema:
     """The paper's encoder: contact patches as ellipses rasterized on the (u, v) grid."""
 
     _target_: str = "sphri.encode.ellipse.EllipseEncoder"
+    NEEDS_CHART_GRID: ClassVar[bool] = True
+    """Rasterizes on a grid layout (``CHART_GRID``) of a surface with a chart (``HAS_CHART``)."""
     res: int = 18
     """Taxels along the link's long axis (the paper saturates near 18 per 24 cm)."""
     binary: bool = True
@@ -85,12 +85,20 @@ class ProximityEncoderSchema:
 
 @cross_check
 def grid_encoder_needs_grid_layout(cfg) -> None:
-    """``encoder=ellipse`` rasterizes on the chart grid: refuse irregular layouts and chartless surfaces."""
-    name = GRID_ENCODERS.get(cfg.encoder.get("_target_"))
-    if name is None:
+    """An encoder that rasterizes on the chart grid refuses irregular layouts and chartless surfaces.
+
+    The components say what they are through class attributes of their
+    schemas: ``NEEDS_CHART_GRID`` (encoder), ``CHART_GRID`` (layout),
+    ``HAS_CHART`` (surface); a new component declares its own.
+    """
+    def flag(group: str, name: str) -> bool:
+        return bool(getattr(OmegaConf.get_type(cfg[group]), name, False))
+
+    if not flag("encoder", "NEEDS_CHART_GRID"):
         return
-    layout, surface = cfg.layout.get("_target_", "?"), cfg.surface.get("_target_", "?")
-    if layout not in GRID_LAYOUTS or surface not in CHART_SURFACES:
+    if not (flag("layout", "CHART_GRID") and flag("surface", "HAS_CHART")):
+        name = cfg.encoder.get("_target_", "?").rsplit(".", 1)[-1].removesuffix("Encoder").lower()
+        layout, surface = cfg.layout.get("_target_", "?"), cfg.surface.get("_target_", "?")
         raise ConfigError(
             f"encoder={name} rasterizes on a taxel grid: it needs layout=grid|hex on surface=cylinder|box, "
             f"got layout {layout.rsplit('.', 1)[-1]} on surface {surface.rsplit('.', 1)[-1]}; "

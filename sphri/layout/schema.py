@@ -7,6 +7,7 @@ from ``encoder.res`` by the pipeline; ``file`` layouts ignore it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from sphri.config import require, require_range, store
 
@@ -20,6 +21,8 @@ class GridLayoutSchema:
     """Regular (u, v) grid: H rows along the link, W columns around it."""
 
     _target_: str = "sphri.layout.grid.GridLayout"
+    CHART_GRID: ClassVar[bool] = True
+    """An (H, W) grid on the surface chart (what ``encoder=ellipse`` rasterizes on)."""
     aspect: float = 1.0
     """Taxel pitch around / pitch along (1 = square taxels)."""
     seed: int = 0
@@ -35,6 +38,8 @@ class HexLayoutSchema:
     """Hexagonal (triangular-lattice) grid: odd rows shifted by half a taxel."""
 
     _target_: str = "sphri.layout.grid.HexLayout"
+    CHART_GRID: ClassVar[bool] = True
+    """An (H, W) grid on the surface chart (what ``encoder=ellipse`` rasterizes on)."""
     aspect: float = 1.0
     """Stretch of the lattice around the link (1 = equilateral)."""
     seed: int = 0

@@ -7,6 +7,7 @@ ranges and names the full key (``surface.n_samples``).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from sphri.config import require, require_choice, require_range, store
 
@@ -24,6 +25,8 @@ class CylinderSurfaceSchema:
     """Fitted cylinder: u = h along the axis, v = a the angle (wraps)."""
 
     _target_: str = "sphri.surface.cylinder.CylinderSurface"
+    HAS_CHART: ClassVar[bool] = True
+    """A 2-D (u, v) chart (grid layouts and ``encoder=ellipse`` need one)."""
     axis: str = "auto"
     """Initial axis: ``auto`` (PCA candidates, best fit) or a link axis x|y|z."""
     refine_axis: bool = True
@@ -49,6 +52,8 @@ class BoxSurfaceSchema:
     """Oriented bounding box unfolded into a net (band around the long axis + caps)."""
 
     _target_: str = "sphri.surface.box.BoxSurface"
+    HAS_CHART: ClassVar[bool] = True
+    """A 2-D (u, v) chart (grid layouts and ``encoder=ellipse`` need one)."""
     n_samples: int = 20000
     """Area-weighted surface samples used for the residual."""
     seed: int = 0
