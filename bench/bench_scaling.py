@@ -160,6 +160,22 @@ def taxels_scaling(p, resolutions, repeat: int) -> dict:
     return {"encoded_frames": int(fi.size), "n_windows": int(plan.kept.sum()), "sizes": rows, "fits": fits}
 
 
+def loglog_panel(ax, scan: dict, size_key: str, ref_at_first_s: float, xlabel: str, title: str) -> None:
+    """CPU seconds per fitted stage against ``scan["sizes"][*][size_key]``, log-log, with a slope-1 line."""
+    x = np.array([r[size_key] for r in scan["sizes"]])
+    for i, (name, fit) in enumerate(scan["fits"].items()):
+        y = np.array([r["stages"][name]["cpu_s"] for r in scan["sizes"]])
+        if (y <= 0).all():
+            continue
+        ax.loglog(x, np.maximum(y, 1e-4), "o-", color=f"C{i}", label=f"{name}: slope {fit['cpu']['slope']:.2f}")
+    ref = np.array([x[0], x[-1]], dtype=float)
+    ax.loglog(ref, ref / ref[0] * ref_at_first_s, "k--", lw=0.8, label="slope 1 (linear)")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("CPU seconds (all threads)")
+    ax.set_title(title)
+    ax.legend(fontsize=8)
+
+
 def plot(fr: dict, tx: dict, path: Path) -> None:
     import matplotlib
 
@@ -167,28 +183,10 @@ def plot(fr: dict, tx: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
-    x = np.array([r["n_frames"] for r in fr["sizes"]])
-    for i, (name, fit) in enumerate(fr["fits"].items()):
-        y = np.array([r["stages"][name]["cpu_s"] for r in fr["sizes"]])
-        if (y <= 0).all():
-            continue
-        axes[0].loglog(x, np.maximum(y, 1e-4), "o-", color=f"C{i}", label=f"{name}: slope {fit['cpu']['slope']:.2f}")
-    ref = np.array([x[0], x[-1]], dtype=float)
-    axes[0].loglog(ref, ref / ref[0] * 0.05, "k--", lw=0.8, label="slope 1 (linear)")
-    axes[0].set_xlabel("dataset frames")
-    axes[0].set_ylabel("CPU seconds (all threads)")
-    axes[0].set_title(f"time per stage vs frames ({fr['participants']} participants, more repetitions)")
-    axes[0].legend(fontsize=8)
-    n = np.array([r["n_taxels"] for r in tx["sizes"]])
-    for i, (name, fit) in enumerate(tx["fits"].items()):
-        y = np.array([r["stages"][name]["cpu_s"] for r in tx["sizes"]])
-        axes[1].loglog(n, np.maximum(y, 1e-4), "o-", color=f"C{i}", label=f"{name}: slope {fit['cpu']['slope']:.2f}")
-    ref = np.array([n[0], n[-1]], dtype=float)
-    axes[1].loglog(ref, ref / ref[0] * 0.01, "k--", lw=0.8, label="slope 1 (linear)")
-    axes[1].set_xlabel("taxels N (grid, res along the arm)")
-    axes[1].set_ylabel("CPU seconds (all threads)")
-    axes[1].set_title(f"time per stage vs taxels ({tx['encoded_frames']} encoded frames)")
-    axes[1].legend(fontsize=8)
+    loglog_panel(axes[0], fr, "n_frames", 0.05, "dataset frames",
+                 f"time per stage vs frames ({fr['participants']} participants, more repetitions)")
+    loglog_panel(axes[1], tx, "n_taxels", 0.01, "taxels N (grid, res along the arm)",
+                 f"time per stage vs taxels ({tx['encoded_frames']} encoded frames)")
     for ax in axes:
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
