@@ -9,7 +9,7 @@ ARGS   ?=
 
 # Installs only when pyproject.toml changed since the last install (quick otherwise).
 # torch is pinned to the CPU build first: an unpinned torch pulls gigabytes of CUDA.
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml setup.py
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q "torch==2.13.0"

@@ -20,8 +20,23 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
-#: The repository's config directory (``conf/`` beside the package).
-CONF_DIR = Path(__file__).resolve().parent.parent / "conf"
+def _find_conf_dir() -> Path:
+    """The config tree: ``conf/`` at the top of a source checkout (editable
+    installs read it in place, so edits take effect), else ``sphri/conf``
+    inside an installed wheel, where the build copies it (pyproject.toml maps
+    the package ``sphri.conf`` onto the repository's ``conf/``)."""
+    package = Path(__file__).resolve().parent
+    for candidate in (package.parent / "conf", package / "conf"):
+        if (candidate / "config.yaml").is_file():
+            return candidate
+    raise FileNotFoundError(
+        f"sphri's config tree (config.yaml) was found neither at {package.parent / 'conf'} (source checkout) "
+        f"nor at {package / 'conf'} (installed wheel): reinstall sphri"
+    )
+
+
+#: The config directory: ``conf/`` of the checkout, or the copy inside the installed package.
+CONF_DIR = _find_conf_dir()
 
 #: Config groups of the pipeline, in stage order. Each is a component with a
 #: ``_target_`` inside ``sphri.``.
