@@ -126,6 +126,11 @@ def main() -> None:
     warnings.filterwarnings(
         "ignore", message=r"(?s).*'hydra/launcher/ray' is validated against ConfigStore schema", category=UserWarning
     )
+    if any(a in ("--help", "-h") for a in sys.argv[1:]):
+        from sphri.cli import help_text
+
+        print(help_text())  # sphri's own help: Hydra's would print every schema entry and the whole config
+        return
     register_schemas()
     sys.argv = [sys.argv[0], *normalize_overrides(sys.argv[1:])]
     _hydra_main()

@@ -14,7 +14,9 @@ message naming the key on any problem.
 from __future__ import annotations
 
 import argparse
+import re
 import sys
+import textwrap
 from pathlib import Path
 
 import yaml
@@ -33,14 +35,22 @@ def components(group: str) -> list[tuple[str, str]]:
 
 
 def _describe(path: Path) -> str:
-    """The file's first comment line, else its ``_target_``."""
+    """One line about a config file: its first comment block (wherever it
+    starts, e.g. after the defaults list), up to the end of its first
+    sentence; else its ``_target_``."""
     text = path.read_text()
+    block: list[str] = []
     for line in text.splitlines():
         s = line.strip()
         if s.startswith("#") and not s.startswith("# @package"):
-            return s.lstrip("# ").strip()
-        if s and not s.startswith("#"):
+            block.append(s.lstrip("#").strip())
+        elif block:
             break
+    if block:
+        words = " ".join(w for w in block if w)
+        end = re.search(r"(?<!e\.g)(?<!i\.e)[.!?](\s|$)", words)
+        return words[: end.start() + 1] if end else words
+    # no comment block: fall through to the target
     try:
         data = yaml.safe_load(text) or {}
     except yaml.YAMLError as exc:
@@ -48,11 +58,61 @@ def _describe(path: Path) -> str:
     return str(data.get("_target_", "")) if isinstance(data, dict) else ""
 
 
+def _row(head: str, text: str, width: int = 100) -> str:
+    """``head`` then ``text`` wrapped to ``width`` columns, continuation lines under the text."""
+    return textwrap.fill(text, width=width, initial_indent=head, subsequent_indent=" " * len(head))
+
+
+def _defaults() -> dict[str, str]:
+    """The default option of each group, from ``conf/config.yaml``'s defaults list."""
+    data = yaml.safe_load((CONF_DIR / "config.yaml").read_text()) or {}
+    out = {}
+    for item in data.get("defaults", []):
+        if isinstance(item, dict):
+            for k, v in item.items():
+                if isinstance(k, str) and not k.startswith(("override ", "optional ")) and isinstance(v, str):
+                    out[k] = v
+    return out
+
+
+def help_text() -> str:
+    """``python -m sphri --help``: usage, common commands, every group's options (one line each)."""
+    defaults = _defaults()
+    lines = [
+        "sphri: design robot tactile skins from interaction data.",
+        "",
+        "usage:",
+        "  python -m sphri [group=option ...] [key=value ...]      one job (one MLflow run)",
+        "  python -m sphri -m key=a,b,c [...]                      a sweep (one MLflow parent run)",
+        "",
+        "common commands:",
+        "  python -m sphri +robot=reachy encoder.res=18            the paper's resolution",
+        "  python -m sphri +debug=fast                             a seconds-long smoke run",
+        "  python -m sphri -m +experiment=resolution_sweep model=rf   the 50-resolution curve",
+        "  python -m sphri.report SWEEP_DIR                        the sweep's report",
+        "  python -m sphri.coverage data.regions=[arm,torso] out=DIR   where people touch",
+        "  python -m sphri.cli list [GROUP] | validate OVERRIDES   components; check a config",
+        "  python -m sphri --cfg job [overrides]                   print the composed config",
+        "  python -m sphri --hydra-help                            Hydra's own flags",
+        "",
+        "config groups (group=option; * marks the default):",
+    ]
+    for group in DEFAULT_GROUPS:
+        if not (CONF_DIR / group).is_dir():
+            continue
+        lines.append(f"  {group}:")
+        for name, desc in components(group):
+            mark = "*" if defaults.get(group) == name else " "
+            lines.append(_row(f"    {mark}{name:<19} ", desc))
+    lines += ["", "top-level keys: seed, output_dir, resume, cache.enabled, cache.dir (see README.md)"]
+    return "\n".join(lines)
+
+
 def cmd_list(groups: list[str]) -> int:
     for group in groups or list(DEFAULT_GROUPS):
         print(f"{group}:")
         for name, desc in components(group):
-            print(f"  {name:<20} {desc}")
+            print(_row(f"  {name:<20} ", desc))
     return 0
 
 

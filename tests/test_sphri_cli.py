@@ -12,10 +12,37 @@ def test_list_robot_shows_builtins(capsys):
         assert f"  {name} " in out
 
 
-def test_every_component_has_a_description():
-    for group in ("encoder", "model", "layout", "noise"):
+def test_every_component_has_a_sentence_description():
+    """Every file of every group says what it is in words (not its class path), whole sentences."""
+    from sphri.config import DEFAULT_GROUPS
+
+    for group in DEFAULT_GROUPS:
         for name, desc in components(group):
-            assert desc, f"conf/{group}/{name}.yaml has neither a comment line nor a _target_"
+            assert desc and not desc.startswith("sphri."), f"conf/{group}/{name}.yaml has no comment describing it"
+            assert desc[-1] not in ":,;(", f"conf/{group}/{name}.yaml: description cut mid-sentence: {desc!r}"
+
+
+def test_help_lists_groups_not_schemas_or_the_config(capsys):
+    import re
+    import sys
+
+    from sphri import __main__ as entry
+    from sphri.config import CONF_DIR, DEFAULT_GROUPS
+
+    argv = sys.argv
+    sys.argv = ["sphri", "--help"]
+    try:
+        entry.main()
+    finally:
+        sys.argv = argv
+    out = capsys.readouterr().out
+    for group in DEFAULT_GROUPS:
+        assert f"  {group}:" in out
+        for path in (CONF_DIR / group).glob("*.yaml"):
+            assert re.search(rf"[ *]{path.stem} ", out), f"{group}={path.stem} missing from --help"
+    assert "_schema" not in out
+    assert "quest_capsules" in out and "capsules:" not in out  # options listed, the composed config is not
+    assert len(out.splitlines()) < 200
 
 
 def test_validate_ok_and_error(capsys):
