@@ -112,6 +112,9 @@ class Pipeline:
         computed: list[bool] = []
 
         def compute() -> Any:
+            from sphri._numba import announce_compiles
+
+            announce_compiles()  # a first run says that it compiles kernels instead of looking stuck
             computed.append(True)
             log.info("stage %-9s computing (key %s)", name, node.key)
             return node.compute()
@@ -266,7 +269,24 @@ def run(cfg: DictConfig, cache: StageCache | None = None) -> RunResult:
     skipped = [n for n, r in p.records.items() if r.source == "skipped"]
     if cached:
         log.info("from cache: %s; not needed: %s", ", ".join(cached), ", ".join(skipped) or "none")
+    compiled = _compile_report()
+    if compiled:
+        log.info(compiled)
     return RunResult(cv=cv, meta=meta, stages=dict(p.records), config_hash=config_hash(cfg))
+
+
+def _compile_report() -> str | None:
+    """How long this process spent compiling numba kernels (None if it loaded them all from cache)."""
+    import sys
+
+    if "sphri._numba" not in sys.modules:
+        return None
+    from sphri._numba import announce_compiles
+
+    a = announce_compiles()
+    if not a.kernels:
+        return None
+    return f"compiled {a.kernels} numba kernels in {a.seconds:.1f} s (once: later runs load them from numba's cache)"
 
 
 def component_versions(cfg: DictConfig) -> dict[str, str]:
