@@ -1,0 +1,47 @@
+"""sphri.figures: print sizes, vector output, and the layout checks the figure tests rely on."""
+
+from __future__ import annotations
+
+import pytest
+
+from sphri import figures
+
+
+def test_clean_figure_has_no_problems_and_saves_three_formats(tmp_path):
+    fig, ax = figures.new_figure("one", 2.4)
+    ax.plot([1, 2, 3], [1, 4, 9])
+    ax.set_xlabel("taxel pitch (mm)")
+    ax.set_ylabel("accuracy")
+    figures.mark(fig, figures.Provenance(synthetic=True, ids="sweep abc"))
+    assert figures.layout_problems(fig) == []
+    written = figures.save(fig, tmp_path / "curve.png")
+    assert sorted(p.suffix for p in written) == [".pdf", ".png", ".svg"]
+    assert all(p.stat().st_size > 0 for p in written)
+    assert "SYNTHETIC DATA" in (tmp_path / "curve.svg").read_text()  # text stays text in SVG
+
+
+@pytest.mark.filterwarnings("ignore:constrained_layout not applied")
+def test_text_past_the_canvas_is_found():
+    fig, ax = figures.new_figure("one", 2.0)
+    ax.text(0.9, 0.5, "a label far too long to fit inside a one-column figure", transform=ax.transAxes)
+    assert any("extends past the canvas" in p for p in figures.layout_problems(fig))
+
+
+def test_small_print_size_fonts_are_found():
+    fig, ax = figures.new_figure(12.0, 6.0)  # drawn wide: printed at two columns, fonts shrink
+    ax.set_title("title at 8.5 pt")
+    assert any("pt at print size" in p for p in figures.layout_problems(fig))
+
+
+def test_overlapping_labels_are_found():
+    fig, ax = figures.new_figure("one", 2.0)
+    ax.text(0.2, 0.5, "saturation", transform=ax.transAxes)
+    ax.text(0.22, 0.5, "study: 18 taxels", transform=ax.transAxes)
+    assert any("overlaps" in p for p in figures.layout_problems(fig))
+
+
+def test_provenance_switch():
+    assert figures.Provenance(synthetic=True).visible
+    assert not figures.Provenance(synthetic=False).visible
+    assert not figures.Provenance(synthetic=True, show=False).visible
+    assert figures.Provenance(synthetic=False, ids="run 1", show=True).visible
