@@ -86,7 +86,10 @@ def style() -> Iterator[None]:
 
 
 def new_figure(width: str | float = "two", height: float = 2.6, nrows: int = 1, ncols: int = 1, **kwargs):
-    """``(fig, axes)`` at print size in sphri's style (constrained layout)."""
+    """``(fig, axes)`` at print size in sphri's style (constrained layout).
+
+    Draw inside ``with style():`` as well: matplotlib fixes an artist's font
+    when it is created (titles, labels, colour bars added later)."""
     plt = pyplot()
     with style():
         fig, axes = plt.subplots(nrows, ncols, figsize=(width_in(width), float(height)), **kwargs)

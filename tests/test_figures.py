@@ -45,3 +45,24 @@ def test_provenance_switch():
     assert not figures.Provenance(synthetic=False).visible
     assert not figures.Provenance(synthetic=True, show=False).visible
     assert figures.Provenance(synthetic=False, ids="run 1", show=True).visible
+
+
+def test_confusion_matrix_fits_one_column_without_layout_problems(tmp_path, monkeypatch):
+    import numpy as np
+
+    from sphri.tracking import artifacts
+    from sphri.types import CVResult, FoldResult
+
+    rng = np.random.default_rng(0)
+    folds = [FoldResult(str(i), 40, 0.5, 0.5, rng.integers(0, 9, (8, 8)), np.full(8, 0.5)) for i in range(3)]
+    cv = CVResult("loso", "rf", folds)
+    seen = []
+    monkeypatch.setattr(figures, "layout_problems", lambda fig, *a: seen.append(_real_problems(fig)) or seen[-1])
+    out = artifacts.write_confusion_png(cv, tmp_path / "confusion.png", title="rf, LOSO over 3 folds",
+                                        provenance=figures.Provenance(synthetic=True, ids="res 18"),
+                                        formats=("png", "pdf", "svg"))
+    assert seen == [[]]
+    assert {p.suffix for p in tmp_path.iterdir()} == {".png", ".pdf", ".svg"} and out.exists()
+
+
+_real_problems = figures.layout_problems

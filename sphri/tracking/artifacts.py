@@ -22,30 +22,34 @@ def write_fold_csv(cv: CVResult, path: Path) -> Path:
     return path
 
 
-def write_confusion_png(cv: CVResult, path: Path, title: str | None = None) -> Path:
-    """Row-normalised confusion matrix summed over folds, as a PNG."""
-    import matplotlib
+def write_confusion_png(
+    cv: CVResult, path: Path, title: str | None = None, provenance=None, formats: tuple[str, ...] = ("png",)
+) -> Path:
+    """Row-normalised confusion matrix summed over folds, one column wide (``sphri.figures``).
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    ``formats``: files written beside ``path`` (a job logs the PNG; a report
+    asks for PDF and SVG too); ``provenance``: a :class:`sphri.figures.Provenance`.
+    """
+    from sphri import figures
 
     total = np.sum([f.confusion for f in cv.folds], axis=0).astype(float)
     rows = total.sum(axis=1, keepdims=True)
     norm = np.divide(total, rows, out=np.zeros_like(total), where=rows > 0)
-    fig, ax = plt.subplots(figsize=(5.2, 4.6), dpi=120)
-    im = ax.imshow(norm, vmin=0, vmax=1, cmap="Blues")
-    ax.set_xticks(range(len(cv.labels)), cv.labels, rotation=45, ha="right")
-    ax.set_yticks(range(len(cv.labels)), cv.labels)
-    ax.set_xlabel("predicted")
-    ax.set_ylabel("true")
-    for i in range(norm.shape[0]):
-        for j in range(norm.shape[1]):
-            if total[i].sum() > 0:
-                ax.text(j, i, f"{norm[i, j]:.2f}", ha="center", va="center", fontsize=7,
-                        color="white" if norm[i, j] > 0.5 else "black")
-    ax.set_title(title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)")
-    fig.colorbar(im, ax=ax, fraction=0.046, pad=0.04, label="recall share")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    with figures.style():  # every artist drawn under the style (fonts are fixed at creation)
+        fig, ax = figures.new_figure("one", 3.1)
+        im = ax.imshow(norm, vmin=0, vmax=1, cmap="Blues")
+        ax.set_xticks(range(len(cv.labels)), cv.labels, rotation=45, ha="right")
+        ax.set_yticks(range(len(cv.labels)), cv.labels)
+        ax.set_xlabel("predicted gesture")
+        ax.set_ylabel("true gesture")
+        for i in range(norm.shape[0]):
+            for j in range(norm.shape[1]):
+                if total[i].sum() > 0:
+                    ax.text(j, i, f"{norm[i, j]:.2f}".lstrip("0") if norm[i, j] < 1 else "1", ha="center", va="center",
+                            fontsize=figures.MIN_FONT_PT, color="white" if norm[i, j] > 0.5 else "black")
+        ax.set_title(title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)", loc="left")
+        fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="share of the true gesture's trials")
+        if provenance is not None:
+            figures.mark(fig, provenance)
+        figures.save(fig, path, formats=formats)
     return path

@@ -283,9 +283,11 @@ class MlflowTracker:
             tmp_path = Path(tmp)
             (tmp_path / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))
             write_fold_csv(result.cv, tmp_path / "per_participant.csv")
-            label = "SYNTHETIC data" if result.meta.get("synthetic") else result.meta.get("dataset", "")
+            from sphri.figures import Provenance
+
             write_confusion_png(result.cv, tmp_path / "confusion.png",
-                                title=f"{result.cv.model} ({result.cv.scheme.upper()}, {len(result.cv.folds)} folds), {label}")
+                                title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
+                                provenance=Provenance(synthetic=bool(result.meta.get("synthetic")), ids=f"res {cfg.encoder.res}"))
             (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
             (tmp_path / "meta.json").write_text(json.dumps(result.meta, indent=2, default=str))
             self._retry(lambda: client.log_artifacts(run_id, str(tmp_path)))
