@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import OUT, machine, timeit, write_json  # noqa: E402
 
 from sphri.contact import capsule_mesh_query, prepare_mesh, sphere_mesh_query  # noqa: E402
-from sphri.contact.reference import arm_stand_in, compare, random_capsules, reference_query  # noqa: E402
+from sphri.testing.contact_reference import arm_stand_in, compare, random_capsules, reference_query  # noqa: E402
 
 SHARED_ARM = Path(__file__).resolve().parents[2] / "shared" / "vr-gesture-dataset" / "assets" / "arm_mesh.obj"
 SPHERE_KS = (1, 3, 5, 9, 17)

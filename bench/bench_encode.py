@@ -1,7 +1,7 @@
 """Benchmark the encoders: speed at full dataset size and error against references.
 
 Writes ``outputs/bench/encode.json``. Contacts are synthetic with the real
-study's statistics (``sphri.encode.synthetic``: 3-8 capsules per contact frame,
+study's statistics (``sphri.testing.synthetic_contacts``: 3-8 capsules per contact frame,
 finger-sized patches, 70 % of window frames in contact) on the Reachy arm hull
 from ../shared when present, else on a cylinder of the same size. Full size is
 2,880 trials x 50 window frames = 144,000 frames (``--quick``: 20,000).
@@ -40,8 +40,8 @@ from sphri.encode.coverage import CoverageEncoder, encode_3d_coverage  # noqa: E
 from sphri.encode.ellipse import EllipseEncoder  # noqa: E402
 from sphri.encode.proximity import ProximityEncoder  # noqa: E402
 from sphri.encode.raster import patch_ellipses  # noqa: E402
-from sphri.encode.reference import iou, reference_raster  # noqa: E402
-from sphri.encode.synthetic import synthetic_contacts  # noqa: E402
+from sphri.testing.raster_reference import iou, reference_raster  # noqa: E402
+from sphri.testing.synthetic_contacts import synthetic_contacts  # noqa: E402
 from sphri.layout.common import row_offsets  # noqa: E402
 from sphri.layout.grid import GridLayout  # noqa: E402
 from sphri.layout.poisson import RandomLayout  # noqa: E402

@@ -12,7 +12,7 @@ subset to every participant.
 Data: ``--data pipeline`` (default) runs the sphri chain on the built-in
 synthetic gestures (``data=synthetic``, 18 participants x 20 repetitions,
 cached under outputs/cache); ``--data toy`` uses
-:func:`sphri.models.toydata.blob_windows` (moving blobs, same size). If the
+:func:`sphri.testing.toy_windows.blob_windows` (moving blobs, same size). If the
 pipeline fails the toy data is used and the JSON says so.
 
     python bench/bench_models.py            # full size
@@ -39,7 +39,7 @@ from sphri.evaluate.cv import LeaveOneSubjectOut  # noqa: E402
 from sphri.evaluate.metrics import summarize  # noqa: E402
 from sphri.models.cnn_gru import CnnGru  # noqa: E402
 from sphri.models.rf import RandomForest  # noqa: E402
-from sphri.models.toydata import blob_windows  # noqa: E402
+from sphri.testing.toy_windows import blob_windows  # noqa: E402
 from sphri.types import WindowedFrames  # noqa: E402
 
 log = logging.getLogger("bench_models")

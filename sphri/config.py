@@ -102,6 +102,18 @@ def store(group: str, name: str, node: type) -> None:
     ConfigStore.instance().store(group=group, name=name, node=node)
 
 
+def build(node: DictConfig, **kwargs: Any) -> Any:
+    """Instantiate a component from its config node (plain Python containers)."""
+    from hydra.utils import instantiate
+
+    return instantiate(node, _convert_="all", **kwargs)
+
+
+def plain(node: Any) -> Any:
+    """Resolved plain-Python copy of a config node (for hashing and logging)."""
+    return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
+
+
 def require(ok: bool, key: str, value: Any, expected: str) -> None:
     """Raise :class:`ConfigError` unless ``ok``: ``key=value is invalid: expected``."""
     if not ok:

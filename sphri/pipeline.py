@@ -27,23 +27,13 @@ from hydra.utils import get_class, instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from sphri.cache import StageCache, stable_hash, stage_key
-from sphri.config import ConfigError
+from sphri.config import ConfigError, build, plain
 from sphri.types import CVResult, GestureDataset, TaxelGeometry
 
 log = logging.getLogger(__name__)
 
 #: Stages whose outputs are written to the on-disk cache.
 PERSISTED = frozenset({"data", "contact", "surface", "layout", "plan", "evaluate"})
-
-
-def build(node: DictConfig, **kwargs: Any) -> Any:
-    """Instantiate a component from its config node (plain Python containers)."""
-    return instantiate(node, _convert_="all", **kwargs)
-
-
-def plain(node: Any) -> Any:
-    """Resolved plain-Python copy of a config node (for hashing and logging)."""
-    return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Analyses beside the chain: where people touch a link, and whether groups differ.
 
-- :mod:`sphri.analysis.density`: surface samples (elements), contact
+- :mod:`sphri.surface.density`: surface samples (elements), contact
   footprints, geodesic / Euclidean kernel smoothing to a density in 1/m^2.
 - :mod:`sphri.analysis.placement`: greedy coverage curve, the placement
   recommendation and its leave-one-participant-out check.
@@ -26,10 +26,10 @@ __getattr__, __all__ = lazy_exports(
         "RegionCoverage": "sphri.analysis.coverage",
         "write_density_npz": "sphri.analysis.coverage",
         "write_region": "sphri.analysis.coverage",
-        "SurfaceKernel": "sphri.analysis.density",
-        "SurfaceSamples": "sphri.analysis.density",
-        "sample_link": "sphri.analysis.density",
-        "touched_elements": "sphri.analysis.density",
+        "SurfaceKernel": "sphri.surface.density",
+        "SurfaceSamples": "sphri.surface.density",
+        "sample_link": "sphri.surface.density",
+        "touched_elements": "sphri.surface.density",
         "CoverageCurve": "sphri.analysis.placement",
         "coverage_curve": "sphri.analysis.placement",
         "heldout_capture": "sphri.analysis.placement",

@@ -4,7 +4,7 @@
 turns a dataset's contacts on one link into
 
 - a contact density per group of trials (``by``: any trial column) and
-  overall (``"all"``), on surface samples (:mod:`sphri.analysis.density`);
+  overall (``"all"``), on surface samples (:mod:`sphri.surface.density`);
 - the greedy coverage curve and the placement recommendation per group, with
   a leave-one-participant-out check (:mod:`sphri.analysis.placement`);
 - paired sliced-Wasserstein tests between every pair of groups across
@@ -28,7 +28,7 @@ import numpy as np
 import pandas as pd
 
 from sphri.analysis.compare import PairwiseComparison, paired_swd_tests, split_halves
-from sphri.analysis.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
+from sphri.surface.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
 from sphri.analysis.placement import (
     CoverageCurve,
     coverage_curve,

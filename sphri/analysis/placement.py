@@ -22,7 +22,7 @@ from numba import njit
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
-from sphri.analysis.density import SurfaceKernel, SurfaceSamples, _neighbour_csr
+from sphri.surface.density import SurfaceKernel, SurfaceSamples, _neighbour_csr
 
 
 @dataclass

@@ -25,7 +25,7 @@ import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 
 from sphri.analysis.compare import PairwiseComparison  # noqa: E402
-from sphri.analysis.density import SurfaceSamples  # noqa: E402
+from sphri.surface.density import SurfaceSamples  # noqa: E402
 from sphri.analysis.placement import CoverageCurve  # noqa: E402
 from sphri.types import Link, SurfaceMap  # noqa: E402
 

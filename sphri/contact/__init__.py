@@ -9,7 +9,7 @@ Public API:
   :class:`~sphri.contact.spheres.SphereContact`: the pipeline components
   (``contact=exact`` / ``contact=spheres``), ``compute(dataset, robot) -> Contacts``.
 - :func:`prepare_mesh`: the cached per-link acceleration data.
-- :mod:`sphri.contact.reference`: a brute-force numpy reference and the
+- (tests) :mod:`sphri.testing.contact_reference`: a brute-force numpy reference and the
   benchmark's capsule sets.
 """
 

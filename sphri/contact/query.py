@@ -22,7 +22,7 @@ Exactness: every distance below ``radius + margin``, and every distance of a
 capsule reaching into the hull, is the exact float64 segment-to-triangle
 distance (computed relative to the mesh's box centre, so offsets of 1000 m
 keep full precision). Tests compare it with the brute-force reference
-(:mod:`sphri.contact.reference`) to 1e-12 m on random and adversarial sets.
+(:mod:`sphri.testing.contact_reference`) to 1e-12 m on random and adversarial sets.
 """
 
 from __future__ import annotations

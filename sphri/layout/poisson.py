@@ -170,9 +170,9 @@ def density_from_contacts(contacts: Contacts, link: Link, bandwidth_mm: float, s
 
     Surface samples about 4 mm apart; each frame counts once per element its
     contact patches touch; geodesic Gaussian smoothing of ``bandwidth_mm``
-    (:mod:`sphri.analysis.density`).
+    (:mod:`sphri.surface.density`).
     """
-    from sphri.analysis.density import SurfaceKernel, sample_link, touched_elements
+    from sphri.surface.density import SurfaceKernel, sample_link, touched_elements
 
     if contacts.n_contacts == 0:
         raise ValueError(

@@ -8,7 +8,7 @@
 
 Both are scikit-learn estimators: ``fit(x, y, groups=None)``, ``predict``,
 ``predict_proba`` on ``WindowedFrames.x`` (n, L, N); constructor = config
-fields + ``geometry``. :mod:`sphri.models.toydata` draws synthetic windows
+fields + ``geometry``. :mod:`sphri.testing.toy_windows` draws synthetic windows
 for tests and benchmarks.
 """
 

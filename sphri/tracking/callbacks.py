@@ -39,8 +39,7 @@ class MlflowSweepCallback(Callback):
     """Opens the sweep's parent run on multirun start and closes it at the end."""
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
-        from sphri.config import register_schemas
-        from sphri.pipeline import build
+        from sphri.config import build, register_schemas
 
         register_schemas()
         sweep_dir = Path(config.hydra.sweep.dir)
@@ -71,7 +70,7 @@ class MlflowSweepCallback(Callback):
         parent = read_parent(sweep_dir)
         if parent and config.tracking.enabled:
             # a resumed sweep's parent is FINISHED when every job is (skipped ones included)
-            from sphri.pipeline import build
+            from sphri.config import build
 
             build(config.tracking).end_parent(config.output_dir, parent["run_id"], len(statuses), n_failed)
         msg = f"sweep {sweep_id_of(sweep_dir)}: {len(statuses) - n_failed} of {len(statuses)} jobs finished"

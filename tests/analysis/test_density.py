@@ -7,7 +7,7 @@ import pytest
 import trimesh
 from coverage_fixtures import cylinder_link, plate_link
 
-from sphri.analysis.density import SurfaceKernel, graph_stretch, sample_link, touched_elements
+from sphri.surface.density import SurfaceKernel, graph_stretch, sample_link, touched_elements
 from sphri.surface.meshutil import face_areas
 from sphri.types import Link
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import trimesh
 
-from sphri.contact.reference import arm_stand_in
+from sphri.testing.contact_reference import arm_stand_in
 
 
 @pytest.fixture(scope="session")

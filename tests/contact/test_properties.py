@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from sphri.contact import capsule_mesh_query
-from sphri.contact.reference import arm_stand_in, random_capsules
+from sphri.testing.contact_reference import arm_stand_in, random_capsules
 
 from contact_checks import TOL_M, check_against_reference, check_fields
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sphri.contact import capsule_mesh_query, prepare_mesh, sphere_mesh_query, winding_number
-from sphri.contact.reference import random_capsules, reference_query, winding_direct
+from sphri.testing.contact_reference import random_capsules, reference_query, winding_direct
 
 from contact_checks import TOL_M, check_against_reference, check_fields
 

@@ -11,7 +11,7 @@ import pytest
 
 from sphri.contact import capsule_mesh_query, prepare_mesh
 from sphri.contact.exact import ExactContact
-from sphri.contact.reference import arm_stand_in, compare, random_capsules, reference_query
+from sphri.testing.contact_reference import arm_stand_in, compare, random_capsules, reference_query
 from sphri.types import TRIAL_COLUMNS, GestureDataset, HandModel, Link, Robot
 
 pytestmark = pytest.mark.slow

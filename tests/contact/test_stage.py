@@ -14,7 +14,7 @@ import sphri.contact.schema  # noqa: F401  (registers the schemas)
 from sphri.config import CONF_DIR, ConfigError
 from sphri.contact import capsule_mesh_query, sphere_mesh_query
 from sphri.contact.exact import ExactContact
-from sphri.contact.reference import arm_stand_in
+from sphri.testing.contact_reference import arm_stand_in
 from sphri.contact.schema import ExactContactSchema, SphereContactSchema
 from sphri.contact.spheres import SphereContact
 from sphri.hand.kinematics import capsule_segments

@@ -10,7 +10,7 @@ from sphri.config import ConfigError
 from sphri.encode.coverage import CoverageEncoder
 from sphri.encode.ellipse import EllipseEncoder
 from sphri.encode.proximity import ProximityEncoder
-from sphri.encode.synthetic import make_contacts, synthetic_contacts
+from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
 from sphri.layout.poisson import RandomLayout
 from sphri.surface.mesh import MeshSurface
 from sphri.surface.meshutil import link_from_trimesh

@@ -13,8 +13,8 @@ from sphri.config import ConfigError
 from sphri.encode.common import SkinFrames, select_rows
 from sphri.encode.ellipse import EllipseEncoder
 from sphri.encode.raster import patch_ellipses, rasterize
-from sphri.encode.reference import iou, reference_raster
-from sphri.encode.synthetic import make_contacts, synthetic_contacts
+from sphri.testing.raster_reference import iou, reference_raster
+from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
 from sphri.layout.common import row_offsets
 from sphri.layout.grid import HexLayout
 from sphri.layout.poisson import RandomLayout

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sphri.encode.ellipse import EllipseEncoder
-from sphri.encode.synthetic import synthetic_contacts
+from sphri.testing.synthetic_contacts import synthetic_contacts
 from sphri.layout.grid import GridLayout
 
 

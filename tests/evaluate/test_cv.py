@@ -10,7 +10,7 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 
 from sphri.evaluate.cv import LeaveOneSubjectOut, WithinSubjectKFold
 from sphri.models.rf import RandomForest
-from sphri.models.toydata import blob_windows
+from sphri.testing.toy_windows import blob_windows
 from sphri.types import GESTURES, TaxelGeometry, WindowedFrames
 
 

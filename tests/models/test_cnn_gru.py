@@ -9,7 +9,7 @@ import torch.nn.functional as F
 from sklearn.base import clone
 
 from sphri.models.cnn_gru import CnnGru, GridEncoder, native_bf16, resolve_precision, validation_split
-from sphri.models.toydata import blob_windows
+from sphri.testing.toy_windows import blob_windows
 from sphri.types import TaxelGeometry
 
 TINY = dict(max_epochs=2, batch_size=8, hidden=8, channels=[4, 4, 4], threads=1)

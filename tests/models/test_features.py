@@ -8,7 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sphri.models.features import FEATURE_NAMES, extract_features, frame_signals, taxel_coords
-from sphri.models.toydata import arm_geometry, blob_windows
+from sphri.testing.toy_windows import arm_geometry, blob_windows
 from sphri.types import TaxelGeometry
 
 F = {name: i for i, name in enumerate(FEATURE_NAMES)}

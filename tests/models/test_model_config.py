@@ -9,7 +9,7 @@ from sphri.config import ConfigError, compose
 from sphri.models.cnn_gru import CnnGru
 from sphri.models.rf import RandomForest
 from sphri.models.schema import CnnGruSchema, RandomForestSchema
-from sphri.models.toydata import arm_geometry
+from sphri.testing.toy_windows import arm_geometry
 
 
 @pytest.mark.parametrize("name,cls", [("rf", RandomForest), ("cnn_gru", CnnGru)])

@@ -11,7 +11,7 @@ from sklearn.base import clone
 from sphri.evaluate.cv import LeaveOneSubjectOut
 from sphri.models.features import FEATURE_NAMES
 from sphri.models.rf import RandomForest
-from sphri.models.toydata import blob_windows
+from sphri.testing.toy_windows import blob_windows
 
 
 @pytest.fixture(scope="module")

@@ -26,7 +26,7 @@ from bench_stability import FeatureForest, feature_windows, repetition_rank  # n
 
 from sphri.evaluate.cv import LeaveOneSubjectOut  # noqa: E402
 from sphri.models.rf import RandomForest  # noqa: E402
-from sphri.models.toydata import blob_windows  # noqa: E402
+from sphri.testing.toy_windows import blob_windows  # noqa: E402
 
 
 def test_precomputed_features_give_the_pipelines_fold_accuracies():

@@ -24,7 +24,7 @@ from scipy.spatial.transform import Rotation
 from sphri.contact.exact import ExactContact
 from sphri.encode.coverage import CoverageEncoder
 from sphri.encode.ellipse import EllipseEncoder
-from sphri.encode.synthetic import make_contacts, synthetic_contacts
+from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
 from sphri.layout.grid import GridLayout, HexLayout
 from sphri.surface.charts import to_uv
 from sphri.surface.cylinder import CylinderSurface

@@ -20,7 +20,7 @@ from hypothesis.extra.numpy import arrays
 from sphri.encode.coverage import CoverageEncoder
 from sphri.encode.ellipse import EllipseEncoder
 from sphri.encode.proximity import ProximityEncoder
-from sphri.encode.synthetic import make_contacts
+from sphri.testing.synthetic_contacts import make_contacts
 from sphri.layout.grid import GridLayout, HexLayout
 from sphri.models.features import extract_features
 from sphri.noise.components import CrosstalkNoise, DeadTaxelsNoise, GaussianNoise, NoNoise, SaltPepperNoise

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from sphri.config import ConfigError
-from sphri.encode.synthetic import make_contacts
+from sphri.testing.synthetic_contacts import make_contacts
 from sphri.types import Frames, GestureDataset, HandModel, Layout, SurfaceMap
 from sphri.window.onset import OnsetWindow, trial_onsets
 
