@@ -22,6 +22,7 @@ import trimesh
 
 from sphri.config import require_choice
 from sphri.robots.schema import UNITS
+from sphri.surface.meshutil import triangle_normals_areas
 from sphri.types import Link
 
 log = logging.getLogger(__name__)
@@ -64,16 +65,6 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
     """Signed volume (m^3) enclosed by the faces; > 0 when wound counter-clockwise from outside."""
     t = vertices[faces]
     return float(np.einsum("ij,ij->i", t[:, 0], np.cross(t[:, 1], t[:, 2])).sum() / 6.0)
-
-
-def face_normals(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(F, 3) unit normals (right-hand rule) and (F,) areas in m^2."""
-    t = vertices[faces]
-    n = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
-    norm = np.linalg.norm(n, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        unit = n / norm[:, None]
-    return unit, 0.5 * norm
 
 
 def _on_convex_hull(vertices: np.ndarray, faces: np.ndarray, tol: float) -> tuple[bool, np.ndarray | None]:
@@ -164,7 +155,7 @@ def make_link(
     f = rank[inverse[f]]
 
     # degenerate faces: repeated vertex or (near) zero area
-    _, area = face_normals(v, f)
+    _, area = triangle_normals_areas(v, f)
     repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     degenerate = repeated | (area <= (extent * 1e-7) ** 2)
     if degenerate.any():
@@ -203,7 +194,7 @@ def make_link(
         nb, nm = edge_defects(f)
         what = f"{nb} boundary edges" + (f", {nm} edges shared by more than two faces" if nm else "")
         note(f"not closed ({what}); kept as is (watertight=False)")
-        normals, area = face_normals(v, f)
+        normals, area = triangle_normals_areas(v, f)
         convex, inner = _on_convex_hull(v, f, tol=extent * CONVEX_TOL)
         if convex:
             away = np.einsum("ij,ij->i", normals, v[f].mean(axis=1) - inner) < 0
@@ -215,7 +206,7 @@ def make_link(
             if not mesh.is_winding_consistent:
                 trimesh.repair.fix_winding(mesh)
                 f = np.asarray(mesh.faces, dtype=np.int64).copy()
-            normals, area = face_normals(v, f)
+            normals, area = triangle_normals_areas(v, f)
             centroid = (v[f].mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
             outward = np.einsum("ij,ij->i", normals, v[f].mean(axis=1) - centroid)
             if float((np.sign(outward) * area).sum()) < 0:  # most area faces the centroid: inverted

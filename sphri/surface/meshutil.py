@@ -43,21 +43,27 @@ def to_trimesh(link: Link) -> trimesh.Trimesh:
     )
 
 
-def _face_cross(link: Link) -> np.ndarray:
-    tri = np.asarray(link.vertices, dtype=np.float64)[np.asarray(link.faces)]
-    return np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+def triangle_normals_areas(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(F, 3) float64 unit normals by the right-hand rule (zero for degenerate faces) and (F,) areas in m^2.
+
+    The one definition of face normals and areas: :func:`face_normals`,
+    :func:`face_areas` and mesh validation (``sphri.robots.validate``) use it.
+    """
+    tri = np.asarray(vertices, dtype=np.float64)[np.asarray(faces)]
+    c = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    n = np.linalg.norm(c, axis=1)
+    unit = np.divide(c, n[:, None], out=np.zeros_like(c), where=n[:, None] > 0)
+    return unit, 0.5 * n
 
 
 def face_areas(link: Link) -> np.ndarray:
     """(F,) float64 triangle areas in m^2."""
-    return 0.5 * np.linalg.norm(_face_cross(link), axis=1)
+    return triangle_normals_areas(link.vertices, link.faces)[1]
 
 
 def face_normals(link: Link) -> np.ndarray:
     """(F, 3) float64 unit normals from the winding (zero for degenerate faces)."""
-    c = _face_cross(link)
-    n = np.linalg.norm(c, axis=1, keepdims=True)
-    return np.divide(c, n, out=np.zeros_like(c), where=n > 0)
+    return triangle_normals_areas(link.vertices, link.faces)[0]
 
 
 def sample_surface(link: Link, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -18,7 +18,8 @@ from sphri.config import CONF_DIR, ConfigError
 from sphri.robots.mesh import MeshRobot
 from sphri.robots.parametric import ParametricRobot, loft_mesh
 from sphri.robots.urdf import UrdfRobot
-from sphri.robots.validate import face_normals, is_closed, signed_volume
+from sphri.robots.validate import is_closed, signed_volume
+from sphri.surface.meshutil import triangle_normals_areas
 
 BUILTINS = ("reachy", "nao_child", "service_bot")
 
@@ -59,7 +60,7 @@ def test_builtin_closed_and_outward(builtin):
         assert link.watertight and is_closed(link.faces)
         assert signed_volume(link.vertices, link.faces) > 0
         # lofts of convex sections: every face looks away from the axis through the centroid
-        n, area = face_normals(link.vertices, link.faces)
+        n, area = triangle_normals_areas(link.vertices, link.faces)
         assert np.all(area > 0)
         c = link.vertices.mean(axis=0)
         assert np.all(np.einsum("ij,ij->i", n, link.vertices[link.faces].mean(axis=1) - c) > 0)
@@ -160,7 +161,7 @@ def test_mesh_robot_real_assets(shared_dir):
     assert any("merged" in n for n in arm.notes)
     # the hull's faces all look away from its interior after validation
     for link in robot.links.values():
-        n, _ = face_normals(link.vertices, link.faces)
+        n, _ = triangle_normals_areas(link.vertices, link.faces)
         inner = link.vertices.mean(axis=0)
         assert np.all(np.einsum("ij,ij->i", n, link.vertices[link.faces].mean(axis=1) - inner) > 0)
     np.testing.assert_allclose(np.ptp(robot.link_for("torso").vertices, axis=0), [0.1484, 0.3465, 0.2764], atol=1e-3)

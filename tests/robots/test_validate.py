@@ -12,12 +12,12 @@ from sphri.config import ConfigError
 from sphri.robots.validate import (
     MeshError,
     edge_defects,
-    face_normals,
     is_closed,
     load_mesh_file,
     make_link,
     signed_volume,
 )
+from sphri.surface.meshutil import triangle_normals_areas as face_normals
 
 
 def _box(extents=(0.1, 0.2, 0.3)):
