@@ -55,6 +55,23 @@ STAGE_GROUPS: tuple[str, ...] = (
     "tracking",
 )
 
+#: What a component of each stage group must implement (its methods): the
+#: protocol a user's own component, in its own package, is checked against.
+STAGE_METHODS: dict[str, tuple[str, ...]] = {
+    "data": ("load",),
+    "hand": ("build",),
+    "robot": ("build",),
+    "contact": ("compute",),
+    "surface": ("fit",),
+    "layout": ("build",),
+    "encoder": ("encode",),
+    "noise": ("apply",),
+    "window": ("plan", "assemble"),
+    "model": ("fit", "predict"),
+    "cv": ("run",),
+    "tracking": ("log_job",),
+}
+
 #: Groups that the primary config lists in its defaults; ``+group=x`` on the
 #: command line is accepted for these and means ``group=x`` (see
 #: :func:`normalize_overrides`).
@@ -164,6 +181,9 @@ class RootConfig:
     """Where runs, the cache and the MLflow store live (relative to cwd)."""
     resume: bool = True
     """In a multirun, skip jobs whose config already has a FINISHED MLflow run."""
+    plugins: list[str] = field(default_factory=list)
+    """Packages besides ``sphri`` whose classes a config may name as ``_target_``
+    (a lab's own encoder, layout or model in its own package, e.g. ``[mylab]``)."""
     data: Any = None
     hand: Any = None
     robot: Any = None
@@ -240,6 +260,39 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config") -> DictC
     return cfg
 
 
+def check_target(group: str, target: Any, plugins: Sequence[str] = ()) -> None:
+    """``group._target_`` names a class of ``sphri`` or of a listed plugin package implementing the stage.
+
+    sphri's own targets are not imported here (their schemas already typed
+    them); a plugin's class is imported, so that a typo or a missing method
+    fails at composition, not deep in a stage.
+    """
+    if not isinstance(target, str) or not target:
+        raise ConfigError(f"{group}._target_={target!r} is invalid: must name a class")
+    package = target.split(".", 1)[0]
+    if package == "sphri":
+        return
+    if package not in plugins:
+        raise ConfigError(
+            f"{group}._target_={target!r} is invalid: must name a class inside sphri, or of a package "
+            f"listed in plugins (e.g. plugins=[{package}] to allow your own components)"
+        )
+    import inspect
+
+    from hydra.utils import get_class
+
+    try:
+        cls = get_class(target)
+    except Exception as exc:  # ImportError, AttributeError, or "not a class"
+        raise ConfigError(f"{group}._target_={target!r} cannot be imported as a class: {exc}") from None
+    missing = [m for m in STAGE_METHODS.get(group, ()) if not callable(getattr(cls, m, None))]
+    if not inspect.isclass(cls) or missing:
+        raise ConfigError(
+            f"{group}._target_={target!r} does not implement the {group} protocol: "
+            f"missing {', '.join(missing) or 'a class'} (see docs/ARCHITECTURE.md, 'Your own component')"
+        )
+
+
 def _explain(exc: BaseException) -> str:
     lines = [ln.strip() for ln in str(exc).strip().splitlines() if ln.strip()]
     if isinstance(exc, OmegaConfBaseException) and getattr(exc, "full_key", None):
@@ -252,16 +305,17 @@ def validate(cfg: DictConfig) -> None:
     """Check every component's values before any stage runs.
 
     Instantiating each group's structured node runs its schema's
-    ``__post_init__`` range checks; a ``_target_`` outside ``sphri.`` is
-    refused.
+    ``__post_init__`` range checks. A ``_target_`` must name a class in
+    ``sphri`` or in a package listed in ``plugins``; a plugin's class is
+    imported and checked against its stage's protocol (:data:`STAGE_METHODS`).
     """
+    plugins = tuple(str(p) for p in (cfg.get("plugins") or ()))
     for group in STAGE_GROUPS:
         node = cfg.get(group)
         if node is None:
             raise ConfigError(f"{group}: no component chosen (pick one with {group}=NAME)")
         target = node.get("_target_") if isinstance(node, DictConfig) else None
-        if not isinstance(target, str) or not target.startswith("sphri."):
-            raise ConfigError(f"{group}._target_={target!r} is invalid: must name a class inside sphri.")
+        check_target(group, target, plugins)
         try:
             OmegaConf.to_object(node)
         except ConfigError as exc:

@@ -296,7 +296,7 @@ def config_hash(cfg: DictConfig) -> str:
     """Hash of what defines a job's result: its config (everything but tracking/cache/hydra) and the
     ``VERSION`` of every component, so that a sweep resumed after a component changed reruns its jobs."""
     c = OmegaConf.to_container(cfg, resolve=True)
-    for k in ("tracking", "cache", "output_dir", "resume", "hydra", "debug", "experiment"):
+    for k in ("tracking", "cache", "output_dir", "resume", "plugins", "hydra", "debug", "experiment"):
         c.pop(k, None)
     c["_component_versions"] = component_versions(cfg)
     return stable_hash(c)
