@@ -104,14 +104,8 @@ def test_run_writes_region_files_and_logs_an_mlflow_run(study, tmp_path, monkeyp
 
 
 def test_real_pipeline_debug_fast(tmp_path):
-    """The built-in data and contact stages (skipped until they compose)."""
-    from sphri.config import compose
-
+    """The built-in data and contact stages, end to end."""
     overrides = [f"output_dir={tmp_path}", "+debug=fast", "data.regions=[arm]"]
-    try:
-        compose(overrides)
-    except ConfigError as exc:
-        pytest.skip(f"pipeline does not compose yet: {exc}")
     settings = cli.load_settings(["render=false", "n_projections=32"])
     res = cli.run(overrides, settings, tmp_path / "cov", log_mlflow=False)
     r = res.regions["arm"]

@@ -114,7 +114,8 @@ def test_files_written_and_readable(result, study, surface, tmp_path):
         assert z["points_m"].shape == (result.samples.n, 3) and z["density"].shape == (result.samples.n,)
         assert z["mask"].dtype == bool and z["mask"].sum() == result.curves["poke"].k
     # the format layout=density reads
-    poisson = pytest.importorskip("sphri.layout.poisson")
+    from sphri.layout import poisson
+
     pts, dens = poisson.load_density(tmp_path / "density_all.npz")
     assert pts.shape[0] == dens.shape[0] == result.samples.n
     import trimesh
