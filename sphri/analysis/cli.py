@@ -224,10 +224,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     for region, r in res.regions.items():
         print(f"[{region}] {r.link}: {r.samples.n} elements, {r.curves[ALL].n_frames} contact frames")
+        summary = r.summary()["groups"]
         for n in [ALL] + r.groups:
             print("  " + r.sentences[n])
+            g = summary.get(n, {})
+            if "heldout_captured_mean" in g:  # the in-sample sentence is optimistic: say what held-out people get
+                print(f"    on held-out participants the same area captures {g['heldout_captured_mean']:.0%} "
+                      f"of their contact frames (worst participant {g['heldout_captured_min']:.0%})")
         if r.comparison is not None:
             t = r.comparison.table
             print(f"  {int(t['significant'].sum())}/{len(t)} pairs of {r.by} differ (Holm, alpha {r.comparison.alpha:g})")
+        for note in r.notes:
+            print(f"  note: {note}")
     print(f"files: {res.out_dir}" + (f"; MLflow run {res.mlflow_run_id}" if res.mlflow_run_id else ""))
     return 0

@@ -131,7 +131,9 @@ def fit_cylinder(
         notes.append(f"short link: length {length * 1e3:.1f} mm < radius {params['radius'] * 1e3:.1f} mm")
     if residual * 1e3 > warn_residual_mm:
         notes.append(
-            f"poor cylinder fit: RMS residual {residual * 1e3:.2f} mm > surface.warn_residual_mm={warn_residual_mm:g}"
+            f"poor cylinder fit: RMS residual {residual * 1e3:.2f} mm > surface.warn_residual_mm={warn_residual_mm:g}; "
+            "taxel pitches and areas on this link are approximate: for a link that is not a tube use "
+            "surface=box (flat faces) or surface=mesh with layout=random|density (no chart)"
         )
     for n in notes:
         log.warning("surface.cylinder on link %r: %s", link.name, n)

@@ -112,3 +112,13 @@ def test_real_pipeline_debug_fast(tmp_path):
     assert r.curves["all"].n_frames > 0
     assert 0 < r.curves["all"].area_at_capture < 1
     assert len(r.comparison.table) == len(r.groups) * (len(r.groups) - 1) // 2
+
+
+def test_console_shows_heldout_capture_and_notes(tmp_path, capsys):
+    """The console says what held-out participants get and the caveats, not only the in-sample sentence."""
+    rc = cli.main([f"output_dir={tmp_path}", "+debug=fast", "data.regions=[arm]", "render=false",
+                   "n_projections=32", f"out={tmp_path / 'cov'}", "mlflow=false"])
+    assert rc == 0
+    out = capsys.readouterr().out
+    assert "on held-out participants the same area captures" in out
+    assert "note: with 3 participant value(s) the exact sign-flip test cannot reach p <= 0.05" in out
