@@ -109,7 +109,10 @@ def run_job(cfg: DictConfig) -> dict | None:
     _write_status(job_dir, job_num, "FINISHED", None, run_id)
     text = summary_text(result)
     (job_dir / "summary.txt").write_text(text + "\n")
-    where = f"MLflow run {run_id} in {tracker.resolve_uri(cfg.output_dir)} (see it with `make ui`)" if run_id else "MLflow tracking disabled"
+    from sphri.tracking.mlflow_tracker import ui_hint
+
+    uri = tracker.resolve_uri(cfg.output_dir) if run_id else ""
+    where = f"MLflow run {run_id} in {uri} (see it with `{ui_hint(uri)}`)" if run_id else "MLflow tracking disabled"
     print("\n" + "=" * 78 + "\n" + text + f"\ntracking    {where}\njob dir     {job_dir}\n" + "=" * 78)
     return {"run_id": run_id, **result.summary()}
 

@@ -136,3 +136,14 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_the_same_parent(tmp_path: Pat
     runs = client.search_runs([client.get_experiment_by_name("sphri").experiment_id])
     assert len([r for r in runs if r.data.tags.get("sphri.kind") == "sweep"]) == 1
     assert len([r for r in runs if r.data.tags.get("sphri.kind") == "job"]) == 2
+
+
+def test_ui_hint_names_the_store(tmp_path, monkeypatch):
+    from sphri.tracking.mlflow_tracker import ui_hint
+
+    monkeypatch.chdir(tmp_path)  # no Makefile here: `make ui` would not work
+    uri = f"sqlite:///{tmp_path / 'outputs' / 'mlflow.db'}"
+    assert ui_hint(uri) == f"mlflow ui --backend-store-uri {uri}"
+    (tmp_path / "Makefile").write_text("ui:\n\tmlflow ui --backend-store-uri sqlite:///$(CURDIR)/outputs/mlflow.db\n")
+    assert ui_hint(uri) == "make ui"
+    assert ui_hint(f"sqlite:///{tmp_path / 'other' / 'mlflow.db'}").startswith("mlflow ui --backend-store-uri")

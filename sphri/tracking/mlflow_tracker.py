@@ -293,6 +293,21 @@ class MlflowTracker:
             self._retry(lambda: client.log_artifacts(run_id, str(tmp_path)))
 
 
+def _count(n: int, noun: str) -> str:
+    """``"1 trial"``, ``"2 trials"``."""
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
+def ui_hint(uri: str) -> str:
+    """The command that shows ``uri`` in the MLflow UI (``make ui`` only for the repository's default store)."""
+    from pathlib import Path
+
+    default = f"sqlite:///{(Path.cwd() / 'outputs' / 'mlflow.db').resolve()}"
+    makefile = Path.cwd() / "Makefile"
+    in_checkout = makefile.is_file() and "mlflow ui" in makefile.read_text(errors="replace")
+    return "make ui" if uri == default and in_checkout else f"mlflow ui --backend-store-uri {uri}"
+
+
 def summary_text(result: "RunResult") -> str:
     """The one-screen summary printed at the end of a run."""
     from sphri.evaluate.metrics import summarize
@@ -303,7 +318,7 @@ def summary_text(result: "RunResult") -> str:
     label = "SYNTHETIC" if m["synthetic"] else "real"
     lines = [
         f"dataset     {m['dataset']} ({label}): {m['n_participants']} participants, {m['n_trials']} trials, "
-        f"{m['n_windows']} windows of {m['window_frames']} frames ({m['n_dropped_no_contact']} trials without contact dropped)",
+        f"{m['n_windows']} windows of {m['window_frames']} frames ({_count(m['n_dropped_no_contact'], 'trial')} without contact dropped)",
         f"robot       {m['robot']}, region {m['region']} (link {m['link']}), surface {m['surface']} "
         f"(fit residual {m['surface_fit_residual_mm']:.1f} mm)",
         "resolution  " + ", ".join(_fmt_resolution(r)),
