@@ -1,0 +1,158 @@
+"""How the synthetic participants differ from each other and from trial to trial.
+
+Every spread of the generator is a field of :class:`Spread` (one field per
+``data.*`` key of ``conf/data/synthetic.yaml``, where each value's source is
+written), multiplied by the summary knob ``data.variability``: 1.0 is
+calibrated to real people, 0 makes every participant draw from the same
+population (no between-participant effects, no per-participant preferences,
+no calibrated per-trial spread; only the gestures' own mechanical randomness
+is left, e.g. where on the link a touch lands).
+
+Random effects are log-normal factors on three levels, the usual
+decomposition of repeated-measures data: participant (``*_participant_sd``),
+participant x gesture (``*_interaction_sd``: a participant's style changes
+which gestures resemble each other, e.g. slow taps that look like pokes) and
+trial (``*_trial_sd``). Categorical habits (fist or palm for a hit, finger
+pads or palm for a pat, ...) are per-participant probabilities drawn from a
+Beta around the population's rate with concentration
+``preference_concentration``; ``variability`` pulls them towards the
+population rate.
+
+Hand-written: the draws are a few lines of numpy each; no library models
+nested random effects for simulation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from sphri.data.reference_stats import COST_DURATION_MS, VR_LENGTH_SPREAD
+
+
+#: Range of each kind of field: (lo, hi) inclusive.
+_RANGES = {
+    "variability": (0.0, 5.0), "_sd": (0.0, 3.0), "_rate": (0.0, 1.0), "_fraction": (0.0, 1.0),
+    "hand_length_sd_mm": (0.0, 50.0), "_mm": (100.0, 300.0), "length_tail_df": (2.05, 1000.0), "long_trial_max_s": (8.0, 3600.0),
+    "approach_s": (0.05, 10.0), "depth_max_m": (0.001, 0.2), "preference_concentration": (0.01, 1000.0),
+    "site_kappa_max": (0.5, 50.0), "nondominant_speed": (0.1, 2.0),
+}
+
+
+@dataclass
+class Spread:
+    """The generator's variability assumptions (see ``conf/data/synthetic.yaml`` for each source).
+
+    Also the base of the ``data=synthetic`` schema, so every field is a
+    ``data.*`` key.
+    """
+
+    variability: float = 1.0
+    # trial length (log scale, natural log of frames)
+    length_participant_sd: float = 0.31
+    length_interaction_sd: float = 0.10
+    length_trial_sd: float = 0.10
+    length_tail_df: float = 3.0
+    long_trial_rate: float = 0.004
+    long_trial_max_s: float = 70.0
+    # approach and retreat
+    approach_s: float = 0.7
+    speed_participant_sd: float = 0.2
+    speed_interaction_sd: float = 0.3
+    speed_trial_sd: float = 0.2
+    # contact phase
+    duration_participant_sd: float = 0.35
+    duration_interaction_sd: float = 0.55
+    depth_participant_sd: float = 0.5
+    depth_interaction_sd: float = 0.5
+    depth_trial_sd: float = 0.25
+    deep_rate: float = 0.08
+    depth_max_m: float = 0.045
+    rate_interaction_sd: float = 0.35
+    extent_interaction_sd: float = 0.4
+    preference_concentration: float = 0.5
+    # where people touch
+    site_axial_sd: float = 0.15
+    site_interaction_sd: float = 0.15
+    site_angle_interaction_sd: float = 0.8
+    site_kappa_max: float = 3.0
+    # hands
+    hand_length_male_mm: float = 189.0
+    hand_length_female_mm: float = 174.0
+    hand_length_sd_mm: float = 9.5
+    female_fraction: float = 0.5
+    hand_model_length_mm: float = 181.5
+    left_handed_fraction: float = 0.106
+    nondominant_speed: float = 0.9
+    # events inside a trial
+    brush_rate: float = 0.06
+    retouch_rate: float = 0.06
+    boundary_early_rate: float = 0.02
+    boundary_late_rate: float = 0.02
+
+    def validate(self, prefix: str = "data") -> None:
+        """Range-check every field; raise :class:`sphri.config.ConfigError` naming ``prefix.field``."""
+        from sphri.config import require_range
+
+        for f in fields(Spread):
+            lo, hi = next(r for k, r in _RANGES.items() if f.name == k or (k.startswith("_") and f.name.endswith(k)))
+            require_range(f"{prefix}.{f.name}", getattr(self, f.name), lo=lo, hi=hi)
+
+    @classmethod
+    def from_kwargs(cls, **kw) -> "Spread":
+        """A Spread from the data config's fields (others ignored)."""
+        names = {f.name for f in fields(cls)}
+        return cls(**{k: float(v) for k, v in kw.items() if k in names})
+
+    def lognormal(self, rng: np.random.Generator, sd: float) -> float:
+        """A median-1 log-normal factor with log-SD ``variability * sd``."""
+        return float(np.exp(self.variability * sd * rng.standard_normal()))
+
+    def rate(self, rate: float) -> float:
+        """An event probability scaled by ``variability`` (clipped to [0, 1])."""
+        return float(min(1.0, self.variability * rate))
+
+    def preference(self, rng: np.random.Generator, mean: float) -> float:
+        """A participant's probability of a habit whose population rate is ``mean``."""
+        c = self.preference_concentration
+        q = float(rng.beta(mean * c, (1.0 - mean) * c))
+        return float(np.clip(mean + min(self.variability, 1.0) * (q - mean), 0.0, 1.0))
+
+    def heavy(self, rng: np.random.Generator, sd: float) -> float:
+        """A trial-level term with SD ``variability * sd`` and Student-t tails (``length_tail_df`` > 2)."""
+        df = self.length_tail_df
+        return float(self.variability * sd * rng.standard_t(df) / np.sqrt(df / (df - 2.0)))
+
+    def length_trial_sd_for(self, region: str, gesture: str) -> float:
+        """Trial-level SD of log length such that the within-gesture total matches the VR manifests.
+
+        The VR study's SD of log length for the gesture (region's table, the
+        arm's for other regions), minus the participant and interaction
+        variances; never below ``length_trial_sd``.
+        """
+        table = VR_LENGTH_SPREAD.get(region, VR_LENGTH_SPREAD["arm"])["gestures"]
+        sd = table[gesture]["sd_log"] if gesture in table else 0.0
+        rest = sd**2 - self.length_participant_sd**2 - self.length_interaction_sd**2
+        return float(np.sqrt(max(rest, self.length_trial_sd**2)))
+
+    def duration_trial_sd(self, gesture: str) -> float:
+        """Trial-level log-SD of a gesture's contact duration such that the total matches CoST's SD.
+
+        CoST reports mean (SD) per gesture over participants and trials; a
+        log-normal with that coefficient of variation has log-variance
+        ``ln(1 + CV^2)``; the participant and interaction variances are taken
+        out of it (at least 0.15 is left for the trial).
+        """
+        mean, sd = COST_DURATION_MS[gesture]
+        total = np.log1p((sd / mean) ** 2)
+        rest = total - self.duration_participant_sd**2 - self.duration_interaction_sd**2
+        return float(np.sqrt(max(rest, 0.15**2)))
+
+    def hand_scale(self, rng: np.random.Generator) -> float:
+        """A participant's hand size factor: hand length from a male/female mixture over the model's length."""
+        female = rng.random() < self.female_fraction
+        mean = self.hand_length_female_mm if female else self.hand_length_male_mm
+        pop = self.female_fraction * self.hand_length_female_mm + (1 - self.female_fraction) * self.hand_length_male_mm
+        length = pop + self.variability * (mean + self.hand_length_sd_mm * rng.standard_normal() - pop)
+        return float(np.clip(length / self.hand_model_length_mm, 0.75, 1.25))
