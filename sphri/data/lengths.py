@@ -119,7 +119,11 @@ def manifest_lengths(root: str | Path, regions: Sequence[str] = ("arm",)) -> pd.
     return length_table(pd.DataFrame(rows), VR_FRAME_RATE_HZ)
 
 
-def _row(statistic: str, gesture: str, value: float, ref: float, band: str) -> dict:
+#: Columns of a comparison table.
+COMPARISON_COLUMNS = ["region", "statistic", "gesture", "value", "reference", "ratio", "band", "flag"]
+
+
+def flag_row(statistic: str, gesture: str, value: float, ref: float, band: str) -> dict:
     lo, hi = BANDS[band]
     ratio = value / ref if ref else float("nan")
     ok = bool(np.isfinite(ratio) and lo <= ratio <= hi)
@@ -138,17 +142,16 @@ def compare(measured: dict[str, dict], reference: dict[str, dict]) -> pd.DataFra
             rg = ref["gestures"].get(g)
             if rg is None:
                 continue
-            rows.append(_row("sd_log", g, mg["sd_log"], rg["sd_log"], "sd_log"))
+            rows.append(flag_row("sd_log", g, mg["sd_log"], rg["sd_log"], "sd_log"))
             for q in QUANTILES:
                 k = f"q{int(round(q * 100)):02d}"
-                rows.append(_row(f"length {k}", g, mg[k], rg[k], "quantile"))
+                rows.append(flag_row(f"length {k}", g, mg[k], rg[k], "quantile"))
         for k in ("between_var", "interaction_var", "within_sd", "participant_median_min", "participant_median_max",
                   "max_frames"):
-            rows.append(_row(k, "all", m[k], ref[k], k))
+            rows.append(flag_row(k, "all", m[k], ref[k], k))
         for r in rows:
             r.setdefault("region", region)
-    df = pd.DataFrame(rows, columns=["region", "statistic", "gesture", "value", "reference", "ratio", "band", "flag"])
-    return df
+    return pd.DataFrame(rows, columns=COMPARISON_COLUMNS)
 
 
 def format_comparison(table: pd.DataFrame, title: str) -> str:
