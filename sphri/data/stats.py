@@ -33,8 +33,9 @@ ratio to the reference falls outside its band (``ok`` / ``OUTSIDE``,
 - contact duration: per gesture mean and SD over trials against CoST's mean
   and SD.
 
-Extra arguments: ``json=PATH`` writes the per-gesture table and the
-comparison as JSON; ``reference=DIR`` names the manifests to compare with.
+Extra arguments: ``json=PATH`` writes the per-gesture table as JSON (a list
+of rows) and the comparison beside it (``PATH`` with ``_spread`` before the
+suffix); ``reference=DIR`` names the manifests to compare with.
 
 Participants that differ show in classification too: the Random Forest's
 leave-one-subject-out accuracy should sit below within-subject k-fold (same
@@ -280,12 +281,9 @@ def duration_comparison(stats: pd.DataFrame) -> pd.DataFrame:
     return out.reset_index(drop=True)
 
 
-def reference_spread(overrides: Sequence[str], reference: str | None, regions: Sequence[str]) -> tuple[dict, str]:
+def reference_spread(reference: str | None, regions: Sequence[str]) -> tuple[dict, str]:
     """(length spread of the reference, where it came from): see the module docstring for the order."""
     candidates = [reference] if reference else []
-    root = next((o.split("=", 1)[1] for o in overrides if o.startswith("data.root=")), None)
-    if root and not reference:
-        candidates.append(root)
     if not reference:
         candidates.append(str(Path(__file__).resolve().parents[2].parent / "shared" / "vr-gesture-dataset"))
     for c in candidates:
@@ -340,16 +338,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"calibration: {len(checks) - len(failed)}/{len(checks)} checks pass")
         for name, _, detail in failed:
             print(f"  FAIL {name}: {detail}")
-    ref, source = reference_spread(overrides, reference, sorted(set(dataset.trials["region"])))
+    ref, source = reference_spread(reference, sorted(set(dataset.trials["region"])))
     lengths = length_spread(length_table(dataset.trials, dataset.frame_rate_hz))
     table = pd.concat([compare(lengths, ref), duration_comparison(stats)], ignore_index=True)
     print()
     print(format_comparison(table, f"distributions against {source} and CoST (Jung et al. 2017, Table 4):"))
     if json_out:
         Path(json_out).parent.mkdir(parents=True, exist_ok=True)
-        out = {"summary": summary.to_dict(orient="records"), "comparison": table.to_dict(orient="records"),
-               "reference": source}
-        Path(json_out).write_text(json.dumps(out, indent=2) + "\n")
+        path = Path(json_out)
+        path.write_text(json.dumps(summary.to_dict(orient="records"), indent=2) + "\n")
+        spread = {"reference": source, "rows": table.to_dict(orient="records")}
+        path.with_name(f"{path.stem}_spread{path.suffix}").write_text(json.dumps(spread, indent=2) + "\n")
     return 0
 
 
