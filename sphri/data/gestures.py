@@ -11,16 +11,21 @@ adds the approach from rest and the retreat.
 
 Contact durations (first to last contact, repetitions included) are drawn
 around CoST's mean for the gesture (:mod:`sphri.data.reference_stats`)
-times :data:`DURATION_CALIBRATION`, which absorbs what the contact stage
-adds (other capsules touching before and after the effector).
+times :data:`DURATION_CALIBRATION`, with participant, participant x gesture
+and trial factors whose total spread is CoST's SD
+(:meth:`sphri.data.people.Spread.duration_trial_sd`). Penetration depth
+(nothing stops a virtual hand) has the same three levels and a deep tail
+(:func:`penetration_depth`). Which variant a participant uses (palm or fist,
+palm or finger pads, ...) follows personal habits (:data:`HABITS`), and
+:func:`add_brush_and_retouch` adds accidental contacts around the gesture.
 
 | gesture | effector | touches | motion |
 | --- | --- | --- | --- |
 | poke | index fingertip (fist, index out) | 1 | press along the normal |
 | tap | index (and middle) fingertip, fingers bent | 1-3 brief | lifts 1.5-2.5 cm between |
-| pat | flat palm | 2-4 brief | lifts 3-5 cm between |
+| pat | flat palm or finger pads | 2-4 brief | lifts 3-5 cm between |
 | hit | palm or fist knuckles | 1 fast, deep | strikes from 8-12 cm |
-| push | flat palm | 1 held | slow press, deep |
+| push | flat palm or index fingertip | 1 held | slow press, deep |
 | rub | palm or finger pads | 1 held | back and forth, 1.5-3 Hz |
 | stroke | palm or finger pads | 1-3 | one way along the link, lift and return |
 | grab | palm, fingers wrap, thumb opposes | 1 held | fingers close around the link |

@@ -49,47 +49,83 @@ class Spread:
     """
 
     variability: float = 1.0
+    """Multiplies every spread below: 1 = calibrated to real people, 0 = interchangeable participants."""
     # trial length (log scale, natural log of frames)
     length_participant_sd: float = 0.31
+    """SD of a participant's effect on log trial length; measured variance 0.056-0.103 over seeds 0-2 [VR: 0.079]."""
     length_interaction_sd: float = 0.10
+    """SD of the participant x gesture effect on log length [VR: interaction variance 0.013]."""
     length_trial_sd: float = 0.10
+    """Least SD of the trial effect; per gesture, what the VR SD of log length leaves (:meth:`length_trial_sd_for`)."""
     length_tail_df: float = 3.0
+    """Student-t degrees of freedom of the trial effect (heavy tails) [VR: 99th percentile 403 frames]."""
     long_trial_rate: float = 0.004
+    """Share of trials nobody ended in time (8 s to ``long_trial_max_s`` extra idle) [VR: 0.5 % over 500 frames]."""
     long_trial_max_s: float = 70.0
+    """Longest trial (s) [VR: 2,071 frames]."""
     # approach and retreat
     approach_s: float = 0.7
+    """Median duration of the approach and of the retreat (s) [assumption]."""
     speed_participant_sd: float = 0.2
+    """Log-SD of a participant's speed [assumption]."""
     speed_interaction_sd: float = 0.3
+    """Log-SD of a participant x gesture speed (approach and pressing in) [assumption]."""
     speed_trial_sd: float = 0.2
+    """Log-SD of a trial's approach and retreat times [assumption]."""
     # contact phase
     duration_participant_sd: float = 0.35
+    """Log-SD of a participant's contact-duration factor [assumption; CoST gives the total SD only]."""
     duration_interaction_sd: float = 0.55
+    """Log-SD of a participant x gesture duration factor [assumption]; the trial SD fills up to CoST's SD."""
     depth_participant_sd: float = 0.5
+    """Log-SD of a participant's penetration depth [assumption: nothing stops a virtual hand]."""
     depth_interaction_sd: float = 0.5
+    """Log-SD of a participant x gesture depth factor [assumption]."""
     depth_trial_sd: float = 0.25
+    """Log-SD of a trial's depth [assumption]."""
     deep_rate: float = 0.08
+    """Share of trials where the hand passes 1 cm to ``depth_max_m`` further in [assumption]."""
     depth_max_m: float = 0.045
+    """Deepest penetration (m), about the arm hull's half-width [VR: hull 7.2 x 9.3 cm]."""
     rate_interaction_sd: float = 0.35
+    """Log-SD of a participant x gesture repetition rate (rub frequency, touches per second) [assumption]."""
     extent_interaction_sd: float = 0.4
+    """Log-SD of a participant x gesture slide extent (rub amplitude, stroke length) [assumption]."""
     preference_concentration: float = 0.5
+    """Beta concentration of personal habits around :data:`sphri.data.gestures.HABITS` [assumption]."""
     # where people touch
     site_axial_sd: float = 0.15
+    """SD of a participant's habitual site along the link (fraction of its length) [assumption]."""
     site_interaction_sd: float = 0.15
+    """SD of the per-gesture shift of that site along the link (fraction) [assumption]."""
     site_angle_interaction_sd: float = 0.8
+    """SD of the per-gesture shift around the link (radians) [assumption]."""
     site_kappa_max: float = 3.0
+    """Largest von Mises concentration of a participant's site around the link [assumption]."""
     # hands
     hand_length_male_mm: float = 189.0
+    """Mean adult hand length, men (mm) [Pheasant & Haslegrave, Bodyspace, 3rd ed. 2006]."""
     hand_length_female_mm: float = 174.0
+    """Mean adult hand length, women (mm) [same source]."""
     hand_length_sd_mm: float = 9.5
+    """SD of hand length within each sex (mm) [same source]."""
     female_fraction: float = 0.5
+    """Share of women among participants [assumption]."""
     hand_model_length_mm: float = 181.5
+    """Hand length of the capsule hand model at scale 1 (mm) [assumption: the population mean]."""
     left_handed_fraction: float = 0.106
+    """Share of left-handers (touch with the tracked right hand from the other side) [Papadatou-Pastou et al. 2020]."""
     nondominant_speed: float = 0.9
+    """Speed factor of the non-dominant hand [assumption]."""
     # events inside a trial
     brush_rate: float = 0.06
+    """Share of trials with an accidental graze before the gesture [assumption]."""
     retouch_rate: float = 0.06
+    """Share of trials with a second short touch after the gesture [assumption]."""
     boundary_early_rate: float = 0.02
+    """Share of trials ended too early (cut during the touch or the retreat) [assumption]."""
     boundary_late_rate: float = 0.02
+    """Share of trials started late (the hand already approaching) [assumption]."""
 
     def validate(self, prefix: str = "data") -> None:
         """Range-check every field; raise :class:`sphri.config.ConfigError` naming ``prefix.field``."""

@@ -45,13 +45,21 @@ class SyntheticDataSchema(Spread):
     root: Optional[str] = None
     frame_rate_hz: float = 30.0
     tracking_rate_hz: float = 30.0
+    """Hand-tracking updates per second, jittered 15 % [Q2: Quest hand tracking samples at 30 Hz]."""
     jitter_mm: float = 3.0
+    """SD per axis of the tracked hand position per tracking sample (mm) [Q2: 1.1 cm fingertip error, mostly bias]."""
     latency_ms: float = 45.0
+    """Delay of the tracked hand behind the real one (ms) [Q2: Abdlkarim et al. 2024, 45 ms]."""
     latency_sd_ms: float = 8.0
+    """Sample-to-sample variation of that delay (ms) [assumption]."""
     dropouts_per_trial: float = 0.3
+    """Mean number of tracking losses (hand frozen) per trial [assumption]."""
     dropout_max_frames: int = 12
+    """A loss lasts 3 to this many frames; the hand jumps to where it is when found [assumption]."""
     jumps_per_trial: float = 0.05
+    """Mean number of mis-tracked samples per trial (hand thrown for 1-3 samples) [assumption]."""
     jump_mm: float = 30.0
+    """SD per axis of such a jump (mm) [assumption]."""
 
     def __post_init__(self) -> None:
         _check_common(self.seed, self.participants, self.repetitions, self.regions, self.gestures)

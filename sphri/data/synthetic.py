@@ -11,21 +11,30 @@ once; forward kinematics runs once per (participant, region).
 Timing. Frames are at ``frame_rate_hz`` (30 Hz by default: the rate that the
 study's trial lengths are counted in, see
 :mod:`sphri.data.reference_stats`). Hand tracking updates at about
-``tracking_rate_hz`` with jittered intervals; each frame holds the latest
-tracking sample (so some frames repeat the previous pose), and about
-``dropouts_per_trial`` short dropouts per trial (3-12 frames) freeze the hand
-as a lost tracker does. Tracking noise: ``jitter_m`` (SD, metres) on the hand
-position, 0.4 degrees on its rotation, 1 degree on finger joints, 0.3 mm per
-joint.
+``tracking_rate_hz`` with jittered intervals and is seen ``latency_ms`` late
+(varying by ``latency_sd_ms``); each frame holds the latest tracking sample
+(so some frames repeat the previous pose); about ``dropouts_per_trial``
+losses per trial (3 to ``dropout_max_frames`` frames) freeze the hand, which
+then jumps to where it is, and ``jumps_per_trial`` mis-tracked samples throw
+it by ``jump_mm``. Tracking noise: ``jitter_mm`` (SD per axis) on the hand
+position per sample, 0.4 degrees on its rotation, 1 degree on finger joints,
+0.3 mm per joint.
 
-Timing of a trial: rest (about 20 % of the non-contact time), approach (30 %),
-contact (CoST's mean duration for the gesture, per participant and per trial
-variation), retreat (30 %), rest (20 %); the non-contact time is set so that
-the median trial length matches the study's median for the gesture and
-region (:data:`sphri.data.reference_stats.VR_MEDIAN_TRIAL_FRAMES`).
+Timing of a trial. Its whole length (rest to rest) is drawn first: the VR
+study's median for the gesture and region
+(:data:`sphri.data.reference_stats.VR_MEDIAN_TRIAL_FRAMES`) times the
+participant's, the participant x gesture and a heavy-tailed trial factor
+(:class:`sphri.data.people.Spread`, calibrated to the manifests' spread); a
+few trials nobody ended get tens of seconds more. The contact phase
+(:mod:`sphri.data.gestures`: CoST's durations with participant, participant
+x gesture and trial factors, brushes and re-touches) and the approach and
+retreat (``approach_s`` over the participant's speed) are placed in it, and
+what is left is idle time, split at random before and after. Some trials are
+mis-timed: started late (the hand already approaching) or ended early
+(during the touch or the retreat).
 
-Determinism. Participant ``k``'s style (hand size, speed, depth, approach,
-preferred variants) comes from the stream ``(seed, k, 0)`` and its trials in
+Determinism. Participant ``k``'s style (hand size, handedness, speed,
+durations, depths, habits, per-gesture effects) comes from the stream ``(seed, k, 0)`` and its trials in
 a region from ``(seed, k, crc32(region))``: generating only the arm gives
 exactly the arm trials of arm + torso, and 4 participants are the first 4 of
 18.
