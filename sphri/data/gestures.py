@@ -11,16 +11,21 @@ adds the approach from rest and the retreat.
 
 Contact durations (first to last contact, repetitions included) are drawn
 around CoST's mean for the gesture (:mod:`sphri.data.reference_stats`)
-times :data:`DURATION_CALIBRATION`, which absorbs what the contact stage
-adds (other capsules touching before and after the effector).
+times :data:`DURATION_CALIBRATION`, with participant, participant x gesture
+and trial factors whose total spread is CoST's SD
+(:meth:`sphri.data.people.Spread.duration_trial_sd`). Penetration depth
+(nothing stops a virtual hand) has the same three levels and a deep tail
+(:func:`penetration_depth`). Which variant a participant uses (palm or fist,
+palm or finger pads, ...) follows personal habits (:data:`HABITS`), and
+:func:`add_brush_and_retouch` adds accidental contacts around the gesture.
 
 | gesture | effector | touches | motion |
 | --- | --- | --- | --- |
 | poke | index fingertip (fist, index out) | 1 | press along the normal |
 | tap | index (and middle) fingertip, fingers bent | 1-3 brief | lifts 1.5-2.5 cm between |
-| pat | flat palm | 2-4 brief | lifts 3-5 cm between |
+| pat | flat palm or finger pads | 2-4 brief | lifts 3-5 cm between |
 | hit | palm or fist knuckles | 1 fast, deep | strikes from 8-12 cm |
-| push | flat palm | 1 held | slow press, deep |
+| push | flat palm or index fingertip | 1 held | slow press, deep |
 | rub | palm or finger pads | 1 held | back and forth, 1.5-3 Hz |
 | stroke | palm or finger pads | 1-3 | one way along the link, lift and return |
 | grab | palm, fingers wrap, thumb opposes | 1 held | fingers close around the link |
@@ -32,9 +37,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sphri.data.people import Spread
 from sphri.data.reference_stats import COST_DURATION_MS
 
-#: Multiplier on CoST's mean duration per gesture (calibrated with ``python -m sphri.data.stats``).
+#: Multiplier on CoST's mean duration per gesture. The draws are mean-preserving, so 1.0 keeps CoST's mean in
+#: expectation; one study of 18 participants lands within about +/-25 % of it (participant x gesture effects).
 DURATION_CALIBRATION: dict[str, float] = {
     "grab": 1.0,
     "hit": 1.0,
@@ -46,7 +53,8 @@ DURATION_CALIBRATION: dict[str, float] = {
     "tap": 1.0,
 }
 
-#: Typical effector depth below the surface per gesture (metres), before per-participant and per-trial factors.
+#: Median penetration of the effector below the surface per gesture (metres), before the participant,
+#: participant x gesture and trial factors and the deep tail (:func:`penetration_depth`).
 DEPTH_M: dict[str, float] = {
     "poke": 0.008, "tap": 0.006, "pat": 0.008, "hit": 0.013,
     "push": 0.016, "rub": 0.008, "stroke": 0.006, "grab": 0.017,
@@ -81,69 +89,107 @@ GRAB_OPEN = np.array([[0.0, 0.00, 0.10, 0.10], [0.0, 0.15, 0.20, 0.10], [0.0, 0.
                       [0.0, 0.15, 0.20, 0.10], [0.0, 0.15, 0.20, 0.10]])
 
 
+#: Population rates of the per-participant habits (probability that a trial uses the variant).
+#: Assumptions (no published rates for these variants); ``data.preference_concentration`` and
+#: ``data.variability`` set how much participants differ around them.
+HABITS: dict[str, float] = {
+    "hit_fist": 0.3,       # hit with the fist's knuckles instead of the palm
+    "slide_fingers": 0.3,  # rub / stroke with the finger pads instead of the palm
+    "tap_two": 0.6,        # tap with index and middle fingers
+    "rub_across": 0.25,    # rub around the link instead of along it
+    "pat_fingers": 0.25,   # pat with the finger pads (closer to a tap)
+    "push_tip": 0.15,      # push with the index fingertip (closer to a poke)
+    "grab_side": 0.5,      # which way the fingers wrap in a grab
+    "stroke_sign": 0.5,    # preferred stroke direction along the link
+}
+
+
 @dataclass
 class Style:
-    """How one participant touches (drawn once per participant, shared by all regions)."""
+    """How one participant touches (drawn once per participant, shared by all regions).
+
+    Scalars are participant effects; ``*_g`` dicts are participant x gesture
+    effects (multiplicative factors, median 1), so a participant's ordering
+    of gestures by duration, depth, speed, ... differs from another's.
+    """
 
     scale: float
-    """Hand size factor (bone lengths), about 1 +/- 10 %."""
+    """Hand size factor (bone lengths): hand length over the hand model's."""
     speed: float
     """Approach/retreat speed factor (> 1: faster)."""
-    pause: float
-    """Factor on the rest phases before and after the touch."""
+    length: float
+    """Participant effect on the log trial length."""
     duration: float
     """Factor on contact durations."""
     depth: float
-    """Factor on contact depths."""
+    """Factor on penetration depths."""
     tilt: float
     """Approach tilt from the surface normal (radians)."""
     tilt_azimuth: float
-    """Direction of that tilt around the normal, from t1 (radians)."""
+    """Direction of that tilt around the normal, from t1 (radians): the side the hand comes from."""
     yaw: float
     """Preferred hand yaw around the normal, from t1 (radians)."""
-    grab_side: float
-    """+1 or -1: which way the fingers wrap in a grab."""
     spread: float
     """Extra finger abduction (radians)."""
     rest_m: float
     """Distance of the rest pose from the touch point (metres)."""
-    hit_fist: float
-    """Probability that a hit uses the fist."""
-    slide_fingers: float
-    """Probability that a rub or stroke uses the finger pads."""
-    tap_two: float
-    """Probability that a tap uses two fingers."""
-    rub_across: float
-    """Probability that a rub goes around the link rather than along it."""
-    stroke_sign: float
-    """+1 or -1: preferred stroke direction along the link."""
+    left_handed: bool = False
+    """Left-handed participant using the tracked right hand (mirrored approach side, slower)."""
+    habits: dict[str, float] = field(default_factory=dict)
+    """Probability of each variant in :data:`HABITS`."""
     counts: dict[str, np.ndarray] = field(default_factory=dict)
     """Per multi-touch gesture, probabilities of its touch counts."""
+    length_g: dict[str, float] = field(default_factory=dict)
+    """Participant x gesture effect on the log trial length."""
+    speed_g: dict[str, float] = field(default_factory=dict)
+    duration_g: dict[str, float] = field(default_factory=dict)
+    depth_g: dict[str, float] = field(default_factory=dict)
+    rate_g: dict[str, float] = field(default_factory=dict)
+    """Factor on repetition rate (rub frequency, touches per second of tap, pat, stroke)."""
+    extent_g: dict[str, float] = field(default_factory=dict)
+    """Factor on slide extent (rub amplitude, stroke length)."""
+
+    def habit(self, name: str) -> float:
+        return self.habits.get(name, HABITS[name])
 
     @classmethod
-    def draw(cls, rng: np.random.Generator, scale_sd: float) -> "Style":
-        def logn(sd: float) -> float:
-            return float(np.exp(rng.normal(0.0, sd) - 0.5 * sd * sd))
+    def draw(cls, rng: np.random.Generator, spread: Spread, gestures=tuple(DEPTH_M)) -> "Style":
+        v = spread.variability
+        sp = spread
 
-        return cls(
-            scale=float(np.clip(1.0 + rng.normal(0.0, scale_sd), 0.9, 1.1)),
-            speed=logn(0.15),
-            pause=logn(0.25),
-            duration=logn(0.2),
-            depth=logn(0.25),
-            tilt=float(rng.uniform(0.0, np.radians(30.0))),
-            tilt_azimuth=float(rng.uniform(0.0, 2 * np.pi)),
-            yaw=float(rng.uniform(0.0, 2 * np.pi)),
-            grab_side=float(rng.choice([-1.0, 1.0])),
-            spread=float(rng.uniform(0.0, 0.12)),
-            rest_m=float(rng.uniform(0.22, 0.35)),
-            hit_fist=float(rng.uniform(0.0, 0.6)),
-            slide_fingers=float(rng.uniform(0.0, 0.6)),
-            tap_two=float(rng.uniform(0.3, 0.9)),
-            rub_across=float(rng.uniform(0.0, 0.5)),
-            stroke_sign=float(rng.choice([-1.0, 1.0])),
-            counts={g: rng.dirichlet(np.full(len(TOUCH_COUNTS[g][0]), 2.0)) for g in sorted(TOUCH_COUNTS)},
+        def around(mean: float, lo: float, hi: float) -> float:
+            return float(mean + min(v, 1.0) * (rng.uniform(lo, hi) - mean))
+
+        left = bool(rng.random() < sp.left_handed_fraction * min(v, 1.0))
+        scale = sp.hand_scale(rng)
+        side = (-np.pi / 2 if left else np.pi / 2) + v * rng.normal(0.0, 0.6)
+        speed = sp.lognormal(rng, sp.speed_participant_sd) * (sp.nondominant_speed if left else 1.0)
+        style = cls(
+            scale=scale,
+            speed=speed,
+            length=float(v * sp.length_participant_sd * rng.standard_normal()),
+            duration=sp.lognormal(rng, sp.duration_participant_sd),
+            depth=sp.lognormal(rng, sp.depth_participant_sd),
+            tilt=around(np.radians(15.0), 0.0, np.radians(30.0)),
+            tilt_azimuth=float(side),
+            yaw=float(min(v, 1.0) * rng.uniform(-np.pi, np.pi)),
+            spread=around(0.06, 0.0, 0.12),
+            rest_m=around(0.285, 0.22, 0.35),
+            left_handed=left,
         )
+        style.habits = {k: sp.preference(rng, m) for k, m in HABITS.items()}
+        for g in sorted(TOUCH_COUNTS):
+            k = len(TOUCH_COUNTS[g][0])
+            pop = np.full(k, 1.0 / k)
+            style.counts[g] = pop + min(v, 1.0) * (rng.dirichlet(np.full(k, 2.0)) - pop)
+        for g in gestures:
+            style.length_g[g] = float(v * sp.length_interaction_sd * rng.standard_normal())
+            style.speed_g[g] = sp.lognormal(rng, sp.speed_interaction_sd)
+            style.duration_g[g] = sp.lognormal(rng, sp.duration_interaction_sd)
+            style.depth_g[g] = sp.lognormal(rng, sp.depth_interaction_sd)
+            style.rate_g[g] = sp.lognormal(rng, sp.rate_interaction_sd)
+            style.extent_g[g] = sp.lognormal(rng, sp.extent_interaction_sd)
+        return style
 
 
 @dataclass
@@ -178,14 +224,33 @@ class ContactPlan:
         return max((abs(s) for _, s in self.slide), default=0.0)
 
 
-def _lognormal(rng: np.random.Generator, mean: float, sd: float) -> float:
-    return float(mean * np.exp(rng.normal(0.0, sd) - 0.5 * sd * sd))
+def contact_duration(rng: np.random.Generator, gesture: str, style: Style, spread: Spread) -> float:
+    """A trial's contact duration (s): CoST's mean x calibration x participant x participant-gesture x trial factors.
+
+    Mean-preserving: the log-normal factors' variances (``variability``
+    times the participant, interaction and CoST-derived trial SDs) are
+    taken off the median, so the expected duration stays CoST's mean.
+    """
+    v = spread.variability
+    sd_t = spread.duration_trial_sd(gesture)
+    var = v * v * (spread.duration_participant_sd**2 + spread.duration_interaction_sd**2 + sd_t**2)
+    mean = COST_DURATION_MS[gesture][0] / 1000.0 * DURATION_CALIBRATION[gesture]
+    factor = style.duration * style.duration_g.get(gesture, 1.0)
+    return float(mean * factor * np.exp(v * sd_t * rng.standard_normal() - 0.5 * var))
 
 
-def contact_duration(rng: np.random.Generator, gesture: str, style: Style, sd: float = 0.4) -> float:
-    """A trial's contact duration (s): CoST's mean x calibration x participant x trial factors (mean-preserving)."""
-    mean = COST_DURATION_MS[gesture][0] / 1000.0 * DURATION_CALIBRATION[gesture] * style.duration
-    return _lognormal(rng, mean, sd)
+def penetration_depth(rng: np.random.Generator, gesture: str, style: Style, spread: Spread) -> float:
+    """How far the effector goes below the surface in one trial (metres).
+
+    Nothing stops a virtual hand: the median per gesture (:data:`DEPTH_M`)
+    times participant, participant-gesture and trial log-normal factors; with
+    probability ``deep_rate`` the hand passes a further 1 cm to
+    ``depth_max_m`` into the hull. Capped at ``depth_max_m``.
+    """
+    d = DEPTH_M[gesture] * style.depth * style.depth_g.get(gesture, 1.0) * spread.lognormal(rng, spread.depth_trial_sd)
+    if rng.random() < spread.rate(spread.deep_rate):
+        d += float(rng.uniform(0.01, spread.depth_max_m))
+    return float(min(d, spread.depth_max_m))
 
 
 def _touch_train(total: float, n: int, kappa: float, depth: float, rng: np.random.Generator) -> list[tuple[float, float, float]]:
@@ -199,77 +264,119 @@ def _touch_train(total: float, n: int, kappa: float, depth: float, rng: np.rando
     return out
 
 
-def plan_contact(gesture: str, rng: np.random.Generator, style: Style, wrap_radius_m: float, finger_radius_m: float) -> ContactPlan:
+def add_brush_and_retouch(plan: ContactPlan, rng: np.random.Generator, spread: Spread) -> ContactPlan:
+    """Accidental contacts around the gesture, in place.
+
+    With probability ``brush_rate`` the hand grazes the surface (30-120 ms,
+    1-4 mm deep) 0.15-0.5 s before the gesture; with probability
+    ``retouch_rate`` it comes back 0.2-0.6 s after it for a 0.1-0.4 s touch
+    at half the gesture's depth (an adjustment). Times are shifted so the
+    first contact still starts at 0.
+    """
+    depth = max(d for _, _, d in plan.touches)
+    if rng.random() < spread.rate(spread.brush_rate):
+        gap, dur = float(rng.uniform(0.15, 0.5)), float(rng.uniform(0.03, 0.12))
+        shift = gap + dur
+        plan.touches = [(0.0, dur, float(rng.uniform(0.001, 0.004)))] + [(a + shift, b + shift, d) for a, b, d in plan.touches]
+        plan.slide = [(t + shift, x) for t, x in plan.slide]
+        plan.finger_knots = [(t + shift, f) for t, f in plan.finger_knots]
+    if rng.random() < spread.rate(spread.retouch_rate):
+        end = plan.touches[-1][1]
+        a = end + float(rng.uniform(0.2, 0.6))
+        plan.touches = plan.touches + [(a, a + float(rng.uniform(0.1, 0.4)), 0.5 * depth)]
+    return plan
+
+
+def plan_contact(gesture: str, rng: np.random.Generator, style: Style, wrap_radius_m: float, finger_radius_m: float,
+                 spread: Spread | None = None) -> ContactPlan:
     """Draw the contact phase of one ``gesture`` trial for a participant's ``style``.
 
     ``wrap_radius_m``: radius of the link's cross-section at the touch point
     (how far the grab's fingers must curl); ``finger_radius_m``: the fingers'
-    capsule radius.
+    capsule radius; ``spread``: the variability assumptions (default: the
+    calibrated :class:`Spread`).
     """
-    depth = _lognormal(rng, DEPTH_M[gesture] * style.depth, 0.3)
+    spread = Spread() if spread is None else spread
+    plan = _plan(gesture, rng, style, wrap_radius_m, finger_radius_m, spread)
+    return add_brush_and_retouch(plan, rng, spread)
+
+
+def _plan(gesture: str, rng: np.random.Generator, style: Style, wrap_radius_m: float, finger_radius_m: float,
+          sp: Spread) -> ContactPlan:
+    depth = penetration_depth(rng, gesture, style, sp)
     yaw = style.yaw + rng.normal(0.0, np.radians(20.0))
     tilt = float(rng.uniform(0.0, np.radians(10.0)))
     az = float(rng.uniform(0.0, 2 * np.pi))
     spread = np.zeros((5, 4))
     spread[1:, 0] = np.array([1.0, 0.0, -1.0, -2.0]) * (style.spread + rng.normal(0.0, 0.02)) * 0.5
-    dur = contact_duration(rng, gesture, style)
+    dur = contact_duration(rng, gesture, style, sp)
+    slow = 1.0 / style.speed_g.get(gesture, 1.0)  # pressing speed: ramps take longer for a slow participant-gesture
+    rate = style.rate_g.get(gesture, 1.0)
+    extent = style.extent_g.get(gesture, 1.0)
 
     def multi(g: str) -> list[tuple[float, float, float]]:
         choices, expected = TOUCH_COUNTS[g]
         n = int(rng.choice(choices, p=style.counts[g]))
-        return _touch_train(dur * n / expected, n, CONTACT_FRACTION[g], depth, rng)
+        return _touch_train(dur * n / expected / rate, n, CONTACT_FRACTION[g], depth, rng)
 
     if gesture == "poke":
         return ContactPlan(gesture, "index_tip", POINT + 0.5 * spread, [(0.0, dur, depth)], hover_m=float(rng.uniform(0.03, 0.05)),
-                           ramp_s=0.15, yaw=yaw, tilt=float(rng.uniform(0.0, np.radians(25.0))), tilt_azimuth=az)
+                           ramp_s=0.15 * slow, yaw=yaw, tilt=float(rng.uniform(0.0, np.radians(25.0))), tilt_azimuth=az)
     if gesture == "tap":
-        shape = TAP2 if rng.random() < style.tap_two else TAP
+        shape = TAP2 if rng.random() < style.habit("tap_two") else TAP
         touches = multi("tap")
         plan = ContactPlan(gesture, "index_tip", shape + 0.5 * spread, touches, hover_m=float(rng.uniform(0.015, 0.025)),
-                           ramp_s=0.08, yaw=yaw, tilt=tilt, tilt_azimuth=az, slide_angle=float(rng.uniform(0, 2 * np.pi)))
+                           ramp_s=0.08 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az, slide_angle=float(rng.uniform(0, 2 * np.pi)))
         plan.slide = [(a, float(rng.normal(0.0, 0.004))) for a, _, _ in touches]
         return plan
     if gesture == "pat":
+        fingers = rng.random() < style.habit("pat_fingers")
         touches = multi("pat")
-        plan = ContactPlan(gesture, "palm", FLAT + spread, touches, hover_m=float(rng.uniform(0.03, 0.05)),
-                           ramp_s=0.10, yaw=yaw, tilt=tilt, tilt_azimuth=az, slide_angle=float(rng.uniform(0, 2 * np.pi)))
+        plan = ContactPlan(gesture, "fingers" if fingers else "palm", SLIDE_FINGERS if fingers else FLAT + spread, touches,
+                           hover_m=float(rng.uniform(0.03, 0.05)), ramp_s=0.10 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az,
+                           slide_angle=float(rng.uniform(0, 2 * np.pi)))
         plan.slide = [(a, float(rng.normal(0.0, 0.006))) for a, _, _ in touches]
         return plan
     if gesture == "hit":
-        fist = rng.random() < style.hit_fist
+        fist = rng.random() < style.habit("hit_fist")
         return ContactPlan(gesture, "fist" if fist else "palm", FIST if fist else FLAT + spread, [(0.0, dur, depth)],
-                           hover_m=float(rng.uniform(0.08, 0.12)), ramp_s=0.05, yaw=yaw, tilt=tilt, tilt_azimuth=az)
+                           hover_m=float(rng.uniform(0.08, 0.12)), ramp_s=0.05 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az)
     if gesture == "push":
+        if rng.random() < style.habit("push_tip"):
+            return ContactPlan(gesture, "index_tip", POINT + 0.5 * spread, [(0.0, dur, depth)],
+                               hover_m=float(rng.uniform(0.03, 0.05)), ramp_s=0.25 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az)
         return ContactPlan(gesture, "palm", FLAT + spread, [(0.0, dur, depth)], hover_m=float(rng.uniform(0.03, 0.05)),
-                           ramp_s=0.25, yaw=yaw, tilt=tilt, tilt_azimuth=az)
+                           ramp_s=0.25 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az)
     if gesture == "rub":
-        fingers = rng.random() < style.slide_fingers
-        across = rng.random() < style.rub_across
+        fingers = rng.random() < style.habit("slide_fingers")
+        across = rng.random() < style.habit("rub_across")
         angle = (np.pi / 2 if across else 0.0) + rng.normal(0.0, np.radians(20.0))
-        amp = float(rng.uniform(0.015, 0.03))
-        freq = float(rng.uniform(1.5, 3.0))
+        amp = float(rng.uniform(0.015, 0.03)) * extent
+        freq = float(rng.uniform(1.5, 3.0)) * rate
         plan = ContactPlan(gesture, "fingers" if fingers else "palm", SLIDE_FINGERS if fingers else FLAT + spread,
-                           [(0.0, dur, depth)], hover_m=float(rng.uniform(0.02, 0.04)), ramp_s=0.15, yaw=yaw,
+                           [(0.0, dur, depth)], hover_m=float(rng.uniform(0.02, 0.04)), ramp_s=0.15 * slow, yaw=yaw,
                            tilt=tilt, tilt_azimuth=az, slide_angle=float(angle))
         half = 0.5 / freq
         k = np.arange(1, max(int(dur / half), 1) + 1)
         plan.slide = [(0.0, 0.0)] + [(float(t), float(amp * (1 if i % 2 else -1))) for i, t in zip(k, k * half) if t < dur]
         return plan
     if gesture == "stroke":
-        fingers = rng.random() < style.slide_fingers
+        fingers = rng.random() < style.habit("slide_fingers")
         touches = multi("stroke")
-        length = float(rng.uniform(0.06, 0.12)) * style.scale
-        angle = (0.0 if style.stroke_sign > 0 else np.pi) + rng.normal(0.0, np.radians(10.0))
+        length = float(rng.uniform(0.06, 0.12)) * style.scale * extent
+        sign = 1.0 if rng.random() < style.habit("stroke_sign") else -1.0
+        angle = (0.0 if sign > 0 else np.pi) + rng.normal(0.0, np.radians(10.0))
         plan = ContactPlan(gesture, "fingers" if fingers else "palm", SLIDE_FINGERS if fingers else FLAT + spread, touches,
-                           hover_m=float(rng.uniform(0.02, 0.04)), ramp_s=0.12, yaw=yaw, tilt=tilt, tilt_azimuth=az,
+                           hover_m=float(rng.uniform(0.02, 0.04)), ramp_s=0.12 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az,
                            slide_angle=float(angle))
         for a, b, _ in touches:
             plan.slide += [(a, -0.5 * length), (b, 0.5 * length)]
         return plan
     if gesture == "grab":
+        side = 1.0 if rng.random() < style.habit("grab_side") else -1.0
         closed = _grab_fingers(wrap_radius_m + finger_radius_m, style.scale) * float(rng.uniform(1.2, 1.4))
         plan = ContactPlan(gesture, "palm", GRAB_OPEN, [(0.0, dur, depth)], hover_m=float(rng.uniform(0.03, 0.05)),
-                           ramp_s=0.2, yaw=np.pi / 2 * style.grab_side + rng.normal(0.0, np.radians(10.0)), tilt=tilt,
+                           ramp_s=0.2 * slow, yaw=np.pi / 2 * side + rng.normal(0.0, np.radians(10.0)), tilt=tilt,
                            tilt_azimuth=az, grab=True)
         close = min(0.25, 0.3 * dur)
         plan.finger_knots = [(0.0, GRAB_OPEN), (close, closed), (max(dur - close, close), closed), (dur + 0.1, GRAB_OPEN)]

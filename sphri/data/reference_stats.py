@@ -57,6 +57,50 @@ VR_MEDIAN_TRIAL_FRAMES: dict[str, dict[str, float]] = {
     "torso": {"grab": 113.0, "hit": 97.0, "pat": 131.5, "poke": 104.5, "push": 97.5, "rub": 140.0, "stroke": 150.5, "tap": 117.0},
 }
 
+#: The VR manifests' trial-length spread (``python -m sphri.data.stats`` with the manifests, see
+#: :mod:`sphri.data.lengths` for the definitions): region -> statistics, per gesture ``n``, ``sd_log``
+#: and quantiles q05..q95 (frames). Trials under 10 frames left out. Copied so stats runs without the files.
+VR_LENGTH_SPREAD: dict[str, dict] = {
+    "arm": {
+        "participants": 18,
+        "between_var": 0.0789,
+        "interaction_var": 0.0129,
+        "within_sd": 0.1768,
+        "participant_median_min": 78.0,
+        "participant_median_max": 223.0,
+        "max_frames": 2071.0,
+        "gestures": {
+            "hit": {"n": 360, "sd_log": 0.334, "q05": 66.95, "q25": 80.0, "q50": 96.0, "q75": 117.0, "q95": 177.7},
+            "pat": {"n": 360, "sd_log": 0.396, "q05": 82.0, "q25": 108.0, "q50": 135.0, "q75": 176.0, "q95": 289.05},
+            "poke": {"n": 360, "sd_log": 0.335, "q05": 69.95, "q25": 87.0, "q50": 108.5, "q75": 135.25, "q95": 181.05},
+            "push": {"n": 360, "sd_log": 0.356, "q05": 71.0, "q25": 83.0, "q50": 101.5, "q75": 128.0, "q95": 221.15},
+            "rub": {"n": 360, "sd_log": 0.352, "q05": 90.95, "q25": 119.0, "q50": 143.0, "q75": 171.0, "q95": 302.1},
+            "stroke": {"n": 359, "sd_log": 0.481, "q05": 83.0, "q25": 106.0, "q50": 157.0, "q75": 201.5, "q95": 365.1},
+            "tap": {"n": 360, "sd_log": 0.39, "q05": 74.95, "q25": 94.0, "q50": 119.5, "q75": 161.25, "q95": 260.2},
+            "grab": {"n": 320, "sd_log": 0.333, "q05": 76.95, "q25": 92.0, "q50": 111.0, "q75": 127.25, "q95": 206.35},
+        },
+    },
+    "torso": {
+        "participants": 17,
+        "between_var": 0.0765,
+        "interaction_var": 0.012,
+        "within_sd": 0.1954,
+        "participant_median_min": 65.0,
+        "participant_median_max": 175.0,
+        "max_frames": 1956.0,
+        "gestures": {
+            "hit": {"n": 340, "sd_log": 0.341, "q05": 62.0, "q25": 77.75, "q50": 97.0, "q75": 120.0, "q95": 168.0},
+            "pat": {"n": 340, "sd_log": 0.393, "q05": 72.0, "q25": 101.0, "q50": 131.5, "q75": 166.25, "q95": 246.05},
+            "poke": {"n": 339, "sd_log": 0.344, "q05": 67.0, "q25": 83.0, "q50": 105.0, "q75": 131.0, "q95": 182.2},
+            "push": {"n": 340, "sd_log": 0.357, "q05": 64.9, "q25": 80.75, "q50": 97.5, "q75": 121.0, "q95": 188.25},
+            "rub": {"n": 339, "sd_log": 0.355, "q05": 81.9, "q25": 105.5, "q50": 140.0, "q75": 168.0, "q95": 250.0},
+            "stroke": {"n": 340, "sd_log": 0.44, "q05": 71.0, "q25": 100.75, "q50": 150.5, "q75": 195.0, "q95": 289.45},
+            "tap": {"n": 340, "sd_log": 0.377, "q05": 68.0, "q25": 91.75, "q50": 117.0, "q75": 145.25, "q95": 211.15},
+            "grab": {"n": 300, "sd_log": 0.381, "q05": 66.95, "q25": 90.0, "q50": 113.0, "q75": 137.25, "q95": 200.05},
+        },
+    },
+}
+
 #: Frame rate that the VR trial lengths are counted in (Hz); see the module docstring.
 VR_FRAME_RATE_HZ = 30.0
 

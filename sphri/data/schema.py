@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from sphri.config import require, require_range, store
+from sphri.data.people import Spread
 from sphri.types import GESTURES
 
 
@@ -27,8 +28,13 @@ def _check_common(seed: int, participants: Optional[int], repetitions: Optional[
 
 
 @dataclass
-class SyntheticDataSchema:
-    """``data=synthetic``: calibrated synthetic gestures (:class:`sphri.data.synthetic.SyntheticData`)."""
+class SyntheticDataSchema(Spread):
+    """``data=synthetic``: calibrated synthetic gestures (:class:`sphri.data.synthetic.SyntheticData`).
+
+    The variability fields (``variability``, ``length_*``, ``duration_*``,
+    ``depth_*``, ...) come from :class:`sphri.data.people.Spread`; each one's
+    source is in ``conf/data/synthetic.yaml``.
+    """
 
     _target_: str = "sphri.data.synthetic.SyntheticData"
     seed: int = 0
@@ -39,18 +45,35 @@ class SyntheticDataSchema:
     root: Optional[str] = None
     frame_rate_hz: float = 30.0
     tracking_rate_hz: float = 30.0
-    jitter_m: float = 0.001
+    """Hand-tracking updates per second, jittered 15 % [Q2: Quest hand tracking samples at 30 Hz]."""
+    jitter_mm: float = 3.0
+    """SD per axis of the tracked hand position per tracking sample (mm) [Q2: 1.1 cm fingertip error, mostly bias]."""
+    latency_ms: float = 45.0
+    """Delay of the tracked hand behind the real one (ms) [Q2: Abdlkarim et al. 2024, 45 ms]."""
+    latency_sd_ms: float = 8.0
+    """Sample-to-sample variation of that delay (ms) [assumption]."""
     dropouts_per_trial: float = 0.3
-    hand_scale_sd: float = 0.05
+    """Mean number of tracking losses (hand frozen) per trial [assumption]."""
+    dropout_max_frames: int = 12
+    """A loss lasts 3 to this many frames; the hand jumps to where it is when found [assumption]."""
+    jumps_per_trial: float = 0.05
+    """Mean number of mis-tracked samples per trial (hand thrown for 1-3 samples) [assumption]."""
+    jump_mm: float = 30.0
+    """SD per axis of such a jump (mm) [assumption]."""
 
     def __post_init__(self) -> None:
         _check_common(self.seed, self.participants, self.repetitions, self.regions, self.gestures)
         require(self.root is None, "data.root", self.root, "only data=vr_gesture reads a folder; leave it null here")
         require_range("data.frame_rate_hz", self.frame_rate_hz, lo=1.0, hi=1000.0)
         require_range("data.tracking_rate_hz", self.tracking_rate_hz, lo=1.0, hi=1000.0)
-        require_range("data.jitter_m", self.jitter_m, lo=0.0, hi=0.05)
+        require_range("data.jitter_mm", self.jitter_mm, lo=0.0, hi=50.0)
+        require_range("data.latency_ms", self.latency_ms, lo=0.0, hi=500.0)
+        require_range("data.latency_sd_ms", self.latency_sd_ms, lo=0.0, hi=200.0)
         require_range("data.dropouts_per_trial", self.dropouts_per_trial, lo=0.0, hi=10.0)
-        require_range("data.hand_scale_sd", self.hand_scale_sd, lo=0.0, hi=0.1)
+        require_range("data.dropout_max_frames", self.dropout_max_frames, lo=3, hi=300)
+        require_range("data.jumps_per_trial", self.jumps_per_trial, lo=0.0, hi=10.0)
+        require_range("data.jump_mm", self.jump_mm, lo=0.0, hi=500.0)
+        self.validate("data")
 
 
 @dataclass

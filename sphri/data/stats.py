@@ -18,7 +18,29 @@ gesture:
   only its ordering across gestures is comparable to CoST's;
 - how many trials have no contact at all.
 
-Extra arguments: ``json=PATH`` writes the per-gesture table as JSON.
+Then it compares distributions, not only centres, and flags every row whose
+ratio to the reference falls outside its band (``ok`` / ``OUTSIDE``,
+:data:`sphri.data.lengths.BANDS`):
+
+- trial length (:mod:`sphri.data.lengths`): per gesture the 5/25/50/75/95 %
+  quantiles and the SD of log length; over participants the variance of
+  their mean log length, the participant x gesture variance, the median SD
+  within participant and gesture, the range of per-participant medians and
+  the longest trial. Reference: the VR manifests under ``reference=DIR``, or
+  under ``data.root`` (``data=vr_gesture``), or ``../shared/vr-gesture-dataset``
+  next to the repository when present; otherwise the copy of their numbers in
+  :data:`sphri.data.reference_stats.VR_LENGTH_SPREAD`;
+- contact duration: per gesture mean and SD over trials against CoST's mean
+  and SD.
+
+Extra arguments: ``json=PATH`` writes the per-gesture table as JSON (a list
+of rows) and the comparison beside it (``PATH`` with ``_spread`` before the
+suffix); ``reference=DIR`` names the manifests to compare with.
+
+Participants that differ show in classification too: the Random Forest's
+leave-one-subject-out accuracy should sit below within-subject k-fold (same
+data and skin), as in recorded touch corpora. Measure both with
+``python -m sphri [overrides]`` and ``python -m sphri cv=kfold [overrides]``.
 """
 
 from __future__ import annotations
@@ -33,6 +55,15 @@ import numpy as np
 import pandas as pd
 from scipy.spatial import cKDTree
 
+from sphri.data.lengths import (
+    COMPARISON_COLUMNS,
+    compare,
+    flag_row,
+    format_comparison,
+    length_spread,
+    length_table,
+    manifest_lengths,
+)
 from sphri.data.linkgeom import LinkSurface
 from sphri.data.reference_stats import (
     COST_AREA_FRACTION,
@@ -41,6 +72,7 @@ from sphri.data.reference_stats import (
     DURATION_TOLERANCE,
     TRIAL_LENGTH_TOLERANCE,
     VR_FRAME_RATE_HZ,
+    VR_LENGTH_SPREAD,
     median_trial_frames,
 )
 from sphri.types import GESTURES, Contacts, GestureDataset, Robot
@@ -229,6 +261,41 @@ def format_summary(summary: pd.DataFrame, dataset_name: str = "", frame_rate_hz:
     return "\n".join(lines)
 
 
+def duration_comparison(stats: pd.DataFrame) -> pd.DataFrame:
+    """Per (region, gesture): mean and SD of contact duration (ms, trials with contact) against CoST's, flagged
+    like :func:`sphri.data.lengths.compare`."""
+    rows = []
+    touched = stats[stats["contact"]]
+    for (region, gesture), g in touched.groupby(["region", "gesture"], sort=False):
+        d = g["duration_s"].to_numpy() * 1000.0
+        mean, sd = COST_DURATION_MS[str(gesture)]
+        for name, value, ref, band in (("duration mean ms", float(d.mean()), mean, "duration_mean"),
+                                       ("duration sd ms", float(d.std(ddof=1)) if len(d) > 1 else float("nan"), sd,
+                                        "duration_sd")):
+            row = flag_row(name, str(gesture), value, ref, band)
+            row["region"] = region
+            rows.append(row)
+    out = pd.DataFrame(rows, columns=COMPARISON_COLUMNS)
+    order = {g: i for i, g in enumerate(GESTURES)}
+    out = out.sort_values(["region", "gesture"], key=lambda s: s.map(order) if s.name == "gesture" else s, kind="stable")
+    return out.reset_index(drop=True)
+
+
+def reference_spread(reference: str | None, regions: Sequence[str]) -> tuple[dict, str]:
+    """(length spread of the reference, where it came from): see the module docstring for the order."""
+    candidates = [reference] if reference else []
+    if not reference:
+        candidates.append(str(Path(__file__).resolve().parents[2].parent / "shared" / "vr-gesture-dataset"))
+    for c in candidates:
+        path = Path(c)
+        if path.is_dir() and any((path / r).is_dir() for r in regions):
+            have = [r for r in regions if (path / r).is_dir()]
+            return length_spread(manifest_lengths(path, have)), f"manifests under {path}"
+        if reference:
+            raise FileNotFoundError(f"reference={reference}: no {list(regions)} folders with manifests there")
+    return VR_LENGTH_SPREAD, "VR manifests (numbers stored in sphri.data.reference_stats.VR_LENGTH_SPREAD)"
+
+
 def dataset_statistics(overrides: Sequence[str] = ()) -> tuple[GestureDataset, pd.DataFrame, pd.DataFrame]:
     """Compose the config, build hand, robot, dataset and contacts; return (dataset, trial stats, summary)."""
     from hydra.utils import instantiate
@@ -248,10 +315,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     json_out = None
+    reference = None
     overrides = []
     for a in argv:
         if a.startswith("json="):
             json_out = a.split("=", 1)[1]
+        elif a.startswith("reference="):
+            reference = a.split("=", 1)[1]
         elif a in ("-h", "--help"):
             print(__doc__)
             return 0
@@ -268,9 +338,17 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"calibration: {len(checks) - len(failed)}/{len(checks)} checks pass")
         for name, _, detail in failed:
             print(f"  FAIL {name}: {detail}")
+    ref, source = reference_spread(reference, sorted(set(dataset.trials["region"])))
+    lengths = length_spread(length_table(dataset.trials, dataset.frame_rate_hz))
+    table = pd.concat([compare(lengths, ref), duration_comparison(stats)], ignore_index=True)
+    print()
+    print(format_comparison(table, f"distributions against {source} and CoST (Jung et al. 2017, Table 4):"))
     if json_out:
         Path(json_out).parent.mkdir(parents=True, exist_ok=True)
-        Path(json_out).write_text(json.dumps(summary.to_dict(orient="records"), indent=2) + "\n")
+        path = Path(json_out)
+        path.write_text(json.dumps(summary.to_dict(orient="records"), indent=2) + "\n")
+        spread = {"reference": source, "rows": table.to_dict(orient="records")}
+        path.with_name(f"{path.stem}_spread{path.suffix}").write_text(json.dumps(spread, indent=2) + "\n")
     return 0
 
 

@@ -11,21 +11,30 @@ once; forward kinematics runs once per (participant, region).
 Timing. Frames are at ``frame_rate_hz`` (30 Hz by default: the rate that the
 study's trial lengths are counted in, see
 :mod:`sphri.data.reference_stats`). Hand tracking updates at about
-``tracking_rate_hz`` with jittered intervals; each frame holds the latest
-tracking sample (so some frames repeat the previous pose), and about
-``dropouts_per_trial`` short dropouts per trial (3-12 frames) freeze the hand
-as a lost tracker does. Tracking noise: ``jitter_m`` (SD, metres) on the hand
-position, 0.4 degrees on its rotation, 1 degree on finger joints, 0.3 mm per
-joint.
+``tracking_rate_hz`` with jittered intervals and is seen ``latency_ms`` late
+(varying by ``latency_sd_ms``); each frame holds the latest tracking sample
+(so some frames repeat the previous pose); about ``dropouts_per_trial``
+losses per trial (3 to ``dropout_max_frames`` frames) freeze the hand, which
+then jumps to where it is, and ``jumps_per_trial`` mis-tracked samples throw
+it by ``jump_mm``. Tracking noise: ``jitter_mm`` (SD per axis) on the hand
+position per sample, 0.4 degrees on its rotation, 1 degree on finger joints,
+0.3 mm per joint.
 
-Timing of a trial: rest (about 20 % of the non-contact time), approach (30 %),
-contact (CoST's mean duration for the gesture, per participant and per trial
-variation), retreat (30 %), rest (20 %); the non-contact time is set so that
-the median trial length matches the study's median for the gesture and
-region (:data:`sphri.data.reference_stats.VR_MEDIAN_TRIAL_FRAMES`).
+Timing of a trial. Its whole length (rest to rest) is drawn first: the VR
+study's median for the gesture and region
+(:data:`sphri.data.reference_stats.VR_MEDIAN_TRIAL_FRAMES`) times the
+participant's, the participant x gesture and a heavy-tailed trial factor
+(:class:`sphri.data.people.Spread`, calibrated to the manifests' spread); a
+few trials nobody ended get tens of seconds more. The contact phase
+(:mod:`sphri.data.gestures`: CoST's durations with participant, participant
+x gesture and trial factors, brushes and re-touches) and the approach and
+retreat (``approach_s`` over the participant's speed) are placed in it, and
+what is left is idle time, split at random before and after. Some trials are
+mis-timed: started late (the hand already approaching) or ended early
+(during the touch or the retreat).
 
-Determinism. Participant ``k``'s style (hand size, speed, depth, approach,
-preferred variants) comes from the stream ``(seed, k, 0)`` and its trials in
+Determinism. Participant ``k``'s style (hand size, handedness, speed,
+durations, depths, habits, per-gesture effects) comes from the stream ``(seed, k, 0)`` and its trials in
 a region from ``(seed, k, crc32(region))``: generating only the arm gives
 exactly the arm trials of arm + torso, and 4 participants are the first 4 of
 18.
@@ -36,6 +45,7 @@ from __future__ import annotations
 import logging
 import zlib
 from dataclasses import dataclass
+from dataclasses import fields as dataclass_fields
 from typing import Optional, Sequence
 
 import numpy as np
@@ -44,7 +54,8 @@ from sphri.data.format import make_trials_frame, participant_id, trial_id
 from sphri.data.gestures import RELAXED, ContactPlan, Style, plan_contact
 from sphri.data.handfk import EFFECTORS, HandRig, effectors_from_bones, rotvec_to_matrix
 from sphri.data.linkgeom import LinkSurface
-from sphri.data.reference_stats import COST_DURATION_MS, VR_FRAME_RATE_HZ, median_trial_frames
+from sphri.data.people import Spread
+from sphri.data.reference_stats import VR_FRAME_RATE_HZ, median_trial_frames
 from sphri.types import GESTURES, GestureDataset, HandModel, Robot
 
 log = logging.getLogger(__name__)
@@ -140,7 +151,7 @@ class SyntheticData:
     ``conf/data/synthetic.yaml``.
     """
 
-    VERSION = "1"
+    VERSION = "2"
 
     def __init__(
         self,
@@ -152,9 +163,14 @@ class SyntheticData:
         root: Optional[str] = None,
         frame_rate_hz: float = 30.0,
         tracking_rate_hz: float = 30.0,
-        jitter_m: float = 0.001,
+        jitter_mm: float = 3.0,
+        latency_ms: float = 45.0,
+        latency_sd_ms: float = 8.0,
         dropouts_per_trial: float = 0.3,
-        hand_scale_sd: float = 0.05,
+        dropout_max_frames: int = 12,
+        jumps_per_trial: float = 0.05,
+        jump_mm: float = 30.0,
+        **spread,
     ):
         self.seed = int(seed)
         self.participants = DEFAULT_PARTICIPANTS if participants is None else int(participants)
@@ -166,11 +182,20 @@ class SyntheticData:
             raise ValueError(f"data.gestures: unknown gesture(s) {unknown}; known: {list(GESTURES)}")
         if root is not None:
             raise ValueError(f"data.root={root!r} is only read by data=vr_gesture; data=synthetic generates its trials")
+        known = {f.name for f in dataclass_fields(Spread)}
+        extra = sorted(set(spread) - known)
+        if extra:
+            raise TypeError(f"data: unknown field(s) {extra} for data=synthetic")
+        self.spread = Spread.from_kwargs(**spread)
         self.frame_rate_hz = float(frame_rate_hz)
         self.tracking_rate_hz = float(tracking_rate_hz)
-        self.jitter_m = float(jitter_m)
+        self.jitter_mm = float(jitter_mm)
+        self.latency_ms = float(latency_ms)
+        self.latency_sd_ms = float(latency_sd_ms)
         self.dropouts_per_trial = float(dropouts_per_trial)
-        self.hand_scale_sd = float(hand_scale_sd)
+        self.dropout_max_frames = int(dropout_max_frames)
+        self.jumps_per_trial = float(jumps_per_trial)
+        self.jump_mm = float(jump_mm)
 
     # ------------------------------------------------------------------ public
     def load(self, hand: HandModel, robot: Robot) -> GestureDataset:
@@ -181,7 +206,7 @@ class SyntheticData:
         chunks: list[np.ndarray] = []
         start = 0
         for k in range(1, self.participants + 1):
-            style = Style.draw(np.random.default_rng([self.seed, k, 0]), self.hand_scale_sd)
+            style = Style.draw(np.random.default_rng([self.seed, k, 0]), self.spread, GESTURES)
             pid = participant_id(k)
             for region in self.regions:
                 rng = np.random.default_rng([self.seed, k, region_stream(region)])
@@ -206,9 +231,19 @@ class SyntheticData:
     def _participant_region(
         self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str
     ) -> tuple[list[str], np.ndarray, list[int]]:
-        sampler = surf.sampler(surf.preference(
-            axial_frac=float(rng.uniform(0.3, 0.7)), axial_sd=float(rng.uniform(0.1, 0.25)),
-            angle=float(rng.uniform(0, 2 * np.pi)), angle_kappa=float(rng.uniform(0.5, 2.0))))
+        sp = self.spread
+        v, w = sp.variability, min(sp.variability, 1.0)
+        # habitual touch site of this participant on this region, and its per-gesture shifts
+        axial = 0.5 + v * sp.site_axial_sd * float(rng.standard_normal())
+        axial_sd = 0.25 + w * (float(rng.uniform(0.08, 0.2)) - 0.25)
+        angle = float(rng.uniform(0, 2 * np.pi))
+        kappa = w * float(rng.uniform(0.5, sp.site_kappa_max))
+        samplers = {}
+        for g in self.gestures:
+            samplers[g] = surf.sampler(surf.preference(
+                axial_frac=float(np.clip(axial + v * sp.site_interaction_sd * rng.standard_normal(), 0.1, 0.9)),
+                axial_sd=axial_sd, angle=angle + v * sp.site_angle_interaction_sd * float(rng.standard_normal()),
+                angle_kappa=kappa))
         order = [g for g in self.gestures for _ in range(self.repetitions)]
         order = [order[i] for i in rng.permutation(len(order))]
         if not order:
@@ -216,11 +251,12 @@ class SyntheticData:
         finger_r = float(rig.hand.radius_m[rig.chain_slot[2, 0]])
         plans, points = [], []
         for g in order:
+            sampler = samplers[g]
             if g == "grab":
                 i = sampler.draw(rng, margin_m=0.03)
-                plan = plan_contact(g, rng, style, float(np.clip(surf.radius[i], 0.025, 0.2)), finger_r)
+                plan = plan_contact(g, rng, style, float(np.clip(surf.radius[i], 0.025, 0.2)), finger_r, sp)
             else:
-                plan = plan_contact(g, rng, style, 0.05, finger_r)
+                plan = plan_contact(g, rng, style, 0.05, finger_r, sp)
                 margin = 0.015 + plan.slide_extent_m * abs(np.cos(plan.slide_angle))
                 i = sampler.draw(rng, margin_m=min(margin, 0.45 * surf.length_m))
             plans.append(plan)
@@ -261,37 +297,50 @@ class SyntheticData:
         r_contact = world @ local.T
 
         # timeline (seconds): rest, approach, contact phase, retreat, rest
+        sp = self.spread
         hk = height_knots(plan)
         c0, c1 = hk[0][0], hk[-1][0]
-        ref_s = median_trial_frames(region, gesture) / VR_FRAME_RATE_HZ  # reference length in seconds
-        mean_contact = COST_DURATION_MS[gesture][0] / 1000.0
-        overhead = 0.93 * max(1.2, ref_s - 0.9 * mean_contact - 0.15)
-
-        def lognormal(median: float, sd: float) -> float:
-            return float(median * np.exp(rng.normal(0.0, sd)))
-
-        rest1 = lognormal(0.2 * overhead * style.pause, 0.45)
-        approach = max(0.3, lognormal(0.3 * overhead / style.speed, 0.25))
-        retreat = max(0.3, lognormal(0.3 * overhead / style.speed, 0.25))
-        rest2 = lognormal(0.2 * overhead * style.pause, 0.45)
+        # whole-trial length: the study's median for the gesture, times the participant's, the participant x
+        # gesture and a heavy-tailed trial factor; now and then a trial nobody ended (tens of seconds)
+        log_len = (np.log(median_trial_frames(region, gesture) / VR_FRAME_RATE_HZ) + style.length
+                   + style.length_g.get(gesture, 0.0) + sp.heavy(rng, sp.length_trial_sd_for(region, gesture)))
+        total = float(np.exp(log_len))
+        if rng.random() < sp.rate(sp.long_trial_rate):
+            total += float(np.exp(rng.uniform(np.log(8.0), np.log(sp.long_trial_max_s))))
+        total = min(total, sp.long_trial_max_s)
+        speed = style.speed * style.speed_g.get(gesture, 1.0)
+        approach = max(0.25, sp.approach_s / speed * sp.lognormal(rng, sp.speed_trial_sd))
+        retreat = max(0.25, sp.approach_s / speed * sp.lognormal(rng, sp.speed_trial_sd))
+        idle = max(0.2, total - (c1 - c0) - approach - retreat)
+        rest1 = idle * float(rng.beta(2.0, 2.0))
+        rest2 = idle - rest1
         t_hover = rest1 + approach
         shift = t_hover - c0
         t_leave = shift + c1
         t_gone = t_leave + retreat
         t_end = t_gone + rest2
-        n_frames = max(int(round(t_end * self.frame_rate_hz)), 2)
+        # mis-timed trial boundaries: started late (the hand already on its way), ended early (during the touch)
+        t_start, t_stop = 0.0, t_end
+        if rng.random() < sp.rate(sp.boundary_late_rate):
+            t_start = float(rng.uniform(0.0, t_hover))
+        if rng.random() < sp.rate(sp.boundary_early_rate):
+            first_touch = shift + plan.touches[0][0]
+            t_stop = float(rng.uniform(first_touch + 0.5 * (plan.touches[0][1] - plan.touches[0][0]), t_gone))
+        n_frames = max(int(round((t_stop - t_start) * self.frame_rate_hz)), 2)
 
-        # tracking: jittered ~tracking_rate_hz samples held between frames; dropouts freeze the hand
-        frame_t = np.arange(n_frames) / self.frame_rate_hz
+        # tracking: jittered ~tracking_rate_hz samples held between frames, seen with a latency;
+        # dropouts freeze the hand, jumps throw it a few centimetres for a sample or three
+        frame_t = t_start + np.arange(n_frames) / self.frame_rate_hz
         period = 1.0 / self.tracking_rate_hz
         n_samples = int(n_frames * self.tracking_rate_hz / self.frame_rate_hz * 1.6) + 8
         steps = period * np.clip(1.0 + 0.15 * rng.standard_normal(n_samples), 0.4, 2.0)
-        sample_t = rng.uniform(0.0, period) + np.concatenate([[0.0], np.cumsum(steps[:-1])])
+        sample_t = t_start + rng.uniform(0.0, period) + np.concatenate([[0.0], np.cumsum(steps[:-1])])
         held = np.clip(np.searchsorted(sample_t, frame_t, side="right") - 1, 0, None)
         for _ in range(rng.poisson(self.dropouts_per_trial)):
             a = int(rng.integers(0, n_frames))
-            held[a : a + int(rng.integers(3, 13))] = held[a]
-        t = np.minimum(sample_t[held], frame_t)
+            held[a : a + int(rng.integers(3, self.dropout_max_frames + 1))] = held[a]
+        latency = (self.latency_ms + self.latency_sd_ms * rng.standard_normal(n_samples)) / 1000.0
+        t = np.minimum(sample_t[held], frame_t) - latency[held]
 
         # tracks
         beta = interpolate(t, [rest1, t_hover, t_leave, t_gone], np.array([0.0, 1.0, 1.0, 0.0]))[:, 0]
@@ -337,7 +386,11 @@ class SyntheticData:
         omega = omega + np.radians(0.4) * rng.standard_normal((ns, 3))[held]
         fingers = fingers + np.radians(1.0) * rng.standard_normal((ns, 5, 4))[held]
         rot = r_contact[None] @ rotvec_to_matrix(omega)
-        pos_noise = self.jitter_m * rng.standard_normal((ns, 3))[held]
+        sample_noise = self.jitter_mm / 1000.0 * rng.standard_normal((ns, 3))
+        for _ in range(rng.poisson(self.jumps_per_trial)):
+            j = int(rng.integers(0, ns))
+            sample_noise[j : j + int(rng.integers(1, 4))] += self.jump_mm / 1000.0 * rng.standard_normal(3)
+        pos_noise = sample_noise[held]
         joint_noise = 0.0003 * rng.standard_normal((ns, hand.n_capsules, 3))[held]
         return _TrialMotion(fingers=fingers, rot=rot, target=target, effector=EFFECTORS.index(plan.effector),
                             pos_noise=pos_noise, joint_noise=joint_noise)

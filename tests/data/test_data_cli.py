@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from sphri.data import stats, synthesize
 from sphri.data.format import GENERATOR_KEY, read_manifest
@@ -55,3 +56,12 @@ def test_stats_prints_the_table_for_a_written_dataset(tmp_path, capsys):
     rows = json.loads(js.read_text())
     assert len(rows) == 8 and {r["region"] for r in rows} == {"arm"}
     assert all(r["trials"] == 2 for r in rows)
+    # the distribution table: every row flagged, the reference named
+    assert "distributions against" in text and "rows inside their band" in text
+    spread = json.loads((tmp_path / "stats_spread.json").read_text())
+    assert {r["flag"] for r in spread["rows"]} <= {"ok", "OUTSIDE"}
+    stats_rows = {(r["statistic"], r["gesture"]) for r in spread["rows"]}
+    assert ("between_var", "all") in stats_rows and ("duration sd ms", "rub") in stats_rows
+    # a reference folder without manifests is an error naming it
+    with pytest.raises(FileNotFoundError, match="reference="):
+        stats.main(["data=vr_gesture", f"data.root={out}", "data.regions=[arm]", f"reference={tmp_path / 'none'}"])

@@ -57,16 +57,24 @@ def test_streams_per_participant_and_region(hand, robot, small):
     assert np.array_equal(two.poses, arm.poses[:n])
 
 
-def test_trials_start_and_end_at_rest_away_from_the_link(small, robot):
-    p0, p1 = capsule_segments(small.poses, small.hand)
+def _end_gaps(ds, robot, region):
+    """Distance (m) of the hand from the link in the first and last frame of every trial of ``region``."""
+    p0, p1 = capsule_segments(ds.poses, ds.hand)
+    link = robot.link_for(region)
+    t = ds.trials[ds.trials.region == region]
+    ends = np.r_[t["start"].to_numpy(), (t["start"] + t["n_frames"] - 1).to_numpy()]
+    q = capsule_mesh_query(link.vertices, link.faces, p0[ends].reshape(-1, 3), p1[ends].reshape(-1, 3),
+                           np.tile(ds.hand.radius_m, len(ends)), margin=0.5)
+    return (q.distance - np.tile(ds.hand.radius_m, len(ends))).reshape(len(ends), -1).min(axis=1)
+
+
+def test_trials_start_and_end_at_rest_away_from_the_link(small, robot, hand):
+    # by default a few trials are mis-timed (started late, ended early): most still start and end at rest
     for region in ("arm", "torso"):
-        link = robot.link_for(region)
-        t = small.trials[small.trials.region == region]
-        ends = np.r_[t["start"].to_numpy(), (t["start"] + t["n_frames"] - 1).to_numpy()]
-        q = capsule_mesh_query(link.vertices, link.faces, p0[ends].reshape(-1, 3), p1[ends].reshape(-1, 3),
-                               np.tile(small.hand.radius_m, len(ends)), margin=0.5)
-        gap = (q.distance - np.tile(small.hand.radius_m, len(ends))).reshape(len(ends), -1).min(axis=1)
-        assert (gap > 0.08).all(), gap.min()
+        assert (_end_gaps(small, robot, region) > 0.08).mean() >= 0.9
+    exact = gen(hand, robot, seed=7, participants=2, repetitions=2, boundary_early_rate=0.0, boundary_late_rate=0.0)
+    gap = _end_gaps(exact, robot, "arm")
+    assert (gap > 0.08).all(), gap.min()
 
 
 def test_tracking_holds_poses_and_jitters(small):
@@ -85,7 +93,7 @@ def test_hand_size_varies_per_participant(small, hand):
         length[pid] = np.median(np.linalg.norm(pos[:, c2] - pos[:, c1], axis=1))
     nominal = hand.segment_length_m[c1]
     ratios = np.array(list(length.values())) / nominal
-    assert ((ratios > 0.88) & (ratios < 1.12)).all() and np.ptp(ratios) > 0.005
+    assert ((ratios > 0.75) & (ratios < 1.25)).all() and np.ptp(ratios) > 0.005
 
 
 def test_per_gesture_sanity(small, small_contacts, robot):
@@ -97,21 +105,24 @@ def test_per_gesture_sanity(small, small_contacts, robot):
     g_of = small.trials["gesture"].to_numpy()[owner]
     # poke: the index fingertip does most of the touching
     poke = small_contacts.capsule[g_of == "poke"]
-    assert np.mean(names[poke] == "index3") > 0.8
+    assert np.mean(np.isin(names[poke], ["index3", "index2"])) > 0.8 and np.mean(names[poke] == "index3") > 0.5
     # grab: thumb and fingers both touch in (nearly) every trial
     grab = np.flatnonzero(small.trials["gesture"] == "grab")
     parts = [set(fingers[small_contacts.capsule[owner == t]]) for t in grab]
     both = [("thumb" in p) and bool(p & {"index", "middle", "ring", "pinky"}) for p in parts]
     assert np.mean(both) >= 0.9
-    # durations follow CoST's ordering: rub longest, hit shortest
-    dur = stats[stats.contact].groupby("gesture")["duration_s"].mean()
-    assert dur.idxmax() == "rub" and dur.idxmin() == "hit"
-    assert dur["grab"] > dur["pat"] and dur["push"] > dur["tap"] and dur["stroke"] > dur["poke"]
 
 
 def test_calibration_holds_at_small_size(hand, robot, contacts_of):
-    ds = gen(hand, robot, seed=0, participants=6, repetitions=4)
-    summary = gesture_summary(trial_statistics(ds, contacts_of(ds, robot), robot))
+    # the centre (median length, mean duration) is calibrated at any variability; at the calibrated
+    # variability 6 participants are too few to pin medians within 20 % (the full-size check is in the README)
+    ds = gen(hand, robot, seed=0, participants=6, repetitions=4, variability=0.25)
+    stats = trial_statistics(ds, contacts_of(ds, robot), robot)
+    # durations follow CoST's ordering over participants (one participant's ordering may differ: styles)
+    dur = stats[stats.contact].groupby("gesture")["duration_s"].mean()
+    assert dur.idxmax() == "rub" and dur.idxmin() == "hit"
+    assert dur["grab"] > dur["pat"] and dur["push"] > dur["tap"] and dur["stroke"] > dur["poke"]
+    summary = gesture_summary(stats)
     checks = calibration_checks(summary)
     failed = [(n, d) for n, ok, d in checks if not ok]
     assert len(checks) == 8 * 2 + 2 and not failed, failed
