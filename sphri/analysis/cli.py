@@ -110,6 +110,12 @@ def run(overrides: Sequence[str] = (), settings: CoverageSchema | None = None, o
     analysis = analysis_from(settings)
     overrides = list(overrides)
     base = compose(overrides)
+    from sphri.sessions.schema import study_settings
+
+    if study_settings(base) is not None:  # +experiment=scenario_study: the whole-body study
+        from sphri.sessions.study import run_study
+
+        return run_study(overrides, out, log_mlflow)
     regions = [str(r) for r in base.data.regions]
     if not regions:
         raise ConfigError("data.regions=[] is invalid: name at least one skin region")
@@ -222,6 +228,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"sphri.coverage: {exc}", file=sys.stderr)
         return 2
+    if not isinstance(res, CoverageRun):  # the scenario study
+        for s in res.sentences:
+            print(s)
+        for n in res.notes:
+            print("note: " + n)
+        print(f"files: {res.out_dir} (report.html)" + (f"; MLflow run {res.mlflow_run_id}" if res.mlflow_run_id else ""))
+        return 0
     for region, r in res.regions.items():
         print(f"[{region}] {r.link}: {r.samples.n} elements, {r.curves[ALL].n_frames} contact frames")
         for n in [ALL] + r.groups:
