@@ -155,3 +155,35 @@ def plot_placement(ranking: pd.DataFrame, table: pd.DataFrame, path: str | Path,
     fig.savefig(path)
     plt.close(fig)
     return path
+
+
+def plot_effects(effects: pd.DataFrame, scenarios: list[str], alpha: float, path: str | Path, title: str) -> Path:
+    """Scenario x scenario matrix of the paired effect: cells coloured by d_z (mean between-minus-within SWD over
+    its SD across participants), text: the mean difference in mm, d_z and the Holm-corrected p (* <= alpha)."""
+    n = len(scenarios)
+    idx = {s: i for i, s in enumerate(scenarios)}
+    dz = np.full((n, n), np.nan)
+    text = [["" for _ in range(n)] for _ in range(n)]
+    for r in effects.itertuples(index=False):
+        i, j = idx[r.cond_a], idx[r.cond_b]
+        p = "p<.001" if r.p_holm < 0.001 else f"p={r.p_holm:.3f}"
+        t = f"{r.diff_swd_mm:+.0f} mm\nd$_z$={r.effect_dz:.2f}\n{p}{' *' if r.p_holm <= alpha else ''}"
+        dz[i, j] = dz[j, i] = r.effect_dz
+        text[i][j] = text[j][i] = t
+    lim = max(float(np.nanmax(np.abs(dz))) if np.isfinite(dz).any() else 1.0, 0.5)
+    fig, ax = plt.subplots(figsize=(1.15 * n + 2.6, 0.95 * n + 1.8), dpi=100)
+    im = ax.imshow(dz, cmap="RdBu_r", vmin=-lim, vmax=lim)
+    for i in range(n):
+        for j in range(n):
+            if text[i][j]:
+                ax.text(j, i, text[i][j], ha="center", va="center", fontsize=6.5,
+                        color="white" if abs(dz[i, j]) > 0.6 * lim else "black")
+    ax.set_xticks(range(n), scenarios, rotation=45, ha="right", fontsize=8)
+    ax.set_yticks(range(n), scenarios, fontsize=8)
+    cb = fig.colorbar(im, ax=ax, shrink=0.8)
+    cb.set_label("effect size d$_z$ (between - within SWD)")
+    ax.set_title(title + f"\nHolm-corrected p (* <= {alpha:g})", fontsize=9)
+    path = Path(path)
+    fig.savefig(path, bbox_inches="tight")
+    plt.close(fig)
+    return path

@@ -303,8 +303,8 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     files.append(out / "summary.json")
     if not res.settings.render:
         return files
-    from sphri.sessions.render import (body_view, plot_atlas, plot_gesture_histogram, plot_placement, plot_views,
-                                       write_density_ply)
+    from sphri.sessions.render import (body_view, plot_atlas, plot_effects, plot_gesture_histogram, plot_placement,
+                                       plot_views, write_density_ply)
 
     view = body_view(body)
     figs = {}
@@ -319,6 +319,8 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     if res.comparison is not None:
         figs["swd"] = plot_swd_heatmap(res.comparison, out / "swd_matrix.png",
                                        f"Scenario maps: paired sliced Wasserstein ({label})")
+        figs["effects"] = plot_effects(_effects(res.comparison), scen, res.settings.alpha, out / "swd_effects.png",
+                                       f"Scenario maps differ? Paired effect per pair ({label})")
     figs["gestures"] = plot_gesture_histogram(res.histogram, out / "gesture_histogram.png",
                                               f"Gestures of the coded episodes per scenario ({label}; model LOSO "
                                               f"accuracy {100 * gm.accuracy_mean:.0f} %)")
@@ -376,7 +378,7 @@ def write_report(res: StudyResult, figs: dict, summary: dict, budget: str, label
         parts += ["<h2>Do scenarios differ? Paired sliced Wasserstein tests</h2>",
                   "<p>Per participant: SWD between scenarios' split halves minus the within-scenario split-half "
                   "baseline; sign-flip permutation over participants; Holm over all pairs.</p>",
-                  _img(figs["swd"]), eff.to_html(index=False, float_format=lambda v: f"{v:.3g}")]
+                  _img(figs["effects"]), _img(figs["swd"]), eff.to_html(index=False, float_format=lambda v: f"{v:.3g}")]
     parts += [f"<h2>Gestures per scenario</h2><p>Model: {esc(str(gm['region']))} at res {gm['res']}, "
               f"LOSO accuracy {100 * gm['loso_accuracy_mean']:.1f} +/- {100 * gm['loso_accuracy_std']:.1f} % on "
               f"{gm['n_trials']} training trials. Bars: expected share (sum of class probabilities) +/- its SD; "

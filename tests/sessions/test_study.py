@@ -27,7 +27,7 @@ def study(tmp_path_factory):
 
 def test_writes_the_report_and_every_table(study):
     for name in ("report.html", "maps_views.png", "atlas_pooled.png", "swd_matrix.png", "gesture_histogram.png",
-                 "placement.png", "density_mesh.ply", "density_maps.npz", "swd_pairs.csv", "swd_p_holm_matrix.csv",
+                 "placement.png", "swd_effects.png", "density_mesh.ply", "density_maps.npz", "swd_pairs.csv", "swd_p_holm_matrix.csv",
                  "swd_effects.csv", "gesture_histogram.csv", "body_part_ranking.csv", "placement.csv", "placement.txt"):
         assert (study / name).is_file() and (study / name).stat().st_size > 0, name
     scen = ["S1_attention", "S2_path_redirection", "S3_move_aside", "S4_behaviour_correction", "S5_appreciation"]
