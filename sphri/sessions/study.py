@@ -78,10 +78,16 @@ def load_sessions_and_contacts(cfg, cache):
     hand = comp["hand"].build()
     robot = comp["robot"].build()
     inputs = {"hand": k_hand} if not getattr(comp["data"], "USES_ROBOT", True) else {"hand": k_hand, "robot": k_robot}
+    data_cfg = {"data": plain(cfg.data)}
+    priors = getattr(comp["data"], "priors", None)
+    if priors and Path(priors).is_file():  # an edited table of assumptions regenerates the sessions
+        from sphri.cache import stable_hash
+
+        data_cfg["priors_table"] = stable_hash(Path(priors).read_text())
     t0 = time.perf_counter()
-    ds = _cached(cache, "sessions", ver["data"], plain(cfg.data), inputs, lambda: comp["data"].load(hand, robot))
+    ds = _cached(cache, "sessions", ver["data"], data_cfg, inputs, lambda: comp["data"].load(hand, robot))
     t1 = time.perf_counter()
-    k_data = stage_key("sessions", ver["data"], plain(cfg.data), inputs)
+    k_data = stage_key("sessions", ver["data"], data_cfg, inputs)
     bc = _cached(cache, "body_contact", ver["contact"] + "-wb1", plain(cfg.contact),
                  {"data": k_data, "robot": k_robot, "hand": k_hand}, lambda: body_contacts(ds, robot, comp["contact"]))
     return hand, robot, ds, bc, {"sessions": t1 - t0, "contact": time.perf_counter() - t1}

@@ -22,7 +22,21 @@ def study(tmp_path_factory):
     rc = main(["+experiment=scenario_study", "+debug=fast", f"out={out}", f"output_dir={runs}", f"cache.dir={runs}/cache"])
     assert rc == 0
     assert (runs / "mlflow.db").is_file()
+    # sessions and whole-body contacts are stage-cache entries: a second study reuses them
+    assert list((runs / "cache" / "sessions").glob("*.pkl")) and list((runs / "cache" / "body_contact").glob("*.pkl"))
     return out
+
+
+def test_sessions_and_contacts_come_from_the_stage_cache(tmp_path):
+    from sphri.cache import StageCache
+    from sphri.sessions.study import load_sessions_and_contacts
+
+    cfg = compose(["+experiment=scenario_study", "data.participants=1", "data.repetitions=1", f"cache.dir={tmp_path}"])
+    cache = StageCache(tmp_path)
+    _, _, ds1, bc1, _ = load_sessions_and_contacts(cfg, cache)
+    _, _, ds2, bc2, _ = load_sessions_and_contacts(cfg, cache)
+    assert ds1 is not ds2 and np.array_equal(ds1.hand_poses, ds2.hand_poses) and np.array_equal(bc1.frame, bc2.frame)
+    assert len(list((tmp_path / "sessions").glob("*.pkl"))) == 1
 
 
 def test_writes_the_report_and_every_table(study):
