@@ -16,7 +16,7 @@ the model never saw are flagged).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -33,32 +33,62 @@ log = logging.getLogger(__name__)
 @dataclass
 class GestureModel:
     model: object
-    region: str
+    regions: list[str]
+    """Body parts the model was trained on (one chain each)."""
     res: int
     accuracy_mean: float
+    """Mean over the regions of each chain's LOSO accuracy."""
     accuracy_std: float
     n_trials: int
     config: object
-    """The composed config of the training chain (its components label episodes)."""
+    """The composed config of the first region's chain (its components label episodes)."""
+    accuracy: dict = field(default_factory=dict)
+    """Region -> that chain's LOSO accuracy."""
+
+    @property
+    def region(self) -> str:
+        return ", ".join(self.regions)
 
 
-def train_gesture_model(overrides: list[str], cache) -> GestureModel:
+def train_gesture_model(overrides: list[str], regions: list[str], cache) -> GestureModel:
+    """Run the chain on each of ``regions`` (LOSO accuracy each) and fit one model on all their trials.
+
+    A model whose input transform is per trial (``TRANSFORM_PER_TRIAL``, the
+    Random Forest: features in metres from each skin's own geometry) is fitted
+    on the features of every region's trials together; any other model only
+    on the first region's windows.
+    """
     from hydra.utils import instantiate
 
     from sphri.config import compose
-    from sphri.pipeline import build, chain_region, make_pipeline
+    from sphri.pipeline import build, make_pipeline
 
-    cfg = compose(overrides)
-    region = chain_region(cfg)
-    p = make_pipeline(cfg, cache)
-    result, _ = p.get("evaluate")
-    summ = result.summary()
-    window = build(cfg.window)
-    windows = window.assemble(p.get("noise"), p.get("plan"), p.get("data"), p.get("layout"), p.get("surface"))
-    model = instantiate(cfg.model, _partial_=True, _convert_="all")(geometry=windows.geometry)
-    model.fit(windows.x, windows.y, windows.groups)
-    return GestureModel(model, region, int(cfg.encoder.res), float(summ["accuracy_mean"]), float(summ["accuracy_std"]),
-                        int(windows.x.shape[0]), cfg)
+    feats, labels, accs, first = [], [], {}, None
+    for k, region in enumerate(regions):
+        cfg = compose([*overrides, f"data.regions=[{region}]"])
+        p = make_pipeline(cfg, cache)
+        result, _ = p.get("evaluate")
+        accs[region] = float(result.summary()["accuracy_mean"])
+        windows = build(cfg.window).assemble(p.get("noise"), p.get("plan"), p.get("data"), p.get("layout"), p.get("surface"))
+        model = instantiate(cfg.model, _partial_=True, _convert_="all")(geometry=windows.geometry)
+        if first is None:
+            first = (cfg, model, windows)
+        if not getattr(model, "TRANSFORM_PER_TRIAL", False):
+            if len(regions) > 1:
+                log.warning("gesture model %s has no per-trial transform: trained on %s only", type(model).__name__, region)
+            regions = [region]
+            break
+        feats.append(model.transform(windows.x))
+        labels.append(windows.y)
+    cfg, model, windows = first
+    if feats:
+        model.fit_features(np.concatenate(feats), np.concatenate(labels))
+        n = int(sum(len(y) for y in labels))
+    else:
+        model.fit(windows.x, windows.y, windows.groups)
+        n = int(windows.x.shape[0])
+    acc = np.array([accs[r] for r in regions])
+    return GestureModel(model, list(regions), int(cfg.encoder.res), float(acc.mean()), float(acc.std()), n, cfg, accs)
 
 
 def _to_link(poses: np.ndarray, link_pose: np.ndarray) -> np.ndarray:
@@ -117,7 +147,11 @@ def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, robot, gm: Gestur
     ok = np.isfinite(p).all(axis=1)
     out["gesture"] = np.where(ok, np.array(GESTURES, dtype=object)[np.nan_to_num(p, nan=-1).argmax(axis=1)], "")
     out["confidence"] = np.where(ok, np.nanmax(np.where(ok[:, None], p, 0.0), axis=1), np.nan)
-    out["in_training"] = out["dominant_part"].astype(str).isin([gm.region]) | (out["dominant_link"] == robot.regions.get(gm.region))
+    # a part counts as seen when the model was trained on it or on its mirror image (same geometry)
+    from sphri.sessions.synthetic import mirror_part
+
+    seen = set(gm.regions) | {mirror_part(r) for r in gm.regions}
+    out["in_training"] = out["dominant_part"].astype(str).isin(seen)
     return out
 
 

@@ -82,8 +82,8 @@ class ScenarioStudySchema:
     exact_max: int = 12
     n_permutations: int = 9999
     seed: int = 0
-    gesture_region: str = "forearm_l"
-    """Body part the gesture model is trained on (synthetic gesture study, data=synthetic)."""
+    gesture_regions: list[str] = field(default_factory=lambda: ["torso_front_upper", "shoulder_r", "upper_arm_r", "gripper_r"])
+    """Body parts the gesture model is trained on (synthetic gesture study, data=synthetic; one chain each)."""
     gesture_res: int = 12
     """Skin resolution (encoder.res) of the gesture model."""
     gesture_repetitions: int = 10
@@ -108,6 +108,7 @@ class ScenarioStudySchema:
         require_range(f"{key}.alpha", self.alpha, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
         require_range(f"{key}.exact_max", self.exact_max, lo=0, hi=20)
         require_range(f"{key}.n_permutations", self.n_permutations, lo=99)
+        require(len(self.gesture_regions) > 0, f"{key}.gesture_regions", self.gesture_regions, "at least one body part")
         require_range(f"{key}.gesture_res", self.gesture_res, lo=1, hi=100)
         require_range(f"{key}.gesture_repetitions", self.gesture_repetitions, lo=1)
         require_range(f"{key}.budget_cm2", self.budget_cm2, lo=0.0, lo_open=True)

@@ -138,9 +138,9 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
                                                                         "seed", "model", "noise", "encoder", "layout",
                                                                         "surface", "window", "contact", "hand")]
     train_ov += ["robot=reachy_full" if cfg.robot.name == "reachy_full" else f"robot={cfg.robot.name}",
-                 "data=synthetic", f"data.regions=[{st.gesture_region}]", f"data.participants={max(n_part, 2)}",
+                 "data=synthetic", f"data.participants={max(n_part, 2)}",
                  f"data.repetitions={st.gesture_repetitions}", f"encoder.res={st.gesture_res}", "tracking.enabled=false"]
-    gm = train_gesture_model(train_ov, cache)
+    gm = train_gesture_model(train_ov, list(st.gesture_regions), cache)
     labelled = label_episodes(coded, ds, robot, gm, seed=int(cfg.seed))
     outside = labelled[~labelled["in_training"]]
     if len(outside):
@@ -292,7 +292,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     summary = {"dataset": ds.name, "synthetic": ds.synthetic, "robot": robot.name,
                "n_participants": int(ds.sessions["participant"].nunique()), "n_sessions": int(len(ds.sessions)),
                "scenarios": scen, "n_coded_episodes": int(len(res.coded)), "gesture_model": {
-                   "region": gm.region, "res": gm.res, "loso_accuracy_mean": gm.accuracy_mean,
+                   "regions": gm.regions, "loso_accuracy": gm.accuracy, "res": gm.res, "loso_accuracy_mean": gm.accuracy_mean,
                    "loso_accuracy_std": gm.accuracy_std, "n_trials": gm.n_trials},
                "budget": budget, "sentences": res.sentences, "notes": res.notes, "seconds": res.seconds,
                "settings": dataclasses.asdict(res.settings)}
@@ -385,8 +385,9 @@ def write_report(res: StudyResult, figs: dict, summary: dict, budget: str, label
                   "<p>Per participant: SWD between scenarios' split halves minus the within-scenario split-half "
                   "baseline; sign-flip permutation over participants; Holm over all pairs.</p>",
                   _img(figs["effects"]), _img(figs["swd"]), eff.to_html(index=False, float_format=lambda v: f"{v:.3g}")]
-    parts += [f"<h2>Gestures per scenario</h2><p>Model: {esc(str(gm['region']))} at res {gm['res']}, "
-              f"LOSO accuracy {100 * gm['loso_accuracy_mean']:.1f} +/- {100 * gm['loso_accuracy_std']:.1f} % on "
+    parts += [f"<h2>Gestures per scenario</h2><p>Model: trained on {esc(', '.join(gm['regions']))} at res {gm['res']}, "
+              f"LOSO accuracy {100 * gm['loso_accuracy_mean']:.1f} +/- {100 * gm['loso_accuracy_std']:.1f} % over those "
+              f"body parts ({esc(', '.join(f'{k} {100 * v:.0f} %' for k, v in gm['loso_accuracy'].items()))}) on "
               f"{gm['n_trials']} training trials. Bars: expected share (sum of class probabilities) +/- its SD; "
               "dots: argmax share.</p>", _img(figs["gestures"]),
               res.histogram.pivot(index="scenario", columns="gesture", values="count").to_html()]
