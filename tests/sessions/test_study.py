@@ -97,3 +97,7 @@ def test_study_settings_are_checked():
         compose(["+experiment=scenario_study", "experiment.scenario_study.pitch_mm=10"])
     with pytest.raises(ConfigError, match=r"robot='reachy' is invalid.*kinematic tree"):
         compose(["+experiment=scenario_study", "robot=reachy"])
+    from sphri.pipeline import chain_region
+
+    with pytest.raises(ConfigError, match=r"data=SyntheticSessions holds free-interaction sessions.*scenario_study"):
+        chain_region(compose(["+experiment=scenario_study"]))
