@@ -69,6 +69,9 @@ class ScenarioStudySchema:
     """Settings of the whole-body scenario study (``experiment.scenario_study``)."""
 
     study: str = "scenario_study"
+    by: str = "scenario"
+    """Session column whose values get their own maps and pairwise SWD tests: scenario, start_position,
+    repetition or gesture (the coded episode's predicted gesture)."""
     episode_gap_s: float = 2.0
     """An episode ends after at least this many seconds without contact (the study's rule)."""
     min_episode_frames: int = 2
@@ -98,6 +101,7 @@ class ScenarioStudySchema:
     def __post_init__(self) -> None:
         key = "experiment.scenario_study"
         require_choice(f"{key}.study", self.study, ["scenario_study"])
+        require_choice(f"{key}.by", self.by, ["scenario", "start_position", "repetition", "gesture"])
         require_range(f"{key}.episode_gap_s", self.episode_gap_s, lo=0.0, lo_open=True, hi=60.0)
         require_range(f"{key}.min_episode_frames", self.min_episode_frames, lo=1)
         require_range(f"{key}.bandwidth_mm", self.bandwidth_mm, lo=1.0, hi=500.0)

@@ -168,10 +168,11 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         "trial_ordinal": ds.sessions["repetition"], "trial_id": [f"{i:04d}_hit" for i in range(len(ds.sessions))],
         "gesture": [gest.get(i) or "hit" for i in range(len(ds.sessions))], "start": ds.sessions["start"],
         "n_frames": ds.sessions["n_frames"], "scenario": ds.sessions["scenario"],
+        "start_position": ds.sessions["start_position"], "repetition": ds.sessions["repetition"].astype(str),
     })
     gd = GestureDataset(name=ds.name, synthetic=ds.synthetic, hand=hand, trials=trials,
                         poses=ds.hand_poses[:, 1], frame_rate_hz=ds.frame_rate_hz)
-    analysis = CoverageAnalysis(by="scenario", pair_by="participant", bandwidth_mm=st.bandwidth_mm,
+    analysis = CoverageAnalysis(by=st.by, pair_by="participant", bandwidth_mm=st.bandwidth_mm,
                                 spacing_mm=st.spacing_mm, capture=0.9, n_projections=st.n_projections, alpha=st.alpha,
                                 exact_max=st.exact_max, n_permutations=st.n_permutations, seed=st.seed, render=False)
     cov = analysis.analyze(gd, None, body.mesh, None, None, samples=body.samples, kernel=body.kernel,
@@ -254,7 +255,7 @@ def _mask_npz(body, robot, density: np.ndarray, chosen: set[str], out_dir: Path)
 
 
 def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label: str) -> list[Path]:
-    from sphri.analysis.coverage import ALL
+    from sphri.analysis.coverage import ALL, safe_name
     from sphri.analysis.render import plot_swd_heatmap
 
     out = res.out_dir
@@ -315,10 +316,9 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     view = body_view(body)
     figs = {}
     figs["maps"] = plot_views(view, {**dens, "pooled": cov.densities[ALL]}, out / "maps_views.png",
-                              f"Contact density per scenario, one colour scale ({label})")
+                              f"Contact density per {cov.by}, one colour scale ({label})")
     for s in scen:
-        plot_views(view, {s: cov.densities[s]}, out / f"map_{s}.png", f"{s} ({label})")
-        files.append(out / f"map_{s}.png")
+        files.append(plot_views(view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{s} ({label})"))
     figs["atlas"] = plot_atlas(body, robot, cov.densities[ALL], out / "atlas_pooled.png",
                                f"Atlas of the whole surface, pooled over scenarios ({label})")
     files.append(write_density_ply(view, {"pooled": cov.densities[ALL], **dens}, out / "density_mesh.ply"))
