@@ -15,6 +15,10 @@ analysis; ``out=DIR`` (default ``<output_dir>/coverage/<timestamp>``) and
 per region; the data and contact stages come from the stage cache), and its
 files go to ``out/<region>/``. One MLflow run tagged ``sphri.kind=coverage``
 holds the numbers and every file.
+
+A config with ``experiment.scenario_study`` settings (``+experiment=scenario_study``)
+runs the whole-body scenario study instead (:func:`sphri.sessions.study.run_study`):
+its files go to ``out`` and its MLflow run is tagged ``sphri.kind=scenario_study``.
 """
 
 from __future__ import annotations
