@@ -21,5 +21,6 @@ CONF_PACKAGES = ["sphri.conf"] + sorted(
 setup(
     packages=find_packages(include=["sphri", "sphri.*"]) + CONF_PACKAGES,
     package_dir={"sphri.conf": "conf"},
-    package_data={name: ["*.yaml"] for name in CONF_PACKAGES},
+    # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml)
+    package_data={"sphri": ["**/*.yaml"], **{name: ["*.yaml"] for name in CONF_PACKAGES}},
 )

@@ -91,6 +91,7 @@ SCHEMA_MODULES: tuple[str, ...] = (
     "sphri.models.schema",
     "sphri.evaluate.schema",
     "sphri.tracking.schema",
+    "sphri.sessions.schema",
 )
 
 

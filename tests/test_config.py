@@ -14,6 +14,7 @@ REQUIRED = {
     "robot/mesh": ["robot.links={l_arm:/nonexistent/arm.obj}", "robot.regions={arm:l_arm}"],
     "robot/reachy_vr": ["data=vr_gesture", "data.root=/nonexistent/dataset"],
     "data/vr_gesture": ["data.root=/nonexistent/dataset"],
+    "data/sessions": ["data.root=/nonexistent/sessions"],
     # irregular layouts and chartless surfaces need an encoder that works on any layout
     "layout/random": ["encoder=coverage"],
     "layout/density": ["encoder=coverage"],

@@ -15,7 +15,8 @@ from sphri import pipeline
 from sphri.cache import StageCache
 from sphri.config import CONF_DIR, compose, register_schemas
 
-EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml"))
+#: Sweeps of the classification chain (the scenario study, run by sphri.coverage, has its own tests in tests/sessions).
+EXPERIMENTS = sorted(p.stem for p in (CONF_DIR / "experiment").glob("*.yaml") if "scenario_study:" not in p.read_text())
 FAST = ["+debug=fast", "tracking.enabled=false"]
 
 

@@ -15,6 +15,10 @@ analysis; ``out=DIR`` (default ``<output_dir>/coverage/<timestamp>``) and
 per region; the data and contact stages come from the stage cache), and its
 files go to ``out/<region>/``. One MLflow run tagged ``sphri.kind=coverage``
 holds the numbers and every file.
+
+A config with ``experiment.scenario_study`` settings (``+experiment=scenario_study``)
+runs the whole-body scenario study instead (:func:`sphri.sessions.study.run_study`):
+its files go to ``out`` and its MLflow run is tagged ``sphri.kind=scenario_study``.
 """
 
 from __future__ import annotations
@@ -110,6 +114,12 @@ def run(overrides: Sequence[str] = (), settings: CoverageSchema | None = None, o
     analysis = analysis_from(settings)
     overrides = list(overrides)
     base = compose(overrides)
+    from sphri.sessions.schema import study_settings
+
+    if study_settings(base) is not None:  # +experiment=scenario_study: the whole-body study
+        from sphri.sessions.study import run_study
+
+        return run_study(overrides, out, log_mlflow)
     regions = [str(r) for r in base.data.regions]
     if not regions:
         raise ConfigError("data.regions=[] is invalid: name at least one skin region")
@@ -222,6 +232,13 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"sphri.coverage: {exc}", file=sys.stderr)
         return 2
+    if not isinstance(res, CoverageRun):  # the scenario study
+        for s in res.sentences:
+            print(s)
+        for n in res.notes:
+            print("note: " + n)
+        print(f"files: {res.out_dir} (report.html)" + (f"; MLflow run {res.mlflow_run_id}" if res.mlflow_run_id else ""))
+        return 0
     for region, r in res.regions.items():
         print(f"[{region}] {r.link}: {r.samples.n} elements, {r.curves[ALL].n_frames} contact frames")
         summary = r.summary()["groups"]

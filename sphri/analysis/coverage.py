@@ -149,16 +149,22 @@ class CoverageAnalysis:
         self.seed, self.views, self.render, self.heldout = seed, views, render, heldout
 
     # ------------------------------------------------------------------ analysis
-    def analyze(self, dataset: GestureDataset, contacts: Contacts, link: Link, surface: SurfaceMap | None,
-                region: str | None = None) -> RegionCoverage:
-        """Maps, curves and tests for the trials of ``region`` (all trials when None) on ``link``."""
+    def analyze(self, dataset: GestureDataset, contacts: Contacts | None, link: Link, surface: SurfaceMap | None,
+                region: str | None = None, samples: SurfaceSamples | None = None, kernel: SurfaceKernel | None = None,
+                touched: tuple[np.ndarray, np.ndarray] | None = None) -> RegionCoverage:
+        """Maps, curves and tests for the trials of ``region`` (all trials when None) on ``link``.
+
+        ``samples``/``kernel`` replace the link's own (e.g. a whole robot's
+        samples with a kernel that smooths within each link) and ``touched``
+        the (frame, element) pairs computed from ``contacts`` (which may then be None).
+        """
         t0 = time.perf_counter()
         trials = dataset.trials
         for col, key in ((self.by, "coverage.by"), (self.pair_by, "coverage.pair_by")):
             if col not in trials.columns:
                 raise ValueError(f"{key}={col!r} is not a column of dataset {dataset.name!r}'s trials; "
                                  f"columns: {list(trials.columns)}")
-        if contacts.n_frames != dataset.n_frames:
+        if contacts is not None and contacts.n_frames != dataset.n_frames:
             raise ValueError(f"contacts cover {contacts.n_frames} frames but dataset {dataset.name!r} has "
                              f"{dataset.n_frames}: they come from different datasets")
         notes: list[str] = []
@@ -169,15 +175,19 @@ class CoverageAnalysis:
                 raise ValueError(f"dataset {dataset.name!r} has no trials in region {region!r}; "
                                  f"regions: {sorted(pd.unique(trials['region']))}")
         frame_trial = dataset.frame_trial_index()
-        row_trial = frame_trial[contacts.frame]
-        sel = in_region[row_trial]
-        samples = sample_link(link, self.spacing_mm, self.seed)
-        kernel = SurfaceKernel(samples, self.bandwidth_mm, self.kernel)
+        samples = samples if samples is not None else sample_link(link, self.spacing_mm, self.seed)
+        kernel = kernel if kernel is not None else SurfaceKernel(samples, self.bandwidth_mm, self.kernel)
         t1 = time.perf_counter()
-        frames, elements = touched_elements(
-            samples, contacts.frame[sel], contacts.point_m[sel], contacts.normal[sel],
-            contacts.patch_radius_m[sel], self.footprint,
-        )
+        if touched is None:
+            sel = in_region[frame_trial[contacts.frame]]
+            frames, elements = touched_elements(
+                samples, contacts.frame[sel], contacts.point_m[sel], contacts.normal[sel],
+                contacts.patch_radius_m[sel], self.footprint,
+            )
+        else:
+            frames, elements = (np.asarray(x, dtype=np.int64) for x in touched)
+            keep = in_region[frame_trial[frames]]
+            frames, elements = frames[keep], elements[keep]
         t2 = time.perf_counter()
         trial_of = frame_trial[frames]
         labels = trials[self.by].astype(str).to_numpy()

@@ -197,3 +197,27 @@ def check_merge(merge: Any, links: list[str]) -> dict[str, list[str]]:
 store(group="robot", name="parametric_schema", node=ParametricRobotSchema)
 store(group="robot", name="mesh_schema", node=MeshRobotSchema)
 store(group="robot", name="urdf_schema", node=UrdfRobotSchema)
+
+
+@dataclass
+class KinematicRobotSchema:
+    """A whole robot: a kinematic tree of parametric links with named body parts (no files)."""
+
+    _target_: str = "sphri.robots.kinematic.KinematicRobot"
+    name: str = MISSING
+    links: Any = None
+    """Link name -> {parent, xyz, rpy, joints: ["name:axis", ...], shape: a parametric loft}."""
+    parts: Any = None
+    """Body part -> {link, side (+x, -x, ...), z_min, z_max}: named pieces of the links' surfaces."""
+    groups: Any = None
+    """Group -> [body parts] (e.g. upper_torso: [torso_front_upper, torso_back_upper])."""
+    rest: Any = None
+    """Joint name -> angle (radians) of the rest pose; other joints 0."""
+
+    def __post_init__(self) -> None:
+        from sphri.robots.kinematic import KinematicRobot
+
+        KinematicRobot(self.name, self.links or {}, self.parts, self.groups, self.rest)
+
+
+store(group="robot", name="kinematic_schema", node=KinematicRobotSchema)

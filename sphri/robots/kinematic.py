@@ -1,0 +1,300 @@
+"""``KinematicRobot``: a whole robot as a kinematic tree of parametric links (``robot=reachy_full``).
+
+Each link is a loft from dimensions (:func:`sphri.robots.parametric.loft_mesh`,
+no files) in its own frame; the tree places every link frame relative to its
+parent by a fixed origin (``xyz`` metres, ``rpy`` radians, URDF order: roll
+about x, pitch about y, yaw about z) followed by the link's revolute joints
+(``"name:axis"``, applied in order). The root's world pose is the mobile
+base's planar pose (x, y, yaw). :meth:`WholeBodyRobot.link_poses` poses the
+whole tree for many frames at once.
+
+Skin *body parts* are named subsets of link surfaces: a link, optionally cut
+by the outward normal's sign along a link axis (``side: +x``) and a height
+band along the link's z (``z_min``, ``z_max``, metres). *Groups* name sets of
+parts (``upper_torso: [torso_front_upper, torso_back_upper]``); both are YAML
+and can be regrouped freely. ``Robot.regions`` maps every part (and every
+group whose parts lie on one link, and every link name) to its link, so the
+resolution study runs on any of them (``data.regions=[upper_arm_l]``).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from sphri.config import ConfigError
+from sphri.robots.parametric import _spec_dict, loft_mesh
+from sphri.robots.schema import check_parametric_link
+from sphri.robots.validate import make_link
+from sphri.types import Robot
+
+log = logging.getLogger(__name__)
+
+AXIS_VECTORS = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
+SIDES = ("+x", "-x", "+y", "-y", "+z", "-z")
+
+
+def rotation_about(axis: str, angle: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotations by ``angle`` (...,) radians about link axis x, y or z."""
+    a = np.asarray(angle, dtype=np.float64)
+    c, s = np.cos(a), np.sin(a)
+    one, zero = np.ones_like(a), np.zeros_like(a)
+    if axis == "x":
+        rows = [[one, zero, zero], [zero, c, -s], [zero, s, c]]
+    elif axis == "y":
+        rows = [[c, zero, s], [zero, one, zero], [-s, zero, c]]
+    elif axis == "z":
+        rows = [[c, -s, zero], [s, c, zero], [zero, zero, one]]
+    else:
+        raise ValueError(f"axis={axis!r} is invalid: allowed values: x, y, z")
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
+    """(3, 3) URDF fixed-axis roll-pitch-yaw rotation: Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = (float(v) for v in rpy)
+    return rotation_about("z", y) @ rotation_about("y", p) @ rotation_about("x", r)
+
+
+@dataclass(frozen=True)
+class BodyPart:
+    """A named piece of a link's surface."""
+
+    name: str
+    link: str
+    side: str | None = None
+    """Keep surface points whose outward normal has this sign along this link axis (``+x``), or all."""
+    z_min: float | None = None
+    """Keep points at link-frame z >= z_min (metres)."""
+    z_max: float | None = None
+    """Keep points at link-frame z < z_max (metres)."""
+
+    def contains(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """(P,) bool for (P, 3) link-frame points with outward normals."""
+        ok = np.ones(len(points), dtype=bool)
+        if self.side is not None:
+            v = normals @ AXIS_VECTORS[self.side[1]]
+            ok &= v > 0 if self.side[0] == "+" else v <= 0
+        if self.z_min is not None:
+            ok &= points[:, 2] >= self.z_min
+        if self.z_max is not None:
+            ok &= points[:, 2] < self.z_max
+        return ok
+
+
+@dataclass(frozen=True)
+class JointTree:
+    """The kinematic tree in topological order (parents before children)."""
+
+    links: tuple[str, ...]
+    parent: tuple[int, ...]
+    """Index of each link's parent in ``links``, -1 for the root."""
+    origin: np.ndarray
+    """(L, 4, 4) fixed transform parent frame -> joint frame."""
+    joints: tuple[tuple[tuple[str, str], ...], ...]
+    """Per link: (joint name, axis) applied in order after ``origin``."""
+
+    @property
+    def joint_names(self) -> list[str]:
+        return [j for js in self.joints for j, _ in js]
+
+
+@dataclass(frozen=True)
+class WholeBodyRobot(Robot):
+    """A :class:`Robot` that also knows its kinematic tree, body parts and part groups."""
+
+    tree: JointTree | None = None
+    parts: tuple[BodyPart, ...] = ()
+    groups: dict[str, tuple[str, ...]] = field(default_factory=dict)
+    rest: dict[str, float] = field(default_factory=dict)
+    """Joint angles (radians) of the rest pose; others 0."""
+
+    def link_poses(self, base: np.ndarray, joints: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
+        """(F, L, 4, 4) world transforms of every link (``tree.links`` order).
+
+        ``base`` (F, 3): the mobile base's x, y (metres) and yaw (radians);
+        ``joints``: joint name -> (F,) angles (missing joints take the rest pose).
+        """
+        tree = self.tree
+        base = np.atleast_2d(np.asarray(base, dtype=np.float64))
+        if base.ndim != 2 or base.shape[1] != 3:
+            raise ValueError(f"base must be (F, 3) x, y, yaw, got {base.shape}")
+        f = base.shape[0]
+        joints = dict(joints or {})
+        unknown = sorted(set(joints) - set(tree.joint_names))
+        if unknown:
+            raise ValueError(f"robot {self.name!r} has no joint(s) {unknown}; joints: {tree.joint_names}")
+        root = np.tile(np.eye(4), (f, 1, 1))
+        root[:, :3, :3] = rotation_about("z", base[:, 2])
+        root[:, 0, 3], root[:, 1, 3] = base[:, 0], base[:, 1]
+        out = np.empty((f, len(tree.links), 4, 4))
+        for i, name in enumerate(tree.links):
+            m = (root if tree.parent[i] < 0 else out[:, tree.parent[i]]) @ tree.origin[i]
+            for jname, axis in tree.joints[i]:
+                angle = np.broadcast_to(np.asarray(joints.get(jname, self.rest.get(jname, 0.0)), dtype=np.float64), (f,))
+                rot = np.tile(np.eye(4), (f, 1, 1))
+                rot[:, :3, :3] = rotation_about(axis, angle)
+                m = m @ rot
+            out[:, i] = m
+        return out
+
+    def rest_poses(self) -> np.ndarray:
+        """(L, 4, 4) link transforms of the rest pose at the world origin."""
+        return self.link_poses(np.zeros((1, 3)))[0]
+
+    def part_labels(self, link: str, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
+        """(P,) object array: the first body part of ``link`` holding each point ('' if none)."""
+        out = np.full(len(points), "", dtype=object)
+        for part in self.parts:
+            if part.link != link:
+                continue
+            free = out == ""
+            hit = free & part.contains(points, normals)
+            out[hit] = part.name
+        return out
+
+
+class KinematicRobot:
+    """A whole robot from dimensions (``robot=reachy_full``): links, tree, parts, groups (see module)."""
+
+    VERSION = "1"
+
+    def __init__(self, name: str, links: Mapping[str, Any], parts: Mapping[str, Any], groups: Mapping[str, Any] | None = None,
+                 rest: Mapping[str, float] | None = None):
+        self.name = str(name)
+        self.specs = {}
+        for k, v in links.items():
+            self.specs[str(k)] = check_tree_link(v, f"robot.links.{k}")
+        self.parts = check_parts(parts, self.specs)
+        self.groups = check_groups(groups, [p.name for p in self.parts])
+        self.rest = {str(k): float(v) for k, v in (rest or {}).items()}
+        self.tree = build_tree(self.specs)
+        unknown = sorted(set(self.rest) - set(self.tree.joint_names))
+        if unknown:
+            raise ConfigError(f"robot.rest: unknown joint(s) {unknown}; joints: {self.tree.joint_names}")
+
+    def build(self) -> WholeBodyRobot:
+        links = {}
+        for name, spec in self.specs.items():
+            v, f = loft_mesh(**spec["shape"])
+            links[name] = make_link(name, v, f, units="m", source=f"kinematic {self.name}")
+        regions = {name: name for name in links}
+        for p in self.parts:
+            regions[p.name] = p.link
+        by_part = {p.name: p.link for p in self.parts}
+        for g, members in self.groups.items():
+            owners = {by_part[m] for m in members}
+            if len(owners) == 1:
+                regions[g] = owners.pop()
+        return WholeBodyRobot(name=self.name, links=links, regions=regions, tree=self.tree, parts=tuple(self.parts),
+                              groups={k: tuple(v) for k, v in self.groups.items()}, rest=dict(self.rest))
+
+
+def _get(spec: Any, key: str, default: Any = None) -> Any:
+    if isinstance(spec, Mapping) or hasattr(spec, "keys"):
+        return spec[key] if key in spec else default
+    return getattr(spec, key, default)
+
+
+def check_tree_link(spec: Any, key: str) -> dict[str, Any]:
+    """One tree link as a plain dict: parent, xyz, rpy, joints [(name, axis)], shape (loft spec)."""
+    if spec is None:
+        raise ConfigError(f"{key}: missing link spec")
+    parent = _get(spec, "parent")
+    xyz = [float(x) for x in (_get(spec, "xyz") or [0.0, 0.0, 0.0])]
+    rpy = [float(x) for x in (_get(spec, "rpy") or [0.0, 0.0, 0.0])]
+    if len(xyz) != 3:
+        raise ConfigError(f"{key}.xyz={xyz} is invalid: 3 coordinates (metres)")
+    if len(rpy) != 3:
+        raise ConfigError(f"{key}.rpy={rpy} is invalid: roll, pitch, yaw (radians)")
+    joints = []
+    for j in list(_get(spec, "joints") or []):
+        name, _, axis = str(j).partition(":")
+        if not name or axis not in AXIS_VECTORS:
+            raise ConfigError(f"{key}.joints: {j!r} is invalid: expected 'name:axis' with axis x, y or z")
+        joints.append((name, axis))
+    shape = _get(spec, "shape")
+    if shape is None:
+        raise ConfigError(f"{key}.shape is missing: a loft (size_m, center_m, axis, profile, ...)")
+    shape = _spec_dict(shape, f"{key}.shape")
+    check_parametric_link(shape, f"{key}.shape")
+    return {"parent": None if parent in (None, "") else str(parent), "xyz": xyz, "rpy": rpy, "joints": joints,
+            "shape": shape}
+
+
+def build_tree(specs: Mapping[str, dict]) -> JointTree:
+    """Topologically ordered :class:`JointTree`; exactly one root, no cycles, unique joint names."""
+    names = list(specs)
+    roots = [n for n in names if specs[n]["parent"] is None]
+    if len(roots) != 1:
+        raise ConfigError(f"robot.links: exactly one link must have no parent (the base), found {roots}")
+    for n in names:
+        p = specs[n]["parent"]
+        if p is not None and p not in specs:
+            raise ConfigError(f"robot.links.{n}.parent={p!r} is invalid: must name one of {names}")
+    order: list[str] = []
+    pending = list(names)
+    while pending:
+        ready = [n for n in pending if specs[n]["parent"] is None or specs[n]["parent"] in order]
+        if not ready:
+            raise ConfigError(f"robot.links: the parents of {pending} form a cycle")
+        order += ready
+        pending = [n for n in pending if n not in ready]
+    seen: set[str] = set()
+    for n in order:
+        for j, _ in specs[n]["joints"]:
+            if j in seen:
+                raise ConfigError(f"robot.links.{n}.joints: joint {j!r} is used twice")
+            seen.add(j)
+    origin = np.tile(np.eye(4), (len(order), 1, 1))
+    for i, n in enumerate(order):
+        origin[i, :3, :3] = rpy_matrix(specs[n]["rpy"])
+        origin[i, :3, 3] = specs[n]["xyz"]
+    return JointTree(
+        links=tuple(order),
+        parent=tuple(-1 if specs[n]["parent"] is None else order.index(specs[n]["parent"]) for n in order),
+        origin=origin,
+        joints=tuple(tuple(specs[n]["joints"]) for n in order),
+    )
+
+
+def check_parts(parts: Any, specs: Mapping[str, Any]) -> list[BodyPart]:
+    if parts is None or not (isinstance(parts, Mapping) or hasattr(parts, "items")) or len(parts) == 0:
+        raise ConfigError(f"robot.parts={parts!r} is invalid: a mapping body part -> {{link: ..., side: ...}}")
+    out = []
+    for name, spec in parts.items():
+        key = f"robot.parts.{name}"
+        link = _get(spec, "link")
+        if link not in specs:
+            raise ConfigError(f"{key}.link={link!r} is invalid: must name one of the links {sorted(specs)}")
+        side = _get(spec, "side")
+        if side is not None and side not in SIDES:
+            raise ConfigError(f"{key}.side={side!r} is invalid: allowed values: {list(SIDES)} or null")
+        z_min, z_max = _get(spec, "z_min"), _get(spec, "z_max")
+        if z_min is not None and z_max is not None and not float(z_min) < float(z_max):
+            raise ConfigError(f"{key}: z_min={z_min} must be below z_max={z_max}")
+        if str(name) in specs and str(link) != str(name):
+            raise ConfigError(f"{key}: a body part may share a name only with its own link")
+        out.append(BodyPart(str(name), str(link), None if side is None else str(side),
+                            None if z_min is None else float(z_min), None if z_max is None else float(z_max)))
+    return out
+
+
+def check_groups(groups: Any, parts: list[str]) -> dict[str, list[str]]:
+    if groups is None:
+        return {}
+    if not (isinstance(groups, Mapping) or hasattr(groups, "items")):
+        raise ConfigError(f"robot.groups={groups!r} is invalid: a mapping group -> [body parts]")
+    out = {}
+    for g, members in groups.items():
+        members = [str(m) for m in ([members] if isinstance(members, str) else list(members))]
+        bad = [m for m in members if m not in parts]
+        if bad or not members:
+            raise ConfigError(f"robot.groups.{g}={members} is invalid: unknown body part(s) {bad}; parts: {parts}")
+        if str(g) in parts:
+            raise ConfigError(f"robot.groups.{g}: a group must not share a body part's name")
+        out[str(g)] = members
+    return out

@@ -1,0 +1,128 @@
+"""Contact of both hands with every link of a moving robot, in one pass.
+
+For each chunk of frames: both hands' capsule segments in the world
+(:func:`sphri.hand.kinematics.capsule_segments`); one bounding sphere per
+(frame, hand) around its 2C segment ends grown by the largest capsule radius;
+per link, the link's bounding sphere (from the prepared mesh, placed by that
+frame's link pose) against those hand spheres. Only the (frame, hand, link)
+triples that pass are transformed into the link's frame and handed to the
+configured contact component's exact query (``contact=exact``: capsule vs
+mesh; :meth:`sphri.contact.stage.ContactStage._chunk`). So the cost grows with
+the links a hand is actually near, not with the link count;
+``cull=False`` tests every triple (for the benchmark).
+
+Rows are in the touched link's frame, so maps on the robot's surface do not
+move with the robot.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from sphri.contact.mesh import prepare_mesh
+from sphri.contact.query import SearchRecord
+from sphri.hand.kinematics import capsule_segments, quat_to_matrix
+from sphri.sessions.format import SessionDataset
+from sphri.types import Robot
+
+
+@dataclass
+class BodyContacts:
+    """Sparse contacts of a :class:`SessionDataset` with a whole robot, sorted by frame, hand, link, capsule."""
+
+    n_frames: int
+    links: tuple[str, ...]
+    frame: np.ndarray
+    """(K,) int64 global frame."""
+    hand: np.ndarray
+    """(K,) int8 hand index (0 left, 1 right)."""
+    link: np.ndarray
+    """(K,) int16 index into ``links``."""
+    capsule: np.ndarray
+    """(K,) int16 capsule index."""
+    point_m: np.ndarray
+    """(K, 3) closest surface point, link frame (m)."""
+    normal: np.ndarray
+    """(K, 3) outward normal, link frame."""
+    patch_radius_m: np.ndarray
+    depth_m: np.ndarray
+    stats: dict = field(default_factory=dict)
+    """Culling counts: triples (frame, hand, link) in total and those passed to the exact query."""
+
+    @property
+    def n_contacts(self) -> int:
+        return int(self.frame.size)
+
+    def take(self, rows: np.ndarray) -> "BodyContacts":
+        return BodyContacts(self.n_frames, self.links, self.frame[rows], self.hand[rows], self.link[rows],
+                            self.capsule[rows], self.point_m[rows], self.normal[rows], self.patch_radius_m[rows],
+                            self.depth_m[rows], dict(self.stats))
+
+
+def body_contacts(ds: SessionDataset, robot: Robot, contact, chunk_frames: int = 4000, cull: bool = True) -> BodyContacts:
+    """Contacts of both hands with every link of ``ds.links`` (see module); ``contact`` is a contact component."""
+    missing = [ln for ln in ds.links if ln not in robot.links]
+    if missing:
+        raise ValueError(f"sessions {ds.name!r} pose links {missing} that robot {robot.name!r} lacks")
+    hand = ds.hand
+    c = hand.n_capsules
+    radius = np.asarray(hand.radius_m, dtype=np.float64) + float(getattr(contact, "margin_m", 0.0))
+    reach = float(radius.max())
+    inside = "none" if getattr(contact, "spheres", 0) else getattr(contact, "inside", "auto")
+    meshes = [prepare_mesh(robot.links[ln].vertices, robot.links[ln].faces, inside=inside) for ln in ds.links]
+    centres = np.stack([m.shift for m in meshes])  # (L, 3) link frame
+    radii = np.array([m.sphere_radius for m in meshes])
+    parts: list[dict] = []
+    record = SearchRecord.empty(0)
+    tested = passed = 0
+    for s in range(0, ds.n_frames, chunk_frames):
+        fr = np.arange(s, min(s + chunk_frames, ds.n_frames))
+        n = fr.size
+        p0, p1 = capsule_segments(ds.hand_poses[fr].reshape(n * 2, c, 7), hand)  # (n*2, C, 3) world
+        ends = np.concatenate([p0, p1], axis=1)
+        lo, hi = ends.min(axis=1), ends.max(axis=1)
+        hc = 0.5 * (lo + hi)  # (n*2, 3)
+        hr = np.sqrt(((ends - hc[:, None]) ** 2).sum(axis=2)).max(axis=1) + reach
+        lp = ds.link_poses[fr].astype(np.float64)  # (n, L, 7)
+        rot = quat_to_matrix(lp[..., 3:])  # (n, L, 3, 3)
+        trans = lp[..., :3]
+        cw = np.einsum("nlij,lj->nli", rot, centres) + trans  # link spheres' centres, world
+        for li in range(len(ds.links)):
+            tested += 2 * n
+            if cull:
+                d = np.linalg.norm(hc.reshape(n, 2, 3) - cw[:, li, None, :], axis=2)
+                units = np.flatnonzero((d <= hr.reshape(n, 2) + radii[li]).ravel())  # frame*2 + hand
+            else:
+                units = np.arange(2 * n)
+            if units.size == 0:
+                continue
+            passed += units.size
+            f_local = units // 2
+            r_t = rot[f_local, li]  # (m, 3, 3) link -> world
+            t_t = trans[f_local, li]
+            a = np.einsum("mji,mcj->mci", r_t, p0[units] - t_t[:, None, :])  # R^T (p - t)
+            b = np.einsum("mji,mcj->mci", r_t, p1[units] - t_t[:, None, :])
+            need = units.size * c
+            if record.d2.size < need:
+                record = SearchRecord.empty(max(need, min(2 * chunk_frames, 2 * ds.n_frames) * c))
+            for part in contact._chunk(meshes[li], a, b, units, radius, record):
+                u = part.pop("frame")
+                part["frame"] = fr[u // 2]
+                part["hand"] = (u % 2).astype(np.int8)
+                part["link"] = np.full(u.size, li, dtype=np.int16)
+                parts.append(part)
+    if not parts:
+        z = np.zeros(0)
+        z3 = np.zeros((0, 3))
+        return BodyContacts(ds.n_frames, tuple(ds.links), np.zeros(0, np.int64), np.zeros(0, np.int8),
+                            np.zeros(0, np.int16), np.zeros(0, np.int16), z3, z3.copy(), z, z.copy(),
+                            {"triples": tested, "tested": passed})
+    cat = {k: np.concatenate([p[k] for p in parts]) for k in ("frame", "hand", "link", "capsule", "point_m", "normal",
+                                                               "patch_radius_m", "depth_m")}
+    order = np.lexsort((cat["capsule"], cat["link"], cat["hand"], cat["frame"]))
+    return BodyContacts(ds.n_frames, tuple(ds.links), cat["frame"][order].astype(np.int64), cat["hand"][order],
+                        cat["link"][order], cat["capsule"][order].astype(np.int16), cat["point_m"][order],
+                        cat["normal"][order], cat["patch_radius_m"][order], cat["depth_m"][order],
+                        {"triples": tested, "tested": passed})

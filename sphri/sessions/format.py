@@ -1,0 +1,345 @@
+"""Interaction sessions: the in-memory :class:`SessionDataset` and its on-disk format.
+
+A *session* is one free interaction of one participant with the whole robot
+in one scenario and repetition: both hands' capsule poses and every robot
+link's pose, all in the world frame, at a fixed frame rate. It extends the
+VR gesture dataset's layout (:mod:`sphri.data.format`)::
+
+    ROOT/
+      sessions.json                          dataset header: format, name, synthetic, robot, links, hands, hand capsules
+      participant_XX/manifest.json           one entry per session: scenario, repetition, order, start_position,
+                                             frame_rate_hz, n_frames, file
+      participant_XX/<scenario>.parquet      one row per (repetition, frame)
+
+Parquet columns: ``repetition`` (int), ``frame`` (int, 0-based within the
+session), then for each hand ``h`` and capsule ``c`` ``h/c_pos_x ...
+h/c_rot_w`` (metres, unit quaternion xyzw, world frame) and for each link
+``link/<name>_pos_x ... _rot_w`` (the link frame's pose in the world).
+
+:func:`write_sessions` writes it, :class:`SessionData` (``data=sessions``)
+reads it back and validates every file; each defect raises
+:class:`SessionFormatError` naming the file and the field.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import numpy as np
+import pandas as pd
+
+from sphri.data.format import POSE_SUFFIXES, participant_id, pose_columns
+from sphri.types import HandModel
+
+log = logging.getLogger(__name__)
+
+FORMAT = "sphri-sessions"
+FORMAT_VERSION = 1
+HANDS: tuple[str, ...] = ("left", "right")
+#: Columns of :attr:`SessionDataset.sessions`, in order.
+SESSION_COLUMNS: tuple[str, ...] = (
+    "participant", "scenario", "repetition", "order", "start_position", "start", "n_frames",
+)
+MANIFEST_SESSION_KEYS: tuple[str, ...] = ("scenario", "repetition", "order", "start_position", "frame_rate_hz",
+                                          "n_frames", "file")
+HEADER_KEYS: tuple[str, ...] = ("format", "version", "name", "synthetic", "robot", "links", "hands", "hand")
+
+
+class SessionFormatError(ValueError):
+    """A session file is malformed; the message names the file and the field."""
+
+
+@dataclass
+class SessionDataset:
+    """Sessions of free interaction with a whole robot, all frames concatenated (world frame).
+
+    ``hand_poses[start:start + n_frames]`` is one session.
+    """
+
+    name: str
+    synthetic: bool
+    hand: HandModel
+    sessions: pd.DataFrame
+    """One row per session, columns :data:`SESSION_COLUMNS`."""
+    hand_poses: np.ndarray
+    """(F, 2, C, 7) float32: per hand (:data:`HANDS`), capsule joint position (m) and quaternion xyzw, world frame."""
+    links: tuple[str, ...]
+    link_poses: np.ndarray
+    """(F, L, 7) float32: each link frame's position (m) and quaternion xyzw in the world."""
+    frame_rate_hz: float
+    robot: str = ""
+    truth: Optional[pd.DataFrame] = None
+    """Generator-side labels of a synthetic dataset (scenario prior draws), None when recorded."""
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.hand_poses.shape[0])
+
+    def frame_session_index(self) -> np.ndarray:
+        """(F,) int64 session row owning each frame."""
+        counts = self.sessions["n_frames"].to_numpy(dtype=np.int64)
+        return np.repeat(np.arange(len(counts), dtype=np.int64), counts)
+
+
+def make_sessions_frame(records: Sequence[dict]) -> pd.DataFrame:
+    df = pd.DataFrame.from_records(list(records), columns=list(SESSION_COLUMNS))
+    for col in ("participant", "scenario", "start_position"):
+        df[col] = df[col].astype(object)
+    for col in ("repetition", "order", "start", "n_frames"):
+        df[col] = df[col].astype(np.int64)
+    return df.reset_index(drop=True)
+
+
+def hand_columns(hand: HandModel) -> list[str]:
+    return [f"{h}/{c}" for h in HANDS for c in pose_columns(hand.names)]
+
+
+def link_columns(links: Sequence[str]) -> list[str]:
+    return [f"link/{c}" for c in pose_columns(links)]
+
+
+def _hand_json(hand: HandModel) -> dict[str, Any]:
+    return {"names": list(hand.names), "fingers": list(hand.fingers), "radius_m": hand.radius_m.tolist(),
+            "height_m": hand.height_m.tolist(), "axis": hand.axis.tolist(),
+            "center_offset_m": hand.center_offset_m.tolist()}
+
+
+def write_sessions(ds: SessionDataset, out: str | Path) -> list[Path]:
+    """Write ``ds`` in the session format under ``out``; returns the files written."""
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    header = {"format": FORMAT, "version": FORMAT_VERSION, "name": ds.name, "synthetic": bool(ds.synthetic),
+              "robot": ds.robot, "links": list(ds.links), "hands": list(HANDS), "hand": _hand_json(ds.hand),
+              "frame_rate_hz": float(ds.frame_rate_hz)}
+    files = [out / "sessions.json"]
+    files[0].write_text(json.dumps(header, indent=1) + "\n")
+    hcols, lcols = hand_columns(ds.hand), link_columns(ds.links)
+    c = ds.hand.n_capsules
+    for pid, rows in ds.sessions.groupby("participant", sort=True):
+        pdir = out / str(pid)
+        pdir.mkdir(exist_ok=True)
+        entries = []
+        for scen, srows in rows.groupby("scenario", sort=True):
+            parts = []
+            fname = f"{scen}.parquet"
+            for r in srows.itertuples(index=False):
+                sl = slice(int(r.start), int(r.start) + int(r.n_frames))
+                h = ds.hand_poses[sl].reshape(int(r.n_frames), 2 * c * 7)
+                lk = ds.link_poses[sl].reshape(int(r.n_frames), len(ds.links) * 7)
+                df = pd.DataFrame(np.concatenate([h, lk], axis=1), columns=hcols + lcols)
+                df.insert(0, "frame", np.arange(int(r.n_frames), dtype=np.int32))
+                df.insert(0, "repetition", np.full(int(r.n_frames), int(r.repetition), dtype=np.int16))
+                parts.append(df)
+                entries.append({"scenario": str(scen), "repetition": int(r.repetition), "order": int(r.order),
+                                "start_position": str(r.start_position), "frame_rate_hz": float(ds.frame_rate_hz),
+                                "n_frames": int(r.n_frames), "file": fname})
+            pd.concat(parts, ignore_index=True).to_parquet(pdir / fname, index=False)
+            files.append(pdir / fname)
+        entries.sort(key=lambda e: (e["order"], e["repetition"]))
+        (pdir / "manifest.json").write_text(json.dumps({"participant": str(pid), "sessions": entries}, indent=1) + "\n")
+        files.append(pdir / "manifest.json")
+    if ds.truth is not None:
+        ds.truth.to_csv(out / "generator_truth.csv", index=False)
+        files.append(out / "generator_truth.csv")
+    return files
+
+
+def _read_json(path: Path, what: str) -> dict:
+    if not path.is_file():
+        raise SessionFormatError(f"{path}: {what} not found")
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise SessionFormatError(f"{path}: not valid JSON ({exc})") from None
+    if not isinstance(data, dict):
+        raise SessionFormatError(f"{path}: expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+def read_header(root: Path) -> dict:
+    path = root / "sessions.json"
+    h = _read_json(path, "the dataset header (sessions.json)")
+    missing = [k for k in HEADER_KEYS if k not in h]
+    if missing:
+        raise SessionFormatError(f"{path}: missing field(s) {missing}")
+    if h["format"] != FORMAT:
+        raise SessionFormatError(f"{path}: field 'format' is {h['format']!r}, expected {FORMAT!r}")
+    if h["version"] != FORMAT_VERSION:
+        raise SessionFormatError(f"{path}: field 'version' is {h['version']!r}; this sphri reads version {FORMAT_VERSION}")
+    if list(h["hands"]) != list(HANDS):
+        raise SessionFormatError(f"{path}: field 'hands' is {h['hands']!r}, expected {list(HANDS)}")
+    if not isinstance(h["links"], list) or not h["links"] or len(set(h["links"])) != len(h["links"]):
+        raise SessionFormatError(f"{path}: field 'links' must be a non-empty list of unique link names")
+    try:
+        hd = h["hand"]
+        hand = HandModel(
+            names=tuple(hd["names"]), fingers=tuple(hd["fingers"]), radius_m=np.asarray(hd["radius_m"], float),
+            height_m=np.asarray(hd["height_m"], float), axis=np.asarray(hd["axis"], np.int64),
+            center_offset_m=np.asarray(hd["center_offset_m"], float).reshape(-1, 3))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise SessionFormatError(f"{path}: field 'hand' is malformed ({exc})") from None
+    n = len(hand.names)
+    if not (len(hand.fingers) == n and hand.radius_m.shape == (n,) and hand.height_m.shape == (n,)
+            and hand.axis.shape == (n,) and hand.center_offset_m.shape == (n, 3)):
+        raise SessionFormatError(f"{path}: field 'hand': per-capsule arrays must all have {n} entries")
+    h["hand_model"] = hand
+    return h
+
+
+def read_manifest(path: Path, rate_tol: float = 1e-6) -> list[dict]:
+    m = _read_json(path, "the participant manifest")
+    if "sessions" not in m or not isinstance(m["sessions"], list):
+        raise SessionFormatError(f"{path}: missing field 'sessions' (a list)")
+    seen = set()
+    for i, e in enumerate(m["sessions"]):
+        if not isinstance(e, dict):
+            raise SessionFormatError(f"{path}: sessions[{i}] must be an object")
+        missing = [k for k in MANIFEST_SESSION_KEYS if k not in e]
+        if missing:
+            raise SessionFormatError(f"{path}: sessions[{i}] is missing field(s) {missing}")
+        for k in ("repetition", "order", "n_frames"):
+            if not isinstance(e[k], int) or isinstance(e[k], bool) or e[k] < (0 if k == "order" else 1):
+                raise SessionFormatError(f"{path}: sessions[{i}].{k}={e[k]!r} is invalid: a positive integer")
+        if not isinstance(e["frame_rate_hz"], (int, float)) or not e["frame_rate_hz"] > 0:
+            raise SessionFormatError(f"{path}: sessions[{i}].frame_rate_hz={e['frame_rate_hz']!r} is invalid: > 0")
+        key = (e["scenario"], e["repetition"])
+        if key in seen:
+            raise SessionFormatError(f"{path}: sessions[{i}]: scenario {key[0]!r} repetition {key[1]} is listed twice")
+        seen.add(key)
+    return m["sessions"]
+
+
+class SessionData:
+    """``data=sessions``: recorded (or synthesized) sessions from ``root`` (see module docstring).
+
+    ``participants``: how many (None: all, sorted); ``scenarios``: which
+    (None: all). ``load`` validates every file it reads.
+    """
+
+    VERSION = "1"
+    USES_ROBOT = False
+
+    def __init__(self, root: Optional[str] = None, participants: Optional[int] = None, repetitions: Optional[int] = None,
+                 scenarios: Optional[Sequence[str]] = None, quat_tolerance: float = 1e-3, **_: Any):
+        if not root:
+            raise ValueError("data.root is empty: set it to a sessions folder (one holding sessions.json)")
+        self.root = str(root)
+        self.participants = participants
+        self.repetitions = repetitions
+        self.scenarios = None if scenarios is None else [str(s) for s in scenarios]
+        self.quat_tolerance = float(quat_tolerance)
+
+    def load(self, hand: HandModel | None = None, robot: Any = None) -> SessionDataset:
+        root = Path(self.root)
+        if not root.is_dir():
+            raise SessionFormatError(f"data.root={self.root!r}: no such folder")
+        header = read_header(root)
+        shand: HandModel = header["hand_model"]
+        if hand is not None and tuple(hand.names) != tuple(shand.names):
+            raise SessionFormatError(
+                f"{root / 'sessions.json'}: field 'hand' has capsules {list(shand.names)[:3]}..., "
+                f"but the configured hand has {list(hand.names)[:3]}...")
+        links = list(header["links"])
+        if robot is not None:
+            missing = [ln for ln in links if ln not in robot.links]
+            if missing:
+                raise SessionFormatError(f"{root / 'sessions.json'}: field 'links' names {missing}, "
+                                         f"which robot {robot.name!r} does not have")
+        pids = sorted(p.name for p in root.iterdir() if p.is_dir() and (p / "manifest.json").is_file())
+        if not pids:
+            raise SessionFormatError(f"{root}: no participant folder with a manifest.json")
+        if self.participants is not None:
+            pids = pids[: int(self.participants)]
+        hcols, lcols = hand_columns(shand), link_columns(links)
+        c, nl = len(shand.names), len(links)
+        records, hands, lposes, rates = [], [], [], set()
+        start = 0
+        for pid in pids:
+            mpath = root / pid / "manifest.json"
+            entries = read_manifest(mpath)
+            if self.scenarios is not None:
+                entries = [e for e in entries if e["scenario"] in self.scenarios]
+            if self.repetitions is not None:
+                entries = [e for e in entries if e["repetition"] <= int(self.repetitions)]
+            tables: dict[str, pd.DataFrame] = {}
+            for e in entries:
+                ppath = root / pid / str(e["file"])
+                if e["file"] not in tables:
+                    tables[e["file"]] = self._read_table(ppath, hcols, lcols)
+                tab = tables[e["file"]]
+                rows = tab[tab["repetition"].to_numpy() == e["repetition"]]
+                if len(rows) != e["n_frames"]:
+                    raise SessionFormatError(f"{ppath}: repetition {e['repetition']} has {len(rows)} rows but "
+                                             f"{mpath} field n_frames says {e['n_frames']}")
+                fr = rows["frame"].to_numpy()
+                if not np.array_equal(fr, np.arange(len(fr))):
+                    raise SessionFormatError(f"{ppath}: column 'frame' of repetition {e['repetition']} must run 0..{len(fr) - 1}")
+                h = rows[hcols].to_numpy(np.float32).reshape(len(rows), 2, c, 7)
+                lk = rows[lcols].to_numpy(np.float32).reshape(len(rows), nl, 7)
+                self._check_values(ppath, e, h, lk, hcols, lcols)
+                hands.append(h)
+                lposes.append(lk)
+                rates.add(float(e["frame_rate_hz"]))
+                records.append(dict(participant=pid, scenario=str(e["scenario"]), repetition=int(e["repetition"]),
+                                    order=int(e["order"]), start_position=str(e["start_position"]), start=start,
+                                    n_frames=int(e["n_frames"])))
+                start += int(e["n_frames"])
+        if not records:
+            raise SessionFormatError(f"{root}: no session left after selecting participants/scenarios/repetitions")
+        if len(rates) != 1:
+            raise SessionFormatError(f"{root}: manifests mix frame rates {sorted(rates)}; one rate per dataset")
+        truth = None
+        tpath = root / "generator_truth.csv"
+        if header["synthetic"] and tpath.is_file():
+            truth = pd.read_csv(tpath)
+        return SessionDataset(
+            name=str(header["name"]), synthetic=bool(header["synthetic"]), hand=shand,
+            sessions=make_sessions_frame(records), hand_poses=np.concatenate(hands),
+            links=tuple(links), link_poses=np.concatenate(lposes), frame_rate_hz=rates.pop(),
+            robot=str(header["robot"]), truth=truth)
+
+    @staticmethod
+    def _read_table(path: Path, hcols: list[str], lcols: list[str]) -> pd.DataFrame:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        if not path.is_file():
+            raise SessionFormatError(f"{path}: parquet file named by the manifest not found")
+        try:
+            schema = pq.read_schema(path)
+        except (pa.ArrowInvalid, OSError) as exc:
+            raise SessionFormatError(f"{path}: not a readable parquet file ({exc})") from None
+        need = ["repetition", "frame"] + hcols + lcols
+        missing = [col for col in need if col not in schema.names]
+        if missing:
+            raise SessionFormatError(f"{path}: missing column(s) {missing[:5]}" + (" ..." if len(missing) > 5 else ""))
+        for col in need[2:]:
+            if not pa.types.is_floating(schema.field(col).type):
+                raise SessionFormatError(f"{path}: column {col!r} has type {schema.field(col).type}, expected float")
+        try:
+            return pq.read_table(path, columns=need).to_pandas()
+        except (pa.ArrowInvalid, OSError) as exc:
+            raise SessionFormatError(f"{path}: cannot read ({exc})") from None
+
+    def _check_values(self, path: Path, e: dict, h: np.ndarray, lk: np.ndarray, hcols: list[str], lcols: list[str]) -> None:
+        for arr, cols in ((h.reshape(len(h), -1), hcols), (lk.reshape(len(lk), -1), lcols)):
+            bad = ~np.isfinite(arr)
+            if bad.any():
+                r, col = np.argwhere(bad)[0]
+                raise SessionFormatError(f"{path}: repetition {e['repetition']}, frame {r}: column {cols[col]!r} is "
+                                         f"NaN/inf ({int(bad.sum())} values)")
+        for arr, cols, what in ((h[..., 3:], hcols, "hand"), (lk[..., 3:], lcols, "link")):
+            norm = np.linalg.norm(arr.astype(np.float64), axis=-1)
+            bad = np.abs(norm - 1.0) > self.quat_tolerance
+            if bad.any():
+                idx = np.argwhere(bad)[0]
+                col = cols[int(np.ravel_multi_index(tuple(idx[1:]), bad.shape[1:])) * 7 + 3]
+                raise SessionFormatError(f"{path}: repetition {e['repetition']}, frame {idx[0]}: {what} quaternion "
+                                         f"{col.rsplit('_', 2)[0]}_rot_* has norm {norm[tuple(idx)]:.4f}, not 1")
+
+
+__all__ = ["SessionDataset", "SessionData", "SessionFormatError", "write_sessions", "participant_id", "POSE_SUFFIXES"]

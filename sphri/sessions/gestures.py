@@ -1,0 +1,171 @@
+"""Gesture labels for episodes: a model trained on the gesture dataset in the same job.
+
+:func:`train_gesture_model` runs the classification chain (``data=synthetic``
+on one body part of the whole robot at a fixed resolution, the configured
+model) through :func:`sphri.pipeline.make_pipeline` (stage cache included),
+reports its leave-one-subject-out accuracy, and fits the model on all trials.
+
+:func:`label_episodes` turns each coded episode into a trial of that chain on
+the episode's dominant link: the dominant hand's poses moved into the link's
+frame, the configured contact, surface, layout, encoder, noise and window
+components, then the fitted model's class probabilities (features are in
+metres, so a Random Forest transfers between links; episodes on body parts
+the model never saw are flagged).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from sphri.data.format import make_trials_frame
+from sphri.hand.kinematics import quat_to_matrix
+from sphri.data.handfk import matrix_to_quat
+from sphri.sessions.format import SessionDataset
+from sphri.types import GESTURES, GestureDataset
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class GestureModel:
+    model: object
+    regions: list[str]
+    """Body parts the model was trained on (one chain each)."""
+    res: int
+    accuracy_mean: float
+    """Mean over the regions of each chain's LOSO accuracy."""
+    accuracy_std: float
+    n_trials: int
+    config: object
+    """The composed config of the first region's chain (its components label episodes)."""
+    accuracy: dict = field(default_factory=dict)
+    """Region -> that chain's LOSO accuracy."""
+
+    @property
+    def region(self) -> str:
+        return ", ".join(self.regions)
+
+
+def train_gesture_model(overrides: list[str], regions: list[str], cache) -> GestureModel:
+    """Run the chain on each of ``regions`` (LOSO accuracy each) and fit one model on all their trials.
+
+    A model whose input transform is per trial (``TRANSFORM_PER_TRIAL``, the
+    Random Forest: features in metres from each skin's own geometry) is fitted
+    on the features of every region's trials together; any other model only
+    on the first region's windows.
+    """
+    from hydra.utils import instantiate
+
+    from sphri.config import compose
+    from sphri.pipeline import build, make_pipeline
+
+    feats, labels, accs, first = [], [], {}, None
+    for k, region in enumerate(regions):
+        cfg = compose([*overrides, f"data.regions=[{region}]"])
+        p = make_pipeline(cfg, cache)
+        result, _ = p.get("evaluate")
+        accs[region] = float(result.summary()["accuracy_mean"])
+        windows = build(cfg.window).assemble(p.get("noise"), p.get("plan"), p.get("data"), p.get("layout"), p.get("surface"))
+        model = instantiate(cfg.model, _partial_=True, _convert_="all")(geometry=windows.geometry)
+        if first is None:
+            first = (cfg, model, windows)
+        if not getattr(model, "TRANSFORM_PER_TRIAL", False):
+            if len(regions) > 1:
+                log.warning("gesture model %s has no per-trial transform: trained on %s only", type(model).__name__, region)
+            regions = [region]
+            break
+        feats.append(model.transform(windows.x))
+        labels.append(windows.y)
+    cfg, model, windows = first
+    if feats:
+        model.fit_features(np.concatenate(feats), np.concatenate(labels))
+        n = int(sum(len(y) for y in labels))
+    else:
+        model.fit(windows.x, windows.y, windows.groups)
+        n = int(windows.x.shape[0])
+    acc = np.array([accs[r] for r in regions])
+    return GestureModel(model, list(regions), int(cfg.encoder.res), float(acc.mean()), float(acc.std()), n, cfg, accs)
+
+
+def _to_link(poses: np.ndarray, link_pose: np.ndarray) -> np.ndarray:
+    """(T, C, 7) world poses -> the frame of a link whose world poses are (T, 7)."""
+    r = quat_to_matrix(link_pose[:, 3:].astype(np.float64))  # (T, 3, 3)
+    t = link_pose[:, :3].astype(np.float64)
+    out = np.empty(poses.shape, dtype=np.float64)
+    out[..., :3] = np.einsum("tji,tcj->tci", r, poses[..., :3].astype(np.float64) - t[:, None, :])
+    out[..., 3:] = matrix_to_quat(np.einsum("tji,tcjk->tcik", r, quat_to_matrix(poses[..., 3:].astype(np.float64))))
+    return out
+
+
+def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, robot, gm: GestureModel, seed: int = 0) -> pd.DataFrame:
+    """Class probabilities (columns ``p_<gesture>``), ``gesture``, ``confidence``, ``in_training`` per episode."""
+    from sphri.pipeline import build, trial_keys
+
+    cfg = gm.config
+    comp = {g: build(cfg[g]) for g in ("contact", "surface", "layout", "encoder", "noise", "window")}
+    classes = [GESTURES[int(c)] for c in gm.model.classes_]
+    out = episodes.copy()
+    for g in GESTURES:
+        out[f"p_{g}"] = np.nan
+    pad = int(round(0.5 * ds.frame_rate_hz))
+    li = {n: i for i, n in enumerate(ds.links)}
+    for link_name, eps in episodes.groupby("dominant_link", sort=True):
+        link = robot.links[link_name]
+        chunks, records, start = [], [], 0
+        for k, e in eps.iterrows():
+            a = max(int(ds.sessions["start"].iat[e.session]), int(e.start_frame) - pad)
+            b = int(e.end_frame) + pad + 1
+            b = min(b, int(ds.sessions["start"].iat[e.session] + ds.sessions["n_frames"].iat[e.session]))
+            chunks.append(_to_link(ds.hand_poses[a:b, int(e.dominant_hand)], ds.link_poses[a:b, li[link_name]]))
+            records.append(dict(participant=e.participant, region=link_name, trial_ordinal=len(records) + 1,
+                                trial_id=f"{len(records) + 1:04d}_hit", gesture="hit", start=start, n_frames=b - a))
+            start += b - a
+        gd = GestureDataset(name=ds.name, synthetic=ds.synthetic, hand=ds.hand, trials=make_trials_frame(records),
+                            poses=np.concatenate(chunks).astype(np.float32), frame_rate_hz=ds.frame_rate_hz)
+        contacts = comp["contact"].compute(gd, robot)
+        surface = comp["surface"].fit(link)
+        extra = {"contacts": contacts} if getattr(comp["layout"], "uses_contacts", False) else {}
+        layout = comp["layout"].build(link, surface, gm.res, **extra)
+        plan = comp["window"].plan(contacts, gd)
+        fi = plan.selected_frames()
+        frames = comp["encoder"].encode(contacts, link, surface, layout, fi)
+        frames = comp["noise"].apply(frames, fi, trial_keys(gd)[gd.frame_trial_index()[fi]], seed)
+        windows = comp["window"].assemble(frames, plan, gd, layout, surface)
+        if windows.x.shape[0] == 0:
+            continue
+        gm.model.geometry = windows.geometry
+        proba = gm.model.predict_proba(windows.x)
+        idx = eps.index.to_numpy()[windows.trial_row]
+        for j, g in enumerate(classes):
+            out.loc[idx, f"p_{g}"] = proba[:, j]
+    pcols = [f"p_{g}" for g in GESTURES]
+    p = out[pcols].to_numpy(float)
+    ok = np.isfinite(p).all(axis=1)
+    out["gesture"] = np.where(ok, np.array(GESTURES, dtype=object)[np.nan_to_num(p, nan=-1).argmax(axis=1)], "")
+    out["confidence"] = np.where(ok, np.nanmax(np.where(ok[:, None], p, 0.0), axis=1), np.nan)
+    # a part counts as seen when the model was trained on it or on its mirror image (same geometry)
+    from sphri.sessions.synthetic import mirror_part
+
+    seen = set(gm.regions) | {mirror_part(r) for r in gm.regions}
+    out["in_training"] = out["dominant_part"].astype(str).isin(seen)
+    return out
+
+
+def gesture_histogram(labelled: pd.DataFrame, scenarios: list[str]) -> pd.DataFrame:
+    """Per scenario and gesture: hard count (argmax), expected count (sum of probabilities) and its SD
+    (Poisson-binomial: sqrt(sum p (1 - p))), share, mean confidence of the episodes labelled so."""
+    rows = []
+    for s in scenarios:
+        e = labelled[(labelled["scenario"] == s) & (labelled["gesture"] != "")]
+        n = len(e)
+        for g in GESTURES:
+            p = e[f"p_{g}"].to_numpy(float) if n else np.zeros(0)
+            hard = int((e["gesture"] == g).sum()) if n else 0
+            rows.append(dict(scenario=s, gesture=g, n_episodes=n, count=hard, expected=float(p.sum()),
+                             expected_sd=float(np.sqrt((p * (1 - p)).sum())), share=hard / n if n else np.nan,
+                             mean_confidence=float(e.loc[e["gesture"] == g, "confidence"].mean()) if hard else np.nan))
+    return pd.DataFrame(rows)

@@ -1,0 +1,445 @@
+"""The whole-body scenario study: ``python -m sphri.coverage +experiment=scenario_study``.
+
+Data flow (each step a module of :mod:`sphri.sessions`)::
+
+    sessions (data=synthetic_sessions | sessions)       SessionDataset: both hands + link poses, world
+      -> body_contacts (contact=exact, culled)            BodyContacts: rows in the touched link's frame
+      -> segment_episodes (>= episode_gap_s apart)        episodes; the first coded one per session
+      -> train_gesture_model + label_episodes             gesture probabilities per coded episode
+      -> body_surface + touched_pairs                     (frame, element) pairs on the whole surface
+      -> CoverageAnalysis(by=scenario, pair_by=participant)   densities, SWD tests (Holm), coverage curves
+      -> rank_parts + placement_table                     body parts per cm^2, greedy placement, held-out check
+      -> files, HTML report, MLflow run (sphri.kind=scenario_study)
+
+Sessions and contacts go through the stage cache (keys: data, hand, robot and
+contact configs plus component versions), so re-running with other study
+settings recomputes neither.
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import html
+import json
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+import pandas as pd
+
+from sphri.sessions.schema import ScenarioStudySchema
+
+log = logging.getLogger(__name__)
+
+VERSION = "1"
+
+
+@dataclass
+class StudyResult:
+    out_dir: Path
+    settings: ScenarioStudySchema
+    synthetic: bool
+    sessions: pd.DataFrame
+    episodes: pd.DataFrame
+    coded: pd.DataFrame
+    histogram: pd.DataFrame
+    ranking: pd.DataFrame
+    placement: pd.DataFrame
+    sentences: list[str]
+    comparison: Any
+    coverage: Any
+    notes: list[str]
+    files: list[Path]
+    seconds: dict[str, float] = field(default_factory=dict)
+    gesture_accuracy: float = float("nan")
+    mlflow_run_id: str | None = None
+
+
+def _cached(cache, stage: str, version: str, config: Any, inputs: dict, compute):
+    from sphri.cache import stage_key
+
+    return cache.get_or_compute(stage, stage_key(stage, version, config, inputs), compute)
+
+
+def load_sessions_and_contacts(cfg, cache):
+    """(hand, robot, sessions, body contacts) of a composed study config, through the stage cache."""
+    from sphri.cache import stage_key
+    from sphri.pipeline import build, component_versions, plain
+    from sphri.sessions.contact import body_contacts
+
+    ver = component_versions(cfg)
+    comp = {g: build(cfg[g]) for g in ("hand", "robot", "data", "contact")}
+    k_hand = stage_key("hand", ver["hand"], plain(cfg.hand), {})
+    k_robot = stage_key("robot", ver["robot"], plain(cfg.robot), {})
+    hand = comp["hand"].build()
+    robot = comp["robot"].build()
+    inputs = {"hand": k_hand} if not getattr(comp["data"], "USES_ROBOT", True) else {"hand": k_hand, "robot": k_robot}
+    data_cfg = {"data": plain(cfg.data)}
+    priors = getattr(comp["data"], "priors", None)
+    if priors and Path(priors).is_file():  # an edited table of assumptions regenerates the sessions
+        from sphri.cache import stable_hash
+
+        data_cfg["priors_table"] = stable_hash(Path(priors).read_text())
+    t0 = time.perf_counter()
+    ds = _cached(cache, "sessions", ver["data"], data_cfg, inputs, lambda: comp["data"].load(hand, robot))
+    t1 = time.perf_counter()
+    k_data = stage_key("sessions", ver["data"], data_cfg, inputs)
+    bc = _cached(cache, "body_contact", ver["contact"] + "-wb1", plain(cfg.contact),
+                 {"data": k_data, "robot": k_robot, "hand": k_hand}, lambda: body_contacts(ds, robot, comp["contact"]))
+    return hand, robot, ds, bc, {"sessions": t1 - t0, "contact": time.perf_counter() - t1}
+
+
+def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflow: bool = True) -> StudyResult:
+    """Run the study for the composed ``overrides`` (they must select ``+experiment=scenario_study``)."""
+    from sphri.analysis.coverage import CoverageAnalysis
+    from sphri.cache import StageCache
+    from sphri.config import ConfigError, compose
+    from sphri.sessions.body import body_surface, touched_pairs
+    from sphri.sessions.episodes import part_of_rows, segment_episodes
+    from sphri.sessions.gestures import gesture_histogram, label_episodes, train_gesture_model
+    from sphri.sessions.placement import frame_part_matrix, placement_table, rank_parts, sentence
+    from sphri.sessions.schema import study_settings
+    from sphri.types import GESTURES, GestureDataset
+
+    overrides = list(overrides)
+    cfg = compose(overrides)
+    st = study_settings(cfg)
+    if st is None:
+        raise ConfigError("the scenario study needs +experiment=scenario_study (experiment.scenario_study settings)")
+    out_dir = Path(out) if out else Path(cfg.output_dir) / "scenario_study" / time.strftime("%Y-%m-%d_%H-%M-%S")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    cache = StageCache(cfg.cache.dir, enabled=bool(cfg.cache.enabled))
+    seconds: dict[str, float] = {}
+    notes: list[str] = []
+    t_all = time.perf_counter()
+
+    hand, robot, ds, bc, sec = load_sessions_and_contacts(cfg, cache)
+    seconds.update(sec)
+    label = "SYNTHETIC" if ds.synthetic else "recorded"
+    scenarios = sorted(pd.unique(ds.sessions["scenario"]))
+    t = time.perf_counter()
+    row_part = part_of_rows(bc, robot)
+    episodes = segment_episodes(ds, bc, row_part, st.episode_gap_s, st.min_episode_frames)
+    coded = episodes[episodes["coded"]].reset_index(drop=True)
+    n_none = len(ds.sessions) - coded["session"].nunique()
+    if n_none:
+        notes.append(f"{n_none} of {len(ds.sessions)} sessions have no coded episode (no contact of >= "
+                     f"{st.min_episode_frames} frames)")
+    seconds["episodes"] = time.perf_counter() - t
+
+    # gesture model, trained in this job on the gesture dataset, labels the coded episodes
+    t = time.perf_counter()
+    n_part = int(ds.sessions["participant"].nunique())
+    train_ov = [o for o in overrides if o.lstrip("+").split("=")[0] in ("debug", "cache.dir", "output_dir", "cache.enabled",
+                                                                        "seed", "model", "noise", "encoder", "layout",
+                                                                        "surface", "window", "contact", "hand")]
+    train_ov += ["robot=reachy_full" if cfg.robot.name == "reachy_full" else f"robot={cfg.robot.name}",
+                 "data=synthetic", f"data.participants={max(n_part, 2)}",
+                 f"data.repetitions={st.gesture_repetitions}", f"encoder.res={st.gesture_res}", "tracking.enabled=false"]
+    gm = train_gesture_model(train_ov, list(st.gesture_regions), cache)
+    labelled = label_episodes(coded, ds, robot, gm, seed=int(cfg.seed))
+    outside = labelled[~labelled["in_training"]]
+    if len(outside):
+        parts = outside["dominant_part"].value_counts()
+        msg = (f"{len(outside)} of {len(labelled)} coded episodes lie on body parts the gesture model never saw "
+               f"(trained on {gm.region}): " + ", ".join(f"{p} ({n})" for p, n in parts.items())
+               + "; their labels are extrapolated")
+        log.warning(msg)
+        notes.append("WARNING: " + msg)
+    hist = gesture_histogram(labelled, scenarios)
+    seconds["gestures"] = time.perf_counter() - t
+
+    # whole-body maps, tests and coverage curves (by scenario, paired by participant)
+    t = time.perf_counter()
+    body = body_surface(robot, ds.links, st.spacing_mm, st.bandwidth_mm, st.seed)
+    fsi = ds.frame_session_index()
+    in_coded = np.zeros(ds.n_frames, dtype=bool)
+    for e in coded.itertuples():
+        in_coded[e.start_frame:e.end_frame + 1] = True
+    rows = np.flatnonzero(in_coded[bc.frame])
+    frames, elements = touched_pairs(body, bc, rows)
+    gest = dict(zip(labelled["session"], labelled["gesture"]))
+    trials = pd.DataFrame({
+        "participant": ds.sessions["participant"], "region": "body",
+        "trial_ordinal": ds.sessions["repetition"], "trial_id": [f"{i:04d}_hit" for i in range(len(ds.sessions))],
+        "gesture": [gest.get(i) or "hit" for i in range(len(ds.sessions))], "start": ds.sessions["start"],
+        "n_frames": ds.sessions["n_frames"], "scenario": ds.sessions["scenario"],
+        "start_position": ds.sessions["start_position"], "repetition": ds.sessions["repetition"].astype(str),
+    })
+    gd = GestureDataset(name=ds.name, synthetic=ds.synthetic, hand=hand, trials=trials,
+                        poses=ds.hand_poses[:, 1], frame_rate_hz=ds.frame_rate_hz)
+    analysis = CoverageAnalysis(by=st.by, pair_by="participant", bandwidth_mm=st.bandwidth_mm,
+                                spacing_mm=st.spacing_mm, capture=0.9, n_projections=st.n_projections, alpha=st.alpha,
+                                exact_max=st.exact_max, n_permutations=st.n_permutations, seed=st.seed, render=False)
+    cov = analysis.analyze(gd, None, body.mesh, None, None, samples=body.samples, kernel=body.kernel,
+                           touched=(frames, elements))
+    notes += cov.notes
+    comp = cov.comparison
+    if comp is not None:
+        n_max = int(comp.table["n_participants"].max()) if len(comp.table) else 0
+        m = len(comp.table)
+        if n_max and n_max <= st.exact_max and m * 2.0 ** -n_max > st.alpha:
+            need = int(np.ceil(np.log2(m / st.alpha)))
+            notes.append(f"power: with {n_max} participants the smallest Holm-corrected p over {m} scenario pairs is "
+                         f"{m} x 2^-{n_max} = {m * 2.0 ** -n_max:.3g} > alpha {st.alpha:g}: no pair can reach "
+                         f"significance; at least {need} participants are needed")
+    seconds["maps_and_tests"] = time.perf_counter() - t
+
+    # body parts ranked, placement under the budget (pooled and per scenario, held-out participants)
+    t = time.perf_counter()
+    part_index = {p: i for i, p in enumerate(body.parts)}
+    pidx = np.array([part_index[p] for p in body.part], dtype=np.int64)
+    uf, mat = frame_part_matrix(frames, elements, pidx, len(body.parts))
+    area = np.array([body.part_area_m2()[p] for p in body.parts])
+    f_scen = ds.sessions["scenario"].to_numpy()[fsi[uf]]
+    f_unit = ds.sessions["participant"].to_numpy()[fsi[uf]]
+    ranking = rank_parts(mat, body.parts, area)
+    ranking.insert(0, "scenario", "all")
+    per = [ranking]
+    for s in scenarios:
+        r = rank_parts(mat[f_scen == s], body.parts, area)
+        r.insert(0, "scenario", s)
+        per.append(r)
+    group_rows = []
+    for g, members in robot.groups.items():
+        cols = [part_index[p] for p in members if p in part_index]
+        if not cols:
+            continue
+        a = float(area[cols].sum())
+        n = int(mat[:, cols].any(axis=1).sum())
+        group_rows.append(dict(scenario="all", part=f"group:{g}", area_cm2=a * 1e4, contact_frames=n,
+                               frame_share=n / max(len(uf), 1), frames_per_cm2=n / (a * 1e4)))
+    ranking_all = pd.concat(per + [pd.DataFrame(group_rows)], ignore_index=True)
+    placement = placement_table(mat, f_scen, f_unit, scenarios, body.parts, area, st.budget_m2)
+    sentences = [sentence(r, robot.groups) for _, r in placement.iterrows()]
+    budget = (f"{st.budget_taxels} taxels at {st.pitch_mm:g} mm pitch ({st.budget_m2 * 1e4:.0f} cm^2)"
+              if st.budget_taxels else f"{st.budget_cm2:g} cm^2")
+    seconds["placement"] = time.perf_counter() - t
+
+    result = StudyResult(out_dir, st, ds.synthetic, ds.sessions, episodes, labelled, hist, ranking_all, placement,
+                         sentences, comp, cov, notes, [], seconds, gm.accuracy_mean)
+    t = time.perf_counter()
+    result.files = write_outputs(result, cfg, robot, body, ds, gm, budget, label)
+    seconds["files"] = time.perf_counter() - t
+    seconds["total"] = time.perf_counter() - t_all
+    (out_dir / "timing.json").write_text(json.dumps(seconds, indent=1))
+    for s_ in sentences:
+        log.info("%s (%s)", s_, label)
+    if log_mlflow:
+        result.mlflow_run_id = log_study(cfg, result, overrides, ds)
+    return result
+
+
+def _mask_npz(body, robot, density: np.ndarray, chosen: set[str], out_dir: Path) -> list[Path]:
+    """Per link holding chosen parts: ``placement_<link>.npz`` for ``layout=density layout.density_path=...``
+    (``points_m``/``normal`` in the link frame, ``density`` = the pooled density on the chosen parts (a
+    floor of 5 % of its peak keeps every chosen element), 0 elsewhere; ``mask``, ``area_m2``, ``part``)."""
+    files = []
+    for li, name in enumerate(body.links):
+        sl = slice(body.offset[li], body.offset[li + 1])
+        mask = np.isin(body.part[sl], list(chosen))
+        if not mask.any():
+            continue
+        d = density[sl]
+        dens = np.where(mask, d + 0.05 * max(float(d.max()), 1e-12), 0.0)
+        s = body.local[li]
+        path = out_dir / f"placement_{name}.npz"
+        np.savez_compressed(path, points_m=s.points_m, normal=s.normal, density=dens, mask=mask, area_m2=s.area_m2,
+                            part=body.part[sl].astype(str))
+        files.append(path)
+    return files
+
+
+def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label: str) -> list[Path]:
+    from sphri.analysis.coverage import ALL, safe_name
+    from sphri.analysis.render import plot_swd_heatmap
+
+    out = res.out_dir
+    files: list[Path] = []
+    cov = res.coverage
+    scen = cov.groups
+    dens = {s: cov.densities[s] for s in scen}
+    np.savez_compressed(out / "density_maps.npz", points_m=body.samples.points_m, normal=body.samples.normal,
+                        area_m2=body.samples.area_m2, part=body.part.astype(str), link=np.array(body.links)[body.link_of],
+                        scenarios=np.array(scen), density=np.stack([cov.densities[s] for s in scen]),
+                        pooled=cov.densities[ALL], counts=np.stack([cov.counts[s] for s in scen]))
+    files.append(out / "density_maps.npz")
+    per = pd.DataFrame({"element": np.arange(body.samples.n), "link": np.array(body.links)[body.link_of],
+                        "part": body.part, "area_cm2": body.samples.area_m2 * 1e4,
+                        **{f"density_{s}": cov.densities[s] * 1e-2 for s in [ALL] + scen}})
+    per.to_csv(out / "density_maps.csv", index=False, float_format="%.6g")
+    files.append(out / "density_maps.csv")
+    res.sessions.to_csv(out / "sessions.csv", index=False)
+    res.episodes.to_csv(out / "episodes.csv", index=False)
+    res.coded.to_csv(out / "coded_episodes.csv", index=False, float_format="%.4g")
+    res.histogram.to_csv(out / "gesture_histogram.csv", index=False, float_format="%.4g")
+    res.ranking.to_csv(out / "body_part_ranking.csv", index=False, float_format="%.5g")
+    res.placement.to_csv(out / "placement.csv", index=False, float_format="%.4g")
+    files += [out / n for n in ("sessions.csv", "episodes.csv", "coded_episodes.csv", "gesture_histogram.csv",
+                                "body_part_ranking.csv", "placement.csv")]
+    if res.comparison is not None:
+        files += res.comparison.write_csv(out, "swd")
+        eff = _effects(res.comparison)
+        eff.to_csv(out / "swd_effects.csv", index=False, float_format="%.5g")
+        files.append(out / "swd_effects.csv")
+    chosen = set(str(res.placement.loc[res.placement["group"] == "all", "parts"].iat[0]).split(";")) - {""}
+    files += _mask_npz(body, robot, cov.densities[ALL], chosen, out)
+    (out / "placement.txt").write_text("\n".join(res.sentences) + f"\n(budget {budget}; {label})\n")
+    files.append(out / "placement.txt")
+    summary = {"dataset": ds.name, "synthetic": ds.synthetic, "robot": robot.name,
+               "n_participants": int(ds.sessions["participant"].nunique()), "n_sessions": int(len(ds.sessions)),
+               "scenarios": scen, "n_coded_episodes": int(len(res.coded)), "gesture_model": {
+                   "regions": gm.regions, "loso_accuracy": gm.accuracy, "res": gm.res, "loso_accuracy_mean": gm.accuracy_mean,
+                   "loso_accuracy_std": gm.accuracy_std, "n_trials": gm.n_trials},
+               "budget": budget, "sentences": res.sentences, "notes": res.notes, "seconds": res.seconds,
+               "settings": dataclasses.asdict(res.settings)}
+    if ds.truth is not None and len(res.coded):
+        tr = ds.truth.reset_index(drop=True)
+        c = res.coded
+        truth_g = tr["gesture"].to_numpy()[c["session"].to_numpy()]
+        truth_p = tr["part"].to_numpy()[c["session"].to_numpy()]
+        ok = c["gesture"].to_numpy() != ""
+        summary["against_generator"] = {
+            "gesture_agreement": float((c["gesture"].to_numpy()[ok] == truth_g[ok]).mean()) if ok.any() else None,
+            "dominant_part_agreement": float((c["dominant_part"].to_numpy() == truth_p).mean())}
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
+    files.append(out / "summary.json")
+    if not res.settings.render:
+        return files
+    from sphri.sessions.render import (body_view, plot_atlas, plot_effects, plot_gesture_histogram, plot_placement,
+                                       plot_views, write_density_ply)
+
+    view = body_view(body)
+    figs = {}
+    figs["maps"] = plot_views(view, {**dens, "pooled": cov.densities[ALL]}, out / "maps_views.png",
+                              f"Contact density per {cov.by}, one colour scale ({label})")
+    for s in scen:
+        files.append(plot_views(view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{s} ({label})"))
+    figs["atlas"] = plot_atlas(body, robot, cov.densities[ALL], out / "atlas_pooled.png",
+                               f"Atlas of the whole surface, pooled over scenarios ({label})")
+    files.append(write_density_ply(view, {"pooled": cov.densities[ALL], **dens}, out / "density_mesh.ply"))
+    if res.comparison is not None:
+        figs["swd"] = plot_swd_heatmap(res.comparison, out / "swd_matrix.png",
+                                       f"Scenario maps: paired sliced Wasserstein ({label})")
+        figs["effects"] = plot_effects(_effects(res.comparison), scen, res.settings.alpha, out / "swd_effects.png",
+                                       f"Scenario maps differ? Paired effect per pair ({label})")
+    figs["gestures"] = plot_gesture_histogram(res.histogram, out / "gesture_histogram.png",
+                                              f"Gestures of the coded episodes per scenario ({label}; model LOSO "
+                                              f"accuracy {100 * gm.accuracy_mean:.0f} %)")
+    figs["placement"] = plot_placement(res.ranking[res.ranking["scenario"] == "all"].query("~part.str.startswith('group:')"),
+                                       res.placement, out / "placement.png", f"Placement under {budget} ({label})")
+    files += list(figs.values())
+    files.append(write_report(res, figs, summary, budget, label, out / "report.html"))
+    return files
+
+
+def _effects(comp) -> pd.DataFrame:
+    """Per pair: mean paired SWD difference (mm), its standardized size d_z = mean / SD over participants, p, p_holm."""
+    pp = comp.per_participant
+    rows = []
+    for r in comp.table.itertuples(index=False):
+        d = pp[(pp["cond_a"] == r.cond_a) & (pp["cond_b"] == r.cond_b)]["diff_mm"].to_numpy(float)
+        sd = float(d.std(ddof=1)) if d.size > 1 else float("nan")
+        rows.append(dict(cond_a=r.cond_a, cond_b=r.cond_b, n_participants=r.n_participants,
+                         between_swd_mm=r.mean_between_swd_mm, within_swd_mm=r.mean_within_swd_mm,
+                         diff_swd_mm=r.mean_diff_swd_mm, effect_dz=float(d.mean() / sd) if sd and sd == sd else float("nan"),
+                         p_value=r.p_value, p_holm=r.p_holm, significant=r.significant))
+    return pd.DataFrame(rows)
+
+
+def _img(path: Path) -> str:
+    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    return f'<img src="data:image/png;base64,{data}" style="max-width:100%">'
+
+
+def write_report(res: StudyResult, figs: dict, summary: dict, budget: str, label: str, path: Path) -> Path:
+    """A self-contained HTML page: every figure embedded, the tables, the placement sentences."""
+    esc = html.escape
+    gm = summary["gesture_model"]
+    parts = [f"<html><head><meta charset='utf-8'><title>Scenario study ({esc(label)})</title>",
+             "<style>body{font-family:sans-serif;max-width:1200px;margin:auto}table{border-collapse:collapse;"
+             "font-size:12px}td,th{border:1px solid #ccc;padding:2px 6px}.warn{color:#a00}</style></head><body>",
+             f"<h1>Where people touch the whole robot: the scenario study ({esc(label)})</h1>",
+             f"<p>Dataset <b>{esc(str(summary['dataset']))}</b> ({esc(label)}), robot {esc(summary['robot'])}: "
+             f"{summary['n_participants']} participants, {summary['n_sessions']} sessions, "
+             f"{summary['n_coded_episodes']} coded episodes (first episode per session; an episode ends after "
+             f">= {res.settings.episode_gap_s:g} s without contact).</p>",
+             "<h2>The answer</h2><ul>" + "".join(f"<li>{esc(s)}</li>" for s in res.sentences) + "</ul>",
+             f"<p>Budget: {esc(budget)}. Greedy over body parts by contact frames per cm<sup>2</sup>; held-out: the "
+             "placement chosen without each participant, scored on that participant.</p>",
+             res.placement.to_html(index=False, float_format=lambda v: f"{v:.3g}"), _img(figs["placement"])]
+    if res.notes:
+        parts.append("<h2>Notes</h2><ul>" + "".join(
+            f"<li class='{'warn' if n.startswith('WARNING') or n.startswith('power') else ''}'>{esc(n)}</li>"
+            for n in res.notes) + "</ul>")
+    parts += ["<h2>Contact density per scenario</h2>", _img(figs["maps"]), "<h3>Atlas (pooled)</h3>", _img(figs["atlas"]),
+              "<p>Files: <code>map_&lt;scenario&gt;.png</code>, <code>density_maps.npz/.csv</code>, "
+              "<code>density_mesh.ply</code> (vertex attributes <code>density_*</code> in % per cm<sup>2</sup>).</p>"]
+    if "swd" in figs:
+        eff = _effects(res.comparison)
+        parts += ["<h2>Do scenarios differ? Paired sliced Wasserstein tests</h2>",
+                  "<p>Per participant: SWD between scenarios' split halves minus the within-scenario split-half "
+                  "baseline; sign-flip permutation over participants; Holm over all pairs.</p>",
+                  _img(figs["effects"]), _img(figs["swd"]), eff.to_html(index=False, float_format=lambda v: f"{v:.3g}")]
+    parts += [f"<h2>Gestures per scenario</h2><p>Model: trained on {esc(', '.join(gm['regions']))} at res {gm['res']}, "
+              f"LOSO accuracy {100 * gm['loso_accuracy_mean']:.1f} +/- {100 * gm['loso_accuracy_std']:.1f} % over those "
+              f"body parts ({esc(', '.join(f'{k} {100 * v:.0f} %' for k, v in gm['loso_accuracy'].items()))}) on "
+              f"{gm['n_trials']} training trials. Bars: expected share (sum of class probabilities) +/- its SD; "
+              "dots: argmax share.</p>", _img(figs["gestures"]),
+              res.histogram.pivot(index="scenario", columns="gesture", values="count").to_html()]
+    if "against_generator" in summary:
+        a = summary["against_generator"]
+        parts.append(f"<p>Against the generator's draws (synthetic only): gesture agreement "
+                     f"{a['gesture_agreement']}, dominant body part agreement {a['dominant_part_agreement']:.2f}.</p>")
+    r = res.ranking[res.ranking["scenario"] == "all"]
+    parts += ["<h2>Body parts ranked by contact per unit area (pooled)</h2>",
+              r.to_html(index=False, float_format=lambda v: f"{v:.3g}"),
+              f"<p>Timing (s): {esc(json.dumps({k: round(v, 1) for k, v in res.seconds.items()}))}</p></body></html>"]
+    path.write_text("\n".join(parts))
+    return path
+
+
+def log_study(cfg, res: StudyResult, overrides: Sequence[str], ds) -> str | None:
+    """One MLflow run tagged ``sphri.kind=scenario_study``: settings, numbers, every file."""
+    from mlflow.entities import Metric, Param
+
+    from sphri.pipeline import build
+    from sphri.tracking.mlflow_tracker import git_commit
+
+    tracker = build(cfg.tracking)
+    if not getattr(tracker, "enabled", True):
+        return None
+    client = tracker.client(cfg.output_dir)
+    exp = tracker.experiment_id(cfg.output_dir)
+    tags = {"sphri.kind": "scenario_study", "sphri.dataset": ds.name, "sphri.synthetic": str(ds.synthetic).lower(),
+            "sphri.git_commit": git_commit(), "sphri.study_dir": str(res.out_dir.resolve()),
+            "mlflow.note.content": "\n".join(res.sentences)}
+    run = tracker._retry(lambda: client.create_run(exp, tags=tags, run_name="scenario_study"))
+    run_id = run.info.run_id
+    try:
+        now = int(time.time() * 1000)
+        params = [Param(f"study.{k}", str(v)) for k, v in dataclasses.asdict(res.settings).items()]
+        params.append(Param("overrides", " ".join(overrides)[:500]))
+        metrics = [Metric(f"time/{k}_s", float(v), now, 0) for k, v in res.seconds.items()]
+        metrics.append(Metric("gesture_model/loso_accuracy", float(res.gesture_accuracy), now, 0))
+        for r in res.placement.itertuples():
+            for k in ("captured", "heldout_captured", "area_share"):
+                v = float(getattr(r, k))
+                if v == v:
+                    metrics.append(Metric(f"placement/{k}/{r.group}", v, now, 0))
+        if res.comparison is not None:
+            for r in res.comparison.table.itertuples():
+                if r.p_holm == r.p_holm:
+                    metrics.append(Metric(f"swd/p_holm/{r.cond_a}-{r.cond_b}", float(r.p_holm), now, 0))
+        for s in range(0, max(len(metrics), len(params)), 100):
+            tracker._retry(lambda s=s: client.log_batch(run_id, metrics=metrics[s:s + 100], params=params[s:s + 100]))
+        tracker._retry(lambda: client.log_artifacts(run_id, str(res.out_dir)))
+        tracker._retry(lambda: client.set_terminated(run_id, "FINISHED"))
+    except Exception:
+        tracker._retry(lambda: client.set_terminated(run_id, "FAILED"))
+        raise
+    return run_id

@@ -1,0 +1,349 @@
+"""``data=synthetic_sessions``: a built-in synthetic scenario study (SYNTHETIC).
+
+Participants x scenarios x repetitions sessions with the whole robot
+(``robot=reachy_full``). What people do in each scenario (where they start,
+which body parts they touch with which gesture, one or two hands, how fast,
+how the robot moves) is read from a YAML table of assumptions
+(:data:`DEFAULT_PRIORS`, ``sphri/sessions/scenario_priors.yaml``; copy and
+edit it, pass ``data.priors=PATH``). Nothing in it is measured.
+
+A session, in the world frame (the robot's base starts at the origin facing +x):
+
+1. the touching hand(s) travel from the participant's side (at the scenario's
+   starting position) to the touch for ``approach_s``; the robot runs its
+   scripted motion meanwhile (``base``: drives towards the participant;
+   ``arm``: the nearer arm follows a sorting trajectory);
+2. the touch itself is one trial of the gesture generator
+   (:class:`sphri.data.synthetic.SyntheticData`: rest, approach, contact,
+   retreat) on the drawn body part's surface, in that link's frame, placed
+   in the world by the link's pose (the robot stops when the touch begins,
+   as in the study), time-scaled by ``duration_scale``;
+3. the hands stay off the robot for ``tail_s`` (>= 2 s ends the episode).
+
+The other hand hangs at the participant's side unless the session is two-handed
+(then it touches the mirrored body part with the same gesture). Both hands use
+the 19-capsule hand model. Scenario order per participant follows a cyclic
+Latin square; starting positions are fixed per participant. Participant
+``k``'s sessions come from the random stream ``(seed, k, scenario, repetition)``.
+"""
+
+from __future__ import annotations
+
+import logging
+from functools import lru_cache
+from pathlib import Path
+from typing import Any, Optional, Sequence
+
+import numpy as np
+import pandas as pd
+import yaml
+
+from sphri.data.format import participant_id
+from sphri.data.gestures import Style
+from sphri.data.handfk import HandRig, matrix_to_quat
+from sphri.data.linkgeom import LinkSurface
+from sphri.data.synthetic import SyntheticData
+from sphri.hand.kinematics import quat_to_matrix
+from sphri.sessions.format import SessionDataset, make_sessions_frame
+from sphri.types import GESTURES, HandModel, Link, Robot
+
+log = logging.getLogger(__name__)
+
+DEFAULT_PRIORS = Path(__file__).with_name("scenario_priors.yaml")
+#: Starting directions in the robot's base frame at t=0 (robot faces +x, its left is +y).
+DIRECTIONS = {"front": 0.0, "front_left": 45.0, "left": 90.0, "rear": 180.0, "right": -90.0, "front_right": -45.0}
+MOTIONS = ("none", "base", "arm")
+SCENARIO_KEYS = ("start_positions", "start_distance_m", "approach_s", "robot_motion", "parts", "gestures",
+                 "two_hands", "duration_scale")
+
+
+class PriorsError(ValueError):
+    """The scenario priors table is malformed; names the file and key."""
+
+
+def load_priors(path: str | Path, part_names: Sequence[str]) -> dict[str, Any]:
+    """Read and check the priors table against the robot's body parts."""
+    path = Path(path)
+    if not path.is_file():
+        raise PriorsError(f"data.priors={str(path)!r}: no such file")
+    try:
+        table = yaml.safe_load(path.read_text())
+    except yaml.YAMLError as exc:
+        raise PriorsError(f"{path}: not valid YAML ({exc})") from None
+    if not isinstance(table, dict) or not isinstance(table.get("scenarios"), dict) or not table["scenarios"]:
+        raise PriorsError(f"{path}: needs a non-empty mapping 'scenarios'")
+    for key in ("tail_s", "base_speed_m_s"):
+        if not isinstance(table.get(key), (int, float)) or not table[key] > 0:
+            raise PriorsError(f"{path}: {key}={table.get(key)!r} is invalid: a number > 0")
+    if table["tail_s"] < 2.0:
+        log.warning("%s: tail_s=%s < 2 s: episodes of consecutive sessions' ends may not close", path, table["tail_s"])
+    parts = set(part_names)
+    for name, s in table["scenarios"].items():
+        key = f"{path}: scenarios.{name}"
+        if not isinstance(s, dict):
+            raise PriorsError(f"{key} must be a mapping")
+        missing = [k for k in SCENARIO_KEYS if k not in s]
+        if missing:
+            raise PriorsError(f"{key} is missing {missing}")
+        bad = [p for p in s["start_positions"] if p not in DIRECTIONS]
+        if bad or not s["start_positions"]:
+            raise PriorsError(f"{key}.start_positions: unknown {bad}; allowed: {list(DIRECTIONS)}")
+        if s["robot_motion"] not in MOTIONS:
+            raise PriorsError(f"{key}.robot_motion={s['robot_motion']!r}: allowed values: {list(MOTIONS)}")
+        for k in ("approach_s", "duration_scale"):
+            v = s[k]
+            if not (isinstance(v, list) and len(v) == 2 and 0 < v[0] <= v[1]):
+                raise PriorsError(f"{key}.{k}={v!r} is invalid: [min, max] with 0 < min <= max")
+        if not 0.0 <= float(s["two_hands"]) <= 1.0:
+            raise PriorsError(f"{key}.two_hands={s['two_hands']!r} is invalid: a probability in [0, 1]")
+        if not float(s["start_distance_m"]) > 0.3:
+            raise PriorsError(f"{key}.start_distance_m={s['start_distance_m']!r} is invalid: > 0.3 m")
+        for p, w in s["parts"].items():
+            base = p[:-5] if p.endswith("_near") else p[:-4] if p.endswith("_far") else None
+            ok = (p in parts) if base is None else (f"{base}_l" in parts and f"{base}_r" in parts)
+            if not ok:
+                raise PriorsError(f"{key}.parts.{p}: no such body part on the robot (parts: {sorted(parts)}; "
+                                  "suffix _near/_far needs <part>_l and <part>_r)")
+            if not float(w) >= 0:
+                raise PriorsError(f"{key}.parts.{p}={w!r} is invalid: a weight >= 0")
+        for g, w in s["gestures"].items():
+            if g not in GESTURES:
+                raise PriorsError(f"{key}.gestures.{g}: unknown gesture; allowed: {list(GESTURES)}")
+            if not float(w) >= 0:
+                raise PriorsError(f"{key}.gestures.{g}={w!r} is invalid: a weight >= 0")
+        for k in ("parts", "gestures"):
+            if sum(float(w) for w in s[k].values()) <= 0:
+                raise PriorsError(f"{key}.{k}: weights must not all be 0")
+    return table
+
+
+def _draw(rng: np.random.Generator, weights: dict[str, float]) -> str:
+    names = list(weights)
+    w = np.array([float(weights[n]) for n in names])
+    return names[int(rng.choice(len(names), p=w / w.sum()))]
+
+
+def resolve_part(part: str, side: float, rng: np.random.Generator) -> str:
+    """``shoulder_near`` -> shoulder_l / shoulder_r by the participant's side (``side`` > 0: robot's left)."""
+    for suffix, near in (("_near", True), ("_far", False)):
+        if part.endswith(suffix):
+            left = side > 0 if abs(side) > 1e-9 else bool(rng.random() < 0.5)
+            return f"{part[:-len(suffix)]}_{'l' if left == near else 'r'}"
+    return part
+
+
+def mirror_part(part: str) -> str:
+    if part.endswith("_l"):
+        return part[:-2] + "_r"
+    if part.endswith("_r"):
+        return part[:-2] + "_l"
+    return part
+
+
+#: A touch point must have this much free space (m) along its normal, out to RAY_M, from every other link.
+CLEARANCE_M = 0.035
+RAY_M = (0.02, 0.05, 0.08, 0.12, 0.16)
+
+
+def part_link(robot: Robot, part: str, poses: np.ndarray | None = None, towards: np.ndarray | None = None) -> Link:
+    """The touchable faces of ``part`` as an open :class:`Link` in its link's frame.
+
+    With the robot's link ``poses`` (L, 4, 4): only faces with free space along
+    their normal (no other link within :data:`CLEARANCE_M` out to 16 cm: the
+    hand fits there, e.g. not the inner side of an arm against the torso) and,
+    with ``towards`` (3,) the participant's direction, faces not turned away
+    from the participant (horizontal normal component towards them > -0.1),
+    unless that leaves nothing.
+    """
+    spec = next(p for p in robot.parts if p.name == part)
+    link = robot.links[spec.link]
+    tri = link.vertices[link.faces]
+    cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normals = cross / np.maximum(np.linalg.norm(cross, axis=1, keepdims=True), 1e-300)
+    centres = tri.mean(axis=1)
+    keep = spec.contains(centres, normals)
+    if not keep.any():
+        raise ValueError(f"body part {part!r} selects no face of link {spec.link!r}")
+    if poses is not None:
+        from scipy.spatial import cKDTree
+
+        names = list(robot.tree.links)
+        m = poses[names.index(spec.link)]
+        c_w = centres @ m[:3, :3].T + m[:3, 3]
+        n_w = normals @ m[:3, :3].T
+        others = []
+        for i, name in enumerate(names):
+            if name == spec.link:
+                continue
+            o = robot.links[name]
+            others.append(o.vertices @ poses[i, :3, :3].T + poses[i, :3, 3])
+            ot = o.vertices[o.faces].mean(axis=1)
+            others.append(ot @ poses[i, :3, :3].T + poses[i, :3, 3])
+        tree = cKDTree(np.concatenate(others))
+        free = np.ones(len(c_w), dtype=bool)
+        for t in RAY_M:
+            d, _ = tree.query(c_w + t * n_w)
+            free &= d > CLEARANCE_M
+        if (keep & free).any():
+            keep &= free
+        if towards is not None:
+            facing = n_w[:, :2] @ np.asarray(towards, dtype=np.float64)[:2] > -0.1
+            if (keep & facing).any():
+                keep &= facing
+    return Link(name=part, vertices=link.vertices, faces=link.faces[keep], watertight=False)
+
+
+def transform_poses(poses: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """(T, C, 7) poses in a link frame -> world by the (4, 4) link pose ``m``."""
+    out = np.empty_like(poses, dtype=np.float64)
+    out[..., :3] = poses[..., :3] @ m[:3, :3].T + m[:3, 3]
+    out[..., 3:] = matrix_to_quat(m[:3, :3] @ quat_to_matrix(poses[..., 3:]))
+    return out
+
+
+def pose7(m: np.ndarray) -> np.ndarray:
+    """(..., 4, 4) transforms -> (..., 7) position + quaternion xyzw."""
+    return np.concatenate([m[..., :3, 3], matrix_to_quat(m[..., :3, :3])], axis=-1)
+
+
+class SyntheticSessions:
+    """``data=synthetic_sessions`` (see module). ``load(hand, robot)`` -> :class:`SessionDataset`."""
+
+    VERSION = "1"
+
+    def __init__(self, seed: int = 0, participants: Optional[int] = 12, repetitions: Optional[int] = 3,
+                 scenarios: Optional[Sequence[str]] = None, priors: Optional[str] = None,
+                 frame_rate_hz: float = 30.0, hand_scale_sd: float = 0.05, **_: Any):
+        self.seed = int(seed)
+        self.participants = 12 if participants is None else int(participants)
+        self.repetitions = 3 if repetitions is None else int(repetitions)
+        self.scenarios = None if scenarios is None else [str(s) for s in scenarios]
+        self.priors = str(priors) if priors else str(DEFAULT_PRIORS)
+        self.frame_rate_hz = float(frame_rate_hz)
+        self.hand_scale_sd = float(hand_scale_sd)
+
+    def load(self, hand: HandModel, robot: Robot) -> SessionDataset:
+        if getattr(robot, "tree", None) is None:
+            raise ValueError(f"data=synthetic_sessions needs a whole robot with a kinematic tree (robot=reachy_full); "
+                             f"robot {robot.name!r} has none")
+        table = load_priors(self.priors, [p.name for p in robot.parts])
+        names = list(table["scenarios"])
+        if self.scenarios is not None:
+            bad = [s for s in self.scenarios if s not in names]
+            if bad:
+                raise ValueError(f"data.scenarios: unknown {bad}; the priors table has {names}")
+            names = [s for s in names if s in self.scenarios]
+        rig = HandRig.from_hand(hand)
+        surfaces: dict[str, LinkSurface] = {}
+        records, truth, hands, lposes = [], [], [], []
+        start = 0
+        n_s = len(names)
+        for k in range(1, self.participants + 1):
+            style = Style.draw(np.random.default_rng([self.seed, k, 0]), self.hand_scale_sd)
+            pid = participant_id(k)
+            for rep in range(1, self.repetitions + 1):
+                for pos in range(n_s):
+                    si = (k - 1 + pos) % n_s  # cyclic Latin square over participants
+                    scen = names[si]
+                    rng = np.random.default_rng([self.seed, k, si + 1, rep])
+                    h, lk, info = self._session(rng, style, rig, robot, surfaces, table, scen, k)
+                    records.append(dict(participant=pid, scenario=scen, repetition=rep, order=(rep - 1) * n_s + pos,
+                                        start_position=info.pop("start_position"), start=start, n_frames=len(h)))
+                    truth.append(dict(participant=pid, scenario=scen, repetition=rep, **info))
+                    hands.append(h)
+                    lposes.append(lk)
+                    start += len(h)
+        return SessionDataset(
+            name="synthetic_sessions", synthetic=True, hand=hand, sessions=make_sessions_frame(records),
+            hand_poses=np.concatenate(hands).astype(np.float32), links=tuple(robot.tree.links),
+            link_poses=np.concatenate(lposes).astype(np.float32), frame_rate_hz=self.frame_rate_hz,
+            robot=robot.name, truth=pd.DataFrame(truth))
+
+    # ------------------------------------------------------------------ internals
+    def _touch(self, rng, style, rig, robot, surfaces, part: str, gesture: str, poses: np.ndarray, position: str,
+               towards: np.ndarray, static: bool) -> np.ndarray:
+        """One gesture-generator trial on ``part`` (T, C, 7) in the part's link frame."""
+        key = (part, position)
+        surf = surfaces.get(key) if static else None
+        if surf is None:
+            surf = LinkSurface(part_link(robot, part, poses, towards), n_samples=6000)
+            if static:
+                surfaces[key] = surf
+        gen = SyntheticData(seed=self.seed, participants=1, repetitions=1, regions=[part], gestures=[gesture],
+                            frame_rate_hz=self.frame_rate_hz, hand_scale_sd=self.hand_scale_sd)
+        _, out, _ = gen._participant_region(rng, style, rig, surf, part)
+        return out.astype(np.float64)
+
+    def _session(self, rng, style, rig, robot, surfaces, table, scen: str, k: int):
+        s = table["scenarios"][scen]
+        fps = self.frame_rate_hz
+        position = s["start_positions"][(k - 1) % len(s["start_positions"])]
+        ang = np.radians(DIRECTIONS[position])
+        d = np.array([np.cos(ang), np.sin(ang), 0.0])
+        side = float(np.round(d[1], 6))
+        gesture = _draw(rng, s["gestures"])
+        part = resolve_part(_draw(rng, s["parts"]), side, rng)
+        two = bool(rng.random() < float(s["two_hands"]))
+        approach = float(rng.uniform(*s["approach_s"]))
+        scale = float(rng.uniform(*s["duration_scale"]))
+        n_app = max(int(round(approach * fps)), 2)
+
+        # robot: scripted motion during the approach, frozen from the touch on
+        tree = robot.tree
+        t = np.arange(n_app) / fps
+        base = np.zeros((n_app, 3))
+        joints: dict[str, np.ndarray] = {}
+        if s["robot_motion"] == "base":
+            base[:, :2] = (float(table["base_speed_m_s"]) * t)[:, None] * d[None, :2]
+        elif s["robot_motion"] == "arm":
+            arm = "l" if side > 0 or (side == 0 and rng.random() < 0.5) else "r"
+            phase = rng.uniform(0, 2 * np.pi)
+            joints[f"{arm}_shoulder_pitch"] = -0.5 - 0.35 * np.sin(2 * np.pi * t / 3.0 + phase)
+            joints[f"{arm}_elbow_pitch"] = -0.9 + 0.3 * np.sin(2 * np.pi * t / 3.0 + phase)
+        poses_app = robot.link_poses(base, joints)  # (n_app, L, 4, 4)
+        final = poses_app[-1]
+
+        # the touch(es), in the world
+        li = {n: i for i, n in enumerate(tree.links)}
+        parts = [part] + ([mirror_part(part)] if two else [])
+        touches = []
+        for p in parts:
+            spec = next(x for x in robot.parts if x.name == p)
+            local = self._touch(rng, style, rig, robot, surfaces, p, gesture, final, position, d,
+                                static=s["robot_motion"] == "none")
+            idx = np.round(np.arange(int(round(len(local) * scale))) / scale).astype(int).clip(0, len(local) - 1)
+            touches.append(transform_poses(local[idx], final[li[spec.link]]))
+        n_touch = max(len(x) for x in touches)
+        touches = [np.concatenate([x, np.repeat(x[-1:], n_touch - len(x), axis=0)]) for x in touches]
+        n_tail = int(round(float(table["tail_s"]) * fps))
+
+        # the participant: start point at the robot's initial frame; idle hands hang at the sides
+        dist = float(s["start_distance_m"])
+        body = d * dist
+        lateral = np.array([-d[1], d[0], 0.0])  # the participant's right is -lateral seen facing the robot
+        idle = {0: body + 0.22 * lateral * -1 + [0, 0, 0.85], 1: body - 0.22 * lateral * -1 + [0, 0, 0.85]}
+        # hand 1 (right) touches first; a two-handed touch adds hand 0 (left)
+        n = n_app + n_touch + n_tail
+        out = np.empty((n, 2, rig.hand.n_capsules, 7))
+        for h in (0, 1):
+            active = (h == 1) or two
+            tr = touches[0] if h == 1 else (touches[1] if two else None)
+            shape = tr[0] if tr is not None else touches[0][0]
+            centre = shape[:, :3].mean(axis=0)
+            rest = shape.copy()
+            rest[:, :3] += idle[h] - centre
+            if not active:
+                out[:, h] = rest
+                continue
+            w = np.clip(t / t[-1], 0, 1) if n_app > 1 else np.ones(1)
+            w = w**3 * (10 - 15 * w + 6 * w**2)
+            app = np.repeat(shape[None], n_app, axis=0)
+            app[..., :3] += ((1 - w)[:, None] * (idle[h] - centre)[None, :])[:, None, :]
+            out[:n_app, h] = app
+            out[n_app:n_app + n_touch, h] = tr
+            out[n_app + n_touch:, h] = tr[-1]
+        lk = np.concatenate([poses_app, np.repeat(final[None], n_touch + n_tail, axis=0)])
+        info = dict(start_position=position, gesture=gesture, part=part, two_hands=two,
+                    second_part=parts[1] if two else "", approach_s=approach, duration_scale=scale,
+                    touch_start_frame=n_app, touch_frames=n_touch)
+        return out.astype(np.float32), pose7(lk).astype(np.float32), info

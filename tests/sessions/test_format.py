@@ -1,0 +1,137 @@
+"""The session format: written by the synthesizer, read back identically; broken files give named errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from hydra.utils import instantiate
+
+from sphri.config import ConfigError, compose
+from sphri.sessions.contact import body_contacts
+from sphri.sessions.episodes import part_of_rows, segment_episodes
+from sphri.sessions.format import SessionData, SessionFormatError, write_sessions
+from sphri.sessions.synthesize import main as synthesize_main
+
+
+@pytest.fixture(scope="module")
+def written(small, tmp_path_factory):
+    _, _, _, ds = small
+    root = tmp_path_factory.mktemp("sessions")
+    write_sessions(ds, root)
+    return root
+
+
+def test_synthesizer_command_writes_sessions_that_load_back_identically(small, tmp_path):
+    cfg, hand, robot, ds = small
+    assert synthesize_main([f"out={tmp_path}", "data.participants=2", "data.repetitions=1"]) == 0
+    loaded = instantiate(compose(["data=sessions", f"data.root={tmp_path}", "robot=reachy_full"]).data).load(hand, robot)
+    assert loaded.synthetic and loaded.name == ds.name and loaded.links == ds.links
+    pd.testing.assert_frame_equal(loaded.sessions, ds.sessions)
+    assert np.array_equal(loaded.hand_poses, ds.hand_poses) and np.array_equal(loaded.link_poses, ds.link_poses)
+    contact = instantiate(cfg.contact)
+    a, b = body_contacts(ds, robot, contact), body_contacts(loaded, robot, contact)
+    for f in ("frame", "hand", "link", "capsule", "point_m", "depth_m"):
+        assert np.array_equal(getattr(a, f), getattr(b, f)), f
+    ea = segment_episodes(ds, a, part_of_rows(a, robot))
+    eb = segment_episodes(loaded, b, part_of_rows(b, robot))
+    pd.testing.assert_frame_equal(ea, eb)
+    assert len(ea) >= len(ds.sessions) - 1  # (nearly) every session has an episode
+
+
+def test_loader_selects_participants_scenarios_and_repetitions(small, written):
+    _, hand, robot, ds = small
+    one = SessionData(root=str(written), participants=1, scenarios=["S1_attention", "S5_appreciation"]).load(hand, robot)
+    assert list(one.sessions["participant"].unique()) == ["participant_01"]
+    assert sorted(one.sessions["scenario"]) == ["S1_attention", "S5_appreciation"]
+
+
+def _copy(src, dst):
+    import shutil
+
+    shutil.copytree(src, dst)
+    return dst
+
+
+def test_broken_files_give_named_errors(small, written, tmp_path):
+    _, hand, robot, _ = small
+
+    def load(root):
+        return SessionData(root=str(root)).load(hand, robot)
+
+    root = _copy(written, tmp_path / "a")
+    h = json.loads((root / "sessions.json").read_text())
+    h["format"] = "something"
+    (root / "sessions.json").write_text(json.dumps(h))
+    with pytest.raises(SessionFormatError, match=r"sessions.json: field 'format'"):
+        load(root)
+
+    root = _copy(written, tmp_path / "b")
+    m = json.loads((root / "participant_01" / "manifest.json").read_text())
+    m["sessions"][0]["n_frames"] += 5
+    (root / "participant_01" / "manifest.json").write_text(json.dumps(m))
+    with pytest.raises(SessionFormatError, match=r"participant_01/S\w+\.parquet: repetition 1 has \d+ rows but .*n_frames"):
+        load(root)
+
+    root = _copy(written, tmp_path / "c")
+    m = json.loads((root / "participant_02" / "manifest.json").read_text())
+    del m["sessions"][1]["start_position"]
+    (root / "participant_02" / "manifest.json").write_text(json.dumps(m))
+    with pytest.raises(SessionFormatError, match=r"manifest.json: sessions\[1\] is missing field\(s\) \['start_position'\]"):
+        load(root)
+
+    root = _copy(written, tmp_path / "d")
+    path = root / "participant_01" / "S3_move_aside.parquet"
+    df = pd.read_parquet(path)
+    df.loc[7, "right/index1_pos_x"] = np.nan
+    df.drop(columns=["link/head_rot_w"]).to_parquet(path)
+    with pytest.raises(SessionFormatError, match=r"S3_move_aside.parquet: missing column\(s\) \['link/head_rot_w'\]"):
+        load(root)
+    df.to_parquet(path)
+    with pytest.raises(SessionFormatError, match=r"S3_move_aside.parquet: repetition 1, frame 7: column 'right/index1_pos_x' is NaN"):
+        load(root)
+    df = pd.read_parquet(path).fillna(0.0)
+    df.loc[3, "link/torso_rot_w"] = 3.0
+    df.to_parquet(path)
+    with pytest.raises(SessionFormatError, match=r"frame 3: link quaternion link/torso_rot_\* has norm"):
+        load(root)
+
+    root = _copy(written, tmp_path / "e")
+    (root / "participant_02" / "S1_attention.parquet").write_bytes(b"not parquet")
+    with pytest.raises(SessionFormatError, match=r"S1_attention.parquet: not a readable parquet file"):
+        load(root)
+
+    with pytest.raises(ConfigError, match=r"data.root=None is invalid"):
+        compose(["data=sessions"])
+
+
+def test_bad_priors_are_named(small, tmp_path):
+    from sphri.sessions.synthetic import PriorsError, SyntheticSessions
+
+    _, hand, robot, _ = small
+    text = (SyntheticSessions().priors and open(SyntheticSessions().priors).read())
+    bad = tmp_path / "p.yaml"
+    bad.write_text(text.replace("shoulder_near: 5", "elbow_near: 5"))
+    with pytest.raises(PriorsError, match=r"p.yaml: scenarios.S1_attention.parts.elbow_near: no such body part"):
+        SyntheticSessions(participants=1, repetitions=1, priors=str(bad)).load(hand, robot)
+    bad.write_text(text.replace("gestures: {tap: 6", "gestures: {tickle: 6"))
+    with pytest.raises(PriorsError, match=r"scenarios.S1_attention.gestures.tickle: unknown gesture"):
+        SyntheticSessions(participants=1, repetitions=1, priors=str(bad)).load(hand, robot)
+
+
+def test_synthetic_sessions_follow_the_study_design(small):
+    _, _, robot, ds = small
+    s = ds.sessions
+    assert len(s) == 2 * 5 and s.groupby("participant")["scenario"].nunique().eq(5).all()
+    # cyclic Latin square: participants start with different scenarios
+    first = s[s["order"] == 0].set_index("participant")["scenario"]
+    assert first["participant_01"] != first["participant_02"]
+    # S2: the base drives (its pose changes during the session); S3: it stands still
+    base = ds.links.index("base")
+    for scen, moves in (("S2_path_redirection", True), ("S3_move_aside", False)):
+        r = s[s["scenario"] == scen].iloc[0]
+        lp = ds.link_poses[r.start:r.start + r.n_frames, base, :3]
+        assert (np.ptp(lp, axis=0).max() > 0.05) == moves
+    assert set(ds.truth["part"]) <= {p.name for p in robot.parts}

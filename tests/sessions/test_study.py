@@ -1,0 +1,103 @@
+"""python -m sphri.coverage +experiment=scenario_study +debug=fast: every output, and layout=density reads the placement."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import trimesh
+from hydra.utils import instantiate
+
+from sphri.analysis.cli import main
+from sphri.config import ConfigError, compose
+from sphri.types import GESTURES
+
+
+@pytest.fixture(scope="module")
+def study(tmp_path_factory):
+    out = tmp_path_factory.mktemp("study")
+    runs = tmp_path_factory.mktemp("runs")  # MLflow store and cache (logged to MLflow, as the command does)
+    rc = main(["+experiment=scenario_study", "+debug=fast", f"out={out}", f"output_dir={runs}", f"cache.dir={runs}/cache"])
+    assert rc == 0
+    assert (runs / "mlflow.db").is_file()
+    # sessions and whole-body contacts are stage-cache entries: a second study reuses them
+    assert list((runs / "cache" / "sessions").glob("*.pkl")) and list((runs / "cache" / "body_contact").glob("*.pkl"))
+    return out
+
+
+def test_sessions_and_contacts_come_from_the_stage_cache(tmp_path):
+    from sphri.cache import StageCache
+    from sphri.sessions.study import load_sessions_and_contacts
+
+    cfg = compose(["+experiment=scenario_study", "data.participants=1", "data.repetitions=1", f"cache.dir={tmp_path}"])
+    cache = StageCache(tmp_path)
+    _, _, ds1, bc1, _ = load_sessions_and_contacts(cfg, cache)
+    _, _, ds2, bc2, _ = load_sessions_and_contacts(cfg, cache)
+    assert ds1 is not ds2 and np.array_equal(ds1.hand_poses, ds2.hand_poses) and np.array_equal(bc1.frame, bc2.frame)
+    assert len(list((tmp_path / "sessions").glob("*.pkl"))) == 1
+
+
+def test_writes_the_report_and_every_table(study):
+    for name in ("report.html", "maps_views.png", "atlas_pooled.png", "swd_matrix.png", "gesture_histogram.png",
+                 "placement.png", "swd_effects.png", "density_mesh.ply", "density_maps.npz", "swd_pairs.csv", "swd_p_holm_matrix.csv",
+                 "swd_effects.csv", "gesture_histogram.csv", "body_part_ranking.csv", "placement.csv", "placement.txt"):
+        assert (study / name).is_file() and (study / name).stat().st_size > 0, name
+    scen = ["S1_attention", "S2_path_redirection", "S3_move_aside", "S4_behaviour_correction", "S5_appreciation"]
+    for s in scen:
+        assert (study / f"map_{s}.png").is_file()
+    html = (study / "report.html").read_text()
+    assert "data:image/png;base64," in html and "SYNTHETIC" in html and "covering the" in html
+    pairs = pd.read_csv(study / "swd_pairs.csv")
+    assert len(pairs) == 10 and pairs["p_holm"].between(0, 1).all() and (pairs["p_holm"] >= pairs["p_value"]).all()
+    hist = pd.read_csv(study / "gesture_histogram.csv")
+    assert set(hist["scenario"]) == set(scen) and set(hist["gesture"]) == set(GESTURES)
+    for _, g in hist.groupby("scenario"):
+        n = g["n_episodes"].iloc[0]
+        assert g["count"].sum() == n and g["expected"].sum() == pytest.approx(n, abs=0.01)
+    rank = pd.read_csv(study / "body_part_ranking.csv")
+    allr = rank[(rank["scenario"] == "all") & ~rank["part"].str.startswith("group:")]
+    assert allr["frames_per_cm2"].is_monotonic_decreasing and "gripper_l" in set(allr["part"])
+    place = pd.read_csv(study / "placement.csv")
+    assert place["group"].tolist() == ["all"] + scen
+    assert (place["area_cm2"] <= 2000 + 1e-6).all() and place["captured"].between(0, 1).all()
+    summary = json.loads((study / "summary.json").read_text())
+    assert summary["synthetic"] and summary["n_sessions"] == 3 * 5 * 2
+    notes = " ".join(summary["notes"])
+    assert "power" in notes and "never saw" in notes  # 3 participants cannot reach Holm significance; parts off the model
+
+
+def test_density_mesh_carries_the_density_as_a_vertex_attribute(study):
+    text = (study / "density_mesh.ply").read_bytes()
+    header = text[: text.index(b"end_header")].decode()
+    assert "property float density_pooled" in header and "property float density_S1_attention" in header
+    mesh = trimesh.load(study / "density_mesh.ply", process=False)
+    assert len(mesh.vertices) > 1000
+
+
+def test_layout_density_reads_the_placement_mask(study):
+    npz = sorted(study.glob("placement_*.npz"))
+    assert npz
+    link = npz[0].stem[len("placement_"):]
+    cfg = compose(["robot=reachy_full", f"data.regions=[{link}]", "layout=density", "encoder=coverage",
+                   f"layout.density_path={npz[0]}"])
+    robot = instantiate(cfg.robot).build()
+    surface = instantiate(cfg.surface).fit(robot.links[link])
+    layout = instantiate(cfg.layout).build(robot.links[link], surface, 6)
+    with np.load(npz[0]) as z:
+        masked = z["points_m"][z["mask"]]
+    # every taxel sits on the chosen part(s)
+    d = np.linalg.norm(layout.position_m[:, None, :] - masked[None, :, :], axis=2).min(axis=1)
+    assert layout.n_taxels > 0 and np.median(d) < 0.01
+
+
+def test_study_settings_are_checked():
+    with pytest.raises(ConfigError, match=r"experiment.scenario_study.budget_taxels"):
+        compose(["+experiment=scenario_study", "experiment.scenario_study.pitch_mm=10"])
+    with pytest.raises(ConfigError, match=r"robot='reachy' is invalid.*kinematic tree"):
+        compose(["+experiment=scenario_study", "robot=reachy"])
+    from sphri.pipeline import chain_region
+
+    with pytest.raises(ConfigError, match=r"data=SyntheticSessions holds free-interaction sessions.*scenario_study"):
+        chain_region(compose(["+experiment=scenario_study"]))
