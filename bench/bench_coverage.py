@@ -37,7 +37,7 @@ def main() -> int:
     parser.add_argument("--no-render", action="store_true", help="skip PNG/PLY output")
     args = parser.parse_args()
 
-    from sphri.analysis.cli import analysis_from, load_settings
+    from sphri.coverage import analysis_from, load_settings
     from sphri.analysis.coverage import ALL, write_region
     from sphri.cache import StageCache
     from sphri.config import compose

@@ -1,16 +1,261 @@
-"""``python -m sphri.coverage``: where on the robot people touch, per group of trials.
+"""``python -m sphri.coverage``: contact maps, placement and condition tests for a dataset.
 
-Contact density maps (PNG, PLY, unwrapped map), the coverage curve with a
-placement recommendation and an .npz for ``layout=density``, and paired
-sliced-Wasserstein tests between groups. See :mod:`sphri.analysis.cli` for
-the arguments and :mod:`sphri.analysis` for the library.
+::
+
+    python -m sphri.coverage                                   # every region of the default data
+    python -m sphri.coverage +debug=fast data.regions=[torso] by=gesture out=DIR
+    python -m sphri.coverage data=vr_gesture data.root=... bandwidth_mm=8 mlflow=false
+
+Arguments are ``key=value``. Keys of :class:`~sphri.analysis.schema.CoverageSchema`
+(``by``, ``bandwidth_mm``, ..., also as ``coverage.<key>``) set the
+analysis; ``out=DIR`` (default ``<output_dir>/coverage/<timestamp>``) and
+``mlflow=true|false`` the run; everything else is a sphri config override
+(composed with :func:`sphri.config.compose`). Each region of
+``data.regions`` is analysed on its own link (the config is composed once
+per region; the data and contact stages come from the stage cache), and its
+files go to ``out/<region>/``. One MLflow run tagged ``sphri.kind=coverage``
+holds the numbers and every file.
+
+A config with ``experiment.scenario_study`` settings (``+experiment=scenario_study``)
+runs the whole-body scenario study instead (:func:`sphri.sessions.study.run_study`):
+its files go to ``out`` and its MLflow run is tagged ``sphri.kind=scenario_study``.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import json
+import logging
 import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Sequence
 
-from sphri.analysis.cli import main
+from omegaconf import OmegaConf
+from omegaconf.errors import OmegaConfBaseException
+
+from sphri.analysis.coverage import ALL, CoverageAnalysis, RegionCoverage, write_region
+from sphri.analysis.schema import CoverageSchema
+from sphri.config import ConfigError, compose
+
+log = logging.getLogger(__name__)
+
+#: Settings of the analysis (CoverageSchema fields).
+ANALYSIS_KEYS = tuple(f.name for f in dataclasses.fields(CoverageSchema) if f.name != "_target_")
+#: Settings of the run itself.
+RUN_KEYS = ("out", "mlflow")
+
+
+@dataclass
+class CoverageRun:
+    """What one ``python -m sphri.coverage`` produced."""
+
+    out_dir: Path
+    regions: dict[str, RegionCoverage]
+    files: dict[str, list[Path]]
+    mlflow_run_id: str | None = None
+    seconds: dict[str, float] = field(default_factory=dict)
+
+
+def split_args(argv: Sequence[str]) -> tuple[list[str], list[str], dict[str, str]]:
+    """(sphri overrides, analysis dotlist, run options) from ``key=value`` arguments."""
+    overrides, analysis, run = [], [], {}
+    for arg in argv:
+        key, eq, value = arg.partition("=")
+        if not eq:
+            raise ConfigError(f"argument {arg!r} is invalid: expected key=value")
+        bare = key[len("coverage."):] if key.startswith("coverage.") else key
+        if bare in ANALYSIS_KEYS:
+            analysis.append(f"{bare}={value}")
+        elif bare in RUN_KEYS:
+            run[bare] = value
+        elif key.startswith("coverage."):
+            raise ConfigError(f"{key}: no such coverage setting; settings: {', '.join(ANALYSIS_KEYS + RUN_KEYS)}")
+        else:
+            overrides.append(arg)
+    return overrides, analysis, run
+
+
+def load_settings(dotlist: Sequence[str] = ()) -> CoverageSchema:
+    """The analysis settings: schema defaults with ``dotlist`` applied and checked."""
+    try:
+        node = OmegaConf.merge(OmegaConf.structured(CoverageSchema), OmegaConf.from_dotlist(list(dotlist)))
+        return OmegaConf.to_object(node)
+    except ConfigError:
+        raise
+    except OmegaConfBaseException as exc:
+        key = getattr(exc, "full_key", None) or "coverage"
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ConfigError(f"coverage.{key}: {first}") from None
+
+
+def _bool(value: str, key: str) -> bool:
+    v = str(value).strip().lower()
+    if v in ("1", "true", "yes", "on"):
+        return True
+    if v in ("0", "false", "no", "off"):
+        return False
+    raise ConfigError(f"{key}={value!r} is invalid: expected true or false")
+
+
+def analysis_from(settings: CoverageSchema) -> CoverageAnalysis:
+    kwargs = {k: getattr(settings, k) for k in ANALYSIS_KEYS}
+    return CoverageAnalysis(**kwargs)
+
+
+def run(overrides: Sequence[str] = (), settings: CoverageSchema | None = None, out: str | Path | None = None,
+        log_mlflow: bool = True) -> CoverageRun:
+    """Analyse every region of the composed config's data; write files; log MLflow."""
+    from sphri.cache import StageCache
+    from sphri.pipeline import make_pipeline
+
+    settings = settings or CoverageSchema()
+    analysis = analysis_from(settings)
+    overrides = list(overrides)
+    base = compose(overrides)
+    from sphri.sessions.schema import study_settings
+
+    if study_settings(base) is not None:  # +experiment=scenario_study: the whole-body study
+        from sphri.sessions.study import run_study
+
+        return run_study(overrides, out, log_mlflow)
+    regions = [str(r) for r in base.data.regions]
+    if not regions:
+        raise ConfigError("data.regions=[] is invalid: name at least one skin region")
+    out_dir = Path(out) if out else Path(base.output_dir) / "coverage" / time.strftime("%Y-%m-%d_%H-%M-%S")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    rest = [o for o in overrides if not o.lstrip("+").startswith("data.regions=")]
+    results: dict[str, RegionCoverage] = {}
+    files: dict[str, list[Path]] = {}
+    seconds: dict[str, float] = {}
+    meta: dict[str, Any] = {}
+    for region in regions:
+        t0 = time.perf_counter()
+        cfg = compose(rest + [f"data.regions=[{region}]"])
+        p = make_pipeline(cfg, StageCache(cfg.cache.dir, enabled=bool(cfg.cache.enabled)))
+        dataset, contacts = p.get("data"), p.get("contact")
+        robot, surface = p.get("robot"), p.get("surface")
+        link = robot.link_for(region)
+        t1 = time.perf_counter()
+        result = analysis.analyze(dataset, contacts, link, surface, region)
+        files[region] = write_region(result, out_dir / region, link, surface, settings.render, settings.views)
+        results[region] = result
+        seconds[f"{region}.stages"] = t1 - t0
+        seconds[f"{region}.analysis"] = time.perf_counter() - t1
+        meta = {"dataset": dataset.name, "synthetic": bool(dataset.synthetic), "robot": robot.name,
+                "n_participants": int(dataset.trials["participant"].nunique())}
+        log.info("coverage %s: %s", region, result.sentences[ALL])
+    (out_dir / "settings.json").write_text(json.dumps(
+        {"coverage": dataclasses.asdict(settings), "overrides": overrides, "regions": regions, **meta}, indent=2))
+    (out_dir / "recommendation.txt").write_text(
+        "".join(f"[{r}]\n" + "\n".join(res.sentences[n] for n in [ALL] + res.groups) + "\n\n" for r, res in results.items()))
+    result = CoverageRun(out_dir, results, files, None, seconds)
+    if log_mlflow:
+        result.mlflow_run_id = log_coverage(base, settings, result, overrides, meta)
+    return result
+
+
+def log_coverage(cfg, settings: CoverageSchema, cov: CoverageRun, overrides: Sequence[str], meta: dict) -> str | None:
+    """One MLflow run tagged ``sphri.kind=coverage``: params, per-group metrics, all files."""
+    from mlflow.entities import Metric, Param
+
+    from sphri.pipeline import build
+    from sphri.tracking.mlflow_tracker import flatten_params, git_commit
+
+    tracker = build(cfg.tracking)
+    if not getattr(tracker, "enabled", True):
+        return None
+    client = tracker.client(cfg.output_dir)
+    exp = tracker.experiment_id(cfg.output_dir)
+    tags = {
+        "sphri.kind": "coverage",
+        "sphri.dataset": str(meta.get("dataset", "")),
+        "sphri.synthetic": str(meta.get("synthetic", "")).lower(),
+        "sphri.git_commit": git_commit(),
+        "sphri.coverage_dir": str(cov.out_dir.resolve()),
+        "mlflow.note.content": "\n\n".join(
+            f"[{r}]\n" + "\n".join(res.sentences[n] for n in [ALL] + res.groups) for r, res in cov.regions.items()),
+    }
+    run = tracker._retry(lambda: client.create_run(exp, tags=tags, run_name=f"coverage-by-{settings.by}"))
+    run_id = run.info.run_id
+    try:
+        params = {k: v for k, v in flatten_params(cfg).items() if k.split(".")[0] in ("seed", "data", "robot", "contact", "surface")}
+        params.update({f"coverage.{k}": str(getattr(settings, k)) for k in ANALYSIS_KEYS})
+        params["coverage.regions"] = ",".join(cov.regions)
+        now = int(time.time() * 1000)
+        metrics = []
+        for region, res in cov.regions.items():
+            summ = res.summary()
+            for g, entry in summ["groups"].items():
+                for key in ("area_share_at_capture", "n_contact_frames", "heldout_captured_mean", "heldout_area_share_mean"):
+                    if key in entry:
+                        metrics.append(Metric(f"{region}/{key}/{_metric_name(g)}", float(entry[key]), now, 0))
+            if "comparison" in summ:
+                metrics.append(Metric(f"{region}/n_significant_pairs", float(summ["comparison"]["n_significant"]), now, 0))
+                for row in res.comparison.table.itertuples(index=False):
+                    name = f"{_metric_name(row.cond_a)}-{_metric_name(row.cond_b)}"
+                    if row.p_holm == row.p_holm:
+                        metrics.append(Metric(f"{region}/p_holm/{name}", float(row.p_holm), now, 0))
+                        metrics.append(Metric(f"{region}/swd_mm/{name}", float(row.mean_between_swd_mm), now, 0))
+        for k, v in cov.seconds.items():
+            metrics.append(Metric(f"time/{k}_s", float(v), now, 0))
+        plist = [Param(k, str(v)[:500]) for k, v in params.items()]
+        for s in range(0, max(len(metrics), len(plist)), 100):
+            tracker._retry(lambda s=s: client.log_batch(run_id, metrics=metrics[s:s + 100], params=plist[s:s + 100]))
+        tracker._retry(lambda: client.log_artifacts(run_id, str(cov.out_dir)))
+        tracker._retry(lambda: client.set_terminated(run_id, "FINISHED"))
+    except Exception:
+        tracker._retry(lambda: client.set_terminated(run_id, "FAILED"))
+        raise
+    return run_id
+
+
+def _metric_name(value: str) -> str:
+    import re
+
+    return re.sub(r"[^\w.\- /]+", "_", str(value))
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if any(a in ("-h", "--help") for a in argv):
+        print(__doc__)
+        print("analysis settings:", ", ".join(ANALYSIS_KEYS))
+        return 0
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        overrides, dotlist, opts = split_args(argv)
+        settings = load_settings(dotlist)
+        log_mlflow = _bool(opts.get("mlflow", "true"), "mlflow")
+        res = run(overrides, settings, opts.get("out") or None, log_mlflow)
+    except ConfigError as exc:
+        print(f"sphri.coverage: {exc}", file=sys.stderr)
+        return 2
+    if not isinstance(res, CoverageRun):  # the scenario study
+        for s in res.sentences:
+            print(s)
+        for n in res.notes:
+            print("note: " + n)
+        print(f"files: {res.out_dir} (report.html)" + (f"; MLflow run {res.mlflow_run_id}" if res.mlflow_run_id else ""))
+        return 0
+    for region, r in res.regions.items():
+        print(f"[{region}] {r.link}: {r.samples.n} elements, {r.curves[ALL].n_frames} contact frames")
+        summary = r.summary()["groups"]
+        for n in [ALL] + r.groups:
+            print("  " + r.sentences[n])
+            g = summary.get(n, {})
+            if "heldout_captured_mean" in g:  # the in-sample sentence is optimistic: say what held-out people get
+                print(f"    on held-out participants the same area captures {g['heldout_captured_mean']:.0%} "
+                      f"of their contact frames (worst participant {g['heldout_captured_min']:.0%})")
+        if r.comparison is not None:
+            t = r.comparison.table
+            print(f"  {int(t['significant'].sum())}/{len(t)} pairs of {r.by} differ (Holm, alpha {r.comparison.alpha:g})")
+        for note in r.notes:
+            print(f"  note: {note}")
+    print(f"files: {res.out_dir}" + (f"; MLflow run {res.mlflow_run_id}" if res.mlflow_run_id else ""))
+    return 0
+
 
 if __name__ == "__main__":
     sys.exit(main())

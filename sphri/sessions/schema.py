@@ -37,13 +37,15 @@ class SyntheticSessionsSchema:
     priors: Optional[str] = None
     """The YAML table of assumptions (None: sphri/sessions/scenario_priors.yaml)."""
     frame_rate_hz: float = 30.0
-    hand_scale_sd: float = 0.05
+    variability: float = 1.0
+    """Spread of the touches' gesture generator (``data=synthetic``'s ``data.variability``:
+    1 = calibrated to real people, 0 = interchangeable participants)."""
 
     def __post_init__(self) -> None:
         require_range("data.seed", self.seed, lo=0)
         _check_sizes(self.participants, self.repetitions, self.scenarios)
         require_range("data.frame_rate_hz", self.frame_rate_hz, lo=5.0, hi=1000.0)
-        require_range("data.hand_scale_sd", self.hand_scale_sd, lo=0.0, hi=0.1)
+        require_range("data.variability", self.variability, lo=0.0, hi=5.0)
 
 
 @dataclass

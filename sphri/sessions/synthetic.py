@@ -40,6 +40,7 @@ import yaml
 
 from sphri.data.format import participant_id
 from sphri.data.gestures import Style
+from sphri.data.people import Spread
 from sphri.data.handfk import HandRig, matrix_to_quat
 from sphri.data.linkgeom import LinkSurface
 from sphri.data.synthetic import SyntheticData
@@ -209,18 +210,19 @@ def pose7(m: np.ndarray) -> np.ndarray:
 class SyntheticSessions:
     """``data=synthetic_sessions`` (see module). ``load(hand, robot)`` -> :class:`SessionDataset`."""
 
-    VERSION = "1"
+    VERSION = "2"
 
     def __init__(self, seed: int = 0, participants: Optional[int] = 12, repetitions: Optional[int] = 3,
                  scenarios: Optional[Sequence[str]] = None, priors: Optional[str] = None,
-                 frame_rate_hz: float = 30.0, hand_scale_sd: float = 0.05, **_: Any):
+                 frame_rate_hz: float = 30.0, variability: float = 1.0, **_: Any):
         self.seed = int(seed)
         self.participants = 12 if participants is None else int(participants)
         self.repetitions = 3 if repetitions is None else int(repetitions)
         self.scenarios = None if scenarios is None else [str(s) for s in scenarios]
         self.priors = str(priors) if priors else str(DEFAULT_PRIORS)
         self.frame_rate_hz = float(frame_rate_hz)
-        self.hand_scale_sd = float(hand_scale_sd)
+        self.variability = float(variability)
+        self.spread = Spread(variability=self.variability)
 
     def load(self, hand: HandModel, robot: Robot) -> SessionDataset:
         if getattr(robot, "tree", None) is None:
@@ -239,7 +241,7 @@ class SyntheticSessions:
         start = 0
         n_s = len(names)
         for k in range(1, self.participants + 1):
-            style = Style.draw(np.random.default_rng([self.seed, k, 0]), self.hand_scale_sd)
+            style = Style.draw(np.random.default_rng([self.seed, k, 0]), self.spread)
             pid = participant_id(k)
             for rep in range(1, self.repetitions + 1):
                 for pos in range(n_s):
@@ -270,7 +272,7 @@ class SyntheticSessions:
             if static:
                 surfaces[key] = surf
         gen = SyntheticData(seed=self.seed, participants=1, repetitions=1, regions=[part], gestures=[gesture],
-                            frame_rate_hz=self.frame_rate_hz, hand_scale_sd=self.hand_scale_sd)
+                            frame_rate_hz=self.frame_rate_hz, variability=self.variability)
         _, out, _ = gen._participant_region(rng, style, rig, surf, part)
         return out.astype(np.float64)
 

@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
-from sphri.analysis import cli
+from sphri import coverage as cli
 from sphri.config import ConfigError
 from sphri.types import Robot
 

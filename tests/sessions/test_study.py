@@ -10,7 +10,7 @@ import pytest
 import trimesh
 from hydra.utils import instantiate
 
-from sphri.analysis.cli import main
+from sphri.coverage import main
 from sphri.config import ConfigError, compose
 from sphri.types import GESTURES
 
