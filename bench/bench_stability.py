@@ -101,7 +101,7 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
 
     from sphri.cache import StageCache
     from sphri.layout.units import describe
-    from sphri.pipeline import build, make_pipeline
+    from sphri.pipeline import make_pipeline
 
     p_max, r_max = max(size["participants"]), max(size["repetitions"])
     cache = StageCache(root=cache_dir)
@@ -112,11 +112,10 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
         cfg = compose_cfg(p_max, r_max, res)
         probe = StageProbe(memory)
         p = probe.install(make_pipeline(cfg, cache))
-        for name in STAGES[:-1]:  # everything but the evaluation
+        for name in STAGES[:-1]:  # everything but the evaluation (the last of them is the model's input)
             p.get(name)
-        window = build(cfg.window)
         c0 = time.process_time()
-        windows = window.assemble(p.get("noise"), p.get("plan"), p.get("data"), p.get("layout"), p.get("surface"))
+        windows = p.get(STAGES[-2])
         model = instantiate(cfg.model, _partial_=True, _convert_="all")(geometry=windows.geometry)
         features = model.transform(windows.x)
         feat_cpu = time.process_time() - c0
@@ -129,7 +128,7 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
         per_res.append({
             "res": res, "n_taxels": int(windows.x.shape[2]),
             "pitch_u_mm": describe(p.get("layout"), p.get("surface"))["pitch_u_mm"],
-            "encode_cpu_s": sum(stats[n]["cpu_s"] for n in ("layout", "encode", "noise") if n in stats) + feat_cpu,
+            "encode_cpu_s": sum(stats[n]["cpu_s"] for n in ("layout", "encode", "noise", "filter") if n in stats) + feat_cpu,
             "features": features, "windows": windows,
         })
         print(f"  res {res:3d}: {windows.x.shape[2]:5d} taxels, encode + features {per_res[-1]['encode_cpu_s']:.1f} s CPU",

@@ -34,6 +34,7 @@ STAGE_GROUPS: tuple[str, ...] = (
     "layout",
     "encoder",
     "noise",
+    "filter",
     "window",
     "model",
     "cv",
@@ -55,6 +56,7 @@ SCHEMA_MODULES: tuple[str, ...] = (
     "sphri.layout.schema",
     "sphri.encode.schema",
     "sphri.noise.schema",
+    "sphri.filter.schema",
     "sphri.window.schema",
     "sphri.models.schema",
     "sphri.evaluate.schema",
@@ -145,6 +147,7 @@ class RootConfig:
     layout: Any = None
     encoder: Any = None
     noise: Any = None
+    filter: Any = None
     window: Any = None
     model: Any = None
     cv: Any = None

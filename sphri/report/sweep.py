@@ -37,7 +37,7 @@ STATUS_FILE = "sphri_status.json"
 _RUN_ID = re.compile(r"^[0-9a-f]{32}$")
 
 #: Group keys shown first, in this order, when they vary.
-KEY_ORDER = ("robot", "data", "surface", "layout", "encoder", "noise", "window", "contact", "model", "cv", "seed")
+KEY_ORDER = ("robot", "data", "surface", "layout", "encoder", "noise", "filter", "window", "contact", "model", "cv", "seed")
 
 #: Per-resolution columns read from the jobs' ``resolution.*`` params (floats).
 RESOLUTION_PARAMS = ("n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm", "area_per_taxel_cm2",

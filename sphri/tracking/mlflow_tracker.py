@@ -44,7 +44,7 @@ PARENT_FILE = "mlflow_parent_run.json"
 """Written into a sweep directory: the parent run id and tracking URI."""
 
 #: Groups whose component choice and scalar settings become MLflow params.
-PARAM_GROUPS = ("data", "robot", "contact", "surface", "layout", "encoder", "noise", "window", "model", "cv")
+PARAM_GROUPS = ("data", "robot", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv")
 _SKIP_PARAM_KEYS = {"_target_", "root", "path", "definition_path", "density_path", "capsules", "links", "joints"}
 
 
