@@ -77,6 +77,8 @@ def flatten_params(cfg: "DictConfig", choices: dict[str, str] | None = None) -> 
 
     choices = choices or {}
     params: dict[str, str] = {"seed": str(cfg.seed)}
+    if cfg.get("variant") is not None:  # the assumption variant of a sensitivity sweep (conf/sensitivity/)
+        params["variant"] = str(cfg.variant)
     for group in PARAM_GROUPS:
         node = cfg[group]
         params[group] = component_name(node, choices.get(group))
