@@ -1,8 +1,9 @@
 """Data-size stability: how many participants and repetitions a resolution sweep needs.
 
 The question: is the saturation point of a Random Forest resolution sweep
-(the coarsest resolution whose LOSO accuracy is within one standard error
-of the best, :func:`sphri.report.saturation`) a property of the skin, or
+(the report's rule: the coarsest resolution whose paired deficit from the
+best is within 1 point of accuracy, :func:`sphri.report.saturation.paired_saturation`)
+a property of the skin, or
 of how little data the sweep had? The benchmark runs the sweep once on the
 largest synthetic dataset of the grid and then, for every cell (P
 participants x R repetitions per gesture) of the grid, on the subset made
@@ -140,7 +141,8 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
 
 
 def run_grid(size: dict, prep: dict) -> dict:
-    from sphri.report.saturation import saturation
+    from sphri.report.analysis import RuleSettings
+    from sphri.report.saturation import paired_saturation
 
     data = prep["data"]
     first = prep["per_res"][0]["windows"]
@@ -169,7 +171,7 @@ def run_grid(size: dict, prep: dict) -> dict:
                     scores[:, j] = s
                     cpu += c
                     wall += w
-                sat = saturation(scores, n_boot=size["n_boot"], seed=0)
+                sat = paired_saturation(scores, RuleSettings().primary, n_boot=size["n_boot"], seed=0)
                 lo, hi = sat.interval if sat.interval is not None else (sat.index, sat.index)
                 cells.append({
                     "participants": n_p, "repetitions": n_r, "draw": draw, "chosen": chosen,

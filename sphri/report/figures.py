@@ -290,8 +290,8 @@ def plot_tornado(report: SweepReport, path: Path) -> Path | None:
         ax.set_yticks(range(len(sens.variants)), [g.keys.get("variant", g.label) for g in reversed(sens.variants)])
         if sens.reference is not None:
             ax.axvline(float(sens.reference.recommended[col]), color="black", ls="--", lw=1)
-        ax.set_xlabel("saturation pitch (mm; dot: the rule, bar: 95 % bootstrap interval; red: finest point swept)"
-                      if pitch else "taxels at saturation", fontsize=8)
+        ax.set_xlabel(f"saturation pitch (mm; dot: the rule, bar: {report.rule.ci:.0%} bootstrap interval; red: finest "
+                      "point swept)" if pitch else "taxels at saturation", fontsize=8)
         ax.grid(True, axis="x", alpha=0.3)
         ax.set_title(sens.label or "assumption variants", fontsize=10)
     fig.suptitle(_title(report, f"requirement per assumption (tolerance {report.rule.primary_tolerance.describe()})"),

@@ -239,6 +239,12 @@ def test_group_keys_keep_only_settings_not_fixed_by_components():
     ]
     assert group_keys(params) == ["model", "model.n_estimators"]
     assert group_keys(params[:2]) == ["model"]
+    # assumption variants: what a variant fixes (its encoder, its noise.p) is not a key of its own
+    variants = [{"variant": v, "encoder": e, "noise.p": p, "model": "rf", "encoder.res": str(r)}
+                for v, e, p in (("reference", "ellipse", "0.02"), ("coverage", "coverage", "0.02"),
+                                ("noise0", "ellipse", "0.0")) for r in (1, 2)]
+    assert group_keys(variants) == ["variant"]
+    assert group_keys([{**p, "model": m} for p in variants for m in ("rf", "cnn_gru")]) == ["variant", "model"]
     with pytest.raises(ReportError, match="neither"):
         load_sweep("nope")
 
