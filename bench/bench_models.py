@@ -49,15 +49,14 @@ def pipeline_windows(res: int, participants: int, repetitions: int, seed: int) -
     """Windows from the sphri chain (synthetic data, arm), stages cached on disk."""
     from sphri.cache import StageCache
     from sphri.config import compose
-    from sphri.pipeline import build, make_pipeline
+    from sphri.pipeline import make_pipeline
 
     cfg = compose([
         "data=synthetic", "data.regions=[arm]", f"data.participants={participants}",
         f"data.repetitions={repetitions}", f"encoder.res={res}", f"seed={seed}",
     ])
     p = make_pipeline(cfg, StageCache(root=cfg.cache.dir, enabled=bool(cfg.cache.enabled)))
-    window = build(cfg.window)
-    return window.assemble(p.get("noise"), p.get("plan"), p.get("data"), p.get("layout"), p.get("surface"))
+    return p.get("filter")  # the model's input: windows, noise, skin-side filter
 
 
 def get_windows(source: str, res: int, participants: int, repetitions: int, seed: int) -> tuple[WindowedFrames, str, str]:

@@ -55,7 +55,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import OUT, machine, write_json  # noqa: E402
 
 #: Chain order of the pipeline's stages.
-STAGES = ("hand", "robot", "data", "contact", "surface", "layout", "plan", "encode", "noise", "evaluate")
+STAGES = ("hand", "robot", "data", "contact", "surface", "layout", "plan", "encode", "noise", "filter", "evaluate")
 #: Persisted stages that a later sweep point loads instead of computing.
 SHARED = ("data", "contact", "surface", "plan")
 

@@ -116,18 +116,18 @@ def frames_scaling(size: dict, memory: MemoryProbe) -> tuple[dict, object]:
 
 
 def taxels_scaling(p, resolutions, repeat: int) -> dict:
-    """Layout, encoder, noise, assembly and features at several res on one dataset's contacts."""
+    """Layout, encoder, window assembly, noise and features at several res on one dataset's contacts."""
     from sphri.encode.ellipse import EllipseEncoder
     from sphri.layout.grid import GridLayout
     from sphri.models.features import extract_features
-    from sphri.noise.components import SaltPepperNoise
+    from sphri.noise.components import SaltPepperNoise, apply_to_windows
     from sphri.pipeline import trial_keys
     from sphri.window.onset import OnsetWindow
 
     data, contacts, surface, plan = p.get("data"), p.get("contact"), p.get("surface"), p.get("plan")
     link = p.get("robot").link_for("arm")
     fi = plan.selected_frames()
-    tk = trial_keys(data)[data.frame_trial_index()[fi]]
+    tk = trial_keys(data)[plan.kept]  # one key per window (noise is applied to the windows)
     window = OnsetWindow(frames=plan.length)
 
     def timed(fn):
@@ -144,15 +144,15 @@ def taxels_scaling(p, resolutions, repeat: int) -> dict:
     for res in resolutions:
         lay, t_layout = timed(lambda: GridLayout().build(link, surface, res))
         frames, t_enc = timed(lambda: EllipseEncoder(res=res).encode(contacts, link, surface, lay, fi))
-        noisy, t_noise = timed(lambda: SaltPepperNoise().apply(frames, fi, tk, 0))
-        windows, t_win = timed(lambda: window.assemble(noisy, plan, data, lay, surface))
+        clean, t_win = timed(lambda: window.assemble(frames, plan, data, lay, surface))
+        windows, t_noise = timed(lambda: apply_to_windows(SaltPepperNoise(), clean, tk, 0))
         _, t_feat = timed(lambda: extract_features(windows.x, windows.geometry))
         rows.append({"res": res, "n_taxels": lay.n_taxels, "grid_shape": list(lay.grid_shape),
                      "stages": {"layout": t_layout, "encode": t_enc, "noise": t_noise, "window": t_win,
                                 "features": t_feat}})
         print(f"  res {res:3d}: {lay.n_taxels:6d} taxels, "
               + ", ".join(f"{k} {v['cpu_s']:.2f}" for k, v in rows[-1]["stages"].items()), flush=True)
-        del frames, noisy, windows
+        del frames, clean, windows
     n = np.array([r["n_taxels"] for r in rows])
     fits = {name: {"cpu": loglog_slope(n, [r["stages"][name]["cpu_s"] for r in rows]),
                    "wall": loglog_slope(n, [r["stages"][name]["wall_s"] for r in rows])}

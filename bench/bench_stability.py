@@ -1,8 +1,9 @@
 """Data-size stability: how many participants and repetitions a resolution sweep needs.
 
 The question: is the saturation point of a Random Forest resolution sweep
-(the coarsest resolution whose LOSO accuracy is within one standard error
-of the best, :func:`sphri.report.saturation`) a property of the skin, or
+(the report's rule: the coarsest resolution whose paired deficit from the
+best is within 1 point of accuracy, :func:`sphri.report.saturation.paired_saturation`)
+a property of the skin, or
 of how little data the sweep had? The benchmark runs the sweep once on the
 largest synthetic dataset of the grid and then, for every cell (P
 participants x R repetitions per gesture) of the grid, on the subset made
@@ -101,7 +102,7 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
 
     from sphri.cache import StageCache
     from sphri.layout.units import describe
-    from sphri.pipeline import build, make_pipeline
+    from sphri.pipeline import make_pipeline
 
     p_max, r_max = max(size["participants"]), max(size["repetitions"])
     cache = StageCache(root=cache_dir)
@@ -112,11 +113,10 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
         cfg = compose_cfg(p_max, r_max, res)
         probe = StageProbe(memory)
         p = probe.install(make_pipeline(cfg, cache))
-        for name in STAGES[:-1]:  # everything but the evaluation
+        for name in STAGES[:-1]:  # everything but the evaluation (the last of them is the model's input)
             p.get(name)
-        window = build(cfg.window)
         c0 = time.process_time()
-        windows = window.assemble(p.get("noise"), p.get("plan"), p.get("data"), p.get("layout"), p.get("surface"))
+        windows = p.get(STAGES[-2])
         model = instantiate(cfg.model, _partial_=True, _convert_="all")(geometry=windows.geometry)
         features = model.transform(windows.x)
         feat_cpu = time.process_time() - c0
@@ -129,7 +129,7 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
         per_res.append({
             "res": res, "n_taxels": int(windows.x.shape[2]),
             "pitch_u_mm": describe(p.get("layout"), p.get("surface"))["pitch_u_mm"],
-            "encode_cpu_s": sum(stats[n]["cpu_s"] for n in ("layout", "encode", "noise") if n in stats) + feat_cpu,
+            "encode_cpu_s": sum(stats[n]["cpu_s"] for n in ("layout", "encode", "noise", "filter") if n in stats) + feat_cpu,
             "features": features, "windows": windows,
         })
         print(f"  res {res:3d}: {windows.x.shape[2]:5d} taxels, encode + features {per_res[-1]['encode_cpu_s']:.1f} s CPU",
@@ -141,7 +141,8 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
 
 
 def run_grid(size: dict, prep: dict) -> dict:
-    from sphri.report.saturation import saturation
+    from sphri.report.analysis import RuleSettings
+    from sphri.report.saturation import paired_saturation
 
     data = prep["data"]
     first = prep["per_res"][0]["windows"]
@@ -170,7 +171,7 @@ def run_grid(size: dict, prep: dict) -> dict:
                     scores[:, j] = s
                     cpu += c
                     wall += w
-                sat = saturation(scores, n_boot=size["n_boot"], seed=0)
+                sat = paired_saturation(scores, RuleSettings().primary, n_boot=size["n_boot"], seed=0)
                 lo, hi = sat.interval if sat.interval is not None else (sat.index, sat.index)
                 cells.append({
                     "participants": n_p, "repetitions": n_r, "draw": draw, "chosen": chosen,

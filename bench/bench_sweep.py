@@ -47,7 +47,7 @@ from _common import machine, write_json  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 #: Chain order of the pipeline's stages.
-STAGES = ("hand", "robot", "data", "contact", "surface", "layout", "plan", "encode", "noise", "evaluate")
+STAGES = ("hand", "robot", "data", "contact", "surface", "layout", "plan", "encode", "noise", "filter", "evaluate")
 
 FULL = {"resolutions": "range(1,51)", "n_resolutions": 50, "overrides": []}
 QUICK = {"resolutions": "range(1,51,7)", "n_resolutions": 8, "overrides": ["data.participants=4"]}
@@ -112,8 +112,6 @@ def stage_shares(runs: list[dict[str, Any]], wall_s: float, parallel: int) -> di
 
 def single_job_baseline(size: dict, work: Path, res: int) -> dict[str, Any]:
     """Cross-validation at ``res`` on the sweep's warm cache: features once vs per fold (CPU seconds)."""
-    from hydra.utils import instantiate
-
     from sphri.cache import StageCache
     from sphri.config import compose
     from sphri.evaluate.cv import LeaveOneSubjectOut
@@ -128,8 +126,7 @@ def single_job_baseline(size: dict, work: Path, res: int) -> dict[str, Any]:
     cfg = compose([f"encoder.res={res}", f"output_dir={work}", *size["overrides"]])
     p = make_pipeline(cfg, StageCache(root=cfg.cache.dir, enabled=True))
     t0 = time.perf_counter()
-    windows = instantiate(cfg.window).assemble(p.get("noise"), p.get("plan"), p.get("data"), p.get("layout"),
-                                               p.get("surface"))
+    windows = p.get("filter")  # the model's input: windows, noise, skin-side filter
     upstream_s = time.perf_counter() - t0
     params = dict(n_jobs=-1, seed=int(cfg.seed), geometry=windows.geometry)
     out: dict[str, Any] = {"res": res, "upstream_from_cache_s": upstream_s}

@@ -124,7 +124,7 @@ def cmd_validate(overrides: list[str]) -> int:
     cfg = compose(overrides)
     chain_region(cfg)
     print("config OK")
-    for group in ("data", "robot", "contact", "surface", "layout", "encoder", "noise", "window", "model", "cv"):
+    for group in ("data", "robot", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv"):
         node = OmegaConf.to_container(cfg[group], resolve=True)
         target = str(node.pop("_target_", "")).rsplit(".", 1)[-1]
         scalars = ", ".join(f"{k}={v}" for k, v in node.items() if not isinstance(v, (dict, list)))

@@ -14,7 +14,7 @@ import importlib
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any, Iterable, Optional, Sequence
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
@@ -49,6 +49,7 @@ STAGE_GROUPS: tuple[str, ...] = (
     "layout",
     "encoder",
     "noise",
+    "filter",
     "window",
     "model",
     "cv",
@@ -75,7 +76,7 @@ STAGE_METHODS: dict[str, tuple[str, ...]] = {
 #: Groups that the primary config lists in its defaults; ``+group=x`` on the
 #: command line is accepted for these and means ``group=x`` (see
 #: :func:`normalize_overrides`).
-DEFAULT_GROUPS: tuple[str, ...] = STAGE_GROUPS + ("debug", "experiment")
+DEFAULT_GROUPS: tuple[str, ...] = STAGE_GROUPS + ("debug", "experiment", "sensitivity")
 
 #: Modules whose import registers schemas in the ConfigStore.
 SCHEMA_MODULES: tuple[str, ...] = (
@@ -87,6 +88,7 @@ SCHEMA_MODULES: tuple[str, ...] = (
     "sphri.layout.schema",
     "sphri.encode.schema",
     "sphri.noise.schema",
+    "sphri.filter.schema",
     "sphri.window.schema",
     "sphri.models.schema",
     "sphri.evaluate.schema",
@@ -193,12 +195,16 @@ class RootConfig:
     layout: Any = None
     encoder: Any = None
     noise: Any = None
+    filter: Any = None
     window: Any = None
     model: Any = None
     cv: Any = None
     tracking: Any = None
     debug: Any = None
     experiment: Any = None
+    variant: Optional[str] = None
+    """Name of the assumption variant a job belongs to (set by ``conf/sensitivity/<name>.yaml``; the
+    report computes the requirement per variant). None outside a sensitivity study."""
 
 
 _registered = False
@@ -326,6 +332,9 @@ def validate(cfg: DictConfig) -> None:
             raise ConfigError(_explain(exc)) from None
     if cfg.seed < 0:
         raise ConfigError(f"seed={cfg.seed} is invalid: must be >= 0")
+    variant = cfg.get("variant")
+    if variant is not None and not re.fullmatch(r"[A-Za-z0-9_.-]+", str(variant)):
+        raise ConfigError(f"variant={variant!r} is invalid: a name of letters, digits, '_', '.' or '-'")
     for check in CROSS_CHECKS:
         check(cfg)
 

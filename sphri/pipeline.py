@@ -11,8 +11,10 @@ layout, encoder and below, never data or contact.
 Which stages are kept on disk (``PERSISTED``) is a cost decision: data,
 contact, surface, layout, the window plan and the evaluation are worth
 storing; encoded frames are cheap to recompute and large at fine
-resolutions (a res-50 grid is ~0.4 GB per sweep point), noise is cheaper
-still.
+resolutions (a res-50 grid is ~0.4 GB per sweep point); the noisy and
+filtered windows (``noise``: the encoded frames assembled into per-trial
+windows, then noise on every slot; ``filter``: the skin-side temporal filter,
+the model's input) are cheaper still.
 """
 
 from __future__ import annotations
@@ -146,7 +148,7 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
     """Wire the stages for ``cfg``; nothing is computed until :meth:`Pipeline.get`."""
     region = chain_region(cfg)
     p = Pipeline(cfg, cache)
-    comp = {g: build(cfg[g]) for g in ("hand", "robot", "data", "contact", "surface", "layout", "encoder", "noise", "window", "cv")}
+    comp = {g: build(cfg[g]) for g in ("hand", "robot", "data", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "cv")}
     ver = component_versions(cfg)
     res = int(cfg.encoder.res)
     seed = int(cfg.seed)
@@ -185,16 +187,22 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
     k_encode = p.add("encode", ver["encoder"], plain(cfg.encoder), {"contact": k_contact, "layout": k_layout, "plan": k_plan}, encode)
 
     def noise():
-        plan = p.get("plan")
-        frame_index = plan.selected_frames()
-        trial_key = trial_keys(p.get("data"))[p.get("data").frame_trial_index()[frame_index]]
-        return comp["noise"].apply(p.get("encode"), frame_index, trial_key, seed)
+        # Noise on the windows as the model sees them (padded slots included), seeded per
+        # (seed, trial, slot in the window): see sphri.noise.components.apply_to_windows.
+        from sphri.noise.components import apply_to_windows
 
-    k_noise = p.add("noise", ver["noise"], {"noise": plain(cfg.noise), "seed": seed}, {"encode": k_encode}, noise)
+        dataset: GestureDataset = p.get("data")
+        windows = comp["window"].assemble(p.get("encode"), p.get("plan"), dataset, p.get("layout"), p.get("surface"))
+        return apply_to_windows(comp["noise"], windows, trial_keys(dataset)[windows.trial_row], seed)
+
+    k_noise = p.add("noise", ver["noise"], {"noise": plain(cfg.noise), "seed": seed},
+                    {"encode": k_encode, "plan": k_plan, "window": ver["window"]}, noise)
+    k_filter = p.add("filter", ver["filter"], plain(cfg.filter), {"noise": k_noise},
+                     lambda: comp["filter"].apply(p.get("noise")))
 
     def evaluate():
         dataset: GestureDataset = p.get("data")
-        windows = comp["window"].assemble(p.get("noise"), p.get("plan"), dataset, p.get("layout"), p.get("surface"))
+        windows = p.get("filter")
         geometry: TaxelGeometry = windows.geometry
 
         # instantiate() would turn a dataclass argument into a dict: bind it after.
@@ -208,7 +216,7 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
 
     p.add(
         "evaluate", f"{ver['cv']}-{ver['model']}", {"model": plain(cfg.model), "cv": plain(cfg.cv), "seed": seed},
-        {"noise": k_noise, "plan": k_plan, "layout": k_layout}, evaluate,
+        {"filter": k_filter, "plan": k_plan, "layout": k_layout}, evaluate,
     )
     return p
 

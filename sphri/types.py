@@ -7,7 +7,8 @@ integer indices at the dataset's ``frame_rate_hz``; angles are radians.
 The data flow (see ``docs/ARCHITECTURE.md``)::
 
     GestureDataset --contact--> Contacts --encode(SurfaceMap, Layout)--> Frames
-        --noise--> Frames --window--> WindowedFrames --cv(model)--> CVResult
+        --window--> WindowedFrames --noise--> WindowedFrames --filter--> WindowedFrames
+        --cv(model)--> CVResult
 
 Stages never mutate their inputs: each returns a new object, which the
 pipeline caches on disk.

@@ -47,12 +47,8 @@ class TrainExportSettings:
 
 
 def training_windows(pipeline) -> WindowedFrames:
-    """The pipeline's windows (as the CV sees them): plan, encode, noise, assemble."""
-    from sphri.pipeline import build
-
-    window = build(pipeline.cfg.window)
-    return window.assemble(pipeline.get("noise"), pipeline.get("plan"), pipeline.get("data"),
-                           pipeline.get("layout"), pipeline.get("surface"))
+    """The pipeline's windows as the CV sees them: plan, encode, assemble, noise, filter."""
+    return pipeline.get("filter")
 
 
 def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = ()) -> ModelBundle:

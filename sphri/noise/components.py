@@ -4,22 +4,45 @@ Every random draw is a pure function of (seed, trial_key, frame, taxel)
 (:mod:`sphri.noise.hashing`), so results repeat exactly and a frame's noise
 does not depend on which other frames are encoded. Inputs are never mutated.
 
-- ``salt_pepper`` (paper: p = 0.02): with probability p a reading is replaced
-  by salt (1) or pepper (0), each with probability 1/2 by default - the
-  standard definition (e.g. scikit-image ``random_noise(mode="s&p")``), so on
-  average p/2 of the readings actually change. ``mode: flip`` inverts the
-  corrupted readings instead. The dtype is kept.
-- ``gaussian``: add N(0, sigma^2), clip to [0, 1], float32.
-- ``dead_taxels``: round(fraction * N) taxels, chosen from ``seed`` alone (the
-  same sensor in every trial), always read ``value``. The dtype is kept.
-- ``crosstalk``: ``y = clip(x + alpha * sum of neighbours' x, 0, 1)`` float32;
-  grid neighbours are the 4 adjacent cells (v wraps when the chart does), other
-  layouts use the k nearest taxels in 3-D (needs the frames' geometry).
+In the chain, noise is applied to the windows as the model sees them
+(:func:`apply_to_windows`): every slot of every window, the zero-padded slots
+after a short trial included, with ``frame`` = the slot's position in the
+window (0 .. L-1), as in the reference study (clip or pad to 50 frames from
+onset, then add noise). Noise applied before padding would leave the padded
+slots clean, and their count would tell the model the trial's length.
+
+What each kind stands for, with N taxels per frame:
+
+- ``salt_pepper``: independent per-taxel read errors (electrical noise,
+  threshold chatter), ``p`` = probability per taxel and frame that a reading
+  is corrupted. ``replace`` draws a random 0/1 so a corruption changes the
+  reading with probability 1/2 (``salt_vs_pepper`` of the replacements are 1):
+  an untouched taxel reads a false "on" with probability ``p * salt_vs_pepper``
+  per frame, so an untouched skin shows on average ``p * salt_vs_pepper * N``
+  false taxels per frame (0.01 N at the paper's p = 0.02). ``flip`` inverts
+  every corrupted reading: ``p * N`` false taxels per untouched frame.
+  Standard definition (scikit-image ``random_noise(mode="s&p")``); dtype kept.
+- ``gaussian``: additive read noise on analogue readings, ``sigma`` in reading
+  units (1 = full scale), clipped to [0, 1], float32. A binary threshold at
+  0.5 would see ``N * P(|N(0, sigma^2)| > 0.5) / 2`` false taxels per untouched
+  frame (about 0 at sigma = 0.05; 0.023 N at sigma = 0.25).
+- ``dead_taxels``: broken taxels, ``fraction`` of the N (round(fraction * N)
+  of them, chosen from ``seed`` alone: the same sensor in every trial) always
+  read ``value`` (0 = silent, 1 = stuck on). Stuck-on taxels are
+  ``round(fraction * N)`` false taxels in every frame; silent ones add none.
+  The dtype is kept.
+- ``crosstalk``: electrical or mechanical coupling between neighbours:
+  ``y = clip(x + alpha * sum of neighbours' x, 0, 1)`` float32, ``alpha`` =
+  fraction of a reading that appears on each neighbour; grid neighbours are
+  the 4 adjacent cells (v wraps when the chart does), other layouts use the k
+  nearest taxels in 3-D (needs the frames' geometry). It spreads touches and
+  adds nothing to an untouched frame (0 false taxels, at any N).
 - ``none``: unchanged.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 
 import numpy as np
@@ -35,7 +58,7 @@ from sphri.noise.schema import (
     NoNoiseSchema,
     SaltPepperNoiseSchema,
 )
-from sphri.types import Frames
+from sphri.types import Frames, WindowedFrames
 
 log = logging.getLogger(__name__)
 
@@ -118,9 +141,11 @@ def _crosstalk(values, out, nb, alpha):  # pragma: no cover - numba
 
 
 class SaltPepperNoise:
-    """``noise=salt_pepper``: corrupt each reading with probability p (see module)."""
+    """``noise=salt_pepper``: independent read errors, each reading corrupted with probability ``p``
+    per taxel and frame (see the module: ``p * salt_vs_pepper * N`` false taxels per untouched frame
+    in replace mode, ``p * N`` in flip mode)."""
 
-    VERSION = "1"
+    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     def __init__(self, p: float = 0.02, mode: str = "replace", salt_vs_pepper: float = 0.5) -> None:
         SaltPepperNoiseSchema(p=p, mode=mode, salt_vs_pepper=salt_vs_pepper)
@@ -138,9 +163,10 @@ class SaltPepperNoise:
 
 
 class GaussianNoise:
-    """``noise=gaussian``: additive N(0, sigma^2), clipped to [0, 1], float32."""
+    """``noise=gaussian``: analogue read noise, additive N(0, sigma^2) with ``sigma`` in reading units
+    (1 = full scale), clipped to [0, 1], float32."""
 
-    VERSION = "1"
+    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     def __init__(self, sigma: float = 0.05) -> None:
         GaussianNoiseSchema(sigma=sigma)
@@ -163,9 +189,10 @@ def dead_taxel_index(n_taxels: int, fraction: float, seed: int) -> np.ndarray:
 
 
 class DeadTaxelsNoise:
-    """``noise=dead_taxels``: a fixed set of taxels always reads ``value``."""
+    """``noise=dead_taxels``: broken taxels: a fixed ``fraction`` of the N taxels (the same in every
+    trial) always reads ``value`` (0 = silent, 1 = stuck on)."""
 
-    VERSION = "1"
+    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     def __init__(self, fraction: float = 0.05, value: float = 0.0) -> None:
         DeadTaxelsNoiseSchema(fraction=fraction, value=value)
@@ -219,9 +246,10 @@ def neighbour_lists(frames: Frames, k: int) -> np.ndarray:
 
 
 class CrosstalkNoise:
-    """``noise=crosstalk``: readings leak ``alpha`` into neighbouring taxels (float32)."""
+    """``noise=crosstalk``: neighbour coupling: ``alpha`` (a fraction) of each reading appears on
+    each neighbouring taxel (float32); adds nothing to an untouched frame."""
 
-    VERSION = "1"
+    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     def __init__(self, alpha: float = 0.1, k: int = 4) -> None:
         CrosstalkNoiseSchema(alpha=alpha, k=k)
@@ -241,7 +269,7 @@ class CrosstalkNoise:
 class NoNoise:
     """``noise=none``: readings unchanged (the same array, never mutated downstream)."""
 
-    VERSION = "1"
+    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     def __init__(self) -> None:
         NoNoiseSchema()
@@ -250,3 +278,27 @@ class NoNoise:
         """``frames`` as they are (a new Frames object sharing the values)."""
         v, _, _, _ = _check(frames, frame_index, trial_key, seed, "noise=none")
         return _like(frames, v)
+
+
+def apply_to_windows(noise, windows: WindowedFrames, trial_key: np.ndarray, seed: int) -> WindowedFrames:
+    """``noise`` applied to the windows as the model sees them: every slot, padded slots included.
+
+    ``windows.x`` (T, L, N) is read as T * L frames whose ``frame_index`` is
+    the slot in the window (0 .. L-1) and whose ``trial_key`` is the window's
+    trial key (``trial_key`` (T,), one per window), so every draw is a pure
+    function of (seed, trial, slot, taxel). Returns new windows (float32 x,
+    same shape; everything else shared); ``windows`` is not mutated.
+    """
+    x = np.asarray(windows.x)
+    if x.ndim != 3:
+        raise ValueError(f"noise: windows.x must be (trials, L, N), got shape {x.shape}")
+    t, length, n = x.shape
+    tk = np.asarray(trial_key)
+    if tk.shape != (t,):
+        raise ValueError(f"noise: trial_key must be ({t},), one per window, got shape {tk.shape}")
+    geom = windows.geometry
+    frames = SkinFrames(values=x.reshape(t * length, n), grid_shape=geom.grid_shape, geometry=geom)
+    slot = np.tile(np.arange(length, dtype=np.int64), t)
+    out = noise.apply(frames, slot, np.repeat(tk.astype(np.int64), length), seed)
+    y = np.asarray(out.values, dtype=np.float32).reshape(t, length, n)
+    return dataclasses.replace(windows, x=y)

@@ -9,11 +9,14 @@ from sphri.config import require_choice, require_range, store
 
 @dataclass
 class SaltPepperNoiseSchema:
-    """Salt-and-pepper: with probability p a reading is replaced by 1 (salt) or 0 (pepper)."""
+    """Salt-and-pepper: independent per-taxel read errors; with probability p per taxel and frame a
+    reading is replaced by 1 (salt) or 0 (pepper). An untouched skin of N taxels shows on average
+    ``p * salt_vs_pepper * N`` false taxels per frame in replace mode (``p * N`` in flip mode)."""
 
     _target_: str = "sphri.noise.components.SaltPepperNoise"
     p: float = 0.02
-    """Probability that a taxel reading is corrupted, per taxel and frame (paper: 0.02)."""
+    """Probability that a taxel reading is corrupted, per taxel and per frame (paper: 0.02; applied to
+    every slot of the model's window, padded slots included)."""
     mode: str = "replace"
     """replace: set to a random 0/1 (half the corruptions leave a reading as it was); flip: invert it."""
     salt_vs_pepper: float = 0.5
@@ -27,7 +30,7 @@ class SaltPepperNoiseSchema:
 
 @dataclass
 class GaussianNoiseSchema:
-    """Additive Gaussian noise, clipped to [0, 1] (float32 readings)."""
+    """Analogue read noise: additive N(0, sigma^2) per taxel and frame, clipped to [0, 1] (float32 readings)."""
 
     _target_: str = "sphri.noise.components.GaussianNoise"
     sigma: float = 0.05
@@ -39,7 +42,8 @@ class GaussianNoiseSchema:
 
 @dataclass
 class DeadTaxelsNoiseSchema:
-    """A fixed fraction of taxels that always read ``value`` (same sensor in every trial)."""
+    """Broken taxels: a fixed fraction of the N taxels always reads ``value`` (same sensor in every trial);
+    stuck-on taxels (value 1) are ``round(fraction * N)`` false taxels in every frame."""
 
     _target_: str = "sphri.noise.components.DeadTaxelsNoise"
     fraction: float = 0.05
@@ -54,11 +58,12 @@ class DeadTaxelsNoiseSchema:
 
 @dataclass
 class CrosstalkNoiseSchema:
-    """Crosstalk: each reading leaks ``alpha`` of itself into its neighbours (float32)."""
+    """Crosstalk: neighbour coupling; ``alpha`` of each reading appears on each neighbouring taxel
+    (float32). Nothing appears on an untouched skin (0 false taxels per frame at any N)."""
 
     _target_: str = "sphri.noise.components.CrosstalkNoise"
     alpha: float = 0.1
-    """Fraction of a taxel's reading added to each neighbour (result clipped to [0, 1])."""
+    """Coupling coefficient: fraction (0-1) of a taxel's reading added to each neighbour (result clipped to [0, 1])."""
     k: int = 4
     """Neighbours on non-grid layouts (k nearest in 3-D); grids use the 4 neighbours (v wraps)."""
 

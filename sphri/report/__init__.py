@@ -10,10 +10,19 @@ functions in :mod:`sphri.report.saturation`.
 
 from sphri.report.analysis import RuleSettings, SweepReport, analyze
 from sphri.report.build import ReportFiles, make_report
-from sphri.report.saturation import Saturation, curve_stats, physical_interval, saturation, saturation_index
+from sphri.report.saturation import (
+    Saturation,
+    Tolerance,
+    curve_stats,
+    paired_saturation,
+    physical_interval,
+    saturation,
+    saturation_index,
+)
 from sphri.report.sweep import ReportError, Sweep, load_sweep
 
 __all__ = [
     "ReportError", "ReportFiles", "RuleSettings", "Saturation", "Sweep", "SweepReport", "analyze",
-    "curve_stats", "load_sweep", "make_report", "physical_interval", "saturation", "saturation_index",
+    "Tolerance", "curve_stats", "load_sweep", "make_report", "paired_saturation", "physical_interval", "saturation",
+    "saturation_index",
 ]

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sphri.report.saturation import Saturation, curve_stats, physical_interval, saturation
+from sphri.report.saturation import Saturation, Tolerance, curve_stats, paired_saturation, physical_interval
 from sphri.report.sweep import Sweep
 from sphri.types import GESTURES
 
@@ -28,31 +28,64 @@ CHANCE = 1.0 / len(GESTURES)
 
 @dataclass(frozen=True)
 class RuleSettings:
-    """How the saturation point is chosen (see :mod:`sphri.report.saturation`)."""
+    """How the saturation point is chosen: the paired rule (:func:`sphri.report.saturation.paired_saturation`)
+    under several tolerances, one of which (``primary``) the requirement sentence uses."""
 
-    n_se: float = 1.0
-    """Tolerance in standard errors of the best mean (used when ``tolerance`` is None)."""
-    tolerance: float | None = None
-    """Fixed tolerance in accuracy units instead (e.g. 0.02)."""
+    tolerances: tuple[str, ...] = ("se", "0.01", "0.02")
+    """Tolerances shown side by side: ``se`` (one paired standard error), ``2se``, or accuracy units (0.01 = 1 point)."""
+    primary: str = "0.01"
+    """The tolerance the requirement sentence uses (one of ``tolerances``)."""
     n_boot: int = 2000
     """Participant bootstrap resamples."""
     ci: float = 0.95
     seed: int = 0
 
+    def __post_init__(self) -> None:
+        names = [t.name for t in self.parsed()]
+        if len(set(names)) != len(names):
+            raise ValueError(f"tolerances {list(self.tolerances)} repeat a tolerance")
+        if Tolerance.parse(self.primary).name not in names:
+            raise ValueError(f"primary tolerance {self.primary!r} is not among the tolerances {names}")
+        if self.n_boot < 0 or not 0 < self.ci < 1:
+            raise ValueError(f"n_boot={self.n_boot} must be >= 0 and ci={self.ci} in (0, 1)")
+
+    def parsed(self) -> list[Tolerance]:
+        """The tolerances, parsed, in the order given."""
+        if not self.tolerances:
+            raise ValueError("tolerances is empty: give at least one (e.g. se,0.01,0.02)")
+        return [Tolerance.parse(t) for t in self.tolerances]
+
+    @property
+    def primary_tolerance(self) -> Tolerance:
+        return Tolerance.parse(self.primary)
+
     def describe(self) -> str:
-        """The rule in one sentence."""
-        if self.tolerance is None:
-            tol = "one standard error" if self.n_se == 1 else f"{self.n_se:g} standard errors"
-            tol += " (over participants) of the best resolution's mean accuracy"
-        else:
-            tol = f"{self.tolerance:g} (accuracy units) of the best resolution's mean accuracy"
-        text = f"The saturation point is the coarsest resolution whose mean accuracy over participants is within {tol}."
+        """The rule in a few sentences."""
+        text = ("Each resolution is compared with the best one (highest mean accuracy) participant by participant: "
+                "a participant's deficit is their accuracy at the best resolution minus theirs at this one; the "
+                "paired deficit is its mean over participants, with its paired standard error. The saturation point "
+                "is the coarsest resolution whose paired deficit is within the tolerance. The requirement sentence "
+                f"uses a tolerance of {self.primary_tolerance.describe()}; the tolerance table also shows "
+                + ", ".join(t.describe() for t in self.parsed() if t.name != self.primary_tolerance.name) + ".")
         if self.n_boot == 0:
             return text + " No bootstrap interval was requested."
         return (
-            f"{text} Its {self.ci:.0%} interval is the {100 * (1 - self.ci) / 2:g}/{100 * (1 + self.ci) / 2:g} "
-            f"percentiles of the point chosen by the same rule on {self.n_boot} bootstrap resamples of the participants."
+            f"{text} Each {self.ci:.0%} interval is the {100 * (1 - self.ci) / 2:g}/{100 * (1 + self.ci) / 2:g} "
+            f"percentiles of the point chosen on {self.n_boot} bootstrap resamples of the participants (each "
+            "resample redoes the best resolution and the rule)."
         )
+
+
+@dataclass
+class ToleranceRow:
+    """The saturation point of one curve under one tolerance."""
+
+    tolerance: Tolerance
+    sat: Saturation
+    pitch_interval_mm: tuple[float, float] | None
+    area_interval_cm2: tuple[float, float] | None
+    primary: bool
+    """True for the tolerance the requirement sentence uses."""
 
 
 @dataclass
@@ -85,6 +118,8 @@ class GroupReport:
     interval_text: str
     """The bootstrap interval in words (or why there is none)."""
     warnings: list[str] = field(default_factory=list)
+    by_tolerance: list[ToleranceRow] = field(default_factory=list)
+    """The saturation point under each of the rule's tolerances (the primary one is ``sat``)."""
 
     @property
     def recommended(self) -> pd.Series:
@@ -100,12 +135,34 @@ class GroupReport:
         return bool(np.all(np.isfinite(p) & (p > 0)))
 
 
+#: Group key naming a job's assumption variant (the root config key ``variant``, set by ``conf/sensitivity/*.yaml``).
+VARIANT_KEY = "variant"
+#: The variant holding the reference assumptions.
+REFERENCE_VARIANT = "reference"
+
+
+@dataclass
+class Sensitivity:
+    """The requirement under each assumption variant of a sensitivity sweep (one set of other keys, e.g. one model)."""
+
+    label: str
+    """The other group keys these variants share ("" when only the variant varies)."""
+    reference: GroupReport | None
+    """The ``reference`` variant's curve (None when the sweep has none)."""
+    variants: list[GroupReport]
+    """Every variant's curve (reference included), ordered by how far its pitch moves from the reference."""
+    sentence: str
+    """The requirement with its interval under the reference, and the range across the assumptions tested."""
+
+
 @dataclass
 class SweepReport:
     sweep: Sweep
     rule: RuleSettings
     groups: list[GroupReport]
     notes: list[str]
+    sensitivity: list[Sensitivity] = field(default_factory=list)
+    """One entry per set of other keys when the sweep varies ``variant`` (``+experiment=requirement_sensitivity``)."""
 
     @property
     def synthetic(self) -> str:
@@ -134,7 +191,56 @@ def analyze(sweep: Sweep, rule: RuleSettings = RuleSettings()) -> SweepReport:
     schemes = sorted(set(sweep.runs["cv_scheme"]))
     if "kfold" in schemes:
         notes.append("k-fold (within-subject) results are not comparable with LOSO (between-subject) results")
-    return SweepReport(sweep, rule, groups, notes)
+    return SweepReport(sweep, rule, groups, notes, sensitivity(groups, rule))
+
+
+def variant_value(g: GroupReport) -> float:
+    """What a variant's requirement is compared by: saturation pitch in mm (or, without pitch, -taxels)."""
+    rec = g.recommended
+    return float(rec["pitch_mm"]) if g.has_pitch else -float(rec["n_taxels"])
+
+
+def sensitivity(groups: list[GroupReport], rule: RuleSettings) -> list[Sensitivity]:
+    """Requirement per assumption variant, for each set of other group keys; [] unless ``variant`` varies."""
+    if not any(VARIANT_KEY in g.keys for g in groups):
+        return []
+    out = []
+    parts: dict[tuple[tuple[str, str], ...], list[GroupReport]] = {}
+    for g in groups:
+        other = tuple((k, v) for k, v in g.keys.items() if k != VARIANT_KEY)
+        parts.setdefault(other, []).append(g)
+    for other, members in parts.items():
+        if len(members) < 2:
+            continue
+        label = ", ".join(f"{k}={v}" for k, v in other)
+        ref = next((g for g in members if g.keys.get(VARIANT_KEY) == REFERENCE_VARIANT), None)
+        base = variant_value(ref) if ref is not None else float(np.median([variant_value(g) for g in members]))
+        ordered = sorted(members, key=lambda g: (-abs(variant_value(g) - base), g.keys.get(VARIANT_KEY, "")))
+        out.append(Sensitivity(label, ref, ordered, _sensitivity_sentence(ref, members, rule)))
+    return out
+
+
+def _sensitivity_sentence(ref: GroupReport | None, members: list[GroupReport], rule: RuleSettings) -> str:
+    if not all(g.has_pitch for g in members):
+        vals = [int(g.recommended["n_taxels"]) for g in members]
+        head = (f"at least {int(ref.recommended['n_taxels'])} taxels under the reference assumptions"
+                if ref is not None else "no reference variant in this sweep")
+        return f"The skin needs {head}; between {min(vals)} and {max(vals)} taxels across the {len(members)} assumptions tested."
+    pitches = {g.keys.get(VARIANT_KEY, g.label): float(g.recommended["pitch_mm"]) for g in members}
+    lo_v, hi_v = min(pitches, key=pitches.get), max(pitches, key=pitches.get)
+    if ref is not None:
+        head = (f"A taxel pitch of at most {_fmt_pitch(pitches[ref.keys[VARIANT_KEY]])} mm "
+                f"({_pitch_interval_words(ref.pitch_interval_mm, ref.sat, rule)}) under the reference assumptions")
+    else:
+        head = "No reference variant in this sweep (conf/sensitivity/reference.yaml)"
+    finest = [g.keys.get(VARIANT_KEY, g.label) for g in members if g.sat.at_finest]
+    tail = (f"; between {_fmt_pitch(pitches[lo_v])} mm ({lo_v}) and {_fmt_pitch(pitches[hi_v])} mm ({hi_v}) across the "
+            f"{len(members)} assumptions tested (accuracy within {rule.primary_tolerance.describe()} of each one's "
+            "best, paired over participants).")
+    if finest:
+        tail += (f" Under {', '.join(finest)} the finest resolution swept was chosen: accuracy may still rise at a "
+                 "finer pitch, so the requirement there may be finer than stated.")
+    return head + tail
 
 
 def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> GroupReport:
@@ -145,7 +251,8 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     f1 = _matrix(folds, run_ids, "macro_f1", participants)
     recall = {g: _matrix(folds, run_ids, f"recall_{g}", participants) for g in GESTURES}
 
-    sat = saturation(acc, n_se=rule.n_se, tolerance=rule.tolerance, n_boot=rule.n_boot, ci=rule.ci, seed=rule.seed)
+    by_tol = [(t, paired_saturation(acc, t, n_boot=rule.n_boot, ci=rule.ci, seed=rule.seed)) for t in rule.parsed()]
+    sat = next(st for t, st in by_tol if t.name == rule.primary_tolerance.name)
     st = sat.stats
     pts = rows[["res", "run_id", "n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm",
                 "area_per_taxel_cm2", "taxels_per_24cm"]].copy()
@@ -161,7 +268,7 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     gesture_sat = {}
     for g, m in recall.items():
         if np.isfinite(m).any():
-            gesture_sat[g] = saturation(m, n_se=rule.n_se, tolerance=rule.tolerance, n_boot=0)
+            gesture_sat[g] = paired_saturation(m, rule.primary_tolerance, n_boot=0)
 
     first = rows.iloc[0]
     context = {k: first[k] for k in ("robot", "region", "link", "dataset", "synthetic", "cv_scheme", "model")}
@@ -169,6 +276,10 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     pitch_iv = physical_interval(pts["pitch_mm"].to_numpy(float), sat)
     area_iv = physical_interval(pts["area_per_taxel_cm2"].to_numpy(float), sat)
     g = GroupReport(label, keys, pts, participants, acc, f1, recall, sat, pitch_iv, area_iv, gesture_sat, context, "", "", "")
+    pitch = pts["pitch_mm"].to_numpy(float)
+    area = pts["area_per_taxel_cm2"].to_numpy(float)
+    g.by_tolerance = [ToleranceRow(t, st_, physical_interval(pitch, st_), physical_interval(area, st_),
+                                   t.name == rule.primary_tolerance.name) for t, st_ in by_tol]
     g.requirement, g.facts, g.interval_text, g.warnings = _sentences(g, rule)
     return g
 
@@ -179,8 +290,9 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     where = f"{c['robot']} {c['region']}, link {c['link']}; {c['model']}, {str(c['cv_scheme']).upper()}"
     if c["synthetic"]:
         where += ", SYNTHETIC data"
-    tol = (f"{sat.tolerance:.3f} (one standard error)" if rule.tolerance is None and rule.n_se == 1
-           else f"{sat.tolerance:.3f}")
+    tol = rule.primary_tolerance.describe()
+    if rule.primary_tolerance.n_se is not None:
+        tol += f" ({sat.tolerance:.3f} at that point)"
     if len(g.points) == 1:
         where_pt = (f"{_fmt_pitch(rec['pitch_mm'])} mm pitch, {rec['area_per_taxel_cm2']:.2f} cm^2 per taxel"
                     if g.has_pitch else _taxels(rec["n_taxels"]))
@@ -190,11 +302,15 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     elif g.has_pitch and np.isfinite(rec["pitch_mm"]):
         area = rec["area_per_taxel_cm2"]
         area_txt = f"{area:.2f} cm^2 per taxel" if np.isfinite(area) and area > 0 else "area per taxel unknown"
-        req = (f"A taxel pitch of at most {_fmt_pitch(rec['pitch_mm'])} mm ({area_txt}) keeps accuracy within "
-               f"{tol} of the best on this link ({where}).")
+        req = (f"A taxel pitch of at most {_fmt_pitch(rec['pitch_mm'])} mm ({_pitch_interval_words(g.pitch_interval_mm, sat, rule)}; "
+               f"{area_txt}) keeps accuracy within {tol} of the best, paired over participants, on this link ({where}).")
     else:
+        iv = sat.interval
+        iv_txt = (f"{rule.ci:.0%} interval encoder.res {g.points['res'].iloc[iv[0]]} to {g.points['res'].iloc[iv[1]]}"
+                  if iv is not None else "no interval: " + (sat.note or "not computed"))
         req = (f"At least {int(rec['n_taxels']) if np.isfinite(rec['n_taxels']) else rec['res']} taxels "
-               f"(encoder.res={rec['res']}) keep accuracy within {tol} of the best on this link ({where}).")
+               f"(encoder.res={rec['res']}; {iv_txt}) keep accuracy within {tol} of the best, paired over "
+               f"participants, on this link ({where}).")
     facts = (f"Saturation at encoder.res={rec['res']} ({_taxels(rec['n_taxels'])}): accuracy "
              f"{rec['accuracy_mean']:.3f} +/- {rec['accuracy_std']:.3f} vs best {best['accuracy_mean']:.3f} "
              f"+/- {best['accuracy_std']:.3f} at encoder.res={best['res']}")
@@ -230,6 +346,13 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     if np.nanmax(sat.stats.mean) < CHANCE + 0.05:
         warn.append(f"the best accuracy ({np.nanmax(sat.stats.mean):.3f}) is near chance ({CHANCE:.3f}): the curve carries little information")
     return req, facts, iv, warn
+
+
+def _pitch_interval_words(iv: tuple[float, float] | None, sat: Saturation, rule: RuleSettings) -> str:
+    """"95 % interval 5.1 to 6.0 mm", or why there is none: a requirement never states a point alone."""
+    if iv is None:
+        return "no interval: " + (sat.note.split(";")[0] if sat.note else "not computed")
+    return f"{rule.ci:.0%} interval {_fmt_pitch(iv[0])} to {_fmt_pitch(iv[1])} mm"
 
 
 def _taxels(x: Any) -> str:

@@ -22,15 +22,16 @@ import numpy as np
 import pandas as pd
 
 from sphri.report.analysis import RuleSettings, SweepReport, analyze
-from sphri.report.figures import plot_bootstrap, plot_curves, plot_recall
-from sphri.report.render import comparison_rows, render_html, render_text
+from sphri.report.figures import plot_bootstrap, plot_curves, plot_recall, plot_tornado
+from sphri.report.render import comparison_rows, render_html, render_text, sensitivity_rows, tolerance_rows
 from sphri.report.sweep import ReportError, Sweep, load_sweep
 
 log = logging.getLogger(__name__)
 
 
 #: Figure files the report writes (besides ``confusion_<group>.png``).
-FIGURE_FILES = ("accuracy_vs_resolution.png", "recall_vs_resolution.png", "saturation_bootstrap.png")
+FIGURE_FILES = ("accuracy_vs_resolution.png", "recall_vs_resolution.png", "saturation_bootstrap.png",
+                "sensitivity_tornado.png")
 
 
 @dataclass
@@ -106,13 +107,20 @@ def write_report(report: SweepReport, out_dir: Path) -> ReportFiles:
         old.unlink()
     figures = {"curves": plot_curves(report, out_dir / "accuracy_vs_resolution.png")}
     for name, fig in (("recall", plot_recall(report, out_dir / "recall_vs_resolution.png")),
-                      ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png"))):
+                      ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png")),
+                      ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png"))):
         if fig is not None:
             figures[name] = fig
     confusions = _confusions(report.sweep, report, out_dir)
 
     tables = {"comparison": out_dir / "saturation.csv", "points": out_dir / "points.csv", "json": out_dir / "saturation.json"}
     pd.DataFrame(comparison_rows(report)).to_csv(tables["comparison"], index=False, float_format="%.6g")
+    tables["tolerances"] = out_dir / "tolerances.csv"
+    pd.DataFrame(tolerance_rows(report)).to_csv(tables["tolerances"], index=False, float_format="%.6g")
+    (out_dir / "sensitivity.csv").unlink(missing_ok=True)
+    if report.sensitivity:
+        tables["sensitivity"] = out_dir / "sensitivity.csv"
+        pd.DataFrame(sensitivity_rows(report)).to_csv(tables["sensitivity"], index=False, float_format="%.6g")
     pts = []
     for g in report.groups:
         p = g.points.copy()
@@ -155,7 +163,8 @@ def _json(report: SweepReport) -> dict:
         "parent_run_id": report.sweep.parent_id,
         "synthetic": report.synthetic,
         "rule": report.rule.describe(),
-        "n_se": report.rule.n_se, "tolerance": report.rule.tolerance, "n_boot": report.rule.n_boot,
+        "tolerances": list(report.rule.tolerances), "primary_tolerance": report.rule.primary_tolerance.name,
+        "n_boot": report.rule.n_boot,
         "ci": report.rule.ci, "seed": report.rule.seed,
         "groups": [
             {**row, "requirement": g.requirement, "interval": g.interval_text, "facts": g.facts,
@@ -163,6 +172,10 @@ def _json(report: SweepReport) -> dict:
              "interval_index": g.sat.interval, "note": g.sat.note}
             for g, row in zip(report.groups, comparison_rows(report))
         ],
+        "tolerance_table": tolerance_rows(report),
+        "sensitivity": [{"others": s.label, "sentence": s.sentence,
+                         "variants": [r for r in sensitivity_rows(report) if r["others"] == s.label]}
+                        for s in report.sensitivity],
         "notes": report.notes,
         "failed": report.sweep.failed,
     })
@@ -178,7 +191,8 @@ def log_report(report: SweepReport, files: ReportFiles, text: str) -> str:
     client.log_artifacts(s.parent_id, str(files.out_dir), artifact_path="report")
     tags = [RunTag("mlflow.note.content", text[:50000]),
             RunTag("sphri.synthetic", {"all": "true", "some": "mixed", "none": "false"}[report.synthetic]),
-            RunTag("sphri.report.requirement", " | ".join(g.requirement for g in report.groups)[:5000])]
+            RunTag("sphri.report.requirement",
+                   " | ".join([s.sentence for s in report.sensitivity] + [g.requirement for g in report.groups])[:5000])]
     note = s.parent_tags.get("mlflow.note.content", "")
     if note.startswith("sweep:") and "sphri.sweep_note" not in s.parent_tags:
         tags.append(RunTag("sphri.sweep_note", note[:5000]))  # keep the sweep command the report replaces

@@ -9,6 +9,8 @@
   group, each gesture's own saturation point marked.
 - :func:`plot_bootstrap`: how often each resolution was chosen by the rule
   over the bootstrap resamples.
+- :func:`plot_tornado`: a sensitivity sweep's saturation pitch per
+  assumption variant with its bootstrap interval, the reference as a line.
 
 Every figure carries "SYNTHETIC DATA" in its title when the runs did.
 """
@@ -259,6 +261,41 @@ def plot_bootstrap(report: SweepReport, path: Path) -> Path | None:
     ax.grid(True, axis="y", alpha=0.3)
     ax.set_title(_title(report, "saturation point over bootstrap resamples of participants"), fontsize=10,
                  color="firebrick" if report.synthetic != "none" else "black")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def plot_tornado(report: SweepReport, path: Path) -> Path | None:
+    """Saturation pitch (mm) per assumption variant with its bootstrap interval, one panel per set of other
+    keys, variants ordered by their shift from the reference (largest on top) -> ``path``; None without variants."""
+    if not report.sensitivity:
+        return None
+    plt = _plt()
+    n = len(report.sensitivity)
+    height = max(len(s.variants) for s in report.sensitivity)
+    fig, axes = plt.subplots(1, n, figsize=(7.5 * n, 1.2 + 0.45 * height), dpi=110, squeeze=False)
+    for ax, sens in zip(axes[0], report.sensitivity):
+        pitch = all(g.has_pitch for g in sens.variants)
+        col = "pitch_mm" if pitch else "n_taxels"
+        for y, g in enumerate(reversed(sens.variants)):
+            v = float(g.recommended[col])
+            iv = g.pitch_interval_mm if pitch else None
+            is_ref = sens.reference is g
+            color = "black" if is_ref else ("firebrick" if g.sat.at_finest else "tab:blue")
+            if iv is not None:
+                ax.plot(iv, [y, y], "-", color=color, lw=6, alpha=0.35, solid_capstyle="butt")
+            ax.plot([v], [y], "o", color=color, ms=7)
+        ax.set_yticks(range(len(sens.variants)), [g.keys.get("variant", g.label) for g in reversed(sens.variants)])
+        if sens.reference is not None:
+            ax.axvline(float(sens.reference.recommended[col]), color="black", ls="--", lw=1)
+        ax.set_xlabel(f"saturation pitch (mm; dot: the rule, bar: {report.rule.ci:.0%} bootstrap interval; red: finest "
+                      "point swept)" if pitch else "taxels at saturation", fontsize=8)
+        ax.grid(True, axis="x", alpha=0.3)
+        ax.set_title(sens.label or "assumption variants", fontsize=10)
+    fig.suptitle(_title(report, f"requirement per assumption (tolerance {report.rule.primary_tolerance.describe()})"),
+                 fontsize=10, color="firebrick" if report.synthetic != "none" else "black")
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)

@@ -108,6 +108,92 @@ def comparison_rows(report: SweepReport) -> list[dict[str, object]]:
     return rows
 
 
+def _cells(values, left: int = 0) -> str:
+    """Table cells, the first ``left`` of them left-aligned (labels)."""
+    return "".join(f'<td class="l">{v}</td>' if i < left else f"<td>{v}</td>" for i, v in enumerate(values))
+
+
+def tolerance_rows(report: SweepReport) -> list[dict[str, object]]:
+    """One row per (group, tolerance): the requirement under each tolerance (also written as CSV)."""
+    rows = []
+    for g in report.groups:
+        for t in g.by_tolerance:
+            rec = g.points.iloc[t.sat.index]
+            iv = t.pitch_interval_mm
+            d, dse = t.sat.deficit, t.sat.deficit_se
+            rows.append({
+                "group": g.label, "tolerance": t.tolerance.name, "tolerance_meaning": t.tolerance.describe(),
+                "used_in_sentence": t.primary, "saturation_res": int(rec["res"]), "saturation_n_taxels": rec["n_taxels"],
+                "saturation_pitch_mm": rec["pitch_mm"], "pitch_low_mm": iv[0] if iv else float("nan"),
+                "pitch_high_mm": iv[1] if iv else float("nan"),
+                "res_low": int(g.points["res"].iloc[t.sat.interval[0]]) if t.sat.interval else None,
+                "res_high": int(g.points["res"].iloc[t.sat.interval[1]]) if t.sat.interval else None,
+                "accuracy": rec["accuracy_mean"], "paired_deficit": float(d[t.sat.index]),
+                "paired_deficit_se": float(dse[t.sat.index]), "allowed_deficit": t.sat.tolerance,
+                "best_res": int(g.points["res"].iloc[t.sat.best_index]),
+            })
+    return rows
+
+
+def _tolerance_table(report: SweepReport) -> str:
+    head = ["curve", "tolerance", "used in the sentence", "saturation pitch (mm)", f"{report.rule.ci:.0%} interval (mm)",
+            "encoder.res [interval]", "accuracy at saturation", "paired deficit &plusmn; paired SE", "allowed deficit"]
+    body = []
+    for r in tolerance_rows(report):
+        iv = (f"{_f(r['pitch_low_mm'], '.1f')} &ndash; {_f(r['pitch_high_mm'], '.1f')}"
+              if np.isfinite(float(r["pitch_low_mm"])) else "none")
+        res = f"{r['saturation_res']}" + (f" [{r['res_low']}, {r['res_high']}]" if r["res_low"] is not None else "")
+        cls = ' class="rec"' if r["used_in_sentence"] else ""
+        body.append(f"<tr{cls}>" + _cells((
+            _e(r["group"]), _e(r["tolerance_meaning"]), "yes" if r["used_in_sentence"] else "",
+            _f(r["saturation_pitch_mm"], ".1f"), iv, res, _f(r["accuracy"]),
+            f"{_f(r['paired_deficit'])} &plusmn; {_f(r['paired_deficit_se'])}", _f(r["allowed_deficit"])), left=2) + "</tr>")
+    return ("<table><thead><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr></thead><tbody>"
+            + "".join(body) + "</tbody></table>")
+
+
+def sensitivity_rows(report: SweepReport) -> list[dict[str, object]]:
+    """One row per (set of other keys, assumption variant) of a sensitivity sweep (also written as CSV)."""
+    rows = []
+    for sens in report.sensitivity:
+        ref = sens.reference.recommended["pitch_mm"] if sens.reference is not None else float("nan")
+        for g in sens.variants:
+            rec = g.recommended
+            iv = g.pitch_interval_mm
+            rows.append({
+                "others": sens.label, "variant": g.keys.get("variant", g.label), "saturation_res": int(rec["res"]),
+                "saturation_pitch_mm": rec["pitch_mm"], "pitch_low_mm": iv[0] if iv else float("nan"),
+                "pitch_high_mm": iv[1] if iv else float("nan"), "shift_from_reference_mm": rec["pitch_mm"] - ref,
+                "accuracy": rec["accuracy_mean"], "best_accuracy": g.best["accuracy_mean"],
+                "best_res": int(g.best["res"]), "at_finest": bool(g.sat.at_finest),
+                "tolerance": report.rule.primary_tolerance.name,
+            })
+    return rows
+
+
+def _sensitivity_table(report: SweepReport) -> str:
+    head = ["variant", "saturation pitch (mm)", f"{report.rule.ci:.0%} interval (mm)", "shift from reference (mm)",
+            "encoder.res", "accuracy at saturation", "best accuracy (res)", "finest point chosen"]
+    parts = []
+    for sens in report.sensitivity:
+        rows = [r for r in sensitivity_rows(report) if r["others"] == sens.label]
+        body = []
+        for r in rows:
+            iv = (f"{_f(r['pitch_low_mm'], '.1f')} &ndash; {_f(r['pitch_high_mm'], '.1f')}"
+                  if np.isfinite(float(r["pitch_low_mm"])) else "none")
+            cls = ' class="rec"' if r["variant"] == "reference" else ""
+            body.append(f"<tr{cls}>" + _cells((
+                _e(r["variant"]), _f(r["saturation_pitch_mm"], ".1f"), iv, _f(r["shift_from_reference_mm"], "+.1f"),
+                r["saturation_res"], _f(r["accuracy"]), f"{_f(r['best_accuracy'])} ({r['best_res']})",
+                "yes" if r["at_finest"] else ""), left=1) + "</tr>")
+        if sens.label:
+            parts.append(f"<h3>{_e(sens.label)}</h3>")
+        parts.append(f'<div class="req"><p class="sentence">{_e(sens.sentence)}</p></div>')
+        parts.append("<table><thead><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr></thead><tbody>"
+                     + "".join(body) + "</tbody></table>")
+    return "".join(parts)
+
+
 def _comparison_table(report: SweepReport) -> str:
     keys = report.sweep.group_keys
     head = ([f'<th class="l">{_e(k)}</th>' for k in keys] if keys else ['<th class="l">curve</th>'])
@@ -184,6 +270,16 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
     parts.append('<p class="meta">' + "<br>".join(_e(x) for x in _facts(report)) + "</p>")
 
     parts.append('<h2 id="requirement">Requirement</h2>')
+    if report.sensitivity:
+        parts.append('<h3 id="sensitivity">Sensitivity to the assumptions</h3>')
+        parts.append("<p>The same resolution sweep under each assumption variant (one at a time from the reference; "
+                     "each variant is a <code>conf/sensitivity/&lt;name&gt;.yaml</code>). Saturation pitch by the rule "
+                     f"below with a tolerance of {_e(report.rule.primary_tolerance.describe())}, with its "
+                     "participant-bootstrap interval; the vertical line is the reference.</p>")
+        if "tornado" in figures:
+            parts.append(img_tag(figures["tornado"], "saturation pitch per assumption variant"))
+        parts.append(_sensitivity_table(report))
+        parts.append("<h3>Per assumption variant</h3>")
     for g in report.groups:
         parts.append('<div class="req">')
         if len(report.groups) > 1:
@@ -208,6 +304,12 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
                  "their accuracy at the best resolution.</p>")
     if "bootstrap" in figures:
         parts.append(img_tag(figures["bootstrap"], "saturation point over bootstrap resamples"))
+    parts.append('<h2 id="tolerances">Requirement under several tolerances</h2>')
+    parts.append(f"<p>The same paired rule with each tolerance; the highlighted row is the one the requirement "
+                 f"sentence uses ({_e(report.rule.primary_tolerance.describe())}). Paired deficit: mean over "
+                 "participants of (accuracy at the best resolution minus accuracy here), with its paired standard "
+                 "error.</p>")
+    parts.append(_tolerance_table(report))
 
     parts.append('<h2 id="comparison">Comparison</h2>')
     parts.append(_comparison_table(report))
@@ -257,6 +359,15 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
         lines.append(banner)
     lines += _facts(report)
     lines.append("rule: " + report.rule.describe())
+    for sens in report.sensitivity:
+        lines.append("")
+        lines.append("[sensitivity" + (f": {sens.label}" if sens.label else "") + "]")
+        lines.append("  " + sens.sentence)
+        for r in (r for r in sensitivity_rows(report) if r["others"] == sens.label):
+            iv = (f"{r['pitch_low_mm']:.1f}-{r['pitch_high_mm']:.1f} mm" if np.isfinite(float(r["pitch_low_mm"]))
+                  else "no interval")
+            lines.append(f"  {r['variant']:<16} {float(r['saturation_pitch_mm']):6.1f} mm ({iv}), res {r['saturation_res']}, "
+                         f"accuracy {float(r['accuracy']):.3f}" + (" [finest point]" if r["at_finest"] else ""))
     for g in report.groups:
         lines.append("")
         lines.append(f"[{g.label}]")
@@ -264,6 +375,13 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
         lines.append("  " + g.interval_text)
         if g.facts:
             lines.append("  " + g.facts)
+        for t in g.by_tolerance:
+            rec = g.points.iloc[t.sat.index]
+            iv = (f"{_fmt_pitch(t.pitch_interval_mm[0])}-{_fmt_pitch(t.pitch_interval_mm[1])} mm"
+                  if t.pitch_interval_mm else "no interval")
+            where = f"{_fmt_pitch(rec['pitch_mm'])} mm ({iv})" if g.has_pitch else f"res {int(rec['res'])}"
+            lines.append(f"  tolerance {t.tolerance.describe()}: {where}, encoder.res {int(rec['res'])}"
+                         + ("   <- used in the sentence" if t.primary else ""))
         need = gestures_by_need(g)
         if need:
             fmt = (lambda t: f"{t[0]} {_fmt_pitch(t[1])} mm") if g.has_pitch else (lambda t: f"{t[0]} res {t[2]}")

@@ -34,6 +34,27 @@ selected point over ``n_boot`` resamples. :func:`physical_interval` turns it
 into a pitch (or any per-point quantity). With fewer than two participants
 there is no standard error and no bootstrap: the interval is ``None`` and
 :attr:`Saturation.note` says why.
+
+The **paired rule** (:func:`paired_saturation`, what the report uses)
+compares each resolution with the best one participant by participant:
+
+1. The best point b is the one with the highest mean (coarsest among ties).
+2. For each point r, each participant's deficit is ``s[p, b] - s[p, r]``
+   (their accuracy at the best point minus theirs at r; participants
+   missing either score are left out of that pair); the paired deficit is
+   its mean over participants, with the paired standard error
+   ``std(ddof=1) / sqrt(n)`` (0 at b itself).
+3. The saturation point is the coarsest r whose paired deficit is within a
+   :class:`Tolerance`: a fixed number of accuracy points (``0.01``: one
+   point), or ``k`` paired standard errors of that point's own deficit
+   (``se``: one).
+
+Between-participant differences (one person is better at every resolution)
+cancel in the pairs, so the rule sees only how each person's accuracy changes
+with resolution. A fixed tolerance in points ignores a gain smaller than it,
+however consistent; the SE tolerance ignores gains that are not consistent
+across participants. The bootstrap redraws participants and redoes both the
+best point and the rule.
 """
 
 from __future__ import annotations
@@ -86,6 +107,14 @@ class Saturation:
     """Bootstrap percentile interval of ``gap`` (paired over participants), or None."""
     note: str
     """Why something is missing or degenerate ("" when all is well)."""
+    rule: str = "unpaired"
+    """"unpaired" (:func:`saturation`) or "paired" (:func:`paired_saturation`)."""
+    deficit: np.ndarray | None = None
+    """Paired rule: (R,) mean paired deficit from the best point (score units; 0 at the best)."""
+    deficit_se: np.ndarray | None = None
+    """Paired rule: (R,) paired standard error of ``deficit`` (0 at the best, and where n < 2)."""
+    tolerance_name: str = ""
+    """Paired rule: the :class:`Tolerance` used, as written (``se``, ``2se``, ``0.01``)."""
 
     @property
     def at_finest(self) -> bool:
@@ -203,20 +232,32 @@ def saturation(
         notes.append("no bootstrap requested (n_boot=0): no interval")
         return Saturation(index, best_index, float(tol[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes))
 
+    interval, picked, gap_interval = _bootstrap(s, index, best_index, n_boot, ci, seed, notes,
+                                                lambda sb: _rule(*_batch_stats(sb)[0:3:2], n_se, tolerance)[0])
+    return Saturation(index, best_index, float(tol[0]), stats, n_part, interval, ci, int(picked.size), picked, gap,
+                      gap_interval, "; ".join(notes))
+
+
+def _bootstrap(s: np.ndarray, index: int, best_index: int, n_boot: int, ci: float, seed: int, notes: list[str],
+               select) -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
+    """Participant bootstrap of a rule: ``select`` maps (B, P, R) resamples to (B,) selected indices.
+
+    Returns the percentile interval of the selected index, the selected
+    indices of the usable resamples, and the interval of the paired gap
+    between ``best_index`` and ``index``; appends notes about the resamples
+    and the participant count to ``notes``.
+    """
+    n_part = s.shape[0]
     rng = np.random.default_rng(seed)
     boot_sel = np.empty(n_boot, dtype=np.int64)
     boot_gap = np.empty(n_boot, dtype=np.float64)
-    chunk = max(1, int(4e6 // max(s.size, 1)))  # bound memory to ~32 MB per chunk
+    chunk = max(1, int(2e6 // max(s.size, 1)))  # (chunk, P, R) a few times in memory: ~16 MB each
     for start in range(0, n_boot, chunk):
         b = min(chunk, n_boot - start)
-        rows = rng.integers(0, n_part, size=(b, n_part))
-        sb = s[rows]  # (b, P, R)
-        m, _, e, _ = _batch_stats(sb)
-        sel_b, _, _ = _rule(m, e, n_se, tolerance)
-        boot_sel[start:start + b] = sel_b
-        d = sb[:, :, best_index] - sb[:, :, index]
+        sb = s[rng.integers(0, n_part, size=(b, n_part))]  # (b, P, R): whole participants, paired across points
+        boot_sel[start:start + b] = select(sb)
         with np.errstate(invalid="ignore"), _quiet():
-            boot_gap[start:start + b] = np.nanmean(d, axis=1)
+            boot_gap[start:start + b] = np.nanmean(sb[:, :, best_index] - sb[:, :, index], axis=1)
     ok = boot_sel >= 0
     if not ok.all():
         notes.append(f"{int((~ok).sum())} of {n_boot} resamples had no finite point and were dropped")
@@ -227,8 +268,7 @@ def saturation(
     gap_interval = (float(np.quantile(g, lo_q)), float(np.quantile(g, hi_q))) if g.size else None
     if n_part < 5:
         notes.append(f"only {n_part} participants: the bootstrap interval is coarse")
-    return Saturation(index, best_index, float(tol[0]), stats, n_part, interval, ci, int(ok.sum()), picked, gap,
-                      gap_interval, "; ".join(notes))
+    return interval, picked, gap_interval
 
 
 class _quiet:
@@ -260,3 +300,112 @@ def physical_interval(values: np.ndarray, sat: Saturation) -> tuple[float, float
         raise ValueError(f"values has shape {v.shape}, expected one per sweep point {sat.stats.mean.shape}")
     a, b = v[sat.interval[0]], v[sat.interval[1]]
     return (float(min(a, b)), float(max(a, b)))
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """How far below the best a resolution may be, paired over participants.
+
+    Written ``se`` (one paired standard error of the point's deficit), ``2se``
+    (k of them), or a number in score units (``0.01`` = one point of accuracy).
+    """
+
+    name: str
+    n_se: float | None
+    """k in "k paired standard errors", or None for a fixed tolerance."""
+    points: float | None
+    """Fixed tolerance in score units, or None for an SE tolerance."""
+
+    @classmethod
+    def parse(cls, text: str | float) -> "Tolerance":
+        t = str(text).strip().lower()
+        try:
+            if t.endswith("se"):
+                k = float(t[:-2]) if t[:-2] else 1.0
+                if not np.isfinite(k) or k < 0:
+                    raise ValueError
+                return cls(t, k, None)
+            v = float(t)
+        except ValueError:
+            raise ValueError(f"tolerance {text!r} is invalid: write se, 2se (paired standard errors) or a number "
+                             "in accuracy units such as 0.01") from None
+        if not np.isfinite(v) or not 0 <= v < 1:
+            raise ValueError(f"tolerance {text!r} is invalid: a fixed tolerance must be in [0, 1) accuracy units")
+        return cls(f"{v:g}", None, v)
+
+    def describe(self) -> str:
+        """E.g. "one paired standard error", "1 point of accuracy (0.01)"."""
+        if self.n_se is not None:
+            k = "one" if self.n_se == 1 else f"{self.n_se:g}"
+            return f"{k} paired standard error{'' if self.n_se == 1 else 's'}"
+        pts = 100 * self.points
+        return f"{pts:g} point{'' if pts == 1 else 's'} of accuracy ({self.points:g})"
+
+
+def _paired_rule(sb: np.ndarray, tol: Tolerance) -> tuple[np.ndarray, ...]:
+    """Paired rule on (B, P, R) resamples -> selected, best (B,), deficit, deficit_se (B, R), tolerance at selected (B,)."""
+    mean, _, _, _ = _batch_stats(sb)
+    valid = np.isfinite(mean)
+    any_valid = valid.any(axis=1)
+    best = np.argmax(np.where(valid, mean, -np.inf), axis=1)
+    rows = np.arange(sb.shape[0])
+    d = sb[rows, :, best][:, :, None] - sb  # (B, P, R): each participant's deficit from their best-point score
+    deficit, _, dse, _ = _batch_stats(d)
+    dse = np.where(np.isfinite(dse), dse, 0.0)
+    deficit[rows, best] = 0.0
+    dse[rows, best] = 0.0
+    allowed = (tol.n_se * dse) if tol.n_se is not None else np.full(deficit.shape, float(tol.points))
+    eligible = valid & np.isfinite(deficit) & (deficit <= allowed + _EPS)
+    eligible[rows, best] |= valid[rows, best]
+    selected = np.argmax(eligible, axis=1)
+    selected = np.where(any_valid, selected, -1)
+    best = np.where(any_valid, best, -1)
+    return selected, best, deficit, dse, allowed[rows, np.maximum(selected, 0)]
+
+
+def paired_saturation(
+    scores: np.ndarray,
+    tolerance: Tolerance | str | float = "0.01",
+    n_boot: int = 2000,
+    ci: float = 0.95,
+    seed: int = 0,
+) -> Saturation:
+    """The paired rule (see module doc) on ``scores`` (P, R), columns coarse to fine, with a
+    participant bootstrap (resample participants, redo the best point and the rule).
+
+    ``Saturation.tolerance`` is the allowed deficit at the selected point
+    (score units); ``deficit``/``deficit_se`` hold the paired curve.
+    """
+    tol = tolerance if isinstance(tolerance, Tolerance) else Tolerance.parse(tolerance)
+    if not 0.0 < ci < 1.0:
+        raise ValueError(f"ci={ci!r} is invalid: must be in (0, 1)")
+    if n_boot < 0:
+        raise ValueError(f"n_boot={n_boot!r} is invalid: must be >= 0")
+    s = _as_matrix(scores)
+    s = s[np.isfinite(s).any(axis=1)]
+    if s.shape[0] == 0:
+        raise ValueError("no finite score at any sweep point: nothing to find a saturation point on")
+    mean, std, se, n = _batch_stats(s[None])
+    stats = CurveStats(mean[0], std[0], se[0], n[0])
+    sel, best, deficit, dse, allowed = _paired_rule(s[None], tol)
+    index, best_index = int(sel[0]), int(best[0])
+    n_part = int(s.shape[0])
+    base = dict(rule="paired", deficit=deficit[0], deficit_se=dse[0], tolerance_name=tol.name)
+    gap = float(deficit[0, index])
+    notes = []
+    n_missing = int((~np.isfinite(s)).sum())
+    if n_missing:
+        notes.append(f"{n_missing} of {s.size} participant x point scores are missing (NaN) and were left out of their pairs")
+    if n_part < 2:
+        notes.append("only one participant: no paired standard error and no bootstrap interval"
+                     + ("; the SE tolerance is 0, so the saturation point is the best point" if tol.n_se is not None else ""))
+        return Saturation(index, best_index, float(allowed[0]), stats, n_part, None, ci, 0, None, gap, None,
+                          "; ".join(notes), **base)
+    if n_boot == 0:
+        notes.append("no bootstrap requested (n_boot=0): no interval")
+        return Saturation(index, best_index, float(allowed[0]), stats, n_part, None, ci, 0, None, gap, None,
+                          "; ".join(notes), **base)
+    interval, picked, gap_interval = _bootstrap(s, index, best_index, n_boot, ci, seed, notes,
+                                                lambda sb: _paired_rule(sb, tol)[0])
+    return Saturation(index, best_index, float(allowed[0]), stats, n_part, interval, ci, int(picked.size), picked, gap,
+                      gap_interval, "; ".join(notes), **base)

@@ -11,7 +11,11 @@ from each job's ``per_participant.csv`` artifact, else from its
 Jobs are grouped by the parameters that vary across the sweep other than the
 resolution (``encoder.res`` and the derived ``resolution.*``/``meta.*``
 params): e.g. ``model`` in a model comparison, ``robot`` in a morphology
-sweep, ``layout`` or ``noise``.
+sweep, ``layout`` or ``noise``. ``variant`` (the assumption variant of
+``+experiment=requirement_sensitivity``, one per ``conf/sensitivity/*.yaml``)
+comes first, and a parameter that the keys before it already fix (the
+``encoder`` of ``variant=coverage``, the ``noise.p`` of ``variant=noise0``)
+is not a key of its own.
 """
 
 from __future__ import annotations
@@ -37,7 +41,7 @@ STATUS_FILE = "sphri_status.json"
 _RUN_ID = re.compile(r"^[0-9a-f]{32}$")
 
 #: Group keys shown first, in this order, when they vary.
-KEY_ORDER = ("robot", "data", "surface", "layout", "encoder", "noise", "window", "contact", "model", "cv", "seed")
+KEY_ORDER = ("variant", "robot", "data", "surface", "layout", "encoder", "noise", "filter", "window", "contact", "model", "cv", "seed")
 
 #: Per-resolution columns read from the jobs' ``resolution.*`` params (floats).
 RESOLUTION_PARAMS = ("n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm", "area_per_taxel_cm2",
@@ -268,12 +272,19 @@ def group_keys(params: list[dict[str, str]]) -> list[str]:
     varying = [k for k in candidates if len({p.get(k, "") for p in params}) > 1]
     top = [k for k in varying if "." not in k]
     top.sort(key=lambda k: (KEY_ORDER.index(k) if k in KEY_ORDER else len(KEY_ORDER), k))
-    keys = list(top)
-    for k in (k for k in varying if "." in k):
+    keys: list[str] = []
+
+    def determined(k: str) -> bool:
+        """True when the keys kept so far fix ``k`` (e.g. ``variant=coverage`` fixes ``encoder``)."""
+        if not keys:
+            return False
         by_group: dict[tuple[str, ...], set[str]] = {}
         for p in params:
             by_group.setdefault(tuple(p.get(g, "") for g in keys), set()).add(p.get(k, ""))
-        if any(len(v) > 1 for v in by_group.values()):
+        return all(len(v) == 1 for v in by_group.values())
+
+    for k in top + [k for k in varying if "." in k]:
+        if not determined(k):
             keys.append(k)
     return keys
 

@@ -44,7 +44,7 @@ PARENT_FILE = "mlflow_parent_run.json"
 """Written into a sweep directory: the parent run id and tracking URI."""
 
 #: Groups whose component choice and scalar settings become MLflow params.
-PARAM_GROUPS = ("data", "robot", "contact", "surface", "layout", "encoder", "noise", "window", "model", "cv")
+PARAM_GROUPS = ("data", "robot", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv")
 _SKIP_PARAM_KEYS = {"_target_", "root", "path", "definition_path", "density_path", "capsules", "links", "joints"}
 
 
@@ -77,6 +77,8 @@ def flatten_params(cfg: "DictConfig", choices: dict[str, str] | None = None) -> 
 
     choices = choices or {}
     params: dict[str, str] = {"seed": str(cfg.seed)}
+    if cfg.get("variant") is not None:  # the assumption variant of a sensitivity sweep (conf/sensitivity/)
+        params["variant"] = str(cfg.variant)
     for group in PARAM_GROUPS:
         node = cfg[group]
         params[group] = component_name(node, choices.get(group))

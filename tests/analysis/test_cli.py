@@ -60,7 +60,7 @@ class FakePipeline:
 
 def fake_cfg(tmp_path: Path):
     groups = {g: {"_target_": f"sphri.fake.{g}"} for g in
-              ("robot", "contact", "surface", "layout", "encoder", "noise", "window", "model", "cv")}
+              ("robot", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv")}
     return OmegaConf.create({
         "seed": 0, "output_dir": str(tmp_path), "cache": {"dir": str(tmp_path / "cache"), "enabled": False},
         "data": {"_target_": "sphri.fake.data", "regions": ["arm"]},

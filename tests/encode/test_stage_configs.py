@@ -1,4 +1,4 @@
-"""Every YAML of the surface, layout, encoder, noise and window groups matches its schema and builds."""
+"""Every YAML of the surface, layout, encoder, noise, filter and window groups matches its schema and builds."""
 
 from __future__ import annotations
 
@@ -10,13 +10,14 @@ from hydra.utils import instantiate
 from omegaconf import OmegaConf
 
 import sphri.encode.schema  # noqa: F401  (registers the schemas)
+import sphri.filter.schema  # noqa: F401
 import sphri.layout.schema  # noqa: F401
 import sphri.noise.schema  # noqa: F401
 import sphri.surface.schema  # noqa: F401
 import sphri.window.schema  # noqa: F401
 from sphri.config import CONF_DIR, ConfigError
 
-GROUPS = ("surface", "layout", "encoder", "noise", "window")
+GROUPS = ("surface", "layout", "encoder", "noise", "filter", "window")
 YAMLS = sorted(p for g in GROUPS for p in (CONF_DIR / g).glob("*.yaml"))
 
 
@@ -36,7 +37,8 @@ def test_every_group_has_configs():
                  ("layout", "hex"), ("layout", "random"), ("layout", "density"), ("layout", "file"),
                  ("encoder", "ellipse"), ("encoder", "coverage"), ("encoder", "proximity"),
                  ("noise", "salt_pepper"), ("noise", "gaussian"), ("noise", "dead_taxels"),
-                 ("noise", "crosstalk"), ("noise", "none"), ("window", "onset")]:
+                 ("noise", "crosstalk"), ("noise", "none"), ("filter", "none"), ("filter", "debounce"),
+                 ("filter", "median"), ("window", "onset")]:
         assert want in names
 
 
@@ -57,6 +59,8 @@ def test_yaml_matches_schema_and_instantiates(path):
         ("encoder/proximity.yaml", "intensity", "loud"),
         ("noise/salt_pepper.yaml", "p", 1.5),
         ("window/onset.yaml", "frames", 0),
+        ("filter/debounce.yaml", "frames", 0),
+        ("filter/median.yaml", "frames", 4),
         ("layout/grid.yaml", "aspect", -1.0),
         ("surface/cylinder.yaml", "axis", "w"),
     ],

@@ -73,7 +73,8 @@ def _fold(name: str, acc: float, rng: np.random.Generator, per_gesture: int, res
     return FoldResult(name, n, a, float(f1.mean()), conf, recall)
 
 
-def fake_cfg(output_dir: Path, res: int, model: str, robot: str = "reachy") -> OmegaConf:
+def fake_cfg(output_dir: Path, res: int, model: str, robot: str = "reachy", variant: str | None = None,
+             noise_p: float = 0.02) -> OmegaConf:
     target = {"rf": "sphri.models.rf.RandomForest", "cnn_gru": "sphri.models.cnn_gru.CnnGru"}.get(model, "sphri.models.X")
     cfg = {
         "seed": 0, "output_dir": str(output_dir),
@@ -83,11 +84,13 @@ def fake_cfg(output_dir: Path, res: int, model: str, robot: str = "reachy") -> O
         "surface": {"_target_": "sphri.surface.Cylinder"},
         "layout": {"_target_": "sphri.layout.grid.Grid"},
         "encoder": {"_target_": "sphri.encode.ellipse.Ellipse", "res": res},
-        "noise": {"_target_": "sphri.noise.SaltPepper", "p": 0.02},
+        "noise": {"_target_": "sphri.noise.SaltPepper", "p": noise_p},
+        "filter": {"_target_": "sphri.filter.components.NoFilter"},
         "window": {"_target_": "sphri.window.Onset", "frames": 50},
         "model": {"_target_": target, **({"n_estimators": 100} if model == "rf" else {"hidden": 32})},
         "cv": {"_target_": "sphri.evaluate.Loso"},
         "tracking": {"_target_": "sphri.tracking.mlflow_tracker.MlflowTracker"},
+        "variant": variant,
     }
     return OmegaConf.create(cfg)
 
@@ -109,10 +112,12 @@ class FakeSweep:
 def make_sweep(out: Path, sweep_dir: Path, res: list[int], models: list[str] = ("rf",), robots: list[str] = ("reachy",),
                n_participants: int = 8, synthetic: bool = True, fail: set[tuple[str, int]] = frozenset(),
                artifacts: bool = True, seed: int = 0, top: dict[str, float] | None = None,
-               tau: float = 3.0) -> FakeSweep:
+               tau: float = 3.0, variants: dict[str, tuple[float, float]] | None = None) -> FakeSweep:
     """Log a fake sweep into the store at ``out`` (its output_dir), sweep dir ``sweep_dir``; return its truth.
 
     Several sweeps may share one store (creating an MLflow database takes seconds).
+    ``variants``: an assumption-variant sweep instead (one model, one robot): name -> (tau, noise.p), each
+    logged with its ``variant`` param and its own curve time constant (a larger tau saturates finer).
     """
     _ensure_summarize()
     rng = np.random.default_rng(seed)
@@ -128,40 +133,42 @@ def make_sweep(out: Path, sweep_dir: Path, res: list[int], models: list[str] = (
     top = top or {}
     job = 0
     n_fail = 0
-    for robot in robots:
-        for model in models:
-            label = (f"robot={robot}, model={model}" if len(robots) > 1 and len(models) > 1
-                     else robot if len(robots) > 1 else model)
-            truth.labels.append(label)
-            mat = np.full((n_participants, len(res)), np.nan)
-            curve = true_curve(np.array(res), top.get(model, 0.85), tau)
-            for j, r in enumerate(res):
-                cfg = fake_cfg(out, r, model, robot)
-                job_dir = sweep_dir / str(job)
-                job_dir.mkdir(parents=True, exist_ok=True)
-                choices = {"model": model, "robot": robot, "layout": "grid", "noise": "salt_pepper"}
-                if (model, r) in fail:
-                    rid = tracker.log_failure(cfg, RuntimeError(f"boom at res {r}"), job_dir, parent=parent, choices=choices)
-                    status = {"job": job, "status": "FAILED", "error": f"RuntimeError: boom at res {r}", "mlflow_run_id": rid}
-                    n_fail += 1
-                else:
-                    folds = []
-                    for i, p in enumerate(participants):
-                        acc = float(np.clip(curve[j] + offsets[i] + rng.normal(0, 0.02), 0.0, 1.0))
-                        folds.append(_fold(p, acc, rng, per_gesture=20, res=r))
-                        mat[i, j] = folds[-1].accuracy
-                    meta = {"dataset": "synthetic" if synthetic else "vr_gesture", "synthetic": synthetic,
-                            "n_participants": n_participants, "n_trials": 16 * n_participants, "n_frames": 1000,
-                            "frame_rate_hz": 30.0, "repairs": {}, "robot": robot, "region": "arm", "link": "r_arm",
-                            "surface": "cylinder", "surface_fit_residual_mm": 1.0, "n_windows": 160,
-                            "n_dropped_no_contact": 0, "window_frames": 50, "resolution": grid_resolution(r)}
-                    result = RunResult(CVResult("loso", model, folds), meta,
-                                       {"contact": StageRecord("contact", "k", "cache", 0.1)},
-                                       f"hash-{robot}-{model}-{r}")
-                    rid = tracker.log_job(cfg, result, job_dir, parent=parent, choices=choices)
-                    status = {"job": job, "status": "FINISHED", "error": None, "mlflow_run_id": rid}
-                (job_dir / "sphri_status.json").write_text(json.dumps(status))
-                job += 1
-            truth.accuracy[label] = mat
+    combos = ([(robots[0], models[0], v) for v in variants] if variants
+              else [(robot, model, None) for robot in robots for model in models])
+    for robot, model, variant in combos:
+        label = (variant if variant is not None else f"robot={robot}, model={model}" if len(robots) > 1 and len(models) > 1
+                 else robot if len(robots) > 1 else model)
+        truth.labels.append(label)
+        mat = np.full((n_participants, len(res)), np.nan)
+        v_tau, v_p = variants[variant] if variant is not None else (tau, 0.02)
+        curve = true_curve(np.array(res), top.get(model, 0.85), v_tau)
+        for j, r in enumerate(res):
+            cfg = fake_cfg(out, r, model, robot, variant, v_p)
+            job_dir = sweep_dir / str(job)
+            job_dir.mkdir(parents=True, exist_ok=True)
+            choices = {"model": model, "robot": robot, "layout": "grid", "noise": "salt_pepper"}
+            if (model, r) in fail:
+                rid = tracker.log_failure(cfg, RuntimeError(f"boom at res {r}"), job_dir, parent=parent, choices=choices)
+                status = {"job": job, "status": "FAILED", "error": f"RuntimeError: boom at res {r}", "mlflow_run_id": rid}
+                n_fail += 1
+            else:
+                folds = []
+                for i, p in enumerate(participants):
+                    acc = float(np.clip(curve[j] + offsets[i] + rng.normal(0, 0.02), 0.0, 1.0))
+                    folds.append(_fold(p, acc, rng, per_gesture=20, res=r))
+                    mat[i, j] = folds[-1].accuracy
+                meta = {"dataset": "synthetic" if synthetic else "vr_gesture", "synthetic": synthetic,
+                        "n_participants": n_participants, "n_trials": 16 * n_participants, "n_frames": 1000,
+                        "frame_rate_hz": 30.0, "repairs": {}, "robot": robot, "region": "arm", "link": "r_arm",
+                        "surface": "cylinder", "surface_fit_residual_mm": 1.0, "n_windows": 160,
+                        "n_dropped_no_contact": 0, "window_frames": 50, "resolution": grid_resolution(r)}
+                result = RunResult(CVResult("loso", model, folds), meta,
+                                   {"contact": StageRecord("contact", "k", "cache", 0.1)},
+                                   f"hash-{robot}-{model}-{variant}-{r}")
+                rid = tracker.log_job(cfg, result, job_dir, parent=parent, choices=choices)
+                status = {"job": job, "status": "FINISHED", "error": None, "mlflow_run_id": rid}
+            (job_dir / "sphri_status.json").write_text(json.dumps(status))
+            job += 1
+        truth.accuracy[label] = mat
     tracker.end_parent(str(out), parent_id, job, n_fail)
     return truth

@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sphri.report import RuleSettings, load_sweep, make_report, saturation
+from sphri.report import RuleSettings, load_sweep, make_report, paired_saturation
 from sphri.report.__main__ import main
 from sphri.report.sweep import ReportError, group_keys
 
@@ -82,16 +82,18 @@ def test_saturation_numbers_match_the_logged_scores(built):
     truth, report, files, text = built
     rf = next(g for g in report.groups if g.label == "rf")
     # recompute from the generated per-participant accuracies, without MLflow in between
-    expected = saturation(truth.accuracy["rf"], n_boot=RULE.n_boot, seed=RULE.seed)
+    expected = paired_saturation(truth.accuracy["rf"], "0.01", n_boot=RULE.n_boot, seed=RULE.seed)
     assert rf.sat.index == expected.index and rf.sat.interval == expected.interval
     assert rf.accuracy == pytest.approx(truth.accuracy["rf"], abs=1e-6)
     res = truth.res[expected.index]
     r = grid_resolution(res)
     pitch = max(r["pitch_u_mm"], r["pitch_v_mm"])
-    assert f"A taxel pitch of at most {pitch:.1f} mm ({r['area_per_taxel_cm2']:.2f} cm^2 per taxel) keeps accuracy within" in rf.requirement
-    assert "of the best on this link" in rf.requirement
     lo_res, hi_res = truth.res[expected.interval[0]], truth.res[expected.interval[1]]
     pitches = [max(grid_resolution(x)["pitch_u_mm"], grid_resolution(x)["pitch_v_mm"]) for x in (hi_res, lo_res)]
+    # the sentence never states the point alone: the interval is in it, and the tolerance it uses
+    assert (f"A taxel pitch of at most {pitch:.1f} mm (95% interval {min(pitches):.1f} to {max(pitches):.1f} mm; "
+            f"{r['area_per_taxel_cm2']:.2f} cm^2 per taxel) keeps accuracy within 1 point of accuracy (0.01) of the "
+            "best, paired over participants, on this link") in rf.requirement
     assert rf.pitch_interval_mm == pytest.approx(sorted(pitches), rel=1e-5)  # params keep 6 digits
     assert f"{min(pitches):.1f} to {max(pitches):.1f} mm pitch" in rf.interval_text
     # mean +/- std over participants, as the study's figure
@@ -237,6 +239,12 @@ def test_group_keys_keep_only_settings_not_fixed_by_components():
     ]
     assert group_keys(params) == ["model", "model.n_estimators"]
     assert group_keys(params[:2]) == ["model"]
+    # assumption variants: what a variant fixes (its encoder, its noise.p) is not a key of its own
+    variants = [{"variant": v, "encoder": e, "noise.p": p, "model": "rf", "encoder.res": str(r)}
+                for v, e, p in (("reference", "ellipse", "0.02"), ("coverage", "coverage", "0.02"),
+                                ("noise0", "ellipse", "0.0")) for r in (1, 2)]
+    assert group_keys(variants) == ["variant"]
+    assert group_keys([{**p, "model": m} for p in variants for m in ("rf", "cnn_gru")]) == ["variant", "model"]
     with pytest.raises(ReportError, match="neither"):
         load_sweep("nope")
 
@@ -273,3 +281,67 @@ def test_real_sweep_end_to_end(tmp_path):
     parser = _Page()
     parser.feed((sweep / "report" / "report.html").read_text())
     assert len(parser.imgs) >= 3 and not parser.urls
+
+
+def test_tolerance_table_in_html_csv_and_text(built):
+    truth, report, files, text = built
+    tol = pd.read_csv(files.tables["tolerances"])
+    assert sorted(tol["tolerance"].astype(str).unique()) == ["0.01", "0.02", "se"]
+    assert len(tol) == 3 * len(report.groups)
+    assert tol.groupby("group")["used_in_sentence"].sum().eq(1).all(), "one tolerance per curve is the sentence's"
+    assert set(tol[tol["used_in_sentence"]]["tolerance"].astype(str)) == {"0.01"}
+    for g in report.groups:
+        for t in g.by_tolerance:
+            expected = paired_saturation(g.accuracy, t.tolerance, n_boot=RULE.n_boot, seed=RULE.seed)
+            assert t.sat.index == expected.index and t.sat.interval == expected.interval
+            row = tol[(tol["group"] == g.label) & (tol["tolerance"].astype(str) == t.tolerance.name)].iloc[0]
+            assert row["saturation_res"] == truth.res[expected.index]
+    # a looser tolerance never asks for a finer skin
+    rf = next(g for g in report.groups if g.label == "rf")
+    idx = {t.tolerance.name: t.sat.index for t in rf.by_tolerance}
+    assert idx["0.02"] <= idx["0.01"]
+    page = files.html.read_text()
+    assert "Requirement under several tolerances" in page and "one paired standard error" in page
+    assert "The requirement sentence uses a tolerance of 1 point of accuracy (0.01)" in page
+    assert "tolerance one paired standard error:" in text and "<- used in the sentence" in text
+    assert not report.sensitivity and "tornado" not in files.figures, "no variants, no sensitivity section"
+
+
+def test_cli_tolerance_options(two_model_sweep, tmp_path, capsys):
+    assert main([str(two_model_sweep.sweep_dir), "--n-boot", "50", "--no-log", "--out", str(tmp_path / "r"),
+                 "--tolerances", "se,2se", "--tolerance", "0.03"]) == 0
+    tol = pd.read_csv(tmp_path / "r" / "tolerances.csv")
+    assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "2se", "se"]
+    assert "within 3 points of accuracy (0.03) of the best" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main([str(two_model_sweep.sweep_dir), "--tolerances", "lots"])
+
+
+def test_sensitivity_sweep_reports_the_requirement_per_assumption(store, tmp_path):
+    """Variants with known curves: noise0 saturates coarser (tau 1.5), noise5 finer (tau 8) than the reference (3)."""
+    variants = {"reference": (3.0, 0.02), "noise0": (1.5, 0.0), "noise5": (8.0, 0.05)}
+    truth = make_sweep(store, tmp_path / "sens", [1, 2, 3, 4, 6, 9, 13, 18, 27, 36, 50], variants=variants,
+                       n_participants=10, seed=3)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False)
+    assert report.sweep.group_keys == ["variant"], "noise.p is fixed by the variant: not a key of its own"
+    assert sorted(g.label for g in report.groups) == ["noise0", "noise5", "reference"]
+    (sens,) = report.sensitivity
+    assert sens.label == "" and sens.reference is not None and sens.reference.label == "reference"
+    pitch = {g.label: float(g.recommended["pitch_mm"]) for g in report.groups}
+    assert pitch["noise0"] >= pitch["reference"] >= pitch["noise5"]
+    ref = sens.reference
+    lo, hi = ref.pitch_interval_mm
+    assert sens.sentence.startswith(f"A taxel pitch of at most {pitch['reference']:.1f} mm (95% interval {lo:.1f} to "
+                                    f"{hi:.1f} mm) under the reference assumptions; between")
+    assert f"between {min(pitch.values()):.1f} mm" in sens.sentence and f"and {max(pitch.values()):.1f} mm" in sens.sentence
+    assert "across the 3 assumptions tested" in sens.sentence
+    table = pd.read_csv(files.tables["sensitivity"])
+    assert sorted(table["variant"]) == ["noise0", "noise5", "reference"]
+    assert table.set_index("variant").loc["reference", "shift_from_reference_mm"] == 0
+    assert "sensitivity_tornado.png" in {p.name for p in files.figures.values()}
+    assert (files.out_dir / "sensitivity_tornado.png").read_bytes()[:8] == PNG_MAGIC
+    page = files.html.read_text()
+    assert html.escape(sens.sentence) in page and "Sensitivity to the assumptions" in page
+    assert sens.sentence in text
+    saved = json.loads(files.tables["json"].read_text())
+    assert saved["sensitivity"][0]["sentence"] == sens.sentence

@@ -126,3 +126,76 @@ def test_rule_properties(scores, n_se):
     assert m[sat.best_index] == np.nanmax(m)
     if sat.interval is not None:
         assert 0 <= sat.interval[0] <= sat.interval[1] < scores.shape[1]
+
+
+# -- the paired rule ---------------------------------------------------------------------------------
+
+from sphri.report.saturation import Tolerance, paired_saturation  # noqa: E402
+
+
+def test_paired_rule_ignores_a_tiny_consistent_late_gain_that_the_unpaired_rule_chases():
+    """Every participant gains 0.6 points from res index 3 to 5: real (consistent), but smaller than 1 point.
+    The unpaired one-SE rule (participants alike: small SE of the best mean) chases it to the finest point;
+    the paired rule with a 1-point tolerance keeps the plateau's start."""
+    rng = np.random.default_rng(0)
+    curve = np.array([0.40, 0.60, 0.75, 0.800, 0.803, 0.806])
+    s = curve[None, :] + rng.normal(0, 0.004, (18, 1)) + rng.normal(0, 0.0005, (18, 6))
+    assert saturation_index(s) == 5, "unpaired one-SE rule chases the 0.6-point gain"
+    sat = paired_saturation(s, "0.01", n_boot=300, seed=0)
+    assert sat.index == 3 and sat.best_index == 5 and sat.rule == "paired"
+    assert sat.deficit[3] == pytest.approx(0.006, abs=0.0005) and sat.deficit[5] == 0.0
+    assert sat.interval == (3, 3)
+    assert sat.tolerance == pytest.approx(0.01) and sat.tolerance_name == "0.01"
+
+
+def test_paired_se_rule_ignores_a_gain_that_is_not_consistent_across_participants():
+    """Resolution index 2 is 1 point better on average, but half the participants gain 6 points and half lose 4:
+    the paired deficit of index 1 (0.01) is within one paired SE (0.052 / sqrt(16) = 0.013); the unpaired rule, whose
+    tolerance is the best point's SE over (nearly identical) participants, chases it."""
+    n = 16
+    coarse = np.full(n, 0.80) + np.linspace(-0.001, 0.001, n)
+    gain = np.where(np.arange(n) % 2 == 0, 0.06, -0.04)
+    s = np.stack([coarse - 0.2, coarse, coarse + gain], axis=1)
+    sat = paired_saturation(s, "se", n_boot=0)
+    assert sat.best_index == 2 and sat.index == 1
+    assert sat.deficit[1] == pytest.approx(0.01, abs=1e-9)
+    assert sat.deficit_se[1] == pytest.approx(np.std(-gain, ddof=1) / np.sqrt(n))
+    assert saturation_index(s, tolerance=0.005) == 2
+
+
+def test_paired_rule_sees_a_consistent_gain_hidden_by_participant_differences():
+    """Participants differ by +/- 15 points, but every one of them gains 3 points at the finest point: the
+    unpaired one-SE rule (SE about 4 points) stops early, the paired rule (SE tolerance or 2 points) does not."""
+    rng = np.random.default_rng(2)
+    level = rng.normal(0.7, 0.15, 14)
+    s = level[:, None] + np.array([0.0, 0.10, 0.12, 0.15])[None, :] + rng.normal(0, 0.002, (14, 4))
+    assert saturation_index(s) <= 2
+    assert paired_saturation(s, "se", n_boot=0).index == 3
+    assert paired_saturation(s, "0.02", n_boot=0).index == 3
+    assert paired_saturation(s, "0.05", n_boot=0).index == 2
+
+
+def test_paired_bootstrap_interval_covers_the_point_and_repeats():
+    s = saturating(12, np.arange(10), knee=4, noise=0.01, seed=4)
+    a = paired_saturation(s, "0.02", n_boot=400, seed=3)
+    b = paired_saturation(s, "0.02", n_boot=400, seed=3)
+    assert a.interval == b.interval and a.interval[0] <= a.index <= a.interval[1]
+    assert a.boot_index.shape == (400,)
+    assert a.gap_interval is not None
+
+
+def test_paired_rule_edge_cases():
+    one = paired_saturation(np.array([[0.5, 0.7, 0.71]]), "0.02", n_boot=100)
+    assert one.index == 1 and one.interval is None and "one participant" in one.note
+    with_nan = np.array([[0.5, 0.8, 0.81], [0.5, np.nan, 0.79], [0.52, 0.78, 0.8]])
+    sat = paired_saturation(with_nan, "0.02", n_boot=50)
+    assert sat.index == 1 and "missing" in sat.note
+    flat = paired_saturation(np.full((5, 4), 0.6), "se", n_boot=20)
+    assert flat.index == 0 and flat.interval == (0, 0)
+    with pytest.raises(ValueError, match="tolerance"):
+        paired_saturation(np.zeros((3, 3)), "lots")
+    with pytest.raises(ValueError, match="tolerance"):
+        Tolerance.parse("1.5")
+    assert Tolerance.parse("2se").n_se == 2.0 and Tolerance.parse("0.010").name == "0.01"
+    assert Tolerance.parse("se").describe() == "one paired standard error"
+    assert Tolerance.parse("0.01").describe() == "1 point of accuracy (0.01)"
