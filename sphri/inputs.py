@@ -119,10 +119,11 @@ class FingerprintMemo:
                 os.unlink(tmp)
 
 
-def _files_below(root: Path) -> list[Path]:
+def _files_below(root: Path, exclude: frozenset[Path] = frozenset()) -> list[Path]:
+    """Regular files below ``root`` (sorted; hidden names and the ``exclude`` folders skipped)."""
     out = []
     for dirpath, dirnames, filenames in os.walk(root):
-        dirnames[:] = sorted(d for d in dirnames if not d.startswith("."))
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith(".") and Path(dirpath, d).absolute() not in exclude)
         out += [Path(dirpath) / f for f in sorted(filenames) if not f.startswith(".")]
     return out
 
@@ -132,8 +133,11 @@ def _function(spec: str) -> Callable[[Path], Iterable[Path]]:
     return getattr(importlib.import_module(module), name)
 
 
-def declared_files(node: Any) -> list[tuple[str, Path]]:
-    """``(field, path)`` of every file the component configured by ``node`` reads (folders expanded)."""
+def declared_files(node: Any, exclude: frozenset[Path] = frozenset()) -> list[tuple[str, Path]]:
+    """``(field, path)`` of every file the component configured by ``node`` reads (folders expanded).
+
+    ``exclude``: folders never descended into (sphri's own output and cache
+    folders, should a dataset folder hold them)."""
     if not isinstance(node, DictConfig):
         return []
     schema = OmegaConf.get_type(node)
@@ -161,7 +165,7 @@ def declared_files(node: Any) -> list[tuple[str, Path]]:
                 p = base / p
             p = p.absolute()
             if spec["kind"] == "dir" and p.is_dir():
-                out += [(name, q) for q in _files_below(p)]
+                out += [(name, q) for q in _files_below(p, exclude)]
                 continue
             out.append((name, p))
             if spec["references"] and p.is_file():
@@ -174,9 +178,9 @@ def declared_files(node: Any) -> list[tuple[str, Path]]:
     return out
 
 
-def fingerprints(node: Any, memo: FingerprintMemo) -> dict[str, str]:
+def fingerprints(node: Any, memo: FingerprintMemo, exclude: frozenset[Path] = frozenset()) -> dict[str, str]:
     """``{absolute path: digest}`` of the files the component configured by ``node`` reads."""
-    return {str(p): memo.digest(p) for _, p in declared_files(node)}
+    return {str(p): memo.digest(p) for _, p in declared_files(node, exclude)}
 
 
 _MEMOS: dict[str, FingerprintMemo] = {}
@@ -205,12 +209,13 @@ def input_fingerprints(cfg: DictConfig, memo: FingerprintMemo | None = None) -> 
     from sphri.config import STAGE_GROUPS
 
     memo = memo_for(cfg) if memo is None else memo
+    exclude = frozenset(Path(str(d)).absolute() for d in (cfg.get("output_dir"), cfg.get("cache", {}).get("dir")) if d)
     out = {}
     for group in STAGE_GROUPS:
         node = cfg.get(group)
         if group == "tracking" or not isinstance(node, DictConfig):
             continue
-        fp = fingerprints(node, memo)
+        fp = fingerprints(node, memo, exclude)
         if fp:
             out[group] = fp
     memo.save()
