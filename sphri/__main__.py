@@ -61,10 +61,11 @@ def _write_status(job_dir: Path, job: int, status: str, error: str | None = None
 def run_job(cfg: DictConfig) -> dict | None:
     """One job: validate, run the pipeline, track, summarize."""
     from sphri import pipeline
-    from sphri.tracking.parent import read_parent
+    from sphri.tracking.parent import read_parent, stop_if_killed
     from sphri.tracking.store import BrokenStore
     from sphri.tracking.mlflow_tracker import summary_text
 
+    stop_if_killed()  # a serial sweep signalled during an earlier job starts no more jobs
     hc = HydraConfig.get()
     job_dir = Path(hc.runtime.output_dir)
     choices = {k: v for k, v in hc.runtime.choices.items() if v is not None and not k.startswith("hydra")}

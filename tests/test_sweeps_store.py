@@ -91,7 +91,7 @@ def test_sweep_with_an_invalid_point_starts_no_job(tmp_path: Path, values: str):
 def test_killed_sweep_ends_its_parent_killed(tmp_path: Path, sig: int):
     out = tmp_path / "out"
     sweep_dir = out / "sweeps" / "k"
-    proc = subprocess.Popen([sys.executable, "-m", "sphri", "-m", "+debug=fast", "encoder.res=2,3,4,5,6",
+    proc = subprocess.Popen([sys.executable, "-m", "sphri", "-m", "+debug=fast", "encoder.res=range(2,20)",
                              f"output_dir={out}", "hydra/launcher=serial", f"hydra.sweep.dir={sweep_dir}"],
                             cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     deadline = time.time() + 300

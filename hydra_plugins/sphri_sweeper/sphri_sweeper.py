@@ -9,7 +9,9 @@
   (:func:`~sphri.tracking.parent.close_parent`): FINISHED, FAILED when a job
   failed or the sweep raised, KILLED on SIGINT/SIGTERM.
 - A sweep with a failed job exits with status 1 naming the jobs; a killed
-  one with 128 + the signal number.
+  one with 128 + the signal number. The signal handler raises in the main
+  thread and also records the signal: should library code swallow the
+  exception, the next job (in-process launchers) refuses to start.
 
 It subclasses :class:`~hydra._internal.core_plugins.basic_sweeper.BasicSweeper`
 (same ``max_batch_size`` and ``params``) and works with any launcher.
@@ -25,18 +27,13 @@ from typing import Any, List, Sequence
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.override_parser.overrides_parser import OverridesParser
 
+from sphri.tracking.parent import KILLED, SweepKilled
+
 log = logging.getLogger(__name__)
 
 
-class SweepKilled(BaseException):
-    """SIGTERM (or SIGINT) reached the sweep's process."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
 def _raise_killed(signum: int, frame: Any) -> None:
+    KILLED.append(signum)  # sticky: the next job refuses to start should this exception be swallowed
     raise SweepKilled(signum)
 
 
@@ -87,10 +84,13 @@ class SphriSweeper(BasicSweeper):
             print("\n".join(lines), file=sys.stderr)
             sys.exit(2)
         open_parent(self.config, overrides)
-        previous = signal.signal(signal.SIGTERM, _raise_killed)
+        KILLED.clear()
+        previous = {sig: signal.signal(sig, _raise_killed) for sig in (signal.SIGTERM, signal.SIGINT)}
         interrupted = None
         try:
             returns = super().sweep(arguments)
+            if KILLED:  # the signal's exception was swallowed inside a job; the next job stopped the sweep
+                raise SweepKilled(KILLED[0])
         except (KeyboardInterrupt, SweepKilled) as exc:
             interrupted = "KILLED"
             code = 128 + (exc.signum if isinstance(exc, SweepKilled) else signal.SIGINT)
@@ -99,7 +99,8 @@ class SphriSweeper(BasicSweeper):
             interrupted = "FAILED"
             raise
         finally:
-            signal.signal(signal.SIGTERM, previous)
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
             status, failed = close_parent(self.config, interrupted)
         if interrupted == "KILLED":
             print("sphri: sweep killed; its MLflow parent run is marked KILLED (re-run the same command to resume)",

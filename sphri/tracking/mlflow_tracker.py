@@ -175,6 +175,11 @@ class MlflowTracker:
         client = self.client(output_dir)
         status = status or ("FAILED" if n_failed else "FINISHED")
         self._retry(lambda: client.set_tag(run_id, "sphri.jobs", f"{n_jobs - n_failed}/{n_jobs} finished"))
+        if status == "KILLED":  # jobs interrupted while logging end with their sweep
+            exp_id = self._retry(lambda: client.get_run(run_id)).info.experiment_id
+            query = f"tags.`mlflow.parentRunId` = '{run_id}' and attributes.status = 'RUNNING'"
+            for child in self._retry(lambda: client.search_runs([exp_id], query)):
+                self._retry(lambda c=child: client.set_terminated(c.info.run_id, "KILLED"))
         self._retry(lambda: client.set_terminated(run_id, status))
 
     def find_parent(self, output_dir: str, sweep_hash: str) -> dict[str, str] | None:

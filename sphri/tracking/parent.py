@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import json
 import logging
+import signal
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -29,6 +30,23 @@ from sphri.tracking.mlflow_tracker import PARENT_FILE
 
 log = logging.getLogger(__name__)
 STATUS_FILE = "sphri_status.json"
+
+KILLED: list[int] = []
+"""Signals received by this process's sweep (set by the sweeper's SIGTERM handler)."""
+
+
+class SweepKilled(BaseException):
+    """SIGTERM (or SIGINT) reached the sweep's process."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+def stop_if_killed() -> None:
+    """Raise :class:`SweepKilled` in a job that starts after its sweep was signalled (in-process launchers)."""
+    if KILLED:
+        raise SweepKilled(KILLED[0])
 
 
 def sweep_id_of(sweep_dir: str | Path) -> str:
