@@ -19,7 +19,7 @@ CONF_PACKAGES = ["sphri.conf"] + sorted(
 )
 
 setup(
-    packages=find_packages(include=["sphri", "sphri.*"]) + CONF_PACKAGES,
+    packages=find_packages(include=["sphri", "sphri.*", "hydra_plugins", "hydra_plugins.*"]) + CONF_PACKAGES,
     package_dir={"sphri.conf": "conf"},
     # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml)
     package_data={"sphri": ["**/*.yaml"], **{name: ["*.yaml"] for name in CONF_PACKAGES}},

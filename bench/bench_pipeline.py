@@ -227,7 +227,7 @@ def child_default(args: argparse.Namespace) -> dict:
         t0 = time.perf_counter()
         warm_result = run(cfg, cache)
         warm = time.perf_counter() - t0
-        cache_mb = sum(f.stat().st_size for f in Path(tmp).rglob("*.pkl")) / 2**20
+        cache_mb = sum(f.stat().st_size for f in Path(tmp).rglob("*.entry")) / 2**20
     acc = [f.accuracy for f in cv.folds]
     return {
         "participants": args.participants, "repetitions": args.repetitions, "res": args.res,

@@ -9,8 +9,10 @@ Examples::
 
 Each job validates its config before any stage runs, runs the pipeline
 (stages cached under ``outputs/cache``), logs one MLflow run and prints a
-one-screen summary. In a multirun, a failing job is recorded as FAILED in
-MLflow and the sweep goes on.
+one-screen summary. In a multirun (``hydra/sweeper=sphri``), every job's
+config is validated before any job starts, a failing job is recorded as
+FAILED in MLflow and the sweep goes on, then exits non-zero naming it; the
+sweep's parent run always ends (FINISHED, FAILED or KILLED).
 """
 
 from __future__ import annotations
@@ -59,9 +61,11 @@ def _write_status(job_dir: Path, job: int, status: str, error: str | None = None
 def run_job(cfg: DictConfig) -> dict | None:
     """One job: validate, run the pipeline, track, summarize."""
     from sphri import pipeline
-    from sphri.tracking.callbacks import read_parent
+    from sphri.tracking.parent import read_parent, stop_if_killed
+    from sphri.tracking.store import BrokenStore
     from sphri.tracking.mlflow_tracker import summary_text
 
+    stop_if_killed()  # a serial sweep signalled during an earlier job starts no more jobs
     hc = HydraConfig.get()
     job_dir = Path(hc.runtime.output_dir)
     choices = {k: v for k, v in hc.runtime.choices.items() if v is not None and not k.startswith("hydra")}
@@ -80,6 +84,8 @@ def run_job(cfg: DictConfig) -> dict | None:
         validate(cfg)
         pipeline.chain_region(cfg)
         tracker = pipeline.build(cfg.tracking)
+        if tracker.enabled:
+            tracker.client(cfg.output_dir)  # create the store (under a lock) or refuse a broken one, before computing
         if multirun and cfg.resume and tracker.enabled:
             done = tracker.find_finished(cfg.output_dir, pipeline.config_hash(cfg))
             if done:
@@ -94,7 +100,8 @@ def run_job(cfg: DictConfig) -> dict | None:
                 tracker = pipeline.build(cfg.tracking)
             except Exception:  # the tracking config itself is broken
                 tracker = None
-        run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if tracker and tracker.enabled else None
+        broken = isinstance(exc, BrokenStore)
+        run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if tracker and tracker.enabled and not broken else None
         _write_status(job_dir, job_num, "FAILED", error, run_id)
         if multirun:
             log.error("job %d FAILED: %s\n%s", job_num, error, traceback.format_exc())
@@ -103,6 +110,10 @@ def run_job(cfg: DictConfig) -> dict | None:
             log.error("invalid config: %s", exc)
             print(f"sphri: invalid config: {exc}", file=sys.stderr)
             sys.exit(2)
+        if broken:
+            log.error("%s", exc)
+            print(f"sphri: {exc}", file=sys.stderr)
+            sys.exit(1)
         raise
 
     run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices) if tracker.enabled else None
@@ -122,8 +133,26 @@ def _hydra_main(cfg: DictConfig) -> dict | None:
     return run_job(cfg)
 
 
+def find_sweeper_plugin() -> None:
+    """Make ``hydra_plugins.sphri_sweeper`` importable from the source tree.
+
+    An editable install made before the plugin package existed maps only
+    ``sphri``; the plugin then is found beside it (Hydra scans ``hydra_plugins``).
+    """
+    import importlib.util
+
+    if importlib.util.find_spec("hydra_plugins.sphri_sweeper") is not None:
+        return
+    here = Path(__file__).resolve().parent.parent / "hydra_plugins"
+    if (here / "sphri_sweeper").is_dir():
+        import hydra_plugins
+
+        hydra_plugins.__path__.append(str(here))
+
+
 def main() -> None:
     """Console entry point (``sphri`` or ``python -m sphri``)."""
+    find_sweeper_plugin()
     # hydra-ray-launcher registers its own `ray` launcher schema; sphri's
     # conf/hydra/launcher/ray.yaml extends it on purpose.
     warnings.filterwarnings(

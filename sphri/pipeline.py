@@ -30,12 +30,19 @@ from omegaconf import DictConfig, OmegaConf
 
 from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import ConfigError, build, plain
-from sphri.types import CVResult, GestureDataset, TaxelGeometry
+from sphri.inputs import input_fingerprints, memo_at
+from sphri.types import Contacts, CVResult, GestureDataset, Layout, SurfaceMap, TaxelGeometry, WindowPlan
 
 log = logging.getLogger(__name__)
 
 #: Stages whose outputs are written to the on-disk cache.
 PERSISTED = frozenset({"data", "contact", "surface", "layout", "plan", "evaluate"})
+
+#: What each persisted stage's cache entry must decode into (else it is recomputed).
+CONTRACTS: dict[str, Any] = {
+    "data": GestureDataset, "contact": Contacts, "surface": SurfaceMap, "layout": Layout, "plan": WindowPlan,
+    "evaluate": (CVResult, dict),
+}
 
 
 @dataclass
@@ -70,6 +77,10 @@ class _Node:
     key: str
     compute: Callable[[], Any]
     persist: bool
+    path_key: str = ""
+    """The key with input files named by path only (finds the entry a changed file replaces)."""
+    files: dict[str, str] = field(default_factory=dict)
+    """``{path: fingerprint}`` of every file behind this stage, its inputs' included."""
     value: Any = None
     done: bool = False
 
@@ -85,9 +96,17 @@ class Pipeline:
     _upstream_s: list[float] = field(default_factory=list, repr=False)
     """Per stage being computed (a stack): wall seconds its upstream stages took."""
 
-    def add(self, name: str, version: str, config: Any, inputs: dict[str, str], compute: Callable[[], Any]) -> str:
-        key = stage_key(name, version, config, inputs)
-        self.nodes[name] = _Node(name, key, compute, persist=name in PERSISTED)
+    def add(self, name: str, version: str, config: Any, inputs: dict[str, str], compute: Callable[[], Any],
+            files: dict[str, str] | None = None) -> str:
+        """Declare a stage. ``inputs``: name -> key (other stages' keys, or plain values);
+        ``files``: ``{path: fingerprint}`` of the files the stage itself reads (part of its key)."""
+        files = dict(files or {})
+        upstream = [self.nodes[n] for n in inputs if n in self.nodes and self.nodes[n].key == inputs[n]]
+        key = stage_key(name, version, config, {**inputs, **({"files": files} if files else {})})
+        path_inputs = {**inputs, **{n.name: n.path_key for n in upstream}, **({"files": sorted(files)} if files else {})}
+        path_key = stage_key(name, version, config, path_inputs)
+        all_files = {k: v for n in upstream for k, v in n.files.items()} | files
+        self.nodes[name] = _Node(name, key, compute, persist=name in PERSISTED, path_key=path_key, files=all_files)
         return key
 
     def get(self, name: str) -> Any:
@@ -113,7 +132,8 @@ class Pipeline:
 
         try:
             if node.persist:
-                node.value = self.cache.get_or_compute(name, node.key, compute)
+                node.value = self.cache.get_or_compute(name, node.key, compute, contract=CONTRACTS.get(name),
+                                                       files=node.files, path_key=node.path_key)
             else:
                 node.value = compute()
         finally:
@@ -152,24 +172,29 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
     ver = component_versions(cfg)
     res = int(cfg.encoder.res)
     seed = int(cfg.seed)
+    fingerprints = input_fingerprints(cfg, memo_at(cache.root if cache.enabled else None))
 
-    k_hand = p.add("hand", ver["hand"], plain(cfg.hand), {}, lambda: comp["hand"].build())
-    k_robot = p.add("robot", ver["robot"], plain(cfg.robot), {}, lambda: comp["robot"].build())
+    def files(*groups: str) -> dict[str, str]:
+        """Fingerprints of the files the components of ``groups`` read."""
+        return {path: fp for g in groups for path, fp in fingerprints.get(g, {}).items()}
+
+    k_hand = p.add("hand", ver["hand"], plain(cfg.hand), {}, lambda: comp["hand"].build(), files("hand"))
+    k_robot = p.add("robot", ver["robot"], plain(cfg.robot), {}, lambda: comp["robot"].build(), files("robot"))
     # Data depends on the robot unless its component says otherwise (synthetic
     # gestures are placed on the robot's surface; a recorded dataset is not).
     data_inputs = {"hand": k_hand}
     if getattr(comp["data"], "USES_ROBOT", True):
         data_inputs["robot"] = k_robot
-    k_data = p.add("data", ver["data"], plain(cfg.data), data_inputs, lambda: comp["data"].load(hand=p.get("hand"), robot=p.get("robot")))
+    k_data = p.add("data", ver["data"], plain(cfg.data), data_inputs, lambda: comp["data"].load(hand=p.get("hand"), robot=p.get("robot")), files("data"))
     k_contact = p.add(
         "contact", ver["contact"], plain(cfg.contact), {"data": k_data, "robot": k_robot, "hand": k_hand},
-        lambda: comp["contact"].compute(p.get("data"), p.get("robot")),
+        lambda: comp["contact"].compute(p.get("data"), p.get("robot")), files("contact"),
     )
 
     def link():
         return p.get("robot").link_for(region)
 
-    k_surface = p.add("surface", ver["surface"], plain(cfg.surface), {"robot": k_robot, "region": region}, lambda: comp["surface"].fit(link()))
+    k_surface = p.add("surface", ver["surface"], plain(cfg.surface), {"robot": k_robot, "region": region}, lambda: comp["surface"].fit(link()), files("surface"))
     # A layout placed by contact density (layout=density without a file) reads the contacts.
     layout_uses_contacts = bool(getattr(comp["layout"], "uses_contacts", False))
     layout_inputs = {"surface": k_surface, "robot": k_robot, **({"contact": k_contact} if layout_uses_contacts else {})}
@@ -178,13 +203,13 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         extra = {"contacts": p.get("contact")} if layout_uses_contacts else {}
         return comp["layout"].build(link(), p.get("surface"), res, **extra)
 
-    k_layout = p.add("layout", ver["layout"], {"layout": plain(cfg.layout), "res": res}, layout_inputs, layout)
-    k_plan = p.add("plan", ver["window"], plain(cfg.window), {"contact": k_contact, "data": k_data}, lambda: comp["window"].plan(p.get("contact"), p.get("data")))
+    k_layout = p.add("layout", ver["layout"], {"layout": plain(cfg.layout), "res": res}, layout_inputs, layout, files("layout"))
+    k_plan = p.add("plan", ver["window"], plain(cfg.window), {"contact": k_contact, "data": k_data}, lambda: comp["window"].plan(p.get("contact"), p.get("data")), files("window"))
 
     def encode():
         return comp["encoder"].encode(p.get("contact"), link(), p.get("surface"), p.get("layout"), p.get("plan").selected_frames())
 
-    k_encode = p.add("encode", ver["encoder"], plain(cfg.encoder), {"contact": k_contact, "layout": k_layout, "plan": k_plan}, encode)
+    k_encode = p.add("encode", ver["encoder"], plain(cfg.encoder), {"contact": k_contact, "layout": k_layout, "plan": k_plan}, encode, files("encoder"))
 
     def noise():
         # Noise on the windows as the model sees them (padded slots included), seeded per
@@ -196,9 +221,9 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         return apply_to_windows(comp["noise"], windows, trial_keys(dataset)[windows.trial_row], seed)
 
     k_noise = p.add("noise", ver["noise"], {"noise": plain(cfg.noise), "seed": seed},
-                    {"encode": k_encode, "plan": k_plan, "window": ver["window"]}, noise)
+                    {"encode": k_encode, "plan": k_plan, "window": ver["window"]}, noise, files("noise"))
     k_filter = p.add("filter", ver["filter"], plain(cfg.filter), {"noise": k_noise},
-                     lambda: comp["filter"].apply(p.get("noise")))
+                     lambda: comp["filter"].apply(p.get("noise")), files("filter"))
 
     def evaluate():
         dataset: GestureDataset = p.get("data")
@@ -216,7 +241,7 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
 
     p.add(
         "evaluate", f"{ver['cv']}-{ver['model']}", {"model": plain(cfg.model), "cv": plain(cfg.cv), "seed": seed},
-        {"filter": k_filter, "plan": k_plan, "layout": k_layout}, evaluate,
+        {"filter": k_filter, "plan": k_plan, "layout": k_layout}, evaluate, files("model", "cv"),
     )
     return p
 
@@ -306,10 +331,14 @@ def component_versions(cfg: DictConfig) -> dict[str, str]:
 
 
 def config_hash(cfg: DictConfig) -> str:
-    """Hash of what defines a job's result: its config (everything but tracking/cache/hydra) and the
-    ``VERSION`` of every component, so that a sweep resumed after a component changed reruns its jobs."""
+    """Hash of what defines a job's result: its config (everything but tracking/cache/hydra), the
+    ``VERSION`` of every component and the content fingerprints of the files the components read
+    (:mod:`sphri.inputs`), so that a sweep resumed after a component or an input file changed reruns its jobs."""
     c = OmegaConf.to_container(cfg, resolve=True)
     for k in ("tracking", "cache", "output_dir", "resume", "plugins", "hydra", "debug", "experiment"):
         c.pop(k, None)
     c["_component_versions"] = component_versions(cfg)
+    fingerprints = input_fingerprints(cfg)
+    if fingerprints:  # the contents of the files the components read (absent: no files, hash unchanged)
+        c["_input_files"] = fingerprints
     return stable_hash(c)

@@ -17,3 +17,24 @@ def shared_dir() -> Path:
     if not (SHARED / "vr-gesture-dataset").is_dir():
         pytest.skip(f"../shared not present at {SHARED}")
     return SHARED
+
+
+@pytest.fixture()
+def arm_mesh_roots(tmp_path: Path) -> tuple[Path, Path]:
+    """(good, bad): folders holding ``arm.obj``, the parametric Reachy arm or a file that is not a mesh.
+
+    With ``robot=mesh robot.links={l_arm: arm.obj} robot.regions={arm: l_arm} robot.root=...``
+    a job on ``bad`` passes validation and fails at the robot stage.
+    """
+    import trimesh
+
+    from sphri import pipeline
+    from sphri.config import compose
+
+    good, bad = tmp_path / "good", tmp_path / "bad"
+    good.mkdir()
+    bad.mkdir()
+    link = pipeline.build(compose(["+debug=fast"]).robot).build().link_for("arm")
+    trimesh.Trimesh(link.vertices, link.faces, process=False).export(good / "arm.obj")
+    (bad / "arm.obj").write_text("this is not a mesh\n")
+    return good, bad

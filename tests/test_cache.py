@@ -37,7 +37,7 @@ def test_round_trip_and_hit(tmp_path: Path):
     np.testing.assert_array_equal(first["x"], second["x"])
     assert cache.misses == ["data"] and cache.hits == ["data"]
     # no temporary files are left behind
-    assert sorted(p.name for p in (tmp_path / "data").iterdir()) == ["k1.lock", "k1.pkl"]
+    assert sorted(p.name for p in (tmp_path / "data").iterdir()) == ["k1.entry", "k1.lock"]
 
 
 @pytest.mark.parametrize("damage", ["truncate", "flip", "header", "empty"])

@@ -107,18 +107,25 @@ def test_parallel_multirun_makes_one_parent_with_four_children(tmp_path: Path):
     assert "4 of 4 jobs finished" in proc.stdout
 
 
-def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path):
+def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path, arm_mesh_roots):
+    """A job failing at run time (a mesh file that is not a mesh) is a FAILED run; the other job still runs."""
     from mlflow.tracking import MlflowClient
 
+    good, bad = arm_mesh_roots
     out = tmp_path / "outputs"
-    proc = _sphri(["-m", "+debug=fast", "window.frames=0,10", f"output_dir={out}", "hydra/launcher=serial"], cwd=tmp_path)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    proc = _sphri(["-m", "+debug=fast", "encoder.res=2", "robot=mesh", "robot.links={l_arm: arm.obj}",
+                   "robot.regions={arm: l_arm}", "robot.units=m", f"robot.root={good},{bad}", f"output_dir={out}",
+                   "hydra/launcher=serial"], cwd=tmp_path)
+    assert proc.returncode == 1, "a sweep with a failed job exits non-zero: " + proc.stderr[-2000:]
     client = MlflowClient(default_uri(out))
     runs = client.search_runs([client.get_experiment_by_name("sphri").experiment_id])
-    jobs = {r.data.params.get("window.frames"): r for r in runs if r.data.tags.get("sphri.kind") == "job"}
-    assert jobs["0"].info.status == "FAILED" and "window.frames" in jobs["0"].data.tags["sphri.error"]
-    assert jobs["10"].info.status == "FINISHED"
-    assert "1 of 2 jobs finished" in proc.stdout
+    jobs = sorted((r for r in runs if r.data.tags.get("sphri.kind") == "job"), key=lambda r: r.info.status)
+    assert [r.info.status for r in jobs] == ["FAILED", "FINISHED"]
+    assert "arm.obj" in jobs[0].data.tags["sphri.error"]
+    assert "1 of 2 jobs finished" in proc.stdout and "FAILED: #1" in proc.stdout
+    assert "job(s) failed: #1" in proc.stderr, "the exit names the failed job"
+    parents = [r for r in runs if r.data.tags.get("sphri.kind") == "sweep"]
+    assert len(parents) == 1 and parents[0].info.status == "FAILED", "a sweep with a failed job is never left RUNNING"
 
 
 def test_rerun_of_a_sweep_skips_finished_jobs_into_the_same_parent(tmp_path: Path):

@@ -7,6 +7,7 @@ from typing import Optional
 
 from sphri.config import require, require_range, store
 from sphri.data.people import Spread
+from sphri.inputs import input_path
 from sphri.types import GESTURES
 
 
@@ -81,7 +82,7 @@ class VRGestureDataSchema:
     """``data=vr_gesture``: the recorded VR gesture dataset (:class:`sphri.data.vr_gesture.VRGestureData`)."""
 
     _target_: str = "sphri.data.vr_gesture.VRGestureData"
-    root: Optional[str] = None
+    root: Optional[str] = input_path(None, kind="dir")
     seed: int = 0
     participants: Optional[int] = None
     repetitions: Optional[int] = None

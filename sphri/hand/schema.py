@@ -8,6 +8,7 @@ from typing import Optional
 from omegaconf import MISSING
 
 from sphri.config import require, require_range, store
+from sphri.inputs import input_path
 
 #: Hand parts a capsule may belong to.
 FINGERS: tuple[str, ...] = ("thumb", "index", "middle", "ring", "pinky", "palm")
@@ -60,7 +61,7 @@ class HandCapsulesSchema:
     _target_: str = "sphri.hand.capsules.HandCapsules"
     capsules: list[CapsuleSpec] = field(default_factory=list)
     """The capsules, in pose-column order (ignored when ``definition_path`` is set)."""
-    definition_path: Optional[str] = None
+    definition_path: Optional[str] = input_path(None)
     """A dataset's ``hand_capsule_definition.json`` to read instead of ``capsules``."""
     scale: float = 1.0
     """Factor applied to every radius, height and offset (1 = as defined)."""

@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 from sphri.config import require, require_range, store
+from sphri.inputs import input_path
 
 
 def _aspect(value: float) -> None:
@@ -73,7 +74,7 @@ class DensityLayoutSchema:
     """Taxels placed by a contact-density map (denser where touch is frequent)."""
 
     _target_: str = "sphri.layout.poisson.DensityLayout"
-    density_path: str = ""
+    density_path: str = input_path("")
     """.npz with ``points_m (P, 3)`` and ``density (P,)`` (exported by the coverage analysis);
     empty: the density of this run's own contacts."""
     bandwidth_mm: float = 10.0
@@ -100,7 +101,7 @@ class FileLayoutSchema:
     """Real sensor layouts: taxel positions and normals read from a file."""
 
     _target_: str = "sphri.layout.file.FileLayout"
-    path: str = ""
+    path: str = input_path("")
     """iCub skin calibration .txt (``[calibration]`` rows x y z nx ny nz) or .npz
     (``position_m``, ``normal``)."""
     transform: list[float] = field(default_factory=list)

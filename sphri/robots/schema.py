@@ -14,6 +14,7 @@ from typing import Any, Mapping, Optional
 from omegaconf import MISSING
 
 from sphri.config import require, require_choice, require_range, store
+from sphri.inputs import input_path
 
 #: Long-axis names of parametric links.
 AXES: tuple[str, ...] = ("x", "y", "z")
@@ -117,7 +118,7 @@ class MeshRobotSchema:
     # ``Any`` rather than ``dict[str, str]``: Hydra cannot add keys to a typed
     # dict from the command line (``robot.links={arm: a.obj}``); values are
     # checked in ``__post_init__``.
-    links: Any = None
+    links: Any = input_path(None, kind="map", relative_to="root")
     """Link name -> mesh file (relative paths are relative to ``root``)."""
     regions: Any = None
     """Skin region -> link name."""
@@ -141,7 +142,7 @@ class UrdfRobotSchema:
 
     _target_: str = "sphri.robots.urdf.UrdfRobot"
     name: str = "urdf"
-    path: str = MISSING
+    path: str = input_path(MISSING, references="sphri.robots.urdf:mesh_files")
     """The URDF file; ``package://`` mesh URIs resolve relative to its folder."""
     links: list[str] = MISSING
     """URDF links to load (each mesh in that link's own frame)."""

@@ -88,6 +88,25 @@ class MeshResolver:
         return None, tried, ""
 
 
+def mesh_files(urdf_path: Path) -> list[Path]:
+    """The mesh files a URDF names that resolve to a file (its cache fingerprint covers them).
+
+    Every ``<mesh filename=...>`` (collision and visual), resolved like the
+    loader does (:class:`MeshResolver`); unresolvable names are left to the
+    loader's own error or fallback.
+    """
+    import xml.etree.ElementTree as ET
+
+    resolver = MeshResolver(Path(urdf_path).parent)
+    out = []
+    for el in ET.parse(urdf_path).getroot().iter("mesh"):
+        name = el.get("filename")
+        found = resolver.resolve(name)[0] if name else None
+        if found is not None and found not in out:
+            out.append(found)
+    return out
+
+
 def primitive_mesh(geometry: Any) -> Optional[trimesh.Trimesh]:
     """Trimesh of a URDF box/cylinder/sphere geometry (metres), None for a mesh or a zero-size primitive."""
     if geometry.box is not None:

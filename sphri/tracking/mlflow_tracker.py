@@ -7,12 +7,15 @@ per-fold metrics (``fold_accuracy``/``fold_macro_f1`` with step = fold
 index, and per participant), summary metrics, and artifacts (composed config,
 per-participant CSV, confusion matrix PNG, summary text).
 
-A multirun is one parent run (created by :class:`sphri.tracking.callbacks.
-MlflowSweepCallback` before any worker starts, so the SQLite database and the
-experiment are created once) with the jobs as children.
+A multirun is one parent run (found or created by :mod:`sphri.tracking.parent`
+after every job's config is validated and before any worker starts) with the
+jobs as children.
 
 The default store is SQLite at an absolute path (``<output_dir>/mlflow.db``),
-artifacts beside it in ``<output_dir>/mlartifacts``.
+artifacts beside it in ``<output_dir>/mlartifacts``. It is created and
+migrated under an inter-process lock the first time a tracker opens it, and
+a store left broken by an interrupted migration is refused
+(:mod:`sphri.tracking.store`).
 """
 
 from __future__ import annotations
@@ -111,12 +114,14 @@ class MlflowTracker:
         return self.uri or default_uri(output_dir)
 
     def client(self, output_dir: str | os.PathLike) -> "MlflowClient":
+        """The MLflow client; opening it creates (or checks) the store, so call it before computing."""
         if self._client is None:
             from mlflow.tracking import MlflowClient
 
+            from sphri.tracking.store import ensure_store
+
             uri = self.resolve_uri(output_dir)
-            if uri.startswith("sqlite:///"):
-                Path(uri[len("sqlite:///"):]).parent.mkdir(parents=True, exist_ok=True)
+            ensure_store(uri)  # a new SQLite store is created once, under a lock; a broken one raises BrokenStore
             self._client = MlflowClient(tracking_uri=uri)
         return self._client
 
@@ -151,12 +156,14 @@ class MlflowTracker:
         raise AssertionError("unreachable")
 
     # -- sweeps --------------------------------------------------------------
-    def start_parent(self, output_dir: str, sweep_dir: str, sweep_id: str, overrides: list[str]) -> str:
+    def start_parent(self, output_dir: str, sweep_dir: str, sweep_id: str, overrides: list[str],
+                     sweep_hash: str | None = None) -> str:
         client = self.client(output_dir)
         exp_id = self.experiment_id(output_dir)
         tags = {
             "sphri.kind": "sweep",
             "sphri.sweep_id": sweep_id,
+            **({"sphri.sweep_hash": sweep_hash} if sweep_hash else {}),
             "sphri.sweep_dir": str(Path(sweep_dir).resolve()),
             "sphri.git_commit": git_commit(),
             "sphri.version": __version__,
@@ -165,10 +172,31 @@ class MlflowTracker:
         run = self._retry(lambda: client.create_run(exp_id, tags=tags, run_name=f"sweep-{sweep_id}"))
         return run.info.run_id
 
-    def end_parent(self, output_dir: str, run_id: str, n_jobs: int, n_failed: int) -> None:
+    def end_parent(self, output_dir: str, run_id: str, n_jobs: int, n_failed: int, status: str | None = None) -> None:
+        """End a sweep's parent run: ``status`` FINISHED, FAILED or KILLED (None: FAILED if a job failed)."""
         client = self.client(output_dir)
+        status = status or ("FAILED" if n_failed else "FINISHED")
         self._retry(lambda: client.set_tag(run_id, "sphri.jobs", f"{n_jobs - n_failed}/{n_jobs} finished"))
-        self._retry(lambda: client.set_terminated(run_id, "FAILED" if n_failed == n_jobs and n_jobs else "FINISHED"))
+        if status == "KILLED":  # jobs interrupted while logging end with their sweep
+            exp_id = self._retry(lambda: client.get_run(run_id)).info.experiment_id
+            query = f"tags.`mlflow.parentRunId` = '{run_id}' and attributes.status = 'RUNNING'"
+            for child in self._retry(lambda: client.search_runs([exp_id], query)):
+                self._retry(lambda c=child: client.set_terminated(c.info.run_id, "KILLED"))
+        self._retry(lambda: client.set_terminated(run_id, status))
+
+    def find_parent(self, output_dir: str, sweep_hash: str) -> dict[str, str] | None:
+        """``{run_id, sweep_id}`` of the latest parent run of a sweep with these overrides, if any."""
+        client = self.client(output_dir)
+        exp = self._retry(lambda: client.get_experiment_by_name(self.experiment))
+        if exp is None:
+            return None
+        query = f"tags.`sphri.sweep_hash` = '{sweep_hash}' and tags.`sphri.kind` = 'sweep'"
+        runs = self._retry(lambda: client.search_runs([exp.experiment_id], query, max_results=1,
+                                                      order_by=["attributes.start_time DESC"]))
+        if not runs:
+            return None
+        run = runs[0]
+        return {"run_id": run.info.run_id, "sweep_id": run.data.tags.get("sphri.sweep_id", run.info.run_id[:8])}
 
     def reopen_parent(self, output_dir: str, run_id: str) -> bool:
         """Mark an existing parent run RUNNING again (a resumed sweep); False if gone."""

@@ -1,0 +1,222 @@
+"""The files a component reads, and their content fingerprints.
+
+A schema declares each config field that names a file or folder the
+component reads with :func:`input_path` (field metadata), once, next to the
+field::
+
+    density_path: str = input_path("")                              # one file
+    root: Optional[str] = input_path(None, kind="dir")              # every file below
+    links: Any = input_path(None, kind="map", relative_to="root")   # name -> file
+    path: str = input_path(MISSING, references="sphri.robots.urdf:mesh_files")
+
+:func:`input_fingerprints` finds these fields in a composed config (through
+each group's structured-config type) and fingerprints every file: a blake2b
+hash of its bytes, rehashed only when its size, modification time, inode or
+change time differ from the :class:`FingerprintMemo` (a small JSON file in the
+cache folder). The pipeline puts the fingerprints into the stage keys
+(:mod:`sphri.pipeline`) and the config hash, so a file replaced at the same
+path recomputes the stages that read it and everything below.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import hashlib
+import importlib
+import json
+import logging
+import os
+import tempfile
+from pathlib import Path
+from typing import Any, Callable, Iterable, Mapping
+
+from omegaconf import DictConfig, OmegaConf
+
+log = logging.getLogger(__name__)
+
+INPUT_META = "sphri_input"
+KINDS = ("file", "dir", "map")
+MEMO_NAME = "fingerprints.json"
+_CHUNK = 1 << 20
+
+
+def input_path(default: Any = None, *, kind: str = "file", relative_to: str | None = None,
+               references: str | None = None) -> Any:
+    """A schema field naming what the component reads (see the module docstring).
+
+    ``kind``: ``file`` (a path), ``dir`` (a folder: every file below it, hidden
+    ones excepted) or ``map`` (a mapping name -> file path). ``relative_to``:
+    the sibling field holding the folder relative paths start from.
+    ``references``: ``"module:function"`` returning the further files a file
+    names (e.g. a URDF's meshes).
+    """
+    if kind not in KINDS:
+        raise ValueError(f"input_path kind must be one of {KINDS}, got {kind!r}")
+    meta = {INPUT_META: {"kind": kind, "relative_to": relative_to, "references": references}}
+    return dataclasses.field(default=default, metadata=meta)
+
+
+class FingerprintMemo:
+    """Content hashes of files, remembered by (size, mtime, inode, ctime); persisted at ``path`` if given."""
+
+    def __init__(self, path: str | os.PathLike | None = None):
+        self.path = Path(path) if path is not None else None
+        self.entries: dict[str, list] = self._load()
+        self.dirty = False
+        self.hashed: list[str] = []
+
+    def _load(self) -> dict[str, list]:
+        if self.path is None:
+            return {}
+        try:
+            data = json.loads(self.path.read_text())
+            return data if isinstance(data, dict) else {}
+        except (OSError, ValueError):
+            return {}
+
+    def digest(self, path: Path) -> str:
+        """``blake2b:<hex>`` of the file's bytes, ``missing`` when it does not exist."""
+        key = str(path)
+        try:
+            st = path.stat()
+        except (FileNotFoundError, NotADirectoryError):
+            return "missing"
+        except OSError as exc:
+            return f"unreadable:{exc.errno}"
+        sig = [st.st_size, st.st_mtime_ns, st.st_ino, st.st_ctime_ns]
+        old = self.entries.get(key)
+        if isinstance(old, list) and len(old) == 5 and old[:4] == sig:
+            return old[4]
+        h = hashlib.blake2b(digest_size=16)
+        try:
+            with open(path, "rb") as fh:
+                while chunk := fh.read(_CHUNK):
+                    h.update(chunk)
+        except OSError as exc:
+            return f"unreadable:{exc.errno}"
+        digest = "blake2b:" + h.hexdigest()
+        self.entries[key] = [*sig, digest]
+        self.dirty = True
+        self.hashed.append(key)
+        return digest
+
+    def save(self) -> None:
+        """Write the memo (merged with what other processes wrote; best effort)."""
+        if self.path is None or not self.dirty:
+            return
+        try:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            merged = {**self._load(), **self.entries}
+            fd, tmp = tempfile.mkstemp(prefix=".fingerprints.", suffix=".tmp", dir=self.path.parent)
+            with os.fdopen(fd, "w") as fh:
+                json.dump(merged, fh)
+            os.replace(tmp, self.path)
+            self.dirty = False
+        except OSError as exc:  # a read-only cache folder: fingerprints are recomputed next time
+            log.debug("cannot write the fingerprint memo %s: %s", self.path, exc)
+            with contextlib.suppress(Exception):
+                os.unlink(tmp)
+
+
+def _files_below(root: Path, exclude: frozenset[Path] = frozenset()) -> list[Path]:
+    """Regular files below ``root`` (sorted; hidden names and the ``exclude`` folders skipped)."""
+    out = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        dirnames[:] = sorted(d for d in dirnames if not d.startswith(".") and Path(dirpath, d).absolute() not in exclude)
+        out += [Path(dirpath) / f for f in sorted(filenames) if not f.startswith(".")]
+    return out
+
+
+def _function(spec: str) -> Callable[[Path], Iterable[Path]]:
+    module, _, name = spec.partition(":")
+    return getattr(importlib.import_module(module), name)
+
+
+def declared_files(node: Any, exclude: frozenset[Path] = frozenset()) -> list[tuple[str, Path]]:
+    """``(field, path)`` of every file the component configured by ``node`` reads (folders expanded).
+
+    ``exclude``: folders never descended into (sphri's own output and cache
+    folders, should a dataset folder hold them)."""
+    if not isinstance(node, DictConfig):
+        return []
+    schema = OmegaConf.get_type(node)
+    if schema is None or not dataclasses.is_dataclass(schema):
+        return []
+    out: list[tuple[str, Path]] = []
+    specs = [(f.name, f.metadata[INPUT_META]) for f in dataclasses.fields(schema) if INPUT_META in f.metadata]
+    if not specs:
+        return out
+    values = OmegaConf.to_container(node, resolve=True)
+    for name, spec in specs:
+        value = values.get(name)
+        if value in (None, "", "???"):
+            continue
+        base = None
+        if spec["relative_to"]:
+            b = values.get(spec["relative_to"])
+            base = Path(str(b)).expanduser() if b not in (None, "") else None
+        raw = list(value.values()) if spec["kind"] == "map" and isinstance(value, Mapping) else [value]
+        for item in raw:
+            if item in (None, ""):
+                continue
+            p = Path(str(item)).expanduser()
+            if base is not None and not p.is_absolute():
+                p = base / p
+            p = p.absolute()
+            if spec["kind"] == "dir" and p.is_dir():
+                out += [(name, q) for q in _files_below(p, exclude)]
+                continue
+            out.append((name, p))
+            if spec["references"] and p.is_file():
+                try:
+                    refs = list(_function(spec["references"])(p))
+                except Exception as exc:  # the component reports an unreadable file itself
+                    log.debug("cannot list the files %s names: %s", p, exc)
+                    refs = []
+                out += [(name, Path(r).absolute()) for r in refs]
+    return out
+
+
+def fingerprints(node: Any, memo: FingerprintMemo, exclude: frozenset[Path] = frozenset()) -> dict[str, str]:
+    """``{absolute path: digest}`` of the files the component configured by ``node`` reads."""
+    return {str(p): memo.digest(p) for _, p in declared_files(node, exclude)}
+
+
+_MEMOS: dict[str, FingerprintMemo] = {}
+
+
+def memo_at(cache_dir: str | os.PathLike | None) -> FingerprintMemo:
+    """The fingerprint memo kept in ``cache_dir`` (None: in memory only), one per process."""
+    if cache_dir is None:
+        return FingerprintMemo(None)
+    path = str(Path(cache_dir).absolute() / MEMO_NAME)
+    memo = _MEMOS.get(path)
+    if memo is None:
+        memo = _MEMOS[path] = FingerprintMemo(path)
+    return memo
+
+
+def memo_for(cfg: DictConfig) -> FingerprintMemo:
+    """The fingerprint memo of ``cfg``'s cache folder (in memory only when the cache is disabled)."""
+    cache = cfg.get("cache")
+    enabled = cache is not None and bool(cache.get("enabled", True))
+    return memo_at(str(cache.dir) if enabled else None)
+
+
+def input_fingerprints(cfg: DictConfig, memo: FingerprintMemo | None = None) -> dict[str, dict[str, str]]:
+    """``{group: {path: digest}}`` for every stage group whose component reads files."""
+    from sphri.config import STAGE_GROUPS
+
+    memo = memo_for(cfg) if memo is None else memo
+    exclude = frozenset(Path(str(d)).absolute() for d in (cfg.get("output_dir"), cfg.get("cache", {}).get("dir")) if d)
+    out = {}
+    for group in STAGE_GROUPS:
+        node = cfg.get(group)
+        if group == "tracking" or not isinstance(node, DictConfig):
+            continue
+        fp = fingerprints(node, memo, exclude)
+        if fp:
+            out[group] = fp
+    memo.save()
+    return out

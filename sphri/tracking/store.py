@@ -1,0 +1,187 @@
+"""The SQLite MLflow store: created and migrated once, under a file lock; a broken one is refused.
+
+MLflow creates a new SQLite store by running its schema migrations (alembic)
+in whichever process opens it first. Two first runs at once race through
+the migrations (``table _alembic_tmp_* already exists``, ``duplicate column``)
+and can leave the database half-migrated. :func:`ensure_store` takes an
+exclusive ``fcntl`` lock on ``<db>.lock``, refuses a store that an
+interrupted migration left broken (a leftover ``_alembic_tmp_*`` table or a
+schema revision other than MLflow's head) with :class:`BrokenStore` naming
+the repair command, and otherwise opens the store (creating and migrating it
+when new) before releasing the lock. It runs before a job computes anything,
+so nothing is computed into a store it cannot log to.
+
+``python -m sphri.tracking.store repair PATH/mlflow.db`` repairs one: a store
+without runs is moved aside (``mlflow.db.broken-<time>``) and created anew;
+otherwise a backup is taken (``mlflow.db.bak-<time>``), each leftover
+``_alembic_tmp_X`` is dropped (or renamed to ``X`` when ``X`` is missing) and
+the schema upgraded to MLflow's head.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import shutil
+import sqlite3
+import sys
+import time
+from pathlib import Path
+from typing import Iterator
+
+TMP_PREFIX = "_alembic_tmp_"
+
+
+class BrokenStore(RuntimeError):
+    """An MLflow SQLite store an interrupted schema migration left broken."""
+
+
+def sqlite_path(uri: str) -> Path | None:
+    """The database file of a ``sqlite:///`` URI (None for other stores)."""
+    if not uri.startswith("sqlite:///"):
+        return None
+    return Path(uri[len("sqlite:///"):])
+
+
+@contextlib.contextmanager
+def store_lock(db: Path) -> Iterator[None]:
+    """Exclusive inter-process lock on ``<db>.lock`` (the store's creation and repair)."""
+    db.parent.mkdir(parents=True, exist_ok=True)
+    with open(db.with_name(db.name + ".lock"), "a+b") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _tables(db: Path) -> list[str]:
+    with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True)) as con:
+        return [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")]
+
+
+def _revision(db: Path) -> str | None:
+    with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True)) as con:
+        try:
+            row = con.execute("SELECT version_num FROM alembic_version").fetchone()
+        except sqlite3.OperationalError:
+            return None
+    return row[0] if row else None
+
+
+def head_revision() -> str:
+    from mlflow.store.db.utils import _get_latest_schema_revision
+
+    return _get_latest_schema_revision()
+
+
+def problems(db: Path) -> list[str]:
+    """What is wrong with an existing store file (empty: nothing, or no store yet)."""
+    if not db.exists() or db.stat().st_size == 0:
+        return []
+    try:
+        tables = _tables(db)
+    except sqlite3.DatabaseError as exc:
+        return [f"not a readable SQLite database ({exc})"]
+    if not tables:
+        return []
+    out = [f"leftover table {t} of an interrupted schema migration" for t in tables if t.startswith(TMP_PREFIX)]
+    rev, head = _revision(db), head_revision()
+    if rev != head:
+        out.append(f"schema revision {rev} is not MLflow's {head} (a migration did not finish)")
+    return out
+
+
+def repair_command(db: Path) -> str:
+    return f"python -m sphri.tracking.store repair {db}"
+
+
+def ensure_store(uri: str) -> None:
+    """Create/migrate the SQLite store at ``uri`` once, under the lock; raise :class:`BrokenStore` if broken."""
+    db = sqlite_path(uri)
+    if db is None:
+        return
+    with store_lock(db):
+        found = problems(db)
+        if found:
+            raise BrokenStore(
+                f"MLflow store {db} is broken: {'; '.join(found)}. Nothing was computed into it. "
+                f"Repair it with: {repair_command(db)}"
+            )
+        from mlflow.tracking import MlflowClient
+
+        MlflowClient(tracking_uri=uri).search_experiments(max_results=1)  # creates and migrates a new store
+
+
+def _n_runs(db: Path) -> int:
+    with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True)) as con:
+        try:
+            return int(con.execute("SELECT count(*) FROM runs").fetchone()[0])
+        except sqlite3.OperationalError:
+            try:
+                return int(con.execute(f"SELECT count(*) FROM {TMP_PREFIX}runs").fetchone()[0])
+            except sqlite3.OperationalError:
+                return 0
+
+
+def repair(db: Path) -> str:
+    """Repair a broken store (see the module docstring); returns what was done."""
+    db = Path(db).absolute()
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    with store_lock(db):
+        found = problems(db)
+        if not found:
+            return f"{db}: nothing to repair"
+        try:
+            n_runs = _n_runs(db)
+        except sqlite3.DatabaseError:
+            n_runs = 0
+        if n_runs == 0:
+            aside = db.with_name(f"{db.name}.broken-{stamp}")
+            db.rename(aside)
+            from mlflow.tracking import MlflowClient
+
+            MlflowClient(tracking_uri=f"sqlite:///{db}").search_experiments(max_results=1)
+            return f"{db}: held no runs; moved to {aside} and created a new store"
+        backup = db.with_name(f"{db.name}.bak-{stamp}")
+        shutil.copy2(db, backup)
+        with contextlib.closing(sqlite3.connect(db)) as con:
+            for t in _tables(db):
+                if t.startswith(TMP_PREFIX):
+                    real = t[len(TMP_PREFIX):]
+                    if real in _tables(db):
+                        con.execute(f'DROP TABLE "{t}"')
+                    else:
+                        con.execute(f'ALTER TABLE "{t}" RENAME TO "{real}"')
+            con.commit()
+        import sqlalchemy
+        from mlflow.store.db.utils import _upgrade_db
+
+        if _revision(db) != head_revision():
+            _upgrade_db(sqlalchemy.create_engine(f"sqlite:///{db}"))
+        left = problems(db)
+        if left:
+            raise BrokenStore(f"{db}: still broken after repair ({'; '.join(left)}); the original is at {backup}")
+        return f"{db}: repaired ({n_runs} runs kept; backup at {backup})"
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if len(argv) != 2 or argv[0] not in ("repair", "check"):
+        print("usage: python -m sphri.tracking.store {check|repair} PATH/mlflow.db", file=sys.stderr)
+        return 2
+    db = Path(argv[1])
+    if argv[0] == "check":
+        found = problems(db)
+        print(f"{db}: " + ("; ".join(found) + f" (repair: {repair_command(db)})" if found else "ok"))
+        return 1 if found else 0
+    try:
+        print(repair(db))
+    except BrokenStore as exc:
+        print(f"sphri: {exc}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

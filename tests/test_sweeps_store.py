@@ -1,0 +1,122 @@
+"""Concurrent first runs share one MLflow store; sweeps are validated first and always end their parent run."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from sphri.tracking.mlflow_tracker import PARENT_FILE, default_uri
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONUNBUFFERED": "1"}
+
+
+def _sphri(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "sphri", *args], cwd=cwd, env=_env(), capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def _runs(out: Path, kind: str | None = None) -> list:
+    from mlflow.tracking import MlflowClient
+
+    client = MlflowClient(default_uri(out))
+    exp = client.get_experiment_by_name("sphri")
+    runs = client.search_runs([exp.experiment_id]) if exp else []
+    return [r for r in runs if kind is None or r.data.tags.get("sphri.kind") == kind]
+
+
+# ------------------------------------------------------------------ the store
+def test_four_concurrent_first_runs_share_one_new_store(tmp_path: Path):
+    """Four first runs at once into one new output_dir: all finish, four runs in the store (about 60 s on 2 cores)."""
+    out = tmp_path / "race"
+    args = [sys.executable, "-m", "sphri", "+debug=fast", "encoder.res=2", "data.participants=2", "data.repetitions=1",
+            f"output_dir={out}"]
+    procs = [subprocess.Popen(args, cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+             for _ in range(4)]
+    logs = [p.communicate(timeout=600)[0] for p in procs]
+    for p, log in zip(procs, logs):
+        assert p.returncode == 0, log[-3000:]
+    jobs = _runs(out, "job")
+    assert len(jobs) == 4 and all(r.info.status == "FINISHED" for r in jobs)
+    from sphri.tracking.store import problems
+
+    assert problems(out / "mlflow.db") == []
+
+
+def test_store_left_broken_by_a_migration_is_refused_before_computing(tmp_path: Path):
+    from sphri.tracking.store import main as store_main
+
+    out = tmp_path / "out"
+    out.mkdir()
+    db = out / "mlflow.db"
+    from mlflow.tracking import MlflowClient
+
+    MlflowClient(f"sqlite:///{db}").search_experiments()  # a valid new store...
+    with sqlite3.connect(db) as con:  # ...that a second process's migration left half done
+        con.execute("CREATE TABLE _alembic_tmp_latest_metrics (x INTEGER)")
+    proc = _sphri(["+debug=fast", "encoder.res=2", f"output_dir={out}"], cwd=tmp_path)
+    assert proc.returncode == 1
+    assert "_alembic_tmp_latest_metrics" in proc.stderr
+    assert f"python -m sphri.tracking.store repair {db}" in proc.stderr
+    assert "computing" not in proc.stdout + proc.stderr, "nothing is computed into a broken store"
+    assert not (out / "cache").exists()
+    assert store_main(["repair", str(db)]) == 0
+    assert store_main(["check", str(db)]) == 0
+
+
+# ------------------------------------------------------------------ sweeps
+@pytest.mark.parametrize("values", ["2,abc", "0,2"])
+def test_sweep_with_an_invalid_point_starts_no_job(tmp_path: Path, values: str):
+    out = tmp_path / "out"
+    proc = _sphri(["-m", "+debug=fast", f"encoder.res={values}", f"output_dir={out}", "hydra/launcher=serial"], cwd=tmp_path)
+    assert proc.returncode == 2, proc.stderr[-3000:]
+    bad = "abc" if "abc" in values else "0"
+    assert f"encoder.res={bad}" in proc.stderr and "no job was started" in proc.stderr
+    assert "computing" not in proc.stdout + proc.stderr
+    assert not (out / "mlflow.db").exists() or _runs(out) == [], "no parent run is opened (none left RUNNING)"
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_killed_sweep_ends_its_parent_killed(tmp_path: Path, sig: int):
+    out = tmp_path / "out"
+    sweep_dir = out / "sweeps" / "k"
+    proc = subprocess.Popen([sys.executable, "-m", "sphri", "-m", "+debug=fast", "encoder.res=range(2,20)",
+                             f"output_dir={out}", "hydra/launcher=serial", f"hydra.sweep.dir={sweep_dir}"],
+                            cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    deadline = time.time() + 300
+    while not (sweep_dir / PARENT_FILE).exists() and time.time() < deadline and proc.poll() is None:
+        time.sleep(0.2)
+    time.sleep(2.0)  # inside the first job
+    proc.send_signal(sig)
+    log = proc.communicate(timeout=300)[0]
+    assert proc.returncode == 128 + sig, log[-3000:]
+    parent_id = json.loads((sweep_dir / PARENT_FILE).read_text())["run_id"]
+    parent = [r for r in _runs(out, "sweep") if r.info.run_id == parent_id][0]
+    assert parent.info.status == "KILLED"
+    assert "sweep KILLED" in log
+
+
+def test_rerun_of_a_sweep_in_a_new_timestamped_dir_reuses_its_parent(tmp_path: Path):
+    out = tmp_path / "out"
+    args = ["-m", "+debug=fast", "encoder.res=2,3", f"output_dir={out}", "hydra/launcher=serial"]
+    first = _sphri(args, cwd=tmp_path)
+    assert first.returncode == 0, first.stderr[-3000:]
+    time.sleep(1.1)  # the default sweep dir is timestamped to the second
+    second = _sphri(["-m", "hydra/launcher=serial", f"output_dir={out}", "encoder.res=2,3", "debug=fast"], cwd=tmp_path)
+    assert second.returncode == 0, second.stderr[-3000:]
+    assert "2 of 2 jobs finished (2 skipped" in second.stdout
+    assert len(list((out / "multirun").glob("*/*"))) == 2, "two sweep directories"
+    parents = _runs(out, "sweep")
+    assert len(parents) == 1 and parents[0].info.status == "FINISHED"
+    assert len(_runs(out, "job")) == 2
