@@ -158,6 +158,8 @@ class SkinLiveSettings:
     """Model file (from train_export) or an MLflow artifact URI runs:/<run_id>/<path>."""
     tracking_uri: Optional[str] = None
     """MLflow tracking URI for runs:/ models (None = sqlite:///outputs/mlflow.db, the pipeline's default)."""
+    allow_remote: bool = False
+    """Fetch a remote model (runs:/, models:/, http://...); off by default: only local files are read."""
     baud: int = 1_000_000
     """Bits per second (ignored by USB CDC devices and socket://)."""
     stride: int = 0

@@ -4,7 +4,7 @@
 
     python -m sphri.hardware.skin record port=/dev/ttyACM0 out=rec.npz grid=18x6 duration_s=60
     python -m sphri.hardware.skin live port=/dev/ttyACM0 model=outputs/models/rf.sphrimodel
-    python -m sphri.hardware.skin live port=socket://127.0.0.1:7777 model=runs:/<run_id>/model/rf.sphrimodel
+    python -m sphri.hardware.skin live port=socket://127.0.0.1:7777 model=runs:/<run_id>/model/rf.sphrimodel allow_remote=true
 
 :class:`SkinReader` turns a port into a stream of :class:`ReceivedFrame`
 (decoded by :class:`~sphri.hardware.skin_protocol.SkinDecoder`: garbage,
@@ -223,7 +223,8 @@ def live(settings: SkinLiveSettings, out: Callable[[str], None] = print) -> dict
     from sphri.hardware.live import LiveClassifier, auto_stride
     from sphri.hardware.model_file import load_model, resolve_model_path
 
-    bundle = load_model(resolve_model_path(settings.model, settings.tracking_uri or default_tracking_uri()))
+    bundle = load_model(resolve_model_path(settings.model, settings.tracking_uri or default_tracking_uri(),
+                                            allow_remote=settings.allow_remote))
     stride = settings.stride or auto_stride(bundle.frame_rate_hz)
     clf = LiveClassifier(bundle, stride, settings.onset_taxels, settings.calibrate_frames, settings.release_frames,
                          min(settings.persist, bundle.window_length), cluster_taxels=settings.cluster_taxels)
@@ -315,7 +316,7 @@ USAGE = """usage: python -m sphri.hardware.skin record|live [key=value ...]
 
 record: port=... out=rec.npz [taxels=0 grid=HxW frames=0 duration_s=0 idle_s=0
         reconnect=false reconnect_timeout_s=30 start_command=true baud=1000000]
-live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [stride=0 onset_taxels=0
+live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [allow_remote=false stride=0 onset_taxels=0
         calibrate_frames=30 release_frames=10 out=predictions.jsonl show=all|touches|off
         frames=0 duration_s=0 idle_s=0 reconnect=false ...]
 (defaults and meanings: sphri/hardware/settings.py, SkinRecordSettings / SkinLiveSettings)
