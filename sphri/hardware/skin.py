@@ -153,10 +153,21 @@ def _error_line(stats) -> str:
 
 # --------------------------------------------------------------------------- record
 def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> dict:
-    """``skin record``: read frames until a stop condition, save them; returns a summary."""
-    from sphri.hardware.recording import SkinRecording, save_recording
+    """``skin record``: read frames until a stop condition, save them; returns a summary.
+
+    The output path is checked, and ``<out>.partial`` created, before the
+    port is opened; frames are appended to it every ``chunk_frames``
+    (:class:`~sphri.hardware.recording.PartialWriter`). At the end the
+    recording goes to ``out`` (or a fallback file in the working directory)
+    and the partial file is removed.
+    """
+    from sphri.hardware.recording import PartialWriter, SkinRecording, save_with_fallback
 
     grid = parse_grid(settings.grid)
+    started = time.time()
+    partial = PartialWriter(settings.out, settings.chunk_frames,
+                            {"port": settings.port, "grid_shape": list(grid) if grid else None,
+                             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started))})
     reader = SkinReader(settings.port, settings.baud, settings.taxels, settings.reconnect,
                         settings.reconnect_timeout_s, start_command=settings.start_command)
     values: list[np.ndarray] = []
@@ -165,8 +176,7 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> 
     seqs: list[int] = []
     segs: list[int] = []
     error: BaseException | None = None
-    started = time.time()
-    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop)")
+    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames appended to {partial.path} as they arrive)")
     try:
         with reader:
             for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s):
@@ -175,13 +185,20 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> 
                 dev_t.append(rf.frame.device_time_us)
                 seqs.append(rf.frame.seq)
                 segs.append(rf.segment)
+                partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
                 if len(values) % 500 == 0:
                     out(f"  {len(values)} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
+            partial.flush()
     except KeyboardInterrupt:
         reader.stop_reason = "interrupted"
     except (PortLost, StreamMismatch) as exc:
         error = exc
         reader.stop_reason = str(exc)
+    except OSError as exc:  # writing the partial file failed (a full disk): keep what was read
+        error = exc
+        reader.stop_reason = f"writing {partial.path} failed: {exc}"
+    finally:
+        partial.close()
     n = reader.decoder.expected_taxels or settings.taxels or (grid[0] * grid[1] if grid else 0)
     arr = np.stack(values) if values else np.zeros((0, n), dtype=np.float32)
     if grid is not None and arr.shape[1] != grid[0] * grid[1]:
@@ -198,12 +215,21 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> 
         "protocol": "sphri-skin/1",
     }
     rec = SkinRecording(arr, np.asarray(host_t), np.asarray(dev_t), np.asarray(seqs), np.asarray(segs), grid, meta)
-    path = save_recording(rec, settings.out)
+    try:
+        path, save_error = save_with_fallback(rec, settings.out, say=out)
+    except Exception as exc:  # the fallback failed too: the partial file holds what was written
+        out(f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {partial.n_written} of "
+            f"{rec.n_frames} frames are in {partial.path} (python -c \"from sphri.hardware.recording import "
+            f"load_recording; load_recording('{partial.path}')\" reads it)")
+        return {"frames": rec.n_frames, "path": str(partial.path), "decoder": stats, "error": str(exc),
+                "reconnects": reader.link.reconnects}
+    partial.remove()
     out(f"saved {rec.n_frames} frames x {rec.n_taxels} taxels to {path} ({reader.stop_reason}); "
         f"rate {rec.rate_hz:.1f} Hz; reconnects {reader.link.reconnects}")
     out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}")
     if error is not None:
         out(f"stopped early: {error}")
+    error = error or save_error
     return {"frames": rec.n_frames, "path": str(path), "decoder": stats, "error": str(error) if error else None,
             "reconnects": reader.link.reconnects}
 
@@ -314,7 +340,7 @@ def live(settings: SkinLiveSettings, out: Callable[[str], None] = print) -> dict
 
 USAGE = """usage: python -m sphri.hardware.skin record|live [key=value ...]
 
-record: port=... out=rec.npz [taxels=0 grid=HxW frames=0 duration_s=0 idle_s=0
+record: port=... out=rec.npz [taxels=0 grid=HxW frames=0 duration_s=0 idle_s=0 chunk_frames=50
         reconnect=false reconnect_timeout_s=30 start_command=true baud=1000000]
 live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [allow_remote=false stride=0 onset_taxels=0
         calibrate_frames=30 release_frames=10 out=predictions.jsonl show=all|touches|off
