@@ -29,6 +29,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from sphri.config import CONF_DIR, ConfigError, normalize_overrides, register_schemas, validate
+from sphri.errors import report, take_verbose_flag
 
 log = logging.getLogger("sphri")
 
@@ -101,8 +102,9 @@ def run_job(cfg: DictConfig) -> dict | None:
             return None
         if isinstance(exc, ConfigError):
             log.error("invalid config: %s", exc)
-            print(f"sphri: invalid config: {exc}", file=sys.stderr)
-            sys.exit(2)
+        code = report("sphri", exc)  # one line for expected errors; traceback with --verbose / HYDRA_FULL_ERROR=1
+        if code is not None:
+            sys.exit(code)
         raise
 
     run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices) if tracker.enabled else None
@@ -127,7 +129,7 @@ def main() -> None:
         "ignore", message=r"(?s).*'hydra/launcher/ray' is validated against ConfigStore schema", category=UserWarning
     )
     register_schemas()
-    sys.argv = [sys.argv[0], *normalize_overrides(sys.argv[1:])]
+    sys.argv = [sys.argv[0], *normalize_overrides(take_verbose_flag(sys.argv[1:]))]
     _hydra_main()
 
 

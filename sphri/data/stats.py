@@ -43,6 +43,7 @@ from sphri.data.reference_stats import (
     VR_FRAME_RATE_HZ,
     median_trial_frames,
 )
+from sphri.errors import clean_errors
 from sphri.types import GESTURES, Contacts, GestureDataset, Robot
 
 log = logging.getLogger(__name__)
@@ -244,6 +245,7 @@ def dataset_statistics(overrides: Sequence[str] = ()) -> tuple[GestureDataset, p
     return dataset, stats, gesture_summary(stats)
 
 
+@clean_errors("sphri.data.stats")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")

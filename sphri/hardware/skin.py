@@ -26,9 +26,10 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 
 from sphri.config import ConfigError
+from sphri.errors import clean_errors
 from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, parse_cli, parse_grid
 from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, encode_control
-from sphri.hardware.transport import Link, PortError, PortLost
+from sphri.hardware.transport import Link, PortLost
 
 log = logging.getLogger(__name__)
 
@@ -349,6 +350,7 @@ live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [allow_remote=false
 """
 
 
+@clean_errors("sphri.hardware.skin")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):
@@ -367,12 +369,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"sphri.hardware.skin: invalid setting: {exc}", file=sys.stderr)
         return 2
-    except PortError as exc:
-        print(f"sphri.hardware.skin: {exc}", file=sys.stderr)
-        return 1
-    except (OSError, ValueError) as exc:  # model or output files
-        print(f"sphri.hardware.skin: {exc}", file=sys.stderr)
-        return 1
+    # port, model-file and recording errors: one line from @clean_errors
     return 1 if summary.get("error") else 0
 
 

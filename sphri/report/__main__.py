@@ -17,6 +17,7 @@ import argparse
 import logging
 import sys
 
+from sphri.errors import clean_errors
 from sphri.report.analysis import RuleSettings
 from sphri.report.build import make_report
 from sphri.report.sweep import ReportError
@@ -44,6 +45,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+@clean_errors("sphri.report")
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     logging.basicConfig(level=logging.WARNING)
