@@ -199,21 +199,28 @@ class PartialWriter:
         if len(self._buf) >= self.chunk_frames:
             self.flush()
 
-    def flush(self, grid_shape: tuple[int, int] | None = None) -> None:
-        """Write the buffered frames (raises OSError, e.g. a full disk; frames already written stay)."""
+    def flush(self) -> None:
+        """Write the buffered frames; a failed write (e.g. a full disk) raises :class:`RecordingError`.
+
+        The frames written by earlier chunks stay in the file.
+        """
         if not self._buf or self._fh.closed:
             return
-        if self._dtype is None:
-            n = int(np.asarray(self._buf[0][0]).shape[0])
-            self._dtype = _record_dtype(n)
-            head = json.dumps({"format": FORMAT, "n_taxels": n, **self.meta}, default=str).encode()
-            self._fh.write(PARTIAL_MAGIC + struct.pack("<I", len(head)) + head)
-        rec = np.zeros(len(self._buf), dtype=self._dtype)
-        for i, row in enumerate(self._buf):
-            rec[i] = row
-        self._fh.write(rec.tobytes())
-        self._fh.flush()
-        os.fsync(self._fh.fileno())
+        try:
+            if self._dtype is None:
+                n = int(np.asarray(self._buf[0][0]).shape[0])
+                self._dtype = _record_dtype(n)
+                head = json.dumps({"format": FORMAT, "n_taxels": n, **self.meta}, default=str).encode()
+                self._fh.write(PARTIAL_MAGIC + struct.pack("<I", len(head)) + head)
+            rec = np.zeros(len(self._buf), dtype=self._dtype)
+            for i, row in enumerate(self._buf):
+                rec[i] = row
+            self._fh.write(rec.tobytes())
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+        except OSError as exc:
+            raise RecordingError(f"writing {self.path} failed after {self.n_written} frames "
+                                 f"({exc.strerror or exc})") from None
         self.n_written += len(self._buf)
         self._buf.clear()
 

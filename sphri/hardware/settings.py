@@ -158,7 +158,7 @@ class SkinLiveSettings:
     port: str = "???"
     """Device or pyserial URL of the skin."""
     model: str = "???"
-    """Model file (from train_export) or an MLflow artifact URI runs:/<run_id>/<path>."""
+    """Model file (from train_export), or with allow_remote=true an MLflow artifact URI runs:/<run_id>/<path>."""
     tracking_uri: Optional[str] = None
     """MLflow tracking URI for runs:/ models (None = sqlite:///outputs/mlflow.db, the pipeline's default)."""
     allow_remote: bool = False

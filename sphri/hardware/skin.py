@@ -162,7 +162,7 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> 
     recording goes to ``out`` (or a fallback file in the working directory)
     and the partial file is removed.
     """
-    from sphri.hardware.recording import PartialWriter, SkinRecording, save_with_fallback
+    from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording, save_with_fallback
 
     grid = parse_grid(settings.grid)
     started = time.time()
@@ -195,9 +195,9 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> 
     except (PortLost, StreamMismatch) as exc:
         error = exc
         reader.stop_reason = str(exc)
-    except OSError as exc:  # writing the partial file failed (a full disk): keep what was read
+    except RecordingError as exc:  # writing the partial file failed (a full disk): keep what was read
         error = exc
-        reader.stop_reason = f"writing {partial.path} failed: {exc}"
+        reader.stop_reason = str(exc)
     finally:
         partial.close()
     n = reader.decoder.expected_taxels or settings.taxels or (grid[0] * grid[1] if grid else 0)

@@ -129,3 +129,34 @@ def test_a_failure_at_the_end_saves_to_a_fallback_in_the_working_directory(tmp_p
     assert saved.parent == work and summary["frames"] == 30 and summary["error"]
     assert load_recording(saved).n_frames == 30
     assert any(str(saved) in ln and "30 frames" in ln for ln in lines)
+
+
+def test_a_full_disk_while_recording_stops_and_keeps_every_frame_read(tmp_path, monkeypatch):
+    """The second chunk's fsync fails with ENOSPC: the first chunk stays in the partial file, and all
+    frames read so far are saved at the end."""
+    import errno
+
+    import sphri.hardware.recording as recording
+
+    calls = {"n": 0}
+    real_fsync = os.fsync
+
+    def fsync(fd):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real_fsync(fd)
+
+    monkeypatch.setattr(recording.os, "fsync", fsync)
+    sim, stream, th = _simulator(200)
+    out = tmp_path / "rec.npz"
+    try:
+        summary = record(SkinRecordSettings(port=sim.endpoint.url, out=str(out), frames=100, chunk_frames=10),
+                         out=lambda m: None)
+    finally:
+        sim.stop.set()
+        th.join(10)
+    assert "No space left" in summary["error"] and "after 10 frames" in summary["error"]
+    rec = load_recording(out)
+    assert rec.n_frames == 20  # the recorder stopped at the failed chunk, with every frame it had read
+    np.testing.assert_array_equal(rec.seq, np.arange(20))
