@@ -31,6 +31,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from sphri.config import CONF_DIR, ConfigError, normalize_overrides, register_schemas, validate
+from sphri.errors import report, take_verbose_flag
 
 log = logging.getLogger("sphri")
 
@@ -101,19 +102,22 @@ def run_job(cfg: DictConfig) -> dict | None:
             except Exception:  # the tracking config itself is broken
                 tracker = None
         broken = isinstance(exc, BrokenStore)
-        run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if tracker and tracker.enabled and not broken else None
+        # An invalid config is not a run: it makes no MLflow run (only the job's status file says so).
+        recorded = tracker is not None and tracker.enabled and not broken and not isinstance(exc, ConfigError)
+        run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if recorded else None
         _write_status(job_dir, job_num, "FAILED", error, run_id)
         if multirun:
             log.error("job %d FAILED: %s\n%s", job_num, error, traceback.format_exc())
             return None
         if isinstance(exc, ConfigError):
             log.error("invalid config: %s", exc)
-            print(f"sphri: invalid config: {exc}", file=sys.stderr)
-            sys.exit(2)
         if broken:
             log.error("%s", exc)
             print(f"sphri: {exc}", file=sys.stderr)
             sys.exit(1)
+        code = report("sphri", exc)  # one line for expected errors; traceback with --verbose / HYDRA_FULL_ERROR=1
+        if code is not None:
+            sys.exit(code)
         raise
 
     run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices) if tracker.enabled else None
@@ -164,7 +168,7 @@ def main() -> None:
         print(help_text())  # sphri's own help: Hydra's would print every schema entry and the whole config
         return
     register_schemas()
-    sys.argv = [sys.argv[0], *normalize_overrides(sys.argv[1:])]
+    sys.argv = [sys.argv[0], *normalize_overrides(take_verbose_flag(sys.argv[1:]))]
     _hydra_main()
 
 

@@ -22,6 +22,7 @@ from pathlib import Path
 import yaml
 
 from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, compose
+from sphri.errors import clean_errors
 
 def components(group: str) -> list[tuple[str, str]]:
     """(name, one-line description) of each YAML file in ``conf/<group>/``."""
@@ -132,6 +133,7 @@ def cmd_validate(overrides: list[str]) -> int:
     return 0
 
 
+@clean_errors("sphri")
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m sphri.cli", description=__doc__.split("\n\n")[0])
     sub = parser.add_subparsers(dest="cmd", required=True)

@@ -10,6 +10,8 @@ stage runs, re-raising problems as :class:`ConfigError` naming the key.
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import importlib
 import re
 from dataclasses import dataclass, field
@@ -330,6 +332,7 @@ def validate(cfg: DictConfig) -> None:
             raise ConfigError(msg if msg.startswith(group + ".") else f"{group}.{msg}") from None
         except OmegaConfBaseException as exc:
             raise ConfigError(_explain(exc)) from None
+    check_known_keys(cfg)
     if cfg.seed < 0:
         raise ConfigError(f"seed={cfg.seed} is invalid: must be >= 0")
     variant = cfg.get("variant")
@@ -337,4 +340,33 @@ def validate(cfg: DictConfig) -> None:
         raise ConfigError(f"variant={variant!r} is invalid: a name of letters, digits, '_', '.' or '-'")
     for check in CROSS_CHECKS:
         check(cfg)
+
+
+def close_match(word: str, choices: Iterable[str]) -> str:
+    """`` (did you mean X?)`` for the closest of ``choices`` to ``word``, or ``""``."""
+    best = difflib.get_close_matches(word, list(choices), n=1, cutoff=0.6)
+    return f" (did you mean {best[0]}?)" if best else ""
+
+
+def check_known_keys(cfg: DictConfig, prefix: str = "") -> None:
+    """Refuse keys that no schema declares, e.g. ``+model.n_estimator=5`` or ``+seeed=3``.
+
+    Hydra lets ``+key=value`` add a key even to a structured (typed) node;
+    every node typed by a dataclass schema may hold only that schema's
+    fields. Untyped nodes (``Any`` fields such as ``debug``) are not checked.
+    """
+    typ = OmegaConf.get_type(cfg)
+    if dataclasses.is_dataclass(typ):
+        names = [f.name for f in dataclasses.fields(typ)]
+        for key in cfg.keys():
+            if key not in names:
+                full = f"{prefix}{key}"
+                raise ConfigError(
+                    f"{full} is not a known key{close_match(str(key), names)}; "
+                    f"{(prefix.rstrip('.') or 'the top level')} has: {', '.join(n for n in names if n != '_target_')}"
+                )
+    for key in cfg.keys():
+        node = cfg._get_node(key)
+        if isinstance(node, DictConfig) and not node._is_missing() and not node._is_none():
+            check_known_keys(node, f"{prefix}{key}.")
 

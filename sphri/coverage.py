@@ -38,6 +38,7 @@ from omegaconf.errors import OmegaConfBaseException
 from sphri.analysis.coverage import ALL, CoverageAnalysis, RegionCoverage, write_region
 from sphri.analysis.schema import CoverageSchema
 from sphri.config import ConfigError, compose
+from sphri.errors import clean_errors
 
 log = logging.getLogger(__name__)
 
@@ -107,8 +108,7 @@ def analysis_from(settings: CoverageSchema) -> CoverageAnalysis:
 def run(overrides: Sequence[str] = (), settings: CoverageSchema | None = None, out: str | Path | None = None,
         log_mlflow: bool = True) -> CoverageRun:
     """Analyse every region of the composed config's data; write files; log MLflow."""
-    from sphri.cache import StageCache
-    from sphri.pipeline import make_pipeline
+    from sphri.pipeline import make_pipeline, open_cache
 
     settings = settings or CoverageSchema()
     analysis = analysis_from(settings)
@@ -133,7 +133,7 @@ def run(overrides: Sequence[str] = (), settings: CoverageSchema | None = None, o
     for region in regions:
         t0 = time.perf_counter()
         cfg = compose(rest + [f"data.regions=[{region}]"])
-        p = make_pipeline(cfg, StageCache(cfg.cache.dir, enabled=bool(cfg.cache.enabled)))
+        p = make_pipeline(cfg, open_cache(cfg))
         dataset, contacts = p.get("data"), p.get("contact")
         robot, surface = p.get("robot"), p.get("surface")
         link = robot.link_for(region)
@@ -217,6 +217,7 @@ def _metric_name(value: str) -> str:
     return re.sub(r"[^\w.\- /]+", "_", str(value))
 
 
+@clean_errors("sphri.coverage")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if any(a in ("-h", "--help") for a in argv):

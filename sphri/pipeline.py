@@ -281,13 +281,55 @@ def run_meta(cfg, dataset, robot, region, surface, layout, windows) -> dict[str,
         "n_windows": int(windows.x.shape[0]),
         "n_dropped_no_contact": int(windows.n_dropped),
         "window_frames": int(windows.x.shape[1]),
+        "warnings": participant_warnings(cfg, dataset, windows),
     }
+
+
+def participant_warnings(cfg, dataset, windows) -> list[str]:
+    """Named warnings when the folds cover fewer participants than the data was asked for (also logged)."""
+    have = {str(g) for g in np.unique(np.asarray(windows.groups))}
+    loaded = sorted(str(p) for p in dataset.trials["participant"].unique())
+    empty = int(dataset.repairs.get("participant_without_trials", 0))
+    asked = cfg.data.get("participants")
+    out = []
+    lost = [p for p in loaded if p not in have]
+    if lost:
+        out.append(f"participant(s) {lost} have no window with contact: {cfg.cv.get('_target_', '').rsplit('.', 1)[-1]} "
+                   f"runs on {len(have)} of {len(loaded) + empty} participants")
+    if empty:
+        out.append(f"{empty} participant(s) without a usable trial left out by the data stage (named in its log)")
+    if asked is not None and len(loaded) + empty < int(asked):
+        out.append(f"data.participants={asked} but the data holds {len(loaded) + empty}")
+    for w in out:
+        log.warning("%s", w)
+    return out
+
+
+def open_cache(cfg: DictConfig) -> StageCache:
+    """The stage cache of ``cfg``; a ``cache.dir`` that cannot be written is refused, naming it."""
+    if bool(cfg.cache.enabled):
+        import os
+        import tempfile
+        from pathlib import Path
+
+        root = Path(str(cfg.cache.dir))
+        try:
+            root.mkdir(parents=True, exist_ok=True)
+            fd, probe = tempfile.mkstemp(prefix=".write-test.", dir=root)
+            os.close(fd)
+            os.unlink(probe)
+        except OSError as exc:
+            raise ConfigError(
+                f"cache.dir={str(cfg.cache.dir)!r} cannot be written ({exc.strerror or exc}); "
+                "give a writable folder or cache.enabled=false"
+            ) from None
+    return StageCache(root=cfg.cache.dir, enabled=bool(cfg.cache.enabled))
 
 
 def run(cfg: DictConfig, cache: StageCache | None = None) -> RunResult:
     """Run the whole chain for a composed, validated config."""
     if cache is None:
-        cache = StageCache(root=cfg.cache.dir, enabled=bool(cfg.cache.enabled))
+        cache = open_cache(cfg)
     p = make_pipeline(cfg, cache)
     cv, meta = p.get("evaluate")
     for name, node in p.nodes.items():

@@ -130,6 +130,10 @@ def read_manifest(path: Path) -> dict[str, Any]:
                 f"{path}: trial {o}: trial_id={t['trial_id']!r} disagrees with ordinal and gesture "
                 f"(expected {trial_id(o, g)!r})"
             )
+    if "frame_rate_hz" in m:
+        rate = m["frame_rate_hz"]
+        if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not (1.0 <= rate <= 1000.0):
+            raise ManifestError(f"{path}: frame_rate_hz={rate!r} is implausible: must be a number in [1, 1000] Hz")
     if m["num_trials"] != len(trials):
         raise ManifestError(f"{path}: num_trials={m['num_trials']} but {len(trials)} trials are listed")
     total = sum(int(t["frame_count"]) for t in trials)

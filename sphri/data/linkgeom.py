@@ -54,6 +54,11 @@ class LinkSurface:
         self.name = link.name
         self.points = pts
         self.normals = nrm
+        if len(pts) < 3 or not np.isfinite(pts).all():
+            from sphri.robots.validate import MeshError
+
+            raise MeshError(f"link {link.name!r}: no usable outward surface to place hands on "
+                            f"({len(tri)} non-degenerate face(s)); a link needs a 3-D surface")
         # principal axes of the surface samples: long axis first
         d = pts - self.centroid
         w, vecs = np.linalg.eigh(d.T @ d / len(d))

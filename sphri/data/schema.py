@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Optional
 
-from sphri.config import require, require_range, store
+from sphri.config import require, require_choice, require_range, store
 from sphri.data.people import Spread
 from sphri.inputs import input_path
 from sphri.types import GESTURES
@@ -26,6 +26,10 @@ def _check_common(seed: int, participants: Optional[int], repetitions: Optional[
     unknown = [g for g in gestures if g not in GESTURES]
     require(not unknown, "data.gestures", gestures, f"unknown {unknown}; allowed: {list(GESTURES)}")
     require(len(set(gestures)) == len(gestures), "data.gestures", gestures, "gestures must not repeat")
+
+
+#: Position units a recorded dataset may declare (``data.units``), and metres per unit.
+POSITION_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 
 @dataclass
@@ -91,6 +95,8 @@ class VRGestureDataSchema:
     min_frames: int = 10
     frame_rate_hz: Optional[float] = None
     quat_tolerance: float = 1e-3
+    units: str = "m"
+    """Units of the pose files' positions: m (the format's), cm or mm (scaled to metres on load)."""
 
     def __post_init__(self) -> None:
         require(isinstance(self.root, str) and self.root != "", "data.root", self.root,
@@ -100,6 +106,7 @@ class VRGestureDataSchema:
         if self.frame_rate_hz is not None:
             require_range("data.frame_rate_hz", self.frame_rate_hz, lo=1.0, hi=1000.0)
         require_range("data.quat_tolerance", self.quat_tolerance, lo=0.0, lo_open=True, hi=0.5)
+        require_choice("data.units", self.units, POSITION_UNITS)
 
 
 store(group="data", name="synthetic_schema", node=SyntheticDataSchema)

@@ -75,6 +75,7 @@ from sphri.data.reference_stats import (
     VR_LENGTH_SPREAD,
     median_trial_frames,
 )
+from sphri.errors import clean_errors
 from sphri.types import GESTURES, Contacts, GestureDataset, Robot
 
 log = logging.getLogger(__name__)
@@ -311,6 +312,7 @@ def dataset_statistics(overrides: Sequence[str] = ()) -> tuple[GestureDataset, p
     return dataset, stats, gesture_summary(stats)
 
 
+@clean_errors("sphri.data.stats")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")

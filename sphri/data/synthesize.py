@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 from typing import Sequence
 
+from sphri.errors import clean_errors
 from sphri.types import GestureDataset
 
 
@@ -37,6 +38,7 @@ def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> GestureDataset
     return dataset
 
 
+@clean_errors("sphri.data.synthesize")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")

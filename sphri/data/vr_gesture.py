@@ -23,6 +23,13 @@ missing or misnamed columns, an unknown gesture label, duplicated or missing
   dropped (nothing to hold);
 - ``frame_range_mismatch``: a trial whose ``frame`` column does not span the
   manifest's ``start_frame``..``end_frame`` (kept; the poses are unaffected).
+
+Plausibility (:func:`check_position_scale`): positions are in ``data.units``
+(m by default, scaled to metres on load); a participant whose hand is 100 or
+1000 times its capsule model's size (positions in cm or mm) or far off the
+robot is refused, naming the file and the likely unit. A participant left
+with no usable trial is named in a warning (``participant_without_trials``)
+and the run's summary says how many participants its folds cover.
 """
 
 from __future__ import annotations
@@ -51,6 +58,7 @@ from sphri.data.format import (
     read_manifest,
 )
 from sphri.data.repair import hold_last_valid
+from sphri.data.schema import POSITION_UNITS
 from sphri.types import GESTURES, GestureDataset, HandModel, Robot
 
 log = logging.getLogger(__name__)
@@ -64,6 +72,50 @@ DEFAULT_FRAME_RATE_HZ = 30.0
 
 class DatasetError(ValueError):
     """Recorded data is malformed; the message names the file, trial and column."""
+
+
+#: A hand's median size (capsule centres' largest distance from their mean)
+#: over its capsule model's size (:func:`hand_model_size_m`) must lie in this
+#: range; in metres it is about 0.5 (0.069 / 0.13 m on the synthetic study),
+#: in cm about 50 and in mm about 500.
+HAND_SCALE_RANGE = (0.05, 5.0)
+#: Hands whose median distance from the link frame's origin exceeds this many
+#: robot sizes (and 2 m) are refused: they never come near the robot.
+ROBOT_DISTANCE_LIMIT = 10.0
+
+
+def hand_model_size_m(hand: HandModel) -> float:
+    """A hand's size from its capsule model (m): longest capsule plus two radii."""
+    return float(np.max(hand.height_m) + 2 * np.max(hand.radius_m))
+
+
+def check_position_scale(where: str, who: str, poses: Sequence[np.ndarray], hand: HandModel,
+                         robot: Optional[Robot], region: str, units: str) -> None:
+    """Refuse positions whose scale cannot be metres (see the module docstring); ``poses`` (F, C, 7) in metres."""
+    if not poses:
+        return
+    p = np.concatenate([q[:: max(1, len(q) // 50), :, :3] for q in poses]).astype(np.float64)
+    centre = p.mean(axis=1)
+    span = float(np.median(np.linalg.norm(p - centre[:, None], axis=2).max(axis=1)))
+    size = hand_model_size_m(hand)
+    ratio = span / size
+    if not (HAND_SCALE_RANGE[0] <= ratio <= HAND_SCALE_RANGE[1]):
+        guess = min(POSITION_UNITS, key=lambda u: abs(np.log10(ratio * POSITION_UNITS[u] / POSITION_UNITS[units] / 0.5)))
+        likely = f"; they look like {guess}: set data.units={guess} or convert the file" if guess != units else ""
+        raise DatasetError(
+            f"{where}: {who}'s hand positions are implausible in data.units={units}: the hand spans "
+            f"{span:.3g} m (median) while its capsule model is {size:.3g} m across{likely}"
+        )
+    if robot is not None and region in robot.regions:
+        link = robot.link_for(region)
+        reach = float(np.linalg.norm(np.asarray(link.vertices), axis=1).max())
+        dist = float(np.median(np.linalg.norm(centre, axis=1)))
+        limit = max(2.0, ROBOT_DISTANCE_LIMIT * reach)
+        if dist > limit:
+            raise DatasetError(
+                f"{where}: {who}'s hand stays {dist:.3g} m (median) from link {link.name!r}, which reaches "
+                f"{reach:.3g} m from its origin (limit {limit:.3g} m): wrong units (data.units={units}) or frame?"
+            )
 
 
 class _Notes:
@@ -134,6 +186,7 @@ class VRGestureData:
         min_frames: int = 10,
         frame_rate_hz: Optional[float] = None,
         quat_tolerance: float = 1e-3,
+        units: str = "m",
     ):
         if root is None:
             raise DatasetError("data.root is not set: give the dataset folder, e.g. data.root=/path/to/VR-gesture-dataset")
@@ -149,6 +202,9 @@ class VRGestureData:
         self.min_frames = int(min_frames)
         self.frame_rate_hz = frame_rate_hz
         self.quat_tolerance = float(quat_tolerance)
+        if units not in POSITION_UNITS:
+            raise DatasetError(f"data.units={units!r} is invalid: allowed values: {list(POSITION_UNITS)}")
+        self.units = units
 
     # ------------------------------------------------------------------ public
     def load(self, hand: HandModel, robot: Optional[Robot] = None) -> GestureDataset:
@@ -167,12 +223,16 @@ class VRGestureData:
         generators: set[bool] = set()
         rates: set[float] = set()
         start = 0
+        n_usable: Counter[str] = Counter()
         for pid in pids:
             for region in self.regions:
                 if not (self.root / region / pid).is_dir():
                     log.info("%s has no %s folder; skipped", pid, region)
                     continue
                 manifest, trials, poses = self._load_one(pid, region, hand, repairs)
+                check_position_scale(str(parquet_path(self.root, region, pid)), pid, poses, hand, robot, region,
+                                     self.units)
+                n_usable[pid] += len(trials)
                 generators.add(manifest.get(GENERATOR_KEY) == GENERATOR_VALUE)
                 if "frame_rate_hz" in manifest:
                     rates.add(float(manifest["frame_rate_hz"]))
@@ -183,6 +243,11 @@ class VRGestureData:
                     )
                     chunks.append(p)
                     start += len(p)
+        empty = [pid for pid in pids if n_usable[pid] == 0 and any((self.root / r / pid).is_dir() for r in self.regions)]
+        if empty:
+            repairs["participant_without_trials"] += len(empty)
+            log.warning("%s: participant(s) %s have no usable trial (gestures %s, min_frames %d): left out of the "
+                        "dataset", self.root, empty, self.gestures, self.min_frames)
         if len(generators) > 1:
             raise DatasetError(f"{self.root}: mixes sphri-generated and recorded manifests ('{GENERATOR_KEY}' key)")
         synthetic = generators == {True}
@@ -289,7 +354,10 @@ class VRGestureData:
         if not wanted:
             return manifest, [], []
         ordinals = [int(t["trial_ordinal"]) for t in wanted]
-        table = pq.read_table(ppath, columns=columns, filters=[("trial_ordinal", "in", ordinals)])
+        try:
+            table = pq.read_table(ppath, columns=columns, filters=[("trial_ordinal", "in", ordinals)])
+        except (pa.ArrowException, OSError) as exc:  # e.g. a damaged data page: "ZSTD decompression failed"
+            raise DatasetError(f"{ppath}: cannot read its pose data ({type(exc).__name__}: {exc})") from None
         notes = _Notes(ppath, repairs)
         try:
             return manifest, *self._trials_from_table(ppath, table, wanted, hand, notes)
@@ -312,6 +380,8 @@ class VRGestureData:
         for j, col in enumerate(cols):
             flat[:, j] = table.column(col).to_numpy(zero_copy_only=False).astype(np.float32, copy=False)
         poses = flat[order].reshape(len(order), c, len(POSE_SUFFIXES))
+        if self.units != "m":
+            poses[..., :3] *= np.float32(POSITION_UNITS[self.units])
 
         uniq, first, counts = np.unique(ordinal, return_index=True, return_counts=True)
         where = {int(o): (int(s), int(n)) for o, s, n in zip(uniq, first, counts)}

@@ -35,6 +35,10 @@ from sphri.types import GESTURES, CVResult, FoldResult, WindowedFrames
 log = logging.getLogger(__name__)
 
 
+class CVError(ValueError):
+    """The windows cannot be cross-validated as configured (too few participants); names the cause."""
+
+
 @dataclass(frozen=True)
 class Fold:
     """One split: held-out name and (train, test) trial indices into the windows."""
@@ -273,12 +277,22 @@ class LeaveOneSubjectOut(CrossValidation):
 
     SCHEME = "loso"
 
+    def __init__(self, min_participants: Optional[int] = None, **common: Any):
+        """``min_participants``: refuse fewer participants with windows (None: run); ``common``: see the base class."""
+        super().__init__(**common)
+        self.min_participants = min_participants
+
     def splits(self, windows: WindowedFrames, seed: int = 0) -> list[Fold]:
         groups = np.asarray(windows.groups)
         uniq = np.unique(groups)
         if uniq.size < 2:
-            raise ValueError(
+            raise CVError(
                 f"leave-one-subject-out needs at least 2 participants, windows have {uniq.size}: {list(uniq)}"
+            )
+        if self.min_participants is not None and uniq.size < self.min_participants:
+            raise CVError(
+                f"cv.min_participants={self.min_participants}: only {uniq.size} participants have windows "
+                f"({[str(g) for g in uniq]}); the others lost every trial (no contact, or dropped by the data stage)"
             )
         idx = np.arange(groups.shape[0], dtype=np.int64)
         return [Fold(name=str(g), train=idx[groups != g], test=idx[groups == g]) for g in uniq]

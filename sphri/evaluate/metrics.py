@@ -52,6 +52,18 @@ def fold_metrics(fold: str, y_true: np.ndarray, y_pred: np.ndarray, n_classes: i
     )
 
 
+def chance_level(cv: CVResult) -> float:
+    """Accuracy of uniform guessing among the gestures actually tested: 1 / (classes present).
+
+    Counted from the folds' confusion matrices (rows with any true trial), so
+    ``data.gestures=[hit,tap]`` gives 0.5, not 1/8. NaN without folds.
+    """
+    if not cv.folds:
+        return float("nan")
+    present = int((np.sum([f.confusion.sum(axis=1) for f in cv.folds], axis=0) > 0).sum())
+    return 1.0 / present if present else float("nan")
+
+
 def bootstrap_ci(values: np.ndarray, n_boot: int = 2000, seed: int = 0, level: float = 0.95) -> tuple[float, float]:
     """Percentile bootstrap interval of the mean of ``values`` (one per participant).
 

@@ -29,9 +29,13 @@ class LosoSchema:
     """Evaluate only the first k folds (debugging; None: all)."""
     progress: bool = True
     """Progress bar over folds (shown only on a terminal)."""
+    min_participants: Optional[int] = None
+    """Refuse to run on fewer participants with windows (None: run, with a named warning in the summary)."""
 
     def __post_init__(self) -> None:
         _check_common(self)
+        if self.min_participants is not None:
+            require_range("cv.min_participants", self.min_participants, lo=2)
 
 
 @dataclass

@@ -26,6 +26,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from sphri.config import ConfigError
+from sphri.errors import clean_errors
 from sphri.hardware.actuators import ActuatorMap, part_depths
 from sphri.hardware.glove_protocol import (
     ACTUATORS,
@@ -339,6 +340,7 @@ pipeline overrides: anything python -m sphri accepts, e.g. +debug=fast robot=nao
 """
 
 
+@clean_errors("sphri.hardware.glove")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):

@@ -16,13 +16,23 @@ A recording is one ``.npz`` file (numpy, no pickles) holding:
 :func:`load_recording` validates every field and names the file and field
 on any problem; :meth:`SkinRecording.frames` gives :class:`~sphri.types.Frames`
 and :meth:`SkinRecording.windows` model-ready (n, L, N) windows.
+
+While ``skin record`` runs, frames go to a *partial* file next to the output
+(``rec.npz.partial``, :class:`PartialWriter`), appended and fsynced every
+``chunk_frames`` frames, so a crash, a kill or a full disk keeps what was read
+(:func:`load_recording` reads a partial file too). The output path is checked
+before a byte is read (:func:`check_output_path`); at the end the frames are
+saved to ``out`` and the partial file removed, or, when that fails, to a
+fallback file in the working directory (:func:`save_with_fallback`).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import struct
 import tempfile
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -34,6 +44,8 @@ from sphri.types import Frames
 #: Format version written in ``meta["format"]``.
 FORMAT = "sphri-skin-recording/1"
 _FIELDS = ("values", "host_time_s", "device_time_us", "seq", "segment", "grid_shape", "meta")
+#: First bytes of a partial recording (then uint32 LE header length, JSON header, fixed-size frame records).
+PARTIAL_MAGIC = b"SPHRISKINPART1\n"
 
 
 class RecordingError(ValueError):
@@ -125,11 +137,156 @@ def save_recording(rec: SkinRecording, path: str | os.PathLike) -> Path:
     return path
 
 
+def check_output_path(path: str | os.PathLike) -> Path:
+    """Refuse an output path that cannot be written (before any frame is read), naming it.
+
+    Catches an existing directory, a path under a file and a folder that
+    cannot be created; whether the folder takes new files is shown by
+    :class:`PartialWriter` creating its file there.
+    """
+    path = Path(path)
+    if path.is_dir():
+        raise RecordingError(f"out={path} is an existing directory; give a file name, e.g. out={path / 'rec.npz'}")
+    for parent in path.parents:
+        if parent.exists():
+            if not parent.is_dir():
+                raise RecordingError(f"out={path} is invalid: {parent} is a file, not a directory")
+            break
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise RecordingError(f"out={path}: cannot create its folder {path.parent} ({exc.strerror or exc})") from None
+    return path
+
+
+def _record_dtype(n_taxels: int) -> np.dtype:
+    return np.dtype([("values", "<f4", (n_taxels,)), ("host_time_s", "<f8"), ("device_time_us", "<i8"),
+                     ("seq", "<i8"), ("segment", "<i8")])
+
+
+class PartialWriter:
+    """Append frames to ``<out>.partial`` as they arrive (chunks of ``chunk_frames``, flushed and fsynced).
+
+    Opening it creates the file, so an output folder that takes no new file
+    fails here, before the port is opened. The header (taxel count, grid
+    shape, meta) is written with the first chunk; each frame is a fixed-size
+    record, so a file cut anywhere loads up to its last whole frame.
+    """
+
+    def __init__(self, out: str | os.PathLike, chunk_frames: int = 50, meta: dict[str, Any] | None = None) -> None:
+        self.out = check_output_path(out)
+        self.chunk_frames = max(1, int(chunk_frames))
+        self.meta = dict(meta or {})
+        self.path = self._free_name()
+        try:
+            self._fh = open(self.path, "xb")
+        except OSError as exc:
+            raise RecordingError(f"out={self.out}: cannot write in {self.out.parent} ({exc.strerror or exc})") from None
+        self._buf: list[tuple] = []
+        self._dtype: np.dtype | None = None
+        self.n_written = 0
+
+    def _free_name(self) -> Path:
+        base = self.out.with_name(self.out.name + ".partial")
+        cand, i = base, 1
+        while cand.exists():  # an earlier recording's leftover: keep it
+            i += 1
+            cand = base.with_name(f"{base.name}-{i}")
+        return cand
+
+    def append(self, values: np.ndarray, host_time_s: float, device_time_us: int, seq: int, segment: int) -> None:
+        self._buf.append((values, host_time_s, device_time_us, seq, segment))
+        if len(self._buf) >= self.chunk_frames:
+            self.flush()
+
+    def flush(self) -> None:
+        """Write the buffered frames; a failed write (e.g. a full disk) raises :class:`RecordingError`.
+
+        The frames written by earlier chunks stay in the file.
+        """
+        if not self._buf or self._fh.closed:
+            return
+        try:
+            if self._dtype is None:
+                n = int(np.asarray(self._buf[0][0]).shape[0])
+                self._dtype = _record_dtype(n)
+                head = json.dumps({"format": FORMAT, "n_taxels": n, **self.meta}, default=str).encode()
+                self._fh.write(PARTIAL_MAGIC + struct.pack("<I", len(head)) + head)
+            rec = np.zeros(len(self._buf), dtype=self._dtype)
+            for i, row in enumerate(self._buf):
+                rec[i] = row
+            self._fh.write(rec.tobytes())
+            self._fh.flush()
+            os.fsync(self._fh.fileno())
+        except OSError as exc:
+            raise RecordingError(f"writing {self.path} failed after {self.n_written} frames "
+                                 f"({exc.strerror or exc})") from None
+        self.n_written += len(self._buf)
+        self._buf.clear()
+
+    def close(self) -> None:
+        if not self._fh.closed:
+            self._fh.close()
+
+    def remove(self) -> None:
+        """Delete the partial file once its frames are saved elsewhere (a vanished folder is fine)."""
+        self.close()
+        try:
+            self.path.unlink(missing_ok=True)
+        except OSError:
+            pass
+
+
+def _load_partial(path: Path, blob: bytes) -> SkinRecording:
+    h0 = len(PARTIAL_MAGIC) + 4
+    if len(blob) < h0:
+        raise RecordingError(f"{path}: partial recording cut inside its header")
+    (n,) = struct.unpack_from("<I", blob, len(PARTIAL_MAGIC))
+    try:
+        head = json.loads(blob[h0 : h0 + n])
+        dtype = _record_dtype(int(head["n_taxels"]))
+    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise RecordingError(f"{path}: partial recording header unreadable ({exc})") from None
+    body = blob[h0 + n :]
+    k = len(body) // dtype.itemsize  # a torn last record is dropped
+    rec = np.frombuffer(body[: k * dtype.itemsize], dtype=dtype)
+    grid = head.get("grid_shape")
+    n_tax = int(head["n_taxels"])
+    grid_shape = (int(grid[0]), int(grid[1])) if grid and int(grid[0]) * int(grid[1]) == n_tax else None
+    return SkinRecording(rec["values"], rec["host_time_s"], rec["device_time_us"], rec["seq"], rec["segment"],
+                         grid_shape, {**head, "partial": True, "torn_bytes": len(body) - k * dtype.itemsize})
+
+
+def save_with_fallback(rec: SkinRecording, path: str | os.PathLike, say=print) -> tuple[Path, BaseException | None]:
+    """Save to ``path``; on any failure save to a fallback file in the working directory.
+
+    Returns (where it was saved, the error that made the first try fail or
+    None). Raises only if the fallback fails too (then the partial file is
+    all there is).
+    """
+    try:
+        return save_recording(rec, path), None
+    except Exception as exc:  # any failure at the end must not lose the frames
+        stamp = time.strftime("%Y%m%d-%H%M%S")
+        fallback = Path.cwd() / f"{Path(path).stem or 'recording'}-recovered-{stamp}-{os.getpid()}.npz"
+        saved = save_recording(rec, fallback)
+        say(f"could not write {path} ({type(exc).__name__}: {exc}); saved the {rec.n_frames} frames to "
+            f"{saved} instead")
+        return saved, exc
+
+
 def load_recording(path: str | os.PathLike) -> SkinRecording:
-    """Read a recording written by :func:`save_recording` (``skin record``)."""
+    """Read a recording written by :func:`save_recording` (``skin record``), or a partial one."""
     path = Path(path)
     if not path.is_file():
         raise RecordingError(f"skin recording not found: {path}")
+    with open(path, "rb") as fh:
+        start = fh.read(len(PARTIAL_MAGIC))
+    if start == PARTIAL_MAGIC:
+        try:
+            return _load_partial(path, path.read_bytes())
+        except RecordingError as exc:
+            raise RecordingError(str(exc) if str(path) in str(exc) else f"{path}: {exc}") from None
     try:
         with np.load(path, allow_pickle=False) as z:
             missing = [k for k in _FIELDS if k not in z.files]

@@ -114,7 +114,7 @@ class SkinRecordSettings:
     port: str = "???"
     """Device or pyserial URL of the skin."""
     out: str = "???"
-    """Output recording (.npz), written atomically; also on Ctrl+C or a lost port."""
+    """Output recording (.npz), written atomically; also on Ctrl+C or a lost port. Checked before reading."""
     baud: int = 1_000_000
     """Bits per second (ignored by USB CDC devices and socket://)."""
     taxels: int = 0
@@ -133,10 +133,13 @@ class SkinRecordSettings:
     """Give up reconnecting after this many seconds (0 = never)."""
     start_command: bool = True
     """Send the protocol's START message on (re)connect (skins may ignore it)."""
+    chunk_frames: int = 50
+    """Frames appended (and fsynced) to ``<out>.partial`` at a time while recording; a crash keeps them."""
 
     def __post_init__(self) -> None:
         _port(self.port)
         require(self.out not in ("", "???"), "out", self.out, "an output path, e.g. out=recording.npz")
+        require_range("chunk_frames", self.chunk_frames, lo=1, hi=100_000)
         _baud(self.baud)
         require_range("taxels", self.taxels, lo=0, hi=4096)
         grid = parse_grid(self.grid)
@@ -155,9 +158,11 @@ class SkinLiveSettings:
     port: str = "???"
     """Device or pyserial URL of the skin."""
     model: str = "???"
-    """Model file (from train_export) or an MLflow artifact URI runs:/<run_id>/<path>."""
+    """Model file (from train_export), or with allow_remote=true an MLflow artifact URI runs:/<run_id>/<path>."""
     tracking_uri: Optional[str] = None
     """MLflow tracking URI for runs:/ models (None = sqlite:///outputs/mlflow.db, the pipeline's default)."""
+    allow_remote: bool = False
+    """Fetch a remote model (runs:/, models:/, http://...); off by default: only local files are read."""
     baud: int = 1_000_000
     """Bits per second (ignored by USB CDC devices and socket://)."""
     stride: int = 0

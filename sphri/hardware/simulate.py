@@ -42,6 +42,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from sphri.config import ConfigError
+from sphri.errors import clean_errors
 from sphri.hardware.glove_protocol import Ack, ActuateCommand, GloveDecoder, encode_ack
 from sphri.hardware.settings import SimulateSettings, parse_cli, parse_grid
 from sphri.hardware.skin_protocol import CMD_START, ValueFormat, encode_frame, find_control
@@ -617,6 +618,7 @@ both:  port=pty|socket://HOST:PORT link=/tmp/skin.tty seed=0 report=ledger.json
 """
 
 
+@clean_errors("sphri.hardware.simulate")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):

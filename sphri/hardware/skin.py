@@ -4,7 +4,7 @@
 
     python -m sphri.hardware.skin record port=/dev/ttyACM0 out=rec.npz grid=18x6 duration_s=60
     python -m sphri.hardware.skin live port=/dev/ttyACM0 model=outputs/models/rf.sphrimodel
-    python -m sphri.hardware.skin live port=socket://127.0.0.1:7777 model=runs:/<run_id>/model/rf.sphrimodel
+    python -m sphri.hardware.skin live port=socket://127.0.0.1:7777 model=runs:/<run_id>/model/rf.sphrimodel allow_remote=true
 
 :class:`SkinReader` turns a port into a stream of :class:`ReceivedFrame`
 (decoded by :class:`~sphri.hardware.skin_protocol.SkinDecoder`: garbage,
@@ -26,9 +26,10 @@ from typing import Callable, Iterator, Sequence
 import numpy as np
 
 from sphri.config import ConfigError
+from sphri.errors import clean_errors
 from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, parse_cli, parse_grid
 from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, encode_control
-from sphri.hardware.transport import Link, PortError, PortLost
+from sphri.hardware.transport import Link, PortLost
 
 log = logging.getLogger(__name__)
 
@@ -153,10 +154,21 @@ def _error_line(stats) -> str:
 
 # --------------------------------------------------------------------------- record
 def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> dict:
-    """``skin record``: read frames until a stop condition, save them; returns a summary."""
-    from sphri.hardware.recording import SkinRecording, save_recording
+    """``skin record``: read frames until a stop condition, save them; returns a summary.
+
+    The output path is checked, and ``<out>.partial`` created, before the
+    port is opened; frames are appended to it every ``chunk_frames``
+    (:class:`~sphri.hardware.recording.PartialWriter`). At the end the
+    recording goes to ``out`` (or a fallback file in the working directory)
+    and the partial file is removed.
+    """
+    from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording, save_with_fallback
 
     grid = parse_grid(settings.grid)
+    started = time.time()
+    partial = PartialWriter(settings.out, settings.chunk_frames,
+                            {"port": settings.port, "grid_shape": list(grid) if grid else None,
+                             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started))})
     reader = SkinReader(settings.port, settings.baud, settings.taxels, settings.reconnect,
                         settings.reconnect_timeout_s, start_command=settings.start_command)
     values: list[np.ndarray] = []
@@ -165,8 +177,7 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> 
     seqs: list[int] = []
     segs: list[int] = []
     error: BaseException | None = None
-    started = time.time()
-    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop)")
+    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames appended to {partial.path} as they arrive)")
     try:
         with reader:
             for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s):
@@ -175,13 +186,20 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> 
                 dev_t.append(rf.frame.device_time_us)
                 seqs.append(rf.frame.seq)
                 segs.append(rf.segment)
+                partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
                 if len(values) % 500 == 0:
                     out(f"  {len(values)} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
+            partial.flush()
     except KeyboardInterrupt:
         reader.stop_reason = "interrupted"
     except (PortLost, StreamMismatch) as exc:
         error = exc
         reader.stop_reason = str(exc)
+    except RecordingError as exc:  # writing the partial file failed (a full disk): keep what was read
+        error = exc
+        reader.stop_reason = str(exc)
+    finally:
+        partial.close()
     n = reader.decoder.expected_taxels or settings.taxels or (grid[0] * grid[1] if grid else 0)
     arr = np.stack(values) if values else np.zeros((0, n), dtype=np.float32)
     if grid is not None and arr.shape[1] != grid[0] * grid[1]:
@@ -198,12 +216,21 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> 
         "protocol": "sphri-skin/1",
     }
     rec = SkinRecording(arr, np.asarray(host_t), np.asarray(dev_t), np.asarray(seqs), np.asarray(segs), grid, meta)
-    path = save_recording(rec, settings.out)
+    try:
+        path, save_error = save_with_fallback(rec, settings.out, say=out)
+    except Exception as exc:  # the fallback failed too: the partial file holds what was written
+        out(f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {partial.n_written} of "
+            f"{rec.n_frames} frames are in {partial.path} (python -c \"from sphri.hardware.recording import "
+            f"load_recording; load_recording('{partial.path}')\" reads it)")
+        return {"frames": rec.n_frames, "path": str(partial.path), "decoder": stats, "error": str(exc),
+                "reconnects": reader.link.reconnects}
+    partial.remove()
     out(f"saved {rec.n_frames} frames x {rec.n_taxels} taxels to {path} ({reader.stop_reason}); "
         f"rate {rec.rate_hz:.1f} Hz; reconnects {reader.link.reconnects}")
     out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}")
     if error is not None:
         out(f"stopped early: {error}")
+    error = error or save_error
     return {"frames": rec.n_frames, "path": str(path), "decoder": stats, "error": str(error) if error else None,
             "reconnects": reader.link.reconnects}
 
@@ -223,7 +250,8 @@ def live(settings: SkinLiveSettings, out: Callable[[str], None] = print) -> dict
     from sphri.hardware.live import LiveClassifier, auto_stride
     from sphri.hardware.model_file import load_model, resolve_model_path
 
-    bundle = load_model(resolve_model_path(settings.model, settings.tracking_uri or default_tracking_uri()))
+    bundle = load_model(resolve_model_path(settings.model, settings.tracking_uri or default_tracking_uri(),
+                                            allow_remote=settings.allow_remote))
     stride = settings.stride or auto_stride(bundle.frame_rate_hz)
     clf = LiveClassifier(bundle, stride, settings.onset_taxels, settings.calibrate_frames, settings.release_frames,
                          min(settings.persist, bundle.window_length), cluster_taxels=settings.cluster_taxels)
@@ -313,15 +341,16 @@ def live(settings: SkinLiveSettings, out: Callable[[str], None] = print) -> dict
 
 USAGE = """usage: python -m sphri.hardware.skin record|live [key=value ...]
 
-record: port=... out=rec.npz [taxels=0 grid=HxW frames=0 duration_s=0 idle_s=0
+record: port=... out=rec.npz [taxels=0 grid=HxW frames=0 duration_s=0 idle_s=0 chunk_frames=50
         reconnect=false reconnect_timeout_s=30 start_command=true baud=1000000]
-live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [stride=0 onset_taxels=0
+live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [allow_remote=false stride=0 onset_taxels=0
         calibrate_frames=30 release_frames=10 out=predictions.jsonl show=all|touches|off
         frames=0 duration_s=0 idle_s=0 reconnect=false ...]
 (defaults and meanings: sphri/hardware/settings.py, SkinRecordSettings / SkinLiveSettings)
 """
 
 
+@clean_errors("sphri.hardware.skin")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help", "help"):
@@ -340,12 +369,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ConfigError as exc:
         print(f"sphri.hardware.skin: invalid setting: {exc}", file=sys.stderr)
         return 2
-    except PortError as exc:
-        print(f"sphri.hardware.skin: {exc}", file=sys.stderr)
-        return 1
-    except (OSError, ValueError) as exc:  # model or output files
-        print(f"sphri.hardware.skin: {exc}", file=sys.stderr)
-        return 1
+    # port, model-file and recording errors: one line from @clean_errors
     return 1 if summary.get("error") else 0
 
 

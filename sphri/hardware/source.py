@@ -19,13 +19,11 @@ from sphri.types import GESTURES, TaxelGeometry
 
 def open_pipeline(overrides: Sequence[str]):
     """Compose the config from ``overrides`` and wire the (lazy, cached) pipeline."""
-    from sphri.cache import StageCache
     from sphri.config import compose
-    from sphri.pipeline import make_pipeline
+    from sphri.pipeline import make_pipeline, open_cache
 
     cfg = compose(list(overrides))
-    cache = StageCache(root=cfg.cache.dir, enabled=bool(cfg.cache.enabled))
-    return make_pipeline(cfg, cache)
+    return make_pipeline(cfg, open_cache(cfg))
 
 
 @dataclass

@@ -24,6 +24,7 @@ from typing import Optional, Sequence
 import numpy as np
 
 from sphri.config import ConfigError, require
+from sphri.errors import clean_errors
 from sphri.hardware.model_file import ModelBundle, save_model
 from sphri.hardware.settings import parse_cli
 from sphri.types import GESTURES, WindowedFrames
@@ -104,6 +105,7 @@ def log_to_mlflow(pipeline, path: Path) -> str:
     return f"runs:/{run.info.run_id}/model/{path.name}"
 
 
+@clean_errors("sphri.hardware.train_export")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in ("-h", "--help", "help"):

@@ -18,6 +18,7 @@ import argparse
 import logging
 import sys
 
+from sphri.errors import clean_errors
 from sphri.report.analysis import RuleSettings
 from sphri.report.build import make_report
 from sphri.report.saturation import Tolerance
@@ -55,6 +56,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     return args
 
 
+@clean_errors("sphri.report")
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     logging.basicConfig(level=logging.WARNING)

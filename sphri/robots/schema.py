@@ -13,7 +13,7 @@ from typing import Any, Mapping, Optional
 
 from omegaconf import MISSING
 
-from sphri.config import require, require_choice, require_range, store
+from sphri.config import ConfigError, close_match, cross_check, require, require_choice, require_range, store
 from sphri.inputs import input_path
 
 #: Long-axis names of parametric links.
@@ -222,3 +222,18 @@ class KinematicRobotSchema:
 
 
 store(group="robot", name="kinematic_schema", node=KinematicRobotSchema)
+
+
+@cross_check
+def data_regions_on_robot(cfg) -> None:
+    """Every region in ``data.regions`` must be one of the robot's ``robot.regions``."""
+    regions = cfg.robot.get("regions")
+    if not hasattr(regions, "keys"):
+        return  # the robot's own check reports a missing region map
+    have = [str(k) for k in regions.keys()]
+    for region in cfg.data.regions:
+        if region not in have:
+            raise ConfigError(
+                f"data.regions={list(cfg.data.regions)} is invalid: robot {cfg.robot.get('name', '')!r} has no region "
+                f"{region!r}{close_match(str(region), have)}; its regions: {have}"
+            )

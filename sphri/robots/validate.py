@@ -178,6 +178,15 @@ def make_link(
         v = v[used]
         f = remap[f]
 
+    # a skin needs a 3-D surface: a flat mesh (one triangle, a planar sheet) has no inside or axis
+    centred = v - v.mean(axis=0)
+    thickness = float(np.linalg.svd(centred, compute_uv=False)[-1] / np.sqrt(len(v)))
+    if thickness <= extent * 1e-6:
+        raise MeshError(
+            f"{where}: the mesh is flat ({len(f)} face(s), all {len(v)} vertices in one plane); a link needs a "
+            "3-D surface, e.g. its closed collision mesh or convex hull"
+        )
+
     # orientation
     closed = is_closed(f)
     before = f.copy()

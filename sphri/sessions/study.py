@@ -96,7 +96,7 @@ def load_sessions_and_contacts(cfg, cache):
 def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflow: bool = True) -> StudyResult:
     """Run the study for the composed ``overrides`` (they must select ``+experiment=scenario_study``)."""
     from sphri.analysis.coverage import CoverageAnalysis
-    from sphri.cache import StageCache
+    from sphri.pipeline import open_cache
     from sphri.config import ConfigError, compose
     from sphri.sessions.body import body_surface, touched_pairs
     from sphri.sessions.episodes import part_of_rows, segment_episodes
@@ -112,7 +112,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         raise ConfigError("the scenario study needs +experiment=scenario_study (experiment.scenario_study settings)")
     out_dir = Path(out) if out else Path(cfg.output_dir) / "scenario_study" / time.strftime("%Y-%m-%d_%H-%M-%S")
     out_dir.mkdir(parents=True, exist_ok=True)
-    cache = StageCache(cfg.cache.dir, enabled=bool(cfg.cache.enabled))
+    cache = open_cache(cfg)
     seconds: dict[str, float] = {}
     notes: list[str] = []
     t_all = time.perf_counter()

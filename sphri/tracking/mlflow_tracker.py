@@ -340,7 +340,7 @@ def ui_hint(uri: str) -> str:
 
 def summary_text(result: "RunResult") -> str:
     """The one-screen summary printed at the end of a run."""
-    from sphri.evaluate.metrics import summarize
+    from sphri.evaluate.metrics import chance_level, summarize
 
     m = result.meta
     s = summarize(result.cv)
@@ -355,8 +355,10 @@ def summary_text(result: "RunResult") -> str:
         f"model       {result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
         f"accuracy    {s['accuracy_mean']:.3f} +/- {s['accuracy_std']:.3f}   "
         f"(95% CI {s.get('accuracy_ci_low', float('nan')):.3f}-{s.get('accuracy_ci_high', float('nan')):.3f})",
-        f"macro-F1    {s['macro_f1_mean']:.3f} +/- {s['macro_f1_std']:.3f}   (mean +/- std over participants; chance 0.125)",
+        f"macro-F1    {s['macro_f1_mean']:.3f} +/- {s['macro_f1_std']:.3f}   (mean +/- std over participants; "
+        f"chance {chance_level(result.cv):.3f})",
     ]
+    lines += [f"warning     {w}" for w in m.get("warnings", [])]
     return "\n".join(lines)
 
 

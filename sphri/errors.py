@@ -1,0 +1,116 @@
+"""One clean line for expected errors, in every entry point.
+
+An *expected* error is a problem with the user's input or machine, not a bug
+in sphri: an invalid config, a bad data file, a broken mesh, an unwritable
+cache, a serial port that vanished, a model or recording file that does not
+decode, a file the system refuses. Every entry point prints it as one line
+``<prog>: <kind>: <message>`` (the message names the key, file or port) and
+exits with 2 (config) or 1 (anything else). The traceback is shown only with
+``--verbose`` on the command line or ``HYDRA_FULL_ERROR=1`` in the
+environment. Anything else (a bug) keeps its full traceback.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import sys
+import traceback
+from typing import Callable, Sequence
+
+#: Command-line flag that shows tracebacks (removed from argv before parsing).
+VERBOSE_FLAG = "--verbose"
+
+
+#: (module, class, kind shown to the user), most specific first.
+EXPECTED: tuple[tuple[str, str, str], ...] = (
+    ("sphri.config", "ConfigError", "invalid config"),
+    ("sphri.data.vr_gesture", "DatasetError", "data error"),
+    ("sphri.data.format", "ManifestError", "data error"),
+    ("sphri.evaluate.cv", "CVError", "data error"),
+    ("sphri.hand.capsules", "HandDefinitionError", "hand error"),
+    ("sphri.robots.validate", "MeshError", "mesh error"),
+    ("sphri.cache", "CacheError", "cache error"),
+    ("sphri.cache", "CorruptEntry", "cache error"),
+    ("sphri.hardware.transport", "PortError", "port error"),
+    ("sphri.hardware.skin", "StreamMismatch", "port error"),
+    ("sphri.hardware.model_file", "ModelFileError", "model file error"),
+    ("sphri.hardware.recording", "RecordingError", "recording error"),
+    ("sphri.report.sweep", "ReportError", "report error"),
+    ("builtins", "OSError", "file error"),
+)
+
+
+def expected_errors() -> list[tuple[type[BaseException], str]]:
+    """(exception type, kind) of :data:`EXPECTED` that exist in this sphri (imported lazily)."""
+    import importlib
+
+    out = []
+    for module, name, kind in EXPECTED:
+        try:
+            typ = getattr(importlib.import_module(module), name)
+        except (ImportError, AttributeError):  # a class renamed or not there: nothing to match
+            continue
+        out.append((typ, kind))
+    return out
+
+
+def kind_of(exc: BaseException) -> str | None:
+    """The user-facing kind of an expected error, or None for anything else (a bug)."""
+    for typ, kind in expected_errors():
+        if isinstance(exc, typ):
+            return kind
+    return None
+
+
+def verbose_requested() -> bool:
+    return os.environ.get("HYDRA_FULL_ERROR", "") == "1"
+
+
+def take_verbose_flag(argv: list[str]) -> list[str]:
+    """Remove ``--verbose`` from ``argv``; when present, set ``HYDRA_FULL_ERROR=1`` (shown tracebacks)."""
+    if VERBOSE_FLAG in argv:
+        os.environ["HYDRA_FULL_ERROR"] = "1"
+        argv = [a for a in argv if a != VERBOSE_FLAG]
+    return argv
+
+
+def one_line(prog: str, exc: BaseException, kind: str) -> str:
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    if kind == "file error" and isinstance(exc, OSError) and exc.filename and str(exc.filename) not in text:
+        text = f"{exc.filename}: {text}"
+    return f"{prog}: {kind}: {text}"
+
+
+def report(prog: str, exc: BaseException) -> int | None:
+    """Print ``exc`` as one line (traceback first when verbose); its exit code, or None if not expected."""
+    kind = kind_of(exc)
+    if kind is None:
+        return None
+    if verbose_requested():
+        traceback.print_exception(exc)
+    print(one_line(prog, exc, kind), file=sys.stderr)
+    return 2 if kind == "invalid config" else 1
+
+
+def clean_errors(prog: str) -> Callable:
+    """Decorate an entry point ``main(argv=None) -> int``: ``--verbose`` handling and one-line errors."""
+
+    def wrap(main: Callable[..., int]) -> Callable[..., int]:
+        @functools.wraps(main)
+        def run(argv: Sequence[str] | None = None) -> int:
+            argv = take_verbose_flag(list(sys.argv[1:] if argv is None else argv))
+            try:
+                return main(argv)
+            except KeyboardInterrupt:
+                print(f"{prog}: interrupted", file=sys.stderr)
+                return 130
+            except Exception as exc:
+                code = report(prog, exc)
+                if code is None:
+                    raise
+                return code
+
+        return run
+
+    return wrap
