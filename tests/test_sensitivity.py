@@ -59,7 +59,7 @@ def test_quick_preset_runs_end_to_end_and_reports_each_variant(tmp_path: Path):
                           f"output_dir={out}", f"hydra.sweep.dir={sweep}", "hydra/launcher=serial"],
                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0 and "9 of 9 jobs finished" in run.stdout, run.stderr[-3000:]
-    rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), "--n-boot", "200", "--no-log"],
+    rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), "n_boot=200", "mlflow=false"],
                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert rep.returncode == 0, rep.stderr[-3000:]
     assert "grouped by variant" in rep.stdout

@@ -3,9 +3,14 @@
 ::
 
     python -m sphri.report outputs/sweeps/resolution_rf          # a sweep directory
-    python -m sphri.report 3f2a...c9 --output-dir outputs        # a parent run id (store outputs/mlflow.db)
-    python -m sphri.report DIR --tolerance 0.02 --n-boot 5000     # the sentence uses a 2-point tolerance
-    python -m sphri.report DIR --tolerances se,2se,0.01,0.02       # the tolerances shown side by side
+    python -m sphri.report 3f2a...c9 output_dir=outputs          # a parent run id (store outputs/mlflow.db)
+    python -m sphri.report DIR tolerance=0.02 n_boot=5000         # the sentence uses a 2-point tolerance
+    python -m sphri.report DIR tolerances=se,2se,0.01,0.02        # the tolerances shown side by side
+    python -m sphri.report DIR out=DIR2 mlflow=false              # elsewhere, not logged to MLflow
+
+Arguments are ``key=value`` as in every sphri command (``uri``, ``output_dir``,
+``out``, ``tolerances``, ``tolerance``, ``n_boot``, ``ci``, ``seed``,
+``mlflow=true|false``); the ``--key value`` spellings are accepted too.
 
 Writes ``DIR/report/`` (report.html, PNG figures, summary.txt, CSV/JSON
 tables), logs it to the sweep's MLflow parent run and prints the summary.
@@ -25,6 +30,29 @@ from sphri.report.saturation import Tolerance
 from sphri.report.sweep import ReportError
 
 
+#: ``key=value`` arguments and the option each one stands for.
+KEYS = {"uri": "--uri", "output_dir": "--output-dir", "out": "--out", "tolerances": "--tolerances",
+        "tolerance": "--tolerance", "n_boot": "--n-boot", "ci": "--ci", "seed": "--seed"}
+
+
+def from_key_values(argv: list[str]) -> list[str]:
+    """``key=value`` (sphri's style) -> argparse options; ``mlflow=false`` -> ``--no-log``."""
+    out = []
+    for a in argv:
+        key, eq, value = a.partition("=")
+        if a.startswith("-") or not eq:
+            out.append(a)
+        elif key in KEYS:
+            out += [KEYS[key], value]
+        elif key == "mlflow":
+            if value.lower() not in ("true", "false"):
+                raise SystemExit(f"sphri.report: mlflow={value} is invalid: must be true or false")
+            out += [] if value.lower() == "true" else ["--no-log"]
+        else:
+            raise SystemExit(f"sphri.report: unknown argument {key!r}: expected one of {', '.join([*KEYS, 'mlflow'])}")
+    return out
+
+
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p = argparse.ArgumentParser(prog="python -m sphri.report", description=__doc__.split("\n\n")[0],
                                 formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -41,7 +69,7 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--ci", type=float, default=0.95, help="interval coverage (default 0.95)")
     p.add_argument("--seed", type=int, default=0, help="bootstrap seed (default 0)")
     p.add_argument("--no-log", action="store_true", help="do not log the report to the MLflow parent run")
-    args = p.parse_args(argv)
+    args = p.parse_args(from_key_values(list(sys.argv[1:] if argv is None else argv)))
     for name, ok, expected in (("--n-boot", args.n_boot >= 0, ">= 0"), ("--ci", 0 < args.ci < 1, "in (0, 1)")):
         if not ok:
             p.error(f"{name}={getattr(args, name[2:].replace('-', '_'))} is invalid: must be {expected}")

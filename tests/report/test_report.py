@@ -317,6 +317,17 @@ def test_cli_tolerance_options(two_model_sweep, tmp_path, capsys):
         main([str(two_model_sweep.sweep_dir), "--tolerances", "lots"])
 
 
+def test_cli_takes_key_value_arguments_like_every_sphri_command(two_model_sweep, tmp_path, capsys):
+    assert main([str(two_model_sweep.sweep_dir), "n_boot=50", "mlflow=false", f"out={tmp_path / 'kv'}",
+                 "tolerances=se,2se", "tolerance=0.03"]) == 0
+    tol = pd.read_csv(tmp_path / "kv" / "tolerances.csv")
+    assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "2se", "se"]
+    with pytest.raises(SystemExit, match="unknown argument 'n_boots'"):
+        main([str(two_model_sweep.sweep_dir), "n_boots=50"])
+    with pytest.raises(SystemExit, match="mlflow=maybe is invalid"):
+        main([str(two_model_sweep.sweep_dir), "mlflow=maybe"])
+
+
 def test_sensitivity_sweep_reports_the_requirement_per_assumption(store, tmp_path):
     """Variants with known curves: noise0 saturates coarser (tau 1.5), noise5 finer (tau 8) than the reference (3)."""
     variants = {"reference": (3.0, 0.02), "noise0": (1.5, 0.0), "noise5": (8.0, 0.05)}
