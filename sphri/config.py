@@ -359,13 +359,15 @@ def check_known_keys(cfg: DictConfig, prefix: str = "") -> None:
     if dataclasses.is_dataclass(typ):
         names = [f.name for f in dataclasses.fields(typ)]
         for key in cfg.keys():
-            if key not in names:
+            if key not in names and not (prefix == "" and key == "hydra"):  # Hydra's own node (compose with return_hydra_config)
                 full = f"{prefix}{key}"
                 raise ConfigError(
                     f"{full} is not a known key{close_match(str(key), names)}; "
                     f"{(prefix.rstrip('.') or 'the top level')} has: {', '.join(n for n in names if n != '_target_')}"
                 )
     for key in cfg.keys():
+        if prefix == "" and key == "hydra":
+            continue
         node = cfg._get_node(key)
         if isinstance(node, DictConfig) and not node._is_missing() and not node._is_none():
             check_known_keys(node, f"{prefix}{key}.")

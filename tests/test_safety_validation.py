@@ -172,7 +172,7 @@ def test_main_entry_point_data_error_is_one_line(tmp_path):
     [
         ("sphri.data.stats", ["data=vr_gesture", "data.root=/nonexistent/ds"], "data error"),
         ("sphri.data.synthesize", ["out=/proc/sphri-ds", "data.participants=2", "+debug=fast"], "file error"),
-        ("sphri.analysis.cli", ["data=vr_gesture", "data.root=/nonexistent/ds", "mlflow=false"], "data error"),
+        ("sphri.coverage", ["data=vr_gesture", "data.root=/nonexistent/ds", "mlflow=false"], "data error"),
         ("sphri.hardware.train_export", ["out=m.sphrimodel", "data=vr_gesture", "data.root=/nonexistent/ds"], "data error"),
         ("sphri.hardware.skin", ["live", "port=socket://127.0.0.1:9", "model=/nonexistent/m.sphrimodel"], "model file error"),
         ("sphri.cli", ["validate", "+seeed=3"], "invalid config"),

@@ -31,7 +31,7 @@ def _runs(out: Path, kind: str | None = None) -> list:
     from mlflow.tracking import MlflowClient
 
     client = MlflowClient(default_uri(out))
-    exp = client.get_experiment_by_name("sphri")
+    exp = client.get_experiment_by_name("sphri-debug")
     runs = client.search_runs([exp.experiment_id]) if exp else []
     return [r for r in runs if kind is None or r.data.tags.get("sphri.kind") == kind]
 

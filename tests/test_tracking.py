@@ -94,7 +94,7 @@ def test_parallel_multirun_makes_one_parent_with_four_children(tmp_path: Path):
                    "hydra/launcher=local", "hydra.launcher.n_jobs=2"], cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     client = MlflowClient(default_uri(out))
-    exp = client.get_experiment_by_name("sphri")
+    exp = client.get_experiment_by_name("sphri-debug")
     runs = client.search_runs([exp.experiment_id])
     parents = [r for r in runs if r.data.tags.get("sphri.kind") == "sweep"]
     children = [r for r in runs if r.data.tags.get("sphri.kind") == "job"]
@@ -118,7 +118,7 @@ def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path, arm_mesh_roots
                    "hydra/launcher=serial"], cwd=tmp_path)
     assert proc.returncode == 1, "a sweep with a failed job exits non-zero: " + proc.stderr[-2000:]
     client = MlflowClient(default_uri(out))
-    runs = client.search_runs([client.get_experiment_by_name("sphri").experiment_id])
+    runs = client.search_runs([client.get_experiment_by_name("sphri-debug").experiment_id])
     jobs = sorted((r for r in runs if r.data.tags.get("sphri.kind") == "job"), key=lambda r: r.info.status)
     assert [r.info.status for r in jobs] == ["FAILED", "FINISHED"]
     assert "arm.obj" in jobs[0].data.tags["sphri.error"]
@@ -140,7 +140,7 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_the_same_parent(tmp_path: Pat
     assert second.returncode == 0, second.stderr[-3000:]
     assert "2 of 2 jobs finished (2 skipped" in second.stdout
     client = MlflowClient(default_uri(out))
-    runs = client.search_runs([client.get_experiment_by_name("sphri").experiment_id])
+    runs = client.search_runs([client.get_experiment_by_name("sphri-debug").experiment_id])
     assert len([r for r in runs if r.data.tags.get("sphri.kind") == "sweep"]) == 1
     assert len([r for r in runs if r.data.tags.get("sphri.kind") == "job"]) == 2
 
@@ -154,3 +154,23 @@ def test_ui_hint_names_the_store(tmp_path, monkeypatch):
     (tmp_path / "Makefile").write_text("ui:\n\tmlflow ui --backend-store-uri sqlite:///$(CURDIR)/outputs/mlflow.db\n")
     assert ui_hint(uri) == "make ui"
     assert ui_hint(f"sqlite:///{tmp_path / 'other' / 'mlflow.db'}").startswith("mlflow ui --backend-store-uri")
+
+
+def test_job_run_has_standard_source_tags_debug_experiment_and_derived_metrics(tmp_path):
+    """MLflow's own source fields are filled, debug runs go to their own experiment, pitch and area are metrics."""
+    import subprocess
+    import sys
+
+    from mlflow.tracking import MlflowClient
+
+    job = subprocess.run([sys.executable, "-m", "sphri", "+debug=fast", f"output_dir={tmp_path}"],
+                         capture_output=True, text=True, timeout=600)
+    assert job.returncode == 0, job.stderr[-2000:]
+    client = MlflowClient(tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
+    assert client.get_experiment_by_name("sphri") is None
+    exp = client.get_experiment_by_name("sphri-debug")
+    (run,) = client.search_runs([exp.experiment_id])
+    tags, metrics = run.data.tags, run.data.metrics
+    assert tags["mlflow.source.git.commit"] == tags["sphri.git_commit"]
+    assert tags["mlflow.source.name"] == "python -m sphri" and tags["sphri.debug"] == "true"
+    assert metrics["resolution/pitch_u_mm"] > 0 and metrics["resolution/area_per_taxel_cm2"] > 0

@@ -224,9 +224,13 @@ class MlflowTracker:
         output_dir = cfg.output_dir
         client = self.client(output_dir)
         exp_id = self.experiment_id(output_dir)
+        commit = git_commit()
         tags = {
             "sphri.kind": "job",
-            "sphri.git_commit": git_commit(),
+            "sphri.git_commit": commit,
+            "mlflow.source.git.commit": commit,  # MLflow's own fields: the UI shows source and commit
+            "mlflow.source.name": "python -m sphri",
+            "mlflow.source.type": "LOCAL",
             "sphri.version": __version__,
             "sphri.job_dir": str(job_dir),
             **tags,
@@ -251,6 +255,7 @@ class MlflowTracker:
             "sphri.synthetic": str(meta["synthetic"]).lower(),
             "sphri.cv_scheme": result.cv.scheme,
             "sphri.from_cache": ",".join(n for n, r in result.stages.items() if r.source == "cache") or "none",
+            "sphri.debug": str(bool((choices or {}).get("debug"))).lower(),
         }
         run_id = self._start_job(cfg, job_dir, parent, run_name or self._run_name(cfg, meta, choices), tags)
         client = self.client(cfg.output_dir)
@@ -260,7 +265,9 @@ class MlflowTracker:
         for k in ("robot", "region", "link", "n_participants", "n_trials", "n_windows", "n_dropped_no_contact", "frame_rate_hz"):
             params[f"meta.{k}"] = str(meta[k])
         now = int(time.time() * 1000)
-        metrics = []
+        derived = [Metric(f"resolution/{k}", float(v), now, 0) for k, v in meta["resolution"].items()
+                   if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)]  # the UI plots and sorts these
+        metrics = derived
         for i, fold in enumerate(result.cv.folds):
             metrics += [
                 Metric("fold_accuracy", float(fold.accuracy), now, i),
