@@ -16,10 +16,12 @@ def _unit(path: Path) -> str:
 
 
 def _runtime_imports(tree: ast.AST):
-    """Modules imported by ``tree``, at module level or inside functions, but not under ``if TYPE_CHECKING``."""
+    """Modules imported by ``tree``, at module level or inside functions, but not under ``if TYPE_CHECKING``
+    or ``if __name__ == "__main__"``."""
     skip: set[int] = set()
     for node in ast.walk(tree):
-        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+        test = ast.unparse(node.test) if isinstance(node, ast.If) else ""
+        if "TYPE_CHECKING" in test or "__name__ == '__main__'" in test:  # typing only; a module's command-line wiring
             skip.update(id(n) for stmt in node.body for n in ast.walk(stmt))
     for node in ast.walk(tree):
         if id(node) in skip:

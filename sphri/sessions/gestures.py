@@ -7,7 +7,7 @@ reports its leave-one-subject-out accuracy, and fits the model on all trials.
 
 :func:`label_episodes` turns each coded episode into a trial of that chain on
 the episode's dominant link: the dominant hand's poses moved into the link's
-frame, the configured contact, surface, layout, encoder, noise and window
+frame, the configured contact, surface, layout, encoder, window, noise and filter
 components, then the fitted model's class probabilities (features are in
 metres, so a Random Forest transfers between links; episodes on body parts
 the model never saw are flagged).
@@ -69,7 +69,7 @@ def train_gesture_model(overrides: list[str], regions: list[str], cache) -> Gest
         p = make_pipeline(cfg, cache)
         result, _ = p.get("evaluate")
         accs[region] = float(result.summary()["accuracy_mean"])
-        windows = build(cfg.window).assemble(p.get("noise"), p.get("plan"), p.get("data"), p.get("layout"), p.get("surface"))
+        windows = p.get("filter")  # the windows the model was evaluated on: noise on the windows, then the skin's filter
         model = instantiate(cfg.model, _partial_=True, _convert_="all")(geometry=windows.geometry)
         if first is None:
             first = (cfg, model, windows)
@@ -106,7 +106,9 @@ def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, robot, gm: Gestur
     from sphri.pipeline import build, trial_keys
 
     cfg = gm.config
-    comp = {g: build(cfg[g]) for g in ("contact", "surface", "layout", "encoder", "noise", "window")}
+    from sphri.noise.components import apply_to_windows
+
+    comp = {g: build(cfg[g]) for g in ("contact", "surface", "layout", "encoder", "noise", "window", "filter")}
     classes = [GESTURES[int(c)] for c in gm.model.classes_]
     out = episodes.copy()
     for g in GESTURES:
@@ -133,8 +135,9 @@ def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, robot, gm: Gestur
         plan = comp["window"].plan(contacts, gd)
         fi = plan.selected_frames()
         frames = comp["encoder"].encode(contacts, link, surface, layout, fi)
-        frames = comp["noise"].apply(frames, fi, trial_keys(gd)[gd.frame_trial_index()[fi]], seed)
-        windows = comp["window"].assemble(frames, plan, gd, layout, surface)
+        windows = comp["window"].assemble(frames, plan, gd, layout, surface)  # as in the chain: window, noise, filter
+        windows = apply_to_windows(comp["noise"], windows, trial_keys(gd)[windows.trial_row], seed)
+        windows = comp["filter"].apply(windows)
         if windows.x.shape[0] == 0:
             continue
         gm.model.geometry = windows.geometry

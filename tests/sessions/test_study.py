@@ -23,7 +23,7 @@ def study(tmp_path_factory):
     assert rc == 0
     assert (runs / "mlflow.db").is_file()
     # sessions and whole-body contacts are stage-cache entries: a second study reuses them
-    assert list((runs / "cache" / "sessions").glob("*.pkl")) and list((runs / "cache" / "body_contact").glob("*.pkl"))
+    assert list((runs / "cache" / "sessions").glob("*.entry")) and list((runs / "cache" / "body_contact").glob("*.entry"))
     return out
 
 
@@ -36,7 +36,7 @@ def test_sessions_and_contacts_come_from_the_stage_cache(tmp_path):
     _, _, ds1, bc1, _ = load_sessions_and_contacts(cfg, cache)
     _, _, ds2, bc2, _ = load_sessions_and_contacts(cfg, cache)
     assert ds1 is not ds2 and np.array_equal(ds1.hand_poses, ds2.hand_poses) and np.array_equal(bc1.frame, bc2.frame)
-    assert len(list((tmp_path / "sessions").glob("*.pkl"))) == 1
+    assert len(list((tmp_path / "sessions").glob("*.entry"))) == 1
 
 
 def test_writes_the_report_and_every_table(study):
