@@ -128,15 +128,50 @@ class CnnGruNet(nn.Module):
         self.register_buffer("x_mean", torch.zeros(()))
         self.register_buffer("x_std", torch.ones(()))
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
-        b, length, n = x.shape
-        x = (x - self.x_mean) / self.x_std
-        frames = x.reshape(b * length, n)
+    def embed(self, frames: torch.Tensor) -> torch.Tensor:
+        """(F, N) raw frames (any real dtype) -> (F, D) embeddings."""
+        frames = (frames.float() - self.x_mean) / self.x_std
         if self.grid_shape is not None:
-            frames = frames.reshape(b * length, 1, *self.grid_shape)
-        emb = self.encoder(frames).reshape(b, length, -1)
+            frames = frames.reshape(frames.shape[0], 1, *self.grid_shape)
+        return self.encoder(frames)
+
+    def classify(self, emb: torch.Tensor) -> torch.Tensor:
+        """(B, L, D) frame embeddings -> (B, n_classes) logits."""
         _, h = self.gru(emb)
         return self.head(h[-1])
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        b, length, n = x.shape
+        return self.classify(self.embed(x.reshape(b * length, n)).reshape(b, length, -1))
+
+    def forward_ids(self, table: torch.Tensor, ids: torch.Tensor) -> torch.Tensor:
+        """Logits of windows given as frame ids (B, L) into a table of distinct frames (U, N).
+
+        Each distinct frame of the batch goes through the encoder once; the
+        same logits as ``forward(table[ids])`` up to float rounding.
+        """
+        b, length = ids.shape
+        uniq, inv = torch.unique(ids, return_inverse=True)
+        emb = self.embed(table[uniq])
+        return self.classify(emb[inv.reshape(-1)].reshape(b, length, -1))
+
+
+def unique_frames(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Windows (n, L, N) -> (table (U, N) of distinct frames, ids (n, L) int64 into it)."""
+    n, length, taxels = x.shape
+    flat = np.ascontiguousarray(x.reshape(n * length, taxels))
+    rows = flat.view(np.dtype((np.void, flat.dtype.itemsize * taxels))).ravel()
+    _, first, inv = np.unique(rows, return_index=True, return_inverse=True)
+    return flat[first], inv.reshape(n, length).astype(np.int64)
+
+
+def compact(x: np.ndarray) -> np.ndarray:
+    """``x`` as uint8 when every value is an integer in 0..255 (binary skins), else unchanged."""
+    if x.size and x.dtype != np.uint8:
+        xu = x.astype(np.uint8)
+        if np.array_equal(xu, x):
+            return xu
+    return x
 
 
 @contextmanager
@@ -173,6 +208,9 @@ def resolve_device(device: str) -> torch.device:
         return dev
     raise ValueError(f"model.device={device!r} is invalid: allowed values: cpu, cuda, cuda:K")
 
+
+#: Allowed values of ``schedule``: constant lr, or one-cycle (warm-up to ``lr``, cosine down to ~0).
+SCHEDULES: tuple[str, ...] = ("constant", "onecycle")
 
 #: Allowed values of ``precision``.
 PRECISIONS: tuple[str, ...] = ("auto", "float32", "bf16")
@@ -243,7 +281,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
     """
 
     NAME = "cnn_gru"
-    VERSION = "1"
+    VERSION = "2"
 
     def __init__(
         self,
@@ -252,6 +290,8 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         lr: float = 1e-3,
         weight_decay: float = 1e-2,
         patience: int = 4,
+        schedule: str = "constant",
+        dedupe_frames: bool = False,
         val_fraction: float = 0.15,
         hidden: int = 128,
         channels: tuple[int, ...] | list[int] = (16, 32, 64),
@@ -268,6 +308,8 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         self.lr = lr
         self.weight_decay = weight_decay
         self.patience = patience
+        self.schedule = schedule
+        self.dedupe_frames = dedupe_frames
         self.val_fraction = val_fraction
         self.hidden = hidden
         self.channels = channels
@@ -291,6 +333,8 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         for key in ("max_epochs", "batch_size", "hidden", "embed_size"):
             if int(getattr(self, key)) < 1:
                 raise ValueError(f"model.{key}={getattr(self, key)!r} is invalid: must be >= 1")
+        if self.schedule not in SCHEDULES:
+            raise ValueError(f"model.schedule={self.schedule!r} is invalid: allowed values: {list(SCHEDULES)}")
         if self.precision not in PRECISIONS:
             raise ValueError(f"model.precision={self.precision!r} is invalid: allowed values: {list(PRECISIONS)}")
         if not 0.0 <= self.val_fraction < 1.0:
@@ -318,17 +362,25 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         order = torch.randperm(n, generator=gen) if gen is not None else torch.arange(n)
         return list(torch.split(order, int(self.batch_size)))
 
-    def _loss_acc(self, net: CnnGruNet, x: torch.Tensor, y: torch.Tensor, dev: torch.device) -> tuple[float, float]:
+    def _loss_acc(self, net: CnnGruNet, x: torch.Tensor, y: torch.Tensor, dev: torch.device,
+                  table: torch.Tensor | None = None) -> tuple[float, float]:
+        """Mean loss and accuracy; ``x`` windows, or frame ids (n, L) into ``table``."""
         net.eval()
         total, correct = 0.0, 0
         with torch.no_grad():
             for b in torch.split(torch.arange(x.shape[0]), 256):
                 with self._autocast(dev):
-                    logits = net(x[b].to(dev)).float()
+                    logits = self._logits(net, x[b], dev, table)
                 yb = y[b].to(dev)
                 total += float(F.cross_entropy(logits, yb, reduction="sum"))
                 correct += int((logits.argmax(1) == yb).sum())
         return total / max(1, x.shape[0]), correct / max(1, x.shape[0])
+
+    @staticmethod
+    def _logits(net: CnnGruNet, xb: torch.Tensor, dev: torch.device, table: torch.Tensor | None) -> torch.Tensor:
+        if table is None:
+            return net(xb.to(dev)).float()
+        return net.forward_ids(table, xb.to(dev)).float()
 
     # -- estimator API -----------------------------------------------------
     def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> "CnnGru":
@@ -351,16 +403,32 @@ class CnnGru(ClassifierMixin, BaseEstimator):
                 x.shape[2], grid, wrap, [int(c) for c in self.channels], [int(s) for s in self.strides],
                 int(self.embed_size), int(self.hidden), len(self.classes_),
             )
-            xt = torch.from_numpy(np.ascontiguousarray(x))
             yt = torch.from_numpy(y_idx.astype(np.int64))
-            x_tr = xt[torch.from_numpy(tr)]
-            mean = float(x_tr.mean(dtype=torch.float64))
-            std = float(x_tr.std().double()) if x_tr.numel() > 1 else 1.0
+            x_tr_np = x[tr]
+            mean = float(x_tr_np.mean(dtype=np.float64))
+            std = float(x_tr_np.astype(np.float64).std(ddof=1)) if x_tr_np.size > 1 else 1.0
+            del x_tr_np
             net.x_mean.fill_(mean)
             net.x_std.fill_(std if std > 1e-6 else 1.0)
             net.to(dev)
+            if self.dedupe_frames:
+                # distinct frames once (uint8 while binary); windows become frame ids
+                table_np, ids = unique_frames(x)
+                table: torch.Tensor | None = torch.from_numpy(compact(table_np)).to(dev)
+                xt = torch.from_numpy(ids)
+            else:
+                table = None
+                xt = torch.from_numpy(np.ascontiguousarray(x))
             opt = torch.optim.AdamW(net.parameters(), lr=self.lr, weight_decay=self.weight_decay)
+            steps_per_epoch = math.ceil(tr.size / int(self.batch_size))
+            sched = None
+            if self.schedule == "onecycle" and steps_per_epoch > 0:
+                sched = torch.optim.lr_scheduler.OneCycleLR(
+                    opt, max_lr=self.lr, epochs=int(self.max_epochs), steps_per_epoch=steps_per_epoch,
+                    pct_start=0.25, anneal_strategy="cos", cycle_momentum=False,
+                )
             has_val = va.size > 0
+            x_tr = xt[torch.from_numpy(tr)]
             x_va, y_va = xt[torch.from_numpy(va)], yt[torch.from_numpy(va)]
             y_tr = yt[torch.from_numpy(tr)]
             best, best_state, best_epoch, stale = math.inf, None, 0, 0
@@ -369,17 +437,19 @@ class CnnGru(ClassifierMixin, BaseEstimator):
                 net.train()
                 run_loss = 0.0
                 for b in self._batches(x_tr.shape[0], gen):
-                    xb, yb = x_tr[b].to(dev), y_tr[b].to(dev)
+                    yb = y_tr[b].to(dev)
                     with self._autocast(dev):
-                        logits = net(xb).float()
+                        logits = self._logits(net, x_tr[b], dev, table)
                     loss = F.cross_entropy(logits, yb)
                     opt.zero_grad(set_to_none=True)
                     loss.backward()
                     opt.step()
+                    if sched is not None:
+                        sched.step()
                     run_loss += loss.detach().item() * b.numel()
                 train_loss = run_loss / max(1, x_tr.shape[0])
                 if has_val:
-                    val_loss, val_acc = self._loss_acc(net, x_va, y_va, dev)
+                    val_loss, val_acc = self._loss_acc(net, x_va, y_va, dev, table)
                 else:
                     val_loss, val_acc = float("nan"), float("nan")
                 history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss, "val_accuracy": val_acc})

@@ -57,6 +57,10 @@ class CnnGruSchema:
     """AdamW weight decay."""
     patience: int = 4
     """Epochs without validation-loss improvement before stopping."""
+    schedule: str = "constant"
+    """Learning rate over training: "constant" (``lr`` throughout) or "onecycle" (warm-up to ``lr``, cosine to ~0 at ``max_epochs``)."""
+    dedupe_frames: bool = False
+    """Embed each distinct frame of a batch once (same predictions to float rounding; fewer convolutions)."""
     val_fraction: float = 0.15
     """Share of training participants held out for early stopping (0: none)."""
     hidden: int = 128
@@ -82,6 +86,7 @@ class CnnGruSchema:
         require_range("model.lr", self.lr, lo=0.0, lo_open=True)
         require_range("model.weight_decay", self.weight_decay, lo=0.0)
         require_range("model.patience", self.patience, lo=1)
+        require_choice("model.schedule", self.schedule, ["constant", "onecycle"])
         require_range("model.val_fraction", self.val_fraction, lo=0.0, hi=1.0, hi_open=True)
         require_range("model.hidden", self.hidden, lo=1)
         require(len(self.channels) >= 1 and all(c >= 1 for c in self.channels), "model.channels",

@@ -1,0 +1,159 @@
+"""Profile: where a CNN-GRU LOSO fold's time goes, at res 6 / 18 / 50.
+
+For each resolution, on the first LOSO fold of the windows (full-size
+synthetic study by default; ``--quick``: 6 participants x 5 repetitions):
+
+* ``ops``: torch.profiler over ``--batches`` training steps (default
+  settings: batch 32, bf16 autocast where native), self CPU time grouped into
+  conv forward, conv backward, GRU forward/backward, linear, pooling matmul,
+  optimizer, data movement (index/copy/cat/pad) and the rest;
+* ``epoch``: one training epoch's and one validation pass's wall/CPU time;
+* ``fit`` (``--fit-res``, default 18): one whole fit with the model's
+  default (old, ``--budget old``) settings: epochs run, best epoch, and the
+  share of epochs discarded by early stopping.
+
+Writes ``outputs/bench/cnn_gru_profile.json`` (``_quick`` with ``--quick``).
+
+    python bench/profile_cnn_gru.py [--quick] [--res 6 18 50] [--fit-res 18]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections import defaultdict
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+import torch.nn.functional as F  # noqa: E402
+
+from _common import machine, write_json  # noqa: E402
+from bench_models import get_windows  # noqa: E402
+
+from sphri.models.cnn_gru import CnnGru, CnnGruNet  # noqa: E402
+
+CATEGORIES = [
+    ("conv_backward", ("convolution_backward",)),
+    ("conv_forward", ("convolution", "conv2d", "mkldnn_conv")),
+    ("gru", ("gru", "rnn", "_thnn_fused")),
+    ("optimizer", ("adam", "_foreach", "optimizer")),
+    ("data_movement", ("index", "copy_", "cat", "pad", "to_copy", "clone", "contiguous", "stack", "_to_copy",
+                       "select", "slice", "reshape", "view", "permute", "transpose", "empty")),
+    ("matmul_linear", ("mm", "addmm", "matmul", "linear", "bmm")),
+    ("elementwise", ("relu", "threshold", "add", "mul", "sub", "div", "sigmoid", "tanh")),
+]
+
+
+def category(name: str) -> str:
+    n = name.lower()
+    for cat, keys in CATEGORIES:
+        if any(k in n for k in keys):
+            return cat
+    return "other"
+
+
+def first_fold(win):
+    g = np.asarray(win.groups)
+    held = np.unique(g)[0]
+    return np.flatnonzero(g != held), np.flatnonzero(g == held)
+
+
+def profile_res(win, batches: int) -> dict:
+    x, y = win.x, np.asarray(win.y)
+    tr, _ = first_fold(win)
+    m = CnnGru(geometry=win.geometry)
+    grid, wrap = m._layout(x.shape[2])
+    torch.manual_seed(0)
+    net = CnnGruNet(x.shape[2], grid, wrap, list(m.channels), list(m.strides), m.embed_size, m.hidden, 8)
+    opt = torch.optim.AdamW(net.parameters(), lr=m.lr, weight_decay=m.weight_decay)
+    dev = torch.device("cpu")
+    from sphri.models.cnn_gru import resolve_precision
+    m.precision_ = resolve_precision(m.precision, dev)
+    xt = torch.from_numpy(np.ascontiguousarray(x[tr]))
+    yt = torch.from_numpy(y[tr].astype(np.int64))
+    gen = torch.Generator().manual_seed(0)
+
+    def step(b):
+        with m._autocast(dev):
+            logits = net(xt[b]).float()
+        loss = F.cross_entropy(logits, yt[b])
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+
+    order = list(torch.split(torch.randperm(xt.shape[0], generator=gen), m.batch_size))
+    for b in order[:3]:  # warm-up
+        step(b)
+    with torch.profiler.profile(activities=[torch.profiler.ProfilerActivity.CPU]) as prof:
+        for b in order[3:3 + batches]:
+            step(b)
+    cats: dict[str, float] = defaultdict(float)
+    top = []
+    for ev in prof.key_averages():
+        cats[category(ev.key)] += ev.self_cpu_time_total / 1e6
+        top.append((ev.self_cpu_time_total / 1e6, ev.key))
+    total = sum(cats.values())
+    top.sort(reverse=True)
+    # one epoch and one validation pass (forward only over ~15 % of the training trials)
+    c0, t0 = time.process_time(), time.perf_counter()
+    net.train()
+    for b in order:
+        step(b)
+    epoch = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "steps": len(order)}
+    nva = int(0.15 * xt.shape[0])
+    c0, t0 = time.process_time(), time.perf_counter()
+    m._loss_acc(net, xt[:nva], yt[:nva], dev)
+    val = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "trials": nva}
+    return {
+        "grid_shape": grid, "n_train": int(xt.shape[0]), "precision": m.precision_, "batches_profiled": batches,
+        "ops_self_cpu_s": {k: round(v, 3) for k, v in sorted(cats.items(), key=lambda kv: -kv[1])},
+        "ops_share": {k: round(v / total, 3) for k, v in sorted(cats.items(), key=lambda kv: -kv[1])},
+        "top_ops": [{"op": k, "self_cpu_s": round(v, 3)} for v, k in top[:12]],
+        "epoch": {k: round(v, 2) if isinstance(v, float) else v for k, v in epoch.items()},
+        "validation_pass": {k: round(v, 2) if isinstance(v, float) else v for k, v in val.items()},
+        "validation_share_of_epoch": round(val["wall_s"] / (epoch["wall_s"] + val["wall_s"]), 3),
+    }
+
+
+def profile_fit(win) -> dict:
+    tr, _ = first_fold(win)
+    g = np.asarray(win.groups)
+    m = CnnGru(geometry=win.geometry)
+    c0, t0 = time.process_time(), time.perf_counter()
+    m.fit(win.x[tr], np.asarray(win.y)[tr], groups=g[tr])
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    ran = len(m.history_)
+    return {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "epochs_run": ran, "best_epoch": m.best_epoch_,
+            "epochs_discarded": ran - m.best_epoch_, "discarded_share": round((ran - m.best_epoch_) / ran, 3),
+            "history": m.history_}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--res", type=int, nargs="+", default=[6, 18, 50])
+    ap.add_argument("--fit-res", type=int, nargs="*", default=[18])
+    ap.add_argument("--batches", type=int, default=10)
+    args = ap.parse_args(argv)
+    participants, reps = (6, 5) if args.quick else (18, 20)
+    torch.set_num_threads(2)
+    out = {"machine": machine(), "quick": args.quick, "threads": torch.get_num_threads(), "res": {}}
+    for res in sorted(set(args.res) | set(args.fit_res)):
+        win, source, _ = get_windows("pipeline", res, participants, reps, seed=0)
+        entry = {"data_source": source, "windows": list(win.x.shape)}
+        if res in args.res:
+            entry.update(profile_res(win, args.batches))
+        if res in args.fit_res:
+            entry["fit_old_settings"] = profile_fit(win)
+        out["res"][str(res)] = entry
+        print(res, {k: v for k, v in entry.items() if k not in ("top_ops", "fit_old_settings")}, flush=True)
+        write_json("cnn_gru_profile_quick" if args.quick else "cnn_gru_profile", out)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
