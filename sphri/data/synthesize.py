@@ -38,22 +38,31 @@ def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> GestureDataset
     return dataset
 
 
+def out_and_overrides(argv: list[str], prog: str, doc: str | None) -> tuple[str | None, list[str] | None]:
+    """``out=DIR`` and the config overrides of a synthesize command (also ``python -m sphri.sessions.synthesize``).
+
+    Prints the help (returns ``(None, None)``) or a usage line (``(None, [])``)."""
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    if any(a in ("-h", "--help") for a in argv):
+        print(doc)
+        return None, None
+    outs = [a.split("=", 1)[1] for a in argv if a.startswith("out=")]
+    if len(outs) != 1 or not outs[0]:
+        print(f"usage: {prog} out=DIR [data.participants=N ...]", file=sys.stderr)
+        return None, []
+    return outs[0], [a for a in argv if not a.startswith("out=")]
+
+
 @clean_errors("sphri.data.synthesize")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    if any(a in ("-h", "--help") for a in argv):
-        print(__doc__)
-        return 0
-    outs = [a.split("=", 1)[1] for a in argv if a.startswith("out=")]
-    if len(outs) != 1 or not outs[0]:
-        print("usage: python -m sphri.data.synthesize out=DIR [data.participants=N ...]", file=sys.stderr)
-        return 2
-    overrides = [a for a in argv if not a.startswith("out=")]
+    out, overrides = out_and_overrides(argv, "python -m sphri.data.synthesize", __doc__)
+    if out is None:
+        return 0 if overrides is None else 2
     t = time.perf_counter()
-    ds = synthesize(outs[0], overrides)
+    ds = synthesize(out, overrides)
     print(f"wrote {len(ds.trials)} trials, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
-          f"to {Path(outs[0]).resolve()} in {time.perf_counter() - t:.1f} s")
+          f"to {Path(out).resolve()} in {time.perf_counter() - t:.1f} s")
     return 0
 
 

@@ -10,7 +10,6 @@ format (:mod:`sphri.sessions.format`). The folder then loads with
 
 from __future__ import annotations
 
-import logging
 import sys
 import time
 from pathlib import Path
@@ -35,19 +34,16 @@ def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> SessionDataset
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    from sphri.data.synthesize import out_and_overrides
+
     argv = list(sys.argv[1:] if argv is None else argv)
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    if any(a in ("-h", "--help") for a in argv):
-        print(__doc__)
-        return 0
-    outs = [a.split("=", 1)[1] for a in argv if a.startswith("out=")]
-    if len(outs) != 1 or not outs[0]:
-        print("usage: python -m sphri.sessions.synthesize out=DIR [data.participants=N ...]", file=sys.stderr)
-        return 2
+    out, overrides = out_and_overrides(argv, "python -m sphri.sessions.synthesize", __doc__)
+    if out is None:
+        return 0 if overrides is None else 2
     t = time.perf_counter()
-    ds = synthesize(outs[0], [a for a in argv if not a.startswith("out=")])
+    ds = synthesize(out, overrides)
     print(f"wrote {len(ds.sessions)} sessions, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
-          f"to {Path(outs[0]).resolve()} in {time.perf_counter() - t:.1f} s")
+          f"to {Path(out).resolve()} in {time.perf_counter() - t:.1f} s")
     return 0
 
 
