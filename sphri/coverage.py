@@ -201,13 +201,10 @@ def log_coverage(cfg, settings: CoverageSchema, cov: CoverageRun, overrides: Seq
         for k, v in cov.seconds.items():
             metrics.append(Metric(f"time/{k}_s", float(v), now, 0))
         plist = [Param(k, str(v)[:500]) for k, v in params.items()]
-        for s in range(0, max(len(metrics), len(plist)), 100):
-            tracker._retry(lambda s=s: client.log_batch(run_id, metrics=metrics[s:s + 100], params=plist[s:s + 100]))
-        tracker._retry(lambda: client.log_artifacts(run_id, str(cov.out_dir)))
-        tracker._retry(lambda: client.set_terminated(run_id, "FINISHED"))
     except Exception:
         tracker._retry(lambda: client.set_terminated(run_id, "FAILED"))
         raise
+    tracker.finish_analysis_run(client, run_id, metrics, plist, cov.out_dir)
     return run_id
 
 

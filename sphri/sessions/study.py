@@ -435,11 +435,8 @@ def log_study(cfg, res: StudyResult, overrides: Sequence[str], ds) -> str | None
             for r in res.comparison.table.itertuples():
                 if r.p_holm == r.p_holm:
                     metrics.append(Metric(f"swd/p_holm/{r.cond_a}-{r.cond_b}", float(r.p_holm), now, 0))
-        for s in range(0, max(len(metrics), len(params)), 100):
-            tracker._retry(lambda s=s: client.log_batch(run_id, metrics=metrics[s:s + 100], params=params[s:s + 100]))
-        tracker._retry(lambda: client.log_artifacts(run_id, str(res.out_dir)))
-        tracker._retry(lambda: client.set_terminated(run_id, "FINISHED"))
     except Exception:
         tracker._retry(lambda: client.set_terminated(run_id, "FAILED"))
         raise
+    tracker.finish_analysis_run(client, run_id, metrics, params, res.out_dir)
     return run_id

@@ -144,6 +144,22 @@ class MlflowTracker:
 
         return self._retry(get_or_create)
 
+    def log_batches(self, client: "MlflowClient", run_id: str, metrics: list, params: list) -> None:
+        """Log metrics and params in MLflow's batches of 100, retrying a locked store."""
+        for start in range(0, max(len(metrics), len(params)), 100):
+            self._retry(lambda s=start: client.log_batch(run_id, metrics=metrics[s:s + 100], params=params[s:s + 100]))
+
+    def finish_analysis_run(self, client: "MlflowClient", run_id: str, metrics: list, params: list,
+                            out_dir: str | os.PathLike) -> None:
+        """Log an analysis run's numbers and every file of ``out_dir``, then end it FINISHED (FAILED on error)."""
+        try:
+            self.log_batches(client, run_id, metrics, params)
+            self._retry(lambda: client.log_artifacts(run_id, str(out_dir)))
+            self._retry(lambda: client.set_terminated(run_id, "FINISHED"))
+        except Exception:
+            self._retry(lambda: client.set_terminated(run_id, "FAILED"))
+            raise
+
     def _retry(self, fn: Callable[[], T]) -> T:
         """Retry a write that hit a locked SQLite database (parallel jobs)."""
         for attempt in range(self.retries + 1):
@@ -281,8 +297,7 @@ class MlflowTracker:
         for name, rec in result.stages.items():
             metrics.append(Metric(f"time/{name}_s", float(rec.seconds), now, 0))
         plist = [Param(k, v) for k, v in params.items()]
-        for start in range(0, max(len(metrics), len(plist)), 100):
-            self._retry(lambda s=start: client.log_batch(run_id, metrics=metrics[s:s + 100], params=plist[s:s + 100]))
+        self.log_batches(client, run_id, metrics, plist)
         self._retry(lambda: client.set_tag(run_id, "mlflow.note.content", summary_text(result)))
         if self.artifacts:
             self._log_artifacts(client, run_id, cfg, result)
