@@ -24,6 +24,15 @@ from sphri.types import GESTURES  # noqa: E402
 VIEWS = (("front", 0.0, 10.0), ("left", 90.0, 10.0), ("back", 180.0, 10.0), ("right", 270.0, 10.0), ("top", 0.0, 89.0))
 
 
+def _finish(fig, title: str, path: str | Path) -> Path:
+    """Title the figure, write it to ``path`` (PNG) and close it."""
+    fig.suptitle(title, fontsize=11)
+    path = Path(path)
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
 def body_view(body: BodySurface) -> LinkView:
     return LinkView(body.mesh, body.samples, target_faces=20000)
 
@@ -44,11 +53,7 @@ def plot_views(view: LinkView, densities: dict[str, np.ndarray], path: str | Pat
                         ha="right", va="center", fontsize=9)
     fig.subplots_adjust(left=0.05, right=0.88, bottom=0.02, top=0.93, wspace=0.02, hspace=0.08)
     _colourbar(fig, vmax, cax=fig.add_axes((0.9, 0.15, 0.018, 0.7)))
-    fig.suptitle(title, fontsize=11)
-    path = Path(path)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return _finish(fig, title, path)
 
 
 def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, title: str) -> Path:
@@ -84,11 +89,7 @@ def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, 
         axes[k // cols, k % cols].set_axis_off()
     fig.subplots_adjust(left=0.05, right=0.9, bottom=0.06, top=0.92, wspace=0.35, hspace=0.6)
     _colourbar(fig, vmax, cax=fig.add_axes((0.92, 0.15, 0.015, 0.7)))
-    fig.suptitle(title, fontsize=11)
-    path = Path(path)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    return _finish(fig, title, path)
 
 
 def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: str | Path) -> Path:
