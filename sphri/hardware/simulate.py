@@ -368,6 +368,8 @@ class SkinSimulator:
         self.rng = np.random.default_rng(settings.seed)
         self.stop = threading.Event()
         self.ready = threading.Event()
+        #: set once every frame was written and the host has read it all (or the simulator stopped)
+        self.finished = threading.Event()
 
     def _wait_start(self) -> None:
         buf = b""
@@ -403,6 +405,7 @@ class SkinSimulator:
             self.ledger.seconds = time.monotonic() - t_begin
             self.endpoint.close()
             self.ready.set()
+            self.finished.set()
         return self.ledger
 
     def _run(self) -> None:
@@ -487,6 +490,7 @@ class SkinSimulator:
                 entry["good_onset"] = good_at.get(first + onset, -1)
             led.trials.append(entry)
         self.endpoint.drain(self.stop)
+        self.finished.set()
         self.say(f"skin simulator: done ({led.good} intact of {led.slots} frames); holding the port {s.hold_s:g} s")
         end = time.monotonic() + s.hold_s
         while time.monotonic() < end and not self.stop.is_set():

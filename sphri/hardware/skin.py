@@ -104,8 +104,11 @@ class SkinReader:
     def stats(self):
         return self.decoder.stats
 
-    def frames(self, max_frames: int = 0, duration_s: float = 0.0, idle_s: float = 0.0) -> Iterator[ReceivedFrame]:
-        """Yield good frames until ``max_frames``, ``duration_s`` or ``idle_s`` without a frame (0 = no limit).
+    def frames(self, max_frames: int = 0, duration_s: float = 0.0, idle_s: float = 0.0,
+               until: Callable[[], bool] | None = None) -> Iterator[ReceivedFrame]:
+        """Yield good frames until ``max_frames``, ``duration_s`` or ``idle_s`` without a frame (0 = no limit),
+        or until ``until()`` is true once nothing more is waiting on the port (a source that can say it has
+        finished, e.g. the simulator's ``finished`` event: the stop is then an event, not a timeout).
 
         Sets :attr:`stop_reason`. Raises ``PortLost`` (no reconnect) and
         :class:`StreamMismatch` when only wrong-count frames arrive.
@@ -114,6 +117,7 @@ class SkinReader:
         last = t_start
         count = 0
         seen_reconnects = self.link.reconnects
+        finishing = False
         while True:
             data = self.link.read()
             now = time.monotonic()
@@ -137,6 +141,11 @@ class SkinReader:
                         f"{self.link.port}: {st.wrong_count} frames with the wrong taxel count and none with "
                         f"the expected {self.decoder.expected_taxels}; is this the skin the model/layout was made for?"
                     )
+            elif until is not None and until():
+                if finishing:  # a second empty read after the source said it finished: nothing is in flight
+                    self.stop_reason = "the source finished"
+                    return
+                finishing = True
             if duration_s and now - t_start >= duration_s:
                 self.stop_reason = f"{duration_s:g} s elapsed"
                 return
@@ -153,8 +162,12 @@ def _error_line(stats) -> str:
 
 
 # --------------------------------------------------------------------------- record
-def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> dict:
+def record(settings: SkinRecordSettings, out: Callable[[str], None] = print,
+           until: Callable[[], bool] | None = None) -> dict:
     """``skin record``: read frames until a stop condition, save them; returns a summary.
+
+    ``until``: an extra stop condition for a source that can say it has
+    finished (see :meth:`SkinReader.frames`).
 
     The output path is checked, and ``<out>.partial`` created, before the
     port is opened; frames are appended to it every ``chunk_frames``
@@ -180,7 +193,7 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print) -> 
     out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames appended to {partial.path} as they arrive)")
     try:
         with reader:
-            for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s):
+            for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until):
                 values.append(rf.frame.values)
                 host_t.append(rf.host_time_s)
                 dev_t.append(rf.frame.device_time_us)
@@ -245,8 +258,11 @@ def default_tracking_uri() -> str | None:
         return None
 
 
-def live(settings: SkinLiveSettings, out: Callable[[str], None] = print) -> dict:
-    """``skin live``: classify the streamed frames; returns a summary with latencies."""
+def live(settings: SkinLiveSettings, out: Callable[[str], None] = print,
+         until: Callable[[], bool] | None = None) -> dict:
+    """``skin live``: classify the streamed frames; returns a summary with latencies.
+
+    ``until``: an extra stop condition, as in :func:`record`."""
     from sphri.hardware.live import LiveClassifier, auto_stride
     from sphri.hardware.model_file import load_model, resolve_model_path
 
@@ -272,7 +288,7 @@ def live(settings: SkinLiveSettings, out: Callable[[str], None] = print) -> dict
     filled = 0
     try:
         with reader:
-            for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s):
+            for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until):
                 if rf.segment != segment:
                     segment = rf.segment
                     clf.reset()

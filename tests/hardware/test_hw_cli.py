@@ -33,13 +33,13 @@ def test_simulate_then_record_from_the_command_line(tmp_path, port):
     report = tmp_path / "ledger.json"
     extra = [f"link={tmp_path / 'skin.tty'}"] if port == "pty" else []
     sim, url = start_simulator(["skin", "source=pattern", f"port={port}", "frames=300", "realtime=false",
-                                "corrupt_rate=0.05", "seed=4", "hold_s=3", f"report={report}", *extra])
+                                "corrupt_rate=0.05", "seed=4", "hold_s=10", f"report={report}", *extra])
     if port == "pty":
         assert url == str(tmp_path / "skin.tty")
     out = tmp_path / "rec.npz"
     try:
         rec_proc = subprocess.run(
-            [sys.executable, "-m", "sphri.hardware.skin", "record", f"port={url}", f"out={out}", "idle_s=0.7", "grid=18x6"],
+            [sys.executable, "-m", "sphri.hardware.skin", "record", f"port={url}", f"out={out}", "idle_s=5", "grid=18x6"],
             capture_output=True, text=True, timeout=120,
         )
     finally:

@@ -66,8 +66,8 @@ def test_train_export_then_live_on_streamed_trials(out_dir):
     th = start_in_thread(sim)
     pred = out_dir / "pred.jsonl"
     try:
-        summary = live(SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=3.0, out=str(pred),
-                                        stride=10, show="off"), out=lambda m: None)
+        summary = live(SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(pred),
+                                        stride=10, show="off"), out=lambda m: None, until=sim.finished.is_set)
     finally:
         sim.stop.set()
         th.join(10)

@@ -24,8 +24,9 @@ def run_record(tmp_path, sim_kw: dict, rec_kw: dict | None = None, frames: int =
     out = tmp_path / "rec.npz"
     lines: list[str] = []
     try:
-        summary = record(SkinRecordSettings(port=sim.endpoint.url, out=str(out), **{"idle_s": 0.6, "grid": "18x6", **(rec_kw or {})}),
-                         out=lines.append)
+        # stops when the simulator says every frame was sent and read (an event); idle_s only guards against a hang
+        summary = record(SkinRecordSettings(port=sim.endpoint.url, out=str(out), **{"idle_s": 60.0, "grid": "18x6", **(rec_kw or {})}),
+                         out=lines.append, until=sim.finished.is_set)
     finally:
         sim.stop.set()
         th.join(10)
@@ -58,7 +59,7 @@ def test_record_keeps_every_good_frame_with_5_percent_corrupt(tmp_path, port):
     # every byte read is accounted for: good frames or skipped (nothing left buffered)
     assert dec["good_bytes"] == ledger.good_bytes
     assert dec["skipped_bytes"] == dec["bytes_in"] - dec["good_bytes"]
-    # the recorder stops after idle_s without a good frame, so the tail of a
+    # the recorder stops once the simulator finished and nothing is in flight; the tail of a
     # trailing broken frame may still be in flight: at most one frame unread
     frame_bytes = ledger.good_bytes // ledger.good
     assert 0 <= ledger.bytes_sent - dec["bytes_in"] < frame_bytes
