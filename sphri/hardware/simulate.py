@@ -252,9 +252,9 @@ def pipeline_stream(overrides: Sequence[str], trials: int, participant: str | No
     rows = pick_rows(dataset.trials, trials, participant, seed)
     enc = encode_trials(p, rows, gap_s=gap_s)
     chunks, owner, meta = [], [], []
-    for k, (gap, vals) in enumerate(zip(enc.gap, enc.values)):
-        chunks += [gap, vals]
-        owner += [np.full(len(gap), -1), np.full(len(vals), k)]
+    for k, (gap, vals, tail) in enumerate(zip(enc.gap, enc.values, enc.tail)):
+        chunks += [gap, vals, tail]
+        owner += [np.full(len(gap), -1), np.full(len(vals), k), np.full(len(tail), -1)]
         meta.append({"row": int(enc.rows[k]), "label": int(enc.labels[k]), "gesture": GESTURES[int(enc.labels[k])],
                      "participant": enc.participants[k], "onset": int(enc.onsets[k])})
     if enc.gap:

@@ -34,6 +34,9 @@ class EncodedTrials:
     """Per trial (n_frames_i, N) float32 in [0, 1] (encoder output with noise)."""
     gap: list[np.ndarray]
     """Per trial (n_gap, N) untouched frames (noise only) to stream before it."""
+    tail: list[np.ndarray]
+    """Per trial (n_pad, N) untouched frames to stream right after it: the padded slots of its
+    window (``n_pad = window.frames - (n_frames - onset)`` when positive), with the noise the model saw there."""
     rows: np.ndarray
     """(T,) int64 row of each trial in ``GestureDataset.trials``."""
     labels: np.ndarray
@@ -55,7 +58,11 @@ def encode_trials(pipeline, rows: Sequence[int], gap_s: float = 0.5) -> EncodedT
     """Encode (and add the configured noise to) every frame of the trials ``rows``.
 
     ``gap_s`` seconds of untouched frames (zeros through the same noise
-    model) are made for each trial, to stream before it.
+    model) are made for each trial, to stream before it. Noise is a pure
+    function of (seed, trial, slot): frames from the trial's onset on get
+    the slot they have in the model's window, so a stream carries exactly
+    the noisy frames the offline model saw (padded slots streamed as the
+    trial's tail); frames before the onset get their own draws.
     """
     from sphri.pipeline import build, chain_region, trial_keys
 
@@ -71,28 +78,37 @@ def encode_trials(pipeline, rows: Sequence[int], gap_s: float = 0.5) -> EncodedT
     keys = trial_keys(dataset)
     rate = float(dataset.frame_rate_hz)
     n_gap = int(round(gap_s * rate))
-    values, gaps, onsets, binary = [], [], [], True
+    length = int(cfg.window.frames)
+    values, gaps, tails, onsets, binary = [], [], [], [], True
     contact_frames = np.asarray(contacts.frame)
     for row in rows:
         t = dataset.trials.iloc[int(row)]
         start, n = int(t["start"]), int(t["n_frames"])
         first = int(np.searchsorted(contact_frames, start))
         touched = first < contact_frames.size and contact_frames[first] < start + n
-        onsets.append(int(contact_frames[first]) - start if touched else -1)
+        onset = int(contact_frames[first]) - start if touched else 0
+        onsets.append(onset if touched else -1)
         index = np.arange(start, start + n, dtype=np.int64)
         frames = encoder.encode(contacts, link, surface, layout, index)
-        frames = noise.apply(frames, index, np.full(n, keys[row], dtype=np.int64), seed)
+        slot = np.arange(n, dtype=np.int64) - onset  # the frame's slot in the model's window
+        key = np.where(slot < 0, keys[row] ^ 0x3C3C3C3C, keys[row]).astype(np.int64)
+        frames = noise.apply(frames, np.abs(slot), key, seed)
         v = np.asarray(frames.values)
         binary &= v.dtype == np.uint8 or bool(np.isin(v, (0, 1)).all())
         values.append(v.astype(np.float32))
-        gap = dataclasses.replace(frames, values=np.zeros((n_gap, v.shape[1]), dtype=v.dtype))
-        gap_index = np.arange(n_gap, dtype=np.int64)
-        gap = noise.apply(gap, gap_index, np.full(n_gap, keys[row] ^ 0x5A5A5A5A, dtype=np.int64), seed)
-        gaps.append(np.asarray(gap.values).astype(np.float32))
+
+        def untouched(slots: np.ndarray, trial_key: int) -> np.ndarray:
+            blank = dataclasses.replace(frames, values=np.zeros((len(slots), v.shape[1]), dtype=v.dtype))
+            out = noise.apply(blank, slots, np.full(len(slots), trial_key, dtype=np.int64), seed)
+            return np.asarray(out.values).astype(np.float32)
+
+        gaps.append(untouched(np.arange(n_gap, dtype=np.int64), keys[row] ^ 0x5A5A5A5A))
+        tails.append(untouched(np.arange(n - onset, max(length, n - onset), dtype=np.int64), keys[row]))
     labels = dataset.labels[np.asarray(rows, dtype=np.int64)] if len(rows) else np.zeros(0, np.int64)
     return EncodedTrials(
         values=values,
         gap=gaps,
+        tail=tails,
         rows=np.asarray(rows, dtype=np.int64),
         labels=np.asarray(labels, dtype=np.int64),
         onsets=np.asarray(onsets, dtype=np.int64),
