@@ -120,7 +120,13 @@ def run_job(cfg: DictConfig) -> dict | None:
             sys.exit(code)
         raise
 
-    run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices) if tracker.enabled else None
+    run_id, reruns = None, 0
+    if tracker.enabled and not multirun:
+        # the same experiment again (same config hash, runtime settings aside): recorded once, on its first run
+        run_id = tracker.find_finished(cfg.output_dir, result.config_hash)
+        reruns = tracker.mark_rerun(cfg.output_dir, run_id, job_dir) if run_id else 0
+    if tracker.enabled and run_id is None:
+        run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices)
     _write_status(job_dir, job_num, "FINISHED", None, run_id)
     text = summary_text(result)
     (job_dir / "summary.txt").write_text(text + "\n")
@@ -128,6 +134,8 @@ def run_job(cfg: DictConfig) -> dict | None:
 
     uri = tracker.resolve_uri(cfg.output_dir) if run_id else ""
     where = f"MLflow run {run_id} in {uri} (see it with `{ui_hint(uri)}`)" if run_id else "MLflow tracking disabled"
+    if reruns:
+        where = f"already recorded: {where}; tagged sphri.reruns={reruns}, no new run"
     print("\n" + "=" * 78 + "\n" + text + f"\ntracking    {where}\njob dir     {job_dir}\n" + "=" * 78)
     return {"run_id": run_id, **result.summary()}
 

@@ -136,6 +136,36 @@ def plain(node: Any) -> Any:
     return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
 
 
+#: Field metadata key of a setting that cannot change a result (see :func:`runtime_setting`).
+RUNTIME_META = "sphri_runtime"
+
+
+def runtime_setting(default: Any) -> Any:
+    """A schema field that cannot change a job's result: how many threads or worker processes,
+    progress display, chunk sizes. Such fields are left out of the config hash and of every stage
+    key (:func:`result_config`), so changing one never recomputes a stage or reruns a finished job.
+    Numbers may still differ at float rounding where a thread count changes the order of a
+    reduction (``docs/RELIABILITY.md`` says where)."""
+    return field(default=default, metadata={RUNTIME_META: True})
+
+
+def runtime_fields(schema: Any) -> tuple[str, ...]:
+    """Names of the fields of the schema dataclass ``schema`` declared with :func:`runtime_setting`."""
+    if not (isinstance(schema, type) and dataclasses.is_dataclass(schema)):
+        return ()
+    return tuple(f.name for f in dataclasses.fields(schema) if f.metadata.get(RUNTIME_META))
+
+
+def result_config(node: Any) -> Any:
+    """``plain(node)`` without the fields its schema declares with :func:`runtime_setting`: what a
+    stage key and the config hash are made of, so that runtime settings never change either."""
+    out = plain(node)
+    if isinstance(node, DictConfig) and isinstance(out, dict):
+        for name in runtime_fields(OmegaConf.get_type(node)):
+            out.pop(name, None)
+    return out
+
+
 def require(ok: bool, key: str, value: Any, expected: str) -> None:
     """Raise :class:`ConfigError` unless ``ok``: ``key=value is invalid: expected``."""
     if not ok:

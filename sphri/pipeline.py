@@ -29,7 +29,7 @@ from hydra.utils import get_class, instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from sphri.cache import StageCache, stable_hash, stage_key
-from sphri.config import ConfigError, build, plain
+from sphri.config import ConfigError, build, result_config
 from sphri.inputs import input_fingerprints, memo_at
 from sphri.types import Contacts, CVResult, GestureDataset, Layout, SurfaceMap, TaxelGeometry, WindowPlan
 
@@ -178,23 +178,23 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         """Fingerprints of the files the components of ``groups`` read."""
         return {path: fp for g in groups for path, fp in fingerprints.get(g, {}).items()}
 
-    k_hand = p.add("hand", ver["hand"], plain(cfg.hand), {}, lambda: comp["hand"].build(), files("hand"))
-    k_robot = p.add("robot", ver["robot"], plain(cfg.robot), {}, lambda: comp["robot"].build(), files("robot"))
+    k_hand = p.add("hand", ver["hand"], result_config(cfg.hand), {}, lambda: comp["hand"].build(), files("hand"))
+    k_robot = p.add("robot", ver["robot"], result_config(cfg.robot), {}, lambda: comp["robot"].build(), files("robot"))
     # Data depends on the robot unless its component says otherwise (synthetic
     # gestures are placed on the robot's surface; a recorded dataset is not).
     data_inputs = {"hand": k_hand}
     if getattr(comp["data"], "USES_ROBOT", True):
         data_inputs["robot"] = k_robot
-    k_data = p.add("data", ver["data"], plain(cfg.data), data_inputs, lambda: comp["data"].load(hand=p.get("hand"), robot=p.get("robot")), files("data"))
+    k_data = p.add("data", ver["data"], result_config(cfg.data), data_inputs, lambda: comp["data"].load(hand=p.get("hand"), robot=p.get("robot")), files("data"))
     k_contact = p.add(
-        "contact", ver["contact"], plain(cfg.contact), {"data": k_data, "robot": k_robot, "hand": k_hand},
+        "contact", ver["contact"], result_config(cfg.contact), {"data": k_data, "robot": k_robot, "hand": k_hand},
         lambda: comp["contact"].compute(p.get("data"), p.get("robot")), files("contact"),
     )
 
     def link():
         return p.get("robot").link_for(region)
 
-    k_surface = p.add("surface", ver["surface"], plain(cfg.surface), {"robot": k_robot, "region": region}, lambda: comp["surface"].fit(link()), files("surface"))
+    k_surface = p.add("surface", ver["surface"], result_config(cfg.surface), {"robot": k_robot, "region": region}, lambda: comp["surface"].fit(link()), files("surface"))
     # A layout placed by contact density (layout=density without a file) reads the contacts.
     layout_uses_contacts = bool(getattr(comp["layout"], "uses_contacts", False))
     layout_inputs = {"surface": k_surface, "robot": k_robot, **({"contact": k_contact} if layout_uses_contacts else {})}
@@ -203,13 +203,13 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         extra = {"contacts": p.get("contact")} if layout_uses_contacts else {}
         return comp["layout"].build(link(), p.get("surface"), res, **extra)
 
-    k_layout = p.add("layout", ver["layout"], {"layout": plain(cfg.layout), "res": res}, layout_inputs, layout, files("layout"))
-    k_plan = p.add("plan", ver["window"], plain(cfg.window), {"contact": k_contact, "data": k_data}, lambda: comp["window"].plan(p.get("contact"), p.get("data")), files("window"))
+    k_layout = p.add("layout", ver["layout"], {"layout": result_config(cfg.layout), "res": res}, layout_inputs, layout, files("layout"))
+    k_plan = p.add("plan", ver["window"], result_config(cfg.window), {"contact": k_contact, "data": k_data}, lambda: comp["window"].plan(p.get("contact"), p.get("data")), files("window"))
 
     def encode():
         return comp["encoder"].encode(p.get("contact"), link(), p.get("surface"), p.get("layout"), p.get("plan").selected_frames())
 
-    k_encode = p.add("encode", ver["encoder"], plain(cfg.encoder), {"contact": k_contact, "layout": k_layout, "plan": k_plan}, encode, files("encoder"))
+    k_encode = p.add("encode", ver["encoder"], result_config(cfg.encoder), {"contact": k_contact, "layout": k_layout, "plan": k_plan}, encode, files("encoder"))
 
     def noise():
         # Noise on the windows as the model sees them (padded slots included), seeded per
@@ -220,9 +220,9 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         windows = comp["window"].assemble(p.get("encode"), p.get("plan"), dataset, p.get("layout"), p.get("surface"))
         return apply_to_windows(comp["noise"], windows, trial_keys(dataset)[windows.trial_row], seed)
 
-    k_noise = p.add("noise", ver["noise"], {"noise": plain(cfg.noise), "seed": seed},
+    k_noise = p.add("noise", ver["noise"], {"noise": result_config(cfg.noise), "seed": seed},
                     {"encode": k_encode, "plan": k_plan, "window": ver["window"]}, noise, files("noise"))
-    k_filter = p.add("filter", ver["filter"], plain(cfg.filter), {"noise": k_noise},
+    k_filter = p.add("filter", ver["filter"], result_config(cfg.filter), {"noise": k_noise},
                      lambda: comp["filter"].apply(p.get("noise")), files("filter"))
 
     def evaluate():
@@ -240,7 +240,7 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         return result, run_meta(cfg, dataset, p.get("robot"), region, p.get("surface"), p.get("layout"), windows)
 
     p.add(
-        "evaluate", f"{ver['cv']}-{ver['model']}", {"model": plain(cfg.model), "cv": plain(cfg.cv), "seed": seed},
+        "evaluate", f"{ver['cv']}-{ver['model']}", {"model": result_config(cfg.model), "cv": result_config(cfg.cv), "seed": seed},
         {"filter": k_filter, "plan": k_plan, "layout": k_layout}, evaluate, files("model", "cv"),
     )
     return p
@@ -373,12 +373,18 @@ def component_versions(cfg: DictConfig) -> dict[str, str]:
 
 
 def config_hash(cfg: DictConfig) -> str:
-    """Hash of what defines a job's result: its config (everything but tracking/cache/hydra), the
+    """Hash of what defines a job's result: its config (everything but tracking/cache/hydra and the
+    runtime settings, :func:`sphri.config.runtime_setting`), the
     ``VERSION`` of every component and the content fingerprints of the files the components read
     (:mod:`sphri.inputs`), so that a sweep resumed after a component or an input file changed reruns its jobs."""
+    from sphri.config import STAGE_GROUPS
+
     c = OmegaConf.to_container(cfg, resolve=True)
     for k in ("tracking", "cache", "output_dir", "resume", "plugins", "hydra", "debug", "experiment"):
         c.pop(k, None)
+    for group in STAGE_GROUPS:  # runtime settings (threads, workers, progress, chunks) are not the experiment
+        if group in c and isinstance(cfg.get(group), DictConfig):
+            c[group] = result_config(cfg[group])
     c["_component_versions"] = component_versions(cfg)
     fingerprints = input_fingerprints(cfg)
     if fingerprints:  # the contents of the files the components read (absent: no files, hash unchanged)

@@ -42,8 +42,10 @@ def test_four_concurrent_first_runs_share_one_new_store(tmp_path: Path):
     out = tmp_path / "race"
     args = [sys.executable, "-m", "sphri", "+debug=fast", "encoder.res=2", "data.participants=2", "data.repetitions=1",
             f"output_dir={out}"]
-    procs = [subprocess.Popen(args, cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-             for _ in range(4)]
+    # four different experiments (seeds): the same one four times would be recorded once
+    procs = [subprocess.Popen([*args, f"seed={i}"], cwd=tmp_path, env=_env(), stdout=subprocess.PIPE,
+                              stderr=subprocess.STDOUT, text=True)
+             for i in range(4)]
     logs = [p.communicate(timeout=600)[0] for p in procs]
     for p, log in zip(procs, logs):
         assert p.returncode == 0, log[-3000:]

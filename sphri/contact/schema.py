@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sphri.config import require_choice, require_range, store
+from sphri.config import require_choice, require_range, runtime_setting, store
 
 #: Inside definitions a component may ask for (see :mod:`sphri.contact.mesh`).
 INSIDE_CHOICES: tuple[str, ...] = ("auto", "hull", "winding")
@@ -19,7 +19,7 @@ class ExactContactSchema:
     """Metres added to every capsule radius (0 = contact means touching)."""
     inside: str = "auto"
     """Solid used for inside: auto, hull (convex hull of the link) or winding (winding number)."""
-    chunk_frames: int = 20000
+    chunk_frames: int = runtime_setting(20000)
     """Frames processed at once (bounds memory: ~1 kB per frame and capsule row)."""
 
     def __post_init__(self) -> None:
@@ -37,7 +37,7 @@ class SphereContactSchema:
     """Spheres per capsule, centred evenly along its segment (ends included when k > 1)."""
     margin_m: float = 0.0
     """Metres added to every capsule radius (0 = contact means touching)."""
-    chunk_frames: int = 20000
+    chunk_frames: int = runtime_setting(20000)
     """Frames processed at once (bounds memory)."""
 
     def __post_init__(self) -> None:

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional
 
-from sphri.config import require_range, store
+from sphri.config import require_range, runtime_setting, store
 
 
 def _check_common(self) -> None:
@@ -21,13 +21,13 @@ class LosoSchema:
     """``cv=loso``: leave-one-subject-out over participants."""
 
     _target_: str = "sphri.evaluate.cv.LeaveOneSubjectOut"
-    workers: int = 1
+    workers: int = runtime_setting(1)
     """Folds run in parallel processes (1: in this process)."""
-    threads_per_worker: Optional[int] = None
+    threads_per_worker: Optional[int] = runtime_setting(None)
     """Threads each fold may use (None: available cores // workers)."""
     max_folds: Optional[int] = None
     """Evaluate only the first k folds (debugging; None: all)."""
-    progress: bool = True
+    progress: bool = runtime_setting(True)
     """Progress bar over folds (shown only on a terminal)."""
     min_participants: Optional[int] = None
     """Refuse to run on fewer participants with windows (None: run, with a named warning in the summary)."""
@@ -45,13 +45,13 @@ class KFoldSchema:
     _target_: str = "sphri.evaluate.cv.WithinSubjectKFold"
     k: int = 5
     """Number of folds (each participant's trials split k ways, stratified by gesture)."""
-    workers: int = 1
+    workers: int = runtime_setting(1)
     """Folds run in parallel processes (1: in this process)."""
-    threads_per_worker: Optional[int] = None
+    threads_per_worker: Optional[int] = runtime_setting(None)
     """Threads each fold may use (None: available cores // workers)."""
     max_folds: Optional[int] = None
     """Evaluate only the first k folds (debugging; None: all)."""
-    progress: bool = True
+    progress: bool = runtime_setting(True)
     """Progress bar over folds (shown only on a terminal)."""
 
     def __post_init__(self) -> None:

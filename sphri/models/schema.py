@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Optional
 
-from sphri.config import require, require_choice, require_range, store
+from sphri.config import require, require_choice, require_range, runtime_setting, store
 
 
 @dataclass
@@ -23,7 +23,7 @@ class RandomForestSchema:
     """Features tried per split: "sqrt", "log2" (of 32)."""
     class_weight: Optional[str] = None
     """None, "balanced" or "balanced_subsample"."""
-    n_jobs: int = -1
+    n_jobs: int = runtime_setting(-1)
     """Threads for the forest (-1: all the cores the CV leaves it)."""
     seed: int = 0
     """Random state of the forest."""
@@ -77,7 +77,7 @@ class CnnGruSchema:
     """"float32", "bf16" (bfloat16 autocast, ~1.8x faster where native) or "auto" (bf16 where native)."""
     seed: int = 0
     """Seeds weights, batch order and the validation split."""
-    threads: int = 0
+    threads: int = runtime_setting(0)
     """Torch CPU threads (0: as set by the caller, e.g. the CV's per-worker share)."""
 
     def __post_init__(self) -> None:

@@ -68,17 +68,18 @@ def _cached(cache, stage: str, version: str, config: Any, inputs: dict, compute)
 def load_sessions_and_contacts(cfg, cache):
     """(hand, robot, sessions, body contacts) of a composed study config, through the stage cache."""
     from sphri.cache import stage_key
-    from sphri.pipeline import build, component_versions, plain
+    from sphri.config import result_config
+    from sphri.pipeline import build, component_versions
     from sphri.sessions.contact import body_contacts
 
     ver = component_versions(cfg)
     comp = {g: build(cfg[g]) for g in ("hand", "robot", "data", "contact")}
-    k_hand = stage_key("hand", ver["hand"], plain(cfg.hand), {})
-    k_robot = stage_key("robot", ver["robot"], plain(cfg.robot), {})
+    k_hand = stage_key("hand", ver["hand"], result_config(cfg.hand), {})
+    k_robot = stage_key("robot", ver["robot"], result_config(cfg.robot), {})
     hand = comp["hand"].build()
     robot = comp["robot"].build()
     inputs = {"hand": k_hand} if not getattr(comp["data"], "USES_ROBOT", True) else {"hand": k_hand, "robot": k_robot}
-    data_cfg = {"data": plain(cfg.data)}
+    data_cfg = {"data": result_config(cfg.data)}
     priors = getattr(comp["data"], "priors", None)
     if priors and Path(priors).is_file():  # an edited table of assumptions regenerates the sessions
         from sphri.cache import stable_hash
@@ -88,7 +89,7 @@ def load_sessions_and_contacts(cfg, cache):
     ds = _cached(cache, "sessions", ver["data"], data_cfg, inputs, lambda: comp["data"].load(hand, robot))
     t1 = time.perf_counter()
     k_data = stage_key("sessions", ver["data"], data_cfg, inputs)
-    bc = _cached(cache, "body_contact", ver["contact"] + "-wb1", plain(cfg.contact),
+    bc = _cached(cache, "body_contact", ver["contact"] + "-wb1", result_config(cfg.contact),
                  {"data": k_data, "robot": k_robot, "hand": k_hand}, lambda: body_contacts(ds, robot, comp["contact"]))
     return hand, robot, ds, bc, {"sessions": t1 - t0, "contact": time.perf_counter() - t1}
 

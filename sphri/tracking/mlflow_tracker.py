@@ -188,11 +188,23 @@ class MlflowTracker:
         run = self._retry(lambda: client.create_run(exp_id, tags=tags, run_name=f"sweep-{sweep_id}"))
         return run.info.run_id
 
-    def end_parent(self, output_dir: str, run_id: str, n_jobs: int, n_failed: int, status: str | None = None) -> None:
-        """End a sweep's parent run: ``status`` FINISHED, FAILED or KILLED (None: FAILED if a job failed)."""
+    def end_parent(self, output_dir: str, run_id: str, n_jobs: int, n_failed: int, status: str | None = None,
+                   skipped: dict[int, str] | None = None) -> None:
+        """End a sweep's parent run: ``status`` FINISHED, FAILED or KILLED (None: FAILED if a job failed).
+
+        ``skipped``: job number -> the run that had already finished it; those of other sweeps are named
+        on the parent (tag ``sphri.skipped_jobs``), so the parent accounts for every job."""
         client = self.client(output_dir)
         status = status or ("FAILED" if n_failed else "FINISHED")
         self._retry(lambda: client.set_tag(run_id, "sphri.jobs", f"{n_jobs - n_failed}/{n_jobs} finished"))
+        elsewhere = {}
+        for job, done in sorted((skipped or {}).items()):
+            tags = self._retry(lambda d=done: client.get_run(d)).data.tags
+            if tags.get("mlflow.parentRunId") != run_id:
+                elsewhere[job] = done
+        if elsewhere:
+            text = ", ".join(f"job {j}: run {r}" for j, r in elsewhere.items())
+            self._retry(lambda: client.set_tag(run_id, "sphri.skipped_jobs", text[:5000]))
         if status == "KILLED":  # jobs interrupted while logging end with their sweep
             exp_id = self._retry(lambda: client.get_run(run_id)).info.experiment_id
             query = f"tags.`mlflow.parentRunId` = '{run_id}' and attributes.status = 'RUNNING'"
@@ -234,6 +246,17 @@ class MlflowTracker:
                  "and attributes.status = 'FINISHED'")
         runs = self._retry(lambda: client.search_runs([exp.experiment_id], query, max_results=1))
         return runs[0].info.run_id if runs else None
+
+    def mark_rerun(self, output_dir: str, run_id: str, job_dir: Path) -> int:
+        """Record on the FINISHED run ``run_id`` that the same experiment ran again (a single run whose
+        config hash it already holds: no new run is made). Returns how many reruns it has seen."""
+        client = self.client(output_dir)
+        tags = self._retry(lambda: client.get_run(run_id)).data.tags
+        n = int(tags.get("sphri.reruns", "0") or 0) + 1
+        stamp = time.strftime("%Y-%m-%dT%H:%M:%S%z")
+        for key, value in (("sphri.reruns", str(n)), ("sphri.last_rerun", stamp), ("sphri.last_rerun_dir", str(job_dir))):
+            self._retry(lambda k=key, v=value: client.set_tag(run_id, k, v))
+        return n
 
     # -- jobs ----------------------------------------------------------------
     def _start_job(self, cfg: "DictConfig", job_dir: Path, parent: dict | None, run_name: str, tags: dict[str, str]) -> str:

@@ -118,7 +118,10 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
         from sphri.pipeline import build
 
         try:
-            build(config.tracking).end_parent(config.output_dir, parent["run_id"], len(statuses), len(failed), status)
+            skipped = {int(s["job"]): s["mlflow_run_id"] for s in statuses
+                       if s.get("status") == "SKIPPED" and s.get("mlflow_run_id")}
+            build(config.tracking).end_parent(config.output_dir, parent["run_id"], len(statuses), len(failed), status,
+                                              skipped)
         except Exception as exc:  # never hide the sweep's own outcome
             log.error("could not end the MLflow parent run %s: %s", parent["run_id"], exc)
     msg = f"sweep {sweep_id_of(sweep_dir)}: {len(statuses) - len(failed)} of {len(statuses)} jobs finished"

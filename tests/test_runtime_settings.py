@@ -1,0 +1,153 @@
+"""One notion of "same experiment": settings that cannot change a result (threads, workers,
+progress, chunk sizes; declared with ``sphri.config.runtime_setting``) change neither the
+config hash nor any stage key, so changing them never recomputes or reruns anything."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+from hydra.core.config_store import ConfigStore
+from omegaconf import OmegaConf
+
+from sphri.cache import StageCache
+from sphri.config import CONF_DIR, STAGE_GROUPS, compose, register_schemas, runtime_fields
+from sphri.pipeline import config_hash, make_pipeline
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _keys(overrides: list[str], tmp_path: Path) -> tuple[str, dict[str, str]]:
+    cfg = compose(["+debug=fast", f"output_dir={tmp_path}", *overrides])
+    p = make_pipeline(cfg, StageCache(tmp_path / "cache", enabled=False))
+    return config_hash(cfg), {name: node.key for name, node in p.nodes.items()}
+
+
+def _changed(value):
+    if isinstance(value, bool):
+        return not value
+    if value is None:
+        return 2
+    return value + 3
+
+
+def _schema_of(group: str, path: Path):
+    """The schema dataclass a component YAML opts into (its ``*_schema`` default), or None."""
+    defaults = (yaml.safe_load(path.read_text()) or {}).get("defaults", [])
+    names = [d for d in defaults if isinstance(d, str) and d.endswith("_schema")]
+    if not names:
+        return None
+    return OmegaConf.get_type(ConfigStore.instance().repo[group][names[0] + ".yaml"].node)
+
+
+def _runtime_settings() -> list[tuple[str, str, str]]:
+    """(group, option, field) for every runtime field of every component YAML in conf/."""
+    register_schemas()
+    found = []
+    for group in STAGE_GROUPS:
+        if group == "tracking" or not (CONF_DIR / group).is_dir():
+            continue
+        for path in sorted((CONF_DIR / group).glob("*.yaml")):
+            found += [(group, path.stem, name) for name in runtime_fields(_schema_of(group, path))]
+    return found
+
+
+RUNTIME = _runtime_settings()
+
+
+def test_the_known_runtime_settings_are_declared():
+    names = {f"{g}.{f}" for g, _, f in RUNTIME}
+    assert {"cv.workers", "cv.threads_per_worker", "cv.progress", "model.n_jobs", "model.threads",
+            "contact.chunk_frames"} <= names, names
+
+
+@pytest.mark.parametrize("group,option,name", RUNTIME, ids=[f"{g}={o}.{f}" for g, o, f in RUNTIME])
+def test_a_runtime_setting_changes_neither_the_hash_nor_a_stage_key(tmp_path, group, option, name):
+    default = compose(["+debug=fast", f"{group}={option}"])[group][name]
+    base = _keys([f"{group}={option}"], tmp_path)
+    other = _keys([f"{group}={option}", f"{group}.{name}={_changed(default)}"], tmp_path)
+    assert other[0] == base[0], "config hash changed"
+    assert other[1] == base[1], "stage keys changed"
+
+
+@pytest.mark.parametrize("override,stages", [
+    ("encoder.res=5", {"layout", "encode", "noise", "filter", "evaluate"}),
+    ("model.n_estimators=7", {"evaluate"}),
+    ("contact.margin_m=0.001", {"contact", "plan", "encode", "noise", "filter", "evaluate"}),
+])
+def test_a_result_setting_changes_the_hash_and_its_stages(tmp_path, override, stages):
+    h0, k0 = _keys([], tmp_path)
+    h1, k1 = _keys([override], tmp_path)
+    assert h1 != h0
+    assert {s for s in k0 if k0[s] != k1[s]} >= stages
+
+
+def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+    return subprocess.run([sys.executable, "-m", "sphri", *args], capture_output=True, text=True, cwd=cwd,
+                          env=env, timeout=900)
+
+
+def test_rerun_with_other_runtime_settings_recomputes_nothing_and_skips_the_sweep(tmp_path):
+    out = f"output_dir={tmp_path / 'out'}"
+    first = _run(["-m", "+debug=fast", "encoder.res=2,4", out, "hydra/launcher=serial"], tmp_path)
+    assert first.returncode == 0, (first.stdout + first.stderr)[-3000:]
+    again = _run(["-m", "+debug=fast", "encoder.res=2,4", "cv.workers=2", "cv.progress=false", out,
+                  "hydra/launcher=serial"], tmp_path)
+    assert again.returncode == 0, (again.stdout + again.stderr)[-3000:]
+    assert "2 of 2 jobs finished (2 skipped" in again.stdout, again.stdout[-3000:]
+    # a single run with other runtime settings: every stage comes from the cache
+    single = _run(["+debug=fast", "encoder.res=2", "cv.progress=false", "model.n_jobs=1", "contact.chunk_frames=777",
+                   out, "tracking.enabled=false"], tmp_path)
+    assert single.returncode == 0, (single.stdout + single.stderr)[-3000:]
+    log = single.stdout + single.stderr
+    assert "stage evaluate  from cache" in log, log[-3000:]
+    assert "computing (key" not in log and "computed in" not in log, log[-3000:]
+
+
+def _job_runs(out: Path) -> list:
+    from mlflow.tracking import MlflowClient
+
+    from sphri.tracking.mlflow_tracker import default_uri
+
+    client = MlflowClient(default_uri(out))
+    exp = client.get_experiment_by_name("sphri-debug")
+    return [r for r in client.search_runs([exp.experiment_id]) if r.data.tags.get("sphri.kind") == "job"]
+
+
+def test_a_rerun_that_changes_nothing_is_recorded_once(tmp_path):
+    out = tmp_path / "out"
+    args = ["+debug=fast", "encoder.res=3", f"output_dir={out}"]
+    first = _run(args, tmp_path)
+    assert first.returncode == 0, (first.stdout + first.stderr)[-3000:]
+    again = _run([*args, "cv.progress=false"], tmp_path)
+    assert again.returncode == 0, (again.stdout + again.stderr)[-3000:]
+    runs = _job_runs(out)
+    assert len(runs) == 1, [r.info.run_id for r in runs]
+    assert runs[0].data.tags["sphri.reruns"] == "1"
+    assert f"already recorded: MLflow run {runs[0].info.run_id}" in again.stdout
+    changed = _run([*args, "encoder.res=4"], tmp_path)  # another experiment: a run of its own
+    assert changed.returncode == 0
+    assert len(_job_runs(out)) == 2
+
+
+def test_skipped_jobs_name_the_runs_that_finished_them_on_a_new_parent(tmp_path):
+    from mlflow.tracking import MlflowClient
+
+    from sphri.tracking.mlflow_tracker import default_uri
+
+    out = tmp_path / "out"
+    one = _run(["-m", "+debug=fast", "encoder.res=3", f"output_dir={out}", "hydra/launcher=serial"], tmp_path)
+    assert one.returncode == 0, (one.stdout + one.stderr)[-3000:]
+    done = _job_runs(out)[0].info.run_id
+    two = _run(["-m", "+debug=fast", "encoder.res=3,4", f"output_dir={out}", "hydra/launcher=serial"], tmp_path)
+    assert two.returncode == 0, (two.stdout + two.stderr)[-3000:]
+    client = MlflowClient(default_uri(out))
+    exp = client.get_experiment_by_name("sphri-debug")
+    parents = [r for r in client.search_runs([exp.experiment_id]) if r.data.tags.get("sphri.kind") == "sweep"]
+    newest = max(parents, key=lambda r: r.info.start_time)
+    assert newest.data.tags["sphri.skipped_jobs"] == f"job 0: run {done}"
