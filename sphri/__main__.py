@@ -22,6 +22,7 @@ import logging
 import os
 import sys
 import traceback
+import time
 import warnings
 from pathlib import Path
 
@@ -127,6 +128,12 @@ def run_job(cfg: DictConfig) -> dict | None:
         reruns = tracker.mark_rerun(cfg.output_dir, run_id, job_dir) if run_id else 0
     if tracker.enabled and run_id is None:
         run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices)
+        if tracker.log_model:
+            from sphri.hardware.train_export import log_job_model
+
+            t0 = time.perf_counter()
+            log.info("logged the model (fit on every participant): %s in %.1f s",
+                     log_job_model(cfg, run_id, tracker.register_model), time.perf_counter() - t0)
     _write_status(job_dir, job_num, "FINISHED", None, run_id)
     text = summary_text(result)
     (job_dir / "summary.txt").write_text(text + "\n")

@@ -296,10 +296,15 @@ def resolve_model_path(spec: str, tracking_uri: str | None = None, allow_remote:
             )
         import mlflow
 
+        before = mlflow.get_tracking_uri()
         try:
+            if tracking_uri:  # MLflow 3 resolves a run's logged model through the global tracking URI
+                mlflow.set_tracking_uri(tracking_uri)
             local = mlflow.artifacts.download_artifacts(artifact_uri=spec, tracking_uri=tracking_uri)
         except Exception as exc:  # mlflow raises many types (missing run, no server)
             raise ModelFileError(f"cannot fetch model {spec!r} from MLflow ({tracking_uri or 'default tracking URI'}): {exc}") from None
+        finally:
+            mlflow.set_tracking_uri(before)
         p = Path(local)
         if p.is_dir():
             found = sorted(p.rglob("*.sphrimodel"))

@@ -89,8 +89,56 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
     return ModelBundle(model, windows.geometry, int(windows.x.shape[1]), float(dataset.frame_rate_hz), GESTURES, meta)
 
 
-def log_to_mlflow(pipeline, path: Path) -> str:
-    """Log ``path`` as artifact ``model/<name>`` of a new run; returns its ``runs:/`` URI."""
+def log_pyfunc_model(tracking_uri: str, run_id: str, bundle: ModelBundle, example: np.ndarray,
+                     registered_name: str | None = None) -> str:
+    """Log ``bundle`` into run ``run_id`` as an MLflow pyfunc model (artifact ``model``) with a signature
+    and ``example`` (one window, (1, L, N) float32) as its input example; register it as
+    ``registered_name`` if given. Returns its ``runs:/`` URI.
+
+    The model is :mod:`sphri.hardware.pyfunc_model` (MLflow "models from code") with the ``.sphrimodel``
+    file as its artifact: loading it unpickles nothing.
+    """
+    import tempfile
+
+    import mlflow
+    from mlflow.models import infer_signature
+
+    from sphri.hardware import pyfunc_model
+
+    example = np.asarray(example, dtype=np.float32)
+    labels = np.asarray(bundle.labels)[np.argmax(bundle.predict_proba(example), axis=1)]
+    mlflow.set_tracking_uri(tracking_uri)
+    with tempfile.TemporaryDirectory(prefix="sphri-model-") as tmp:
+        path = save_model(bundle, Path(tmp) / "model.sphrimodel")
+        with mlflow.start_run(run_id=run_id):
+            mlflow.pyfunc.log_model(
+                name="model",
+                python_model=pyfunc_model.__file__,
+                artifacts={pyfunc_model.ARTIFACT: str(path)},
+                signature=infer_signature(example, labels),
+                input_example=example,
+                registered_model_name=registered_name,
+                pip_requirements=_requirements(),  # stated, not inferred: inference loads the model in a subprocess
+            )
+    return f"runs:/{run_id}/model"
+
+
+def _requirements() -> list[str]:
+    """What loading the pyfunc model needs: sphri (import name; install it from its repository or wheel)
+    and the pinned libraries its model files are read with."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    out = []
+    for dist in ("mlflow", "numpy", "scikit-learn", "skops", "torch"):
+        try:
+            out.append(f"{dist}=={version(dist)}")
+        except PackageNotFoundError:
+            out.append(dist)
+    return out
+
+
+def log_to_mlflow(pipeline, bundle: ModelBundle) -> str:
+    """Log ``bundle`` as the pyfunc model ``model`` of a new run; returns its ``runs:/`` URI."""
     from mlflow import MlflowClient
 
     from sphri.pipeline import build
@@ -99,10 +147,23 @@ def log_to_mlflow(pipeline, path: Path) -> str:
     uri = tracker.resolve_uri(pipeline.cfg.output_dir)
     client = MlflowClient(tracking_uri=uri)
     exp = tracker.experiment_id(pipeline.cfg.output_dir)
-    run = client.create_run(exp, run_name=f"train_export {path.stem}", tags={"sphri.kind": "model_export"})
-    client.log_artifact(run.info.run_id, str(path), artifact_path="model")
+    run = client.create_run(exp, run_name=f"train_export {bundle.meta.get('model', 'model')}",
+                            tags={"sphri.kind": "model_export"})
+    model_uri = log_pyfunc_model(uri, run.info.run_id, bundle, training_windows(pipeline).x[:1])
     client.set_terminated(run.info.run_id)
-    return f"runs:/{run.info.run_id}/model/{path.name}"
+    return model_uri
+
+
+def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
+    """Fit the job's model on every participant's windows (from the stage cache the job just filled)
+    and log it into the job's run ``run_id`` as a pyfunc model; returns its ``runs:/`` URI."""
+    from sphri.pipeline import build, make_pipeline, open_cache
+
+    p = make_pipeline(cfg, open_cache(cfg))
+    bundle = fit_bundle(p, None)
+    tracker = build(cfg.tracking)
+    return log_pyfunc_model(tracker.resolve_uri(cfg.output_dir), run_id, bundle, training_windows(p).x[:1],
+                            registered_name)
 
 
 @clean_errors("sphri.hardware.train_export")
@@ -125,7 +186,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(f"saved {bundle.meta['model']} ({bundle.meta['n_train']} windows, train accuracy "
           f"{bundle.meta['train_accuracy']:.3f}; {bundle.n_taxels} taxels, L={bundle.window_length}) to {path}")
     if settings.mlflow:
-        print(f"logged to MLflow: model={log_to_mlflow(p, path)}")
+        print(f"logged to MLflow: model={log_to_mlflow(p, bundle)}")
     return 0
 
 

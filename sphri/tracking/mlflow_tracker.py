@@ -101,12 +101,15 @@ class MlflowTracker:
     VERSION = "1"
 
     def __init__(self, enabled: bool = True, uri: str | None = None, experiment: str = "sphri",
-                 artifacts: bool = True, retries: int = 8) -> None:
+                 artifacts: bool = True, retries: int = 8, log_model: bool = True,
+                 register_model: str | None = None) -> None:
         self.enabled = enabled
         self.uri = uri
         self.experiment = experiment
         self.artifacts = artifacts
         self.retries = retries
+        self.log_model = log_model
+        self.register_model = register_model
         self._client: MlflowClient | None = None
 
     # -- setup -------------------------------------------------------------

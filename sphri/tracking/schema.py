@@ -21,10 +21,19 @@ class MlflowTrackingConfig:
     """Log the composed config, per-participant CSV and confusion matrix PNG."""
     retries: int = 8
     """Retries of a tracking write that hits a locked SQLite database."""
+    log_model: bool = True
+    """Log the job's model, fit once more on every participant, as an MLflow pyfunc model (artifact
+    ``model``: ``mlflow.pyfunc.load_model("runs:/<run_id>/model")``, ``skin live model=runs:/...``)."""
+    register_model: Optional[str] = None
+    """Also register that model under this name in the MLflow model registry (``models:/<name>/<version>``)."""
 
     def __post_init__(self) -> None:
         require(bool(self.experiment.strip()), "tracking.experiment", self.experiment, "must be a non-empty name")
         require(self.retries >= 0, "tracking.retries", self.retries, "must be >= 0")
+        if self.register_model is not None:
+            require(bool(self.register_model.strip()), "tracking.register_model", self.register_model,
+                    "must be a non-empty model name (or null)")
+            require(self.log_model, "tracking.register_model", self.register_model, "needs tracking.log_model=true")
         if self.uri is not None:
             ok = self.uri.startswith(("sqlite:///", "http://", "https://", "postgresql", "mysql", "databricks", "file:"))
             require(ok, "tracking.uri", self.uri, "must be an MLflow tracking URI (sqlite:///ABS.db, http://127.0.0.1:PORT, ...)")

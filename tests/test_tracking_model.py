@@ -1,0 +1,87 @@
+"""A job logs its model as an MLflow pyfunc model: `mlflow.pyfunc.load_model("runs:/<id>/model")`
+predicts gesture names on windows, the registry serves it as `models:/<name>/<version>`, and
+`skin live` resolves both URIs to the same model file (no pickle on the way)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from sphri.types import GESTURES
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = ["+debug=fast", "encoder.res=4"]
+
+
+def _env() -> dict[str, str]:
+    return {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+
+
+@pytest.fixture(scope="module")
+def logged(tmp_path_factory) -> tuple[Path, str]:
+    """(output_dir, run id) of a debug job that logged and registered its model as `gestures`."""
+    tmp = tmp_path_factory.mktemp("model_run")
+    out = tmp / "out"
+    job = subprocess.run([sys.executable, "-m", "sphri", *DATA, f"output_dir={out}", "tracking.log_model=true",
+                          "tracking.register_model=gestures"],
+                         capture_output=True, text=True, cwd=tmp, env=_env(), timeout=600)
+    assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
+    status = json.loads(next(out.glob("runs/*/*/sphri_status.json")).read_text())
+    return out, status["mlflow_run_id"]
+
+
+def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windows(logged, tmp_path):
+    from sphri.hardware.source import open_pipeline
+    from sphri.hardware.train_export import training_windows
+    from sphri.tracking.mlflow_tracker import default_uri
+
+    out, run_id = logged
+    windows = training_windows(open_pipeline([*DATA, f"output_dir={out}"]))
+    np.save(tmp_path / "x.npy", windows.x[:6].astype(np.float32))
+    code = (
+        "import json, sys, mlflow, numpy as np\n"
+        f"mlflow.set_tracking_uri({default_uri(out)!r})\n"
+        f"model = mlflow.pyfunc.load_model('runs:/{run_id}/model')\n"
+        f"x = np.load({str(tmp_path / 'x.npy')!r})\n"
+        "print(json.dumps({'labels': model.predict(x).tolist(),"
+        " 'shape': list(model.metadata.get_input_schema().inputs[0].shape)}))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_env(), timeout=300, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert got["shape"] == [-1, windows.x.shape[1], windows.x.shape[2]]  # the signature: (n, L, N) windows
+    assert len(got["labels"]) == 6 and set(got["labels"]) <= set(GESTURES)
+
+    # the same labels as sphri's own loader gives for the model file inside that MLflow model
+    from sphri.hardware.model_file import load_model, resolve_model_path
+
+    bundle = load_model(resolve_model_path(f"runs:/{run_id}/model", default_uri(out), allow_remote=True))
+    mine = np.asarray(bundle.labels)[bundle.predict_proba(windows.x[:6]).argmax(1)]
+    assert got["labels"] == mine.tolist()
+
+
+def test_registered_model_resolves_for_skin_live_only_when_remote_is_allowed(logged):
+    from sphri.hardware.model_file import ModelFileError, load_model, resolve_model_path
+    from sphri.tracking.mlflow_tracker import default_uri
+
+    out, _ = logged
+    uri = default_uri(out)
+    path = resolve_model_path("models:/gestures/1", uri, allow_remote=True)
+    assert path.suffix == ".sphrimodel" and load_model(path).window_length == 50
+    with pytest.raises(ModelFileError, match="allow_remote=true"):
+        resolve_model_path("models:/gestures/1", uri)
+    with pytest.raises(ModelFileError, match="models:/nope/1"):
+        resolve_model_path("models:/nope/1", uri, allow_remote=True)
+
+
+def test_register_model_needs_log_model():
+    from sphri.config import ConfigError, compose
+
+    with pytest.raises(ConfigError, match="tracking.register_model"):
+        compose(["+debug=fast", "tracking.log_model=false", "tracking.register_model=x"])
