@@ -7,12 +7,13 @@
     python -m sphri.report DIR tolerance=0.02 n_boot=5000         # the sentence uses a 2-point tolerance
     python -m sphri.report DIR tolerances=se,2se,0.01,0.02        # the tolerances shown side by side
     python -m sphri.report DIR out=DIR2 mlflow=false              # elsewhere, not logged to MLflow
+    python -m sphri.report DIR marks=false                        # figures without the SYNTHETIC banner and ids
 
 Arguments are ``key=value`` as in every sphri command (``uri``, ``output_dir``,
 ``out``, ``tolerances``, ``tolerance``, ``n_boot``, ``ci``, ``seed``,
-``mlflow=true|false``); the ``--key value`` spellings are accepted too.
+``marks=auto|true|false``, ``mlflow=true|false``); the ``--key value`` spellings are accepted too.
 
-Writes ``DIR/report/`` (report.html, PNG figures, summary.txt, CSV/JSON
+Writes ``DIR/report/`` (report.html, figures as PNG + PDF + SVG, summary.txt, CSV/JSON
 tables), logs it to the sweep's MLflow parent run and prints the summary.
 Exits 2 with a message when the sweep cannot be reported on.
 """
@@ -32,7 +33,7 @@ from sphri.report.sweep import ReportError
 
 #: ``key=value`` arguments and the option each one stands for.
 KEYS = {"uri": "--uri", "output_dir": "--output-dir", "out": "--out", "tolerances": "--tolerances",
-        "tolerance": "--tolerance", "n_boot": "--n-boot", "ci": "--ci", "seed": "--seed"}
+        "tolerance": "--tolerance", "n_boot": "--n-boot", "ci": "--ci", "seed": "--seed", "marks": "--marks"}
 
 
 def from_key_values(argv: list[str]) -> list[str]:
@@ -69,6 +70,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--ci", type=float, default=0.95, help="interval coverage (default 0.95)")
     p.add_argument("--seed", type=int, default=0, help="bootstrap seed (default 0)")
     p.add_argument("--no-log", action="store_true", help="do not log the report to the MLflow parent run")
+    p.add_argument("--marks", default="auto", choices=("auto", "true", "false"),
+                   help="the SYNTHETIC DATA banner and sweep id on the figures: auto (for synthetic runs), true, false")
     args = p.parse_args(from_key_values(list(sys.argv[1:] if argv is None else argv)))
     for name, ok, expected in (("--n-boot", args.n_boot >= 0, ">= 0"), ("--ci", 0 < args.ci < 1, "in (0, 1)")):
         if not ok:
@@ -91,7 +94,8 @@ def main(argv: list[str] | None = None) -> int:
     rule = args.rule
     try:
         _, files, text = make_report(args.source, uri=args.uri, output_dir=args.output_dir, out_dir=args.out,
-                                     rule=rule, log_to_mlflow=not args.no_log)
+                                     rule=rule, log_to_mlflow=not args.no_log,
+                                     marks={"auto": None, "true": True, "false": False}[args.marks])
     except (ReportError, ValueError) as exc:
         print(f"sphri.report: {exc}", file=sys.stderr)
         return 2

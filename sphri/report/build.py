@@ -30,6 +30,8 @@ log = logging.getLogger(__name__)
 
 
 #: Figure files the report writes (besides ``confusion_<group>.png``).
+#: Formats of every figure (:data:`sphri.figures.FORMATS`).
+FIGURE_FORMATS = ("png", "pdf", "svg")
 FIGURE_FILES = ("accuracy_vs_resolution.png", "recall_vs_resolution.png", "saturation_bootstrap.png",
                 "sensitivity_tornado.png")
 
@@ -54,6 +56,11 @@ def slug(label: str) -> str:
 
 
 def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path) -> dict[str, Path]:
+    """Each group's confusion matrix at its saturation point, from that job's artifacts (PNG, PDF, SVG;
+    the job drew the SYNTHETIC mark when its data were synthetic)."""
+    import shutil
+    import tempfile
+
     from mlflow.tracking import MlflowClient
 
     client = MlflowClient(tracking_uri=sweep.uri)
@@ -61,54 +68,34 @@ def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path) -> dict[str, P
     for g in report.groups:
         run_id = g.recommended["run_id"]
         dst = out_dir / f"confusion_{slug(g.label)}.png"
-        try:
-            import shutil
-            import tempfile
-
-            with tempfile.TemporaryDirectory(prefix="sphri-report-") as tmp:
-                src = client.download_artifacts(run_id, "confusion.png", tmp)
-                if g.context["synthetic"]:
-                    _label_synthetic(Path(src), dst)
-                else:
-                    shutil.copyfile(src, dst)
+        with tempfile.TemporaryDirectory(prefix="sphri-report-") as tmp:
+            for fmt in FIGURE_FORMATS:
+                try:
+                    src = client.download_artifacts(run_id, f"confusion.{fmt}", tmp)
+                except Exception as exc:  # artifacts disabled for the job, or a job from before PDF/SVG
+                    report.notes.append(f"{g.label}: no confusion.{fmt} artifact in run {run_id} ({type(exc).__name__})")
+                    continue
+                shutil.copyfile(src, dst.with_suffix("." + fmt))
+        if dst.exists():
             out[g.label] = dst
-        except Exception as exc:  # artifacts disabled for the job
-            report.notes.append(f"{g.label}: no confusion.png artifact in run {run_id} ({type(exc).__name__})")
     return out
 
 
-def _label_synthetic(src: Path, dst: Path) -> Path:
-    """Copy the PNG ``src`` to ``dst`` with a "SYNTHETIC DATA" banner above it."""
-    import matplotlib
+def write_report(report: SweepReport, out_dir: Path, marks: bool | None = None) -> ReportFiles:
+    """Figures (PNG, PDF, SVG), confusion matrices, tables, HTML and text of ``report`` into ``out_dir``.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    img = plt.imread(src)
-    h, w = img.shape[:2]
-    dpi = 100
-    fig = plt.figure(figsize=(w / dpi, (h + 40) / dpi), dpi=dpi)
-    ax = fig.add_axes((0, 0, 1, h / (h + 40)))
-    ax.imshow(img)
-    ax.axis("off")
-    fig.text(0.5, 1 - 20 / (h + 40), "SYNTHETIC DATA", ha="center", va="center", color="firebrick",
-             fontsize=12, fontweight="bold")
-    fig.savefig(dst, dpi=dpi)
-    plt.close(fig)
-    return dst
-
-
-def write_report(report: SweepReport, out_dir: Path) -> ReportFiles:
-    """Figures, confusion matrices, tables, HTML and text of ``report`` into ``out_dir``."""
+    ``marks``: the SYNTHETIC banner and sweep id on the figures (None: only for synthetic runs)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    for name in FIGURE_FILES:  # figures of an earlier report that may not be redrawn
-        (out_dir / name).unlink(missing_ok=True)
-    for old in out_dir.glob("confusion_*.png"):
-        old.unlink()
-    figures = {"curves": plot_curves(report, out_dir / "accuracy_vs_resolution.png")}
-    for name, fig in (("recall", plot_recall(report, out_dir / "recall_vs_resolution.png")),
-                      ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png")),
-                      ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png"))):
+    for name in FIGURE_FILES:  # figures of an earlier report that may not be redrawn (all formats)
+        for fmt in FIGURE_FORMATS:
+            (out_dir / name).with_suffix("." + fmt).unlink(missing_ok=True)
+    for fmt in FIGURE_FORMATS:
+        for old in out_dir.glob(f"confusion_*.{fmt}"):
+            old.unlink()
+    figures = {"curves": plot_curves(report, out_dir / "accuracy_vs_resolution.png", marks=marks)}
+    for name, fig in (("recall", plot_recall(report, out_dir / "recall_vs_resolution.png", marks=marks)),
+                      ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png", marks=marks)),
+                      ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png", marks=marks))):
         if fig is not None:
             figures[name] = fig
     confusions = _confusions(report.sweep, report, out_dir)
@@ -213,7 +200,7 @@ def log_report(report: SweepReport, files: ReportFiles, text: str) -> str:
 
 def make_report(source: str | Path, uri: str | None = None, output_dir: str | Path = "outputs",
                 out_dir: str | Path | None = None, rule: RuleSettings = RuleSettings(),
-                log_to_mlflow: bool = True) -> tuple[SweepReport, ReportFiles, str]:
+                log_to_mlflow: bool = True, marks: bool | None = None) -> tuple[SweepReport, ReportFiles, str]:
     """Report on the sweep ``source`` (its directory or parent run id); returns (report, files, text).
 
     ``out_dir`` defaults to ``<sweep_dir>/report``; it is required when the
@@ -228,7 +215,7 @@ def make_report(source: str | Path, uri: str | None = None, output_dir: str | Pa
             )
         out_dir = sweep.sweep_dir / "report"
     report = analyze(sweep, rule)
-    files = write_report(report, Path(out_dir))
+    files = write_report(report, Path(out_dir), marks=marks)
     text = render_text(report, files.html)
     if log_to_mlflow:
         files.logged_to = log_report(report, files, text)

@@ -1,10 +1,11 @@
-"""The report's figures as PNG files (matplotlib, Agg backend).
+"""The report's figures, in sphri's figure style (:mod:`sphri.figures`: print sizes, fonts of at
+least 7 pt, PNG + PDF + SVG, no clipped or overlapping text).
 
 - :func:`plot_curves`: accuracy and macro F1 against resolution for each
   group, mean with a +/- std band over participants, x axis the taxel pitch
   along the link (mm, log scale, fine to the right) with taxels per 24 cm on
   top and the taxel count below when every group shares it; the saturation
-  point (star) with its bootstrap interval (horizontal bar).
+  point (star) with its bootstrap interval as a horizontal error bar through it.
 - :func:`plot_recall`: per-gesture recall against resolution, one panel per
   group, each gesture's own saturation point marked.
 - :func:`plot_bootstrap`: how often each resolution was chosen by the rule
@@ -12,7 +13,8 @@
 - :func:`plot_tornado`: a sensitivity sweep's saturation pitch per
   assumption variant with its bootstrap interval, the reference as a line.
 
-Every figure carries "SYNTHETIC DATA" in its title when the runs did.
+Every figure carries "SYNTHETIC DATA" and the sweep id in its top margin when
+the runs did (:class:`sphri.figures.Provenance`; ``marks=false`` turns it off).
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sphri import figures
 from sphri.report.analysis import CHANCE, SweepReport
 from sphri.types import GESTURES
 
@@ -28,24 +31,21 @@ from sphri.types import GESTURES
 STUDY_TAXELS_PER_24CM = 18.0
 
 
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
+def _provenance(report: SweepReport, marks: bool | None) -> figures.Provenance:
+    """The SYNTHETIC banner and sweep id: shown for (partly) synthetic runs unless ``marks`` says otherwise."""
+    return figures.Provenance(synthetic=report.synthetic != "none", ids=f"sweep {report.sweep.sweep_id}", show=marks)
 
 
-def _title(report: SweepReport, what: str) -> str:
-    tag = {"all": "SYNTHETIC DATA: ", "some": "PARTLY SYNTHETIC DATA: ", "none": ""}[report.synthetic]
-    return f"{tag}{what} (sweep {report.sweep.sweep_id})"
+def _finish(fig, report: SweepReport, path: Path, marks: bool | None) -> Path:
+    figures.mark(fig, _provenance(report, marks))
+    figures.save(fig, path)
+    return path
 
 
 def _x(report: SweepReport) -> tuple[str, str]:
     """(column, label) of the x axis shared by all groups."""
     if report.groups and all(g.has_pitch for g in report.groups):
-        return "pitch_u_mm", "taxel pitch along the link (mm, log scale; finer to the right)"
+        return "pitch_u_mm", "taxel pitch along the link (mm; finer to the right)"
     return "n_taxels", "taxels (log scale)"
 
 
@@ -123,180 +123,175 @@ def _count_ticks(axis, pitch: np.ndarray, count: np.ndarray, max_ticks: int = 9)
     axis.set_minor_formatter(NullFormatter())
 
 
-def plot_curves(report: SweepReport, path: Path) -> Path:
-    """Accuracy and macro F1 against resolution (two panels) -> ``path`` (PNG)."""
-    plt = _plt()
+def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> Path:
+    """Accuracy and macro F1 against resolution (two panels) -> ``path`` (+ PDF, SVG)."""
+    plt = figures.pyplot()
     xcol, xlabel = _x(report)
-    fig, axes = plt.subplots(2, 1, figsize=(9.5, 9.0), dpi=110, sharex=True)
-    colors = plt.get_cmap("tab10")
-    for i, g in enumerate(report.groups):
-        color = colors(i % 10)
-        x = g.points[xcol].to_numpy(float)
-        for ax, metric in zip(axes, ("accuracy", "macro_f1")):
-            m = g.points[f"{metric}_mean"].to_numpy(float)
-            s = g.points[f"{metric}_std"].to_numpy(float)
-            ax.plot(x, m, "o-", color=color, ms=3.5, lw=1.6, label=f"{g.label} (n={g.sat.n_participants})")
-            ax.fill_between(x, m - s, m + s, color=color, alpha=0.15, lw=0)
-        rec = g.recommended
-        ax = axes[0]
-        ax.plot([rec[xcol]], [rec["accuracy_mean"]], marker="*", ms=16, color=color, mec="black", zorder=5,
-                label=f"saturation: {g.label}")
-        if g.sat.interval is not None:  # the interval as a bar in the panel's empty lower band
-            ends = g.points[xcol].iloc[list(g.sat.interval)].to_numpy(float)
-            y = 0.04 + 0.045 * i
-            ax.plot([ends.min(), ends.max()], [y, y], "-", color=color, lw=3, solid_capstyle="butt", zorder=4)
-            ax.plot([ends.min(), ends.max()], [y, y], "|", color=color, ms=9, mew=2, zorder=4)
-            ax.plot([rec[xcol]], [y], marker="*", ms=10, color=color, mec="black", zorder=5)
-    for ax, name in zip(axes, ("accuracy", "macro F1")):
-        ax.axhline(CHANCE, color="0.4", ls="--", lw=1)
-        ax.text(0.01, CHANCE + 0.01, "chance", transform=ax.get_yaxis_transform(), ha="left", va="bottom",
-                fontsize=8, color="0.3")
-        ax.set_ylabel(f"{name} (mean +/- std over participants)")
-        ax.set_ylim(0, 1.02)
-        ax.grid(True, which="both", alpha=0.3)
-        ax.set_xscale("log")
-        _nice_log_ticks(ax.xaxis, _all(report, xcol))
-    if xcol == "pitch_u_mm":
-        study = 240.0 / STUDY_TAXELS_PER_24CM
-        for ax in axes:
-            ax.axvline(study, color="0.2", ls=":", lw=1.2)
-        axes[0].text(study, 0.3, " study: 18 taxels / 24 cm", rotation=90, fontsize=8, color="0.2", va="bottom",
-                     ha="right")
-        axes[0].invert_xaxis()
-        top = axes[0].secondary_xaxis("top", functions=(lambda p: 240.0 / np.maximum(p, 1e-9),
-                                                        lambda t: 240.0 / np.maximum(t, 1e-9)))
-        top.set_xlabel("taxels per 24 cm along the link (the study's axis)")
-        _nice_log_ticks(top.xaxis, 240.0 / _all(report, xcol))
-        cmap = _shared_count_map(report)
-        if cmap is not None:
-            lp, n = np.log(cmap[0]), np.log(cmap[1])
+    with figures.style():
+        fig, axes = figures.new_figure("two", 5.6, nrows=2, sharex=True)
+        colors = plt.get_cmap("tab10")
+        for i, g in enumerate(report.groups):
+            color = colors(i % 10)
+            x = g.points[xcol].to_numpy(float)
+            for ax, metric in zip(axes, ("accuracy", "macro_f1")):
+                m = g.points[f"{metric}_mean"].to_numpy(float)
+                s = g.points[f"{metric}_std"].to_numpy(float)
+                ax.plot(x, m, "o-", color=color, label=f"{g.label} (n={g.sat.n_participants})")
+                ax.fill_between(x, m - s, m + s, color=color, alpha=0.15, lw=0)
+            rec = g.recommended
+            x0, y0 = float(rec[xcol]), float(rec["accuracy_mean"])
+            xerr = None
+            if g.sat.interval is not None:  # the bootstrap interval: an error bar through the saturation point
+                ends = g.points[xcol].iloc[list(g.sat.interval)].to_numpy(float)
+                xerr = [[max(x0 - ends.min(), 0.0)], [max(ends.max() - x0, 0.0)]]
+            axes[0].errorbar([x0], [y0], xerr=xerr, fmt="*", ms=11, color=color, mec="black", ecolor=color,
+                             elinewidth=2.0, capsize=3, zorder=5, label=f"saturation: {g.label}")
+        for ax, name in zip(axes, ("accuracy", "macro F1")):
+            ax.axhline(CHANCE, color="0.4", ls="--", lw=0.8)
+            ax.text(0.01, CHANCE + 0.01, "chance", transform=ax.get_yaxis_transform(), ha="left", va="bottom",
+                    color="0.3")
+            ax.set_ylabel(f"{name}\n(mean +/- std over participants)")
+            ax.set_ylim(0, 1.02)
+            ax.grid(True, which="both", alpha=0.3)
+            ax.set_xscale("log")
+            _nice_log_ticks(ax.xaxis, _all(report, xcol))
+        if xcol == "pitch_u_mm":
+            study = 240.0 / STUDY_TAXELS_PER_24CM
+            for ax in axes:
+                ax.axvline(study, color="0.2", ls=":", lw=1.0)
+            # the label runs up the study's line from the bottom of the lower panel, away from the stars
+            axes[1].text(study, 0.97, "study: 18 taxels / 24 cm ", rotation=90, color="0.2", va="top", ha="right",
+                         transform=axes[1].get_xaxis_transform())
+            axes[0].invert_xaxis()
+            top = axes[0].secondary_xaxis("top", functions=(lambda p: 240.0 / np.maximum(p, 1e-9),
+                                                            lambda t: 240.0 / np.maximum(t, 1e-9)))
+            top.set_xlabel("taxels per 24 cm along the link (the study's axis)")
+            _nice_log_ticks(top.xaxis, 240.0 / _all(report, xcol))
+            cmap = _shared_count_map(report)
+            if cmap is not None:
+                lp, n = np.log(cmap[0]), np.log(cmap[1])
 
-            def to_count(p):
-                return np.exp(_interp_extrap(np.log(np.maximum(p, 1e-9)), lp, n))
+                def to_count(p):
+                    return np.exp(_interp_extrap(np.log(np.maximum(p, 1e-9)), lp, n))
 
-            def to_pitch(c):
-                return np.exp(_interp_extrap(-np.log(np.maximum(c, 1e-9)), -n, lp))
+                def to_pitch(c):
+                    return np.exp(_interp_extrap(-np.log(np.maximum(c, 1e-9)), -n, lp))
 
-            bottom = axes[1].secondary_xaxis(-0.22, functions=(to_count, to_pitch))
-            bottom.set_xlabel("taxel count (at the sweep's points)")
-            _count_ticks(bottom.xaxis, cmap[0], cmap[1])
-    axes[1].set_xlabel(xlabel)
-    if any(g.sat.interval is not None for g in report.groups):
-        axes[0].text(0.99, 0.04 + 0.045 * len(report.groups), f"saturation point, {report.rule.ci:.0%} bootstrap interval",
-                     transform=axes[0].get_yaxis_transform(), ha="right", va="bottom", fontsize=8, color="0.3")
-    axes[0].legend(fontsize=8, loc="upper left", ncol=1 if len(report.groups) < 4 else 2)
-    fig.suptitle(_title(report, "accuracy against skin resolution"), fontsize=11,
-                 color="firebrick" if report.synthetic != "none" else "black")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+                bottom = axes[1].secondary_xaxis(-0.32, functions=(to_count, to_pitch))
+                bottom.set_xlabel("taxel count (at the sweep's points)")
+                _count_ticks(bottom.xaxis, cmap[0], cmap[1])
+        axes[1].set_xlabel(xlabel)
+        handles, labels = axes[0].get_legend_handles_labels()
+        if any(g.sat.interval is not None for g in report.groups):
+            labels = [f"{lab} ({report.rule.ci:.0%} bootstrap interval)" if lab.startswith("saturation") else lab
+                      for lab in labels]
+        # outside the panels: the legend never hides data
+        fig.legend(handles, labels, loc="outside lower center", ncol=min(4, max(2, len(labels) // 2)))
+        axes[0].set_title("accuracy against skin resolution", loc="left")
+        return _finish(fig, report, path, marks)
 
 
-def plot_recall(report: SweepReport, path: Path, max_groups: int = 6) -> Path | None:
+def plot_recall(report: SweepReport, path: Path, max_groups: int = 6, marks: bool | None = None) -> Path | None:
     """Per-gesture recall against resolution, one panel per group (first ``max_groups``) -> ``path``.
 
     None when no job logged per-gesture recall (``per_participant.csv`` missing).
     """
     if not any(g.gesture_sat for g in report.groups):
         return None
-    plt = _plt()
+    plt = figures.pyplot()
     xcol, xlabel = _x(report)
     groups = report.groups[:max_groups]
-    ncol = min(3, len(groups))
+    ncol = min(2, len(groups))
     nrow = int(np.ceil(len(groups) / ncol))
-    fig, axes = plt.subplots(nrow, ncol, figsize=(5.2 * ncol, 4.2 * nrow + 0.6), dpi=110, squeeze=False)
-    colors = plt.get_cmap("tab10")
-    for ax, g in zip(axes.ravel(), groups):
-        x = g.points[xcol].to_numpy(float)
-        for k, gest in enumerate(GESTURES):
-            y = g.points[f"recall_{gest}"].to_numpy(float)
-            if not np.isfinite(y).any():
-                continue
-            ax.plot(x, y, "-", color=colors(k), lw=1.4, label=gest)
-            s = g.gesture_sat.get(gest)
-            if s is not None:
-                ax.plot([x[s.index]], [y[s.index]], "o", color=colors(k), mec="black", ms=6)
-        ax.set_xscale("log")
-        _nice_log_ticks(ax.xaxis, x[np.isfinite(x) & (x > 0)])
-        if xcol == "pitch_u_mm":
-            ax.invert_xaxis()
-        ax.set_ylim(0, 1.02)
-        ax.set_title(g.label, fontsize=10)
-        ax.set_xlabel(xlabel.split(" (")[0] + (" (mm)" if xcol == "pitch_u_mm" else ""))
-        ax.set_ylabel("recall (mean over participants)")
-        ax.grid(True, which="both", alpha=0.3)
-    for ax in axes.ravel()[len(groups):]:
-        ax.set_visible(False)
-    if axes[0, 0].get_legend_handles_labels()[0]:
-        axes[0, 0].legend(fontsize=8, ncol=2, loc="lower right")
-    fig.suptitle(_title(report, "per-gesture recall against resolution (dots: each gesture's saturation point)"),
-                 fontsize=10, color="firebrick" if report.synthetic != "none" else "black")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    with figures.style():
+        fig, axes = figures.new_figure("two" if ncol > 1 else "one", 2.4 * nrow + 0.9, nrows=nrow, ncols=ncol,
+                                       squeeze=False, sharey=True)
+        colors = plt.get_cmap("tab10")
+        for ax, g in zip(axes.ravel(), groups):
+            x = g.points[xcol].to_numpy(float)
+            for k, gest in enumerate(GESTURES):
+                y = g.points[f"recall_{gest}"].to_numpy(float)
+                if not np.isfinite(y).any():
+                    continue
+                ax.plot(x, y, "-", color=colors(k), label=gest)
+                s = g.gesture_sat.get(gest)
+                if s is not None:
+                    ax.plot([x[s.index]], [y[s.index]], "o", color=colors(k), mec="black")
+            ax.set_xscale("log")
+            _nice_log_ticks(ax.xaxis, x[np.isfinite(x) & (x > 0)])
+            if xcol == "pitch_u_mm":
+                ax.invert_xaxis()
+            ax.set_ylim(0, 1.02)
+            ax.set_title(g.label, loc="left")
+            ax.set_xlabel(xlabel.split(" (")[0] + (" (mm)" if xcol == "pitch_u_mm" else ""))
+            ax.grid(True, which="both", alpha=0.3)
+        for ax in axes[:, 0]:
+            ax.set_ylabel("recall (mean over participants)")
+        for ax in axes.ravel()[len(groups):]:
+            ax.set_visible(False)
+        handles, labels = axes[0, 0].get_legend_handles_labels()
+        if handles:
+            fig.legend(handles, labels, loc="outside lower center", ncol=8 if ncol > 1 else 4,
+                       title="gesture (dot: its saturation point)")
+        return _finish(fig, report, path, marks)
 
 
-def plot_bootstrap(report: SweepReport, path: Path) -> Path | None:
+def plot_bootstrap(report: SweepReport, path: Path, marks: bool | None = None) -> Path | None:
     """Share of bootstrap resamples choosing each resolution, per group -> ``path`` (None without any bootstrap)."""
     groups = [g for g in report.groups if g.sat.boot_index is not None and len(g.points) > 1]
     if not groups:
         return None
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(9.5, 3.6), dpi=110)
-    colors = plt.get_cmap("tab10")
-    width = 0.8 / len(groups)
-    union = sorted({int(r) for g in groups for r in g.points["res"]})
-    where = {r: k for k, r in enumerate(union)}
-    for i, g in enumerate(groups):
-        counts = np.bincount(g.sat.boot_index, minlength=len(g.points)) / len(g.sat.boot_index)
-        pos = np.array([where[int(r)] for r in g.points["res"]]) + (i - (len(groups) - 1) / 2) * width
-        ax.bar(pos, counts, width=width, color=colors(report.groups.index(g) % 10), label=g.label)
-    step = max(1, len(union) // 25)
-    ax.set_xticks(np.arange(len(union))[::step], [str(r) for r in union][::step])
-    ax.set_xlabel("encoder.res (taxels along the link)")
-    ax.set_ylabel("share of resamples")
-    ax.legend(fontsize=8)
-    ax.grid(True, axis="y", alpha=0.3)
-    ax.set_title(_title(report, "saturation point over bootstrap resamples of participants"), fontsize=10,
-                 color="firebrick" if report.synthetic != "none" else "black")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    plt = figures.pyplot()
+    with figures.style():
+        fig, ax = figures.new_figure("two", 2.4)
+        colors = plt.get_cmap("tab10")
+        width = 0.8 / len(groups)
+        union = sorted({int(r) for g in groups for r in g.points["res"]})
+        where = {r: k for k, r in enumerate(union)}
+        for i, g in enumerate(groups):
+            counts = np.bincount(g.sat.boot_index, minlength=len(g.points)) / len(g.sat.boot_index)
+            pos = np.array([where[int(r)] for r in g.points["res"]]) + (i - (len(groups) - 1) / 2) * width
+            ax.bar(pos, counts, width=width, color=colors(report.groups.index(g) % 10), label=g.label)
+        step = max(1, int(np.ceil(len(union) / 20)))
+        ax.set_xticks(np.arange(len(union))[::step], [str(r) for r in union][::step])
+        ax.set_xlabel("taxels along the link (encoder.res)")
+        ax.set_ylabel("share of resamples")
+        ax.legend(loc="upper left")
+        ax.grid(True, axis="y", alpha=0.3)
+        ax.set_title("saturation point over bootstrap resamples of participants", loc="left")
+        return _finish(fig, report, path, marks)
 
 
-def plot_tornado(report: SweepReport, path: Path) -> Path | None:
+def plot_tornado(report: SweepReport, path: Path, marks: bool | None = None) -> Path | None:
     """Saturation pitch (mm) per assumption variant with its bootstrap interval, one panel per set of other
     keys, variants ordered by their shift from the reference (largest on top) -> ``path``; None without variants."""
     if not report.sensitivity:
         return None
-    plt = _plt()
     n = len(report.sensitivity)
     height = max(len(s.variants) for s in report.sensitivity)
-    fig, axes = plt.subplots(1, n, figsize=(7.5 * n, 1.2 + 0.45 * height), dpi=110, squeeze=False)
-    for ax, sens in zip(axes[0], report.sensitivity):
-        pitch = all(g.has_pitch for g in sens.variants)
-        col = "pitch_mm" if pitch else "n_taxels"
-        for y, g in enumerate(reversed(sens.variants)):
-            v = float(g.recommended[col])
-            iv = g.pitch_interval_mm if pitch else None
-            is_ref = sens.reference is g
-            color = "black" if is_ref else ("firebrick" if g.sat.at_finest else "tab:blue")
-            if iv is not None:
-                ax.plot(iv, [y, y], "-", color=color, lw=6, alpha=0.35, solid_capstyle="butt")
-            ax.plot([v], [y], "o", color=color, ms=7)
-        ax.set_yticks(range(len(sens.variants)), [g.keys.get("variant", g.label) for g in reversed(sens.variants)])
-        if sens.reference is not None:
-            ax.axvline(float(sens.reference.recommended[col]), color="black", ls="--", lw=1)
-        ax.set_xlabel(f"saturation pitch (mm; dot: the rule, bar: {report.rule.ci:.0%} bootstrap interval; red: finest "
-                      "point swept)" if pitch else "taxels at saturation", fontsize=8)
-        ax.grid(True, axis="x", alpha=0.3)
-        ax.set_title(sens.label or "assumption variants", fontsize=10)
-    fig.suptitle(_title(report, f"requirement per assumption (tolerance {report.rule.primary_tolerance.describe()})"),
-                 fontsize=10, color="firebrick" if report.synthetic != "none" else "black")
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    with figures.style():
+        fig, axes = figures.new_figure("two", 1.4 + 0.22 * height, ncols=n, squeeze=False)
+        pitch_all = True
+        for ax, sens in zip(axes[0], report.sensitivity):
+            pitch = all(g.has_pitch for g in sens.variants)
+            pitch_all &= pitch
+            col = "pitch_mm" if pitch else "n_taxels"
+            for y, g in enumerate(reversed(sens.variants)):
+                v = float(g.recommended[col])
+                iv = g.pitch_interval_mm if pitch else None
+                is_ref = sens.reference is g
+                color = "black" if is_ref else ("firebrick" if g.sat.at_finest else "tab:blue")
+                if iv is not None:
+                    ax.plot(iv, [y, y], "-", color=color, lw=5, alpha=0.35, solid_capstyle="butt")
+                ax.plot([v], [y], "o", color=color)
+            ax.set_yticks(range(len(sens.variants)), [g.keys.get("variant", g.label) for g in reversed(sens.variants)])
+            if sens.reference is not None:
+                ax.axvline(float(sens.reference.recommended[col]), color="black", ls="--", lw=0.8)
+            ax.set_xlabel("saturation pitch (mm)" if pitch else "taxels at saturation")
+            ax.grid(True, axis="x", alpha=0.3)
+            ax.set_title(sens.label or "assumption variants", loc="left")
+        if pitch_all:
+            fig.supxlabel(f"dot: the rule ({report.rule.primary_tolerance.describe()}); bar: {report.rule.ci:.0%} "
+                          "bootstrap interval; dashed: reference; red: finest point swept",
+                          color="0.3", fontsize=figures.MIN_FONT_PT)
+        return _finish(fig, report, path, marks)

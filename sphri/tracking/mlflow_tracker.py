@@ -361,9 +361,10 @@ class MlflowTracker:
             tmp_path = Path(tmp)
             (tmp_path / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))
             write_fold_csv(result.cv, tmp_path / "per_participant.csv")
+            from sphri import figures
             from sphri.figures import Provenance
 
-            write_confusion_png(result.cv, tmp_path / "confusion.png",
+            write_confusion_png(result.cv, tmp_path / "confusion.png", formats=figures.FORMATS,
                                 title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
                                 provenance=Provenance(synthetic=bool(result.meta.get("synthetic")), ids=f"res {cfg.encoder.res}"))
             (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
