@@ -100,8 +100,12 @@ def _bool(value: str, key: str) -> bool:
     raise ConfigError(f"{key}={value!r} is invalid: expected true or false")
 
 
+#: Settings of the figures only (not of the analysis).
+FIGURE_KEYS = ("marks",)
+
+
 def analysis_from(settings: CoverageSchema) -> CoverageAnalysis:
-    kwargs = {k: getattr(settings, k) for k in ANALYSIS_KEYS}
+    kwargs = {k: getattr(settings, k) for k in ANALYSIS_KEYS if k not in FIGURE_KEYS}
     return CoverageAnalysis(**kwargs)
 
 
@@ -139,7 +143,10 @@ def run(overrides: Sequence[str] = (), settings: CoverageSchema | None = None, o
         link = robot.link_for(region)
         t1 = time.perf_counter()
         result = analysis.analyze(dataset, contacts, link, surface, region)
-        files[region] = write_region(result, out_dir / region, link, surface, settings.render, settings.views)
+        from sphri.figures import Provenance
+
+        marks = Provenance(synthetic=bool(dataset.synthetic), ids=dataset.name, show=settings.marks)
+        files[region] = write_region(result, out_dir / region, link, surface, settings.render, settings.views, marks)
         results[region] = result
         seconds[f"{region}.stages"] = t1 - t0
         seconds[f"{region}.analysis"] = time.perf_counter() - t1

@@ -124,6 +124,11 @@ def mark(fig, provenance: Provenance) -> None:
     if parts:
         fig.text(0.995, 0.995, " | ".join(parts), ha="right", va="top", fontsize=MIN_FONT_PT,
                  color="firebrick" if provenance.synthetic else "0.35")
+        engine = fig.get_layout_engine()
+        if engine is not None and hasattr(engine, "set") and "rect" in engine.get():
+            # keep a strip for the marks: constrained layout lays titles and legends out below it
+            strip = 1.7 * MIN_FONT_PT / 72.0 / fig.get_figheight()
+            engine.set(rect=(0.0, 0.0, 1.0, 1.0 - strip))
 
 
 def _texts(fig):
@@ -180,6 +185,10 @@ def _tick_labels(fig) -> tuple[set[int], set[int]]:
     drawn, hidden = set(), set()
     for ax in fig.findobj(lambda a: hasattr(a, "xaxis") and hasattr(a, "yaxis")):
         for axis in (ax.xaxis, ax.yaxis):
+            if not ax.axison or not ax.get_visible() or not axis.get_visible():  # axes drawn without ticks
+                for tick in axis.get_major_ticks() + axis.get_minor_ticks():
+                    hidden.update((id(tick.label1), id(tick.label2)))
+                continue
             lo, hi = sorted(axis.get_view_interval())
             span = (hi - lo) * 1e-9
             for tick in axis.get_major_ticks() + axis.get_minor_ticks():

@@ -320,7 +320,7 @@ def write_density_npz(result: RegionCoverage, group: str, path: str | Path) -> P
 
 
 def write_region(result: RegionCoverage, out_dir: str | Path, link: Link, surface: SurfaceMap | None,
-                 render: bool = True, views: int = 4) -> list[Path]:
+                 render: bool = True, views: int = 4, provenance=None) -> list[Path]:
     """Write a region's files under ``out_dir``; returns their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -349,19 +349,21 @@ def write_region(result: RegionCoverage, out_dir: str | Path, link: Link, surfac
         for n in names:
             dens = result.densities[n]
             label = f"{title}: {result.by} = {n}" if n != ALL else f"{title}: all trials"
-            paths.append(view.render(dens, out / f"map_{safe_name(n)}.png", label, views=views))
+            paths.append(view.render(dens, out / f"map_{safe_name(n)}.png", label, views=views, provenance=provenance))
             paths.append(view.write_ply(dens, out / f"map_{safe_name(n)}.ply"))
             if grid is not None:
-                paths.append(rd.render_uv(surface, result.samples, dens, out / f"uv_{safe_name(n)}.png", label, grid))
+                paths.append(rd.render_uv(surface, result.samples, dens, out / f"uv_{safe_name(n)}.png", label, grid,
+                                          provenance=provenance))
         small = rd.LinkView(link, result.samples, target_faces=4000)
         paths.append(rd.plot_overview(small, {n: result.densities[n] for n in names}, out / "overview.png",
                                       f"{title}: contact density by {result.by}", views=views, surface=surface,
-                                      samples=result.samples, grid=grid))
+                                      samples=result.samples, grid=grid, provenance=provenance))
         paths.append(rd.plot_coverage_curves([result.curves[n] for n in names], out / "coverage_curve.png",
-                                             f"{title}: greedy skin placement"))
+                                             f"{title}: greedy skin placement", provenance=provenance))
         if result.comparison is not None:
             paths.append(rd.plot_swd_heatmap(result.comparison, out / "swd_heatmap.png",
-                                             f"{title}: touch distributions by {result.by}"))
+                                             f"{title}: touch distributions by {result.by}",
+                                             provenance=provenance))
         result.seconds["render"] = time.perf_counter() - t0
     (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_json_default))
     paths.append(out / "summary.json")

@@ -1,4 +1,5 @@
-"""Pictures and meshes of contact densities (matplotlib Agg, trimesh).
+"""Pictures and meshes of contact densities (matplotlib Agg, trimesh), in sphri's figure style
+(:mod:`sphri.figures`: print sizes, PNG + PDF + SVG, no clipped or overlapping text).
 
 - :class:`LinkView`: the link subdivided for display (edges about 1/80 of
   its size), turned so that its long axis is vertical, with the
@@ -6,7 +7,8 @@
   ``render`` draws several views around the long axis with a colour bar,
   ``write_ply`` writes a vertex-coloured PLY that any viewer opens.
 - :func:`render_uv`: the unwrapped (u, v) map where the surface has a chart.
-- :func:`plot_overview`: groups x views grid, one picture for all gestures.
+- :func:`plot_overview`: groups x views grid, one picture for all gestures,
+  on one colour scale with one colour bar.
 - :func:`plot_coverage_curves`, :func:`plot_swd_heatmap`.
 
 Densities are shown as % of contact per cm^2 (density in 1/m^2 times 0.01).
@@ -24,6 +26,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import trimesh  # noqa: E402
 
+from sphri import figures  # noqa: E402
 from sphri.analysis.compare import PairwiseComparison  # noqa: E402
 from sphri.surface.density import SurfaceSamples  # noqa: E402
 from sphri.analysis.placement import CoverageCurve  # noqa: E402
@@ -161,7 +164,9 @@ class LinkView:
         keep = np.flatnonzero(facing > -0.02)
         keep = keep[np.argsort(depth[keep], kind="stable")]
         xy = np.stack([tris[keep] @ right, tris[keep] @ up], axis=-1)
-        ax.add_collection(PolyCollection(xy, facecolors=colours[keep], edgecolors=colours[keep], linewidths=0.3))
+        # rasterized: thousands of faces as one bitmap inside the PDF/SVG (text and axes stay vector)
+        ax.add_collection(PolyCollection(xy, facecolors=colours[keep], edgecolors=colours[keep], linewidths=0.3,
+                                         rasterized=True))
         span_x = np.abs(self.display[:, :2]).max() * 1.05
         span_z = np.abs(self.display[:, 2]).max() * 1.05
         ax.set_xlim(-span_x, span_x)
@@ -169,26 +174,34 @@ class LinkView:
         ax.set_aspect("equal")
         ax.set_axis_off()
 
-    def render(self, density: np.ndarray, path: str | Path, title: str, views: int = 4) -> Path:
-        """PNG of ``views`` views around the long axis with a shared colour bar."""
+    def ends(self) -> tuple[str, str]:
+        """Link-frame names of the top and bottom ends of the display's vertical (long) axis, e.g. ``+z end``."""
+        up = self.rotation.T @ np.array([0.0, 0.0, 1.0])
+        return f"{_direction_name(up)} end", f"{_direction_name(-up)} end"
+
+    def render(self, density: np.ndarray, path: str | Path, title: str, views: int = 4,
+               provenance: figures.Provenance | None = None) -> Path:
+        """``views`` views around the long axis with a shared colour bar -> ``path`` (+ PDF, SVG).
+
+        The first view names the link-frame ends of the long axis (landmarks to orient the views)."""
         vmax = _vmax([density])
         span = np.abs(self.display).max(axis=0)
-        tall = float(np.clip(span[2] / max(span[0], span[1], 1e-9), 0.5, 5.0))
-        width = 2.2
-        fig_w = width * views + 1.4
-        fig, axes = plt.subplots(1, views, figsize=(fig_w, min(width * tall + 0.9, 8.0)), dpi=110, squeeze=False)
-        right = 1.0 - 1.3 / fig_w
-        fig.subplots_adjust(left=0.01, right=right, bottom=0.02, top=0.86, wspace=0.04)
-        for i, az in enumerate(self.azimuths(views)):
-            ax = axes[0, i]
-            self.draw(ax, density, az, vmax)
-            ax.set_title(f"from {self.camera(az)}", fontsize=9)
-        _colourbar(fig, vmax, cax=fig.add_axes((right + 0.2 / fig_w, 0.12, 0.18 / fig_w, 0.66)))
-        fig.suptitle(title, fontsize=11)
-        path = Path(path)
-        fig.savefig(path)
-        plt.close(fig)
-        return path
+        tall = float(np.clip(span[2] / max(span[0], span[1], 1e-9), 0.5, 4.0))
+        with figures.style():
+            fig, axes = figures.new_figure("two", min(1.75 * tall + 0.9, 6.5), ncols=views, squeeze=False)
+            for i, az in enumerate(self.azimuths(views)):
+                ax = axes[0, i]
+                self.draw(ax, density, az, vmax)
+                ax.set_title(f"seen from {self.camera(az)}")
+            top, bottom = self.ends()
+            axes[0, 0].text(0.02, 0.99, top, transform=axes[0, 0].transAxes, ha="left", va="top", color="0.25")
+            axes[0, 0].text(0.02, 0.01, bottom, transform=axes[0, 0].transAxes, ha="left", va="bottom", color="0.25")
+            _colourbar(fig, vmax, ax=axes[0, :])
+            fig.suptitle(title)
+            if provenance is not None:
+                figures.mark(fig, provenance)
+            figures.save(fig, path)
+        return Path(path)
 
     @staticmethod
     def azimuths(views: int) -> list[float]:
@@ -218,7 +231,7 @@ def _colourbar(fig, vmax: float, ax=None, cax=None) -> None:
     if cax is not None:
         cb = fig.colorbar(sm, cax=cax)
     else:
-        cb = fig.colorbar(sm, ax=ax if ax is not None else fig.axes, shrink=0.7, pad=0.02)
+        cb = fig.colorbar(sm, ax=ax if ax is not None else fig.axes, shrink=0.8, pad=0.02)
     cb.set_label("contact density (% per cm$^2$)")
 
 
@@ -248,120 +261,131 @@ def draw_uv(ax, grid: dict, surface: SurfaceMap, density: np.ndarray, vmax: floa
     extent = (0.0, surface.metres_per_v * 100, 0.0, surface.metres_per_u * 100)
     im = ax.imshow(img, origin="lower", extent=extent, cmap=CMAP, vmin=0, vmax=vmax, aspect="equal",
                    interpolation="nearest")
-    if labels:
-        if surface.kind == "cylinder":
-            ax.set_xlabel("around: a (cm of arc from the seam, 360 deg)")
-            ax.set_ylabel("along: h (cm from the u_min end)")
-        else:
-            ax.set_xlabel("v (cm)")
-            ax.set_ylabel("u (cm)")
+    if labels:  # every chart runs u along the link and v around it (sphri.surface.charts)
+        ax.set_xlabel("around the link (cm)")
+        ax.set_ylabel("along the link (cm)")
     return im
 
 
 def render_uv(surface: SurfaceMap, samples: SurfaceSamples, density: np.ndarray, path: str | Path, title: str,
-              grid: dict | None = None) -> Path:
-    """PNG of the unwrapped (u, v) map of ``density`` with a colour bar."""
+              grid: dict | None = None, provenance: figures.Provenance | None = None) -> Path:
+    """The unwrapped (u, v) map of ``density`` with a colour bar -> ``path`` (+ PDF, SVG)."""
     grid = grid or uv_grid(surface, samples)
     vmax = _vmax([density])
-    fig, ax = plt.subplots(figsize=(6.4, 5.2), dpi=110)
-    draw_uv(ax, grid, surface, density, vmax)
-    _colourbar(fig, vmax, ax=ax)
-    ax.set_title(title, fontsize=10)
-    path = Path(path)
-    fig.savefig(path, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    aspect = surface.metres_per_u / max(surface.metres_per_v, 1e-9)
+    with figures.style():
+        fig, ax = figures.new_figure("one", float(np.clip(2.3 * aspect + 1.0, 2.0, 6.0)))
+        draw_uv(ax, grid, surface, density, vmax)
+        _colourbar(fig, vmax, ax=ax)
+        ax.set_title(title, loc="left", wrap=True)
+        if provenance is not None:
+            figures.mark(fig, provenance)
+        figures.save(fig, path)
+    return Path(path)
 
 
 def plot_overview(view: LinkView, densities: dict[str, np.ndarray], path: str | Path, title: str,
                   views: int = 4, surface: SurfaceMap | None = None, samples: SurfaceSamples | None = None,
-                  grid: dict | None = None) -> Path:
-    """One row per group: ``views`` views (and the (u, v) map with a chart),
-    each row on its own colour scale (its peak printed)."""
+                  grid: dict | None = None, provenance: figures.Provenance | None = None) -> Path:
+    """One row per group: ``views`` views (and the (u, v) map with a chart), all on one colour scale
+    (the rows are compared) with one colour bar -> ``path`` (+ PDF, SVG)."""
     names = list(densities)
     with_uv = surface is not None and surface.has_uv and samples is not None
     cols = views + (1 if with_uv else 0)
-    fig = plt.figure(figsize=(2.0 * cols + 0.6, 2.5 * len(names)), dpi=90)
     azims = view.azimuths(views)
     if with_uv and grid is None:
         grid = uv_grid(surface, samples)
-    for r, name in enumerate(names):
-        d = densities[name]
-        vmax = _vmax([d])
-        for c, az in enumerate(azims):
-            ax = fig.add_subplot(len(names), cols, r * cols + c + 1)
-            view.draw(ax, d, az, vmax)
-            if r == 0:
-                ax.set_title(f"from {view.camera(az)}", fontsize=9)
-            if c == 0:
-                ax.text(-0.05, 0.5, f"{name}\npeak {vmax:.2g} %/cm$^2$", transform=ax.transAxes,
-                          rotation=90, va="center", ha="right", fontsize=9)
-        if with_uv:
-            ax = fig.add_subplot(len(names), cols, r * cols + cols)
-            draw_uv(ax, grid, surface, d, vmax, labels=False)
-            ax.tick_params(labelsize=6)
-            if r == 0:
-                ax.set_title("unwrapped (cm)", fontsize=9)
-    fig.suptitle(title, fontsize=11)
-    fig.tight_layout(rect=(0.02, 0, 1, 0.98))
-    path = Path(path)
-    fig.savefig(path)
-    plt.close(fig)
-    return path
+    vmax = _vmax(list(densities.values()))
+    with figures.style():
+        fig, axes = figures.new_figure("two", 1.25 * len(names) + 0.7, nrows=len(names), ncols=cols, squeeze=False)
+        for r, name in enumerate(names):
+            d = densities[name]
+            for c, az in enumerate(azims):
+                ax = axes[r, c]
+                view.draw(ax, d, az, vmax)
+                if r == 0:
+                    ax.set_title(f"from {view.camera(az)}")
+                if c == 0:
+                    ax.text(-0.04, 0.5, name, transform=ax.transAxes, rotation=90, va="center", ha="right")
+            if with_uv:
+                ax = axes[r, cols - 1]
+                draw_uv(ax, grid, surface, d, vmax, labels=False)
+                ax.tick_params(labelsize=figures.MIN_FONT_PT)
+                if r == 0:
+                    ax.set_title("unwrapped (cm)")
+        _colourbar(fig, vmax, ax=axes)
+        fig.suptitle(title)
+        if provenance is not None:
+            figures.mark(fig, provenance)
+        figures.save(fig, path)
+    return Path(path)
 
 
-def plot_coverage_curves(curves: Sequence[CoverageCurve], path: str | Path, title: str) -> Path:
-    """Share of contact frames captured vs share of area covered, one line per group."""
-    fig, ax = plt.subplots(figsize=(6.4, 5.0), dpi=110)
-    ax.plot([0, 1], [0, 1], color="0.75", lw=1, ls=":", label="uniform")
-    for c in curves:
-        if c.n_frames == 0:
-            continue
-        lw, colour = (2.6, "black") if c.group == "all" else (1.3, None)
-        r = c.resampled(401)
-        line, = ax.plot(r["area_share"], r["frame_share"], lw=lw, color=colour,
-                        label=f"{c.group} ({100 * c.area_at_capture:.0f} %)")
-        ax.plot([c.area_at_capture], [c.capture], "o", color=line.get_color(), ms=4)
-    if curves:
-        ax.axhline(curves[0].capture, color="0.5", lw=0.8, ls="--")
-    ax.set_xlabel("share of link area covered (greedy by density)")
-    ax.set_ylabel("share of contact frames captured")
-    ax.set_xlim(0, 1)
-    ax.set_ylim(0, 1.01)
-    ax.legend(fontsize=8, title="group (area for target)", title_fontsize=8, loc="lower right")
-    ax.set_title(title, fontsize=10)
-    path = Path(path)
-    fig.savefig(path, bbox_inches="tight")
-    plt.close(fig)
-    return path
+def plot_coverage_curves(curves: Sequence[CoverageCurve], path: str | Path, title: str,
+                         provenance: figures.Provenance | None = None) -> Path:
+    """Share of contact frames captured vs share of area covered, one line per group -> ``path`` (+ PDF, SVG)."""
+    with figures.style():
+        fig, ax = figures.new_figure("one", 3.3)
+        ax.plot([0, 1], [0, 1], color="0.75", lw=0.8, ls=":", label="uniform")
+        for c in curves:
+            if c.n_frames == 0:
+                continue
+            lw, colour = (2.0, "black") if c.group == "all" else (1.0, None)
+            r = c.resampled(401)
+            line, = ax.plot(r["area_share"], r["frame_share"], lw=lw, color=colour,
+                            label=f"{c.group} ({100 * c.area_at_capture:.0f} %)")
+            ax.plot([c.area_at_capture], [c.capture], "o", color=line.get_color(), ms=3)
+        if curves:
+            ax.axhline(curves[0].capture, color="0.5", lw=0.6, ls="--")
+        ax.set_xlabel("share of the link's area covered\n(densest first)")
+        ax.set_ylabel("share of contact frames captured")
+        ax.set_xlim(0, 1)
+        ax.set_ylim(0, 1.01)
+        ax.set_title(title, loc="left", wrap=True)
+        ax.legend(title="group (area for the target)", loc="lower right")  # below the uniform diagonal: no data there
+        if provenance is not None:
+            figures.mark(fig, provenance)
+        figures.save(fig, path)
+    return Path(path)
 
 
-def plot_swd_heatmap(comp: PairwiseComparison, path: str | Path, title: str) -> Path:
-    """Mean paired SWD (mm; diagonal: within-condition split-half baseline)
-    with Holm-corrected p-values in the cells (* where <= alpha)."""
-    m = comp.matrix("mean_between_swd_mm")
+def plot_swd_heatmap(comp: PairwiseComparison, path: str | Path, title: str,
+                     provenance: figures.Provenance | None = None) -> Path:
+    """Mean paired SWD (mm) between conditions with Holm-corrected p-values in the cells (* where <= alpha)
+    -> ``path`` (+ PDF, SVG). The colour scale spans the off-diagonal cells; the diagonal (each condition's
+    split-half baseline) is grey, its value printed."""
+    m = comp.matrix("mean_between_swd_mm").to_numpy(float)
     p = comp.matrix("p_holm")
     c = comp.conditions
-    fig, ax = plt.subplots(figsize=(1.0 * len(c) + 2.6, 0.85 * len(c) + 1.8), dpi=110)
-    im = ax.imshow(m.to_numpy(float), cmap="viridis")
-    for i in range(len(c)):
-        for j in range(len(c)):
-            val = m.iat[i, j]
-            if not np.isfinite(val):
-                continue
-            text = f"{val:.1f}"
-            if i != j and np.isfinite(p.iat[i, j]):
-                pv = p.iat[i, j]
-                text += f"\np={pv:.3f}" if pv >= 0.001 else "\np<.001"
-                text += " *" if pv <= comp.alpha else ""
-            ax.text(j, i, text, ha="center", va="center", fontsize=7,
-                    color="white" if val < np.nanmean(m.to_numpy(float)) else "black")
-    ax.set_xticks(range(len(c)), c, rotation=45, ha="right")
-    ax.set_yticks(range(len(c)), c)
-    cb = fig.colorbar(im, ax=ax, shrink=0.8)
-    cb.set_label(f"mean paired SW{comp.swd_p:g} distance (mm)")
-    ax.set_title(title + f"\nHolm-corrected p (* <= {comp.alpha:g}); diagonal: split-half baseline", fontsize=9)
-    path = Path(path)
-    fig.savefig(path, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    off = ~np.eye(len(c), dtype=bool)
+    vals = m[off & np.isfinite(m)]
+    lo, hi = (float(vals.min()), float(vals.max())) if vals.size else (0.0, 1.0)
+    cmap = plt.get_cmap("viridis").copy()
+    cmap.set_bad("0.85")
+    with figures.style():
+        side = float(np.clip(0.55 * len(c) + 1.6, 2.6, figures.TWO_COLUMN_IN))
+        fig, ax = figures.new_figure(side if side > figures.ONE_COLUMN_IN else "one", 0.5 * len(c) + 1.6)
+        im = ax.imshow(np.where(off, m, np.nan), cmap=cmap, vmin=lo, vmax=hi if hi > lo else lo + 1.0)
+        mid = 0.5 * (lo + hi)
+        for i in range(len(c)):
+            for j in range(len(c)):
+                val = m[i, j]
+                if not np.isfinite(val):
+                    continue
+                text = f"{val:.1f}"
+                if i != j and np.isfinite(p.iat[i, j]):
+                    pv = p.iat[i, j]
+                    text += f"\np={pv:.3f}" if pv >= 0.001 else "\np<.001"
+                    text += " *" if pv <= comp.alpha else ""
+                ax.text(j, i, text, ha="center", va="center", fontsize=figures.MIN_FONT_PT,
+                        color="black" if i == j or val >= mid else "white")
+        ax.set_xticks(range(len(c)), c, rotation=45, ha="right")
+        ax.set_yticks(range(len(c)), c)
+        cb = fig.colorbar(im, ax=ax, shrink=0.8)
+        cb.set_label(f"mean paired SW{comp.swd_p:g} distance (mm)")
+        ax.set_title(title, loc="left", wrap=True)
+        ax.set_xlabel(f"Holm-corrected p (* <= {comp.alpha:g})\ngrey diagonal: split-half baseline")
+        if provenance is not None:
+            figures.mark(fig, provenance)
+        figures.save(fig, path)
+    return Path(path)

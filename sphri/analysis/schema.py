@@ -9,6 +9,7 @@ naming the full key (``coverage.bandwidth_mm``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Optional
 
 from sphri.config import require, require_choice, require_range, store
 
@@ -53,7 +54,9 @@ class CoverageSchema:
     views: int = 4
     """Views around the long axis in the PNG renders."""
     render: bool = True
-    """Write PNGs and PLY meshes (False: numbers and .npz only)."""
+    """Write the figures (PNG, PDF, SVG) and PLY meshes (False: numbers and .npz only)."""
+    marks: Optional[bool] = None
+    """The SYNTHETIC DATA banner on the figures: None = for synthetic data only, true = always, false = never."""
     heldout: bool = True
     """Also score each participant's frames with the placement chosen from the others."""
 

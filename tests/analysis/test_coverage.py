@@ -131,3 +131,24 @@ def test_files_written_and_readable(result, study, surface, tmp_path):
 
     im = np.asarray(Image.open(tmp_path / "map_poke.png").convert("RGB")).astype(float)
     assert im.std() > 10  # not a blank picture
+
+
+def test_every_coverage_figure_is_clean_in_three_formats(result, study, surface, tmp_path, caplog):
+    """PNG, PDF and SVG of every figure, and no text past the canvas, under 7 pt or overlapping
+    (``sphri.figures.save`` logs each layout problem; the SYNTHETIC mark is drawn too)."""
+    import dataclasses
+    import logging
+
+    from sphri.figures import Provenance
+
+    caplog.set_level(logging.WARNING, logger="sphri.figures")
+    small = dataclasses.replace(result, groups=result.groups[:2])
+    paths = write_region(small, tmp_path, study.link, surface, render=True, views=4,
+                         provenance=Provenance(synthetic=True, ids="test study"))
+    pngs = [p for p in paths if p.suffix == ".png"]
+    assert {p.stem for p in pngs} >= {"map_all", "uv_all", "overview", "coverage_curve", "swd_heatmap"}
+    for png in pngs:
+        for fmt in ("pdf", "svg"):
+            assert png.with_suffix("." + fmt).stat().st_size > 0, f"{png.stem}.{fmt} missing"
+        assert "SYNTHETIC DATA" in png.with_suffix(".svg").read_text()
+    assert [r.getMessage() for r in caplog.records if r.name == "sphri.figures"] == []

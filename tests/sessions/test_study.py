@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import logging
 
 import numpy as np
 import pandas as pd
@@ -15,11 +16,26 @@ from sphri.config import ConfigError, compose
 from sphri.types import GESTURES
 
 
+#: What ``sphri.figures`` said about the study's figures (text past the canvas, too small, overlapping).
+LAYOUT_PROBLEMS: list[str] = []
+
+
+class _Collect(logging.Handler):
+    def emit(self, record: logging.LogRecord) -> None:
+        LAYOUT_PROBLEMS.append(record.getMessage())
+
+
 @pytest.fixture(scope="module")
 def study(tmp_path_factory):
     out = tmp_path_factory.mktemp("study")
     runs = tmp_path_factory.mktemp("runs")  # MLflow store and cache (logged to MLflow, as the command does)
-    rc = main(["+experiment=scenario_study", "+debug=fast", f"out={out}", f"output_dir={runs}", f"cache.dir={runs}/cache"])
+    handler = _Collect(level=logging.WARNING)
+    logging.getLogger("sphri.figures").addHandler(handler)
+    try:
+        rc = main(["+experiment=scenario_study", "+debug=fast", f"out={out}", f"output_dir={runs}",
+                   f"cache.dir={runs}/cache"])
+    finally:
+        logging.getLogger("sphri.figures").removeHandler(handler)
     assert rc == 0
     assert (runs / "mlflow.db").is_file()
     # sessions and whole-body contacts are stage-cache entries: a second study reuses them
@@ -66,6 +82,15 @@ def test_writes_the_report_and_every_table(study):
     assert summary["synthetic"] and summary["n_sessions"] == 3 * 5 * 2
     notes = " ".join(summary["notes"])
     assert "power" in notes and "never saw" in notes  # 3 participants cannot reach Holm significance; parts off the model
+
+
+def test_every_study_figure_is_clean_in_three_formats(study):
+    pngs = sorted(study.glob("*.png"))
+    assert len(pngs) >= 11
+    for png in pngs:
+        for fmt in ("pdf", "svg"):
+            assert png.with_suffix("." + fmt).stat().st_size > 0, f"{png.stem}.{fmt} missing"
+    assert LAYOUT_PROBLEMS == []
 
 
 def test_density_mesh_carries_the_density_as_a_vertex_attribute(study):
