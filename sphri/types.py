@@ -196,7 +196,7 @@ class SurfaceMap:
     """
 
     kind: str
-    """"cylinder", "box", "planar" or "mesh"."""
+    """"cylinder", "box" or "mesh": the name its chart is registered under (:func:`sphri.surface.charts.chart_of`)."""
     has_uv: bool
     metres_per_u: float
     """Length in metres of one unit of u (0 when ``has_uv`` is False)."""

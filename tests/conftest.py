@@ -6,8 +6,15 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import settings
 
 REPO = Path(__file__).resolve().parent.parent
+
+# Property tests draw the same examples on every run (`make test`, CI): a red run is reproducible.
+# SPHRI_DEEP_TESTS=1 (`make test-all`) explores new random examples, remembered in .hypothesis/.
+settings.register_profile("repeatable", derandomize=True, database=None)
+settings.register_profile("explore")
+settings.load_profile("explore" if os.environ.get("SPHRI_DEEP_TESTS") else "repeatable")
 SHARED = Path(os.environ.get("SPHRI_SHARED", REPO.parent / "shared"))
 
 

@@ -22,6 +22,7 @@ from numba import njit
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
+from sphri.surface.charts import chart_of
 from sphri.surface.density import SurfaceKernel, SurfaceSamples, _neighbour_csr
 
 
@@ -240,12 +241,8 @@ def region_text(part: dict, surface_kind: str) -> str:
     if "u_range" in part:
         u0, u1 = part["u_range"]
         v0, v1 = part["v_range"]
-        around = np.mod(v1 - v0, 1.0) > 0.85
-        if surface_kind == "cylinder":
-            angle = "all around" if around else f"a {360 * v0:.0f}-{360 * v1:.0f} deg"
-            text += f", h {u0:.2f}-{u1:.2f}, {angle}"
-        else:
-            text += f", u {u0:.2f}-{u1:.2f}, " + ("v all around" if around else f"v {v0:.2f}-{v1:.2f}")
+        around = bool(np.mod(v1 - v0, 1.0) > 0.85)
+        text += ", " + chart_of(surface_kind).describe_uv((u0, u1), (v0, v1), around)
     return text
 
 

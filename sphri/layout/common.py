@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sphri.surface.charts import from_uv, to_uv
+from sphri.surface.charts import chart_of, from_uv, to_uv
 from sphri.surface.meshutil import face_areas, face_normals, project_along, sample_surface
 from sphri.types import Link, SurfaceMap
 
@@ -21,15 +21,7 @@ def check_res(res: int, who: str) -> int:
 
 def long_axis_length_m(surface: SurfaceMap) -> float:
     """Length of the link along its long axis (metres): what ``res`` divides."""
-    if surface.kind == "cylinder":
-        return float(surface.metres_per_u)
-    if surface.kind == "box":
-        return float(surface.params["extents"][0])
-    if "length_m" in surface.params:
-        return float(surface.params["length_m"])
-    if surface.metres_per_u > 0:
-        return float(surface.metres_per_u)
-    raise ValueError(f"surface kind {surface.kind!r} records no long-axis length")
+    return chart_of(surface).long_axis_length_m(surface)
 
 
 def grid_dims(surface: SurfaceMap, res: int, aspect: float = 1.0, hex_rows: bool = False) -> tuple[int, int]:
@@ -83,7 +75,7 @@ def grid_equivalent_count(link: Link, surface: SurfaceMap, res: int, aspect: flo
     """
     if surface.has_uv:
         h, w = grid_dims(surface, res, aspect)
-        if surface.kind == "cylinder":
+        if chart_of(surface).every_cell_valid:
             return h * w
         _, valid = from_uv(surface, grid_uv(h, w), return_valid=True)
         return max(1, int(valid.sum()))

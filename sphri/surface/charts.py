@@ -7,13 +7,21 @@ All functions are vectorized over K points (float64 metres, link frame):
 - :func:`from_uv` ``(K, 2) -> (K, 3)`` points on the fitted primitive
   (optionally with its outward normals and a validity mask).
 
-Kinds: ``cylinder`` (u along the axis, v the angle, wraps) and ``box`` (the
-oriented bounding box unfolded into a net: a band of four faces around the
-long axis, wrapping in v, and the two end caps attached above and below one
-band face). ``mesh`` has no chart and raises.
+Each surface kind is one :class:`Chart` class registered under its
+``SurfaceMap.kind`` (:func:`register_chart`); :func:`chart_of` finds it, and
+every caller (layouts, encoders, coverage maps, placement) asks the chart
+instead of testing the kind. Kinds: ``cylinder`` (u along the axis, v the
+angle, wraps) and ``box`` (the oriented bounding box unfolded into a net: a
+band of four faces around the long axis, wrapping in v, and the two end caps
+attached above and below one band face); ``mesh`` has no 2-D chart (its
+``to_uv``/``jacobian``/``from_uv`` raise). A new surface is one module: its
+fit (a component returning a ``SurfaceMap`` of a new kind) and its chart
+class, registered there.
 """
 
 from __future__ import annotations
+
+from typing import ClassVar, Protocol
 
 import numpy as np
 
@@ -170,6 +178,146 @@ def _box_from_uv(surface: SurfaceMap, uv: np.ndarray) -> tuple[np.ndarray, np.nd
     return pts, normals, valid
 
 
+# --------------------------------------------------------------------------- charts
+
+
+class Chart(Protocol):
+    """What a surface kind provides: its chart and the quantities layouts and maps need.
+
+    Methods take the :class:`~sphri.types.SurfaceMap` (its ``params`` hold
+    the fitted primitive); a chart object holds no state.
+    """
+
+    #: True when every cell of a (u, v) grid lies on the surface (no void parts of the chart).
+    every_cell_valid: ClassVar[bool]
+
+    def to_uv(self, surface: SurfaceMap, p: np.ndarray) -> np.ndarray: ...
+
+    def jacobian(self, surface: SurfaceMap, p: np.ndarray) -> np.ndarray: ...
+
+    def from_uv(self, surface: SurfaceMap, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]: ...
+
+    def primitive_distance(self, surface: SurfaceMap, p: np.ndarray) -> np.ndarray: ...
+
+    def long_axis_length_m(self, surface: SurfaceMap) -> float: ...
+
+    def describe_uv(self, u: tuple[float, float], v: tuple[float, float], around: bool) -> str: ...
+
+
+_CHARTS: dict[str, Chart] = {}
+
+
+def register_chart(kind: str, chart: Chart) -> None:
+    """Make ``chart`` the chart of every ``SurfaceMap`` of ``kind`` (call it in the surface's module)."""
+    _CHARTS[kind] = chart
+
+
+def chart_of(surface: SurfaceMap | str) -> Chart:
+    """The :class:`Chart` of ``surface`` (or of a kind name)."""
+    kind = surface if isinstance(surface, str) else surface.kind
+    try:
+        return _CHARTS[kind]
+    except KeyError:
+        raise ValueError(f"surface kind {kind!r} has no registered chart; known: {sorted(_CHARTS)} "
+                         "(register one with sphri.surface.charts.register_chart)") from None
+
+
+class CylinderChart:
+    """``surface=cylinder``: u along the axis (the paper's h), v the angle around it (a), wrapping."""
+
+    every_cell_valid = True
+
+    def to_uv(self, surface, p):
+        return _cyl_to_uv(surface, p)
+
+    def jacobian(self, surface, p):
+        return _cyl_jacobian(surface, p)
+
+    def from_uv(self, surface, uv):
+        return _cyl_from_uv(surface, uv)
+
+    def primitive_distance(self, surface, p):
+        """Distance to the closed finite cylinder (lateral surface and the two end discs)."""
+        pr = surface.params
+        t, x, y = _cyl_local(surface, p)
+        rho = np.hypot(x, y)
+        r = pr["radius"]
+        lo, hi = pr["u_min"], pr["u_max"]
+        dt_out = np.maximum(np.maximum(lo - t, t - hi), 0.0)
+        inside_slab = dt_out == 0
+        return np.where(
+            inside_slab,
+            np.where(rho <= r, np.minimum(r - rho, np.minimum(t - lo, hi - t)), rho - r),
+            np.where(rho <= r, dt_out, np.hypot(dt_out, rho - r)),
+        )
+
+    def long_axis_length_m(self, surface):
+        return float(surface.metres_per_u)
+
+    def describe_uv(self, u, v, around):
+        angle = "all around" if around else f"a {360 * v[0]:.0f}-{360 * v[1]:.0f} deg"
+        return f"h {u[0]:.2f}-{u[1]:.2f}, {angle}"
+
+
+class BoxChart:
+    """``surface=box``: the oriented box unfolded into a net (a band around the long axis and two caps)."""
+
+    every_cell_valid = False
+
+    def to_uv(self, surface, p):
+        return _box_to_uv(surface, p)
+
+    def jacobian(self, surface, p):
+        return _box_jacobian(surface, p)
+
+    def from_uv(self, surface, uv):
+        return _box_from_uv(surface, uv)
+
+    def primitive_distance(self, surface, p):
+        """Distance to the box's surface."""
+        pr = surface.params
+        q = (p - pr["centre"]) @ pr["rotation"].T
+        h = 0.5 * pr["extents"]
+        over = np.abs(q) - h
+        outside = np.linalg.norm(np.maximum(over, 0.0), axis=1)
+        inside = np.minimum(np.max(over, axis=1), 0.0)
+        return np.where(outside > 0, outside, -inside)
+
+    def long_axis_length_m(self, surface):
+        return float(surface.params["extents"][0])
+
+    def describe_uv(self, u, v, around):
+        return f"u {u[0]:.2f}-{u[1]:.2f}, " + ("v all around" if around else f"v {v[0]:.2f}-{v[1]:.2f}")
+
+
+class MeshChart:
+    """``surface=mesh``: no 2-D chart; the link itself is the surface (distance 0)."""
+
+    every_cell_valid = False
+
+    def _none(self, surface, *_):
+        _require_chart(surface)
+        raise AssertionError("unreachable: a mesh surface has no chart")
+
+    to_uv = jacobian = from_uv = _none
+
+    def primitive_distance(self, surface, p):
+        return np.zeros(p.shape[0])
+
+    def long_axis_length_m(self, surface):
+        if "length_m" in surface.params:
+            return float(surface.params["length_m"])
+        raise ValueError(f"surface kind {surface.kind!r} records no long-axis length (params['length_m'])")
+
+    def describe_uv(self, u, v, around):
+        return BoxChart.describe_uv(self, u, v, around)
+
+
+register_chart("cylinder", CylinderChart())
+register_chart("box", BoxChart())
+register_chart("mesh", MeshChart())
+
+
 # --------------------------------------------------------------------------- public
 
 
@@ -179,12 +327,7 @@ def to_uv(surface: SurfaceMap, points: np.ndarray) -> np.ndarray:
     ``u`` is clipped to [0, 1]; ``v`` lies in [0, 1) (wraps for cylinders).
     """
     _require_chart(surface)
-    p = _points(points)
-    if surface.kind == "cylinder":
-        return _cyl_to_uv(surface, p)
-    if surface.kind == "box":
-        return _box_to_uv(surface, p)
-    raise ValueError(f"surface kind {surface.kind!r} is not supported by charts.to_uv")
+    return chart_of(surface).to_uv(surface, _points(points))
 
 
 def jacobian(surface: SurfaceMap, points: np.ndarray) -> np.ndarray:
@@ -194,12 +337,7 @@ def jacobian(surface: SurfaceMap, points: np.ndarray) -> np.ndarray:
     axis, so a patch on a flat facet maps to the angle it truly subtends.
     """
     _require_chart(surface)
-    p = _points(points)
-    if surface.kind == "cylinder":
-        return _cyl_jacobian(surface, p)
-    if surface.kind == "box":
-        return _box_jacobian(surface, p)
-    raise ValueError(f"surface kind {surface.kind!r} is not supported by charts.jacobian")
+    return chart_of(surface).jacobian(surface, _points(points))
 
 
 def from_uv(
@@ -219,12 +357,7 @@ def from_uv(
     uv = np.asarray(uv, dtype=np.float64)
     if uv.ndim != 2 or uv.shape[1] != 2:
         raise ValueError(f"uv must be (K, 2), got shape {uv.shape}")
-    if surface.kind == "cylinder":
-        pts, nrm, valid = _cyl_from_uv(surface, uv)
-    elif surface.kind == "box":
-        pts, nrm, valid = _box_from_uv(surface, uv)
-    else:
-        raise ValueError(f"surface kind {surface.kind!r} is not supported by charts.from_uv")
+    pts, nrm, valid = chart_of(surface).from_uv(surface, uv)
     out = [pts]
     if return_normal:
         out.append(nrm)
@@ -234,31 +367,5 @@ def from_uv(
 
 
 def primitive_distance(surface: SurfaceMap, points: np.ndarray) -> np.ndarray:
-    """(K,) float64 distance (metres) from points to the fitted primitive's surface.
-
-    Cylinder: the closed finite cylinder (lateral surface and the two end
-    discs); box: the box surface; mesh: zeros.
-    """
-    p = _points(points)
-    pr = surface.params
-    if surface.kind == "cylinder":
-        t, x, y = _cyl_local(surface, p)
-        rho = np.hypot(x, y)
-        r = pr["radius"]
-        lo, hi = pr["u_min"], pr["u_max"]
-        dt_out = np.maximum(np.maximum(lo - t, t - hi), 0.0)
-        inside_slab = dt_out == 0
-        d = np.where(
-            inside_slab,
-            np.where(rho <= r, np.minimum(r - rho, np.minimum(t - lo, hi - t)), rho - r),
-            np.where(rho <= r, dt_out, np.hypot(dt_out, rho - r)),
-        )
-        return d
-    if surface.kind == "box":
-        q = (p - pr["centre"]) @ pr["rotation"].T
-        h = 0.5 * pr["extents"]
-        over = np.abs(q) - h
-        outside = np.linalg.norm(np.maximum(over, 0.0), axis=1)
-        inside = np.minimum(np.max(over, axis=1), 0.0)
-        return np.where(outside > 0, outside, -inside)
-    return np.zeros(p.shape[0])
+    """(K,) float64 distance (metres) from points to the fitted primitive's surface (mesh: zeros)."""
+    return chart_of(surface).primitive_distance(surface, _points(points))
