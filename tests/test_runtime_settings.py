@@ -151,3 +151,14 @@ def test_skipped_jobs_name_the_runs_that_finished_them_on_a_new_parent(tmp_path)
     parents = [r for r in client.search_runs([exp.experiment_id]) if r.data.tags.get("sphri.kind") == "sweep"]
     newest = max(parents, key=lambda r: r.info.start_time)
     assert newest.data.tags["sphri.skipped_jobs"] == f"job 0: run {done}"
+
+
+def test_the_run_seed_reaches_random_layouts(tmp_path):
+    for layout in ("random", "density"):
+        a = compose(["+debug=fast", f"layout={layout}", "encoder=coverage", "seed=3"])
+        assert a.layout.seed == 3
+        _, k0 = _keys([f"layout={layout}", "encoder=coverage"], tmp_path)
+        _, k1 = _keys([f"layout={layout}", "encoder=coverage", "seed=3"], tmp_path)
+        assert k0["layout"] != k1["layout"]
+    grid0 = _keys(["layout=grid"], tmp_path)[1]["layout"]
+    assert _keys(["layout=grid", "seed=3"], tmp_path)[1]["layout"] == grid0  # a grid is the same skin for every seed
