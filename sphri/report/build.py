@@ -55,13 +55,16 @@ def slug(label: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", label).strip("_") or "all"
 
 
-def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path) -> dict[str, Path]:
-    """Each group's confusion matrix at its saturation point, from that job's artifacts (PNG, PDF, SVG;
-    the job drew the SYNTHETIC mark when its data were synthetic)."""
+def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path, marks: bool | None) -> dict[str, Path]:
+    """Each group's confusion matrix at its saturation point, redrawn from that job's ``confusion.csv`` under
+    the report's own marks (PNG, PDF, SVG); a run logged before that file existed gives its images as logged."""
     import shutil
     import tempfile
 
     from mlflow.tracking import MlflowClient
+
+    from sphri.figures import Provenance
+    from sphri.tracking.artifacts import draw_confusion
 
     client = MlflowClient(tracking_uri=sweep.uri)
     out = {}
@@ -69,11 +72,24 @@ def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path) -> dict[str, P
         run_id = g.recommended["run_id"]
         dst = out_dir / f"confusion_{slug(g.label)}.png"
         with tempfile.TemporaryDirectory(prefix="sphri-report-") as tmp:
+            try:
+                counts = pd.read_csv(client.download_artifacts(run_id, "confusion.csv", tmp), index_col=0)
+            except Exception:  # artifacts disabled for the job, or a run from before confusion.csv
+                counts = None
+            if counts is not None:
+                prov = Provenance(synthetic=bool(g.context["synthetic"]), ids=f"sweep {report.sweep.sweep_id}",
+                                  show=marks)
+                draw_confusion(counts.to_numpy(float), [str(c) for c in counts.columns], dst,
+                               f"{g.label} at {int(g.recommended['res'])} taxels along the link", prov,
+                               formats=FIGURE_FORMATS)
+                out[g.label] = dst
+                continue
             for fmt in FIGURE_FORMATS:
                 try:
                     src = client.download_artifacts(run_id, f"confusion.{fmt}", tmp)
-                except Exception as exc:  # artifacts disabled for the job, or a job from before PDF/SVG
-                    report.notes.append(f"{g.label}: no confusion.{fmt} artifact in run {run_id} ({type(exc).__name__})")
+                except Exception as exc:
+                    report.notes.append(f"{g.label}: no confusion.{fmt} artifact (nor confusion.csv) in run {run_id} "
+                                        f"({type(exc).__name__})")
                     continue
                 shutil.copyfile(src, dst.with_suffix("." + fmt))
         if dst.exists():
@@ -98,7 +114,7 @@ def write_report(report: SweepReport, out_dir: Path, marks: bool | None = None) 
                       ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png", marks=marks))):
         if fig is not None:
             figures[name] = fig
-    confusions = _confusions(report.sweep, report, out_dir)
+    confusions = _confusions(report.sweep, report, out_dir, marks)
 
     tables = {"comparison": out_dir / "saturation.csv", "points": out_dir / "points.csv", "json": out_dir / "saturation.json"}
     pd.DataFrame(comparison_rows(report)).to_csv(tables["comparison"], index=False, float_format="%.6g")

@@ -22,24 +22,43 @@ def write_fold_csv(cv: CVResult, path: Path) -> Path:
     return path
 
 
+def confusion_counts(cv: CVResult) -> np.ndarray:
+    """(G, G) confusion counts summed over folds (rows: true gesture, columns: predicted)."""
+    return np.sum([f.confusion for f in cv.folds], axis=0).astype(float)
+
+
+def write_confusion_csv(cv: CVResult, path: Path) -> Path:
+    """The summed confusion counts as CSV (index: true gesture, columns: predicted): the report redraws from it."""
+    import pandas as pd
+
+    pd.DataFrame(confusion_counts(cv), index=list(cv.labels), columns=list(cv.labels)).to_csv(path, float_format="%.0f")
+    return path
+
+
 def write_confusion_png(
     cv: CVResult, path: Path, title: str | None = None, provenance=None, formats: tuple[str, ...] = ("png",)
 ) -> Path:
     """Row-normalised confusion matrix summed over folds, one column wide (``sphri.figures``).
 
-    ``formats``: files written beside ``path`` (a job logs the PNG; a report
-    asks for PDF and SVG too); ``provenance``: a :class:`sphri.figures.Provenance`.
+    ``formats``: files written beside ``path``; ``provenance``: a :class:`sphri.figures.Provenance`.
     """
+    return draw_confusion(confusion_counts(cv), list(cv.labels), path,
+                          title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)", provenance, formats)
+
+
+def draw_confusion(total: np.ndarray, labels: list[str], path: Path, title: str, provenance=None,
+                   formats: tuple[str, ...] = ("png",)) -> Path:
+    """Row-normalised confusion matrix of the counts ``total`` (rows: true) -> ``path`` (and ``formats`` beside it)."""
     from sphri import figures
 
-    total = np.sum([f.confusion for f in cv.folds], axis=0).astype(float)
+    total = np.asarray(total, dtype=float)
     rows = total.sum(axis=1, keepdims=True)
     norm = np.divide(total, rows, out=np.zeros_like(total), where=rows > 0)
     with figures.style():  # every artist drawn under the style (fonts are fixed at creation)
         fig, ax = figures.new_figure("one", 3.1)
         im = ax.imshow(norm, vmin=0, vmax=1, cmap="Blues")
-        ax.set_xticks(range(len(cv.labels)), cv.labels, rotation=45, ha="right")
-        ax.set_yticks(range(len(cv.labels)), cv.labels)
+        ax.set_xticks(range(len(labels)), labels, rotation=45, ha="right")
+        ax.set_yticks(range(len(labels)), labels)
         ax.set_xlabel("predicted gesture")
         ax.set_ylabel("true gesture")
         for i in range(norm.shape[0]):
@@ -47,7 +66,7 @@ def write_confusion_png(
                 if total[i].sum() > 0:
                     ax.text(j, i, f"{norm[i, j]:.2f}".lstrip("0") if norm[i, j] < 1 else "1", ha="center", va="center",
                             fontsize=figures.MIN_FONT_PT, color="white" if norm[i, j] > 0.5 else "black")
-        ax.set_title(title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)", loc="left")
+        ax.set_title(title, loc="left")
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="share of the true gesture's trials")
         if provenance is not None:
             figures.mark(fig, provenance)

@@ -355,7 +355,7 @@ class MlflowTracker:
     def _log_artifacts(self, client: "MlflowClient", run_id: str, cfg: "DictConfig", result: "RunResult") -> None:
         from omegaconf import OmegaConf
 
-        from sphri.tracking.artifacts import write_confusion_png, write_fold_csv
+        from sphri.tracking.artifacts import write_confusion_csv, write_confusion_png, write_fold_csv
 
         with tempfile.TemporaryDirectory(prefix="sphri-artifacts-") as tmp:
             tmp_path = Path(tmp)
@@ -364,6 +364,7 @@ class MlflowTracker:
             from sphri import figures
             from sphri.figures import Provenance
 
+            write_confusion_csv(result.cv, tmp_path / "confusion.csv")  # the report redraws from the counts
             write_confusion_png(result.cv, tmp_path / "confusion.png", formats=figures.FORMATS,
                                 title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
                                 provenance=Provenance(synthetic=bool(result.meta.get("synthetic")), ids=f"res {cfg.encoder.res}"))

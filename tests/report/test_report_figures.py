@@ -28,6 +28,7 @@ def test_every_report_figure_is_clean_in_three_formats(two_model_sweep, store, t
     caplog.set_level(logging.WARNING, logger="sphri.figures")
     _, files, _ = make_report(two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "two", log_to_mlflow=False)
     assert {"curves", "recall", "bootstrap"} <= set(files.figures)
+    assert set(files.confusions) == {"rf", "cnn_gru"}  # redrawn here from the jobs' counts: checked too
     _check_formats([*files.figures.values(), *files.confusions.values()])
     variants = {"reference": (3.0, 0.02), "noise0": (1.5, 0.0), "noise5": (8.0, 0.05)}
     truth = make_sweep(store, tmp_path / "sens", [1, 2, 3, 4, 6, 9, 13, 18, 27, 36, 50], variants=variants,
@@ -42,5 +43,6 @@ def test_marks_switch_the_synthetic_banner_off(two_model_sweep, tmp_path):
     _, on, _ = make_report(two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "on", log_to_mlflow=False)
     _, off, _ = make_report(two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "off", log_to_mlflow=False,
                             marks=False)
-    assert "SYNTHETIC DATA" in on.figures["curves"].with_suffix(".svg").read_text()
-    assert "SYNTHETIC DATA" not in off.figures["curves"].with_suffix(".svg").read_text()
+    for a, b in ((on.figures["curves"], off.figures["curves"]), (on.confusions["rf"], off.confusions["rf"])):
+        assert "SYNTHETIC DATA" in a.with_suffix(".svg").read_text()
+        assert "SYNTHETIC DATA" not in b.with_suffix(".svg").read_text()
