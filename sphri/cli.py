@@ -5,6 +5,8 @@
     python -m sphri.cli list                 # every group and its components
     python -m sphri.cli list robot           # one group, with each file's summary
     python -m sphri.cli validate +robot=reachy encoder.res=18
+    python -m sphri.cli validate -m encoder.res=0,4           # a sweep: every job is checked
+    python -m sphri.cli validate +experiment=resolution_sweep # its 100 jobs
 
 ``validate`` composes the config exactly as ``python -m sphri`` would, runs
 every schema's checks, and prints the chosen components; it exits 2 with a
@@ -117,11 +119,52 @@ def cmd_list(groups: list[str]) -> int:
     return 0
 
 
+def is_sweep(overrides: list[str]) -> bool:
+    """True for the arguments of a multirun: ``-m``, a comma list, ``range()``/``choice()``, or an experiment
+    (experiments sweep through ``hydra.sweeper.params``)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    if any(a in ("-m", "--multirun") for a in overrides):
+        return True
+    plain = [a for a in overrides if not a.startswith("-")]
+    try:
+        parsed = OverridesParser.create().parse_overrides(plain)
+    except Exception:  # composition reports the bad override with its key
+        return False
+    return any(o.is_sweep_override() or o.key_or_group == "experiment" for o in parsed)
+
+
+def cmd_validate_sweep(overrides: list[str]) -> int:
+    """Compose and validate every job of the sweep through ``hydra/sweeper=sphri`` (the code path a real
+    sweep takes), running none of them."""
+    import os
+
+    from sphri.__main__ import main as sphri_main
+
+    argv = ["-m", *[a for a in overrides if a not in ("-m", "--multirun")], "hydra/launcher=basic"]
+    saved, os.environ["SPHRI_VALIDATE_ONLY"] = os.environ.get("SPHRI_VALIDATE_ONLY"), "1"
+    saved_argv = sys.argv
+    sys.argv = ["python -m sphri", *argv]
+    try:
+        sphri_main()
+    except SystemExit as exc:
+        return int(exc.code or 0) if not isinstance(exc.code, str) else 2
+    finally:
+        sys.argv = saved_argv
+        if saved is None:
+            os.environ.pop("SPHRI_VALIDATE_ONLY", None)
+        else:
+            os.environ["SPHRI_VALIDATE_ONLY"] = saved
+    return 0
+
+
 def cmd_validate(overrides: list[str]) -> int:
     from omegaconf import OmegaConf
 
     from sphri.pipeline import chain_region
 
+    if is_sweep(overrides):
+        return cmd_validate_sweep(overrides)
     cfg = compose(overrides)
     chain_region(cfg)
     print("config OK")
@@ -140,8 +183,13 @@ def main(argv: list[str] | None = None) -> int:
     p_list = sub.add_parser("list", help="list the components of each config group")
     p_list.add_argument("groups", nargs="*", help="groups to list (default: all)")
     p_val = sub.add_parser("validate", help="compose and check a config without running it")
-    p_val.add_argument("overrides", nargs="*", help="overrides as for python -m sphri")
-    args = parser.parse_args(argv)
+    p_val.add_argument("overrides", nargs="*",
+                       help="overrides as for python -m sphri; a sweep (-m, a,b,c, range(), +experiment=...) checks every job")
+    args, extra = parser.parse_known_args(argv)
+    if extra and args.cmd != "validate":
+        parser.error(f"unrecognized arguments: {' '.join(extra)}")
+    if extra:  # `-m` (a sweep) is sphri's option, not this parser's
+        args.overrides = [*extra, *args.overrides]
     try:
         if args.cmd == "list":
             return cmd_list(args.groups)

@@ -55,3 +55,17 @@ def test_validate_ok_and_error(capsys):
 
 def test_unknown_group():
     assert main(["list", "nope"]) == 2
+
+
+def test_validate_checks_every_job_of_a_sweep_and_runs_none(tmp_path, capsys, monkeypatch):
+    from sphri.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    assert main(["validate", "-m", "+debug=fast", "encoder.res=0,4,abc"]) == 2
+    err = capsys.readouterr().err
+    assert "2 of 3 points fail validation" in err and "encoder.res=0" in err and "encoder.res=abc" in err
+    assert main(["validate", "+debug=fast", "encoder.res=range(2,5)"]) == 0  # sweep syntax without -m
+    assert "all 3 jobs compose and validate" in capsys.readouterr().out
+    assert main(["validate", "+experiment=resolution_sweep"]) == 0
+    assert "all 100 jobs compose and validate" in capsys.readouterr().out
+    assert list(tmp_path.iterdir()) == []  # nothing ran, nothing was written

@@ -8,6 +8,10 @@
   (:func:`sphri.tracking.parent.open_parent`) and always ended
   (:func:`~sphri.tracking.parent.close_parent`): FINISHED, FAILED when a job
   failed or the sweep raised, KILLED on SIGINT/SIGTERM.
+- With the environment variable ``SPHRI_VALIDATE_ONLY=1`` (what
+  ``python -m sphri.cli validate -m ...`` sets) the sweep stops after that
+  check: it prints how many jobs it checked and exits 0, or 2 with the
+  failing points, without running anything.
 - A sweep with a failed job exits with status 1 naming the jobs; a killed
   one with 128 + the signal number. The signal handler raises in the main
   thread and also records the signal: should library code swallow the
@@ -20,6 +24,7 @@ It subclasses :class:`~hydra._internal.core_plugins.basic_sweeper.BasicSweeper`
 from __future__ import annotations
 
 import logging
+import os
 import signal
 import sys
 from typing import Any, List, Sequence
@@ -30,6 +35,11 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from sphri.tracking.parent import KILLED, SweepKilled
 
 log = logging.getLogger(__name__)
+
+#: Environment variable: validate every job of the sweep, then stop (``python -m sphri.cli validate -m``).
+VALIDATE_ONLY = "SPHRI_VALIDATE_ONLY"
+#: Jobs listed by a validate-only sweep.
+MAX_LISTED = 12
 
 
 def _raise_killed(signum: int, frame: Any) -> None:
@@ -83,6 +93,13 @@ class SphriSweeper(BasicSweeper):
             log.debug("\n".join(lines))
             print("\n".join(lines), file=sys.stderr)
             sys.exit(2)
+        if os.environ.get(VALIDATE_ONLY) == "1":
+            print(f"sweep OK: all {len(jobs)} jobs compose and validate (nothing was run)")
+            for i, job in enumerate(jobs[:MAX_LISTED]):
+                print(f"  job #{i}: {' '.join(job)}")
+            if len(jobs) > MAX_LISTED:
+                print(f"  ... and {len(jobs) - MAX_LISTED} more")
+            sys.exit(0)
         open_parent(self.config, overrides)
         KILLED.clear()
         previous = {sig: signal.signal(sig, _raise_killed) for sig in (signal.SIGTERM, signal.SIGINT)}
