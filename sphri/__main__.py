@@ -31,7 +31,7 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
-from sphri.config import CONF_DIR, ConfigError, normalize_overrides, register_schemas, validate
+from sphri.config import CONF_DIR, ConfigError, check_choices, normalize_overrides, register_schemas, validate
 from sphri.errors import report, take_verbose_flag
 
 log = logging.getLogger("sphri")
@@ -169,6 +169,22 @@ def find_sweeper_plugin() -> None:
         hydra_plugins.__path__.append(str(here))
 
 
+def hide_schema_options() -> None:
+    """Leave the internal ``*_schema`` entries out of Hydra's group listings (tab completion): they are
+    the typed schemas the YAML files opt into, not choices a user makes."""
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+
+    original = ConfigLoaderImpl.get_group_options
+    if getattr(original, "_sphri_hides_schemas", False):
+        return
+
+    def get_group_options(self, *args, **kwargs):
+        return [name for name in original(self, *args, **kwargs) if not name.endswith("_schema")]
+
+    get_group_options._sphri_hides_schemas = True  # type: ignore[attr-defined]
+    ConfigLoaderImpl.get_group_options = get_group_options  # type: ignore[method-assign]
+
+
 def main() -> None:
     """Console entry point (``sphri`` or ``python -m sphri``)."""
     find_sweeper_plugin()
@@ -183,7 +199,14 @@ def main() -> None:
         print(help_text())  # sphri's own help: Hydra's would print every schema entry and the whole config
         return
     register_schemas()
+    if any(a.startswith(("-sc", "--shell-completion")) for a in sys.argv[1:]):
+        hide_schema_options()
     sys.argv = [sys.argv[0], *normalize_overrides(take_verbose_flag(sys.argv[1:]))]
+    try:
+        check_choices(sys.argv[1:])  # a misspelt component: one line with the real options, before Hydra
+    except ConfigError as exc:
+        print(f"sphri: invalid config: {exc}", file=sys.stderr)
+        sys.exit(2)
     _hydra_main()
 
 

@@ -136,26 +136,13 @@ def is_sweep(overrides: list[str]) -> bool:
 
 def cmd_validate_sweep(overrides: list[str]) -> int:
     """Compose and validate every job of the sweep through ``hydra/sweeper=sphri`` (the code path a real
-    sweep takes), running none of them."""
+    sweep takes), running none of them. In a child process: Hydra's app sets up logging and global state."""
     import os
-
-    from sphri.__main__ import main as sphri_main
+    import subprocess
 
     argv = ["-m", *[a for a in overrides if a not in ("-m", "--multirun")], "hydra/launcher=basic"]
-    saved, os.environ["SPHRI_VALIDATE_ONLY"] = os.environ.get("SPHRI_VALIDATE_ONLY"), "1"
-    saved_argv = sys.argv
-    sys.argv = ["python -m sphri", *argv]
-    try:
-        sphri_main()
-    except SystemExit as exc:
-        return int(exc.code or 0) if not isinstance(exc.code, str) else 2
-    finally:
-        sys.argv = saved_argv
-        if saved is None:
-            os.environ.pop("SPHRI_VALIDATE_ONLY", None)
-        else:
-            os.environ["SPHRI_VALIDATE_ONLY"] = saved
-    return 0
+    env = {**os.environ, "SPHRI_VALIDATE_ONLY": "1"}
+    return subprocess.run([sys.executable, "-m", "sphri", *argv], env=env).returncode
 
 
 def cmd_validate(overrides: list[str]) -> int:

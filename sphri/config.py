@@ -275,6 +275,39 @@ def normalize_overrides(overrides: Sequence[str]) -> list[str]:
     return out
 
 
+def _search_dirs(overrides: Sequence[str]) -> list[Path]:
+    """sphri's config folder and the ``file://`` folders a ``hydra.searchpath=[...]`` override adds."""
+    dirs = [CONF_DIR]
+    for o in overrides:
+        key, _, value = o.lstrip("+").partition("=")
+        if key == "hydra.searchpath":
+            dirs += [Path(m) for m in re.findall(r"file://([^,\]\s'\"]+)", value)]
+    return dirs
+
+
+def check_choices(overrides: Sequence[str]) -> None:
+    """Refuse a component choice (``encoder=elipse``) that names no YAML file, with the real options
+    (internal ``*_schema`` entries left out) and the closest one. Runs before Hydra composes anything."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    plain = [o for o in overrides if not o.startswith("-") and "=" in o]
+    try:
+        parsed = OverridesParser.create().parse_overrides(plain)
+    except Exception:  # a malformed override: Hydra's own message names it
+        return
+    dirs = _search_dirs(overrides)
+    for o in parsed:
+        group = o.key_or_group
+        if group not in DEFAULT_GROUPS or o.is_delete():
+            continue
+        values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]
+        options = sorted({p.stem for d in dirs for p in (d / group).glob("*.yaml")})
+        for value in values:
+            if isinstance(value, str) and value not in options:
+                raise ConfigError(f"{group}={value} is invalid: no such {group} option; options: "
+                                  f"{', '.join(options)}{close_match(value, options)}")
+
+
 def compose(overrides: Sequence[str] = (), config_name: str = "config") -> DictConfig:
     """Compose the config outside a Hydra app (CLI, tests, notebooks).
 
@@ -286,6 +319,7 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config") -> DictC
 
     register_schemas()
     overrides = normalize_overrides(overrides)
+    check_choices(overrides)
     if GlobalHydra.instance().is_initialized():
         GlobalHydra.instance().clear()
     try:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from sphri.cli import components, main
 
 
@@ -57,15 +59,58 @@ def test_unknown_group():
     assert main(["list", "nope"]) == 2
 
 
-def test_validate_checks_every_job_of_a_sweep_and_runs_none(tmp_path, capsys, monkeypatch):
-    from sphri.cli import main
+def test_validate_checks_every_job_of_a_sweep_and_runs_none(tmp_path):
+    import os
+    import subprocess
+    import sys
 
-    monkeypatch.chdir(tmp_path)
-    assert main(["validate", "-m", "+debug=fast", "encoder.res=0,4,abc"]) == 2
-    err = capsys.readouterr().err
-    assert "2 of 3 points fail validation" in err and "encoder.res=0" in err and "encoder.res=abc" in err
-    assert main(["validate", "+debug=fast", "encoder.res=range(2,5)"]) == 0  # sweep syntax without -m
-    assert "all 3 jobs compose and validate" in capsys.readouterr().out
-    assert main(["validate", "+experiment=resolution_sweep"]) == 0
-    assert "all 100 jobs compose and validate" in capsys.readouterr().out
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]),
+                                                       os.environ.get("PYTHONPATH", "")])}
+
+    def validate(*args):
+        return subprocess.run([sys.executable, "-m", "sphri.cli", "validate", *args], capture_output=True, text=True,
+                              cwd=tmp_path, env=env, timeout=300)
+
+    bad = validate("-m", "+debug=fast", "encoder.res=0,4,abc")
+    assert bad.returncode == 2
+    assert "2 of 3 points fail validation" in bad.stderr and "encoder.res=0" in bad.stderr and "encoder.res=abc" in bad.stderr
+    ok = validate("+debug=fast", "encoder.res=range(2,5)")  # sweep syntax without -m
+    assert ok.returncode == 0 and "all 3 jobs compose and validate" in ok.stdout
+    exp = validate("+experiment=resolution_sweep")
+    assert exp.returncode == 0 and "all 100 jobs compose and validate" in exp.stdout
     assert list(tmp_path.iterdir()) == []  # nothing ran, nothing was written
+
+
+def test_a_misspelt_component_lists_the_real_options_not_the_schemas():
+    import os
+    import subprocess
+    import sys
+
+    import pytest
+
+    from sphri.config import ConfigError, compose
+
+    with pytest.raises(ConfigError) as err:
+        compose(["encoder=elipse"])
+    msg = str(err.value)
+    assert "encoder=elipse is invalid" in msg and "did you mean ellipse?" in msg and "_schema" not in msg
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]),
+                                                       os.environ.get("PYTHONPATH", "")])}
+    run = subprocess.run([sys.executable, "-m", "sphri", "-m", "layout=grid,hexx"], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert run.returncode == 2
+    assert run.stderr.strip().splitlines() == [
+        "sphri: invalid config: layout=hexx is invalid: no such layout option; options: density, file, grid, hex, "
+        "random (did you mean hex?)"]
+
+
+def test_tab_completion_offers_components_not_schemas():
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "COMP_LINE": "sphri encoder=",
+           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")])}
+    run = subprocess.run([sys.executable, "-m", "sphri", "-sc", "query=bash"], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert run.stdout.split() == ["encoder=coverage", "encoder=ellipse", "encoder=proximity"], run.stdout + run.stderr
