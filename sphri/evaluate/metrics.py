@@ -9,7 +9,6 @@ MLflow).
 from __future__ import annotations
 
 import numpy as np
-from sklearn.metrics import f1_score
 
 from sphri.types import GESTURES, CVResult, FoldResult
 
@@ -38,6 +37,8 @@ def fold_metrics(fold: str, y_true: np.ndarray, y_pred: np.ndarray, n_classes: i
         raise ValueError(f"y_true {y_true.shape} and y_pred {y_pred.shape} must be equal-length 1-D arrays")
     if y_true.size == 0:
         raise ValueError(f"fold {fold!r} has no test trials")
+    from sklearn.metrics import f1_score  # imported here: a job whose evaluation is cached never needs sklearn
+
     cm = confusion(y_true, y_pred, n_classes)
     support = cm.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import contextlib
 import fcntl
+import json
+import os
 import shutil
 import sqlite3
 import sys
@@ -69,10 +71,31 @@ def _revision(db: Path) -> str | None:
     return row[0] if row else None
 
 
-def head_revision() -> str:
+def head_revision(memo_dir: Path | None = None) -> str:
+    """MLflow's latest schema revision. It is a constant of the installed MLflow version, and finding it
+    reads every migration script (about a second): with ``memo_dir`` it is remembered per MLflow version in
+    ``<memo_dir>/mlflow_schema_head.json``."""
+    import mlflow
+
+    memo = memo_dir / "mlflow_schema_head.json" if memo_dir is not None else None
+    if memo is not None:
+        try:
+            data = json.loads(memo.read_text())
+            if data.get("mlflow") == mlflow.__version__ and data.get("head"):
+                return str(data["head"])
+        except (OSError, ValueError):
+            pass
     from mlflow.store.db.utils import _get_latest_schema_revision
 
-    return _get_latest_schema_revision()
+    head = _get_latest_schema_revision()
+    if memo is not None:
+        try:
+            tmp = memo.with_suffix(f".{os.getpid()}.tmp")
+            tmp.write_text(json.dumps({"mlflow": mlflow.__version__, "head": head}))
+            tmp.replace(memo)
+        except OSError:  # a read-only folder: recompute next time
+            pass
+    return head
 
 
 def problems(db: Path) -> list[str]:
@@ -86,7 +109,7 @@ def problems(db: Path) -> list[str]:
     if not tables:
         return []
     out = [f"leftover table {t} of an interrupted schema migration" for t in tables if t.startswith(TMP_PREFIX)]
-    rev, head = _revision(db), head_revision()
+    rev, head = _revision(db), head_revision(db.parent)
     if rev != head:
         out.append(f"schema revision {rev} is not MLflow's {head} (a migration did not finish)")
     return out
@@ -108,6 +131,8 @@ def ensure_store(uri: str) -> None:
                 f"MLflow store {db} is broken: {'; '.join(found)}. Nothing was computed into it. "
                 f"Repair it with: {repair_command(db)}"
             )
+        if db.exists() and db.stat().st_size > 0 and _revision(db) is not None:
+            return  # an existing store at MLflow's head revision (problems() checked it): nothing to create
         from mlflow.tracking import MlflowClient
 
         MlflowClient(tracking_uri=uri).search_experiments(max_results=1)  # creates and migrates a new store
