@@ -29,7 +29,7 @@ from pathlib import Path
 import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from sphri.config import CONF_DIR, ConfigError, check_choices, normalize_overrides, register_schemas, validate
 from sphri.errors import report, take_verbose_flag
@@ -54,10 +54,15 @@ def limit_threads(n: int) -> None:
     torch.set_num_threads(n)
 
 
-def _write_status(job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None) -> None:
+def _write_status(job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None,
+                  **details) -> None:
+    """``sphri_status.json``: the job's end state (and, for the sweep's table, its swept values, accuracy,
+    macro-F1, seconds and whether its evaluation came from the cache)."""
     job_dir.mkdir(parents=True, exist_ok=True)
-    info = {"job": job, "status": status, "error": error, "mlflow_run_id": run_id}
-    (job_dir / "sphri_status.json").write_text(json.dumps(info))
+    info = {"job": job, "status": status, "error": error, "mlflow_run_id": run_id, **details}
+    tmp = job_dir / "sphri_status.json.tmp"
+    tmp.write_text(json.dumps(info, default=float))
+    tmp.replace(job_dir / "sphri_status.json")  # a parallel job's progress line never reads half a file
 
 
 def run_job(cfg: DictConfig) -> dict | None:
@@ -80,6 +85,15 @@ def run_job(cfg: DictConfig) -> dict | None:
         n_jobs = cores if n_jobs < 0 else n_jobs
         if n_jobs > 1:
             limit_threads(max(1, cores // n_jobs))
+        if "progress" in cfg.get("cv", {}):  # one progress display for the sweep, not a bar per job (runtime setting)
+            OmegaConf.update(cfg, "cv.progress", False, force_add=False)
+    swept = [o for o in (hc.overrides.task if multirun else []) if not o.lstrip("+~").startswith("hydra")]
+    t_start = time.perf_counter()
+
+    def say(what: str) -> None:  # the sweep's console: one line per finished job
+        from sphri.tracking.parent import progress_line
+
+        print(progress_line(hc.sweep.dir, job_num, what), flush=True)
 
     tracker = None
     try:
@@ -92,7 +106,8 @@ def run_job(cfg: DictConfig) -> dict | None:
             done = tracker.find_finished(cfg.output_dir, pipeline.config_hash(cfg))
             if done:
                 log.info("job %d skipped: MLflow run %s already finished with this config", job_num, done)
-                _write_status(job_dir, job_num, "SKIPPED", None, done)
+                _write_status(job_dir, job_num, "SKIPPED", None, done, overrides=swept)
+                say(f"({' '.join(swept)}) skipped: MLflow run {done} already finished with this config")
                 return {"run_id": done, "skipped": True}
         result = pipeline.run(cfg)
     except Exception as exc:
@@ -106,9 +121,10 @@ def run_job(cfg: DictConfig) -> dict | None:
         # An invalid config is not a run: it makes no MLflow run (only the job's status file says so).
         recorded = tracker is not None and tracker.enabled and not broken and not isinstance(exc, ConfigError)
         run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if recorded else None
-        _write_status(job_dir, job_num, "FAILED", error, run_id)
+        _write_status(job_dir, job_num, "FAILED", error, run_id, overrides=swept)
         if multirun:
             log.error("job %d FAILED: %s\n%s", job_num, error, traceback.format_exc())
+            say(f"({' '.join(swept)}) FAILED: {error}")
             return None
         if isinstance(exc, ConfigError):
             log.error("invalid config: %s", exc)
@@ -134,9 +150,17 @@ def run_job(cfg: DictConfig) -> dict | None:
             t0 = time.perf_counter()
             log.info("logged the model (fit on every participant): %s in %.1f s",
                      log_job_model(cfg, run_id, tracker.register_model), time.perf_counter() - t0)
-    _write_status(job_dir, job_num, "FINISHED", None, run_id)
+    summary = result.summary()
+    from_cache = result.stages["evaluate"].source == "cache" if "evaluate" in result.stages else False
+    _write_status(job_dir, job_num, "FINISHED", None, run_id, overrides=swept,
+                  accuracy=summary.get("accuracy_mean"), macro_f1=summary.get("macro_f1_mean"),
+                  seconds=time.perf_counter() - t_start, from_cache=from_cache)
     text = summary_text(result)
     (job_dir / "summary.txt").write_text(text + "\n")
+    if multirun:  # the job's summary box is in its summary.txt; the sweep prints one line per job and a table
+        say(f"({' '.join(swept)}) accuracy {summary.get('accuracy_mean', float('nan')):.3f}"
+            + (" (from cache)" if from_cache else "") + f"; {job_dir / 'summary.txt'}")
+        return {"run_id": run_id, **summary}
     from sphri.tracking.mlflow_tracker import ui_hint
 
     uri = tracker.resolve_uri(cfg.output_dir) if run_id else ""
@@ -144,7 +168,7 @@ def run_job(cfg: DictConfig) -> dict | None:
     if reruns:
         where = f"already recorded: {where}; tagged sphri.reruns={reruns}, no new run"
     print("\n" + "=" * 78 + "\n" + text + f"\ntracking    {where}\njob dir     {job_dir}\n" + "=" * 78)
-    return {"run_id": run_id, **result.summary()}
+    return {"run_id": run_id, **summary}
 
 
 @hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")

@@ -5,6 +5,7 @@ config hash nor any stage key, so changing them never recomputes or reruns anyth
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -100,6 +101,11 @@ def test_rerun_with_other_runtime_settings_recomputes_nothing_and_skips_the_swee
                   "hydra/launcher=serial"], tmp_path)
     assert again.returncode == 0, (again.stdout + again.stderr)[-3000:]
     assert "2 of 2 jobs finished (2 skipped" in again.stdout, again.stdout[-3000:]
+    # the sweep's console: one line per job with the sweep's progress, then one table of every job
+    assert re.search(r"\[sweep 2/2 done: 0 failed, 0 skipped; .* ETA .*\] job #1 \(.*encoder.res=4.*\) accuracy 0\.\d{3}",
+                     first.stdout), first.stdout[-3000:]
+    assert re.search(r"#1\s+encoder.res=4\s+FINISHED\s+0\.\d{3}\s+0\.\d{3}\s+\d+ s\s+no", first.stdout)
+    assert re.search(r"#0\s+encoder.res=2\s+SKIPPED", again.stdout) and "=====" not in first.stdout  # no per-job boxes
     # a single run with other runtime settings: every stage comes from the cache
     single = _run(["+debug=fast", "encoder.res=2", "cv.progress=false", "model.n_jobs=1", "contact.chunk_frames=777",
                    out, "tracking.enabled=false"], tmp_path)

@@ -82,7 +82,7 @@ class SphriSweeper(BasicSweeper):
         """Already done for every job before the sweep started (:meth:`invalid_points`)."""
 
     def sweep(self, arguments: List[str]) -> Any:
-        from sphri.tracking.parent import close_parent, open_parent
+        from sphri.tracking.parent import close_parent, open_parent, start_sweep_file
 
         assert self.config is not None
         overrides, jobs = self.job_overrides(arguments)
@@ -100,6 +100,7 @@ class SphriSweeper(BasicSweeper):
             if len(jobs) > MAX_LISTED:
                 print(f"  ... and {len(jobs) - MAX_LISTED} more")
             sys.exit(0)
+        start_sweep_file(self.config.hydra.sweep.dir, len(jobs))
         open_parent(self.config, overrides)
         KILLED.clear()
         previous = {sig: signal.signal(sig, _raise_killed) for sig in (signal.SIGTERM, signal.SIGINT)}

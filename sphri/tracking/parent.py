@@ -21,6 +21,7 @@ from __future__ import annotations
 import json
 import logging
 import signal
+import time
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -30,6 +31,8 @@ from sphri.tracking.mlflow_tracker import PARENT_FILE
 
 log = logging.getLogger(__name__)
 STATUS_FILE = "sphri_status.json"
+SWEEP_FILE = "sphri_sweep.json"
+"""Written into a sweep directory by the sweeper before any job starts: the job count and start time."""
 
 KILLED: list[int] = []
 """Signals received by this process's sweep (set by the sweeper's SIGTERM handler)."""
@@ -69,7 +72,60 @@ def sweep_hash(overrides: Sequence[str]) -> str:
 
 
 def job_statuses(sweep_dir: str | Path) -> list[dict[str, Any]]:
-    return [json.loads(p.read_text()) for p in sorted(Path(sweep_dir).glob(f"*/{STATUS_FILE}"))]
+    """Every job's status file in the sweep directory, in job order."""
+    out = []
+    for p in Path(sweep_dir).glob(f"*/{STATUS_FILE}"):
+        try:
+            out.append(json.loads(p.read_text()))
+        except (OSError, ValueError):  # being written by a parallel job
+            continue
+    return sorted(out, key=lambda s: int(s.get("job", 0)))
+
+
+def start_sweep_file(sweep_dir: str | Path, n_jobs: int) -> None:
+    """Record the job count and start time (the progress lines' denominator and ETA)."""
+    path = Path(sweep_dir)
+    path.mkdir(parents=True, exist_ok=True)
+    (path / SWEEP_FILE).write_text(json.dumps({"n_jobs": int(n_jobs), "started": time.time()}))
+
+
+def progress_line(sweep_dir: str | Path, job: int, what: str) -> str:
+    """One line for the sweep's console when a job ends: this job, then done / failed / skipped of all, ETA."""
+    try:
+        info = json.loads((Path(sweep_dir) / SWEEP_FILE).read_text())
+    except (OSError, ValueError):
+        return f"[sweep] job #{job} {what}"
+    statuses = job_statuses(sweep_dir)
+    n, done = int(info["n_jobs"]), len(statuses)
+    failed = sum(s.get("status") == "FAILED" for s in statuses)
+    skipped = sum(s.get("status") == "SKIPPED" for s in statuses)
+    elapsed = time.time() - float(info["started"])
+    ran = max(done - skipped, 1)
+    eta = elapsed / ran * (n - done) if done < n else 0.0
+    return (f"[sweep {done}/{n} done: {failed} failed, {skipped} skipped; {elapsed / 60:.1f} min, "
+            f"ETA {eta / 60:.1f} min] job #{job} {what}")
+
+
+def results_table(statuses: Sequence[dict[str, Any]]) -> str:
+    """The sweep's jobs, one row each: swept values, status, accuracy, macro-F1, seconds, from cache."""
+    rows = [("job", "swept values", "status", "accuracy", "macro-F1", "time", "cache")]
+    seen: dict[str, set[str]] = {}
+    for s in statuses:
+        for o in s.get("overrides") or []:
+            key, _, value = o.partition("=")
+            seen.setdefault(key, set()).add(value)
+    fixed = {k for k, v in seen.items() if len(v) == 1 and len(statuses) > 1}  # the same in every job: not swept
+    for s in statuses:
+        acc, f1 = s.get("accuracy"), s.get("macro_f1")
+        rows.append((
+            f"#{s.get('job')}", " ".join(o for o in s.get("overrides") or [] if o.partition("=")[0] not in fixed) or "-",
+            str(s.get("status", "?")) + ("" if s.get("status") != "FAILED" else f": {str(s.get('error'))[:60]}"),
+            f"{acc:.3f}" if isinstance(acc, (int, float)) else "-", f"{f1:.3f}" if isinstance(f1, (int, float)) else "-",
+            f"{s['seconds']:.0f} s" if isinstance(s.get("seconds"), (int, float)) else "-",
+            "yes" if s.get("from_cache") else ("-" if s.get("status") != "FINISHED" else "no"),
+        ))
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
 
 
 def open_parent(config: DictConfig, overrides: Sequence[str]) -> dict[str, Any] | None:
@@ -124,6 +180,8 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
                                               skipped)
         except Exception as exc:  # never hide the sweep's own outcome
             log.error("could not end the MLflow parent run %s: %s", parent["run_id"], exc)
+    if statuses:
+        print(results_table(statuses))
     msg = f"sweep {sweep_id_of(sweep_dir)}: {len(statuses) - len(failed)} of {len(statuses)} jobs finished"
     if n_skipped:
         msg += f" ({n_skipped} skipped: a finished MLflow run with the same config hash exists)"
@@ -131,6 +189,8 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
         msg += "; FAILED: " + ", ".join(f"#{s['job']}: {s.get('error', '?')}" for s in failed)
     if interrupted:
         msg += f"; sweep {interrupted}"
-    log.info(msg)
+    reports = sweep_dir / "report"
+    msg += (f"; report: {reports / 'report.html'}" if (reports / "report.html").is_file()
+            else f"; its report: python -m sphri.report {sweep_dir}")
     print(msg)
     return status, failed
