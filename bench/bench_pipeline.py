@@ -231,8 +231,8 @@ def child_default(args: argparse.Namespace) -> dict:
     acc = [f.accuracy for f in cv.folds]
     return {
         "participants": args.participants, "repetitions": args.repetitions, "res": args.res,
-        "n_frames": meta["n_frames"], "n_trials": meta["n_trials"], "n_windows": meta["n_windows"],
-        "n_taxels": meta["resolution"]["n_taxels"], "accuracy_mean": sum(acc) / len(acc),
+        "n_frames": meta.n_frames, "n_trials": meta.n_trials, "n_windows": meta.n_windows,
+        "n_taxels": meta.resolution["n_taxels"], "accuracy_mean": sum(acc) / len(acc),
         "memory_method": memory.method, "rss_after_imports_mb": rss0, "warm_up_s": warm_up_s,
         "stages": {k: _round(v) for k, v in probe.stats.items()},
         "cold_wall_s": cold, "warm_wall_s": warm,

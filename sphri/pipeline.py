@@ -31,7 +31,7 @@ from omegaconf import DictConfig, OmegaConf
 from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import ConfigError, build, result_config
 from sphri.inputs import input_fingerprints, memo_at
-from sphri.types import Contacts, CVResult, GestureDataset, Layout, SurfaceMap, TaxelGeometry, WindowPlan
+from sphri.types import Contacts, CVResult, GestureDataset, Layout, RunMeta, SurfaceMap, TaxelGeometry, WindowPlan
 
 log = logging.getLogger(__name__)
 
@@ -41,7 +41,7 @@ PERSISTED = frozenset({"data", "contact", "surface", "layout", "plan", "evaluate
 #: What each persisted stage's cache entry must decode into (else it is recomputed).
 CONTRACTS: dict[str, Any] = {
     "data": GestureDataset, "contact": Contacts, "surface": SurfaceMap, "layout": Layout, "plan": WindowPlan,
-    "evaluate": (CVResult, dict),
+    "evaluate": (CVResult, RunMeta),
 }
 
 
@@ -60,7 +60,7 @@ class RunResult:
     """Everything a job reports: the evaluation and where it came from."""
 
     cv: CVResult
-    meta: dict[str, Any]
+    meta: RunMeta
     """Dataset, robot, resolution (physical units) and window facts."""
     stages: dict[str, StageRecord]
     config_hash: str
@@ -260,29 +260,29 @@ def trial_keys(dataset: GestureDataset) -> np.ndarray:
     return np.asarray(keys, dtype=np.int64)
 
 
-def run_meta(cfg, dataset, robot, region, surface, layout, windows) -> dict[str, Any]:
+def run_meta(cfg, dataset, robot, region, surface, layout, windows) -> RunMeta:
     """Facts about the run reported in the summary, MLflow and the report."""
     from sphri.layout.units import describe
 
-    return {
-        "dataset": dataset.name,
-        "synthetic": bool(dataset.synthetic),
-        "n_participants": int(dataset.trials["participant"].nunique()),
-        "n_trials": int(len(dataset.trials)),
-        "n_frames": int(dataset.n_frames),
-        "frame_rate_hz": float(dataset.frame_rate_hz),
-        "repairs": dict(dataset.repairs),
-        "robot": robot.name,
-        "region": region,
-        "link": robot.regions[region],
-        "surface": surface.kind,
-        "surface_fit_residual_mm": float(surface.fit_residual_m * 1e3),
-        "resolution": {**describe(layout, surface), "grid_shape": layout.grid_shape},
-        "n_windows": int(windows.x.shape[0]),
-        "n_dropped_no_contact": int(windows.n_dropped),
-        "window_frames": int(windows.x.shape[1]),
-        "warnings": participant_warnings(cfg, dataset, windows),
-    }
+    return RunMeta(
+        dataset=dataset.name,
+        synthetic=bool(dataset.synthetic),
+        n_participants=int(dataset.trials["participant"].nunique()),
+        n_trials=int(len(dataset.trials)),
+        n_frames=int(dataset.n_frames),
+        frame_rate_hz=float(dataset.frame_rate_hz),
+        repairs=dict(dataset.repairs),
+        robot=robot.name,
+        region=region,
+        link=robot.regions[region],
+        surface=surface.kind,
+        surface_fit_residual_mm=float(surface.fit_residual_m * 1e3),
+        resolution={**describe(layout, surface), "grid_shape": layout.grid_shape},
+        n_windows=int(windows.x.shape[0]),
+        n_dropped_no_contact=int(windows.n_dropped),
+        window_frames=int(windows.x.shape[1]),
+        warnings=participant_warnings(cfg, dataset, windows),
+    )
 
 
 def participant_warnings(cfg, dataset, windows) -> list[str]:

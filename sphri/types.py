@@ -369,3 +369,30 @@ class CVResult:
             "macro_f1_mean": float(f1.mean()),
             "macro_f1_std": float(f1.std(ddof=1)) if f1.size > 1 else 0.0,
         }
+
+
+@dataclass
+class RunMeta:
+    """Facts about one job, reported in the summary, MLflow (params ``meta.*``,
+    ``resolution.*``, ``meta.json``) and the report (built by :func:`sphri.pipeline.run_meta`)."""
+
+    dataset: str
+    synthetic: bool
+    n_participants: int
+    n_trials: int
+    n_frames: int
+    frame_rate_hz: float
+    repairs: dict[str, int]
+    """Counts of what the data stage repaired or left out (by kind)."""
+    robot: str
+    region: str
+    link: str
+    surface: str
+    surface_fit_residual_mm: float
+    resolution: dict[str, Any]
+    """The layout in physical units (:func:`sphri.layout.units.describe`) plus ``grid_shape``."""
+    n_windows: int
+    n_dropped_no_contact: int
+    window_frames: int
+    warnings: list[str] = field(default_factory=list)
+    """Named warnings, e.g. participants the folds do not cover."""

@@ -32,8 +32,8 @@ def test_debug_chain_runs_end_to_end(tmp_path: Path):
     assert len(result.cv.folds) == 3, "LOSO over the 3 debug participants"
     s = result.summary()
     assert 0.0 <= s["accuracy_mean"] <= 1.0
-    assert result.meta["synthetic"] is True
-    assert result.meta["resolution"]["n_taxels"] > 0
+    assert result.meta.synthetic is True
+    assert result.meta.resolution["n_taxels"] > 0
     for fold in result.cv.folds:
         assert fold.confusion.shape == (8, 8)
         assert np.isfinite(fold.accuracy)
@@ -47,7 +47,7 @@ def test_resolution_change_reuses_data_and_contact(tmp_path: Path):
     s8 = sources(r8)
     assert s8["data"] == "cache" and s8["contact"] == "cache" and s8["plan"] == "cache"
     assert s8["layout"] == "computed" and s8["encode"] == "computed" and s8["evaluate"] == "computed"
-    assert r8.meta["resolution"]["n_taxels"] > r4.meta["resolution"]["n_taxels"]
+    assert r8.meta.resolution["n_taxels"] > r4.meta.resolution["n_taxels"]
     # the same command again recomputes nothing and does not even load contact
     again = sources(run(cache, "encoder.res=8"))
     assert again["evaluate"] == "cache"
@@ -69,7 +69,7 @@ def test_density_layout_from_contacts_is_keyed_on_them(tmp_path: Path):
     cache = StageCache(tmp_path)
     dens = ["layout=density", "encoder=coverage", "encoder.res=4"]
     first = run(cache, *dens)
-    assert first.meta["resolution"]["layout_kind"] == "density"
+    assert first.meta.resolution["layout_kind"] == "density"
     # the run's seed draws the density layout's candidate points (conf/layout/density.yaml: seed: ${seed})
     assert sources(run(cache, *dens, "seed=1"))["layout"] == "computed"
     # other contacts, another placement: the layout is recomputed (a grid layout would be reused)

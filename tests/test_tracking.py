@@ -14,7 +14,7 @@ from sphri.cache import StageCache
 from sphri.config import compose
 from sphri.pipeline import RunResult, StageRecord
 from sphri.tracking.mlflow_tracker import MlflowTracker, default_uri, flatten_params, summary_text
-from sphri.types import GESTURES, CVResult, FoldResult
+from sphri.types import GESTURES, CVResult, FoldResult, RunMeta
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -26,13 +26,13 @@ def fake_result() -> RunResult:
         conf = rng.integers(0, 5, size=(8, 8))
         acc = float(np.trace(conf) / conf.sum())
         folds.append(FoldResult(f"participant_0{i + 1}", int(conf.sum()), acc, acc * 0.9, conf, np.diag(conf) / conf.sum(1)))
-    meta = {
-        "dataset": "synthetic", "synthetic": True, "n_participants": 3, "n_trials": 48, "n_frames": 4800,
-        "frame_rate_hz": 30.0, "repairs": {}, "robot": "reachy", "region": "arm", "link": "arm", "surface": "cylinder",
-        "surface_fit_residual_mm": 1.2, "n_windows": 48, "n_dropped_no_contact": 0, "window_frames": 50,
-        "resolution": {"n_taxels": 342, "grid_shape": (18, 19), "pitch_u_mm": 13.4, "pitch_v_mm": 13.2,
-                       "area_per_taxel_cm2": 1.77, "taxels_per_24cm": 17.9},
-    }
+    meta = RunMeta(
+        dataset="synthetic", synthetic=True, n_participants=3, n_trials=48, n_frames=4800,
+        frame_rate_hz=30.0, repairs={}, robot="reachy", region="arm", link="arm", surface="cylinder",
+        surface_fit_residual_mm=1.2, n_windows=48, n_dropped_no_contact=0, window_frames=50,
+        resolution={"n_taxels": 342, "grid_shape": (18, 19), "pitch_u_mm": 13.4, "pitch_v_mm": 13.2,
+                    "area_per_taxel_cm2": 1.77, "taxels_per_24cm": 17.9},
+    )
     return RunResult(CVResult("loso", "rf", folds), meta, {"contact": StageRecord("contact", "k", "cache", 0.1)}, "abc123")
 
 

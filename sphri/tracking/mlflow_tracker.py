@@ -20,6 +20,7 @@ a store left broken by an interrupted migration is refused
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import os
@@ -39,6 +40,7 @@ if TYPE_CHECKING:
     from omegaconf import DictConfig
 
     from sphri.pipeline import RunResult
+    from sphri.types import RunMeta
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -293,8 +295,8 @@ class MlflowTracker:
         meta = result.meta
         tags = {
             "sphri.config_hash": result.config_hash,
-            "sphri.dataset": meta["dataset"],
-            "sphri.synthetic": str(meta["synthetic"]).lower(),
+            "sphri.dataset": meta.dataset,
+            "sphri.synthetic": str(meta.synthetic).lower(),
             "sphri.cv_scheme": result.cv.scheme,
             "sphri.from_cache": ",".join(n for n, r in result.stages.items() if r.source == "cache") or "none",
             "sphri.debug": str(bool((choices or {}).get("debug"))).lower(),
@@ -302,12 +304,12 @@ class MlflowTracker:
         run_id = self._start_job(cfg, job_dir, parent, run_name or self._run_name(cfg, meta, choices), tags)
         client = self.client(cfg.output_dir)
         params = flatten_params(cfg, choices)
-        for k, v in meta["resolution"].items():
+        for k, v in meta.resolution.items():
             params[f"resolution.{k}"] = f"{v:.6g}" if isinstance(v, float) else str(v)
         for k in ("robot", "region", "link", "n_participants", "n_trials", "n_windows", "n_dropped_no_contact", "frame_rate_hz"):
-            params[f"meta.{k}"] = str(meta[k])
+            params[f"meta.{k}"] = str(getattr(meta, k))
         now = int(time.time() * 1000)
-        derived = [Metric(f"resolution/{k}", float(v), now, 0) for k, v in meta["resolution"].items()
+        derived = [Metric(f"resolution/{k}", float(v), now, 0) for k, v in meta.resolution.items()
                    if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)]  # the UI plots and sorts these
         metrics = derived
         for i, fold in enumerate(result.cv.folds):
@@ -348,9 +350,9 @@ class MlflowTracker:
             return None
 
     @staticmethod
-    def _run_name(cfg: "DictConfig", meta: dict, choices: dict[str, str] | None) -> str:
+    def _run_name(cfg: "DictConfig", meta: "RunMeta", choices: dict[str, str] | None) -> str:
         model = component_name(cfg.model, (choices or {}).get("model"))
-        return f"{meta['robot']}-{meta['region']}-res{cfg.encoder.res}-{model}"
+        return f"{meta.robot}-{meta.region}-res{cfg.encoder.res}-{model}"
 
     def _log_artifacts(self, client: "MlflowClient", run_id: str, cfg: "DictConfig", result: "RunResult") -> None:
         from omegaconf import OmegaConf
@@ -367,9 +369,9 @@ class MlflowTracker:
             write_confusion_csv(result.cv, tmp_path / "confusion.csv")  # the report redraws from the counts
             write_confusion_png(result.cv, tmp_path / "confusion.png", formats=figures.FORMATS,
                                 title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
-                                provenance=Provenance(synthetic=bool(result.meta.get("synthetic")), ids=f"res {cfg.encoder.res}"))
+                                provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {cfg.encoder.res}"))
             (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
-            (tmp_path / "meta.json").write_text(json.dumps(result.meta, indent=2, default=str))
+            (tmp_path / "meta.json").write_text(json.dumps(dataclasses.asdict(result.meta), indent=2, default=str))
             self._retry(lambda: client.log_artifacts(run_id, str(tmp_path)))
 
 
@@ -394,13 +396,13 @@ def summary_text(result: "RunResult") -> str:
 
     m = result.meta
     s = summarize(result.cv)
-    r = m["resolution"]
-    label = "SYNTHETIC" if m["synthetic"] else "real"
+    r = m.resolution
+    label = "SYNTHETIC" if m.synthetic else "real"
     lines = [
-        f"dataset     {m['dataset']} ({label}): {m['n_participants']} participants, {m['n_trials']} trials, "
-        f"{m['n_windows']} windows of {m['window_frames']} frames ({_count(m['n_dropped_no_contact'], 'trial')} without contact dropped)",
-        f"robot       {m['robot']}, region {m['region']} (link {m['link']}), surface {m['surface']} "
-        f"(fit residual {m['surface_fit_residual_mm']:.1f} mm)",
+        f"dataset     {m.dataset} ({label}): {m.n_participants} participants, {m.n_trials} trials, "
+        f"{m.n_windows} windows of {m.window_frames} frames ({_count(m.n_dropped_no_contact, 'trial')} without contact dropped)",
+        f"robot       {m.robot}, region {m.region} (link {m.link}), surface {m.surface} "
+        f"(fit residual {m.surface_fit_residual_mm:.1f} mm)",
         "resolution  " + ", ".join(_fmt_resolution(r)),
         f"model       {result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
         f"accuracy    {s['accuracy_mean']:.3f} +/- {s['accuracy_std']:.3f}   "
@@ -408,7 +410,7 @@ def summary_text(result: "RunResult") -> str:
         f"macro-F1    {s['macro_f1_mean']:.3f} +/- {s['macro_f1_std']:.3f}   (mean +/- std over participants; "
         f"chance {chance_level(result.cv):.3f})",
     ]
-    lines += [f"warning     {w}" for w in m.get("warnings", [])]
+    lines += [f"warning     {w}" for w in m.warnings]
     return "\n".join(lines)
 
 

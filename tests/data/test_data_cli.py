@@ -12,7 +12,7 @@ from sphri.data.format import GENERATOR_KEY, read_manifest
 from sphri.data.synthetic import SyntheticData
 from sphri.data.vr_gesture import VRGestureData
 
-OVERRIDES = ["data=synthetic_small", "data.participants=2", "data.repetitions=1", "data.regions=[arm,torso]", "data.seed=5"]
+OVERRIDES = ["data.participants=2", "data.repetitions=1", "data.regions=[arm,torso]", "data.seed=5"]
 
 
 def test_synthesize_writes_a_dataset_that_loads_identically(tmp_path, hand, robot, capsys):
