@@ -27,6 +27,7 @@ def compose_one(path: Path, **overrides):
     assert defaults[-1] == "_self_" and defaults[0] == f"{path.stem}_schema"
     schema = ConfigStore.instance().load(f"{path.parent.name}/{defaults[0]}.yaml").node
     cfg = OmegaConf.merge(schema, raw, OmegaConf.create(overrides))
+    cfg = OmegaConf.create({"seed": 0, "component": cfg}).component  # under a root: `seed: ${seed}` resolves
     OmegaConf.to_object(cfg)  # runs the schema's range checks
     return cfg
 
