@@ -4,6 +4,7 @@
 
     python -m sphri.cli list                 # every group and its components
     python -m sphri.cli list robot           # one group, with each file's summary
+    python -m sphri.cli show noise=crosstalk # every setting of a component: value, default, meaning
     python -m sphri.cli validate +robot=reachy encoder.res=18
     python -m sphri.cli validate -m encoder.res=0,4           # a sweep: every job is checked
     python -m sphri.cli validate +experiment=resolution_sweep # its 100 jobs
@@ -16,6 +17,7 @@ message naming the key on any problem.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import re
 import sys
 import textwrap
@@ -25,6 +27,7 @@ import yaml
 
 from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, compose
 from sphri.errors import clean_errors
+from sphri.stages import PARAM_GROUPS, STAGE_GROUPS
 
 def components(group: str) -> list[tuple[str, str]]:
     """(name, one-line description) of each YAML file in ``conf/<group>/``."""
@@ -119,6 +122,34 @@ def cmd_list(groups: list[str]) -> int:
     return 0
 
 
+def cmd_show(overrides: list[str], groups: list[str] | None = None) -> int:
+    """Print each setting of the chosen components: its value, the schema default when the value
+    differs, and its meaning (the schema's field docstring: defaults and docs live there once)."""
+    from omegaconf import OmegaConf
+
+    from sphri.config import field_docs
+
+    cfg = compose(overrides)
+    named = [o.lstrip("+").split("=", 1)[0].split(".", 1)[0] for o in overrides if "=" in o]
+    shown = groups or [g for g in STAGE_GROUPS if g in named] or list(STAGE_GROUPS)
+    for group in shown:
+        if group not in STAGE_GROUPS:
+            raise ConfigError(f"unknown config group {group!r}; groups: {', '.join(STAGE_GROUPS)}")
+        node = cfg[group]
+        schema = OmegaConf.get_type(node)
+        docs = field_docs(schema) if isinstance(schema, type) else {}
+        try:
+            default = OmegaConf.to_container(OmegaConf.structured(schema)) if dataclasses.is_dataclass(schema) else {}
+        except Exception:  # a schema without defaults for every field
+            default = {}
+        values = OmegaConf.to_container(node, resolve=True)
+        print(f"{group}: {str(values.pop('_target_', '')).rsplit('.', 1)[-1]}")
+        for key, value in values.items():
+            mark = "" if key not in default or default[key] == value else f" [changed; default {default[key]!r}]"
+            print(_row(f"  {key:<24} {value!r:<14} ", docs.get(key, "") + mark))
+    return 0
+
+
 def is_sweep(overrides: list[str]) -> bool:
     """True for the arguments of a multirun: ``-m``, a comma list, ``range()``/``choice()``, or an experiment
     (experiments sweep through ``hydra.sweeper.params``)."""
@@ -155,7 +186,7 @@ def cmd_validate(overrides: list[str]) -> int:
     cfg = compose(overrides)
     chain_region(cfg)
     print("config OK")
-    for group in ("data", "robot", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv"):
+    for group in PARAM_GROUPS:
         node = OmegaConf.to_container(cfg[group], resolve=True)
         target = str(node.pop("_target_", "")).rsplit(".", 1)[-1]
         scalars = ", ".join(f"{k}={v}" for k, v in node.items() if not isinstance(v, (dict, list)))
@@ -169,6 +200,10 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="cmd", required=True)
     p_list = sub.add_parser("list", help="list the components of each config group")
     p_list.add_argument("groups", nargs="*", help="groups to list (default: all)")
+    p_show = sub.add_parser("show", help="every setting of the chosen components: value, default, meaning")
+    p_show.add_argument("overrides", nargs="*", help="choices and overrides, e.g. encoder=coverage noise.p=0.05")
+    p_show.add_argument("--group", action="append", default=None,
+                        help="groups to show (default: those named in the overrides, else every group)")
     p_val = sub.add_parser("validate", help="compose and check a config without running it")
     p_val.add_argument("overrides", nargs="*",
                        help="overrides as for python -m sphri; a sweep (-m, a,b,c, range(), +experiment=...) checks every job")
@@ -180,6 +215,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         if args.cmd == "list":
             return cmd_list(args.groups)
+        if args.cmd == "show":
+            return cmd_show(args.overrides, args.group)
         return cmd_validate(args.overrides)
     except ConfigError as exc:
         print(f"sphri: invalid config: {exc}", file=sys.stderr)

@@ -22,6 +22,9 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
+from sphri import stages as _stages
+
+
 def _find_conf_dir() -> Path:
     """The config tree: ``conf/`` at the top of a source checkout (editable
     installs read it in place, so edits take effect), else ``sphri/conf``
@@ -40,63 +43,18 @@ def _find_conf_dir() -> Path:
 #: The config directory: ``conf/`` of the checkout, or the copy inside the installed package.
 CONF_DIR = _find_conf_dir()
 
-#: Config groups of the pipeline, in stage order. Each is a component with a
-#: ``_target_`` inside ``sphri.``.
-STAGE_GROUPS: tuple[str, ...] = (
-    "data",
-    "hand",
-    "robot",
-    "contact",
-    "surface",
-    "layout",
-    "encoder",
-    "noise",
-    "filter",
-    "window",
-    "model",
-    "cv",
-    "tracking",
-)
-
-#: What a component of each stage group must implement (its methods): the
-#: protocol a user's own component, in its own package, is checked against.
-STAGE_METHODS: dict[str, tuple[str, ...]] = {
-    "data": ("load",),
-    "hand": ("build",),
-    "robot": ("build",),
-    "contact": ("compute",),
-    "surface": ("fit",),
-    "layout": ("build",),
-    "encoder": ("encode",),
-    "noise": ("apply",),
-    "window": ("plan", "assemble"),
-    "model": ("fit", "predict"),
-    "cv": ("run",),
-    "tracking": ("log_job",),
-}
+# The chain's groups and their protocols are stated once, in sphri.stages.
+STAGE_GROUPS = _stages.STAGE_GROUPS
+STAGE_METHODS = _stages.STAGE_METHODS
 
 #: Groups that the primary config lists in its defaults; ``+group=x`` on the
 #: command line is accepted for these and means ``group=x`` (see
 #: :func:`normalize_overrides`).
 DEFAULT_GROUPS: tuple[str, ...] = STAGE_GROUPS + ("debug", "experiment", "sensitivity")
 
-#: Modules whose import registers schemas in the ConfigStore.
-SCHEMA_MODULES: tuple[str, ...] = (
-    "sphri.data.schema",
-    "sphri.hand.schema",
-    "sphri.robots.schema",
-    "sphri.contact.schema",
-    "sphri.surface.schema",
-    "sphri.layout.schema",
-    "sphri.encode.schema",
-    "sphri.noise.schema",
-    "sphri.filter.schema",
-    "sphri.window.schema",
-    "sphri.models.schema",
-    "sphri.evaluate.schema",
-    "sphri.tracking.schema",
-    "sphri.sessions.schema",
-)
+#: Modules whose import registers schemas in the ConfigStore (each group's, from
+#: :data:`sphri.stages.COMPONENTS`, and the scenario study's).
+SCHEMA_MODULES: tuple[str, ...] = tuple(c.schema_module for c in _stages.COMPONENTS) + ("sphri.sessions.schema",)
 
 
 class ConfigError(ValueError):
@@ -436,3 +394,31 @@ def check_known_keys(cfg: DictConfig, prefix: str = "") -> None:
         if isinstance(node, DictConfig) and not node._is_missing() and not node._is_none():
             check_known_keys(node, f"{prefix}{key}.")
 
+
+
+def field_docs(schema: type) -> dict[str, str]:
+    """``{field: docstring}`` of a schema dataclass (the string literal under each field, bases included).
+
+    Python keeps no attribute docstrings at run time, so they are read from
+    the classes' source; a class without source (or without docstrings)
+    gives an empty dict for its fields.
+    """
+    import ast
+    import inspect
+    import textwrap
+
+    out: dict[str, str] = {}
+    for cls in reversed(getattr(schema, "__mro__", (schema,))):
+        if not dataclasses.is_dataclass(cls):
+            continue
+        try:
+            tree = ast.parse(textwrap.dedent(inspect.getsource(cls)))
+        except (OSError, TypeError, SyntaxError):
+            continue
+        body = tree.body[0].body if tree.body and isinstance(tree.body[0], ast.ClassDef) else []
+        for stmt, nxt in zip(body, body[1:]):
+            if (isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name)
+                    and isinstance(nxt, ast.Expr) and isinstance(nxt.value, ast.Constant)
+                    and isinstance(nxt.value.value, str)):
+                out[stmt.target.id] = " ".join(nxt.value.value.split())
+    return out

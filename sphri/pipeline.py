@@ -8,7 +8,8 @@ and only computes, or loads, what a missing entry needs. Running the same
 command twice loads one small entry; changing ``encoder.res`` recomputes the
 layout, encoder and below, never data or contact.
 
-Which stages are kept on disk (``PERSISTED``) is a cost decision: data,
+The stages, their inputs and which are kept on disk are the table in
+:mod:`sphri.stages`. Which stages are kept on disk is a cost decision: data,
 contact, surface, layout, the window plan and the evaluation are worth
 storing; encoded frames are cheap to recompute and large at fine
 resolutions (a res-50 grid is ~0.4 GB per sweep point); the noisy and
@@ -31,19 +32,10 @@ from omegaconf import DictConfig, OmegaConf
 from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import ConfigError, build, result_config
 from sphri.inputs import input_fingerprints, memo_at
+from sphri.stages import CONTRACTS, PERSISTED, STAGE_BY_NAME, STAGE_GROUPS, stage_inputs
 from sphri.types import Contacts, CVResult, GestureDataset, Layout, RunMeta, SurfaceMap, TaxelGeometry, WindowPlan
 
 log = logging.getLogger(__name__)
-
-#: Stages whose outputs are written to the on-disk cache.
-PERSISTED = frozenset({"data", "contact", "surface", "layout", "plan", "evaluate"})
-
-#: What each persisted stage's cache entry must decode into (else it is recomputed).
-CONTRACTS: dict[str, Any] = {
-    "data": GestureDataset, "contact": Contacts, "surface": SurfaceMap, "layout": Layout, "plan": WindowPlan,
-    "evaluate": (CVResult, RunMeta),
-}
-
 
 @dataclass
 class StageRecord:
@@ -81,6 +73,8 @@ class _Node:
     """The key with input files named by path only (finds the entry a changed file replaces)."""
     files: dict[str, str] = field(default_factory=dict)
     """``{path: fingerprint}`` of every file behind this stage, its inputs' included."""
+    reads: frozenset[str] = frozenset()
+    """Stages this one may read while computing: its inputs and everything upstream of them."""
     value: Any = None
     done: bool = False
 
@@ -91,22 +85,42 @@ class Pipeline:
 
     cfg: DictConfig
     cache: StageCache
+    components: dict[str, Any] = field(default_factory=dict)
+    """The built component of each config group."""
+    versions: dict[str, str] = field(default_factory=dict)
+    """``VERSION`` of each group's component."""
     nodes: dict[str, _Node] = field(default_factory=dict)
     records: dict[str, StageRecord] = field(default_factory=dict)
     _upstream_s: list[float] = field(default_factory=list, repr=False)
     """Per stage being computed (a stack): wall seconds its upstream stages took."""
+    _computing: list[str] = field(default_factory=list, repr=False)
 
-    def add(self, name: str, version: str, config: Any, inputs: dict[str, str], compute: Callable[[], Any],
+    def add(self, name: str, config: Any, compute: Callable[[], Any], extra: dict[str, Any] | None = None,
             files: dict[str, str] | None = None) -> str:
-        """Declare a stage. ``inputs``: name -> key (other stages' keys, or plain values);
-        ``files``: ``{path: fingerprint}`` of the files the stage itself reads (part of its key)."""
+        """Declare stage ``name`` of :data:`sphri.stages.STAGES`; returns its cache key.
+
+        Its inputs come from the stage table (their keys enter this key) and
+        ``compute`` may read only them and what is upstream of them.
+        ``extra``: plain values the key also depends on (a region, a
+        version); ``files``: ``{path: fingerprint}`` of the files the stage
+        itself reads.
+        """
+        stage = STAGE_BY_NAME[name]
+        used = stage_inputs(stage, self.components.get(stage.groups[0]))
+        missing = [n for n in used if n not in self.nodes]
+        if missing:
+            raise RuntimeError(f"stage {name!r} declared before its inputs {missing} (see sphri.stages.STAGES)")
+        inputs = {**{n: self.nodes[n].key for n in used}, **(extra or {})}
+        version = "-".join(self.versions.get(g, "0") for g in stage.groups)
         files = dict(files or {})
-        upstream = [self.nodes[n] for n in inputs if n in self.nodes and self.nodes[n].key == inputs[n]]
+        upstream_nodes = [self.nodes[n] for n in used]
         key = stage_key(name, version, config, {**inputs, **({"files": files} if files else {})})
-        path_inputs = {**inputs, **{n.name: n.path_key for n in upstream}, **({"files": sorted(files)} if files else {})}
+        path_inputs = {**inputs, **{n.name: n.path_key for n in upstream_nodes}, **({"files": sorted(files)} if files else {})}
         path_key = stage_key(name, version, config, path_inputs)
-        all_files = {k: v for n in upstream for k, v in n.files.items()} | files
-        self.nodes[name] = _Node(name, key, compute, persist=name in PERSISTED, path_key=path_key, files=all_files)
+        all_files = {k: v for n in upstream_nodes for k, v in n.files.items()} | files
+        reads = frozenset(used).union(*(n.reads for n in upstream_nodes))
+        self.nodes[name] = _Node(name, key, compute, persist=name in PERSISTED, path_key=path_key, files=all_files,
+                                 reads=reads)
         return key
 
     def get(self, name: str) -> Any:
@@ -115,6 +129,11 @@ class Pipeline:
         Its :class:`StageRecord` holds the stage's exclusive wall seconds: the
         time spent in the upstream stages it asked for is not counted.
         """
+        if self._computing and name not in self.nodes[self._computing[-1]].reads:
+            raise RuntimeError(
+                f"stage {self._computing[-1]!r} read stage {name!r}, which is not among its inputs or upstream of "
+                "them in sphri.stages.STAGES: its cache key would not change with it"
+            )
         node = self.nodes[name]
         if node.done:
             return node.value
@@ -128,7 +147,11 @@ class Pipeline:
             announce_compiles()  # a first run says that it compiles kernels instead of looking stuck
             computed.append(True)
             log.info("stage %-9s computing (key %s)", name, node.key)
-            return node.compute()
+            self._computing.append(name)
+            try:
+                return node.compute()
+            finally:
+                self._computing.pop()
 
         try:
             if node.persist:
@@ -167,9 +190,10 @@ def chain_region(cfg: DictConfig) -> str:
 def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
     """Wire the stages for ``cfg``; nothing is computed until :meth:`Pipeline.get`."""
     region = chain_region(cfg)
-    p = Pipeline(cfg, cache)
-    comp = {g: build(cfg[g]) for g in ("hand", "robot", "data", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "cv")}
-    ver = component_versions(cfg)
+    groups = [g for g in STAGE_GROUPS if g != "tracking"]
+    p = Pipeline(cfg, cache, components={g: build(cfg[g]) for g in groups if g != "model"},
+                 versions=component_versions(cfg))
+    comp = p.components
     res = int(cfg.encoder.res)
     seed = int(cfg.seed)
     fingerprints = input_fingerprints(cfg, memo_at(cache.root if cache.enabled else None))
@@ -178,38 +202,30 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         """Fingerprints of the files the components of ``groups`` read."""
         return {path: fp for g in groups for path, fp in fingerprints.get(g, {}).items()}
 
-    k_hand = p.add("hand", ver["hand"], result_config(cfg.hand), {}, lambda: comp["hand"].build(), files("hand"))
-    k_robot = p.add("robot", ver["robot"], result_config(cfg.robot), {}, lambda: comp["robot"].build(), files("robot"))
-    # Data depends on the robot unless its component says otherwise (synthetic
-    # gestures are placed on the robot's surface; a recorded dataset is not).
-    data_inputs = {"hand": k_hand}
-    if getattr(comp["data"], "USES_ROBOT", True):
-        data_inputs["robot"] = k_robot
-    k_data = p.add("data", ver["data"], result_config(cfg.data), data_inputs, lambda: comp["data"].load(hand=p.get("hand"), robot=p.get("robot")), files("data"))
-    k_contact = p.add(
-        "contact", ver["contact"], result_config(cfg.contact), {"data": k_data, "robot": k_robot, "hand": k_hand},
-        lambda: comp["contact"].compute(p.get("data"), p.get("robot")), files("contact"),
-    )
-
     def link():
         return p.get("robot").link_for(region)
 
-    k_surface = p.add("surface", ver["surface"], result_config(cfg.surface), {"robot": k_robot, "region": region}, lambda: comp["surface"].fit(link()), files("surface"))
-    # A layout placed by contact density (layout=density without a file) reads the contacts.
-    layout_uses_contacts = bool(getattr(comp["layout"], "uses_contacts", False))
-    layout_inputs = {"surface": k_surface, "robot": k_robot, **({"contact": k_contact} if layout_uses_contacts else {})}
+    p.add("hand", result_config(cfg.hand), lambda: comp["hand"].build(), files=files("hand"))
+    p.add("robot", result_config(cfg.robot), lambda: comp["robot"].build(), files=files("robot"))
+    p.add("data", result_config(cfg.data),
+          lambda: comp["data"].load(hand=p.get("hand"), robot=p.get("robot")), files=files("data"))
+    p.add("contact", result_config(cfg.contact),
+          lambda: comp["contact"].compute(p.get("data"), p.get("robot")), files=files("contact"))
+    p.add("surface", result_config(cfg.surface), lambda: comp["surface"].fit(link()), extra={"region": region},
+          files=files("surface"))
 
     def layout():
-        extra = {"contacts": p.get("contact")} if layout_uses_contacts else {}
+        extra = {"contacts": p.get("contact")} if "contact" in p.nodes["layout"].reads else {}
         return comp["layout"].build(link(), p.get("surface"), res, **extra)
 
-    k_layout = p.add("layout", ver["layout"], {"layout": result_config(cfg.layout), "res": res}, layout_inputs, layout, files("layout"))
-    k_plan = p.add("plan", ver["window"], result_config(cfg.window), {"contact": k_contact, "data": k_data}, lambda: comp["window"].plan(p.get("contact"), p.get("data")), files("window"))
+    p.add("layout", {"layout": result_config(cfg.layout), "res": res}, layout, files=files("layout"))
+    p.add("plan", result_config(cfg.window), lambda: comp["window"].plan(p.get("contact"), p.get("data")),
+          files=files("window"))
 
     def encode():
         return comp["encoder"].encode(p.get("contact"), link(), p.get("surface"), p.get("layout"), p.get("plan").selected_frames())
 
-    k_encode = p.add("encode", ver["encoder"], result_config(cfg.encoder), {"contact": k_contact, "layout": k_layout, "plan": k_plan}, encode, files("encoder"))
+    p.add("encode", result_config(cfg.encoder), encode, files=files("encoder"))
 
     def noise():
         # Noise on the windows as the model sees them (padded slots included), seeded per
@@ -220,10 +236,10 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         windows = comp["window"].assemble(p.get("encode"), p.get("plan"), dataset, p.get("layout"), p.get("surface"))
         return apply_to_windows(comp["noise"], windows, trial_keys(dataset)[windows.trial_row], seed)
 
-    k_noise = p.add("noise", ver["noise"], {"noise": result_config(cfg.noise), "seed": seed},
-                    {"encode": k_encode, "plan": k_plan, "window": ver["window"]}, noise, files("noise"))
-    k_filter = p.add("filter", ver["filter"], result_config(cfg.filter), {"noise": k_noise},
-                     lambda: comp["filter"].apply(p.get("noise")), files("filter"))
+    # assembling the windows is the window component's: its version enters the key
+    p.add("noise", {"noise": result_config(cfg.noise), "seed": seed}, noise, extra={"window": p.versions["window"]},
+          files=files("noise"))
+    p.add("filter", result_config(cfg.filter), lambda: comp["filter"].apply(p.get("noise")), files=files("filter"))
 
     def evaluate():
         dataset: GestureDataset = p.get("data")
@@ -239,10 +255,8 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         result = comp["cv"].run(make_model, windows, seed)
         return result, run_meta(cfg, dataset, p.get("robot"), region, p.get("surface"), p.get("layout"), windows)
 
-    p.add(
-        "evaluate", f"{ver['cv']}-{ver['model']}", {"model": result_config(cfg.model), "cv": result_config(cfg.cv), "seed": seed},
-        {"filter": k_filter, "plan": k_plan, "layout": k_layout}, evaluate, files("model", "cv"),
-    )
+    p.add("evaluate", {"model": result_config(cfg.model), "cv": result_config(cfg.cv), "seed": seed}, evaluate,
+          files=files("model", "cv"))
     return p
 
 
@@ -361,7 +375,6 @@ def _compile_report() -> str | None:
 
 def component_versions(cfg: DictConfig) -> dict[str, str]:
     """``VERSION`` of each stage group's component class (what its results depend on besides config)."""
-    from sphri.config import STAGE_GROUPS
 
     out = {}
     for group in STAGE_GROUPS:
@@ -377,7 +390,6 @@ def config_hash(cfg: DictConfig) -> str:
     runtime settings, :func:`sphri.config.runtime_setting`), the
     ``VERSION`` of every component and the content fingerprints of the files the components read
     (:mod:`sphri.inputs`), so that a sweep resumed after a component or an input file changed reruns its jobs."""
-    from sphri.config import STAGE_GROUPS
 
     c = OmegaConf.to_container(cfg, resolve=True)
     for k in ("tracking", "cache", "output_dir", "resume", "plugins", "hydra", "debug", "experiment"):

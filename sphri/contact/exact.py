@@ -26,7 +26,7 @@ from sphri.contact.stage import ContactStage
 class ExactContact(ContactStage):
     """Exact contact of every capsule with the link of its trial's region.
 
-    ``compute(dataset, robot) -> Contacts``. Config: ``conf/contact/exact.yaml``.
+    ``compute(dataset, robot) -> Contacts``. Config: ``ExactContactSchema`` (``python -m sphri.cli show contact=exact``).
     """
 
     VERSION = "1"

@@ -19,7 +19,7 @@ class SphereContact(ContactStage):
     """k-sphere approximation of every capsule against the link of its trial's region.
 
     ``compute(dataset, robot) -> Contacts`` (``inside`` is always False).
-    Config: ``conf/contact/spheres.yaml``.
+    Config: ``python -m sphri.cli show contact=spheres``.
     """
 
     VERSION = "1"

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sphri.surface.meshutil import DEGENERATE_AREA_M2, principal_axes, sample_surface, triangle_normals_areas
 from sphri.types import Link
 
 
@@ -29,24 +30,18 @@ class LinkSurface:
         f = np.asarray(link.faces, dtype=np.int64)
         if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
             raise ValueError(f"link {link.name!r}: needs (V, 3) vertices and (F, 3) faces, got {v.shape}, {f.shape}")
-        tri = v[f]
-        cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-        area2 = np.linalg.norm(cross, axis=1)
-        ok = area2 > 1e-14
-        tri, cross, area2 = tri[ok], cross[ok], area2[ok]
-        normals = cross / area2[:, None]
-        if link.watertight:
-            vol = np.einsum("ij,ij->i", tri[:, 0], cross).sum() / 6.0
-            if vol < 0:
-                normals = -normals
-        rng = np.random.default_rng(seed)
-        face = rng.choice(len(tri), size=n_samples, p=area2 / area2.sum())
-        r1 = np.sqrt(rng.random(n_samples))
-        r2 = rng.random(n_samples)
-        t = tri[face]
-        pts = (1 - r1)[:, None] * t[:, 0] + (r1 * (1 - r2))[:, None] * t[:, 1] + (r1 * r2)[:, None] * t[:, 2]
-        nrm = normals[face]
-        self.area_m2 = float(area2.sum() / 2.0)
+        unit, area = triangle_normals_areas(v, f)
+        usable = area > DEGENERATE_AREA_M2
+        if not usable.any():
+            from sphri.robots.validate import MeshError
+
+            raise MeshError(f"link {link.name!r}: no usable outward surface to place hands on "
+                            "(0 non-degenerate faces); a link needs a 3-D surface")
+        pts, face = sample_surface(link, n_samples, seed)
+        nrm = unit[face]
+        if link.watertight and np.einsum("ij,ij->i", v[f[usable, 0]], unit[usable]) @ area[usable] < 0:
+            nrm = -nrm  # wound inwards: the signed volume is negative
+        self.area_m2 = float(area[usable].sum())
         self.centroid = pts.mean(axis=0)
         if not link.watertight:
             keep = np.einsum("ij,ij->i", nrm, pts - self.centroid) > 0
@@ -58,15 +53,11 @@ class LinkSurface:
             from sphri.robots.validate import MeshError
 
             raise MeshError(f"link {link.name!r}: no usable outward surface to place hands on "
-                            f"({len(tri)} non-degenerate face(s)); a link needs a 3-D surface")
-        # principal axes of the surface samples: long axis first
-        d = pts - self.centroid
-        w, vecs = np.linalg.eigh(d.T @ d / len(d))
-        axes = vecs[:, ::-1].T.copy()
-        for i in range(3):  # deterministic sign: largest component positive
-            if axes[i][np.argmax(np.abs(axes[i]))] < 0:
-                axes[i] = -axes[i]
+                            f"({int(usable.sum())} non-degenerate face(s)); a link needs a 3-D surface")
+        # principal axes of the surface samples: long axis first, right-handed
+        _, _, axes = principal_axes(pts, centre=self.centroid)
         axes[2] = np.cross(axes[0], axes[1])
+        d = pts - self.centroid
         self.axes = axes
         self.long_axis = axes[0]
         self.axial = d @ axes[0]

@@ -12,13 +12,7 @@ from typing import ClassVar
 from omegaconf import OmegaConf
 
 from sphri.config import ConfigError, cross_check, require_choice, require_range, store
-
-MAX_RES = 1000
-
-
-
-def _res(value: int) -> None:
-    require_range("encoder.res", value, lo=1, hi=MAX_RES)
+from sphri.layout.schema import check_res
 
 
 @dataclass
@@ -39,7 +33,7 @@ class EllipseEncoderSchema:
     """Sub-rows per taxel row for the raster (exact along v); more = finer."""
 
     def __post_init__(self) -> None:
-        _res(self.res)
+        check_res(self.res)
         require_range("encoder.threshold", self.threshold, lo=0.0, hi=1.0, lo_open=True)
         require_range("encoder.subsamples", self.subsamples, lo=1, hi=64)
 
@@ -57,7 +51,7 @@ class CoverageEncoderSchema:
     """Other layouts: points sampled on each taxel's disc (area fraction resolution)."""
 
     def __post_init__(self) -> None:
-        _res(self.res)
+        check_res(self.res)
         require_range("encoder.subsamples", self.subsamples, lo=1, hi=64)
         require_range("encoder.samples_per_taxel", self.samples_per_taxel, lo=1, hi=1024)
 
@@ -77,7 +71,7 @@ class ProximityEncoderSchema:
     """Penetration (metres) that reads 1.0 with intensity=depth."""
 
     def __post_init__(self) -> None:
-        _res(self.res)
+        check_res(self.res)
         require_range("encoder.sensing_distance_m", self.sensing_distance_m, lo=0.0, hi=0.5)
         require_choice("encoder.intensity", self.intensity, ("binary", "depth"))
         require_range("encoder.depth_scale_m", self.depth_scale_m, lo=0.0, hi=0.5, lo_open=True)

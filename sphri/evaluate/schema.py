@@ -8,19 +8,11 @@ from typing import Optional
 from sphri.config import require_range, runtime_setting, store
 
 
-def _check_common(self) -> None:
-    require_range("cv.workers", self.workers, lo=1)
-    if self.threads_per_worker is not None:
-        require_range("cv.threads_per_worker", self.threads_per_worker, lo=1)
-    if self.max_folds is not None:
-        require_range("cv.max_folds", self.max_folds, lo=1)
-
-
 @dataclass
-class LosoSchema:
-    """``cv=loso``: leave-one-subject-out over participants."""
+class FoldsSchema:
+    """What every cross-validation scheme shares: parallel folds, a fold limit, progress."""
 
-    _target_: str = "sphri.evaluate.cv.LeaveOneSubjectOut"
+    _target_: str = ""
     workers: int = runtime_setting(1)
     """Folds run in parallel processes (1: in this process)."""
     threads_per_worker: Optional[int] = runtime_setting(None)
@@ -29,34 +21,40 @@ class LosoSchema:
     """Evaluate only the first k folds (debugging; None: all)."""
     progress: bool = runtime_setting(True)
     """Progress bar over folds (shown only on a terminal)."""
+
+    def __post_init__(self) -> None:
+        require_range("cv.workers", self.workers, lo=1)
+        if self.threads_per_worker is not None:
+            require_range("cv.threads_per_worker", self.threads_per_worker, lo=1)
+        if self.max_folds is not None:
+            require_range("cv.max_folds", self.max_folds, lo=1)
+
+
+@dataclass
+class LosoSchema(FoldsSchema):
+    """``cv=loso``: leave-one-subject-out over participants."""
+
+    _target_: str = "sphri.evaluate.cv.LeaveOneSubjectOut"
     min_participants: Optional[int] = None
     """Refuse to run on fewer participants with windows (None: run, with a named warning in the summary)."""
 
     def __post_init__(self) -> None:
-        _check_common(self)
+        super().__post_init__()
         if self.min_participants is not None:
             require_range("cv.min_participants", self.min_participants, lo=2)
 
 
 @dataclass
-class KFoldSchema:
+class KFoldSchema(FoldsSchema):
     """``cv=kfold``: stratified k-fold within each participant, pooled (not comparable to LOSO)."""
 
     _target_: str = "sphri.evaluate.cv.WithinSubjectKFold"
     k: int = 5
     """Number of folds (each participant's trials split k ways, stratified by gesture)."""
-    workers: int = runtime_setting(1)
-    """Folds run in parallel processes (1: in this process)."""
-    threads_per_worker: Optional[int] = runtime_setting(None)
-    """Threads each fold may use (None: available cores // workers)."""
-    max_folds: Optional[int] = None
-    """Evaluate only the first k folds (debugging; None: all)."""
-    progress: bool = runtime_setting(True)
-    """Progress bar over folds (shown only on a terminal)."""
 
     def __post_init__(self) -> None:
         require_range("cv.k", self.k, lo=2)
-        _check_common(self)
+        super().__post_init__()
 
 
 store(group="cv", name="loso_schema", node=LosoSchema)

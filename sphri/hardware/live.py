@@ -15,7 +15,7 @@ consecutive frames while a touch holds its taxels, so the activity of frame
 t is the sum over taxels of the minimum of the last ``persist`` frames; a
 touch starts when it reaches the threshold, and its onset is the first
 frame of that run (``persist - 1`` frames back). On grids, a frame with
-``cluster_taxels`` connected taxels on also starts a touch (short pats and
+``cluster_taxels`` connected taxels on (8-connected, :mod:`sphri.adjacency`) also starts a touch (short pats and
 taps that no taxel holds for ``persist`` frames). A lone-taxel candidate
 that falls back before ``confirm`` frames above the threshold stays
 tentative: a later trigger within its window replaces it (noise blips do
@@ -42,8 +42,8 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
+from sphri.adjacency import Adjacency, taxel_adjacency
 from sphri.hardware.model_file import ModelBundle
 
 
@@ -74,18 +74,13 @@ class Prediction:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
-def largest_cluster(frame: np.ndarray, grid_shape: tuple[int, int], wrap_v: bool) -> int:
-    """Taxels in the largest 8-connected group of taxels >= 0.5 of one frame (N,) on an H x W grid."""
-    g = np.asarray(frame).reshape(grid_shape) >= 0.5
-    n_on = int(g.sum())
+def largest_cluster(frame: np.ndarray, adjacency: Adjacency) -> int:
+    """Taxels in the largest connected group of taxels >= 0.5 of one frame (N,) (:mod:`sphri.adjacency`)."""
+    on = (np.asarray(frame) >= 0.5).reshape(1, -1)
+    n_on = int(on.sum())
     if n_on <= 1:
         return n_on
-    if wrap_v:  # a group across the v seam is whole in the doubled grid
-        g = np.concatenate([g, g], axis=1)
-    labels, n = ndimage.label(g, structure=np.ones((3, 3), dtype=bool))
-    if n == 0:
-        return 0
-    return min(int(np.bincount(labels.ravel())[1:].max()), n_on)
+    return int(adjacency.largest_component(on)[0])
 
 
 class LiveClassifier:
@@ -127,7 +122,8 @@ class LiveClassifier:
         grid = bundle.geometry.grid_shape
         self.grid_shape = (int(grid[0]), int(grid[1])) if grid is not None else None
         self.cluster_taxels = int(cluster_taxels) if self.grid_shape is not None else 0
-        self.wrap_v = bool(bundle.geometry.wrap_v)
+        # 8-connected touch clusters (grids; v wraps where the chart does)
+        self.adjacency = taxel_adjacency(bundle.geometry, diagonal=True) if self.cluster_taxels else None
         # ring of the last 2L frames (a touch window may start up to L frames back)
         self._cap = 2 * self.length
         self._ring = np.zeros((self._cap, self.n_taxels), dtype=np.float32)
@@ -188,7 +184,7 @@ class LiveClassifier:
         else:
             idx = np.arange(i - self.persist + 1, i + 1) % self._cap
             activity = float(self._ring[idx].min(axis=0).sum())
-        cluster = largest_cluster(v, self.grid_shape, self.wrap_v) if self.cluster_taxels else 0
+        cluster = largest_cluster(v, self.adjacency) if self.adjacency is not None else 0
         thr = self.threshold
         if thr is None:
             if self.count >= self.persist:

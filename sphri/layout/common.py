@@ -9,16 +9,6 @@ from sphri.surface.charts import chart_of, from_uv, to_uv
 from sphri.surface.meshutil import face_areas, face_normals, project_along, sample_surface
 from sphri.types import Link, SurfaceMap
 
-MAX_RES = 1000
-
-
-def check_res(res: int, who: str) -> int:
-    """Validate ``res`` (taxels along the long axis) for component ``who``."""
-    if isinstance(res, bool) or int(res) != res or not 1 <= int(res) <= MAX_RES:
-        raise ValueError(f"{who}: res={res!r} is invalid: must be an integer in [1, {MAX_RES}] (encoder.res)")
-    return int(res)
-
-
 def long_axis_length_m(surface: SurfaceMap) -> float:
     """Length of the link along its long axis (metres): what ``res`` divides."""
     return chart_of(surface).long_axis_length_m(surface)

@@ -17,13 +17,12 @@ import logging
 import numpy as np
 
 from sphri.layout.common import (
-    check_res,
     grid_cell_areas,
     grid_dims,
     grid_uv,
     project_chart_points,
 )
-from sphri.layout.schema import GridLayoutSchema, HexLayoutSchema
+from sphri.layout.schema import GridLayoutSchema, HexLayoutSchema, check_res
 from sphri.types import Layout, Link, SurfaceMap
 
 log = logging.getLogger(__name__)

@@ -12,6 +12,25 @@ from typing import ClassVar
 from sphri.config import require, require_range, store
 from sphri.inputs import input_path
 
+#: Largest ``encoder.res`` (taxels along the long axis): the one bound, checked by :func:`check_res`.
+MAX_RES = 1000
+
+
+def check_res(res: int, who: str = "encoder.res") -> int:
+    """The one check of the resolution (taxels along the long axis): an integer in [1, MAX_RES].
+
+    The user spells it ``encoder.res``; the layout is what uses it (the
+    pipeline passes it to ``layout.build``). Raises :class:`~sphri.config.ConfigError`
+    naming ``who``.
+    """
+    try:
+        ok = not isinstance(res, bool) and int(res) == res and 1 <= int(res) <= MAX_RES
+    except (TypeError, ValueError):
+        ok = False
+    require(ok, "encoder.res", res,
+            f"must be an integer in [1, {MAX_RES}]" + ("" if who == "encoder.res" else f" (read by {who})"))
+    return int(res)
+
 
 def _aspect(value: float) -> None:
     require_range("layout.aspect", value, lo=0.05, hi=20.0)
@@ -35,20 +54,11 @@ class GridLayoutSchema:
 
 
 @dataclass
-class HexLayoutSchema:
-    """Hexagonal (triangular-lattice) grid: odd rows shifted by half a taxel."""
+class HexLayoutSchema(GridLayoutSchema):
+    """Hexagonal (triangular-lattice) grid: odd rows shifted by half a taxel; ``aspect`` stretches
+    the lattice around the link (1 = equilateral)."""
 
     _target_: str = "sphri.layout.grid.HexLayout"
-    CHART_GRID: ClassVar[bool] = True
-    """An (H, W) grid on the surface chart (what ``encoder=ellipse`` rasterizes on)."""
-    aspect: float = 1.0
-    """Stretch of the lattice around the link (1 = equilateral)."""
-    seed: int = 0
-    """Seed of the surface samples that measure each taxel's area."""
-
-    def __post_init__(self) -> None:
-        _aspect(self.aspect)
-        require_range("layout.seed", self.seed, lo=0)
 
 
 @dataclass

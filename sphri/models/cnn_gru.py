@@ -272,7 +272,7 @@ def validation_split(
 class CnnGru(ClassifierMixin, BaseEstimator):
     """CNN-GRU gesture classifier on windows (n_trials, L, N_taxels).
 
-    Hyperparameters: see ``conf/model/cnn_gru.yaml``. ``geometry`` gives the
+    Hyperparameters: ``CnnGruSchema`` (``python -m sphri.cli show model=cnn_gru``). ``geometry`` gives the
     grid shape and wrap (None: a per-frame MLP over the N taxels).
     ``fit(x, y, groups=None)``: ``groups`` (participants of the training
     trials) make the early-stopping split group-wise. After ``fit``:

@@ -33,11 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
-
+from sphri.adjacency import Adjacency, metric_coords, taxel_adjacency
 from sphri.types import TaxelGeometry
 
 #: The 32 features, in column order of :func:`extract_features`.
@@ -84,10 +80,6 @@ assert len(FEATURE_NAMES) == 32, len(FEATURE_NAMES)
 #: Elements (trials x frames x taxels) processed at once; bounds memory.
 _CHUNK_ELEMENTS = 1 << 21
 
-#: Neighbour radius of non-grid layouts, in median nearest-neighbour spacings.
-NEIGHBOUR_RADIUS = 1.5
-
-
 @dataclass(frozen=True)
 class TaxelCoords:
     """Taxel positions in metres on the skin's 2-D chart, derived from geometry."""
@@ -104,8 +96,8 @@ class TaxelCoords:
     """Taxel spacing along b (metres)."""
     grid_shape: tuple[int, int] | None
     """(H, W) for row-major grids (rows along a, columns along b)."""
-    edges: np.ndarray | None
-    """(E, 2) int64 neighbour pairs i < j of non-grid layouts (None for grids)."""
+    adjacency: Adjacency
+    """Neighbouring taxels (:func:`sphri.adjacency.taxel_adjacency`, 8-connected on grids)."""
 
     @property
     def n_taxels(self) -> int:
@@ -124,93 +116,35 @@ class TaxelCoords:
 def taxel_coords(geometry: TaxelGeometry) -> TaxelCoords:
     """Chart coordinates (metres), pitches and neighbours of a layout's taxels.
 
-    Uses ``uv`` scaled by ``metres_per_u/v`` when the layout has a chart, else
-    the principal axes of ``position_m``. Raises ``ValueError`` on shapes that
-    do not agree.
+    Coordinates and neighbours are :func:`sphri.adjacency.metric_coords` and
+    :func:`sphri.adjacency.taxel_adjacency` (8-connected on grids). Raises
+    ``ValueError`` on shapes that do not agree.
     """
-    pos = np.asarray(geometry.position_m, dtype=np.float64)
-    if pos.ndim != 2 or pos.shape[1] != 3 or pos.shape[0] < 1:
-        raise ValueError(f"geometry.position_m must be (N, 3) with N >= 1, got shape {pos.shape}")
-    n = pos.shape[0]
-    grid = geometry.grid_shape
-    if grid is not None:
-        grid = (int(grid[0]), int(grid[1]))
-        if grid[0] < 1 or grid[1] < 1 or grid[0] * grid[1] != n:
-            raise ValueError(f"geometry.grid_shape={grid} does not hold the {n} taxels of geometry.position_m")
-    has_chart = geometry.uv is not None and geometry.metres_per_u > 0 and geometry.metres_per_v > 0
-    wrap = bool(geometry.wrap_v) and has_chart
-    if has_chart:
-        uv = np.asarray(geometry.uv, dtype=np.float64)
-        if uv.shape != (n, 2):
-            raise ValueError(f"geometry.uv must be (N, 2) = ({n}, 2), got shape {uv.shape}")
-        if not np.all(np.isfinite(uv)):
-            raise ValueError("geometry.uv holds NaN or infinite values")
-        a = uv[:, 0] * geometry.metres_per_u
-        circ = float(geometry.metres_per_v) if wrap else 0.0
-        b = (np.mod(uv[:, 1], 1.0) if wrap else uv[:, 1]) * geometry.metres_per_v
-        full_a, full_b = float(geometry.metres_per_u), float(geometry.metres_per_v)
-    else:
-        if not np.all(np.isfinite(pos)):
-            raise ValueError("geometry.position_m holds NaN or infinite values")
-        centred = pos - pos.mean(axis=0)
-        if n > 1:
-            _, _, vt = np.linalg.svd(centred, full_matrices=False)
-            axes = vt[:2] if vt.shape[0] >= 2 else np.vstack([vt, np.zeros((1, 3))])
-        else:
-            axes = np.zeros((2, 3))
-        a, b = centred @ axes[0], centred @ axes[1]
-        circ = 0.0
-        full_a = full_b = 0.0
-
+    mc = metric_coords(geometry)
+    a, b, circ = mc.a_m, mc.b_m, mc.circumference_m
+    adjacency = taxel_adjacency(geometry, diagonal=True)
+    grid = adjacency.grid_shape
     if grid is not None:
         h, w = grid
         a_rows = a.reshape(h, w).mean(axis=1)
         b_cols = b.reshape(h, w)[0]
-        pa = float(np.median(np.abs(np.diff(a_rows)))) if h > 1 else full_a
-        if wrap:
+        pa = float(np.median(np.abs(np.diff(a_rows)))) if h > 1 else mc.full_a_m
+        if circ > 0:
             pb = circ / w
         else:
-            pb = float(np.median(np.abs(np.diff(b_cols)))) if w > 1 else full_b
+            pb = float(np.median(np.abs(np.diff(b_cols)))) if w > 1 else mc.full_b_m
         if pa <= 0 and pb > 0:
             pa = pb
         if pb <= 0 and pa > 0:
             pb = pa
-        edges = None
     else:
-        edges, spacing = _neighbour_graph(a, b, circ)
-        pa = pb = spacing
+        pa = pb = adjacency.spacing_m
     if not pa > 0 or not pb > 0:
         # a single taxel without any chart: its size is unknown, so features
         # are in taxel units (area 1 per active taxel).
         pa = pb = 1.0
-    return TaxelCoords(a_m=a, b_m=b, circumference_m=circ, pitch_a_m=pa, pitch_b_m=pb, grid_shape=grid, edges=edges)
-
-
-def _neighbour_graph(a: np.ndarray, b: np.ndarray, circ: float) -> tuple[np.ndarray, float]:
-    """Pairs of taxels within 1.5 x the median nearest-neighbour spacing.
-
-    Returns ((E, 2) int64 pairs i < j, median spacing in metres). Distances
-    wrap around b when ``circ > 0``.
-    """
-    n = a.shape[0]
-    if n == 1:
-        return np.zeros((0, 2), dtype=np.int64), 0.0
-    a0 = a - a.min()
-    if circ > 0:
-        span = float(a0.max()) * 3.0 + 1.0
-        pts = np.column_stack([a0, np.mod(b, circ)])
-        pts[:, 1] = np.where(pts[:, 1] >= circ, 0.0, pts[:, 1])
-        tree = cKDTree(pts, boxsize=[span, circ])
-    else:
-        pts = np.column_stack([a0, b])
-        tree = cKDTree(pts)
-    d, _ = tree.query(pts, k=2)
-    nn = d[:, 1]
-    spacing = float(np.median(nn[nn > 0])) if np.any(nn > 0) else 0.0
-    if spacing <= 0:
-        return np.zeros((0, 2), dtype=np.int64), 0.0
-    pairs = tree.query_pairs(NEIGHBOUR_RADIUS * spacing, output_type="ndarray")
-    return np.sort(pairs.astype(np.int64), axis=1), spacing
+    return TaxelCoords(a_m=a, b_m=b, circumference_m=circ, pitch_a_m=pa, pitch_b_m=pb, grid_shape=grid,
+                       adjacency=adjacency)
 
 
 def check_windows(x: np.ndarray, n_taxels: int | None = None, what: str = "x") -> np.ndarray:
@@ -265,10 +199,7 @@ def frame_signals(x: np.ndarray, coords: TaxelCoords, active_threshold: float = 
         spread_b = np.maximum((w @ (b * b)) / safe - cop_b**2, 0.0)
 
     bbox = _span_a(active, coords) * _span_b(active, coords) * contact
-    if coords.grid_shape is not None:
-        lcc = _largest_component_grid(w, coords)
-    else:
-        lcc = _largest_component_graph(w, coords)
+    lcc = coords.adjacency.largest_component(w)
 
     out = {
         "area": s * ta,
@@ -331,69 +262,6 @@ def _span_b(active: np.ndarray, c: TaxelCoords) -> np.ndarray:
     maxgap = np.maximum(gap.max(axis=1), wrap_gap)
     span = np.minimum(c.circumference_m - maxgap + c.pitch_b_m, c.circumference_m)
     return np.where(anyocc, span, 0.0)
-
-
-#: 8-connectivity within a frame, none across frames.
-_STRUCT_2D_IN_3D = np.zeros((3, 3, 3), dtype=bool)
-_STRUCT_2D_IN_3D[1] = True
-
-
-def _largest_component_grid(w: np.ndarray, c: TaxelCoords) -> np.ndarray:
-    """(M,) summed weight of each frame's largest 8-connected component.
-
-    Components that touch both v edges of a wrapping grid are merged.
-    """
-    h, wd = c.grid_shape  # type: ignore[misc]
-    grid = w.reshape(-1, h, wd)
-    m = grid.shape[0]
-    lab, n_lab = ndimage.label(grid > 0, structure=_STRUCT_2D_IN_3D)
-    if n_lab == 0:
-        return np.zeros(m)
-    weight = np.bincount(lab.ravel(), weights=grid.ravel(), minlength=n_lab + 1)
-    # label() numbers features in C order, so a frame's labels exceed those
-    # of every earlier frame: the frame of label k is the first frame whose
-    # running maximum label reaches k.
-    run_max = np.maximum.accumulate(lab.reshape(m, -1).max(axis=1))
-    frame_of = np.searchsorted(run_max, np.arange(n_lab + 1), side="left")
-    comp = np.arange(n_lab + 1)
-    if c.wraps and wd > 2:
-        left, right = lab[:, :, 0], lab[:, :, wd - 1]
-        pairs = []
-        for dr in (-1, 0, 1):
-            lo, hi = max(0, -dr), min(h, h - dr)
-            l_, r_ = left[:, lo:hi], right[:, lo + dr : hi + dr]
-            ok = (l_ > 0) & (r_ > 0)
-            pairs.append(np.column_stack([l_[ok], r_[ok]]))
-        pairs = np.concatenate(pairs)
-        if pairs.size:
-            g = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(n_lab + 1, n_lab + 1))
-            _, comp = connected_components(g, directed=False)
-    comp_weight = np.bincount(comp[1:], weights=weight[1:])
-    out = np.zeros(m)
-    np.maximum.at(out, frame_of[1:], comp_weight[comp[1:]])
-    return out
-
-
-def _largest_component_graph(w: np.ndarray, c: TaxelCoords) -> np.ndarray:
-    """(M,) summed weight of each frame's largest component on the neighbour graph."""
-    m, n_tax = w.shape
-    active = w > 0
-    flat = np.flatnonzero(active.ravel())
-    out = np.zeros(m)
-    if flat.size == 0:
-        return out
-    node = np.full(m * n_tax, -1, dtype=np.int64)
-    node[flat] = np.arange(flat.size)
-    e = c.edges if c.edges is not None else np.zeros((0, 2), dtype=np.int64)
-    both = active[:, e[:, 0]] & active[:, e[:, 1]]
-    f, k = np.nonzero(both)
-    src = node[f * n_tax + e[k, 0]]
-    dst = node[f * n_tax + e[k, 1]]
-    g = coo_matrix((np.ones(src.size), (src, dst)), shape=(flat.size, flat.size))
-    _, comp = connected_components(g, directed=False)
-    comp_weight = np.bincount(comp, weights=w.ravel()[flat])
-    np.maximum.at(out, flat // n_tax, comp_weight[comp])
-    return out
 
 
 def _summaries(sig: np.ndarray, mask: np.ndarray | None = None) -> list[np.ndarray]:

@@ -33,9 +33,10 @@ What each kind stands for, with N taxels per frame:
   The dtype is kept.
 - ``crosstalk``: electrical or mechanical coupling between neighbours:
   ``y = clip(x + alpha * sum of neighbours' x, 0, 1)`` float32, ``alpha`` =
-  fraction of a reading that appears on each neighbour; grid neighbours are
-  the 4 adjacent cells (v wraps when the chart does), other layouts use the k
-  nearest taxels in 3-D (needs the frames' geometry). It spreads touches and
+  fraction of a reading that appears on each neighbour; neighbours are
+  :func:`sphri.adjacency.taxel_adjacency`'s: on grids the 4 cells sharing an
+  edge (v wraps when the chart does), elsewhere the taxels within 1.5 x the
+  median spacing (needs the frames' geometry). It spreads touches and
   adds nothing to an untouched frame (0 false taxels, at any N).
 - ``none``: unchanged.
 """
@@ -47,8 +48,8 @@ import logging
 
 import numpy as np
 from numba import njit, prange
-from scipy.spatial import cKDTree
 
+from sphri.adjacency import grid_adjacency, taxel_adjacency
 from sphri.encode.common import SkinFrames
 from sphri.noise.hashing import frame_key, uniform, uniform24
 from sphri.noise.schema import (
@@ -211,55 +212,37 @@ class DeadTaxelsNoise:
         return _like(frames, out)
 
 
-def neighbour_lists(frames: Frames, k: int) -> np.ndarray:
-    """(N, K) int64 neighbour taxels (-1 = none) for crosstalk."""
+def neighbour_lists(frames: Frames) -> np.ndarray:
+    """(N, K) int64 neighbour taxels (-1 = none) for crosstalk: :func:`sphri.adjacency.taxel_adjacency`
+    with taxels sharing an edge on grids."""
     geom = getattr(frames, "geometry", None)
-    n = frames.values.shape[1]
-    if frames.grid_shape is not None:
-        h, w = frames.grid_shape
-        wrap = bool(geom.wrap_v) if geom is not None else False
-        if geom is None:
-            log.info("noise=crosstalk: frames carry no geometry; grid v treated as not wrapping")
-        i, j = np.divmod(np.arange(n), w)
-        nb = np.full((n, 4), -1, dtype=np.int64)
-        nb[:, 0] = np.where(i > 0, (i - 1) * w + j, -1)
-        nb[:, 1] = np.where(i < h - 1, (i + 1) * w + j, -1)
-        if wrap and w > 1:
-            nb[:, 2] = i * w + (j - 1) % w
-            nb[:, 3] = i * w + (j + 1) % w
-            if w == 2:
-                nb[:, 3] = -1  # the left and right neighbour are the same taxel
-        else:
-            nb[:, 2] = np.where(j > 0, i * w + j - 1, -1)
-            nb[:, 3] = np.where(j < w - 1, i * w + j + 1, -1)
-        return nb
     if geom is None:
-        raise ValueError(
-            "noise=crosstalk on a non-grid layout needs taxel positions: pass the encoder's "
-            "SkinFrames (frames.geometry) rather than bare Frames"
-        )
-    kk = min(k, n - 1)
-    if kk <= 0:
-        return np.full((n, 1), -1, dtype=np.int64)
-    _, idx = cKDTree(geom.position_m).query(geom.position_m, k=kk + 1)
-    return np.asarray(idx[:, 1:], dtype=np.int64).reshape(n, kk)
+        if frames.grid_shape is None:
+            raise ValueError(
+                "noise=crosstalk on a non-grid layout needs taxel positions: pass the encoder's "
+                "SkinFrames (frames.geometry) rather than bare Frames"
+            )
+        log.info("noise=crosstalk: frames carry no geometry; grid v treated as not wrapping")
+        return grid_adjacency(frames.grid_shape, wrap_v=False, diagonal=False).table()
+    return taxel_adjacency(geom, diagonal=False).table()
 
 
 class CrosstalkNoise:
     """``noise=crosstalk``: neighbour coupling: ``alpha`` (a fraction) of each reading appears on
     each neighbouring taxel (float32); adds nothing to an untouched frame."""
 
-    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
+    # 2: applied to the assembled windows, padded slots included;
+    # 3: neighbours from sphri.adjacency (non-grid layouts: radius rule, no longer k nearest)
+    VERSION = "3"
 
-    def __init__(self, alpha: float = 0.1, k: int = 4) -> None:
-        CrosstalkNoiseSchema(alpha=alpha, k=k)
+    def __init__(self, alpha: float = 0.1) -> None:
+        CrosstalkNoiseSchema(alpha=alpha)
         self.alpha = alpha
-        self.k = k
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """``clip(x + alpha * sum over neighbours, 0, 1)`` as float32 (deterministic)."""
         v, _, _, _ = _check(frames, frame_index, trial_key, seed, "noise=crosstalk")
-        nb = neighbour_lists(frames, self.k)
+        nb = neighbour_lists(frames)
         out = np.empty(v.shape, dtype=np.float32)
         if v.size:
             _crosstalk(v, out, np.ascontiguousarray(nb), np.float32(self.alpha))

@@ -64,12 +64,9 @@ class CrosstalkNoiseSchema:
     _target_: str = "sphri.noise.components.CrosstalkNoise"
     alpha: float = 0.1
     """Coupling coefficient: fraction (0-1) of a taxel's reading added to each neighbour (result clipped to [0, 1])."""
-    k: int = 4
-    """Neighbours on non-grid layouts (k nearest in 3-D); grids use the 4 neighbours (v wraps)."""
 
     def __post_init__(self) -> None:
         require_range("noise.alpha", self.alpha, lo=0.0, hi=1.0)
-        require_range("noise.k", self.k, lo=1, hi=64)
 
 
 @dataclass

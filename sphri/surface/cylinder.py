@@ -176,7 +176,7 @@ def _params(c: np.ndarray, a: np.ndarray, r: float, t0: float, t1: float, seam) 
 class CylinderSurface:
     """``surface=cylinder``: the paper's fitted cylinder, (u, v) = (h, a)."""
 
-    VERSION = "1"
+    VERSION = "2"  # 2: principal axes are the second moment about the centroid (one formula, sphri.surface.meshutil)
 
     def __init__(
         self,

@@ -40,7 +40,7 @@ def fit_mesh(link: Link, n_samples: int = 20000, seed: int = 0) -> SurfaceMap:
 class MeshSurface:
     """``surface=mesh``: taxels on the 3-D surface, no (u, v)."""
 
-    VERSION = "1"
+    VERSION = "2"  # 2: principal axes are the second moment about the centroid (one formula, sphri.surface.meshutil)
 
     def __init__(self, n_samples: int = 20000, seed: int = 0) -> None:
         MeshSurfaceSchema(n_samples=n_samples, seed=seed)

@@ -66,13 +66,19 @@ def face_normals(link: Link) -> np.ndarray:
     return triangle_normals_areas(link.vertices, link.faces)[0]
 
 
+#: Triangles of at most this area (m^2) are numerically degenerate: never sampled.
+DEGENERATE_AREA_M2 = 5e-15
+
+
 def sample_surface(link: Link, n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Area-weighted uniform samples of the surface.
+    """Area-weighted uniform samples of the surface: the one surface sampler (surfaces, layouts, data).
 
     Returns ``points (n, 3)`` metres and ``face (n,)`` int64 triangle index.
-    Deterministic given ``seed``.
+    Deterministic given ``seed``. Degenerate triangles
+    (:data:`DEGENERATE_AREA_M2`) are never drawn.
     """
     areas = face_areas(link)
+    areas = np.where(areas > DEGENERATE_AREA_M2, areas, 0.0)
     total = areas.sum()
     if total <= 0:
         raise ValueError(f"link {link.name!r}: mesh has zero surface area")
@@ -85,10 +91,14 @@ def sample_surface(link: Link, n: int, seed: int) -> tuple[np.ndarray, np.ndarra
     return pts, face.astype(np.int64)
 
 
-def principal_axes(points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Centroid (3,), eigenvalues (3,) descending (m^2) and axes (3, 3) as rows."""
-    c = points.mean(axis=0)
-    cov = np.cov((points - c).T)
+def principal_axes(points: np.ndarray, centre: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centroid (3,), eigenvalues (3,) descending (m^2) and axes (3, 3) as rows (largest component positive).
+
+    ``centre``: the point the spread is measured about (default: the points' mean).
+    """
+    c = points.mean(axis=0) if centre is None else np.asarray(centre, dtype=np.float64)
+    d = points - c
+    cov = d.T @ d / len(d)
     w, vecs = np.linalg.eigh(cov)
     order = np.argsort(w)[::-1]
     axes = vecs[:, order].T.copy()

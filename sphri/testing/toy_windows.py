@@ -178,3 +178,20 @@ def blob_windows(
         trial_row=np.arange(n, dtype=np.int64),
         n_dropped=0,
     )
+
+
+def grid_geometry(h: int, w: int, pitch_m: float = 0.01, wrap: bool = False, grid: bool = True) -> TaxelGeometry:
+    """An h x w grid of square cells of ``pitch_m`` on a chart (planar positions)."""
+    u = (np.arange(h) + 0.5) / h
+    v = (np.arange(w) + 0.5) / w
+    uu, vv = np.meshgrid(u, v, indexing="ij")
+    uv = np.column_stack([uu.ravel(), vv.ravel()])
+    pos = np.column_stack([uv[:, 0] * h * pitch_m, uv[:, 1] * w * pitch_m, np.zeros(h * w)])
+    return TaxelGeometry(
+        grid_shape=(h, w) if grid else None,
+        uv=uv,
+        position_m=pos,
+        wrap_v=wrap,
+        metres_per_u=h * pitch_m,
+        metres_per_v=w * pitch_m,
+    )

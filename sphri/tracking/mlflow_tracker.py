@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any, Callable, TypeVar
 import numpy as np
 
 from sphri import __version__
+from sphri.stages import PARAM_GROUPS  # groups whose component and scalar settings become params
 
 if TYPE_CHECKING:
     from mlflow.tracking import MlflowClient
@@ -48,8 +49,7 @@ T = TypeVar("T")
 PARENT_FILE = "mlflow_parent_run.json"
 """Written into a sweep directory: the parent run id and tracking URI."""
 
-#: Groups whose component choice and scalar settings become MLflow params.
-PARAM_GROUPS = ("data", "robot", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv")
+#: Settings of a group that are not MLflow params (paths, large nested definitions).
 _SKIP_PARAM_KEYS = {"_target_", "root", "path", "definition_path", "density_path", "capsules", "links", "joints"}
 
 

@@ -12,6 +12,7 @@ from sphri.config import require, store
 class MlflowTrackingConfig:
     _target_: str = "sphri.tracking.mlflow_tracker.MlflowTracker"
     enabled: bool = True
+    """Log each job to MLflow (false: run without tracking)."""
     uri: Optional[str] = None
     """Tracking URI; None = SQLite at ``<output_dir>/mlflow.db`` (absolute path).
     Any MLflow URI works, e.g. ``http://127.0.0.1:5000`` for a local server."""

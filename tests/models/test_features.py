@@ -8,27 +8,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sphri.models.features import FEATURE_NAMES, extract_features, frame_signals, taxel_coords
-from sphri.testing.toy_windows import arm_geometry, blob_windows
+from sphri.testing.toy_windows import arm_geometry, blob_windows, grid_geometry
 from sphri.types import TaxelGeometry
 
 F = {name: i for i, name in enumerate(FEATURE_NAMES)}
-
-
-def grid_geometry(h: int, w: int, pitch_m: float = 0.01, wrap: bool = False, grid: bool = True) -> TaxelGeometry:
-    """An h x w grid of square cells of ``pitch_m`` on a chart (planar positions)."""
-    u = (np.arange(h) + 0.5) / h
-    v = (np.arange(w) + 0.5) / w
-    uu, vv = np.meshgrid(u, v, indexing="ij")
-    uv = np.column_stack([uu.ravel(), vv.ravel()])
-    pos = np.column_stack([uv[:, 0] * h * pitch_m, uv[:, 1] * w * pitch_m, np.zeros(h * w)])
-    return TaxelGeometry(
-        grid_shape=(h, w) if grid else None,
-        uv=uv,
-        position_m=pos,
-        wrap_v=wrap,
-        metres_per_u=h * pitch_m,
-        metres_per_v=w * pitch_m,
-    )
 
 
 def frames_from_cells(h: int, w: int, cells_per_frame: list[list[tuple[int, int]]]) -> np.ndarray:
@@ -162,7 +145,7 @@ def test_single_taxel_and_scatter_layouts():
     assert np.all(f[:, F["cop_a_std_m"]] == 0) and np.all(f[:, F["spread_b_max_m2"]] == 0)
     scatter = blob_windows(participants=1, repetitions=2, res=10, layout="scatter", seed=6)
     coords = taxel_coords(scatter.geometry)
-    assert coords.edges is not None and coords.edges.shape[0] > scatter.geometry.n_taxels
+    assert coords.adjacency.grid_shape is None and coords.adjacency.pairs.shape[0] > scatter.geometry.n_taxels
     fs = extract_features(scatter.x, scatter.geometry)
     assert np.all(np.isfinite(fs)) and np.all(fs[:, F["lcc_max_m2"]] > 0)
 

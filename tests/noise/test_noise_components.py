@@ -104,7 +104,7 @@ def test_dead_taxels_are_one_sensor():
     np.testing.assert_array_equal(np.flatnonzero(stuck.values[0]), dead)
 
 
-def test_crosstalk_wraps_on_grids_and_uses_knn_elsewhere():
+def test_crosstalk_wraps_on_grids_and_uses_the_radius_rule_elsewhere():
     f, fi, tk = grid_frames(m=1, rate=0.0)
     f.values[0, 2 * 5 + 0] = 1  # row 2, column 0
     out = CrosstalkNoise(alpha=0.25).apply(f, fi, tk, 0).as_grid()[0]
@@ -114,12 +114,12 @@ def test_crosstalk_wraps_on_grids_and_uses_knn_elsewhere():
     nowrap, _, _ = grid_frames(m=1, rate=0.0, wrap=False)
     nowrap.values[0, 10] = 1
     assert CrosstalkNoise(alpha=0.25).apply(nowrap, fi, tk, 0).as_grid()[0][2, 4] == 0.0
-    # non-grid: k nearest in 3-D
-    pos = np.array([[0, 0, 0], [0.01, 0, 0], [0.03, 0, 0], [0.1, 0, 0]], float)
+    # non-grid: taxels within 1.5 x the median nearest-neighbour spacing (here 0.01 m)
+    pos = np.array([[0, 0, 0], [0.01, 0, 0], [0.02, 0, 0], [0.1, 0, 0], [0.11, 0, 0]], float)
     geom = TaxelGeometry(None, None, pos, False, 0.0, 0.0)
-    v = np.array([[1, 0, 0, 0]], dtype=np.uint8)
-    ng = CrosstalkNoise(alpha=0.5, k=1).apply(SkinFrames(v, None, geom), np.array([0]), np.array([0]), 0).values
-    np.testing.assert_allclose(ng[0], [1.0, 0.5, 0.0, 0.0])
+    v = np.array([[1, 0, 0, 0, 0]], dtype=np.uint8)
+    ng = CrosstalkNoise(alpha=0.5).apply(SkinFrames(v, None, geom), np.array([0]), np.array([0]), 0).values
+    np.testing.assert_allclose(ng[0], [1.0, 0.5, 0.0, 0.0, 0.0])
     with pytest.raises(ValueError, match="needs taxel positions"):
         CrosstalkNoise().apply(Frames(v, None), np.array([0]), np.array([0]), 0)
 
