@@ -422,3 +422,33 @@ def field_docs(schema: type) -> dict[str, str]:
                     and isinstance(nxt.value.value, str)):
                 out[stmt.target.id] = " ".join(nxt.value.value.split())
     return out
+
+
+class Configured:
+    """Base of a component whose settings are exactly its schema's fields.
+
+    ``SCHEMA`` (a schema dataclass) holds each setting's default, docstring
+    and range check once; ``Component(**settings)`` builds the schema from
+    the settings (running its checks, raising :class:`ConfigError` naming
+    the key) and sets every field as an attribute of the same name. A
+    component that derives more state does so in :meth:`configured`.
+    """
+
+    SCHEMA: Any = None
+
+    def __init__(self, **settings: Any) -> None:
+        names = [f.name for f in dataclasses.fields(self.SCHEMA) if f.name != "_target_"]
+        unknown = sorted(set(settings) - set(names))
+        if unknown:
+            raise TypeError(f"{type(self).__name__}: unknown setting(s) {unknown}; its settings: {names}")
+        values = self.SCHEMA(**settings)
+        for name in names:
+            setattr(self, name, getattr(values, name))
+        self.configured()
+
+    def configured(self) -> None:
+        """Hook run after the settings are set (derived state); nothing by default."""
+
+    def __repr__(self) -> str:
+        names = [f.name for f in dataclasses.fields(self.SCHEMA) if f.name != "_target_"]
+        return f"{type(self).__name__}({', '.join(f'{n}={getattr(self, n)!r}' for n in names)})"

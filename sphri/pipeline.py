@@ -33,7 +33,7 @@ from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import ConfigError, build, result_config
 from sphri.inputs import input_fingerprints, memo_at
 from sphri.stages import CONTRACTS, PERSISTED, STAGE_BY_NAME, STAGE_GROUPS, stage_inputs
-from sphri.types import Contacts, CVResult, GestureDataset, Layout, RunMeta, SurfaceMap, TaxelGeometry, WindowPlan
+from sphri.types import CVResult, GestureDataset, RunMeta, TaxelGeometry
 
 log = logging.getLogger(__name__)
 

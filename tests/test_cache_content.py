@@ -87,7 +87,7 @@ def test_replaced_parquet_recomputes_data_and_log_names_it(tmp_path: Path, caplo
     caplog.set_level(logging.INFO, logger="sphri")
     changed, cfg2 = make(tmp_path, *data)
     assert sources(changed, "data") == {"data": "computed"}
-    assert f"participant_02" in caplog.text and "changed since the cached entry" in caplog.text
+    assert "participant_02" in caplog.text and "changed since the cached entry" in caplog.text
     assert changed.get("data").n_frames != n_before
     assert pipeline.config_hash(cfg2) != hash_before
 

@@ -8,7 +8,6 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from sphri import pipeline
 from sphri.cache import StageCache

@@ -8,13 +8,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 
-from sphri.cache import StageCache
 from sphri.config import compose
 from sphri.pipeline import RunResult, StageRecord
 from sphri.tracking.mlflow_tracker import MlflowTracker, default_uri, flatten_params, summary_text
-from sphri.types import GESTURES, CVResult, FoldResult, RunMeta
+from sphri.types import CVResult, FoldResult, RunMeta
 
 REPO = Path(__file__).resolve().parent.parent
 

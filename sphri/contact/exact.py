@@ -19,11 +19,12 @@ inside the solid). Culling and exactness: :mod:`sphri.contact.query`,
 
 from __future__ import annotations
 
-from sphri.contact.schema import INSIDE_CHOICES
+from sphri.config import Configured
+from sphri.contact.schema import ExactContactSchema
 from sphri.contact.stage import ContactStage
 
 
-class ExactContact(ContactStage):
+class ExactContact(Configured, ContactStage):
     """Exact contact of every capsule with the link of its trial's region.
 
     ``compute(dataset, robot) -> Contacts``. Config: ``ExactContactSchema`` (``python -m sphri.cli show contact=exact``).
@@ -31,14 +32,7 @@ class ExactContact(ContactStage):
 
     VERSION = "1"
 
-    def __init__(self, margin_m: float = 0.0, inside: str = "auto", chunk_frames: int = 20000) -> None:
-        if not margin_m >= 0:
-            raise ValueError(f"contact.margin_m={margin_m!r} is invalid: must be >= 0 (metres)")
-        if inside not in INSIDE_CHOICES:
-            raise ValueError(f"contact.inside={inside!r} is invalid: allowed values: {list(INSIDE_CHOICES)}")
-        if int(chunk_frames) < 1:
-            raise ValueError(f"contact.chunk_frames={chunk_frames!r} is invalid: must be >= 1")
-        self.margin_m = float(margin_m)
-        self.inside = inside
-        self.chunk_frames = int(chunk_frames)
-        self.spheres = 0
+    SCHEMA = ExactContactSchema
+
+    def configured(self) -> None:
+        self.spheres = 0  # exact capsules

@@ -12,10 +12,12 @@ from the surface is missed. Use it to compare error and speed with
 
 from __future__ import annotations
 
+from sphri.config import Configured
+from sphri.contact.schema import SphereContactSchema
 from sphri.contact.stage import ContactStage
 
 
-class SphereContact(ContactStage):
+class SphereContact(Configured, ContactStage):
     """k-sphere approximation of every capsule against the link of its trial's region.
 
     ``compute(dataset, robot) -> Contacts`` (``inside`` is always False).
@@ -24,15 +26,8 @@ class SphereContact(ContactStage):
 
     VERSION = "1"
 
-    def __init__(self, k: int = 5, margin_m: float = 0.0, chunk_frames: int = 20000) -> None:
-        if int(k) < 1:
-            raise ValueError(f"contact.k={k!r} is invalid: must be >= 1 spheres per capsule")
-        if not margin_m >= 0:
-            raise ValueError(f"contact.margin_m={margin_m!r} is invalid: must be >= 0 (metres)")
-        if int(chunk_frames) < 1:
-            raise ValueError(f"contact.chunk_frames={chunk_frames!r} is invalid: must be >= 1")
-        self.k = int(k)
-        self.spheres = int(k)
-        self.margin_m = float(margin_m)
-        self.inside = "none"
-        self.chunk_frames = int(chunk_frames)
+    SCHEMA = SphereContactSchema
+
+    def configured(self) -> None:
+        self.spheres = int(self.k)
+        self.inside = "none"  # spheres have no inside test

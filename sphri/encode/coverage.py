@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from sphri.encode.common import check_frame_index, make_frames, select_rows, tangent_basis
+from sphri.config import Configured
 from sphri.encode.ellipse import check_contact_rows, encode_grid
 from sphri.encode.schema import CoverageEncoderSchema
 from sphri.encode.spatial import VoxelHash, coverage_kernel, sunflower_disc, voxel_size
@@ -62,16 +63,12 @@ def encode_3d_coverage(
     return make_frames(out, layout, surface)
 
 
-class CoverageEncoder:
+class CoverageEncoder(Configured):
     """``encoder=coverage``: covered fraction of each taxel (float32), any layout."""
 
     VERSION = "1"
 
-    def __init__(self, res: int = 18, subsamples: int = 8, samples_per_taxel: int = 32) -> None:
-        CoverageEncoderSchema(res=res, subsamples=subsamples, samples_per_taxel=samples_per_taxel)
-        self.res = res
-        self.subsamples = subsamples
-        self.samples_per_taxel = samples_per_taxel
+    SCHEMA = CoverageEncoderSchema
 
     def encode(
         self, contacts: Contacts, link: Link, surface: SurfaceMap, layout: Layout, frame_index: np.ndarray

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from sphri.encode.common import check_frame_index, make_frames, select_rows
+from sphri.config import Configured
 from sphri.encode.raster import patch_ellipses, rasterize
 from sphri.encode.schema import EllipseEncoderSchema
 from sphri.layout.common import row_offsets
@@ -70,17 +71,12 @@ def encode_grid(
     return make_frames(values, layout, surface)
 
 
-class EllipseEncoder:
+class EllipseEncoder(Configured):
     """``encoder=ellipse``: contact patches as chart ellipses on the taxel grid."""
 
     VERSION = "1"
 
-    def __init__(self, res: int = 18, binary: bool = True, threshold: float = 0.5, subsamples: int = 8) -> None:
-        EllipseEncoderSchema(res=res, binary=binary, threshold=threshold, subsamples=subsamples)
-        self.res = res
-        self.binary = binary
-        self.threshold = threshold
-        self.subsamples = subsamples
+    SCHEMA = EllipseEncoderSchema
 
     def encode(
         self, contacts: Contacts, link: Link, surface: SurfaceMap, layout: Layout, frame_index: np.ndarray

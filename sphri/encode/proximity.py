@@ -21,27 +21,19 @@ from __future__ import annotations
 import numpy as np
 
 from sphri.encode.common import capsule_radius, check_frame_index, make_frames, select_rows
+from sphri.config import Configured
 from sphri.encode.schema import ProximityEncoderSchema
 from sphri.encode.spatial import VoxelHash, proximity_kernel, voxel_size
 from sphri.layout.common import nn_spacing
 from sphri.types import Contacts, Frames, Layout, Link, SurfaceMap
 
 
-class ProximityEncoder:
+class ProximityEncoder(Configured):
     """``encoder=proximity``: taxels within ``sensing_distance_m`` of a capsule surface."""
 
     VERSION = "1"
 
-    def __init__(
-        self, res: int = 18, sensing_distance_m: float = 0.005, intensity: str = "binary", depth_scale_m: float = 0.01
-    ) -> None:
-        ProximityEncoderSchema(
-            res=res, sensing_distance_m=sensing_distance_m, intensity=intensity, depth_scale_m=depth_scale_m
-        )
-        self.res = res
-        self.sensing_distance_m = sensing_distance_m
-        self.intensity = intensity
-        self.depth_scale_m = depth_scale_m
+    SCHEMA = ProximityEncoderSchema
 
     def encode(
         self, contacts: Contacts, link: Link, surface: SurfaceMap, layout: Layout, frame_index: np.ndarray

@@ -30,6 +30,7 @@ import dataclasses
 
 import numpy as np
 
+from sphri.config import Configured
 from sphri.filter.schema import DebounceFilterSchema, MedianFilterSchema, NoFilterSchema
 from sphri.types import WindowedFrames
 
@@ -57,30 +58,23 @@ def causal_reduce(x: np.ndarray, k: int, how: str) -> np.ndarray:
     raise ValueError(f"causal_reduce: how={how!r} must be 'min' or 'median'")
 
 
-class NoFilter:
+class NoFilter(Configured):
     """``filter=none``: the windows as they are (the same object)."""
 
     VERSION = "1"
-
-    def __init__(self) -> None:
-        NoFilterSchema()
+    SCHEMA = NoFilterSchema
 
     def apply(self, windows: WindowedFrames) -> WindowedFrames:
         _check(windows, "filter=none")
         return windows
 
 
-class _CausalFilter:
+class _CausalFilter(Configured):
     """A causal per-taxel reduction (``HOW``) over each taxel's last ``frames`` readings."""
 
     VERSION = "1"
     HOW = ""
-    SCHEMA: type = object
     NAME = ""
-
-    def __init__(self, frames: int) -> None:
-        self.SCHEMA(frames=frames)
-        self.frames = frames
 
     def apply(self, windows: WindowedFrames) -> WindowedFrames:
         x = _check(windows, f"filter={self.NAME}")
@@ -92,14 +86,8 @@ class DebounceFilter(_CausalFilter):
 
     HOW, SCHEMA, NAME = "min", DebounceFilterSchema, "debounce"
 
-    def __init__(self, frames: int = 2) -> None:
-        super().__init__(frames)
-
 
 class MedianFilter(_CausalFilter):
     """``filter=median``: causal running median of each taxel's last ``frames`` (odd) readings."""
 
     HOW, SCHEMA, NAME = "median", MedianFilterSchema, "median"
-
-    def __init__(self, frames: int = 3) -> None:
-        super().__init__(frames)

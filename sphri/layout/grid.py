@@ -16,6 +16,7 @@ import logging
 
 import numpy as np
 
+from sphri.config import Configured
 from sphri.layout.common import (
     grid_cell_areas,
     grid_dims,
@@ -57,30 +58,24 @@ def build_grid(link: Link, surface: SurfaceMap, res: int, aspect: float = 1.0, h
     )
 
 
-class GridLayout:
+class GridLayout(Configured):
     """``layout=grid``: H x W taxels on the chart, row-major (u, v)."""
 
     VERSION = "1"
 
-    def __init__(self, aspect: float = 1.0, seed: int = 0) -> None:
-        GridLayoutSchema(aspect=aspect, seed=seed)
-        self.aspect = aspect
-        self.seed = seed
+    SCHEMA = GridLayoutSchema
 
     def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
         """Taxels of a ``res``-row grid on ``link`` through ``surface``'s chart."""
         return build_grid(link, surface, res, self.aspect, hex_rows=False, seed=self.seed)
 
 
-class HexLayout:
+class HexLayout(Configured):
     """``layout=hex``: a triangular lattice (odd rows shifted half a taxel around), the grid's taxel count."""
 
     VERSION = "2"
 
-    def __init__(self, aspect: float = 1.0, seed: int = 0) -> None:
-        HexLayoutSchema(aspect=aspect, seed=seed)
-        self.aspect = aspect
-        self.seed = seed
+    SCHEMA = HexLayoutSchema
 
     def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
         """An equilateral lattice on ``link`` with the ``res`` grid's area per taxel."""

@@ -30,6 +30,7 @@ from numba import njit
 from scipy.spatial import cKDTree
 
 from sphri.layout.common import grid_equivalent_count, nn_spacing, voronoi_areas
+from sphri.config import Configured
 from sphri.layout.schema import DensityLayoutSchema, RandomLayoutSchema, check_res
 from sphri.surface.charts import to_uv
 from sphri.surface.meshutil import face_areas, face_normals, sample_surface
@@ -216,23 +217,19 @@ def build_density(
     return _irregular_layout(link, surface, "density", cand[idx], face_normals(link)[face[idx]], seed)
 
 
-class RandomLayout:
+class RandomLayout(Configured):
     """``layout=random``: Poisson-disk taxels on the 3-D surface (seeded)."""
 
     VERSION = "1"
 
-    def __init__(self, aspect: float = 1.0, seed: int = 0, candidates: int = 5) -> None:
-        RandomLayoutSchema(aspect=aspect, seed=seed, candidates=candidates)
-        self.aspect = aspect
-        self.seed = seed
-        self.candidates = candidates
+    SCHEMA = RandomLayoutSchema
 
     def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
         """As many taxels as the grid at ``res``, Poisson-disk on the surface."""
         return build_random(link, surface, res, self.aspect, self.seed, self.candidates)
 
 
-class DensityLayout:
+class DensityLayout(Configured):
     """``layout=density``: more taxels where contact is frequent.
 
     The density comes from ``density_path`` (an .npz from the coverage
@@ -243,25 +240,7 @@ class DensityLayout:
 
     VERSION = "3"
 
-    def __init__(
-        self,
-        density_path: str = "",
-        bandwidth_mm: float = 10.0,
-        aspect: float = 1.0,
-        seed: int = 0,
-        candidates: int = 5,
-        min_density_fraction: float = 0.05,
-    ) -> None:
-        DensityLayoutSchema(
-            density_path=density_path, bandwidth_mm=bandwidth_mm, aspect=aspect, seed=seed, candidates=candidates,
-            min_density_fraction=min_density_fraction,
-        )
-        self.density_path = density_path
-        self.bandwidth_mm = bandwidth_mm
-        self.aspect = aspect
-        self.seed = seed
-        self.candidates = candidates
-        self.min_density_fraction = min_density_fraction
+    SCHEMA = DensityLayoutSchema
 
     @property
     def uses_contacts(self) -> bool:

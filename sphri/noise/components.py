@@ -50,6 +50,7 @@ import numpy as np
 from numba import njit, prange
 
 from sphri.adjacency import grid_adjacency, taxel_adjacency
+from sphri.config import Configured
 from sphri.encode.common import SkinFrames
 from sphri.noise.hashing import frame_key, uniform, uniform24
 from sphri.noise.schema import (
@@ -141,18 +142,14 @@ def _crosstalk(values, out, nb, alpha):  # pragma: no cover - numba
             out[i, t] = min(max(acc, np.float32(0.0)), np.float32(1.0))
 
 
-class SaltPepperNoise:
+class SaltPepperNoise(Configured):
     """``noise=salt_pepper``: independent read errors, each reading corrupted with probability ``p``
     per taxel and frame (see the module: ``p * salt_vs_pepper * N`` false taxels per untouched frame
     in replace mode, ``p * N`` in flip mode)."""
 
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
-    def __init__(self, p: float = 0.02, mode: str = "replace", salt_vs_pepper: float = 0.5) -> None:
-        SaltPepperNoiseSchema(p=p, mode=mode, salt_vs_pepper=salt_vs_pepper)
-        self.p = p
-        self.mode = mode
-        self.salt_vs_pepper = salt_vs_pepper
+    SCHEMA = SaltPepperNoiseSchema
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Noisy copy of ``frames`` (M, N), same dtype."""
@@ -163,15 +160,13 @@ class SaltPepperNoise:
         return _like(frames, out)
 
 
-class GaussianNoise:
+class GaussianNoise(Configured):
     """``noise=gaussian``: analogue read noise, additive N(0, sigma^2) with ``sigma`` in reading units
     (1 = full scale), clipped to [0, 1], float32."""
 
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
-    def __init__(self, sigma: float = 0.05) -> None:
-        GaussianNoiseSchema(sigma=sigma)
-        self.sigma = sigma
+    SCHEMA = GaussianNoiseSchema
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Noisy float32 copy of ``frames``."""
@@ -189,16 +184,13 @@ def dead_taxel_index(n_taxels: int, fraction: float, seed: int) -> np.ndarray:
     return np.sort(rng.permutation(n_taxels)[:k])
 
 
-class DeadTaxelsNoise:
+class DeadTaxelsNoise(Configured):
     """``noise=dead_taxels``: broken taxels: a fixed ``fraction`` of the N taxels (the same in every
     trial) always reads ``value`` (0 = silent, 1 = stuck on)."""
 
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
-    def __init__(self, fraction: float = 0.05, value: float = 0.0) -> None:
-        DeadTaxelsNoiseSchema(fraction=fraction, value=value)
-        self.fraction = fraction
-        self.value = value
+    SCHEMA = DeadTaxelsNoiseSchema
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Copy of ``frames`` with the dead taxels' columns set to ``value``."""
@@ -227,7 +219,7 @@ def neighbour_lists(frames: Frames) -> np.ndarray:
     return taxel_adjacency(geom, diagonal=False).table()
 
 
-class CrosstalkNoise:
+class CrosstalkNoise(Configured):
     """``noise=crosstalk``: neighbour coupling: ``alpha`` (a fraction) of each reading appears on
     each neighbouring taxel (float32); adds nothing to an untouched frame."""
 
@@ -235,9 +227,7 @@ class CrosstalkNoise:
     # 3: neighbours from sphri.adjacency (non-grid layouts: radius rule, no longer k nearest)
     VERSION = "3"
 
-    def __init__(self, alpha: float = 0.1) -> None:
-        CrosstalkNoiseSchema(alpha=alpha)
-        self.alpha = alpha
+    SCHEMA = CrosstalkNoiseSchema
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """``clip(x + alpha * sum over neighbours, 0, 1)`` as float32 (deterministic)."""
@@ -249,13 +239,12 @@ class CrosstalkNoise:
         return _like(frames, out)
 
 
-class NoNoise:
+class NoNoise(Configured):
     """``noise=none``: readings unchanged (the same array, never mutated downstream)."""
 
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
-    def __init__(self) -> None:
-        NoNoiseSchema()
+    SCHEMA = NoNoiseSchema
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """``frames`` as they are (a new Frames object sharing the values)."""

@@ -61,7 +61,7 @@ def train_gesture_model(overrides: list[str], regions: list[str], cache) -> Gest
     from hydra.utils import instantiate
 
     from sphri.config import compose
-    from sphri.pipeline import build, make_pipeline
+    from sphri.pipeline import make_pipeline
 
     feats, labels, accs, first = [], [], {}, None
     for k, region in enumerate(regions):

@@ -104,7 +104,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     from sphri.sessions.gestures import gesture_histogram, label_episodes, train_gesture_model
     from sphri.sessions.placement import frame_part_matrix, placement_table, rank_parts, sentence
     from sphri.sessions.schema import study_settings
-    from sphri.types import GESTURES, GestureDataset
+    from sphri.types import GestureDataset
 
     overrides = list(overrides)
     cfg = compose(overrides)

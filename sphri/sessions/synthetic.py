@@ -30,7 +30,6 @@ Latin square; starting positions are fixed per participant. Participant
 from __future__ import annotations
 
 import logging
-from functools import lru_cache
 from pathlib import Path
 from typing import Any, Optional, Sequence
 

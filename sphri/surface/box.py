@@ -17,6 +17,7 @@ import numpy as np
 import trimesh
 
 from sphri.surface.charts import primitive_distance
+from sphri.config import Configured
 from sphri.surface.meshutil import check_link, sample_surface
 from sphri.surface.schema import BoxSurfaceSchema
 from sphri.types import Link, SurfaceMap
@@ -73,16 +74,12 @@ def fit_box(link: Link, n_samples: int = 20000, seed: int = 0, warn_residual_mm:
     )
 
 
-class BoxSurface:
+class BoxSurface(Configured):
     """``surface=box``: oriented bounding box net (band around the long axis + caps)."""
 
     VERSION = "1"
 
-    def __init__(self, n_samples: int = 20000, seed: int = 0, warn_residual_mm: float = 25.0) -> None:
-        BoxSurfaceSchema(n_samples=n_samples, seed=seed, warn_residual_mm=warn_residual_mm)
-        self.n_samples = n_samples
-        self.seed = seed
-        self.warn_residual_mm = warn_residual_mm
+    SCHEMA = BoxSurfaceSchema
 
     def fit(self, link: Link) -> SurfaceMap:
         """Fit the box to ``link`` -> its chart."""

@@ -18,6 +18,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from sphri.surface.charts import primitive_distance
+from sphri.config import Configured
 from sphri.surface.meshutil import check_link, face_normals, principal_axes, sample_surface
 from sphri.surface.schema import CylinderSurfaceSchema
 from sphri.types import Link, SurfaceMap
@@ -173,31 +174,15 @@ def _params(c: np.ndarray, a: np.ndarray, r: float, t0: float, t1: float, seam) 
     }
 
 
-class CylinderSurface:
+class CylinderSurface(Configured):
     """``surface=cylinder``: the paper's fitted cylinder, (u, v) = (h, a)."""
 
     VERSION = "2"  # 2: principal axes are the second moment about the centroid (one formula, sphri.surface.meshutil)
 
-    def __init__(
-        self,
-        axis: str = "auto",
-        refine_axis: bool = True,
-        seam: list[float] | None = None,
-        n_samples: int = 20000,
-        seed: int = 0,
-        warn_residual_mm: float = 6.0,
-    ) -> None:
-        seam = [1.0, 0.0, 0.0] if seam is None else [float(s) for s in seam]
-        CylinderSurfaceSchema(
-            axis=axis, refine_axis=refine_axis, seam=seam, n_samples=n_samples, seed=seed,
-            warn_residual_mm=warn_residual_mm,
-        )
-        self.axis = axis
-        self.refine_axis = refine_axis
-        self.seam = seam
-        self.n_samples = n_samples
-        self.seed = seed
-        self.warn_residual_mm = warn_residual_mm
+    SCHEMA = CylinderSurfaceSchema
+
+    def configured(self) -> None:
+        self.seam = [float(s) for s in self.seam]
 
     def fit(self, link: Link) -> SurfaceMap:
         """Fit the cylinder to ``link`` (metres, link frame) -> its chart."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from sphri.surface.meshutil import check_link, face_areas, principal_axes, sample_surface
+from sphri.config import Configured
 from sphri.surface.schema import MeshSurfaceSchema
 from sphri.types import Link, SurfaceMap
 
@@ -37,15 +38,12 @@ def fit_mesh(link: Link, n_samples: int = 20000, seed: int = 0) -> SurfaceMap:
     )
 
 
-class MeshSurface:
+class MeshSurface(Configured):
     """``surface=mesh``: taxels on the 3-D surface, no (u, v)."""
 
     VERSION = "2"  # 2: principal axes are the second moment about the centroid (one formula, sphri.surface.meshutil)
 
-    def __init__(self, n_samples: int = 20000, seed: int = 0) -> None:
-        MeshSurfaceSchema(n_samples=n_samples, seed=seed)
-        self.n_samples = n_samples
-        self.seed = seed
+    SCHEMA = MeshSurfaceSchema
 
     def fit(self, link: Link) -> SurfaceMap:
         """Record the link's long axis and area (no chart)."""

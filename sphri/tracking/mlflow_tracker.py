@@ -288,7 +288,7 @@ class MlflowTracker:
     def log_job(self, cfg: "DictConfig", result: "RunResult", job_dir: Path, parent: dict | None = None,
                 run_name: str | None = None, choices: dict[str, str] | None = None) -> str:
         """Log a finished job; returns the MLflow run id."""
-        from mlflow.entities import Metric, Param, RunTag
+        from mlflow.entities import Metric, Param
 
         from sphri.evaluate.metrics import summarize
 

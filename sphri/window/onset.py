@@ -18,6 +18,7 @@ import logging
 import numpy as np
 
 from sphri.types import Contacts, Frames, GestureDataset, Layout, SurfaceMap, TaxelGeometry, WindowedFrames, WindowPlan
+from sphri.config import Configured
 from sphri.window.schema import OnsetWindowSchema
 
 log = logging.getLogger(__name__)
@@ -48,15 +49,12 @@ def trial_onsets(contacts: Contacts, dataset: GestureDataset) -> np.ndarray:
     return onset
 
 
-class OnsetWindow:
+class OnsetWindow(Configured):
     """``window=onset``: align to contact onset, clip or pad to ``frames``."""
 
     VERSION = "1"
 
-    def __init__(self, frames: int = 50, no_contact: str = "drop") -> None:
-        OnsetWindowSchema(frames=frames, no_contact=no_contact)
-        self.frames = frames
-        self.no_contact = no_contact
+    SCHEMA = OnsetWindowSchema
 
     def plan(self, contacts: Contacts, dataset: GestureDataset) -> WindowPlan:
         """Which global frames fill each trial's window (see module docstring)."""

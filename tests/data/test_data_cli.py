@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 
 import numpy as np
-import pytest
 
 from sphri.data import stats, synthesize
 from sphri.data.format import GENERATOR_KEY, read_manifest
