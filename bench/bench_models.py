@@ -15,8 +15,17 @@ cached under outputs/cache); ``--data toy`` uses
 :func:`sphri.testing.toy_windows.blob_windows` (moving blobs, same size). If the
 pipeline fails the toy data is used and the JSON says so.
 
+CNN-GRU training budgets (``--budgets``, default all of :data:`BUDGETS`):
+the paper's settings (``paper``: 20 epochs at most, early stopping with
+patience 4) and shorter one-cycle schedules, each run on the same folds in
+this one process, so their CPU seconds and accuracies compare side by side.
+``models_pareto.png`` (``_quick``) plots CPU seconds per fold against LOSO
+accuracy for each budget, with the Random Forest's single point, and marks
+the budgets no other budget beats on both.
+
     python bench/bench_models.py            # full size
     python bench/bench_models.py --quick    # 6 participants, CNN on 3 folds
+    python bench/bench_models.py --budgets paper onecycle8 --cnn-folds 3
 """
 
 from __future__ import annotations
@@ -33,6 +42,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from _common import OUT as OUT_DIR  # noqa: E402
 from _common import machine, write_json  # noqa: E402
 
 from sphri.evaluate.cv import LeaveOneSubjectOut  # noqa: E402
@@ -43,6 +53,45 @@ from sphri.testing.toy_windows import blob_windows  # noqa: E402
 from sphri.types import WindowedFrames  # noqa: E402
 
 log = logging.getLogger("bench_models")
+
+
+#: CNN-GRU training budgets compared (settings over the model's defaults, the paper's).
+BUDGETS: dict[str, dict] = {
+    "paper": {},
+    "onecycle8": {"schedule": "onecycle", "max_epochs": 8, "patience": 99},
+    "onecycle6_lr2e-3": {"schedule": "onecycle", "max_epochs": 6, "patience": 99, "lr": 2e-3},
+    "onecycle4_lr3e-3": {"schedule": "onecycle", "max_epochs": 4, "patience": 99, "lr": 3e-3},
+}
+
+
+def pareto_front(points: dict[str, tuple[float, float]]) -> list[str]:
+    """Names whose (cost, accuracy) no other point beats on both (lower cost, higher accuracy)."""
+    return [n for n, (c, a) in points.items()
+            if not any(c2 <= c and a2 >= a and (c2, a2) != (c, a) for c2, a2 in points.values())]
+
+
+def plot_pareto(out: dict, path_stem: str) -> list:
+    """CPU seconds per fold against accuracy: every CNN-GRU budget and the Random Forest."""
+    from sphri.figures import new_figure, save
+
+    points = {f"cnn_gru {n}": (b["fold_cpu_s"] / b["folds"], b["accuracy_mean"]) for n, b in out["cnn_gru_budgets"].items()}
+    rf = (out["rf"]["fold_cpu_s"] / out["rf"]["folds"], out["rf"]["accuracy_mean"])
+    front = set(pareto_front({**points, "rf": rf}))
+    fig, ax = new_figure("one", height=3.2)
+    for i, (name, (c, a)) in enumerate({**points, "Random Forest": rf}.items()):
+        on_front = name in front or (name == "Random Forest" and "rf" in front)
+        ax.scatter([c], [a], marker="s" if name == "Random Forest" else "o", s=22, zorder=3,
+                   color=f"C{i}", facecolors=f"C{i}" if on_front else "none",
+                   label=name.removeprefix("cnn_gru ") + (" (Pareto)" if on_front else ""))
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=2, fontsize=7, frameon=False)
+    ax.set_xscale("log")
+    from matplotlib.ticker import NullFormatter
+
+    ax.xaxis.set_minor_formatter(NullFormatter())
+    ax.set_xlabel("CPU seconds per fold")
+    ax.set_ylabel("LOSO accuracy (mean of folds)")
+    ax.grid(alpha=0.3)
+    return save(fig, OUT_DIR / path_stem, formats=("png",))
 
 
 def pipeline_windows(res: int, participants: int, repetitions: int, seed: int) -> WindowedFrames:
@@ -107,6 +156,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1, help="threads per fold process (default 1)")
     ap.add_argument("--skip-cnn", action="store_true")
     ap.add_argument("--cnn-folds", type=int, default=None, help="CNN on the first K folds only")
+    ap.add_argument("--budgets", nargs="+", choices=list(BUDGETS), default=list(BUDGETS),
+                    help="CNN-GRU training budgets to compare (default: all)")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
 
@@ -134,10 +185,25 @@ def main(argv: list[str] | None = None) -> int:
     log.info("rf: %s", {k: v for k, v in out["rf"].items() if k != "per_fold_accuracy"})
     write_json(name, out)
     if not args.skip_cnn:
-        cnn = functools.partial(CnnGru, geometry=win.geometry)
-        out["cnn_gru"] = timed_loso(cnn, win, args.workers, args.threads, cnn_folds)
-        out["cnn_gru"]["params"] = {k: v for k, v in CnnGru().get_params().items() if k != "geometry"}
-        log.info("cnn_gru: %s", {k: v for k, v in out["cnn_gru"].items() if k != "per_fold_accuracy"})
+        out["cnn_gru_budgets"] = {}
+        for budget in args.budgets:
+            settings = BUDGETS[budget]
+            cnn = functools.partial(CnnGru, geometry=win.geometry, **settings)
+            row = timed_loso(cnn, win, args.workers, args.threads, cnn_folds)
+            row["settings"] = settings
+            out["cnn_gru_budgets"][budget] = row
+            log.info("cnn_gru %s: %s", budget, {k: v for k, v in row.items() if k != "per_fold_accuracy"})
+            write_json(name, out)
+        if "paper" in out["cnn_gru_budgets"]:
+            out["cnn_gru"] = {**out["cnn_gru_budgets"]["paper"],
+                              "params": {k: v for k, v in CnnGru().get_params().items() if k != "geometry"}}
+            base = out["cnn_gru"]["fold_cpu_s"]
+            out["cnn_gru_cpu_ratio_vs_paper"] = {n: round(b["fold_cpu_s"] / base, 3)
+                                                 for n, b in out["cnn_gru_budgets"].items()}
+        out["pareto_front"] = pareto_front(
+            {**{f"cnn_gru {n}": (b["fold_cpu_s"] / b["folds"], b["accuracy_mean"]) for n, b in out["cnn_gru_budgets"].items()},
+             "rf": (out["rf"]["fold_cpu_s"] / out["rf"]["folds"], out["rf"]["accuracy_mean"])})
+        plot_pareto(out, f"{name}_pareto")
     out["machine"]["loadavg_1min_end"] = os.getloadavg()[0]
     path = write_json(name, out)
     print(f"wrote {path}")

@@ -207,8 +207,12 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
 
     p.add("hand", result_config(cfg.hand), lambda: comp["hand"].build(), files=files("hand"))
     p.add("robot", result_config(cfg.robot), lambda: comp["robot"].build(), files=files("robot"))
-    p.add("data", result_config(cfg.data),
-          lambda: comp["data"].load(hand=p.get("hand"), robot=p.get("robot")), files=files("data"))
+    def data():
+        # a component that declares USES_ROBOT = False (a recorded dataset) gets no robot
+        robot = p.get("robot") if "robot" in p.nodes["data"].reads else None
+        return comp["data"].load(hand=p.get("hand"), robot=robot)
+
+    p.add("data", result_config(cfg.data), data, files=files("data"))
     p.add("contact", result_config(cfg.contact),
           lambda: comp["contact"].compute(p.get("data"), p.get("robot")), files=files("contact"))
     p.add("surface", result_config(cfg.surface), lambda: comp["surface"].fit(link()), extra={"region": region},

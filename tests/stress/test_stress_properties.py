@@ -138,7 +138,7 @@ def test_every_noise_kind_keeps_readings_in_range(values, grid, seed):
 
         frames = SkinFrames(values=values, grid_shape=None, geometry=geometry)
     for noise in (SaltPepperNoise(p=0.3), SaltPepperNoise(mode="flip"), GaussianNoise(sigma=1.0),
-                  DeadTaxelsNoise(fraction=1.0, value=1.0), CrosstalkNoise(alpha=1.0, k=8), NoNoise()):
+                  DeadTaxelsNoise(fraction=1.0, value=1.0), CrosstalkNoise(alpha=1.0), NoNoise()):
         out = noise.apply(frames, fi, tk, seed).values
         assert out.shape == values.shape
         assert out.dtype in (values.dtype, np.float32)
