@@ -204,13 +204,33 @@ def _overlap_area(a, b) -> float:
     return max(w, 0.0) * max(h, 0.0)
 
 
-def save(fig, path: Path | str, formats: Sequence[str] = FORMATS, close: bool = True) -> list[Path]:
-    """Write ``fig`` as ``path`` and its siblings in the other ``formats`` (same stem).
+#: The formats :func:`save` writes when not told (see :func:`only_formats`).
+_formats: list[tuple[str, ...]] = [FORMATS]
+
+
+@contextmanager
+def only_formats(formats: Sequence[str]) -> Iterator[None]:
+    """Within the block, :func:`save` writes ``formats`` (e.g. ``("png",)`` for a quick look) unless a
+    call names its own."""
+    bad = [f for f in formats if f not in FORMATS]
+    if bad or not formats:
+        raise ValueError(f"figure formats {list(formats)} are invalid: choose from {list(FORMATS)}")
+    _formats.append(tuple(formats))
+    try:
+        yield
+    finally:
+        _formats.pop()
+
+
+def save(fig, path: Path | str, formats: Sequence[str] | None = None, close: bool = True) -> list[Path]:
+    """Write ``fig`` as ``path`` and its siblings in the other ``formats`` (same stem; default
+    :data:`FORMATS`, or those of the enclosing :func:`only_formats`).
 
     Layout problems (:func:`layout_problems`) are logged as warnings naming
     the file; the figure tests assert that sphri's own figures have none.
     """
     path = Path(path)
+    formats = _formats[-1] if formats is None else tuple(formats)
     for problem in layout_problems(fig):
         log.warning("%s: %s", path.name, problem)
     written = []

@@ -20,6 +20,20 @@ def test_clean_figure_has_no_problems_and_saves_three_formats(tmp_path):
     assert "SYNTHETIC DATA" in (tmp_path / "curve.svg").read_text()  # text stays text in SVG
 
 
+def test_only_formats_restricts_what_save_writes(tmp_path):
+    with figures.only_formats(["png"]):
+        fig, ax = figures.new_figure("one", 2.0)
+        ax.plot([0, 1], [0, 1])
+        assert [p.suffix for p in figures.save(fig, tmp_path / "a.png")] == [".png"]
+        fig, ax = figures.new_figure("one", 2.0)
+        assert sorted(p.suffix for p in figures.save(fig, tmp_path / "b.png", formats=("png", "pdf"))) == [".pdf", ".png"]
+    fig, ax = figures.new_figure("one", 2.0)
+    assert len(figures.save(fig, tmp_path / "c.png")) == 3  # back to PNG + PDF + SVG after the block
+    with pytest.raises(ValueError, match="figure formats"):
+        with figures.only_formats(["jpeg"]):
+            pass
+
+
 @pytest.mark.filterwarnings("ignore:constrained_layout not applied")
 def test_text_past_the_canvas_is_found():
     fig, ax = figures.new_figure("one", 2.0)

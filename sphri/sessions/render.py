@@ -35,8 +35,9 @@ def _finish(fig, title: str, path: str | Path) -> Path:
     return Path(path)
 
 
-def body_view(body: BodySurface) -> LinkView:
-    return LinkView(body.mesh, body.samples, target_faces=20000)
+def body_view(body: BodySurface, faces: int = 20000) -> LinkView:
+    """The whole robot's mesh for the 3-D views, simplified to about ``faces`` faces."""
+    return LinkView(body.mesh, body.samples, target_faces=faces)
 
 
 def plot_views(view: LinkView, densities: dict[str, np.ndarray], path: str | Path, title: str) -> Path:

@@ -99,6 +99,11 @@ class ScenarioStudySchema:
     """... or, when > 0 with budget_taxels, a taxel count at this pitch."""
     budget_taxels: int = 0
     render: bool = True
+    """Draw the figures (false: tables, maps and the report's numbers only)."""
+    figure_formats: list[str] = field(default_factory=lambda: ["png", "pdf", "svg"])
+    """Files written per figure: PNG, and PDF / SVG for print (meshes rasterized inside)."""
+    view_faces: int = 20000
+    """Faces of the robot mesh drawn in the 3-D views (fewer: faster figures, coarser shading)."""
 
     def __post_init__(self) -> None:
         key = "experiment.scenario_study"
@@ -120,6 +125,9 @@ class ScenarioStudySchema:
         require_range(f"{key}.budget_cm2", self.budget_cm2, lo=0.0, lo_open=True)
         require_range(f"{key}.pitch_mm", self.pitch_mm, lo=0.0)
         require_range(f"{key}.budget_taxels", self.budget_taxels, lo=0)
+        require(len(self.figure_formats) > 0 and set(self.figure_formats) <= {"png", "pdf", "svg"},
+                f"{key}.figure_formats", self.figure_formats, "one or more of png, pdf, svg")
+        require_range(f"{key}.view_faces", self.view_faces, lo=100, hi=1_000_000)
         require((self.pitch_mm > 0) == (self.budget_taxels > 0), f"{key}.budget_taxels", self.budget_taxels,
                 "set both pitch_mm and budget_taxels (a taxel budget) or neither (budget_cm2)")
 

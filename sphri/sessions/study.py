@@ -31,6 +31,7 @@ from typing import Any, Sequence
 import numpy as np
 import pandas as pd
 
+from sphri import figures
 from sphri.sessions.schema import ScenarioStudySchema
 
 log = logging.getLogger(__name__)
@@ -224,7 +225,8 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     result = StudyResult(out_dir, st, ds.synthetic, ds.sessions, episodes, labelled, hist, ranking_all, placement,
                          sentences, comp, cov, notes, [], seconds, gm.accuracy_mean)
     t = time.perf_counter()
-    result.files = write_outputs(result, cfg, robot, body, ds, gm, budget, label)
+    with figures.only_formats(st.figure_formats):
+        result.files = write_outputs(result, cfg, robot, body, ds, gm, budget, label)
     seconds["files"] = time.perf_counter() - t
     seconds["total"] = time.perf_counter() - t_all
     (out_dir / "timing.json").write_text(json.dumps(seconds, indent=1))
@@ -314,7 +316,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     from sphri.sessions.render import (body_view, plot_atlas, plot_effects, plot_gesture_histogram, plot_placement,
                                        plot_views, write_density_ply)
 
-    view = body_view(body)
+    view = body_view(body, res.settings.view_faces)
     figs = {}
     figs["maps"] = plot_views(view, {**dens, "pooled": cov.densities[ALL]}, out / "maps_views.png",
                               f"Contact density per {cov.by}, one colour scale ({label})")
