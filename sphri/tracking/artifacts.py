@@ -36,18 +36,21 @@ def write_confusion_csv(cv: CVResult, path: Path) -> Path:
 
 
 def write_confusion_png(
-    cv: CVResult, path: Path, title: str | None = None, provenance=None, formats: tuple[str, ...] = ("png",)
+    cv: CVResult, path: Path, title: str | None = None, provenance=None, formats: tuple[str, ...] = ("png",),
+    check: bool = True,
 ) -> Path:
     """Row-normalised confusion matrix summed over folds, one column wide (``sphri.figures``).
 
-    ``formats``: files written beside ``path``; ``provenance``: a :class:`sphri.figures.Provenance`.
+    ``formats``: files written beside ``path``; ``provenance``: a :class:`sphri.figures.Provenance`;
+    ``check``: run the layout check (:func:`sphri.figures.save`).
     """
     return draw_confusion(confusion_counts(cv), list(cv.labels), path,
-                          title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)", provenance, formats)
+                          title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)", provenance, formats,
+                          check)
 
 
 def draw_confusion(total: np.ndarray, labels: list[str], path: Path, title: str, provenance=None,
-                   formats: tuple[str, ...] = ("png",)) -> Path:
+                   formats: tuple[str, ...] = ("png",), check: bool = True) -> Path:
     """Row-normalised confusion matrix of the counts ``total`` (rows: true) -> ``path`` (and ``formats`` beside it)."""
     from sphri import figures
 
@@ -70,5 +73,5 @@ def draw_confusion(total: np.ndarray, labels: list[str], path: Path, title: str,
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="share of the true gesture's trials")
         if provenance is not None:
             figures.mark(fig, provenance)
-        figures.save(fig, path, formats=formats)
+        figures.save(fig, path, formats=formats, check=check)
     return path

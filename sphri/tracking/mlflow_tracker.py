@@ -363,11 +363,12 @@ class MlflowTracker:
             tmp_path = Path(tmp)
             (tmp_path / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))
             write_fold_csv(result.cv, tmp_path / "per_participant.csv")
-            from sphri import figures
             from sphri.figures import Provenance
 
-            write_confusion_csv(result.cv, tmp_path / "confusion.csv")  # the report redraws from the counts
-            write_confusion_png(result.cv, tmp_path / "confusion.png", formats=figures.FORMATS,
+            # The report redraws the matrix from the counts (PNG, PDF, SVG, layout-checked); the job's own
+            # PNG is for browsing runs in the MLflow UI, so it skips the vector files and the check.
+            write_confusion_csv(result.cv, tmp_path / "confusion.csv")
+            write_confusion_png(result.cv, tmp_path / "confusion.png", formats=("png",), check=False,
                                 title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
                                 provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {cfg.encoder.res}"))
             (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
