@@ -56,10 +56,11 @@ def test_quick_preset_runs_end_to_end_and_reports_each_variant(tmp_path: Path):
            "PYTHONPATH": os.pathsep.join([str(repo), os.environ.get("PYTHONPATH", "")])}
     out, sweep = tmp_path / "outputs", tmp_path / "outputs" / "sweep"
     run = subprocess.run([sys.executable, "-m", "sphri", "-m", "+experiment=requirement_sensitivity_quick",
-                          f"output_dir={out}", f"hydra.sweep.dir={sweep}", "hydra/launcher=serial"],
+                          f"output_dir={out}", f"hydra.sweep.dir={sweep}", "hydra/launcher=serial",
+                          "tracking.confusion_png=false"],
                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
     assert run.returncode == 0 and "9 of 9 jobs finished" in run.stdout, run.stderr[-3000:]
-    rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), "n_boot=200", "mlflow=false"],
+    rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), "n_boot=200", "mlflow=false", "formats=png"],
                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
     assert rep.returncode == 0, rep.stderr[-3000:]
     assert "grouped by variant" in rep.stdout

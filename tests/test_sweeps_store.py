@@ -56,6 +56,43 @@ def test_four_concurrent_first_runs_share_one_new_store(tmp_path: Path):
     assert problems(out / "mlflow.db") == []
 
 
+def _schema(db: Path) -> tuple[list, list]:
+    with sqlite3.connect(db) as con:
+        tables = sorted(con.execute("SELECT type, name, sql FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'"))
+        return tables, con.execute("SELECT version_num FROM alembic_version").fetchall()
+
+
+def test_new_stores_start_from_a_migrated_template_equal_to_a_fresh_migration(tmp_path, monkeypatch):
+    from mlflow.tracking import MlflowClient
+
+    from sphri.tracking.store import ensure_store, problems, template_path
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("SPHRI_STORE_TEMPLATE", "0")
+    ensure_store(f"sqlite:///{tmp_path / 'fresh' / 'mlflow.db'}")  # MLflow's own migrations
+    assert not template_path().exists()
+    monkeypatch.setenv("SPHRI_STORE_TEMPLATE", "1")
+    for name in ("first", "second"):
+        ensure_store(f"sqlite:///{tmp_path / name / 'mlflow.db'}")
+    assert template_path().is_file() and str(template_path()).startswith(str(tmp_path / "cache" / "sphri"))
+    with sqlite3.connect(template_path()) as con:
+        assert con.execute("SELECT count(*) FROM experiments").fetchone() == (0,), "the template holds no experiment"
+    fresh = _schema(tmp_path / "fresh" / "mlflow.db")
+    for name in ("first", "second"):
+        db = tmp_path / name / "mlflow.db"
+        assert _schema(db) == fresh and problems(db) == []
+        client = MlflowClient(f"sqlite:///{db}")
+        default = client.get_experiment("0")  # re-created by MLflow where the store is first opened
+        assert default.name == "Default" and default.artifact_location.endswith(str(tmp_path / "mlruns" / "0"))
+        run = client.create_run(client.create_experiment("x", artifact_location=str(tmp_path / name / "art")))
+        client.set_terminated(run.info.run_id)
+    # a template that cannot be made (an unwritable cache) falls back to migrating the store itself
+    monkeypatch.setenv("XDG_CACHE_HOME", "/proc/sphri-no-such-cache")
+    ensure_store(f"sqlite:///{tmp_path / 'fallback' / 'mlflow.db'}")
+    assert _schema(tmp_path / "fallback" / "mlflow.db") == fresh
+
+
 def test_store_left_broken_by_a_migration_is_refused_before_computing(tmp_path: Path):
     from sphri.tracking.store import main as store_main
 

@@ -58,8 +58,13 @@ def test_log_job_writes_params_tags_metrics_artifacts(tmp_path: Path):
     history = client.get_metric_history(run_id, "fold_accuracy")
     assert sorted(m.step for m in history) == [0, 1, 2]
     names = {a.path for a in client.list_artifacts(run_id)}
-    assert {"config.yaml", "per_participant.csv", "confusion.png", "summary.txt"} <= names
+    assert {"config.yaml", "per_participant.csv", "confusion.csv", "confusion.png", "summary.txt"} <= names
     assert "SYNTHETIC" in summary_text(fake_result())
+    # tracking.confusion_png=false: the counts stay (the report redraws from them), the PNG is not drawn
+    cfg_no_png = compose([f"output_dir={tmp_path}", "tracking.confusion_png=false"])
+    quiet = MlflowTracker(confusion_png=bool(cfg_no_png.tracking.confusion_png))
+    names = {a.path for a in client.list_artifacts(quiet.log_job(cfg_no_png, fake_result(), tmp_path / "job2"))}
+    assert "confusion.csv" in names and "per_participant.csv" in names and "confusion.png" not in names
 
 
 def test_failure_is_recorded(tmp_path: Path):

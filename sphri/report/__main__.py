@@ -8,10 +8,11 @@
     python -m sphri.report DIR tolerances=se,2se,0.01,0.02        # the tolerances shown side by side
     python -m sphri.report DIR out=DIR2 mlflow=false              # elsewhere, not logged to MLflow
     python -m sphri.report DIR marks=false                        # figures without the SYNTHETIC banner and ids
+    python -m sphri.report DIR formats=png                        # PNG figures only (default png,pdf,svg)
 
 Arguments are ``key=value`` as in every sphri command (``uri``, ``output_dir``,
 ``out``, ``tolerances``, ``tolerance``, ``n_boot``, ``ci``, ``seed``,
-``marks=auto|true|false``, ``mlflow=true|false``); the ``--key value`` spellings are accepted too.
+``marks=auto|true|false``, ``formats=png,pdf,svg``, ``mlflow=true|false``); the ``--key value`` spellings are accepted too.
 
 Writes ``DIR/report/`` (report.html, figures as PNG + PDF + SVG, summary.txt, CSV/JSON
 tables), logs it to the sweep's MLflow parent run and prints the summary.
@@ -26,14 +27,15 @@ import sys
 
 from sphri.errors import clean_errors
 from sphri.report.analysis import RuleSettings
-from sphri.report.build import make_report
+from sphri.report.build import check_formats, make_report
 from sphri.report.saturation import Tolerance
 from sphri.report.sweep import ReportError
 
 
 #: ``key=value`` arguments and the option each one stands for.
 KEYS = {"uri": "--uri", "output_dir": "--output-dir", "out": "--out", "tolerances": "--tolerances",
-        "tolerance": "--tolerance", "n_boot": "--n-boot", "ci": "--ci", "seed": "--seed", "marks": "--marks"}
+        "tolerance": "--tolerance", "n_boot": "--n-boot", "ci": "--ci", "seed": "--seed", "marks": "--marks",
+        "formats": "--formats"}
 
 
 def from_key_values(argv: list[str]) -> list[str]:
@@ -72,6 +74,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     p.add_argument("--no-log", action="store_true", help="do not log the report to the MLflow parent run")
     p.add_argument("--marks", default="auto", choices=("auto", "true", "false"),
                    help="the SYNTHETIC DATA banner and sweep id on the figures: auto (for synthetic runs), true, false")
+    p.add_argument("--formats", default="png,pdf,svg",
+                   help="figure file formats, comma-separated, png included (default png,pdf,svg)")
     args = p.parse_args(from_key_values(list(sys.argv[1:] if argv is None else argv)))
     for name, ok, expected in (("--n-boot", args.n_boot >= 0, ">= 0"), ("--ci", 0 < args.ci < 1, "in (0, 1)")):
         if not ok:
@@ -79,6 +83,10 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     try:
         names = [Tolerance.parse(t).name for t in args.tolerances.split(",") if t.strip()]
         primary = Tolerance.parse(args.tolerance).name
+    except ValueError as exc:
+        p.error(str(exc))
+    try:
+        args.formats = check_formats(args.formats.split(","))
     except ValueError as exc:
         p.error(str(exc))
     if primary not in names:
@@ -95,7 +103,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         _, files, text = make_report(args.source, uri=args.uri, output_dir=args.output_dir, out_dir=args.out,
                                      rule=rule, log_to_mlflow=not args.no_log,
-                                     marks={"auto": None, "true": True, "false": False}[args.marks])
+                                     marks={"auto": None, "true": True, "false": False}[args.marks],
+                                     formats=args.formats)
     except (ReportError, ValueError) as exc:
         print(f"sphri.report: {exc}", file=sys.stderr)
         return 2

@@ -17,6 +17,7 @@ import logging
 import re
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 import pandas as pd
@@ -55,7 +56,19 @@ def slug(label: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", label).strip("_") or "all"
 
 
-def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path, marks: bool | None) -> dict[str, Path]:
+def check_formats(formats: Sequence[str]) -> tuple[str, ...]:
+    """The report's figure formats, checked: a non-empty subset of :data:`FIGURE_FORMATS` holding ``png``
+    (the HTML page shows the PNGs)."""
+    formats = tuple(dict.fromkeys(str(f).strip().lower() for f in formats))
+    bad = [f for f in formats if f not in FIGURE_FORMATS]
+    if bad or "png" not in formats:
+        raise ValueError(f"formats={','.join(formats)} is invalid: choose from {','.join(FIGURE_FORMATS)}, "
+                         f"png included (the HTML page shows the PNGs)")
+    return formats
+
+
+def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path, marks: bool | None,
+                formats: Sequence[str] = FIGURE_FORMATS) -> dict[str, Path]:
     """Each group's confusion matrix at its saturation point, redrawn from that job's ``confusion.csv`` under
     the report's own marks (PNG, PDF, SVG); a run logged before that file existed gives its images as logged."""
     import shutil
@@ -81,10 +94,10 @@ def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path, marks: bool | 
                                   show=marks)
                 draw_confusion(counts.to_numpy(float), [str(c) for c in counts.columns], dst,
                                f"{g.label} at {int(g.recommended['res'])} taxels along the link", prov,
-                               formats=FIGURE_FORMATS)
+                               formats=formats)
                 out[g.label] = dst
                 continue
-            for fmt in FIGURE_FORMATS:
+            for fmt in formats:
                 try:
                     src = client.download_artifacts(run_id, f"confusion.{fmt}", tmp)
                 except Exception as exc:
@@ -97,10 +110,15 @@ def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path, marks: bool | 
     return out
 
 
-def write_report(report: SweepReport, out_dir: Path, marks: bool | None = None) -> ReportFiles:
-    """Figures (PNG, PDF, SVG), confusion matrices, tables, HTML and text of ``report`` into ``out_dir``.
+def write_report(report: SweepReport, out_dir: Path, marks: bool | None = None,
+                 formats: Sequence[str] = FIGURE_FORMATS) -> ReportFiles:
+    """Figures (``formats``: PNG, PDF, SVG by default), confusion matrices, tables, HTML and text of ``report``
+    into ``out_dir``.
 
     ``marks``: the SYNTHETIC banner and sweep id on the figures (None: only for synthetic runs)."""
+    from sphri.figures import only_formats
+
+    formats = check_formats(formats)
     out_dir.mkdir(parents=True, exist_ok=True)
     for name in FIGURE_FILES:  # figures of an earlier report that may not be redrawn (all formats)
         for fmt in FIGURE_FORMATS:
@@ -108,13 +126,14 @@ def write_report(report: SweepReport, out_dir: Path, marks: bool | None = None) 
     for fmt in FIGURE_FORMATS:
         for old in out_dir.glob(f"confusion_*.{fmt}"):
             old.unlink()
-    figures = {"curves": plot_curves(report, out_dir / "accuracy_vs_resolution.png", marks=marks)}
-    for name, fig in (("recall", plot_recall(report, out_dir / "recall_vs_resolution.png", marks=marks)),
-                      ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png", marks=marks)),
-                      ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png", marks=marks))):
-        if fig is not None:
-            figures[name] = fig
-    confusions = _confusions(report.sweep, report, out_dir, marks)
+    with only_formats(formats):
+        figures = {"curves": plot_curves(report, out_dir / "accuracy_vs_resolution.png", marks=marks)}
+        for name, fig in (("recall", plot_recall(report, out_dir / "recall_vs_resolution.png", marks=marks)),
+                          ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png", marks=marks)),
+                          ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png", marks=marks))):
+            if fig is not None:
+                figures[name] = fig
+    confusions = _confusions(report.sweep, report, out_dir, marks, formats)
 
     tables = {"comparison": out_dir / "saturation.csv", "points": out_dir / "points.csv", "json": out_dir / "saturation.json"}
     pd.DataFrame(comparison_rows(report)).to_csv(tables["comparison"], index=False, float_format="%.6g")
@@ -216,12 +235,16 @@ def log_report(report: SweepReport, files: ReportFiles, text: str) -> str:
 
 def make_report(source: str | Path, uri: str | None = None, output_dir: str | Path = "outputs",
                 out_dir: str | Path | None = None, rule: RuleSettings = RuleSettings(),
-                log_to_mlflow: bool = True, marks: bool | None = None) -> tuple[SweepReport, ReportFiles, str]:
+                log_to_mlflow: bool = True, marks: bool | None = None,
+                formats: Sequence[str] = FIGURE_FORMATS) -> tuple[SweepReport, ReportFiles, str]:
     """Report on the sweep ``source`` (its directory or parent run id); returns (report, files, text).
+
+    ``formats``: the figures' file formats (PNG, PDF and SVG by default; PNG alone for a quick look).
 
     ``out_dir`` defaults to ``<sweep_dir>/report``; it is required when the
     sweep directory is unknown (a run id from another machine).
     """
+    formats = check_formats(formats)
     sweep = load_sweep(source, uri=uri, output_dir=output_dir)
     if out_dir is None:
         if sweep.sweep_dir is None:
@@ -231,7 +254,7 @@ def make_report(source: str | Path, uri: str | None = None, output_dir: str | Pa
             )
         out_dir = sweep.sweep_dir / "report"
     report = analyze(sweep, rule)
-    files = write_report(report, Path(out_dir), marks=marks)
+    files = write_report(report, Path(out_dir), marks=marks, formats=formats)
     text = render_text(report, files.html)
     if log_to_mlflow:
         files.logged_to = log_report(report, files, text)

@@ -104,11 +104,12 @@ class MlflowTracker:
 
     def __init__(self, enabled: bool = True, uri: str | None = None, experiment: str = "sphri",
                  artifacts: bool = True, retries: int = 8, log_model: bool = True,
-                 register_model: str | None = None) -> None:
+                 register_model: str | None = None, confusion_png: bool = True) -> None:
         self.enabled = enabled
         self.uri = uri
         self.experiment = experiment
         self.artifacts = artifacts
+        self.confusion_png = confusion_png
         self.retries = retries
         self.log_model = log_model
         self.register_model = register_model
@@ -368,9 +369,10 @@ class MlflowTracker:
             # The report redraws the matrix from the counts (PNG, PDF, SVG, layout-checked); the job's own
             # PNG is for browsing runs in the MLflow UI, so it skips the vector files and the check.
             write_confusion_csv(result.cv, tmp_path / "confusion.csv")
-            write_confusion_png(result.cv, tmp_path / "confusion.png", formats=("png",), check=False,
-                                title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
-                                provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {cfg.encoder.res}"))
+            if self.confusion_png:
+                write_confusion_png(result.cv, tmp_path / "confusion.png", formats=("png",), check=False,
+                                    title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
+                                    provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {cfg.encoder.res}"))
             (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
             (tmp_path / "meta.json").write_text(json.dumps(dataclasses.asdict(result.meta), indent=2, default=str))
             self._retry(lambda: client.log_artifacts(run_id, str(tmp_path)))

@@ -11,6 +11,13 @@ the repair command, and otherwise opens the store (creating and migrating it
 when new) before releasing the lock. It runs before a job computes anything,
 so nothing is computed into a store it cannot log to.
 
+Migrating a new store takes 2 to 3 s. The first new store on a machine also
+leaves a migrated, empty copy (no experiment) per MLflow version in the user's
+cache (``$XDG_CACHE_HOME/sphri``, else ``~/.cache/sphri``); later new stores
+start as a copy of it, and MLflow adds its Default experiment on first open,
+as it does for a fresh store. Any problem with that copy falls back to
+migrating from scratch.
+
 ``python -m sphri.tracking.store repair PATH/mlflow.db`` repairs one: a store
 without runs is moved aside (``mlflow.db.broken-<time>``) and created anew;
 otherwise a backup is taken (``mlflow.db.bak-<time>``), each leftover
@@ -119,6 +126,49 @@ def repair_command(db: Path) -> str:
     return f"python -m sphri.tracking.store repair {db}"
 
 
+def template_path() -> Path:
+    """Where the migrated, empty store of the installed MLflow version is kept (see the module docstring)."""
+    import mlflow
+
+    root = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "sphri"
+    return root / f"mlflow-{mlflow.__version__}-empty.db"
+
+
+def _empty_store_template() -> Path:
+    """The migrated, empty store of this MLflow version, made once (under its lock) when missing."""
+    tpl = template_path()
+    with store_lock(tpl):
+        if tpl.exists() and not problems(tpl) and _revision(tpl) is not None:
+            return tpl
+        from mlflow.tracking import MlflowClient
+
+        tmp = tpl.with_name(f"{tpl.stem}.{os.getpid()}.tmp.db")
+        tmp.unlink(missing_ok=True)
+        MlflowClient(tracking_uri=f"sqlite:///{tmp}").search_experiments(max_results=1)
+        with contextlib.closing(sqlite3.connect(tmp)) as con:  # MLflow re-creates Default (id 0) where it opens
+            con.execute("DELETE FROM experiment_tags WHERE experiment_id = 0")
+            con.execute("DELETE FROM experiments WHERE experiment_id = 0")
+            con.commit()
+        tmp.replace(tpl)
+    return tpl
+
+
+def _create_from_template(db: Path) -> bool:
+    """Start the new store ``db`` as a copy of :func:`_empty_store_template`; False (nothing left) on any problem."""
+    tmp = db.with_name(f"{db.name}.{os.getpid()}.tmp")
+    try:
+        tpl = _empty_store_template()
+        shutil.copyfile(tpl, tmp)
+        tmp.replace(db)
+        return True
+    except Exception:  # an unwritable cache, a changed MLflow schema...: migrate from scratch instead
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+            if db.exists() and _revision(db) is None:
+                db.unlink()
+        return False
+
+
 def ensure_store(uri: str) -> None:
     """Create/migrate the SQLite store at ``uri`` once, under the lock; raise :class:`BrokenStore` if broken."""
     db = sqlite_path(uri)
@@ -135,6 +185,8 @@ def ensure_store(uri: str) -> None:
             return  # an existing store at MLflow's head revision (problems() checked it): nothing to create
         from mlflow.tracking import MlflowClient
 
+        if os.environ.get("SPHRI_STORE_TEMPLATE", "1") != "0":
+            _create_from_template(db)
         MlflowClient(tracking_uri=uri).search_experiments(max_results=1)  # creates and migrates a new store
 
 

@@ -111,7 +111,7 @@ class FakeSweep:
 
 def make_sweep(out: Path, sweep_dir: Path, res: list[int], models: list[str] = ("rf",), robots: list[str] = ("reachy",),
                n_participants: int = 8, synthetic: bool = True, fail: set[tuple[str, int]] = frozenset(),
-               artifacts: bool = True, seed: int = 0, top: dict[str, float] | None = None,
+               artifacts: bool = True, confusion_png: bool = False, seed: int = 0, top: dict[str, float] | None = None,
                tau: float = 3.0, variants: dict[str, tuple[float, float]] | None = None) -> FakeSweep:
     """Log a fake sweep into the store at ``out`` (its output_dir), sweep dir ``sweep_dir``; return its truth.
 
@@ -122,7 +122,9 @@ def make_sweep(out: Path, sweep_dir: Path, res: list[int], models: list[str] = (
     _ensure_summarize()
     rng = np.random.default_rng(seed)
     sweep_dir.mkdir(parents=True, exist_ok=True)
-    tracker = MlflowTracker(artifacts=artifacts)
+    # The report redraws confusion matrices from confusion.csv; a job's own PNG (tests/test_tracking.py) would
+    # cost about 0.3 s for each of the fake jobs.
+    tracker = MlflowTracker(artifacts=artifacts, confusion_png=confusion_png)
     sweep_id = sweep_dir.name
     parent_id = tracker.start_parent(str(out), str(sweep_dir), sweep_id, ["encoder.res=" + ",".join(map(str, res))])
     (sweep_dir / PARENT_FILE).write_text(json.dumps({"run_id": parent_id, "sweep_id": sweep_id, "uri": default_uri(out)}))

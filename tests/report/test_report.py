@@ -19,6 +19,7 @@ from fake_sweep import grid_resolution, make_sweep
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 RULE = RuleSettings(n_boot=400, seed=0)
+PNG_ONLY = ("png",)  # PDF and SVG of every report figure: tests/report/test_report_figures.py
 
 
 class _Page(HTMLParser):
@@ -57,7 +58,7 @@ class _Page(HTMLParser):
 
 @pytest.fixture(scope="module")
 def built(two_model_sweep):
-    report, files, text = make_report(two_model_sweep.sweep_dir, rule=RULE)
+    report, files, text = make_report(two_model_sweep.sweep_dir, rule=RULE, formats=PNG_ONLY)
     return two_model_sweep, report, files, text
 
 
@@ -171,7 +172,7 @@ def test_per_gesture_recall_finds_the_gestures_that_need_fine_skin(built):
 def test_morphology_sweep_compares_robots_and_real_data_is_not_labelled_synthetic(store, tmp_path):
     truth = make_sweep(store, tmp_path / "morph", [2, 6, 18], robots=["reachy", "nao_child"], synthetic=False,
                        n_participants=4)
-    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False, formats=PNG_ONLY)
     assert report.sweep.group_keys == ["robot"]
     assert [g.label for g in report.groups] == ["nao_child", "reachy"]
     comp = pd.read_csv(files.tables["comparison"])
@@ -183,7 +184,7 @@ def test_morphology_sweep_compares_robots_and_real_data_is_not_labelled_syntheti
 
 def test_one_participant_sweep_reports_no_interval_with_a_note(store, tmp_path):
     truth = make_sweep(store, tmp_path / "one", [1, 4, 12], n_participants=1)
-    report, files, text = make_report(truth.sweep_dir, rule=RULE, out_dir=tmp_path / "rep", log_to_mlflow=False)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, out_dir=tmp_path / "rep", log_to_mlflow=False, formats=PNG_ONLY)
     g = report.groups[0]
     assert g.sat.interval is None and g.pitch_interval_mm is None
     assert "No bootstrap interval: only one participant" in g.interval_text
@@ -193,7 +194,7 @@ def test_one_participant_sweep_reports_no_interval_with_a_note(store, tmp_path):
 
 def test_without_artifacts_scores_come_from_participant_metrics(store, tmp_path):
     truth = make_sweep(store, tmp_path / "noart", [1, 3, 9], artifacts=False, n_participants=3)
-    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False, formats=PNG_ONLY)
     g = report.groups[0]
     assert g.accuracy == pytest.approx(truth.accuracy["rf"], abs=1e-6)
     assert np.isnan(g.macro_f1).all() and not g.gesture_sat
@@ -219,7 +220,8 @@ def test_resumed_sweep_finds_jobs_through_status_files(store, tmp_path, two_mode
 
 
 def test_cli_prints_the_summary_and_fails_clearly(two_model_sweep, tmp_path, capsys):
-    assert main([str(two_model_sweep.sweep_dir), "--n-boot", "100", "--no-log", "--out", str(tmp_path / "r")]) == 0
+    assert main([str(two_model_sweep.sweep_dir), "--n-boot", "100", "--no-log", "--out", str(tmp_path / "r"),
+                 "--formats", "png"]) == 0
     out = capsys.readouterr().out
     assert "A taxel pitch of at most" in out and str(tmp_path / "r" / "report.html") in out
     assert main([str(tmp_path)]) == 2
@@ -251,7 +253,7 @@ def test_group_keys_keep_only_settings_not_fixed_by_components():
 def test_one_resolution_per_group_is_a_comparison_without_saturation(store, tmp_path):
     """A noise or layout comparison at a fixed resolution: a table, no curve to saturate."""
     truth = make_sweep(store, tmp_path / "fixed", [18], models=["rf", "cnn_gru"], n_participants=3)
-    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False, formats=PNG_ONLY)
     assert len(report.groups) == 2
     for g in report.groups:
         assert g.requirement.startswith("One resolution only (encoder.res=18")
@@ -308,7 +310,7 @@ def test_tolerance_table_in_html_csv_and_text(built):
 
 def test_cli_tolerance_options(two_model_sweep, tmp_path, capsys):
     assert main([str(two_model_sweep.sweep_dir), "--n-boot", "50", "--no-log", "--out", str(tmp_path / "r"),
-                 "--tolerances", "se,2se", "--tolerance", "0.03"]) == 0
+                 "--tolerances", "se,2se", "--tolerance", "0.03", "--formats", "png"]) == 0
     tol = pd.read_csv(tmp_path / "r" / "tolerances.csv")
     assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "2se", "se"]
     assert "within 3 points of accuracy (0.03) of the best" in capsys.readouterr().out
@@ -317,7 +319,7 @@ def test_cli_tolerance_options(two_model_sweep, tmp_path, capsys):
 
 
 def test_cli_takes_key_value_arguments_like_every_sphri_command(two_model_sweep, tmp_path, capsys):
-    assert main([str(two_model_sweep.sweep_dir), "n_boot=50", "mlflow=false", f"out={tmp_path / 'kv'}",
+    assert main([str(two_model_sweep.sweep_dir), "n_boot=50", "mlflow=false", f"out={tmp_path / 'kv'}", "formats=png",
                  "tolerances=se,2se", "tolerance=0.03"]) == 0
     tol = pd.read_csv(tmp_path / "kv" / "tolerances.csv")
     assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "2se", "se"]
@@ -325,6 +327,14 @@ def test_cli_takes_key_value_arguments_like_every_sphri_command(two_model_sweep,
         main([str(two_model_sweep.sweep_dir), "n_boots=50"])
     with pytest.raises(SystemExit, match="mlflow=maybe is invalid"):
         main([str(two_model_sweep.sweep_dir), "mlflow=maybe"])
+    with pytest.raises(SystemExit):  # argparse's error names the value and the rule
+        main([str(two_model_sweep.sweep_dir), "formats=pdf,svg"])
+    err = capsys.readouterr().err
+    assert "formats=pdf,svg is invalid" in err and "png included" in err, err
+    with pytest.raises(ValueError, match="formats=png,tiff is invalid"):
+        make_report(two_model_sweep.sweep_dir, formats=("png", "tiff"))
+    assert main([str(two_model_sweep.sweep_dir), "n_boot=50", "mlflow=false", f"out={tmp_path / 'png'}", "formats=png"]) == 0
+    assert {p.suffix for p in (tmp_path / "png").glob("*_vs_resolution.*")} == {".png"}
 
 
 def test_sensitivity_sweep_reports_the_requirement_per_assumption(store, tmp_path):
@@ -332,7 +342,7 @@ def test_sensitivity_sweep_reports_the_requirement_per_assumption(store, tmp_pat
     variants = {"reference": (3.0, 0.02), "noise0": (1.5, 0.0), "noise5": (8.0, 0.05)}
     truth = make_sweep(store, tmp_path / "sens", [1, 2, 3, 4, 6, 9, 13, 18, 27, 36, 50], variants=variants,
                        n_participants=10, seed=3)
-    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False)
+    report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False, formats=PNG_ONLY)
     assert report.sweep.group_keys == ["variant"], "noise.p is fixed by the variant: not a key of its own"
     assert sorted(g.label for g in report.groups) == ["noise0", "noise5", "reference"]
     (sens,) = report.sensitivity

@@ -40,9 +40,12 @@ def test_every_report_figure_is_clean_in_three_formats(two_model_sweep, store, t
 
 
 def test_marks_switch_the_synthetic_banner_off(two_model_sweep, tmp_path):
-    _, on, _ = make_report(two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "on", log_to_mlflow=False)
+    svg = ("png", "svg")  # the banner is text in the SVG
+    _, on, _ = make_report(two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "on", log_to_mlflow=False,
+                           formats=svg)
     _, off, _ = make_report(two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "off", log_to_mlflow=False,
-                            marks=False)
+                            marks=False, formats=svg)
+    assert not list((tmp_path / "on").glob("*.pdf")), "only the formats asked for"
     for a, b in ((on.figures["curves"], off.figures["curves"]), (on.confusions["rf"], off.confusions["rf"])):
         assert "SYNTHETIC DATA" in a.with_suffix(".svg").read_text()
         assert "SYNTHETIC DATA" not in b.with_suffix(".svg").read_text()
