@@ -146,16 +146,23 @@ def test_killed_sweep_ends_its_parent_killed(tmp_path: Path, sig: int):
     assert "sweep KILLED" in log
 
 
-def test_rerun_of_a_sweep_in_a_new_timestamped_dir_reuses_its_parent(tmp_path: Path):
+def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
+    """The same sweep again, into its own sweep dir and then into a new timestamped one: both skip the
+    finished jobs and reopen the one parent run."""
     out = tmp_path / "out"
-    args = ["-m", "+debug=fast", "encoder.res=2,3", f"output_dir={out}", "hydra/launcher=serial"]
-    first = _sphri(args, cwd=tmp_path)
+    fixed = ["-m", "+debug=fast", "encoder.res=2,3", f"output_dir={out}", "hydra/launcher=serial",
+             f"hydra.sweep.dir={out}/sweeps/s"]
+    first = _sphri(fixed, cwd=tmp_path)
     assert first.returncode == 0, first.stderr[-3000:]
-    time.sleep(1.1)  # the default sweep dir is timestamped to the second
-    second = _sphri(["-m", "hydra/launcher=serial", f"output_dir={out}", "encoder.res=2,3", "debug=fast"], cwd=tmp_path)
-    assert second.returncode == 0, second.stderr[-3000:]
-    assert "2 of 2 jobs finished (2 skipped" in second.stdout
-    assert len(list((out / "multirun").glob("*/*"))) == 2, "two sweep directories"
+    again = _sphri(fixed, cwd=tmp_path)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert "2 of 2 jobs finished (2 skipped" in again.stdout
+    assert len(_runs(out, "sweep")) == 1 and len(_runs(out, "job")) == 2
+    # the default sweep dir is timestamped: another directory, the same parent (overrides in another order)
+    other = _sphri(["-m", "hydra/launcher=serial", f"output_dir={out}", "encoder.res=2,3", "debug=fast"], cwd=tmp_path)
+    assert other.returncode == 0, other.stderr[-3000:]
+    assert "2 of 2 jobs finished (2 skipped" in other.stdout
+    assert len(list((out / "multirun").glob("*/*"))) == 1 and (out / "sweeps" / "s").is_dir(), "two sweep directories"
     parents = _runs(out, "sweep")
     assert len(parents) == 1 and parents[0].info.status == "FINISHED"
     assert len(_runs(out, "job")) == 2

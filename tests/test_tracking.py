@@ -131,21 +131,8 @@ def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path, arm_mesh_roots
     assert len(parents) == 1 and parents[0].info.status == "FAILED", "a sweep with a failed job is never left RUNNING"
 
 
-def test_rerun_of_a_sweep_skips_finished_jobs_into_the_same_parent(tmp_path: Path):
-    from mlflow.tracking import MlflowClient
-
-    out = tmp_path / "outputs"
-    args = ["-m", "+debug=fast", "encoder.res=2,3", f"output_dir={out}", "hydra/launcher=serial",
-            f"hydra.sweep.dir={out}/sweeps/s"]
-    first = _sphri(args, cwd=tmp_path)
-    assert first.returncode == 0, first.stderr[-3000:]
-    second = _sphri(args, cwd=tmp_path)
-    assert second.returncode == 0, second.stderr[-3000:]
-    assert "2 of 2 jobs finished (2 skipped" in second.stdout
-    client = MlflowClient(default_uri(out))
-    runs = client.search_runs([client.get_experiment_by_name("sphri-debug").experiment_id])
-    assert len([r for r in runs if r.data.tags.get("sphri.kind") == "sweep"]) == 1
-    assert len([r for r in runs if r.data.tags.get("sphri.kind") == "job"]) == 2
+# A rerun of a sweep (same sweep dir, or a new timestamped one) skips its finished jobs into the same parent:
+# tests/test_sweeps_store.py::test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent
 
 
 def test_ui_hint_names_the_store(tmp_path, monkeypatch):
