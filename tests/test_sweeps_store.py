@@ -57,9 +57,13 @@ def test_four_concurrent_first_runs_share_one_new_store(tmp_path: Path):
 
 
 def _schema(db: Path) -> tuple[list, list]:
+    """Tables, indexes and triggers with their definitions, and the schema revision. A definition is compared
+    as the set of its lines: two runs of MLflow's own migrations can list a table's constraints in another order."""
     with sqlite3.connect(db) as con:
-        tables = sorted(con.execute("SELECT type, name, sql FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'"))
-        return tables, con.execute("SELECT version_num FROM alembic_version").fetchall()
+        rows = con.execute("SELECT type, name, sql FROM sqlite_master WHERE name NOT LIKE 'sqlite_%'").fetchall()
+        revision = con.execute("SELECT version_num FROM alembic_version").fetchall()
+    lines = lambda sql: sorted(x.strip().rstrip(",").strip() for x in (sql or "").splitlines())  # noqa: E731
+    return sorted((kind, name, lines(sql)) for kind, name, sql in rows), revision
 
 
 def test_new_stores_start_from_a_migrated_template_equal_to_a_fresh_migration(tmp_path, monkeypatch):
