@@ -126,6 +126,13 @@ def repair_command(db: Path) -> str:
     return f"python -m sphri.tracking.store repair {db}"
 
 
+def _open(db: Path) -> None:
+    """Open the SQLite store ``db`` with MLflow: creates and migrates it when new, adds the Default experiment."""
+    from mlflow.tracking import MlflowClient
+
+    MlflowClient(tracking_uri=f"sqlite:///{db}").search_experiments(max_results=1)
+
+
 def template_path() -> Path:
     """Where the migrated, empty store of the installed MLflow version is kept (see the module docstring)."""
     import mlflow
@@ -140,33 +147,30 @@ def _empty_store_template() -> Path:
     with store_lock(tpl):
         if tpl.exists() and not problems(tpl) and _revision(tpl) is not None:
             return tpl
-        from mlflow.tracking import MlflowClient
-
         tmp = tpl.with_name(f"{tpl.stem}.{os.getpid()}.tmp.db")
-        tmp.unlink(missing_ok=True)
-        MlflowClient(tracking_uri=f"sqlite:///{tmp}").search_experiments(max_results=1)
-        with contextlib.closing(sqlite3.connect(tmp)) as con:  # MLflow re-creates Default (id 0) where it opens
-            con.execute("DELETE FROM experiment_tags WHERE experiment_id = 0")
-            con.execute("DELETE FROM experiments WHERE experiment_id = 0")
-            con.commit()
-        tmp.replace(tpl)
+        try:
+            tmp.unlink(missing_ok=True)
+            _open(tmp)
+            with contextlib.closing(sqlite3.connect(tmp)) as con:  # MLflow re-creates Default (id 0) where it opens
+                con.execute("DELETE FROM experiment_tags WHERE experiment_id = 0")
+                con.execute("DELETE FROM experiments WHERE experiment_id = 0")
+                con.commit()
+            tmp.replace(tpl)
+        finally:
+            tmp.unlink(missing_ok=True)
     return tpl
 
 
-def _create_from_template(db: Path) -> bool:
-    """Start the new store ``db`` as a copy of :func:`_empty_store_template`; False (nothing left) on any problem."""
+def _copy_template(db: Path) -> None:
+    """Start the new store ``db`` as a copy of :func:`_empty_store_template` (an atomic replace: ``db`` is
+    whole or untouched); on any problem leave it to MLflow's own migration."""
     tmp = db.with_name(f"{db.name}.{os.getpid()}.tmp")
     try:
-        tpl = _empty_store_template()
-        shutil.copyfile(tpl, tmp)
+        shutil.copyfile(_empty_store_template(), tmp)
         tmp.replace(db)
-        return True
     except Exception:  # an unwritable cache, a changed MLflow schema...: migrate from scratch instead
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
-            if db.exists() and _revision(db) is None:
-                db.unlink()
-        return False
 
 
 def ensure_store(uri: str) -> None:
@@ -183,11 +187,9 @@ def ensure_store(uri: str) -> None:
             )
         if db.exists() and db.stat().st_size > 0 and _revision(db) is not None:
             return  # an existing store at MLflow's head revision (problems() checked it): nothing to create
-        from mlflow.tracking import MlflowClient
-
         if os.environ.get("SPHRI_STORE_TEMPLATE", "1") != "0":
-            _create_from_template(db)
-        MlflowClient(tracking_uri=uri).search_experiments(max_results=1)  # creates and migrates a new store
+            _copy_template(db)
+        _open(db)  # migrates a new store (or only adds the Default experiment to the template's copy)
 
 
 def _n_runs(db: Path) -> int:
@@ -216,9 +218,7 @@ def repair(db: Path) -> str:
         if n_runs == 0:
             aside = db.with_name(f"{db.name}.broken-{stamp}")
             db.rename(aside)
-            from mlflow.tracking import MlflowClient
-
-            MlflowClient(tracking_uri=f"sqlite:///{db}").search_experiments(max_results=1)
+            _open(db)
             return f"{db}: held no runs; moved to {aside} and created a new store"
         backup = db.with_name(f"{db.name}.bak-{stamp}")
         shutil.copy2(db, backup)
