@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sphri.config import compose
+from sphri.config import build, compose
 from sphri.pipeline import RunResult, StageRecord
 from sphri.tracking.mlflow_tracker import MlflowTracker, default_uri, flatten_params, summary_text
 from sphri.types import CVResult, FoldResult, RunMeta
@@ -62,7 +62,7 @@ def test_log_job_writes_params_tags_metrics_artifacts(tmp_path: Path):
     assert "SYNTHETIC" in summary_text(fake_result())
     # tracking.confusion_png=false: the counts stay (the report redraws from them), the PNG is not drawn
     cfg_no_png = compose([f"output_dir={tmp_path}", "tracking.confusion_png=false"])
-    quiet = MlflowTracker(confusion_png=bool(cfg_no_png.tracking.confusion_png))
+    quiet = build(cfg_no_png.tracking)  # the tracker a job builds from its config
     names = {a.path for a in client.list_artifacts(quiet.log_job(cfg_no_png, fake_result(), tmp_path / "job2"))}
     assert "confusion.csv" in names and "per_participant.csv" in names and "confusion.png" not in names
 
