@@ -35,6 +35,8 @@ log = logging.getLogger(__name__)
 
 #: Refuse a stream after this many frames of the wrong taxel count and no good one.
 WRONG_COUNT_LIMIT = 20
+#: after ``until()`` says the source finished, the port must stay empty this long before a reader stops (s)
+FINISH_QUIET_S = 0.2
 
 
 class StreamMismatch(RuntimeError):
@@ -117,7 +119,7 @@ class SkinReader:
         last = t_start
         count = 0
         seen_reconnects = self.link.reconnects
-        finishing = False
+        finishing: float | None = None  # when the port was first found empty after until() held
         while True:
             data = self.link.read()
             now = time.monotonic()
@@ -127,6 +129,7 @@ class SkinReader:
                 self.segment += 1
                 last = now
             if data:
+                finishing = None
                 wall, perf = time.time(), time.perf_counter()
                 for f in self.decoder.feed(data):
                     count += 1
@@ -142,10 +145,13 @@ class SkinReader:
                         f"the expected {self.decoder.expected_taxels}; is this the skin the model/layout was made for?"
                     )
             elif until is not None and until():
-                if finishing:  # a second empty read after the source said it finished: nothing is in flight
+                # the source said it finished: stop once the port stayed empty for FINISH_QUIET_S
+                # (a pty's kernel buffer can hold written bytes back for a while on a loaded machine)
+                if finishing is None:
+                    finishing = now
+                elif now - finishing >= FINISH_QUIET_S:
                     self.stop_reason = "the source finished"
                     return
-                finishing = True
             if duration_s and now - t_start >= duration_s:
                 self.stop_reason = f"{duration_s:g} s elapsed"
                 return
