@@ -21,8 +21,11 @@ install: $(STAMP)
 run: install          ## the main job on the built-in defaults
 	$(BIN)/python -m sphri +robot=reachy encoder.res=18 $(ARGS)
 
+# Tests run on every core (pytest-xdist); a test module stays on one worker, so its
+# module fixtures are built once. `make test WORKERS=0` runs them in one process.
+WORKERS ?= auto
 test: install         ## the test suite without slow tests
-	$(BIN)/python -m pytest -m "not slow" -q $(ARGS)
+	$(BIN)/python -m pytest -m "not slow" -q -n $(WORKERS) --dist loadscope $(ARGS)
 
 # The cluster launchers (Ray, SLURM) are tested by test-all only: installed once,
 # again only when pyproject.toml (or the base install) changed.
@@ -32,7 +35,7 @@ $(CLUSTER_STAMP): pyproject.toml $(STAMP)
 	@touch $(CLUSTER_STAMP)
 
 test-all: install $(CLUSTER_STAMP)  ## every test, slow ones, cluster launchers and deep property tests included
-	SPHRI_DEEP_TESTS=1 $(BIN)/python -m pytest -q $(ARGS)
+	SPHRI_DEEP_TESTS=1 $(BIN)/python -m pytest -q -n $(WORKERS) --dist loadscope $(ARGS)
 
 bench: install        ## benchmarks -> outputs/bench/*.json, summary.md, plots
 	$(BIN)/python bench/run_all.py $(ARGS)
