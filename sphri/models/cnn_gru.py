@@ -421,11 +421,14 @@ class CnnGru(ClassifierMixin, BaseEstimator):
                 xt = torch.from_numpy(np.ascontiguousarray(x))
             opt = torch.optim.AdamW(net.parameters(), lr=self.lr, weight_decay=self.weight_decay)
             steps_per_epoch = math.ceil(tr.size / int(self.batch_size))
+            total_steps = steps_per_epoch * int(self.max_epochs)
             sched = None
-            if self.schedule == "onecycle" and steps_per_epoch > 0:
+            if self.schedule == "onecycle" and total_steps >= 3:
+                # a warm-up of a quarter of the steps, at least 2 (torch divides by the warm-up's length
+                # minus one); fewer than 3 steps in all leave nothing to schedule: constant lr
                 sched = torch.optim.lr_scheduler.OneCycleLR(
-                    opt, max_lr=self.lr, epochs=int(self.max_epochs), steps_per_epoch=steps_per_epoch,
-                    pct_start=0.25, anneal_strategy="cos", cycle_momentum=False,
+                    opt, max_lr=self.lr, total_steps=total_steps,
+                    pct_start=max(0.25, 2.0 / total_steps), anneal_strategy="cos", cycle_momentum=False,
                 )
             has_val = va.size > 0
             x_tr = xt[torch.from_numpy(tr)]

@@ -217,6 +217,16 @@ def test_onecycle_schedule_runs_and_is_deterministic():
         CnnGru(geometry=g, schedule="cosine", **TINY).fit(x, y)
 
 
+@pytest.mark.parametrize("n, max_epochs", [(4, 1), (8, 1), (24, 1), (8, 4)])
+def test_onecycle_schedule_fits_runs_of_very_few_steps(n, max_epochs):
+    """1 to 12 optimizer steps in all: torch's one-cycle divides by zero for a warm-up under 2 steps."""
+    x, y = toy_xy(12, n=n, seed=2)
+    g = geometry((3, 4), 12, True)
+    m = CnnGru(geometry=g, schedule="onecycle", val_fraction=0.0, **{**TINY, "max_epochs": max_epochs}).fit(x, y)
+    assert len(m.history_) == max_epochs
+    assert np.isfinite(m.predict_proba(x)).all()
+
+
 def test_thread_count_changes_predictions_only_by_rounding():
     """Same seed, 1 or 2 torch threads -> the same predictions to float rounding, NOT bit-identical.
 
