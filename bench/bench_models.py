@@ -15,7 +15,7 @@ cached under outputs/cache); ``--data toy`` uses
 :func:`sphri.testing.toy_windows.blob_windows` (moving blobs, same size). If the
 pipeline fails the toy data is used and the JSON says so.
 
-CNN-GRU training budgets (``--budgets``, default all of :data:`BUDGETS`):
+CNN-GRU training budgets (``--budgets``, default :data:`DEFAULT_BUDGETS`):
 the paper's settings (``paper``: 20 epochs at most, early stopping with
 patience 4) and shorter one-cycle schedules, each run on the same folds in
 this one process, so their CPU seconds and accuracies compare side by side.
@@ -26,12 +26,26 @@ the budgets no other budget beats on both.
     python bench/bench_models.py            # full size
     python bench/bench_models.py --quick    # 6 participants, CNN on 3 folds
     python bench/bench_models.py --budgets paper onecycle8 --cnn-folds 3
+
+Run-to-run spread (``--seeds 0 1 2 3 4``): each budget runs LOSO once per
+model seed (the seed also picks the early-stopping participants), and the
+JSON gives the LOSO accuracy of every seed, their mean and standard
+deviation, and whether a budget's mean lies inside the range of the
+paper's seeds. ``--save-windows F`` / ``--windows F`` store and reuse the
+model input (arrays + JSON, no pickle), so the same windows can be trained on
+another machine, e.g. ``--device cuda --workers 12`` for many seeds at once
+(accuracies only: GPU float32 is not bit-identical to the CPU's):
+
+    python bench/bench_models.py --skip-cnn --save-windows outputs/bench/windows_res18
+    python bench/bench_models.py --windows outputs/bench/windows_res18 --device cuda --precision float32 \
+        --workers 12 --seeds 0 1 2 3 4 --budgets paper batch8_e7 --name models_seeds
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
+import json
 import logging
 import os
 import platform
@@ -39,6 +53,8 @@ import sys
 import time
 import traceback
 from pathlib import Path
+
+import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
@@ -63,7 +79,19 @@ BUDGETS: dict[str, dict] = {
     "onecycle4_lr3e-3": {"schedule": "onecycle", "max_epochs": 4, "patience": 99, "lr": 3e-3},
     # the paper's lr and optimizer, 4x the updates per epoch (batch 8 costs ~1.16x batch 32 per window)
     "batch8_e7": {"batch_size": 8, "max_epochs": 7, "patience": 99},
+    # the paper's settings without early stopping's discarded tail (its best epoch averages ~11)
+    "paper_e13": {"max_epochs": 13, "patience": 99},
+    # explored on a GPU over seeds (docs/BENCHMARKS.md, "Run-to-run spread"); not run by default
+    "batch8_e4": {"batch_size": 8, "max_epochs": 4, "patience": 99},
+    "batch8_e3": {"batch_size": 8, "max_epochs": 3, "patience": 99},
+    "batch4_e3": {"batch_size": 4, "max_epochs": 3, "patience": 99},
+    "batch8_oc4_lr2e-3": {"batch_size": 8, "max_epochs": 4, "patience": 99, "schedule": "onecycle", "lr": 2e-3},
+    "batch16_oc4_lr3e-3": {"batch_size": 16, "max_epochs": 4, "patience": 99, "schedule": "onecycle", "lr": 3e-3},
+    "batch16_e8": {"batch_size": 16, "max_epochs": 8, "patience": 99},
 }
+
+#: Budgets run when ``--budgets`` is not given (``make bench``).
+DEFAULT_BUDGETS: list[str] = ["paper", "onecycle8", "onecycle6_lr2e-3", "onecycle4_lr3e-3", "batch8_e7", "paper_e13"]
 
 
 def pareto_front(points: dict[str, tuple[float, float]]) -> list[str]:
@@ -121,6 +149,49 @@ def get_windows(source: str, res: int, participants: int, repetitions: int, seed
     return blob_windows(participants, repetitions, res, seed=seed), "toy", ""
 
 
+def save_windows(win: WindowedFrames, path: str) -> Path:
+    """``path``.npz: the windows as arrays + JSON (:mod:`sphri.codec`, no pickle)."""
+    from sphri import codec
+
+    tree, arrays = codec.encode(win)
+    out = Path(path).with_suffix(".npz")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    np.savez_compressed(out, __tree__=np.asarray(json.dumps(tree)), **arrays)
+    return out
+
+
+def load_windows(path: str) -> WindowedFrames:
+    """Windows written by :func:`save_windows`; a clear error for a file that is not one."""
+    from sphri import codec
+
+    src = Path(path).with_suffix(".npz")
+    try:
+        with np.load(src, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError) as exc:
+        raise SystemExit(f"--windows {src}: cannot read it ({exc})") from None
+    if "__tree__" not in arrays:
+        raise SystemExit(f"--windows {src}: not written by --save-windows (no __tree__ entry)")
+    win = codec.decode(json.loads(str(arrays.pop("__tree__"))), arrays)
+    if not isinstance(win, WindowedFrames):
+        raise SystemExit(f"--windows {src}: holds a {type(win).__name__}, not WindowedFrames")
+    return win
+
+
+def combine_seeds(rows: dict[int, dict]) -> dict:
+    """One budget's LOSO rows, one per model seed -> the first row plus the seeds' spread."""
+    accs = [r["accuracy_mean"] for r in rows.values()]
+    first = dict(next(iter(rows.values())))
+    first["by_seed"] = {str(s): {k: r[k] for k in ("accuracy_mean", "fold_cpu_s", "wall_s", "folds", "per_fold_accuracy")}
+                        for s, r in rows.items()}
+    first["seed_accuracy"] = [round(a, 4) for a in accs]
+    first["accuracy_mean"] = float(np.mean(accs))
+    first["seed_accuracy_sd"] = float(np.std(accs, ddof=1)) if len(accs) > 1 else float("nan")
+    first["fold_cpu_s"] = round(float(np.mean([r["fold_cpu_s"] for r in rows.values()])), 1)
+    first["wall_s"] = round(float(np.mean([r["wall_s"] for r in rows.values()])), 1)
+    return first
+
+
 def timed_loso(make, windows: WindowedFrames, workers: int, threads: int, max_folds: int | None) -> dict:
     cv = LeaveOneSubjectOut(workers=workers, threads_per_worker=threads, max_folds=max_folds, progress=True)
     timings: list[dict] = []
@@ -158,17 +229,30 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1, help="threads per fold process (default 1)")
     ap.add_argument("--skip-cnn", action="store_true")
     ap.add_argument("--cnn-folds", type=int, default=None, help="CNN on the first K folds only")
-    ap.add_argument("--budgets", nargs="+", choices=list(BUDGETS), default=list(BUDGETS),
-                    help="CNN-GRU training budgets to compare (default: all)")
+    ap.add_argument("--budgets", nargs="+", choices=list(BUDGETS), default=DEFAULT_BUDGETS,
+                    help=f"CNN-GRU training budgets to compare (default: {' '.join(DEFAULT_BUDGETS)})")
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0],
+                    help="model seeds: each budget runs LOSO once per seed (default: 0)")
+    ap.add_argument("--device", default="cpu", help="CNN-GRU device: cpu (default), cuda, cuda:K")
+    ap.add_argument("--precision", choices=["auto", "float32", "bf16"], default=None,
+                    help="CNN-GRU precision (default: the model's, auto)")
+    ap.add_argument("--windows", default=None, help="read the windows from this file (--save-windows) instead of --data")
+    ap.add_argument("--save-windows", default=None, help="also write the windows to this .npz")
+    ap.add_argument("--name", default=None, help="output name under outputs/bench (default: models or models_quick)")
     args = ap.parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s %(message)s")
 
-    name = "models_quick" if args.quick else "models"  # a quick run never overwrites the full numbers
+    name = args.name or ("models_quick" if args.quick else "models")  # a quick run never overwrites the full numbers
     participants = args.participants or (6 if args.quick else 18)
     repetitions = args.repetitions or (5 if args.quick else 20)
     cnn_folds = args.cnn_folds or (3 if args.quick else None)
     t0 = time.perf_counter()
-    win, source, note = get_windows(args.data, args.res, participants, repetitions, seed=0)
+    if args.windows:
+        win, source, note = load_windows(args.windows), "file", str(args.windows)
+    else:
+        win, source, note = get_windows(args.data, args.res, participants, repetitions, seed=0)
+    if args.save_windows:
+        log.info("windows written to %s", save_windows(win, args.save_windows))
     data_s = time.perf_counter() - t0
     log.info("windows %s from %s in %.1f s", win.x.shape, source, data_s)
 
@@ -178,8 +262,10 @@ def main(argv: list[str] | None = None) -> int:
         "quick": args.quick,
         "data": {"source": source, "note": note, "n_trials": int(win.x.shape[0]), "L": int(win.x.shape[1]),
                  "n_taxels": int(win.x.shape[2]), "grid_shape": win.geometry.grid_shape,
-                 "participants": int(len(set(win.groups))), "res": args.res, "seconds": round(data_s, 1)},
+                 "participants": int(len(set(win.groups))), "res": None if args.windows else args.res, "seconds": round(data_s, 1)},
         "cv": {"scheme": "loso", "workers": args.workers, "threads_per_worker": args.threads},
+        "cnn_gru_run": {"device": args.device, "precision": args.precision or "auto (the model's default)",
+                        "seeds": args.seeds},
         "targets_s": {"rf": 60, "cnn_gru": 900},
     }
     rf = functools.partial(RandomForest, geometry=win.geometry)
@@ -188,10 +274,15 @@ def main(argv: list[str] | None = None) -> int:
     write_json(name, out)
     if not args.skip_cnn:
         out["cnn_gru_budgets"] = {}
+        run_kw = {"device": args.device, **({"precision": args.precision} if args.precision else {})}
         for budget in args.budgets:
             settings = BUDGETS[budget]
-            cnn = functools.partial(CnnGru, geometry=win.geometry, **settings)
-            row = timed_loso(cnn, win, args.workers, args.threads, cnn_folds)
+            rows = {}
+            for seed in args.seeds:
+                cnn = functools.partial(CnnGru, geometry=win.geometry, seed=seed, **run_kw, **settings)
+                rows[seed] = timed_loso(cnn, win, args.workers, args.threads, cnn_folds)
+                log.info("cnn_gru %s seed %d: accuracy %.4f", budget, seed, rows[seed]["accuracy_mean"])
+            row = combine_seeds(rows) if len(rows) > 1 else rows[args.seeds[0]]
             row["settings"] = settings
             out["cnn_gru_budgets"][budget] = row
             log.info("cnn_gru %s: %s", budget, {k: v for k, v in row.items() if k != "per_fold_accuracy"})
@@ -202,6 +293,10 @@ def main(argv: list[str] | None = None) -> int:
             base = out["cnn_gru"]["fold_cpu_s"]
             out["cnn_gru_cpu_ratio_vs_paper"] = {n: round(b["fold_cpu_s"] / base, 3)
                                                  for n, b in out["cnn_gru_budgets"].items()}
+            if len(args.seeds) > 1:  # is each budget's seed mean at or above the paper's lowest seed?
+                lowest = min(out["cnn_gru"]["seed_accuracy"])
+                out["within_paper_seed_spread"] = {n: bool(b["accuracy_mean"] >= lowest)
+                                                   for n, b in out["cnn_gru_budgets"].items()}
         out["pareto_front"] = pareto_front(
             {**{f"cnn_gru {n}": (b["fold_cpu_s"] / b["folds"], b["accuracy_mean"]) for n, b in out["cnn_gru_budgets"].items()},
              "rf": (out["rf"]["fold_cpu_s"] / out["rf"]["folds"], out["rf"]["accuracy_mean"])})

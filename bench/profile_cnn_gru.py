@@ -8,9 +8,16 @@ synthetic study by default; ``--quick``: 6 participants x 5 repetitions):
   conv forward, conv backward, GRU forward/backward, linear, pooling matmul,
   optimizer, data movement (index/copy/cat/pad) and the rest;
 * ``epoch``: one training epoch's and one validation pass's wall/CPU time;
+* ``flops``: floating-point operations of one training step
+  (``torch.utils.flop_counter``: convolutions and matrix products, the GRU's
+  included), per training window, and the epoch's achieved GFLOP per CPU
+  second beside a float32 matrix product's on one thread in the same run
+  (``matmul_gflops_1_thread``, this CPU's practical peak);
 * ``fit`` (``--fit-res``, default 18): one whole fit with the model's
   default (old, ``--budget old``) settings: epochs run, best epoch, and the
-  share of epochs discarded by early stopping.
+  share of epochs discarded by early stopping; ``floor_cpu_s``: the CPU
+  seconds of the best epoch's training work alone at the matrix product's
+  peak (no discarded epochs, no validation), and its ratio to the fit's.
 
 Writes ``outputs/bench/cnn_gru_profile.json`` (``_quick`` with ``--quick``).
 
@@ -56,6 +63,22 @@ def category(name: str) -> str:
     return "other"
 
 
+def matmul_gflops(seconds: float = 1.5, n: int = 1024) -> float:
+    """float32 GFLOP per CPU second of an n x n matrix product on one thread (the CPU's practical peak)."""
+    prev = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        a, b = torch.randn(n, n), torch.randn(n, n)
+        a @ b
+        c0, k = time.process_time(), 0
+        while time.process_time() - c0 < seconds:
+            a @ b
+            k += 1
+        return 2 * n ** 3 * k / (time.process_time() - c0) / 1e9
+    finally:
+        torch.set_num_threads(prev)
+
+
 def first_fold(win):
     g = np.asarray(win.groups)
     held = np.unique(g)[0]
@@ -88,6 +111,11 @@ def profile_res(win, batches: int) -> dict:
     order = list(torch.split(torch.randperm(xt.shape[0], generator=gen), m.batch_size))
     for b in order[:3]:  # warm-up
         step(b)
+    from torch.utils.flop_counter import FlopCounterMode
+
+    with FlopCounterMode(display=False) as counter:
+        step(order[3])
+    flops_per_window = counter.get_total_flops() / order[3].numel()
     with torch.profiler.profile(activities=[torch.profiler.ProfilerActivity.CPU]) as prof:
         for b in order[3:3 + batches]:
             step(b)
@@ -116,10 +144,15 @@ def profile_res(win, batches: int) -> dict:
         "epoch": {k: round(v, 2) if isinstance(v, float) else v for k, v in epoch.items()},
         "validation_pass": {k: round(v, 2) if isinstance(v, float) else v for k, v in val.items()},
         "validation_share_of_epoch": round(val["wall_s"] / (epoch["wall_s"] + val["wall_s"]), 3),
+        "flops": {
+            "training_flops_per_window": round(flops_per_window),
+            "epoch_gflop": round(flops_per_window * xt.shape[0] / 1e9, 1),
+            "epoch_gflop_per_cpu_s": round(flops_per_window * xt.shape[0] / 1e9 / epoch["cpu_s"], 1),
+        },
     }
 
 
-def profile_fit(win) -> dict:
+def profile_fit(win, flops_per_window: float | None = None, peak_gflops: float | None = None) -> dict:
     tr, _ = first_fold(win)
     g = np.asarray(win.groups)
     m = CnnGru(geometry=win.geometry)
@@ -127,9 +160,14 @@ def profile_fit(win) -> dict:
     m.fit(win.x[tr], np.asarray(win.y)[tr], groups=g[tr])
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     ran = len(m.history_)
-    return {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "epochs_run": ran, "best_epoch": m.best_epoch_,
-            "epochs_discarded": ran - m.best_epoch_, "discarded_share": round((ran - m.best_epoch_) / ran, 3),
-            "history": m.history_}
+    out = {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "epochs_run": ran, "best_epoch": m.best_epoch_,
+           "epochs_discarded": ran - m.best_epoch_, "discarded_share": round((ran - m.best_epoch_) / ran, 3),
+           "n_train": m.n_train_, "n_val": m.n_val_, "history": m.history_}
+    if flops_per_window and peak_gflops:
+        floor = m.best_epoch_ * m.n_train_ * flops_per_window / 1e9 / peak_gflops
+        out["floor_cpu_s"] = round(floor, 1)
+        out["floor_over_fit_cpu"] = round(floor / cpu, 3)
+    return out
 
 
 def main(argv=None) -> int:
@@ -141,14 +179,16 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     participants, reps = (6, 5) if args.quick else (18, 20)
     torch.set_num_threads(2)
-    out = {"machine": machine(), "quick": args.quick, "threads": torch.get_num_threads(), "res": {}}
+    out = {"machine": machine(), "quick": args.quick, "threads": torch.get_num_threads(),
+           "matmul_gflops_1_thread": round(matmul_gflops(), 1), "res": {}}
     for res in sorted(set(args.res) | set(args.fit_res)):
         win, source, _ = get_windows("pipeline", res, participants, reps, seed=0)
         entry = {"data_source": source, "windows": list(win.x.shape)}
         if res in args.res:
             entry.update(profile_res(win, args.batches))
         if res in args.fit_res:
-            entry["fit_old_settings"] = profile_fit(win)
+            fpw = entry.get("flops", {}).get("training_flops_per_window")
+            entry["fit_old_settings"] = profile_fit(win, fpw, out["matmul_gflops_1_thread"])
         out["res"][str(res)] = entry
         print(res, {k: v for k, v in entry.items() if k not in ("top_ops", "fit_old_settings")}, flush=True)
         write_json("cnn_gru_profile_quick" if args.quick else "cnn_gru_profile", out)
