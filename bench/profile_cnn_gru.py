@@ -19,6 +19,15 @@ synthetic study by default; ``--quick``: 6 participants x 5 repetitions):
   seconds of the best epoch's training work alone at the matrix product's
   peak (no discarded epochs, no validation), and its ratio to the fit's.
 
+* ``sweep_estimate`` (two or more ``--res``): the 50-resolution CNN-GRU
+  sweep's CPU time extrapolated from these measurements. The CPU seconds of
+  an epoch plus its validation pass are interpolated linearly in the taxel
+  count between the profiled resolutions (constant beyond them). Each resolution 1..50 gets
+  its grid from the study's surface (:func:`sphri.layout.common.grid_dims`),
+  then ``epochs_per_fit`` epochs (the res-18 fit's count, or 16), 18 folds, on
+  2 cores. Scaled to the res-18 fit's measured CPU seconds per epoch, because
+  the profiled epoch holds no trials out for validation.
+
 Writes ``outputs/bench/cnn_gru_profile.json`` (``_quick`` with ``--quick``).
 
     python bench/profile_cnn_gru.py [--quick] [--res 6 18 50] [--fit-res 18]
@@ -170,6 +179,43 @@ def profile_fit(win, flops_per_window: float | None = None, peak_gflops: float |
     return out
 
 
+def sweep_estimate(out: dict, participants: int, reps: int, cores: int = 2) -> dict:
+    """Extrapolate the 1..50 resolution sweep's CNN-GRU time from the profiled epochs (see module docstring)."""
+    from sphri.cache import StageCache
+    from sphri.config import compose
+    from sphri.layout.common import grid_dims
+    from sphri.pipeline import make_pipeline
+
+    pts = [(int(np.prod(e["grid_shape"])), e["epoch"]["cpu_s"] + e["validation_pass"]["cpu_s"])
+           for e in out["res"].values() if "epoch" in e]
+    pts.sort()
+    n_tax = np.array([t for t, _ in pts], dtype=float)
+    cost = np.array([c for _, c in pts])
+    fit18 = out["res"].get("18", {}).get("fit_old_settings")
+    epochs = fit18["epochs_run"] if fit18 else 16
+    # the profiled epoch trains on every non-held-out trial; a fit holds ~15 % out for validation:
+    # calibrate to the measured res-18 fit (CPU s per epoch, validation included) where there is one
+    calib = 1.0
+    e18 = out["res"].get("18", {})
+    if fit18 and "epoch" in e18:
+        calib = fit18["cpu_s"] / fit18["epochs_run"] / (e18["epoch"]["cpu_s"] + e18["validation_pass"]["cpu_s"])
+    cfg = compose(["data=synthetic", "data.regions=[arm]", f"data.participants={participants}",
+                   f"data.repetitions={reps}", "seed=0"])
+    surface = make_pipeline(cfg, StageCache(root=cfg.cache.dir, enabled=bool(cfg.cache.enabled))).get("surface")
+    per_res = {}
+    for r in range(1, 51):
+        h, w = grid_dims(surface, r)
+        per_res[r] = float(np.interp(h * w, n_tax, cost)) * calib * epochs * participants / cores
+    total = sum(per_res.values())
+    return {
+        "epoch_cpu_s_points": [[int(t), round(float(c), 2)] for t, c in pts],
+        "epochs_per_fit": epochs, "calibration_to_res18_fit": round(float(calib), 3),
+        "folds": participants, "cores": cores,
+        "per_res_wall_min": {str(r): round(v / 60, 1) for r, v in per_res.items() if r in (1, 6, 18, 36, 50)},
+        "sweep_wall_h": round(float(total) / 3600, 1),
+    }
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
@@ -191,6 +237,10 @@ def main(argv=None) -> int:
             entry["fit_old_settings"] = profile_fit(win, fpw, out["matmul_gflops_1_thread"])
         out["res"][str(res)] = entry
         print(res, {k: v for k, v in entry.items() if k not in ("top_ops", "fit_old_settings")}, flush=True)
+        write_json("cnn_gru_profile_quick" if args.quick else "cnn_gru_profile", out)
+    if sum("epoch" in e for e in out["res"].values()) >= 2:
+        out["sweep_estimate"] = sweep_estimate(out, participants, reps)
+        print("sweep estimate", out["sweep_estimate"], flush=True)
         write_json("cnn_gru_profile_quick" if args.quick else "cnn_gru_profile", out)
     return 0
 
