@@ -30,8 +30,8 @@ the budgets no other budget beats on both.
 Run-to-run spread (``--seeds 0 1 2 3 4``): each budget runs LOSO once per
 model seed (the seed also picks the early-stopping participants), and the
 JSON gives the LOSO accuracy of every seed, their mean and standard
-deviation, and whether a budget's mean lies inside the range of the
-paper's seeds. ``--save-windows F`` / ``--windows F`` store and reuse the
+deviation, and whether a budget's mean is at or above the paper's lowest
+seed (``within_paper_seed_spread``). ``--save-windows F`` / ``--windows F`` store and reuse the
 model input (arrays + JSON, no pickle), so the same windows can be trained on
 another machine, e.g. ``--device cuda --workers 12`` for many seeds at once
 (accuracies only: GPU float32 is not bit-identical to the CPU's):
@@ -179,9 +179,12 @@ def load_windows(path: str) -> WindowedFrames:
 
 
 def combine_seeds(rows: dict[int, dict]) -> dict:
-    """One budget's LOSO rows, one per model seed -> the first row plus the seeds' spread."""
+    """One budget's LOSO rows, one per model seed -> one row: accuracy, CPU and wall time are means
+    over the seeds; the per-fold fields (``per_fold_accuracy``, ``accuracy_std``, ...) are the first
+    seed's (``per_fold_fields_seed``); ``by_seed`` keeps every seed's."""
     accs = [r["accuracy_mean"] for r in rows.values()]
     first = dict(next(iter(rows.values())))
+    first["per_fold_fields_seed"] = next(iter(rows))
     first["by_seed"] = {str(s): {k: r[k] for k in ("accuracy_mean", "fold_cpu_s", "wall_s", "folds", "per_fold_accuracy")}
                         for s, r in rows.items()}
     first["seed_accuracy"] = [round(a, 4) for a in accs]
