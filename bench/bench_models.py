@@ -32,12 +32,12 @@ model seed (the seed also picks the early-stopping participants), and the
 JSON gives the LOSO accuracy of every seed, their mean and standard
 deviation, and whether a budget's mean is at or above the paper's lowest
 seed (``within_paper_seed_spread``). ``--save-windows F`` / ``--windows F`` store and reuse the
-model input (arrays + JSON, no pickle), so the same windows can be trained on
+model input (a stage-cache entry: checksummed arrays + JSON, no pickle), so the same windows can be trained on
 another machine, e.g. ``--device cuda --workers 12`` for many seeds at once
 (accuracies only: GPU float32 is not bit-identical to the CPU's):
 
-    python bench/bench_models.py --skip-cnn --save-windows outputs/bench/windows_res18
-    python bench/bench_models.py --windows outputs/bench/windows_res18 --device cuda --precision float32 \
+    python bench/bench_models.py --skip-cnn --save-windows outputs/bench/windows_res18.entry
+    python bench/bench_models.py --windows outputs/bench/windows_res18.entry --device cuda --precision float32 \
         --workers 12 --seeds 0 1 2 3 4 --budgets paper batch8_e7 --name models_seeds
 """
 
@@ -45,7 +45,6 @@ from __future__ import annotations
 
 import argparse
 import functools
-import json
 import logging
 import os
 import platform
@@ -150,32 +149,21 @@ def get_windows(source: str, res: int, participants: int, repetitions: int, seed
 
 
 def save_windows(win: WindowedFrames, path: str) -> Path:
-    """``path``.npz: the windows as arrays + JSON (:mod:`sphri.codec`, no pickle)."""
-    from sphri import codec
+    """Write the windows to ``path`` in the stage cache's entry format (checksummed arrays + JSON, no pickle)."""
+    from sphri.cache import write_entry
 
-    tree, arrays = codec.encode(win)
-    out = Path(path).with_suffix(".npz")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    np.savez_compressed(out, __tree__=np.asarray(json.dumps(tree)), **arrays)
-    return out
+    return write_entry(Path(path), win, {"what": "bench windows"})
 
 
 def load_windows(path: str) -> WindowedFrames:
     """Windows written by :func:`save_windows`; a clear error for a file that is not one."""
-    from sphri import codec
+    from sphri.cache import CorruptEntry, read_entry
+    from sphri.codec import DecodeError
 
-    src = Path(path).with_suffix(".npz")
     try:
-        with np.load(src, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError) as exc:
-        raise SystemExit(f"--windows {src}: cannot read it ({exc})") from None
-    if "__tree__" not in arrays:
-        raise SystemExit(f"--windows {src}: not written by --save-windows (no __tree__ entry)")
-    win = codec.decode(json.loads(str(arrays.pop("__tree__"))), arrays)
-    if not isinstance(win, WindowedFrames):
-        raise SystemExit(f"--windows {src}: holds a {type(win).__name__}, not WindowedFrames")
-    return win
+        return read_entry(Path(path), WindowedFrames)[1]
+    except (OSError, CorruptEntry, DecodeError) as exc:
+        raise SystemExit(f"--windows {path}: not windows written by --save-windows ({exc})") from None
 
 
 def combine_seeds(rows: dict[int, dict]) -> dict:

@@ -99,6 +99,38 @@ def _decode(blob: bytes, path: Path) -> tuple[dict[str, Any], Any]:
     return meta, decode(meta.pop("value"), arrays)
 
 
+def write_entry(path: Path, value: Any, meta: dict[str, Any] | None = None) -> Path:
+    """Write ``value`` to ``path`` as one checksummed entry (arrays + JSON, no pickle), atomically."""
+    path = Path(path)
+    blob = _encode(value, {"format": 2, **(meta or {})})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(blob)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+    return path
+
+
+def read_entry(path: Path, contract: Any = None) -> tuple[dict[str, Any], Any]:
+    """``(meta, value)`` of an entry written by :func:`write_entry`.
+
+    Raises ``OSError`` when the file cannot be read, :class:`CorruptEntry` or
+    :class:`~sphri.codec.DecodeError` (each naming ``path``) when it is not a
+    valid entry or its value is not of ``contract``.
+    """
+    path = Path(path)
+    meta, value = _decode(path.read_bytes(), path)
+    check_contract(value, contract, str(path))
+    return meta, value
+
+
 @dataclass
 class StageCache:
     """The cache under ``root``; ``enabled=False`` computes everything."""
@@ -148,21 +180,7 @@ class StageCache:
 
     def write(self, stage: str, key: str, value: Any, files: dict[str, str] | None = None) -> Path:
         """Store ``value``; raises :class:`~sphri.codec.EncodeError` when it cannot be stored as arrays + JSON."""
-        path = self.path(stage, key)
-        blob = _encode(value, {"format": 2, "stage": stage, "key": key, "files": files or {}})
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".{key}.", suffix=".tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(blob)
-                fh.flush()
-                os.fsync(fh.fileno())
-            os.replace(tmp, path)
-        except BaseException:
-            with contextlib.suppress(FileNotFoundError):
-                os.unlink(tmp)
-            raise
-        return path
+        return write_entry(self.path(stage, key), value, {"stage": stage, "key": key, "files": files or {}})
 
     def changed_files(self, stage: str, path_key: str, key: str, files: dict[str, str]) -> list[str]:
         """Files whose content differs from the entry last stored for the same config and paths."""

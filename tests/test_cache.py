@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sphri.cache import MAGIC, StageCache, stable_hash, stage_key
+from sphri.cache import MAGIC, CorruptEntry, StageCache, read_entry, stable_hash, stage_key, write_entry
+from sphri.codec import DecodeError
 
 
 def test_keys_are_stable_and_order_independent():
@@ -115,3 +116,23 @@ def test_concurrent_processes_compute_once(tmp_path: Path):
     assert counter.read_text() == "x", "exactly one process computes a shared entry"
     leftovers = [n for n in os.listdir(tmp_path / "cache" / "contact") if n.endswith(".tmp")]
     assert leftovers == []
+
+
+def test_an_entry_written_to_any_path_reads_back_and_a_bad_one_names_its_file(tmp_path):
+    """write_entry/read_entry: the stage cache's format for one value outside the cache (bench windows)."""
+    from sphri.testing.toy_windows import blob_windows
+    from sphri.types import TaxelGeometry, WindowedFrames
+
+    win = blob_windows(3, 2, 4, seed=0)
+    path = write_entry(tmp_path / "w.entry", win, {"what": "test"})
+    meta, back = read_entry(path, WindowedFrames)
+    assert meta["what"] == "test" and isinstance(back, WindowedFrames)
+    np.testing.assert_array_equal(back.x, win.x)
+    np.testing.assert_array_equal(back.groups, win.groups)
+    assert [p.name for p in tmp_path.iterdir()] == ["w.entry"]  # no temporary file left
+    with pytest.raises(DecodeError, match="w.entry"):
+        read_entry(path, TaxelGeometry)
+    bad = tmp_path / "bad.entry"
+    bad.write_bytes(path.read_bytes()[:-10])
+    with pytest.raises(CorruptEntry, match="bad.entry"):
+        read_entry(bad)
