@@ -12,10 +12,7 @@ Forest's features) has it computed once for all trials; each fold then calls
 cannot leak across folds since nothing in the transform is fitted.
 Folds run one after another or in ``workers``
 processes (loky), each limited to its share of the cores (BLAS/OpenMP via
-threadpoolctl, torch threads, and the model's ``n_jobs``/``threads``);
-``workers=None`` (auto) gives a CPU model with class attribute
-``PARALLEL_FOLDS = True`` (the CNN-GRU) one process per core
-(:func:`fold_parallelism`).
+threadpoolctl, torch threads, and the model's ``n_jobs``/``threads``).
 """
 
 from __future__ import annotations
@@ -113,14 +110,13 @@ def fold_parallelism(probe: Any, n_folds: int, workers: Optional[int], threads_p
     CPU (the CNN-GRU: on 2 cores, 2 fold processes of 1 thread trained 1.65x
     as fast as one process, 2 threads in one process 1.2x;
     docs/BENCHMARKS.md), else the folds in this process (a GPU model keeps
-    one process, not one GPU context per core). Threads default to the
-    available cores shared among the processes (:func:`available_cores`,
-    which a parallel sweep job caps).
+    one process, not one GPU context per core). Threads default to the available cores shared among the
+    processes (:func:`available_cores`, which a parallel sweep job caps).
     """
     cores = available_cores()
     if workers is None:
         on_cpu = str(getattr(probe, "device", "cpu")) == "cpu"
-        workers = cores if bool(getattr(probe, "PARALLEL_FOLDS", False)) and on_cpu else 1
+        workers = cores if getattr(type(probe), "PARALLEL_FOLDS", False) and on_cpu else 1
     workers = max(1, min(workers, n_folds))
     return workers, threads_per_worker or max(1, cores // workers)
 
