@@ -102,25 +102,6 @@ def _accepts_groups(est: Any) -> bool:
     return "groups" in sig.parameters or any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values())
 
 
-def fold_parallelism(probe: Any, n_folds: int, workers: Optional[int], threads_per_worker: Optional[int]) -> tuple[int, int]:
-    """(fold processes, threads per fold) for a model and the ``cv.workers`` / ``cv.threads_per_worker`` settings.
-
-    ``workers=None`` (auto): one process per core (at most one per fold) for
-    a model whose class sets ``PARALLEL_FOLDS = True`` and that trains on the
-    CPU (the CNN-GRU: on 2 cores, 2 fold processes of 1 thread trained 1.65x
-    as fast as one process, 2 threads in one process 1.2x;
-    docs/BENCHMARKS.md), else the folds in this process (a GPU model keeps
-    one process, not one GPU context per core). Threads default to the available cores shared among the
-    processes (:func:`available_cores`, which a parallel sweep job caps).
-    """
-    cores = available_cores()
-    if workers is None:
-        on_cpu = str(getattr(probe, "device", "cpu")) == "cpu"
-        workers = cores if getattr(type(probe), "PARALLEL_FOLDS", False) and on_cpu else 1
-    workers = max(1, min(workers, n_folds))
-    return workers, threads_per_worker or max(1, cores // workers)
-
-
 def run_fold(
     make_model: Callable[[], Any],
     x: np.ndarray,
@@ -204,13 +185,13 @@ class CrossValidation:
 
     def __init__(
         self,
-        workers: Optional[int] = None,
+        workers: int = 1,
         threads_per_worker: Optional[int] = None,
         max_folds: Optional[int] = None,
         progress: bool = True,
     ):
-        if workers is not None and workers < 1:
-            raise ValueError(f"cv.workers={workers} is invalid: must be >= 1 or None (auto)")
+        if workers < 1:
+            raise ValueError(f"cv.workers={workers} is invalid: must be >= 1")
         if threads_per_worker is not None and threads_per_worker < 1:
             raise ValueError(f"cv.threads_per_worker={threads_per_worker} is invalid: must be >= 1 or None")
         if max_folds is not None and max_folds < 1:
@@ -249,7 +230,8 @@ class CrossValidation:
             self._check_fold(f, groups)
         probe = make_model()
         name = model_name(probe)
-        workers, threads = fold_parallelism(probe, len(folds), self.workers, self.threads_per_worker)
+        workers = min(self.workers, len(folds))
+        threads = self.threads_per_worker or max(1, available_cores() // workers)
         x, y = windows.x, np.asarray(windows.y, dtype=np.int64)
         featurized = transforms_per_trial(probe)
         if featurized:
@@ -336,7 +318,7 @@ class WithinSubjectKFold(CrossValidation):
     def __init__(
         self,
         k: int = 5,
-        workers: Optional[int] = None,
+        workers: int = 1,
         threads_per_worker: Optional[int] = None,
         max_folds: Optional[int] = None,
         progress: bool = True,

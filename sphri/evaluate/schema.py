@@ -13,9 +13,8 @@ class FoldsSchema:
     """What every cross-validation scheme shares: parallel folds, a fold limit, progress."""
 
     _target_: str = ""
-    workers: Optional[int] = runtime_setting(None)
-    """Folds run in parallel processes (1: in this process; None: one per core for models that train
-    faster that way, the CNN-GRU, else 1; see ``sphri.evaluate.cv.fold_parallelism``)."""
+    workers: int = runtime_setting(1)
+    """Folds run in parallel processes (1: in this process)."""
     threads_per_worker: Optional[int] = runtime_setting(None)
     """Threads each fold may use (None: available cores // workers)."""
     max_folds: Optional[int] = None
@@ -24,8 +23,7 @@ class FoldsSchema:
     """Progress bar over folds (shown only on a terminal)."""
 
     def __post_init__(self) -> None:
-        if self.workers is not None:
-            require_range("cv.workers", self.workers, lo=1)
+        require_range("cv.workers", self.workers, lo=1)
         if self.threads_per_worker is not None:
             require_range("cv.threads_per_worker", self.threads_per_worker, lo=1)
         if self.max_folds is not None:

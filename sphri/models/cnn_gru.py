@@ -282,8 +282,6 @@ class CnnGru(ClassifierMixin, BaseEstimator):
 
     NAME = "cnn_gru"
     VERSION = "2"
-    #: ``cv.workers=null`` (auto) runs this model's folds in one process per core (measured faster than threads)
-    PARALLEL_FOLDS = True
 
     def __init__(
         self,

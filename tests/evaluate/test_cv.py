@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 from sklearn.base import BaseEstimator, ClassifierMixin
 
-from sphri.evaluate import cv as cv_module
-from sphri.evaluate.cv import LeaveOneSubjectOut, WithinSubjectKFold, fold_parallelism
+from sphri.evaluate.cv import LeaveOneSubjectOut, WithinSubjectKFold
 from sphri.models.rf import RandomForest
 from sphri.testing.toy_windows import blob_windows
 from sphri.types import GESTURES, TaxelGeometry, WindowedFrames
@@ -234,36 +233,3 @@ def test_bad_windows_are_refused():
         LeaveOneSubjectOut(workers=0)
     with pytest.raises(ValueError, match="cv.k"):
         WithinSubjectKFold(k=1)
-
-
-@pytest.mark.parametrize(
-    "cores, workers, threads, n_folds, parallel_model, expected",
-    [
-        (2, None, None, 18, True, (2, 1)),   # auto, CNN-GRU-like: a process per core, 1 thread each
-        (2, None, None, 18, False, (1, 2)),  # auto, other models: in this process, every core's threads
-        (8, None, None, 3, True, (3, 2)),    # never more processes than folds
-        (1, None, None, 18, True, (1, 1)),   # a parallel sweep job capped to one core
-        (2, 1, None, 18, True, (1, 2)),      # an explicit cv.workers wins
-        (4, None, 3, 18, True, (4, 3)),      # and an explicit cv.threads_per_worker
-    ],
-)
-def test_fold_parallelism_follows_the_model_and_the_cores(monkeypatch, cores, workers, threads, n_folds,
-                                                          parallel_model, expected):
-    monkeypatch.setattr(cv_module, "available_cores", lambda: cores)
-    probe = type("Probe", (), {"PARALLEL_FOLDS": parallel_model})()
-    assert fold_parallelism(probe, n_folds, workers, threads) == expected
-
-
-def test_auto_keeps_a_gpu_model_in_one_process(monkeypatch):
-    from sphri.models.cnn_gru import CnnGru
-
-    monkeypatch.setattr(cv_module, "available_cores", lambda: 16)
-    assert fold_parallelism(CnnGru(), 18, None, None) == (16, 1)
-    assert fold_parallelism(CnnGru(device="cuda"), 18, None, None) == (1, 16)
-
-
-def test_the_cnn_gru_asks_for_fold_processes_and_the_forest_does_not():
-    from sphri.models.cnn_gru import CnnGru
-
-    assert CnnGru.PARALLEL_FOLDS is True
-    assert not getattr(RandomForest, "PARALLEL_FOLDS", False)

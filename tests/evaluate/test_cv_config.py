@@ -17,11 +17,6 @@ def test_cv_yaml_instantiates(name, cls):
     assert cv.workers == 2 and cv.max_folds == 3
 
 
-def test_workers_default_to_auto_and_null_composes():
-    assert compose([]).cv.workers is None
-    assert instantiate(compose(["cv.workers=null"]).cv).workers is None
-
-
 def test_bad_value_fails_at_composition():
     with pytest.raises(ConfigError, match="cv.workers"):
         compose(["cv.workers=0"])
