@@ -9,7 +9,7 @@ this file. ``sphri.config.CONF_DIR`` reads ``conf/`` in a checkout and
 
 from pathlib import Path
 
-from setuptools import find_packages, setup
+from setuptools import find_namespace_packages, find_packages, setup
 
 HERE = Path(__file__).resolve().parent
 CONF_PACKAGES = ["sphri.conf"] + sorted(
@@ -19,7 +19,11 @@ CONF_PACKAGES = ["sphri.conf"] + sorted(
 )
 
 setup(
-    packages=find_packages(include=["sphri", "sphri.*", "hydra_plugins", "hydra_plugins.*"]) + CONF_PACKAGES,
+    # hydra_plugins is a namespace package (no __init__.py, as Hydra's plugin discovery wants):
+    # find_packages skips it and with it sphri's sweeper, so it is found as a namespace.
+    packages=find_packages(include=["sphri", "sphri.*"])
+    + find_namespace_packages(include=["hydra_plugins.*"])
+    + CONF_PACKAGES,
     package_dir={"sphri.conf": "conf"},
     # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml)
     package_data={"sphri": ["**/*.yaml"], **{name: ["*.yaml"] for name in CONF_PACKAGES}},

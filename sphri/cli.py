@@ -25,7 +25,7 @@ from pathlib import Path
 
 import yaml
 
-from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, compose
+from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, compose, validate
 from sphri.errors import clean_errors
 from sphri.stages import PARAM_GROUPS, STAGE_GROUPS
 
@@ -64,9 +64,33 @@ def _describe(path: Path) -> str:
     return str(data.get("_target_", "")) if isinstance(data, dict) else ""
 
 
-def _row(head: str, text: str, width: int = 100) -> str:
-    """``head`` then ``text`` wrapped to ``width`` columns, continuation lines under the text."""
+WIDTH = 100  # columns of every wrapped line `cli` prints (list, show, --help)
+
+
+def _row(head: str, text: str, width: int = WIDTH) -> str:
+    """``head`` then ``text`` wrapped to ``width`` columns, continuation lines under the text.
+
+    The text's whitespace is collapsed first, and a head that leaves fewer than 30 columns for
+    the text puts the text on the lines below it (indented by 8): CPython's ``textwrap`` never
+    returns when the indent is not shorter than the width and the text starts with a space
+    (``textwrap.fill(' a', width=10, initial_indent='x' * 20)``), so neither reaches it.
+    """
+    text = " ".join(str(text).split())
+    if not text:
+        return head.rstrip()
+    if len(head) > width - 30:
+        body = textwrap.fill(text, width=width, initial_indent=" " * 8, subsequent_indent=" " * 8)
+        return head.rstrip() + "\n" + body
     return textwrap.fill(text, width=width, initial_indent=head, subsequent_indent=" " * len(head))
+
+
+def _short(value: object, limit: int = 40) -> str:
+    """``repr(value)`` cut to ``limit`` characters (a list or mapping says how many items it has)."""
+    text = repr(value)
+    if len(text) <= limit:
+        return text
+    size = f" ({len(value)} items)" if isinstance(value, (list, tuple, dict)) else ""
+    return text[: max(limit - 3 - len(size), 8)] + "..." + size
 
 
 def _defaults() -> dict[str, str]:
@@ -129,7 +153,12 @@ def cmd_show(overrides: list[str], groups: list[str] | None = None) -> int:
 
     from sphri.config import field_docs
 
-    cfg = compose(overrides)
+    cfg = compose(overrides, check=False)
+    try:
+        validate(cfg)
+        problem = ""
+    except ConfigError as exc:
+        problem = str(exc)
     named = [o.lstrip("+").split("=", 1)[0].split(".", 1)[0] for o in overrides if "=" in o]
     shown = groups or [g for g in STAGE_GROUPS if g in named] or list(STAGE_GROUPS)
     for group in shown:
@@ -145,8 +174,10 @@ def cmd_show(overrides: list[str], groups: list[str] | None = None) -> int:
         values = OmegaConf.to_container(node, resolve=True)
         print(f"{group}: {str(values.pop('_target_', '')).rsplit('.', 1)[-1]}")
         for key, value in values.items():
-            mark = "" if key not in default or default[key] == value else f" [changed; default {default[key]!r}]"
-            print(_row(f"  {key:<24} {value!r:<14} ", docs.get(key, "") + mark))
+            mark = "" if key not in default or default[key] == value else f" [changed; default {_short(default[key])}]"
+            print(_row(f"  {key:<24} {_short(value):<14} ", docs.get(key, "") + mark))
+    if problem:
+        print(_row("note: ", f"this config does not run as it stands: {problem}"))
     return 0
 
 

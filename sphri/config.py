@@ -266,10 +266,12 @@ def check_choices(overrides: Sequence[str]) -> None:
                                   f"{', '.join(options)}{close_match(value, options)}")
 
 
-def compose(overrides: Sequence[str] = (), config_name: str = "config") -> DictConfig:
+def compose(overrides: Sequence[str] = (), config_name: str = "config", check: bool = True) -> DictConfig:
     """Compose the config outside a Hydra app (CLI, tests, notebooks).
 
-    Raises :class:`ConfigError` with the offending key on any problem.
+    Raises :class:`ConfigError` with the offending key on any problem. ``check=False`` skips
+    :func:`validate` (ranges, cross-component rules, mandatory values): ``cli show`` uses it to
+    print the settings of a config that does not run as it stands.
     """
     from hydra import compose as hydra_compose
     from hydra import initialize_config_dir
@@ -287,7 +289,8 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config") -> DictC
         raise
     except Exception as exc:  # hydra raises several types; all are config problems
         raise ConfigError(_explain(exc)) from exc
-    validate(cfg)
+    if check:
+        validate(cfg)
     return cfg
 
 

@@ -105,6 +105,9 @@ def clean_errors(prog: str) -> Callable:
             except KeyboardInterrupt:
                 print(f"{prog}: interrupted", file=sys.stderr)
                 return 130
+            except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as Python's docs advise
+                os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+                return 1
             except Exception as exc:
                 code = report(prog, exc)
                 if code is None:

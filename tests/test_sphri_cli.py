@@ -117,3 +117,56 @@ def test_tab_completion_offers_components_not_schemas():
     run = subprocess.run([sys.executable, "-m", "sphri", "-sc", "query=bash"], capture_output=True, text=True,
                          env=env, timeout=120)
     assert run.stdout.split() == ["encoder=coverage", "encoder=ellipse", "encoder=proximity"], run.stdout + run.stderr
+
+
+def _within(seconds: int):
+    """A harness time limit (SIGALRM), not a speed assertion: a hang fails the test instead of the suite."""
+    import contextlib
+    import signal
+
+    @contextlib.contextmanager
+    def limit():
+        def fire(signum, frame):
+            raise TimeoutError(f"did not return within {seconds} s")
+
+        old = signal.signal(signal.SIGALRM, fire)
+        signal.alarm(seconds)
+        try:
+            yield
+        finally:
+            signal.alarm(0)
+            signal.signal(signal.SIGALRM, old)
+
+    return limit()
+
+
+def test_show_returns_for_every_option_of_every_group_in_100_columns(capsys):
+    """`cli show` with no arguments and `show GROUP=OPTION` for every option return, every line fits
+    100 columns (the hand's 19 capsules used to print 2,700-character lines, and a head wider than
+    the width made textwrap loop forever), and a config that does not run as it stands is still shown,
+    with a note saying why."""
+    from sphri.config import DEFAULT_GROUPS
+
+    calls = [[]] + [
+        [f"{'+' if group == 'robot' else ''}{group}={name}"]
+        for group in DEFAULT_GROUPS
+        for name, _ in components(group)
+    ]
+    for args in calls:
+        with _within(60):
+            assert main(["show", *args]) == 0, args
+        out = capsys.readouterr().out
+        assert out.strip(), args
+        wide = [line for line in out.splitlines() if len(line) > 100]
+        assert not wide, (args, wide[:2])
+    main(["show", "layout=random"])
+    out = capsys.readouterr().out
+    assert "layout: RandomLayout" in out and "note: this config does not run as it stands" in out
+
+
+def test_row_never_hangs_on_a_head_wider_than_the_width():
+    from sphri.cli import _row
+
+    with _within(10):
+        text = _row("x" * 120, "  starts with spaces and is long enough to wrap " * 3)
+    assert text.startswith("x" * 120) and all(len(line) <= 100 for line in text.splitlines()[1:])
