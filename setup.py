@@ -7,9 +7,13 @@ this file. ``sphri.config.CONF_DIR`` reads ``conf/`` in a checkout and
 ``sphri/conf`` in an installed wheel.
 """
 
+import json
+import subprocess
 from pathlib import Path
 
 from setuptools import find_namespace_packages, find_packages, setup
+from setuptools.command.build_py import build_py
+
 
 HERE = Path(__file__).resolve().parent
 CONF_PACKAGES = ["sphri.conf"] + sorted(
@@ -18,7 +22,29 @@ CONF_PACKAGES = ["sphri.conf"] + sorted(
     if d.is_dir() and any(d.glob("*.yaml"))
 )
 
+
+
+class build_py_with_commit(build_py):
+    """Also write ``sphri/_build_info.json`` (the git commit the wheel was built from) into the build:
+    an installed wheel has no checkout to ask, and MLflow runs record this commit
+    (``sphri.tracking.mlflow_tracker.git_commit``)."""
+
+    def run(self) -> None:
+        super().run()
+        try:
+            commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10,
+                                    cwd=HERE).stdout.strip()
+            dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                                   text=True, timeout=10, cwd=HERE).stdout.strip()
+        except (OSError, subprocess.SubprocessError):
+            commit, dirty = "", ""
+        if commit and not self.dry_run:
+            target = Path(self.build_lib) / "sphri" / "_build_info.json"
+            target.write_text(json.dumps({"git_commit": commit, "dirty": bool(dirty)}) + "\n")
+
+
 setup(
+    cmdclass={"build_py": build_py_with_commit},
     # hydra_plugins is a namespace package (no __init__.py, as Hydra's plugin discovery wants):
     # find_packages skips it and with it sphri's sweeper, so it is found as a namespace.
     packages=find_packages(include=["sphri", "sphri.*"])

@@ -142,14 +142,15 @@ def run_job(cfg: DictConfig) -> dict | None:
         # the same experiment again (same config hash, runtime settings aside): recorded once, on its first run
         run_id = tracker.find_finished(cfg.output_dir, result.config_hash)
         reruns = tracker.mark_rerun(cfg.output_dir, run_id, job_dir) if run_id else 0
+    model_note = ""
     if tracker.enabled and run_id is None:
         run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices)
         if tracker.log_model:
-            from sphri.hardware.train_export import log_job_model
-
-            t0 = time.perf_counter()
-            log.info("logged the model (fit on every participant): %s in %.1f s",
-                     log_job_model(cfg, run_id, tracker.register_model), time.perf_counter() - t0)
+            model_note = _log_model(cfg, tracker, run_id)
+    elif tracker.enabled and tracker.log_model:
+        # already recorded: log the model into that run unless it holds one (never silently nothing)
+        held = tracker.logged_models(cfg.output_dir, run_id)
+        model_note = (f"model already logged in that run: {held[0]}" if held else _log_model(cfg, tracker, run_id))
     summary = result.summary()
     from_cache = result.stages["evaluate"].source == "cache" if "evaluate" in result.stages else False
     _write_status(job_dir, job_num, "FINISHED", None, run_id, overrides=swept,
@@ -167,8 +168,21 @@ def run_job(cfg: DictConfig) -> dict | None:
     where = f"MLflow run {run_id} in {uri} (see it with `{ui_hint(uri)}`)" if run_id else "MLflow tracking disabled"
     if reruns:
         where = f"already recorded: {where}; tagged sphri.reruns={reruns}, no new run"
+    if model_note:
+        where += f"\nmodel       {model_note}"
     print("\n" + "=" * 78 + "\n" + text + f"\ntracking    {where}\njob dir     {job_dir}\n" + "=" * 78)
     return {"run_id": run_id, **summary}
+
+
+def _log_model(cfg: DictConfig, tracker, run_id: str) -> str:
+    """Fit the job's model on every participant and log it into ``run_id``; the line the summary prints."""
+    from sphri.hardware.train_export import log_job_model
+
+    t0 = time.perf_counter()
+    uri = log_job_model(cfg, run_id, tracker.register_model)
+    seconds = time.perf_counter() - t0
+    log.info("logged the model (fit on every participant): %s in %.1f s", uri, seconds)
+    return f"logged {uri} (fit on every participant, {seconds:.1f} s)"
 
 
 @hydra.main(config_path=str(CONF_DIR), config_name="config", version_base="1.3")

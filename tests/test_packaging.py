@@ -136,3 +136,12 @@ def test_wheel_exports_a_model_and_runs_skin_live_on_the_simulator(installed, tm
         sim.wait(30)
     assert live.returncode == 0, (live.stdout + live.stderr)[-3000:]
     assert "predictions" in live.stdout and (tmp_path / "pred.jsonl").stat().st_size > 0
+
+
+def test_wheel_knows_the_commit_it_was_built_from(installed, tmp_path):
+    """No checkout beside an installed wheel: MLflow runs record the commit setup.py wrote into it."""
+    probe = subprocess.run([sys.executable, "-c", "from sphri.tracking.mlflow_tracker import git_commit; print(git_commit())"],
+                           capture_output=True, text=True, cwd=tmp_path, env=_env(installed))
+    assert probe.returncode == 0, probe.stderr[-3000:]
+    head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=REPO).stdout.strip()
+    assert probe.stdout.strip().removesuffix("+dirty") == head

@@ -75,6 +75,7 @@ def test_failure_is_recorded(tmp_path: Path):
     run = MlflowClient(default_uri(tmp_path)).get_run(run_id)
     assert run.info.status == "FAILED"
     assert "bad thing" in run.data.tags["sphri.error"]
+    assert run.info.run_name == "reachy-arm-res18-RandomForest (failed)"  # named after the job, not "failed"
 
 
 def test_params_are_flat_scalars():
@@ -108,6 +109,10 @@ def test_parallel_multirun_makes_one_parent_with_four_children(tmp_path: Path):
     assert all(c.info.status == "FINISHED" for c in children)
     assert sorted(c.data.params["encoder.res"] for c in children) == ["1", "2", "3", "4"]
     assert "4 of 4 jobs finished" in proc.stdout
+    # the parent carries the sweep's params (swept values as given, shared settings) and source tags
+    parent = parents[0].data
+    assert parent.params["encoder.res"] == "1,2,3,4" and parent.params["model"] and parent.params["seed"]
+    assert parent.tags["mlflow.user"] and parent.tags["mlflow.source.git.commit"] and parent.tags["sphri.version"]
 
 
 def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path, arm_mesh_roots):
@@ -161,6 +166,11 @@ def test_job_run_has_standard_source_tags_debug_experiment_and_derived_metrics(t
     exp = client.get_experiment_by_name("sphri-debug")
     (run,) = client.search_runs([exp.experiment_id])
     tags, metrics = run.data.tags, run.data.metrics
-    assert tags["mlflow.source.git.commit"] == tags["sphri.git_commit"]
-    assert tags["mlflow.source.name"] == "python -m sphri" and tags["sphri.debug"] == "true"
+    # MLflow's tag providers ran (as in mlflow.start_run): user, source, commit of this checkout
+    assert tags["mlflow.user"] and tags["mlflow.source.type"] == "LOCAL"
+    assert tags["mlflow.source.name"].endswith("__main__.py") and tags["sphri.debug"] == "true"
+    assert len(tags["mlflow.source.git.commit"]) == 40 and tags["sphri.git_commit"].startswith(tags["mlflow.source.git.commit"])
+    (data,) = run.inputs.dataset_inputs  # the dataset as an MLflow input, keyed by the data stage's content key
+    assert data.dataset.name == "synthetic" and data.dataset.digest and data.dataset.source_type == "code"
+    assert {t.key: t.value for t in data.tags}["mlflow.data.context"] == "training"
     assert metrics["resolution/pitch_u_mm"] > 0 and metrics["resolution/area_per_taxel_cm2"] > 0

@@ -85,3 +85,35 @@ def test_register_model_needs_log_model():
 
     with pytest.raises(ConfigError, match="tracking.register_model"):
         compose(["+debug=fast", "tracking.log_model=false", "tracking.register_model=x"])
+
+
+def test_the_run_lists_its_model_and_the_model_names_installable_requirements(logged):
+    from mlflow import MlflowClient
+
+    from sphri import __version__
+    from sphri.tracking.mlflow_tracker import MlflowTracker, default_uri
+
+    out, run_id = logged
+    client = MlflowClient(default_uri(out))
+    run = client.get_run(run_id)
+    (output,) = run.outputs.model_outputs  # MLflow's logged model, linked to the run
+    assert MlflowTracker().logged_models(str(out), run_id) == [f"models:/{output.model_id}"]
+    reqs = next(out.glob("mlartifacts/**/requirements.txt")).read_text().split()
+    assert f"sphri=={__version__}" in reqs  # the model's code imports sphri
+    assert any(r.startswith("torch==") for r in reqs) and not any("+" in r for r in reqs)  # no local labels
+
+
+def test_log_model_on_an_already_recorded_config_logs_it_or_says_where_it_is(tmp_path):
+    """A config first recorded without its model, run again with tracking.log_model=true, gets its model
+    logged into the recorded run; a third run says the model is already there (never silently nothing)."""
+    out = tmp_path / "out"
+    args = [sys.executable, "-m", "sphri", *DATA, f"output_dir={out}"]
+    runs = []
+    for flag in ("false", "true", "true"):
+        job = subprocess.run([*args, f"tracking.log_model={flag}"], capture_output=True, text=True, cwd=tmp_path,
+                             env=_env(), timeout=600)
+        assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
+        runs.append(job.stdout)
+    assert "model " not in runs[0].split("model       rf")[-1]
+    assert "already recorded" in runs[1] and "model       logged runs:/" in runs[1]
+    assert "model       model already logged in that run: models:/" in runs[2]

@@ -124,14 +124,18 @@ def log_pyfunc_model(tracking_uri: str, run_id: str, bundle: ModelBundle, exampl
 
 
 def _requirements() -> list[str]:
-    """What loading the pyfunc model needs: sphri (import name; install it from its repository or wheel)
-    and the pinned libraries its model files are read with."""
+    """What loading the pyfunc model needs: sphri itself (its model code imports it; install it from
+    its wheel or repository) and the libraries its model files are read with, pinned to the versions
+    that wrote them. Local version labels (``torch==2.13.0+cpu``) are dropped: no index serves them,
+    and the same release installs from PyPI."""
     from importlib.metadata import PackageNotFoundError, version
 
-    out = []
+    from sphri import __version__
+
+    out = [f"sphri=={__version__}"]
     for dist in ("mlflow", "numpy", "scikit-learn", "skops", "torch"):
         try:
-            out.append(f"{dist}=={version(dist)}")
+            out.append(f"{dist}=={version(dist).split('+', 1)[0]}")
         except PackageNotFoundError:
             out.append(dist)
     return out

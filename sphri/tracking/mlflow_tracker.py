@@ -58,14 +58,78 @@ def default_uri(output_dir: str | os.PathLike) -> str:
 
 
 def git_commit() -> str:
+    """The commit sphri runs from: the checkout's HEAD (``+dirty`` with uncommitted changes to tracked
+    files), else the commit an installed wheel was built from (``sphri/_build_info.json``, written by
+    setup.py), else ``"unknown"``."""
+    here = Path(__file__).resolve().parent
     try:
-        out = subprocess.run(
-            ["git", "rev-parse", "--short=12", "HEAD"],
-            capture_output=True, text=True, timeout=5, cwd=Path(__file__).resolve().parent,
-        )
-        return out.stdout.strip() or "unknown"
-    except (OSError, subprocess.SubprocessError):
+        out = subprocess.run(["git", "rev-parse", "--show-toplevel", "HEAD"], capture_output=True, text=True,
+                             timeout=5, cwd=here)
+        top, commit = (out.stdout.split() + ["", ""])[:2]
+        if out.returncode == 0 and commit and here.is_relative_to(Path(top).resolve()):
+            dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
+                                   text=True, timeout=5, cwd=here).stdout.strip()
+            return commit + ("+dirty" if dirty else "")
+    except (OSError, subprocess.SubprocessError, ValueError):
+        pass
+    info = here.parent / "_build_info.json"
+    try:
+        data = json.loads(info.read_text())
+        return str(data["git_commit"]) + ("+dirty" if data.get("dirty") else "")
+    except (OSError, ValueError, KeyError, TypeError):
         return "unknown"
+
+
+def source_tags() -> dict[str, str]:
+    """MLflow's own run-context tags, through its tag-provider registry as ``mlflow.start_run`` does
+    (``mlflow.user``, ``mlflow.source.name``/``type``, and the git fields when the entry point is in a
+    checkout), plus the commit of :func:`git_commit` (from a wheel too) and sphri's version."""
+    from mlflow.tracking.context.registry import resolve_tags
+
+    tags = dict(resolve_tags({}))
+    commit = git_commit()
+    tags["sphri.git_commit"] = commit
+    tags["sphri.version"] = __version__
+    if commit != "unknown":
+        tags.setdefault("mlflow.source.git.commit", commit.removesuffix("+dirty"))
+    return tags
+
+
+def dataset_input(cfg: "DictConfig", result: "RunResult") -> Any:
+    """The job's dataset as an MLflow dataset input (``mlflow.data``; context ``training``): named after
+    the dataset, its digest the data stage's content key (the same data gives the same digest), its
+    source the dataset folder (``data.root``) or, for generated data, the generator and its settings."""
+    from mlflow.data.code_dataset_source import CodeDatasetSource
+    from mlflow.data.dataset_source_registry import resolve_dataset_source
+    from mlflow.data.meta_dataset import MetaDataset
+    from mlflow.entities import DatasetInput, InputTag
+    from omegaconf import OmegaConf
+
+    stage = result.stages.get("data")
+    digest = (stage.key if stage is not None else result.config_hash)[:36]
+    root = cfg.data.get("root") if hasattr(cfg.data, "get") else None
+    if root:
+        source = resolve_dataset_source(str(Path(str(root)).resolve()))
+    else:
+        settings = OmegaConf.to_container(cfg.data, resolve=True)
+        source = CodeDatasetSource({str(k): str(v)[:200] for k, v in settings.items() if not isinstance(v, dict)})
+    dataset = MetaDataset(source=source, name=result.meta.dataset, digest=digest)
+    return DatasetInput(dataset._to_mlflow_entity(), tags=[InputTag("mlflow.data.context", "training")])
+
+
+def sweep_params(overrides: list[str]) -> dict[str, str]:
+    """A sweep's parent-run params: each override's key and value as given (``encoder.res`` -> ``2,4``;
+    a group choice ``+experiment=resolution_sweep`` -> ``experiment``), flags such as ``-m`` left out."""
+    out = {}
+    for item in overrides:
+        if item.startswith("-") or "=" not in item:
+            continue
+        key, value = item.split("=", 1)
+        key = key.lstrip("+~")
+        if key.startswith("hydra."):
+            continue
+        out[key[:250]] = value[:500]
+    return out
 
 
 def component_name(node: Any, choice: str | None = None) -> str:
@@ -179,7 +243,11 @@ class MlflowTracker:
 
     # -- sweeps --------------------------------------------------------------
     def start_parent(self, output_dir: str, sweep_dir: str, sweep_id: str, overrides: list[str],
-                     sweep_hash: str | None = None) -> str:
+                     sweep_hash: str | None = None, base: "DictConfig | None" = None,
+                     swept: dict[str, str] | None = None) -> str:
+        """Create a sweep's parent run with MLflow's source tags and the sweep's params: the settings
+        every job shares (``base``, the composed sweep config), then each swept key with its values as
+        given (the command line's overrides and an experiment's ``hydra.sweeper.params``)."""
         client = self.client(output_dir)
         exp_id = self.experiment_id(output_dir)
         tags = {
@@ -187,11 +255,17 @@ class MlflowTracker:
             "sphri.sweep_id": sweep_id,
             **({"sphri.sweep_hash": sweep_hash} if sweep_hash else {}),
             "sphri.sweep_dir": str(Path(sweep_dir).resolve()),
-            "sphri.git_commit": git_commit(),
-            "sphri.version": __version__,
+            **source_tags(),
             "mlflow.note.content": "sweep: " + " ".join(overrides),
         }
         run = self._retry(lambda: client.create_run(exp_id, tags=tags, run_name=f"sweep-{sweep_id}"))
+        from mlflow.entities import Param
+
+        values = flatten_params(base) if base is not None else {}
+        values.update(sweep_params(overrides))
+        values.update({k: v[:500] for k, v in (swept or {}).items()})
+        params = [Param(k, v) for k, v in values.items()]
+        self.log_batches(client, run.info.run_id, [], params)
         return run.info.run_id
 
     def end_parent(self, output_dir: str, run_id: str, n_jobs: int, n_failed: int, status: str | None = None,
@@ -264,19 +338,22 @@ class MlflowTracker:
             self._retry(lambda k=key, v=value: client.set_tag(run_id, k, v))
         return n
 
+    def logged_models(self, output_dir: str, run_id: str) -> list[str]:
+        """``models:/<model_id>`` of every model logged from run ``run_id`` (MLflow's logged models)."""
+        client = self.client(output_dir)
+        exp_id = self._retry(lambda: client.get_run(run_id)).info.experiment_id
+        found = self._retry(lambda: client.search_logged_models(
+            experiment_ids=[exp_id], filter_string=f"source_run_id = '{run_id}'"))
+        return [f"models:/{m.model_id}" for m in found]
+
     # -- jobs ----------------------------------------------------------------
     def _start_job(self, cfg: "DictConfig", job_dir: Path, parent: dict | None, run_name: str, tags: dict[str, str]) -> str:
         output_dir = cfg.output_dir
         client = self.client(output_dir)
         exp_id = self.experiment_id(output_dir)
-        commit = git_commit()
         tags = {
             "sphri.kind": "job",
-            "sphri.git_commit": commit,
-            "mlflow.source.git.commit": commit,  # MLflow's own fields: the UI shows source and commit
-            "mlflow.source.name": "python -m sphri",
-            "mlflow.source.type": "LOCAL",
-            "sphri.version": __version__,
+            **source_tags(),  # MLflow's own fields (user, source, commit): the UI shows them
             "sphri.job_dir": str(job_dir),
             **tags,
         }
@@ -327,6 +404,7 @@ class MlflowTracker:
             metrics.append(Metric(f"time/{name}_s", float(rec.seconds), now, 0))
         plist = [Param(k, v) for k, v in params.items()]
         self.log_batches(client, run_id, metrics, plist)
+        self._retry(lambda: client.log_inputs(run_id, datasets=[dataset_input(cfg, result)]))
         self._retry(lambda: client.set_tag(run_id, "mlflow.note.content", summary_text(result)))
         if self.artifacts:
             self._log_artifacts(client, run_id, cfg, result)
@@ -340,7 +418,7 @@ class MlflowTracker:
             from mlflow.entities import Param
 
             tags = {"sphri.error": f"{type(exc).__name__}: {exc}"[:5000]}
-            run_id = self._start_job(cfg, job_dir, parent, "failed", tags)
+            run_id = self._start_job(cfg, job_dir, parent, self._failed_name(cfg, choices), tags)
             client = self.client(cfg.output_dir)
             params = [Param(k, v) for k, v in flatten_params(cfg, choices).items()]
             self._retry(lambda: client.log_batch(run_id, params=params[:100]))
@@ -349,6 +427,18 @@ class MlflowTracker:
         except Exception as log_exc:  # never mask the job's own error
             log.error("could not record the failure in MLflow: %s", log_exc)
             return None
+
+    @staticmethod
+    def _failed_name(cfg: "DictConfig", choices: dict[str, str] | None) -> str:
+        """A failed job's run name: what its finished run would be called (from the config alone:
+        the job never got as far as its metadata), then ``(failed)``."""
+        try:
+            robot = str(cfg.robot.get("name") or component_name(cfg.robot, (choices or {}).get("robot")))
+            regions = list(cfg.data.get("regions") or [])
+            model = component_name(cfg.model, (choices or {}).get("model"))
+            return f"{robot}-{regions[0] if regions else 'all'}-res{cfg.encoder.res}-{model} (failed)"
+        except Exception:  # a config too broken to name: still a recognisable failed run
+            return "job (failed)"
 
     @staticmethod
     def _run_name(cfg: "DictConfig", meta: "RunMeta", choices: dict[str, str] | None) -> str:

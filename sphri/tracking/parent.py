@@ -152,7 +152,9 @@ def open_parent(config: DictConfig, overrides: Sequence[str]) -> dict[str, Any] 
         log.info("resuming sweep %s (same overrides) in its MLflow parent run %s", info["sweep_id"], info["run_id"])
         return info
     sweep_id = sweep_id_of(sweep_dir)
-    run_id = tracker.start_parent(config.output_dir, str(sweep_dir), sweep_id, list(overrides), sweep_hash=h)
+    swept = {str(k): str(v) for k, v in (config.hydra.sweeper.get("params") or {}).items()}
+    run_id = tracker.start_parent(config.output_dir, str(sweep_dir), sweep_id, list(overrides), sweep_hash=h,
+                                  base=config, swept=swept)
     info = {"run_id": run_id, "sweep_id": sweep_id, "uri": uri}
     (sweep_dir / PARENT_FILE).write_text(json.dumps(info))
     log.info("MLflow parent run %s for sweep %s", run_id, sweep_id)
