@@ -31,8 +31,8 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
-from sphri.config import CONF_DIR, ConfigError, check_choices, normalize_overrides, register_schemas, validate
-from sphri.errors import report, take_verbose_flag
+from sphri.config import CONF_DIR, ConfigError, check_choices, check_inputs, compose, normalize_overrides, register_schemas, validate
+from sphri.errors import report, take_verbose_flag, verbose_requested
 
 log = logging.getLogger("sphri")
 
@@ -52,6 +52,14 @@ def limit_threads(n: int) -> None:
 
     numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))  # the env var is read only at import
     torch.set_num_threads(n)
+
+
+def quiet_console() -> None:
+    """Raise the root logger's console handlers to WARNING: a sweep's job logs its stages to its log
+    file only (``hydra.verbose=true`` or ``--verbose`` keeps them on the console)."""
+    for handler in logging.getLogger().handlers:
+        if isinstance(handler, logging.StreamHandler) and not isinstance(handler, logging.FileHandler):
+            handler.setLevel(logging.WARNING)
 
 
 def _write_status(job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None,
@@ -89,6 +97,9 @@ def run_job(cfg: DictConfig) -> dict | None:
             OmegaConf.update(cfg, "cv.progress", False, force_add=False)
     swept = [o for o in (hc.overrides.task if multirun else []) if not o.lstrip("+~").startswith("hydra")]
     t_start = time.perf_counter()
+    if multirun and not (hc.verbose or verbose_requested()):
+        quiet_console()  # the sweep's console shows one line per job; the job's log file keeps everything
+    log_file = job_dir / f"{hc.job.name}.log"
 
     def say(what: str) -> None:  # the sweep's console: one line per finished job
         from sphri.tracking.parent import progress_line
@@ -99,6 +110,7 @@ def run_job(cfg: DictConfig) -> dict | None:
     try:
         validate(cfg)
         pipeline.chain_region(cfg)
+        check_inputs(cfg)
         tracker = pipeline.build(cfg.tracking)
         if tracker.enabled:
             tracker.client(cfg.output_dir)  # create the store (under a lock) or refuse a broken one, before computing
@@ -122,12 +134,11 @@ def run_job(cfg: DictConfig) -> dict | None:
         recorded = tracker is not None and tracker.enabled and not broken and not isinstance(exc, ConfigError)
         run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if recorded else None
         _write_status(job_dir, job_num, "FAILED", error, run_id, overrides=swept)
-        if multirun:
-            log.error("job %d FAILED: %s\n%s", job_num, error, traceback.format_exc())
-            say(f"({' '.join(swept)}) FAILED: {error}")
+        if multirun:  # one line on the console; the traceback in the job's log file
+            log.error("job %d FAILED: %s", job_num, error)
+            log.info("traceback of job %d:\n%s", job_num, traceback.format_exc())
+            say(f"({' '.join(swept)}) FAILED: {' '.join(error.split())[:300]}; log: {log_file}")
             return None
-        if isinstance(exc, ConfigError):
-            log.error("invalid config: %s", exc)
         if broken:
             log.error("%s", exc)
             print(f"sphri: {exc}", file=sys.stderr)
@@ -223,6 +234,14 @@ def hide_schema_options() -> None:
     ConfigLoaderImpl.get_group_options = get_group_options  # type: ignore[method-assign]
 
 
+def _is_sweep_or_hydra_flag(args: list[str]) -> bool:
+    """A multirun (its sweeper checks every job) or a Hydra flag (``--cfg``, ``-sc``, ``--info``, ...)
+    that composes the config its own way: no composition check before Hydra."""
+    from sphri.cli import is_sweep
+
+    return any(a.startswith("-") for a in args) or is_sweep(args)
+
+
 def main() -> None:
     """Console entry point (``sphri`` or ``python -m sphri``)."""
     find_sweeper_plugin()
@@ -242,6 +261,9 @@ def main() -> None:
     sys.argv = [sys.argv[0], *normalize_overrides(take_verbose_flag(sys.argv[1:]))]
     try:
         check_choices(sys.argv[1:])  # a misspelt component: one line with the real options, before Hydra
+        if not _is_sweep_or_hydra_flag(sys.argv[1:]):
+            # an unknown key or a value of the wrong type: sphri's one line, before Hydra's own message
+            compose([a for a in sys.argv[1:]], check=False)
     except ConfigError as exc:
         print(f"sphri: invalid config: {exc}", file=sys.stderr)
         sys.exit(2)

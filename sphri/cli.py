@@ -25,7 +25,7 @@ from pathlib import Path
 
 import yaml
 
-from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, compose, validate
+from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, check_inputs, compose, validate
 from sphri.errors import clean_errors
 from sphri.stages import PARAM_GROUPS, STAGE_GROUPS
 
@@ -216,6 +216,7 @@ def cmd_validate(overrides: list[str]) -> int:
         return cmd_validate_sweep(overrides)
     cfg = compose(overrides)
     chain_region(cfg)
+    check_inputs(cfg)
     print("config OK")
     for group in PARAM_GROUPS:
         node = OmegaConf.to_container(cfg[group], resolve=True)

@@ -328,9 +328,28 @@ def check_target(group: str, target: Any, plugins: Sequence[str] = ()) -> None:
 
 
 def _explain(exc: BaseException) -> str:
+    """One line for a composition error: Hydra wraps OmegaConf's error (which names the key) in its
+    own multi-line message with a hint that is wrong for typed nodes ("use +model.lr=0.1", which
+    sphri refuses too); the key's own error is found in the chain and said as sphri says it."""
+    from omegaconf.errors import ConfigAttributeError, ConfigKeyError, ValidationError
+
+    cause: BaseException | None = exc
+    while cause is not None and not (isinstance(cause, OmegaConfBaseException) and getattr(cause, "full_key", None)):
+        cause = cause.__cause__ or cause.__context__
+    if cause is not None:
+        key = str(cause.full_key)
+        typ = getattr(cause, "object_type", None)
+        if isinstance(cause, (ConfigKeyError, ConfigAttributeError)) and dataclasses.is_dataclass(typ):
+            names = [f.name for f in dataclasses.fields(typ) if f.name != "_target_"]
+            owner = key.rsplit(".", 1)[0] if "." in key else "the top level"
+            return (f"{key} is not a known key{close_match(key.rsplit('.', 1)[-1], names)}; "
+                    f"{owner} has: {', '.join(names)}")
+        first = next((ln.strip() for ln in str(cause).splitlines() if ln.strip()), type(cause).__name__)
+        if isinstance(cause, ValidationError):
+            return f"{key} is invalid: {first}"
+        return f"{key}: {first}"
     lines = [ln.strip() for ln in str(exc).strip().splitlines() if ln.strip()]
-    if isinstance(exc, OmegaConfBaseException) and getattr(exc, "full_key", None):
-        return f"{exc.full_key}: {lines[0]}"
+    lines = [ln for ln in lines if not ln.startswith("Set the environment variable HYDRA_FULL_ERROR")]
     # keep Hydra's lists of available options, one line
     return " ".join(lines[:20]) if lines else type(exc).__name__
 
@@ -365,6 +384,22 @@ def validate(cfg: DictConfig) -> None:
         raise ConfigError(f"variant={variant!r} is invalid: a name of letters, digits, '_', '.' or '-'")
     for check in CROSS_CHECKS:
         check(cfg)
+
+
+def check_inputs(cfg: DictConfig) -> None:
+    """Every file and folder a component is configured to read exists: ``cli validate``, each job
+    and each job of a sweep call it after :func:`validate`, before any stage starts, so a wrong path
+    fails like a wrong value and leaves no half-run (or FAILED MLflow run) behind. Not part of
+    :func:`validate`, which checks a config on its own (a config may name files made later)."""
+    from sphri.inputs import missing_inputs
+
+    for group in STAGE_GROUPS:
+        missing = missing_inputs(cfg.get(group))
+        if missing:
+            field, path, kind = missing[0]
+            more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+            where = "" if path.parent.is_dir() else f"; its folder {path.parent} does not exist either"
+            raise ConfigError(f"{group}.{field}={str(path)!r} is invalid: no such {kind}{where}{more}")
 
 
 def close_match(word: str, choices: Iterable[str]) -> str:

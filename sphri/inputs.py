@@ -178,6 +178,43 @@ def declared_files(node: Any, exclude: frozenset[Path] = frozenset()) -> list[tu
     return out
 
 
+def missing_inputs(node: Any) -> list[tuple[str, Path, str]]:
+    """``(field, path, expected)`` for each declared input of ``node`` that is not there: a ``file``
+    field that names no file, a ``dir`` field that names no folder, a ``map`` entry that names no file
+    (relative entries from their ``relative_to`` folder). Files a file refers to (a URDF's meshes) are
+    the component's to check: some have fallbacks."""
+    if not isinstance(node, DictConfig):
+        return []
+    schema = OmegaConf.get_type(node)
+    if schema is None or not dataclasses.is_dataclass(schema):
+        return []
+    specs = [(f.name, f.metadata[INPUT_META]) for f in dataclasses.fields(schema) if INPUT_META in f.metadata]
+    if not specs:
+        return []
+    values = OmegaConf.to_container(node, resolve=False)
+    out = []
+    for name, spec in specs:
+        value = values.get(name)
+        if value in (None, "", "???") or (isinstance(value, str) and "${" in value):
+            continue
+        base = values.get(spec["relative_to"]) if spec["relative_to"] else None
+        base = Path(str(base)).expanduser() if isinstance(base, str) and base and "${" not in base else None
+        if spec["kind"] == "map":
+            items = [(f"{name}.{k}", v) for k, v in value.items()] if isinstance(value, Mapping) else []
+        else:
+            items = [(name, value)]
+        for field, item in items:
+            if not isinstance(item, (str, os.PathLike)) or item in ("",):
+                continue
+            p = Path(str(item)).expanduser()
+            if base is not None and not p.is_absolute():
+                p = base / p
+            ok = p.is_dir() if spec["kind"] == "dir" else p.is_file()
+            if not ok:
+                out.append((field, p, "folder" if spec["kind"] == "dir" else "file"))
+    return out
+
+
 def fingerprints(node: Any, memo: FingerprintMemo, exclude: frozenset[Path] = frozenset()) -> dict[str, str]:
     """``{absolute path: digest}`` of the files the component configured by ``node`` reads."""
     return {str(p): memo.digest(p) for _, p in declared_files(node, exclude)}

@@ -170,3 +170,52 @@ def test_row_never_hangs_on_a_head_wider_than_the_width():
     with _within(10):
         text = _row("x" * 120, "  starts with spaces and is long enough to wrap " * 3)
     assert text.startswith("x" * 120) and all(len(line) <= 100 for line in text.splitlines()[1:])
+
+
+def _run(args: list[str], cwd: Path, module: str = "sphri") -> "subprocess.CompletedProcess":
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}  # as a user runs it: not verbose
+    return subprocess.run([sys.executable, "-m", module, *args], cwd=cwd, env=env, capture_output=True, text=True,
+                          timeout=600)
+
+
+def test_an_unknown_key_or_a_wrong_type_is_one_line_with_or_without_plus(tmp_path):
+    """Hydra's own message was six lines with a wrong hint ("use +model.lr=0.1", which fails too)."""
+    for args, want in ((["model.lr=0.1"], "model.lr is not a known key"),
+                       (["+model.lr=0.1"], "model.lr is not a known key"),
+                       (["model.n_estimator=5"], "(did you mean n_estimators?)"),
+                       (["encoder.res=abc"], "encoder.res is invalid")):
+        proc = _run([*args, "+debug=fast", f"output_dir={tmp_path}"], tmp_path)
+        assert proc.returncode == 2, (args, proc.stderr)
+        lines = (proc.stdout + proc.stderr).strip().splitlines()
+        assert len(lines) == 1 and lines[0].startswith("sphri: invalid config: ") and want in lines[0], (args, lines)
+        assert "HYDRA_FULL_ERROR" not in proc.stderr and "+model.lr" not in proc.stderr
+    assert not (tmp_path / "mlflow.db").exists()
+
+
+def test_a_missing_input_path_fails_validation_and_starts_nothing(tmp_path):
+    proc = _run(["validate", "data=vr_gesture", f"data.root={tmp_path / 'nope'}"], tmp_path, module="sphri.cli")
+    assert proc.returncode == 2 and "data.root=" in proc.stderr and "no such folder" in proc.stderr
+    proc = _run(["data=vr_gesture", f"data.root={tmp_path / 'nope'}", f"output_dir={tmp_path / 'out'}"], tmp_path)
+    assert proc.returncode == 2 and proc.stderr.count("no such folder") == 1, proc.stderr  # said once
+    assert not (tmp_path / "out" / "mlflow.db").exists()  # no FAILED run left behind
+    proc = _run(["validate", "-m", "data=vr_gesture", f"data.root={tmp_path / 'nope'},{tmp_path}"], tmp_path,
+                module="sphri.cli")
+    assert proc.returncode == 2 and "1 of 2 points fail validation" in proc.stderr
+
+
+def test_a_failing_job_in_a_sweep_is_one_line_with_its_log_and_the_console_is_quiet(tmp_path, arm_mesh_roots):
+    good, bad = arm_mesh_roots
+    proc = _run(["-m", "+debug=fast", "encoder.res=2", "robot=mesh", "robot.links={l_arm: arm.obj}",
+                 "robot.regions={arm: l_arm}", "robot.units=m", f"robot.root={good},{bad}",
+                 f"output_dir={tmp_path / 'out'}", "hydra/launcher=serial", "tracking.enabled=false"], tmp_path)
+    assert proc.returncode == 1
+    console = proc.stdout + proc.stderr
+    assert "Traceback" not in console and "stage noise" not in console, console[-3000:]
+    (failed,) = [ln for ln in console.splitlines() if "FAILED:" in ln and "log: " in ln]
+    log_file = Path(failed.rsplit("log: ", 1)[1].strip())
+    text = log_file.read_text()
+    assert "Traceback" in text and "stage " in text  # the job's log file keeps the stages and the traceback

@@ -60,7 +60,7 @@ class SphriSweeper(BasicSweeper):
 
     def invalid_points(self, jobs: Sequence[Sequence[str]]) -> list[tuple[int, list[str], str]]:
         """``(job number, overrides, error)`` of every job whose config does not compose or validate."""
-        from sphri.config import ConfigError, _explain, validate
+        from sphri.config import ConfigError, _explain, check_inputs, validate
         from sphri.pipeline import chain_region
 
         assert self.hydra_context is not None and self.config is not None
@@ -70,12 +70,11 @@ class SphriSweeper(BasicSweeper):
                 cfg = self.hydra_context.config_loader.load_sweep_config(self.config, list(job))
                 validate(cfg)
                 chain_region(cfg)
+                check_inputs(cfg)
             except ConfigError as exc:
                 bad.append((i, list(job), str(exc)))
             except Exception as exc:  # Hydra's composition and type errors (the cause says which value)
-                cause = exc.__cause__
-                why = _explain(exc) + (f": {_explain(cause)}" if cause is not None else "")
-                bad.append((i, list(job), why))
+                bad.append((i, list(job), _explain(exc)))  # the key's own error, found in the chain
         return bad
 
     def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
