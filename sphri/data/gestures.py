@@ -54,10 +54,25 @@ DURATION_CALIBRATION: dict[str, float] = {
 }
 
 #: Median penetration of the effector below the surface per gesture (metres), before the participant,
-#: participant x gesture and trial factors and the deep tail (:func:`penetration_depth`).
+#: participant x gesture and trial factors and the deep tail (:func:`penetration_depth`). Nothing stops a
+#: virtual hand, so the depth sets the touch footprint. Calibrated (data version 3) so the simulated CoST
+#: sensor (:mod:`sphri.data.cost_sensor`, ``python -m sphri.data.stats``) reads each gesture's contact-area
+#: fraction within its band of CoST's Table 4 row (Jung et al. 2017; fraction of the 8 x 8 sensor):
+#:
+#: - hit 0.005 (was 0.013; row hit .15): a flat palm 13 mm deep lit 0.27 of the sensor, 1.8x CoST;
+#: - pat 0.004 (was 0.008; row pat .15): 0.22, 1.5x CoST;
+#: - tap 0.022 (was 0.006; row tap .12): 0.06, 0.5x CoST; deeper, the bent index (and middle) finger's
+#:   pads and middle phalanges touch, not only the tips;
+#: - rub 0.006 (was 0.008; row rub .21): 0.26, 1.25x CoST, at the band's edge;
+#: - push 0.016 (row press .23), stroke 0.006 (row stroke .20): inside their bands as they were;
+#: - grab 0.017 (row grab .59): reads about 0.39 (0.66x, the band's edge) at any depth or finger closure
+#:   tried (0.017-0.03 m, closure 1.2-1.8x): the hand spans about 5 of the sensor's 8 rows;
+#: - poke 0.008 (row poke .08): reads about 0.04 at any depth or tilt tried (0.008-0.018 m, 0-50 degrees):
+#:   the index fingertip (capsule radius 7.6 mm) covers at most 2 x 2 cells of 20 mm; CoST's 5 cells
+#:   imply pressure spreading in its textile sensor, which the generator does not fake. Left outside.
 DEPTH_M: dict[str, float] = {
-    "poke": 0.008, "tap": 0.006, "pat": 0.008, "hit": 0.013,
-    "push": 0.016, "rub": 0.008, "stroke": 0.006, "grab": 0.017,
+    "poke": 0.008, "tap": 0.022, "pat": 0.004, "hit": 0.005,
+    "push": 0.016, "rub": 0.006, "stroke": 0.006, "grab": 0.017,
 }
 
 #: Number of touches: (choices, expected count over participants).
