@@ -24,7 +24,7 @@ palm or finger pads, ...) follows personal habits (:data:`HABITS`), and
 | poke | index fingertip (fist, index out) | 1 | press along the normal |
 | tap | index (and middle) fingertip, fingers bent | 1-3 brief | lifts 1.5-2.5 cm between |
 | pat | flat palm or finger pads | 2-4 brief | lifts 3-5 cm between |
-| hit | palm or fist knuckles | 1 fast, deep | strikes from 8-12 cm |
+| hit | palm or fist knuckles | 1 fast | strikes from 8-12 cm |
 | push | flat palm or index fingertip | 1 held | slow press, deep |
 | rub | palm or finger pads | 1 held | back and forth, 1.5-3 Hz |
 | stroke | palm or finger pads | 1-3 | one way along the link, lift and return |
@@ -54,10 +54,28 @@ DURATION_CALIBRATION: dict[str, float] = {
 }
 
 #: Median penetration of the effector below the surface per gesture (metres), before the participant,
-#: participant x gesture and trial factors and the deep tail (:func:`penetration_depth`).
+#: participant x gesture and trial factors and the deep tail (:func:`penetration_depth`). Nothing stops a
+#: virtual hand, so the depth sets the touch footprint. Calibrated (data version 3) so the simulated CoST
+#: sensor (:mod:`sphri.data.cost_sensor`, ``python -m sphri.data.stats``) reads each gesture's contact-area
+#: fraction within its band of CoST's Table 4 row (Jung et al. 2017; fraction of the 8 x 8 sensor). Numbers:
+#: the full default study (18 participants, arm, seed 0), before and after:
+#:
+#: - hit 0.0035 (was 0.013; row hit .15): at 0.013 the sensor read 0.241, 1.61x CoST; now 0.148, 0.99x
+#:   (data seeds 1 and 2: 1.23x, 1.00x; at 0.005 seed 1 read 1.42x, outside);
+#: - pat 0.004 (was 0.008; row pat .15): 0.204, 1.36x; now 0.166, 1.10x;
+#: - tap 0.026 (was 0.006; row tap .12): 0.061, 0.51x; now 0.100, 0.83x (seeds 1, 2: 0.86x, 0.73x);
+#: - rub 0.006 (was 0.008; row rub .21): 0.265, 1.26x (the band's edge); now 0.246, 1.17x (seeds 1, 2: 1.22x, 1.02x);
+#: - push 0.016 (row press .23), stroke 0.006 (row stroke .20): inside their bands as they were;
+#: - grab 0.017 (row grab .59): reads 0.38 (0.64x, just outside) and at most 0.40 with any depth
+#:   (0.017-0.03 m), finger closure (1.2-1.8x) or tighter wrap tried: the hand spans about 5 of the
+#:   sensor's 8 rows along the arm (23-33 of 64 cells once closed). Left outside;
+#: - poke 0.008 (row poke .08): reads about 0.04 at any depth or tilt tried (0.008-0.018 m, 0-50 degrees):
+#:   the index fingertip (capsule radius 7.6 mm) covers at most 2 x 2 cells of 20 mm; CoST's 5 cells may
+#:   come from pressure spreading in its textile sensor (not measured here), which the generator does not
+#:   fake. Left outside.
 DEPTH_M: dict[str, float] = {
-    "poke": 0.008, "tap": 0.006, "pat": 0.008, "hit": 0.013,
-    "push": 0.016, "rub": 0.008, "stroke": 0.006, "grab": 0.017,
+    "poke": 0.008, "tap": 0.026, "pat": 0.004, "hit": 0.0035,
+    "push": 0.016, "rub": 0.006, "stroke": 0.006, "grab": 0.017,
 }
 
 #: Number of touches: (choices, expected count over participants).

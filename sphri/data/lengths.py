@@ -53,6 +53,10 @@ BANDS: dict[str, tuple[float, float]] = {
     "max_frames": (0.33, 3.0),
     "duration_mean": (0.65, 1.35),
     "duration_sd": (0.5, 2.0),
+    # CoST's contact-area fraction on the simulated 8 x 8 sensor (sphri.data.cost_sensor): the mean gets the
+    # duration mean's band, the SD over trials the duration SD's
+    "area_mean": (0.65, 1.35),
+    "area_sd": (0.5, 2.0),
 }
 
 

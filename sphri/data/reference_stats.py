@@ -24,8 +24,12 @@ rub contact alone (2.17 s). The generator therefore runs at
 
 from __future__ import annotations
 
+#: CoST's sensor: cells per side of its square grid, and their pitch (m): 8 x 8 cells, 160 x 160 mm.
+COST_CELLS = 8
+COST_PITCH_M = 0.020
+
 #: Sensor area of CoST's 8 x 8 grid (160 x 160 mm), square metres.
-COST_SENSOR_AREA_M2 = 0.160 * 0.160
+COST_SENSOR_AREA_M2 = (COST_CELLS * COST_PITCH_M) ** 2
 
 #: CoST Table 4: gesture -> (mean, SD) contact duration in milliseconds.
 COST_DURATION_MS: dict[str, tuple[float, float]] = {

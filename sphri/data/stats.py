@@ -31,11 +31,22 @@ ratio to the reference falls outside its band (``ok`` / ``OUTSIDE``,
   next to the repository when present; otherwise the copy of their numbers in
   :data:`sphri.data.reference_stats.VR_LENGTH_SPREAD`;
 - contact duration: per gesture mean and SD over trials against CoST's mean
-  and SD.
+  and SD;
+- the simulated CoST sensor (:mod:`sphri.data.cost_sensor`: an 8 x 8 grid of
+  20 mm pitch, 160 x 160 mm, binary, where the trial touches): per gesture the
+  mean and SD over trials of the contact-area fraction (cells on / 64, mean
+  over the sensor's contact frames) and of the contact duration, against
+  CoST's Table 4 (:func:`spatial_comparison`). This is the like-for-like
+  spatial check (the raw patch area above is not: a poke turns on at least
+  one 400 mm^2 cell, 0.016 of the sensor). CoST publishes no centre-of-pressure
+  travel, so none is compared.
 
 Extra arguments: ``json=PATH`` writes the per-gesture table as JSON (a list
 of rows) and the comparison beside it (``PATH`` with ``_spread`` before the
-suffix); ``reference=DIR`` names the manifests to compare with.
+suffix, the spatial rows included); ``reference=DIR`` names the manifests to
+compare with; ``cost_threshold=X`` sets the simulated sensor's cell threshold
+(fraction of a cell covered, default
+:data:`sphri.data.cost_sensor.CELL_THRESHOLD`).
 
 Participants that differ show in classification too: the Random Forest's
 leave-one-subject-out accuracy should sit below within-subject k-fold (same
@@ -64,9 +75,11 @@ from sphri.data.lengths import (
     length_table,
     manifest_lengths,
 )
+from sphri.data.cost_sensor import CELL_THRESHOLD, describe_sensor, sensor_trials
 from sphri.data.linkgeom import LinkSurface
 from sphri.data.reference_stats import (
     COST_AREA_FRACTION,
+    COST_CELLS,
     COST_DURATION_MS,
     COST_SENSOR_AREA_M2,
     DURATION_TOLERANCE,
@@ -75,6 +88,7 @@ from sphri.data.reference_stats import (
     VR_LENGTH_SPREAD,
     median_trial_frames,
 )
+from sphri.config import ConfigError
 from sphri.errors import clean_errors
 from sphri.types import GESTURES, Contacts, GestureDataset, Robot
 
@@ -282,6 +296,48 @@ def duration_comparison(stats: pd.DataFrame) -> pd.DataFrame:
     return out.reset_index(drop=True)
 
 
+#: Statistics of :func:`spatial_comparison`, in print order: (name, sensor column, mean or sd, band).
+SPATIAL_STATISTICS = (
+    ("CoST sensor area mean", "area_fraction", "mean", "area_mean"),
+    ("CoST sensor area sd", "area_fraction", "sd", "area_sd"),
+    ("CoST sensor dur mean ms", "duration_s", "mean", "duration_mean"),
+    ("CoST sensor dur sd ms", "duration_s", "sd", "duration_sd"),
+)
+
+
+def spatial_comparison(sensor: pd.DataFrame) -> pd.DataFrame:
+    """Per (region, gesture) of a :func:`sphri.data.cost_sensor.sensor_trials` table: mean and SD over the trials
+    the sensor saw of the contact-area fraction and of the contact duration (ms), against CoST's Table 4, each
+    flagged in its band (:data:`sphri.data.lengths.BANDS`: ``area_mean``, ``area_sd``, ``duration_mean``,
+    ``duration_sd``). Columns :data:`sphri.data.lengths.COMPARISON_COLUMNS`; rows grouped by statistic, gestures
+    in :data:`sphri.types.GESTURES` order."""
+    rows = []
+    seen = sensor[sensor["sensor_contact"]]
+    order = {g: i for i, g in enumerate(GESTURES)}
+    groups = sorted(seen.groupby(["region", "gesture"], sort=False), key=lambda kv: (kv[0][0], order.get(kv[0][1], 99)))
+    for name, column, what, band in SPATIAL_STATISTICS:
+        for (region, gesture), g in groups:
+            x = g[column].to_numpy(np.float64) * (1000.0 if column == "duration_s" else 1.0)
+            ref = (COST_AREA_FRACTION if column == "area_fraction" else COST_DURATION_MS)[str(gesture)]
+            value = float(x.mean()) if what == "mean" else (float(x.std(ddof=1)) if len(x) > 1 else float("nan"))
+            row = flag_row(name, str(gesture), value, ref[0] if what == "mean" else ref[1], band)
+            row["region"] = region
+            rows.append(row)
+    return pd.DataFrame(rows, columns=COMPARISON_COLUMNS)
+
+
+def spatial_checks(table: pd.DataFrame) -> list[tuple[str, bool, str]]:
+    """(check, passed, detail) per region: how many gestures' CoST-sensor area fraction lies in its band
+    (the generator's spatial calibration target: at least 6 of 8)."""
+    out = []
+    area = table[table["statistic"] == SPATIAL_STATISTICS[0][0]]
+    for region, a in area.groupby("region", sort=False):
+        n_in = int((a["flag"] == "ok").sum())
+        out.append((f"{region} CoST sensor area", n_in >= min(6, len(a)),
+                    f"{n_in}/{len(a)} gestures in band; outside: {', '.join(a.loc[a['flag'] != 'ok', 'gesture']) or '-'}"))
+    return out
+
+
 def reference_spread(reference: str | None, regions: Sequence[str]) -> tuple[dict, str]:
     """(length spread of the reference, where it came from): see the module docstring for the order."""
     candidates = [reference] if reference else []
@@ -297,8 +353,10 @@ def reference_spread(reference: str | None, regions: Sequence[str]) -> tuple[dic
     return VR_LENGTH_SPREAD, "VR manifests (numbers stored in sphri.data.reference_stats.VR_LENGTH_SPREAD)"
 
 
-def dataset_statistics(overrides: Sequence[str] = ()) -> tuple[GestureDataset, pd.DataFrame, pd.DataFrame]:
-    """Compose the config, build hand, robot, dataset and contacts; return (dataset, trial stats, summary)."""
+def dataset_statistics(overrides: Sequence[str] = (), cost_threshold: float = CELL_THRESHOLD
+                       ) -> tuple[GestureDataset, pd.DataFrame, pd.DataFrame, pd.DataFrame, list[str]]:
+    """Compose the config, build hand, robot, dataset and contacts; return (dataset, trial stats, summary,
+    simulated CoST sensor per trial, one line per region describing that sensor)."""
     from hydra.utils import instantiate
 
     from sphri.config import compose
@@ -309,7 +367,10 @@ def dataset_statistics(overrides: Sequence[str] = ()) -> tuple[GestureDataset, p
     dataset = instantiate(cfg.data).load(hand=hand, robot=robot)
     contacts = instantiate(cfg.contact).compute(dataset, robot)
     stats = trial_statistics(dataset, contacts, robot)
-    return dataset, stats, gesture_summary(stats)
+    surface = instantiate(cfg.surface)
+    sensor = sensor_trials(dataset, contacts, robot, surface, cost_threshold)
+    lines = [describe_sensor(robot, r, surface, cost_threshold) for r in sorted(set(dataset.trials["region"].astype(str)))]
+    return dataset, stats, gesture_summary(stats), sensor, lines
 
 
 @clean_errors("sphri.data.stats")
@@ -318,24 +379,33 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     json_out = None
     reference = None
+    cost_threshold = CELL_THRESHOLD
     overrides = []
     for a in argv:
         if a.startswith("json="):
             json_out = a.split("=", 1)[1]
         elif a.startswith("reference="):
             reference = a.split("=", 1)[1]
+        elif a.startswith("cost_threshold="):
+            try:
+                cost_threshold = float(a.split("=", 1)[1])
+            except ValueError:
+                raise ConfigError(f"{a} is invalid: must be a number in (0, 1]") from None
         elif a in ("-h", "--help"):
             print(__doc__)
             return 0
         else:
             overrides.append(a)
-    dataset, stats, summary = dataset_statistics(overrides)
+    if not 0.0 < cost_threshold <= 1.0:
+        raise ConfigError(f"cost_threshold={cost_threshold:g} is invalid: must be in (0, 1]")
+    dataset, stats, summary, sensor, sensor_lines = dataset_statistics(overrides, cost_threshold)
     label = f"{dataset.name} ({'generated by sphri' if dataset.synthetic else 'recorded'})"
     print(format_summary(summary, label, dataset.frame_rate_hz))
     if dataset.repairs:
         print(f"repairs on load: {dataset.repairs}")
+    spatial = spatial_comparison(sensor)
     if dataset.synthetic:
-        checks = calibration_checks(summary)
+        checks = calibration_checks(summary) + spatial_checks(spatial)
         failed = [c for c in checks if not c[1]]
         print(f"calibration: {len(checks) - len(failed)}/{len(checks)} checks pass")
         for name, _, detail in failed:
@@ -345,6 +415,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     table = pd.concat([compare(lengths, ref), duration_comparison(stats)], ignore_index=True)
     print()
     print(format_comparison(table, f"distributions against {source} and CoST (Jung et al. 2017, Table 4):"))
+    print()
+    print("\n".join(sensor_lines))
+    print(format_comparison(spatial, f"the simulated CoST sensor ({COST_CELLS} x {COST_CELLS}, 160 x 160 mm) against "
+                                     "CoST (Jung et al. 2017, Table 4): contact-area fraction (cells on / 64) and "
+                                     "contact duration; trials the sensor saw:"))
+    table = pd.concat([table, spatial], ignore_index=True)
     if json_out:
         Path(json_out).parent.mkdir(parents=True, exist_ok=True)
         path = Path(json_out)

@@ -151,7 +151,7 @@ class SyntheticData:
     ``conf/data/synthetic.yaml``.
     """
 
-    VERSION = "2"
+    VERSION = "3"  # 3: penetration depths calibrated to CoST's contact areas (sphri.data.gestures.DEPTH_M)
 
     def __init__(
         self,

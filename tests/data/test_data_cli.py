@@ -61,6 +61,18 @@ def test_stats_prints_the_table_for_a_written_dataset(tmp_path, capsys):
     assert {r["flag"] for r in spread["rows"]} <= {"ok", "OUTSIDE"}
     stats_rows = {(r["statistic"], r["gesture"]) for r in spread["rows"]}
     assert ("between_var", "all") in stats_rows and ("duration sd ms", "rub") in stats_rows
+    # the simulated CoST sensor: its grid, and area fraction and duration per gesture against CoST, flagged
+    assert "simulated CoST sensor on arm (l_arm): 8 x 8 window of a 12 x 11 grid, pitch 20.1 mm" in text
+    area = {r["gesture"]: r for r in spread["rows"] if r["statistic"] == "CoST sensor area mean"}
+    assert set(area) <= {"hit", "pat", "poke", "push", "rub", "stroke", "tap", "grab"} and len(area) >= 6
+    assert all(r["band"] == "0.65-1.35x" and 1 / 64 <= r["value"] <= 1.0 for r in area.values())
+    assert area["grab"]["value"] > area["poke"]["value"] and area["grab"]["reference"] == 0.59
+    lines = [ln for ln in text.splitlines() if "CoST sensor area mean" in ln]
+    assert len(lines) == len(area) and all(ln.split()[-1] in ("ok", "OUTSIDE") for ln in lines)
+    assert any("CoST sensor dur mean ms" in ln for ln in text.splitlines())
     # a reference folder without manifests is an error naming it
     code = stats.main(["data=vr_gesture", f"data.root={out}", "data.regions=[arm]", f"reference={tmp_path / 'none'}"])
     assert code != 0 and "reference=" in capsys.readouterr().err  # one clean line naming the argument
+    code = stats.main(["data=vr_gesture", f"data.root={out}", "data.regions=[arm]", "cost_threshold=2"])
+    err = capsys.readouterr().err
+    assert code != 0 and "cost_threshold=2 is invalid: must be in (0, 1]" in err and len(err.strip().splitlines()) == 1
