@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sphri.report.analysis import GroupReport, SweepReport, _fmt_pitch, gestures_by_need, recognised
+from sphri.report.analysis import GroupReport, SweepReport, _fmt_pitch, gestures_by_need, noise_text, recognised
 from sphri.types import GESTURES
 
 _CSS = """
@@ -97,6 +97,10 @@ def comparison_rows(report: SweepReport) -> list[dict[str, object]]:
             "taxels_per_24cm": rec["taxels_per_24cm"],
             "accuracy": rec["accuracy_mean"], "accuracy_std": rec["accuracy_std"],
             "tolerance": g.sat.tolerance,
+            "tolerance_requested": g.envelope.tolerance_requested,
+            "rerun_noise_per_participant": g.envelope.noise.per_participant,
+            "rerun_noise_curve": g.envelope.noise.curve, "rerun_noise_source": g.envelope.noise.source,
+            "seeds": len(g.seeds), "crossfit": g.envelope.crossfit,
             "best_res": int(best["res"]), "best_pitch_mm": best["pitch_mm"], "best_accuracy": best["accuracy_mean"],
             "gap_to_best": g.sat.gap,
             "gap_low": g.sat.gap_interval[0] if g.sat.gap_interval else float("nan"),
@@ -285,7 +289,8 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
         if len(report.groups) > 1:
             parts.append(f"<p><b>{_e(g.label)}</b></p>")
         parts.append(f'<p class="sentence">{_e(g.requirement)}</p>')
-        parts.append(f'<p class="interval">{_e(g.interval_text)}</p>' + (f"<p>{_e(g.facts)}</p>" if g.facts else ""))
+        parts.append(f'<p class="interval">{_e(g.interval_text)}</p>' + f"<p>{_e(noise_text(g)[:1].upper() + noise_text(g)[1:])}.</p>"
+                     + (f"<p>{_e(g.facts)}</p>" if g.facts else ""))
         for w in g.warnings:
             parts.append(f'<p class="warn">Warning: {_e(w)}</p>')
         parts.append("</div>")
@@ -373,6 +378,7 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
         lines.append(f"[{g.label}]")
         lines.append("  " + g.requirement)
         lines.append("  " + g.interval_text)
+        lines.append("  " + noise_text(g))
         if g.facts:
             lines.append("  " + g.facts)
         for t in g.by_tolerance:

@@ -647,7 +647,7 @@ def envelope_saturation(
                      "end, so no swept resolution keeps every finer one within tolerance")
     tol_at = float(allowed[0, index])
     if n_part < 2 or n_boot == 0:
-        notes.append("only one participant: no standard error and no bootstrap interval" if n_part < 2
+        notes.insert(0, "only one participant: no standard error and no bootstrap interval" if n_part < 2
                      else "no bootstrap requested (n_boot=0): no interval")
         return (Saturation(index, best_index, tol_at, stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes),
                            **base), env)
