@@ -181,6 +181,9 @@ class SweepReport:
     notes: list[str]
     sensitivity: list[Sensitivity] = field(default_factory=list)
     """One entry per set of other keys when the sweep varies ``variant`` (``+experiment=requirement_sensitivity``)."""
+    maps: list[Any] = field(default_factory=list)
+    """:class:`sphri.report.reqmap.RequirementMap` per set of other keys when the sweep varies the false-on rate
+    (``+experiment=requirement_map``)."""
 
     @property
     def synthetic(self) -> str:
@@ -209,7 +212,9 @@ def analyze(sweep: Sweep, rule: RuleSettings = RuleSettings()) -> SweepReport:
     schemes = sorted(set(sweep.runs["cv_scheme"]))
     if "kfold" in schemes:
         notes.append("k-fold (within-subject) results are not comparable with LOSO (between-subject) results")
-    return SweepReport(sweep, rule, groups, notes, sensitivity(groups, rule))
+    from sphri.report.reqmap import requirement_maps
+
+    return SweepReport(sweep, rule, groups, notes, sensitivity(groups, rule), requirement_maps(groups))
 
 
 def variant_value(g: GroupReport) -> float:
@@ -307,6 +312,8 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     first_seed = first_seed.set_index("res").loc[res].reset_index()
     pts = first_seed[["res", "run_id", "n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm",
                       "area_per_taxel_cm2", "taxels_per_24cm"]].copy()
+    pts["false_on_rate"] = (first_seed["false_on_rate"].to_numpy(float) if "false_on_rate" in first_seed
+                            else np.nan)
     pu, pv = pts["pitch_u_mm"].to_numpy(float), pts["pitch_v_mm"].to_numpy(float)
     pts["pitch_mm"] = np.where(np.isfinite(pv) & (pv > 0), np.fmax(pu, pv), pu)
     pts["accuracy_mean"], pts["accuracy_std"], pts["accuracy_se"], pts["n"] = st.mean, st.std, st.se, st.n

@@ -274,6 +274,17 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
     parts.append('<p class="meta">' + "<br>".join(_e(x) for x in _facts(report)) + "</p>")
 
     parts.append('<h2 id="requirement">Requirement</h2>')
+    if report.maps:
+        from sphri.report.reqmap import map_text
+
+        parts.append('<h3 id="requirement-map">Requirement map</h3>')
+        parts.append("<p>The required pitch for each false-on rate (the probability per taxel and frame that an "
+                     "untouched taxel reads on), by the rule below, with its bootstrap interval over participants "
+                     "and seeds; right: accuracy against the expected number of false-on taxels per frame "
+                     "(rate x taxels). Table: <code>requirement_map.csv</code>.</p>")
+        if "map" in figures:
+            parts.append(img_tag(figures["map"], "accuracy over pitch and false-on rate, required pitch per rate"))
+        parts.append("<pre>" + _e("\n".join(map_text(report)).strip()) + "</pre>")
     if report.sensitivity:
         parts.append('<h3 id="sensitivity">Sensitivity to the assumptions</h3>')
         parts.append("<p>The same resolution sweep under each assumption variant (one at a time from the reference; "
@@ -373,6 +384,10 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
                   else "no interval")
             lines.append(f"  {r['variant']:<16} {float(r['saturation_pitch_mm']):6.1f} mm ({iv}), res {r['saturation_res']}, "
                          f"accuracy {float(r['accuracy']):.3f}" + (" [finest point]" if r["at_finest"] else ""))
+    if report.maps:
+        from sphri.report.reqmap import map_text
+
+        lines += map_text(report)
     for g in report.groups:
         lines.append("")
         lines.append(f"[{g.label}]")

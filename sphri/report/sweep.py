@@ -264,9 +264,28 @@ def _run_row(run: Any) -> dict[str, Any]:
     }
     for k in RESOLUTION_PARAMS:
         row[k] = _float(p.get(f"resolution.{k}"))
+    row["false_on_rate"] = false_on_rate(p)
     for k in ("accuracy_mean", "accuracy_std", "macro_f1_mean", "macro_f1_std"):
         row[f"logged_{k}"] = _float(m.get(k))
     return row
+
+
+def false_on_rate(params: dict[str, str]) -> float:
+    """The probability per taxel and frame that an untouched taxel reads on, from a job's noise params.
+
+    ``noise=salt_pepper``: ``p * salt_vs_pepper`` in replace mode (a corrupted reading becomes 1 with
+    probability salt_vs_pepper), ``p`` in flip mode (an untouched taxel reads 0, so every flip turns it on);
+    ``noise=none``: 0; any other noise: NaN (not a false-on rate per frame).
+    """
+    if params.get("noise") in ("none", "NoNoise"):
+        return 0.0
+    if "noise.p" not in params:
+        return float("nan")
+    p = _float(params.get("noise.p"))
+    if params.get("noise.mode", "replace") == "flip":
+        return p
+    svp = _float(params.get("noise.salt_vs_pepper", "0.5"))
+    return p * svp
 
 
 def group_keys(params: list[dict[str, str]]) -> list[str]:
