@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sphri.report.saturation import Saturation, Tolerance, curve_stats, paired_saturation, physical_interval
+from sphri.report.saturation import (ENVELOPE_ALPHA, Envelope, Saturation, Tolerance, curve_stats,
+                                     envelope_saturation, physical_interval)
 from sphri.report.sweep import Sweep
 from sphri.types import GESTURES
 
@@ -39,6 +40,10 @@ class RuleSettings:
     """Participant bootstrap resamples."""
     ci: float = 0.95
     seed: int = 0
+    noise_floor: bool = True
+    """Raise a fixed tolerance to the measured rerun noise of one run's curve when it is smaller."""
+    alpha: float = ENVELOPE_ALPHA
+    """Family-wise error rate of the rule's "this finer point is outside the tolerance" decisions."""
 
     def __post_init__(self) -> None:
         names = [t.name for t in self.parsed()]
@@ -61,18 +66,25 @@ class RuleSettings:
 
     def describe(self) -> str:
         """The rule in a few sentences."""
-        text = ("Each resolution is compared with the best one (highest mean accuracy) participant by participant: "
-                "a participant's deficit is their accuracy at the best resolution minus theirs at this one; the "
-                "paired deficit is its mean over participants, with its paired standard error. The saturation point "
-                "is the coarsest resolution whose paired deficit is within the tolerance. The requirement sentence "
-                f"uses a tolerance of {self.primary_tolerance.describe()}; the tolerance table also shows "
-                + ", ".join(t.describe() for t in self.parsed() if t.name != self.primary_tolerance.name) + ".")
+        others = [t.describe() for t in self.parsed() if t.name != self.primary_tolerance.name]
+        text = ("Each resolution is compared with the best one participant by participant. With several seeds the "
+                "best resolution is cross-fitted: chosen on the other seeds and measured on each seed in turn (no "
+                "winner's curse); with one seed it is chosen and measured on the same runs. A participant's deficit "
+                "is their accuracy at the best resolution minus theirs at this one; the paired deficit is its mean "
+                "over participants, with its paired standard error. A resolution is outside the tolerance when its "
+                "paired deficit exceeds the tolerance by more than its noise margin (z paired standard errors, "
+                f"one-sided, family-wise {self.alpha:g} over the resolutions). The requirement is the coarsest "
+                "resolution from which every finer swept resolution is inside the tolerance (an envelope, not a "
+                f"first crossing). The requirement sentence uses a tolerance of {self.primary_tolerance.describe()}"
+                + (", raised to the measured rerun noise of one run's mean accuracy when that is larger"
+                   if self.noise_floor else "")
+                + ("; the tolerance table also shows " + ", ".join(others) if others else "") + ".")
         if self.n_boot == 0:
             return text + " No bootstrap interval was requested."
         return (
             f"{text} Each {self.ci:.0%} interval is the {100 * (1 - self.ci) / 2:g}/{100 * (1 + self.ci) / 2:g} "
-            f"percentiles of the point chosen on {self.n_boot} bootstrap resamples of the participants (each "
-            "resample redoes the best resolution and the rule)."
+            f"percentiles of the point chosen on {self.n_boot} bootstrap resamples of the participants and, with "
+            "several seeds, of the seeds (each resample redoes the cross-fitting, the best resolution and the rule)."
         )
 
 
@@ -109,6 +121,12 @@ class GroupReport:
     pitch_interval_mm: tuple[float, float] | None
     area_interval_cm2: tuple[float, float] | None
     gesture_sat: dict[str, Saturation]
+    envelope: Envelope
+    """The rule's rerun noise, tolerance floor, noise margin and cross-fitting (primary tolerance)."""
+    seeds: list[str]
+    """The replicate seeds of this curve (one entry when the sweep has no replicates)."""
+    accuracy_seeds: np.ndarray
+    """(S, P, R) float64 per-seed per-participant accuracy (``accuracy`` is its mean over seeds)."""
     context: dict[str, Any]
     """robot, region, link, dataset, synthetic, cv_scheme, model."""
     requirement: str
@@ -163,6 +181,9 @@ class SweepReport:
     notes: list[str]
     sensitivity: list[Sensitivity] = field(default_factory=list)
     """One entry per set of other keys when the sweep varies ``variant`` (``+experiment=requirement_sensitivity``)."""
+    maps: list[Any] = field(default_factory=list)
+    """:class:`sphri.report.reqmap.RequirementMap` per set of other keys when the sweep varies the false-on rate
+    (``+experiment=requirement_map``)."""
 
     @property
     def synthetic(self) -> str:
@@ -191,7 +212,9 @@ def analyze(sweep: Sweep, rule: RuleSettings = RuleSettings()) -> SweepReport:
     schemes = sorted(set(sweep.runs["cv_scheme"]))
     if "kfold" in schemes:
         notes.append("k-fold (within-subject) results are not comparable with LOSO (between-subject) results")
-    return SweepReport(sweep, rule, groups, notes, sensitivity(groups, rule))
+    from sphri.report.reqmap import requirement_maps
+
+    return SweepReport(sweep, rule, groups, notes, sensitivity(groups, rule), requirement_maps(groups))
 
 
 def variant_value(g: GroupReport) -> float:
@@ -243,22 +266,58 @@ def _sensitivity_sentence(ref: GroupReport | None, members: list[GroupReport], r
     return head + tail
 
 
+def _seed_matrix(folds: pd.DataFrame, rows: pd.DataFrame, res: list[int], seeds: list[str], column: str,
+                 participants: list[str]) -> np.ndarray:
+    """(S, P, R) per-seed matrices of ``column`` (NaN where a seed lacks a resolution)."""
+    out = np.full((len(seeds), len(participants), len(res)), np.nan)
+    for i, sd in enumerate(seeds):
+        by_res = dict(zip(rows.loc[rows["seed"] == sd, "res"], rows.loc[rows["seed"] == sd, "run_id"]))
+        have = [j for j, r in enumerate(res) if r in by_res]
+        if have:
+            out[i][:, have] = _matrix(folds, [by_res[res[j]] for j in have], column, participants)
+    return out
+
+
+def _seed_mean(m: np.ndarray) -> np.ndarray:
+    """(S, P, R) -> (P, R) mean over seeds, NaNs skipped (NaN where no seed has a value)."""
+    finite = np.isfinite(m)
+    n = finite.sum(axis=0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(n > 0, np.where(finite, m, 0.0).sum(axis=0) / np.maximum(n, 1), np.nan)
+
+
 def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> GroupReport:
+    rows = rows.copy()
+    if "seed" not in rows.columns:
+        rows["seed"] = "0"
+    rows["seed"] = rows["seed"].astype(str)
     run_ids = list(rows["run_id"])
     folds = sweep.folds[sweep.folds["run_id"].isin(run_ids)]
     participants = sorted(folds["participant"].unique(), key=str)
-    acc = _matrix(folds, run_ids, "accuracy", participants)
-    f1 = _matrix(folds, run_ids, "macro_f1", participants)
-    recall = {g: _matrix(folds, run_ids, f"recall_{g}", participants) for g in GESTURES}
+    seeds = sorted(rows["seed"].unique(), key=_natural_key)
+    res = sorted(int(r) for r in rows["res"].unique())
+    acc_s = _seed_matrix(folds, rows, res, seeds, "accuracy", participants)
+    acc = _seed_mean(acc_s)
+    f1 = _seed_mean(_seed_matrix(folds, rows, res, seeds, "macro_f1", participants))
+    recall_s = {g: _seed_matrix(folds, rows, res, seeds, f"recall_{g}", participants) for g in GESTURES}
+    recall = {g: _seed_mean(m) for g, m in recall_s.items()}
 
-    by_tol = [(t, paired_saturation(acc, t, n_boot=rule.n_boot, ci=rule.ci, seed=rule.seed)) for t in rule.parsed()]
-    sat = next(st for t, st in by_tol if t.name == rule.primary_tolerance.name)
+    by_tol = [(t, *envelope_saturation(acc_s, t, n_boot=rule.n_boot, ci=rule.ci, seed=rule.seed, alpha=rule.alpha,
+                                       noise_floor=rule.noise_floor)) for t in rule.parsed()]
+    sat, envelope = next((st, env) for t, st, env in by_tol if t.name == rule.primary_tolerance.name)
+    by_tol = [(t, st) for t, st, _ in by_tol]
     st = sat.stats
-    pts = rows[["res", "run_id", "n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm",
-                "area_per_taxel_cm2", "taxels_per_24cm"]].copy()
+    # One row per resolution: the lowest seed's job names the point (its confusion matrix, its geometry).
+    first_seed = rows.sort_values("seed", key=lambda c: c.map(_natural_key), kind="stable").drop_duplicates("res")
+    first_seed = first_seed.set_index("res").loc[res].reset_index()
+    pts = first_seed[["res", "run_id", "n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm",
+                      "area_per_taxel_cm2", "taxels_per_24cm"]].copy()
+    pts["false_on_rate"] = (first_seed["false_on_rate"].to_numpy(float) if "false_on_rate" in first_seed
+                            else np.nan)
     pu, pv = pts["pitch_u_mm"].to_numpy(float), pts["pitch_v_mm"].to_numpy(float)
     pts["pitch_mm"] = np.where(np.isfinite(pv) & (pv > 0), np.fmax(pu, pv), pu)
     pts["accuracy_mean"], pts["accuracy_std"], pts["accuracy_se"], pts["n"] = st.mean, st.std, st.se, st.n
+    pts["n_seeds"] = np.isfinite(acc_s).any(axis=1).sum(axis=0)
     f1_stats = curve_stats(f1)
     pts["macro_f1_mean"], pts["macro_f1_std"] = f1_stats.mean, f1_stats.std
     for gest, m in recall.items():
@@ -266,22 +325,43 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     pts = pts.reset_index(drop=True)
 
     gesture_sat = {}
-    for g, m in recall.items():
+    for g, m in recall_s.items():
         if np.isfinite(m).any():
-            gesture_sat[g] = paired_saturation(m, rule.primary_tolerance, n_boot=0)
+            gesture_sat[g] = envelope_saturation(m, rule.primary_tolerance, n_boot=0, alpha=rule.alpha,
+                                                 noise_floor=rule.noise_floor)[0]
 
     first = rows.iloc[0]
     context = {k: first[k] for k in ("robot", "region", "link", "dataset", "synthetic", "cv_scheme", "model")}
     keys = {k: str(first[f"key.{k}"]) for k in sweep.group_keys}
     pitch_iv = physical_interval(pts["pitch_mm"].to_numpy(float), sat)
     area_iv = physical_interval(pts["area_per_taxel_cm2"].to_numpy(float), sat)
-    g = GroupReport(label, keys, pts, participants, acc, f1, recall, sat, pitch_iv, area_iv, gesture_sat, context, "", "", "")
+    g = GroupReport(label, keys, pts, participants, acc, f1, recall, sat, pitch_iv, area_iv, gesture_sat, envelope,
+                    seeds, acc_s, context, "", "", "")
     pitch = pts["pitch_mm"].to_numpy(float)
     area = pts["area_per_taxel_cm2"].to_numpy(float)
     g.by_tolerance = [ToleranceRow(t, st_, physical_interval(pitch, st_), physical_interval(area, st_),
                                    t.name == rule.primary_tolerance.name) for t, st_ in by_tol]
     g.requirement, g.facts, g.interval_text, g.warnings = _sentences(g, rule)
     return g
+
+
+def _natural_key(s: str) -> list[Any]:
+    import re
+
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", str(s))]
+
+
+def noise_text(g: GroupReport) -> str:
+    """The rerun noise and the tolerance the rule used, in words."""
+    env = g.envelope
+    seeds = f"{len(g.seeds)} seed{'s' if len(g.seeds) != 1 else ''}"
+    tol = f"tolerance used {g.sat.tolerance:.3f}"
+    if env.tolerance_floor > 0 and env.tolerance_floor >= g.sat.tolerance - 1e-12:
+        tol += f" (the {env.tolerance_requested} asked for, raised to the rerun noise)"
+    elif env.tolerance_floor > 0:
+        tol += f" (above the rerun noise {env.tolerance_floor:.3f})"
+    return (f"{env.noise.describe()}; {seeds}; {tol}; noise margin {env.z:.2f} paired standard errors "
+            f"(family-wise {env.alpha:g})" + ("" if env.crossfit else "; best point not cross-fitted (one seed)"))
 
 
 def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[str]]:
@@ -293,6 +373,9 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     tol = rule.primary_tolerance.describe()
     if rule.primary_tolerance.n_se is not None:
         tol += f" ({sat.tolerance:.3f} at that point)"
+    elif sat.tolerance > float(rule.primary_tolerance.points) + 1e-12:
+        tol = (f"{100 * sat.tolerance:.1f} points of accuracy ({sat.tolerance:.3f}: the measured rerun noise, "
+               f"above the {rule.primary_tolerance.describe()} asked for)")
     if len(g.points) == 1:
         where_pt = (f"{_fmt_pitch(rec['pitch_mm'])} mm pitch, {rec['area_per_taxel_cm2']:.2f} cm^2 per taxel"
                     if g.has_pitch else _taxels(rec["n_taxels"]))
@@ -336,13 +419,17 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     else:
         iv = "No bootstrap interval: " + (sat.note or "not computed") + "."
     warn = []
-    if sat.at_finest:
+    if g.envelope.finest_outside:
+        warn.append("even the finest resolution swept is outside the tolerance of the best: accuracy falls at the fine "
+                    "end, so no swept resolution keeps every finer one within tolerance")
+    elif sat.at_finest:
         warn.append("the finest resolution swept was chosen: accuracy may still rise; extend the sweep to a finer pitch")
     elif sat.index == 0 and len(g.points) > 1:
         warn.append("the coarsest resolution swept is already within tolerance of the best: a coarser skin may do, "
                     "or this model does not use spatial detail")
-    if sat.note and sat.interval is not None:
-        warn.append(sat.note)
+    note = "; ".join(n for n in sat.note.split("; ") if n and "falls at the fine end" not in n)
+    if note and sat.interval is not None:
+        warn.append(note)
     if np.nanmax(sat.stats.mean) < CHANCE + 0.05:
         warn.append(f"the best accuracy ({np.nanmax(sat.stats.mean):.3f}) is near chance ({CHANCE:.3f}): the curve carries little information")
     return req, facts, iv, warn

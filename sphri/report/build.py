@@ -24,6 +24,7 @@ import pandas as pd
 
 from sphri.report.analysis import RuleSettings, SweepReport, analyze
 from sphri.report.figures import plot_bootstrap, plot_curves, plot_recall, plot_tornado
+from sphri.report.reqmap import map_rows, plot_map
 from sphri.report.render import comparison_rows, render_html, render_text, sensitivity_rows, tolerance_rows
 from sphri.report.sweep import ReportError, Sweep, load_sweep
 
@@ -34,7 +35,7 @@ log = logging.getLogger(__name__)
 #: Formats of every figure (:data:`sphri.figures.FORMATS`).
 FIGURE_FORMATS = ("png", "pdf", "svg")
 FIGURE_FILES = ("accuracy_vs_resolution.png", "recall_vs_resolution.png", "saturation_bootstrap.png",
-                "sensitivity_tornado.png")
+                "sensitivity_tornado.png", "requirement_map.png")
 
 
 @dataclass
@@ -130,7 +131,8 @@ def write_report(report: SweepReport, out_dir: Path, marks: bool | None = None,
         figures = {"curves": plot_curves(report, out_dir / "accuracy_vs_resolution.png", marks=marks)}
         for name, fig in (("recall", plot_recall(report, out_dir / "recall_vs_resolution.png", marks=marks)),
                           ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png", marks=marks)),
-                          ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png", marks=marks))):
+                          ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png", marks=marks)),
+                          ("map", plot_map(report, out_dir / "requirement_map.png", marks=marks))):
             if fig is not None:
                 figures[name] = fig
     confusions = _confusions(report.sweep, report, out_dir, marks, formats)
@@ -143,6 +145,10 @@ def write_report(report: SweepReport, out_dir: Path, marks: bool | None = None,
     if report.sensitivity:
         tables["sensitivity"] = out_dir / "sensitivity.csv"
         pd.DataFrame(sensitivity_rows(report)).to_csv(tables["sensitivity"], index=False, float_format="%.6g")
+    (out_dir / "requirement_map.csv").unlink(missing_ok=True)
+    if report.maps:
+        tables["requirement_map"] = out_dir / "requirement_map.csv"
+        pd.DataFrame(map_rows(report)).to_csv(tables["requirement_map"], index=False, float_format="%.6g")
     pts = []
     for g in report.groups:
         p = g.points.copy()
@@ -198,6 +204,7 @@ def _json(report: SweepReport) -> dict:
         "sensitivity": [{"others": s.label, "sentence": s.sentence,
                          "variants": [r for r in sensitivity_rows(report) if r["others"] == s.label]}
                         for s in report.sensitivity],
+        "requirement_map": map_rows(report),
         "notes": report.notes,
         "failed": report.sweep.failed,
     })

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sphri.report.analysis import GroupReport, SweepReport, _fmt_pitch, gestures_by_need, recognised
+from sphri.report.analysis import GroupReport, SweepReport, _fmt_pitch, gestures_by_need, noise_text, recognised
 from sphri.types import GESTURES
 
 _CSS = """
@@ -97,6 +97,10 @@ def comparison_rows(report: SweepReport) -> list[dict[str, object]]:
             "taxels_per_24cm": rec["taxels_per_24cm"],
             "accuracy": rec["accuracy_mean"], "accuracy_std": rec["accuracy_std"],
             "tolerance": g.sat.tolerance,
+            "tolerance_requested": g.envelope.tolerance_requested,
+            "rerun_noise_per_participant": g.envelope.noise.per_participant,
+            "rerun_noise_curve": g.envelope.noise.curve, "rerun_noise_source": g.envelope.noise.source,
+            "seeds": len(g.seeds), "crossfit": g.envelope.crossfit,
             "best_res": int(best["res"]), "best_pitch_mm": best["pitch_mm"], "best_accuracy": best["accuracy_mean"],
             "gap_to_best": g.sat.gap,
             "gap_low": g.sat.gap_interval[0] if g.sat.gap_interval else float("nan"),
@@ -270,6 +274,17 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
     parts.append('<p class="meta">' + "<br>".join(_e(x) for x in _facts(report)) + "</p>")
 
     parts.append('<h2 id="requirement">Requirement</h2>')
+    if report.maps:
+        from sphri.report.reqmap import map_text
+
+        parts.append('<h3 id="requirement-map">Requirement map</h3>')
+        parts.append("<p>The required pitch for each false-on rate (the probability per taxel and frame that an "
+                     "untouched taxel reads on), by the rule below, with its bootstrap interval over participants "
+                     "and seeds; right: accuracy against the expected number of false-on taxels per frame "
+                     "(rate x taxels). Table: <code>requirement_map.csv</code>.</p>")
+        if "map" in figures:
+            parts.append(img_tag(figures["map"], "accuracy over pitch and false-on rate, required pitch per rate"))
+        parts.append("<pre>" + _e("\n".join(map_text(report)).strip()) + "</pre>")
     if report.sensitivity:
         parts.append('<h3 id="sensitivity">Sensitivity to the assumptions</h3>')
         parts.append("<p>The same resolution sweep under each assumption variant (one at a time from the reference; "
@@ -285,7 +300,8 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
         if len(report.groups) > 1:
             parts.append(f"<p><b>{_e(g.label)}</b></p>")
         parts.append(f'<p class="sentence">{_e(g.requirement)}</p>')
-        parts.append(f'<p class="interval">{_e(g.interval_text)}</p>' + (f"<p>{_e(g.facts)}</p>" if g.facts else ""))
+        parts.append(f'<p class="interval">{_e(g.interval_text)}</p>' + f"<p>{_e(noise_text(g)[:1].upper() + noise_text(g)[1:])}.</p>"
+                     + (f"<p>{_e(g.facts)}</p>" if g.facts else ""))
         for w in g.warnings:
             parts.append(f'<p class="warn">Warning: {_e(w)}</p>')
         parts.append("</div>")
@@ -368,11 +384,16 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
                   else "no interval")
             lines.append(f"  {r['variant']:<16} {float(r['saturation_pitch_mm']):6.1f} mm ({iv}), res {r['saturation_res']}, "
                          f"accuracy {float(r['accuracy']):.3f}" + (" [finest point]" if r["at_finest"] else ""))
+    if report.maps:
+        from sphri.report.reqmap import map_text
+
+        lines += map_text(report)
     for g in report.groups:
         lines.append("")
         lines.append(f"[{g.label}]")
         lines.append("  " + g.requirement)
         lines.append("  " + g.interval_text)
+        lines.append("  " + noise_text(g))
         if g.facts:
             lines.append("  " + g.facts)
         for t in g.by_tolerance:

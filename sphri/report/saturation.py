@@ -409,3 +409,274 @@ def paired_saturation(
                                                 lambda sb: _paired_rule(sb, tol)[0])
     return Saturation(index, best_index, float(allowed[0]), stats, n_part, interval, ci, int(picked.size), picked, gap,
                       gap_interval, "; ".join(notes), **base)
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# The envelope rule with cross-fitting over seeds (what the report uses)
+# ---------------------------------------------------------------------------------------------------------------
+
+#: Family-wise error rate of the envelope rule's "a finer point is outside the tolerance" decisions.
+ENVELOPE_ALPHA = 0.05
+
+
+@dataclass(frozen=True)
+class RerunNoise:
+    """How much one participant's score moves between reruns of the same sweep point."""
+
+    per_participant: float
+    """Standard deviation of one participant's score between reruns (score units; NaN when unknown)."""
+    curve: float
+    """The same for the participant mean of one run: ``per_participant / sqrt(P)``."""
+    source: str
+    """"seeds" (measured between the sweep's seeds) or "neighbours" (estimated from the jitter between
+    neighbouring resolutions, the fallback for a sweep without replicates)."""
+
+    def describe(self) -> str:
+        how = ("measured between the sweep's seeds at the same point" if self.source == "seeds" else
+               "no seeds to measure it: estimated from each participant's jitter between neighbouring resolutions "
+               "(an upper estimate when the curve still changes between neighbours)")
+        return (f"rerun noise {self.per_participant:.3f} per participant, {self.curve:.3f} on the participant mean "
+                f"of one run ({how})")
+
+
+def rerun_noise(scores: np.ndarray) -> RerunNoise:
+    """The rerun noise of ``scores`` (S, P, R) seeds x participants x points (or (P, R): one seed).
+
+    With two or more seeds: the pooled standard deviation between seeds of each participant's score at each
+    point (``sqrt(mean over (p, r) of var_s(ddof=1))``). With one seed (the fallback): the robust spread of
+    each participant's differences between neighbouring resolutions, ``1.4826 * median(|d|) / sqrt(2)``
+    (differences that also carry the curve's real change, so it errs large).
+    """
+    s = _as_seeds(scores)
+    n_seeds, n_part = s.shape[0], int(np.isfinite(s).any(axis=(0, 2)).sum())
+    root_p = np.sqrt(max(n_part, 1))
+    if n_seeds >= 2:
+        finite = np.isfinite(s)
+        k = finite.sum(axis=0)
+        with np.errstate(invalid="ignore", divide="ignore"), _quiet():
+            var = np.nanvar(s, axis=0, ddof=1)
+        ok = (k >= 2) & np.isfinite(var)
+        if ok.any():
+            sd = float(np.sqrt(np.mean(var[ok])))
+            return RerunNoise(sd, sd / root_p, "seeds")
+    d = np.diff(s[0], axis=1)
+    d = np.abs(d[np.isfinite(d)])
+    sd = float(1.4826 * np.median(d) / np.sqrt(2.0)) if d.size else float("nan")
+    return RerunNoise(sd, sd / root_p, "neighbours")
+
+
+def _as_seeds(scores: np.ndarray) -> np.ndarray:
+    """(P, R) or (S, P, R) -> (S, P, R) float64 with NaN for missing values."""
+    s = np.asarray(scores, dtype=np.float64)
+    if s.ndim == 2:
+        s = s[None]
+    if s.ndim != 3:
+        raise ValueError(f"scores must be a (participants, points) or (seeds, participants, points) array, "
+                         f"got shape {s.shape}")
+    if 0 in s.shape:
+        raise ValueError(f"scores is empty (shape {s.shape}): no seeds, participants or sweep points")
+    return np.where(np.isfinite(s), s, np.nan)
+
+
+def _wmean(x: np.ndarray, w: np.ndarray, axis: int) -> np.ndarray:
+    """Weighted mean of ``x`` over ``axis`` skipping NaNs (NaN where no weight remains); ``w`` broadcasts."""
+    w = np.broadcast_to(w, x.shape)
+    ok = np.isfinite(x) & (w > 0)
+    num = np.where(ok, x * w, 0.0).sum(axis=axis)
+    den = np.where(ok, w, 0.0).sum(axis=axis)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
+
+
+def _envelope_rule(s: np.ndarray, w: np.ndarray, tol: "Tolerance", floor: float, z: float) -> tuple[np.ndarray, ...]:
+    """The envelope rule on B resamples.
+
+    ``s`` (B, S, P, R) scores, ``w`` (B, S) seed weights (how often each seed was drawn; 0 = left out).
+    Returns selected (B,), best (B,), deficit (B, R), deficit_se (B, R), allowed (B, R), crossfit (B,) bool.
+    """
+    n_b, n_s, n_p, n_r = s.shape
+    rows = np.arange(n_b)
+    part_mean = _wmean(s, np.ones(1), axis=2)  # (B, S, R): each seed's curve, mean over participants
+    all_curve = _wmean(part_mean, w[:, :, None], axis=1)  # (B, R)
+    valid = np.isfinite(all_curve)
+    best_all = np.argmax(np.where(valid, all_curve, -np.inf), axis=1)  # first maximum = coarsest among ties
+    d_sum = np.zeros((n_b, n_p, n_r))
+    d_w = np.zeros((n_b, n_p, n_r))
+    crossfit = np.zeros(n_b, dtype=bool)
+    for k in range(n_s):  # fold k: choose the best point on the other seeds, measure it on seed k
+        w_train = w.copy()
+        w_train[:, k] = 0.0
+        train = _wmean(part_mean, w_train[:, :, None], axis=1)  # (B, R)
+        ok_fold = (w[:, k] > 0) & np.isfinite(train).any(axis=1)
+        crossfit |= ok_fold
+        b_k = np.argmax(np.where(np.isfinite(train), train, -np.inf), axis=1)
+        sk = s[:, k]  # (B, P, R)
+        d = sk[rows, :, b_k][:, :, None] - sk  # (B, P, R)
+        wk = np.where(ok_fold, w[:, k], 0.0)[:, None, None] * np.isfinite(d)
+        d_sum += np.where(wk > 0, d, 0.0) * wk
+        d_w += wk
+    # Resamples without two distinct seeds: the best point is chosen and measured on the same data.
+    if not crossfit.all():
+        nb = ~crossfit
+        sb = s[nb]
+        d = sb[np.arange(sb.shape[0]), :, :, best_all[nb]][:, :, :, None] - sb  # (b, S, P, R)
+        d_mean = _wmean(d, w[nb][:, :, None, None], axis=1)  # (b, P, R)
+        d_sum[nb] = np.where(np.isfinite(d_mean), d_mean, 0.0)
+        d_w[nb] = np.isfinite(d_mean).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_part = np.where(d_w > 0, d_sum / np.where(d_w > 0, d_w, 1.0), np.nan)  # (B, P, R)
+    deficit, _, dse, _ = _batch_stats(per_part)
+    dse = np.where(np.isfinite(dse), dse, 0.0)
+    if tol.n_se is not None:
+        allowed = tol.n_se * dse
+    else:
+        allowed = np.full(deficit.shape, max(float(tol.points), floor))
+    outside = valid & np.isfinite(deficit) & (deficit > allowed + z * dse + _EPS)
+    r_idx = np.arange(n_r)
+    last_out = np.max(np.where(outside, r_idx, -1), axis=1)
+    # The requirement: the first valid point after the last point outside the tolerance.
+    after = valid & (r_idx[None, :] > last_out[:, None])
+    selected = np.where(after.any(axis=1), np.argmax(after, axis=1), -2)  # -2: even the finest point is out
+    finest_valid = n_r - 1 - np.argmax(valid[:, ::-1], axis=1)
+    selected = np.where(selected == -2, finest_valid, selected)
+    any_valid = valid.any(axis=1)
+    return (np.where(any_valid, selected, -1), np.where(any_valid, best_all, -1), deficit, dse, allowed,
+            crossfit, last_out)
+
+
+def _family_z(n_points: int, alpha: float) -> float:
+    """One-sided normal quantile for ``alpha`` shared (Bonferroni) among the ``n_points - 1`` comparisons."""
+    from statistics import NormalDist
+
+    if alpha <= 0:
+        return float("inf")
+    if alpha >= 1:
+        return 0.0
+    m = max(n_points - 1, 1)
+    return float(NormalDist().inv_cdf(1.0 - alpha / m))
+
+
+@dataclass(frozen=True)
+class Envelope:
+    """The envelope rule's extra outcome (see :func:`envelope_saturation`)."""
+
+    noise: RerunNoise
+    tolerance_requested: str
+    """The tolerance asked for, as written (``0.01``, ``se``)."""
+    tolerance_floor: float
+    """The tolerance floor (the rerun noise of one run's curve; 0 when the floor is off or for SE tolerances)."""
+    z: float
+    """Noise margin in standard errors of a point's deficit (one-sided, ``alpha`` shared over the points)."""
+    alpha: float
+    n_seeds: int
+    crossfit: bool
+    """True when the best point was chosen and measured on different seeds."""
+    finest_outside: bool
+    """True when even the finest point is outside the tolerance (the curve falls at the fine end)."""
+    outside: np.ndarray
+    """(R,) bool: the points outside the tolerance on the full data."""
+
+
+def envelope_saturation(
+    scores: np.ndarray,
+    tolerance: "Tolerance | str | float" = "0.01",
+    n_boot: int = 2000,
+    ci: float = 0.95,
+    seed: int = 0,
+    alpha: float = ENVELOPE_ALPHA,
+    noise_floor: bool = True,
+) -> tuple[Saturation, Envelope]:
+    """The envelope rule on ``scores`` (P, R) or (S, P, R): seeds x participants x points, coarse to fine.
+
+    1. **Best point, cross-fitted over seeds.** For each seed k, the best point is the one with the highest
+       mean over the *other* seeds; each participant's deficit at a point is their score on seed k at that
+       best point minus theirs on seed k at the point. The deficits are averaged over the folds, then over
+       participants (``deficit``), with their standard error over participants (``deficit_se``). Choosing
+       and measuring the best point on different replicates removes the winner's curse (the best of many
+       noisy points is too high on the data that chose it). With one seed there is nothing to cross-fit:
+       the best is chosen and measured on the same data, and the note says so.
+    2. **Tolerance.** A fixed tolerance (``0.01`` = one point of accuracy) is raised to the rerun noise of
+       one run's curve (:func:`rerun_noise`) when it is smaller (``noise_floor``); an SE tolerance (``se``,
+       ``2se``) is ``k`` standard errors of each point's deficit.
+    3. **Envelope.** A point is *outside* the tolerance when its deficit exceeds it by more than ``z``
+       standard errors (one-sided, family-wise ``alpha`` shared among the points, Bonferroni). The
+       requirement is the coarsest point from which every finer point is inside: the first point after the
+       last point outside. Should the finest point itself be outside, the finest point is returned and
+       :attr:`Envelope.finest_outside` says so.
+
+    The interval is a two-level bootstrap: participants with replacement (whole rows over all seeds and
+    points) and, with two or more seeds, seeds with replacement; each resample redoes the cross-fitting,
+    the best point and the rule (the rerun noise and the tolerance stay those of the full data).
+    """
+    tol = tolerance if isinstance(tolerance, Tolerance) else Tolerance.parse(tolerance)
+    if not 0.0 < ci < 1.0:
+        raise ValueError(f"ci={ci!r} is invalid: must be in (0, 1)")
+    if n_boot < 0:
+        raise ValueError(f"n_boot={n_boot!r} is invalid: must be >= 0")
+    if not 0.0 <= alpha < 1.0:
+        raise ValueError(f"alpha={alpha!r} is invalid: must be in [0, 1)")
+    s = _as_seeds(scores)
+    s = s[:, np.isfinite(s).any(axis=(0, 2))]  # participants with no score at all carry no information
+    if s.shape[1] == 0:
+        raise ValueError("no finite score at any sweep point: nothing to find a saturation point on")
+    n_seeds, n_part, n_pts = s.shape
+    noise = rerun_noise(s)
+    floor = noise.curve if (noise_floor and tol.n_se is None and np.isfinite(noise.curve)) else 0.0
+    z = _family_z(n_pts, alpha) if n_part >= 2 else 0.0
+    w1 = np.ones((1, n_seeds))
+    sel, best, deficit, dse, allowed, crossfit, last_out = _envelope_rule(s[None], w1, tol, floor, z)
+    index, best_index = int(sel[0]), int(best[0])
+    seed_avg = _wmean(s, np.ones(1), axis=0)  # (P, R) each participant's mean over seeds
+    mean, std, se, n = _batch_stats(seed_avg[None])
+    stats = CurveStats(mean[0], std[0], se[0], n[0])
+    outside = np.isfinite(deficit[0]) & (deficit[0] > allowed[0] + z * dse[0] + _EPS) & np.isfinite(mean[0])
+    finest_outside = bool(last_out[0] == n_pts - 1)
+    env = Envelope(noise, tol.name, float(floor), float(z), float(alpha), n_seeds, bool(crossfit[0]), finest_outside,
+                   outside)
+    base = dict(rule="envelope", deficit=deficit[0], deficit_se=dse[0], tolerance_name=tol.name)
+    gap = float(deficit[0, index])
+    notes = []
+    n_missing = int((~np.isfinite(s)).sum())
+    if n_missing:
+        notes.append(f"{n_missing} of {s.size} seed x participant x point scores are missing (NaN) and were skipped")
+    if n_seeds < 2:
+        notes.append("one seed: the best point is chosen and measured on the same runs (no cross-fitting over "
+                     "seeds, so the best is biased high and the requirement errs fine)")
+    if finest_outside:
+        notes.append("even the finest point swept is outside the tolerance of the best: the curve falls at the fine "
+                     "end, so no swept resolution keeps every finer one within tolerance")
+    tol_at = float(allowed[0, index])
+    if n_part < 2 or n_boot == 0:
+        notes.insert(0, "only one participant: no standard error and no bootstrap interval" if n_part < 2
+                     else "no bootstrap requested (n_boot=0): no interval")
+        return (Saturation(index, best_index, tol_at, stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes),
+                           **base), env)
+
+    rng = np.random.default_rng(seed)
+    boot_sel = np.empty(n_boot, dtype=np.int64)
+    boot_gap = np.empty(n_boot, dtype=np.float64)
+    chunk = max(1, int(1e6 // max(s.size, 1)))
+    for start in range(0, n_boot, chunk):
+        b = min(chunk, n_boot - start)
+        pidx = rng.integers(0, n_part, size=(b, n_part))
+        sb = np.moveaxis(s[:, pidx], 0, 1)  # (b, S, P, R)
+        if n_seeds >= 2:
+            draws = rng.integers(0, n_seeds, size=(b, n_seeds))
+            wb = np.stack([np.bincount(d, minlength=n_seeds) for d in draws]).astype(float)
+        else:
+            wb = np.ones((b, 1))
+        sel_b, _, def_b, _, _, _, _ = _envelope_rule(sb, wb, tol, floor, z)
+        boot_sel[start:start + b] = sel_b
+        boot_gap[start:start + b] = def_b[np.arange(b), index]
+    ok = boot_sel >= 0
+    if not ok.all():
+        notes.append(f"{int((~ok).sum())} of {n_boot} resamples had no finite point and were dropped")
+    lo_q, hi_q = (1.0 - ci) / 2.0, (1.0 + ci) / 2.0
+    picked = boot_sel[ok]
+    interval = (int(np.quantile(picked, lo_q, method="inverted_cdf")), int(np.quantile(picked, hi_q, method="inverted_cdf")))
+    g = boot_gap[np.isfinite(boot_gap)]
+    gap_interval = (float(np.quantile(g, lo_q)), float(np.quantile(g, hi_q))) if g.size else None
+    if n_part < 5:
+        notes.append(f"only {n_part} participants: the bootstrap interval is coarse")
+    return (Saturation(index, best_index, tol_at, stats, n_part, interval, ci, int(picked.size), picked, gap,
+                       gap_interval, "; ".join(notes), **base), env)

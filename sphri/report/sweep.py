@@ -16,6 +16,12 @@ sweep, ``layout`` or ``noise``. ``variant`` (the assumption variant of
 comes first, and a parameter that the keys before it already fix (the
 ``encoder`` of ``variant=coverage``, the ``noise.p`` of ``variant=noise0``)
 is not a key of its own.
+
+``seed`` is not a group key: jobs that differ only in their seed (and in
+settings the seed alone fixes, such as ``model.seed``) are replicates of the
+same sweep point, kept in the ``seed`` column of :attr:`Sweep.runs`; the
+report measures the rerun noise between them and cross-fits the best point
+over them (:func:`sphri.report.saturation.envelope_saturation`).
 """
 
 from __future__ import annotations
@@ -41,7 +47,10 @@ STATUS_FILE = "sphri_status.json"
 _RUN_ID = re.compile(r"^[0-9a-f]{32}$")
 
 #: Group keys shown first, in this order, when they vary.
-KEY_ORDER = ("variant", "robot", "data", "surface", "layout", "encoder", "noise", "filter", "window", "contact", "model", "cv", "seed")
+KEY_ORDER = ("variant", "robot", "data", "surface", "layout", "encoder", "noise", "filter", "window", "contact", "model", "cv")
+
+#: The param whose values are replicates of one sweep point, not groups (the run's ``seed``).
+REPLICATE_KEY = "seed"
 
 #: Per-resolution columns read from the jobs' ``resolution.*`` params (floats).
 RESOLUTION_PARAMS = ("n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm", "area_per_taxel_cm2",
@@ -178,9 +187,11 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
     table["group"] = [group_label({k: params[rid].get(k, "") for k in keys}, model)
                       for rid, model in zip(table["run_id"], table["model"])]
     n_before = len(table)
-    table = table.drop_duplicates(["group", "res"], keep="last")
+    table["seed"] = [params[rid].get(REPLICATE_KEY, "0") for rid in table["run_id"]]
+    table = table.drop_duplicates(["group", "res", "seed"], keep="last")
     if len(table) < n_before:
-        notes.append(f"{n_before - len(table)} job(s) repeat a (group, resolution) with a different config: the latest is used")
+        notes.append(f"{n_before - len(table)} job(s) repeat a (group, resolution, seed) with a different config: "
+                     "the latest is used")
     table = table.reset_index(drop=True)
 
     folds = pd.concat([_fold_rows(client, r) for r in finished if r.info.run_id in set(table["run_id"])], ignore_index=True)
@@ -253,9 +264,28 @@ def _run_row(run: Any) -> dict[str, Any]:
     }
     for k in RESOLUTION_PARAMS:
         row[k] = _float(p.get(f"resolution.{k}"))
+    row["false_on_rate"] = false_on_rate(p)
     for k in ("accuracy_mean", "accuracy_std", "macro_f1_mean", "macro_f1_std"):
         row[f"logged_{k}"] = _float(m.get(k))
     return row
+
+
+def false_on_rate(params: dict[str, str]) -> float:
+    """The probability per taxel and frame that an untouched taxel reads on, from a job's noise params.
+
+    ``noise=salt_pepper``: ``p * salt_vs_pepper`` in replace mode (a corrupted reading becomes 1 with
+    probability salt_vs_pepper), ``p`` in flip mode (an untouched taxel reads 0, so every flip turns it on);
+    ``noise=none``: 0; any other noise: NaN (not a false-on rate per frame).
+    """
+    if params.get("noise") in ("none", "NoNoise"):
+        return 0.0
+    if "noise.p" not in params:
+        return float("nan")
+    p = _float(params.get("noise.p"))
+    if params.get("noise.mode", "replace") == "flip":
+        return p
+    svp = _float(params.get("noise.salt_vs_pepper", "0.5"))
+    return p * svp
 
 
 def group_keys(params: list[dict[str, str]]) -> list[str]:
@@ -268,8 +298,17 @@ def group_keys(params: list[dict[str, str]]) -> list[str]:
     if not params:
         return []
     candidates = sorted({k for p in params for k in p
-                         if k != "encoder.res" and not k.startswith(("resolution.", "meta."))})
+                         if k not in ("encoder.res", REPLICATE_KEY) and not k.startswith(("resolution.", "meta."))})
     varying = [k for k in candidates if len({p.get(k, "") for p in params}) > 1]
+    seeds = {p.get(REPLICATE_KEY, "") for p in params}
+    if len(seeds) > 1:  # settings the seed alone fixes (model.seed: ${seed}) vary with the replicates, not by group
+        by_seed: dict[str, set[str]] = {}
+        for k in list(varying):
+            by_seed.clear()
+            for p in params:
+                by_seed.setdefault(p.get(REPLICATE_KEY, ""), set()).add(p.get(k, ""))
+            if all(len(v) == 1 for v in by_seed.values()):
+                varying.remove(k)
     top = [k for k in varying if "." not in k]
     top.sort(key=lambda k: (KEY_ORDER.index(k) if k in KEY_ORDER else len(KEY_ORDER), k))
     keys: list[str] = []

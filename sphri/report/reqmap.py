@@ -1,0 +1,190 @@
+"""The requirement map: the required taxel pitch as a function of the skin's false-on rate.
+
+A sweep over resolution and false-on rate (``+experiment=requirement_map``)
+gives one curve (a :class:`sphri.report.analysis.GroupReport`) per false-on
+rate. The false-on rate of a job is the probability, per taxel and frame,
+that an untouched taxel reads on (:func:`sphri.report.sweep.false_on_rate`:
+``noise.p * noise.salt_vs_pepper`` for salt-and-pepper noise in replace
+mode). :func:`requirement_maps` lines the curves up by rate, for each set of
+the other group keys, whenever two or more rates are swept;
+:func:`map_rows` is ``requirement_map.csv`` (one row per rate and
+resolution) and :func:`plot_map` its figure.
+
+``false_on_per_frame`` is the expected number of false-on taxels in one
+frame of an untouched skin, ``rate * n_taxels`` (touched taxels are on
+already, so a frame with contact shows slightly fewer). A *dip* is a
+resolution outside the tolerance of the best that is finer than a resolution
+inside it (the first-crossing rule would have stopped before it); the
+deepest one per rate is flagged, so the table shows the false-on count per
+frame at which each rate's trough sits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sphri.report.analysis import GroupReport, SweepReport, noise_text
+
+#: Group keys that set the noise (and so the false-on rate): not what separates one map from another.
+_NOISE_PREFIX = "noise"
+
+
+@dataclass
+class RequirementMap:
+    """The curves of one set of other group keys, one per false-on rate (ascending)."""
+
+    label: str
+    """The other group keys these curves share ("" when only the noise varies)."""
+    rates: list[float]
+    curves: list[GroupReport]
+
+    def dip_index(self, g: GroupReport) -> int | None:
+        """The deepest resolution outside the tolerance that is finer than one inside it, or None."""
+        env = g.envelope
+        inside = ~env.outside & np.isfinite(g.sat.stats.mean)
+        if not inside.any():
+            return None
+        first_in = int(np.argmax(inside))
+        cand = [i for i in range(first_in + 1, len(env.outside)) if env.outside[i]]
+        if not cand:
+            return None
+        return min(cand, key=lambda i: g.sat.stats.mean[i])
+
+
+def requirement_maps(groups: list[GroupReport]) -> list[RequirementMap]:
+    """One map per set of non-noise group keys that sweeps two or more false-on rates; [] otherwise."""
+    parts: dict[tuple[tuple[str, str], ...], list[tuple[float, GroupReport]]] = {}
+    for g in groups:
+        rates = g.points["false_on_rate"].to_numpy(float) if "false_on_rate" in g.points else np.array([np.nan])
+        if not (np.isfinite(rates).all() and np.ptp(rates) == 0 and g.has_pitch):
+            continue
+        other = tuple((k, v) for k, v in g.keys.items() if not k.startswith(_NOISE_PREFIX))
+        parts.setdefault(other, []).append((float(rates[0]), g))
+    out = []
+    for other, members in parts.items():
+        rates = sorted({r for r, _ in members})
+        if len(rates) < 2 or len(rates) != len(members):
+            continue  # one rate, or two curves share a rate (another noise setting varies): not a map
+        members.sort(key=lambda t: t[0])
+        out.append(RequirementMap(", ".join(f"{k}={v}" for k, v in other), [r for r, _ in members],
+                                  [g for _, g in members]))
+    return out
+
+
+def map_rows(report: SweepReport) -> list[dict[str, object]]:
+    """``requirement_map.csv``: one row per (map, false-on rate, resolution)."""
+    rows = []
+    for m in report.maps:
+        for rate, g in zip(m.rates, m.curves):
+            rec, iv = g.recommended, g.pitch_interval_mm
+            dip = m.dip_index(g)
+            for i, p in g.points.iterrows():
+                rows.append({
+                    "map": m.label, "false_on_rate": rate, "res": int(p["res"]), "n_taxels": p["n_taxels"],
+                    "pitch_mm": p["pitch_mm"], "area_per_taxel_cm2": p["area_per_taxel_cm2"],
+                    "accuracy_mean": p["accuracy_mean"], "accuracy_se": p["accuracy_se"],
+                    "accuracy_std": p["accuracy_std"], "participants": int(p["n"]), "seeds": int(p["n_seeds"]),
+                    "false_on_per_frame": rate * float(p["n_taxels"]),
+                    "deficit": float(g.sat.deficit[i]), "deficit_se": float(g.sat.deficit_se[i]),
+                    "outside_tolerance": bool(g.envelope.outside[i]), "dip": dip == i,
+                    "required": i == g.sat.index,
+                    "required_res": int(rec["res"]), "required_pitch_mm": rec["pitch_mm"],
+                    "required_pitch_lo_mm": iv[0] if iv else float("nan"),
+                    "required_pitch_hi_mm": iv[1] if iv else float("nan"),
+                    "required_at_finest": bool(g.sat.at_finest), "finest_outside": bool(g.envelope.finest_outside),
+                    "best_res": int(g.best["res"]), "best_accuracy": g.best["accuracy_mean"],
+                    "tolerance": g.sat.tolerance, "rerun_noise_per_participant": g.envelope.noise.per_participant,
+                    "rerun_noise_curve": g.envelope.noise.curve, "rerun_noise_source": g.envelope.noise.source,
+                    "synthetic": bool(g.context["synthetic"]),
+                })
+    return rows
+
+
+def map_text(report: SweepReport) -> list[str]:
+    """The map in plain text: the required pitch per false-on rate, and where each curve dips."""
+    lines = []
+    for m in report.maps:
+        lines.append("")
+        lines.append("[requirement map" + (f": {m.label}" if m.label else "") + "]")
+        for rate, g in zip(m.rates, m.curves):
+            rec, iv = g.recommended, g.pitch_interval_mm
+            ivt = f"{iv[0]:.1f}-{iv[1]:.1f} mm" if iv else "no interval"
+            dip = m.dip_index(g)
+            dtxt = ""
+            if dip is not None:
+                p = g.points.iloc[dip]
+                dtxt = (f"; dip at res {int(p['res'])} ({p['pitch_mm']:.1f} mm, {rate * float(p['n_taxels']):.1f} "
+                        f"false-on taxels per frame, accuracy {p['accuracy_mean']:.3f})")
+            lines.append(f"  false-on {100 * rate:g} %: pitch at most {rec['pitch_mm']:.1f} mm ({ivt}), res "
+                         f"{int(rec['res'])}, tolerance {g.sat.tolerance:.3f}, best {g.best['accuracy_mean']:.3f} at "
+                         f"res {int(g.best['res'])}" + (" [finest point]" if g.sat.at_finest else "") + dtxt)
+        lines.append("  " + noise_text(m.curves[0]) + f" (false-on {100 * m.rates[0]:g} %; each rate in the CSV)")
+    return lines
+
+
+def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path | None:
+    """Accuracy contours over pitch x false-on rate with the required pitch per rate (and its interval), and
+    accuracy against false-on taxels per frame -> ``path`` (+ PDF, SVG); None without a map."""
+    from sphri import figures
+    from sphri.report.figures import _finish, _nice_log_ticks
+
+    if not report.maps:
+        return None
+    m = report.maps[0]
+    plt = figures.pyplot()
+    with figures.style():
+        fig, (ax, ax2) = figures.new_figure("two", 3.2, ncols=2, width_ratios=[1.25, 1.0])
+        res = sorted({int(r) for g in m.curves for r in g.points["res"]})
+        z = np.full((len(m.rates), len(res)), np.nan)
+        pitch = np.full(len(res), np.nan)
+        for k, g in enumerate(m.curves):
+            for _, p in g.points.iterrows():
+                j = res.index(int(p["res"]))
+                z[k, j] = p["accuracy_mean"]
+                pitch[j] = p["pitch_mm"]
+        y = np.arange(len(m.rates), dtype=float)
+        finite = np.isfinite(z)
+        levels = np.linspace(np.nanmin(z), np.nanmax(z), 9) if np.nanmax(z) > np.nanmin(z) else 3
+        cs = ax.contourf(pitch, y, np.where(finite, z, np.nanmin(z)), levels=levels, cmap="viridis")
+        fig.colorbar(cs, ax=ax, label="mean accuracy", format="%.2f")
+        req = np.array([float(g.recommended["pitch_mm"]) for g in m.curves])
+        lo = np.array([g.pitch_interval_mm[0] if g.pitch_interval_mm else np.nan for g in m.curves])
+        hi = np.array([g.pitch_interval_mm[1] if g.pitch_interval_mm else np.nan for g in m.curves])
+        xerr = np.vstack([np.where(np.isfinite(lo), req - lo, 0.0), np.where(np.isfinite(hi), hi - req, 0.0)])
+        ax.plot(req, y, "-", color="white", lw=1.5, clip_on=False, zorder=4)
+        ax.errorbar(req, y, xerr=np.maximum(xerr, 0.0), fmt="o", color="white", mec="black", ecolor="black",
+                    elinewidth=1.2, capsize=3, clip_on=False, zorder=5,
+                    label=f"required pitch ({report.rule.ci:.0%} interval)")
+        ax.set_xscale("log")
+        _nice_log_ticks(ax.xaxis, pitch[np.isfinite(pitch)])
+        ax.invert_xaxis()
+        ax.set_yticks(y, [f"{100 * r:g} %" for r in m.rates])
+        ax.set_xlabel("taxel pitch (mm; finer to the right)")
+        ax.set_ylabel("false-on rate per taxel and frame\n(rows evenly spaced)")
+        ax.legend(loc="lower left", framealpha=0.8)
+        ax.set_title("accuracy and the required pitch", loc="left")
+
+        colors = plt.get_cmap("plasma")
+        drawn = False
+        for k, (rate, g) in enumerate(zip(m.rates, m.curves)):
+            if rate <= 0:
+                continue
+            x = rate * g.points["n_taxels"].to_numpy(float)
+            acc = g.points["accuracy_mean"].to_numpy(float)
+            color = colors(k / max(len(m.rates), 1))
+            ax2.plot(x, acc, "o-", ms=3, color=color, label=f"{100 * rate:g} %")
+            dip = m.dip_index(g)
+            if dip is not None:
+                ax2.plot([x[dip]], [acc[dip]], "v", ms=8, color=color, mec="black")
+            drawn = True
+        ax2.set_xscale("log")
+        ax2.set_xlabel("false-on taxels per frame (rate x taxels)")
+        ax2.set_ylabel("mean accuracy")
+        ax2.grid(True, which="both", alpha=0.3)
+        if drawn:
+            ax2.legend(title="false-on rate", loc="lower right", ncol=2)
+        ax2.set_title("accuracy and false-on count (v: dip)", loc="left")
+        return _finish(fig, report, path, marks)

@@ -1,0 +1,96 @@
+"""+experiment=requirement_map: the false-on-rate knob composes as documented, and the quick preset runs end to
+end (multirun + report) writing requirement_map.csv and its layout-checked figure."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from sphri.config import CONF_DIR, compose
+from sphri.report.sweep import false_on_rate, group_keys
+
+MAP_COLUMNS = {"false_on_rate", "res", "pitch_mm", "accuracy_mean", "accuracy_se", "required_pitch_mm",
+               "required_pitch_lo_mm", "required_pitch_hi_mm", "false_on_per_frame"}
+
+
+def swept(name: str) -> dict[str, list[str]]:
+    params = yaml.safe_load((CONF_DIR / "experiment" / f"{name}.yaml").read_text())["hydra"]["sweeper"]["params"]
+    return {k: str(v).split(",") for k, v in params.items()}
+
+
+def test_full_map_sweeps_six_false_on_rates_sixteen_resolutions_three_seeds():
+    params = swept("requirement_map")
+    assert [float(p) for p in params["noise.p"]] == [0.0, 0.002, 0.005, 0.01, 0.02, 0.05]
+    assert params["encoder.res"] == swept("requirement_sensitivity")["encoder.res"], "the sensitivity study's grid"
+    assert len(params["encoder.res"]) == 16 and params["seed"] == ["0", "1", "2"]
+    cfg = compose(["+experiment=requirement_map", "noise.p=0.005"])
+    assert cfg.model._target_.endswith("RandomForest")
+    # replace mode with salt_vs_pepper=1: p is exactly the false-on rate, and nothing touched is turned off
+    assert cfg.noise.mode == "replace" and cfg.noise.salt_vs_pepper == 1.0 and cfg.noise.p == 0.005
+    quick = compose(["+experiment=requirement_map_quick"])
+    assert quick.data.participants == 3 and quick.data.repetitions == 2 and quick.model.n_estimators == 30
+    q = swept("requirement_map_quick")
+    assert len(q["noise.p"]) >= 2 and len(q["encoder.res"]) >= 2 and len(q["seed"]) == 2
+
+
+def test_false_on_rate_is_range_checked_and_read_back_from_the_noise_params():
+    with pytest.raises(Exception, match="noise.p"):
+        compose(["+experiment=requirement_map", "noise.p=1.5"])
+    with pytest.raises(Exception, match="noise.salt_vs_pepper"):
+        compose(["+experiment=requirement_map", "noise.salt_vs_pepper=-0.1"])
+    assert false_on_rate({"noise": "salt_pepper", "noise.p": "0.02", "noise.mode": "replace",
+                          "noise.salt_vs_pepper": "1.0"}) == 0.02
+    assert false_on_rate({"noise": "salt_pepper", "noise.p": "0.02", "noise.mode": "replace",
+                          "noise.salt_vs_pepper": "0.5"}) == pytest.approx(0.01)  # the paper's 2 % noise
+    assert false_on_rate({"noise": "salt_pepper", "noise.p": "0.02", "noise.mode": "flip"}) == 0.02
+    assert false_on_rate({"noise": "none"}) == 0.0
+    assert np.isnan(false_on_rate({"noise": "gaussian", "noise.sigma": "0.05"}))
+
+
+def test_seeds_are_replicates_not_groups():
+    jobs = [{"seed": str(s), "model.seed": str(s), "noise.p": p, "encoder.res": str(r)}
+            for s in (0, 1, 2) for p in ("0", "0.01") for r in (2, 6)]
+    assert group_keys(jobs) == ["noise.p"]
+
+
+def test_quick_map_runs_end_to_end_and_reports_the_map(tmp_path: Path):
+    repo = Path(__file__).resolve().parent.parent
+    env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1",
+           "PYTHONPATH": os.pathsep.join([str(repo), os.environ.get("PYTHONPATH", "")])}
+    out, sweep = tmp_path / "outputs", tmp_path / "outputs" / "sweep"
+    run = subprocess.run([sys.executable, "-m", "sphri", "-m", "+experiment=requirement_map_quick",
+                          f"output_dir={out}", f"hydra.sweep.dir={sweep}", "hydra/launcher=serial",
+                          "tracking.confusion_png=false"],
+                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0 and "18 of 18 jobs finished" in run.stdout, run.stderr[-3000:]
+    rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), "n_boot=200", "mlflow=false"],
+                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert rep.returncode == 0, rep.stderr[-3000:]
+    assert "grouped by noise.p" in rep.stdout and "[requirement map]" in rep.stdout
+    assert "measured between the sweep's seeds" in rep.stdout and "tolerance used" in rep.stdout
+    # the figure machinery's layout check logs any clipped or overlapping text as a warning naming the file
+    assert "requirement_map.png:" not in rep.stderr, rep.stderr[-3000:]
+    d = sweep / "report"
+    table = pd.read_csv(d / "requirement_map.csv")
+    assert MAP_COLUMNS <= set(table.columns)
+    rates = sorted(float(p) for p in swept("requirement_map_quick")["noise.p"])
+    res = sorted(int(r) for r in swept("requirement_map_quick")["encoder.res"])
+    assert sorted(table["false_on_rate"].unique()) == pytest.approx(rates) and len(table) == len(rates) * len(res)
+    assert (table["seeds"] == 2).all() and (table["participants"] == 3).all()
+    assert table["false_on_per_frame"].to_numpy() == pytest.approx(table["false_on_rate"] * table["n_taxels"])
+    for rate, rows in table.groupby("false_on_rate"):
+        assert rows["required_pitch_mm"].nunique() == 1 and rows["required"].sum() == 1
+        req = rows[rows["required"]].iloc[0]
+        assert req["pitch_mm"] == pytest.approx(req["required_pitch_mm"])
+        assert req["required_pitch_lo_mm"] <= req["required_pitch_mm"] <= req["required_pitch_hi_mm"]
+        # every resolution finer than the required one is inside the tolerance (the envelope rule)
+        assert not rows[rows["res"] > req["res"]]["outside_tolerance"].any()
+    for fmt in ("png", "pdf", "svg"):
+        assert (d / f"requirement_map.{fmt}").stat().st_size > 1000
