@@ -17,7 +17,6 @@ sweep's parent run always ends (FINISHED, FAILED or KILLED).
 
 from __future__ import annotations
 
-import json
 import logging
 import os
 import sys
@@ -62,21 +61,10 @@ def quiet_console() -> None:
             handler.setLevel(logging.WARNING)
 
 
-def _write_status(job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None,
-                  **details) -> None:
-    """``sphri_status.json``: the job's end state (and, for the sweep's table, its swept values, accuracy,
-    macro-F1, seconds and whether its evaluation came from the cache)."""
-    job_dir.mkdir(parents=True, exist_ok=True)
-    info = {"job": job, "status": status, "error": error, "mlflow_run_id": run_id, **details}
-    tmp = job_dir / "sphri_status.json.tmp"
-    tmp.write_text(json.dumps(info, default=float))
-    tmp.replace(job_dir / "sphri_status.json")  # a parallel job's progress line never reads half a file
-
-
 def run_job(cfg: DictConfig) -> dict | None:
     """One job: validate, run the pipeline, track, summarize."""
     from sphri import pipeline
-    from sphri.tracking.parent import read_parent, stop_if_killed
+    from sphri.tracking.parent import read_parent, stop_if_killed, write_status
     from sphri.tracking.store import BrokenStore
     from sphri.tracking.mlflow_tracker import summary_text
 
@@ -118,7 +106,7 @@ def run_job(cfg: DictConfig) -> dict | None:
             done = tracker.find_finished(cfg.output_dir, pipeline.config_hash(cfg))
             if done:
                 log.info("job %d skipped: MLflow run %s already finished with this config", job_num, done)
-                _write_status(job_dir, job_num, "SKIPPED", None, done, overrides=swept)
+                write_status(job_dir, job_num, "SKIPPED", None, done, overrides=swept)
                 say(f"({' '.join(swept)}) skipped: MLflow run {done} already finished with this config")
                 return {"run_id": done, "skipped": True}
         result = pipeline.run(cfg)
@@ -133,7 +121,7 @@ def run_job(cfg: DictConfig) -> dict | None:
         # An invalid config is not a run: it makes no MLflow run (only the job's status file says so).
         recorded = tracker is not None and tracker.enabled and not broken and not isinstance(exc, ConfigError)
         run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if recorded else None
-        _write_status(job_dir, job_num, "FAILED", error, run_id, overrides=swept)
+        write_status(job_dir, job_num, "FAILED", error, run_id, overrides=swept)
         if multirun:  # one line on the console; the traceback in the job's log file
             log.error("job %d FAILED: %s", job_num, error)
             log.info("traceback of job %d:\n%s", job_num, traceback.format_exc())
@@ -164,7 +152,7 @@ def run_job(cfg: DictConfig) -> dict | None:
         model_note = (f"model already logged in that run: {held[0]}" if held else _log_model(cfg, tracker, run_id))
     summary = result.summary()
     from_cache = result.stages["evaluate"].source == "cache" if "evaluate" in result.stages else False
-    _write_status(job_dir, job_num, "FINISHED", None, run_id, overrides=swept,
+    write_status(job_dir, job_num, "FINISHED", None, run_id, overrides=swept,
                   accuracy=summary.get("accuracy_mean"), macro_f1=summary.get("macro_f1_mean"),
                   seconds=time.perf_counter() - t_start, from_cache=from_cache)
     text = summary_text(result)

@@ -17,10 +17,12 @@ pipeline caches on disk.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
+
+if TYPE_CHECKING:  # pandas takes about a second to import; the CLI's config checks never need it
+    import pandas as pd
 
 #: The eight social touch gestures of the reference study, in label order.
 GESTURES: tuple[str, ...] = ("hit", "pat", "poke", "push", "rub", "stroke", "tap", "grab")

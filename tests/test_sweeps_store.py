@@ -170,3 +170,14 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     parents = _runs(out, "sweep")
     assert len(parents) == 1 and parents[0].info.status == "FINISHED"
     assert len(_runs(out, "job")) == 2
+    # the launching process answered the finished jobs: no job started (Hydra writes .hydra/ for each job it runs)
+    (new_dir,) = (out / "multirun").glob("*/*")
+    assert sorted(p.name for p in new_dir.iterdir() if p.is_dir()) == ["0", "1"]
+    assert all(not (new_dir / j / ".hydra").exists() for j in ("0", "1"))
+    # one more point: only that job starts, under its own number
+    more = _sphri(["-m", "+debug=fast", "encoder.res=2,3,4", f"output_dir={out}", "hydra/launcher=serial",
+                   f"hydra.sweep.dir={out}/sweeps/t"], cwd=tmp_path)
+    assert more.returncode == 0, more.stderr[-3000:]
+    assert "3 of 3 jobs finished (2 skipped" in more.stdout
+    assert [j for j in ("0", "1", "2") if (out / "sweeps" / "t" / j / ".hydra").exists()] == ["2"]
+    assert len(_runs(out, "job")) == 3

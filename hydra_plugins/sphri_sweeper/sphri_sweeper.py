@@ -27,6 +27,7 @@ import logging
 import os
 import signal
 import sys
+from pathlib import Path
 from typing import Any, List, Sequence
 
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
@@ -47,6 +48,42 @@ def _raise_killed(signum: int, frame: Any) -> None:
     raise SweepKilled(signum)
 
 
+class SkippingLauncher:
+    """A launcher that hands its wrapped launcher only the jobs not yet finished (each contiguous run
+    of them with its own job numbers, so folders and numbers stay those of the whole sweep) and
+    answers the finished ones itself."""
+
+    def __init__(self, launcher: Any, finished: dict[int, tuple[str, list[str]]]) -> None:
+        self.launcher = launcher
+        self.finished = finished
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.launcher, name)
+
+    def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Any:
+        from hydra.core.utils import JobReturn, JobStatus
+
+        results: list[Any] = []
+        run: list[Sequence[str]] = []
+        start = initial_job_idx
+        for k, job in enumerate(job_overrides):
+            idx = initial_job_idx + k
+            if idx not in self.finished:
+                if not run:
+                    start = idx
+                run.append(job)
+                continue
+            if run:
+                results += list(self.launcher.launch(run, initial_job_idx=start))
+                run = []
+            done = JobReturn(overrides=list(job), status=JobStatus.COMPLETED)
+            done.return_value = {"run_id": self.finished[idx][0], "skipped": True}
+            results.append(done)
+        if run:
+            results += list(self.launcher.launch(run, initial_job_idx=start))
+        return results
+
+
 class SphriSweeper(BasicSweeper):
     """See the module docstring."""
 
@@ -65,9 +102,11 @@ class SphriSweeper(BasicSweeper):
 
         assert self.hydra_context is not None and self.config is not None
         bad = []
+        self._configs = {}
         for i, job in enumerate(jobs):
             try:
                 cfg = self.hydra_context.config_loader.load_sweep_config(self.config, list(job))
+                self._configs[i] = cfg
                 validate(cfg)
                 chain_region(cfg)
                 check_inputs(cfg)
@@ -76,6 +115,40 @@ class SphriSweeper(BasicSweeper):
             except Exception as exc:  # Hydra's composition and type errors (the cause says which value)
                 bad.append((i, list(job), _explain(exc)))  # the key's own error, found in the chain
         return bad
+
+    def finished_jobs(self, jobs: Sequence[Sequence[str]]) -> dict[int, tuple[str, list[str]]]:
+        """``{job number: (finished MLflow run id, swept overrides)}`` of the jobs whose config already
+        has a FINISHED run (``resume=true``, tracking on): their status is written here and no worker
+        starts for them, so a rerun of a finished sweep is answered by this process alone. Done only
+        where a job's folder is the default ``<sweep dir>/<job number>``; elsewhere the jobs skip
+        themselves (the same check, in each job)."""
+        from omegaconf import OmegaConf, open_dict
+
+        from sphri.pipeline import build, config_hash
+        from sphri.tracking.parent import progress_line, write_status
+
+        assert self.config is not None
+        if (not self.config.get("resume") or not self.config.tracking.enabled
+                or OmegaConf.to_container(self.config.hydra.sweep, resolve=False).get("subdir") != "${hydra.job.num}"):
+            return {}
+        tracker = build(self.config.tracking)
+        sweep_dir = Path(self.config.hydra.sweep.dir)
+        out = {}
+        for i, job in enumerate(jobs):
+            cfg = self._configs.get(i)
+            if cfg is None:
+                continue
+            cfg = cfg.copy()
+            with open_dict(cfg):
+                cfg.pop("hydra", None)
+            done = tracker.find_finished(cfg.output_dir, config_hash(cfg))
+            if done:
+                swept = [o for o in job if not o.lstrip("+~").startswith("hydra")]
+                out[i] = (done, swept)
+                write_status(sweep_dir / str(i), i, "SKIPPED", None, done, overrides=swept)
+                print(progress_line(sweep_dir, i, f"({' '.join(swept)}) skipped: MLflow run {done} already "
+                                                  "finished with this config"), flush=True)
+        return out
 
     def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
         """Already done for every job before the sweep started (:meth:`invalid_points`)."""
@@ -101,6 +174,9 @@ class SphriSweeper(BasicSweeper):
             sys.exit(0)
         start_sweep_file(self.config.hydra.sweep.dir, len(jobs))
         open_parent(self.config, overrides)
+        finished = self.finished_jobs(jobs)
+        if finished:
+            self.launcher = SkippingLauncher(self.launcher, finished)
         KILLED.clear()
         previous = {sig: signal.signal(sig, _raise_killed) for sig in (signal.SIGTERM, signal.SIGINT)}
         interrupted = None

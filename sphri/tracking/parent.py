@@ -82,6 +82,17 @@ def job_statuses(sweep_dir: str | Path) -> list[dict[str, Any]]:
     return sorted(out, key=lambda s: int(s.get("job", 0)))
 
 
+def write_status(job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None,
+                  **details) -> None:
+    """``sphri_status.json``: the job's end state (and, for the sweep's table, its swept values, accuracy,
+    macro-F1, seconds and whether its evaluation came from the cache)."""
+    job_dir.mkdir(parents=True, exist_ok=True)
+    info = {"job": job, "status": status, "error": error, "mlflow_run_id": run_id, **details}
+    tmp = job_dir / "sphri_status.json.tmp"
+    tmp.write_text(json.dumps(info, default=float))
+    tmp.replace(job_dir / "sphri_status.json")  # a parallel job's progress line never reads half a file
+
+
 def start_sweep_file(sweep_dir: str | Path, n_jobs: int) -> None:
     """Record the job count and start time (the progress lines' denominator and ETA)."""
     path = Path(sweep_dir)
