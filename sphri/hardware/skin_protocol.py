@@ -154,7 +154,10 @@ class SkinDecoder(StreamDecoder):
 
     ``expected_taxels``: frames with another count are counted
     (``wrong_count``) and skipped; None accepts the count of the first valid
-    frame and then holds to it. Sequence numbers: a repeat is dropped
+    frame and then holds to it, or, with ``lock_first=False``, passes every
+    count on until the caller decides (:meth:`settle_count`, used by
+    :class:`~sphri.hardware.skin.SkinReader`'s consensus over the first
+    frames; :meth:`refuse_count` counts a frame it held and refused). Sequence numbers: a repeat is dropped
     (``duplicates``), a jump forward counted (``seq_gaps``, ``seq_missing``)
     and a jump back of more than half the range treated as a device restart
     (``seq_restarts``); the frame is kept in the last two cases.
@@ -163,12 +166,26 @@ class SkinDecoder(StreamDecoder):
     SYNC = SYNC
     NAME = "skin stream"
 
-    def __init__(self, expected_taxels: int | None = None) -> None:
+    def __init__(self, expected_taxels: int | None = None, lock_first: bool = True) -> None:
         super().__init__()
         if expected_taxels is not None and not 1 <= expected_taxels <= MAX_TAXELS:
             raise ValueError(f"expected_taxels={expected_taxels} must be in [1, {MAX_TAXELS}]")
         self.expected_taxels = expected_taxels
+        self.lock_first = lock_first
         self.last_seq: int | None = None
+
+    def settle_count(self, n: int) -> None:
+        """From now on frames must carry ``n`` taxels (after a consensus over the first frames)."""
+        if not 1 <= n <= MAX_TAXELS:
+            raise ValueError(f"taxel count {n} must be in [1, {MAX_TAXELS}]")
+        self.expected_taxels = n
+
+    def refuse_count(self, frame: SkinFrame) -> None:
+        """A frame passed on before the count was settled turned out to carry another count: count it
+        as ``wrong_count`` (and no longer as a good frame)."""
+        self.stats.frames -= 1
+        self._count("wrong_count", -1, f"{frame.n_taxels} taxels, expected {self.expected_taxels} "
+                                       f"(seq {frame.seq}, one of the first frames)")
 
     def _parse(self, buf: bytearray, i: int) -> tuple[Parse, int, Any]:
         if len(buf) - i < HEADER_LEN:
@@ -198,7 +215,8 @@ class SkinDecoder(StreamDecoder):
         if not self._track_seq(frame.seq, offset):
             return False
         if self.expected_taxels is None:
-            self.expected_taxels = frame.n_taxels
+            if self.lock_first:
+                self.expected_taxels = frame.n_taxels
         elif frame.n_taxels != self.expected_taxels:
             self._count("wrong_count", offset, f"{frame.n_taxels} taxels, expected {self.expected_taxels} (seq {frame.seq})")
             return False
