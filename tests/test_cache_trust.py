@@ -208,3 +208,17 @@ def test_entries_follow_the_umask(tmp_path, umask):
         os.umask(old)
     for p in (cache.path("data", "k"), cache._index_path("data", "pk")):
         assert stat.S_IMODE(p.stat().st_mode) == 0o666 & ~umask, p
+
+
+def test_the_fingerprint_memo_follows_the_umask(tmp_path):
+    from sphri.inputs import FingerprintMemo
+
+    (tmp_path / "mesh.stl").write_bytes(b"solid x")
+    old = os.umask(0o002)
+    try:
+        memo = FingerprintMemo(tmp_path / "cache" / "fingerprints.json")
+        memo.digest(tmp_path / "mesh.stl")
+        memo.save()
+    finally:
+        os.umask(old)
+    assert stat.S_IMODE((tmp_path / "cache" / "fingerprints.json").stat().st_mode) == 0o664
