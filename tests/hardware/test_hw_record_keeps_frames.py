@@ -150,10 +150,10 @@ def test_a_signal_saves_the_recording(tmp_path, sig):
     th = start_in_thread(sim)
     out = tmp_path / "rec.npz"
     env = {**os.environ, "PYTHONPATH": f"{REPO}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-    # chunk_frames left at its default (50): the partial file must hold frames before the first fsync
+    # no fsync before 1000 frames or 60 s: the partial file must hold the frames all the same
     proc = subprocess.Popen(
         [sys.executable, "-m", "sphri.hardware.skin", "record", f"port={sim.endpoint.url}", f"out={out}",
-         "grid=18x6", "sync_interval_s=60"],
+         "grid=18x6", "chunk_frames=1000", "sync_interval_s=60"],
         cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
     )
     partial = out.with_name(out.name + ".partial")
@@ -163,7 +163,7 @@ def test_a_signal_saves_the_recording(tmp_path, sig):
             assert proc.poll() is None, proc.stderr.read().decode()
             assert time.monotonic() < deadline, "the recorder wrote no frames"
             time.sleep(0.02)
-        assert on_disk < 50  # frames are on disk before a chunk of chunk_frames is complete
+        assert on_disk < 1000  # frames are on disk before a chunk of chunk_frames is complete
         proc.send_signal(sig)
         stdout, stderr = proc.communicate(timeout=60)
     finally:
