@@ -140,11 +140,8 @@ class SkinReader:
 
     def _settle(self, n: int) -> list[ReceivedFrame]:
         held, self._held = self._held, []
-        self.decoder.settle_count(n)
-        keep = [h for h in held if h.frame.n_taxels == n]
-        for h in held:
-            if h.frame.n_taxels != n:
-                self.decoder.refuse_count(h.frame)
+        kept = {id(f) for f in self.decoder.settle_count(n, [h.frame for h in held])}
+        keep = [h for h in held if id(h.frame) in kept]
         log.info("skin stream: %d taxels per frame (%d of the first %d frames agree)", n, len(keep), len(held))
         return keep
 

@@ -209,3 +209,27 @@ def test_recordings_follow_the_umask(tmp_path, umask):
     want = 0o666 & ~umask
     assert stat.S_IMODE(saved.stat().st_mode) == want
     assert stat.S_IMODE(partial.stat().st_mode) == want
+
+
+def test_two_glitched_first_frames_with_the_same_count_are_outvoted():
+    """Frames are held until one count has 5 votes among the first frames; the earlier glitches are refused
+    with their stream offsets, the good frames keep their own arrival times."""
+    from sphri.hardware.skin import ReceivedFrame, SkinReader
+    from sphri.hardware.skin_protocol import encode_frame
+
+    rng = np.random.default_rng(3)
+    counts = [109, 109, 108, 108, 108, 108, 108, 108]
+    data = [encode_frame(i, 1000 * i, rng.random(n)) for i, n in enumerate(counts)]
+    reader = SkinReader("socket://127.0.0.1:9")  # never opened
+    out: list[ReceivedFrame] = []
+    for i, chunk in enumerate(data):
+        for f in reader.decoder.feed(chunk):
+            out += reader._admit(ReceivedFrame(f, float(i), float(i), 0))
+        if i < 5:
+            assert out == []  # 108 has fewer than 5 votes: everything is held
+    assert [r.frame.seq for r in out] == [2, 3, 4, 5, 6, 7]
+    assert [r.host_time_s for r in out] == [2.0, 3.0, 4.0, 5.0, 6.0, 7.0]
+    st = reader.decoder.stats
+    assert reader.decoder.expected_taxels == 108 and st.wrong_count == 2 and st.frames == 6
+    # after the consensus the decoder refuses another count itself
+    assert reader.decoder.feed(encode_frame(8, 0, rng.random(109))) == [] and st.wrong_count == 3
