@@ -302,7 +302,8 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print,
                         consensus_frames=settings.consensus_frames)
     got: list[ReceivedFrame] = []  # one append per frame: a signal never leaves the fields unequal
     error: BaseException | None = None
-    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames written to {partial.path} as they arrive)")
+    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames written to {partial.path} "
+        "as they arrive)")
 
     def keep(rf: ReceivedFrame) -> None:
         got.append(rf)
