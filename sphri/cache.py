@@ -3,17 +3,29 @@
 An entry lives at ``<root>/<stage>/<key>.entry``. ``key`` is a hash of the
 stage's config subtree, its inputs' keys, the content fingerprints of the
 files it reads and the component's ``VERSION`` (:func:`stage_key`). The file
-is ``MAGIC | blake2b(payload) | payload`` where the payload is an ``.npz``
-(read with ``allow_pickle=False``): the value's arrays plus ``__meta__``, a
-JSON document holding the stage, the key, the input files' fingerprints and
-the value's structure (:mod:`sphri.codec`). Nothing in an entry can execute
-code when it is read.
+is ``MAGIC | plain digest | keyed digest | payload`` (:mod:`sphri.integrity`)
+where the payload is an ``.npz`` (read with ``allow_pickle=False``): the
+value's arrays plus ``__meta__``, a JSON document holding the stage, the key,
+the input files' fingerprints and the value's structure (:mod:`sphri.codec`).
+Nothing in an entry can execute code when it is read.
+
+- The plain digest (BLAKE2b) catches damage; anyone who can write to the
+  cache can recompute it. With a key (``SPHRI_CACHE_KEY`` or
+  ``SPHRI_CACHE_KEY_FILE``, :func:`sphri.integrity.load_key`), every entry
+  also carries an HMAC-SHA256, and an entry whose HMAC does not verify
+  (written without the key, or crafted) is discarded and recomputed, never
+  read: whoever can write to a shared cache can then make jobs recompute,
+  not change their results.
+- Entries of the previous format (``SPHRICACHE2``) are recomputed.
 
 - Writes go to a temporary file in the same folder, then ``os.replace``:
   a reader never sees a half-written entry.
-- An entry that fails its checksum, is not an npz, or does not decode into
-  the stage's contract (another type, other fields, a class outside sphri)
-  is logged, removed and recomputed, never used.
+- An entry that fails its checksum or key, is not an npz, or does not decode
+  into the stage's contract (another type, other fields, a class outside
+  sphri, values inconsistent with each other, e.g. a 3x3 confusion matrix
+  for 8 gestures), or whose decoding fails in any other way (a 200,000-deep
+  JSON document, an out-of-range number) is logged with its file, removed
+  and recomputed, never used and never raised.
 - A per-entry ``fcntl`` lock makes concurrent jobs (a parallel sweep)
   compute an entry once: the others wait and then read it.
 - ``<root>/<stage>/by-path/<path_key>.json`` remembers, for the same stage
@@ -39,14 +51,36 @@ from typing import Any, Callable, Iterator, TypeVar
 import numpy as np
 
 from sphri.codec import DecodeError, EncodeError, check_contract, decode, encode
+from sphri.fsutil import umask_mode
+from sphri.integrity import DIGEST_SIZE, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest
 
 log = logging.getLogger(__name__)
 
-MAGIC = b"SPHRICACHE2\n"
+MAGIC = b"SPHRICACHE3\n"
+#: The previous format (one BLAKE2b over the payload, no key): recomputed.
+OLD_MAGICS = (b"SPHRICACHE2\n",)
 SUFFIX = ".entry"
 META = "__meta__"
-_DIGEST = 32
+_DIGEST = DIGEST_SIZE
 T = TypeVar("T")
+
+
+class _FromEnv:
+    def __repr__(self) -> str:
+        return "FROM_ENV"
+
+
+#: Default of the ``key`` arguments: the key in the environment (:func:`sphri.integrity.load_key`), if any.
+FROM_ENV: Any = _FromEnv()
+
+
+def _key(key: Any) -> bytes | None:
+    return load_key("cache") if key is FROM_ENV else key
+
+
+def seal(payload: bytes, key: bytes | None = None) -> bytes:
+    """An entry's bytes around ``payload``: magic, plain digest, keyed digest (zeros without a key)."""
+    return MAGIC + plain_digest(MAGIC, payload) + keyed_digest(key, MAGIC, payload) + payload
 
 
 def stable_hash(obj: Any) -> str:
@@ -64,25 +98,31 @@ class CorruptEntry(RuntimeError):
     """A cache file failed its header or checksum."""
 
 
-def _encode(value: Any, meta: dict[str, Any]) -> bytes:
+def _encode(value: Any, meta: dict[str, Any], key: bytes | None = None) -> bytes:
     tree, arrays = encode(value)
     if META in arrays:  # pragma: no cover - array names are a0, a1, ...
         raise EncodeError(f"array name {META} is reserved")
     doc = json.dumps({**meta, "value": tree}, separators=(",", ":")).encode()
     buf = io.BytesIO()
     np.savez(buf, **arrays, **{META: np.frombuffer(doc, dtype=np.uint8)})
-    payload = buf.getvalue()
-    return MAGIC + hashlib.blake2b(payload, digest_size=_DIGEST).digest() + payload
+    return seal(buf.getvalue(), key)
 
 
-def _decode(blob: bytes, path: Path) -> tuple[dict[str, Any], Any]:
-    """``(meta, value)`` of an entry; raises :class:`CorruptEntry` or :class:`DecodeError`."""
+def _decode(blob: bytes, path: Path, key: bytes | None = None) -> tuple[dict[str, Any], Any]:
+    """``(meta, value)`` of an entry; raises :class:`CorruptEntry` or :class:`DecodeError`
+    (or, for a crafted entry, whatever decoding it raises: :meth:`StageCache.read` discards it)."""
     head = len(MAGIC)
-    if len(blob) < head + _DIGEST or blob[:head] != MAGIC:
+    if blob[:head] in OLD_MAGICS:
+        raise CorruptEntry(f"{path}: an entry of an older cache format (no digest over a key)")
+    if len(blob) < head + 2 * _DIGEST or blob[:head] != MAGIC:
         raise CorruptEntry(f"{path}: not a sphri cache entry (bad header or truncated)")
-    digest, payload = blob[head : head + _DIGEST], blob[head + _DIGEST :]
-    if hashlib.blake2b(payload, digest_size=_DIGEST).digest() != digest:
+    digest, keyed = blob[head : head + _DIGEST], blob[head + _DIGEST : head + 2 * _DIGEST]
+    payload = blob[head + 2 * _DIGEST :]
+    if plain_digest(MAGIC, payload) != digest:
         raise CorruptEntry(f"{path}: checksum mismatch (truncated or corrupted)")
+    if not keyed_ok(key, keyed, MAGIC, payload):
+        why = "written without the key" if keyed == NO_KEY else "its HMAC does not match the key"
+        raise CorruptEntry(f"{path}: not signed with the configured cache key ({why})")
     try:
         with np.load(io.BytesIO(payload), allow_pickle=False) as z:
             arrays = {name: z[name] for name in z.files}
@@ -92,20 +132,24 @@ def _decode(blob: bytes, path: Path) -> tuple[dict[str, Any], Any]:
         raise CorruptEntry(f"{path}: no {META} document")
     try:
         meta = json.loads(arrays.pop(META).tobytes().decode())
-    except (UnicodeDecodeError, ValueError) as exc:
-        raise CorruptEntry(f"{path}: unreadable {META} ({exc})") from None
+    except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+        raise CorruptEntry(f"{path}: unreadable {META} ({type(exc).__name__}: {exc})") from None
     if not isinstance(meta, dict) or "value" not in meta:
         raise CorruptEntry(f"{path}: {META} has no value")
     return meta, decode(meta.pop("value"), arrays)
 
 
-def write_entry(path: Path, value: Any, meta: dict[str, Any] | None = None) -> Path:
-    """Write ``value`` to ``path`` as one checksummed entry (arrays + JSON, no pickle), atomically."""
+def write_entry(path: Path, value: Any, meta: dict[str, Any] | None = None, key: Any = FROM_ENV) -> Path:
+    """Write ``value`` to ``path`` as one checksummed entry (arrays + JSON, no pickle), atomically.
+
+    ``key``: HMAC key (bytes), None for none, or the environment's (default).
+    The file gets the mode the umask gives (not mkstemp's 0600)."""
     path = Path(path)
-    blob = _encode(value, {"format": 2, **(meta or {})})
+    blob = _encode(value, {"format": 3, **(meta or {})}, _key(key))
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, umask_mode())
         with os.fdopen(fd, "wb") as fh:
             fh.write(blob)
             fh.flush()
@@ -118,15 +162,21 @@ def write_entry(path: Path, value: Any, meta: dict[str, Any] | None = None) -> P
     return path
 
 
-def read_entry(path: Path, contract: Any = None) -> tuple[dict[str, Any], Any]:
+def read_entry(path: Path, contract: Any = None, key: Any = FROM_ENV) -> tuple[dict[str, Any], Any]:
     """``(meta, value)`` of an entry written by :func:`write_entry`.
 
     Raises ``OSError`` when the file cannot be read, :class:`CorruptEntry` or
     :class:`~sphri.codec.DecodeError` (each naming ``path``) when it is not a
-    valid entry or its value is not of ``contract``.
+    valid entry, is not signed with ``key`` (when one is configured) or its
+    value is not of ``contract``.
     """
     path = Path(path)
-    meta, value = _decode(path.read_bytes(), path)
+    try:
+        meta, value = _decode(path.read_bytes(), path, _key(key))
+    except (CorruptEntry, DecodeError, OSError):
+        raise
+    except Exception as exc:  # a crafted entry: whatever decoding raised, named
+        raise CorruptEntry(f"{path}: does not decode ({type(exc).__name__}: {exc})") from None
     check_contract(value, contract, str(path))
     return meta, value
 
@@ -139,9 +189,12 @@ class StageCache:
     enabled: bool = True
     hits: list[str] = field(default_factory=list)
     misses: list[str] = field(default_factory=list)
+    key: Any = FROM_ENV
+    """HMAC key of the entries (bytes), None for none, or FROM_ENV: ``SPHRI_CACHE_KEY(_FILE)``."""
 
     def __post_init__(self) -> None:
         self.root = Path(self.root).resolve()
+        self.key = _key(self.key) if self.enabled else None
 
     def path(self, stage: str, key: str) -> Path:
         return self.root / stage / f"{key}{SUFFIX}"
@@ -167,30 +220,36 @@ class StageCache:
         except FileNotFoundError:
             return False, None
         try:
-            meta, value = _decode(blob, path)
+            meta, value = _decode(blob, path, self.key)
             if meta.get("stage") != stage or meta.get("key") != key:
                 raise DecodeError(f"{path}: holds stage {meta.get('stage')!r} key {meta.get('key')!r}")
             check_contract(value, contract, f"{path}: stage {stage}")
             return True, value
-        except (CorruptEntry, DecodeError) as exc:
-            log.warning("cache: discarding corrupt entry for stage %s (%s); recomputing", stage, exc)
-            with contextlib.suppress(FileNotFoundError):
+        except Exception as exc:  # noqa: BLE001 - a crafted entry may raise anything while decoding: never fatal
+            text = str(exc) if str(path) in str(exc) else f"{path}: {type(exc).__name__}: {exc}"
+            log.warning("cache: discarding corrupt entry for stage %s (%s); recomputing", stage, text[:500])
+            with contextlib.suppress(OSError):
                 path.unlink()
             return False, None
 
     def write(self, stage: str, key: str, value: Any, files: dict[str, str] | None = None) -> Path:
         """Store ``value``; raises :class:`~sphri.codec.EncodeError` when it cannot be stored as arrays + JSON."""
-        return write_entry(self.path(stage, key), value, {"stage": stage, "key": key, "files": files or {}})
+        return write_entry(self.path(stage, key), value, {"stage": stage, "key": key, "files": files or {}},
+                           key=self.key)
 
     def changed_files(self, stage: str, path_key: str, key: str, files: dict[str, str]) -> list[str]:
         """Files whose content differs from the entry last stored for the same config and paths."""
+        index = self._index_path(stage, path_key)
         try:
-            old = json.loads(self._index_path(stage, path_key).read_text())
-        except (OSError, ValueError):
+            old = json.loads(index.read_text())
+        except (OSError, ValueError, RecursionError):
             return []
         if not isinstance(old, dict) or old.get("key") == key:
             return []
         before = old.get("files") or {}
+        if not isinstance(before, dict) or not all(isinstance(p, str) for p in before):
+            log.warning("cache: ignoring malformed index %s (files is not a map of paths)", index)
+            return []
         return sorted(p for p in set(files) | set(before) if files.get(p) != before.get(p))
 
     def _remember(self, stage: str, path_key: str, key: str, files: dict[str, str]) -> None:
@@ -198,6 +257,7 @@ class StageCache:
         with contextlib.suppress(OSError):
             path.parent.mkdir(parents=True, exist_ok=True)
             fd, tmp = tempfile.mkstemp(prefix=".idx.", suffix=".tmp", dir=path.parent)
+            os.fchmod(fd, umask_mode())
             with os.fdopen(fd, "w") as fh:
                 json.dump({"key": key, "files": files}, fh)
             os.replace(tmp, path)

@@ -5,9 +5,11 @@ tuples/lists/dicts of them) into ``(tree, arrays)``: ``tree`` is JSON, every
 numpy array goes into ``arrays`` (stored in an ``.npz`` read with
 ``allow_pickle=False``). :func:`decode` rebuilds the value and checks it
 against its contract: a dataclass is rebuilt only when its class lives in
-``sphri.`` and the stored fields are exactly the class's fields, and fields
-annotated as arrays, strings or numbers hold one. Anything else raises
-:class:`DecodeError` (the cache logs it and recomputes).
+``sphri.`` and the stored fields are exactly the class's fields, fields
+annotated as arrays, strings or numbers hold one, and a class that defines
+``check_decoded()`` (e.g. :class:`sphri.types.CVResult`: confusion matrices
+of the labels' size, accuracies that match them) accepts the values.
+Anything else raises :class:`DecodeError` (the cache logs it and recomputes).
 
 One generic encoder/decoder for every dataclass of arrays, scalars, strings,
 containers, ``pandas.DataFrame`` (column by column) and nested dataclasses,
@@ -193,6 +195,9 @@ def decode(tree: Any, arrays: Any) -> Any:
             for k, f in fields.items():
                 if not f.init:
                     object.__setattr__(obj, k, values[k])
+            check = getattr(obj, "check_decoded", None)
+            if callable(check):  # the class's own consistency rules (ValueError naming the field)
+                check()
             return obj
         raise DecodeError(f"unknown JSON node with keys {sorted(node)[:5]}")
 
@@ -200,7 +205,7 @@ def decode(tree: Any, arrays: Any) -> Any:
         return dec(tree)
     except DecodeError:
         raise
-    except (KeyError, TypeError, ValueError) as exc:
+    except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as exc:
         raise DecodeError(f"malformed entry ({type(exc).__name__}: {exc})") from None
 
 

@@ -33,6 +33,8 @@ from typing import Any, Callable, Iterable, Mapping
 
 from omegaconf import DictConfig, OmegaConf
 
+from sphri.fsutil import umask_mode
+
 log = logging.getLogger(__name__)
 
 INPUT_META = "sphri_input"
@@ -72,7 +74,7 @@ class FingerprintMemo:
         try:
             data = json.loads(self.path.read_text())
             return data if isinstance(data, dict) else {}
-        except (OSError, ValueError):
+        except (OSError, ValueError, RecursionError):  # unreadable or crafted: hashed again
             return {}
 
     def digest(self, path: Path) -> str:
@@ -109,6 +111,7 @@ class FingerprintMemo:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             merged = {**self._load(), **self.entries}
             fd, tmp = tempfile.mkstemp(prefix=".fingerprints.", suffix=".tmp", dir=self.path.parent)
+            os.fchmod(fd, umask_mode())  # shared with the cache entries: the umask's mode, not 0600
             with os.fdopen(fd, "w") as fh:
                 json.dump(merged, fh)
             os.replace(tmp, self.path)

@@ -362,6 +362,28 @@ class CVResult:
     folds: list[FoldResult]
     labels: tuple[str, ...] = GESTURES
 
+    def check_decoded(self) -> None:
+        """Raise ValueError (naming the fold and field) unless the folds are consistent with ``labels``
+        and with themselves: (G, G) non-negative integer confusion matrices for G labels summing to
+        ``n_test``, (G,) recalls, an accuracy equal to the matrix's diagonal share and a macro-F1 in
+        [0, 1]. Run on every evaluation read back from the cache (:func:`sphri.codec.decode`)."""
+        g = len(self.labels)
+        for f in self.folds:
+            cm = np.asarray(f.confusion)
+            where = f"CVResult fold {f.fold!r}"
+            if cm.shape != (g, g) or cm.dtype.kind not in "iu":
+                raise ValueError(f"{where}: confusion must be ({g}, {g}) integers for {g} labels, "
+                                 f"got {cm.dtype} {cm.shape}")
+            if (cm < 0).any() or int(cm.sum()) != f.n_test:
+                raise ValueError(f"{where}: confusion counts must be >= 0 and sum to n_test={f.n_test}")
+            if np.asarray(f.recall).shape != (g,):
+                raise ValueError(f"{where}: recall must be ({g},), got {np.asarray(f.recall).shape}")
+            if f.n_test < 1 or not abs(f.accuracy - np.trace(cm) / f.n_test) <= 1e-9:
+                raise ValueError(f"{where}: accuracy {f.accuracy!r} is not the confusion matrix's "
+                                 f"{np.trace(cm)}/{f.n_test}")
+            if not 0.0 <= f.macro_f1 <= 1.0:
+                raise ValueError(f"{where}: macro_f1 {f.macro_f1!r} outside [0, 1]")
+
     def summary(self) -> dict[str, float]:
         acc = np.array([f.accuracy for f in self.folds], dtype=float)
         f1 = np.array([f.macro_f1 for f in self.folds], dtype=float)

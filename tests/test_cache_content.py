@@ -3,7 +3,6 @@ entries are arrays + JSON that decode into the stage's contract or are recompute
 
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import logging
@@ -17,7 +16,7 @@ import pytest
 import trimesh
 
 from sphri import pipeline
-from sphri.cache import MAGIC, StageCache
+from sphri.cache import StageCache, seal
 from sphri.config import compose
 from sphri.types import Contacts, CVResult, FoldResult, GestureDataset, Layout, SurfaceMap
 
@@ -130,7 +129,7 @@ def plant(cache: StageCache, stage: str, key: str, payload: bytes) -> Path:
     """An entry with a valid header and checksum around ``payload``."""
     path = cache.path(stage, key)
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(MAGIC + hashlib.blake2b(payload, digest_size=32).digest() + payload)
+    path.write_bytes(seal(payload))
     return path
 
 

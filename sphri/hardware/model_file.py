@@ -4,22 +4,29 @@ A file holds a fitted sphri estimator (``model=rf`` or ``model=cnn_gru``),
 the :class:`~sphri.types.TaxelGeometry` it was trained on, the window length
 L and frame rate, and the gesture labels. Layout::
 
-    b"SPHRIMODEL2\\n"
+    b"SPHRIMODEL3\\n"
     uint32 LE  length of the JSON header
     JSON       header: format, labels, window_length, frame_rate_hz,
                n_taxels, grid_shape, model, created, meta, geometry scalars
                and the estimator's kind and hyperparameters
-    32 bytes   BLAKE2b digest of the payload
+    32 bytes   BLAKE2b digest over magic, header and payload
+    32 bytes   HMAC-SHA256 over the same with the model key, or zeros
+               (:mod:`sphri.integrity`)
     payload    an .npz (read with ``allow_pickle=False``) of arrays: taxel
                positions and chart coordinates, classes, and the fitted part
                of the estimator: the Random Forest's scikit-learn forest as
-               skops bytes (loaded with an explicit trusted-type list,
-               :data:`TRUSTED_TYPES`), the CNN-GRU's network as a torch state
-               dict (``torch.load(weights_only=True)``)
+               skops bytes (every type in it must be in sphri's own list,
+               :data:`TRUSTED_TYPES`, the only list skops is given), the
+               CNN-GRU's network as a torch state dict
+               (``torch.load(weights_only=True)``)
 
-Nothing in a model file is unpickled, so a crafted file cannot run code: the
-old pickle format (``SPHRIMODEL1``) and any type outside the trusted list are
-refused with an error naming the file. Files can also live in MLflow or on a
+The digests cover the header too: an edited label order or window length is
+a checksum mismatch. With ``SPHRI_MODEL_KEY`` (or ``SPHRI_MODEL_KEY_FILE``)
+set, :func:`save_model` signs the file and :func:`load_model` refuses a
+file not signed with that key. Nothing in a model file is unpickled, so a
+crafted file cannot run code: the old pickle format (``SPHRIMODEL1``), the
+previous format (``SPHRIMODEL2``, whose checksum left the header out) and
+any type outside the trusted list are refused with an error naming the file. Files can also live in MLflow or on a
 web server: :func:`resolve_model_path` fetches ``runs:/<run_id>/<path>`` (or
 any artifact URI) only with ``allow_remote=True`` (``skin live
 allow_remote=true``).
@@ -28,31 +35,43 @@ allow_remote=true``).
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import io
 import json
 import os
 import struct
 import tempfile
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from sphri.fsutil import umask_mode
+from sphri.integrity import DIGEST_SIZE, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest
 from sphri.types import GESTURES, TaxelGeometry
 
-MAGIC = b"SPHRIMODEL2\n"
+MAGIC = b"SPHRIMODEL3\n"
 OLD_MAGIC = b"SPHRIMODEL1\n"
-FORMAT = "sphri-model/2"
-_DIGEST = 32
+#: The previous format: its checksum covered the payload only.
+V2_MAGIC = b"SPHRIMODEL2\n"
+FORMAT = "sphri-model/3"
+_DIGEST = DIGEST_SIZE
 
-#: Types a Random Forest's skops payload may hold beyond skops' own defaults
-#: (numpy arrays, builtins): anything else is refused before loading.
+#: The types a Random Forest's skops payload may hold besides plain containers
+#: and numbers (:data:`_PLAIN_TYPES`). These two lists are the only ones skops
+#: is given (its defaults, which trust many other scikit-learn estimators, are
+#: not used): a payload holding anything else is refused before loading.
 TRUSTED_TYPES = (
     "sklearn.ensemble._forest.RandomForestClassifier",
     "sklearn.tree._classes.DecisionTreeClassifier",
     "sklearn.tree._tree.Tree",
+)
+_PLAIN_TYPES = frozenset(
+    [f"builtins.{t}" for t in ("dict", "list", "tuple", "str", "int", "float", "bool", "NoneType")]
+    + ["numpy.ndarray", "numpy.bool_", "numpy.bool"]
+    + [f"numpy.{k}{b}" for k in ("int", "uint") for b in (8, 16, 32, 64)]
+    + [f"numpy.float{b}" for b in (16, 32, 64)]
 )
 
 
@@ -135,6 +154,26 @@ def _estimator_state(estimator: Any) -> tuple[dict[str, Any], dict[str, np.ndarr
     )
 
 
+def skops_types(path: Path, data: bytes) -> set[str]:
+    """Every ``module.Class`` named in a skops archive's schema (read as JSON; nothing is imported)."""
+    try:
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
+            schema = json.loads(zf.read("schema.json"))
+    except (zipfile.BadZipFile, KeyError, OSError, ValueError, RecursionError) as exc:
+        raise ModelFileError(f"{path}: the forest payload is unreadable ({type(exc).__name__}: {exc})") from None
+    found: set[str] = set()
+    stack = [schema]
+    while stack:
+        node = stack.pop()
+        if isinstance(node, dict):
+            if "__class__" in node or "__module__" in node:
+                found.add(f"{node.get('__module__')}.{node.get('__class__')}")
+            stack.extend(node.values())
+        elif isinstance(node, list):
+            stack.extend(node)
+    return found
+
+
 def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: TaxelGeometry) -> Any:
     """The estimator of a model file from its header part and npz arrays (see :func:`_estimator_state`)."""
     kind = head.get("kind")
@@ -147,14 +186,21 @@ def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: Taxel
         from sphri.models.rf import RandomForest
 
         data = z["forest_skops"].tobytes()
+        found = skops_types(path, data)
+        untrusted = sorted(found - set(TRUSTED_TYPES) - _PLAIN_TYPES)
+        if untrusted:
+            raise ModelFileError(f"{path}: the forest payload holds untrusted types {untrusted} (outside sphri's "
+                                 "list); refused (not loaded)")
+        model = RandomForest(**params, geometry=geometry)
         try:
-            untrusted = [t for t in sio.get_untrusted_types(data=data) if t not in TRUSTED_TYPES]
+            model.forest_ = sio.loads(data, trusted=sorted(found))
         except Exception as exc:  # skops raises several types on a damaged archive
             raise ModelFileError(f"{path}: the forest payload is unreadable ({type(exc).__name__}: {exc})") from None
-        if untrusted:
-            raise ModelFileError(f"{path}: the forest payload holds untrusted types {untrusted}; refused (not loaded)")
-        model = RandomForest(**params, geometry=geometry)
-        model.forest_ = sio.loads(data, trusted=list(TRUSTED_TYPES))
+        from sklearn.ensemble import RandomForestClassifier
+
+        if type(model.forest_) is not RandomForestClassifier:
+            raise ModelFileError(f"{path}: the forest payload holds a {type(model.forest_).__name__}, "
+                                 "not a RandomForestClassifier")
         model.classes_ = model.forest_.classes_
         model.n_features_in_ = len(FEATURE_NAMES)
         model.feature_names_ = FEATURE_NAMES
@@ -184,8 +230,24 @@ def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: Taxel
     raise ModelFileError(f"{path}: unknown estimator kind {kind!r} (this sphri reads rf and cnn_gru)")
 
 
-def save_model(bundle: ModelBundle, path: str | os.PathLike) -> Path:
-    """Write ``bundle`` to ``path`` atomically (JSON header + npz payload, no pickle)."""
+def seal_model(head_bytes: bytes, payload: bytes, key: bytes | None = None) -> bytes:
+    """A model file's bytes: magic, header, its two digests (over magic, header and payload), payload."""
+    return (MAGIC + struct.pack("<I", len(head_bytes)) + head_bytes + plain_digest(MAGIC, head_bytes, payload)
+            + keyed_digest(key, MAGIC, head_bytes, payload) + payload)
+
+
+class _FromEnv:
+    def __repr__(self) -> str:
+        return "FROM_ENV"
+
+
+#: Default of the ``key`` arguments: ``SPHRI_MODEL_KEY`` / ``SPHRI_MODEL_KEY_FILE`` if set.
+FROM_ENV: Any = _FromEnv()
+
+
+def save_model(bundle: ModelBundle, path: str | os.PathLike, key: Any = FROM_ENV) -> Path:
+    """Write ``bundle`` to ``path`` atomically (JSON header + npz payload, no pickle), signed with ``key``
+    (bytes, None, or the environment's model key, the default) and with the mode the umask gives."""
     if not hasattr(bundle.estimator, "predict_proba"):
         raise ModelFileError(f"{type(bundle.estimator).__name__} has no predict_proba; live classification needs it")
     path = Path(path)
@@ -202,10 +264,11 @@ def save_model(bundle: ModelBundle, path: str | os.PathLike) -> Path:
     np.savez(buf, **arrays)
     payload = buf.getvalue()
     head_bytes = json.dumps(header, default=str).encode()
-    blob = MAGIC + struct.pack("<I", len(head_bytes)) + head_bytes + hashlib.blake2b(payload, digest_size=_DIGEST).digest() + payload
+    blob = seal_model(head_bytes, payload, load_key("model") if key is FROM_ENV else key)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
+        os.fchmod(fd, umask_mode())
         with os.fdopen(fd, "wb") as fh:
             fh.write(blob)
         os.replace(tmp, path)
@@ -216,43 +279,75 @@ def save_model(bundle: ModelBundle, path: str | os.PathLike) -> Path:
     return path
 
 
-def _split(path: Path) -> tuple[dict[str, Any], bytes, bytes]:
+_EXPORT = "export it again with python -m sphri.hardware.train_export"
+
+
+def _split(path: Path) -> tuple[dict[str, Any], bytes, bytes, bytes, bytes]:
+    """(header, header bytes, plain digest, keyed digest, payload) of a model file."""
     if not path.is_file():
         raise ModelFileError(f"model file not found: {path}")
     blob = path.read_bytes()
     if blob.startswith(OLD_MAGIC):
         raise ModelFileError(
             f"{path}: an old pickle-based model file (SPHRIMODEL1); sphri no longer unpickles model files "
-            "(a crafted one could run code). Export it again with python -m sphri.hardware.train_export"
+            f"(a crafted one could run code); {_EXPORT}"
         )
+    if blob.startswith(V2_MAGIC):
+        raise ModelFileError(f"{path}: a sphri-model/2 file, whose checksum does not cover its header "
+                             f"(labels, window length); {_EXPORT}")
     if not blob.startswith(MAGIC) or len(blob) < len(MAGIC) + 4:
         raise ModelFileError(f"{path}: not a sphri model file (make one with python -m sphri.hardware.train_export)")
     (n,) = struct.unpack_from("<I", blob, len(MAGIC))
     h0 = len(MAGIC) + 4
-    if len(blob) < h0 + n + _DIGEST:
+    if len(blob) < h0 + n + 2 * _DIGEST:
         raise ModelFileError(f"{path}: truncated")
+    head_bytes = blob[h0 : h0 + n]
     try:
-        header = json.loads(blob[h0 : h0 + n])
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ModelFileError(f"{path}: header is not JSON ({exc})") from None
+        header = json.loads(head_bytes)
+    except (ValueError, UnicodeDecodeError, RecursionError) as exc:
+        raise ModelFileError(f"{path}: header is not JSON ({type(exc).__name__}: {exc})") from None
     if not isinstance(header, dict) or header.get("format") != FORMAT:
-        got = header.get("format") if isinstance(header, dict) else header
+        got = header.get("format") if isinstance(header, dict) else type(header).__name__
         raise ModelFileError(f"{path}: format {got!r}, this sphri reads {FORMAT!r}")
-    digest = blob[h0 + n : h0 + n + _DIGEST]
-    return header, digest, blob[h0 + n + _DIGEST :]
+    d0 = h0 + n
+    return header, head_bytes, blob[d0 : d0 + _DIGEST], blob[d0 + _DIGEST : d0 + 2 * _DIGEST], blob[d0 + 2 * _DIGEST :]
 
 
 def inspect_model(path: str | os.PathLike) -> dict[str, Any]:
-    """The JSON header of a model file (nothing else is read)."""
+    """The JSON header of a model file (nothing else is read, nothing checked but its format)."""
     return _split(Path(path))[0]
 
 
-def load_model(path: str | os.PathLike) -> ModelBundle:
-    """Read a model file written by :func:`save_model` (checks its digest, types and shapes; no pickle)."""
+def _check_header(path: Path, header: dict[str, Any]) -> None:
+    """Field types and ranges of a header, each error naming the file and field."""
+    labels = header.get("labels")
+    if (not isinstance(labels, list) or not labels or not all(isinstance(x, str) and x for x in labels)
+            or len(set(labels)) != len(labels)):
+        raise ModelFileError(f"{path}: header field labels must be a list of distinct gesture names, got {labels!r}")
+    checks = (("window_length", int, 1, 100_000), ("n_taxels", int, 1, 1_000_000),
+              ("frame_rate_hz", (int, float), 1e-3, 1e6))
+    for name, typ, lo, hi in checks:
+        v = header.get(name)
+        if isinstance(v, bool) or not isinstance(v, typ) or not lo <= v <= hi:
+            raise ModelFileError(f"{path}: header field {name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
+    for name in ("geometry", "estimator"):
+        if not isinstance(header.get(name), dict):
+            raise ModelFileError(f"{path}: header field {name} must be an object, got {header.get(name)!r}")
+
+
+def load_model(path: str | os.PathLike, key: Any = FROM_ENV) -> ModelBundle:
+    """Read a model file written by :func:`save_model` (checks its digests over header and payload, its
+    header fields, types and shapes; no pickle). ``key``: the model key (bytes), None, or the environment's
+    (default); with a key, a file not signed with it is refused."""
     path = Path(path)
-    header, digest, payload = _split(path)
-    if hashlib.blake2b(payload, digest_size=_DIGEST).digest() != digest:
-        raise ModelFileError(f"{path}: checksum mismatch (truncated or corrupted)")
+    header, head_bytes, digest, keyed, payload = _split(path)
+    if plain_digest(MAGIC, head_bytes, payload) != digest:
+        raise ModelFileError(f"{path}: checksum mismatch over its header and payload (edited, truncated or corrupted)")
+    key = load_key("model") if key is FROM_ENV else key
+    if not keyed_ok(key, keyed, MAGIC, head_bytes, payload):
+        why = "it was written without the key" if keyed == NO_KEY else "its HMAC does not match the key"
+        raise ModelFileError(f"{path}: not signed with the configured model key (SPHRI_MODEL_KEY): {why}; refused")
+    _check_header(path, header)
     try:
         geo_head = header["geometry"]
         with np.load(io.BytesIO(payload), allow_pickle=False) as z:
@@ -267,9 +362,15 @@ def load_model(path: str | os.PathLike) -> ModelBundle:
             if geometry.n_taxels != header["n_taxels"]:
                 raise ModelFileError(f"{path}: header says {header['n_taxels']} taxels, geometry has {geometry.n_taxels}")
             estimator = _restore_estimator(path, header["estimator"], z, geometry)
+        classes = np.asarray(getattr(estimator, "classes_", []))
+        if classes.size and (classes.dtype.kind not in "iu" or classes.min() < 0
+                             or classes.max() >= len(header["labels"])):
+            raise ModelFileError(f"{path}: the estimator predicts classes {classes.tolist()} but the header names "
+                                 f"{len(header['labels'])} labels")
     except ModelFileError:
         raise
-    except (KeyError, TypeError, ValueError, OSError) as exc:  # a field missing or of the wrong kind
+    except (KeyError, TypeError, ValueError, OSError, AttributeError, EOFError, OverflowError,
+            zipfile.BadZipFile) as exc:  # a field missing or of the wrong kind
         raise ModelFileError(f"{path}: malformed model file ({type(exc).__name__}: {exc})") from None
     return ModelBundle(
         estimator=estimator,

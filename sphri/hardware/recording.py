@@ -18,12 +18,16 @@ on any problem; :meth:`SkinRecording.frames` gives :class:`~sphri.types.Frames`
 and :meth:`SkinRecording.windows` model-ready (n, L, N) windows.
 
 While ``skin record`` runs, frames go to a *partial* file next to the output
-(``rec.npz.partial``, :class:`PartialWriter`), appended and fsynced every
-``chunk_frames`` frames, so a crash, a kill or a full disk keeps what was read
+(``rec.npz.partial``, :class:`PartialWriter`): each frame is written to the
+file as it is read (a killed process loses none) and the file is fsynced every
+``chunk_frames`` frames or ``sync_interval_s`` seconds (what a power cut can
+cost), so a crash, a kill or a full disk keeps what was read
 (:func:`load_recording` reads a partial file too). The output path is checked
-before a byte is read (:func:`check_output_path`); at the end the frames are
-saved to ``out`` and the partial file removed, or, when that fails, to a
-fallback file in the working directory (:func:`save_with_fallback`).
+before a byte is read (:func:`check_output_path`: an existing file is never
+replaced); at the end the frames are saved to ``out`` and the partial file
+removed, or, when that fails, to a fallback file in the working directory
+(:func:`save_with_fallback`). Files are created with the mode the umask
+gives (:func:`sphri.fsutil.umask_mode`), not 0600.
 """
 
 from __future__ import annotations
@@ -39,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from sphri.fsutil import umask_mode
 from sphri.types import Frames
 
 #: Format version written in ``meta["format"]``.
@@ -110,14 +115,21 @@ class SkinRecording:
         return np.ascontiguousarray(np.moveaxis(w, -1, 1))
 
 
-def save_recording(rec: SkinRecording, path: str | os.PathLike) -> Path:
-    """Write ``rec`` to ``path`` (.npz) atomically (temp file + rename)."""
+def save_recording(rec: SkinRecording, path: str | os.PathLike, replace: bool = True) -> Path:
+    """Write ``rec`` to ``path`` (.npz) atomically (temp file + rename).
+
+    ``replace=False`` (what ``skin record`` uses) never replaces an existing
+    file: the name is reserved with an exclusive create first, and a file
+    already there raises :class:`RecordingError`.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     meta = {"format": FORMAT, **rec.meta}
     grid = np.asarray(rec.grid_shape if rec.grid_shape is not None else (), dtype=np.int64)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    reserved = False
     try:
+        os.fchmod(fd, umask_mode())
         with os.fdopen(fd, "wb") as fh:
             np.savez_compressed(
                 fh,
@@ -129,24 +141,48 @@ def save_recording(rec: SkinRecording, path: str | os.PathLike) -> Path:
                 grid_shape=grid,
                 meta=np.asarray(json.dumps(meta, default=str)),
             )
+        if not replace:
+            try:
+                os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+            except FileExistsError:
+                raise RecordingError(f"{path} exists; a recording is never replaced") from None
+            reserved = True
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
+        if reserved:
+            try:
+                os.unlink(path)
+            except OSError:
+                pass
         raise
     return path
+
+
+def free_name(path: Path) -> Path:
+    """``path`` itself when nothing is there, else the first free ``<stem>-2<suffix>``, ``-3``, ..."""
+    cand, i = path, 1
+    while cand.exists() or cand.is_symlink():
+        i += 1
+        cand = path.with_name(f"{path.stem}-{i}{path.suffix}")
+    return cand
 
 
 def check_output_path(path: str | os.PathLike) -> Path:
     """Refuse an output path that cannot be written (before any frame is read), naming it.
 
-    Catches an existing directory, a path under a file and a folder that
-    cannot be created; whether the folder takes new files is shown by
+    Catches an existing directory, an existing file (a recording is never
+    replaced: the error names a free name), a path under a file and a folder
+    that cannot be created; whether the folder takes new files is shown by
     :class:`PartialWriter` creating its file there.
     """
     path = Path(path)
     if path.is_dir():
         raise RecordingError(f"out={path} is an existing directory; give a file name, e.g. out={path / 'rec.npz'}")
+    if path.exists() or path.is_symlink():
+        raise RecordingError(f"out={path} exists and is never replaced; remove it first or give another name, "
+                             f"e.g. out={free_name(path)}")
     for parent in path.parents:
         if parent.exists():
             if not parent.is_dir():
@@ -165,26 +201,35 @@ def _record_dtype(n_taxels: int) -> np.dtype:
 
 
 class PartialWriter:
-    """Append frames to ``<out>.partial`` as they arrive (chunks of ``chunk_frames``, flushed and fsynced).
+    """Write frames to ``<out>.partial`` as they arrive; fsync every ``chunk_frames`` frames or
+    ``sync_interval_s`` seconds.
 
     Opening it creates the file, so an output folder that takes no new file
     fails here, before the port is opened. The header (taxel count, grid
-    shape, meta) is written with the first chunk; each frame is a fixed-size
-    record, so a file cut anywhere loads up to its last whole frame.
+    shape, meta) is written with the first frame; each frame is a
+    fixed-size record written to the file (one unbuffered ``write``) when it
+    is appended, so a killed process leaves every frame it appended, and a
+    file cut anywhere loads up to its last whole frame. ``n_written``: frames
+    in the file; ``n_synced``: frames fsynced (safe from a power cut too).
     """
 
-    def __init__(self, out: str | os.PathLike, chunk_frames: int = 50, meta: dict[str, Any] | None = None) -> None:
+    def __init__(self, out: str | os.PathLike, chunk_frames: int = 50, meta: dict[str, Any] | None = None,
+                 sync_interval_s: float = 1.0) -> None:
         self.out = check_output_path(out)
         self.chunk_frames = max(1, int(chunk_frames))
+        self.sync_interval_s = float(sync_interval_s)
         self.meta = dict(meta or {})
         self.path = self._free_name()
         try:
-            self._fh = open(self.path, "xb")
+            fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666)  # less the umask
+            self._fh = os.fdopen(fd, "wb", buffering=0)
         except OSError as exc:
             raise RecordingError(f"out={self.out}: cannot write in {self.out.parent} ({exc.strerror or exc})") from None
-        self._buf: list[tuple] = []
         self._dtype: np.dtype | None = None
+        self._row: np.ndarray | None = None
         self.n_written = 0
+        self.n_synced = 0
+        self._last_sync = time.monotonic()
 
     def _free_name(self) -> Path:
         base = self.out.with_name(self.out.name + ".partial")
@@ -195,34 +240,54 @@ class PartialWriter:
         return cand
 
     def append(self, values: np.ndarray, host_time_s: float, device_time_us: int, seq: int, segment: int) -> None:
-        self._buf.append((values, host_time_s, device_time_us, seq, segment))
-        if len(self._buf) >= self.chunk_frames:
-            self.flush()
-
-    def flush(self) -> None:
-        """Write the buffered frames; a failed write (e.g. a full disk) raises :class:`RecordingError`.
-
-        The frames written by earlier chunks stay in the file.
-        """
-        if not self._buf or self._fh.closed:
+        """Write one frame to the file; a failed write or fsync raises :class:`RecordingError`."""
+        if self._fh.closed:
             return
         try:
             if self._dtype is None:
-                n = int(np.asarray(self._buf[0][0]).shape[0])
+                n = int(np.asarray(values).shape[0])
                 self._dtype = _record_dtype(n)
+                self._row = np.zeros(1, dtype=self._dtype)
                 head = json.dumps({"format": FORMAT, "n_taxels": n, **self.meta}, default=str).encode()
-                self._fh.write(PARTIAL_MAGIC + struct.pack("<I", len(head)) + head)
-            rec = np.zeros(len(self._buf), dtype=self._dtype)
-            for i, row in enumerate(self._buf):
-                rec[i] = row
-            self._fh.write(rec.tobytes())
-            self._fh.flush()
-            os.fsync(self._fh.fileno())
+                self._write_all(PARTIAL_MAGIC + struct.pack("<I", len(head)) + head)
+            row = self._row
+            row["values"][0] = values
+            row["host_time_s"][0] = host_time_s
+            row["device_time_us"][0] = device_time_us
+            row["seq"][0] = seq
+            row["segment"][0] = segment
+            self._write_all(row.tobytes())
+            self.n_written += 1
+            if (self.n_written - self.n_synced >= self.chunk_frames
+                    or time.monotonic() - self._last_sync >= self.sync_interval_s):
+                self._sync()
         except OSError as exc:
-            raise RecordingError(f"writing {self.path} failed after {self.n_written} frames "
+            raise RecordingError(f"writing {self.path} failed after {self.n_synced} frames "
                                  f"({exc.strerror or exc})") from None
-        self.n_written += len(self._buf)
-        self._buf.clear()
+
+    def _write_all(self, data: bytes) -> None:
+        view = memoryview(data)
+        while view:
+            n = self._fh.write(view)
+            view = view[n:]
+
+    def _sync(self) -> None:
+        os.fsync(self._fh.fileno())
+        self.n_synced = self.n_written
+        self._last_sync = time.monotonic()
+
+    def flush(self) -> None:
+        """fsync the frames written so far; a failure (e.g. a full disk) raises :class:`RecordingError`.
+
+        The frames written before stay in the file.
+        """
+        if self._fh.closed or self.n_synced == self.n_written:
+            return
+        try:
+            self._sync()
+        except OSError as exc:
+            raise RecordingError(f"writing {self.path} failed after {self.n_synced} frames "
+                                 f"({exc.strerror or exc})") from None
 
     def close(self) -> None:
         if not self._fh.closed:
@@ -265,11 +330,11 @@ def save_with_fallback(rec: SkinRecording, path: str | os.PathLike, say=print) -
     all there is).
     """
     try:
-        return save_recording(rec, path), None
+        return save_recording(rec, path, replace=False), None
     except Exception as exc:  # any failure at the end must not lose the frames
         stamp = time.strftime("%Y%m%d-%H%M%S")
-        fallback = Path.cwd() / f"{Path(path).stem or 'recording'}-recovered-{stamp}-{os.getpid()}.npz"
-        saved = save_recording(rec, fallback)
+        fallback = free_name(Path.cwd() / f"{Path(path).stem or 'recording'}-recovered-{stamp}-{os.getpid()}.npz")
+        saved = save_recording(rec, fallback, replace=False)
         say(f"could not write {path} ({type(exc).__name__}: {exc}); saved the {rec.n_frames} frames to "
             f"{saved} instead")
         return saved, exc

@@ -114,13 +114,16 @@ class SkinRecordSettings:
     port: str = "???"
     """Device or pyserial URL of the skin."""
     out: str = "???"
-    """Output recording (.npz), written atomically; also on Ctrl+C or a lost port. Checked before reading."""
+    """Output recording (.npz), written atomically; also on Ctrl+C, SIGTERM or a lost port. Checked before
+    reading; an existing file is refused (never replaced)."""
     baud: int = 1_000_000
     """Bits per second (ignored by USB CDC devices and socket://)."""
     taxels: int = 0
-    """Expected taxel count N (0 = take it from the first valid frame)."""
+    """Expected taxel count N (0 = grid's H*W, or without a grid the count most of the first consensus_frames carry)."""
     grid: str = ""
-    """Grid shape HxW of the layout (rows along the link), e.g. 18x6; empty = not a grid."""
+    """Grid shape HxW of the layout (rows along the link), e.g. 18x6; empty = not a grid. Sets the taxel count."""
+    consensus_frames: int = 9
+    """With neither taxels nor grid: the count carried by consensus_frames // 2 + 1 of the first valid frames."""
     frames: int = 0
     """Stop after this many good frames (0 = no limit)."""
     duration_s: float = 0.0
@@ -134,12 +137,17 @@ class SkinRecordSettings:
     start_command: bool = True
     """Send the protocol's START message on (re)connect (skins may ignore it)."""
     chunk_frames: int = 50
-    """Frames appended (and fsynced) to ``<out>.partial`` at a time while recording; a crash keeps them."""
+    """Every frame is written to ``<out>.partial`` as it is read (a killed recorder loses none); the file
+    is fsynced every chunk_frames frames or sync_interval_s seconds, whichever comes first (a power cut)."""
+    sync_interval_s: float = 1.0
+    """Longest time between two fsyncs of ``<out>.partial`` (seconds)."""
 
     def __post_init__(self) -> None:
         _port(self.port)
         require(self.out not in ("", "???"), "out", self.out, "an output path, e.g. out=recording.npz")
         require_range("chunk_frames", self.chunk_frames, lo=1, hi=100_000)
+        require_range("sync_interval_s", self.sync_interval_s, lo=0.0, hi=3600.0)
+        require_range("consensus_frames", self.consensus_frames, lo=1, hi=1000)
         _baud(self.baud)
         require_range("taxels", self.taxels, lo=0, hi=4096)
         grid = parse_grid(self.grid)

@@ -18,8 +18,11 @@ from __future__ import annotations
 
 import json
 import logging
+import signal
 import sys
+import threading
 import time
+from collections import Counter
 from dataclasses import dataclass
 from typing import Callable, Iterator, Sequence
 
@@ -35,6 +38,8 @@ log = logging.getLogger(__name__)
 
 #: Refuse a stream after this many frames of the wrong taxel count and no good one.
 WRONG_COUNT_LIMIT = 20
+#: With no taxel count given, the count carried by a majority of this many first frames is the skin's.
+CONSENSUS_FRAMES = 9
 #: after ``until()`` says the source finished, the port must stay empty this long before a reader stops (s)
 FINISH_QUIET_S = 0.2
 
@@ -59,10 +64,17 @@ class ReceivedFrame:
 class SkinReader:
     """Frames from a skin on ``port`` (context manager).
 
-    ``taxels``: expected count (0 = the first valid frame's). ``reconnect``:
-    retry a vanished port (up to ``reconnect_timeout_s``, 0 = forever)
-    instead of raising :class:`~sphri.hardware.transport.PortLost`.
-    ``start_command``: send START on every (re)connection.
+    ``taxels``: expected count; 0 = a consensus over the first frames: the
+    checksum-valid frames are held until one count is carried by
+    ``consensus_frames // 2 + 1`` of them (a majority of the first
+    ``consensus_frames`` when there is one), then the held frames with that
+    count are passed on (with their own arrival times) and the others counted
+    as ``wrong_count``; one glitched first frame cannot decide. A stream that
+    ends before the count is settled gives the held frames of its most
+    common count (:meth:`release_held`). ``reconnect``: retry a vanished port
+    (up to ``reconnect_timeout_s``, 0 = forever) instead of raising
+    :class:`~sphri.hardware.transport.PortLost`. ``start_command``: send
+    START on every (re)connection.
     """
 
     def __init__(
@@ -75,8 +87,11 @@ class SkinReader:
         reconnect_interval_s: float = 0.2,
         start_command: bool = True,
         read_timeout_s: float = 0.02,
+        consensus_frames: int = CONSENSUS_FRAMES,
     ) -> None:
-        self.decoder = SkinDecoder(expected_taxels=taxels or None)
+        self.consensus_frames = max(1, int(consensus_frames))
+        self.decoder = SkinDecoder(expected_taxels=taxels or None, lock_first=self.consensus_frames == 1)
+        self._held: list[ReceivedFrame] = []
         self.start_command = start_command
         self.link = Link(
             port,
@@ -106,15 +121,68 @@ class SkinReader:
     def stats(self):
         return self.decoder.stats
 
-    def frames(self, max_frames: int = 0, duration_s: float = 0.0, idle_s: float = 0.0,
-               until: Callable[[], bool] | None = None) -> Iterator[ReceivedFrame]:
-        """Yield good frames until ``max_frames``, ``duration_s`` or ``idle_s`` without a frame (0 = no limit),
-        or until ``until()`` is true once nothing more is waiting on the port (a source that can say it has
-        finished, e.g. the simulator's ``finished`` event: the stop is then an event, not a timeout).
+    # -- taxel-count consensus (taxels=0) ----------------------------------------------
+    def _admit(self, rf: ReceivedFrame) -> list[ReceivedFrame]:
+        """The frames to pass on now that ``rf`` arrived (held ones included once the count is settled)."""
+        if self.decoder.expected_taxels is not None:
+            return [rf]
+        self._held.append(rf)
+        counts = Counter(h.frame.n_taxels for h in self._held)
+        n, votes = counts.most_common(1)[0]
+        if votes >= self.consensus_frames // 2 + 1:
+            return self._settle(n)
+        if len(self._held) >= 4 * self.consensus_frames:
+            seen = ", ".join(f"{k} taxels x{v}" for k, v in counts.most_common())
+            self._held.clear()
+            raise StreamMismatch(f"{self.link.port}: no taxel count agreed over the first {4 * self.consensus_frames} "
+                                 f"valid frames ({seen}); give taxels= or grid=")
+        return []
 
+    def _settle(self, n: int) -> list[ReceivedFrame]:
+        held, self._held = self._held, []
+        kept = {id(f) for f in self.decoder.settle_count(n, [h.frame for h in held])}
+        keep = [h for h in held if id(h.frame) in kept]
+        log.info("skin stream: %d taxels per frame (%d of the first %d frames agree)", n, len(keep), len(held))
+        return keep
+
+    def release_held(self) -> list[ReceivedFrame]:
+        """The stream ended (or was stopped) before the first frames agreed on a taxel count: settle on
+        the most common count among the held frames (ties: the one seen first) and return its frames."""
+        if not self._held:
+            return []
+        counts = Counter(h.frame.n_taxels for h in self._held)
+        top = max(counts.values())
+        n = next(h.frame.n_taxels for h in self._held if counts[h.frame.n_taxels] == top)
+        if top < self.consensus_frames // 2 + 1:
+            log.warning("skin stream: only %d frame(s) read before the stream stopped; taking %d taxels "
+                        "(%d of them agree)", len(self._held), n, top)
+        return self._settle(n)
+
+    def frames(self, max_frames: int = 0, duration_s: float = 0.0, idle_s: float = 0.0,
+               until: Callable[[], bool] | None = None,
+               stop: Callable[[], bool] | None = None) -> Iterator[ReceivedFrame]:
+        """Yield good frames until ``max_frames``, ``duration_s`` or ``idle_s`` without a frame (0 = no limit),
+        until ``until()`` is true once nothing more is waiting on the port (a source that can say it has
+        finished, e.g. the simulator's ``finished`` event: the stop is then an event, not a timeout), or
+        until ``stop()`` is true (checked after every read, e.g. a signal asked to stop).
+
+        Frames held for the taxel-count consensus are yielded before a stop
+        (not when an exception ends the stream: :meth:`release_held` has them).
         Sets :attr:`stop_reason`. Raises ``PortLost`` (no reconnect) and
         :class:`StreamMismatch` when only wrong-count frames arrive.
         """
+        count = 0
+        for rf in self._frames(max_frames, duration_s, idle_s, until, stop):
+            count += 1
+            yield rf
+        for rf in self.release_held():
+            if max_frames and count >= max_frames:
+                break
+            count += 1
+            yield rf
+
+    def _frames(self, max_frames: int, duration_s: float, idle_s: float,
+                until: Callable[[], bool] | None, stop: Callable[[], bool] | None) -> Iterator[ReceivedFrame]:
         t_start = time.monotonic()
         last = t_start
         count = 0
@@ -132,12 +200,13 @@ class SkinReader:
                 finishing = None
                 wall, perf = time.time(), time.perf_counter()
                 for f in self.decoder.feed(data):
-                    count += 1
                     last = now
-                    yield ReceivedFrame(f, wall, perf, self.segment)
-                    if max_frames and count >= max_frames:
-                        self.stop_reason = f"{count} frames"
-                        return
+                    for rf in self._admit(ReceivedFrame(f, wall, perf, self.segment)):
+                        count += 1
+                        yield rf
+                        if max_frames and count >= max_frames:
+                            self.stop_reason = f"{count} frames"
+                            return
                 st = self.decoder.stats
                 if st.frames == 0 and st.wrong_count >= WRONG_COUNT_LIMIT:
                     raise StreamMismatch(
@@ -152,6 +221,9 @@ class SkinReader:
                 elif now - finishing >= FINISH_QUIET_S:
                     self.stop_reason = "the source finished"
                     return
+            if stop is not None and stop():
+                self.stop_reason = "stopped"
+                return
             if duration_s and now - t_start >= duration_s:
                 self.stop_reason = f"{duration_s:g} s elapsed"
                 return
@@ -168,6 +240,36 @@ def _error_line(stats) -> str:
 
 
 # --------------------------------------------------------------------------- record
+class _StopSignals:
+    """While active (main thread only): the first SIGTERM or SIGINT asks the recorder to stop (a flag it
+    checks after every read), so the frames read so far are saved; a second one raises
+    KeyboardInterrupt (a recorder stuck waiting for a port still ends, saving what it has)."""
+
+    SIGNALS = (signal.SIGTERM, signal.SIGINT)
+
+    def __init__(self) -> None:
+        self.received: str | None = None
+        self._old: dict[int, object] = {}
+
+    def _handle(self, signum, frame) -> None:
+        if self.received is not None:
+            raise KeyboardInterrupt
+        self.received = signal.Signals(signum).name
+
+    def __enter__(self) -> "_StopSignals":
+        if threading.current_thread() is threading.main_thread():
+            for sig in self.SIGNALS:
+                self._old[sig] = signal.signal(sig, self._handle)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+
+    def __call__(self) -> bool:
+        return self.received is not None
+
+
 def record(settings: SkinRecordSettings, out: Callable[[str], None] = print,
            until: Callable[[], bool] | None = None) -> dict:
     """``skin record``: read frames until a stop condition, save them; returns a summary.
@@ -175,75 +277,94 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print,
     ``until``: an extra stop condition for a source that can say it has
     finished (see :meth:`SkinReader.frames`).
 
-    The output path is checked, and ``<out>.partial`` created, before the
-    port is opened; frames are appended to it every ``chunk_frames``
-    (:class:`~sphri.hardware.recording.PartialWriter`). At the end the
+    The taxel count is ``taxels``, else ``grid``'s H*W, else a consensus over
+    the first frames (:class:`SkinReader`), never one frame's. The output
+    path is checked (an existing file is refused: a recording is never
+    replaced), and ``<out>.partial`` created, before the port is opened;
+    every frame is written to it as it is read and fsynced every
+    ``chunk_frames`` frames or ``sync_interval_s`` seconds
+    (:class:`~sphri.hardware.recording.PartialWriter`). SIGTERM and SIGINT
+    stop the recording and save it like any other stop. At the end the
     recording goes to ``out`` (or a fallback file in the working directory)
     and the partial file is removed.
     """
     from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording, save_with_fallback
 
     grid = parse_grid(settings.grid)
+    taxels = settings.taxels or (grid[0] * grid[1] if grid else 0)
     started = time.time()
     partial = PartialWriter(settings.out, settings.chunk_frames,
                             {"port": settings.port, "grid_shape": list(grid) if grid else None,
-                             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started))})
-    reader = SkinReader(settings.port, settings.baud, settings.taxels, settings.reconnect,
-                        settings.reconnect_timeout_s, start_command=settings.start_command)
-    values: list[np.ndarray] = []
-    host_t: list[float] = []
-    dev_t: list[int] = []
-    seqs: list[int] = []
-    segs: list[int] = []
+                             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started))},
+                            sync_interval_s=settings.sync_interval_s)
+    reader = SkinReader(settings.port, settings.baud, taxels, settings.reconnect,
+                        settings.reconnect_timeout_s, start_command=settings.start_command,
+                        consensus_frames=settings.consensus_frames)
+    got: list[ReceivedFrame] = []  # one append per frame: a signal never leaves the fields unequal
     error: BaseException | None = None
-    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames appended to {partial.path} as they arrive)")
-    try:
-        with reader:
-            for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until):
-                values.append(rf.frame.values)
-                host_t.append(rf.host_time_s)
-                dev_t.append(rf.frame.device_time_us)
-                seqs.append(rf.frame.seq)
-                segs.append(rf.segment)
-                partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
-                if len(values) % 500 == 0:
-                    out(f"  {len(values)} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
+    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames written to {partial.path} "
+        "as they arrive)")
+
+    def keep(rf: ReceivedFrame) -> None:
+        got.append(rf)
+        partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
+
+    signals = _StopSignals()
+    with signals:
+        try:
+            try:
+                with reader:
+                    for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until, stop=signals):
+                        keep(rf)
+                        if len(got) % 500 == 0:
+                            out(f"  {len(got)} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
+            except KeyboardInterrupt:
+                reader.stop_reason = "interrupted"
+            except (PortLost, StreamMismatch) as exc:
+                error = exc
+                reader.stop_reason = str(exc)
+            if error is None or isinstance(error, PortLost):  # frames held for the count consensus
+                for rf in reader.release_held():
+                    keep(rf)
             partial.flush()
-    except KeyboardInterrupt:
-        reader.stop_reason = "interrupted"
-    except (PortLost, StreamMismatch) as exc:
-        error = exc
-        reader.stop_reason = str(exc)
-    except RecordingError as exc:  # writing the partial file failed (a full disk): keep what was read
-        error = exc
-        reader.stop_reason = str(exc)
-    finally:
-        partial.close()
-    n = reader.decoder.expected_taxels or settings.taxels or (grid[0] * grid[1] if grid else 0)
-    arr = np.stack(values) if values else np.zeros((0, n), dtype=np.float32)
-    if grid is not None and arr.shape[1] != grid[0] * grid[1]:
-        out(f"warning: grid={settings.grid} holds {grid[0] * grid[1]} taxels but the skin streams "
-            f"{arr.shape[1]}; saved without a grid shape")
-        grid = None
-    stats = reader.stats.as_dict()
-    meta = {
-        "port": settings.port,
-        "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
-        "stop_reason": reader.stop_reason,
-        "reconnects": reader.link.reconnects,
-        "decoder": stats,
-        "protocol": "sphri-skin/1",
-    }
-    rec = SkinRecording(arr, np.asarray(host_t), np.asarray(dev_t), np.asarray(seqs), np.asarray(segs), grid, meta)
-    try:
-        path, save_error = save_with_fallback(rec, settings.out, say=out)
-    except Exception as exc:  # the fallback failed too: the partial file holds what was written
-        out(f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {partial.n_written} of "
-            f"{rec.n_frames} frames are in {partial.path} (python -c \"from sphri.hardware.recording import "
-            f"load_recording; load_recording('{partial.path}')\" reads it)")
-        return {"frames": rec.n_frames, "path": str(partial.path), "decoder": stats, "error": str(exc),
-                "reconnects": reader.link.reconnects}
-    partial.remove()
+        except RecordingError as exc:  # writing the partial file failed (a full disk): keep what was read
+            error = exc
+            reader.stop_reason = str(exc)
+        except KeyboardInterrupt:  # a second signal while releasing the held frames
+            reader.stop_reason = "interrupted"
+        finally:
+            partial.close()
+        if signals.received:
+            reader.stop_reason = f"{signals.received} received"
+        n = reader.decoder.expected_taxels or taxels
+        if got:
+            arr = np.stack([rf.frame.values for rf in got])
+        else:
+            arr = np.zeros((0, n), dtype=np.float32)
+        if grid is not None and arr.shape[1] != grid[0] * grid[1]:  # only with no frame read
+            grid = None
+        stats = reader.stats.as_dict()
+        meta = {
+            "port": settings.port,
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
+            "stop_reason": reader.stop_reason,
+            "reconnects": reader.link.reconnects,
+            "decoder": stats,
+            "protocol": "sphri-skin/1",
+        }
+        rec = SkinRecording(arr, np.asarray([rf.host_time_s for rf in got]),
+                            np.asarray([rf.frame.device_time_us for rf in got]),
+                            np.asarray([rf.frame.seq for rf in got]), np.asarray([rf.segment for rf in got]),
+                            grid, meta)
+        try:
+            path, save_error = save_with_fallback(rec, settings.out, say=out)
+        except Exception as exc:  # the fallback failed too: the partial file holds what was written
+            out(f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {partial.n_written} of "
+                f"{rec.n_frames} frames are in {partial.path} (python -c \"from sphri.hardware.recording import "
+                f"load_recording; load_recording('{partial.path}')\" reads it)")
+            return {"frames": rec.n_frames, "path": str(partial.path), "decoder": stats, "error": str(exc),
+                    "reconnects": reader.link.reconnects}
+        partial.remove()
     out(f"saved {rec.n_frames} frames x {rec.n_taxels} taxels to {path} ({reader.stop_reason}); "
         f"rate {rec.rate_hz:.1f} Hz; reconnects {reader.link.reconnects}")
     out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}")
@@ -364,7 +485,7 @@ def live(settings: SkinLiveSettings, out: Callable[[str], None] = print,
 USAGE = """usage: python -m sphri.hardware.skin record|live [key=value ...]
 
 record: port=... out=rec.npz [taxels=0 grid=HxW frames=0 duration_s=0 idle_s=0 chunk_frames=50
-        reconnect=false reconnect_timeout_s=30 start_command=true baud=1000000]
+        sync_interval_s=1 consensus_frames=9 reconnect=false reconnect_timeout_s=30 start_command=true baud=1000000]
 live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [allow_remote=false stride=0 onset_taxels=0
         calibrate_frames=30 release_frames=10 out=predictions.jsonl show=all|touches|off
         frames=0 duration_s=0 idle_s=0 reconnect=false ...]

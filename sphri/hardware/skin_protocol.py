@@ -154,8 +154,11 @@ class SkinDecoder(StreamDecoder):
 
     ``expected_taxels``: frames with another count are counted
     (``wrong_count``) and skipped; None accepts the count of the first valid
-    frame and then holds to it. Sequence numbers: a repeat is dropped
-    (``duplicates``), a jump forward counted (``seq_gaps``, ``seq_missing``)
+    frame and then holds to it, or, with ``lock_first=False``, passes every
+    count on until the caller decides (:meth:`settle_count`, used by
+    :class:`~sphri.hardware.skin.SkinReader`'s consensus over the first
+    frames; :meth:`settle_count` also counts the held frames it refuses).
+    Sequence numbers: a repeat is dropped (``duplicates``), a jump forward counted (``seq_gaps``, ``seq_missing``)
     and a jump back of more than half the range treated as a device restart
     (``seq_restarts``); the frame is kept in the last two cases.
     """
@@ -163,12 +166,35 @@ class SkinDecoder(StreamDecoder):
     SYNC = SYNC
     NAME = "skin stream"
 
-    def __init__(self, expected_taxels: int | None = None) -> None:
+    def __init__(self, expected_taxels: int | None = None, lock_first: bool = True) -> None:
         super().__init__()
         if expected_taxels is not None and not 1 <= expected_taxels <= MAX_TAXELS:
             raise ValueError(f"expected_taxels={expected_taxels} must be in [1, {MAX_TAXELS}]")
         self.expected_taxels = expected_taxels
+        self.lock_first = lock_first
         self.last_seq: int | None = None
+        self._unsettled: dict[int, int] = {}  # id(frame) -> stream offset, for frames passed before settling
+
+    def settle_count(self, n: int, held: list[SkinFrame]) -> list[SkinFrame]:
+        """From now on frames must carry ``n`` taxels (decided by a consensus over the first frames).
+
+        ``held``: the frames passed on before (``lock_first=False``); those with
+        another count are counted as ``wrong_count`` (and no longer as good
+        frames). Returns the others, in order.
+        """
+        if not 1 <= n <= MAX_TAXELS:
+            raise ValueError(f"taxel count {n} must be in [1, {MAX_TAXELS}]")
+        self.expected_taxels = n
+        keep = []
+        for frame in held:
+            if frame.n_taxels == n:
+                keep.append(frame)
+                continue
+            self.stats.frames -= 1
+            self._count("wrong_count", self._unsettled.get(id(frame), -1),
+                        f"{frame.n_taxels} taxels, expected {n} (seq {frame.seq}; outvoted among the first frames)")
+        self._unsettled.clear()
+        return keep
 
     def _parse(self, buf: bytearray, i: int) -> tuple[Parse, int, Any]:
         if len(buf) - i < HEADER_LEN:
@@ -198,7 +224,10 @@ class SkinDecoder(StreamDecoder):
         if not self._track_seq(frame.seq, offset):
             return False
         if self.expected_taxels is None:
-            self.expected_taxels = frame.n_taxels
+            if self.lock_first:
+                self.expected_taxels = frame.n_taxels
+            else:
+                self._unsettled[id(frame)] = offset
         elif frame.n_taxels != self.expected_taxels:
             self._count("wrong_count", offset, f"{frame.n_taxels} taxels, expected {self.expected_taxels} (seq {frame.seq})")
             return False

@@ -18,6 +18,7 @@ from sphri.hardware.model_file import (
     load_model,
     resolve_model_path,
     save_model,
+    seal_model,
 )
 
 
@@ -76,21 +77,19 @@ def test_untrusted_type_in_the_forest_payload_is_refused(tmp_path, make_geometry
     model = small_rf(geo)
     path = save_model(ModelBundle(model, geo, 20, 90.0), tmp_path / "rf.sphrimodel")
     # swap the forest for an estimator calling an arbitrary function, then re-checksum
-    import hashlib
     import io
 
     blob = path.read_bytes()
     (n,) = struct.unpack_from("<I", blob, len(MAGIC))
     h0 = len(MAGIC) + 4
     header = blob[h0 : h0 + n]
-    with np.load(io.BytesIO(blob[h0 + n + 32 :]), allow_pickle=False) as z:
+    with np.load(io.BytesIO(blob[h0 + n + 64 :]), allow_pickle=False) as z:
         arrays = {k: z[k] for k in z.files}
     evil = Pipeline([("f", FunctionTransformer(os.system))])
     arrays["forest_skops"] = np.frombuffer(sio.dumps(evil), dtype=np.uint8)
     buf = io.BytesIO()
     np.savez(buf, **arrays)
-    payload = buf.getvalue()
-    path.write_bytes(MAGIC + struct.pack("<I", n) + header + hashlib.blake2b(payload, digest_size=32).digest() + payload)
+    path.write_bytes(seal_model(header, buf.getvalue()))
     with pytest.raises(ModelFileError, match=r"rf\.sphrimodel.*untrusted types"):
         load_model(path)
 
