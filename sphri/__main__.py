@@ -222,12 +222,19 @@ def hide_schema_options() -> None:
     ConfigLoaderImpl.get_group_options = get_group_options  # type: ignore[method-assign]
 
 
-def _is_sweep_or_hydra_flag(args: list[str]) -> bool:
-    """A multirun (its sweeper checks every job) or a Hydra flag (``--cfg``, ``-sc``, ``--info``, ...)
-    that composes the config its own way: no composition check before Hydra."""
-    from sphri.cli import is_sweep
+def _fixed_overrides(args: list[str]) -> list[str] | None:
+    """The overrides every job shares (a sweep's swept ones left out: its sweeper checks each job),
+    for a composition check before Hydra's; None when a Hydra flag (``--cfg``, ``-sc``, ``--info``,
+    ...) composes the config its own way, or the overrides do not parse (Hydra says why)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    return any(a.startswith("-") for a in args) or is_sweep(args)
+    if any(a.startswith("-") and a not in ("-m", "--multirun") for a in args):
+        return None
+    try:
+        parsed = OverridesParser.create().parse_overrides([a for a in args if not a.startswith("-")])
+    except Exception:
+        return None
+    return [o.input_line for o in parsed if not o.is_sweep_override()]
 
 
 def main() -> None:
@@ -249,9 +256,10 @@ def main() -> None:
     sys.argv = [sys.argv[0], *normalize_overrides(take_verbose_flag(sys.argv[1:]))]
     try:
         check_choices(sys.argv[1:])  # a misspelt component: one line with the real options, before Hydra
-        if not _is_sweep_or_hydra_flag(sys.argv[1:]):
+        fixed = _fixed_overrides(sys.argv[1:])
+        if fixed is not None:
             # an unknown key or a value of the wrong type: sphri's one line, before Hydra's own message
-            compose([a for a in sys.argv[1:]], check=False)
+            compose(fixed, check=False)
     except ConfigError as exc:
         print(f"sphri: invalid config: {exc}", file=sys.stderr)
         sys.exit(2)
