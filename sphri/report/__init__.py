@@ -5,15 +5,20 @@ MLflow runs and writes ``SWEEP_DIR/report/``: a self-contained
 ``report.html`` (figures embedded), the PNG figures, ``summary.txt``,
 ``saturation.csv``/``saturation.json``/``points.csv``; it logs them to the
 sweep's parent run. The saturation rule and its bootstrap are pure
-functions in :mod:`sphri.report.saturation`.
+functions in :mod:`sphri.report.saturation` (the report uses
+:func:`envelope_saturation`); a sweep over the false-on rate also gets
+``requirement_map.csv`` and its figure (:mod:`sphri.report.reqmap`).
 """
 
 from sphri.report.analysis import RuleSettings, SweepReport, analyze
 from sphri.report.build import ReportFiles, make_report
 from sphri.report.saturation import (
+    Envelope,
+    RerunNoise,
     Saturation,
     Tolerance,
     curve_stats,
+    envelope_saturation,
     paired_saturation,
     physical_interval,
     saturation,
@@ -22,7 +27,7 @@ from sphri.report.saturation import (
 from sphri.report.sweep import ReportError, Sweep, load_sweep
 
 __all__ = [
-    "ReportError", "ReportFiles", "RuleSettings", "Saturation", "Sweep", "SweepReport", "analyze",
-    "Tolerance", "curve_stats", "load_sweep", "make_report", "paired_saturation", "physical_interval", "saturation",
+    "Envelope", "RerunNoise", "ReportError", "ReportFiles", "RuleSettings", "Saturation", "Sweep", "SweepReport", "analyze",
+    "Tolerance", "curve_stats", "envelope_saturation", "load_sweep", "make_report", "paired_saturation", "physical_interval", "saturation",
     "saturation_index",
 ]

@@ -115,3 +115,30 @@ def test_envelope_rule_bad_inputs_raise_clear_errors():
         envelope_saturation(np.zeros((2, 3, 4)), alpha=1.5)
     with pytest.raises(ValueError, match="tolerance"):
         envelope_saturation(np.zeros((2, 3, 4)), "lots")
+
+
+def test_requirement_map_flags_the_dip_and_lines_curves_up_by_false_on_rate():
+    from types import SimpleNamespace
+
+    import pandas as pd
+
+    from sphri.report.reqmap import RequirementMap, requirement_maps
+
+    rng = np.random.default_rng(4)
+    dip_curve = np.array([0.40, 0.66, 0.70, 0.61, 0.64, 0.70, 0.70])
+    flat_rise = np.array([0.40, 0.60, 0.69, 0.70, 0.70, 0.70, 0.70])
+
+    def curve(values: np.ndarray, rate: float, noise_key: str) -> SimpleNamespace:
+        sat, env = envelope_saturation(replicates(values, rng, noise=0.01), "0.01", n_boot=0)
+        points = pd.DataFrame({"false_on_rate": rate, "res": np.arange(1, 8), "pitch_u_mm": 10.0 / np.arange(1, 8)})
+        return SimpleNamespace(sat=sat, envelope=env, points=points, has_pitch=True,
+                               keys={"noise.p": noise_key, "model": "rf"})
+
+    clean, noisy = curve(flat_rise, 0.0, "0"), curve(dip_curve, 0.02, "0.02")
+    (m,) = requirement_maps([noisy, clean])
+    assert isinstance(m, RequirementMap) and m.rates == [0.0, 0.02] and m.curves == [clean, noisy]
+    assert m.label == "model=rf", "the noise keys set the rate; the other keys name the map"
+    assert m.dip_index(noisy) == 3 and noisy.sat.index == 5, "the trough after the first crossing, and the rule past it"
+    assert m.dip_index(clean) is None
+    # two curves at the same rate (another noise setting varies) are not a map
+    assert requirement_maps([clean, curve(flat_rise, 0.0, "0b")]) == []
