@@ -14,7 +14,17 @@ Each measurement is a fresh ``python`` process on the ``+debug=fast`` job
   the difference is what MLflow logging costs per job;
 - ``import_s``: ``import sphri.__main__`` and the interpreter start;
 - ``validate_s``: ``python -m sphri.cli validate +debug=fast`` (imports, schema
-  registration, composition, validation; no stage).
+  registration, composition, validation; no stage);
+- ``validate_100_jobs_s``: ``python -m sphri.cli validate +experiment=resolution_sweep``
+  (its 100 jobs, through the check a sweep runs);
+- ``skipped_sweep_s``: a finished 2-job ``+debug=fast`` sweep run again into a
+  new sweep folder (every job answered by the launching process);
+- ``tab_completion_s``: one TAB (``python -m sphri -sc query=bash`` with a
+  partial word, as bash's completion calls it).
+
+``goals`` holds the targets of issue 28 and ``meets`` whether each was met in
+this run. The machine (CPU model, SIMD flags, load) is recorded beside them:
+the figures hold for it only.
 
 The baseline for the ratios is ``warm_kernels_s``, measured in the same run.
 Quick and full sizes are the same here (the job is the debug job); writes
@@ -84,6 +94,20 @@ def main() -> int:
         out["import_s"] = min(imp)
         out["validate_s"] = min(val)
         out["first_run_over_warm"] = out["cold_kernels_s"] / out["warm_kernels_s"]
+
+        d = tmp / "extra"
+        d.mkdir()
+        out["validate_100_jobs_s"] = min(timed(["-m", "sphri.cli", "validate", "+experiment=resolution_sweep"], d, env)[0]
+                                         for _ in range(args.repeat))
+        sweep = [*JOB, "encoder.res=2,3", "-m", "hydra/launcher=serial"]
+        timed([*sweep, "hydra.sweep.dir=s0"], d, env)
+        out["skipped_sweep_s"] = min(timed([*sweep, f"hydra.sweep.dir=s{i + 1}"], d, env)[0] for i in range(args.repeat))
+        comp_env = {**env, "COMP_LINE": "sphri enc", "COMP_POINT": "9"}
+        out["tab_completion_s"] = min(timed(["-m", "sphri", "-sc", "query=bash"], d, comp_env)[0]
+                                      for _ in range(args.repeat))
+        out["goals"] = {"compile_s": 20.0, "cached_rerun_s": 3.0, "validate_100_jobs_s": 10.0,
+                        "skipped_sweep_s": 5.0, "tab_completion_s": 0.5}
+        out["meets"] = {k: out[k] <= v for k, v in out["goals"].items()}
     path = write_json("startup", out)
     print({k: (round(v, 2) if isinstance(v, float) else v) for k, v in out.items()})
     print(f"wrote {path}")
