@@ -248,7 +248,10 @@ def main() -> None:
     if any(a in ("--help", "-h") for a in sys.argv[1:]):
         from sphri.cli import help_text
 
-        print(help_text())  # sphri's own help: Hydra's would print every schema entry and the whole config
+        try:
+            print(help_text())  # sphri's own help: Hydra's would print every schema entry and the whole config
+        except BrokenPipeError:  # `--help | head`: the reader went away
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return
     register_schemas()
     if any(a.startswith(("-sc", "--shell-completion")) for a in sys.argv[1:]):

@@ -125,15 +125,14 @@ def help_text() -> str:
         "  python -m sphri --cfg job [overrides]                   print the composed config",
         "  python -m sphri --hydra-help                            Hydra's own flags",
         "",
-        "config groups (group=option; * marks the default):",
+        "config groups (group=option; * marks the default; `python -m sphri.cli list GROUP` says what each",
+        "option is, `python -m sphri.cli show GROUP=OPTION` every setting of it):",
     ]
     for group in DEFAULT_GROUPS:
         if not (CONF_DIR / group).is_dir():
             continue
-        lines.append(f"  {group}:")
-        for name, desc in components(group):
-            mark = "*" if defaults.get(group) == name else " "
-            lines.append(_row(f"    {mark}{name:<19} ", desc))
+        names = [("*" if defaults.get(group) == name else "") + name for name, _ in components(group)]
+        lines.append(_row(f"  {group:<12} ", "  ".join(names)))
     lines += ["", "top-level keys: seed, output_dir, resume, cache.enabled, cache.dir (see README.md)"]
     return "\n".join(lines)
 
