@@ -144,9 +144,10 @@ def run_job(cfg: DictConfig) -> dict | None:
     model_note = ""
     if tracker.enabled and run_id is None:
         run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices)
-        if tracker.log_model:
+        # log_model None (the default): a single job logs its model, a sweep's jobs do not
+        if tracker.log_model or (tracker.log_model is None and not multirun):
             model_note = _log_model(cfg, tracker, run_id)
-    elif tracker.enabled and tracker.log_model:
+    elif tracker.enabled and tracker.log_model:  # asked for explicitly (true)
         # already recorded: log the model into that run unless it holds one (never silently nothing)
         held = tracker.logged_models(cfg.output_dir, run_id)
         model_note = (f"model already logged in that run: {held[0]}" if held else _log_model(cfg, tracker, run_id))

@@ -167,7 +167,7 @@ class MlflowTracker:
     VERSION = "1"
 
     def __init__(self, enabled: bool = True, uri: str | None = None, experiment: str = "sphri",
-                 artifacts: bool = True, retries: int = 8, log_model: bool = True,
+                 artifacts: bool = True, retries: int = 8, log_model: bool | None = None,
                  register_model: str | None = None, confusion_png: bool = True) -> None:
         self.enabled = enabled
         self.uri = uri

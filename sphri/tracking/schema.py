@@ -25,9 +25,12 @@ class MlflowTrackingConfig:
     (about 0.3 s a job; the sweep report redraws its matrices from the counts either way)."""
     retries: int = 8
     """Retries of a tracking write that hits a locked SQLite database."""
-    log_model: bool = True
+    log_model: Optional[bool] = None
     """Log the job's model, fit once more on every participant, as an MLflow pyfunc model (artifact
-    ``model``: ``mlflow.pyfunc.load_model("runs:/<run_id>/model")``, ``skin live model=runs:/...``)."""
+    ``model``: ``mlflow.pyfunc.load_model("runs:/<run_id>/model")``, ``skin live model=runs:/...``).
+    None (default): for a single job, not for the jobs of a sweep (the refit recomputes the job's
+    windows and trains once more: about a third of a Random Forest job's time); true or false: always
+    or never."""
     register_model: Optional[str] = None
     """Also register that model under this name in the MLflow model registry (``models:/<name>/<version>``)."""
 
@@ -37,7 +40,8 @@ class MlflowTrackingConfig:
         if self.register_model is not None:
             require(bool(self.register_model.strip()), "tracking.register_model", self.register_model,
                     "must be a non-empty model name (or null)")
-            require(self.log_model, "tracking.register_model", self.register_model, "needs tracking.log_model=true")
+            require(self.log_model is not False, "tracking.register_model", self.register_model,
+                    "needs tracking.log_model=true (or null)")
         if self.uri is not None:
             ok = self.uri.startswith(("sqlite:///", "http://", "https://", "postgresql", "mysql", "databricks", "file:"))
             require(ok, "tracking.uri", self.uri, "must be an MLflow tracking URI (sqlite:///ABS.db, http://127.0.0.1:PORT, ...)")
