@@ -26,7 +26,7 @@ Nothing in an entry can execute code when it is read.
   for 8 gestures), or whose decoding fails in any other way (a 200,000-deep
   JSON document, an out-of-range number) is logged with its file, removed
   and recomputed, never used and never raised.
-- A per-entry ``fcntl`` lock makes concurrent jobs (a parallel sweep)
+- A per-entry lock (``filelock``) makes concurrent jobs (a parallel sweep)
   compute an entry once: the others wait and then read it.
 - ``<root>/<stage>/by-path/<path_key>.json`` remembers, for the same stage
   config with files named by path only, which key and file fingerprints were
@@ -36,7 +36,6 @@ Nothing in an entry can execute code when it is read.
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import hashlib
 import json
 import logging
@@ -204,13 +203,11 @@ class StageCache:
 
     @contextlib.contextmanager
     def _lock(self, path: Path) -> Iterator[None]:
+        from filelock import FileLock
+
         path.parent.mkdir(parents=True, exist_ok=True)
-        with open(path.with_suffix(".lock"), "a+b") as fh:
-            fcntl.flock(fh, fcntl.LOCK_EX)
-            try:
-                yield
-            finally:
-                fcntl.flock(fh, fcntl.LOCK_UN)
+        with FileLock(path.with_suffix(".lock")):
+            yield
 
     def read(self, stage: str, key: str, contract: Any = None) -> tuple[bool, Any]:
         """(True, value) for a valid entry; (False, None) if absent, corrupt or not of ``contract``."""

@@ -63,7 +63,7 @@ def info(root: Path, stages: list[str]) -> str:
 
 def clear(root: Path, stages: list[str], older_than_days: float | None = None) -> tuple[int, int]:
     """Remove entries (of ``stages``, or all; only those older than the limit if given): (count, bytes)."""
-    import fcntl
+    from filelock import FileLock
 
     cutoff = None if older_than_days is None else time.time() - older_than_days * 86400
     n = freed = 0
@@ -73,8 +73,7 @@ def clear(root: Path, stages: list[str], older_than_days: float | None = None) -
             if cutoff is not None and max(st.st_mtime, st.st_atime) > cutoff:
                 continue
             lock = path.with_suffix(".lock")
-            with open(lock, "a+b") as fh:
-                fcntl.flock(fh, fcntl.LOCK_EX)
+            with FileLock(lock):  # the entry's own lock: a job writing it finishes first
                 path.unlink(missing_ok=True)
             lock.unlink(missing_ok=True)
             n, freed = n + 1, freed + st.st_size

@@ -4,7 +4,7 @@ MLflow creates a new SQLite store by running its schema migrations (alembic)
 in whichever process opens it first. Two first runs at once race through
 the migrations (``table _alembic_tmp_* already exists``, ``duplicate column``)
 and can leave the database half-migrated. :func:`ensure_store` takes an
-exclusive ``fcntl`` lock on ``<db>.lock``, refuses a store that an
+exclusive ``filelock`` lock on ``<db>.lock``, refuses a store that an
 interrupted migration left broken (a leftover ``_alembic_tmp_*`` table or a
 schema revision other than MLflow's head) with :class:`BrokenStore` naming
 the repair command, and otherwise opens the store (creating and migrating it
@@ -28,7 +28,6 @@ the schema upgraded to MLflow's head.
 from __future__ import annotations
 
 import contextlib
-import fcntl
 import json
 import os
 import shutil
@@ -55,13 +54,11 @@ def sqlite_path(uri: str) -> Path | None:
 @contextlib.contextmanager
 def store_lock(db: Path) -> Iterator[None]:
     """Exclusive inter-process lock on ``<db>.lock`` (the store's creation and repair)."""
+    from filelock import FileLock
+
     db.parent.mkdir(parents=True, exist_ok=True)
-    with open(db.with_name(db.name + ".lock"), "a+b") as fh:
-        fcntl.flock(fh, fcntl.LOCK_EX)
-        try:
-            yield
-        finally:
-            fcntl.flock(fh, fcntl.LOCK_UN)
+    with FileLock(db.with_name(db.name + ".lock")):
+        yield
 
 
 def _tables(db: Path) -> list[str]:
