@@ -219,13 +219,13 @@ class SphriSweeper(BasicSweeper):
             sys.exit(0)
         start_sweep_file(self.config.hydra.sweep.dir, len(jobs))
         open_parent(self.config, overrides)
-        finished = self.finished_jobs(jobs)
-        if finished:
-            self.launcher = SkippingLauncher(self.launcher, finished)
         KILLED.clear()
         previous = {sig: signal.signal(sig, _raise_killed) for sig in (signal.SIGTERM, signal.SIGINT)}
         interrupted = None
         try:
+            finished = self.finished_jobs(jobs)  # answered here: no worker starts for them
+            if finished:
+                self.launcher = SkippingLauncher(self.launcher, finished)
             returns = super().sweep(arguments)
             if KILLED:  # the signal's exception was swallowed inside a job; the next job stopped the sweep
                 raise SweepKilled(KILLED[0])
