@@ -174,3 +174,52 @@ def test_job_run_has_standard_source_tags_debug_experiment_and_derived_metrics(t
     assert data.dataset.name == "synthetic" and data.dataset.digest and data.dataset.source_type == "code"
     assert {t.key: t.value for t in data.tags}["mlflow.data.context"] == "training"
     assert metrics["resolution/pitch_u_mm"] > 0 and metrics["resolution/area_per_taxel_cm2"] > 0
+
+
+def test_a_job_logged_to_a_real_mlflow_server_reads_back_over_rest(tmp_path):
+    """`mlflow server` on loopback, a job with tracking.uri=http://...: the run read back over MLflow's REST
+    API has MLflow's own tags (user, commit), its dataset input and its logged model, and its artifacts
+    live where the server keeps them (not in the job's output folder)."""
+    import socket
+    import time
+    import urllib.request
+
+    from mlflow.tracking import MlflowClient
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    uri = f"http://127.0.0.1:{port}"
+    mlflow_bin = Path(sys.executable).with_name("mlflow")
+    server = subprocess.Popen([str(mlflow_bin), "server", "--backend-store-uri", f"sqlite:///{tmp_path / 'server.db'}",
+                               "--artifacts-destination", str(tmp_path / "server-artifacts"), "--host", "127.0.0.1",
+                               "--port", str(port), "--workers", "1"],
+                              cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT, start_new_session=True)
+    try:
+        for _ in range(180):
+            try:
+                if urllib.request.urlopen(f"{uri}/health", timeout=2).read() == b"OK":
+                    break
+            except OSError:
+                time.sleep(1)
+        else:
+            raise AssertionError("mlflow server did not answer in 180 s")
+        job = subprocess.run([sys.executable, "-m", "sphri", "+debug=fast", "encoder.res=4", f"tracking.uri={uri}",
+                              "tracking.log_model=true", f"output_dir={tmp_path / 'out'}"],
+                             capture_output=True, text=True, cwd=tmp_path, timeout=600)
+        assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
+        assert f"open {uri}" in job.stdout
+        client = MlflowClient(uri)
+        (run,) = client.search_runs([client.get_experiment_by_name("sphri-debug").experiment_id])
+        tags = run.data.tags
+        assert tags["mlflow.user"] and len(tags["mlflow.source.git.commit"]) == 40
+        assert [d.dataset.name for d in run.inputs.dataset_inputs] == ["synthetic"]
+        assert len(run.outputs.model_outputs) == 1
+        assert not run.info.artifact_uri.startswith("file:"), run.info.artifact_uri
+        assert not (tmp_path / "out" / "mlartifacts").exists()
+    finally:
+        import os
+        import signal
+
+        os.killpg(server.pid, signal.SIGTERM)
+        server.wait(30)

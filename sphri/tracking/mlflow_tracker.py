@@ -203,7 +203,9 @@ class MlflowTracker:
             exp = client.get_experiment_by_name(self.experiment)
             if exp is not None:
                 return exp.experiment_id
-            location = (Path(output_dir).resolve() / "mlartifacts").as_uri()
+            # a local store keeps artifacts beside it; a server (http) chooses where its artifacts go
+            local = not self.resolve_uri(output_dir).startswith(("http://", "https://"))
+            location = (Path(output_dir).resolve() / "mlartifacts").as_uri() if local else None
             try:
                 return client.create_experiment(self.experiment, artifact_location=location)
             except Exception:  # created concurrently by another process
@@ -477,6 +479,8 @@ def ui_hint(uri: str) -> str:
     """The command that shows ``uri`` in the MLflow UI (``make ui`` only for the repository's default store)."""
     from pathlib import Path
 
+    if uri.startswith(("http://", "https://")):
+        return f"open {uri}"  # a tracking server serves its own UI
     default = f"sqlite:///{(Path.cwd() / 'outputs' / 'mlflow.db').resolve()}"
     makefile = Path.cwd() / "Makefile"
     in_checkout = makefile.is_file() and "mlflow ui" in makefile.read_text(errors="replace")
