@@ -246,7 +246,7 @@ def memo_for(cfg: DictConfig) -> FingerprintMemo:
 
 def input_fingerprints(cfg: DictConfig, memo: FingerprintMemo | None = None) -> dict[str, dict[str, str]]:
     """``{group: {path: digest}}`` for every stage group whose component reads files."""
-    from sphri.config import STAGE_GROUPS
+    from sphri.stages import STAGE_GROUPS
 
     memo = memo_for(cfg) if memo is None else memo
     exclude = frozenset(Path(str(d)).absolute() for d in (cfg.get("output_dir"), cfg.get("cache", {}).get("dir")) if d)

@@ -23,6 +23,7 @@ and ``precision_`` records the choice after ``fit``.
 from __future__ import annotations
 
 import copy
+import logging
 import math
 from contextlib import contextmanager
 from typing import Iterator
@@ -210,6 +211,8 @@ def resolve_device(device: str) -> torch.device:
 
 
 #: Allowed values of ``schedule``: constant lr, or one-cycle (warm-up to ``lr``, cosine down to ~0).
+log = logging.getLogger(__name__)
+
 SCHEDULES: tuple[str, ...] = ("constant", "onecycle")
 
 #: Allowed values of ``precision``.
@@ -281,7 +284,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
     """
 
     NAME = "cnn_gru"
-    VERSION = "2"
+    VERSION = "3"  # 3: no early stopping on fewer than min_val_participants held-out participants
 
     def __init__(
         self,
@@ -293,6 +296,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         schedule: str = "constant",
         dedupe_frames: bool = False,
         val_fraction: float = 0.15,
+        min_val_participants: int = 3,
         hidden: int = 128,
         channels: tuple[int, ...] | list[int] = (16, 32, 64),
         strides: tuple[int, ...] | list[int] = (2, 2, 1),
@@ -311,6 +315,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         self.schedule = schedule
         self.dedupe_frames = dedupe_frames
         self.val_fraction = val_fraction
+        self.min_val_participants = min_val_participants
         self.hidden = hidden
         self.channels = channels
         self.strides = strides
@@ -339,6 +344,20 @@ class CnnGru(ClassifierMixin, BaseEstimator):
             raise ValueError(f"model.precision={self.precision!r} is invalid: allowed values: {list(PRECISIONS)}")
         if not 0.0 <= self.val_fraction < 1.0:
             raise ValueError(f"model.val_fraction={self.val_fraction!r} is invalid: must be in [0, 1)")
+
+    def early_stopping_fraction(self, groups: np.ndarray | None) -> float:
+        """``val_fraction``, or 0 (no validation split, all epochs) when the participants it would hold
+        out number fewer than ``min_val_participants`` (warned: a split that small cannot steer training)."""
+        if groups is None or self.val_fraction <= 0:
+            return float(self.val_fraction)
+        n = np.unique(np.asarray(groups)).size
+        k = min(n - 1, max(1, int(round(self.val_fraction * n)))) if n >= 2 else 0
+        if k < int(self.min_val_participants):
+            log.warning("CNN-GRU: early stopping would hold out %d of %d training participants (fewer than "
+                        "model.min_val_participants=%d): training all %d epochs without a validation split",
+                        k, n, int(self.min_val_participants), int(self.max_epochs))
+            return 0.0
+        return float(self.val_fraction)
 
     def _layout(self, n_taxels: int) -> tuple[tuple[int, int] | None, bool]:
         g = self.geometry
@@ -394,7 +413,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         dev = resolve_device(self.device)
         self.precision_ = resolve_precision(self.precision, dev)
         self.classes_, y_idx = np.unique(y, return_inverse=True)
-        tr, va = validation_split(y_idx, groups, self.val_fraction, self.seed)
+        tr, va = validation_split(y_idx, groups, self.early_stopping_fraction(groups), self.seed)
 
         with _torch_state(int(self.threads), dev), torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.seed)

@@ -244,3 +244,24 @@ def test_thread_count_changes_predictions_only_by_rounding():
         a = CnnGru(geometry=g, threads=1, **kw).fit(x, y)
         b = CnnGru(geometry=g, threads=2, **kw).fit(x, y)
         np.testing.assert_allclose(a.predict_proba(x), b.predict_proba(x), rtol=1e-4, atol=1e-5)
+
+
+def test_a_small_study_trains_every_epoch_instead_of_stopping_on_one_persons_loss(caplog):
+    """5 training participants x 15 % is one held-out person: early stopping on that one loss kept an
+    almost untrained model on the built-in chain (issue 31). Below model.min_val_participants held-out
+    participants the model trains all epochs without a split, and says so; 17 keep the paper's split."""
+    import logging
+
+    rng = np.random.default_rng(3)
+    x = (rng.random((50, 5, 6)) < 0.3).astype(np.float32)
+    y = np.arange(50) % 4
+    groups = np.repeat([f"p{i}" for i in range(5)], 10)
+    settings = dict(geometry=geometry((2, 3), 6, False), val_fraction=0.15, patience=1, seed=0, **{**TINY, "max_epochs": 6})
+    with caplog.at_level(logging.WARNING, logger="sphri.models.cnn_gru"):
+        m = CnnGru(**settings).fit(x, y, groups=groups)
+    assert m.n_val_ == 0 and len(m.history_) == 6  # every epoch, no split
+    assert "min_val_participants=3" in caplog.text and "1 of 5" in caplog.text
+    old = CnnGru(**settings, min_val_participants=1).fit(x, y, groups=groups)  # the earlier behaviour, when asked
+    assert old.n_val_ == 10
+    assert CnnGru(min_val_participants=3, val_fraction=0.15).early_stopping_fraction(
+        np.repeat([f"p{i}" for i in range(17)], 2)) == 0.15  # the paper's 18 participants: 3 held out, unchanged

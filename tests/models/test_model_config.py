@@ -20,7 +20,7 @@ def test_model_yaml_instantiates_with_geometry(name, cls):
     assert isinstance(est, cls)
     assert est.seed == 7  # the model follows the run's seed
     assert est.geometry is geom
-    assert cls.VERSION == {"rf": "1", "cnn_gru": "2"}[name] and cls.NAME == name
+    assert cls.VERSION == {"rf": "1", "cnn_gru": "3"}[name] and cls.NAME == name
     # the YAML holds every schema field, and the estimator takes exactly those
     schema = RandomForestSchema if name == "rf" else CnnGruSchema
     fields = set(schema.__dataclass_fields__) - {"_target_"}
