@@ -29,6 +29,7 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.data.format", "ManifestError", "data error"),
     ("sphri.evaluate.cv", "CVError", "data error"),
     ("sphri.hand.capsules", "HandDefinitionError", "hand error"),
+    ("sphri.robots.urdf_tree", "RobotFileError", "robot file error"),
     ("sphri.robots.validate", "MeshError", "mesh error"),
     ("sphri.cache", "CacheError", "cache error"),
     ("sphri.cache", "CorruptEntry", "cache error"),

@@ -171,5 +171,8 @@ def _check_study(cfg) -> None:
     target = str(cfg.data.get("_target_", ""))
     require(target.startswith("sphri.sessions."), "data", target.rsplit(".", 1)[-1],
             "the scenario study reads sessions: data=synthetic_sessions or data=sessions")
-    require(str(cfg.robot.get("_target_", "")).endswith("KinematicRobot"), "robot", cfg.robot.get("name"),
-            "the scenario study needs a whole robot with a kinematic tree, e.g. robot=reachy_full")
+    target = str(cfg.robot.get("_target_", ""))
+    whole = target.endswith("KinematicRobot") or (target.endswith("urdf.UrdfRobot") and cfg.robot.get("parts") is not None)
+    require(whole, "robot", cfg.robot.get("name"),
+            "the scenario study needs a whole robot with a kinematic tree, e.g. robot=reachy2, robot=reachy_full "
+            "or robot=urdf robot.path=... robot.parts=...")

@@ -66,6 +66,16 @@ def _cached(cache, stage: str, version: str, config: Any, inputs: dict, compute)
     return cache.get_or_compute(stage, stage_key(stage, version, config, inputs), compute)
 
 
+def robot_overrides(overrides: Sequence[str]) -> list[str]:
+    """The study's robot overrides for the gesture model's own job: the same robot (the experiment's default
+    ``robot=reachy_full`` unless ``robot=...`` is given), with its ``robot.*`` settings."""
+    keyed = [(o.lstrip("+~").split("=", 1)[0], o) for o in overrides]
+    mine = [o for k, o in keyed if k == "robot" or k.startswith("robot.")]
+    if not any(k == "robot" for k, _ in keyed):
+        mine.insert(0, "robot=reachy_full")
+    return mine
+
+
 def load_sessions_and_contacts(cfg, cache):
     """(hand, robot, sessions, body contacts) of a composed study config, through the stage cache."""
     from sphri.cache import stage_key
@@ -139,8 +149,8 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     train_ov = [o for o in overrides if o.lstrip("+").split("=")[0] in ("debug", "cache.dir", "output_dir", "cache.enabled",
                                                                         "seed", "model", "noise", "encoder", "layout",
                                                                         "surface", "window", "contact", "hand")]
-    train_ov += ["robot=reachy_full" if cfg.robot.name == "reachy_full" else f"robot={cfg.robot.name}",
-                 "data=synthetic", f"data.participants={max(n_part, 2)}",
+    train_ov += robot_overrides(overrides)
+    train_ov += ["data=synthetic", f"data.participants={max(n_part, 2)}",
                  f"data.repetitions={st.gesture_repetitions}", f"encoder.res={st.gesture_res}", "tracking.enabled=false"]
     gm = train_gesture_model(train_ov, list(st.gesture_regions), cache)
     labelled = label_episodes(coded, ds, robot, gm, seed=int(cfg.seed))
