@@ -427,7 +427,7 @@ class UrdfWholeBody:
             raise FileNotFoundError(f"robot.mesh_root: folder not found: {root_dir} (meshes of {model.path})")
         resolver = MeshResolver(root_dir)
         skipped = list(model.skipped)
-        gone = {n for n, _ in skipped}
+        gone = {n for n, r in skipped if r.startswith("not connected")}  # (a repeated name's first link stays)
         connected = [n for n in model.links if n not in gone]
         for key, names in (("robot.exclude", self.exclude), ("robot.merge", list(self.merge) +
                                                              [c for v in self.merge.values() for c in v]),

@@ -292,6 +292,9 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     res.histogram.to_csv(out / "gesture_histogram.csv", index=False, float_format="%.4g")
     res.ranking.to_csv(out / "body_part_ranking.csv", index=False, float_format="%.5g")
     res.placement.to_csv(out / "placement.csv", index=False, float_format="%.4g")
+    if getattr(robot, "skipped", ()):  # a robot read from a URDF: what has no surface here, and why
+        pd.DataFrame(list(robot.skipped), columns=["link", "reason"]).to_csv(out / "robot_skipped_links.csv", index=False)
+        files.append(out / "robot_skipped_links.csv")
     files += [out / n for n in ("sessions.csv", "episodes.csv", "coded_episodes.csv", "gesture_histogram.csv",
                                 "body_part_ranking.csv", "placement.csv")]
     if res.comparison is not None:
