@@ -27,6 +27,8 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.config", "ConfigError", "invalid config"),
     ("sphri.data.vr_gesture", "DatasetError", "data error"),
     ("sphri.data.format", "ManifestError", "data error"),
+    ("sphri.sessions.format", "SessionFormatError", "data error"),
+    ("sphri.sessions.synthetic", "PriorsError", "data error"),
     ("sphri.evaluate.cv", "CVError", "data error"),
     ("sphri.hand.capsules", "HandDefinitionError", "hand error"),
     ("sphri.robots.urdf_tree", "RobotFileError", "robot file error"),

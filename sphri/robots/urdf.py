@@ -208,9 +208,13 @@ class UrdfRobot:
     def _load(self):
         import yourdfpy
 
+        from sphri.robots.urdf_tree import parse_urdf
+
         path = Path(self.path).expanduser()
         if not path.is_file():
             raise FileNotFoundError(f"robot.path: URDF file not found: {path}")
+        # yourdfpy parses in lxml's recovery mode: a truncated file would load as a silently shorter robot
+        parse_urdf(path)
         try:
             urdf = yourdfpy.URDF.load(
                 str(path),

@@ -226,6 +226,13 @@ def test_bad_descriptions_are_one_line_errors_naming_the_file(lab, tmp_path):
     with pytest.raises(RobotFileError, match=r"truncated.urdf: not a well-formed URDF .*line \d+") as err:
         _reachy2("robot.builtin=null", f"robot.path={cut}")
     assert kind_of(err.value) == "robot file error"
+    # the plain URDF robot too (yourdfpy alone would load the first half of the file as a smaller robot)
+    from sphri.robots.urdf import UrdfRobot
+
+    cut2 = tmp_path / "cut2.urdf"
+    cut2.write_text(LAB_URDF[: LAB_URDF.index('<link name="lost"')])
+    with pytest.raises(RobotFileError, match=r"cut2.urdf: not a well-formed URDF"):
+        UrdfRobot(path=str(cut2), links=["base"], regions={"torso": "base"}).build()
     with pytest.raises(FileNotFoundError, match=r"robot.mesh_root: folder not found: .*nowhere"):
         UrdfWholeBody(urdf, parts, mesh_root=tmp_path / "nowhere").build()
     bad = tmp_path / "bad.urdf"
