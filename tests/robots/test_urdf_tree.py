@@ -29,7 +29,7 @@ REACHY2_PARENT = {
     "r_hand_palm_link": "r_elbow_forearm_link",
 }
 PARTS = {"head", "antenna_l", "antenna_r", "torso_top", "torso_front_upper", "torso_front_lower", "torso_back_upper",
-         "torso_back_lower", "shoulder_l", "shoulder_r", "upper_arm_l", "upper_arm_r", "elbow_l", "elbow_r", "wrist_l",
+         "torso_back_lower", "shoulder_l", "shoulder_r", "shoulder_ball_l", "shoulder_ball_r", "upper_arm_l", "upper_arm_r", "elbow_l", "elbow_r", "wrist_l",
          "wrist_r", "forearm_l", "forearm_r", "gripper_l", "gripper_r", "pedestal_back", "pedestal_l", "pedestal_r", "base"}
 
 
@@ -64,7 +64,7 @@ def test_packaged_reachy2_tree_parts_and_skipped_report(packaged):
     # every part holds surface; left and right agree (the description is symmetric)
     areas = {p: _part_area_cm2(r, p) for p in PARTS}
     assert all(a > 50 for a in areas.values()), areas
-    for side in ("shoulder", "upper_arm", "elbow", "forearm", "wrist", "gripper", "antenna"):
+    for side in ("shoulder", "shoulder_ball", "upper_arm", "elbow", "forearm", "wrist", "gripper", "antenna"):
         a, b = areas[f"{side}_l"], areas[f"{side}_r"]
         assert abs(a - b) < 0.03 * max(a, b), (side, a, b)
     skipped = dict(r.skipped)
