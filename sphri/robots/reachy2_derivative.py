@@ -160,8 +160,12 @@ def derive(src: Path, out: Path = OUT, budget: int = FACE_BUDGET) -> dict:
 
 
 def source_md(manifest: dict, src: Path) -> str:
-    origin = (src / "SOURCE.md").read_text().splitlines() if (src / "SOURCE.md").is_file() else []
-    commit = next((ln.strip() for ln in origin if "commit" in ln), "")
+    import re
+
+    origin = (src / "SOURCE.md").read_text() if (src / "SOURCE.md").is_file() else ""
+    found = re.search(r"\b[0-9a-f]{40}\b", origin)
+    when = re.search(r"\(\d{4}-\d{2}-\d{2}\)", origin[found.end():found.end() + 20]) if found else None
+    commit = f"commit {found.group(0)}{' ' + when.group(0) if when else ''}" if found else ""
     rows = "\n".join(
         f"| {k}.ply | {v['source']} | {v['faces_source']} | {v['faces']} | {v['area_cm2_source']} | {v['area_cm2']} | "
         f"{v['max_mm']:.2f} | {v['mean_mm']:.3f} |" for k, v in sorted(manifest["meshes"].items()))
@@ -169,7 +173,7 @@ def source_md(manifest: dict, src: Path) -> str:
 
 Derived from Pollen Robotics' Reachy 2 description: the public repository
 pollen-robotics/reachy2_mujoco, folder `reachy2_mujoco/description/`
-({commit.rstrip('.,') or 'see the source folder SOURCE.md'}).
+({commit or 'commit: see the source folder SOURCE.md'}).
 Copyright Pollen Robotics, licensed under the Apache License 2.0 (`LICENSE`
 beside this file). Modified by sphri: the URDF is reduced (comments,
 inertials, limits, materials, gazebo / transmission / ros2_control elements

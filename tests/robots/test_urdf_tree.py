@@ -266,3 +266,33 @@ def test_scenario_study_accepts_urdf_robots_with_parts_only(lab):
                  "robot.regions={torso: base}"])
     with pytest.raises(ConfigError, match=r"robot.path"):
         compose(["robot=urdf", "robot.links=[base]", "robot.regions={torso: base}"])
+
+
+# ----------------------------------------------------------------- the packaged derivative
+
+def test_vertex_clustering_keeps_within_the_face_budget_and_near_the_surface():
+    import trimesh
+
+    from sphri.robots.reachy2_derivative import decimate_to, surface_error_mm
+
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.05)  # 20,480 faces
+    small = decimate_to(sphere, 2000)
+    assert 1000 < len(small.faces) <= 2000
+    err = surface_error_mm(sphere, small)
+    assert err["max_mm"] < 2.5 and err["mean_mm"] < 0.5
+    assert decimate_to(small, 5000).faces.shape == small.faces.shape  # within the budget: unchanged
+
+
+@pytest.mark.shared
+@pytest.mark.slow
+def test_derivative_regenerates_byte_identically_from_shared(shared_dir, tmp_path):
+    from sphri.robots.reachy2_derivative import derive
+
+    src = shared_dir / "robots" / "reachy2"
+    if not (src / "reachy2.urdf").is_file():
+        pytest.skip(f"no Reachy 2 description at {src}")
+    derive(src, tmp_path)
+    shipped = BUILTIN["reachy2"].parent
+    for p in sorted(shipped.rglob("*")):
+        if p.is_file():
+            assert (tmp_path / p.relative_to(shipped)).read_bytes() == p.read_bytes(), p.name
