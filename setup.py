@@ -51,6 +51,8 @@ setup(
     + find_namespace_packages(include=["hydra_plugins.*"])
     + CONF_PACKAGES,
     package_dir={"sphri.conf": "conf"},
-    # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml)
-    package_data={"sphri": ["**/*.yaml"], **{name: ["*.yaml"] for name in CONF_PACKAGES}},
+    # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml),
+    # plus the robot descriptions shipped with sphri (sphri/robots/data/reachy2: URDF, PLY meshes, licence)
+    package_data={"sphri": ["**/*.yaml", "robots/data/*/*", "robots/data/*/meshes/*"],
+                  **{name: ["*.yaml"] for name in CONF_PACKAGES}},
 )

@@ -159,6 +159,8 @@ def declared_files(node: Any, exclude: frozenset[Path] = frozenset()) -> list[tu
         if spec["relative_to"]:
             b = values.get(spec["relative_to"])
             base = Path(str(b)).expanduser() if b not in (None, "") else None
+        if spec["kind"] != "map" and isinstance(value, (Mapping, list)):
+            continue  # given inline (e.g. robot.parts as a mapping), not a file
         raw = list(value.values()) if spec["kind"] == "map" and isinstance(value, Mapping) else [value]
         for item in raw:
             if item in (None, ""):

@@ -145,3 +145,16 @@ def test_wheel_knows_the_commit_it_was_built_from(installed, tmp_path):
     assert probe.returncode == 0, probe.stderr[-3000:]
     head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=REPO).stdout.strip()
     assert probe.stdout.strip().removesuffix("+dirty") == head
+
+
+def test_wheel_builds_the_packaged_reachy2_from_its_own_data(installed, tmp_path):
+    """robot=reachy2 reads its derivative (URDF, PLY meshes, licence) from the installed package, not from a checkout."""
+    data = installed / "sphri" / "robots" / "data" / "reachy2"
+    assert (data / "LICENSE").is_file() and (data / "SOURCE.md").is_file() and len(list((data / "meshes").glob("*.ply"))) == 10
+    code = ("from hydra.utils import instantiate; from sphri.config import compose; "
+            "r = instantiate(compose(['robot=reachy2']).robot).build(); "
+            "print(len(r.tree.links), len(r.skipped), r.links['head'].faces.shape[0])")
+    probe = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
+                           env=_env(installed), timeout=600)
+    assert probe.returncode == 0, probe.stderr[-3000:]
+    assert probe.stdout.split() == ["18", "78", "414"]

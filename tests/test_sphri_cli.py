@@ -10,7 +10,7 @@ from sphri.cli import components, main
 def test_list_robot_shows_builtins(capsys):
     assert main(["list", "robot"]) == 0
     out = capsys.readouterr().out
-    for name in ("reachy", "nao_child", "service_bot", "mesh", "reachy_vr", "urdf"):
+    for name in ("reachy", "reachy2", "reachy_full", "nao_child", "service_bot", "mesh", "reachy_vr", "urdf"):
         assert f"  {name} " in out
 
 

@@ -53,6 +53,15 @@ def rotation_about(axis: str, angle: np.ndarray) -> np.ndarray:
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
 
 
+def axis_rotation(axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotations by ``angle`` (...,) radians about the unit vector ``axis`` (3,) (Rodrigues)."""
+    k = np.asarray(axis, dtype=np.float64)
+    k = k / np.linalg.norm(k)
+    a = np.asarray(angle, dtype=np.float64)[..., None, None]
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(a) * kx + (1.0 - np.cos(a)) * (kx @ kx)
+
+
 def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
     """(3, 3) URDF fixed-axis roll-pitch-yaw rotation: Rz(yaw) Ry(pitch) Rx(roll)."""
     r, p, y = (float(v) for v in rpy)
@@ -71,18 +80,42 @@ class BodyPart:
     """Keep points at link-frame z >= z_min (metres)."""
     z_max: float | None = None
     """Keep points at link-frame z < z_max (metres)."""
+    min_cos: float = 0.0
+    """With ``side``: keep points whose unit normal's component along the side exceeds this
+    (0: any point facing that way; 0.5: within 60 degrees of it, e.g. a top face)."""
 
     def contains(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """(P,) bool for (P, 3) link-frame points with outward normals."""
         ok = np.ones(len(points), dtype=bool)
         if self.side is not None:
             v = normals @ AXIS_VECTORS[self.side[1]]
-            ok &= v > 0 if self.side[0] == "+" else v <= 0
+            if self.min_cos > 0:
+                ok &= v > self.min_cos if self.side[0] == "+" else v < -self.min_cos
+            else:
+                ok &= v > 0 if self.side[0] == "+" else v <= 0
         if self.z_min is not None:
             ok &= points[:, 2] >= self.z_min
         if self.z_max is not None:
             ok &= points[:, 2] < self.z_max
         return ok
+
+
+@dataclass(frozen=True)
+class JointStep:
+    """One movable joint on the way from a link's parent to the link (URDF trees, :mod:`sphri.robots.urdf_tree`).
+
+    The joint moves (``revolute``: rotation about ``axis``; ``prismatic``:
+    translation along it), then the fixed transform ``after`` follows (the
+    next joint's origin on the path, identity for the last one). A ``mimic``
+    joint follows ``(source joint, multiplier, offset)`` and is not a joint
+    of its own in :attr:`JointTree.joint_names`.
+    """
+
+    name: str
+    kind: str
+    axis: tuple[float, float, float]
+    after: np.ndarray
+    mimic: tuple[str, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -96,10 +129,20 @@ class JointTree:
     """(L, 4, 4) fixed transform parent frame -> joint frame."""
     joints: tuple[tuple[tuple[str, str], ...], ...]
     """Per link: (joint name, axis) applied in order after ``origin``."""
+    steps: tuple[tuple[JointStep, ...], ...] | None = None
+    """Per link, instead of ``joints``: general joints (any axis, prismatic, mimic) with fixed
+    transforms between them (trees read from a URDF); None for the parametric trees."""
 
     @property
     def joint_names(self) -> list[str]:
+        if self.steps is not None:
+            return [s.name for ss in self.steps for s in ss if s.mimic is None]
         return [j for js in self.joints for j, _ in js]
+
+    @property
+    def mimic(self) -> dict[str, tuple[str, float, float]]:
+        """Mimic joint -> (source joint, multiplier, offset)."""
+        return {s.name: s.mimic for ss in (self.steps or ()) for s in ss if s.mimic is not None}
 
 
 @dataclass(frozen=True)
@@ -111,6 +154,8 @@ class WholeBodyRobot(Robot):
     groups: dict[str, tuple[str, ...]] = field(default_factory=dict)
     rest: dict[str, float] = field(default_factory=dict)
     """Joint angles (radians) of the rest pose; others 0."""
+    skipped: tuple[tuple[str, str], ...] = ()
+    """(link, reason) of every link of the robot's description that has no surface here (URDF robots)."""
 
     def link_poses(self, base: np.ndarray, joints: Mapping[str, np.ndarray] | None = None) -> np.ndarray:
         """(F, L, 4, 4) world transforms of every link (``tree.links`` order).
@@ -131,6 +176,27 @@ class WholeBodyRobot(Robot):
         root[:, :3, :3] = rotation_about("z", base[:, 2])
         root[:, 0, 3], root[:, 1, 3] = base[:, 0], base[:, 1]
         out = np.empty((f, len(tree.links), 4, 4))
+        if tree.steps is not None:
+            mimic = tree.mimic
+
+            def value(name: str, depth: int = 0) -> np.ndarray:
+                if name in mimic and depth < 16:
+                    src, mult, off = mimic[name]
+                    return mult * value(src, depth + 1) + off
+                return np.broadcast_to(np.asarray(joints.get(name, self.rest.get(name, 0.0)), dtype=np.float64), (f,))
+
+            for i, name in enumerate(tree.links):
+                m = (root if tree.parent[i] < 0 else out[:, tree.parent[i]]) @ tree.origin[i]
+                for step in tree.steps[i]:
+                    mot = np.tile(np.eye(4), (f, 1, 1))
+                    q = value(step.name)
+                    if step.kind == "prismatic":
+                        mot[:, :3, 3] = q[:, None] * np.asarray(step.axis, dtype=np.float64)[None, :]
+                    else:
+                        mot[:, :3, :3] = axis_rotation(np.asarray(step.axis), q)
+                    m = m @ mot @ step.after
+                out[:, i] = m
+            return out
         for i, name in enumerate(tree.links):
             m = (root if tree.parent[i] < 0 else out[:, tree.parent[i]]) @ tree.origin[i]
             for jname, axis in tree.joints[i]:
@@ -267,6 +333,8 @@ def check_parts(parts: Any, specs: Mapping[str, Any]) -> list[BodyPart]:
     out = []
     for name, spec in parts.items():
         key = f"robot.parts.{name}"
+        if not (isinstance(spec, Mapping) or hasattr(spec, "keys")):
+            raise ConfigError(f"{key}={spec!r} is invalid: a mapping {{link: ..., side: ..., z_min: ..., z_max: ...}}")
         link = _get(spec, "link")
         if link not in specs:
             raise ConfigError(f"{key}.link={link!r} is invalid: must name one of the links {sorted(specs)}")
@@ -278,8 +346,14 @@ def check_parts(parts: Any, specs: Mapping[str, Any]) -> list[BodyPart]:
             raise ConfigError(f"{key}: z_min={z_min} must be below z_max={z_max}")
         if str(name) in specs and str(link) != str(name):
             raise ConfigError(f"{key}: a body part may share a name only with its own link")
+        min_cos = float(_get(spec, "min_cos", 0.0) or 0.0)
+        if not 0.0 <= min_cos < 1.0 or (min_cos > 0 and side is None):
+            raise ConfigError(f"{key}.min_cos={min_cos} is invalid: in [0, 1), and only with a side")
+        unknown = sorted(set(spec.keys() if hasattr(spec, "keys") else []) - {"link", "side", "z_min", "z_max", "min_cos"})
+        if unknown:
+            raise ConfigError(f"{key}: unknown key(s) {unknown}; allowed: link, side, z_min, z_max, min_cos")
         out.append(BodyPart(str(name), str(link), None if side is None else str(side),
-                            None if z_min is None else float(z_min), None if z_max is None else float(z_max)))
+                            None if z_min is None else float(z_min), None if z_max is None else float(z_max), min_cos))
     return out
 
 

@@ -138,31 +138,58 @@ class MeshRobotSchema:
 
 @dataclass
 class UrdfRobotSchema:
-    """A robot from a URDF file, read with yourdfpy."""
+    """A robot from a URDF file: chosen links as a plain robot, or with ``parts`` a whole kinematic robot."""
 
     _target_: str = "sphri.robots.urdf.UrdfRobot"
     name: str = "urdf"
-    path: str = input_path(MISSING, references="sphri.robots.urdf:mesh_files")
-    """The URDF file; ``package://`` mesh URIs resolve relative to its folder."""
-    links: list[str] = MISSING
-    """URDF links to load (each mesh in that link's own frame)."""
+    path: Optional[str] = input_path(None, references="sphri.robots.urdf:mesh_files")
+    """The URDF file; ``package://`` mesh URIs resolve relative to its folder (or ``mesh_root``)."""
+    builtin: Optional[str] = None
+    """A description that ships inside sphri instead of ``path``: reachy2 (robot=reachy2)."""
+    links: Any = None
+    """URDF links to load (each mesh in that link's own frame); with ``parts``: null loads every link that loads."""
     regions: Any = None
-    """Skin region -> link name (``Any``: see :class:`MeshRobotSchema`)."""
+    """Skin region -> link name (``Any``: see :class:`MeshRobotSchema`); with ``parts``: derived from them."""
     geometry: str = "collision"
-    """Which geometry to read: collision or visual."""
+    """Which geometry to read: collision or visual; with ``parts`` also auto (collision meshes, else visual
+    meshes, else collision primitives, else visual primitives)."""
     joints: Any = None
-    """Joint name -> angle (radians; metres for prismatic joints), others 0; used only by ``merge``."""
+    """Joint name -> angle (radians; metres for prismatic joints), others 0; used only by ``merge`` (plain robot)."""
     merge: Any = None
-    """Link -> descendant links whose geometry joins it, placed at ``joints``."""
+    """Link -> descendant links whose geometry joins it, placed at ``joints`` (plain) or the rest pose (``parts``)."""
     units: str = "auto"
     """Mesh units after the URDF's own scale: auto, m or mm."""
+    parts: Any = input_path(None)
+    """Whole-body robot: body part -> {link, side, z_min, z_max, min_cos}, or a YAML file holding
+    ``parts`` (and ``groups``, ``rest``, ``exclude``, ``merge``); see :mod:`sphri.robots.urdf_tree`."""
+    groups: Any = None
+    """Whole-body robot: group -> [body parts]."""
+    rest: Any = None
+    """Whole-body robot: joint name -> value of the rest pose (others 0)."""
+    exclude: Any = None
+    """Whole-body robot: links left out (named in the skipped-link report)."""
+    mesh_root: Optional[str] = input_path(None, kind="dir")
+    """Folder that mesh URIs resolve against (null: the URDF's folder)."""
 
     def __post_init__(self) -> None:
-        require(len(self.links) > 0, "robot.links", [], "at least one URDF link name")
+        require(self.path not in (None, "") or self.builtin is not None, "robot.path", self.path,
+                "the URDF file (or robot.builtin=reachy2)")
+        if self.builtin is not None:
+            from sphri.robots.urdf_tree import BUILTIN
+
+            require_choice("robot.builtin", self.builtin, list(BUILTIN))
+        require_choice("robot.units", self.units, UNITS)
+        if self.parts is not None:
+            require_choice("robot.geometry", self.geometry, GEOMETRIES + ("auto",))
+            require(self.regions is None, "robot.regions", self.regions,
+                    "null for a whole-body robot (regions come from robot.parts)")
+            require(self.links is None or len(self.links) > 0, "robot.links", self.links, "null (every link) or link names")
+            return
+        require(self.links is not None and len(self.links) > 0, "robot.links", self.links,
+                "at least one URDF link name (or robot.parts for a whole-body robot)")
         require(len(set(self.links)) == len(self.links), "robot.links", list(self.links), "names must be unique")
         check_regions(check_str_map(self.regions, "robot.regions", "skin region -> link"), list(self.links))
         require_choice("robot.geometry", self.geometry, GEOMETRIES)
-        require_choice("robot.units", self.units, UNITS)
         check_joints(self.joints)
         check_merge(self.merge, list(self.links))
 

@@ -128,8 +128,21 @@ def _kind(geometry: Any) -> str:
     return "empty"
 
 
+def _builtin_digest() -> str:
+    """Short hash of the descriptions shipped with sphri (a regenerated derivative changes the robot's cache keys)."""
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=6)
+    data = Path(__file__).with_name("data")
+    for p in sorted(data.rglob("*")) if data.is_dir() else []:
+        if p.is_file():
+            h.update(str(p.relative_to(data)).encode())
+            h.update(p.read_bytes())
+    return h.hexdigest()
+
+
 class UrdfRobot:
-    """Links of a URDF as a :class:`Robot` (``robot=urdf``).
+    """Links of a URDF as a :class:`Robot` (``robot=urdf``), or with ``parts`` a whole kinematic robot.
 
     ``path``: the URDF; ``links``: link names to load; ``regions``: skin
     region -> link; ``geometry``: ``collision`` or ``visual``; ``joints``:
@@ -138,21 +151,46 @@ class UrdfRobot:
     the URDF's own mesh scale).
     """
 
-    VERSION = "1"
+    VERSION = "2-" + _builtin_digest()
 
     def __init__(
         self,
-        path: str,
-        links: Sequence[str],
-        regions: Optional[Mapping[str, str]],
+        path: Optional[str] = None,
+        links: Optional[Sequence[str]] = None,
+        regions: Optional[Mapping[str, str]] = None,
         name: str = "urdf",
         geometry: str = "collision",
         joints: Optional[Mapping[str, float]] = None,
         merge: Optional[Mapping[str, Sequence[str]]] = None,
         units: str = "auto",
+        builtin: Optional[str] = None,
+        parts: Any = None,
+        groups: Any = None,
+        rest: Any = None,
+        exclude: Optional[Sequence[str]] = None,
+        mesh_root: Optional[str] = None,
     ):
+        from sphri.robots.urdf_tree import BUILTIN, UrdfWholeBody
+
+        if builtin is not None:
+            require_choice("robot.builtin", builtin, list(BUILTIN))
+            if path in (None, ""):
+                path = str(BUILTIN[builtin])
+        if path in (None, ""):
+            raise ConfigError("robot.path is missing: the URDF file (or robot.builtin=reachy2)")
         self.path = str(path)
         self.name = str(name)
+        self.whole_body = None
+        if parts is not None:
+            # a whole kinematic robot (sphri.robots.urdf_tree): every link that loads, parts from YAML
+            if regions is not None:
+                raise ConfigError("robot.regions must be null for a whole-body robot: regions come from robot.parts")
+            self.whole_body = UrdfWholeBody(self.path, parts, name=self.name, groups=groups, rest=rest, exclude=exclude,
+                                            merge=merge, links=links, mesh_root=mesh_root, geometry=str(geometry),
+                                            units=str(units))
+            return
+        if links is None:
+            raise ConfigError("robot.links is missing: URDF link names to load (or robot.parts for a whole-body robot)")
         self.links = [str(x) for x in links]
         self.regions = check_str_map(regions, "robot.regions", "skin region -> link")
         self.geometry = str(geometry)
@@ -170,9 +208,13 @@ class UrdfRobot:
     def _load(self):
         import yourdfpy
 
+        from sphri.robots.urdf_tree import parse_urdf
+
         path = Path(self.path).expanduser()
         if not path.is_file():
             raise FileNotFoundError(f"robot.path: URDF file not found: {path}")
+        # yourdfpy parses in lxml's recovery mode: a truncated file would load as a silently shorter robot
+        parse_urdf(path)
         try:
             urdf = yourdfpy.URDF.load(
                 str(path),
@@ -186,7 +228,12 @@ class UrdfRobot:
         return path, urdf
 
     def build(self) -> Robot:
-        """The :class:`Robot`; unknown links or joints raise ``ConfigError`` listing what the URDF has."""
+        """The :class:`Robot`; unknown links or joints raise ``ConfigError`` listing what the URDF has.
+
+        With ``parts``: a :class:`~sphri.robots.kinematic.WholeBodyRobot` (:mod:`sphri.robots.urdf_tree`).
+        """
+        if self.whole_body is not None:
+            return self.whole_body.build()
         path, urdf = self._load()
         known = set(urdf.link_map)
         wanted = set(self.links) | {c for extra in self.merge.values() for c in extra}

@@ -7,6 +7,12 @@ them block-diagonally, so density never leaks from one link to another
 (geodesic within links). For display and SWD the samples are placed at the
 robot's rest pose. :func:`touched_pairs` maps contact rows (link frame) to
 (frame, element) pairs of the whole surface.
+
+:func:`reachable_elements` marks the elements a skin can cover: not turned
+to the floor below a stated height (the underside of the mobile base: no hand
+gets there) and not buried inside another link at the rest pose (a joint
+ball half inside the upper arm, a bar's end inside the torso). The study's
+areas, densities per cm^2 and budgets count the reachable elements only.
 """
 
 from __future__ import annotations
@@ -38,12 +44,79 @@ class BodySurface:
     mesh: Link
     """Every link's mesh at the rest pose, joined (for display)."""
     parts: list[str]
+    reach: np.ndarray | None = None
+    """(P,) object: '' for an element a hand can reach, else why not ('floor', 'buried'); None: not assessed."""
 
-    def part_area_m2(self) -> dict[str, float]:
-        return {p: float(self.samples.area_m2[self.part == p].sum()) for p in self.parts}
+    @property
+    def reachable(self) -> np.ndarray:
+        """(P,) bool: elements a skin can cover (all when not assessed)."""
+        return np.ones(self.samples.n, dtype=bool) if self.reach is None else self.reach == ""
+
+    def part_area_m2(self, reachable: bool = False) -> dict[str, float]:
+        """Area per body part (m^2); ``reachable``: only the elements a hand can reach."""
+        a = self.samples.area_m2 * (self.reachable if reachable else 1.0)
+        return {p: float(a[self.part == p].sum()) for p in self.parts}
+
+    def area_table(self):
+        """Per body part: area, reachable area, and the area lost to each reason (cm^2), as a DataFrame."""
+        import pandas as pd
+
+        reach = self.reach if self.reach is not None else np.full(self.samples.n, "", dtype=object)
+        rows = []
+        for p in self.parts:
+            m = self.part == p
+            a = self.samples.area_m2[m] * 1e4
+            rows.append(dict(part=p, area_cm2=float(a.sum()), reachable_cm2=float(a[reach[m] == ""].sum()),
+                             floor_facing_cm2=float(a[reach[m] == "floor"].sum()),
+                             buried_cm2=float(a[reach[m] == "buried"].sum())))
+        return pd.DataFrame(rows)
 
 
-def body_surface(robot, links: tuple[str, ...], spacing_mm: float, bandwidth_mm: float, seed: int = 0) -> BodySurface:
+#: Elements whose outward normal lies within ``acos(DOWN_COS)`` of straight down ...
+DOWN_COS = 0.5
+#: ... below this height (m, at the rest pose) face the floor out of a hand's reach.
+FLOOR_HEIGHT_M = 0.3
+
+
+def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, chunk: int = 512) -> np.ndarray:
+    """(P,) generalized winding number of a triangle mesh at each point (1 inside a closed mesh, 0 outside;
+    fractional near holes, so it also judges the open meshes real descriptions hold)."""
+    tri = vertices[faces]
+    out = np.empty(len(points))
+    for i in range(0, len(points), chunk):
+        p = points[i:i + chunk]
+        a, b, c = (tri[None, :, k, :] - p[:, None, :] for k in range(3))
+        la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
+        det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
+        den = (la * lb * lc + np.einsum("pfi,pfi->pf", a, b) * lc + np.einsum("pfi,pfi->pf", b, c) * la
+               + np.einsum("pfi,pfi->pf", c, a) * lb)
+        out[i:i + chunk] = np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
+    return out
+
+
+def reachable_elements(robot, links: tuple[str, ...], points: np.ndarray, normals: np.ndarray, link_of: np.ndarray,
+                       floor_height_m: float = FLOOR_HEIGHT_M, down_cos: float = DOWN_COS) -> np.ndarray:
+    """(P,) object: '' where a hand can reach the element (world ``points`` / ``normals`` at the rest pose),
+    'buried' for one inside another link, else 'floor' for one turned to the floor below ``floor_height_m``."""
+    out = np.full(len(points), "", dtype=object)
+    rest = robot.rest_poses()
+    order = list(robot.tree.links)
+    for li, name in enumerate(links):
+        link = robot.links[name]
+        m = rest[order.index(name)]
+        v = link.vertices @ m[:3, :3].T + m[:3, 3]
+        lo, hi = v.min(axis=0) - 1e-3, v.max(axis=0) + 1e-3
+        cand = np.flatnonzero((link_of != li) & (out == "") & np.all((points >= lo) & (points <= hi), axis=1))
+        if cand.size:
+            w = winding_numbers(points[cand], v, link.faces)
+            out[cand[np.abs(w) > 0.5]] = "buried"
+    out[(out == "") & (normals[:, 2] < -down_cos) & (points[:, 2] < floor_height_m)] = "floor"
+    return out
+
+
+def body_surface(robot, links: tuple[str, ...], spacing_mm: float, bandwidth_mm: float, seed: int = 0,
+                 floor_height_m: float | None = FLOOR_HEIGHT_M, down_cos: float = DOWN_COS) -> BodySurface:
+    """The whole surface (see the module docstring); ``floor_height_m=None`` skips the reachability test."""
     rest = robot.rest_poses()
     order = list(robot.tree.links)
     local, kernels, pts, nrm, face, area, part, link_of = [], [], [], [], [], [], [], []
@@ -79,8 +152,12 @@ def body_surface(robot, links: tuple[str, ...], spacing_mm: float, bandwidth_mm:
     names = [p.name for p in robot.parts]
     names += sorted(set(part_all) - set(names))
     mesh = Link(name=robot.name, vertices=np.concatenate(verts), faces=np.concatenate(faces), watertight=False)
-    return BodySurface(tuple(links), local, offset, joined, kernel, part_all, np.concatenate(link_of), mesh,
-                       [p for p in names if (part_all == p).any()])
+    link_all = np.concatenate(link_of)
+    reach = None
+    if floor_height_m is not None:
+        reach = reachable_elements(robot, tuple(links), joined.points_m, joined.normal, link_all, floor_height_m, down_cos)
+    return BodySurface(tuple(links), local, offset, joined, kernel, part_all, link_all, mesh,
+                       [p for p in names if (part_all == p).any()], reach)
 
 
 def touched_pairs(body: BodySurface, bc: BodyContacts, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

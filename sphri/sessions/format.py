@@ -49,6 +49,10 @@ MANIFEST_SESSION_KEYS: tuple[str, ...] = ("scenario", "repetition", "order", "st
 HEADER_KEYS: tuple[str, ...] = ("format", "version", "name", "synthetic", "robot", "links", "hands", "hand")
 
 
+#: Sessions are in metres: a median hand or link position farther than this from the origin is refused.
+MAX_MEDIAN_DISTANCE_M = 20.0
+
+
 class SessionFormatError(ValueError):
     """A session file is malformed; the message names the file and the field."""
 
@@ -281,6 +285,7 @@ class SessionData:
                 h = rows[hcols].to_numpy(np.float32).reshape(len(rows), 2, c, 7)
                 lk = rows[lcols].to_numpy(np.float32).reshape(len(rows), nl, 7)
                 self._check_values(ppath, e, h, lk, hcols, lcols)
+                self._check_units(ppath, e, h, lk)
                 hands.append(h)
                 lposes.append(lk)
                 rates.add(float(e["frame_rate_hz"]))
@@ -290,6 +295,11 @@ class SessionData:
                 start += int(e["n_frames"])
         if not records:
             raise SessionFormatError(f"{root}: no session left after selecting participants/scenarios/repetitions")
+        if robot is not None:
+            absent = [ln for ln in robot.links if ln not in links]
+            if absent:
+                log.warning("%s: robot %r links %s have no poses in these sessions: no contact can be found on them",
+                            root / "sessions.json", robot.name, absent)
         if len(rates) != 1:
             raise SessionFormatError(f"{root}: manifests mix frame rates {sorted(rates)}; one rate per dataset")
         truth = None
@@ -301,6 +311,17 @@ class SessionData:
             sessions=make_sessions_frame(records), hand_poses=np.concatenate(hands),
             links=tuple(links), link_poses=np.concatenate(lposes), frame_rate_hz=rates.pop(),
             robot=str(header["robot"]), truth=truth)
+
+    @staticmethod
+    def _check_units(path: Path, e: dict, h: np.ndarray, lk: np.ndarray) -> None:
+        """Positions are metres: a session whose median hand or link position lies more than
+        :data:`MAX_MEDIAN_DISTANCE_M` from the origin is in millimetres (or centimetres), and refused."""
+        for what, pos in (("hand", h[..., :3]), ("link", lk[..., :3])):
+            med = float(np.median(np.linalg.norm(pos.reshape(-1, 3).astype(np.float64), axis=1))) if pos.size else 0.0
+            if med > MAX_MEDIAN_DISTANCE_M:
+                raise SessionFormatError(
+                    f"{path}: repetition {e['repetition']}: {what} positions lie {med:.4g} from the origin (median); "
+                    f"sessions are in metres (more than {MAX_MEDIAN_DISTANCE_M:g} m: millimetres or centimetres?)")
 
     @staticmethod
     def _read_table(path: Path, hcols: list[str], lcols: list[str]) -> pd.DataFrame:

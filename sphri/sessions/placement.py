@@ -98,4 +98,4 @@ def sentence(row: dict | pd.Series, groups: dict[str, tuple[str, ...]]) -> str:
     held = row["heldout_captured"]
     held_s = f" ({100 * held:.0f} % on held-out participants)" if held == held else ""
     return (f"[{row['group']}] covering the {words} ({row['area_cm2']:.0f} cm^2, {100 * row['area_share']:.0f} % of the "
-            f"surface) captures {100 * row['captured']:.0f} % of contact frames{held_s}")
+            f"reachable surface) captures {100 * row['captured']:.0f} % of contact frames{held_s}")

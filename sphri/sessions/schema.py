@@ -93,6 +93,12 @@ class ScenarioStudySchema:
     """Skin resolution (encoder.res) of the gesture model."""
     gesture_repetitions: int = 10
     """Training trials per gesture and participant (participants: data.participants)."""
+    reach_floor_height_m: float = 0.3
+    """Surface turned to the floor (normal within acos(reach_down_cos) of straight down) below this height (m,
+    rest pose) is out of a hand's reach; so is surface buried inside another link. Areas, densities per cm^2 and
+    budgets count the reachable surface only (``body_part_area.csv``)."""
+    reach_down_cos: float = 0.5
+    """... 0.5: within 60 degrees of straight down."""
     budget_cm2: float = 2000.0
     """Placement budget: skin area (cm^2) ..."""
     pitch_mm: float = 0.0
@@ -123,6 +129,8 @@ class ScenarioStudySchema:
         require_range(f"{key}.gesture_res", self.gesture_res, lo=1, hi=100)
         require_range(f"{key}.gesture_repetitions", self.gesture_repetitions, lo=1)
         require_range(f"{key}.budget_cm2", self.budget_cm2, lo=0.0, lo_open=True)
+        require_range(f"{key}.reach_floor_height_m", self.reach_floor_height_m, lo=0.0, hi=3.0)
+        require_range(f"{key}.reach_down_cos", self.reach_down_cos, lo=0.0, hi=1.0)
         require_range(f"{key}.pitch_mm", self.pitch_mm, lo=0.0)
         require_range(f"{key}.budget_taxels", self.budget_taxels, lo=0)
         require(len(self.figure_formats) > 0 and set(self.figure_formats) <= {"png", "pdf", "svg"},
@@ -171,5 +179,8 @@ def _check_study(cfg) -> None:
     target = str(cfg.data.get("_target_", ""))
     require(target.startswith("sphri.sessions."), "data", target.rsplit(".", 1)[-1],
             "the scenario study reads sessions: data=synthetic_sessions or data=sessions")
-    require(str(cfg.robot.get("_target_", "")).endswith("KinematicRobot"), "robot", cfg.robot.get("name"),
-            "the scenario study needs a whole robot with a kinematic tree, e.g. robot=reachy_full")
+    target = str(cfg.robot.get("_target_", ""))
+    whole = target.endswith("KinematicRobot") or (target.endswith("urdf.UrdfRobot") and cfg.robot.get("parts") is not None)
+    require(whole, "robot", cfg.robot.get("name"),
+            "the scenario study needs a whole robot with a kinematic tree, e.g. robot=reachy2, robot=reachy_full "
+            "or robot=urdf robot.path=... robot.parts=...")

@@ -66,6 +66,26 @@ def _cached(cache, stage: str, version: str, config: Any, inputs: dict, compute)
     return cache.get_or_compute(stage, stage_key(stage, version, config, inputs), compute)
 
 
+#: The ``gesture`` of a session without a coded, labelled episode (``by=gesture`` maps it apart, never as a gesture).
+UNLABELLED = "unlabelled"
+
+
+def session_gestures(n_sessions: int, labelled: pd.DataFrame) -> list[str]:
+    """Per session, the predicted gesture of its coded episode, or :data:`UNLABELLED` (never a gesture by default)."""
+    gest = dict(zip(labelled["session"], labelled["gesture"]))
+    return [str(gest.get(i) or UNLABELLED) for i in range(n_sessions)]
+
+
+def robot_overrides(overrides: Sequence[str]) -> list[str]:
+    """The study's robot overrides for the gesture model's own job: the same robot (the experiment's default
+    ``robot=reachy_full`` unless ``robot=...`` is given), with its ``robot.*`` settings."""
+    keyed = [(o.lstrip("+~").split("=", 1)[0], o) for o in overrides]
+    mine = [o for k, o in keyed if k == "robot" or k.startswith("robot.")]
+    if not any(k == "robot" for k, _ in keyed):
+        mine.insert(0, "robot=reachy_full")
+    return mine
+
+
 def load_sessions_and_contacts(cfg, cache):
     """(hand, robot, sessions, body contacts) of a composed study config, through the stage cache."""
     from sphri.cache import stage_key
@@ -139,8 +159,8 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     train_ov = [o for o in overrides if o.lstrip("+").split("=")[0] in ("debug", "cache.dir", "output_dir", "cache.enabled",
                                                                         "seed", "model", "noise", "encoder", "layout",
                                                                         "surface", "window", "contact", "hand")]
-    train_ov += ["robot=reachy_full" if cfg.robot.name == "reachy_full" else f"robot={cfg.robot.name}",
-                 "data=synthetic", f"data.participants={max(n_part, 2)}",
+    train_ov += robot_overrides(overrides)
+    train_ov += ["data=synthetic", f"data.participants={max(n_part, 2)}",
                  f"data.repetitions={st.gesture_repetitions}", f"encoder.res={st.gesture_res}", "tracking.enabled=false"]
     gm = train_gesture_model(train_ov, list(st.gesture_regions), cache)
     labelled = label_episodes(coded, ds, robot, gm, seed=int(cfg.seed))
@@ -157,18 +177,18 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
 
     # whole-body maps, tests and coverage curves (by scenario, paired by participant)
     t = time.perf_counter()
-    body = body_surface(robot, ds.links, st.spacing_mm, st.bandwidth_mm, st.seed)
+    body = body_surface(robot, ds.links, st.spacing_mm, st.bandwidth_mm, st.seed,
+                        floor_height_m=st.reach_floor_height_m, down_cos=st.reach_down_cos)
     fsi = ds.frame_session_index()
     in_coded = np.zeros(ds.n_frames, dtype=bool)
     for e in coded.itertuples():
         in_coded[e.start_frame:e.end_frame + 1] = True
     rows = np.flatnonzero(in_coded[bc.frame])
     frames, elements = touched_pairs(body, bc, rows)
-    gest = dict(zip(labelled["session"], labelled["gesture"]))
     trials = pd.DataFrame({
         "participant": ds.sessions["participant"], "region": "body",
         "trial_ordinal": ds.sessions["repetition"], "trial_id": [f"{i:04d}_hit" for i in range(len(ds.sessions))],
-        "gesture": [gest.get(i) or "hit" for i in range(len(ds.sessions))], "start": ds.sessions["start"],
+        "gesture": session_gestures(len(ds.sessions), labelled), "start": ds.sessions["start"],
         "n_frames": ds.sessions["n_frames"], "scenario": ds.sessions["scenario"],
         "start_position": ds.sessions["start_position"], "repetition": ds.sessions["repetition"].astype(str),
     })
@@ -193,17 +213,24 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
 
     # body parts ranked, placement under the budget (pooled and per scenario, held-out participants)
     t = time.perf_counter()
-    part_index = {p: i for i, p in enumerate(body.parts)}
-    pidx = np.array([part_index[p] for p in body.part], dtype=np.int64)
-    uf, mat = frame_part_matrix(frames, elements, pidx, len(body.parts))
-    area = np.array([body.part_area_m2()[p] for p in body.parts])
+    # areas, densities per cm^2 and budgets count only what a skin can cover (sphri.sessions.body.reachable_elements)
+    reach_area = body.part_area_m2(reachable=True)
+    parts = [p for p in body.parts if reach_area[p] > 0]
+    unreachable = [p for p in body.parts if reach_area[p] <= 0]
+    if unreachable:
+        notes.append(f"body parts a hand cannot reach (no reachable area), left out of ranking and placement: {unreachable}")
+    part_index = {p: i for i, p in enumerate(parts)}
+    pidx = np.array([part_index.get(p, 0) for p in body.part], dtype=np.int64)
+    sel = body.reachable[elements]
+    uf, mat = frame_part_matrix(frames[sel], elements[sel], pidx, len(parts))
+    area = np.array([reach_area[p] for p in parts])
     f_scen = ds.sessions["scenario"].to_numpy()[fsi[uf]]
     f_unit = ds.sessions["participant"].to_numpy()[fsi[uf]]
-    ranking = rank_parts(mat, body.parts, area)
+    ranking = rank_parts(mat, parts, area)
     ranking.insert(0, "scenario", "all")
     per = [ranking]
     for s in scenarios:
-        r = rank_parts(mat[f_scen == s], body.parts, area)
+        r = rank_parts(mat[f_scen == s], parts, area)
         r.insert(0, "scenario", s)
         per.append(r)
     group_rows = []
@@ -216,7 +243,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         group_rows.append(dict(scenario="all", part=f"group:{g}", area_cm2=a * 1e4, contact_frames=n,
                                frame_share=n / max(len(uf), 1), frames_per_cm2=n / (a * 1e4)))
     ranking_all = pd.concat(per + [pd.DataFrame(group_rows)], ignore_index=True)
-    placement = placement_table(mat, f_scen, f_unit, scenarios, body.parts, area, st.budget_m2)
+    placement = placement_table(mat, f_scen, f_unit, scenarios, parts, area, st.budget_m2)
     sentences = [sentence(r, robot.groups) for _, r in placement.iterrows()]
     budget = (f"{st.budget_taxels} taxels at {st.pitch_mm:g} mm pitch ({st.budget_m2 * 1e4:.0f} cm^2)"
               if st.budget_taxels else f"{st.budget_cm2:g} cm^2")
@@ -282,6 +309,12 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     res.histogram.to_csv(out / "gesture_histogram.csv", index=False, float_format="%.4g")
     res.ranking.to_csv(out / "body_part_ranking.csv", index=False, float_format="%.5g")
     res.placement.to_csv(out / "placement.csv", index=False, float_format="%.4g")
+    areas = body.area_table()
+    areas.to_csv(out / "body_part_area.csv", index=False, float_format="%.1f")
+    files.append(out / "body_part_area.csv")
+    if getattr(robot, "skipped", ()):  # a robot read from a URDF: what has no surface here, and why
+        pd.DataFrame(list(robot.skipped), columns=["link", "reason"]).to_csv(out / "robot_skipped_links.csv", index=False)
+        files.append(out / "robot_skipped_links.csv")
     files += [out / n for n in ("sessions.csv", "episodes.csv", "coded_episodes.csv", "gesture_histogram.csv",
                                 "body_part_ranking.csv", "placement.csv")]
     if res.comparison is not None:
@@ -298,6 +331,10 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
                "scenarios": scen, "n_coded_episodes": int(len(res.coded)), "gesture_model": {
                    "regions": gm.regions, "loso_accuracy": gm.accuracy, "res": gm.res, "loso_accuracy_mean": gm.accuracy_mean,
                    "loso_accuracy_std": gm.accuracy_std, "n_trials": gm.n_trials},
+               "surface": {"area_cm2": float(areas["area_cm2"].sum()), "reachable_cm2": float(areas["reachable_cm2"].sum()),
+                           "floor_facing_cm2": float(areas["floor_facing_cm2"].sum()),
+                           "buried_cm2": float(areas["buried_cm2"].sum()),
+                           "floor_height_m": res.settings.reach_floor_height_m, "down_cos": res.settings.reach_down_cos},
                "budget": budget, "sentences": res.sentences, "notes": res.notes, "seconds": res.seconds,
                "settings": dataclasses.asdict(res.settings)}
     if ds.truth is not None and len(res.coded):

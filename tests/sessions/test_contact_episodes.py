@@ -109,4 +109,4 @@ def test_greedy_placement_and_its_sentence():
     groups = {"shoulders": ("shoulder_l", "shoulder_r")}
     assert name_parts(["shoulder_l", "gripper_r", "shoulder_r"], groups) == ["shoulders", "gripper r"]
     text = sentence(row, groups)
-    assert text.startswith("[all] covering the shoulders (300 cm^2, 38 % of the surface) captures 80 % of contact frames")
+    assert text.startswith("[all] covering the shoulders (300 cm^2, 38 % of the reachable surface) captures 80 % of contact frames")

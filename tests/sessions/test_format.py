@@ -135,3 +135,28 @@ def test_synthetic_sessions_follow_the_study_design(small):
         lp = ds.link_poses[r.start:r.start + r.n_frames, base, :3]
         assert (np.ptp(lp, axis=0).max() > 0.05) == moves
     assert set(ds.truth["part"]) <= {p.name for p in robot.parts}
+
+
+def test_positions_in_millimetres_are_refused_and_links_without_poses_named(small, written, tmp_path, caplog):
+    _, hand, robot, _ = small
+    root = _copy(written, tmp_path / "mm")
+    path = root / "participant_02" / "S4_behaviour_correction.parquet"
+    df = pd.read_parquet(path)
+    pos = [c for c in df.columns if c.endswith(("_pos_x", "_pos_y", "_pos_z"))]
+    df[pos] = df[pos] * 1000.0
+    df.to_parquet(path)
+    with pytest.raises(SessionFormatError, match=r"S4_behaviour_correction.parquet: repetition 1: hand positions lie "
+                                                 r"[\d.]+ from the origin .*millimetres or centimetres"):
+        SessionData(root=str(root)).load(hand, robot)
+    # a robot link the sessions never pose: named in a warning (no contact can be found on it)
+    root = _copy(written, tmp_path / "nolink")
+    h = json.loads((root / "sessions.json").read_text())
+    h["links"] = [ln for ln in h["links"] if ln != "neck"]
+    (root / "sessions.json").write_text(json.dumps(h))
+    for pq in root.glob("participant_*/*.parquet"):
+        d = pd.read_parquet(pq)
+        d.drop(columns=[c for c in d.columns if c.startswith("link/neck_")]).to_parquet(pq)
+    with caplog.at_level("WARNING", logger="sphri.sessions.format"):
+        ds = SessionData(root=str(root)).load(hand, robot)
+    assert "neck" not in ds.links
+    assert any("['neck'] have no poses" in r.getMessage() for r in caplog.records)

@@ -52,9 +52,14 @@ def test_parts_split_the_torso_by_side_and_height(robot):
 
     s = sample_link(robot.links["torso"], 10.0)
     lab = robot.part_labels("torso", s.points_m, s.normal)
-    assert set(lab) == {"torso_front_upper", "torso_front_lower", "torso_back_upper", "torso_back_lower"}
+    assert set(lab) == {"torso_top", "torso_front_upper", "torso_front_lower", "torso_back_upper", "torso_back_lower"}
     front = np.isin(lab, ["torso_front_upper", "torso_front_lower"])
-    assert (s.normal[front, 0] > 0).all() and (s.normal[~front, 0] <= 0).all()
+    back = np.isin(lab, ["torso_back_upper", "torso_back_lower"])
+    assert (s.normal[front, 0] > 0).all() and (s.normal[back, 0] <= 0).all()
+    # the top face is its own part, no longer counted as the upper back (issue 27)
+    top = lab == "torso_top"
+    assert (s.normal[top, 2] > 0.5).all() and top.sum() > 0.05 * len(lab)
+    assert not ((s.normal[:, 2] > 0.5) & (s.points_m[:, 2] >= -0.03) & (lab != "torso_top")).any()
 
 
 def test_groups_are_regroupable_and_checked():

@@ -1,0 +1,29 @@
+"""robot=reachy2 (the packaged Reachy 2, no ../shared) runs the scenario study end to end at a small size."""
+
+from __future__ import annotations
+
+import json
+
+import pandas as pd
+
+from sphri.coverage import main
+
+
+def test_packaged_reachy2_runs_a_small_scenario_study(tmp_path, monkeypatch):
+    monkeypatch.setenv("SPHRI_SHARED", str(tmp_path / "no_shared"))  # nothing may come from ../shared
+    out, runs = tmp_path / "out", tmp_path / "runs"
+    rc = main(["+experiment=scenario_study", "robot=reachy2", "+debug=fast", "data.participants=2",
+               "data.repetitions=1", "data.scenarios=[S3_move_aside,S4_behaviour_correction]",
+               "experiment.scenario_study.gesture_repetitions=2", "experiment.scenario_study.render=false",
+               f"out={out}", f"output_dir={runs}", f"cache.dir={runs}/cache", "tracking.enabled=false"])
+    assert rc == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["robot"] == "reachy2"
+    ranking = pd.read_csv(out / "body_part_ranking.csv")
+    parts = set(ranking["part"])
+    # Reachy 2's own parts (not reachy_full's), e.g. the antennas, elbows and torso top, and its groups
+    assert {"antenna_l", "elbow_r", "torso_top", "gripper_r", "base", "group:antennas"} <= parts
+    touched = ranking[(ranking["scenario"] == "all") & (ranking["contact_frames"] > 0)]
+    assert len(touched) >= 2
+    skipped = pd.read_csv(out / "robot_skipped_links.csv")
+    assert {"link", "reason"} <= set(skipped.columns) and "drivewhl1_link" in set(skipped["link"])
