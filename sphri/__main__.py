@@ -191,19 +191,23 @@ def _hydra_main(cfg: DictConfig) -> dict | None:
 
 
 def find_sweeper_plugin() -> None:
-    """Make ``hydra_plugins.sphri_sweeper`` importable from the source tree.
+    """Make Hydra's plugin scan see ``hydra_plugins.sphri_sweeper``.
 
-    An editable install made before the plugin package existed maps only
-    ``sphri``; the plugin then is found beside it (Hydra scans ``hydra_plugins``).
+    Hydra finds plugins by walking ``hydra_plugins.__path__`` (a namespace package). A wheel puts
+    the folder in site-packages, on that path; an editable install maps the module through its own
+    finder instead, which that walk never sees, and one made before the plugin existed maps nothing.
+    Either way the folder holding ``sphri_sweeper`` is added to the namespace's path.
     """
     import importlib.util
 
-    if importlib.util.find_spec("hydra_plugins.sphri_sweeper") is not None:
-        return
-    here = Path(__file__).resolve().parent.parent / "hydra_plugins"
-    if (here / "sphri_sweeper").is_dir():
-        import hydra_plugins
+    import hydra_plugins
 
+    spec = importlib.util.find_spec("hydra_plugins.sphri_sweeper")
+    if spec is not None and spec.origin:
+        here = Path(spec.origin).resolve().parent.parent
+    else:
+        here = Path(__file__).resolve().parent.parent / "hydra_plugins"
+    if (here / "sphri_sweeper").is_dir() and str(here) not in [str(Path(p).resolve()) for p in hydra_plugins.__path__]:
         hydra_plugins.__path__.append(str(here))
 
 

@@ -162,9 +162,10 @@ def test_main_entry_point_prints_one_line_for_a_mesh_error_and_the_traceback_on_
 def test_main_entry_point_data_error_is_one_line(tmp_path):
     res = _run(["sphri", "data=vr_gesture", f"data.root={tmp_path / 'nowhere'}", "robot=reachy",
                 f"output_dir={tmp_path / 'out'}", "tracking.enabled=false"], tmp_path)
-    assert res.returncode == 1 and "Traceback" not in res.stderr
+    # a missing input folder is refused with the config, before any stage (exit 2, the key named)
+    assert res.returncode == 2 and "Traceback" not in res.stderr
     assert [ln for ln in res.stderr.splitlines() if ln.startswith("sphri:")] == [
-        f"sphri: data error: data.root='{tmp_path / 'nowhere'}': no such directory"]
+        f"sphri: invalid config: data.root='{tmp_path / 'nowhere'}' is invalid: no such folder"]
 
 
 @pytest.mark.parametrize(

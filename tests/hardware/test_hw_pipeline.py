@@ -78,7 +78,10 @@ def test_train_export_then_live_on_streamed_trials(out_dir):
         mine = [t for t in touches if trial["good_start"] <= t["start"] < trial["good_end"]]
         assert mine, trial
         aligned += abs(mine[0]["start"] - trial["good_onset"]) <= 2
-    assert aligned >= 3
+        # within 0.2 s of the onset: generator data version 3 (CoST-calibrated depths) starts light touches
+        # shallower, so poke and pat cross the activity threshold 3 to 5 frames after their first contact
+        assert 0 <= mine[0]["start"] - trial["good_onset"] <= 6, (trial["gesture"], mine[0]["start"], trial["good_onset"])
+    assert aligned >= 2
     # trained on these very trials: live agrees with the labels
     right = sum(
         next(t for t in touches if tr["good_start"] <= t["start"] < tr["good_end"])["gesture"] == tr["gesture"]

@@ -115,7 +115,8 @@ def test_input_scaling_is_fit_on_the_training_split_only():
     groups = np.repeat(["a", "b", "c", "d"], 10)
     x = rng.random((40, 5, 6)).astype(np.float32) + np.repeat([0.0, 1.0, 3.0, 7.0], 10)[:, None, None]
     y = np.arange(40) % 4
-    m = CnnGru(geometry=geometry((2, 3), 6, False), val_fraction=0.25, seed=1, **TINY).fit(x, y, groups=groups)
+    m = CnnGru(geometry=geometry((2, 3), 6, False), val_fraction=0.25, min_val_participants=1, seed=1,
+               **TINY).fit(x, y, groups=groups)
     tr, va = validation_split(np.unique(y, return_inverse=True)[1], groups, 0.25, seed=1)
     assert m.n_val_ == va.size == 10
     assert float(m.net_.x_mean) == pytest.approx(float(x[tr].mean()), rel=1e-5)
