@@ -31,6 +31,14 @@ other (they hold noise).
   false taxels in one frame). ``min_area_mm2=0`` returns the windows
   unchanged.
 
+Why a filter and not a second feature set on the Random Forest: the filter
+changes the readings, so every model (the Random Forest's 32 features, the
+CNN-GRU) and every feature sees the same cleaned skin, as it would behind a
+skin's firmware; the 32 features stay the paper's reference
+(``tests/models/test_features_reference.py`` pins their values), and "with
+and without" is one config key (``filter=none|despeckle``) that a sweep can
+vary like any other.
+
 The temporal filters are ``scipy.ndimage`` filters along the frame axis (``minimum_filter1d``,
 ``median_filter``) with ``mode="constant", cval=0`` (the "off" history) and
 the ``origin`` that puts the k-frame window at t-k+1 .. t.
