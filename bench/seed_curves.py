@@ -19,7 +19,8 @@ Then, per curve, the dip at res 18: accuracy at res 8 and at the finest
 swept resolution up to 36 minus the accuracy at res 18, paired per
 participant (averaged over seeds), mean +/- SE over participants; positive =
 res 18 is below that neighbour. Only finished jobs are read, so a running or
-stopped sweep gives what it has (``n_seeds`` says how many).
+stopped sweep gives what it has (``n_seeds`` says how many); a job that
+a resumed sweep skipped is read from the finished run it points to.
 """
 
 from __future__ import annotations
@@ -38,8 +39,8 @@ def load_jobs(sweep: Path, output_dir: Path) -> pd.DataFrame:
     rows = []
     for status_file in sorted(sweep.glob("*/sphri_status.json")):
         st = json.loads(status_file.read_text())
-        if st.get("status") != "FINISHED":
-            continue
+        if st.get("status") not in ("FINISHED", "SKIPPED") or not st.get("mlflow_run_id"):
+            continue  # SKIPPED: resumed, the finished MLflow run of the same config holds the scores
         ov = dict(o.lstrip("+").split("=", 1) for o in st["overrides"])
         res = int(ov.pop("encoder.res"))
         seed = int(ov.pop("seed", 0))

@@ -29,8 +29,8 @@ def fake_sweep(tmp_path: Path) -> tuple[Path, Path, dict]:
                 run = f"run{job}"
                 d = sweep / str(job)
                 d.mkdir(parents=True)
-                (d / "sphri_status.json").write_text(json.dumps({
-                    "job": job, "status": "FINISHED", "mlflow_run_id": run, "accuracy": float(a.mean()),
+                (d / "sphri_status.json").write_text(json.dumps({  # job 0 resumed: skipped, no accuracy field
+                    "job": job, "status": "SKIPPED" if job == 0 else "FINISHED", "mlflow_run_id": run,
                     "overrides": [f"seed={seed}", f"sensitivity={variant}", f"encoder.res={res}",
                                   "experiment=despeckle_compare"]}))
                 art = out / "mlartifacts" / run / "artifacts"
