@@ -49,8 +49,9 @@ class DespeckleFilterSchema:
     """Smallest touch area kept (mm^2): a connected group of on-taxels whose summed taxel area is below it is
     set to off in that frame (0 = no filter). Set it below the smallest touch that must be seen: the default,
     100 mm^2 (1 cm^2), clears the largest patch of 11-13 % of poke and tap contact frames on the built-in
-    study (res 50, no noise; 80-84 % at 200 mm^2). A lone taxel is cleared only where one taxel is smaller
-    than it: on the reference arm from res 26 up at 100 mm^2, from res 18 up (1.90 cm^2 per taxel) at 200."""
+    study (res 50, no noise; 80-84 % at 200 mm^2). A lone on-taxel is cleared only where that taxel is smaller
+    than it; the reference arm's taxel areas vary with the hull: under 100 mm^2 are none of them up to res 18,
+    41 % at res 24, 97 % at res 36; under 200 mm^2 none up to res 12, 73 % at res 18, 99 % at res 26."""
     diagonal: bool = True
     """Grids: taxels sharing a corner are neighbours too (8-connected, as the Random Forest's largest-contact
     feature); false = 4-connected. Scattered layouts: neighbours within 1.5 x the median spacing either way."""
