@@ -1,13 +1,13 @@
 """Accuracy curves of a multirun that repeats each setting over seeds: mean over seeds, paired differences.
 
-    python bench/seed_curves.py outputs/multirun/despeckle_compare [--output-dir outputs] [--base reference]
+    python bench/seed_curves.py SWEEP_DIR [SWEEP_DIR ...] [--output-dir outputs] [--base GROUP]
 
-Reads every job's ``sphri_status.json`` in the sweep directory (its overrides
+Reads every job's ``sphri_status.json`` in the sweep directories (its overrides
 and MLflow run id) and the job's per-participant scores
 (``<output_dir>/mlartifacts/<run_id>/artifacts/per_participant.csv``). Jobs
 are grouped by their overrides without ``seed`` and ``encoder.res`` (one
 curve per group, e.g. per ``sensitivity`` variant). Per curve and resolution
-it prints and writes (``seed_curves.csv`` in the sweep directory):
+it prints and writes (``seed_curves.csv`` in the first sweep directory):
 
 - ``accuracy_mean``: mean over seeds of the job's mean accuracy over
   participants; ``seed_se``: standard error of that mean over seeds;
@@ -34,10 +34,11 @@ import numpy as np
 import pandas as pd
 
 
-def load_jobs(sweep: Path, output_dir: Path) -> pd.DataFrame:
+def load_jobs(sweeps: Path | list[Path], output_dir: Path) -> pd.DataFrame:
     """One row per (finished job, participant): group, res, seed, participant, accuracy."""
     rows = []
-    for status_file in sorted(sweep.glob("*/sphri_status.json")):
+    sweeps = [sweeps] if isinstance(sweeps, Path) else list(sweeps)
+    for status_file in sorted(f for sweep in sweeps for f in sweep.glob("*/sphri_status.json")):
         st = json.loads(status_file.read_text())
         if st.get("status") not in ("FINISHED", "SKIPPED") or not st.get("mlflow_run_id"):
             continue  # SKIPPED: resumed, the finished MLflow run of the same config holds the scores
@@ -54,7 +55,7 @@ def load_jobs(sweep: Path, output_dir: Path) -> pd.DataFrame:
         for part, acc in zip(df["fold"], df["accuracy"]):
             rows.append({"group": group, "res": res, "seed": seed, "participant": part, "accuracy": float(acc)})
     if not rows:
-        raise SystemExit(f"seed_curves: no finished job with per-participant scores under {sweep}")
+        raise SystemExit(f"seed_curves: no finished job with per-participant scores under {sweeps}")
     return pd.DataFrame(rows)
 
 
@@ -100,7 +101,7 @@ def dips(jobs: pd.DataFrame) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("sweep", type=Path)
+    p.add_argument("sweep", type=Path, nargs="+", help="multirun directories (their jobs are pooled)")
     p.add_argument("--output-dir", type=Path, default=Path("outputs"), help="the runs' output_dir (mlartifacts)")
     p.add_argument("--base", default=None, help="group the others are paired against (default: the one holding "
                    "'reference', else none)")
@@ -109,13 +110,14 @@ def main(argv: list[str] | None = None) -> int:
     groups = sorted(jobs.group.unique())
     base = args.base or next((g for g in groups if "reference" in g), None)
     table = curves(jobs, base)
-    table.to_csv(args.sweep / "seed_curves.csv", index=False)
+    out = args.sweep[0] / "seed_curves.csv"
+    table.to_csv(out, index=False)
     with pd.option_context("display.width", 200, "display.max_rows", 500, "display.float_format", "{:.3f}".format):
         print(table.to_string(index=False))
     print("\ndip at res 18 (positive: res 18 below the neighbour), seed-averaged per participant:")
     for line in dips(jobs):
         print("  " + line)
-    print(f"\nwritten: {args.sweep / 'seed_curves.csv'}")
+    print(f"\nwritten: {out}")
     return 0
 
 
