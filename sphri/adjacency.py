@@ -14,11 +14,14 @@ module answers it once, from a :class:`~sphri.types.TaxelGeometry`:
   two principal axes of the 3-D positions). ``diagonal`` does not apply.
 
 :class:`Adjacency` holds the pairs and answers the two questions the stages
-ask: each taxel's neighbour list (:meth:`Adjacency.table`) and the summed
+ask: each taxel's neighbour list (:meth:`Adjacency.table`), the summed
 weight of each frame's largest connected group of touched taxels
-(:meth:`Adjacency.largest_component`; on grids through
-``scipy.ndimage.label``, which is faster than the general graph path and
-gives the same components).
+(:meth:`Adjacency.largest_component`) and, per touched taxel, the summed
+weight of the group it belongs to (:meth:`Adjacency.component_weight`, what
+the spatial skin filter ``filter=despeckle`` thresholds). On grids both go
+through ``scipy.ndimage.label`` (one label call for all frames, labels
+joined across the v seam), which is faster than the general graph path and
+gives the same components.
 """
 
 from __future__ import annotations
@@ -134,6 +137,23 @@ class Adjacency:
             return _largest_component_grid(w, self.grid_shape, self.wrap_v, self.diagonal)
         return _largest_component_graph(w, self.pairs)
 
+    def component_weight(self, active: np.ndarray, taxel_weight: np.ndarray) -> np.ndarray:
+        """(M, N) float64: for each active taxel, the summed ``taxel_weight`` of its frame's connected group.
+
+        ``active`` (M, N) bool touched taxels per frame; ``taxel_weight`` (N,)
+        per-taxel weight (a taxel's area in m^2: the group's area). 0 where a
+        taxel is not active. Groups never span frames.
+        """
+        act = np.asarray(active, dtype=bool)
+        tw = np.asarray(taxel_weight, dtype=np.float64)
+        if act.ndim != 2 or act.shape[1] != self.n_taxels:
+            raise ValueError(f"active must be (frames, {self.n_taxels}), got shape {act.shape}")
+        if tw.shape != (self.n_taxels,):
+            raise ValueError(f"taxel_weight must be ({self.n_taxels},), got shape {tw.shape}")
+        if self.grid_shape is not None:
+            return _component_weight_grid(act, tw, self.grid_shape, self.wrap_v, self.diagonal)
+        return _component_weight_graph(act, tw, self.pairs)
+
 
 def grid_adjacency(grid_shape: tuple[int, int], wrap_v: bool, diagonal: bool) -> Adjacency:
     """Adjacency of an H x W row-major grid (rows along u; v wraps between columns 0 and W-1)."""
@@ -214,6 +234,17 @@ def _largest_component_grid(w: np.ndarray, grid_shape: tuple[int, int], wrap: bo
     # running maximum label reaches k.
     run_max = np.maximum.accumulate(lab.reshape(m, -1).max(axis=1))
     frame_of = np.searchsorted(run_max, np.arange(n_lab + 1), side="left")
+    comp = _join_seam(lab, n_lab, wrap, diagonal)
+    comp_weight = np.bincount(comp[1:], weights=weight[1:])
+    out = np.zeros(m)
+    np.maximum.at(out, frame_of[1:], comp_weight[comp[1:]])
+    return out
+
+
+def _join_seam(lab: np.ndarray, n_lab: int, wrap: bool, diagonal: bool) -> np.ndarray:
+    """(n_lab + 1,) component of each ``ndimage.label`` label of (M, H, W) frames, labels that touch
+    across the v seam (columns 0 and W-1, same or, with ``diagonal``, adjacent rows) joined; 0 stays 0."""
+    _, h, wd = lab.shape
     comp = np.arange(n_lab + 1)
     if wrap and wd > 2:
         left, right = lab[:, :, 0], lab[:, :, wd - 1]
@@ -227,9 +258,42 @@ def _largest_component_grid(w: np.ndarray, grid_shape: tuple[int, int], wrap: bo
         if joined.size:
             g = coo_matrix((np.ones(len(joined)), (joined[:, 0], joined[:, 1])), shape=(n_lab + 1, n_lab + 1))
             _, comp = connected_components(g, directed=False)
-    comp_weight = np.bincount(comp[1:], weights=weight[1:])
-    out = np.zeros(m)
-    np.maximum.at(out, frame_of[1:], comp_weight[comp[1:]])
+    return comp
+
+
+def _component_weight_grid(active: np.ndarray, tw: np.ndarray, grid_shape: tuple[int, int], wrap: bool,
+                           diagonal: bool) -> np.ndarray:
+    """Grid path of :meth:`Adjacency.component_weight`."""
+    m, n = active.shape
+    h, wd = grid_shape
+    lab, n_lab = ndimage.label(active.reshape(m, h, wd), structure=_structure(diagonal))
+    out = np.zeros((m, n))
+    if n_lab == 0:
+        return out
+    comp = _join_seam(lab, n_lab, wrap, diagonal)
+    of = comp[lab.reshape(m, n)]
+    total = np.bincount(of.ravel(), weights=np.broadcast_to(tw, (m, n)).ravel(), minlength=int(comp.max()) + 1)
+    np.copyto(out, total[of], where=active)
+    return out
+
+
+def _component_weight_graph(active: np.ndarray, tw: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Graph path of :meth:`Adjacency.component_weight` (any layout)."""
+    m, n_tax = active.shape
+    out = np.zeros((m, n_tax))
+    flat = np.flatnonzero(active.ravel())
+    if flat.size == 0:
+        return out
+    node = np.full(m * n_tax, -1, dtype=np.int64)
+    node[flat] = np.arange(flat.size)
+    both = active[:, pairs[:, 0]] & active[:, pairs[:, 1]] if pairs.size else np.zeros((m, 0), bool)
+    f, k = np.nonzero(both)
+    src = node[f * n_tax + pairs[k, 0]]
+    dst = node[f * n_tax + pairs[k, 1]]
+    g = coo_matrix((np.ones(src.size), (src, dst)), shape=(flat.size, flat.size))
+    _, comp = connected_components(g, directed=False)
+    total = np.bincount(comp, weights=tw[flat % n_tax])
+    out.ravel()[flat] = total[comp]
     return out
 
 

@@ -301,6 +301,10 @@ class TaxelGeometry:
     """Metres per unit of u (0 without a chart)."""
     metres_per_v: float
     """Metres per unit of v (0 without a chart)."""
+    area_m2: np.ndarray | None = None
+    """(N,) float64 surface area of each taxel (m^2, :attr:`Layout.area_m2`); None where unknown
+    (geometries built by hand or read from a model file). Spatial skin filters
+    (``filter=despeckle``) read it; the Random Forest's features do not."""
 
     @property
     def n_taxels(self) -> int:
@@ -315,6 +319,7 @@ class TaxelGeometry:
             wrap_v=surface.wrap_v,
             metres_per_u=surface.metres_per_u,
             metres_per_v=surface.metres_per_v,
+            area_m2=layout.area_m2,
         )
 
 

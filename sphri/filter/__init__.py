@@ -1,4 +1,4 @@
-"""Skin-side temporal filters on the noisy windows (``filter=none|debounce|median``).
+"""Skin-side filters on the noisy windows: temporal (``filter=debounce|median``), spatial (``filter=despeckle``).
 
 A tactile skin's electronics filter their readings before anything
 classifies them; this stage sits between noise and the model. See

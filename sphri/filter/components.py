@@ -1,4 +1,4 @@
-"""Temporal filters: ``apply(windows) -> WindowedFrames``, per taxel along the window's frames.
+"""Skin-side filters: ``apply(windows) -> WindowedFrames``; temporal per taxel, or spatial per frame.
 
 Filters are **causal**, as on a skin's own electronics: the output at frame t
 reads only frames t-k+1 .. t. Before a window's first frame the filter's
@@ -16,8 +16,30 @@ other (they hold noise).
 - ``median`` (``frames`` = k, odd): the median of the last k readings; a
   binary reading stays binary.
 - ``none``: unchanged.
+- ``despeckle`` (``min_area_mm2``, spatial): in each frame, the on-taxels
+  (reading >= ``active_threshold``) form connected groups
+  (:func:`sphri.adjacency.taxel_adjacency`: 8- or 4-connected on grids,
+  joined across the v seam of a wrapping link; within 1.5 x the median
+  spacing on scattered layouts); a group whose area, the sum of its taxels'
+  areas (``windows.geometry.area_m2``, the layout's m^2 per taxel), is below
+  ``min_area_mm2`` is set to 0. What a skin's firmware does to report touches
+  and not speckle: it needs no memory of earlier frames (no onset delay) and
+  its unit is physical, so one setting means the same smallest touch at
+  every resolution. It cannot tell a false taxel from a real touch that is
+  smaller than the threshold (a fingertip that lights one large taxel); a
+  false group as large as the threshold survives (rare: several adjacent
+  false taxels in one frame). ``min_area_mm2=0`` returns the windows
+  unchanged.
 
-Both are ``scipy.ndimage`` filters along the frame axis (``minimum_filter1d``,
+Why a filter and not a second feature set on the Random Forest: the filter
+changes the readings, so every model (the Random Forest's 32 features, the
+CNN-GRU) and every feature sees the same cleaned skin, as it would behind a
+skin's firmware; the 32 features stay the paper's reference
+(``tests/models/test_features_reference.py`` pins their values), and "with
+and without" is one config key (``filter=none|despeckle``) that a sweep can
+vary like any other.
+
+The temporal filters are ``scipy.ndimage`` filters along the frame axis (``minimum_filter1d``,
 ``median_filter``) with ``mode="constant", cval=0`` (the "off" history) and
 the ``origin`` that puts the k-frame window at t-k+1 .. t.
 
@@ -30,8 +52,9 @@ import dataclasses
 
 import numpy as np
 
+from sphri.adjacency import taxel_adjacency
 from sphri.config import Configured
-from sphri.filter.schema import DebounceFilterSchema, MedianFilterSchema, NoFilterSchema
+from sphri.filter.schema import DebounceFilterSchema, DespeckleFilterSchema, MedianFilterSchema, NoFilterSchema
 from sphri.types import WindowedFrames
 
 
@@ -91,3 +114,51 @@ class MedianFilter(_CausalFilter):
     """``filter=median``: causal running median of each taxel's last ``frames`` (odd) readings."""
 
     HOW, SCHEMA, NAME = "median", MedianFilterSchema, "median"
+
+
+#: Frames x taxels handled per connected-component pass of ``despeckle`` (bounds memory: labels and weights).
+_DESPECKLE_CHUNK = 1 << 22
+
+#: Relative slack on the area comparison, so that a group of k taxels whose areas sum to the threshold up to
+#: floating-point rounding counts as reaching it.
+_AREA_RTOL = 1e-9
+
+
+def taxel_areas_m2(windows: WindowedFrames, who: str) -> np.ndarray:
+    """(N,) float64 taxel areas (m^2) from ``windows.geometry.area_m2``; ``ValueError`` naming the field if unusable."""
+    geom = windows.geometry
+    n = int(np.asarray(windows.x).shape[2])
+    if geom.area_m2 is None:
+        raise ValueError(f"{who}: windows.geometry.area_m2 is None; a spatial filter needs each taxel's area "
+                         "(the pipeline's geometries carry the layout's; build TaxelGeometry with area_m2=...)")
+    area = np.asarray(geom.area_m2, dtype=np.float64)
+    if area.shape != (n,):
+        raise ValueError(f"{who}: windows.geometry.area_m2 has shape {area.shape}, the windows have {n} taxels")
+    if not np.all(np.isfinite(area)) or np.any(area < 0):
+        raise ValueError(f"{who}: windows.geometry.area_m2 holds negative, NaN or infinite areas")
+    return area
+
+
+class DespeckleFilter(Configured):
+    """``filter=despeckle``: clear each frame's connected groups of on-taxels smaller than ``min_area_mm2``."""
+
+    VERSION = "1"
+    SCHEMA = DespeckleFilterSchema
+
+    def apply(self, windows: WindowedFrames) -> WindowedFrames:
+        who = "filter=despeckle"
+        x = _check(windows, who)
+        if self.min_area_mm2 <= 0:
+            return windows
+        area = taxel_areas_m2(windows, who)
+        adjacency = taxel_adjacency(windows.geometry, diagonal=bool(self.diagonal))
+        min_area_m2 = float(self.min_area_mm2) * 1e-6 * (1.0 - _AREA_RTOL)
+        t, length, n = x.shape
+        out = np.array(x, dtype=np.float32)  # a copy: the input stays as it was
+        step = max(1, _DESPECKLE_CHUNK // max(1, length * n))
+        for i in range(0, t, step):
+            block = out[i : i + step].reshape(-1, n)
+            active = block >= self.active_threshold
+            small = active & (adjacency.component_weight(active, area) < min_area_m2)
+            block[small] = 0.0
+        return dataclasses.replace(windows, x=out)

@@ -68,6 +68,7 @@ def arm_geometry(res: int, layout: str = "grid", seed: int = 0) -> TaxelGeometry
         wrap_v=True,
         metres_per_u=ARM_LENGTH_M,
         metres_per_v=ARM_CIRCUMFERENCE_M,
+        area_m2=np.full(h * w, ARM_LENGTH_M * ARM_CIRCUMFERENCE_M / (h * w)),
     )
 
 
@@ -194,4 +195,5 @@ def grid_geometry(h: int, w: int, pitch_m: float = 0.01, wrap: bool = False, gri
         wrap_v=wrap,
         metres_per_u=h * pitch_m,
         metres_per_v=w * pitch_m,
+        area_m2=np.full(h * w, pitch_m * pitch_m),
     )

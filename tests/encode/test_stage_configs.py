@@ -39,7 +39,7 @@ def test_every_group_has_configs():
                  ("encoder", "ellipse"), ("encoder", "coverage"), ("encoder", "proximity"),
                  ("noise", "salt_pepper"), ("noise", "gaussian"), ("noise", "dead_taxels"),
                  ("noise", "crosstalk"), ("noise", "none"), ("filter", "none"), ("filter", "debounce"),
-                 ("filter", "median"), ("window", "onset")]:
+                 ("filter", "median"), ("filter", "despeckle"), ("window", "onset")]:
         assert want in names
 
 
@@ -62,6 +62,7 @@ def test_yaml_matches_schema_and_instantiates(path):
         ("window/onset.yaml", "frames", 0),
         ("filter/debounce.yaml", "frames", 0),
         ("filter/median.yaml", "frames", 4),
+        ("filter/despeckle.yaml", "min_area_mm2", -1.0),
         ("layout/grid.yaml", "aspect", -1.0),
         ("surface/cylinder.yaml", "axis", "w"),
     ],
