@@ -99,7 +99,7 @@ def main() -> int:
         d.mkdir()
         out["validate_100_jobs_s"] = min(timed(["-m", "sphri.cli", "validate", "+experiment=resolution_sweep"], d, env)[0]
                                          for _ in range(args.repeat))
-        sweep = [*JOB, "encoder.res=2,3", "-m", "hydra/launcher=serial"]
+        sweep = ["-m", "sphri", "-m", "+debug=fast", "encoder.res=2,3", "hydra/launcher=serial"]
         timed([*sweep, "hydra.sweep.dir=s0"], d, env)
         out["skipped_sweep_s"] = min(timed([*sweep, f"hydra.sweep.dir=s{i + 1}"], d, env)[0] for i in range(args.repeat))
         comp_env = {**env, "COMP_LINE": "sphri enc", "COMP_POINT": "9"}
