@@ -387,6 +387,12 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
         area_txt = f"{area:.2f} cm^2 per taxel" if np.isfinite(area) and area > 0 else "area per taxel unknown"
         req = (f"A taxel pitch of at most {_fmt_pitch(rec['pitch_mm'])} mm ({_pitch_interval_words(g.pitch_interval_mm, sat, rule)}; "
                f"{area_txt}) keeps accuracy within {tol} of the best, paired over participants, on this link ({where}).")
+        gap = getattr(sat, "gap", float("nan"))
+        if np.isfinite(gap) and gap > sat.tolerance and sat.gap_interval is not None:
+            # the rule allows a noise margin: say so where the measured gap exceeds the tolerance itself
+            req += (f" Within the tolerance by the rule's noise margin: the gap to the best measured there is "
+                    f"{100 * gap:.1f} points ({rule.ci:.0%} CI {100 * sat.gap_interval[0]:.1f} to "
+                    f"{100 * sat.gap_interval[1]:.1f}).")
     else:
         iv = sat.interval
         iv_txt = (f"{rule.ci:.0%} interval encoder.res {g.points['res'].iloc[iv[0]]} to {g.points['res'].iloc[iv[1]]}"
