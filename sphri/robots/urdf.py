@@ -26,7 +26,7 @@ import trimesh
 
 from sphri.config import ConfigError, require_choice
 from sphri.robots.schema import GEOMETRIES, UNITS, check_joints, check_merge, check_regions, check_str_map
-from sphri.robots.validate import MeshError, make_link
+from sphri.robots.validate import MeshError, make_link, read_mesh
 from sphri.types import Robot
 
 log = logging.getLogger(__name__)
@@ -292,12 +292,7 @@ class UrdfRobot:
                     continue
                 if how:
                     notes.append(f"resolved {how}")
-                try:
-                    m = trimesh.load(str(found), process=False, force="mesh")
-                except Exception as exc:
-                    raise MeshError(f"link {name!r}: cannot read mesh file {found}: {exc}") from exc
-                if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
-                    raise MeshError(f"link {name!r}: mesh file {found} holds no triangles")
+                m = read_mesh(found, f"link {name!r}: ")
                 if g.mesh.scale is not None:
                     scale = np.broadcast_to(np.asarray(g.mesh.scale, dtype=np.float64), (3,))
                     m.apply_transform(np.diag(np.append(scale, 1.0)))

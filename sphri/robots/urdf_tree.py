@@ -51,7 +51,7 @@ import yaml
 from sphri.config import ConfigError, require_choice
 from sphri.robots.kinematic import (JointStep, JointTree, WholeBodyRobot, axis_rotation, check_groups, check_parts,
                                     rpy_matrix)
-from sphri.robots.validate import MeshError, make_link
+from sphri.robots.validate import MeshError, make_link, read_mesh
 from sphri.types import Link
 
 log = logging.getLogger(__name__)
@@ -302,12 +302,7 @@ def _repaired_file(path: Path, scale: Sequence[float], units: str):
     st = path.stat()
     key = (str(path.resolve()), st.st_size, st.st_mtime_ns, tuple(float(x) for x in scale), units)
     if key not in _REPAIRED:
-        try:
-            m = trimesh.load(str(path), process=False, force="mesh")
-        except Exception as exc:
-            raise MeshError(f"cannot read mesh file {path}: {exc}") from None
-        if not isinstance(m, trimesh.Trimesh) or len(m.faces) == 0:
-            raise MeshError(f"mesh file {path} holds no triangles")
+        m = read_mesh(path)
         v = np.asarray(m.vertices, dtype=np.float64) * np.asarray(scale, dtype=np.float64)
         f = np.asarray(m.faces)
         if np.prod(scale) < 0:

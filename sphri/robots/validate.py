@@ -238,10 +238,17 @@ def load_mesh_file(path, name: str, units: str = "auto", key: str = "") -> Link:
     label = f"{key}: " if key else ""
     if not path.is_file():
         raise FileNotFoundError(f"{label}mesh file not found: {path}")
+    loaded = read_mesh(path, label)
+    return make_link(name, loaded.vertices, loaded.faces, units=units, source=str(path))
+
+
+def read_mesh(path, label: str = "") -> "trimesh.Trimesh":
+    """The triangles of a mesh file (as stored, unprocessed; scenes flattened), or a :class:`MeshError`
+    that names the file (``label`` first, e.g. ``"link 'arm': "``): the one reader of mesh files."""
     try:
         loaded = trimesh.load(str(path), process=False, force="mesh")
     except Exception as exc:
         raise MeshError(f"{label}cannot read mesh file {path}: {exc}") from exc
     if not isinstance(loaded, trimesh.Trimesh) or len(loaded.faces) == 0:
         raise MeshError(f"{label}mesh file {path} holds no triangles")
-    return make_link(name, loaded.vertices, loaded.faces, units=units, source=str(path))
+    return loaded
