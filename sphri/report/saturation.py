@@ -258,9 +258,17 @@ def _bootstrap(s: np.ndarray, index: int, best_index: int, n_boot: int, ci: floa
         boot_sel[start:start + b] = select(sb)
         with np.errstate(invalid="ignore"), _quiet():
             boot_gap[start:start + b] = np.nanmean(sb[:, :, best_index] - sb[:, :, index], axis=1)
+    interval, picked, gap_interval = _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
+    return interval, picked, gap_interval
+
+
+def _bootstrap_intervals(boot_sel: np.ndarray, boot_gap: np.ndarray, n_part: int, ci: float,
+                         notes: list[str]) -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
+    """(interval of the selected point, the selections kept, interval of the paired gap) from the
+    bootstrap's draws (``-1``: no finite point in that resample, dropped); notes what it dropped."""
     ok = boot_sel >= 0
     if not ok.all():
-        notes.append(f"{int((~ok).sum())} of {n_boot} resamples had no finite point and were dropped")
+        notes.append(f"{int((~ok).sum())} of {boot_sel.size} resamples had no finite point and were dropped")
     lo_q, hi_q = (1.0 - ci) / 2.0, (1.0 + ci) / 2.0
     picked = boot_sel[ok]
     interval = (int(np.quantile(picked, lo_q, method="inverted_cdf")), int(np.quantile(picked, hi_q, method="inverted_cdf")))
@@ -668,15 +676,6 @@ def envelope_saturation(
         sel_b, _, def_b, _, _, _, _ = _envelope_rule(sb, wb, tol, floor, z)
         boot_sel[start:start + b] = sel_b
         boot_gap[start:start + b] = def_b[np.arange(b), index]
-    ok = boot_sel >= 0
-    if not ok.all():
-        notes.append(f"{int((~ok).sum())} of {n_boot} resamples had no finite point and were dropped")
-    lo_q, hi_q = (1.0 - ci) / 2.0, (1.0 + ci) / 2.0
-    picked = boot_sel[ok]
-    interval = (int(np.quantile(picked, lo_q, method="inverted_cdf")), int(np.quantile(picked, hi_q, method="inverted_cdf")))
-    g = boot_gap[np.isfinite(boot_gap)]
-    gap_interval = (float(np.quantile(g, lo_q)), float(np.quantile(g, hi_q))) if g.size else None
-    if n_part < 5:
-        notes.append(f"only {n_part} participants: the bootstrap interval is coarse")
+    interval, picked, gap_interval = _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
     return (Saturation(index, best_index, tol_at, stats, n_part, interval, ci, int(picked.size), picked, gap,
                        gap_interval, "; ".join(notes), **base), env)
