@@ -81,3 +81,20 @@ def glove_port() -> str:
     if not port:
         pytest.skip("no real glove: set SPHRI_GLOVE_PORT=/dev/rfcomm0 (or a pyserial URL) to run")
     return port
+
+
+def _frames_on_disk(partial) -> int:
+    """Complete frames a recorder's ``.partial`` file holds so far (0 while its header is being written)."""
+    from sphri.hardware.recording import PARTIAL_MAGIC, RecordingError, load_recording
+
+    if not partial.exists() or partial.stat().st_size <= len(PARTIAL_MAGIC) + 4:
+        return 0
+    try:
+        return load_recording(partial).n_frames
+    except RecordingError:  # header still being written
+        return 0
+
+
+@pytest.fixture
+def frames_on_disk():
+    return _frames_on_disk

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sphri.hardware.recording import (PARTIAL_MAGIC, PartialWriter, RecordingError, SkinRecording, load_recording,
+from sphri.hardware.recording import (PartialWriter, RecordingError, SkinRecording, load_recording,
                                       save_recording)
 from sphri.hardware.settings import SimulateSettings, SkinRecordSettings
 from sphri.hardware.simulate import SkinSimulator, make_endpoint, pattern_stream, start_in_thread
@@ -131,17 +131,8 @@ def test_a_file_appearing_at_out_while_recording_is_not_replaced(tmp_path, monke
     assert saved != out and saved.parent == tmp_path and load_recording(saved).n_frames == 30
 
 
-def _frames_on_disk(partial: Path) -> int:
-    if not partial.exists() or partial.stat().st_size <= len(PARTIAL_MAGIC) + 4:
-        return 0
-    try:
-        return load_recording(partial).n_frames
-    except RecordingError:  # header still being written
-        return 0
-
-
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
-def test_a_signal_saves_the_recording(tmp_path, sig):
+def test_a_signal_saves_the_recording(tmp_path, sig, frames_on_disk):
     want = 30
     settings = SimulateSettings(source="pattern", port="socket://127.0.0.1:0", frames=20_000, seed=2,
                                 realtime=True, rate_hz=200.0, hold_s=30.0)
@@ -159,7 +150,7 @@ def test_a_signal_saves_the_recording(tmp_path, sig):
     partial = out.with_name(out.name + ".partial")
     try:
         deadline = time.monotonic() + 120
-        while (on_disk := _frames_on_disk(partial)) < want:
+        while (on_disk := frames_on_disk(partial)) < want:
             assert proc.poll() is None, proc.stderr.read().decode()
             assert time.monotonic() < deadline, "the recorder wrote no frames"
             time.sleep(0.02)

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sphri.hardware.recording import PARTIAL_MAGIC, RecordingError, load_recording
+from sphri.hardware.recording import RecordingError, load_recording
 from sphri.hardware.settings import SimulateSettings, SkinRecordSettings
 from sphri.hardware.simulate import SkinSimulator, make_endpoint, pattern_stream, start_in_thread
 from sphri.hardware.skin import main as skin_main
@@ -61,16 +61,7 @@ def test_unwritable_output_is_one_clean_line_from_the_command(tmp_path, capsys):
     assert len(err) == 1 and "/proc/rec.npz" in err[0] and "Traceback" not in err[0]
 
 
-def _frames_on_disk(partial: Path) -> int:
-    if not partial.exists() or partial.stat().st_size <= len(PARTIAL_MAGIC) + 4:
-        return 0
-    try:
-        return load_recording(partial).n_frames
-    except RecordingError:  # header still being written
-        return 0
-
-
-def test_killed_mid_recording_keeps_the_frames_read_so_far(tmp_path):
+def test_killed_mid_recording_keeps_the_frames_read_so_far(tmp_path, frames_on_disk):
     want = 40
     sim, stream, th = _simulator(20_000, realtime=True, rate_hz=200.0)
     out = tmp_path / "rec.npz"
@@ -84,7 +75,7 @@ def test_killed_mid_recording_keeps_the_frames_read_so_far(tmp_path):
     try:
         # event-driven: wait until `want` frames are on disk (generous cap only against a hang)
         deadline = time.monotonic() + 120
-        while _frames_on_disk(partial) < want:
+        while frames_on_disk(partial) < want:
             assert proc.poll() is None, proc.stderr.read().decode()
             assert time.monotonic() < deadline, "the recorder wrote no frames"
             time.sleep(0.02)
