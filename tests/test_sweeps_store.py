@@ -150,6 +150,24 @@ def test_killed_sweep_ends_its_parent_killed(tmp_path: Path, sig: int):
     assert "sweep KILLED" in log
 
 
+def test_a_signal_whose_exception_was_replaced_still_ends_the_sweep_killed():
+    """A SIGTERM landing inside OmegaConf while Hydra composes a job surfaced as an AttributeError
+    from the half-finished call (seen in CI); once the signal was received the sweep counts as killed."""
+    from hydra_plugins.sphri_sweeper.sphri_sweeper import killed_by
+    from sphri.tracking.parent import KILLED, SweepKilled
+
+    KILLED.clear()
+    try:
+        replaced = AttributeError("'NoneType' object has no attribute '_invalidate_flags_cache'")
+        assert killed_by(replaced) is None, "no signal received: a real failure"
+        assert killed_by(KeyboardInterrupt()) == signal.SIGINT
+        assert killed_by(SweepKilled(signal.SIGTERM)) == signal.SIGTERM
+        KILLED.append(int(signal.SIGTERM))
+        assert killed_by(replaced) == signal.SIGTERM
+    finally:
+        KILLED.clear()
+
+
 def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     """The same sweep again, into its own sweep dir and then into a new timestamped one: both skip the
     finished jobs and reopen the one parent run."""

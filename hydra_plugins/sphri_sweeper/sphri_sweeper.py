@@ -48,6 +48,21 @@ def _raise_killed(signum: int, frame: Any) -> None:
     raise SweepKilled(signum)
 
 
+def killed_by(exc: BaseException) -> int | None:
+    """The signal number that ended the sweep when ``exc`` escaped it, else None (a real failure).
+
+    A signal's :class:`SweepKilled` raised inside library code (OmegaConf, Hydra's job composition)
+    can be replaced while unwinding by an unrelated error from the half-finished call; once a signal
+    was received (``KILLED``), the sweep was killed whatever exception surfaced."""
+    if isinstance(exc, SweepKilled):
+        return exc.signum
+    if KILLED:
+        return KILLED[0]
+    if isinstance(exc, KeyboardInterrupt):
+        return int(signal.SIGINT)
+    return None
+
+
 class SkippingLauncher:
     """A launcher that hands its wrapped launcher only the jobs not yet finished (each contiguous run
     of them with its own job numbers, so folders and numbers stay those of the whole sweep) and
@@ -229,13 +244,12 @@ class SphriSweeper(BasicSweeper):
             returns = super().sweep(arguments)
             if KILLED:  # the signal's exception was swallowed inside a job; the next job stopped the sweep
                 raise SweepKilled(KILLED[0])
-        except (KeyboardInterrupt, SweepKilled) as exc:
-            interrupted = "KILLED"
-            code = 128 + (exc.signum if isinstance(exc, SweepKilled) else signal.SIGINT)
-            returns = None
-        except BaseException:
-            interrupted = "FAILED"
-            raise
+        except BaseException as exc:
+            killed = killed_by(exc)
+            if killed is None:
+                interrupted = "FAILED"
+                raise
+            interrupted, code, returns = "KILLED", 128 + killed, None
         finally:
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
