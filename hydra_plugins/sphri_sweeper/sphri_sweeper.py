@@ -233,11 +233,12 @@ class SphriSweeper(BasicSweeper):
                 print(f"  ... and {len(jobs) - MAX_LISTED} more")
             sys.exit(0)
         start_sweep_file(self.config.hydra.sweep.dir, len(jobs))
-        open_parent(self.config, overrides)
         KILLED.clear()
+        # handlers first: a signal while the parent run opens still ends it KILLED, not RUNNING
         previous = {sig: signal.signal(sig, _raise_killed) for sig in (signal.SIGTERM, signal.SIGINT)}
         interrupted = None
         try:
+            open_parent(self.config, overrides)
             finished = self.finished_jobs(jobs)  # answered here: no worker starts for them
             if finished:
                 self.launcher = SkippingLauncher(self.launcher, finished)
