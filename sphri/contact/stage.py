@@ -23,13 +23,15 @@ threads change nothing).
 from __future__ import annotations
 
 import sys
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from sphri.contact import _kernels
 from sphri.contact.mesh import MeshAccel, prepare_mesh
-from sphri.contact.query import ContactQuery, SearchRecord, finish, search
 from sphri.types import Contacts, GestureDataset, Robot
+
+if TYPE_CHECKING:  # the numba kernels load where contacts are computed, not when a cached run reads VERSION
+    from sphri.contact.query import ContactQuery, SearchRecord
 
 #: Show a progress bar when a region has at least this many frames (and stderr is a terminal).
 PROGRESS_MIN_FRAMES = 50_000
@@ -108,6 +110,8 @@ def frames_near_link(p0: np.ndarray, p1: np.ndarray, reach_m: float, mesh: MeshA
     """
     out = np.empty(p0.shape[0], dtype=np.bool_)
     if p0.shape[0]:
+        from sphri.contact import _kernels
+
         c = mesh.shift
         _kernels.frames_near(np.ascontiguousarray(p0, dtype=np.float64), np.ascontiguousarray(p1, dtype=np.float64),
                              float(reach_m), float(c[0]), float(c[1]), float(c[2]), float(mesh.sphere_radius), out)
@@ -149,6 +153,8 @@ class ContactStage:
 
     def compute(self, dataset: GestureDataset, robot: Robot) -> Contacts:
         """Sparse contacts of every trial against ``robot.link_for(trial.region)``."""
+        from sphri.contact.query import SearchRecord
+
         _check_dataset(dataset)
         n_frames = dataset.n_frames
         c = dataset.hand.n_capsules
@@ -188,6 +194,8 @@ class ContactStage:
     def _chunk(self, mesh: MeshAccel, p0: np.ndarray, p1: np.ndarray, frames: np.ndarray, radius: np.ndarray,
                record: SearchRecord) -> list[dict[str, np.ndarray]]:
         """Contact rows of the capsules of ``frames`` ((F, C, 3) segment ends)."""
+        from sphri.contact.query import finish, search
+
         c = radius.size
         a = np.ascontiguousarray(p0.reshape(-1, 3))
         b = np.ascontiguousarray(p1.reshape(-1, 3))

@@ -46,17 +46,19 @@ import logging
 import zlib
 from dataclasses import dataclass
 from dataclasses import fields as dataclass_fields
-from typing import Optional, Sequence
+from typing import TYPE_CHECKING, Optional, Sequence
 
 import numpy as np
 
 from sphri.data.format import make_trials_frame, participant_id, trial_id
 from sphri.data.gestures import RELAXED, ContactPlan, Style, plan_contact
-from sphri.data.handfk import EFFECTORS, HandRig, effectors_from_bones, rotvec_to_matrix
-from sphri.data.linkgeom import LinkSurface
 from sphri.data.people import Spread
 from sphri.data.reference_stats import VR_FRAME_RATE_HZ, median_trial_frames
 from sphri.types import GESTURES, GestureDataset, HandModel, Robot
+
+if TYPE_CHECKING:  # imported where trials are generated: numba, trimesh and scipy stay out of a cached run
+    from sphri.data.handfk import HandRig
+    from sphri.data.linkgeom import LinkSurface
 
 log = logging.getLogger(__name__)
 
@@ -200,6 +202,9 @@ class SyntheticData:
     # ------------------------------------------------------------------ public
     def load(self, hand: HandModel, robot: Robot) -> GestureDataset:
         """Generate the trials (participant-major, regions in configured order, ordinals 1..n)."""
+        from sphri.data.handfk import HandRig
+        from sphri.data.linkgeom import LinkSurface
+
         rig = HandRig.from_hand(hand)
         surfaces = {r: LinkSurface(robot.link_for(r)) for r in self.regions}
         records: list[dict] = []
@@ -231,6 +236,8 @@ class SyntheticData:
     def _participant_region(
         self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str
     ) -> tuple[list[str], np.ndarray, list[int]]:
+        from sphri.data.handfk import EFFECTORS, effectors_from_bones
+
         sp = self.spread
         v, w = sp.variability, min(sp.variability, 1.0)
         # habitual touch site of this participant on this region, and its per-gesture shifts
@@ -283,6 +290,8 @@ class SyntheticData:
         self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str,
         plan: ContactPlan, i: int, m_l: np.ndarray, f_l: np.ndarray,
     ) -> _TrialMotion:
+        from sphri.data.handfk import EFFECTORS, rotvec_to_matrix
+
         hand = rig.hand
         gesture = plan.gesture
         p, n, t1, t2 = surf.frame_at(i)

@@ -14,7 +14,6 @@ import numpy as np
 
 from sphri.encode.common import check_frame_index, make_frames, select_rows
 from sphri.config import Configured
-from sphri.encode.raster import patch_ellipses, rasterize
 from sphri.encode.schema import EllipseEncoderSchema
 from sphri.layout.common import row_offsets
 from sphri.types import Contacts, Frames, Layout, Link, SurfaceMap
@@ -54,6 +53,8 @@ def encode_grid(
     who: str,
 ) -> Frames:
     """Chart-raster encoding of the frames ``frame_index`` (shared with ``coverage``)."""
+    from sphri.encode.raster import patch_ellipses, rasterize  # numba: loaded where frames are encoded
+
     h, w = require_chart_grid(layout, surface, who)
     fi = check_frame_index(contacts, frame_index, who)
     rows, start = select_rows(contacts, fi)

@@ -15,15 +15,17 @@ What was found and done goes to ``Link.notes`` and the log.
 from __future__ import annotations
 
 import logging
-from typing import Sequence
+from typing import TYPE_CHECKING, Sequence
 
 import numpy as np
-import trimesh
 
 from sphri.config import require_choice
 from sphri.robots.schema import UNITS
 from sphri.surface.meshutil import triangle_normals_areas
 from sphri.types import Link
+
+if TYPE_CHECKING:  # trimesh (about 0.5-1 s to import) loads where a mesh is checked or read, not on a cached run
+    import trimesh
 
 log = logging.getLogger(__name__)
 
@@ -69,6 +71,8 @@ def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:
 
 def _on_convex_hull(vertices: np.ndarray, faces: np.ndarray, tol: float) -> tuple[bool, np.ndarray | None]:
     """Whether every face centroid lies within ``tol`` (m) of the vertices' convex hull; also an interior point."""
+    import trimesh
+
     try:
         hull = trimesh.convex.convex_hull(vertices)
     except Exception:  # qhull fails on flat or too few points
@@ -188,6 +192,8 @@ def make_link(
         )
 
     # orientation
+    import trimesh
+
     closed = is_closed(f)
     before = f.copy()
     if closed:
@@ -245,6 +251,8 @@ def load_mesh_file(path, name: str, units: str = "auto", key: str = "") -> Link:
 def read_mesh(path, label: str = "") -> "trimesh.Trimesh":
     """The triangles of a mesh file (as stored, unprocessed; scenes flattened), or a :class:`MeshError`
     that names the file (``label`` first, e.g. ``"link 'arm': "``): the one reader of mesh files."""
+    import trimesh
+
     try:
         loaded = trimesh.load(str(path), process=False, force="mesh")
     except Exception as exc:

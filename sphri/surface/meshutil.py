@@ -3,16 +3,22 @@
 Validation of a :class:`~sphri.types.Link`, area-weighted surface sampling,
 face normals, and projection of points onto the mesh along a direction (rays,
 Embree via ``embreex`` when available) with a closest-point fallback.
+trimesh is imported by the functions that use it (a cached run imports this
+module for its array helpers and never pays trimesh's import).
 """
 
 from __future__ import annotations
 
 import logging
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import trimesh
 
 from sphri.types import Link
+
+if TYPE_CHECKING:
+    import trimesh
 
 log = logging.getLogger(__name__)
 
@@ -35,6 +41,8 @@ def check_link(link: Link) -> None:
 
 def to_trimesh(link: Link) -> trimesh.Trimesh:
     """The link as a ``trimesh.Trimesh`` with the same face order (no processing)."""
+    import trimesh
+
     return trimesh.Trimesh(
         vertices=np.asarray(link.vertices, dtype=np.float64),
         faces=np.asarray(link.faces, dtype=np.int64),
@@ -156,6 +164,8 @@ def project_along(
         face[r] = tri[first][better]
     hit = np.isfinite(best)
     if not hit.all():
+        import trimesh
+
         miss = ~hit
         cp, _, tri = trimesh.proximity.closest_point(mesh, points[miss])
         pos[miss] = cp
@@ -165,6 +175,8 @@ def project_along(
 
 def closest_points(link: Link, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Closest surface point, its distance (m) and triangle for each of (K, 3) points."""
+    import trimesh
+
     mesh = to_trimesh(link)
     cp, dist, tri = trimesh.proximity.closest_point(mesh, np.asarray(points, dtype=np.float64))
     return cp, dist, tri.astype(np.int64)
