@@ -211,9 +211,14 @@ def find_sweeper_plugin() -> None:
         hydra_plugins.__path__.append(str(here))
 
 
+INTERNAL_GROUPS = ("debug_model",)
+"""Config groups selected by interpolation in config.yaml, never on the command line."""
+
+
 def hide_schema_options() -> None:
-    """Leave the internal ``*_schema`` entries out of Hydra's group listings (tab completion): they are
-    the typed schemas the YAML files opt into, not choices a user makes."""
+    """Leave the internal ``*_schema`` entries and the ``debug_model`` group out of Hydra's group listings
+    (tab completion): the typed schemas the YAML files opt into and the light models ``+debug=fast``
+    selects for itself are not choices a user makes."""
     from hydra._internal.config_loader_impl import ConfigLoaderImpl
 
     original = ConfigLoaderImpl.get_group_options
@@ -221,7 +226,8 @@ def hide_schema_options() -> None:
         return
 
     def get_group_options(self, *args, **kwargs):
-        return [name for name in original(self, *args, **kwargs) if not name.endswith("_schema")]
+        return [name for name in original(self, *args, **kwargs)
+                if not name.endswith("_schema") and name not in INTERNAL_GROUPS]
 
     get_group_options._sphri_hides_schemas = True  # type: ignore[attr-defined]
     ConfigLoaderImpl.get_group_options = get_group_options  # type: ignore[method-assign]

@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
+
+import pytest
 
 from sphri.cli import components, main
 
@@ -117,6 +120,54 @@ def test_tab_completion_offers_components_not_schemas():
     run = subprocess.run([sys.executable, "-m", "sphri", "-sc", "query=bash"], capture_output=True, text=True,
                          env=env, timeout=120)
     assert run.stdout.split() == ["encoder=coverage", "encoder=ellipse", "encoder=proximity"], run.stdout + run.stderr
+
+
+def _complete(line: str, cache: Path) -> str:
+    """The console script's answer to a TAB (``sphri.completion.main``, as ``sphri`` runs it)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "COMP_LINE": line, "XDG_CACHE_HOME": str(cache),
+           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")])}
+    probe = "import sys; sys.argv = ['sphri', '-sc', 'query=bash']; from sphri.completion import main; main()"
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=120)
+    assert run.returncode == 0, run.stderr[-2000:]
+    return run.stdout
+
+
+def test_console_completion_answers_from_its_cache_what_hydra_answers(tmp_path: Path):
+    """Issue 28: each TAB composed the whole config (1.4 s); the console script keeps Hydra's answer per
+    context. The kept answer is Hydra's (a stem asked once serves every longer word), the internal
+    ``debug_model`` group is not offered, and a path value is completed by Hydra, never kept."""
+    from sphri import completion
+
+    first = _complete("sphri model=cnn_gru model.", tmp_path)
+    assert "model.hidden=" in first.split() and "model.lr=" in first.split()
+    kept = list((tmp_path / "sphri" / "completion").iterdir())
+    assert len(kept) == 1 and kept[0].read_text() == first
+    kept[0].write_text("model.from_the_cache=")  # the next TAB in this context reads the cache, not Hydra
+    assert _complete("sphri model=cnn_gru model.hi", tmp_path).split() == ["model.from_the_cache="]
+    groups = _complete("sphri +de", tmp_path).split()
+    assert "+debug=" in groups and "+debug_model=" not in groups
+    (tmp_path / "data").mkdir()
+    assert completion.is_path_word("sphri data.root=./da") and not completion.is_path_word("sphri data=syn")
+    assert completion.split_line("sphri -m +robot=rea") == ("sphri -m ", "+robot=")
+    assert completion.split_line("sphri hydra/la") == ("sphri ", "hydra/")
+
+
+def test_console_completion_starts_afresh_when_a_config_file_changes():
+    from sphri import completion
+
+    before = completion.fingerprint()
+    conf = completion._conf_dirs()[0] / "config.yaml"
+    st = conf.stat()
+    try:
+        os.utime(conf, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+        assert completion.fingerprint() != before
+    finally:
+        os.utime(conf, ns=(st.st_atime_ns, st.st_mtime_ns))
+    assert completion.fingerprint() == before
 
 
 def _within(seconds: int):
