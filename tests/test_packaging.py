@@ -106,6 +106,20 @@ def test_wheel_cli_show_returns(installed, tmp_path):
     assert "hand: HandCapsules" in show.stdout and max(map(len, show.stdout.splitlines())) <= 100
 
 
+def test_wheel_console_script_completes_from_its_configs(installed, tmp_path):
+    """The wheel's ``sphri`` script (sphri.completion) answers a TAB from the wheel's own configs, twice
+    (the second from its kept answer)."""
+    script = installed / "bin" / "sphri"
+    assert script.is_file(), sorted(p.name for p in (installed / "bin").iterdir()) if (installed / "bin").is_dir() else []
+    env = {**_env(installed), "COMP_LINE": "sphri encoder=", "XDG_CACHE_HOME": str(tmp_path / "xdg")}
+    for _ in range(2):
+        tab = subprocess.run([sys.executable, str(script), "-sc", "query=bash"], capture_output=True, text=True,
+                             env=env, cwd=tmp_path, timeout=120)
+        assert tab.returncode == 0, tab.stderr[-3000:]
+        assert tab.stdout.split() == ["encoder=coverage", "encoder=ellipse", "encoder=proximity"], tab.stdout
+    assert len(list((tmp_path / "xdg" / "sphri" / "completion").iterdir())) == 1
+
+
 def test_wheel_runs_the_scenario_study_at_debug_size(installed, tmp_path):
     study = _sphri(installed, tmp_path, "sphri.coverage", "+experiment=scenario_study", "+debug=fast", "out=study",
                    "experiment.scenario_study.figure_formats=[png]", "experiment.scenario_study.view_faces=3000")
