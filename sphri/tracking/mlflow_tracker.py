@@ -48,6 +48,8 @@ T = TypeVar("T")
 
 PARENT_FILE = "mlflow_parent_run.json"
 """Written into a sweep directory: the parent run id and tracking URI."""
+_CLIENTS: dict[str, "MlflowClient"] = {}
+"""This process's MLflow client of each tracking URI (every tracker of a sweep's launching process shares it)."""
 
 #: Settings of a group that are not MLflow params (paths, large nested definitions).
 _SKIP_PARAM_KEYS = {"_target_", "root", "path", "definition_path", "density_path", "capsules", "links", "joints"}
@@ -186,13 +188,16 @@ class MlflowTracker:
     def client(self, output_dir: str | os.PathLike) -> "MlflowClient":
         """The MLflow client; opening it creates (or checks) the store, so call it before computing."""
         if self._client is None:
-            from mlflow.tracking import MlflowClient
-
-            from sphri.tracking.store import ensure_store
-
             uri = self.resolve_uri(output_dir)
-            ensure_store(uri)  # a new SQLite store is created once, under a lock; a broken one raises BrokenStore
-            self._client = MlflowClient(tracking_uri=uri)
+            client = _CLIENTS.get(uri)
+            if client is None:  # one per store and process: opening a SQL store costs about 0.6 s
+                from mlflow.tracking import MlflowClient
+
+                from sphri.tracking.store import ensure_store
+
+                ensure_store(uri)  # a new SQLite store is created once, under a lock; a broken one raises BrokenStore
+                client = _CLIENTS[uri] = MlflowClient(tracking_uri=uri)
+            self._client = client
         return self._client
 
     def experiment_id(self, output_dir: str | os.PathLike) -> str:
