@@ -15,7 +15,10 @@ have a near-identical trial in the other. What happens then is
 
 Cost: the fingerprints come from poses already in memory (3 x
 :data:`SAMPLES` numbers per trial); trials are compared only within a
-bucket of equal label and length.
+bucket of equal label and length (0.56 s for the 2,880 trials of the
+built-in study). Margin: there the closest trials of two different
+participants with equal label and length are 26.8 mm RMS apart, 11.7 mm with
+``data.variability=0 data.jitter_mm=0`` (measured 2026-11-26).
 """
 
 from __future__ import annotations

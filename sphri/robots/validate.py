@@ -123,8 +123,9 @@ def make_link(
     ``vertices`` (V, 3) in the file's units, ``faces`` (F, 3) vertex indices;
     ``units`` is ``auto`` (mm when the largest extent of the main connected
     component, the one with most faces, is over :data:`MM_EXTENT_THRESHOLD_M`,
-    so a stray part far away decides nothing; refused when major components
-    disagree), ``m`` or ``mm``. ``source`` (a path or a
+    so a stray part far away never scales the link; refused when major
+    components disagree, or when the main part reads as metres but other parts
+    stretch the mesh past the threshold), ``m`` or ``mm``. ``source`` (a path or a
     description) names the mesh in errors and notes; ``notes`` are prepended
     to what validation adds. Raises :class:`MeshError` for unusable input.
     """
@@ -173,13 +174,12 @@ def make_link(
                 f"and scaled by 0.001 (set units=m to keep it)",
                 logging.WARNING,
             )
-        else:
-            stray = len(parts) - 1
-            note(
-                f"largest extent {extent:g} comes from {stray} small part(s) ({len(f) - main_faces} of {len(f)} faces) "
-                f"away from its main part ({main_faces} faces, {main_extent:.3g} across): kept in metres, decided by "
-                f"the main part (set units=mm if the file is in millimetres); a stray part far from the link?",
-                logging.WARNING,
+        else:  # metres by its main part, yet over 5 m across: a stray part far away would distort the skin
+            raise MeshError(
+                f"{where}: its main part ({main_faces} of {len(f)} faces, {main_extent:.3g} across) reads as metres "
+                f"but {len(parts) - 1} other part(s) stretch the mesh to {extent:.3g} across: a stray part far from "
+                f"the link? Remove it from the file, or set robot.units=m to use the mesh as it is (robot.units=mm "
+                f"if it is in millimetres)"
             )
     elif extent > MM_EXTENT_THRESHOLD_M:
         note(f"largest extent {extent:g} m with units=m: kept; is it in millimetres?", logging.WARNING)

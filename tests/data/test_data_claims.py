@@ -115,18 +115,23 @@ def _arm_with(part_v, part_f, arm=(0.06, 0.08, 0.24)):
     return np.vstack([v, part_v]), np.vstack([f, np.asarray(part_f) + len(v)])
 
 
-def test_stray_part_far_away_does_not_flip_units(caplog):
+def test_stray_part_far_away_does_not_flip_units():
     """Reproducer (issue 29): a stray component 10 m from the arm flipped ``units=auto`` to mm (the arm
-    shrank 1000x; the run reported a 0.6 mm pitch). The main part decides; the stray part is named."""
+    shrank 1000x; the run reported a 0.6 mm pitch). The main part reads as metres, so the mesh is not
+    scaled; the stray part would still distort the surface, so it is refused with the settings."""
     v, f = _arm_with(*_box((0.01, 0.01, 0.01), at=(10.0, 0.0, 0.0)))
-    with caplog.at_level(logging.WARNING, logger="sphri.robots.validate"):
-        link = make_link("arm", v, f, units="auto")
-    assert np.ptp(link.vertices[:, 2]) == pytest.approx(0.24, rel=1e-6)
-    assert np.ptp(link.vertices[:, 0]) > 9.0  # nothing scaled
-    assert "small part" in caplog.text and "main part" in caplog.text
-    # a link in millimetres with a stray part is still scaled, by its main part
+    with pytest.raises(MeshError, match=r"its main part \(320 of 332 faces, 0\.24 across\) reads as metres but 1 "
+                                        r"other part\(s\) stretch the mesh to 10 across: a stray part .*"
+                                        r"set robot\.units=m to use the mesh as it is"):
+        make_link("arm", v, f, units="auto")
+    link = make_link("arm", v, f, units="m")  # as the user says: kept, unscaled
+    assert np.ptp(link.vertices[:, 2]) == pytest.approx(0.24, rel=1e-6) and np.ptp(link.vertices[:, 0]) > 9.0
+    # a link in millimetres with a small part beside it is scaled, by its main part
     v, f = _arm_with(*_box((1.0, 1.0, 1.0), at=(300.0, 0.0, 0.0)), arm=(60.0, 80.0, 240.0))
     assert np.ptp(make_link("arm", v, f, units="auto").vertices[:, 2]) == pytest.approx(0.24, rel=1e-6)
+    # the arm alone is unchanged
+    assert np.ptp(make_link("arm", *_arm_with(np.zeros((0, 3)), np.zeros((0, 3), np.int64)),
+                            units="auto").vertices[:, 2]) == pytest.approx(0.24, rel=1e-6)
 
 
 def test_major_parts_disagreeing_on_units_are_refused():
