@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import difflib
 import importlib
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -138,17 +139,21 @@ def require_range(
     lo_open: bool = False,
     hi_open: bool = False,
 ) -> None:
-    """Check ``lo <= value <= hi`` (open ends with ``*_open``)."""
+    """Check ``lo <= value <= hi`` (open ends with ``*_open``); NaN and +-inf are always refused
+    (no physical setting is infinite: an unbounded side is written as ``lo``/``hi`` None)."""
     ok = True
+    if isinstance(value, float) and not math.isfinite(value):
+        ok = False
     if lo is not None:
         ok &= value > lo if lo_open else value >= lo
     if hi is not None:
         ok &= value < hi if hi_open else value <= hi
-    lb = "(" if lo_open else "["
-    rb = ")" if hi_open else "]"
+    lb = "(" if lo_open or lo is None else "["
+    rb = ")" if hi_open or hi is None else "]"
     lo_s = "-inf" if lo is None else f"{lo:g}"
     hi_s = "inf" if hi is None else f"{hi:g}"
-    require(bool(ok), key, value, f"must be in {lb}{lo_s}, {hi_s}{rb}")
+    finite = "a finite number " if isinstance(value, float) and not math.isfinite(value) else ""
+    require(bool(ok), key, value, f"must be {finite}in {lb}{lo_s}, {hi_s}{rb}")
 
 
 def require_choice(key: str, value: Any, choices: Iterable[Any]) -> None:

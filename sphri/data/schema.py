@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 from typing import Optional
 
 from sphri.config import require, require_choice, require_range, store
+from sphri.data.duplicates import DUPLICATE_POLICIES
 from sphri.data.people import Spread
 from sphri.inputs import input_path
 from sphri.types import GESTURES
@@ -97,6 +98,8 @@ class VRGestureDataSchema:
     quat_tolerance: float = 1e-3
     units: str = "m"
     """Units of the pose files' positions: m (the format's), cm or mm (scaled to metres on load)."""
+    duplicates: str = "refuse"
+    """Two participant ids with near-identical trials (a copied folder): refuse, warn (load both) or off."""
 
     def __post_init__(self) -> None:
         require(isinstance(self.root, str) and self.root != "", "data.root", self.root,
@@ -107,6 +110,7 @@ class VRGestureDataSchema:
             require_range("data.frame_rate_hz", self.frame_rate_hz, lo=1.0, hi=1000.0)
         require_range("data.quat_tolerance", self.quat_tolerance, lo=0.0, lo_open=True, hi=0.5)
         require_choice("data.units", self.units, POSITION_UNITS)
+        require_choice("data.duplicates", self.duplicates, DUPLICATE_POLICIES)
 
 
 store(group="data", name="synthetic_schema", node=SyntheticDataSchema)

@@ -24,12 +24,23 @@ missing or misnamed columns, an unknown gesture label, duplicated or missing
 - ``frame_range_mismatch``: a trial whose ``frame`` column does not span the
   manifest's ``start_frame``..``end_frame`` (kept; the poses are unaffected).
 
+A trial whose ``frame`` column goes backwards once its rows are put in
+``frame_index_in_trial`` order (a reversed or shuffled index, which would
+reorder the poses) is an error naming the file, trial and both columns.
+
 Plausibility (:func:`check_position_scale`): positions are in ``data.units``
 (m by default, scaled to metres on load); a participant whose hand is 100 or
 1000 times its capsule model's size (positions in cm or mm) or far off the
-robot is refused, naming the file and the likely unit. A participant left
+robot is refused, naming the file and the likely unit; so is a single trial
+whose scale disagrees (one trial in mm among trials in metres), by its
+ordinal. A participant left
 with no usable trial is named in a warning (``participant_without_trials``)
 and the run's summary says how many participants its folds cover.
+
+Duplicates (:mod:`sphri.data.duplicates`): two participant ids holding
+near-identical trials (a copied participant folder) are refused by default,
+naming both ids (``data.duplicates=warn`` loads them with a warning,
+``off`` skips the check).
 """
 
 from __future__ import annotations
@@ -44,6 +55,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
+from sphri.data.duplicates import DUPLICATE_POLICIES, describe, find_duplicates, fingerprint
 from sphri.data.format import (
     GENERATOR_KEY,
     GENERATOR_VALUE,
@@ -89,22 +101,46 @@ def hand_model_size_m(hand: HandModel) -> float:
     return float(np.max(hand.height_m) + 2 * np.max(hand.radius_m))
 
 
+def _likely_unit(ratio: float, units: str) -> str:
+    return min(POSITION_UNITS, key=lambda u: abs(np.log10(ratio * POSITION_UNITS[u] / POSITION_UNITS[units] / 0.5)))
+
+
 def check_position_scale(where: str, who: str, poses: Sequence[np.ndarray], hand: HandModel,
-                         robot: Optional[Robot], region: str, units: str) -> None:
-    """Refuse positions whose scale cannot be metres (see the module docstring); ``poses`` (F, C, 7) in metres."""
+                         robot: Optional[Robot], region: str, units: str,
+                         trials: Optional[Sequence[dict]] = None) -> None:
+    """Refuse positions whose scale cannot be metres (see the module docstring); ``poses`` (F, C, 7) in metres.
+
+    The participant's scale is the median over its frames; each trial's own median (up to 20
+    frames) must then be plausible too, so one trial in another unit is named by ``trials[i]``.
+    """
     if not poses:
         return
-    p = np.concatenate([q[:: max(1, len(q) // 50), :, :3] for q in poses]).astype(np.float64)
+    sub = [q[:: max(1, len(q) // 20), :, :3].astype(np.float64) for q in poses]
+    spans = [np.linalg.norm(q - q.mean(axis=1, keepdims=True), axis=2).max(axis=1) for q in sub]
+    p = np.concatenate(sub)
     centre = p.mean(axis=1)
-    span = float(np.median(np.linalg.norm(p - centre[:, None], axis=2).max(axis=1)))
+    span = float(np.median(np.concatenate(spans)))
     size = hand_model_size_m(hand)
     ratio = span / size
     if not (HAND_SCALE_RANGE[0] <= ratio <= HAND_SCALE_RANGE[1]):
-        guess = min(POSITION_UNITS, key=lambda u: abs(np.log10(ratio * POSITION_UNITS[u] / POSITION_UNITS[units] / 0.5)))
+        guess = _likely_unit(ratio, units)
         likely = f"; they look like {guess}: set data.units={guess} or convert the file" if guess != units else ""
         raise DatasetError(
             f"{where}: {who}'s hand positions are implausible in data.units={units}: the hand spans "
             f"{span:.3g} m (median) while its capsule model is {size:.3g} m across{likely}"
+        )
+    with np.errstate(invalid="ignore"):
+        per_trial = np.array([np.nanmedian(s) if s.size else np.nan for s in spans]) / size
+    odd = np.flatnonzero(~((per_trial >= HAND_SCALE_RANGE[0]) & (per_trial <= HAND_SCALE_RANGE[1])))
+    if odd.size:
+        i = int(odd[0])
+        t = trials[i] if trials is not None else {"trial_ordinal": i + 1, "trial_id": "?"}
+        guess = _likely_unit(float(per_trial[i]), units) if np.isfinite(per_trial[i]) else "?"
+        raise DatasetError(
+            f"{where}: trial {t['trial_ordinal']} ({t['trial_id']}): the hand spans {per_trial[i] * size:.3g} m "
+            f"(median) while {who}'s other trials span {span:.3g} m and its capsule model is {size:.3g} m across: "
+            f"this trial looks like {guess}, the others like data.units={units} ({odd.size} trial(s) affected); "
+            f"convert the trial"
         )
     if robot is not None and region in robot.regions:
         link = robot.link_for(region)
@@ -187,6 +223,7 @@ class VRGestureData:
         frame_rate_hz: Optional[float] = None,
         quat_tolerance: float = 1e-3,
         units: str = "m",
+        duplicates: str = "refuse",
     ):
         if root is None:
             raise DatasetError("data.root is not set: give the dataset folder, e.g. data.root=/path/to/VR-gesture-dataset")
@@ -205,6 +242,9 @@ class VRGestureData:
         if units not in POSITION_UNITS:
             raise DatasetError(f"data.units={units!r} is invalid: allowed values: {list(POSITION_UNITS)}")
         self.units = units
+        if duplicates not in DUPLICATE_POLICIES:
+            raise DatasetError(f"data.duplicates={duplicates!r} is invalid: allowed values: {list(DUPLICATE_POLICIES)}")
+        self.duplicates = duplicates
 
     # ------------------------------------------------------------------ public
     def load(self, hand: HandModel, robot: Optional[Robot] = None) -> GestureDataset:
@@ -224,6 +264,7 @@ class VRGestureData:
         rates: set[float] = set()
         start = 0
         n_usable: Counter[str] = Counter()
+        prints: list = []
         for pid in pids:
             for region in self.regions:
                 if not (self.root / region / pid).is_dir():
@@ -231,7 +272,7 @@ class VRGestureData:
                     continue
                 manifest, trials, poses = self._load_one(pid, region, hand, repairs)
                 check_position_scale(str(parquet_path(self.root, region, pid)), pid, poses, hand, robot, region,
-                                     self.units)
+                                     self.units, trials)
                 n_usable[pid] += len(trials)
                 generators.add(manifest.get(GENERATOR_KEY) == GENERATOR_VALUE)
                 if "frame_rate_hz" in manifest:
@@ -243,11 +284,20 @@ class VRGestureData:
                     )
                     chunks.append(p)
                     start += len(p)
+                    if self.duplicates != "off":
+                        prints.append((pid, (region, t["gesture_label"], len(p)), fingerprint(p)))
         empty = [pid for pid in pids if n_usable[pid] == 0 and any((self.root / r / pid).is_dir() for r in self.regions)]
         if empty:
             repairs["participant_without_trials"] += len(empty)
             log.warning("%s: participant(s) %s have no usable trial (gestures %s, min_frames %d): left out of the "
                         "dataset", self.root, empty, self.gestures, self.min_frames)
+        for pair in find_duplicates(prints):
+            if self.duplicates == "refuse":
+                raise DatasetError(f"{self.root}: {describe(pair)}: a copied participant folder? Remove one, or set "
+                                   "data.duplicates=warn to load both")
+            repairs["duplicate_participants"] += 1
+            log.warning("%s: duplicate_participants: %s: both loaded (data.duplicates=warn); they are not independent "
+                        "people, so leave-one-subject-out overstates accuracy", self.root, describe(pair))
         if len(generators) > 1:
             raise DatasetError(f"{self.root}: mixes sphri-generated and recorded manifests ('{GENERATOR_KEY}' key)")
         synthetic = generators == {True}
@@ -405,6 +455,18 @@ class VRGestureData:
             raise DatasetError(
                 f"{ppath}: trial {o}: column frame_index_in_trial has {'; '.join(what)} "
                 f"(expected 0..{n - 1}; {broken.size} trial(s) affected)"
+            )
+
+        # in frame_index_in_trial order the recording's own frame numbers must not go backwards: a
+        # reversed or shuffled index would silently reorder the poses
+        back = np.flatnonzero((np.diff(frame) < 0) & (ordinal[1:] == ordinal[:-1])) + 1
+        if back.size:
+            r = int(back[0])
+            o = int(ordinal[r])
+            raise DatasetError(
+                f"{ppath}: trial {o}: column frame goes backwards ({int(frame[r - 1])} -> {int(frame[r])}) at "
+                f"frame_index_in_trial={int(fidx[r])}: the index disagrees with the recording order "
+                f"({np.unique(ordinal[back]).size} trial(s) affected)"
             )
 
         out_trials: list[dict] = []

@@ -342,7 +342,16 @@ class WithinSubjectKFold(CrossValidation):
 
     def splits(self, windows: WindowedFrames, seed: int = 0) -> list[Fold]:
         y = np.asarray(windows.y)
-        fold = self.assign(y, np.asarray(windows.groups), seed)
+        groups = np.asarray(windows.groups)
+        names, sizes = np.unique(groups, return_counts=True)
+        if sizes.size and self.k > int(sizes.min()):
+            least = str(names[int(np.argmin(sizes))])
+            raise CVError(
+                f"cv.k={self.k} is more than the {int(sizes.min())} windows of {least} (the participant with the "
+                f"fewest of {len(names)}): each of the k folds needs a share of every participant's trials; "
+                f"set cv.k<={int(sizes.min())}"
+            )
+        fold = self.assign(y, groups, seed)
         idx = np.arange(y.shape[0], dtype=np.int64)
         out = []
         for i in range(self.k):

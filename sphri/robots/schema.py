@@ -127,7 +127,7 @@ class MeshRobotSchema:
     root_required: bool = False
     """Refuse to build when ``root`` is None (robots whose meshes come with a dataset)."""
     units: str = "auto"
-    """Mesh units: auto (mm when larger than 5 m), m or mm."""
+    """Mesh units: auto (mm when the main connected part of a link is larger than 5 m), m or mm."""
 
     def __post_init__(self) -> None:
         links = check_str_map(self.links, "robot.links", "link name -> mesh file")

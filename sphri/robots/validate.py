@@ -29,8 +29,11 @@ if TYPE_CHECKING:  # trimesh (about 0.5-1 s to import) loads where a mesh is che
 
 log = logging.getLogger(__name__)
 
-#: A link whose largest extent exceeds this (metres) is taken to be in mm under ``units=auto``.
+#: A link whose main part's largest extent exceeds this (metres) is taken to be in mm under ``units=auto``.
 MM_EXTENT_THRESHOLD_M = 5.0
+#: Connected components holding at least this fraction of a mesh's faces are its major parts: under
+#: ``units=auto`` they must agree on the units, or the mesh is refused as ambiguous.
+MAJOR_COMPONENT_FRACTION = 0.25
 
 #: An open mesh whose face centres all lie within this fraction of its largest
 #: extent from its convex hull is treated as a (slightly inexact) convex hull.
@@ -89,6 +92,28 @@ def _on_convex_hull(vertices: np.ndarray, faces: np.ndarray, tol: float) -> tupl
     return worst <= tol, hull.vertices.mean(axis=0)
 
 
+def component_extents(v: np.ndarray, f: np.ndarray) -> list[tuple[int, float]]:
+    """(face count, largest extent) of each connected component (vertices merged at 1e-6 of the
+    extent, so an STL's unshared triangles still connect), most faces first."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    extent = float((v.max(axis=0) - v.min(axis=0)).max()) or 1.0
+    _, inv = np.unique(np.round(v / (extent * 1e-6)).astype(np.int64), axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    g = inv[f]
+    n = int(inv.max()) + 1
+    rows, cols = g[:, [0, 1, 2]].ravel(), g[:, [1, 2, 0]].ravel()
+    _, label = connected_components(coo_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n)), directed=False)
+    face_label = label[g[:, 0]]
+    out = []
+    for c in np.unique(face_label):
+        fv = f[face_label == c].ravel()
+        pts = v[fv]
+        out.append((int((face_label == c).sum()), float((pts.max(axis=0) - pts.min(axis=0)).max())))
+    return sorted(out, key=lambda t: -t[0])
+
+
 def make_link(
     name: str,
     vertices: np.ndarray,
@@ -100,8 +125,11 @@ def make_link(
     """Validate and repair a triangle mesh into a :class:`Link`.
 
     ``vertices`` (V, 3) in the file's units, ``faces`` (F, 3) vertex indices;
-    ``units`` is ``auto`` (mm when the largest extent is over
-    :data:`MM_EXTENT_THRESHOLD_M`), ``m`` or ``mm``. ``source`` (a path or a
+    ``units`` is ``auto`` (mm when the largest extent of the main connected
+    component, the one with most faces, is over :data:`MM_EXTENT_THRESHOLD_M`,
+    so a stray part far away never scales the link; refused when major
+    components disagree, or when the main part reads as metres but other parts
+    stretch the mesh past the threshold), ``m`` or ``mm``. ``source`` (a path or a
     description) names the mesh in errors and notes; ``notes`` are prepended
     to what validation adds. Raises :class:`MeshError` for unusable input.
     """
@@ -134,12 +162,29 @@ def make_link(
         v = v * 1e-3
         note("scaled by 0.001 (units=mm)")
     elif units == "auto" and extent > MM_EXTENT_THRESHOLD_M:
-        v = v * 1e-3
-        note(
-            f"largest extent {extent:g} > {MM_EXTENT_THRESHOLD_M:g} m: taken as millimetres and scaled by 0.001 "
-            f"(set units=m to keep it)",
-            logging.WARNING,
-        )
+        parts = component_extents(v, f)
+        main_faces, main_extent = parts[0]
+        major = [(n, e) for n, e in parts if n >= MAJOR_COMPONENT_FRACTION * len(f)]
+        if len({e > MM_EXTENT_THRESHOLD_M for _, e in major}) > 1:
+            sizes = ", ".join(f"{n} faces {e:.3g} across" for n, e in major)
+            raise MeshError(
+                f"{where}: units are ambiguous: its major parts ({sizes}) read as both metres and millimetres "
+                f"(threshold {MM_EXTENT_THRESHOLD_M:g}); set robot.units=m or robot.units=mm"
+            )
+        if main_extent > MM_EXTENT_THRESHOLD_M:
+            v = v * 1e-3
+            note(
+                f"largest extent {main_extent:g} of its main part > {MM_EXTENT_THRESHOLD_M:g} m: taken as millimetres "
+                f"and scaled by 0.001 (set units=m to keep it)",
+                logging.WARNING,
+            )
+        else:  # metres by its main part, yet over 5 m across: a stray part far away would distort the skin
+            raise MeshError(
+                f"{where}: its main part ({main_faces} of {len(f)} faces, {main_extent:.3g} across) reads as metres "
+                f"but {len(parts) - 1} other part(s) stretch the mesh to {extent:.3g} across: a stray part far from "
+                f"the link? Remove it from the file, or set robot.units=m to use the mesh as it is (robot.units=mm "
+                f"if it is in millimetres)"
+            )
     elif extent > MM_EXTENT_THRESHOLD_M:
         note(f"largest extent {extent:g} m with units=m: kept; is it in millimetres?", logging.WARNING)
     extent = float((v.max(axis=0) - v.min(axis=0)).max())

@@ -18,13 +18,18 @@ h/c_rot_w`` (metres, unit quaternion xyzw, world frame) and for each link
 
 :func:`write_sessions` writes it, :class:`SessionData` (``data=sessions``)
 reads it back and validates every file; each defect raises
-:class:`SessionFormatError` naming the file and the field.
+:class:`SessionFormatError` naming the file and the field. Among them: a
+``file`` that is absolute or leaves its participant's folder (``../``), a
+``frame_rate_hz`` outside [1, 1000] Hz or not finite, a ``frame`` column that
+does not run 0..n-1, positions in mm, and two participant ids holding
+near-identical sessions (:mod:`sphri.data.duplicates`; ``data.duplicates``).
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Optional, Sequence
@@ -32,6 +37,7 @@ from typing import Any, Optional, Sequence
 import numpy as np
 import pandas as pd
 
+from sphri.data.duplicates import describe, find_duplicates, fingerprint
 from sphri.data.format import POSE_SUFFIXES, participant_id, pose_columns
 from sphri.types import HandModel
 
@@ -51,6 +57,8 @@ HEADER_KEYS: tuple[str, ...] = ("format", "version", "name", "synthetic", "robot
 
 #: Sessions are in metres: a median hand or link position farther than this from the origin is refused.
 MAX_MEDIAN_DISTANCE_M = 20.0
+#: Plausible frame rates of a manifest's ``frame_rate_hz`` (Hz), as for the VR gesture manifests.
+MIN_RATE_HZ, MAX_RATE_HZ = 1.0, 1000.0
 
 
 class SessionFormatError(ValueError):
@@ -208,8 +216,15 @@ def read_manifest(path: Path, rate_tol: float = 1e-6) -> list[dict]:
         for k in ("repetition", "order", "n_frames"):
             if not isinstance(e[k], int) or isinstance(e[k], bool) or e[k] < (0 if k == "order" else 1):
                 raise SessionFormatError(f"{path}: sessions[{i}].{k}={e[k]!r} is invalid: a positive integer")
-        if not isinstance(e["frame_rate_hz"], (int, float)) or not e["frame_rate_hz"] > 0:
-            raise SessionFormatError(f"{path}: sessions[{i}].frame_rate_hz={e['frame_rate_hz']!r} is invalid: > 0")
+        rate = e["frame_rate_hz"]
+        if (isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate)
+                or not MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
+            raise SessionFormatError(f"{path}: sessions[{i}].frame_rate_hz={rate!r} is implausible: must be a number "
+                                     f"in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz")
+        f = e["file"]
+        if not isinstance(f, str) or not f or Path(f).is_absolute() or ".." in Path(f).parts:
+            raise SessionFormatError(f"{path}: sessions[{i}].file={f!r} is invalid: a file name inside the "
+                                     "participant's folder (no absolute path, no '..')")
         key = (e["scenario"], e["repetition"])
         if key in seen:
             raise SessionFormatError(f"{path}: sessions[{i}]: scenario {key[0]!r} repetition {key[1]} is listed twice")
@@ -228,7 +243,8 @@ class SessionData:
     USES_ROBOT = False
 
     def __init__(self, root: Optional[str] = None, participants: Optional[int] = None, repetitions: Optional[int] = None,
-                 scenarios: Optional[Sequence[str]] = None, quat_tolerance: float = 1e-3, **_: Any):
+                 scenarios: Optional[Sequence[str]] = None, quat_tolerance: float = 1e-3, duplicates: str = "refuse",
+                 **_: Any):
         if not root:
             raise ValueError("data.root is empty: set it to a sessions folder (one holding sessions.json)")
         self.root = str(root)
@@ -236,6 +252,12 @@ class SessionData:
         self.repetitions = repetitions
         self.scenarios = None if scenarios is None else [str(s) for s in scenarios]
         self.quat_tolerance = float(quat_tolerance)
+        from sphri.data.duplicates import DUPLICATE_POLICIES
+
+        if duplicates not in DUPLICATE_POLICIES:
+            raise SessionFormatError(f"data.duplicates={duplicates!r} is invalid: allowed values: "
+                                     f"{list(DUPLICATE_POLICIES)}")
+        self.duplicates = duplicates
 
     def load(self, hand: HandModel | None = None, robot: Any = None) -> SessionDataset:
         root = Path(self.root)
@@ -261,6 +283,7 @@ class SessionData:
         hcols, lcols = hand_columns(shand), link_columns(links)
         c, nl = len(shand.names), len(links)
         records, hands, lposes, rates = [], [], [], set()
+        prints: list = []
         start = 0
         for pid in pids:
             mpath = root / pid / "manifest.json"
@@ -272,6 +295,10 @@ class SessionData:
             tables: dict[str, pd.DataFrame] = {}
             for e in entries:
                 ppath = root / pid / str(e["file"])
+                inside = (root / pid).resolve()
+                if inside not in ppath.resolve().parents:
+                    raise SessionFormatError(f"{mpath}: field file={e['file']!r} of scenario {e['scenario']!r} "
+                                             f"repetition {e['repetition']} resolves outside {root / pid} (a link?)")
                 if e["file"] not in tables:
                     tables[e["file"]] = self._read_table(ppath, hcols, lcols)
                 tab = tables[e["file"]]
@@ -288,11 +315,19 @@ class SessionData:
                 self._check_units(ppath, e, h, lk)
                 hands.append(h)
                 lposes.append(lk)
+                if self.duplicates != "off":
+                    prints.append((pid, (str(e["scenario"]), len(h)), fingerprint(h)))
                 rates.add(float(e["frame_rate_hz"]))
                 records.append(dict(participant=pid, scenario=str(e["scenario"]), repetition=int(e["repetition"]),
                                     order=int(e["order"]), start_position=str(e["start_position"]), start=start,
                                     n_frames=int(e["n_frames"])))
                 start += int(e["n_frames"])
+        for pair in find_duplicates(prints):
+            if self.duplicates == "refuse":
+                raise SessionFormatError(f"{root}: {describe(pair, 'sessions')}: a copied participant folder? "
+                                         "Remove one, or set data.duplicates=warn to load both")
+            log.warning("%s: duplicate_participants: %s: both loaded (data.duplicates=warn); they are not "
+                        "independent people", root, describe(pair, "sessions"))
         if not records:
             raise SessionFormatError(f"{root}: no session left after selecting participants/scenarios/repetitions")
         if robot is not None:

@@ -58,12 +58,17 @@ class SessionDataSchema:
     repetitions: Optional[int] = None
     scenarios: Optional[list[str]] = None
     quat_tolerance: float = 1e-3
+    duplicates: str = "refuse"
+    """Two participant ids with near-identical sessions (a copied folder): refuse, warn (load both) or off."""
 
     def __post_init__(self) -> None:
+        from sphri.data.duplicates import DUPLICATE_POLICIES
+
         require(isinstance(self.root, str) and self.root != "", "data.root", self.root,
                 "set the sessions folder (the one holding sessions.json)")
         _check_sizes(self.participants, self.repetitions, self.scenarios)
         require_range("data.quat_tolerance", self.quat_tolerance, lo=0.0, lo_open=True, hi=0.5)
+        require_choice("data.duplicates", self.duplicates, DUPLICATE_POLICIES)
 
 
 @dataclass

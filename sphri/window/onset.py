@@ -9,11 +9,17 @@ all are counted and logged; ``no_contact: drop`` removes them,
 noise, since nothing touches the skin). :meth:`OnsetWindow.assemble` scatters
 the encoded frames (in ``plan.selected_frames()`` order) into
 ``x (n_kept, L, N)`` float32.
+
+Both estimate their arrays' size before allocating them and raise
+:class:`WindowMemoryError` (one line with the estimate) when it exceeds
+``window.max_memory_gib`` or, unset, a quarter of the memory available
+(``MemAvailable``): the noise and filter stages each hold a copy of the windows.
 """
 
 from __future__ import annotations
 
 import logging
+import os
 
 import numpy as np
 
@@ -22,6 +28,48 @@ from sphri.config import Configured
 from sphri.window.schema import OnsetWindowSchema
 
 log = logging.getLogger(__name__)
+
+GIB = float(1 << 30)
+
+
+class WindowMemoryError(ValueError):
+    """The windows would not fit in memory; the message gives the estimate and the setting."""
+
+
+def available_memory_bytes() -> float | None:
+    """``MemAvailable`` of /proc/meminfo (bytes), else free physical pages; None when unknown."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return float(line.split()[1]) * 1024.0
+    except OSError:
+        pass
+    try:
+        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def check_memory(what: str, shape: tuple[int, ...], itemsize: int, max_memory_gib: float | None,
+                 copies: int = 1) -> None:
+    """Refuse an allocation of ``copies`` arrays of ``shape`` x ``itemsize`` bytes above the limit
+    (``window.max_memory_gib``, else a quarter of the available memory), before it is made."""
+    need = float(np.prod(np.asarray(shape, dtype=np.float64))) * itemsize * copies
+    if max_memory_gib is not None:
+        limit, why = float(max_memory_gib) * GIB, f"window.max_memory_gib={max_memory_gib:g}"
+    else:
+        avail = available_memory_bytes()
+        if avail is None:
+            return
+        limit, why = avail / 4.0, f"a quarter of the {avail / GIB:.3g} GiB of memory available"
+    if need > limit:
+        dims = " x ".join(str(int(d)) for d in shape)
+        raise WindowMemoryError(
+            f"window: {what} ({dims}{f', {copies} arrays' if copies > 1 else ''}, {itemsize} bytes each) would take "
+            f"{need / GIB:.3g} GiB, more than {why} ({limit / GIB:.3g} GiB): lower window.frames (now {shape[1]}), "
+            f"the resolution or data.participants, or raise window.max_memory_gib"
+        )
 
 
 def trial_onsets(contacts: Contacts, dataset: GestureDataset) -> np.ndarray:
@@ -73,6 +121,8 @@ class OnsetWindow(Configured):
                 self.no_contact,
             )
         kept = ~none if self.no_contact == "drop" else np.ones(len(onset), dtype=bool)
+        # idx, rel and their comparison: three (trials, frames) arrays of int64 live at once
+        check_memory("the window plan", (len(onset), int(self.frames)), 8, self.max_memory_gib, copies=3)
         first = np.where(none, 0, onset)
         k = np.arange(self.frames, dtype=np.int64)[None, :]
         rel = first[:, None] + k
@@ -99,6 +149,7 @@ class OnsetWindow(Configured):
             )
         if len(plan.kept) != len(dataset.trials):
             raise ValueError(f"window.assemble: plan covers {len(plan.kept)} trials, dataset has {len(dataset.trials)}")
+        check_memory("the windows", (sel.shape[0], plan.length, values.shape[1]), 4, self.max_memory_gib)
         x = np.zeros((sel.shape[0], plan.length, values.shape[1]), dtype=np.float32)
         x[mask] = values
         rows = np.flatnonzero(plan.kept).astype(np.int64)

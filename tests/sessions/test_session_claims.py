@@ -1,0 +1,93 @@
+"""Session files checked against what they claim (issue 29, item 3): manifest paths outside the
+participant's folder, implausible frame rates, a participant copied under another id.
+
+Each test names the issue's reproducer; each fails on the sphri before this change."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import shutil
+
+import pytest
+
+from sphri.sessions.format import SessionData, SessionFormatError, write_sessions
+
+
+@pytest.fixture(scope="module")
+def written(small, tmp_path_factory):
+    _, _, _, ds = small
+    root = tmp_path_factory.mktemp("sessions")
+    write_sessions(ds, root)
+    return root
+
+
+def _copy(src, dst):
+    shutil.copytree(src, dst)
+    return dst
+
+
+def _edit(root, pid, edit):
+    path = root / pid / "manifest.json"
+    m = json.loads(path.read_text())
+    edit(m)
+    path.write_text(json.dumps(m))
+
+
+def test_manifest_path_leaving_the_participant_folder_is_refused(small, written, tmp_path):
+    """Reproducer (issue 29): a manifest path ``../participant_01/...`` was read (another participant's data)."""
+    _, hand, robot, _ = small
+    root = _copy(written, tmp_path / "up")
+    other = json.loads((root / "participant_01" / "manifest.json").read_text())["sessions"][0]
+
+    def borrow(m):  # participant_02's first session now names participant_01's file (counts made to agree)
+        m["sessions"][0].update(file=f"../participant_01/{other['file']}", scenario=other["scenario"],
+                                repetition=other["repetition"], n_frames=other["n_frames"])
+
+    _edit(root, "participant_02", borrow)
+    with pytest.raises(SessionFormatError, match=r"participant_02/manifest\.json: sessions\[0\]\.file="
+                                                 r"'\.\./participant_01/.*no absolute path, no '\.\.'"):
+        SessionData(root=str(root)).load(hand, robot)
+
+    root = _copy(written, tmp_path / "abs")
+    outside = str(written / "participant_02" / other["file"])
+    _edit(root, "participant_01", lambda m: m["sessions"][1].update(file=outside))
+    with pytest.raises(SessionFormatError, match=r"participant_01/manifest\.json: sessions\[1\]\.file='/"):
+        SessionData(root=str(root)).load(hand, robot)
+
+    # a link inside the folder that points out of it is refused too
+    root = _copy(written, tmp_path / "link")
+    entry = json.loads((root / "participant_01" / "manifest.json").read_text())["sessions"][0]
+    target = root / "participant_01" / entry["file"]
+    target.unlink()
+    target.symlink_to(written / "participant_01" / entry["file"])
+    with pytest.raises(SessionFormatError, match=r"manifest\.json: field file=.* resolves outside"):
+        SessionData(root=str(root)).load(hand, robot)
+
+
+@pytest.mark.parametrize("rate", [1e-9, 0, -30.0, 5000.0, math.inf, math.nan, "30"])
+def test_implausible_session_frame_rate_is_refused(small, written, tmp_path, rate):
+    """Reproducer (issue 29): ``frame_rate_hz=1e-9`` was accepted."""
+    _, hand, robot, _ = small
+    root = _copy(written, tmp_path / "rate")
+    _edit(root, "participant_02", lambda m: [e.update(frame_rate_hz=rate) for e in m["sessions"]])
+    with pytest.raises(SessionFormatError, match=r"participant_02/manifest\.json: sessions\[0\]\.frame_rate_hz="
+                                                 r".* is implausible: must be a number in \[1, 1000\] Hz"):
+        SessionData(root=str(root)).load(hand, robot)
+
+
+def test_copied_participant_is_refused_or_warned_naming_both_ids(small, written, tmp_path, caplog):
+    """Reproducer (issue 29): a participant duplicated under another id was accepted (held-out capture
+    46 % -> 60 %)."""
+    _, hand, robot, _ = small
+    SessionData(root=str(written)).load(hand, robot)  # two different people: no false alarm
+    root = _copy(written, tmp_path / "dup")
+    shutil.copytree(root / "participant_01", root / "participant_05")
+    with pytest.raises(SessionFormatError, match=r"participant_01 and participant_05 hold near-identical recordings "
+                                                 r"\(5 of 5 sessions.*data\.duplicates=warn"):
+        SessionData(root=str(root)).load(hand, robot)
+    with caplog.at_level(logging.WARNING, logger="sphri.sessions.format"):
+        ds = SessionData(root=str(root), duplicates="warn").load(hand, robot)
+    assert "participant_01 and participant_05" in caplog.text
+    assert sorted(ds.sessions["participant"].unique()) == ["participant_01", "participant_02", "participant_05"]
