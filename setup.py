@@ -52,7 +52,8 @@ setup(
     + CONF_PACKAGES,
     package_dir={"sphri.conf": "conf"},
     # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml),
-    # plus the robot descriptions shipped with sphri (sphri/robots/data/reachy2: URDF, PLY meshes, licence)
-    package_data={"sphri": ["**/*.yaml", "robots/data/*/*", "robots/data/*/meshes/*"],
+    # plus the robot descriptions shipped with sphri (sphri/robots/data/reachy2: URDF, PLY meshes, licence),
+    # plus the reports' Jinja2 templates (sphri/templates, read by sphri.templating)
+    package_data={"sphri": ["**/*.yaml", "robots/data/*/*", "robots/data/*/meshes/*", "templates/*.html.j2"],
                   **{name: ["*.yaml"] for name in CONF_PACKAGES}},
 )
