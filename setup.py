@@ -49,10 +49,12 @@ setup(
     # find_packages skips it and with it sphri's sweeper, so it is found as a namespace.
     packages=find_packages(include=["sphri", "sphri.*"])
     + find_namespace_packages(include=["hydra_plugins.*"])
+    + ["sphri.templates"]  # the reports' Jinja2 templates (data only, read by sphri.templating)
     + CONF_PACKAGES,
     package_dir={"sphri.conf": "conf"},
     # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml),
     # plus the robot descriptions shipped with sphri (sphri/robots/data/reachy2: URDF, PLY meshes, licence)
     package_data={"sphri": ["**/*.yaml", "robots/data/*/*", "robots/data/*/meshes/*"],
+                  "sphri.templates": ["*.html.j2"],
                   **{name: ["*.yaml"] for name in CONF_PACKAGES}},
 )

@@ -30,6 +30,8 @@ def installed(tmp_path_factory) -> Path:
     shipped = {n for n in names if n.startswith("sphri/conf/") and n.endswith(".yaml")}
     in_repo = {"sphri/conf/" + p.relative_to(REPO / "conf").as_posix() for p in (REPO / "conf").rglob("*.yaml")}
     assert shipped == in_repo, f"configs missing from the wheel: {sorted(in_repo - shipped)[:5]}"
+    templates = {"sphri/templates/" + p.name for p in (REPO / "sphri" / "templates").glob("*.html.j2")}
+    assert templates and templates <= set(names), f"report templates missing from the wheel: {sorted(templates - set(names))}"
     assert not any(n.startswith(("tests/", "bench/", "conf/")) for n in names)
     install = subprocess.run(
         [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(target), str(wheel)],

@@ -1,51 +1,22 @@
 """The report as a self-contained HTML page and as plain text.
 
-The HTML embeds every figure as a base64 PNG (``data:image/png;base64,...``)
-and its CSS inline: no scripts, no links, no external resources, so the
-file can be mailed or opened offline. The text is the same story for a
-terminal and the MLflow parent run's description.
+The HTML is the Jinja2 template ``sphri/templates/sweep_report.html.j2``
+(:mod:`sphri.templating`, autoescaped): every figure embedded as a base64 PNG
+(``data:image/png;base64,...``) and its CSS inline: no scripts, no links, no
+external resources, so the file can be mailed or opened offline. This module
+gives the template its rows; the text is the same story for a terminal and
+the MLflow parent run's description.
 """
 
 from __future__ import annotations
 
-import base64
-import html
 from pathlib import Path
 
 import numpy as np
 
-from sphri.report.analysis import GroupReport, SweepReport, _fmt_pitch, gestures_by_need, noise_text, recognised
+from sphri.report.analysis import SweepReport, _fmt_pitch, gestures_by_need, noise_text, recognised
+from sphri.templating import render_page
 from sphri.types import GESTURES
-
-_CSS = """
-body{font-family:-apple-system,"Segoe UI",Helvetica,Arial,sans-serif;max-width:1100px;margin:24px auto;padding:0 16px;color:#1b1b1b;line-height:1.45}
-h1{font-size:1.6em;margin-bottom:4px}h2{font-size:1.25em;border-bottom:1px solid #ddd;padding-bottom:3px;margin-top:32px}
-.banner{background:#b3261e;color:#fff;font-weight:700;padding:10px 14px;border-radius:4px;letter-spacing:.02em}
-.meta{color:#555;font-size:.92em}.req{border-left:5px solid #1f6feb;background:#f3f7ff;padding:10px 14px;margin:12px 0;border-radius:3px}
-.req .sentence{font-size:1.12em;font-weight:600;margin:0 0 6px}.req p{margin:4px 0}.warn{color:#9a3412}
-table{border-collapse:collapse;font-size:.86em;margin:8px 0 16px}th,td{border:1px solid #d0d7de;padding:3px 7px;text-align:right}
-th{background:#f6f8fa}td{white-space:nowrap}td.l,th.l{text-align:left}tr.rec td{background:#fff4c2;font-weight:600}
-img{max-width:100%;height:auto;border:1px solid #eee;margin:6px 0}.confusions{display:flex;flex-wrap:wrap;gap:12px}
-.confusions figure{margin:0;max-width:520px}figcaption{font-size:.85em;color:#444}code{background:#f6f8fa;padding:0 3px}
-"""
-
-
-def _e(x: object) -> str:
-    return html.escape(str(x), quote=True)
-
-
-def img_tag(path: Path, alt: str) -> str:
-    """An <img> with the PNG at ``path`` embedded as base64."""
-    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
-    return f'<img alt="{_e(alt)}" src="data:image/png;base64,{data}">'
-
-
-def _f(x: object, fmt: str = ".3f") -> str:
-    try:
-        v = float(x)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        return _e(x)
-    return format(v, fmt) if np.isfinite(v) else "&ndash;"
 
 
 def synthetic_banner(report: SweepReport) -> str:
@@ -112,11 +83,6 @@ def comparison_rows(report: SweepReport) -> list[dict[str, object]]:
     return rows
 
 
-def _cells(values, left: int = 0) -> str:
-    """Table cells, the first ``left`` of them left-aligned (labels)."""
-    return "".join(f'<td class="l">{v}</td>' if i < left else f"<td>{v}</td>" for i, v in enumerate(values))
-
-
 def tolerance_rows(report: SweepReport) -> list[dict[str, object]]:
     """One row per (group, tolerance): the requirement under each tolerance (also written as CSV)."""
     rows = []
@@ -139,23 +105,6 @@ def tolerance_rows(report: SweepReport) -> list[dict[str, object]]:
     return rows
 
 
-def _tolerance_table(report: SweepReport) -> str:
-    head = ["curve", "tolerance", "used in the sentence", "saturation pitch (mm)", f"{report.rule.ci:.0%} interval (mm)",
-            "encoder.res [interval]", "accuracy at saturation", "paired deficit &plusmn; paired SE", "allowed deficit"]
-    body = []
-    for r in tolerance_rows(report):
-        iv = (f"{_f(r['pitch_low_mm'], '.1f')} &ndash; {_f(r['pitch_high_mm'], '.1f')}"
-              if np.isfinite(float(r["pitch_low_mm"])) else "none")
-        res = f"{r['saturation_res']}" + (f" [{r['res_low']}, {r['res_high']}]" if r["res_low"] is not None else "")
-        cls = ' class="rec"' if r["used_in_sentence"] else ""
-        body.append(f"<tr{cls}>" + _cells((
-            _e(r["group"]), _e(r["tolerance_meaning"]), "yes" if r["used_in_sentence"] else "",
-            _f(r["saturation_pitch_mm"], ".1f"), iv, res, _f(r["accuracy"]),
-            f"{_f(r['paired_deficit'])} &plusmn; {_f(r['paired_deficit_se'])}", _f(r["allowed_deficit"])), left=2) + "</tr>")
-    return ("<table><thead><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr></thead><tbody>"
-            + "".join(body) + "</tbody></table>")
-
-
 def sensitivity_rows(report: SweepReport) -> list[dict[str, object]]:
     """One row per (set of other keys, assumption variant) of a sensitivity sweep (also written as CSV)."""
     rows = []
@@ -175,196 +124,43 @@ def sensitivity_rows(report: SweepReport) -> list[dict[str, object]]:
     return rows
 
 
-def _sensitivity_table(report: SweepReport) -> str:
-    head = ["variant", "saturation pitch (mm)", f"{report.rule.ci:.0%} interval (mm)", "shift from reference (mm)",
-            "encoder.res", "accuracy at saturation", "best accuracy (res)", "finest point chosen"]
-    parts = []
-    for sens in report.sensitivity:
-        rows = [r for r in sensitivity_rows(report) if r["others"] == sens.label]
-        body = []
-        for r in rows:
-            iv = (f"{_f(r['pitch_low_mm'], '.1f')} &ndash; {_f(r['pitch_high_mm'], '.1f')}"
-                  if np.isfinite(float(r["pitch_low_mm"])) else "none")
-            cls = ' class="rec"' if r["variant"] == "reference" else ""
-            body.append(f"<tr{cls}>" + _cells((
-                _e(r["variant"]), _f(r["saturation_pitch_mm"], ".1f"), iv, _f(r["shift_from_reference_mm"], "+.1f"),
-                r["saturation_res"], _f(r["accuracy"]), f"{_f(r['best_accuracy'])} ({r['best_res']})",
-                "yes" if r["at_finest"] else ""), left=1) + "</tr>")
-        if sens.label:
-            parts.append(f"<h3>{_e(sens.label)}</h3>")
-        parts.append(f'<div class="req"><p class="sentence">{_e(sens.sentence)}</p></div>')
-        parts.append("<table><thead><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr></thead><tbody>"
-                     + "".join(body) + "</tbody></table>")
-    return "".join(parts)
-
-
-def _comparison_table(report: SweepReport) -> str:
-    keys = report.sweep.group_keys
-    head = ([f'<th class="l">{_e(k)}</th>' for k in keys] if keys else ['<th class="l">curve</th>'])
-    head += [f"<th>{h}</th>" for h in (
-        "participants", "saturation pitch (mm)", f"{report.rule.ci:.0%} interval (mm)", "cm^2 per taxel",
-        "taxels", "encoder.res", "accuracy at saturation", "tolerance", "best accuracy (pitch mm)",
-        "paired gap to best [CI]", "macro F1 at saturation")]
-    body = []
-    for g, r in zip(report.groups, comparison_rows(report)):
-        cells = ([f'<td class="l">{_e(g.keys[k])}</td>' for k in keys] if keys else [f'<td class="l">{_e(g.label)}</td>'])
-        iv = (f"{_f(r['pitch_low_mm'], '.1f')} &ndash; {_f(r['pitch_high_mm'], '.1f')}"
-              if g.pitch_interval_mm else "none")
-        gap = _f(r["gap_to_best"])
-        if g.sat.gap_interval is not None and g.sat.index != g.sat.best_index:
-            gap += f" [{_f(r['gap_low'])}, {_f(r['gap_high'])}]"
-        cells += [f"<td>{v}</td>" for v in (
-            r["participants"], _f(r["saturation_pitch_mm"], ".1f"), iv, _f(r["area_per_taxel_cm2"], ".2f"),
-            _f(r["saturation_n_taxels"], ".0f"), r["saturation_res"],
-            f"{_f(r['accuracy'])} &plusmn; {_f(r['accuracy_std'])}", _f(r["tolerance"]),
-            f"{_f(r['best_accuracy'])} ({_f(r['best_pitch_mm'], '.1f')})", gap, _f(r["macro_f1"]))]
-        body.append("<tr>" + "".join(cells) + "</tr>")
-    return "<table><thead><tr>" + "".join(head) + "</tr></thead><tbody>" + "".join(body) + "</tbody></table>"
-
-
-def _points_table(g: GroupReport) -> str:
-    head = ["encoder.res", "taxels", "grid", "pitch along (mm)", "pitch around (mm)", "cm^2 per taxel",
-            "taxels per 24 cm", "accuracy mean &plusmn; std", "se", "macro F1 mean &plusmn; std", "participants"]
-    rows = []
-    for i, p in g.points.iterrows():
-        grid = (f"{int(p['grid_h'])} x {int(p['grid_w'])}" if np.isfinite(p["grid_h"]) and p["grid_h"] > 0
-                else "&ndash;")
-        cls = ' class="rec"' if i == g.sat.index else ""
-        rows.append(f"<tr{cls}>" + "".join(f"<td>{v}</td>" for v in (
-            int(p["res"]), _f(p["n_taxels"], ".0f"), grid, _f(p["pitch_u_mm"], ".1f"), _f(p["pitch_v_mm"], ".1f"),
-            _f(p["area_per_taxel_cm2"], ".2f"), _f(p["taxels_per_24cm"], ".1f"),
-            f"{_f(p['accuracy_mean'])} &plusmn; {_f(p['accuracy_std'])}", _f(p["accuracy_se"]),
-            f"{_f(p['macro_f1_mean'])} &plusmn; {_f(p['macro_f1_std'])}", int(p["n"]))) + "</tr>")
-    return ("<table><thead><tr>" + "".join(f"<th>{h}</th>" for h in head) + "</tr></thead><tbody>"
-            + "".join(rows) + "</tbody></table>")
-
-
-def _gesture_table(report: SweepReport) -> str:
-    groups = report.groups
-    head = '<th class="l">gesture</th>' + "".join(f"<th>{_e(g.label)}</th>" for g in groups)
+def gesture_cells(report: SweepReport) -> list[tuple[str, list[dict[str, object] | None]]]:
+    """Per gesture, one cell per curve: where its recall saturates (None: no recall for that gesture)."""
     rows = []
     for gest in GESTURES:
-        cells = []
-        for g in groups:
+        cells: list[dict[str, object] | None] = []
+        for g in report.groups:
             s = g.gesture_sat.get(gest)
             if s is None:
-                cells.append("<td>&ndash;</td>")
+                cells.append(None)
                 continue
             p = g.points.iloc[s.index]
-            val = f"{_f(p['pitch_mm'], '.1f')} mm" if g.has_pitch else f"{_f(p['n_taxels'], '.0f')} taxels"
-            if not recognised(g, gest):
-                best = np.nanmax(s.stats.mean)
-                cells.append(f"<td>not above chance at any resolution (best recall {_f(best, '.2f')})</td>")
-                continue
-            cells.append(f"<td>{val} (res {int(p['res'])}; recall {_f(p[f'recall_{gest}'], '.2f')})</td>")
-        rows.append(f'<tr><td class="l">{gest}</td>' + "".join(cells) + "</tr>")
-    return "<table><thead><tr>" + head + "</tr></thead><tbody>" + "".join(rows) + "</tbody></table>"
+            cells.append({"recognised": recognised(g, gest), "best_recall": float(np.nanmax(s.stats.mean)),
+                          "has_pitch": g.has_pitch, "pitch_mm": p["pitch_mm"], "n_taxels": p["n_taxels"],
+                          "res": int(p["res"]), "recall": p[f"recall_{gest}"]})
+        rows.append((gest, cells))
+    return rows
 
 
 def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[str, Path]) -> str:
     """The whole report page. ``figures``: name -> PNG (curves, recall, bootstrap); ``confusions``: group -> PNG."""
     s = report.sweep
-    parts = ['<!DOCTYPE html><html lang="en"><head><meta charset="utf-8">',
-             f"<title>sphri skin resolution report: sweep {_e(s.sweep_id)}</title>",
-             f"<style>{_CSS}</style></head><body>"]
-    banner = synthetic_banner(report)
-    if banner:
-        parts.append(f'<div class="banner" id="synthetic">{_e(banner)}</div>')
-    parts.append(f"<h1>Skin resolution report: sweep {_e(s.sweep_id)}</h1>")
-    parts.append('<p class="meta">' + "<br>".join(_e(x) for x in _facts(report)) + "</p>")
-
-    parts.append('<h2 id="requirement">Requirement</h2>')
+    map_text = None
     if report.maps:
-        from sphri.report.reqmap import map_text
+        from sphri.report.reqmap import map_text as _map_text
 
-        parts.append('<h3 id="requirement-map">Requirement map</h3>')
-        parts.append("<p>The required pitch for each false-on rate (the probability per taxel and frame that an "
-                     "untouched taxel reads on), by the rule below, with its bootstrap interval over participants "
-                     "and seeds; right: accuracy against the expected number of false-on taxels per frame "
-                     "(rate x taxels). Table: <code>requirement_map.csv</code>.</p>")
-        if "map" in figures:
-            parts.append(img_tag(figures["map"], "accuracy over pitch and false-on rate, required pitch per rate"))
-        parts.append("<pre>" + _e("\n".join(map_text(report)).strip()) + "</pre>")
-    if report.sensitivity:
-        parts.append('<h3 id="sensitivity">Sensitivity to the assumptions</h3>')
-        parts.append("<p>The same resolution sweep under each assumption variant (one at a time from the reference; "
-                     "each variant is a <code>conf/sensitivity/&lt;name&gt;.yaml</code>). Saturation pitch by the rule "
-                     f"below with a tolerance of {_e(report.rule.primary_tolerance.describe())}, with its "
-                     "participant-bootstrap interval; the vertical line is the reference.</p>")
-        if "tornado" in figures:
-            parts.append(img_tag(figures["tornado"], "saturation pitch per assumption variant"))
-        parts.append(_sensitivity_table(report))
-        parts.append("<h3>Per assumption variant</h3>")
-    for g in report.groups:
-        parts.append('<div class="req">')
-        if len(report.groups) > 1:
-            parts.append(f"<p><b>{_e(g.label)}</b></p>")
-        parts.append(f'<p class="sentence">{_e(g.requirement)}</p>')
-        parts.append(f'<p class="interval">{_e(g.interval_text)}</p>' + f"<p>{_e(noise_text(g)[:1].upper() + noise_text(g)[1:])}.</p>"
-                     + (f"<p>{_e(g.facts)}</p>" if g.facts else ""))
-        for w in g.warnings:
-            parts.append(f'<p class="warn">Warning: {_e(w)}</p>')
-        parts.append("</div>")
-
-    parts.append('<h2 id="curves">Accuracy against resolution</h2>')
-    parts.append("<p>Mean over participants with a &plusmn; one standard deviation band (the study's figure). "
-                 "Stars: saturation points; bars near the bottom: their bootstrap intervals; dotted line: the study's 18 taxels "
-                 "per 24 cm.</p>")
-    if "curves" in figures:
-        parts.append(img_tag(figures["curves"], "accuracy and macro F1 against taxel pitch"))
-
-    parts.append('<h2 id="rule">Saturation rule</h2>')
-    parts.append(f"<p>{_e(report.rule.describe())} The requirement states the larger of the two pitches "
-                 "(along and around the link) at that resolution, so the pitch is at most that in both "
-                 "directions. The paired gap compares each participant's accuracy at the saturation point with "
-                 "their accuracy at the best resolution.</p>")
-    if "bootstrap" in figures:
-        parts.append(img_tag(figures["bootstrap"], "saturation point over bootstrap resamples"))
-    parts.append('<h2 id="tolerances">Requirement under several tolerances</h2>')
-    parts.append(f"<p>The same paired rule with each tolerance; the highlighted row is the one the requirement "
-                 f"sentence uses ({_e(report.rule.primary_tolerance.describe())}). Paired deficit: mean over "
-                 "participants of (accuracy at the best resolution minus accuracy here), with its paired standard "
-                 "error.</p>")
-    parts.append(_tolerance_table(report))
-
-    parts.append('<h2 id="comparison">Comparison</h2>')
-    parts.append(_comparison_table(report))
-
-    parts.append('<h2 id="gestures">Per-gesture recall</h2>')
-    parts.append("<p>Which gestures need fine skin: each gesture's recall curve, saturated by the same rule "
-                 "(without bootstrap). Finer pitch below = that gesture needs denser taxels.</p>")
-    if "recall" in figures:
-        parts.append(img_tag(figures["recall"], "per-gesture recall against resolution"))
-        parts.append(_gesture_table(report))
-    else:
-        parts.append("<p>No per-gesture recall was logged (the jobs have no per_participant.csv artifact).</p>")
-
-    parts.append('<h2 id="confusion">Confusion matrices at the saturation point</h2>')
-    if confusions:
-        parts.append('<div class="confusions">')
-        for g in report.groups:
-            if g.label in confusions:
-                rec = g.recommended
-                cap = (f"{g.label}: encoder.res={int(rec['res'])}, {_f(rec['pitch_mm'], '.1f')} mm pitch "
-                       "(row-normalised, summed over folds)" + ("; SYNTHETIC data" if g.context["synthetic"] else ""))
-                parts.append(f"<figure>{img_tag(confusions[g.label], cap)}<figcaption>{_e(cap)}</figcaption></figure>")
-        parts.append("</div>")
-    else:
-        parts.append("<p>No confusion matrix artifact (confusion.png) was logged by the jobs at the saturation point.</p>")
-
-    parts.append('<h2 id="points">Per resolution</h2>')
-    for g in report.groups:
-        parts.append(f"<h3>{_e(g.label)}</h3>" + _points_table(g))
-
-    notes = list(report.notes)
-    parts.append('<h2 id="notes">Notes</h2>')
-    if s.failed:
-        notes += [f"FAILED job {f['run_id']} ({f['group']}, encoder.res={f['res']}): {f['error']}" for f in s.failed]
-    parts.append("<ul>" + "".join(f"<li>{_e(n)}</li>" for n in notes) + "</ul>" if notes else "<p>None.</p>")
-    parts.append('<p class="meta">Written by <code>python -m sphri.report</code>. Figures are embedded; '
-                 "the same PNGs, the text summary and CSV tables sit beside this file.</p>")
-    parts.append("</body></html>")
-    return "\n".join(parts)
+        map_text = "\n".join(_map_text(report)).strip()
+    sens_rows = sensitivity_rows(report)
+    notes = list(report.notes) + [f"FAILED job {f['run_id']} ({f['group']}, encoder.res={f['res']}): {f['error']}"
+                                  for f in s.failed]
+    noise = [noise_text(g) for g in report.groups]
+    return render_page(
+        "sweep_report.html.j2", sweep=s, banner=synthetic_banner(report), facts=_facts(report), rule=report.rule,
+        ci=f"{report.rule.ci:.0%}", map_text=map_text, figures=figures, confusions=confusions, groups=report.groups,
+        sensitivity=[(sens, [r for r in sens_rows if r["others"] == sens.label]) for sens in report.sensitivity],
+        requirements=[(g, n[:1].upper() + n[1:]) for g, n in zip(report.groups, noise)],
+        tolerances=tolerance_rows(report), comparison=list(zip(report.groups, comparison_rows(report))),
+        gestures=gesture_cells(report) if "recall" in figures else [], notes=notes)
 
 
 def render_text(report: SweepReport, html_path: Path | None = None) -> str:

@@ -18,9 +18,7 @@ settings recomputes neither.
 
 from __future__ import annotations
 
-import base64
 import dataclasses
-import html
 import json
 import logging
 import time
@@ -391,55 +389,19 @@ def _effects(comp) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _img(path: Path) -> str:
-    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
-    return f'<img src="data:image/png;base64,{data}" style="max-width:100%">'
-
-
 def write_report(res: StudyResult, figs: dict, summary: dict, budget: str, label: str, path: Path) -> Path:
-    """A self-contained HTML page: every figure embedded, the tables, the placement sentences."""
-    esc = html.escape
-    gm = summary["gesture_model"]
-    parts = [f"<html><head><meta charset='utf-8'><title>Scenario study ({esc(label)})</title>",
-             "<style>body{font-family:sans-serif;max-width:1200px;margin:auto}table{border-collapse:collapse;"
-             "font-size:12px}td,th{border:1px solid #ccc;padding:2px 6px}.warn{color:#a00}</style></head><body>",
-             f"<h1>Where people touch the whole robot: the scenario study ({esc(label)})</h1>",
-             f"<p>Dataset <b>{esc(str(summary['dataset']))}</b> ({esc(label)}), robot {esc(summary['robot'])}: "
-             f"{summary['n_participants']} participants, {summary['n_sessions']} sessions, "
-             f"{summary['n_coded_episodes']} coded episodes (first episode per session; an episode ends after "
-             f">= {res.settings.episode_gap_s:g} s without contact).</p>",
-             "<h2>The answer</h2><ul>" + "".join(f"<li>{esc(s)}</li>" for s in res.sentences) + "</ul>",
-             f"<p>Budget: {esc(budget)}. Greedy over body parts by contact frames per cm<sup>2</sup>; held-out: the "
-             "placement chosen without each participant, scored on that participant.</p>",
-             res.placement.to_html(index=False, float_format=lambda v: f"{v:.3g}"), _img(figs["placement"])]
-    if res.notes:
-        parts.append("<h2>Notes</h2><ul>" + "".join(
-            f"<li class='{'warn' if n.startswith('WARNING') or n.startswith('power') else ''}'>{esc(n)}</li>"
-            for n in res.notes) + "</ul>")
-    parts += ["<h2>Contact density per scenario</h2>", _img(figs["maps"]), "<h3>Atlas (pooled)</h3>", _img(figs["atlas"]),
-              "<p>Files: <code>map_&lt;scenario&gt;.png</code>, <code>density_maps.npz/.csv</code>, "
-              "<code>density_mesh.ply</code> (vertex attributes <code>density_*</code> in % per cm<sup>2</sup>).</p>"]
-    if "swd" in figs:
-        eff = _effects(res.comparison)
-        parts += ["<h2>Do scenarios differ? Paired sliced Wasserstein tests</h2>",
-                  "<p>Per participant: SWD between scenarios' split halves minus the within-scenario split-half "
-                  "baseline; sign-flip permutation over participants; Holm over all pairs.</p>",
-                  _img(figs["effects"]), _img(figs["swd"]), eff.to_html(index=False, float_format=lambda v: f"{v:.3g}")]
-    parts += [f"<h2>Gestures per scenario</h2><p>Model: trained on {esc(', '.join(gm['regions']))} at res {gm['res']}, "
-              f"LOSO accuracy {100 * gm['loso_accuracy_mean']:.1f} +/- {100 * gm['loso_accuracy_std']:.1f} % over those "
-              f"body parts ({esc(', '.join(f'{k} {100 * v:.0f} %' for k, v in gm['loso_accuracy'].items()))}) on "
-              f"{gm['n_trials']} training trials. Bars: expected share (sum of class probabilities) +/- its SD; "
-              "dots: argmax share.</p>", _img(figs["gestures"]),
-              res.histogram.pivot(index="scenario", columns="gesture", values="count").to_html()]
-    if "against_generator" in summary:
-        a = summary["against_generator"]
-        parts.append(f"<p>Against the generator's draws (synthetic only): gesture agreement "
-                     f"{a['gesture_agreement']}, dominant body part agreement {a['dominant_part_agreement']:.2f}.</p>")
-    r = res.ranking[res.ranking["scenario"] == "all"]
-    parts += ["<h2>Body parts ranked by contact per unit area (pooled)</h2>",
-              r.to_html(index=False, float_format=lambda v: f"{v:.3g}"),
-              f"<p>Timing (s): {esc(json.dumps({k: round(v, 1) for k, v in res.seconds.items()}))}</p></body></html>"]
-    path.write_text("\n".join(parts))
+    """A self-contained HTML page (``sphri/templates/scenario_study.html.j2``): every figure embedded, the tables,
+    the placement sentences."""
+    from sphri.templating import render_page
+
+    page = render_page(
+        "scenario_study.html.j2", label=label, summary=summary, gm=summary["gesture_model"], budget=budget,
+        episode_gap_s=res.settings.episode_gap_s, sentences=res.sentences, notes=res.notes, figs=figs,
+        placement=res.placement, effects=_effects(res.comparison) if "swd" in figs else None,
+        histogram=res.histogram.pivot(index="scenario", columns="gesture", values="count").reset_index(),
+        ranking=res.ranking[res.ranking["scenario"] == "all"],
+        timing=json.dumps({k: round(v, 1) for k, v in res.seconds.items()}))
+    path.write_text(page, encoding="utf-8")
     return path
 
 

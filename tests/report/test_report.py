@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 import base64
-import html
 import json
 from html.parser import HTMLParser
 
 import numpy as np
 import pandas as pd
 import pytest
+from markupsafe import escape  # the page's autoescape (' as &#39;)
 
 from sphri.report import RuleSettings, load_sweep, make_report
 from sphri.report.saturation import envelope_saturation
@@ -126,7 +126,7 @@ def test_html_is_self_contained_with_figures_sentence_and_synthetic_label(built)
         assert base64.b64decode(src.split(",", 1)[1])[:8] == PNG_MAGIC
     assert "SYNTHETIC DATA" in page
     for g in report.groups:
-        assert html.escape(g.requirement) in page
+        assert escape(g.requirement) in page
     assert "A taxel pitch of at most" in page and "bootstrap interval over 8 participants" in page
     assert page.count('class="req"') == 2
     assert "FAILED job" in page and "boom at res 36" in page
@@ -367,7 +367,23 @@ def test_sensitivity_sweep_reports_the_requirement_per_assumption(store, tmp_pat
     assert "sensitivity_tornado.png" in {p.name for p in files.figures.values()}
     assert (files.out_dir / "sensitivity_tornado.png").read_bytes()[:8] == PNG_MAGIC
     page = files.html.read_text()
-    assert html.escape(sens.sentence) in page and "Sensitivity to the assumptions" in page
+    assert escape(sens.sentence) in page and "Sensitivity to the assumptions" in page
     assert sens.sentence in text
     saved = json.loads(files.tables["json"].read_text())
     assert saved["sensitivity"][0]["sentence"] == sens.sentence
+
+
+def test_html_escapes_group_names_taken_from_the_sweep(store, tmp_path):
+    """A swept value is printed as text: a model named like a script tag must not become markup."""
+    hostile = "<script>alert('x')</script>"
+    truth = make_sweep(store, tmp_path / "hostile", [1, 3, 9], models=["rf", hostile], n_participants=3)
+    report, files, _ = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False, formats=PNG_ONLY)
+    assert hostile in {g.label for g in report.groups}
+    page = files.html.read_text()
+    assert "<script" not in page.lower()
+    parser = _Page()
+    parser.feed(page)
+    assert "script" not in parser.tags
+    # the label survives as text in the comparison, per-gesture and per-resolution tables
+    assert sum(hostile in cell for table in parser.tables for row in table for cell in row) >= 2
+    assert page.count("&lt;script&gt;alert(") >= 4

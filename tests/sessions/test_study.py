@@ -68,6 +68,8 @@ def test_writes_the_report_and_every_table(study):
         assert (study / f"map_{s}.png").is_file()
     html = (study / "report.html").read_text()
     assert "data:image/png;base64," in html and "SYNTHETIC" in html and "covering the" in html
+    # placement, paired effects, gesture histogram, ranking; every figure embedded
+    assert html.count("<table>") == 4 and html.count("<img ") == 6 and "Do scenarios differ?" in html
     pairs = pd.read_csv(study / "swd_pairs.csv")
     assert len(pairs) == 10 and pairs["p_holm"].between(0, 1).all() and (pairs["p_holm"] >= pairs["p_value"]).all()
     hist = pd.read_csv(study / "gesture_histogram.csv")
@@ -127,3 +129,33 @@ def test_study_settings_are_checked():
 
     with pytest.raises(ConfigError, match=r"data=SyntheticSessions holds free-interaction sessions.*scenario_study"):
         chain_region(compose(["+experiment=scenario_study"]))
+
+
+def test_report_escapes_scenario_names_and_notes(tmp_path):
+    """Scenario names come from the data: one that reads as a script tag stays text in the page."""
+    from sphri.sessions.schema import ScenarioStudySchema
+    from sphri.sessions.study import StudyResult, write_report
+
+    hostile = "<script>alert('x')</script>"
+    figs = {}
+    for name in ("placement", "maps", "atlas", "gestures"):
+        figs[name] = tmp_path / f"{name}.png"
+        figs[name].write_bytes(b"\x89PNG\r\n\x1a\n" + name.encode())
+    empty = pd.DataFrame()
+    res = StudyResult(
+        out_dir=tmp_path, settings=ScenarioStudySchema(), synthetic=True, sessions=empty, episodes=empty, coded=empty,
+        histogram=pd.DataFrame({"scenario": [hostile, hostile, "S1"], "gesture": ["tap", "pat", "tap"], "count": [2, 1, 3]}),
+        ranking=pd.DataFrame({"scenario": ["all", "all", hostile], "part": [hostile, "head", "head"],
+                              "frames_per_cm2": [0.5, float("nan"), 0.1]}),
+        placement=pd.DataFrame({"group": ["all", hostile], "parts": ["head", "head"], "held_out_share": [0.81234, 0.5]}),
+        sentences=[f"Cover head first ({hostile})."], comparison=None, coverage=None,
+        notes=[f"WARNING: scenario {hostile} has one session"], files=[], seconds={"study": 1.234})
+    summary = {"dataset": hostile, "robot": "reachy", "n_participants": 3, "n_sessions": 6, "n_coded_episodes": 5,
+               "gesture_model": {"regions": ["head"], "res": 4, "loso_accuracy": {hostile: 0.5},
+                                 "loso_accuracy_mean": 0.5, "loso_accuracy_std": 0.1, "n_trials": 12}}
+    page = write_report(res, figs, summary, "40 cm^2", hostile, tmp_path / "report.html").read_text()
+    assert "<script" not in page.lower()
+    assert page.count("&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;") == 10
+    # the tables keep their rows: the ranking is the pooled one (two parts), numbers formatted, NaN as a dash
+    assert page.count("<table>") == 3 and "0.812" in page and "&ndash;" in page
+    assert 'class="warn"' in page and "Do scenarios differ?" not in page
