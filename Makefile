@@ -14,6 +14,7 @@ $(STAMP): pyproject.toml setup.py
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q "torch==2.13.0"
 	$(BIN)/python -m pip install -q -e ".[dev]"
+	$(BIN)/python -m sphri.cli warmup  # numba kernels compiled once here, not in the first job
 	@touch $(STAMP)
 
 install: $(STAMP)

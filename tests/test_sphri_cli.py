@@ -270,3 +270,27 @@ def test_a_failing_job_in_a_sweep_is_one_line_with_its_log_and_the_console_is_qu
     log_file = Path(failed.rsplit("log: ", 1)[1].strip())
     text = log_file.read_text()
     assert "Traceback" in text and "stage " in text  # the job's log file keeps the stages and the traceback
+
+
+def test_warmup_reports_what_it_compiled_and_fails_in_one_line(monkeypatch: pytest.MonkeyPatch, capsys):
+    import subprocess
+
+    from sphri import cli
+
+    calls = []
+
+    def fake(cmd, **kwargs):
+        calls.append(cmd)
+        out = "[..][sphri.pipeline][INFO] - compiled 8 numba kernels in 31.6 s (once: later runs load them)\n"
+        return subprocess.CompletedProcess(cmd, 0, stdout=out, stderr="")
+
+    monkeypatch.setattr(subprocess, "run", fake)
+    assert main(["warmup"]) == 0
+    assert "+debug=fast" in calls[0] and "tracking.enabled=false" in calls[0]
+    assert "compiled 8 numba kernels in 31.6 s" in capsys.readouterr().out
+
+    monkeypatch.setattr(subprocess, "run", lambda cmd, **kw: subprocess.CompletedProcess(
+        cmd, 1, stdout="", stderr="Traceback ...\nValueError: boom\n"))
+    assert cli.main(["warmup"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("sphri: warmup failed") and "ValueError: boom" in err[0]
