@@ -30,7 +30,8 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
-from sphri.config import CONF_DIR, ConfigError, check_choices, check_inputs, compose, normalize_overrides, register_schemas, validate
+from sphri.config import (CONF_DIR, ConfigError, check_choices, check_inputs, check_output_dir, compose,
+                          normalize_overrides, register_schemas, validate)
 from sphri.errors import report, take_verbose_flag, verbose_requested
 
 log = logging.getLogger("sphri")
@@ -217,7 +218,7 @@ INTERNAL_GROUPS = ("debug_model",)
 
 def hide_schema_options() -> None:
     """Leave the internal ``*_schema`` entries and the ``debug_model`` group out of Hydra's group listings
-    (tab completion): the typed schemas the YAML files opt into and the light models ``+debug=fast``
+    (tab completion, ``glob(...)`` sweeps): the typed schemas the YAML files opt into and the light models ``+debug=fast``
     selects for itself are not choices a user makes."""
     from hydra._internal.config_loader_impl import ConfigLoaderImpl
 
@@ -265,15 +266,15 @@ def main() -> None:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return
     register_schemas()
-    if any(a.startswith(("-sc", "--shell-completion")) for a in sys.argv[1:]):
-        hide_schema_options()
+    hide_schema_options()  # completion and glob(...) sweeps list the options a user chooses among
     sys.argv = [sys.argv[0], *normalize_overrides(take_verbose_flag(sys.argv[1:]))]
     try:
         check_choices(sys.argv[1:])  # a misspelt component: one line with the real options, before Hydra
         fixed = _fixed_overrides(sys.argv[1:])
         if fixed is not None:
             # an unknown key or a value of the wrong type: sphri's one line, before Hydra's own message
-            compose(fixed, check=False)
+            cfg = compose(fixed, check=False)
+            check_output_dir(str(cfg.output_dir))  # Hydra makes the run folder inside it before any check of ours
     except ConfigError as exc:
         print(f"sphri: invalid config: {exc}", file=sys.stderr)
         sys.exit(2)

@@ -17,6 +17,7 @@ touched (``make clean`` removes everything).
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 from pathlib import Path
@@ -35,7 +36,8 @@ def _entries(root: Path, stages: list[str]) -> dict[str, list[Path]]:
     unknown = [s for s in stages if s not in present]
     if unknown:
         raise CacheCliError(f"no stage {unknown} in {root}; stages there: {', '.join(present) or 'none'}")
-    return {s: sorted((root / s).glob(f"*{SUFFIX}")) for s in (stages or present)}
+    # only files are entries: a folder someone named *.entry is neither counted nor removed
+    return {s: sorted(p for p in (root / s).glob(f"*{SUFFIX}") if p.is_file()) for s in (stages or present)}
 
 
 def _human(n: float) -> str:
@@ -86,7 +88,10 @@ def clear(root: Path, stages: list[str], older_than_days: float | None = None) -
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in ("-h", "--help") or argv[0] not in ("info", "clear"):
-        print(__doc__)
+        try:
+            print(__doc__)
+        except BrokenPipeError:  # `--help | head`: the reader went away
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return 0 if argv and argv[0] in ("-h", "--help") else 2
     cmd, rest = argv[0], argv[1:]
     root, older, stages = Path("outputs/cache"), None, []

@@ -14,6 +14,7 @@ import dataclasses
 import difflib
 import importlib
 import math
+import os
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -252,6 +253,7 @@ def check_choices(overrides: Sequence[str]) -> None:
     """Refuse a component choice (``encoder=elipse``) that names no YAML file, with the real options
     (internal ``*_schema`` entries left out) and the closest one. Runs before Hydra composes anything."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import Glob
 
     plain = [o for o in overrides if not o.startswith("-") and "=" in o]
     try:
@@ -263,8 +265,14 @@ def check_choices(overrides: Sequence[str]) -> None:
         group = o.key_or_group
         if group not in DEFAULT_GROUPS or o.is_delete():
             continue
-        values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]
         options = sorted({p.stem for d in dirs for p in (d / group).glob("*.yaml")})
+        if isinstance(o.value(), Glob):  # glob(...) picks among the options (Hydra needs its loader to expand it)
+            values = o.value().filter([x for x in options if not x.endswith("_schema")])
+            if not values:
+                raise ConfigError(f"{o.input_line} is invalid: the glob matches no {group} "
+                                  f"option; options: {', '.join(x for x in options if not x.endswith('_schema'))}")
+            continue
+        values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]
         for value in values:
             if isinstance(value, str) and value not in options:
                 raise ConfigError(f"{group}={value} is invalid: no such {group} option; options: "
@@ -359,6 +367,28 @@ def _explain(exc: BaseException) -> str:
     return " ".join(lines[:20]) if lines else type(exc).__name__
 
 
+def check_output_dir(output_dir: str) -> None:
+    """``output_dir`` can hold runs, the cache and the MLflow store: not empty (``cache.dir`` would be
+    ``/cache``), not an existing file or below one, every name within the file system's limit. Nothing is
+    created here."""
+    if not output_dir.strip():
+        raise ConfigError("output_dir='' is invalid: give a folder (default: outputs)")
+    path = Path(output_dir).expanduser()
+    try:
+        limit = os.pathconf(next((p for p in (path, *path.parents) if p.exists()), Path(".")), "PC_NAME_MAX")
+    except (OSError, ValueError):
+        limit = 255
+    long = [part for part in path.parts if len(part.encode()) > limit]
+    if long:
+        raise ConfigError(f"output_dir is invalid: the name {long[0][:40]}... is {len(long[0].encode())} bytes long, "
+                          f"more than this file system's {limit}")
+    for p in (path, *path.parents):
+        if p.exists():
+            if not p.is_dir():
+                raise ConfigError(f"output_dir={output_dir} is invalid: {p} is a file, not a folder")
+            break
+
+
 def validate(cfg: DictConfig) -> None:
     """Check every component's values before any stage runs.
 
@@ -382,8 +412,9 @@ def validate(cfg: DictConfig) -> None:
         except OmegaConfBaseException as exc:
             raise ConfigError(_explain(exc)) from None
     check_known_keys(cfg)
-    if cfg.seed < 0:
-        raise ConfigError(f"seed={cfg.seed} is invalid: must be >= 0")
+    if not 0 <= cfg.seed < 2**63:  # seeds reach numba kernels as 64-bit integers
+        raise ConfigError(f"seed={cfg.seed} is invalid: must be in [0, 2**63)")
+    check_output_dir(str(cfg.output_dir))
     variant = cfg.get("variant")
     if variant is not None and not re.fullmatch(r"[A-Za-z0-9_.-]+", str(variant)):
         raise ConfigError(f"variant={variant!r} is invalid: a name of letters, digits, '_', '.' or '-'")

@@ -63,6 +63,18 @@ def killed_by(exc: BaseException) -> int | None:
     return None
 
 
+def _empty_sweeps(arguments: Sequence[str]) -> list[str]:
+    """The sweep overrides among ``arguments`` that give no value (``range(5,5)``, an empty choice)."""
+    empty = []
+    for o in OverridesParser.create().parse_overrides(list(arguments)):
+        try:
+            if o.is_sweep_override() and not list(o.sweep_string_iterator()):
+                empty.append(o.input_line)
+        except Exception:  # a glob: expanded (and checked) before the sweep
+            continue
+    return empty
+
+
 class SkippingLauncher:
     """A launcher that hands its wrapped launcher only the jobs not yet finished (each contiguous run
     of them with its own job numbers, so folders and numbers stay those of the whole sweep) and
@@ -218,6 +230,10 @@ class SphriSweeper(BasicSweeper):
 
         assert self.config is not None
         overrides, jobs = self.job_overrides(arguments)
+        if not jobs:  # e.g. range(5,5): nothing to run is a mistake, not a finished sweep
+            print(f"sphri: invalid sweep: {' '.join(_empty_sweeps(arguments)) or ' '.join(arguments)} sweeps no "
+                  "value; no job was started", file=sys.stderr)
+            sys.exit(2)
         bad = self.invalid_points(jobs)
         if bad:
             lines = [f"sphri: invalid sweep: {len(bad)} of {len(jobs)} points fail validation; no job was started"]

@@ -231,8 +231,18 @@ def repair(db: Path) -> str:
         import sqlalchemy
         from mlflow.store.db.utils import _upgrade_db
 
-        if _revision(db) != head_revision():
-            _upgrade_db(sqlalchemy.create_engine(f"sqlite:///{db}"))
+        revision = _revision(db)
+        if revision != head_revision():
+            try:
+                _upgrade_db(sqlalchemy.create_engine(f"sqlite:///{db}"))
+            except Exception as exc:  # alembic: a revision this MLflow does not know (a newer MLflow's, or damage)
+                import mlflow
+
+                raise BrokenStore(
+                    f"{db}: schema revision {revision} cannot be migrated by MLflow {mlflow.__version__} "
+                    f"({type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}); written by another "
+                    f"MLflow version (open it with that one) or damaged; the original is at {backup}"
+                ) from None
         left = problems(db)
         if left:
             raise BrokenStore(f"{db}: still broken after repair ({'; '.join(left)}); the original is at {backup}")
