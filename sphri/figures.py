@@ -157,7 +157,15 @@ def mark(fig, provenance: Provenance) -> None:
         if engine is not None and hasattr(engine, "set") and "rect" in engine.get():
             # keep a strip for the marks: constrained layout lays titles and legends out below it
             strip = 1.7 * MIN_FONT_PT / 72.0 / fig.get_figheight()
-            engine.set(rect=(0.0, 0.0, 1.0, 1.0 - strip))
+            top = 1.0 - strip
+            title = getattr(fig, "_suptitle", None)
+            if title is not None and title.get_text():
+                # constrained layout puts a suptitle at the figure's top edge, over the strip: pin it under the
+                # strip and lay the panels out below it (an explicit y gets no margin of its own)
+                fig.suptitle(title.get_text(), y=top, va="top", fontsize=title.get_fontsize(), wrap=title.get_wrap())
+                h = fig._suptitle.get_window_extent(fig.canvas.get_renderer()).height / fig.dpi / fig.get_figheight()
+                top -= h + 0.5 * strip
+            engine.set(rect=(0.0, 0.0, 1.0, top))
 
 
 def _texts(fig):
@@ -205,11 +213,13 @@ def _layout_problems(fig, print_width_in: float | None) -> list[str]:
         if size < MIN_FONT_PT - 1e-6:
             problems.append(f"text {name} is {size:.1f} pt at print size (< {MIN_FONT_PT})")
         if id(t) not in ticks:
-            labels.append((name, box))
+            labels.append((name, box, t.get_gid() == "sphri-banner"))
     for i in range(len(labels)):
         for j in range(i + 1, len(labels)):
             a, b = labels[i][1], labels[j][1]
-            if a.overlaps(b) and _overlap_area(a, b) > 0.2 * min(a.width * a.height, b.width * b.height):
+            # the banner may touch nothing; other labels a little (descenders, ascenders of neighbours)
+            share = 0.0 if labels[i][2] or labels[j][2] else 0.2
+            if a.overlaps(b) and _overlap_area(a, b) > share * min(a.width * a.height, b.width * b.height):
                 problems.append(f"text {labels[i][0]} overlaps {labels[j][0]}")
     for ax in fig.axes:
         if ax.get_visible():

@@ -366,9 +366,9 @@ def plot_swd_heatmap(comp: PairwiseComparison, path: str | Path, title: str,
     cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
     names = [figures.human(x) for x in c]
     with figures.style():
-        side = float(np.clip(0.62 * n + 1.4, 2.4, figures.TWO_COLUMN_IN))
-        fig, ax = figures.new_figure(side if side > figures.ONE_COLUMN_IN else "one",
-                                     figures.fit_page(0.5 * n + 1.7))
+        # cells of about 0.65 in: the value and its p-value fit inside at 7 pt
+        side = float(np.clip(0.65 * n + 2.4, figures.ONE_COLUMN_IN, figures.TWO_COLUMN_IN))
+        fig, ax = figures.new_figure(side, figures.fit_page(0.65 * n + 2.3))
         shown = np.ma.masked_array(np.where(off, m, np.nan), mask=upper)
         im = ax.imshow(shown, cmap=cmap, vmin=lo, vmax=hi if hi > lo else lo + 1.0)
         figures.lower_triangle(ax, im, n)
@@ -388,7 +388,7 @@ def plot_swd_heatmap(comp: PairwiseComparison, path: str | Path, title: str,
         ax.set_xticks(range(n), names, rotation=45, ha="right")
         ax.set_yticks(range(n), names)
         # the colour bar in the empty upper triangle, not beside the matrix
-        cax = ax.inset_axes([0.62, 0.58, 0.34, 0.045]) if n >= 3 else None
+        cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if n >= 3 else None
         cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical",
                           shrink=0.8)
         cb.set_label(f"mean paired SW{comp.swd_p:g}\ndistance (mm)")

@@ -182,7 +182,8 @@ def plot_effects(effects: pd.DataFrame, scenarios: list[str], alpha: float, path
     sub = dz[1:, :-1] if n > 1 else dz
     names = [figures.human(s) for s in scenarios]
     with figures.style():
-        fig, ax = figures.new_figure("two", figures.fit_page(0.62 * k + 1.9))
+        side = float(np.clip(0.75 * k + 2.6, figures.ONE_COLUMN_IN, figures.TWO_COLUMN_IN))
+        fig, ax = figures.new_figure(side, figures.fit_page(0.7 * k + 2.0))
         im = ax.imshow(np.ma.masked_array(sub, mask=figures.upper_mask(k)), cmap="RdBu_r", vmin=-lim, vmax=lim)
         figures.lower_triangle(ax, im, k)
         for i in range(k):
@@ -194,7 +195,7 @@ def plot_effects(effects: pd.DataFrame, scenarios: list[str], alpha: float, path
         ax.set_xticks(range(k), names[:-1] if n > 1 else names, rotation=45, ha="right")
         ax.set_yticks(range(k), names[1:] if n > 1 else names)
         # the colour bar in the empty upper triangle
-        cax = ax.inset_axes([0.62, 0.62, 0.34, 0.045]) if k >= 3 else None
+        cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if k >= 3 else None
         cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical",
                           shrink=0.8)
         cb.set_label("effect size d$_z$\n(between - within SWD)")
