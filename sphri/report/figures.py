@@ -99,8 +99,10 @@ def _nice_log_ticks(axis, values: np.ndarray) -> None:
     ticks = [m * 10.0**k for k in range(int(np.floor(np.log10(lo))) - 1, int(np.ceil(np.log10(hi))) + 1)
              for m in (1, 2, 5)]
     ticks = [x for x in ticks if lo / 1.5 <= x <= hi * 1.5]
+    if sum(lo <= x <= hi for x in ticks) < 2:  # a short sweep: label its ends as well
+        ticks = sorted({*ticks, float(f"{lo:.3g}"), float(f"{hi:.3g}")})
     axis.set_major_locator(FixedLocator(ticks))
-    axis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+    axis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:.3g}"))
     axis.set_minor_formatter(NullFormatter())
 
 
