@@ -4,10 +4,16 @@ Figures are drawn at the size they will be printed: one column
 (:data:`ONE_COLUMN_IN`, 3.5 in) or two (:data:`TWO_COLUMN_IN`, 7.16 in, the
 IEEE/ACM double-column text width), with fonts of at least
 :data:`MIN_FONT_PT` (7 pt) at that size, and saved as PNG (300 dpi) beside
-PDF and SVG (text kept as text). :func:`layout_problems` finds text that
-leaves the canvas, text smaller than 7 pt at print size and labels that
-overlap each other; :func:`save` logs them, and the figure tests assert that
-there are none.
+PDF and SVG (text kept as text). The rc settings live in the shipped style
+file ``sphri/sphri.mplstyle`` (:data:`STYLE_PATH`); style files named in
+``SPHRI_MPLSTYLE`` are applied on top of it. :func:`layout_problems` finds
+text that leaves the canvas, text smaller than 7 pt at print size, labels
+that overlap each other (the banner may touch nothing), text placed over a
+data line, a sweep spanning less than :data:`MIN_DATA_SPAN` of its axis,
+figures taller than a page (:data:`PAGE_HEIGHT_IN`) and units typed as
+``cm^2``; :func:`save` logs them, and the figure tests assert that there are
+none. Scenario, gesture and body-part identifiers become labels through
+:func:`human`; symmetric matrices are drawn once (:func:`lower_triangle`).
 
 Provenance (the SYNTHETIC banner and run ids) is one switch,
 :class:`Provenance`, drawn by :func:`mark` in the figure's top margin: on by
