@@ -54,7 +54,7 @@ setup(
     package_dir={"sphri.conf": "conf"},
     # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml),
     # plus the robot descriptions shipped with sphri (sphri/robots/data/reachy2: URDF, PLY meshes, licence)
-    package_data={"sphri": ["**/*.yaml", "robots/data/*/*", "robots/data/*/meshes/*"],
+    package_data={"sphri": ["**/*.yaml", "*.mplstyle", "robots/data/*/*", "robots/data/*/meshes/*"],
                   "sphri.templates": ["*.html.j2"],
                   **{name: ["*.yaml"] for name in CONF_PACKAGES}},
 )

@@ -4,10 +4,16 @@ Figures are drawn at the size they will be printed: one column
 (:data:`ONE_COLUMN_IN`, 3.5 in) or two (:data:`TWO_COLUMN_IN`, 7.16 in, the
 IEEE/ACM double-column text width), with fonts of at least
 :data:`MIN_FONT_PT` (7 pt) at that size, and saved as PNG (300 dpi) beside
-PDF and SVG (text kept as text). :func:`layout_problems` finds text that
-leaves the canvas, text smaller than 7 pt at print size and labels that
-overlap each other; :func:`save` logs them, and the figure tests assert that
-there are none.
+PDF and SVG (text kept as text). The rc settings live in the shipped style
+file ``sphri/sphri.mplstyle`` (:data:`STYLE_PATH`); style files named in
+``SPHRI_MPLSTYLE`` are applied on top of it. :func:`layout_problems` finds
+text that leaves the canvas, text smaller than 7 pt at print size, labels
+that overlap each other (the banner may touch nothing), text placed over a
+data line, a sweep spanning less than :data:`MIN_DATA_SPAN` of its axis,
+figures taller than a page (:data:`PAGE_HEIGHT_IN`) and units typed as
+``cm^2``; :func:`save` logs them, and the figure tests assert that there are
+none. Scenario, gesture and body-part identifiers become labels through
+:func:`human`; symmetric matrices are drawn once (:func:`lower_triangle`).
 
 Provenance (the SYNTHETIC banner and run ids) is one switch,
 :class:`Provenance`, drawn by :func:`mark` in the figure's top margin: on by
@@ -18,6 +24,8 @@ figure pass for a measured one.
 from __future__ import annotations
 
 import logging
+import os
+import re
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -34,25 +42,18 @@ MIN_FONT_PT = 7.0
 #: Formats written by :func:`save` (the first is the path's own suffix).
 FORMATS: tuple[str, ...] = ("png", "pdf", "svg")
 
-RC = {
-    "font.size": 8.0,
-    "axes.titlesize": 8.5,
-    "axes.labelsize": 8.0,
-    "xtick.labelsize": 7.0,
-    "ytick.labelsize": 7.0,
-    "legend.fontsize": 7.0,
-    "legend.title_fontsize": 7.0,
-    "figure.titlesize": 9.0,
-    "axes.linewidth": 0.6,
-    "lines.linewidth": 1.2,
-    "lines.markersize": 3.5,
-    "grid.linewidth": 0.4,
-    "figure.dpi": 100,
-    "savefig.dpi": 300,
-    "pdf.fonttype": 42,  # TrueType in PDFs: editable text, accepted by publishers
-    "svg.fonttype": "none",  # SVG text stays text
-    "figure.constrained_layout.use": True,
-}
+#: sphri's matplotlib style file (shipped in the wheel); :func:`style` applies it.
+STYLE_PATH = Path(__file__).with_name("sphri.mplstyle")
+#: Environment variable naming further style files (``os.pathsep``-separated), applied after :data:`STYLE_PATH`.
+STYLE_ENV = "SPHRI_MPLSTYLE"
+#: Tallest figure that fits a page's text block (A4 or letter, with a caption line), inches at print size.
+PAGE_HEIGHT_IN = 9.0
+#: Share of an axis' width that a sweep's data must span (no empty thirds).
+MIN_DATA_SPAN = 0.6
+#: The banner text of synthetic data (:func:`mark`).
+SYNTHETIC_TEXT = "SYNTHETIC DATA"
+#: The banner colours: synthetic data, and ids alone.
+BANNER_COLOURS = {True: "firebrick", False: "0.35"}
 
 
 def pyplot():
@@ -77,12 +78,46 @@ def width_in(width: str | float) -> float:
     return w
 
 
+def style_files() -> list[str]:
+    """The style files :func:`style` applies: :data:`STYLE_PATH`, then those named in :data:`STYLE_ENV`."""
+    extra = [p for p in os.environ.get(STYLE_ENV, "").split(os.pathsep) if p.strip()]
+    for p in extra:
+        if not Path(p).is_file():
+            raise ValueError(f"{STYLE_ENV}: style file {p!r} does not exist")
+    return [str(STYLE_PATH), *extra]
+
+
 @contextmanager
 def style() -> Iterator[None]:
-    """Matplotlib rc settings of sphri's figures, for the figures created inside."""
+    """Matplotlib settings of sphri's figures (:data:`STYLE_PATH`, then :data:`STYLE_ENV`'s files), for the
+    figures created inside."""
     plt = pyplot()
-    with plt.rc_context(RC):
+    with plt.style.context(style_files()):
         yield
+
+
+def fit_page(height_in: float) -> float:
+    """``height_in`` capped at :data:`PAGE_HEIGHT_IN`: a figure that grows with its rows still fits a page."""
+    return float(min(height_in, PAGE_HEIGHT_IN))
+
+
+_UNTYPESET = re.compile(r"\b(c?m|mm)\^([23])\b")
+
+
+def typeset(text: str) -> str:
+    """Units typed as ``cm^2`` / ``m^2`` / ``mm^3`` in ``text`` written with mathtext (``cm$^2$``), as in every
+    sphri figure."""
+    return _UNTYPESET.sub(lambda m: f"{m.group(1)}$^{m.group(2)}$", str(text))
+
+
+def human(name: str) -> str:
+    """A scenario, gesture or body-part identifier as a label: ``S2_path_redirection`` -> ``S2: path
+    redirection``, ``torso_front_upper`` -> ``torso front upper``."""
+    name = str(name)
+    m = re.fullmatch(r"(S\d+)_(.+)", name)
+    if m:
+        return f"{m.group(1)}: {m.group(2).replace('_', ' ')}"
+    return name.replace("_", " ")
 
 
 def new_figure(width: str | float = "two", height: float = 2.6, nrows: int = 1, ncols: int = 1, **kwargs):
@@ -118,17 +153,25 @@ def mark(fig, provenance: Provenance) -> None:
         return
     parts = []
     if provenance.synthetic:
-        parts.append("SYNTHETIC DATA")
+        parts.append(SYNTHETIC_TEXT)
     if provenance.ids:
         parts.append(provenance.ids)
     if parts:
         fig.text(0.995, 0.995, " | ".join(parts), ha="right", va="top", fontsize=MIN_FONT_PT,
-                 color="firebrick" if provenance.synthetic else "0.35")
+                 color=BANNER_COLOURS[bool(provenance.synthetic)], gid="sphri-banner")
         engine = fig.get_layout_engine()
         if engine is not None and hasattr(engine, "set") and "rect" in engine.get():
             # keep a strip for the marks: constrained layout lays titles and legends out below it
             strip = 1.7 * MIN_FONT_PT / 72.0 / fig.get_figheight()
-            engine.set(rect=(0.0, 0.0, 1.0, 1.0 - strip))
+            top = 1.0 - strip
+            title = getattr(fig, "_suptitle", None)
+            if title is not None and title.get_text():
+                # constrained layout puts a suptitle at the figure's top edge, over the strip: pin it under the
+                # strip and lay the panels out below it (an explicit y gets no margin of its own)
+                fig.suptitle(title.get_text(), y=top, va="top", fontsize=title.get_fontsize(), wrap=title.get_wrap())
+                h = fig._suptitle.get_window_extent(fig.canvas.get_renderer()).height / fig.dpi / fig.get_figheight()
+                top -= h + 0.5 * strip
+            engine.set(rect=(0.0, 0.0, 1.0, top))
 
 
 def _texts(fig):
@@ -159,6 +202,9 @@ def _layout_problems(fig, print_width_in: float | None) -> list[str]:
     canvas = fig.bbox
     problems = []
     labels = []
+    height = fig.get_figheight() * scale
+    if height > PAGE_HEIGHT_IN + 1e-6:
+        problems.append(f"figure is {height:.1f} in tall at print size (> {PAGE_HEIGHT_IN:g} in: taller than a page)")
     ticks, not_drawn = _tick_labels(fig)
     for t in _texts(fig):
         if id(t) in not_drawn:
@@ -167,17 +213,80 @@ def _layout_problems(fig, print_width_in: float | None) -> list[str]:
         name = repr(t.get_text()[:40])
         if box.x0 < canvas.x0 - 1 or box.y0 < canvas.y0 - 1 or box.x1 > canvas.x1 + 1 or box.y1 > canvas.y1 + 1:
             problems.append(f"text {name} extends past the canvas")
+        if _UNTYPESET.search(t.get_text()):
+            problems.append(f"text {name} types a unit as '^' (use cm$^2$: sphri.figures.typeset)")
         size = t.get_fontsize() * scale
         if size < MIN_FONT_PT - 1e-6:
             problems.append(f"text {name} is {size:.1f} pt at print size (< {MIN_FONT_PT})")
         if id(t) not in ticks:
-            labels.append((name, box))
+            labels.append((name, box, t.get_gid() == "sphri-banner"))
     for i in range(len(labels)):
         for j in range(i + 1, len(labels)):
             a, b = labels[i][1], labels[j][1]
-            if a.overlaps(b) and _overlap_area(a, b) > 0.2 * min(a.width * a.height, b.width * b.height):
+            # the banner may touch nothing; other labels a little (descenders, ascenders of neighbours)
+            share = 0.0 if labels[i][2] or labels[j][2] else 0.2
+            if a.overlaps(b) and _overlap_area(a, b) > share * min(a.width * a.height, b.width * b.height):
                 problems.append(f"text {labels[i][0]} overlaps {labels[j][0]}")
+    for ax in fig.axes:
+        if ax.get_visible():
+            problems += _text_over_data(ax, renderer) + _span_problems(ax)
     return problems
+
+
+def _data_lines(ax):
+    """The axes' visible data lines (in data coordinates; reference lines drawn with axhline/axvline, whose
+    transform is blended with the axes, are not data) and their points in display coordinates."""
+    import numpy as np
+
+    for line in ax.get_lines():
+        if not line.get_visible() or line.get_transform() is not ax.transData:
+            continue
+        xy = np.asarray(line.get_xydata(), dtype=float)
+        xy = xy[np.isfinite(xy).all(axis=1)] if xy.size else xy.reshape(0, 2)
+        if len(xy):
+            yield line, ax.transData.transform(xy)
+
+
+def _text_over_data(ax, renderer) -> list[str]:
+    """Texts placed in the axes (``ax.text``) that a data line crosses or a data marker sits under."""
+    import numpy as np
+    from matplotlib.path import Path as MplPath
+
+    out = []
+    lines = list(_data_lines(ax))
+    for t in ax.texts:
+        if not t.get_visible() or not t.get_text().strip():
+            continue
+        box = t.get_window_extent(renderer).expanded(0.98, 0.9)
+        for line, pts in lines:
+            hit = False
+            if len(pts) >= 2 and line.get_linestyle() not in ("None", "", " ", "none"):
+                hit = MplPath(pts).intersects_bbox(box, filled=False)
+            if not hit and line.get_marker() not in (None, "None", "", " ", "none"):
+                hit = bool(np.any((pts[:, 0] >= box.x0) & (pts[:, 0] <= box.x1) & (pts[:, 1] >= box.y0)
+                                  & (pts[:, 1] <= box.y1)))
+            if hit:
+                out.append(f"text {t.get_text()[:40]!r} lies over the data line {line.get_label()[:40]!r}")
+                break
+    return out
+
+
+def _span_problems(ax) -> list[str]:
+    """A sweep (data lines with two or more x values) whose points span under :data:`MIN_DATA_SPAN` of the
+    axis' width: the view was widened past the data (a reference line, a fixed limit), leaving it empty."""
+    import numpy as np
+
+    pts = [p for _, p in _data_lines(ax)]
+    if not pts:
+        return []
+    x = np.concatenate([p[:, 0] for p in pts])
+    if np.unique(np.round(x, 3)).size < 2 or ax.bbox.width <= 0:
+        return []
+    share = (x.max() - x.min()) / ax.bbox.width
+    if share < MIN_DATA_SPAN:
+        return [f"data span {100 * share:.0f} % of the axis width (< {100 * MIN_DATA_SPAN:.0f} %): empty space "
+                f"in {ax.get_title(loc='left') or ax.get_title() or 'a panel'!r}"]
+    return []
 
 
 def _tick_labels(fig) -> tuple[set[int], set[int]]:
@@ -245,3 +354,26 @@ def save(fig, path: Path | str, formats: Sequence[str] | None = None, close: boo
     if close:
         pyplot().close(fig)
     return written
+
+
+def upper_mask(n: int):
+    """(n, n) boolean mask, True above the diagonal: the half of a symmetric matrix that is not drawn."""
+    import numpy as np
+
+    return np.triu(np.ones((n, n), dtype=bool), k=1)
+
+
+def lower_triangle(ax, image, n: int) -> None:
+    """Draw a symmetric ``n`` x ``n`` matrix once: clip ``image`` (``ax.imshow`` of it, row 0 on top) to the
+    cells on and below the diagonal, hide the frame (it would outline the empty half) and keep the ticks."""
+    from matplotlib.patches import Polygon
+
+    pts = [(-0.5, -0.5)]
+    for i in range(n):  # a staircase along the diagonal, top-left to bottom-right
+        pts += [(i + 0.5, i - 0.5), (i + 0.5, i + 0.5)]
+    pts += [(-0.5, n - 0.5)]
+    clip = Polygon(pts, closed=True, transform=ax.transData, facecolor="none", edgecolor="none")
+    image.set_clip_path(clip)
+    for spine in ax.spines.values():
+        spine.set_visible(False)
+    ax.tick_params(length=0)

@@ -341,6 +341,7 @@ def write_region(result: RegionCoverage, out_dir: str | Path, link: Link, surfac
         paths += result.comparison.write_csv(out)
     if render:
         from sphri.analysis import render as rd
+        from sphri.figures import human
 
         t0 = time.perf_counter()
         view = rd.LinkView(link, result.samples)
@@ -348,7 +349,7 @@ def write_region(result: RegionCoverage, out_dir: str | Path, link: Link, surfac
         grid = rd.uv_grid(surface, result.samples) if surface is not None and surface.has_uv else None
         for n in names:
             dens = result.densities[n]
-            label = f"{title}: {result.by} = {n}" if n != ALL else f"{title}: all trials"
+            label = f"{title}: {result.by} = {human(n)}" if n != ALL else f"{title}: all trials"
             paths.append(view.render(dens, out / f"map_{safe_name(n)}.png", label, views=views, provenance=provenance))
             paths.append(view.write_ply(dens, out / f"map_{safe_name(n)}.ply"))
             if grid is not None:

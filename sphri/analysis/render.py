@@ -297,7 +297,7 @@ def plot_overview(view: LinkView, densities: dict[str, np.ndarray], path: str | 
         grid = uv_grid(surface, samples)
     vmax = _vmax(list(densities.values()))
     with figures.style():
-        fig, axes = figures.new_figure("two", 1.25 * len(names) + 0.7, nrows=len(names), ncols=cols, squeeze=False)
+        fig, axes = figures.new_figure("two", figures.fit_page(1.25 * len(names) + 0.7), nrows=len(names), ncols=cols, squeeze=False)
         for r, name in enumerate(names):
             d = densities[name]
             for c, az in enumerate(azims):
@@ -306,7 +306,7 @@ def plot_overview(view: LinkView, densities: dict[str, np.ndarray], path: str | 
                 if r == 0:
                     ax.set_title(f"from {view.camera(az)}")
                 if c == 0:
-                    ax.text(-0.04, 0.5, name, transform=ax.transAxes, rotation=90, va="center", ha="right")
+                    ax.text(-0.04, 0.5, figures.human(name), transform=ax.transAxes, rotation=90, va="center", ha="right")
             if with_uv:
                 ax = axes[r, cols - 1]
                 draw_uv(ax, grid, surface, d, vmax, labels=False)
@@ -333,7 +333,7 @@ def plot_coverage_curves(curves: Sequence[CoverageCurve], path: str | Path, titl
             lw, colour = (2.0, "black") if c.group == "all" else (1.0, None)
             r = c.resampled(401)
             line, = ax.plot(r["area_share"], r["frame_share"], lw=lw, color=colour,
-                            label=f"{c.group} ({100 * c.area_at_capture:.0f} %)")
+                            label=f"{figures.human(c.group)} ({100 * c.area_at_capture:.0f} %)")
             ax.plot([c.area_at_capture], [c.capture], "o", color=line.get_color(), ms=3)
         if curves:
             ax.axhline(curves[0].capture, color="0.5", lw=0.6, ls="--")
@@ -352,23 +352,29 @@ def plot_coverage_curves(curves: Sequence[CoverageCurve], path: str | Path, titl
 def plot_swd_heatmap(comp: PairwiseComparison, path: str | Path, title: str,
                      provenance: figures.Provenance | None = None) -> Path:
     """Mean paired SWD (mm) between conditions with Holm-corrected p-values in the cells (* where <= alpha)
-    -> ``path`` (+ PDF, SVG). The colour scale spans the off-diagonal cells; the diagonal (each condition's
-    split-half baseline) is grey, its value printed."""
+    -> ``path`` (+ PDF, SVG). The matrix is symmetric: drawn once, the lower triangle with the diagonal. The
+    colour scale spans the off-diagonal cells; the diagonal (each condition's split-half baseline) is grey,
+    its value printed."""
     m = comp.matrix("mean_between_swd_mm").to_numpy(float)
     p = comp.matrix("p_holm")
     c = comp.conditions
-    off = ~np.eye(len(c), dtype=bool)
-    vals = m[off & np.isfinite(m)]
+    n = len(c)
+    off = ~np.eye(n, dtype=bool)
+    upper = figures.upper_mask(n)
+    vals = m[off & ~upper & np.isfinite(m)]
     lo, hi = (float(vals.min()), float(vals.max())) if vals.size else (0.0, 1.0)
-    cmap = plt.get_cmap("viridis").copy()
-    cmap.set_bad("0.85")
+    cmap = plt.get_cmap("viridis").with_extremes(bad="0.85")
+    names = [figures.human(x) for x in c]
     with figures.style():
-        side = float(np.clip(0.55 * len(c) + 1.6, 2.6, figures.TWO_COLUMN_IN))
-        fig, ax = figures.new_figure(side if side > figures.ONE_COLUMN_IN else "one", 0.5 * len(c) + 1.6)
-        im = ax.imshow(np.where(off, m, np.nan), cmap=cmap, vmin=lo, vmax=hi if hi > lo else lo + 1.0)
+        # cells of about 0.65 in: the value and its p-value fit inside at 7 pt
+        side = float(np.clip(0.65 * n + 2.4, figures.ONE_COLUMN_IN, figures.TWO_COLUMN_IN))
+        fig, ax = figures.new_figure(side, figures.fit_page(0.65 * n + 2.3))
+        shown = np.ma.masked_array(np.where(off, m, np.nan), mask=upper)
+        im = ax.imshow(shown, cmap=cmap, vmin=lo, vmax=hi if hi > lo else lo + 1.0)
+        figures.lower_triangle(ax, im, n)
         mid = 0.5 * (lo + hi)
-        for i in range(len(c)):
-            for j in range(len(c)):
+        for i in range(n):
+            for j in range(i + 1):
                 val = m[i, j]
                 if not np.isfinite(val):
                     continue
@@ -379,10 +385,15 @@ def plot_swd_heatmap(comp: PairwiseComparison, path: str | Path, title: str,
                     text += " *" if pv <= comp.alpha else ""
                 ax.text(j, i, text, ha="center", va="center", fontsize=figures.MIN_FONT_PT,
                         color="black" if i == j or val >= mid else "white")
-        ax.set_xticks(range(len(c)), c, rotation=45, ha="right")
-        ax.set_yticks(range(len(c)), c)
-        cb = fig.colorbar(im, ax=ax, shrink=0.8)
-        cb.set_label(f"mean paired SW{comp.swd_p:g} distance (mm)")
+        ax.set_xticks(range(n), names, rotation=45, ha="right")
+        ax.set_yticks(range(n), names)
+        # the colour bar in the empty upper triangle, not beside the matrix
+        cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if n >= 3 else None
+        cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical",
+                          shrink=0.8)
+        cb.set_label(f"mean paired SW{comp.swd_p:g}\ndistance (mm)")
+        if cax is not None:
+            cax.xaxis.set_label_position("top")
         ax.set_title(title, loc="left", wrap=True)
         ax.set_xlabel(f"Holm-corrected p (* <= {comp.alpha:g})\ngrey diagonal: split-half baseline")
         if provenance is not None:

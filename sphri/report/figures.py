@@ -72,6 +72,18 @@ def _shared_count_map(report: SweepReport) -> tuple[np.ndarray, np.ndarray] | No
     return arr[:, 0], arr[:, 1]
 
 
+#: y limits of a 0-1 metric: a small margin below 0 and above 1, so that a curve at 0 or 1 is drawn clear of
+#: the axis line instead of vanishing into it.
+Y_UNIT = (-0.04, 1.04)
+
+
+def _log_limits(values: np.ndarray, margin: float = 0.04) -> tuple[float, float]:
+    """(lo, hi) of a log axis spanning ``values`` with ``margin`` of the log span (or x1.1) on each side."""
+    lo, hi = float(values.min()), float(values.max())
+    pad = max(np.log(hi / lo) * margin, np.log(1.1)) if hi > lo else np.log(1.5)
+    return lo * np.exp(-pad), hi * np.exp(pad)
+
+
 def _all(report: SweepReport, col: str) -> np.ndarray:
     v = np.concatenate([g.points[col].to_numpy(float) for g in report.groups])
     return v[np.isfinite(v) & (v > 0)]
@@ -87,8 +99,10 @@ def _nice_log_ticks(axis, values: np.ndarray) -> None:
     ticks = [m * 10.0**k for k in range(int(np.floor(np.log10(lo))) - 1, int(np.ceil(np.log10(hi))) + 1)
              for m in (1, 2, 5)]
     ticks = [x for x in ticks if lo / 1.5 <= x <= hi * 1.5]
+    if sum(lo <= x <= hi for x in ticks) < 2:  # a short sweep: label its ends as well
+        ticks = sorted({*ticks, float(f"{lo:.3g}"), float(f"{hi:.3g}")})
     axis.set_major_locator(FixedLocator(ticks))
-    axis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:g}"))
+    axis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:.3g}"))
     axis.set_minor_formatter(NullFormatter())
 
 
@@ -146,27 +160,33 @@ def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> P
                 xerr = [[max(x0 - ends.min(), 0.0)], [max(ends.max() - x0, 0.0)]]
             axes[0].errorbar([x0], [y0], xerr=xerr, fmt="*", ms=11, color=color, mec="black", ecolor=color,
                              elinewidth=2.0, capsize=3, zorder=5, label=f"saturation: {g.label}")
+        xs = _all(report, xcol)
         for ax, name in zip(axes, ("accuracy", "macro F1")):
-            ax.axhline(CHANCE, color="0.4", ls="--", lw=0.8)
-            ax.text(0.01, CHANCE + 0.01, "chance", transform=ax.get_yaxis_transform(), ha="left", va="bottom",
-                    color="0.3")
+            ax.axhline(CHANCE, color="0.4", ls="--", lw=0.8, label=f"chance ({CHANCE:.3g})")
             ax.set_ylabel(f"{name}\n(mean +/- std over participants)")
-            ax.set_ylim(0, 1.02)
+            ax.set_ylim(*Y_UNIT)
             ax.grid(True, which="both", alpha=0.3)
             ax.set_xscale("log")
-            _nice_log_ticks(ax.xaxis, _all(report, xcol))
+            _nice_log_ticks(ax.xaxis, xs)
+            if xs.size:
+                ax.set_xlim(*_log_limits(xs))
+        extra = []  # reference lines named in the legend, never as text over the data
         if xcol == "pitch_u_mm":
+            from matplotlib.lines import Line2D
+
             study = 240.0 / STUDY_TAXELS_PER_24CM
+            inside = xs.size > 0 and xs.min() / 1.15 <= study <= xs.max() * 1.15
             for ax in axes:
-                ax.axvline(study, color="0.2", ls=":", lw=1.0)
-            # the label runs up the study's line from the bottom of the lower panel, away from the stars
-            axes[1].text(study, 0.97, "study: 18 taxels / 24 cm ", rotation=90, color="0.2", va="top", ha="right",
-                         transform=axes[1].get_xaxis_transform())
-            axes[0].invert_xaxis()
+                if inside:
+                    ax.axvline(study, color="0.2", ls=":", lw=1.0)
+            extra.append((Line2D([], [], color="0.2", ls=":", lw=1.0),
+                          f"study: 18 taxels / 24 cm ({study:.1f} mm)" + ("" if inside else ", outside the sweep")))
+            lo, hi = _log_limits(xs) if xs.size else (None, None)
+            axes[0].set_xlim(hi, lo)  # finer to the right
             top = axes[0].secondary_xaxis("top", functions=(lambda p: 240.0 / np.maximum(p, 1e-9),
                                                             lambda t: 240.0 / np.maximum(t, 1e-9)))
             top.set_xlabel("taxels per 24 cm along the link (the study's axis)")
-            _nice_log_ticks(top.xaxis, 240.0 / _all(report, xcol))
+            _nice_log_ticks(top.xaxis, 240.0 / xs)
             cmap = _shared_count_map(report)
             if cmap is not None:
                 lp, n = np.log(cmap[0]), np.log(cmap[1])
@@ -182,11 +202,15 @@ def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> P
                 _count_ticks(bottom.xaxis, cmap[0], cmap[1])
         axes[1].set_xlabel(xlabel)
         handles, labels = axes[0].get_legend_handles_labels()
+        handles += [h for h, _ in extra]
+        labels += [lab for _, lab in extra]
         if any(g.sat.interval is not None for g in report.groups):
             labels = [f"{lab} ({report.rule.ci:.0%} bootstrap interval)" if lab.startswith("saturation") else lab
                       for lab in labels]
         # outside the panels: the legend never hides data
-        fig.legend(handles, labels, loc="outside lower center", ncol=min(4, max(2, len(labels) // 2)))
+        # as many columns as the longest label leaves room for (7 pt text: about 0.052 in per character)
+        fits = int(0.95 * fig.get_figwidth() / (0.052 * max(map(len, labels)) + 0.45))
+        fig.legend(handles, labels, loc="outside lower center", ncol=int(np.clip(fits, 1, 4)))
         axes[0].set_title("accuracy against skin resolution", loc="left")
         return _finish(fig, report, path, marks)
 
@@ -213,15 +237,17 @@ def plot_recall(report: SweepReport, path: Path, max_groups: int = 6, marks: boo
                 y = g.points[f"recall_{gest}"].to_numpy(float)
                 if not np.isfinite(y).any():
                     continue
-                ax.plot(x, y, "-", color=colors(k), label=gest)
+                ax.plot(x, y, "-", color=colors(k), label=figures.human(gest))
                 s = g.gesture_sat.get(gest)
                 if s is not None:
                     ax.plot([x[s.index]], [y[s.index]], "o", color=colors(k), mec="black")
             ax.set_xscale("log")
-            _nice_log_ticks(ax.xaxis, x[np.isfinite(x) & (x > 0)])
-            if xcol == "pitch_u_mm":
-                ax.invert_xaxis()
-            ax.set_ylim(0, 1.02)
+            xf = x[np.isfinite(x) & (x > 0)]
+            _nice_log_ticks(ax.xaxis, xf)
+            if xf.size:
+                lo, hi = _log_limits(xf)
+                ax.set_xlim(*((hi, lo) if xcol == "pitch_u_mm" else (lo, hi)))
+            ax.set_ylim(*Y_UNIT)
             ax.set_title(g.label, loc="left")
             ax.set_xlabel(xlabel.split(" (")[0] + (" (mm)" if xcol == "pitch_u_mm" else ""))
             ax.grid(True, which="both", alpha=0.3)
@@ -284,7 +310,7 @@ def plot_tornado(report: SweepReport, path: Path, marks: bool | None = None) -> 
                 if iv is not None:
                     ax.plot(iv, [y, y], "-", color=color, lw=5, alpha=0.35, solid_capstyle="butt")
                 ax.plot([v], [y], "o", color=color)
-            ax.set_yticks(range(len(sens.variants)), [g.keys.get("variant", g.label) for g in reversed(sens.variants)])
+            ax.set_yticks(range(len(sens.variants)), [figures.human(g.keys.get("variant", g.label)) for g in reversed(sens.variants)])
             if sens.reference is not None:
                 ax.axvline(float(sens.reference.recommended[col]), color="black", ls="--", lw=0.8)
             ax.set_xlabel("saturation pitch (mm)" if pitch else "taxels at saturation")

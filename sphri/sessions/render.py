@@ -27,10 +27,13 @@ from sphri.types import GESTURES  # noqa: E402
 VIEWS = (("front", 0.0, 10.0), ("left", 90.0, 10.0), ("back", 180.0, 10.0), ("right", 270.0, 10.0), ("top", 0.0, 89.0))
 
 
-def _finish(fig, title: str, path: str | Path) -> Path:
-    """Title the figure, write it to ``path`` (PNG, PDF, SVG) and close it."""
+def _finish(fig, title: str, path: str | Path, provenance: figures.Provenance | None) -> Path:
+    """Title the figure (units typeset), draw the provenance banner (:func:`sphri.figures.mark`), write it to
+    ``path`` (PNG, PDF, SVG) and close it."""
     with figures.style():
-        fig.suptitle(title, wrap=True)
+        fig.suptitle(figures.typeset(title), wrap=True)
+        if provenance is not None:
+            figures.mark(fig, provenance)
         figures.save(fig, path)
     return Path(path)
 
@@ -40,12 +43,14 @@ def body_view(body: BodySurface, faces: int = 20000) -> LinkView:
     return LinkView(body.mesh, body.samples, target_faces=faces)
 
 
-def plot_views(view: LinkView, densities: dict[str, np.ndarray], path: str | Path, title: str) -> Path:
-    """Rows: maps; columns: front, left, back, right, top; one colour scale and bar."""
+def plot_views(view: LinkView, densities: dict[str, np.ndarray], path: str | Path, title: str,
+               provenance: figures.Provenance | None = None) -> Path:
+    """Rows: maps; columns: front, left, back, right, top; one colour scale and bar. Rows shrink so that the
+    figure fits a page (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
     names = list(densities)
     vmax = _vmax(list(densities.values()))
     with figures.style():
-        fig, axes = figures.new_figure("two", 1.6 * len(names) + 0.7, nrows=len(names), ncols=len(VIEWS),
+        fig, axes = figures.new_figure("two", figures.fit_page(1.6 * len(names) + 0.7), nrows=len(names), ncols=len(VIEWS),
                                        squeeze=False)
         for r, n in enumerate(names):
             for c, (vt, az, el) in enumerate(VIEWS):
@@ -53,13 +58,14 @@ def plot_views(view: LinkView, densities: dict[str, np.ndarray], path: str | Pat
                 view.draw(ax, densities[n], az, vmax, elev_deg=el)
                 if r == 0:
                     ax.set_title(vt)
-            axes[r, 0].text(-0.06, 0.5, n.replace("_", "\n", 1), transform=axes[r, 0].transAxes, rotation=90,
+            axes[r, 0].text(-0.06, 0.5, figures.human(n).replace(": ", "\n", 1), transform=axes[r, 0].transAxes, rotation=90,
                             ha="right", va="center")
         _colourbar(fig, vmax, ax=axes)
-        return _finish(fig, title, path)
+        return _finish(fig, title, path, provenance)
 
 
-def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, title: str) -> Path:
+def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, title: str,
+               provenance: figures.Provenance | None = None) -> Path:
     """One unrolled chart per body part: angle around the link's long axis vs position along it (cm)."""
     parts = body.parts
     cols = 5
@@ -73,7 +79,7 @@ def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, 
         _, _, vt = np.linalg.svd(d, full_matrices=False)
         axis_of[li] = (s.points_m.mean(axis=0), vt)
     with figures.style():
-        fig, axes = figures.new_figure("two", 1.45 * rows + 0.8, nrows=rows, ncols=cols, squeeze=False)
+        fig, axes = figures.new_figure("two", figures.fit_page(1.45 * rows + 0.8), nrows=rows, ncols=cols, squeeze=False)
         for k, p in enumerate(parts):
             ax = axes[k // cols, k % cols]
             idx = np.flatnonzero(body.part == p)
@@ -83,7 +89,7 @@ def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, 
             along = local @ vt[0] * 100
             ang = np.degrees(np.arctan2(local @ vt[2], local @ vt[1]))
             ax.scatter(ang, along, c=vals[idx], cmap=CMAP, vmin=0, vmax=vmax, s=2, marker="s", linewidths=0, rasterized=True)
-            ax.set_title(f"{p}\n({body.samples.area_m2[idx].sum() * 1e4:.0f} cm$^2$)")
+            ax.set_title(f"{figures.human(p)}\n({body.samples.area_m2[idx].sum() * 1e4:.0f} cm$^2$)")
             ax.set_xlim(-180, 180)
             ax.set_xticks([-180, 0, 180])
             if k % cols == 0:
@@ -93,7 +99,7 @@ def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, 
         for k in range(len(parts), rows * cols):
             axes[k // cols, k % cols].set_axis_off()
         _colourbar(fig, vmax, ax=axes)
-        return _finish(fig, title, path)
+        return _finish(fig, title, path, provenance)
 
 
 def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: str | Path) -> Path:
@@ -110,7 +116,8 @@ def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: st
     return path
 
 
-def plot_gesture_histogram(hist: pd.DataFrame, path: str | Path, title: str) -> Path:
+def plot_gesture_histogram(hist: pd.DataFrame, path: str | Path, title: str,
+                           provenance: figures.Provenance | None = None) -> Path:
     scen = list(pd.unique(hist["scenario"]))
     x = np.arange(len(GESTURES))
     with figures.style():
@@ -123,40 +130,43 @@ def plot_gesture_histogram(hist: pd.DataFrame, path: str | Path, title: str) -> 
             ax.errorbar(x, h["expected"] / n, yerr=h["expected_sd"] / n, fmt="none", ecolor="black", capsize=1.5,
                         lw=0.6)
             ax.plot(x, h["count"] / n, "o", color="#dd8452", ms=2.5, label="argmax count")
-            ax.set_xticks(x, GESTURES, rotation=90)
-            ax.set_title(f"{s}\n({int(h['n_episodes'].iloc[0])} episodes)")
+            ax.set_xticks(x, [figures.human(g) for g in GESTURES], rotation=90)
+            ax.set_title(f"{figures.human(s)}\n({int(h['n_episodes'].iloc[0])} episodes)")
             ax.set_ylim(0, 1)
         axes[0, 0].set_ylabel("share of coded episodes")
         handles, labels = axes[0, 0].get_legend_handles_labels()
         fig.legend(handles, labels, loc="outside lower center", ncol=2)
-        return _finish(fig, title, path)
+        return _finish(fig, title, path, provenance)
 
 
-def plot_placement(ranking: pd.DataFrame, table: pd.DataFrame, path: str | Path, title: str) -> Path:
+def plot_placement(ranking: pd.DataFrame, table: pd.DataFrame, path: str | Path, title: str,
+                   provenance: figures.Provenance | None = None) -> Path:
     """Left: parts ranked by contact frames per cm^2 (pooled), chosen ones dark. Right: capture per group."""
     chosen = set(str(table.loc[table["group"] == "all", "parts"].iat[0]).split(";"))
     with figures.style():
-        fig, (a, b) = figures.new_figure("two", 0.12 * max(len(ranking), len(table)) + 1.4, ncols=2,
+        fig, (a, b) = figures.new_figure("two", figures.fit_page(0.12 * max(len(ranking), len(table)) + 1.4), ncols=2,
                                          gridspec_kw={"width_ratios": [1.3, 1]})
         r = ranking.iloc[::-1]
-        a.barh(r["part"], r["frames_per_cm2"], color=["#c44e52" if p in chosen else "#bbbbbb" for p in r["part"]])
+        a.barh([figures.human(p) for p in r["part"]], r["frames_per_cm2"], color=["#c44e52" if p in chosen else "#bbbbbb" for p in r["part"]])
         a.set_xlabel("contact frames per cm$^2$ (pooled)")
         a.set_title("body parts (red: the pooled placement)", loc="left")
         y = np.arange(len(table))
         b.barh(y - 0.2, 100 * table["captured"], height=0.4, label="in sample", color="#4c72b0")
         b.barh(y + 0.2, 100 * table["heldout_captured"], height=0.4, label="held-out participants", color="#55a868")
-        b.set_yticks(y, [f"{g} ({100 * a_:.0f} % area)" for g, a_ in zip(table["group"], table["area_share"])])
+        b.set_yticks(y, [f"{figures.human(g)} ({100 * a_:.0f} % area)" for g, a_ in zip(table["group"], table["area_share"])])
         b.invert_yaxis()
         b.set_xlim(0, 100)
         b.set_xlabel("contact frames captured (%)")
         b.set_title("placement under the budget", loc="left")
         fig.legend(*b.get_legend_handles_labels(), loc="outside lower right", ncol=2)
-        return _finish(fig, title, path)
+        return _finish(fig, title, path, provenance)
 
 
-def plot_effects(effects: pd.DataFrame, scenarios: list[str], alpha: float, path: str | Path, title: str) -> Path:
-    """Scenario x scenario matrix of the paired effect: cells coloured by d_z (mean between-minus-within SWD over
-    its SD across participants), text: the mean difference in mm, d_z and the Holm-corrected p (* <= alpha)."""
+def plot_effects(effects: pd.DataFrame, scenarios: list[str], alpha: float, path: str | Path, title: str,
+                 provenance: figures.Provenance | None = None) -> Path:
+    """Scenario x scenario matrix of the paired effect, drawn once (the cells below the diagonal: the matrix
+    is symmetric and its diagonal empty): cells coloured by d_z (mean between-minus-within SWD over its SD
+    across participants), text: the mean difference in mm, d_z and the Holm-corrected p (* <= alpha)."""
     n = len(scenarios)
     idx = {s: i for i, s in enumerate(scenarios)}
     dz = np.full((n, n), np.nan)
@@ -168,17 +178,28 @@ def plot_effects(effects: pd.DataFrame, scenarios: list[str], alpha: float, path
         dz[i, j] = dz[j, i] = r.effect_dz
         text[i][j] = text[j][i] = t
     lim = max(float(np.nanmax(np.abs(dz))) if np.isfinite(dz).any() else 1.0, 0.5)
+    k = max(n - 1, 1)  # rows 1..n-1 against columns 0..n-2: the strict lower triangle as a k x k triangle
+    sub = dz[1:, :-1] if n > 1 else dz
+    names = [figures.human(s) for s in scenarios]
     with figures.style():
-        fig, ax = figures.new_figure("two", 0.62 * n + 1.5)
-        im = ax.imshow(dz, cmap="RdBu_r", vmin=-lim, vmax=lim)
-        for i in range(n):
-            for j in range(n):
-                if text[i][j]:
-                    ax.text(j, i, text[i][j], ha="center", va="center", fontsize=figures.MIN_FONT_PT,
-                            color="white" if abs(dz[i, j]) > 0.6 * lim else "black")
-        ax.set_xticks(range(n), scenarios, rotation=45, ha="right")
-        ax.set_yticks(range(n), scenarios)
-        cb = fig.colorbar(im, ax=ax, shrink=0.8)
+        side = float(np.clip(0.75 * k + 2.6, figures.ONE_COLUMN_IN, figures.TWO_COLUMN_IN))
+        fig, ax = figures.new_figure(side, figures.fit_page(0.7 * k + 2.0))
+        im = ax.imshow(np.ma.masked_array(sub, mask=figures.upper_mask(k)), cmap="RdBu_r", vmin=-lim, vmax=lim)
+        figures.lower_triangle(ax, im, k)
+        for i in range(k):
+            for j in range(i + 1):
+                t = text[i + 1][j] if n > 1 else ""
+                if t:
+                    ax.text(j, i, t, ha="center", va="center", fontsize=figures.MIN_FONT_PT,
+                            color="white" if abs(sub[i, j]) > 0.6 * lim else "black")
+        ax.set_xticks(range(k), names[:-1] if n > 1 else names, rotation=45, ha="right")
+        ax.set_yticks(range(k), names[1:] if n > 1 else names)
+        # the colour bar in the empty upper triangle
+        cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if k >= 3 else None
+        cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical",
+                          shrink=0.8)
         cb.set_label("effect size d$_z$\n(between - within SWD)")
+        if cax is not None:
+            cax.xaxis.set_label_position("top")
         ax.set_xlabel(f"Holm-corrected p (* <= {alpha:g})")
-        return _finish(fig, title, path)
+        return _finish(fig, title, path, provenance)

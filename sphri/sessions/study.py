@@ -351,25 +351,30 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     from sphri.sessions.render import (body_view, plot_atlas, plot_effects, plot_gesture_histogram, plot_placement,
                                        plot_views, write_density_ply)
 
+    from sphri.figures import Provenance, human
+
+    prov = Provenance(synthetic=bool(ds.synthetic), ids=ds.name)  # one banner on every figure (sphri.figures.mark)
     view = body_view(body, res.settings.view_faces)
     figs = {}
     figs["maps"] = plot_views(view, {**dens, "pooled": cov.densities[ALL]}, out / "maps_views.png",
-                              f"Contact density per {cov.by}, one colour scale ({label})")
+                              f"Contact density per {cov.by}, one colour scale ({label})", provenance=prov)
     for s in scen:
-        files.append(plot_views(view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{s} ({label})"))
+        files.append(plot_views(view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png",
+                                f"{human(s)} ({label})", provenance=prov))
     figs["atlas"] = plot_atlas(body, robot, cov.densities[ALL], out / "atlas_pooled.png",
-                               f"Atlas of the whole surface, pooled over scenarios ({label})")
+                               f"Atlas of the whole surface, pooled over scenarios ({label})", provenance=prov)
     files.append(write_density_ply(view, {"pooled": cov.densities[ALL], **dens}, out / "density_mesh.ply"))
     if res.comparison is not None:
         figs["swd"] = plot_swd_heatmap(res.comparison, out / "swd_matrix.png",
-                                       f"Scenario maps: paired sliced Wasserstein ({label})")
+                                       f"Scenario maps: paired sliced Wasserstein ({label})", provenance=prov)
         figs["effects"] = plot_effects(_effects(res.comparison), scen, res.settings.alpha, out / "swd_effects.png",
-                                       f"Scenario maps differ? Paired effect per pair ({label})")
+                                       f"Scenario maps differ? Paired effect per pair ({label})", provenance=prov)
     figs["gestures"] = plot_gesture_histogram(res.histogram, out / "gesture_histogram.png",
                                               f"Gestures of the coded episodes per scenario ({label}; model LOSO "
-                                              f"accuracy {100 * gm.accuracy_mean:.0f} %)")
+                                              f"accuracy {100 * gm.accuracy_mean:.0f} %)", provenance=prov)
     figs["placement"] = plot_placement(res.ranking[res.ranking["scenario"] == "all"].query("~part.str.startswith('group:')"),
-                                       res.placement, out / "placement.png", f"Placement under {budget} ({label})")
+                                       res.placement, out / "placement.png", f"Placement under {budget} ({label})",
+                                       provenance=prov)
     files += list(figs.values())
     files.append(write_report(res, figs, summary, budget, label, out / "report.html"))
     return files

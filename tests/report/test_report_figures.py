@@ -49,3 +49,40 @@ def test_marks_switch_the_synthetic_banner_off(two_model_sweep, tmp_path):
     for a, b in ((on.figures["curves"], off.figures["curves"]), (on.confusions["rf"], off.confusions["rf"])):
         assert "SYNTHETIC DATA" in a.with_suffix(".svg").read_text()
         assert "SYNTHETIC DATA" not in b.with_suffix(".svg").read_text()
+
+
+def test_short_sweep_fills_the_axis_and_recall_at_zero_stays_visible(store, tmp_path, monkeypatch):
+    """A 2-point sweep (res 2, 4: pitch far coarser than the study's 13.3 mm) spans the x axis instead of its
+    right third; the study's line and label do not widen the view or cross a curve; the 0-1 axes keep a
+    margin so that a recall of 0 is drawn above the axis line, not on it."""
+    import numpy as np
+
+    from sphri import figures
+
+    kept = {}
+    real = figures.save
+
+    def save(fig, path, *a, **kw):
+        kept[path.stem] = fig
+        kw["close"] = False
+        return real(fig, path, *a, **kw)
+
+    monkeypatch.setattr(figures, "save", save)
+    short = make_sweep(store, tmp_path / "short", [2, 4], n_participants=4, seed=5)
+    _, files, _ = make_report(short.sweep_dir, rule=RULE, out_dir=tmp_path / "short_report", log_to_mlflow=False,
+                              formats=("png",))
+    curves = kept[files.figures["curves"].stem]
+    assert figures.layout_problems(curves) == []
+    for ax in curves.axes[:2]:
+        x = np.concatenate([ax.transData.transform(line.get_xydata())[:, 0] for line in ax.get_lines()
+                            if line.get_transform() is ax.transData])
+        assert (x.max() - x.min()) / ax.bbox.width >= 0.6
+        assert not ax.texts, "reference lines are named in the legend, not by text over the data"
+    legend = [t.get_text() for t in curves.legends[0].get_texts()]
+    assert any("study: 18 taxels / 24 cm" in t and "outside the sweep" in t for t in legend)
+    recall = kept[files.figures["recall"].stem]
+    ax = recall.axes[0]
+    y0 = ax.transData.transform([(1.0, 0.0)])[0, 1]
+    assert y0 - ax.bbox.y0 >= 2.0, "a recall of 0 lies on the axis line"
+    assert figures.layout_problems(recall) == []
+    figures.pyplot().close("all")
