@@ -127,3 +127,67 @@ def test_study_settings_are_checked():
 
     with pytest.raises(ConfigError, match=r"data=SyntheticSessions holds free-interaction sessions.*scenario_study"):
         chain_region(compose(["+experiment=scenario_study"]))
+
+
+def test_budget_curve_rises_to_one_and_held_out_stays_below(study):
+    curve = pd.read_csv(study / "budget_curve.csv")
+    scen = sorted(pd.read_csv(study / "sessions.csv")["scenario"].unique())
+    assert set(curve["scenario"]) == {"all", *scen} and set(curve["curve"]) == {"in_sample", "heldout"}
+    summary = json.loads((study / "summary.json").read_text())
+    pitch = summary["skin_design"]["pitch_mm"]
+    for (s, kind), c in curve.groupby(["scenario", "curve"]):
+        assert c["area_cm2"].is_monotonic_increasing and c["captured"].is_monotonic_increasing, (s, kind)
+        assert c["captured"].iloc[0] == 0 and c["captured"].between(0, 1).all()
+        # taxels at the pitch: area / pitch^2 (the CSV rounds the area to 6 digits)
+        assert np.abs(c["taxels"] - c["area_cm2"] * 100 / pitch ** 2).max() <= 1.0
+    pooled = curve[curve["scenario"] == "all"].set_index("curve")
+    ins, held = pooled.loc["in_sample"], pooled.loc["heldout"]
+    assert ins["captured"].iloc[-1] == pytest.approx(1.0)  # every patch taken: every frame captured
+    assert ins["captured"].iloc[1] < 1.0  # ... but not with the first 1 % of the area (the curve rises)
+    assert held["captured"].mean() <= ins["captured"].mean()
+    assert (held["n_splits"] == 20).all()  # 10 halvings, each half scores the other's choice
+    assert (study / "budget_curve.png").is_file() and (study / "skin_design.png").is_file()
+    assert "budget_curve.csv" in (study / "report.html").read_text()
+
+
+def test_patch_placement_and_export_a_lab_can_build_from(study):
+    patches = pd.read_csv(study / "patches.csv")
+    # patches are regions within parts: some part holds several
+    assert patches.groupby(["link", "part"]).size().max() > 1
+    place = pd.read_csv(study / "patch_placement.csv")
+    assert place["group"].iloc[0] == "all" and (place["area_cm2"] <= 2000 + 1e-6).all()
+    assert place["captured"].between(0, 1).all() and place["heldout_captured"].between(0, 1).all()
+    manifest = pd.read_csv(study / "skin_export" / "manifest.csv")
+    meta = json.loads((study / "skin_export" / "manifest.json").read_text())
+    assert len(meta["patches"]) == len(manifest) == place["n_patches"].iloc[0]
+    assert {"link", "part", "patch", "file", "area_cm2", "taxels", "share_captured_alone", "share_added"} <= set(manifest)
+    assert manifest["sampled_area_cm2"].sum() <= 2000 + 1e-6
+    assert manifest["share_added"].sum() == pytest.approx(place["captured"].iloc[0])
+    for r in manifest.itertuples():
+        mesh = trimesh.load(study / "skin_export" / r.file, process=False)
+        assert mesh.area * 1e4 == pytest.approx(r.area_cm2, rel=1e-4)
+        # the mesh covers about the patch's sampled surface (faces cut at the element spacing)
+        assert 0.6 < r.area_cm2 / r.sampled_area_cm2 < 1.6, r.patch
+        assert r.taxels == int(np.floor(r.area_cm2 * 100 / meta["pitch_mm"] ** 2 + 1e-9))
+    # in each link's frame: the patch lies on its link's mesh
+    robot = instantiate(compose(["robot=reachy_full"]).robot).build()
+    r = manifest.iloc[0]
+    mesh = trimesh.load(study / "skin_export" / r["file"], process=False)
+    link = robot.links[r["link"]]
+    closest = trimesh.Trimesh(link.vertices, link.faces, process=False).nearest.on_surface(mesh.vertices[:50])[1]
+    assert np.max(closest) < 1e-6
+
+
+def test_gesture_counts_with_intervals_and_confusion_against_the_generator(study):
+    counts = pd.read_csv(study / "gesture_counts.csv")
+    assert (counts["count_lo"] <= counts["count"] + 1e-9).all() and (counts["count"] <= counts["count_hi"] + 1e-9).all()
+    assert (counts["expected_lo"] <= counts["expected_hi"]).all()
+    coded = pd.read_csv(study / "coded_episodes.csv", keep_default_na=False)
+    for s, g in counts.groupby("scenario"):
+        assert g["count"].sum() == ((coded["scenario"] == s) & (coded["gesture"] != "")).sum()
+    conf = pd.read_csv(study / "gesture_confusion.csv", index_col=0)
+    assert conf["n"].sum() == len(coded)
+    diag = sum(conf.loc[g, g] for g in conf.index if g in conf.columns)
+    summary = json.loads((study / "summary.json").read_text())
+    labelled = (coded["gesture"] != "").sum()
+    assert diag / labelled == pytest.approx(summary["against_generator"]["gesture_agreement"])
