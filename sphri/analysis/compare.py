@@ -158,23 +158,40 @@ def paired_swd_tests(
     conditions = list(conditions)
     if len(conditions) < 2:
         raise ValueError(f"need at least two conditions to compare, got {conditions}")
-    rows, prows = [], []
-    for idx, (a, b) in enumerate(combinations(conditions, 2)):
-        used, wa_list, wb_list, n_splits = [], [], [], []
+    # every distance once: a within-condition split (the same cached halves) recurs in each pair it enters
+    wa_all, wb_all, keep, jobs = [], [], [], {}
+
+    def job(key, x, y) -> int:
+        if key not in jobs:
+            jobs[key] = len(wa_all)
+            wa_all.append(x)
+            wb_all.append(y)
+        return jobs[key]
+
+    plan = []
+    for a, b in combinations(conditions, 2):
+        used, idx4, n_splits = [], [], []
         for part in participants:
             h = halves(part, a, b)
             if h is None:
                 continue
             splits = h if isinstance(h, list) else [h]
             for split in splits:
+                keep.append(split)  # keeps the ids below unique while planning
                 ha, hb = (np.asarray(x, dtype=np.float64) for x in split)
                 if ha.shape != (2, sw.support.shape[0]) or hb.shape != ha.shape:
                     raise ValueError(f"halves({part!r}, {a!r}, {b!r}) must be two (2, {sw.support.shape[0]}) arrays")
+                ia, ib = id(split[0]), id(split[1])
                 # the four comparisons: a1-b2, a2-b1, a1-a2, b1-b2
-                wa_list += [ha[0], ha[1], ha[0], hb[0]]
-                wb_list += [hb[1], hb[0], ha[1], hb[1]]
+                idx4.append([job(("ab", ia, ib), ha[0], hb[1]), job(("ba", ia, ib), ha[1], hb[0]),
+                             job(("w", ia), ha[0], ha[1]), job(("w", ib), hb[0], hb[1])])
             used.append(part)
             n_splits.append(len(splits))
+        plan.append((a, b, used, idx4, n_splits))
+    all_dist = np.concatenate([np.zeros(0)] + [  # mm; in chunks (each row is a whole-surface weighting)
+        sw.distances(np.stack(wa_all[i:i + 128]), np.stack(wb_all[i:i + 128])) * 1e3 for i in range(0, len(wa_all), 128)])
+    rows, prows = [], []
+    for idx, (a, b, used, idx4, n_splits) in enumerate(plan):
         n = len(used)
         row = {"cond_a": a, "cond_b": b, "n_participants": n}
         if n == 0:
@@ -182,7 +199,7 @@ def paired_swd_tests(
                        p_value=np.nan, exact=False, n_permutations=0)
             rows.append(row)
             continue
-        flat = sw.distances(np.stack(wa_list), np.stack(wb_list)).reshape(-1, 4) * 1e3  # mm, one row per split
+        flat = all_dist[np.asarray(idx4)]  # one row per split
         owner = np.repeat(np.arange(n), n_splits)
         dist = np.stack([np.bincount(owner, flat[:, c], minlength=n) for c in range(4)], axis=1) / np.asarray(n_splits)[:, None]
         between = dist[:, :2].mean(axis=1)
