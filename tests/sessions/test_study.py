@@ -123,6 +123,9 @@ def test_study_settings_are_checked():
         compose(["+experiment=scenario_study", "experiment.scenario_study.pitch_mm=10"])
     with pytest.raises(ConfigError, match=r"robot='reachy' is invalid.*kinematic tree"):
         compose(["+experiment=scenario_study", "robot=reachy"])
+    for key, value in (("patch_cm2", "0.5"), ("skin_pitch_mm", "0"), ("heldout_splits", "-1"), ("export_format", "obj")):
+        with pytest.raises(ConfigError, match=rf"experiment.scenario_study.{key}"):
+            compose(["+experiment=scenario_study", f"experiment.scenario_study.{key}={value}"])
     from sphri.pipeline import chain_region
 
     with pytest.raises(ConfigError, match=r"data=SyntheticSessions holds free-interaction sessions.*scenario_study"):
