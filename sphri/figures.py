@@ -289,6 +289,27 @@ def _span_problems(ax) -> list[str]:
     return []
 
 
+def _check_and_write_png(fig, out: Path) -> list[str]:
+    """:func:`layout_problems` drawn at ``savefig.dpi``, then that same Agg buffer written as the PNG."""
+    import numpy as np
+    from PIL import Image
+
+    plt = pyplot()
+    dpi0 = fig.dpi
+    with style():
+        dpi = plt.rcParams["savefig.dpi"]
+        dpi = float(dpi0 if dpi == "figure" else dpi)
+        fig.set_dpi(dpi)
+        try:
+            problems = layout_problems(fig)  # draws the canvas at this dpi
+            if fig.stale:
+                fig.canvas.draw()
+            Image.fromarray(np.asarray(fig.canvas.buffer_rgba())).save(out, format="png", dpi=(dpi, dpi))
+        finally:
+            fig.set_dpi(dpi0)
+    return problems
+
+
 def _tick_labels(fig) -> tuple[set[int], set[int]]:
     """ids of the tick labels drawn (tick inside the axis' view interval) and of those not drawn."""
     drawn, hidden = set(), set()
@@ -343,11 +364,21 @@ def save(fig, path: Path | str, formats: Sequence[str] | None = None, close: boo
     """
     path = Path(path)
     formats = _formats[-1] if formats is None else tuple(formats)
-    for problem in layout_problems(fig) if check else ():
-        log.warning("%s: %s", path.name, problem)
+    fmts = list(dict.fromkeys([path.suffix.lstrip(".") or "png", *formats]))
     written = []
+    if check and "png" in fmts and hasattr(fig.canvas, "buffer_rgba"):
+        # one draw at the PNG's resolution serves the layout check and the PNG (a check drawing the figure
+        # once more took as long as writing it)
+        out = path.with_suffix(".png")
+        problems = _check_and_write_png(fig, out)
+        written.append(out)
+        fmts.remove("png")
+    else:
+        problems = layout_problems(fig) if check else []
+    for problem in problems:
+        log.warning("%s: %s", path.name, problem)
     with style():
-        for fmt in dict.fromkeys([path.suffix.lstrip(".") or "png", *formats]):
+        for fmt in fmts:
             out = path.with_suffix("." + fmt)
             fig.savefig(out, format=fmt)
             written.append(out)

@@ -22,6 +22,7 @@ __getattr__, __all__ = lazy_exports(
         "PairwiseComparison": "sphri.analysis.compare",
         "paired_swd_tests": "sphri.analysis.compare",
         "split_halves": "sphri.analysis.compare",
+        "rotated_halves": "sphri.analysis.compare",
         "CoverageAnalysis": "sphri.analysis.coverage",
         "RegionCoverage": "sphri.analysis.coverage",
         "write_density_npz": "sphri.analysis.coverage",

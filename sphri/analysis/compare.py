@@ -19,6 +19,15 @@ the null. All pairs of one analysis are Holm-corrected together.
 
 A participant enters a pair's test only with >= 2 trials with contact in
 both conditions (so that each half has one); the count used is reported.
+
+Every trial enters. When ``2 k`` is less than a condition's trial count
+(three repetitions give k = 1: one split-half would leave the third out),
+``halves`` may return several splits (:func:`rotated_halves`: the trial
+order rotated by each offset, so each trial lies in some split) and d_i is
+the mean of the splits' differences. Each split's difference is symmetric
+about 0 under the null as above; their mean keeps E[d_i] = 0, and the
+sign-flip test on it is exact only up to the splits' dependence (one split,
+the default with an even trial count, stays exact).
 """
 
 from __future__ import annotations
@@ -34,8 +43,8 @@ import pandas as pd
 from sphri.analysis.stats import holm, sign_flip_test
 from sphri.analysis.swd import SharedSupportSW
 
-#: (participant, cond_a, cond_b) -> (halves of a (2, P), halves of b (2, P)) or None.
-HalvesFn = Callable[[str, str, str], "tuple[np.ndarray, np.ndarray] | None"]
+#: (participant, cond_a, cond_b) -> (halves of a (2, P), halves of b (2, P)), a list of such splits, or None.
+HalvesFn = Callable[[str, str, str], "tuple[np.ndarray, np.ndarray] | list[tuple[np.ndarray, np.ndarray]] | None"]
 
 TABLE_COLUMNS = (
     "cond_a", "cond_b", "n_participants", "mean_between_swd_mm", "mean_within_swd_mm",
@@ -114,6 +123,21 @@ def split_halves(ordinals: Sequence[int], k: int) -> tuple[np.ndarray, np.ndarra
     return pos[0::2], pos[1::2]
 
 
+def rotated_halves(ordinals: Sequence[int], k: int, r: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`split_halves` of the trial order rotated by ``r`` (``r = 0``: the same): with ``n`` trials,
+    the rotations ``0 .. n - 1`` put every trial in some split when ``2 k < n``."""
+    o = np.asarray(ordinals)
+    if k < 1 or 2 * k > o.size:
+        raise ValueError(f"cannot split {o.size} trials into two halves of {k}")
+    pos = np.roll(np.argsort(o, kind="stable"), -int(r))[: 2 * k]
+    return pos[0::2], pos[1::2]
+
+
+def n_rotations(n_trials: int, k: int) -> int:
+    """Rotations :func:`rotated_halves` needs so that each of ``n_trials`` trials enters (1 when ``2 k = n``)."""
+    return 1 if 2 * k >= n_trials else int(n_trials)
+
+
 def paired_swd_tests(
     sw: SharedSupportSW,
     participants: Sequence[str],
@@ -134,20 +158,40 @@ def paired_swd_tests(
     conditions = list(conditions)
     if len(conditions) < 2:
         raise ValueError(f"need at least two conditions to compare, got {conditions}")
-    rows, prows = [], []
-    for idx, (a, b) in enumerate(combinations(conditions, 2)):
-        used, wa_list, wb_list = [], [], []
+    # every distance once: a within-condition split (the same cached halves) recurs in each pair it enters
+    wa_all, wb_all, keep, jobs = [], [], [], {}
+
+    def job(key, x, y) -> int:
+        if key not in jobs:
+            jobs[key] = len(wa_all)
+            wa_all.append(x)
+            wb_all.append(y)
+        return jobs[key]
+
+    plan = []
+    for a, b in combinations(conditions, 2):
+        used, idx4, n_splits = [], [], []
         for part in participants:
             h = halves(part, a, b)
             if h is None:
                 continue
-            ha, hb = (np.asarray(x, dtype=np.float64) for x in h)
-            if ha.shape != (2, sw.support.shape[0]) or hb.shape != ha.shape:
-                raise ValueError(f"halves({part!r}, {a!r}, {b!r}) must be two (2, {sw.support.shape[0]}) arrays")
-            # the four comparisons: a1-b2, a2-b1, a1-a2, b1-b2
-            wa_list += [ha[0], ha[1], ha[0], hb[0]]
-            wb_list += [hb[1], hb[0], ha[1], hb[1]]
+            splits = h if isinstance(h, list) else [h]
+            for split in splits:
+                keep.append(split)  # keeps the ids below unique while planning
+                ha, hb = (np.asarray(x, dtype=np.float64) for x in split)
+                if ha.shape != (2, sw.support.shape[0]) or hb.shape != ha.shape:
+                    raise ValueError(f"halves({part!r}, {a!r}, {b!r}) must be two (2, {sw.support.shape[0]}) arrays")
+                ia, ib = id(split[0]), id(split[1])
+                # the four comparisons: a1-b2, a2-b1, a1-a2, b1-b2
+                idx4.append([job(("ab", ia, ib), ha[0], hb[1]), job(("ba", ia, ib), ha[1], hb[0]),
+                             job(("w", ia), ha[0], ha[1]), job(("w", ib), hb[0], hb[1])])
             used.append(part)
+            n_splits.append(len(splits))
+        plan.append((a, b, used, idx4, n_splits))
+    all_dist = np.concatenate([np.zeros(0)] + [  # mm; in chunks (each row is a whole-surface weighting)
+        sw.distances(np.stack(wa_all[i:i + 128]), np.stack(wb_all[i:i + 128])) * 1e3 for i in range(0, len(wa_all), 128)])
+    rows, prows = [], []
+    for idx, (a, b, used, idx4, n_splits) in enumerate(plan):
         n = len(used)
         row = {"cond_a": a, "cond_b": b, "n_participants": n}
         if n == 0:
@@ -155,7 +199,9 @@ def paired_swd_tests(
                        p_value=np.nan, exact=False, n_permutations=0)
             rows.append(row)
             continue
-        dist = sw.distances(np.stack(wa_list), np.stack(wb_list)).reshape(n, 4) * 1e3  # mm
+        flat = all_dist[np.asarray(idx4)]  # one row per split
+        owner = np.repeat(np.arange(n), n_splits)
+        dist = np.stack([np.bincount(owner, flat[:, c], minlength=n) for c in range(4)], axis=1) / np.asarray(n_splits)[:, None]
         between = dist[:, :2].mean(axis=1)
         within = dist[:, 2:].mean(axis=1)
         diff = between - within
@@ -167,13 +213,13 @@ def paired_swd_tests(
             n_permutations=res.n_permutations,
         )
         rows.append(row)
-        for part, bt, wa_, wb_, df in zip(used, between, dist[:, 2], dist[:, 3], diff):
+        for part, bt, wa_, wb_, df, ns in zip(used, between, dist[:, 2], dist[:, 3], diff, n_splits):
             prows.append({"participant": part, "cond_a": a, "cond_b": b, "between_mm": bt,
-                          "within_a_mm": wa_, "within_b_mm": wb_, "diff_mm": df})
+                          "within_a_mm": wa_, "within_b_mm": wb_, "diff_mm": df, "n_splits": ns})
     table = pd.DataFrame(rows)
     table["p_holm"] = holm(table["p_value"].to_numpy(float))
     table["significant"] = table["p_holm"].to_numpy(float) <= alpha
     table = table[list(TABLE_COLUMNS)]
     per = pd.DataFrame(prows, columns=["participant", "cond_a", "cond_b", "between_mm", "within_a_mm",
-                                       "within_b_mm", "diff_mm"])
+                                       "within_b_mm", "diff_mm", "n_splits"])
     return PairwiseComparison(conditions, table, per, float(alpha), alternative, sw.p, sw.n_projections)

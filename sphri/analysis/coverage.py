@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sphri.analysis.compare import PairwiseComparison, paired_swd_tests, split_halves
+from sphri.analysis.compare import PairwiseComparison, n_rotations, paired_swd_tests, rotated_halves
 from sphri.surface.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
 from sphri.analysis.placement import (
     CoverageCurve,
@@ -272,22 +272,25 @@ class CoverageAnalysis:
         members = {k: np.asarray(v) for k, v in members.items()}
         cache: dict[tuple[str, str, int], np.ndarray] = {}
 
-        def half_masses(unit: str, cond: str, k: int) -> np.ndarray:
-            key = (unit, cond, k)
+        def half_masses(unit: str, cond: str, k: int, r: int) -> np.ndarray:
+            key = (unit, cond, k, r)
             if key not in cache:
                 tr = members[(unit, cond)]
-                h0, h1 = split_halves(ordinal[tr], k)
+                h0, h1 = rotated_halves(ordinal[tr], k, r)
                 rho = kernel.smooth(np.stack([trial_counts(tr[h0]), trial_counts(tr[h1])]))
                 cache[key] = rho * s.area_m2
             return cache[key]
 
         def halves(unit: str, a: str, b: str):
+            """Every trial enters: one split per rotation of the trial order when 2 k leaves trials out."""
             if (unit, a) not in members or (unit, b) not in members:
                 return None
-            k = min(members[(unit, a)].size, members[(unit, b)].size) // 2
+            na, nb = members[(unit, a)].size, members[(unit, b)].size
+            k = min(na, nb) // 2
             if k < 1:
                 return None
-            return half_masses(unit, a, k), half_masses(unit, b, k)
+            ra, rb = n_rotations(na, k), n_rotations(nb, k)
+            return [(half_masses(unit, a, k, j % ra), half_masses(unit, b, k, j % rb)) for j in range(max(ra, rb))]
 
         participants = sorted({u for u, _ in members})
         sw = SharedSupportSW(s.points_m, self.n_projections, self.swd_p, self.seed)

@@ -109,10 +109,21 @@ class ScenarioStudySchema:
     pitch_mm: float = 0.0
     """... or, when > 0 with budget_taxels, a taxel count at this pitch."""
     budget_taxels: int = 0
+    patch_cm2: float = 40.0
+    """Skin design (``sphri.sessions.skin``): each body part's reachable surface is split into patches of about
+    this area (cm^2); placement, the budget curve and the export work on patches."""
+    skin_pitch_mm: float = 10.0
+    """Taxel pitch (mm) of the budget curve's taxel axis and of the export's taxel counts (pitch_mm when a taxel
+    budget is set)."""
+    heldout_splits: int = 10
+    """Random halvings of the participants for the held-out budget curve (each half scores the other's choice)."""
+    export_format: str = "ply"
+    """Mesh format of the patch export (ply or stl), in each link's frame."""
     render: bool = True
     """Draw the figures (false: tables, maps and the report's numbers only)."""
-    figure_formats: list[str] = field(default_factory=lambda: ["png", "pdf", "svg"])
-    """Files written per figure: PNG, and PDF / SVG for print (meshes rasterized inside)."""
+    figure_formats: list[str] = field(default_factory=lambda: ["png"])
+    """Files written per figure: PNG; add pdf / svg for print (meshes rasterized inside; they take most of the
+    figures' time, so only when asked)."""
     view_faces: int = 20000
     """Faces of the robot mesh drawn in the 3-D views (fewer: faster figures, coarser shading)."""
 
@@ -140,9 +151,18 @@ class ScenarioStudySchema:
         require_range(f"{key}.budget_taxels", self.budget_taxels, lo=0)
         require(len(self.figure_formats) > 0 and set(self.figure_formats) <= {"png", "pdf", "svg"},
                 f"{key}.figure_formats", self.figure_formats, "one or more of png, pdf, svg")
+        require_range(f"{key}.patch_cm2", self.patch_cm2, lo=1.0, hi=10_000.0)
+        require_range(f"{key}.skin_pitch_mm", self.skin_pitch_mm, lo=0.5, hi=200.0)
+        require_range(f"{key}.heldout_splits", self.heldout_splits, lo=0, hi=1000)
+        require_choice(f"{key}.export_format", self.export_format, ["ply", "stl"])
         require_range(f"{key}.view_faces", self.view_faces, lo=100, hi=1_000_000)
         require((self.pitch_mm > 0) == (self.budget_taxels > 0), f"{key}.budget_taxels", self.budget_taxels,
                 "set both pitch_mm and budget_taxels (a taxel budget) or neither (budget_cm2)")
+
+    @property
+    def design_pitch_mm(self) -> float:
+        """The pitch taxels are counted at: ``pitch_mm`` with a taxel budget, else ``skin_pitch_mm``."""
+        return self.pitch_mm if self.budget_taxels > 0 else self.skin_pitch_mm
 
     @property
     def budget_m2(self) -> float:

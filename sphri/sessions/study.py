@@ -9,6 +9,7 @@ Data flow (each step a module of :mod:`sphri.sessions`)::
       -> body_surface + touched_pairs                     (frame, element) pairs on the whole surface
       -> CoverageAnalysis(by=scenario, pair_by=participant)   densities, SWD tests (Holm), coverage curves
       -> rank_parts + placement_table                     body parts per cm^2, greedy placement, held-out check
+      -> skin_design (sphri.sessions.skin)                patches within parts, budget curve, patch placement, export
       -> files, HTML report, MLflow run (sphri.kind=scenario_study)
 
 Sessions and contacts go through the stage cache (keys: data, hand, robot and
@@ -56,6 +57,10 @@ class StudyResult:
     seconds: dict[str, float] = field(default_factory=dict)
     gesture_accuracy: float = float("nan")
     mlflow_run_id: str | None = None
+    design: Any = None
+    """The skin design (:class:`sphri.sessions.skin.SkinDesign`): patches, budget curve, patch placement."""
+    truth: Any = None
+    """The generator's draws per session (synthetic sessions), else None."""
 
 
 def _cached(cache, stage: str, version: str, config: Any, inputs: dict, compute):
@@ -247,8 +252,16 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
               if st.budget_taxels else f"{st.budget_cm2:g} cm^2")
     seconds["placement"] = time.perf_counter() - t
 
+    # the skin design: patches within parts, greedy by captured contact per cm^2, budget curve, export
+    t = time.perf_counter()
+    from sphri.sessions.skin import skin_design
+
+    design = skin_design(body, frames, elements, fsi, ds.sessions, scenarios, st.patch_cm2, st.design_pitch_mm,
+                         st.budget_m2, st.heldout_splits, st.seed)
+    seconds["skin_design"] = time.perf_counter() - t
+
     result = StudyResult(out_dir, st, ds.synthetic, ds.sessions, episodes, labelled, hist, ranking_all, placement,
-                         sentences, comp, cov, notes, [], seconds, gm.accuracy_mean)
+                         sentences, comp, cov, notes, [], seconds, gm.accuracy_mean, design=design, truth=ds.truth)
     t = time.perf_counter()
     with figures.only_formats(st.figure_formats):
         result.files = write_outputs(result, cfg, robot, body, ds, gm, budget, label)
@@ -315,6 +328,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         files.append(out / "robot_skipped_links.csv")
     files += [out / n for n in ("sessions.csv", "episodes.csv", "coded_episodes.csv", "gesture_histogram.csv",
                                 "body_part_ranking.csv", "placement.csv")]
+    files += _design_and_gesture_files(res, body, robot, out)
     if res.comparison is not None:
         files += res.comparison.write_csv(out, "swd")
         eff = _effects(res.comparison)
@@ -333,7 +347,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
                            "floor_facing_cm2": float(areas["floor_facing_cm2"].sum()),
                            "buried_cm2": float(areas["buried_cm2"].sum()),
                            "floor_height_m": res.settings.reach_floor_height_m, "down_cos": res.settings.reach_down_cos},
-               "budget": budget, "sentences": res.sentences, "notes": res.notes, "seconds": res.seconds,
+               "budget": budget, "skin_design": _design_summary(res.design), "sentences": res.sentences, "notes": res.notes, "seconds": res.seconds,
                "settings": dataclasses.asdict(res.settings)}
     if ds.truth is not None and len(res.coded):
         tr = ds.truth.reset_index(drop=True)
@@ -372,12 +386,59 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     figs["gestures"] = plot_gesture_histogram(res.histogram, out / "gesture_histogram.png",
                                               f"Gestures of the coded episodes per scenario ({label}; model LOSO "
                                               f"accuracy {100 * gm.accuracy_mean:.0f} %)", provenance=prov)
+    if res.design is not None:
+        from sphri.sessions.skin_render import plot_budget_curve, plot_skin
+
+        d = res.design
+        figs["budget_curve"] = plot_budget_curve(
+            d.curves, d.pitch_mm, d.budget_m2 * 1e4, out / "budget_curve.png",
+            f"Contact captured against skin area, patches of ~{res.settings.patch_cm2:g} cm$^2$ ({label})",
+            provenance=prov)
+        figs["skin"] = plot_skin(view, cov.densities[ALL], d.element_mask, out / "skin_design.png",
+                                 f"The recommended skin under {budget}: pooled density on the chosen patches ({label})",
+                                 provenance=prov)
     figs["placement"] = plot_placement(res.ranking[res.ranking["scenario"] == "all"].query("~part.str.startswith('group:')"),
                                        res.placement, out / "placement.png", f"Placement under {budget} ({label})",
                                        provenance=prov)
     files += list(figs.values())
     files.append(write_report(res, figs, summary, budget, label, out / "report.html"))
     return files
+
+
+def _design_and_gesture_files(res: StudyResult, body, robot, out: Path) -> list[Path]:
+    """The skin design's files (``sphri.sessions.skin.write_design``), gesture counts with participant-bootstrap
+    intervals and, for synthetic sessions, the confusion of episode labels against the generator."""
+    from sphri.sessions.gesture_report import confusion_against_generator, gesture_counts
+    from sphri.sessions.skin import write_design
+
+    files = []
+    if res.design is not None:
+        files += write_design(res.design, body, robot, out, res.settings.export_format)
+    scen = sorted(pd.unique(res.sessions["scenario"]))
+    gesture_counts(res.coded, scen, seed=res.settings.seed).to_csv(out / "gesture_counts.csv", index=False,
+                                                                   float_format="%.4g")
+    files.append(out / "gesture_counts.csv")
+    if res.truth is not None and len(res.coded):
+        confusion_against_generator(res.coded, res.truth).to_csv(out / "gesture_confusion.csv", float_format="%.4g")
+        files.append(out / "gesture_confusion.csv")
+    return files
+
+
+def _design_summary(design) -> dict | None:
+    if design is None:
+        return None
+    row = design.placement.iloc[0]
+    pooled = design.curves[(design.curves["scenario"] == "all")]
+    out = {"patches": int(len(design.patches.table)), "pitch_mm": design.pitch_mm,
+           "budget_cm2": design.budget_m2 * 1e4, "chosen_patches": int(row["n_patches"]),
+           "area_cm2": float(row["area_cm2"]), "captured": float(row["captured"]),
+           "heldout_captured": float(row["heldout_captured"])}
+    for kind in ("in_sample", "heldout"):
+        c = pooled[pooled["curve"] == kind]
+        if len(c):  # the smallest area on the curve capturing 90 % of the frames
+            hit = c[c["captured"] >= 0.9]
+            out[f"area_cm2_for_90pct_{kind}"] = float(hit["area_cm2"].iat[0]) if len(hit) else None
+    return out
 
 
 def _effects(comp) -> pd.DataFrame:
@@ -403,6 +464,8 @@ def write_report(res: StudyResult, figs: dict, summary: dict, budget: str, label
         "scenario_study.html.j2", label=label, summary=summary, gm=summary["gesture_model"], budget=budget,
         episode_gap_s=res.settings.episode_gap_s, sentences=res.sentences, notes=res.notes, figs=figs,
         placement=res.placement, effects=_effects(res.comparison) if "swd" in figs else None,
+        design=(res.design.placement.drop(columns=["patches"]) if "budget_curve" in figs else None),
+        patch_cm2=res.settings.patch_cm2,
         histogram=res.histogram.pivot(index="scenario", columns="gesture", values="count").reset_index(),
         ranking=res.ranking[res.ranking["scenario"] == "all"],
         timing=json.dumps({k: round(v, 1) for k, v in res.seconds.items()}))

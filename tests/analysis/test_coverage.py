@@ -152,3 +152,36 @@ def test_every_coverage_figure_is_clean_in_three_formats(result, study, surface,
             assert png.with_suffix("." + fmt).stat().st_size > 0, f"{png.stem}.{fmt} missing"
         assert "SYNTHETIC DATA" in png.with_suffix(".svg").read_text()
     assert [r.getMessage() for r in caplog.records if r.name == "sphri.figures"] == []
+
+
+def test_every_repetition_enters_the_swd_tests(surface):
+    """Three repetitions: one split-half (k = 1) would use repetitions 1 and 2 only. The tests average over the
+    rotations of the trial order, so moving repetition 3 out of the compared conditions changes the statistic."""
+    from coverage_fixtures import TARGETS
+
+    from sphri.analysis.compare import n_rotations, rotated_halves
+
+    covered = set()
+    for r in range(n_rotations(3, 1)):
+        h0, h1 = rotated_halves([1, 2, 3], 1, r)
+        covered |= set(h0.tolist()) | set(h1.tolist())
+    assert covered == {0, 1, 2} and n_rotations(4, 2) == 1
+
+    targets = {"poke": TARGETS["poke"], "stroke": TARGETS["stroke"]}
+    st = make_study(participants=4, repetitions=3, seed=5, targets=targets)
+    an = CoverageAnalysis(n_projections=32, render=False, heldout=False)
+    full = an.analyze(st.dataset, st.contacts, st.link, surface, "arm").comparison
+    ds = st.dataset
+    trials = ds.trials.copy()
+    third = trials["trial_ordinal"] > 4  # the third repetition of both gestures
+    trials.loc[third, "gesture"] = "grab"
+    moved = an.analyze(type(ds)(ds.name, ds.synthetic, ds.hand, trials, ds.poses, ds.frame_rate_hz), st.contacts,
+                       st.link, surface, "arm").comparison
+    pf = full.per_participant.set_index(["participant", "cond_a", "cond_b"])
+    pm = moved.per_participant.set_index(["participant", "cond_a", "cond_b"])
+    key = [k for k in pf.index if k[1:] == ("poke", "stroke")]
+    assert len(key) == 4 and (pf.loc[key, "n_splits"] == 3).all()
+    mkey = [k for k in pm.index if set(k[1:]) == {"poke", "stroke"}]
+    assert (pm.loc[mkey, "n_splits"] == 1).all()
+    # with repetition 3 the differences are those of three splits, not of repetitions 1 and 2 alone
+    assert not np.allclose(pf.loc[key, "diff_mm"].to_numpy(), pm.loc[mkey, "diff_mm"].to_numpy())

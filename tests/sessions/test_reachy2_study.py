@@ -27,3 +27,20 @@ def test_packaged_reachy2_runs_a_small_scenario_study(tmp_path, monkeypatch):
     assert len(touched) >= 2
     skipped = pd.read_csv(out / "robot_skipped_links.csv")
     assert {"link", "reason"} <= set(skipped.columns) and "drivewhl1_link" in set(skipped["link"])
+    # the skin design on Reachy 2: budget curve, gesture tables and the patch export (meshes in link frames)
+    import trimesh
+
+    curve = pd.read_csv(out / "budget_curve.csv")
+    ins = curve[(curve["scenario"] == "all") & (curve["curve"] == "in_sample")]
+    assert ins["captured"].is_monotonic_increasing and ins["captured"].iloc[-1] == 1.0
+    assert (out / "gesture_counts.csv").is_file() and (out / "gesture_confusion.csv").is_file()
+    manifest = pd.read_csv(out / "skin_export" / "manifest.csv")
+    assert len(manifest) > 0 and set(manifest["link"]) <= set(summary_links(out))
+    for r in manifest.itertuples():
+        mesh = trimesh.load(out / "skin_export" / r.file, process=False)
+        assert abs(mesh.area * 1e4 - r.area_cm2) <= 1e-4 * r.area_cm2
+
+
+def summary_links(out):
+    """The links the study mapped (density_maps.csv)."""
+    return pd.read_csv(out / "density_maps.csv", usecols=["link"])["link"].unique()

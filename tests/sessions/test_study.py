@@ -68,8 +68,9 @@ def test_writes_the_report_and_every_table(study):
         assert (study / f"map_{s}.png").is_file()
     html = (study / "report.html").read_text()
     assert "data:image/png;base64," in html and "SYNTHETIC" in html and "covering the" in html
-    # placement, paired effects, gesture histogram, ranking; every figure embedded
-    assert html.count("<table>") == 4 and html.count("<img ") == 6 and "Do scenarios differ?" in html
+    # placement, skin design patches, paired effects, gesture histogram, ranking; every figure embedded
+    assert html.count("<table>") == 5 and html.count("<img ") == 8 and "Do scenarios differ?" in html
+    assert "The skin design: budget curve and patches" in html
     pairs = pd.read_csv(study / "swd_pairs.csv")
     assert len(pairs) == 10 and pairs["p_holm"].between(0, 1).all() and (pairs["p_holm"] >= pairs["p_value"]).all()
     hist = pd.read_csv(study / "gesture_histogram.csv")
@@ -125,6 +126,9 @@ def test_study_settings_are_checked():
         compose(["+experiment=scenario_study", "experiment.scenario_study.pitch_mm=10"])
     with pytest.raises(ConfigError, match=r"robot='reachy' is invalid.*kinematic tree"):
         compose(["+experiment=scenario_study", "robot=reachy"])
+    for key, value in (("patch_cm2", "0.5"), ("skin_pitch_mm", "0"), ("heldout_splits", "-1"), ("export_format", "obj")):
+        with pytest.raises(ConfigError, match=rf"experiment.scenario_study.{key}"):
+            compose(["+experiment=scenario_study", f"experiment.scenario_study.{key}={value}"])
     from sphri.pipeline import chain_region
 
     with pytest.raises(ConfigError, match=r"data=SyntheticSessions holds free-interaction sessions.*scenario_study"):
@@ -159,3 +163,67 @@ def test_report_escapes_scenario_names_and_notes(tmp_path):
     # the tables keep their rows: the ranking is the pooled one (two parts), numbers formatted, NaN as a dash
     assert page.count("<table>") == 3 and "0.812" in page and "&ndash;" in page
     assert 'class="warn"' in page and "Do scenarios differ?" not in page
+
+
+def test_budget_curve_rises_to_one_and_held_out_stays_below(study):
+    curve = pd.read_csv(study / "budget_curve.csv")
+    scen = sorted(pd.read_csv(study / "sessions.csv")["scenario"].unique())
+    assert set(curve["scenario"]) == {"all", *scen} and set(curve["curve"]) == {"in_sample", "heldout"}
+    summary = json.loads((study / "summary.json").read_text())
+    pitch = summary["skin_design"]["pitch_mm"]
+    for (s, kind), c in curve.groupby(["scenario", "curve"]):
+        assert c["area_cm2"].is_monotonic_increasing and c["captured"].is_monotonic_increasing, (s, kind)
+        assert c["captured"].iloc[0] == 0 and c["captured"].between(0, 1).all()
+        # taxels at the pitch: area / pitch^2 (the CSV rounds the area to 6 digits)
+        assert np.abs(c["taxels"] - c["area_cm2"] * 100 / pitch ** 2).max() <= 1.0
+    pooled = curve[curve["scenario"] == "all"].set_index("curve")
+    ins, held = pooled.loc["in_sample"], pooled.loc["heldout"]
+    assert ins["captured"].iloc[-1] == pytest.approx(1.0)  # every patch taken: every frame captured
+    assert ins["captured"].iloc[1] < 1.0  # ... but not with the first 1 % of the area (the curve rises)
+    assert held["captured"].mean() <= ins["captured"].mean()
+    assert (held["n_splits"] == 20).all()  # 10 halvings, each half scores the other's choice
+    assert (study / "budget_curve.png").is_file() and (study / "skin_design.png").is_file()
+    assert "budget_curve.csv" in (study / "report.html").read_text()
+
+
+def test_patch_placement_and_export_a_lab_can_build_from(study):
+    patches = pd.read_csv(study / "patches.csv")
+    # patches are regions within parts: some part holds several
+    assert patches.groupby(["link", "part"]).size().max() > 1
+    place = pd.read_csv(study / "patch_placement.csv")
+    assert place["group"].iloc[0] == "all" and (place["area_cm2"] <= 2000 + 1e-6).all()
+    assert place["captured"].between(0, 1).all() and place["heldout_captured"].between(0, 1).all()
+    manifest = pd.read_csv(study / "skin_export" / "manifest.csv")
+    meta = json.loads((study / "skin_export" / "manifest.json").read_text())
+    assert len(meta["patches"]) == len(manifest) == place["n_patches"].iloc[0]
+    assert {"link", "part", "patch", "file", "area_cm2", "taxels", "share_captured_alone", "share_added"} <= set(manifest)
+    assert manifest["sampled_area_cm2"].sum() <= 2000 + 1e-6
+    assert manifest["share_added"].sum() == pytest.approx(place["captured"].iloc[0])
+    for r in manifest.itertuples():
+        mesh = trimesh.load(study / "skin_export" / r.file, process=False)
+        assert mesh.area * 1e4 == pytest.approx(r.area_cm2, rel=1e-4)
+        # the mesh covers about the patch's sampled surface (faces cut at the element spacing)
+        assert 0.6 < r.area_cm2 / r.sampled_area_cm2 < 1.6, r.patch
+        assert r.taxels == int(np.floor(r.area_cm2 * 100 / meta["pitch_mm"] ** 2 + 1e-9))
+    # in each link's frame: the patch lies on its link's mesh
+    robot = instantiate(compose(["robot=reachy_full"]).robot).build()
+    r = manifest.iloc[0]
+    mesh = trimesh.load(study / "skin_export" / r["file"], process=False)
+    link = robot.links[r["link"]]
+    closest = trimesh.Trimesh(link.vertices, link.faces, process=False).nearest.on_surface(mesh.vertices[:50])[1]
+    assert np.max(closest) < 1e-6
+
+
+def test_gesture_counts_with_intervals_and_confusion_against_the_generator(study):
+    counts = pd.read_csv(study / "gesture_counts.csv")
+    assert (counts["count_lo"] <= counts["count"] + 1e-9).all() and (counts["count"] <= counts["count_hi"] + 1e-9).all()
+    assert (counts["expected_lo"] <= counts["expected_hi"]).all()
+    coded = pd.read_csv(study / "coded_episodes.csv", keep_default_na=False)
+    for s, g in counts.groupby("scenario"):
+        assert g["count"].sum() == ((coded["scenario"] == s) & (coded["gesture"] != "")).sum()
+    conf = pd.read_csv(study / "gesture_confusion.csv", index_col=0)
+    assert conf["n"].sum() == len(coded)
+    diag = sum(conf.loc[g, g] for g in conf.index if g in conf.columns)
+    summary = json.loads((study / "summary.json").read_text())
+    labelled = (coded["gesture"] != "").sum()
+    assert diag / labelled == pytest.approx(summary["against_generator"]["gesture_agreement"])

@@ -1,0 +1,401 @@
+"""A skin design from the whole-body study: patches, the budget curve, and a patch export a lab can build from.
+
+Patches. Each body part's reachable elements (:attr:`BodySurface.reachable`)
+are split into patches of about ``patch_cm2`` by k-means (farthest-point
+seeds, Lloyd steps; deterministic) on their link-frame positions and normals (a part smaller than one patch is one patch), so a
+placement can take a region within a part instead of the whole part.
+
+Budget curve. A contact frame is *captured* when it touches a chosen patch.
+:func:`greedy_patches` adds patches by the most not-yet-captured frames per
+cm^2 (within an area budget, or without one for the curve; patches that
+capture nothing new come last, smallest first). The curve is the captured
+share against the cumulative area (cm^2) and against taxels at a pitch
+(area / pitch^2), in-sample (chosen and scored on the same frames: it ends at
+1 when every patch is taken) and held-out: participants are split in half at
+random ``heldout_splits`` times; each half's order scores the other half's
+frames, and the curve is the mean (and SD) over the 2 x ``heldout_splits``
+scorings, per scenario and pooled.
+
+Export. The pooled design under the study's budget, per link: each chosen
+patch as a PLY mesh in the link's frame (the link's mesh subdivided to edges
+of at most the element spacing, each face given the patch of its nearest
+element), with a manifest (JSON and CSV): link, part, patch id, mesh area
+(cm^2), taxels at the pitch, the share of contact frames the patch touches
+alone and the share it adds in the greedy order.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy import sparse
+
+from sphri.sessions.body import BodySurface
+
+#: Columns of ``budget_curve.csv``.
+CURVE_COLUMNS = ("scenario", "curve", "area_cm2", "area_share", "taxels", "captured", "captured_sd", "n_frames",
+                 "n_splits")
+
+
+@dataclass
+class Patches:
+    """Patches of the reachable surface."""
+
+    of_element: np.ndarray
+    """(P,) int64: patch of each element of the body surface, -1 where out of reach."""
+    table: pd.DataFrame
+    """Per patch (row = patch id): ``patch``, ``link``, ``part``, ``area_cm2`` (sampled), ``n_elements``."""
+
+    @property
+    def area_m2(self) -> np.ndarray:
+        return self.table["area_cm2"].to_numpy(float) * 1e-4
+
+
+def make_patches(body: BodySurface, patch_cm2: float, seed: int = 0) -> Patches:
+    """Split each body part's reachable elements (per link) into patches of about ``patch_cm2``."""
+    if not patch_cm2 > 0:
+        raise ValueError(f"patch_cm2={patch_cm2} is invalid: must be > 0")
+    of = np.full(body.samples.n, -1, dtype=np.int64)
+    reach = body.reachable
+    area_cm2 = body.samples.area_m2 * 1e4
+    rows = []
+    # normals weigh as much as half a patch's width: the two faces of a thin part fall into different patches
+    normal_scale = 0.5 * np.sqrt(patch_cm2) * 1e-2
+    for li, link in enumerate(body.links):
+        sl = np.arange(body.offset[li], body.offset[li + 1])
+        local = body.local[li]
+        for part in sorted(set(body.part[sl])):
+            idx = sl[(body.part[sl] == part) & reach[sl]]
+            if idx.size == 0:
+                continue
+            a = float(area_cm2[idx].sum())
+            k = int(min(max(1, round(a / patch_cm2)), idx.size))
+            if k == 1:
+                labels = np.zeros(idx.size, dtype=np.int64)
+            else:
+                j = idx - body.offset[li]
+                x = np.hstack([local.points_m[j], normal_scale * local.normal[j]])
+                labels = _kmeans(x, k)
+            for c in np.unique(labels):
+                members = idx[labels == c]
+                of[members] = len(rows)
+                rows.append(dict(patch=f"{part}#{len(rows)}", link=link, part=part,
+                                 area_cm2=float(area_cm2[members].sum()), n_elements=int(members.size)))
+    table = pd.DataFrame(rows, columns=["patch", "link", "part", "area_cm2", "n_elements"])
+    return Patches(of, table)
+
+
+def _kmeans(x: np.ndarray, k: int, iterations: int = 10) -> np.ndarray:
+    """(n,) labels of ``k`` clusters of ``x (n, d)``: farthest-point seeds (deterministic), then Lloyd steps."""
+    from scipy.spatial import cKDTree
+
+    seeds = [0]
+    d = np.linalg.norm(x - x[0], axis=1)
+    for _ in range(1, k):
+        seeds.append(int(np.argmax(d)))
+        d = np.minimum(d, np.linalg.norm(x - x[seeds[-1]], axis=1))
+    c = x[seeds]
+    labels = np.zeros(len(x), dtype=np.int64)
+    for _ in range(iterations):
+        new = cKDTree(c).query(x)[1]
+        if np.array_equal(new, labels) and _ > 0:
+            break
+        labels = new
+        n = np.bincount(labels, minlength=k)
+        keep = n > 0
+        c = np.stack([np.bincount(labels, x[:, j], minlength=k) for j in range(x.shape[1])], axis=1)[keep] / n[keep, None]
+        labels = np.unique(labels, return_inverse=True)[1]  # empty clusters dropped, labels 0..k'-1
+        k = int(keep.sum())
+    return labels
+
+
+def frame_patch_matrix(frames: np.ndarray, elements: np.ndarray, of_element: np.ndarray,
+                       n_patches: int) -> tuple[np.ndarray, sparse.csr_matrix]:
+    """(unique frames (U,), (U, n_patches) CSR of ones) from (frame, element) pairs; pairs out of reach dropped."""
+    p = of_element[elements]
+    keep = p >= 0
+    uf, inv = np.unique(frames[keep], return_inverse=True)
+    m = sparse.csr_matrix((np.ones(int(keep.sum()), dtype=np.float64), (inv, p[keep])), shape=(uf.size, n_patches))
+    m.data[:] = 1.0  # duplicates summed by the constructor
+    m.sum_duplicates()
+    m.data[:] = 1.0
+    return uf, m
+
+
+def greedy_patches(m: sparse.csr_matrix, area_m2: np.ndarray, budget_m2: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+    """(order of patches, frames newly captured by each) by not-yet-captured frames per m^2 within ``budget_m2``.
+
+    Without a budget every patch is ordered (those adding nothing last, smallest first); with one, only the
+    patches chosen (a patch that does not fit is passed over for smaller ones, as in
+    :func:`sphri.sessions.placement.greedy_parts`).
+    """
+    area = np.asarray(area_m2, dtype=np.float64)
+    n_frames, k = m.shape
+    mc = m.tocsc()
+    gain = np.asarray(m.sum(axis=0)).ravel()
+    covered = np.zeros(n_frames, dtype=bool)
+    chosen = np.zeros(k, dtype=bool)
+    order, new_counts = [], []
+    left = float(budget_m2)
+    while True:
+        ratio = np.where(~chosen & (gain > 0) & (area <= left + 1e-12), gain / np.maximum(area, 1e-12), -1.0)
+        j = int(np.argmax(ratio)) if k else 0
+        if k == 0 or ratio[j] <= 0:
+            break
+        rows = mc.indices[mc.indptr[j]:mc.indptr[j + 1]]
+        new = rows[~covered[rows]]
+        covered[new] = True
+        chosen[j] = True
+        left -= float(area[j])
+        order.append(j)
+        new_counts.append(new.size)
+        if new.size:  # the patches those frames touch lose them from their gain
+            gain -= np.bincount(m.indices[_row_slots(m.indptr, new)], minlength=k)
+    if np.isinf(budget_m2):
+        rest = np.flatnonzero(~chosen)
+        rest = rest[np.lexsort((rest, area[rest]))]
+        order += rest.tolist()
+        new_counts += [0] * rest.size
+    return np.asarray(order, dtype=np.int64), np.asarray(new_counts, dtype=np.int64)
+
+
+def _row_slots(indptr: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Positions in a CSR matrix's ``indices`` of the entries of ``rows``."""
+    start, n = indptr[rows], indptr[rows + 1] - indptr[rows]
+    total = int(n.sum())
+    return np.repeat(start - np.r_[0, np.cumsum(n)[:-1]], n) + np.arange(total)
+
+
+def first_rank(m: sparse.csr_matrix, order: np.ndarray) -> np.ndarray:
+    """(U,) per frame, the position in ``order`` of the first patch it touches (``len(order)`` if none)."""
+    k = m.shape[1]
+    rank = np.full(k, len(order), dtype=np.int64)
+    rank[order] = np.arange(len(order))
+    out = np.full(m.shape[0], len(order), dtype=np.int64)
+    nz = np.diff(m.indptr) > 0
+    if nz.any():
+        out[nz] = np.minimum.reduceat(rank[m.indices], m.indptr[:-1][nz])
+    return out
+
+
+def _on_grid(cum_area: np.ndarray, captured_at: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Captured share at each grid area: that of the longest prefix whose area fits (a step function)."""
+    n = np.searchsorted(cum_area, grid * (1 + 1e-9) + 1e-12, side="right")
+    return captured_at[n - 1]
+
+
+def budget_curves(m: sparse.csr_matrix, frame_group: np.ndarray, frame_unit: np.ndarray, groups: list[str],
+                  area_m2: np.ndarray, pitch_mm: float, n_points: int = 101, heldout_splits: int = 10,
+                  seed: int = 0) -> pd.DataFrame:
+    """``budget_curve.csv``: per group (``all`` first) the in-sample and held-out curves on one area grid."""
+    area = np.asarray(area_m2, dtype=np.float64)
+    total = float(area.sum())
+    # evenly spaced areas, and log-spaced ones from the smallest patch (the curve rises fastest there)
+    small = float(area[area > 0].min()) if (area > 0).any() else total
+    grid = np.unique(np.r_[np.linspace(0.0, total, n_points), np.geomspace(small, total, n_points)]) if total > 0 else np.zeros(1)
+    rng = np.random.default_rng(seed)
+    rows = []
+
+    def add(group, curve, cap, sd, n_frames, n_splits):
+        rows.append(pd.DataFrame({
+            "scenario": group, "curve": curve, "area_cm2": grid * 1e4, "area_share": grid / total if total else 0.0,
+            "taxels": np.floor(grid * 1e6 / pitch_mm ** 2 + 1e-9).astype(np.int64), "captured": cap,
+            "captured_sd": sd, "n_frames": n_frames, "n_splits": n_splits}))
+
+    for g in ["all"] + list(groups):
+        sel = np.ones(m.shape[0], bool) if g == "all" else frame_group == g
+        mg, ug = m[np.flatnonzero(sel)], frame_unit[sel]
+        n = mg.shape[0]
+        if n == 0:
+            continue
+        order, _ = greedy_patches(mg, area)
+        cum = np.r_[0.0, np.cumsum(area[order])]
+        fr = first_rank(mg, order)
+        cap = np.r_[0, np.cumsum(np.bincount(fr, minlength=len(order) + 1)[:len(order)])] / n
+        add(g, "in_sample", _on_grid(cum, cap, grid), np.nan, n, 0)
+        units = np.asarray(pd.unique(ug))
+        if units.size < 2 or heldout_splits < 1:
+            continue
+        scores = []
+        for _ in range(heldout_splits):
+            perm = rng.permutation(units)
+            half = set(perm[: units.size // 2].tolist())
+            in_a = np.array([u in half for u in ug])
+            for train, test in ((in_a, ~in_a), (~in_a, in_a)):
+                if not train.any() or not test.any():
+                    continue
+                o, _ = greedy_patches(mg[np.flatnonzero(train)], area)
+                c = np.r_[0.0, np.cumsum(area[o])]
+                f = first_rank(mg[np.flatnonzero(test)], o)
+                cp = np.r_[0, np.cumsum(np.bincount(f, minlength=len(o) + 1)[:len(o)])] / f.size
+                scores.append(_on_grid(c, cp, grid))
+        if scores:
+            s = np.stack(scores)
+            add(g, "heldout", s.mean(axis=0), s.std(axis=0, ddof=1) if len(s) > 1 else np.nan, n, len(s))
+    return pd.concat(rows, ignore_index=True)[list(CURVE_COLUMNS)] if rows else pd.DataFrame(columns=CURVE_COLUMNS)
+
+
+def patch_placement(m: sparse.csr_matrix, frame_group: np.ndarray, frame_unit: np.ndarray, groups: list[str],
+                    patches: Patches, budget_m2: float, heldout_splits: int = 10, seed: int = 0) -> pd.DataFrame:
+    """Per group (``all`` first): the patches chosen under the budget, their area, in-sample and held-out capture
+    (half the participants choose, the other half is scored; mean over 2 x ``heldout_splits``)."""
+    area = patches.area_m2
+    total = float(area.sum())
+    rng = np.random.default_rng(seed)
+    rows = []
+    for g in ["all"] + list(groups):
+        sel = np.flatnonzero(np.ones(m.shape[0], bool) if g == "all" else frame_group == g)
+        mg, ug = m[sel], frame_unit[sel]
+        order, new = greedy_patches(mg, area, budget_m2)
+        n = mg.shape[0]
+        held = []
+        units = np.asarray(pd.unique(ug))
+        for _ in range(heldout_splits if units.size >= 2 else 0):
+            perm = rng.permutation(units)
+            in_a = np.isin(ug, perm[: units.size // 2])
+            for train, test in ((in_a, ~in_a), (~in_a, in_a)):
+                if train.any() and test.any():
+                    o, _ = greedy_patches(mg[np.flatnonzero(train)], area, budget_m2)
+                    held.append(float((first_rank(mg[np.flatnonzero(test)], o) < len(o)).mean()))
+        chosen_parts = patches.table["part"].to_numpy()[order]
+        rows.append(dict(group=g, n_contact_frames=int(n), n_patches=int(order.size),
+                         patches=";".join(patches.table["patch"].to_numpy()[order]),
+                         parts=";".join(dict.fromkeys(chosen_parts.tolist())),
+                         area_cm2=float(area[order].sum() * 1e4), area_share=float(area[order].sum() / total),
+                         captured=float(new.sum() / n) if n else np.nan,
+                         heldout_captured=float(np.mean(held)) if held else np.nan,
+                         heldout_sd=float(np.std(held, ddof=1)) if len(held) > 1 else np.nan, n_heldout=len(held)))
+    return pd.DataFrame(rows)
+
+
+def _face_patches(body: BodySurface, li: int, vertices: np.ndarray, faces: np.ndarray,
+                  of_element: np.ndarray) -> np.ndarray:
+    """(F,) patch of each face (link frame): that of the nearest element on the same side (normals agree)."""
+    from scipy.spatial import cKDTree
+
+    s = body.local[li]
+    tri = vertices[faces]
+    cen = tri.mean(axis=1)
+    nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-18)
+    k = min(8, s.n)
+    _, nb = cKDTree(s.points_m).query(cen, k=k)
+    nb = nb.reshape(len(cen), k)
+    agree = np.einsum("fkd,fd->fk", s.normal[nb], nrm) > 0.0
+    pick = np.where(agree.any(axis=1), np.argmax(agree, axis=1), 0)
+    return of_element[body.offset[li] + nb[np.arange(len(cen)), pick]]
+
+
+def export_patches(body: BodySurface, robot, patches: Patches, order: np.ndarray, m: sparse.csr_matrix,
+                   new_counts: np.ndarray, pitch_mm: float, out_dir: Path, fmt: str = "ply") -> list[Path]:
+    """Write ``out_dir/<link>__<patch>.<fmt>`` per chosen patch (link frame) and ``manifest.json`` / ``.csv``."""
+    import trimesh
+    from trimesh.remesh import subdivide_to_size
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    n_frames = max(m.shape[0], 1)
+    alone = np.asarray(m.sum(axis=0)).ravel() / n_frames
+    chosen = set(order.tolist())
+    rank = {int(p): i for i, p in enumerate(order)}
+    rows, files = [], []
+    cum = 0.0
+    for li, link_name in enumerate(body.links):
+        mine = [int(p) for p in np.flatnonzero(patches.table["link"].to_numpy() == link_name) if int(p) in chosen]
+        if not mine:
+            continue
+        link = robot.links[link_name]
+        max_edge = max(float(body.samples.spacing_m), 1e-3)
+        v, f = subdivide_to_size(np.asarray(link.vertices, float), np.asarray(link.faces), max_edge, max_iter=12)
+        fp = _face_patches(body, li, v, f, patches.of_element)
+        for p in mine:
+            sel = f[fp == p]
+            row = patches.table.iloc[p]
+            mesh = trimesh.Trimesh(v, sel, process=False) if len(sel) else None
+            name = ""
+            if mesh is not None:
+                mesh.remove_unreferenced_vertices()
+                name = f"{_safe(link_name)}__{_safe(row['patch'])}.{fmt}"
+                mesh.export(out_dir / name)
+                files.append(out_dir / name)
+            area_cm2 = float(mesh.area * 1e4) if mesh is not None else 0.0
+            rows.append(dict(link=link_name, part=row["part"], patch=row["patch"], file=name, order=rank[p] + 1,
+                             area_cm2=area_cm2, sampled_area_cm2=float(row["area_cm2"]),
+                             taxels=int(np.floor(area_cm2 * 100.0 / pitch_mm ** 2 + 1e-9)),
+                             share_captured_alone=float(alone[p]), share_added=float(new_counts[rank[p]] / n_frames),
+                             n_faces=int(len(sel))))
+    man = pd.DataFrame(rows).sort_values("order").reset_index(drop=True)
+    if len(man):
+        man["cumulative_share"] = man["share_added"].cumsum()
+    man.to_csv(out_dir / "manifest.csv", index=False, float_format="%.6g")
+    meta = {"frame": "each link's own frame (the robot description's link frame), metres", "pitch_mm": pitch_mm,
+            "n_contact_frames": int(m.shape[0]), "area_cm2": float(man["area_cm2"].sum()) if len(man) else 0.0,
+            "captured": float(man["share_added"].sum()) if len(man) else 0.0,
+            "taxels": int(man["taxels"].sum()) if len(man) else 0, "robot": robot.name,
+            "patches": json.loads(man.to_json(orient="records"))}
+    (out_dir / "manifest.json").write_text(json.dumps(meta, indent=1))
+    return files + [out_dir / "manifest.csv", out_dir / "manifest.json"]
+
+
+def _safe(name: str) -> str:
+    import re
+
+    return re.sub(r"[^\w.-]+", "_", str(name)).strip("_") or "x"
+
+
+@dataclass
+class SkinDesign:
+    """The study's skin design (see the module docstring)."""
+
+    patches: Patches
+    frames: np.ndarray
+    """(U,) contact frames touching reachable surface."""
+    matrix: sparse.csr_matrix
+    """(U, n_patches) frame touches patch."""
+    curves: pd.DataFrame
+    """``budget_curve.csv``."""
+    placement: pd.DataFrame
+    """``patch_placement.csv``: per group, the patches chosen under the budget."""
+    order: np.ndarray
+    """Patches of the pooled design under the budget, in the order chosen."""
+    new_counts: np.ndarray
+    """Frames each of them adds."""
+    pitch_mm: float
+    budget_m2: float
+
+    @property
+    def element_mask(self) -> np.ndarray:
+        """(P,) bool: elements of the pooled design."""
+        return np.isin(self.patches.of_element, self.order)
+
+
+def skin_design(body: BodySurface, frames: np.ndarray, elements: np.ndarray, frame_session: np.ndarray,
+                sessions: pd.DataFrame, scenarios: list[str], patch_cm2: float, pitch_mm: float, budget_m2: float,
+                heldout_splits: int = 10, seed: int = 0) -> SkinDesign:
+    """Patches, budget curves and the patch-level placement from the study's (frame, element) pairs."""
+    patches = make_patches(body, patch_cm2, seed)
+    uf, m = frame_patch_matrix(frames, elements, patches.of_element, len(patches.table))
+    f_scen = sessions["scenario"].to_numpy()[frame_session[uf]]
+    f_unit = sessions["participant"].to_numpy()[frame_session[uf]]
+    curves = budget_curves(m, f_scen, f_unit, scenarios, patches.area_m2, pitch_mm, heldout_splits=heldout_splits,
+                           seed=seed)
+    placement = patch_placement(m, f_scen, f_unit, scenarios, patches, budget_m2, heldout_splits, seed)
+    order, new = greedy_patches(m, patches.area_m2, budget_m2)
+    return SkinDesign(patches, uf, m, curves, placement, order, new, float(pitch_mm), float(budget_m2))
+
+
+def write_design(design: SkinDesign, body: BodySurface, robot, out: Path, fmt: str = "ply") -> list[Path]:
+    """``budget_curve.csv``, ``patches.csv``, ``patch_placement.csv`` and the ``skin_export/`` folder."""
+    files = [out / "budget_curve.csv", out / "patches.csv", out / "patch_placement.csv"]
+    design.curves.to_csv(files[0], index=False, float_format="%.6g")
+    t = design.patches.table.copy()
+    t["contact_frames"] = np.asarray(design.matrix.sum(axis=0)).ravel().astype(np.int64)
+    t["frames_per_cm2"] = t["contact_frames"] / t["area_cm2"]
+    t.to_csv(files[1], index_label="patch_id", float_format="%.6g")
+    design.placement.to_csv(files[2], index=False, float_format="%.6g")
+    files += export_patches(body, robot, design.patches, design.order, design.matrix, design.new_counts,
+                            design.pitch_mm, out / "skin_export", fmt)
+    return files
