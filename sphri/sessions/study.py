@@ -371,20 +371,20 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     view = body_view(body, res.settings.view_faces)
     figs = {}
     figs["maps"] = plot_views(view, {**dens, "pooled": cov.densities[ALL]}, out / "maps_views.png",
-                              f"Contact density per {cov.by}, one colour scale ({label})", provenance=prov)
+                              f"Contact density per {cov.by}, one colour scale", provenance=prov)
     for s in scen:
         files.append(plot_views(view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png",
-                                f"{human(s)} ({label})", provenance=prov))
+                                f"{human(s)}", provenance=prov))
     figs["atlas"] = plot_atlas(body, robot, cov.densities[ALL], out / "atlas_pooled.png",
-                               f"Atlas of the whole surface, pooled over scenarios ({label})", provenance=prov)
+                               f"Atlas of the whole surface, pooled over scenarios", provenance=prov)
     files.append(write_density_ply(view, {"pooled": cov.densities[ALL], **dens}, out / "density_mesh.ply"))
     if res.comparison is not None:
         figs["swd"] = plot_swd_heatmap(res.comparison, out / "swd_matrix.png",
-                                       f"Scenario maps: paired sliced Wasserstein ({label})", provenance=prov)
+                                       f"Scenario maps: paired sliced Wasserstein", provenance=prov)
         figs["effects"] = plot_effects(_effects(res.comparison), scen, res.settings.alpha, out / "swd_effects.png",
-                                       f"Scenario maps differ? Paired effect per pair ({label})", provenance=prov)
+                                       f"Scenario maps differ? Paired effect per pair", provenance=prov)
     figs["gestures"] = plot_gesture_histogram(res.histogram, out / "gesture_histogram.png",
-                                              f"Gestures of the coded episodes per scenario ({label}; model LOSO "
+                                              f"Gestures of the coded episodes per scenario (model LOSO "
                                               f"accuracy {100 * gm.accuracy_mean:.0f} %)", provenance=prov)
     if res.design is not None:
         from sphri.sessions.skin_render import plot_budget_curve, plot_skin
@@ -392,13 +392,13 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         d = res.design
         figs["budget_curve"] = plot_budget_curve(
             d.curves, d.pitch_mm, d.budget_m2 * 1e4, out / "budget_curve.png",
-            f"Contact captured against skin area, patches of ~{res.settings.patch_cm2:g} cm$^2$ ({label})",
+            f"Contact captured against skin area, patches of ~{res.settings.patch_cm2:g} cm$^2$",
             provenance=prov)
         figs["skin"] = plot_skin(view, cov.densities[ALL], d.element_mask, out / "skin_design.png",
-                                 f"The recommended skin under {budget}: pooled density on the chosen patches ({label})",
+                                 f"The recommended skin under {budget}: pooled density on the chosen patches",
                                  provenance=prov)
     figs["placement"] = plot_placement(res.ranking[res.ranking["scenario"] == "all"].query("~part.str.startswith('group:')"),
-                                       res.placement, out / "placement.png", f"Placement under {budget} ({label})",
+                                       res.placement, out / "placement.png", f"Placement under {budget}",
                                        provenance=prov)
     files += list(figs.values())
     files.append(write_report(res, figs, summary, budget, label, out / "report.html"))
