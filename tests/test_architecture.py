@@ -1,17 +1,26 @@
-"""The import structure: dependencies point one way, test oracles stay out of the pipeline."""
+"""The import structure: dependencies point one way (no cycle between packages or between files, no import
+against the layer order of docs/ARCHITECTURE.md), test oracles stay out of the pipeline."""
 
 from __future__ import annotations
 
 import ast
+import functools
+import re
 from collections import defaultdict
 from pathlib import Path
+from typing import Iterable, Mapping, Sequence
+
+import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "sphri"
 
 
 def _unit(path: Path) -> str:
-    """The package (``sphri/<name>/``) or top-level module (``sphri/<name>.py``) a file belongs to."""
+    """The package (``sphri/<name>/``) or top-level module (``sphri/<name>.py``) a file belongs to; a package's
+    ``__main__.py`` is a unit of its own."""
     rel = path.relative_to(PACKAGE)
+    if len(rel.parts) > 1 and rel.name == "__main__.py":  # a package's command is not the package (sphri.cache)
+        return f"{rel.parts[0]}.__main__"
     return rel.parts[0].removesuffix(".py")
 
 
@@ -33,13 +42,19 @@ def _runtime_imports(tree: ast.AST):
             yield from (f"{node.module}.{a.name}" for a in node.names)
 
 
+@functools.cache
+def _parsed(package: Path = PACKAGE) -> dict[Path, ast.Module]:
+    """Every file of the package, parsed once per test session."""
+    return {p: ast.parse(p.read_text(), str(p)) for p in sorted(package.rglob("*.py"))}
+
+
 def dependency_graph() -> dict[str, set[str]]:
     """unit -> units of sphri it imports at run time (itself excluded)."""
     graph: dict[str, set[str]] = defaultdict(set)
     units = {_unit(p) for p in PACKAGE.rglob("*.py")}
     for path in PACKAGE.rglob("*.py"):
         src = _unit(path)
-        for module in _runtime_imports(ast.parse(path.read_text(), str(path))):
+        for module in _runtime_imports(_parsed()[path]):
             parts = module.split(".")
             if parts[0] == "sphri" and len(parts) > 1 and parts[1] in units and parts[1] != src:
                 graph[src].add(parts[1])
@@ -93,3 +108,225 @@ def test_cycle_finder_finds_a_cycle():
 def test_test_oracles_stay_out_of_the_pipeline():
     users = sorted(src for src, deps in dependency_graph().items() if "testing" in deps and src != "testing")
     assert not users, f"sphri.testing (oracles, toy data) is imported by {users}"
+
+
+# --- file level: every module of sphri, its imports, the layers of docs/ARCHITECTURE.md -----------------------------
+
+ROOT = PACKAGE.parent
+ARCHITECTURE = ROOT / "docs" / "ARCHITECTURE.md"
+
+
+def module_name(path: Path, root: Path = ROOT) -> str:
+    """``sphri/robots/schema.py`` -> ``sphri.robots.schema``; a package's ``__init__.py`` -> the package."""
+    parts = list(path.relative_to(root).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _lazy_exports(tree: ast.AST) -> dict[str, str]:
+    """``name -> module`` of a package's ``lazy_exports(package, {...})`` (``sphri._lazy``)."""
+    out = {}
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Call) and getattr(node.func, "id", "") == "lazy_exports" and len(node.args) == 2
+                and isinstance(node.args[1], ast.Dict)):
+            out.update({k.value: v.value for k, v in zip(node.args[1].keys, node.args[1].values)})
+    return out
+
+
+def _file_imports(tree: ast.AST, module: str, is_package: bool):
+    """``(imported module path, names, line)`` of every import in ``tree``: at module level, in a class or a
+    function, under ``if __name__ == "__main__"``; only ``if TYPE_CHECKING`` blocks (typing only) are left out."""
+    skip: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test):
+            skip.update(id(n) for stmt in node.body for n in ast.walk(stmt))
+    for node in ast.walk(tree):
+        if id(node) in skip:
+            continue
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                yield alias.name, [], node.lineno
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:  # relative: from the file's package upwards
+                pkg = module.split(".") if is_package else module.split(".")[:-1]
+                pkg = pkg[: len(pkg) - node.level + 1]
+                base = ".".join(pkg + ([base] if base else []))
+            yield base, [a.name for a in node.names], node.lineno
+
+
+@functools.cache
+def module_graph(package: Path = PACKAGE) -> dict[str, dict[str, str]]:
+    """module -> {module of sphri it imports -> ``file:line`` of the first such import}, at file granularity
+    (computed once; copy it before changing it).
+
+    ``from sphri.robots import schema`` is an edge to ``sphri.robots.schema``; ``from sphri.contact import
+    capsule_mesh_query`` goes through the package's lazy exports to the module that defines the name; any other
+    name imported from a package is an edge to the package (its ``__init__``)."""
+    root = package.parent
+    files = {module_name(p, root): p for p in _parsed(package)}
+    trees = {module_name(p, root): tree for p, tree in _parsed(package).items()}
+    lazy = {m: _lazy_exports(t) for m, t in trees.items() if files[m].name == "__init__.py"}
+    graph: dict[str, dict[str, str]] = {m: {} for m in files}
+    for src, tree in trees.items():
+        for base, names, line in _file_imports(tree, src, files[src].name == "__init__.py"):
+            if base != "sphri" and not base.startswith("sphri."):
+                continue
+            targets = set()
+            if base in files:
+                for name in names:
+                    if f"{base}.{name}" in files:
+                        targets.add(f"{base}.{name}")
+                    else:
+                        targets.add(lazy.get(base, {}).get(name, base))
+                if not names:  # import sphri.x
+                    targets.add(base)
+            else:  # "import sphri.x.y.Name"-like paths: the longest prefix that is a file
+                parts = base.split(".")
+                while parts and ".".join(parts) not in files:
+                    parts.pop()
+                targets.add(".".join(parts))
+            for dst in sorted(targets - {src}):
+                graph[src].setdefault(dst, f"{files[src].relative_to(root).as_posix()}:{line}")
+    return graph
+
+
+def find_cycle(graph: Mapping[str, Iterable[str]], members: Sequence[str]) -> list[str]:
+    """One closed path ``[a, b, ..., a]`` through a strongly connected component ``members``."""
+    inside = set(members)
+    start = members[0]
+    path, seen = [start], {start: 0}
+    while True:  # walk inside the component until a node repeats: that stretch is a cycle
+        step = sorted(w for w in graph.get(path[-1], ()) if w in inside)[0]
+        if step in seen:
+            return path[seen[step]:] + [step]
+        seen[step] = len(path)
+        path.append(step)
+
+
+def check_no_file_cycles(graph: Mapping[str, Mapping[str, str]]) -> None:
+    """AssertionError naming every import cycle between files: its members and one closed path with file:line."""
+    found = cycles({k: set(v) for k, v in graph.items()})
+    lines = []
+    for comp in found:
+        loop = find_cycle(graph, comp)
+        where = ", ".join(f"{a} -> {b} ({graph[a][b]})" for a, b in zip(loop, loop[1:]))
+        lines.append(f"{' -> '.join(loop)} [{where}]" + (f"; all of {comp} are tied" if len(comp) > len(loop) - 1 else ""))
+    assert not found, "import cycles between files of sphri (move the shared piece to the lower module):\n  " + "\n  ".join(lines)
+
+
+def layer_table(text: str | None = None) -> list[tuple[str, list[str]]]:
+    """``[(layer, [module or package names])]``, highest layer first, from the table under ``## Layers`` of
+    docs/ARCHITECTURE.md (the one place the layer order is written)."""
+    text = ARCHITECTURE.read_text() if text is None else text
+    assert "\n## Layers\n" in text, "docs/ARCHITECTURE.md has no '## Layers' section (the layer table)"
+    section = text.split("\n## Layers\n", 1)[1].split("\n## ", 1)[0]
+    rows = []
+    for line in section.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")] if line.lstrip().startswith("|") else []
+        if len(cells) < 2 or set(cells[0]) <= set("-: ") or cells[0] == "layer":
+            continue
+        names = re.findall(r"`(sphri(?:\.[A-Za-z_][A-Za-z0-9_]*)*)`", cells[1])
+        assert names, f"docs/ARCHITECTURE.md, layer table: row {cells[0]!r} names no module (`sphri.x`)"
+        rows.append((cells[0].strip("*"), names))
+    assert rows, "docs/ARCHITECTURE.md: no layer table under '## Layers'"
+    return rows
+
+
+def _covers(name: str, module: str) -> bool:
+    """A table entry names a module, or a package and every module below it; ``sphri`` alone is its ``__init__``."""
+    return module == name or (name != "sphri" and module.startswith(name + "."))
+
+
+def layer_of(module: str, table: Sequence[tuple[str, list[str]]]) -> tuple[int, str, str] | None:
+    """``(rank, layer, entry)`` of ``module`` (rank 0 = lowest) by the longest table entry covering it; None when
+    no entry does."""
+    best = None
+    for rank, (layer, names) in enumerate(reversed(table)):
+        for name in names:
+            if _covers(name, module) and (best is None or len(name) > len(best[2])):
+                best = (rank, layer, name)
+    return best
+
+
+def check_layers(graph: Mapping[str, Mapping[str, str]], table: Sequence[tuple[str, list[str]]]) -> None:
+    """AssertionError naming every module without a layer and every import of a higher layer."""
+    lost = sorted(m for m in graph if layer_of(m, table) is None)
+    assert not lost, f"modules with no layer in docs/ARCHITECTURE.md's layer table (add them to a row): {lost}"
+    bad = []
+    for src, deps in sorted(graph.items()):
+        low = layer_of(src, table)
+        for dst, where in sorted(deps.items()):
+            high = layer_of(dst, table)
+            if high is not None and high[0] > low[0]:
+                bad.append(f"{src} (layer {low[1]}) imports {dst} (layer {high[1]}) at {where}")
+    assert not bad, ("imports against the layer order of docs/ARCHITECTURE.md (a layer imports only itself and "
+                     "the layers below it):\n  " + "\n  ".join(bad))
+
+
+def test_no_import_cycles_between_files():
+    check_no_file_cycles(module_graph())
+
+
+def test_file_cycle_check_names_the_loop():
+    graph = {"sphri.a": {"sphri.b": "sphri/a.py:3"}, "sphri.b": {"sphri.c": "sphri/b.py:7"},
+             "sphri.c": {"sphri.a": "sphri/c.py:9"}, "sphri.d": {"sphri.a": "sphri/d.py:1"}}
+    with pytest.raises(AssertionError, match=r"sphri\.a -> sphri\.b -> sphri\.c -> sphri\.a .*sphri/c\.py:9"):
+        check_no_file_cycles(graph)
+    check_no_file_cycles({"sphri.a": {"sphri.b": "sphri/a.py:3"}, "sphri.b": {}})
+
+
+def test_module_graph_counts_every_kind_of_import(tmp_path):
+    """Module level, in a function, in a ``__main__`` block, relative, through a package's lazy exports: each is an
+    edge to the file it loads; a typing-only import is not."""
+    pkg = tmp_path / "sphri"
+    (pkg / "pkg").mkdir(parents=True)
+    (pkg / "__init__.py").write_text("")
+    (pkg / "low.py").write_text("X = 1\n")
+    (pkg / "cmd.py").write_text("def main():\n    return 0\n")
+    (pkg / "pkg" / "__init__.py").write_text(
+        "from sphri._lazy import lazy_exports\n__getattr__, __all__ = lazy_exports('sphri.pkg', {'Thing': 'sphri.pkg.impl'})\n")
+    (pkg / "pkg" / "impl.py").write_text("from .. import low\nfrom . import other\nThing = low.X\n")
+    (pkg / "pkg" / "other.py").write_text("")
+    (pkg / "_lazy.py").write_text("")
+    (pkg / "high.py").write_text(
+        "from typing import TYPE_CHECKING\nimport numpy\nif TYPE_CHECKING:\n    from sphri import cmd\n"
+        "def f():\n    from sphri.pkg import Thing\n    return Thing\n"
+        "if __name__ == '__main__':\n    from sphri.cmd import main\n    main()\n")
+    graph = module_graph(pkg)
+    assert graph["sphri.high"] == {"sphri.pkg.impl": "sphri/high.py:6", "sphri.cmd": "sphri/high.py:9"}
+    assert graph["sphri.pkg.impl"] == {"sphri.low": "sphri/pkg/impl.py:1", "sphri.pkg.other": "sphri/pkg/impl.py:2"}
+    assert graph["sphri.pkg"] == {"sphri._lazy": "sphri/pkg/__init__.py:1"}
+
+
+def test_the_two_loops_of_issue_30_stay_broken():
+    graph = module_graph()
+    # the robot schema is the bottom of sphri.robots: it imports no robot implementation, not even in a function
+    assert not [m for m in graph["sphri.robots.schema"] if m.startswith("sphri.robots.")]
+    # `python -m sphri.cache` runs sphri/cache/__main__.py; the cache itself imports no command
+    assert "sphri.cache_cli" in graph["sphri.cache.__main__"] and "sphri.cache_cli" not in graph["sphri.cache"]
+
+
+def test_imports_follow_the_layers():
+    check_layers(module_graph(), layer_table())
+
+
+def test_layer_check_names_both_modules_of_a_violation():
+    table = layer_table()
+    graph = {m: dict(deps) for m, deps in module_graph().items()}
+    graph["sphri.types"]["sphri.pipeline"] = "sphri/types.py:1"  # the bottom importing the chain
+    with pytest.raises(AssertionError, match=r"sphri\.types \(layer foundation\) imports sphri\.pipeline \(layer chain\) "
+                       r"at sphri/types\.py:1"):
+        check_layers(graph, table)
+    graph = {m: dict(deps) for m, deps in module_graph().items()}
+    graph["sphri.brand_new"] = {}
+    with pytest.raises(AssertionError, match=r"no layer .*sphri\.brand_new"):
+        check_layers(graph, table)
+
+
+def test_layer_table_names_only_modules_that_exist():
+    modules = set(module_graph())
+    table = layer_table()
+    stale = [n for _, names in table for n in names if not any(_covers(n, m) for m in modules)]
+    assert not stale, f"docs/ARCHITECTURE.md's layer table names modules that do not exist: {stale}"
+    twice = sorted({n for _, names in table for n in names if sum(n in ns for _, ns in table) > 1})
+    assert not twice, f"docs/ARCHITECTURE.md's layer table names these in two rows: {twice}"

@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import os
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
 from sphri.cache import StageCache
 from sphri.cache_cli import main
+
+REPO = Path(__file__).resolve().parents[1]
 
 
 def _cache(tmp_path):
@@ -50,3 +55,16 @@ def test_bad_arguments_name_the_problem(tmp_path, capsys):
     assert main(["clear", "older_than_days=soon", f"dir={root}"]) == 2
     assert "older_than_days=soon is invalid" in capsys.readouterr().err
     assert main(["info", f"dir={tmp_path / 'nowhere'}"]) == 2
+
+
+def test_python_m_sphri_cache_runs_the_command(tmp_path):
+    """The documented spelling: ``python -m sphri.cache`` (``sphri/cache/__main__.py``) runs the same command."""
+    root = _cache(tmp_path)
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
+    run = subprocess.run([sys.executable, "-m", "sphri.cache", "info", f"dir={root}"], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert "evaluate       2 entries" in run.stdout
+    bad = subprocess.run([sys.executable, "-m", "sphri.cache", "info", f"dir={tmp_path / 'none'}"], capture_output=True,
+                         text=True, env=env, timeout=120)
+    assert bad.returncode == 2 and bad.stderr.strip() == f"sphri.cache: dir={tmp_path / 'none'}: no cache folder there"

@@ -173,6 +173,52 @@ class Sensitivity:
     """The requirement with its interval under the reference, and the range across the assumptions tested."""
 
 
+#: Group keys that set the noise (and so the false-on rate): not what separates one map from another.
+_NOISE_PREFIX = "noise"
+
+
+@dataclass
+class RequirementMap:
+    """The curves of one set of other group keys, one per false-on rate (ascending)."""
+
+    label: str
+    """The other group keys these curves share ("" when only the noise varies)."""
+    rates: list[float]
+    curves: list[GroupReport]
+
+    def dip_index(self, g: GroupReport) -> int | None:
+        """The deepest resolution outside the tolerance that is finer than one inside it, or None."""
+        env = g.envelope
+        inside = ~env.outside & np.isfinite(g.sat.stats.mean)
+        if not inside.any():
+            return None
+        first_in = int(np.argmax(inside))
+        cand = [i for i in range(first_in + 1, len(env.outside)) if env.outside[i]]
+        if not cand:
+            return None
+        return min(cand, key=lambda i: g.sat.stats.mean[i])
+
+
+def requirement_maps(groups: list[GroupReport]) -> list[RequirementMap]:
+    """One map per set of non-noise group keys that sweeps two or more false-on rates; [] otherwise."""
+    parts: dict[tuple[tuple[str, str], ...], list[tuple[float, GroupReport]]] = {}
+    for g in groups:
+        rates = g.points["false_on_rate"].to_numpy(float) if "false_on_rate" in g.points else np.array([np.nan])
+        if not (np.isfinite(rates).all() and np.ptp(rates) == 0 and g.has_pitch):
+            continue
+        other = tuple((k, v) for k, v in g.keys.items() if not k.startswith(_NOISE_PREFIX))
+        parts.setdefault(other, []).append((float(rates[0]), g))
+    out = []
+    for other, members in parts.items():
+        rates = sorted({r for r, _ in members})
+        if len(rates) < 2 or len(rates) != len(members):
+            continue  # one rate, or two curves share a rate (another noise setting varies): not a map
+        members.sort(key=lambda t: t[0])
+        out.append(RequirementMap(", ".join(f"{k}={v}" for k, v in other), [r for r, _ in members],
+                                  [g for _, g in members]))
+    return out
+
+
 @dataclass
 class SweepReport:
     sweep: Sweep
@@ -181,9 +227,9 @@ class SweepReport:
     notes: list[str]
     sensitivity: list[Sensitivity] = field(default_factory=list)
     """One entry per set of other keys when the sweep varies ``variant`` (``+experiment=requirement_sensitivity``)."""
-    maps: list[Any] = field(default_factory=list)
-    """:class:`sphri.report.reqmap.RequirementMap` per set of other keys when the sweep varies the false-on rate
-    (``+experiment=requirement_map``)."""
+    maps: list[RequirementMap] = field(default_factory=list)
+    """One :class:`RequirementMap` per set of other keys when the sweep varies the false-on rate
+    (``+experiment=requirement_map``; its table and figure: :mod:`sphri.report.reqmap`)."""
 
     @property
     def synthetic(self) -> str:
@@ -212,8 +258,6 @@ def analyze(sweep: Sweep, rule: RuleSettings = RuleSettings()) -> SweepReport:
     schemes = sorted(set(sweep.runs["cv_scheme"]))
     if "kfold" in schemes:
         notes.append("k-fold (within-subject) results are not comparable with LOSO (between-subject) results")
-    from sphri.report.reqmap import requirement_maps
-
     return SweepReport(sweep, rule, groups, notes, sensitivity(groups, rule), requirement_maps(groups))
 
 

@@ -5,9 +5,10 @@ gives one curve (a :class:`sphri.report.analysis.GroupReport`) per false-on
 rate. The false-on rate of a job is the probability, per taxel and frame,
 that an untouched taxel reads on (:func:`sphri.report.sweep.false_on_rate`:
 ``noise.p * noise.salt_vs_pepper`` for salt-and-pepper noise in replace
-mode). :func:`requirement_maps` lines the curves up by rate, for each set of
-the other group keys, whenever two or more rates are swept;
-:func:`map_rows` is ``requirement_map.csv`` (one row per rate and
+mode). :func:`sphri.report.analysis.requirement_maps` lines the curves up by
+rate (a :class:`sphri.report.analysis.RequirementMap`: part of the analysis),
+for each set of the other group keys, whenever two or more rates are swept;
+here :func:`map_rows` is ``requirement_map.csv`` (one row per rate and
 resolution) and :func:`plot_map` its figure.
 
 ``false_on_per_frame`` is the expected number of false-on taxels in one
@@ -21,57 +22,11 @@ frame at which each rate's trough sits.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from sphri.report.analysis import GroupReport, SweepReport, noise_text
-
-#: Group keys that set the noise (and so the false-on rate): not what separates one map from another.
-_NOISE_PREFIX = "noise"
-
-
-@dataclass
-class RequirementMap:
-    """The curves of one set of other group keys, one per false-on rate (ascending)."""
-
-    label: str
-    """The other group keys these curves share ("" when only the noise varies)."""
-    rates: list[float]
-    curves: list[GroupReport]
-
-    def dip_index(self, g: GroupReport) -> int | None:
-        """The deepest resolution outside the tolerance that is finer than one inside it, or None."""
-        env = g.envelope
-        inside = ~env.outside & np.isfinite(g.sat.stats.mean)
-        if not inside.any():
-            return None
-        first_in = int(np.argmax(inside))
-        cand = [i for i in range(first_in + 1, len(env.outside)) if env.outside[i]]
-        if not cand:
-            return None
-        return min(cand, key=lambda i: g.sat.stats.mean[i])
-
-
-def requirement_maps(groups: list[GroupReport]) -> list[RequirementMap]:
-    """One map per set of non-noise group keys that sweeps two or more false-on rates; [] otherwise."""
-    parts: dict[tuple[tuple[str, str], ...], list[tuple[float, GroupReport]]] = {}
-    for g in groups:
-        rates = g.points["false_on_rate"].to_numpy(float) if "false_on_rate" in g.points else np.array([np.nan])
-        if not (np.isfinite(rates).all() and np.ptp(rates) == 0 and g.has_pitch):
-            continue
-        other = tuple((k, v) for k, v in g.keys.items() if not k.startswith(_NOISE_PREFIX))
-        parts.setdefault(other, []).append((float(rates[0]), g))
-    out = []
-    for other, members in parts.items():
-        rates = sorted({r for r, _ in members})
-        if len(rates) < 2 or len(rates) != len(members):
-            continue  # one rate, or two curves share a rate (another noise setting varies): not a map
-        members.sort(key=lambda t: t[0])
-        out.append(RequirementMap(", ".join(f"{k}={v}" for k, v in other), [r for r, _ in members],
-                                  [g for _, g in members]))
-    return out
 
 
 def map_rows(report: SweepReport) -> list[dict[str, object]]:

@@ -25,16 +25,14 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from sphri.config import ConfigError
-from sphri.robots.parametric import _spec_dict, loft_mesh
-from sphri.robots.schema import check_parametric_link
+from sphri.robots.parametric import loft_mesh
+from sphri.robots.schema import check_kinematic, check_part_specs, tree_order
 from sphri.robots.validate import make_link
 from sphri.types import Robot
 
 log = logging.getLogger(__name__)
 
 AXIS_VECTORS = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
-SIDES = ("+x", "-x", "+y", "-y", "+z", "-z")
 
 
 def rotation_about(axis: str, angle: np.ndarray) -> np.ndarray:
@@ -231,16 +229,12 @@ class KinematicRobot:
     def __init__(self, name: str, links: Mapping[str, Any], parts: Mapping[str, Any], groups: Mapping[str, Any] | None = None,
                  rest: Mapping[str, float] | None = None):
         self.name = str(name)
-        self.specs = {}
-        for k, v in links.items():
-            self.specs[str(k)] = check_tree_link(v, f"robot.links.{k}")
-        self.parts = check_parts(parts, self.specs)
-        self.groups = check_groups(groups, [p.name for p in self.parts])
-        self.rest = {str(k): float(v) for k, v in (rest or {}).items()}
+        spec = check_kinematic(links, parts, groups, rest)  # the schema's checks (sphri.robots.schema)
+        self.specs = spec.links
+        self.parts = [BodyPart(**p) for p in spec.parts]
+        self.groups = spec.groups
+        self.rest = spec.rest
         self.tree = build_tree(self.specs)
-        unknown = sorted(set(self.rest) - set(self.tree.joint_names))
-        if unknown:
-            raise ConfigError(f"robot.rest: unknown joint(s) {unknown}; joints: {self.tree.joint_names}")
 
     def build(self) -> WholeBodyRobot:
         links = {}
@@ -259,62 +253,10 @@ class KinematicRobot:
                               groups={k: tuple(v) for k, v in self.groups.items()}, rest=dict(self.rest))
 
 
-def _get(spec: Any, key: str, default: Any = None) -> Any:
-    if isinstance(spec, Mapping) or hasattr(spec, "keys"):
-        return spec[key] if key in spec else default
-    return getattr(spec, key, default)
-
-
-def check_tree_link(spec: Any, key: str) -> dict[str, Any]:
-    """One tree link as a plain dict: parent, xyz, rpy, joints [(name, axis)], shape (loft spec)."""
-    if spec is None:
-        raise ConfigError(f"{key}: missing link spec")
-    parent = _get(spec, "parent")
-    xyz = [float(x) for x in (_get(spec, "xyz") or [0.0, 0.0, 0.0])]
-    rpy = [float(x) for x in (_get(spec, "rpy") or [0.0, 0.0, 0.0])]
-    if len(xyz) != 3:
-        raise ConfigError(f"{key}.xyz={xyz} is invalid: 3 coordinates (metres)")
-    if len(rpy) != 3:
-        raise ConfigError(f"{key}.rpy={rpy} is invalid: roll, pitch, yaw (radians)")
-    joints = []
-    for j in list(_get(spec, "joints") or []):
-        name, _, axis = str(j).partition(":")
-        if not name or axis not in AXIS_VECTORS:
-            raise ConfigError(f"{key}.joints: {j!r} is invalid: expected 'name:axis' with axis x, y or z")
-        joints.append((name, axis))
-    shape = _get(spec, "shape")
-    if shape is None:
-        raise ConfigError(f"{key}.shape is missing: a loft (size_m, center_m, axis, profile, ...)")
-    shape = _spec_dict(shape, f"{key}.shape")
-    check_parametric_link(shape, f"{key}.shape")
-    return {"parent": None if parent in (None, "") else str(parent), "xyz": xyz, "rpy": rpy, "joints": joints,
-            "shape": shape}
-
-
 def build_tree(specs: Mapping[str, dict]) -> JointTree:
-    """Topologically ordered :class:`JointTree`; exactly one root, no cycles, unique joint names."""
-    names = list(specs)
-    roots = [n for n in names if specs[n]["parent"] is None]
-    if len(roots) != 1:
-        raise ConfigError(f"robot.links: exactly one link must have no parent (the base), found {roots}")
-    for n in names:
-        p = specs[n]["parent"]
-        if p is not None and p not in specs:
-            raise ConfigError(f"robot.links.{n}.parent={p!r} is invalid: must name one of {names}")
-    order: list[str] = []
-    pending = list(names)
-    while pending:
-        ready = [n for n in pending if specs[n]["parent"] is None or specs[n]["parent"] in order]
-        if not ready:
-            raise ConfigError(f"robot.links: the parents of {pending} form a cycle")
-        order += ready
-        pending = [n for n in pending if n not in ready]
-    seen: set[str] = set()
-    for n in order:
-        for j, _ in specs[n]["joints"]:
-            if j in seen:
-                raise ConfigError(f"robot.links.{n}.joints: joint {j!r} is used twice")
-            seen.add(j)
+    """Topologically ordered :class:`JointTree` of checked tree links (:func:`sphri.robots.schema.check_tree_link`;
+    the order and its checks: :func:`sphri.robots.schema.tree_order`)."""
+    order = tree_order(specs)
     origin = np.tile(np.eye(4), (len(order), 1, 1))
     for i, n in enumerate(order):
         origin[i, :3, :3] = rpy_matrix(specs[n]["rpy"])
@@ -328,47 +270,6 @@ def build_tree(specs: Mapping[str, dict]) -> JointTree:
 
 
 def check_parts(parts: Any, specs: Mapping[str, Any]) -> list[BodyPart]:
-    if parts is None or not (isinstance(parts, Mapping) or hasattr(parts, "items")) or len(parts) == 0:
-        raise ConfigError(f"robot.parts={parts!r} is invalid: a mapping body part -> {{link: ..., side: ...}}")
-    out = []
-    for name, spec in parts.items():
-        key = f"robot.parts.{name}"
-        if not (isinstance(spec, Mapping) or hasattr(spec, "keys")):
-            raise ConfigError(f"{key}={spec!r} is invalid: a mapping {{link: ..., side: ..., z_min: ..., z_max: ...}}")
-        link = _get(spec, "link")
-        if link not in specs:
-            raise ConfigError(f"{key}.link={link!r} is invalid: must name one of the links {sorted(specs)}")
-        side = _get(spec, "side")
-        if side is not None and side not in SIDES:
-            raise ConfigError(f"{key}.side={side!r} is invalid: allowed values: {list(SIDES)} or null")
-        z_min, z_max = _get(spec, "z_min"), _get(spec, "z_max")
-        if z_min is not None and z_max is not None and not float(z_min) < float(z_max):
-            raise ConfigError(f"{key}: z_min={z_min} must be below z_max={z_max}")
-        if str(name) in specs and str(link) != str(name):
-            raise ConfigError(f"{key}: a body part may share a name only with its own link")
-        min_cos = float(_get(spec, "min_cos", 0.0) or 0.0)
-        if not 0.0 <= min_cos < 1.0 or (min_cos > 0 and side is None):
-            raise ConfigError(f"{key}.min_cos={min_cos} is invalid: in [0, 1), and only with a side")
-        unknown = sorted(set(spec.keys() if hasattr(spec, "keys") else []) - {"link", "side", "z_min", "z_max", "min_cos"})
-        if unknown:
-            raise ConfigError(f"{key}: unknown key(s) {unknown}; allowed: link, side, z_min, z_max, min_cos")
-        out.append(BodyPart(str(name), str(link), None if side is None else str(side),
-                            None if z_min is None else float(z_min), None if z_max is None else float(z_max), min_cos))
-    return out
+    """``robot.parts`` as :class:`BodyPart` (checks: :func:`sphri.robots.schema.check_part_specs`)."""
+    return [BodyPart(**p) for p in check_part_specs(parts, specs)]
 
-
-def check_groups(groups: Any, parts: list[str]) -> dict[str, list[str]]:
-    if groups is None:
-        return {}
-    if not (isinstance(groups, Mapping) or hasattr(groups, "items")):
-        raise ConfigError(f"robot.groups={groups!r} is invalid: a mapping group -> [body parts]")
-    out = {}
-    for g, members in groups.items():
-        members = [str(m) for m in ([members] if isinstance(members, str) else list(members))]
-        bad = [m for m in members if m not in parts]
-        if bad or not members:
-            raise ConfigError(f"robot.groups.{g}={members} is invalid: unknown body part(s) {bad}; parts: {parts}")
-        if str(g) in parts:
-            raise ConfigError(f"robot.groups.{g}: a group must not share a body part's name")
-        out[str(g)] = members
-    return out

@@ -99,8 +99,7 @@ def _strip(el: ET.Element, keep: set[str]) -> None:
 
 def derive(src: Path, out: Path = OUT, budget: int = FACE_BUDGET) -> dict:
     """Write the derivative (see the module docstring); returns the manifest."""
-    from sphri.robots.urdf import MeshResolver
-    from sphri.robots.urdf_tree import GEOMETRY_ORDER, _XACRO, mesh_uri
+    from sphri.robots.urdf_tree import GEOMETRY_ORDER, _XACRO, MeshResolver, mesh_uri
 
     src = Path(src)
     urdf = src / "reachy2.urdf"

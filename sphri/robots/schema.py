@@ -3,12 +3,18 @@
 Three kinds of robot, one schema each: ``parametric_schema`` (built-in
 morphologies from dimensions: ``robot=reachy``, ``nao_child``,
 ``service_bot``), ``mesh_schema`` (mesh files: ``robot=mesh``,
-``robot=reachy_vr``) and ``urdf_schema`` (``robot=urdf``).
+``robot=reachy_vr``) and ``urdf_schema`` (``robot=urdf``), plus
+``kinematic_schema`` (a whole robot from dimensions, ``robot=reachy_full``).
+
+This module is the bottom of :mod:`sphri.robots`: the checks of every robot
+config live here (the components call them too) and it imports no robot
+implementation, so composing a config never loads a mesh library.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Mapping, Optional
 
 from omegaconf import MISSING
@@ -22,6 +28,10 @@ AXES: tuple[str, ...] = ("x", "y", "z")
 UNITS: tuple[str, ...] = ("auto", "m", "mm")
 #: Which URDF geometry to read.
 GEOMETRIES: tuple[str, ...] = ("collision", "visual")
+#: Robot descriptions shipped with sphri (``robot.builtin``): name -> URDF file.
+BUILTIN: dict[str, Path] = {"reachy2": Path(__file__).with_name("data") / "reachy2" / "reachy2.urdf"}
+#: Sides a body part may keep (the outward normal's sign along a link axis).
+SIDES: tuple[str, ...] = ("+x", "-x", "+y", "-y", "+z", "-z")
 
 
 def _get(spec: Any, key: str) -> Any:
@@ -51,6 +61,25 @@ def check_parametric_link(spec: Any, key: str) -> None:
         top = max(row[col] for row in prof)
         require(abs(top - 1.0) < 1e-9, f"{key}.profile", prof,
                 f"the largest {label} must be 1 so that size_m is the link's true size (found {top:g})")
+
+
+def loft_spec(spec: Any, key: str) -> dict[str, Any]:
+    """A link spec (mapping, DictConfig or ParametricLinkSpec) as a plain dict with defaults filled."""
+    defaults = {"center_m": [0.0, 0.0, 0.0], "axis": "z", "exponent": 2.0, "n_around": 32}
+    mapping = isinstance(spec, Mapping) or hasattr(spec, "keys")
+    out = {}
+    for k in ("size_m", "center_m", "axis", "profile", "exponent", "n_around"):
+        has = (k in spec) if mapping else hasattr(spec, k)
+        if not has and k not in defaults:
+            raise ConfigError(f"{key}.{k} is missing (parametric links need size_m and profile)")
+        out[k] = (spec[k] if mapping else getattr(spec, k)) if has else defaults[k]
+    out["size_m"] = [float(x) for x in out["size_m"]]
+    out["center_m"] = [float(x) for x in out["center_m"]]
+    out["profile"] = [[float(x) for x in row] for row in out["profile"]]
+    out["axis"] = str(out["axis"])
+    out["exponent"] = float(out["exponent"])
+    out["n_around"] = int(out["n_around"])
+    return out
 
 
 def check_str_map(value: Any, key: str, what: str) -> dict[str, str]:
@@ -175,8 +204,6 @@ class UrdfRobotSchema:
         require(self.path not in (None, "") or self.builtin is not None, "robot.path", self.path,
                 "the URDF file (or robot.builtin=reachy2)")
         if self.builtin is not None:
-            from sphri.robots.urdf_tree import BUILTIN
-
             require_choice("robot.builtin", self.builtin, list(BUILTIN))
         require_choice("robot.units", self.units, UNITS)
         if self.parts is not None:
@@ -227,6 +254,147 @@ store(group="robot", name="mesh_schema", node=MeshRobotSchema)
 store(group="robot", name="urdf_schema", node=UrdfRobotSchema)
 
 
+def _opt(spec: Any, key: str, default: Any = None) -> Any:
+    if isinstance(spec, Mapping) or hasattr(spec, "keys"):
+        return spec[key] if key in spec else default
+    return getattr(spec, key, default)
+
+
+def check_tree_link(spec: Any, key: str) -> dict[str, Any]:
+    """One tree link as a plain dict: parent, xyz, rpy, joints [(name, axis)], shape (loft spec)."""
+    if spec is None:
+        raise ConfigError(f"{key}: missing link spec")
+    parent = _opt(spec, "parent")
+    xyz = [float(x) for x in (_opt(spec, "xyz") or [0.0, 0.0, 0.0])]
+    rpy = [float(x) for x in (_opt(spec, "rpy") or [0.0, 0.0, 0.0])]
+    if len(xyz) != 3:
+        raise ConfigError(f"{key}.xyz={xyz} is invalid: 3 coordinates (metres)")
+    if len(rpy) != 3:
+        raise ConfigError(f"{key}.rpy={rpy} is invalid: roll, pitch, yaw (radians)")
+    joints = []
+    for j in list(_opt(spec, "joints") or []):
+        name, _, axis = str(j).partition(":")
+        if not name or axis not in AXES:
+            raise ConfigError(f"{key}.joints: {j!r} is invalid: expected 'name:axis' with axis x, y or z")
+        joints.append((name, axis))
+    shape = _opt(spec, "shape")
+    if shape is None:
+        raise ConfigError(f"{key}.shape is missing: a loft (size_m, center_m, axis, profile, ...)")
+    shape = loft_spec(shape, f"{key}.shape")
+    check_parametric_link(shape, f"{key}.shape")
+    return {"parent": None if parent in (None, "") else str(parent), "xyz": xyz, "rpy": rpy, "joints": joints,
+            "shape": shape}
+
+
+def tree_order(specs: Mapping[str, dict]) -> list[str]:
+    """The links of checked tree links (:func:`check_tree_link`) parents first; exactly one root, every parent
+    a link, no cycle, unique joint names."""
+    names = list(specs)
+    roots = [n for n in names if specs[n]["parent"] is None]
+    if len(roots) != 1:
+        raise ConfigError(f"robot.links: exactly one link must have no parent (the base), found {roots}")
+    for n in names:
+        p = specs[n]["parent"]
+        if p is not None and p not in specs:
+            raise ConfigError(f"robot.links.{n}.parent={p!r} is invalid: must name one of {names}")
+    order: list[str] = []
+    pending = list(names)
+    while pending:
+        ready = [n for n in pending if specs[n]["parent"] is None or specs[n]["parent"] in order]
+        if not ready:
+            raise ConfigError(f"robot.links: the parents of {pending} form a cycle")
+        order += ready
+        pending = [n for n in pending if n not in ready]
+    seen: set[str] = set()
+    for n in order:
+        for j, _ in specs[n]["joints"]:
+            if j in seen:
+                raise ConfigError(f"robot.links.{n}.joints: joint {j!r} is used twice")
+            seen.add(j)
+    return order
+
+
+def check_part_specs(parts: Any, links: Mapping[str, Any]) -> list[dict[str, Any]]:
+    """``robot.parts`` as checked plain dicts (name, link, side, z_min, z_max, min_cos), in order; every part on
+    one of ``links`` (:class:`sphri.robots.kinematic.BodyPart` holds them)."""
+    if parts is None or not (isinstance(parts, Mapping) or hasattr(parts, "items")) or len(parts) == 0:
+        raise ConfigError(f"robot.parts={parts!r} is invalid: a mapping body part -> {{link: ..., side: ...}}")
+    out = []
+    for name, spec in parts.items():
+        key = f"robot.parts.{name}"
+        if not (isinstance(spec, Mapping) or hasattr(spec, "keys")):
+            raise ConfigError(f"{key}={spec!r} is invalid: a mapping {{link: ..., side: ..., z_min: ..., z_max: ...}}")
+        link = _opt(spec, "link")
+        if link not in links:
+            raise ConfigError(f"{key}.link={link!r} is invalid: must name one of the links {sorted(links)}")
+        side = _opt(spec, "side")
+        if side is not None and side not in SIDES:
+            raise ConfigError(f"{key}.side={side!r} is invalid: allowed values: {list(SIDES)} or null")
+        z_min, z_max = _opt(spec, "z_min"), _opt(spec, "z_max")
+        if z_min is not None and z_max is not None and not float(z_min) < float(z_max):
+            raise ConfigError(f"{key}: z_min={z_min} must be below z_max={z_max}")
+        if str(name) in links and str(link) != str(name):
+            raise ConfigError(f"{key}: a body part may share a name only with its own link")
+        min_cos = float(_opt(spec, "min_cos", 0.0) or 0.0)
+        if not 0.0 <= min_cos < 1.0 or (min_cos > 0 and side is None):
+            raise ConfigError(f"{key}.min_cos={min_cos} is invalid: in [0, 1), and only with a side")
+        unknown = sorted(set(spec.keys() if hasattr(spec, "keys") else []) - {"link", "side", "z_min", "z_max", "min_cos"})
+        if unknown:
+            raise ConfigError(f"{key}: unknown key(s) {unknown}; allowed: link, side, z_min, z_max, min_cos")
+        out.append({"name": str(name), "link": str(link), "side": None if side is None else str(side),
+                    "z_min": None if z_min is None else float(z_min), "z_max": None if z_max is None else float(z_max),
+                    "min_cos": min_cos})
+    return out
+
+
+def check_groups(groups: Any, parts: list[str]) -> dict[str, list[str]]:
+    """``robot.groups`` as ``{group: [body parts]}`` (None -> {}); every member one of ``parts``."""
+    if groups is None:
+        return {}
+    if not (isinstance(groups, Mapping) or hasattr(groups, "items")):
+        raise ConfigError(f"robot.groups={groups!r} is invalid: a mapping group -> [body parts]")
+    out = {}
+    for g, members in groups.items():
+        members = [str(m) for m in ([members] if isinstance(members, str) else list(members))]
+        bad = [m for m in members if m not in parts]
+        if bad or not members:
+            raise ConfigError(f"robot.groups.{g}={members} is invalid: unknown body part(s) {bad}; parts: {parts}")
+        if str(g) in parts:
+            raise ConfigError(f"robot.groups.{g}: a group must not share a body part's name")
+        out[str(g)] = members
+    return out
+
+
+@dataclass(frozen=True)
+class KinematicSpec:
+    """A checked kinematic robot config (:func:`check_kinematic`): what :class:`sphri.robots.kinematic.KinematicRobot`
+    builds from."""
+
+    links: dict[str, dict[str, Any]]
+    """Link name -> :func:`check_tree_link` dict."""
+    order: list[str]
+    """Links parents first (:func:`tree_order`)."""
+    parts: list[dict[str, Any]]
+    """:func:`check_part_specs` dicts."""
+    groups: dict[str, list[str]]
+    rest: dict[str, float]
+
+
+def check_kinematic(links: Mapping[str, Any], parts: Any, groups: Any = None, rest: Any = None) -> KinematicSpec:
+    """Every check of a kinematic robot's config (``robot=reachy_full``): links, body parts, groups, the tree
+    and the rest pose's joints; :class:`ConfigError` naming the key."""
+    specs = {str(k): check_tree_link(v, f"robot.links.{k}") for k, v in links.items()}
+    part_specs = check_part_specs(parts, specs)
+    group_map = check_groups(groups, [p["name"] for p in part_specs])
+    rest_map = {str(k): float(v) for k, v in (rest or {}).items()}
+    order = tree_order(specs)
+    joint_names = [j for n in order for j, _ in specs[n]["joints"]]
+    unknown = sorted(set(rest_map) - set(joint_names))
+    if unknown:
+        raise ConfigError(f"robot.rest: unknown joint(s) {unknown}; joints: {joint_names}")
+    return KinematicSpec(specs, order, part_specs, group_map, rest_map)
+
+
 @dataclass
 class KinematicRobotSchema:
     """A whole robot: a kinematic tree of parametric links with named body parts (no files)."""
@@ -243,9 +411,7 @@ class KinematicRobotSchema:
     """Joint name -> angle (radians) of the rest pose; other joints 0."""
 
     def __post_init__(self) -> None:
-        from sphri.robots.kinematic import KinematicRobot
-
-        KinematicRobot(self.name, self.links or {}, self.parts, self.groups, self.rest)
+        check_kinematic(self.links or {}, self.parts, self.groups, self.rest)
 
 
 store(group="robot", name="kinematic_schema", node=KinematicRobotSchema)

@@ -17,7 +17,6 @@ without ``merge`` every link stays in its own frame and joints are unused.
 from __future__ import annotations
 
 import logging
-from functools import cached_property
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
@@ -25,68 +24,12 @@ import numpy as np
 import trimesh
 
 from sphri.config import ConfigError, require_choice
-from sphri.robots.schema import GEOMETRIES, UNITS, check_joints, check_merge, check_regions, check_str_map
+from sphri.robots.schema import BUILTIN, GEOMETRIES, UNITS, check_joints, check_merge, check_regions, check_str_map
+from sphri.robots.urdf_tree import CYLINDER_SECTIONS, SPHERE_SUBDIVISIONS, MeshResolver, UrdfWholeBody, parse_urdf
 from sphri.robots.validate import MeshError, make_link, read_mesh
 from sphri.types import Robot
 
 log = logging.getLogger(__name__)
-
-#: Segments around a cylinder primitive; subdivisions of a sphere primitive.
-CYLINDER_SECTIONS = 32
-SPHERE_SUBDIVISIONS = 2
-
-
-class MeshResolver:
-    """Finds the files behind a URDF's mesh URIs (see the module docstring)."""
-
-    def __init__(self, urdf_dir: Path):
-        self.dir = urdf_dir
-
-    @cached_property
-    def _by_name(self) -> dict[str, list[Path]]:
-        index: dict[str, list[Path]] = {}
-        for p in sorted(self.dir.rglob("*")):
-            if p.is_file():
-                index.setdefault(p.name.lower(), []).append(p)
-        return index
-
-    def resolve(self, uri: str) -> tuple[Optional[Path], list[Path], str]:
-        """``(path or None, candidates tried, note)``; the note is empty for a direct hit."""
-        rel = uri
-        for prefix in ("package://", "file://", "model://"):
-            if rel.startswith(prefix):
-                rel = rel[len(prefix):]
-                break
-        direct = Path(rel)
-        if direct.is_absolute():
-            if direct.is_file():
-                return direct, [direct], ""
-            parts = direct.parts[1:]
-        else:
-            parts = direct.parts
-        tried = []
-        for k in range(len(parts)):
-            tail = Path(*parts[k:])
-            for base in (self.dir, self.dir.parent):
-                cand = base / tail
-                tried.append(cand)
-                if cand.is_file():
-                    return cand, tried, "" if k == 0 and base == self.dir else f"{uri} -> {cand}"
-        if parts:
-            hits = self._by_name.get(parts[-1].lower(), [])
-            if hits:
-                # prefer the hit sharing the longest path tail with the URI
-                def shared(p: Path) -> int:
-                    a, b = [s.lower() for s in reversed(p.parts)], [s.lower() for s in reversed(parts)]
-                    n = 0
-                    while n < min(len(a), len(b)) and a[n] == b[n]:
-                        n += 1
-                    return n
-
-                best = max(hits, key=shared)
-                return best, tried, f"{uri} -> {best} (matched by file name)"
-        return None, tried, ""
-
 
 def mesh_files(urdf_path: Path) -> list[Path]:
     """The mesh files a URDF names that resolve to a file (its cache fingerprint covers them).
@@ -170,8 +113,6 @@ class UrdfRobot:
         exclude: Optional[Sequence[str]] = None,
         mesh_root: Optional[str] = None,
     ):
-        from sphri.robots.urdf_tree import BUILTIN, UrdfWholeBody
-
         if builtin is not None:
             require_choice("robot.builtin", builtin, list(BUILTIN))
             if path in (None, ""):
@@ -207,8 +148,6 @@ class UrdfRobot:
 
     def _load(self):
         import yourdfpy
-
-        from sphri.robots.urdf_tree import parse_urdf
 
         path = Path(self.path).expanduser()
         if not path.is_file():

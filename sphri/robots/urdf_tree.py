@@ -16,7 +16,7 @@ through :class:`UrdfWholeBody`:
    (``collision`` / ``visual`` restrict to one kind). Mesh URIs
    (``package://pkg/...``, ``file://$(find pkg)/...``, relative paths) resolve
    against ``mesh_root`` (default: the URDF's folder) with
-   :class:`sphri.robots.urdf.MeshResolver` (tails of the path, then the file
+   :class:`MeshResolver` (tails of the path, then the file
    name anywhere below the root).
 3. Links without any loadable geometry (dummy, camera and tip frames; meshes
    of absent ROS packages) are *skipped*; so are ``exclude``-d links and links
@@ -41,6 +41,7 @@ import logging
 import re
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any, Mapping, Optional, Sequence
 
@@ -49,15 +50,13 @@ import trimesh
 import yaml
 
 from sphri.config import ConfigError, require_choice
-from sphri.robots.kinematic import (JointStep, JointTree, WholeBodyRobot, axis_rotation, check_groups, check_parts,
-                                    rpy_matrix)
+from sphri.robots.kinematic import JointStep, JointTree, WholeBodyRobot, axis_rotation, check_parts, rpy_matrix
+from sphri.robots.schema import check_groups
 from sphri.robots.validate import MeshError, make_link, read_mesh
 from sphri.types import Link
 
 log = logging.getLogger(__name__)
 
-#: Robots whose (derived) description ships inside sphri: name -> URDF.
-BUILTIN = {"reachy2": Path(__file__).with_name("data") / "reachy2" / "reachy2.urdf"}
 #: Geometry preference orders (see the module docstring).
 GEOMETRY_ORDER = {
     "auto": (("collision", "mesh"), ("visual", "mesh"), ("collision", "primitive"), ("visual", "primitive")),
@@ -271,14 +270,71 @@ def _root_of(link: str, joint_of: Mapping[str, UrdfJoint]) -> str:
     return link
 
 
+#: Segments around a cylinder primitive; subdivisions of a sphere primitive.
+CYLINDER_SECTIONS = 32
+SPHERE_SUBDIVISIONS = 2
+
+
+class MeshResolver:
+    """Finds the files behind a URDF's mesh URIs (``package://pkg/dir/file``, ``file://``, relative) under
+    ``urdf_dir``: every tail of the URI's path under the folder and its parent, then the file name anywhere below
+    the folder (case-insensitively, e.g. ``.STL`` vs ``.stl``); the note names such a match."""
+
+    def __init__(self, urdf_dir: Path):
+        self.dir = urdf_dir
+
+    @cached_property
+    def _by_name(self) -> dict[str, list[Path]]:
+        index: dict[str, list[Path]] = {}
+        for p in sorted(self.dir.rglob("*")):
+            if p.is_file():
+                index.setdefault(p.name.lower(), []).append(p)
+        return index
+
+    def resolve(self, uri: str) -> tuple[Optional[Path], list[Path], str]:
+        """``(path or None, candidates tried, note)``; the note is empty for a direct hit."""
+        rel = uri
+        for prefix in ("package://", "file://", "model://"):
+            if rel.startswith(prefix):
+                rel = rel[len(prefix):]
+                break
+        direct = Path(rel)
+        if direct.is_absolute():
+            if direct.is_file():
+                return direct, [direct], ""
+            parts = direct.parts[1:]
+        else:
+            parts = direct.parts
+        tried = []
+        for k in range(len(parts)):
+            tail = Path(*parts[k:])
+            for base in (self.dir, self.dir.parent):
+                cand = base / tail
+                tried.append(cand)
+                if cand.is_file():
+                    return cand, tried, "" if k == 0 and base == self.dir else f"{uri} -> {cand}"
+        if parts:
+            hits = self._by_name.get(parts[-1].lower(), [])
+            if hits:
+                # prefer the hit sharing the longest path tail with the URI
+                def shared(p: Path) -> int:
+                    a, b = [s.lower() for s in reversed(p.parts)], [s.lower() for s in reversed(parts)]
+                    n = 0
+                    while n < min(len(a), len(b)) and a[n] == b[n]:
+                        n += 1
+                    return n
+
+                best = max(hits, key=shared)
+                return best, tried, f"{uri} -> {best} (matched by file name)"
+        return None, tried, ""
+
+
 def mesh_uri(filename: str) -> str:
     """``file://$(find pkg)/x`` -> ``package://pkg/x``; other URIs unchanged."""
     return _FIND.sub(lambda m: f"package://{m.group(1)}/", filename)
 
 
 def _primitive(g: Geometry) -> Optional[trimesh.Trimesh]:
-    from sphri.robots.urdf import CYLINDER_SECTIONS, SPHERE_SUBDIVISIONS
-
     if g.kind == "box":
         return trimesh.creation.box(extents=g.size) if all(s > 0 for s in g.size) else None
     if g.kind == "cylinder":
@@ -414,8 +470,6 @@ class UrdfWholeBody:
         self.units = str(units)
 
     def build(self) -> WholeBodyRobot:
-        from sphri.robots.urdf import MeshResolver
-
         model = parse_urdf(self.path)
         root_dir = self.mesh_root if self.mesh_root is not None else model.path.parent
         if not root_dir.is_dir():

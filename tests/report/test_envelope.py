@@ -122,7 +122,7 @@ def test_requirement_map_flags_the_dip_and_lines_curves_up_by_false_on_rate():
 
     import pandas as pd
 
-    from sphri.report.reqmap import RequirementMap, requirement_maps
+    from sphri.report.analysis import RequirementMap, requirement_maps
 
     rng = np.random.default_rng(4)
     dip_curve = np.array([0.40, 0.66, 0.70, 0.61, 0.64, 0.70, 0.70])

@@ -357,3 +357,33 @@ def test_poppy_urdf(shared_dir):
     assert 0.10 < np.ptp(arm.vertices, axis=0).max() < 0.16  # upper arm about 0.148 m joint to joint
     assert arm.watertight and signed_volume(arm.vertices, arm.faces) > 0
     assert any("matched by file name" in n for n in robot.links["l_forearm"].notes)  # .STL vs .stl
+
+
+def test_kinematic_schema_checks_without_the_implementation():
+    """The schema holds a whole robot's checks (sphri.robots.schema is the bottom of the package): composing
+    robot=reachy_full refuses a bad tree, part or rest pose without importing sphri.robots.kinematic, and the
+    component raises the same message for the same bad value."""
+    import subprocess
+    import sys
+
+    code = ("import sys\n"
+            "from sphri.config import ConfigError, compose\n"
+            "for bad in (['+robot.rest.nope=1.0'], ['robot.links.neck.parent=head'], ['robot.parts.torso_top.side=+w']):\n"
+            "    try:\n"
+            "        compose(['robot=reachy_full', *bad])\n"
+            "    except ConfigError as exc:\n"
+            "        print(str(exc).split(';')[0])\n"
+            "print(sorted(m for m in sys.modules if m.startswith('sphri.robots.')))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True).stdout
+    assert out.splitlines() == ["robot.rest: unknown joint(s) ['nope']",
+                                "robot.links: the parents of ['neck', 'head'] form a cycle",
+                                "robot.parts.torso_top.side='+w' is invalid: allowed values: ['+x', '-x', '+y', '-y', '+z', "
+                                "'-z'] or null",
+                                "['sphri.robots.schema']"]
+    from sphri.config import compose as compose_sphri
+    from sphri.robots.kinematic import KinematicRobot
+
+    cfg = OmegaConf.to_container(compose_sphri(["robot=reachy_full"]).robot)
+    cfg["links"]["neck"]["parent"] = "head"
+    with pytest.raises(ConfigError, match=r"^robot.links: the parents of \['neck', 'head'\] form a cycle$"):
+        KinematicRobot(cfg["name"], cfg["links"], cfg["parts"], cfg["groups"], cfg["rest"])

@@ -14,7 +14,8 @@ from hydra.utils import instantiate
 from sphri.config import ConfigError, compose
 from sphri.errors import kind_of
 from sphri.robots.kinematic import axis_rotation, rpy_matrix
-from sphri.robots.urdf_tree import BUILTIN, RobotFileError, UrdfWholeBody, parse_urdf
+from sphri.robots.schema import BUILTIN
+from sphri.robots.urdf_tree import RobotFileError, UrdfWholeBody, parse_urdf
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -295,11 +295,3 @@ class StageCache:
                     self._remember(stage, path_key, key, files or {})
         self.misses.append(stage)
         return value
-
-
-if __name__ == "__main__":  # python -m sphri.cache info|clear
-    import sys
-
-    from sphri.cache_cli import main
-
-    sys.exit(main())
