@@ -361,6 +361,9 @@ def load_model(path: str | os.PathLike, key: Any = FROM_ENV) -> ModelBundle:
             )
             if geometry.n_taxels != header["n_taxels"]:
                 raise ModelFileError(f"{path}: header says {header['n_taxels']} taxels, geometry has {geometry.n_taxels}")
+            from sphri.adjacency import metric_coords
+
+            metric_coords(geometry)  # grid shape, chart and positions agree (ValueError naming the field)
             estimator = _restore_estimator(path, header["estimator"], z, geometry)
         classes = np.asarray(getattr(estimator, "classes_", []))
         if classes.size and (classes.dtype.kind not in "iu" or classes.min() < 0
@@ -369,7 +372,7 @@ def load_model(path: str | os.PathLike, key: Any = FROM_ENV) -> ModelBundle:
                                  f"{len(header['labels'])} labels")
     except ModelFileError:
         raise
-    except (KeyError, TypeError, ValueError, OSError, AttributeError, EOFError, OverflowError,
+    except (KeyError, TypeError, ValueError, OSError, AttributeError, EOFError, OverflowError, IndexError,
             zipfile.BadZipFile) as exc:  # a field missing or of the wrong kind
         raise ModelFileError(f"{path}: malformed model file ({type(exc).__name__}: {exc})") from None
     return ModelBundle(
