@@ -149,7 +149,7 @@ def write_sessions(ds: SessionDataset, out: str | Path) -> list[Path]:
                 entries.append({"scenario": str(scen), "repetition": int(r.repetition), "order": int(r.order),
                                 "start_position": str(r.start_position), "frame_rate_hz": float(ds.frame_rate_hz),
                                 "n_frames": int(r.n_frames), "file": fname})
-            pd.concat(parts, ignore_index=True).to_parquet(pdir / fname, index=False)
+            pd.concat(parts, ignore_index=True).to_parquet(pdir / fname, index=False, write_page_checksum=True)
             files.append(pdir / fname)
         entries.sort(key=lambda e: (e["order"], e["repetition"]))
         (pdir / "manifest.json").write_text(json.dumps({"participant": str(pid), "sessions": entries}, indent=1) + "\n")
@@ -377,7 +377,7 @@ class SessionData:
             if not pa.types.is_floating(schema.field(col).type):
                 raise SessionFormatError(f"{path}: column {col!r} has type {schema.field(col).type}, expected float")
         try:
-            return pq.read_table(path, columns=need).to_pandas()
+            return pq.read_table(path, columns=need, page_checksum_verification=True).to_pandas()
         except (pa.ArrowInvalid, OSError) as exc:
             raise SessionFormatError(f"{path}: cannot read ({exc})") from None
 

@@ -19,7 +19,7 @@ from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
 from fuzz_support import NAMED, SILENT, UNCHANGED, Tally, fuzz_settings, named_or_raise
-from sphri.config import CONF_DIR, compose
+from sphri.config import CONF_DIR, ConfigError, compose
 
 GROUPS = ("data", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv", "tracking")
 
@@ -108,3 +108,12 @@ def test_the_command_line_prints_one_line_not_a_traceback(override, tmp_path):
     assert r.returncode == 2, r.stderr
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert "Traceback" not in r.stderr and len(lines) == 1 and "invalid config" in lines[0], r.stderr
+
+
+@pytest.mark.parametrize("value", ["-1", "2", "99999999999999999999999"])
+def test_a_number_for_a_boolean_field_is_refused_not_made_true(value):
+    """Found by this campaign: ``encoder.binary=-1`` composed as ``encoder.binary=True`` (OmegaConf turns
+    any integer into a boolean). Now one line: ``encoder.binary=-1 is invalid: must be true or false``."""
+    with pytest.raises(ConfigError, match=rf"encoder\.binary={value} is invalid: must be true or false"):
+        compose([f"encoder.binary={value}"])
+    assert compose(["encoder.binary=0"]).encoder.binary is False  # 0 and 1 keep their meaning

@@ -220,3 +220,23 @@ def test_a_signed_header_whose_grid_does_not_hold_the_taxels_is_named(model_file
     path.write_bytes(seal_model(json.dumps(header).encode(), payload, KEY))
     with pytest.raises(ModelFileError, match=r"m\.sphrimodel: malformed model file"):
         load_model(path, key=KEY)
+
+
+@pytest.mark.parametrize("edit", ["threshold_empty", "threshold_none", "meta_list"])
+def test_a_signed_header_with_malformed_parameters_is_named_at_load(model_files, tmp_path, edit):
+    """Found by this campaign: a header signed with the key whose ``estimator.params.active_threshold`` is
+    ``""`` or ``null`` loaded, then every prediction raised (numpy's UFuncNoLoopError, TypeError); ``meta``
+    as a list raised ValueError from ``load_model``. Now one ``model file error`` line when loading."""
+    from sphri.hardware.model_file import ModelFileError
+
+    blob, _, x, _, _ = model_files
+    head, payload = _split(blob)
+    header = json.loads(head)
+    if edit == "meta_list":
+        header["meta"] = [header.get("meta") or {"a": 1}]
+    else:
+        header["estimator"]["params"]["active_threshold"] = "" if edit == "threshold_empty" else None
+    path = tmp_path / "m.sphrimodel"
+    path.write_bytes(seal_model(json.dumps(header).encode(), payload, KEY))
+    with pytest.raises(ModelFileError, match=r"m\.sphrimodel: (the model does not predict|header field meta)"):
+        load_model(path, key=KEY)
