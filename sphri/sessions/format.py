@@ -288,6 +288,11 @@ class SessionData:
         for pid in pids:
             mpath = root / pid / "manifest.json"
             entries = read_manifest(mpath)
+            named = {str(e["file"]) for e in entries}
+            unnamed = sorted(p.name for p in (root / pid).glob("*.parquet") if p.name not in named)
+            if unnamed:  # an entry lost from the manifest: its recording would be dropped without a word
+                log.warning("%s: %d session file(s) in %s are not named by the manifest and are not read: %s",
+                            mpath, len(unnamed), root / pid, ", ".join(unnamed[:5]))
             if self.scenarios is not None:
                 entries = [e for e in entries if e["scenario"] in self.scenarios]
             if self.repetitions is not None:

@@ -130,3 +130,21 @@ def test_a_flipped_bit_in_a_session_data_page_is_named(template, tmp_path):
     path.write_bytes(bytes(b))
     with pytest.raises(SessionFormatError, match=r"\.parquet: cannot read"):
         SessionData(root=str(root)).load(hand, robot)
+
+
+def test_a_session_lost_from_the_manifest_is_warned(template, tmp_path, caplog):
+    """Found by this campaign: a manifest with ``sessions[0]`` deleted loaded one session fewer without
+    a word, its parquet file left unread. Now a warning names the file the manifest does not name."""
+    import logging
+
+    root0, hand, robot, ref = template
+    root = tmp_path / "s"
+    shutil.copytree(root0, root)
+    path = root / "participant_01" / "manifest.json"
+    m = json.loads(path.read_text())
+    gone = m["sessions"].pop(0)["file"]
+    path.write_text(json.dumps(m))
+    with caplog.at_level(logging.WARNING, logger="sphri.sessions.format"):
+        ds = SessionData(root=str(root)).load(hand, robot)
+    assert len(ds.sessions) == len(ref.sessions) - 1
+    assert f"not named by the manifest and are not read: {gone}" in caplog.text
