@@ -184,7 +184,8 @@ def read_header(root: Path) -> dict:
         raise SessionFormatError(f"{path}: field 'version' is {h['version']!r}; this sphri reads version {FORMAT_VERSION}")
     if list(h["hands"]) != list(HANDS):
         raise SessionFormatError(f"{path}: field 'hands' is {h['hands']!r}, expected {list(HANDS)}")
-    if not isinstance(h["links"], list) or not h["links"] or len(set(h["links"])) != len(h["links"]):
+    if (not isinstance(h["links"], list) or not h["links"] or not all(isinstance(x, str) and x for x in h["links"])
+            or len(set(h["links"])) != len(h["links"])):
         raise SessionFormatError(f"{path}: field 'links' must be a non-empty list of unique link names")
     try:
         hd = h["hand"]
@@ -213,6 +214,9 @@ def read_manifest(path: Path, rate_tol: float = 1e-6) -> list[dict]:
         missing = [k for k in MANIFEST_SESSION_KEYS if k not in e]
         if missing:
             raise SessionFormatError(f"{path}: sessions[{i}] is missing field(s) {missing}")
+        for k in ("scenario", "start_position"):
+            if not isinstance(e[k], str) or not e[k]:
+                raise SessionFormatError(f"{path}: sessions[{i}].{k}={e[k]!r} is invalid: a non-empty name")
         for k in ("repetition", "order", "n_frames"):
             if not isinstance(e[k], int) or isinstance(e[k], bool) or e[k] < (0 if k == "order" else 1):
                 raise SessionFormatError(f"{path}: sessions[{i}].{k}={e[k]!r} is invalid: a positive integer")

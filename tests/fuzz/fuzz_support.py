@@ -68,7 +68,7 @@ class Tally:
             return
         Path(out).mkdir(parents=True, exist_ok=True)
         doc = {"target": self.target, "size": "large" if DEEP else "small", "cases": self.cases,
-               "verdicts": {v: self.verdicts.get(v, 0) for v in VERDICTS}, "kinds": dict(sorted(self.kinds.items()))}
+               "verdicts": {**{v: self.verdicts.get(v, 0) for v in VERDICTS}, **self.verdicts}, "kinds": dict(sorted(self.kinds.items()))}
         (Path(out) / f"{self.target}.json").write_text(json.dumps(doc, indent=1) + "\n")
 
 

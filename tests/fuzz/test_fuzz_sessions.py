@@ -148,3 +148,23 @@ def test_a_session_lost_from_the_manifest_is_warned(template, tmp_path, caplog):
         ds = SessionData(root=str(root)).load(hand, robot)
     assert len(ds.sessions) == len(ref.sessions) - 1
     assert f"not named by the manifest and are not read: {gone}" in caplog.text
+
+
+@pytest.mark.parametrize("where, field", [("manifest", "scenario"), ("manifest", "start_position"),
+                                          ("header", "links")])
+def test_a_name_field_wrapped_in_a_list_is_named(template, tmp_path, where, field):
+    """Found by this campaign: ``sessions[0].scenario`` or ``sessions.json`` ``links`` wrapped in a list
+    raised ``TypeError: unhashable type: 'list'`` (a traceback); ``start_position`` wrapped loaded a
+    list into the sessions table without a word. Now one ``data error`` line naming the field."""
+    from sphri.sessions.format import SessionFormatError
+
+    root0, hand, robot, ref = template
+    root = tmp_path / "s"
+    shutil.copytree(root0, root)
+    path = root / ("participant_01/manifest.json" if where == "manifest" else "sessions.json")
+    doc = json.loads(path.read_text())
+    node = doc["sessions"][0] if where == "manifest" else doc
+    node[field] = [node[field]]
+    path.write_text(json.dumps(doc))
+    with pytest.raises(SessionFormatError, match=rf"{field}"):
+        SessionData(root=str(root)).load(hand, robot)
