@@ -302,9 +302,29 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config", check: b
         raise
     except Exception as exc:  # hydra raises several types; all are config problems
         raise ConfigError(_explain(exc)) from exc
+    _check_bool_overrides(cfg, overrides)
     if check:
         validate(cfg)
     return cfg
+
+
+def _check_bool_overrides(cfg: DictConfig, overrides: Sequence[str]) -> None:
+    """A boolean field given something other than true/false: OmegaConf turns ``encoder.binary=-1``
+    (any integer) into True without a word (found by the fuzz campaign, tests/fuzz)."""
+    import yaml
+
+    for item in overrides:
+        key, sep, text = item.lstrip("+").partition("=")
+        if not sep or item.startswith("~") or "(" in text:
+            continue
+        try:
+            value = OmegaConf.select(cfg, key.strip(), throw_on_missing=False)
+            given = yaml.safe_load(text)
+        except Exception:  # noqa: BLE001 - not a plain key=value: Hydra has judged it already
+            continue
+        if isinstance(value, bool) and isinstance(given, (int, float)) and not isinstance(given, bool) \
+                and not (given in (0, 1) and type(given) is int):
+            raise ConfigError(f"{key.strip()}={text} is invalid: must be true or false")
 
 
 def check_target(group: str, target: Any, plugins: Sequence[str] = ()) -> None:

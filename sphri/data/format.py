@@ -122,6 +122,10 @@ def read_manifest(path: Path) -> dict[str, Any]:
         seen.add(o)
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
             raise ManifestError(f"{path}: trial {o}: frame_count={n!r} must be a non-negative integer")
+        for k in ("start_frame", "end_frame"):
+            v = t.get(k, 0)
+            if isinstance(v, bool) or not isinstance(v, int) or abs(v) >= 2**62:
+                raise ManifestError(f"{path}: trial {o}: {k}={v!r} must be an integer (a frame number)")
         g = t["gesture_label"]
         if not isinstance(g, str):
             raise ManifestError(f"{path}: trial {o}: gesture_label={g!r} must be a string")

@@ -194,6 +194,8 @@ def find_participants(root: Path, regions: Sequence[str]) -> list[str]:
     return sorted(found, key=lambda s: (int(PARTICIPANT_RE.match(s).group(1)), s))
 
 
+
+
 class VRGestureData:
     """The recorded VR gesture dataset at ``root`` (see the module docstring).
 
@@ -405,7 +407,8 @@ class VRGestureData:
             return manifest, [], []
         ordinals = [int(t["trial_ordinal"]) for t in wanted]
         try:
-            table = pq.read_table(ppath, columns=columns, filters=[("trial_ordinal", "in", ordinals)])
+            table = pq.read_table(ppath, columns=columns, filters=[("trial_ordinal", "in", ordinals)],
+                                  page_checksum_verification=True)
         except (pa.ArrowException, OSError) as exc:  # e.g. a damaged data page: "ZSTD decompression failed"
             raise DatasetError(f"{ppath}: cannot read its pose data ({type(exc).__name__}: {exc})") from None
         notes = _Notes(ppath, repairs)

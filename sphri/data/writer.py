@@ -89,7 +89,8 @@ def _write_participant(dataset, group, out: Path, pid: str, region: str, link_na
     table = pa.table(arrays)
     ppath = parquet_path(out, region, pid)
     ppath.parent.mkdir(parents=True, exist_ok=True)
-    pq.write_table(table, ppath, row_group_size=ROW_GROUP_ROWS, compression="zstd")
+    # page CRCs: a flipped bit in a data page is an error when read, not a silently changed pose
+    pq.write_table(table, ppath, row_group_size=ROW_GROUP_ROWS, compression="zstd", write_page_checksum=True)
     manifest: dict[str, Any] = {
         "participant_id": pid,
         "body_region": region,

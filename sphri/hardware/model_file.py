@@ -361,6 +361,9 @@ def load_model(path: str | os.PathLike, key: Any = FROM_ENV) -> ModelBundle:
             )
             if geometry.n_taxels != header["n_taxels"]:
                 raise ModelFileError(f"{path}: header says {header['n_taxels']} taxels, geometry has {geometry.n_taxels}")
+            from sphri.adjacency import metric_coords
+
+            metric_coords(geometry)  # grid shape, chart and positions agree (ValueError naming the field)
             estimator = _restore_estimator(path, header["estimator"], z, geometry)
         classes = np.asarray(getattr(estimator, "classes_", []))
         if classes.size and (classes.dtype.kind not in "iu" or classes.min() < 0
@@ -369,17 +372,29 @@ def load_model(path: str | os.PathLike, key: Any = FROM_ENV) -> ModelBundle:
                                  f"{len(header['labels'])} labels")
     except ModelFileError:
         raise
-    except (KeyError, TypeError, ValueError, OSError, AttributeError, EOFError, OverflowError,
+    except (KeyError, TypeError, ValueError, OSError, AttributeError, EOFError, OverflowError, IndexError,
             zipfile.BadZipFile) as exc:  # a field missing or of the wrong kind
         raise ModelFileError(f"{path}: malformed model file ({type(exc).__name__}: {exc})") from None
-    return ModelBundle(
+    meta = header.get("meta") or {}
+    if not isinstance(meta, dict):
+        raise ModelFileError(f"{path}: header field meta must be an object, got {meta!r}")
+    bundle = ModelBundle(
         estimator=estimator,
         geometry=geometry,
         window_length=int(header["window_length"]),
         frame_rate_hz=float(header["frame_rate_hz"]),
         labels=tuple(header["labels"]),
-        meta=dict(header.get("meta") or {}),
+        meta=dict(meta),
     )
+    # A header signed with the key may still carry estimator parameters of the wrong kind (an empty
+    # threshold): one prediction on a blank window now, so it fails here, in one line, not mid-session.
+    try:
+        p = bundle.predict_proba(np.zeros((1, bundle.window_length, bundle.n_taxels), dtype=np.float32))
+        if p.shape != (1, len(bundle.labels)) or not np.all(np.isfinite(p)):
+            raise ValueError(f"probabilities of shape {p.shape} for {len(bundle.labels)} labels")
+    except Exception as exc:  # noqa: BLE001 - whatever the estimator raises, the file is at fault
+        raise ModelFileError(f"{path}: the model does not predict ({type(exc).__name__}: {exc})") from None
+    return bundle
 
 
 def is_remote(spec: str) -> bool:
