@@ -130,6 +130,23 @@ def test_cuda_requested_without_cuda_fails_clearly():
         CnnGru(device="cuda", **TINY).fit(x, y)
 
 
+def test_device_auto_is_cuda_when_available_else_cpu(monkeypatch):
+    """model.device=auto (the default, issue 31) trains where runtime() says: CUDA if torch sees it."""
+    from sphri.models import cnn_gru
+
+    assert CnnGru().device == "auto"
+    want = "cuda" if torch.cuda.is_available() else "cpu"
+    assert cnn_gru.resolve_device("auto").type == want
+    assert CnnGru().runtime() == {"device": str(cnn_gru.resolve_device("auto")),
+                                  "precision": resolve_precision("auto", torch.device(want))}
+    x, y = toy_xy(4)
+    m = CnnGru(geometry=geometry((2, 2), 4, False), **TINY).fit(x, y)
+    assert next(m.net_.parameters()).device.type == want
+    monkeypatch.setattr(torch.cuda, "is_available", lambda: False)  # a machine without a GPU
+    assert cnn_gru.resolve_device("auto") == torch.device("cpu")
+    assert CnnGru(precision="float32").runtime() == {"device": "cpu", "precision": "float32"}
+
+
 def test_bad_parameters_are_named():
     x, y = toy_xy(4)
     with pytest.raises(ValueError, match="model.strides"):
