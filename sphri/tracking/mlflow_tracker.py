@@ -143,8 +143,12 @@ def model_runtime(cfg: "DictConfig") -> dict[str, str]:
     target = cfg.model.get("_target_") if hasattr(cfg.model, "get") else None
     if not isinstance(target, str) or not callable(getattr(get_class(target), "runtime", None)):
         return {}
-    est = instantiate(cfg.model, _convert_="all")
-    return {f"run.{k}": str(v) for k, v in est.runtime().items()}
+    try:
+        runtime = instantiate(cfg.model, _convert_="all").runtime()
+    except Exception as exc:  # noqa: BLE001 - the job's record matters more than this detail
+        log.warning("could not tell the model's device (%s: %s)", type(exc).__name__, exc)
+        return {"run.device": f"unknown ({type(exc).__name__})"}
+    return {f"run.{k}": str(v) for k, v in runtime.items()}
 
 
 def component_name(node: Any, choice: str | None = None) -> str:
