@@ -30,28 +30,16 @@ def timeit(fn: Callable[[], Any], repeat: int = 3) -> dict[str, float]:
     return {"best_s": walls[i], "median_s": float(np.median(walls)), "cpu_s": cpus[i]}
 
 
-#: The CPU flags that change which kernels numpy, MKL/oneDNN and torch run (AVX2 vs AVX-512, native bf16).
-SIMD_FLAGS = ("avx", "avx2", "fma", "avx512f", "avx512bw", "avx512_vnni", "avx512_bf16", "amx_bf16", "amx_tile", "asimd", "sve")
-
-
 def machine() -> dict[str, Any]:
     """The machine a timing was taken on: CPU model and SIMD flags, cores, load average, Python, and
-    the GPU if torch sees one (timings are never carried from one machine to another)."""
+    the GPU if torch sees one (timings are never carried from one machine to another). The CPU part
+    is the one every MLflow run records (:mod:`sphri.tracking.machine`)."""
     import platform
 
-    model, flags = platform.processor() or platform.machine(), []
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            key, _, value = line.partition(":")
-            key = key.strip()
-            if key in ("model name", "Model") and model in ("", platform.machine(), platform.processor()):
-                model = value.strip()
-            elif key in ("flags", "Features") and not flags:
-                flags = [f for f in value.split() if f in SIMD_FLAGS]
-    except OSError:
-        pass
-    info: dict[str, Any] = {"cpu_model": model, "cpu_flags": " ".join(flags), "cpu_count": os.cpu_count(),
-                            "loadavg_1min": os.getloadavg()[0], "python": platform.python_version()}
+    from sphri.tracking.machine import cpu
+
+    info: dict[str, Any] = {**cpu(), "cpu_count": os.cpu_count(), "loadavg_1min": os.getloadavg()[0],
+                            "python": platform.python_version()}
     try:
         import torch
 

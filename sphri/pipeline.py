@@ -33,7 +33,7 @@ from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import ConfigError, build, result_config
 from sphri.inputs import input_fingerprints, memo_at
 from sphri.stages import CONTRACTS, PERSISTED, STAGE_BY_NAME, STAGE_GROUPS, stage_inputs
-from sphri.types import CVResult, GestureDataset, RunMeta, TaxelGeometry
+from sphri.types import CVResult, FoldRecord, GestureDataset, RunMeta, TaxelGeometry
 
 log = logging.getLogger(__name__)
 
@@ -171,6 +171,60 @@ class Pipeline:
         return node.value
 
 
+#: Cache folder of the evaluate stage's finished folds (kept until the evaluation itself is stored).
+FOLD_STAGE = "evaluate_fold"
+
+
+@dataclass
+class FoldCache:
+    """The finished folds of one evaluation in the stage cache: resume by fold.
+
+    Entry ``<cache>/evaluate_fold/<key>.entry`` per fold, ``key`` a hash of
+    the evaluate stage's key and the fold's name (the held-out participant),
+    holding a :class:`~sphri.types.FoldRecord` (checksummed like every entry;
+    a damaged one is recomputed). A job killed after fold k reruns from fold
+    k + 1; once the evaluation's own entry is stored the fold entries are
+    removed (:func:`run`). The evaluate stage's key and value do not depend
+    on them. Picklable: the CV's worker processes save their own folds.
+    """
+
+    cache: StageCache
+    evaluate_key: str
+
+    def key(self, fold: str) -> str:
+        return stage_key(FOLD_STAGE, "1", {"fold": str(fold)}, {"evaluate": self.evaluate_key})
+
+    def load(self, fold: str) -> FoldRecord | None:
+        found, value = self.cache.read(FOLD_STAGE, self.key(fold), FoldRecord)
+        return value if found else None
+
+    def save(self, record: FoldRecord) -> None:
+        from sphri.codec import EncodeError
+
+        try:
+            self.cache.write(FOLD_STAGE, self.key(record.result.fold), record)
+        except (EncodeError, OSError) as exc:  # a fold not kept costs a recomputation, never the run
+            log.warning("cache: fold %s not kept (%s)", record.result.fold, exc)
+
+    def discard(self, folds: list[str]) -> None:
+        """Remove the entries of ``folds`` (after the evaluation they make up is stored)."""
+        import contextlib
+
+        for fold in folds:
+            with contextlib.suppress(OSError):
+                self.cache.path(FOLD_STAGE, self.key(fold)).unlink(missing_ok=True)
+
+
+def _accepts(fn: Callable[..., Any], name: str) -> bool:
+    import inspect
+
+    try:
+        params = inspect.signature(fn).parameters
+    except (TypeError, ValueError):
+        return False
+    return name in params or any(p.kind is p.VAR_KEYWORD for p in params.values())
+
+
 def chain_region(cfg: DictConfig) -> str:
     """The one skin region the classification chain evaluates."""
     if "regions" not in cfg.data:  # session data (data=synthetic_sessions, sessions) has no trials of one region
@@ -256,7 +310,11 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         def make_model():
             return model_factory(geometry=geometry)
 
-        result = comp["cv"].run(make_model, windows, seed)
+        run_cv = comp["cv"].run
+        # finished folds are kept in the cache as they come (a plugin CV without ``resume`` runs as before)
+        kw = ({"resume": FoldCache(cache, p.nodes["evaluate"].key)}
+              if cache.enabled and _accepts(run_cv, "resume") else {})
+        result = run_cv(make_model, windows, seed, **kw)
         return result, run_meta(cfg, dataset, p.get("robot"), region, p.get("surface"), p.get("layout"), windows)
 
     p.add("evaluate", {"model": result_config(cfg.model), "cv": result_config(cfg.cv), "seed": seed}, evaluate,
@@ -350,6 +408,9 @@ def run(cfg: DictConfig, cache: StageCache | None = None) -> RunResult:
         cache = open_cache(cfg)
     p = make_pipeline(cfg, cache)
     cv, meta = p.get("evaluate")
+    done = p.records.get("evaluate")
+    if cache.enabled and done is not None and done.source == "computed" and cache.path("evaluate", done.key).is_file():
+        FoldCache(cache, done.key).discard([f.fold for f in cv.folds])  # the evaluation's entry holds them now
     for name, node in p.nodes.items():
         if name not in p.records:
             p.records[name] = StageRecord(name, node.key, "skipped")

@@ -401,6 +401,27 @@ class CVResult:
 
 
 @dataclass
+class FoldRecord:
+    """One finished fold of an evaluation, kept in the stage cache until the evaluation is stored
+    (stage ``evaluate_fold``, keyed by the evaluate stage's key and the fold's name): a job killed
+    after fold k restarts at fold k + 1 (:meth:`sphri.evaluate.cv.CrossValidation.run`)."""
+
+    result: FoldResult
+    wall_s: float
+    """Wall seconds the fold took when it was computed."""
+    cpu_s: float
+    """CPU seconds of the process that computed it (all its threads)."""
+
+    def check_decoded(self) -> None:
+        """The fold's metrics obey :meth:`CVResult.check_decoded`; the times are finite and >= 0."""
+        CVResult(scheme="", model="", folds=[self.result]).check_decoded()
+        for name in ("wall_s", "cpu_s"):
+            v = float(getattr(self, name))
+            if not (np.isfinite(v) and v >= 0):
+                raise ValueError(f"FoldRecord fold {self.result.fold!r}: {name}={v!r} must be finite and >= 0")
+
+
+@dataclass
 class RunMeta:
     """Facts about one job, reported in the summary, MLflow (params ``meta.*``,
     ``resolution.*``, ``meta.json``) and the report (built by :func:`sphri.pipeline.run_meta`)."""

@@ -174,6 +174,37 @@ def test_job_run_has_standard_source_tags_debug_experiment_and_derived_metrics(t
     assert data.dataset.name == "synthetic" and data.dataset.digest and data.dataset.source_type == "code"
     assert {t.key: t.value for t in data.tags}["mlflow.data.context"] == "training"
     assert metrics["resolution/pitch_u_mm"] > 0 and metrics["resolution/area_per_taxel_cm2"] > 0
+    # the machine and libraries (issue 31), for the Random Forest too: CPU, no torch imported
+    from sphri.tracking.machine import cpu
+
+    assert tags["sphri.machine.cpu_model"] == cpu()["cpu_model"] and tags["sphri.lib.scikit-learn"][0].isdigit()
+    assert run.data.params["run.device"] == "cpu" and tags["sphri.evaluated"] == "in this run"
+
+
+def test_a_cnn_gru_job_records_device_precision_cpu_and_torch(tmp_path):
+    """Issue 31: model.device=auto (the default) is recorded as the device it resolved to, with the
+    precision, the CPU model and SIMD flags and the torch version."""
+    from importlib import metadata
+
+    import torch
+    from mlflow.tracking import MlflowClient
+
+    from sphri.models.cnn_gru import resolve_precision
+    from sphri.tracking.machine import cpu
+
+    job = _sphri(["+debug=fast", "model=cnn_gru", "encoder.res=3", "model.max_epochs=1", f"output_dir={tmp_path}"],
+                 cwd=tmp_path)
+    assert job.returncode == 0, job.stderr[-2000:]
+    client = MlflowClient(tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
+    (run,) = client.search_runs([client.get_experiment_by_name("sphri-debug").experiment_id])
+    params, tags = run.data.params, run.data.tags
+    device = "cuda" if torch.cuda.is_available() else "cpu"
+    assert params["model.device"] == "auto" and params["run.device"] == device
+    assert params["run.precision"] == resolve_precision("auto", torch.device(device))
+    here = cpu()
+    assert tags["sphri.machine.cpu_model"] == here["cpu_model"] and tags["sphri.machine.cpu_flags"] == here["cpu_flags"]
+    assert tags["sphri.lib.torch"] == metadata.version("torch") and tags["sphri.lib.python"]
+    assert tags["sphri.machine.gpu"] == (torch.cuda.get_device_name(0) if device == "cuda" else "none")
 
 
 def test_a_job_logged_to_a_real_mlflow_server_reads_back_over_rest(tmp_path):

@@ -13,6 +13,14 @@ cannot leak across folds since nothing in the transform is fitted.
 Folds run one after another or in ``workers``
 processes (loky), each limited to its share of the cores (BLAS/OpenMP via
 threadpoolctl, torch threads, and the model's ``n_jobs``/``threads``).
+
+Resume by fold: given a ``resume`` store (:class:`FoldStore`; the pipeline
+passes one over the stage cache, :class:`sphri.pipeline.FoldCache`), each
+fold's :class:`~sphri.types.FoldRecord` is saved by the process that
+computed it as soon as it finishes (also in a worker, whatever the order),
+and a rerun loads the folds found there and computes only the others. The
+result is the same as an uninterrupted run's: every fold is a fresh model
+seeded by its own settings, independent of which folds ran before it.
 """
 
 from __future__ import annotations
@@ -23,14 +31,14 @@ import os
 import sys
 import time
 from dataclasses import dataclass
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Optional, Protocol
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
 from sphri.evaluate.metrics import fold_metrics
-from sphri.types import GESTURES, CVResult, FoldResult, WindowedFrames
+from sphri.types import GESTURES, CVResult, FoldRecord, FoldResult, WindowedFrames
 
 log = logging.getLogger(__name__)
 
@@ -143,6 +151,48 @@ def run_fold(
     return fold_metrics(fold.name, y[fold.test], pred), timing
 
 
+class FoldStore(Protocol):
+    """Where finished folds are kept for a rerun (see the module doc). Must be picklable: the
+    workers of ``cv.workers > 1`` save their own folds."""
+
+    def load(self, fold: str) -> Optional[FoldRecord]:
+        """The record of fold ``fold`` if one was kept (None: compute it)."""
+
+    def save(self, record: FoldRecord) -> None:
+        """Keep a finished fold (never raises for a store that cannot be written: logs it)."""
+
+
+def run_and_keep(
+    make_model: Callable[[], Any],
+    x: np.ndarray,
+    y: np.ndarray,
+    groups: np.ndarray,
+    fold: Fold,
+    threads: int,
+    featurized: bool = False,
+    resume: Optional[FoldStore] = None,
+) -> tuple[FoldResult, dict[str, float]]:
+    """:func:`run_fold`, then the fold saved in ``resume`` (in the process that computed it)."""
+    res, timing = run_fold(make_model, x, y, groups, fold, threads, featurized)
+    if resume is not None:
+        resume.save(FoldRecord(result=res, wall_s=float(timing["wall_s"]), cpu_s=float(timing["cpu_s"])))
+    return res, timing
+
+
+def _usable(record: Optional[FoldRecord], fold: Fold, y: np.ndarray) -> bool:
+    """A kept record belongs to this fold: same name, as many test trials, the same true labels."""
+    if record is None:
+        return False
+    r = record.result
+    ok = (r.fold == fold.name and r.n_test == fold.test.size
+          and np.array_equal(np.asarray(r.confusion).sum(axis=1),
+                             np.bincount(y[fold.test], minlength=np.asarray(r.confusion).shape[0])))
+    if not ok:
+        log.warning("fold %s: the kept result does not match this fold (%s, %d test trials); recomputing it",
+                    fold.name, r.fold, r.n_test)
+    return ok
+
+
 def transforms_per_trial(est: Any) -> bool:
     """Whether ``est`` declares a fold-independent per-trial ``transform`` (see the module doc)."""
     return bool(getattr(est, "TRANSFORM_PER_TRIAL", False)) and all(
@@ -215,11 +265,15 @@ class CrossValidation:
         windows: WindowedFrames,
         seed: int = 0,
         on_fold: Optional[Callable[[FoldResult, dict[str, float]], None]] = None,
+        resume: Optional[FoldStore] = None,
     ) -> CVResult:
         """Evaluate ``make_model()`` on every fold (the first ``max_folds``) -> :class:`CVResult`.
 
         ``on_fold(result, timing)`` is called as each fold finishes (in fold
-        order), with ``timing = {"wall_s": ..., "cpu_s": ...}`` of that fold.
+        order), with ``timing = {"wall_s": ..., "cpu_s": ...}`` of that fold
+        (for a fold loaded from ``resume``: the times it took when computed).
+        ``resume``: a :class:`FoldStore`; its folds are not recomputed and
+        every fold computed here is saved in it.
         """
         _check_windows(windows)
         folds = self.splits(windows, seed)
@@ -228,13 +282,23 @@ class CrossValidation:
         groups = np.asarray(windows.groups)
         for f in folds:
             self._check_fold(f, groups)
+        x, y = windows.x, np.asarray(windows.y, dtype=np.int64)
+        kept: dict[str, FoldRecord] = {}
+        if resume is not None:
+            for f in folds:
+                record = resume.load(f.name)
+                if _usable(record, f, y):
+                    kept[f.name] = record
+        todo = [f for f in folds if f.name not in kept]
         probe = make_model()
         name = model_name(probe)
-        workers = min(self.workers, len(folds))
+        if kept:
+            log.info("%s %s: %d of %d folds loaded from the cache (kept by an interrupted run), computing %d",
+                     self.SCHEME, name, len(kept), len(folds), len(todo))
+        workers = max(1, min(self.workers, len(todo)))
         threads = self.threads_per_worker or max(1, available_cores() // workers)
-        x, y = windows.x, np.asarray(windows.y, dtype=np.int64)
         featurized = transforms_per_trial(probe)
-        if featurized:
+        if featurized and todo:
             x, timing = transform_once(probe, x, threads=self.threads_per_worker or available_cores())
             log.info("%s %s: per-trial features %s computed once in %.1f s (%.1f CPU s)", self.SCHEME, name,
                      x.shape, timing["wall_s"], timing["cpu_s"])
@@ -248,16 +312,21 @@ class CrossValidation:
         results: list[FoldResult] = []
         try:
             if workers == 1:
-                outputs = (run_fold(make_model, x, y, groups, f, threads, featurized) for f in folds)
+                computed = (run_and_keep(make_model, x, y, groups, f, threads, featurized, resume) for f in todo)
             else:
                 from joblib import Parallel, delayed
 
-                outputs = Parallel(n_jobs=workers, backend="loky", return_as="generator")(
-                    delayed(run_fold)(make_model, x, y, groups, f, threads, featurized) for f in folds
+                computed = Parallel(n_jobs=workers, backend="loky", return_as="generator")(
+                    delayed(run_and_keep)(make_model, x, y, groups, f, threads, featurized, resume) for f in todo
                 )
-            for res, timing in outputs:
-                log.debug("%s %s fold %s: accuracy %.3f in %.1f s (%.1f CPU s)", self.SCHEME, name, res.fold,
-                          res.accuracy, timing["wall_s"], timing["cpu_s"])
+            for f in folds:  # in fold order: kept folds in place, computed ones as they come
+                record = kept.get(f.name)
+                if record is not None:
+                    res, timing = record.result, {"wall_s": record.wall_s, "cpu_s": record.cpu_s}
+                else:
+                    res, timing = next(computed)
+                    log.debug("%s %s fold %s: accuracy %.3f in %.1f s (%.1f CPU s)", self.SCHEME, name, res.fold,
+                              res.accuracy, timing["wall_s"], timing["cpu_s"])
                 results.append(res)
                 if on_fold is not None:
                     on_fold(res, timing)

@@ -194,7 +194,10 @@ def _torch_state(threads: int, device: torch.device) -> Iterator[None]:
 
 
 def resolve_device(device: str) -> torch.device:
-    """``"cpu"``, ``"cuda"`` or ``"cuda:K"`` -> torch.device; clear error when CUDA is absent."""
+    """``"auto"`` (CUDA when available, else the CPU), ``"cpu"``, ``"cuda"`` or ``"cuda:K"`` -> torch.device;
+    clear error when CUDA is asked for and absent."""
+    if device == "auto":
+        return torch.device("cuda") if torch.cuda.is_available() else torch.device("cpu")
     if device == "cpu":
         return torch.device("cpu")
     if device == "cuda" or device.startswith("cuda:"):
@@ -207,7 +210,7 @@ def resolve_device(device: str) -> torch.device:
         if dev.index is not None and dev.index >= torch.cuda.device_count():
             raise RuntimeError(f"model.device={device!r} but only {torch.cuda.device_count()} CUDA device(s) exist")
         return dev
-    raise ValueError(f"model.device={device!r} is invalid: allowed values: cpu, cuda, cuda:K")
+    raise ValueError(f"model.device={device!r} is invalid: allowed values: auto, cpu, cuda, cuda:K")
 
 
 #: Allowed values of ``schedule``: constant lr, or one-cycle (warm-up to ``lr``, cosine down to ~0).
@@ -301,7 +304,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         channels: tuple[int, ...] | list[int] = (16, 32, 64),
         strides: tuple[int, ...] | list[int] = (2, 2, 1),
         embed_size: int = 2,
-        device: str = "cpu",
+        device: str = "auto",
         precision: str = "auto",
         seed: int = 0,
         threads: int = 0,
@@ -400,6 +403,12 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         if table is None:
             return net(xb.to(dev)).float()
         return net.forward_ids(table, xb.to(dev)).float()
+
+    def runtime(self) -> dict[str, str]:
+        """The device and precision this model trains with on this machine (``device`` and ``precision``
+        resolved from ``auto``), recorded in MLflow as ``run.device`` / ``run.precision``."""
+        dev = resolve_device(self.device)
+        return {"device": str(dev), "precision": resolve_precision(self.precision, dev)}
 
     # -- estimator API -----------------------------------------------------
     def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> "CnnGru":

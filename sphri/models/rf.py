@@ -54,6 +54,10 @@ class RandomForest(ClassifierMixin, BaseEstimator):
         self.active_threshold = active_threshold
         self.geometry = geometry
 
+    def runtime(self) -> dict[str, str]:
+        """Where the forest runs (recorded in MLflow as ``run.*`` params): always the CPU."""
+        return {"device": "cpu"}
+
     def _coords(self) -> TaxelCoords:
         if self.geometry is None:
             raise ValueError(

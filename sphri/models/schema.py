@@ -78,8 +78,9 @@ class CnnGruSchema:
     """Stride of each convolution (2 halves the grid; 1 x 1 stays 1 x 1)."""
     embed_size: int = 2
     """Side of the adaptive average pooling: frame embedding = channels[-1] x embed_size^2."""
-    device: str = "cpu"
-    """"cpu", "cuda" or "cuda:K"."""
+    device: str = "auto"
+    """"auto" (CUDA when torch sees a GPU, else the CPU; the device used is recorded in MLflow,
+    ``run.device``), "cpu", "cuda" or "cuda:K"."""
     precision: str = "auto"
     """"float32", "bf16" (bfloat16 autocast, ~1.8x faster where native) or "auto" (bf16 where native)."""
     seed: int = 0
@@ -102,8 +103,8 @@ class CnnGruSchema:
         require(len(self.strides) == len(self.channels) and all(s >= 1 for s in self.strides), "model.strides",
                 list(self.strides), f"one stride >= 1 per channel entry ({len(self.channels)})")
         require_range("model.embed_size", self.embed_size, lo=1)
-        require(self.device == "cpu" or self.device == "cuda" or self.device.startswith("cuda:"), "model.device",
-                self.device, "cpu, cuda or cuda:K")
+        require(self.device in ("auto", "cpu", "cuda") or self.device.startswith("cuda:"), "model.device",
+                self.device, "auto, cpu, cuda or cuda:K")
         require_choice("model.precision", self.precision, ["auto", "float32", "bf16"])
         require_range("model.seed", self.seed, lo=0)
         require_range("model.threads", self.threads, lo=0)

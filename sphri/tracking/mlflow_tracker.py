@@ -34,6 +34,7 @@ from typing import TYPE_CHECKING, Any, Callable, TypeVar
 import numpy as np
 
 from sphri import __version__
+from sphri.tracking import machine
 from sphri.stages import PARAM_GROUPS  # groups whose component and scalar settings become params
 
 if TYPE_CHECKING:
@@ -132,6 +133,22 @@ def sweep_params(overrides: list[str]) -> dict[str, str]:
             continue
         out[key[:250]] = value[:500]
     return out
+
+
+def model_runtime(cfg: "DictConfig") -> dict[str, str]:
+    """``run.<key>`` params from the model's ``runtime()`` (device, precision as resolved on this
+    machine: ``model.device=auto`` -> ``cuda`` or ``cpu``); empty for a model without one."""
+    from hydra.utils import get_class, instantiate
+
+    target = cfg.model.get("_target_") if hasattr(cfg.model, "get") else None
+    if not isinstance(target, str) or not callable(getattr(get_class(target), "runtime", None)):
+        return {}
+    try:
+        runtime = instantiate(cfg.model, _convert_="all").runtime()
+    except Exception as exc:  # noqa: BLE001 - the job's record matters more than this detail
+        log.warning("could not tell the model's device (%s: %s)", type(exc).__name__, exc)
+        return {"run.device": f"unknown ({type(exc).__name__})"}
+    return {f"run.{k}": str(v) for k, v in runtime.items()}
 
 
 def component_name(node: Any, choice: str | None = None) -> str:
@@ -385,10 +402,17 @@ class MlflowTracker:
             "sphri.cv_scheme": result.cv.scheme,
             "sphri.from_cache": ",".join(n for n, r in result.stages.items() if r.source == "cache") or "none",
             "sphri.debug": str(bool((choices or {}).get("debug"))).lower(),
+            **machine.tags(),  # CPU model and SIMD flags, GPU, library versions of this process
         }
+        evaluate = result.stages.get("evaluate")
+        evaluated_here = evaluate is None or evaluate.source == "computed"
+        tags["sphri.evaluated"] = ("in this run" if evaluated_here else
+                                   "earlier (the evaluation came from the cache: sphri.machine.* is this run's machine)")
         run_id = self._start_job(cfg, job_dir, parent, run_name or self._run_name(cfg, meta, choices), tags)
         client = self.client(cfg.output_dir)
         params = flatten_params(cfg, choices)
+        if evaluated_here:  # where the model ran (a cached evaluation's device is not known here)
+            params.update(model_runtime(cfg))
         for k, v in meta.resolution.items():
             params[f"resolution.{k}"] = f"{v:.6g}" if isinstance(v, float) else str(v)
         for k in ("robot", "region", "link", "n_participants", "n_trials", "n_windows", "n_dropped_no_contact", "frame_rate_hz"):

@@ -233,3 +233,71 @@ def test_bad_windows_are_refused():
         LeaveOneSubjectOut(workers=0)
     with pytest.raises(ValueError, match="cv.k"):
         WithinSubjectKFold(k=1)
+
+
+class DictStore:
+    """A :class:`sphri.evaluate.cv.FoldStore` in memory (the pipeline's is the stage cache)."""
+
+    def __init__(self):
+        self.records = {}
+
+    def load(self, fold):
+        return self.records.get(fold)
+
+    def save(self, record):
+        self.records[record.result.fold] = record
+
+
+def test_resume_computes_only_the_folds_not_kept_and_gives_the_same_result(spy, caplog):
+    """Issue 31: a run that kept folds 1 and 3 (an interrupted run, parallel workers finish out of
+    order) fits models on folds 2, 4 and 5 only, and the result equals an uninterrupted run's."""
+    win = spy_windows()
+    make = lambda: spy(geometry=win.geometry)  # noqa: E731
+    full_store = DictStore()
+    full = LeaveOneSubjectOut().run(make, win, seed=0, resume=full_store)
+    assert sorted(full_store.records) == [f.fold for f in full.folds]  # every computed fold is kept
+    store = DictStore()
+    store.records = {k: v for k, v in full_store.records.items() if k in ("participant_01", "participant_03")}
+    spy.fitted.clear()
+    seen = []
+    with caplog.at_level("INFO", logger="sphri.evaluate.cv"):
+        again = LeaveOneSubjectOut().run(make, win, seed=0, resume=store, on_fold=lambda r, t: seen.append(r.fold))
+    assert len(spy.fitted) == 3
+    tested = [sorted(set(win.groups[m.predicted_ids_[0]])) for m in spy.fitted]
+    assert tested == [["participant_02"], ["participant_04"], ["participant_05"]]
+    assert "2 of 5 folds loaded from the cache" in caplog.text and "computing 3" in caplog.text
+    assert seen == [f.fold for f in full.folds]  # on_fold still in fold order
+    assert [(f.fold, f.accuracy, f.macro_f1) for f in again.folds] == [(f.fold, f.accuracy, f.macro_f1) for f in full.folds]
+    assert sorted(store.records) == sorted(full_store.records)
+
+
+def test_a_kept_fold_that_does_not_match_is_recomputed(spy, caplog):
+    win = spy_windows()
+    store = DictStore()
+    full = LeaveOneSubjectOut().run(lambda: spy(), win, seed=0, resume=store)
+    wrong = store.records["participant_01"]
+    store.records = {"participant_02": type(wrong)(result=wrong.result, wall_s=1.0, cpu_s=1.0)}  # another fold's
+    spy.fitted.clear()
+    again = LeaveOneSubjectOut().run(lambda: spy(), win, seed=0, resume=store)
+    assert len(spy.fitted) == 5 and "does not match this fold" in caplog.text
+    assert [f.accuracy for f in again.folds] == [f.accuracy for f in full.folds]
+
+
+def test_workers_save_their_own_folds():
+    """With cv.workers=2 each worker saves the fold it computed (through a store that pickles)."""
+    from sphri.cache import StageCache
+    from sphri.pipeline import FoldCache
+
+    win = blob_windows(participants=3, repetitions=2, res=4, seed=2)
+    make = functools.partial(RandomForest, n_estimators=10, geometry=win.geometry)
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        store = FoldCache(StageCache(tmp), "k" * 20)
+        two = LeaveOneSubjectOut(workers=2, threads_per_worker=1).run(make, win, seed=0, resume=store)
+        kept = {f.fold: store.load(f.fold) for f in two.folds}
+        assert all(r is not None for r in kept.values())
+        for f in two.folds:
+            assert kept[f.fold].result.accuracy == f.accuracy
+            np.testing.assert_array_equal(kept[f.fold].result.confusion, f.confusion)
+        assert FoldCache(StageCache(tmp), "j" * 20).load(two.folds[0].fold) is None  # another evaluation's key
