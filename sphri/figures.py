@@ -273,9 +273,15 @@ def _text_over_data(ax, renderer) -> list[str]:
 
 def _span_problems(ax) -> list[str]:
     """A sweep (data lines with two or more x values) whose points span under :data:`MIN_DATA_SPAN` of the
-    axis' width: the view was widened past the data (a reference line, a fixed limit), leaving it empty."""
+    axis' width: the view was widened past the data (a reference line, a fixed limit), leaving it empty.
+    Axes holding a map (an image, contours, a mesh) are filled by it and not checked."""
     import numpy as np
 
+    from matplotlib.collections import QuadMesh
+    from matplotlib.contour import ContourSet
+
+    if ax.images or any(isinstance(c, (ContourSet, QuadMesh)) for c in ax.collections):
+        return []  # a map fills the axes; a line drawn over it (a required pitch per row) need not span it
     pts = [p for _, p in _data_lines(ax)]
     if not pts:
         return []

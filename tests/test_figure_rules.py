@@ -87,6 +87,18 @@ def test_a_sweep_in_a_third_of_the_axis_is_found():
     assert not any("of the axis width" in p for p in figures.layout_problems(fig))
 
 
+def test_a_line_over_a_map_need_not_span_it():
+    """The requirement map draws the required pitch per row over its contours: the contours fill the axes
+    (the quick map's line spans 38 % of them and was flagged)."""
+    fig, (ax, bare) = figures.new_figure("two", 2.6, ncols=2)
+    ax.contourf(np.linspace(1.0, 100.0, 10), np.arange(3.0), np.random.default_rng(0).random((3, 10)))
+    ax.plot([20.0, 40.0, 30.0], [0.0, 1.0, 2.0], "o-")
+    bare.plot([20.0, 40.0, 30.0], [0.0, 1.0, 2.0], "o-")
+    bare.set_xlim(1.0, 100.0)
+    problems = [p for p in figures.layout_problems(fig) if "of the axis width" in p]
+    assert len(problems) == 1, problems  # the bare panel only
+
+
 def test_a_figure_taller_than_a_page_and_an_untypeset_unit_are_found():
     fig, ax = figures.new_figure("two", 10.0)
     ax.set_title("placement under 2000 cm^2")
