@@ -406,6 +406,8 @@ def check_output_dir(output_dir: str) -> None:
         if p.exists():
             if not p.is_dir():
                 raise ConfigError(f"output_dir={output_dir} is invalid: {p} is a file, not a folder")
+            if not os.access(p, os.W_OK | os.X_OK):
+                raise ConfigError(f"output_dir={output_dir} is invalid: {p} is read-only; give a writable folder")
             break
 
 

@@ -77,3 +77,24 @@ def test_store_repair_on_a_revision_mlflow_does_not_know(tmp_path: Path):
     line = [ln for ln in proc.stderr.strip().splitlines() if ln.startswith("sphri:")]
     assert proc.returncode == 1 and "Traceback" not in proc.stderr, (made.stderr + proc.stderr)[-2000:]
     assert len(line) == 1 and "deadbeef" in line[0] and "the original is at" in line[0], proc.stderr
+
+
+def test_a_read_only_output_dir_and_store_are_refused_before_computing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch):
+    """Issue 29: a read-only output_dir or mlflow.db ended in a traceback. Permissions are simulated through
+    os.access (the suite may run as root, for whom chmod changes nothing)."""
+    import os
+
+    from sphri.config import ConfigError, check_output_dir
+    from sphri.tracking.store import BrokenStore, ensure_store
+
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    db = locked / "mlflow.db"
+    db.write_bytes(b"")
+    real = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if Path(p).is_relative_to(locked) else real(p, mode, **kw))
+    with pytest.raises(ConfigError, match="read-only"):
+        check_output_dir(str(locked / "out"))
+    check_output_dir(str(tmp_path / "elsewhere"))  # a writable parent: fine
+    with pytest.raises(BrokenStore, match="read-only"):
+        ensure_store(f"sqlite:///{db}")

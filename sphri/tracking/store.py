@@ -175,6 +175,10 @@ def ensure_store(uri: str) -> None:
     db = sqlite_path(uri)
     if db is None:
         return
+    if db.exists() and not (os.access(db, os.R_OK | os.W_OK) and os.access(db.parent, os.W_OK)):
+        # SQLite writes a journal beside the file (and the lock lives there): both must be writable
+        raise BrokenStore(f"MLflow store {db} is read-only (the file or its folder); nothing was computed. "
+                          "Make it writable, or give another tracking.uri or output_dir")
     with store_lock(db):
         found = problems(db)
         if found:
