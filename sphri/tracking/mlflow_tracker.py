@@ -141,9 +141,9 @@ def model_runtime(cfg: "DictConfig") -> dict[str, str]:
     from hydra.utils import get_class, instantiate
 
     target = cfg.model.get("_target_") if hasattr(cfg.model, "get") else None
-    if not isinstance(target, str) or not callable(getattr(get_class(target), "runtime", None)):
-        return {}
     try:
+        if not isinstance(target, str) or not callable(getattr(get_class(target), "runtime", None)):
+            return {}
         runtime = instantiate(cfg.model, _convert_="all").runtime()
     except Exception as exc:  # noqa: BLE001 - the job's record matters more than this detail
         log.warning("could not tell the model's device (%s: %s)", type(exc).__name__, exc)
