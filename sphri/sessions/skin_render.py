@@ -34,6 +34,11 @@ def plot_budget_curve(curves: pd.DataFrame, pitch_mm: float, budget_cm2: float, 
         a.legend(loc="lower right")
         for s, c in curves[(curves["scenario"] != "all") & (curves["curve"] == "in_sample")].groupby("scenario"):
             b.step(c["area_cm2"], 100 * c["captured"], where="post", label=figures.human(s))
+        per = curves[(curves["scenario"] != "all") & (curves["curve"] == "in_sample")]
+        if len(per):  # each scenario's curve is flat once it captures all: show up to where the last one gets there
+            full = per[per["captured"] >= per.groupby("scenario")["captured"].transform("max") - 1e-9]
+            right = max(float(full.groupby("scenario")["area_cm2"].min().max()), budget_cm2) * 1.15
+            b.set_xlim(-0.02 * right, right)
         b.set_title("per scenario (in sample)", loc="left")
         b.legend(loc="lower right")
         k = pitch_mm ** 2 / 100.0  # cm^2 per taxel
