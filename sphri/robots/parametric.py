@@ -14,8 +14,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from sphri.config import ConfigError
-from sphri.robots.schema import check_parametric_link, check_regions
+from sphri.robots.schema import check_parametric_link, check_regions, loft_spec
 from sphri.robots.validate import make_link, signed_volume
 from sphri.types import Robot
 
@@ -100,7 +99,7 @@ class ParametricRobot:
 
     def __init__(self, name: str, links: Mapping[str, Any], regions: Mapping[str, str]):
         self.name = str(name)
-        self.links = {str(k): _spec_dict(v, f"robot.links.{k}") for k, v in links.items()}
+        self.links = {str(k): loft_spec(v, f"robot.links.{k}") for k, v in links.items()}
         self.regions = {str(k): str(v) for k, v in regions.items()}
         for link, spec in self.links.items():
             check_parametric_link(spec, f"robot.links.{link}")
@@ -114,22 +113,3 @@ class ParametricRobot:
             links[name] = make_link(name, v, f, units="m", source=f"parametric {self.name}")
             log.debug("robot %s: link %s: %d vertices, %d faces", self.name, name, len(v), len(f))
         return Robot(name=self.name, links=links, regions=dict(self.regions))
-
-
-def _spec_dict(spec: Any, key: str) -> dict[str, Any]:
-    """A link spec (mapping, DictConfig or ParametricLinkSpec) as a plain dict with defaults filled."""
-    defaults = {"center_m": [0.0, 0.0, 0.0], "axis": "z", "exponent": 2.0, "n_around": 32}
-    mapping = isinstance(spec, Mapping) or hasattr(spec, "keys")
-    out = {}
-    for k in ("size_m", "center_m", "axis", "profile", "exponent", "n_around"):
-        has = (k in spec) if mapping else hasattr(spec, k)
-        if not has and k not in defaults:
-            raise ConfigError(f"{key}.{k} is missing (parametric links need size_m and profile)")
-        out[k] = (spec[k] if mapping else getattr(spec, k)) if has else defaults[k]
-    out["size_m"] = [float(x) for x in out["size_m"]]
-    out["center_m"] = [float(x) for x in out["center_m"]]
-    out["profile"] = [[float(x) for x in row] for row in out["profile"]]
-    out["axis"] = str(out["axis"])
-    out["exponent"] = float(out["exponent"])
-    out["n_around"] = int(out["n_around"])
-    return out
