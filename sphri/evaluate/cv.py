@@ -110,6 +110,17 @@ def _accepts_groups(est: Any) -> bool:
     return "groups" in sig.parameters or any(p.kind is p.VAR_KEYWORD for p in sig.parameters.values())
 
 
+class FoldStore(Protocol):
+    """Where finished folds are kept for a rerun (see the module doc). Must be picklable: the
+    workers of ``cv.workers > 1`` save their own folds."""
+
+    def load(self, fold: str) -> Optional[FoldRecord]:
+        """The record of fold ``fold`` if one was kept (None: compute it)."""
+
+    def save(self, record: FoldRecord) -> None:
+        """Keep a finished fold (never raises for a store that cannot be written: logs it)."""
+
+
 def run_fold(
     make_model: Callable[[], Any],
     x: np.ndarray,
@@ -118,8 +129,10 @@ def run_fold(
     fold: Fold,
     threads: int,
     featurized: bool = False,
+    resume: Optional[FoldStore] = None,
 ) -> tuple[FoldResult, dict[str, float]]:
-    """Fit a fresh model on ``fold.train``, score it on ``fold.test``.
+    """Fit a fresh model on ``fold.train``, score it on ``fold.test``; with ``resume``, keep the finished
+    fold there (in the process that computed it).
 
     With ``featurized``, ``x`` holds the model's per-trial features
     (:func:`transform_once`) and the fold calls ``fit_features`` /
@@ -148,32 +161,7 @@ def run_fold(
             if torch is not None and prev is not None:
                 torch.set_num_threads(prev)
     timing = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
-    return fold_metrics(fold.name, y[fold.test], pred), timing
-
-
-class FoldStore(Protocol):
-    """Where finished folds are kept for a rerun (see the module doc). Must be picklable: the
-    workers of ``cv.workers > 1`` save their own folds."""
-
-    def load(self, fold: str) -> Optional[FoldRecord]:
-        """The record of fold ``fold`` if one was kept (None: compute it)."""
-
-    def save(self, record: FoldRecord) -> None:
-        """Keep a finished fold (never raises for a store that cannot be written: logs it)."""
-
-
-def run_and_keep(
-    make_model: Callable[[], Any],
-    x: np.ndarray,
-    y: np.ndarray,
-    groups: np.ndarray,
-    fold: Fold,
-    threads: int,
-    featurized: bool = False,
-    resume: Optional[FoldStore] = None,
-) -> tuple[FoldResult, dict[str, float]]:
-    """:func:`run_fold`, then the fold saved in ``resume`` (in the process that computed it)."""
-    res, timing = run_fold(make_model, x, y, groups, fold, threads, featurized)
+    res = fold_metrics(fold.name, y[fold.test], pred)
     if resume is not None:
         resume.save(FoldRecord(result=res, wall_s=float(timing["wall_s"]), cpu_s=float(timing["cpu_s"])))
     return res, timing
@@ -312,12 +300,12 @@ class CrossValidation:
         results: list[FoldResult] = []
         try:
             if workers == 1:
-                computed = (run_and_keep(make_model, x, y, groups, f, threads, featurized, resume) for f in todo)
+                computed = (run_fold(make_model, x, y, groups, f, threads, featurized, resume) for f in todo)
             else:
                 from joblib import Parallel, delayed
 
                 computed = Parallel(n_jobs=workers, backend="loky", return_as="generator")(
-                    delayed(run_and_keep)(make_model, x, y, groups, f, threads, featurized, resume) for f in todo
+                    delayed(run_fold)(make_model, x, y, groups, f, threads, featurized, resume) for f in todo
                 )
             for f in folds:  # in fold order: kept folds in place, computed ones as they come
                 record = kept.get(f.name)
