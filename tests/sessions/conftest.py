@@ -17,3 +17,14 @@ def small():
     robot = instantiate(cfg.robot).build()
     ds = instantiate(cfg.data).load(hand, robot)
     return cfg, hand, robot, ds
+
+
+@pytest.fixture(scope="module")
+def written(small, tmp_path_factory):
+    """The ``small`` sessions written to disk in the session format (a folder per module)."""
+    from sphri.sessions.format import write_sessions
+
+    _, _, _, ds = small
+    root = tmp_path_factory.mktemp("sessions")
+    write_sessions(ds, root)
+    return root

@@ -16,14 +16,6 @@ from sphri.sessions.format import SessionData, SessionFormatError, write_session
 from sphri.sessions.synthesize import main as synthesize_main
 
 
-@pytest.fixture(scope="module")
-def written(small, tmp_path_factory):
-    _, _, _, ds = small
-    root = tmp_path_factory.mktemp("sessions")
-    write_sessions(ds, root)
-    return root
-
-
 def test_synthesizer_command_writes_sessions_that_load_back_identically(small, tmp_path):
     cfg, hand, robot, ds = small
     assert synthesize_main([f"out={tmp_path}", "data.participants=2", "data.repetitions=1"]) == 0

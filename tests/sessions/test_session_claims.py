@@ -15,14 +15,6 @@ import pytest
 from sphri.sessions.format import SessionData, SessionFormatError, write_sessions
 
 
-@pytest.fixture(scope="module")
-def written(small, tmp_path_factory):
-    _, _, _, ds = small
-    root = tmp_path_factory.mktemp("sessions")
-    write_sessions(ds, root)
-    return root
-
-
 def _copy(src, dst):
     shutil.copytree(src, dst)
     return dst
