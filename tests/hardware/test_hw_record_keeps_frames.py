@@ -26,42 +26,22 @@ from sphri.hardware.skin import main as skin_main
 from sphri.hardware.skin import record
 from sphri.hardware.skin_protocol import ValueFormat, quantize
 
+from skin_sim import check_good_frames_kept, run_record
+
 REPO = Path(__file__).resolve().parents[2]
 #: with this seed and wrong_count_rate=0.05 the simulator's FIRST frame carries a wrong taxel count
 #: (the issue's reproducer: ``simulate skin ... grid=18x6 frames=300 seed=34 wrong_count_rate=0.05``)
 GLITCHED_FIRST_SEED = 34
-
-
-def _record(tmp_path, frames: int, seed: int, sim_kw: dict, rec_kw: dict):
-    settings = SimulateSettings(source="pattern", port="socket://127.0.0.1:0", frames=frames, seed=seed,
-                                **{"realtime": False, "hold_s": 3.0, **sim_kw})
-    stream = pattern_stream((18, 6), frames, seed)
-    sim = SkinSimulator(stream, settings, make_endpoint(settings), say=lambda m: None)
-    th = start_in_thread(sim)
-    out = tmp_path / "rec.npz"
-    lines: list[str] = []
-    try:
-        summary = record(SkinRecordSettings(port=sim.endpoint.url, out=str(out), **{"idle_s": 60.0, **rec_kw}),
-                         out=lines.append, until=sim.finished.is_set)
-    finally:
-        sim.stop.set()
-        th.join(10)
-    return sim.ledger, summary, load_recording(out), stream
-
-
-def _check_every_good_frame_kept(ledger, rec, stream) -> None:
-    assert rec.n_frames == ledger.good
-    np.testing.assert_array_equal(rec.seq, ledger.good_seq)
-    np.testing.assert_array_equal(rec.values, quantize(stream.values[ledger.good_index], ValueFormat.BITS)
-                                  .astype(np.float32))
+SOCKET = "socket://127.0.0.1:0"
 
 
 @pytest.mark.parametrize("rec_kw", [{"grid": "18x6"}, {"grid": ""}], ids=["grid_given", "consensus"])
 def test_a_glitched_first_frame_costs_no_good_frame(tmp_path, rec_kw):
-    ledger, summary, rec, stream = _record(tmp_path, 300, GLITCHED_FIRST_SEED, {"wrong_count_rate": 0.05}, rec_kw)
+    ledger, summary, rec, stream, _ = run_record(tmp_path, {"port": SOCKET, "wrong_count_rate": 0.05}, rec_kw, 300,
+                                                  GLITCHED_FIRST_SEED)
     assert ledger.good_index[0] == 1 and ledger.good_seq[0] == 1  # the first frame sent was a wrong-count one
     assert ledger.wrong_count >= 5
-    _check_every_good_frame_kept(ledger, rec, stream)
+    check_good_frames_kept(ledger, rec, stream)
     assert rec.n_taxels == 108
     assert rec.grid_shape == ((18, 6) if rec_kw["grid"] else None)
     assert summary["error"] is None
@@ -71,9 +51,9 @@ def test_a_glitched_first_frame_costs_no_good_frame(tmp_path, rec_kw):
 
 def test_a_stream_shorter_than_the_consensus_is_saved(tmp_path):
     """Fewer frames than a consensus needs: the held frames are released at the end, none lost."""
-    ledger, summary, rec, stream = _record(tmp_path, 3, 5, {}, {"grid": ""})
+    ledger, summary, rec, stream, _ = run_record(tmp_path, {"port": SOCKET}, {"grid": ""}, 3, 5)
     assert ledger.good == 3
-    _check_every_good_frame_kept(ledger, rec, stream)
+    check_good_frames_kept(ledger, rec, stream)
 
 
 def _small_recording(n: int = 5) -> SkinRecording:
