@@ -20,20 +20,18 @@ path recomputes the stages that read it and everything below.
 
 from __future__ import annotations
 
-import contextlib
 import dataclasses
 import hashlib
 import importlib
 import json
 import logging
 import os
-import tempfile
 from pathlib import Path
 from typing import Any, Callable, Iterable, Mapping
 
 from omegaconf import DictConfig, OmegaConf
 
-from sphri.fsutil import umask_mode
+from sphri.fsutil import write_atomic
 
 log = logging.getLogger(__name__)
 
@@ -108,18 +106,11 @@ class FingerprintMemo:
         if self.path is None or not self.dirty:
             return
         try:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
             merged = {**self._load(), **self.entries}
-            fd, tmp = tempfile.mkstemp(prefix=".fingerprints.", suffix=".tmp", dir=self.path.parent)
-            os.fchmod(fd, umask_mode())  # shared with the cache entries: the umask's mode, not 0600
-            with os.fdopen(fd, "w") as fh:
-                json.dump(merged, fh)
-            os.replace(tmp, self.path)
+            write_atomic(self.path, json.dumps(merged).encode())  # the umask's mode, as the cache entries
             self.dirty = False
         except OSError as exc:  # a read-only cache folder: fingerprints are recomputed next time
             log.debug("cannot write the fingerprint memo %s: %s", self.path, exc)
-            with contextlib.suppress(Exception):
-                os.unlink(tmp)
 
 
 def _files_below(root: Path, exclude: frozenset[Path] = frozenset()) -> list[Path]:

@@ -41,7 +41,6 @@ import json
 import logging
 import io
 import os
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -50,7 +49,7 @@ from typing import Any, Callable, Iterator, TypeVar
 import numpy as np
 
 from sphri.codec import DecodeError, EncodeError, check_contract, decode, encode
-from sphri.fsutil import umask_mode
+from sphri.fsutil import write_atomic
 from sphri.integrity import DIGEST_SIZE, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest
 
 log = logging.getLogger(__name__)
@@ -145,19 +144,7 @@ def write_entry(path: Path, value: Any, meta: dict[str, Any] | None = None, key:
     The file gets the mode the umask gives (not mkstemp's 0600)."""
     path = Path(path)
     blob = _encode(value, {"format": 3, **(meta or {})}, _key(key))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=".tmp", dir=path.parent)
-    try:
-        os.fchmod(fd, umask_mode())
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(blob)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
-        raise
+    write_atomic(path, blob, fsync=True)
     return path
 
 
@@ -252,12 +239,7 @@ class StageCache:
     def _remember(self, stage: str, path_key: str, key: str, files: dict[str, str]) -> None:
         path = self._index_path(stage, path_key)
         with contextlib.suppress(OSError):
-            path.parent.mkdir(parents=True, exist_ok=True)
-            fd, tmp = tempfile.mkstemp(prefix=".idx.", suffix=".tmp", dir=path.parent)
-            os.fchmod(fd, umask_mode())
-            with os.fdopen(fd, "w") as fh:
-                json.dump({"key": key, "files": files}, fh)
-            os.replace(tmp, path)
+            write_atomic(path, json.dumps({"key": key, "files": files}).encode())
 
     def get_or_compute(self, stage: str, key: str, compute: Callable[[], T], contract: Any = None,
                        files: dict[str, str] | None = None, path_key: str | None = None) -> T:

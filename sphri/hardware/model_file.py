@@ -39,7 +39,6 @@ import io
 import json
 import os
 import struct
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,7 +46,7 @@ from typing import Any
 
 import numpy as np
 
-from sphri.fsutil import umask_mode
+from sphri.fsutil import write_atomic
 from sphri.integrity import DIGEST_SIZE, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest
 from sphri.types import GESTURES, TaxelGeometry
 
@@ -265,17 +264,7 @@ def save_model(bundle: ModelBundle, path: str | os.PathLike, key: Any = FROM_ENV
     payload = buf.getvalue()
     head_bytes = json.dumps(header, default=str).encode()
     blob = seal_model(head_bytes, payload, load_key("model") if key is FROM_ENV else key)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        os.fchmod(fd, umask_mode())
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(blob)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+    write_atomic(path, blob)
     return path
 
 
