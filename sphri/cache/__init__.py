@@ -40,7 +40,6 @@ import hashlib
 import json
 import logging
 import io
-import os
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
