@@ -3,10 +3,6 @@ end (multirun + report) writing requirement_map.csv and its layout-checked figur
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -60,19 +56,9 @@ def test_seeds_are_replicates_not_groups():
     assert group_keys(jobs) == ["noise.p"]
 
 
-def test_quick_map_runs_end_to_end_and_reports_the_map(tmp_path: Path):
-    repo = Path(__file__).resolve().parent.parent
-    env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1",
-           "PYTHONPATH": os.pathsep.join([str(repo), os.environ.get("PYTHONPATH", "")])}
-    out, sweep = tmp_path / "outputs", tmp_path / "outputs" / "sweep"
-    run = subprocess.run([sys.executable, "-m", "sphri", "-m", "+experiment=requirement_map_quick",
-                          f"output_dir={out}", f"hydra.sweep.dir={sweep}", "hydra/launcher=serial",
-                          "tracking.confusion_png=false"],
-                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0 and "18 of 18 jobs finished" in run.stdout, run.stderr[-3000:]
-    rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), "n_boot=200", "mlflow=false"],
-                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
-    assert rep.returncode == 0, rep.stderr[-3000:]
+def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
+    sweep, rep = sweep_then_report(["+experiment=requirement_map_quick", "tracking.confusion_png=false"], 18,
+                                   ["n_boot=200", "mlflow=false"])
     assert "grouped by noise.p" in rep.stdout and "[requirement map]" in rep.stdout
     assert "measured between the sweep's seeds" in rep.stdout and "tolerance used" in rep.stdout
     # the figure machinery's layout check logs any clipped or overlapping text as a warning naming the file

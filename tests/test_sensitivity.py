@@ -3,10 +3,6 @@ end (multirun + report) with the requirement per variant."""
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
-from pathlib import Path
 
 import pandas as pd
 import yaml
@@ -50,18 +46,9 @@ def test_the_full_study_sweeps_every_variant_over_a_coarse_grid():
     assert set(swept("requirement_sensitivity_quick")["sensitivity"]) <= set(VARIANTS)
 
 
-def test_quick_preset_runs_end_to_end_and_reports_each_variant(tmp_path: Path):
-    repo = Path(__file__).resolve().parent.parent
-    env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1",
-           "PYTHONPATH": os.pathsep.join([str(repo), os.environ.get("PYTHONPATH", "")])}
-    out, sweep = tmp_path / "outputs", tmp_path / "outputs" / "sweep"
-    run = subprocess.run([sys.executable, "-m", "sphri", "-m", "+experiment=requirement_sensitivity_quick",
-                          f"output_dir={out}", f"hydra.sweep.dir={sweep}", "hydra/launcher=serial",
-                          "tracking.confusion_png=false"],
-                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
-    assert run.returncode == 0 and "9 of 9 jobs finished" in run.stdout, run.stderr[-3000:]
-    rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), "n_boot=200", "mlflow=false", "formats=png"],
-                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+def test_quick_preset_runs_end_to_end_and_reports_each_variant(sweep_then_report):
+    sweep, rep = sweep_then_report(["+experiment=requirement_sensitivity_quick", "tracking.confusion_png=false"], 9,
+                                   ["n_boot=200", "mlflow=false", "formats=png"])
     assert rep.returncode == 0, rep.stderr[-3000:]
     assert "grouped by variant" in rep.stdout
     assert "under the reference assumptions; between" in rep.stdout and "across the 3 assumptions tested" in rep.stdout

@@ -269,21 +269,9 @@ def test_one_resolution_per_group_is_a_comparison_without_saturation(store, tmp_
 
 
 @pytest.mark.slow
-def test_real_sweep_end_to_end(tmp_path):
+def test_real_sweep_end_to_end(sweep_then_report):
     """A real (tiny) multirun of the pipeline, then ``python -m sphri.report`` on its directory."""
-    import os
-    import subprocess
-    import sys
-
-    env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1"}
-    out, sweep = tmp_path / "outputs", tmp_path / "outputs" / "sweep"
-    run = subprocess.run([sys.executable, "-m", "sphri", "-m", "+debug=fast", "encoder.res=1,3,6", f"output_dir={out}",
-                          f"hydra.sweep.dir={sweep}", "hydra/launcher=serial"],
-                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
-    assert run.returncode == 0 and "3 of 3 jobs finished" in run.stdout, run.stderr[-3000:]
-    rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), "--n-boot", "200"],
-                         cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
-    assert rep.returncode == 0, rep.stderr[-3000:]
+    sweep, rep = sweep_then_report(["+debug=fast", "encoder.res=1,3,6"], 3, ["--n-boot", "200"], timeout=900)
     assert "A taxel pitch of at most" in rep.stdout and "SYNTHETIC" in rep.stdout
     parser = _Page()
     parser.feed((sweep / "report" / "report.html").read_text())
