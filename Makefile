@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.sphri-installed
 ARGS   ?=
 
-.PHONY: install run test test-all bench sweep report ui clean
+.PHONY: install run lint test test-all bench sweep report ui clean
 
 # Installs only when pyproject.toml changed since the last install (quick otherwise).
 # torch is pinned to the CPU build first: an unpinned torch pulls gigabytes of CUDA.
@@ -22,10 +22,15 @@ install: $(STAMP)
 run: install          ## the main job on the built-in defaults
 	$(BIN)/python -m sphri +robot=reachy encoder.res=18 $(ARGS)
 
+lint: install         ## ruff (lint + format check) and mypy on the typed modules (pyproject.toml)
+	$(BIN)/ruff check sphri tests bench
+	$(BIN)/ruff format --check sphri tests bench
+	$(BIN)/mypy
+
 # Tests run on every core (pytest-xdist); a test module stays on one worker, so its
 # module fixtures are built once. `make test WORKERS=0` runs them in one process.
 WORKERS ?= auto
-test: install         ## the test suite without slow tests
+test: lint            ## lint, then the test suite without slow tests
 	$(BIN)/python -m pytest -m "not slow" -q -n $(WORKERS) --dist loadscope $(ARGS)
 
 # The cluster launchers (Ray, SLURM) are tested by test-all only: installed once,

@@ -5,8 +5,9 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
@@ -38,8 +39,12 @@ def machine() -> dict[str, Any]:
 
     from sphri.tracking.machine import cpu
 
-    info: dict[str, Any] = {**cpu(), "cpu_count": os.cpu_count(), "loadavg_1min": os.getloadavg()[0],
-                            "python": platform.python_version()}
+    info: dict[str, Any] = {
+        **cpu(),
+        "cpu_count": os.cpu_count(),
+        "loadavg_1min": os.getloadavg()[0],
+        "python": platform.python_version(),
+    }
     try:
         import torch
 

@@ -102,26 +102,42 @@ def main() -> int:
     results = {}
     q = capsule_mesh_query(v, f, p0, p1, r)
     t = timeit(lambda: capsule_mesh_query(v, f, p0, p1, r), repeat=5)
-    results["exact"] = {**t, "capsules_per_s": n / t["best_s"], "capsules_per_cpu_s": n / t["cpu_s"],
-                        **compare(q, ref, r)}
+    results["exact"] = {
+        **t,
+        "capsules_per_s": n / t["best_s"],
+        "capsules_per_cpu_s": n / t["cpu_s"],
+        **compare(q, ref, r),
+    }
     print(f"exact: {n / t['best_s']:,.0f} capsules/s (cpu: {n / t['cpu_s']:,.0f}/s), {compare(q, ref, r)}")
     for k in SPHERE_KS:
         s = sphere_mesh_query(v, f, p0, p1, r, k=k)
         t = timeit(lambda k=k: sphere_mesh_query(v, f, p0, p1, r, k=k), repeat=3)
-        results[f"spheres_k{k}"] = {**t, "capsules_per_s": n / t["best_s"], "capsules_per_cpu_s": n / t["cpu_s"],
-                                    **sphere_errors(s.distance, s.in_contact, ref, r)}
+        results[f"spheres_k{k}"] = {
+            **t,
+            "capsules_per_s": n / t["best_s"],
+            "capsules_per_cpu_s": n / t["cpu_s"],
+            **sphere_errors(s.distance, s.in_contact, ref, r),
+        }
         print(f"spheres k={k}: {n / t['best_s']:,.0f}/s, {sphere_errors(s.distance, s.in_contact, ref, r)}")
     sub = np.random.default_rng(1).choice(n, size=n_trimesh, replace=False)
     sub_ref = reference_query(v, f, p0[sub], p1[sub], r[sub], inside=info["inside_mode"])
     t0, c0 = time.perf_counter(), time.process_time()
     d, hit = trimesh_spheres(v, f, p0[sub], p1[sub], r[sub])
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
-    results["trimesh_proximity_k5"] = {"best_s": wall, "cpu_s": cpu, "n_capsules": n_trimesh,
-                                       "capsules_per_s": n_trimesh / wall, "capsules_per_cpu_s": n_trimesh / cpu,
-                                       **sphere_errors(d, hit, sub_ref, r[sub])}
+    results["trimesh_proximity_k5"] = {
+        "best_s": wall,
+        "cpu_s": cpu,
+        "n_capsules": n_trimesh,
+        "capsules_per_s": n_trimesh / wall,
+        "capsules_per_cpu_s": n_trimesh / cpu,
+        **sphere_errors(d, hit, sub_ref, r[sub]),
+    }
     print(f"trimesh.proximity k=5: {n_trimesh / wall:,.0f}/s, {results['trimesh_proximity_k5']}")
-    results["reference_numpy"] = {**ref_t, "capsules_per_s": n / ref_t["best_s"],
-                                  "capsules_per_cpu_s": n / ref_t["cpu_s"]}
+    results["reference_numpy"] = {
+        **ref_t,
+        "capsules_per_s": n / ref_t["best_s"],
+        "capsules_per_cpu_s": n / ref_t["cpu_s"],
+    }
 
     # a far-dominated stream (most capsules touch nothing), as in recorded data
     fp0, fp1, fr, _ = random_capsules(v, f, n, seed=2, near_fraction=0.05, inside_fraction=0.002)
@@ -135,9 +151,12 @@ def main() -> int:
         "exact_vs_spheres_k5_speed": ex["capsules_per_s"] / results["spheres_k5"]["capsules_per_s"],
         "far_dominated_vs_hard_speed": results["exact_far_dominated"]["capsules_per_s"] / ex["capsules_per_s"],
     }
-    goal = {"capsules_per_s": 1.5e6, "met_wall": ex["capsules_per_s"] >= 1.5e6,
-            "met_cpu_per_core": ex["capsules_per_cpu_s"] >= 1.5e6 / info["threads"],
-            "exact": ex["contact_disagreements"] == 0 and ex["distance_over_tol"] == 0 and ex["missed_inside"] == 0}
+    goal = {
+        "capsules_per_s": 1.5e6,
+        "met_wall": ex["capsules_per_s"] >= 1.5e6,
+        "met_cpu_per_core": ex["capsules_per_cpu_s"] >= 1.5e6 / info["threads"],
+        "exact": ex["contact_disagreements"] == 0 and ex["distance_over_tol"] == 0 and ex["missed_inside"] == 0,
+    }
     info["loadavg_1min_end"] = machine()["loadavg_1min"]
     path = write_json("contact", {"info": info, "goal": goal, "ratios": ratios, "results": results})
     plot(results, OUT / "contact.png", n)

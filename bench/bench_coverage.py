@@ -37,10 +37,10 @@ def main() -> int:
     parser.add_argument("--no-render", action="store_true", help="skip PNG/PLY output")
     args = parser.parse_args()
 
-    from sphri.coverage import analysis_from, load_settings
     from sphri.analysis.coverage import ALL, write_region
     from sphri.cache import StageCache
     from sphri.config import compose
+    from sphri.coverage import analysis_from, load_settings
     from sphri.pipeline import make_pipeline
 
     reps = 4 if args.quick else 20

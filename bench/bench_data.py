@@ -52,8 +52,13 @@ def main() -> int:
     participants = 4 if args.quick else 18
     hand = component("hand", "quest_capsules").build()
     robot = component("robot", "reachy").build()
-    result: dict = {"participants": participants, "repetitions": 20, "cpu_count": os.cpu_count(), "robot": robot.name,
-                    "load_average_at_start": round(result_load, 2)}
+    result: dict = {
+        "participants": participants,
+        "repetitions": 20,
+        "cpu_count": os.cpu_count(),
+        "robot": robot.name,
+        "load_average_at_start": round(result_load, 2),
+    }
     for regions in (["arm"], ["arm", "torso"]):
         gen = SyntheticData(participants=participants, repetitions=20, regions=regions)
         ds, dt = timed(lambda: gen.load(hand=hand, robot=robot))
@@ -66,21 +71,28 @@ def main() -> int:
             "frames_per_second": round(ds.n_frames / dt),
             "under_30s": bool(dt < 30.0),
         }
-        print(f"generate {key}: {len(ds.trials)} trials, {ds.n_frames} frames in {dt:.2f} s "
-              f"({timed.cpu:.2f} s CPU)", flush=True)
+        print(
+            f"generate {key}: {len(ds.trials)} trials, {ds.n_frames} frames in {dt:.2f} s ({timed.cpu:.2f} s CPU)",
+            flush=True,
+        )
         if regions == ["arm"]:
             arm = ds
     with tempfile.TemporaryDirectory() as tmp:
         _, dt_w = timed(lambda: write_dataset(arm, robot, tmp))
         size = sum(p.stat().st_size for p in Path(tmp).rglob("*") if p.is_file())
         loaded, dt_l = timed(lambda: VRGestureData(root=tmp, regions=["arm"]).load(hand=hand, robot=robot))
-        sub, dt_s = timed(lambda: VRGestureData(root=tmp, regions=["arm"], gestures=["poke"]).load(hand=hand, robot=robot))
+        sub, dt_s = timed(
+            lambda: VRGestureData(root=tmp, regions=["arm"], gestures=["poke"]).load(hand=hand, robot=robot)
+        )
     identical = bool(np.array_equal(loaded.poses, arm.poses) and loaded.trials.equals(arm.trials))
     result["write_arm"] = {"seconds": round(dt_w, 3), "megabytes": round(size / 1e6, 1)}
     result["load_arm"] = {"seconds": round(dt_l, 3), "identical_to_generated": identical}
     result["load_arm_one_gesture"] = {"seconds": round(dt_s, 3), "trials": len(sub.trials)}
-    print(f"write {dt_w:.2f} s ({size / 1e6:.1f} MB), load {dt_l:.2f} s (identical: {identical}), "
-          f"one gesture {dt_s:.2f} s", flush=True)
+    print(
+        f"write {dt_w:.2f} s ({size / 1e6:.1f} MB), load {dt_l:.2f} s (identical: {identical}), "
+        f"one gesture {dt_s:.2f} s",
+        flush=True,
+    )
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "data.json").write_text(json.dumps(result, indent=2) + "\n")
     return 0 if identical else 1

@@ -17,8 +17,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import numpy as np
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import machine, timeit, write_json  # noqa: E402
 
@@ -37,15 +35,25 @@ def main() -> None:
                 t = timeit(lambda: flt.apply(w), repeat=3)
                 on = w.x >= 0.5
                 cleared = float((on & (flt.apply(w).x < 0.5)).sum() / on.sum())
-                row = {"layout": layout, "res": res, "taxels": w.x.shape[2], "min_area_mm2": area,
-                       "s_per_1000_frames": t["best_s"] * 1000 / frames,
-                       "cpu_s_per_1000_frames": t["cpu_s"] * 1000 / frames, "cleared_share": cleared}
+                row = {
+                    "layout": layout,
+                    "res": res,
+                    "taxels": w.x.shape[2],
+                    "min_area_mm2": area,
+                    "s_per_1000_frames": t["best_s"] * 1000 / frames,
+                    "cpu_s_per_1000_frames": t["cpu_s"] * 1000 / frames,
+                    "cleared_share": cleared,
+                }
                 out["rows"].append(row)
-                print(f"{layout:7s} res {res:2d} ({row['taxels']} taxels) min_area {area:5.0f} mm^2: "
-                      f"{row['s_per_1000_frames'] * 1e3:6.1f} ms per 1000 frames (CPU {row['cpu_s_per_1000_frames'] * 1e3:6.1f} ms), "
-                      f"cleared {cleared:.1%} of on-readings")
-    print(f"load average {out['machine']['loadavg_1min']:.1f} on {out['machine']['cpu_count']} cores; "
-          f"written {write_json('despeckle', out)}")
+                print(
+                    f"{layout:7s} res {res:2d} ({row['taxels']} taxels) min_area {area:5.0f} mm^2: "
+                    f"{row['s_per_1000_frames'] * 1e3:6.1f} ms per 1000 frames (CPU {row['cpu_s_per_1000_frames'] * 1e3:6.1f} ms), "
+                    f"cleared {cleared:.1%} of on-readings"
+                )
+    print(
+        f"load average {out['machine']['loadavg_1min']:.1f} on {out['machine']['cpu_count']} cores; "
+        f"written {write_json('despeckle', out)}"
+    )
 
 
 if __name__ == "__main__":

@@ -40,14 +40,14 @@ from sphri.encode.coverage import CoverageEncoder, encode_3d_coverage  # noqa: E
 from sphri.encode.ellipse import EllipseEncoder  # noqa: E402
 from sphri.encode.proximity import ProximityEncoder  # noqa: E402
 from sphri.encode.raster import patch_ellipses  # noqa: E402
-from sphri.testing.raster_reference import iou, reference_raster  # noqa: E402
-from sphri.testing.synthetic_contacts import synthetic_contacts  # noqa: E402
 from sphri.layout.common import row_offsets  # noqa: E402
 from sphri.layout.grid import GridLayout  # noqa: E402
 from sphri.layout.poisson import RandomLayout  # noqa: E402
 from sphri.layout.units import describe  # noqa: E402
 from sphri.surface.cylinder import CylinderSurface  # noqa: E402
 from sphri.surface.meshutil import link_from_trimesh  # noqa: E402
+from sphri.testing.raster_reference import iou, reference_raster  # noqa: E402
+from sphri.testing.synthetic_contacts import synthetic_contacts  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("SPHRI_SHARED", REPO.parent / "shared"))
@@ -154,7 +154,9 @@ def main(argv=None) -> dict:
             goal[f"res_{res}_ellipse_full_size_s"] = scaled
             goal[f"res_{res}_budget_s"] = GOALS_S[res]
             goal[f"res_{res}_met"] = bool(scaled < GOALS_S[res])
-        print(f"res {res}: ellipse {entry['ellipse_s']:.2f} s, IoU {entry['ellipse_iou_vs_supersampled']:.4f}", flush=True)
+        print(
+            f"res {res}: ellipse {entry['ellipse_s']:.2f} s, IoU {entry['ellipse_iou_vs_supersampled']:.4f}", flush=True
+        )
 
     info["loadavg_1min_end"] = machine()["loadavg_1min"]
     path = write_json("encode", {"info": info, "goal": goal, "ratios": ratios, "results": results})

@@ -74,7 +74,7 @@ def bench_model(overrides: list[str], reps: int) -> tuple[dict, Path]:
         bundle.predict_proba(x[i % len(x)][None])
         times.append((time.perf_counter() - t) * 1000)
     clf = LiveClassifier(bundle, stride=10**9, cluster_taxels=6)
-    flat = x.reshape(-1, x.shape[-1])[: 3000]
+    flat = x.reshape(-1, x.shape[-1])[:3000]
     t = time.perf_counter()
     for f in flat:
         clf.push(f)
@@ -103,13 +103,23 @@ def bench_end_to_end(overrides: list[str], model: Path, trials: int, rate_hz: fl
     sim = SkinSimulator(stream, s, make_endpoint(s), say=lambda m: None)
     th = start_in_thread(sim)
     try:
-        summary = live(SkinLiveSettings(port=sim.endpoint.url, model=str(model), idle_s=0.5, show="off"),
-                       out=lambda m: None)
+        summary = live(
+            SkinLiveSettings(port=sim.endpoint.url, model=str(model), idle_s=0.5, show="off"), out=lambda m: None
+        )
     finally:
         sim.stop.set()
         th.join(10)
-    keys = ("frames", "predictions", "touches", "stream_rate_hz", "predictions_per_s", "latency_ms_median",
-            "latency_ms_p95", "model_ms_mean", "capacity_predictions_per_s")
+    keys = (
+        "frames",
+        "predictions",
+        "touches",
+        "stream_rate_hz",
+        "predictions_per_s",
+        "latency_ms_median",
+        "latency_ms_p95",
+        "model_ms_mean",
+        "capacity_predictions_per_s",
+    )
     return {k: summary[k] for k in keys}
 
 
@@ -124,8 +134,9 @@ def main() -> int:
     result["model"], path = bench_model(overrides, 50 if args.quick else 300)
     # 30 Hz frames (the synthetic data's rate) in real time
     result["live"] = bench_end_to_end(overrides, path, 3 if args.quick else 8, result["model"]["frame_rate_hz"])
-    result["meets_10_predictions_per_s"] = bool(result["live"]["predictions_per_s"] >= 10.0
-                                                and result["model"]["capacity_predictions_per_s"] >= 10.0)
+    result["meets_10_predictions_per_s"] = bool(
+        result["live"]["predictions_per_s"] >= 10.0 and result["model"]["capacity_predictions_per_s"] >= 10.0
+    )
     (OUT / "hardware.json").write_text(json.dumps(result, indent=1))
     print(json.dumps(result, indent=1))
     return 0 if result["meets_10_predictions_per_s"] else 1

@@ -95,23 +95,35 @@ DEFAULT_BUDGETS: list[str] = ["paper", "onecycle8", "onecycle6_lr2e-3", "onecycl
 
 def pareto_front(points: dict[str, tuple[float, float]]) -> list[str]:
     """Names whose (cost, accuracy) no other point beats on both (lower cost, higher accuracy)."""
-    return [n for n, (c, a) in points.items()
-            if not any(c2 <= c and a2 >= a and (c2, a2) != (c, a) for c2, a2 in points.values())]
+    return [
+        n
+        for n, (c, a) in points.items()
+        if not any(c2 <= c and a2 >= a and (c2, a2) != (c, a) for c2, a2 in points.values())
+    ]
 
 
 def plot_pareto(out: dict, path_stem: str) -> list:
     """CPU seconds per fold against accuracy: every CNN-GRU budget and the Random Forest."""
     from sphri.figures import new_figure, save
 
-    points = {f"cnn_gru {n}": (b["fold_cpu_s"] / b["folds"], b["accuracy_mean"]) for n, b in out["cnn_gru_budgets"].items()}
+    points = {
+        f"cnn_gru {n}": (b["fold_cpu_s"] / b["folds"], b["accuracy_mean"]) for n, b in out["cnn_gru_budgets"].items()
+    }
     rf = (out["rf"]["fold_cpu_s"] / out["rf"]["folds"], out["rf"]["accuracy_mean"])
     front = set(pareto_front({**points, "rf": rf}))
     fig, ax = new_figure("one", height=3.2)
     for i, (name, (c, a)) in enumerate({**points, "Random Forest": rf}.items()):
         on_front = name in front or (name == "Random Forest" and "rf" in front)
-        ax.scatter([c], [a], marker="s" if name == "Random Forest" else "o", s=22, zorder=3,
-                   color=f"C{i}", facecolors=f"C{i}" if on_front else "none",
-                   label=name.removeprefix("cnn_gru ") + (" (Pareto)" if on_front else ""))
+        ax.scatter(
+            [c],
+            [a],
+            marker="s" if name == "Random Forest" else "o",
+            s=22,
+            zorder=3,
+            color=f"C{i}",
+            facecolors=f"C{i}" if on_front else "none",
+            label=name.removeprefix("cnn_gru ") + (" (Pareto)" if on_front else ""),
+        )
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.25), ncol=2, fontsize=7, frameon=False)
     ax.set_xscale("log")
     from matplotlib.ticker import NullFormatter
@@ -129,15 +141,23 @@ def pipeline_windows(res: int, participants: int, repetitions: int, seed: int) -
     from sphri.config import compose
     from sphri.pipeline import make_pipeline
 
-    cfg = compose([
-        "data=synthetic", "data.regions=[arm]", f"data.participants={participants}",
-        f"data.repetitions={repetitions}", f"encoder.res={res}", f"seed={seed}",
-    ])
+    cfg = compose(
+        [
+            "data=synthetic",
+            "data.regions=[arm]",
+            f"data.participants={participants}",
+            f"data.repetitions={repetitions}",
+            f"encoder.res={res}",
+            f"seed={seed}",
+        ]
+    )
     p = make_pipeline(cfg, StageCache(root=cfg.cache.dir, enabled=bool(cfg.cache.enabled)))
     return p.get("filter")  # the model's input: windows, noise, skin-side filter
 
 
-def get_windows(source: str, res: int, participants: int, repetitions: int, seed: int) -> tuple[WindowedFrames, str, str]:
+def get_windows(
+    source: str, res: int, participants: int, repetitions: int, seed: int
+) -> tuple[WindowedFrames, str, str]:
     if source == "pipeline":
         try:
             return pipeline_windows(res, participants, repetitions, seed), "pipeline", ""
@@ -173,8 +193,10 @@ def combine_seeds(rows: dict[int, dict]) -> dict:
     accs = [r["accuracy_mean"] for r in rows.values()]
     first = dict(next(iter(rows.values())))
     first["per_fold_fields_seed"] = next(iter(rows))
-    first["by_seed"] = {str(s): {k: r[k] for k in ("accuracy_mean", "fold_cpu_s", "wall_s", "folds", "per_fold_accuracy")}
-                        for s, r in rows.items()}
+    first["by_seed"] = {
+        str(s): {k: r[k] for k in ("accuracy_mean", "fold_cpu_s", "wall_s", "folds", "per_fold_accuracy")}
+        for s, r in rows.items()
+    }
     first["seed_accuracy"] = [round(a, 4) for a in accs]
     first["accuracy_mean"] = float(np.mean(accs))
     first["seed_accuracy_sd"] = float(np.std(accs, ddof=1)) if len(accs) > 1 else float("nan")
@@ -220,14 +242,30 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--threads", type=int, default=1, help="threads per fold process (default 1)")
     ap.add_argument("--skip-cnn", action="store_true")
     ap.add_argument("--cnn-folds", type=int, default=None, help="CNN on the first K folds only")
-    ap.add_argument("--budgets", nargs="+", choices=list(BUDGETS), default=DEFAULT_BUDGETS,
-                    help=f"CNN-GRU training budgets to compare (default: {' '.join(DEFAULT_BUDGETS)})")
-    ap.add_argument("--seeds", nargs="+", type=int, default=[0],
-                    help="model seeds: each budget runs LOSO once per seed (default: 0)")
+    ap.add_argument(
+        "--budgets",
+        nargs="+",
+        choices=list(BUDGETS),
+        default=DEFAULT_BUDGETS,
+        help=f"CNN-GRU training budgets to compare (default: {' '.join(DEFAULT_BUDGETS)})",
+    )
+    ap.add_argument(
+        "--seeds",
+        nargs="+",
+        type=int,
+        default=[0],
+        help="model seeds: each budget runs LOSO once per seed (default: 0)",
+    )
     ap.add_argument("--device", default="cpu", help="CNN-GRU device: cpu (default), cuda, cuda:K")
-    ap.add_argument("--precision", choices=["auto", "float32", "bf16"], default=None,
-                    help="CNN-GRU precision (default: the model's, auto)")
-    ap.add_argument("--windows", default=None, help="read the windows from this file (--save-windows) instead of --data")
+    ap.add_argument(
+        "--precision",
+        choices=["auto", "float32", "bf16"],
+        default=None,
+        help="CNN-GRU precision (default: the model's, auto)",
+    )
+    ap.add_argument(
+        "--windows", default=None, help="read the windows from this file (--save-windows) instead of --data"
+    )
     ap.add_argument("--save-windows", default=None, help="also write the windows to this .npz")
     ap.add_argument("--name", default=None, help="output name under outputs/bench (default: models or models_quick)")
     args = ap.parse_args(argv)
@@ -248,15 +286,29 @@ def main(argv: list[str] | None = None) -> int:
     log.info("windows %s from %s in %.1f s", win.x.shape, source, data_s)
 
     out: dict = {
-        "machine": {**machine(), "platform": platform.processor() or platform.machine(),
-                    "affinity_cores": len(os.sched_getaffinity(0))},
+        "machine": {
+            **machine(),
+            "platform": platform.processor() or platform.machine(),
+            "affinity_cores": len(os.sched_getaffinity(0)),
+        },
         "quick": args.quick,
-        "data": {"source": source, "note": note, "n_trials": int(win.x.shape[0]), "L": int(win.x.shape[1]),
-                 "n_taxels": int(win.x.shape[2]), "grid_shape": win.geometry.grid_shape,
-                 "participants": int(len(set(win.groups))), "res": None if args.windows else args.res, "seconds": round(data_s, 1)},
+        "data": {
+            "source": source,
+            "note": note,
+            "n_trials": int(win.x.shape[0]),
+            "L": int(win.x.shape[1]),
+            "n_taxels": int(win.x.shape[2]),
+            "grid_shape": win.geometry.grid_shape,
+            "participants": int(len(set(win.groups))),
+            "res": None if args.windows else args.res,
+            "seconds": round(data_s, 1),
+        },
         "cv": {"scheme": "loso", "workers": args.workers, "threads_per_worker": args.threads},
-        "cnn_gru_run": {"device": args.device, "precision": args.precision or "auto (the model's default)",
-                        "seeds": args.seeds},
+        "cnn_gru_run": {
+            "device": args.device,
+            "precision": args.precision or "auto (the model's default)",
+            "seeds": args.seeds,
+        },
         "targets_s": {"rf": 60, "cnn_gru": 900},
     }
     rf = functools.partial(RandomForest, geometry=win.geometry)
@@ -279,18 +331,28 @@ def main(argv: list[str] | None = None) -> int:
             log.info("cnn_gru %s: %s", budget, {k: v for k, v in row.items() if k != "per_fold_accuracy"})
             write_json(name, out)
         if "paper" in out["cnn_gru_budgets"]:
-            out["cnn_gru"] = {**out["cnn_gru_budgets"]["paper"],
-                              "params": {k: v for k, v in CnnGru().get_params().items() if k != "geometry"}}
+            out["cnn_gru"] = {
+                **out["cnn_gru_budgets"]["paper"],
+                "params": {k: v for k, v in CnnGru().get_params().items() if k != "geometry"},
+            }
             base = out["cnn_gru"]["fold_cpu_s"]
-            out["cnn_gru_cpu_ratio_vs_paper"] = {n: round(b["fold_cpu_s"] / base, 3)
-                                                 for n, b in out["cnn_gru_budgets"].items()}
+            out["cnn_gru_cpu_ratio_vs_paper"] = {
+                n: round(b["fold_cpu_s"] / base, 3) for n, b in out["cnn_gru_budgets"].items()
+            }
             if len(args.seeds) > 1:  # is each budget's seed mean at or above the paper's lowest seed?
                 lowest = min(out["cnn_gru"]["seed_accuracy"])
-                out["within_paper_seed_spread"] = {n: bool(b["accuracy_mean"] >= lowest)
-                                                   for n, b in out["cnn_gru_budgets"].items()}
+                out["within_paper_seed_spread"] = {
+                    n: bool(b["accuracy_mean"] >= lowest) for n, b in out["cnn_gru_budgets"].items()
+                }
         out["pareto_front"] = pareto_front(
-            {**{f"cnn_gru {n}": (b["fold_cpu_s"] / b["folds"], b["accuracy_mean"]) for n, b in out["cnn_gru_budgets"].items()},
-             "rf": (out["rf"]["fold_cpu_s"] / out["rf"]["folds"], out["rf"]["accuracy_mean"])})
+            {
+                **{
+                    f"cnn_gru {n}": (b["fold_cpu_s"] / b["folds"], b["accuracy_mean"])
+                    for n, b in out["cnn_gru_budgets"].items()
+                },
+                "rf": (out["rf"]["fold_cpu_s"] / out["rf"]["folds"], out["rf"]["accuracy_mean"]),
+            }
+        )
         plot_pareto(out, f"{name}_pareto")
     out["machine"]["loadavg_1min_end"] = os.getloadavg()[0]
     path = write_json(name, out)

@@ -41,15 +41,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import resource
 import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import OUT, machine, write_json  # noqa: E402
@@ -143,8 +143,9 @@ class StageProbe:
             if node.done:
                 return node.value
             self._charge()
-            self.stats.setdefault(name, {"wall_s": 0.0, "cpu_s": 0.0, "peak_rss_mb": 0.0,
-                                         "rss_start_mb": self.memory.rss_mb()})
+            self.stats.setdefault(
+                name, {"wall_s": 0.0, "cpu_s": 0.0, "peak_rss_mb": 0.0, "rss_start_mb": self.memory.rss_mb()}
+            )
             self._stack.append(name)
             try:
                 return orig(name)
@@ -182,10 +183,16 @@ def probed_pipelines(memory: MemoryProbe) -> Iterator[list[StageProbe]]:
 def compose_cfg(participants: int, repetitions: int, res: int) -> Any:
     from sphri.config import compose
 
-    return compose([
-        "data=synthetic", "data.regions=[arm]", f"data.participants={participants}",
-        f"data.repetitions={repetitions}", f"encoder.res={res}", "cv.progress=false",
-    ])
+    return compose(
+        [
+            "data=synthetic",
+            "data.regions=[arm]",
+            f"data.participants={participants}",
+            f"data.repetitions={repetitions}",
+            f"encoder.res={res}",
+            "cv.progress=false",
+        ]
+    )
 
 
 def warm_up() -> float:
@@ -230,12 +237,20 @@ def child_default(args: argparse.Namespace) -> dict:
         cache_mb = sum(f.stat().st_size for f in Path(tmp).rglob("*.entry")) / 2**20
     acc = [f.accuracy for f in cv.folds]
     return {
-        "participants": args.participants, "repetitions": args.repetitions, "res": args.res,
-        "n_frames": meta.n_frames, "n_trials": meta.n_trials, "n_windows": meta.n_windows,
-        "n_taxels": meta.resolution["n_taxels"], "accuracy_mean": sum(acc) / len(acc),
-        "memory_method": memory.method, "rss_after_imports_mb": rss0, "warm_up_s": warm_up_s,
+        "participants": args.participants,
+        "repetitions": args.repetitions,
+        "res": args.res,
+        "n_frames": meta.n_frames,
+        "n_trials": meta.n_trials,
+        "n_windows": meta.n_windows,
+        "n_taxels": meta.resolution["n_taxels"],
+        "accuracy_mean": sum(acc) / len(acc),
+        "memory_method": memory.method,
+        "rss_after_imports_mb": rss0,
+        "warm_up_s": warm_up_s,
         "stages": {k: _round(v) for k, v in probe.stats.items()},
-        "cold_wall_s": cold, "warm_wall_s": warm,
+        "cold_wall_s": cold,
+        "warm_wall_s": warm,
         "warm_sources": {k: r.source for k, r in warm_result.stages.items()},
         "cache_size_mb": cache_mb,
     }
@@ -252,12 +267,16 @@ def _sweep_pass(resolutions, participants, repetitions, cache, memory) -> list[d
             result = run(cfg, cache)
             wall, cpu = time.perf_counter() - t0, time.process_time() - c0
         stats = probes[-1].stats
-        points.append({
-            "res": res, "wall_s": wall, "cpu_s": cpu,
-            "accuracy_mean": result.cv.summary()["accuracy_mean"],
-            "peak_rss_mb": max((s["peak_rss_mb"] for s in stats.values()), default=0.0),
-            "stages": {k: _round(v) for k, v in stats.items()},
-        })
+        points.append(
+            {
+                "res": res,
+                "wall_s": wall,
+                "cpu_s": cpu,
+                "accuracy_mean": result.cv.summary()["accuracy_mean"],
+                "peak_rss_mb": max((s["peak_rss_mb"] for s in stats.values()), default=0.0),
+                "stages": {k: _round(v) for k, v in stats.items()},
+            }
+        )
     return points
 
 
@@ -272,11 +291,19 @@ def child_sweep(args: argparse.Namespace) -> dict:
         cache = StageCache(root=tmp)
         cold = _sweep_pass(res, args.participants, args.repetitions, cache, memory)
         warm = _sweep_pass(res, args.participants, args.repetitions, cache, memory)
-    out = {"participants": args.participants, "repetitions": args.repetitions, "resolutions": res,
-           "memory_method": memory.method, "warm_up_s": warm_up_s, "cold": cold, "warm": warm}
+    out = {
+        "participants": args.participants,
+        "repetitions": args.repetitions,
+        "resolutions": res,
+        "memory_method": memory.method,
+        "warm_up_s": warm_up_s,
+        "cold": cold,
+        "warm": warm,
+    }
     if args.measure_uncached:
-        out["uncached"] = _sweep_pass(res, args.participants, args.repetitions, StageCache(root="/nonexistent",
-                                      enabled=False), memory)
+        out["uncached"] = _sweep_pass(
+            res, args.participants, args.repetitions, StageCache(root="/nonexistent", enabled=False), memory
+        )
     return out
 
 
@@ -424,17 +451,26 @@ def main(argv: list[str] | None = None) -> int:
     p = args.participants or size["participants"]
     r = args.repetitions or size["repetitions"]
     res = args.resolutions or ",".join(str(x) for x in size["resolutions"])
-    info = {**machine(), "mode": "quick" if args.quick else "full", "participants": p, "repetitions": r,
-            "sweep_resolutions": [int(x) for x in res.split(",")],
-            "note": "wall_s/cpu_s exclusive per stage; peak_rss_mb = process peak during the stage"}
+    info = {
+        **machine(),
+        "mode": "quick" if args.quick else "full",
+        "participants": p,
+        "repetitions": r,
+        "sweep_resolutions": [int(x) for x in res.split(",")],
+        "note": "wall_s/cpu_s exclusive per stage; peak_rss_mb = process peak during the stage",
+    }
     t0 = time.perf_counter()
     print(f"default run: {p} participants x {r} repetitions, res {size['default_res']}", flush=True)
-    default = run_child("default", ["--participants", str(p), "--repetitions", str(r),
-                                    "--res", str(size["default_res"])], timeout_s=1800)
+    default = run_child(
+        "default",
+        ["--participants", str(p), "--repetitions", str(r), "--res", str(size["default_res"])],
+        timeout_s=1800,
+    )
     print(f"RF sweep over res {res}", flush=True)
     extra = ["--participants", str(p), "--repetitions", str(r), "--resolutions", res]
-    sweep = run_child("sweep", extra + (["--measure-uncached"] if args.quick or args.measure_uncached else []),
-                      timeout_s=3600)
+    sweep = run_child(
+        "sweep", extra + (["--measure-uncached"] if args.quick or args.measure_uncached else []), timeout_s=3600
+    )
     info["wall_s"] = time.perf_counter() - t0
     info["loadavg_1min_end"] = machine()["loadavg_1min"]
     head = summarize(default, sweep, args.quick)

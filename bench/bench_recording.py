@@ -49,9 +49,16 @@ def bench(n_frames: int, n_taxels: int, folder: Path, repeats: int = 3) -> dict:
         rates.append(n_frames / wall)
         per.append(t_each)
     each = np.concatenate(per) * 1e6
-    return {"module": recording.__file__, "frames": n_frames, "taxels": n_taxels, "repeats": repeats,
-            "frames_per_s": [round(x) for x in rates], "frames_per_s_median": round(float(np.median(rates))),
-            "append_us_median": round(float(np.median(each)), 2), "append_us_p99": round(float(np.percentile(each, 99)), 1)}
+    return {
+        "module": recording.__file__,
+        "frames": n_frames,
+        "taxels": n_taxels,
+        "repeats": repeats,
+        "frames_per_s": [round(x) for x in rates],
+        "frames_per_s_median": round(float(np.median(rates))),
+        "append_us_median": round(float(np.median(each)), 2),
+        "append_us_p99": round(float(np.percentile(each, 99)), 1),
+    }
 
 
 def main() -> None:

@@ -66,10 +66,17 @@ def loglog_slope(x: np.ndarray, y: np.ndarray) -> dict:
     resid = ly - (slope * lx + icpt)
     ss = ((ly - ly.mean()) ** 2).sum()
     per_unit, overhead = np.polyfit(x, y, 1)
-    return {"slope": float(slope), "slope_top": float((ly[-1] - ly[-2]) / (lx[-1] - lx[-2])),
-            "r2": float(1 - (resid**2).sum() / ss) if ss > 0 else 1.0, "n_points": int(ok.sum()),
-            "overhead_s": float(overhead), "per_unit_s": float(per_unit),
-            "time_ratio": float(y[-1] / y[0]), "size_ratio": float(x[-1] / x[0]), "largest_s": float(y[-1])}
+    return {
+        "slope": float(slope),
+        "slope_top": float((ly[-1] - ly[-2]) / (lx[-1] - lx[-2])),
+        "r2": float(1 - (resid**2).sum() / ss) if ss > 0 else 1.0,
+        "n_points": int(ok.sum()),
+        "overhead_s": float(overhead),
+        "per_unit_s": float(per_unit),
+        "time_ratio": float(y[-1] / y[0]),
+        "size_ratio": float(x[-1] / x[0]),
+        "largest_s": float(y[-1]),
+    }
 
 
 def run_chain(participants: int, repetitions: int, res: int, memory: MemoryProbe):
@@ -97,12 +104,19 @@ def frames_scaling(size: dict, memory: MemoryProbe) -> tuple[dict, object]:
                 best = (p, stats)
         p, stats = best
         data, plan = p.get("data"), p.get("plan")
-        row = {"repetitions": reps, "n_frames": data.n_frames, "n_trials": len(data.trials),
-               "encoded_frames": int(plan.selected_frames().size),
-               "stages": {k: {"cpu_s": v["cpu_s"], "wall_s": v["wall_s"]} for k, v in stats.items()}}
+        row = {
+            "repetitions": reps,
+            "n_frames": data.n_frames,
+            "n_trials": len(data.trials),
+            "encoded_frames": int(plan.selected_frames().size),
+            "stages": {k: {"cpu_s": v["cpu_s"], "wall_s": v["wall_s"]} for k, v in stats.items()},
+        }
         rows.append(row)
-        print(f"  {reps:3d} repetitions: {data.n_frames:7d} frames, "
-              + ", ".join(f"{k} {v['cpu_s']:.2f}" for k, v in stats.items() if v["cpu_s"] > 0.01), flush=True)
+        print(
+            f"  {reps:3d} repetitions: {data.n_frames:7d} frames, "
+            + ", ".join(f"{k} {v['cpu_s']:.2f}" for k, v in stats.items() if v["cpu_s"] > 0.01),
+            flush=True,
+        )
         last = p
     frames = np.array([r["n_frames"] for r in rows])
     fits = {}
@@ -144,19 +158,31 @@ def taxels_scaling(p, resolutions, repeat: int) -> dict:
     for res in resolutions:
         lay, t_layout = timed(lambda: GridLayout().build(link, surface, res))
         frames, t_enc = timed(lambda: EllipseEncoder(res=res).encode(contacts, link, surface, lay, fi))
-        clean, t_win = timed(lambda: window.assemble(frames, plan, data, lay, surface))
-        windows, t_noise = timed(lambda: apply_to_windows(SaltPepperNoise(), clean, tk, 0))
-        _, t_feat = timed(lambda: extract_features(windows.x, windows.geometry))
-        rows.append({"res": res, "n_taxels": lay.n_taxels, "grid_shape": list(lay.grid_shape),
-                     "stages": {"layout": t_layout, "encode": t_enc, "noise": t_noise, "window": t_win,
-                                "features": t_feat}})
-        print(f"  res {res:3d}: {lay.n_taxels:6d} taxels, "
-              + ", ".join(f"{k} {v['cpu_s']:.2f}" for k, v in rows[-1]["stages"].items()), flush=True)
+        clean, t_win = timed(lambda: window.assemble(frames, plan, data, lay, surface))  # noqa: F821 (bound on the line above)
+        windows, t_noise = timed(lambda: apply_to_windows(SaltPepperNoise(), clean, tk, 0))  # noqa: F821
+        _, t_feat = timed(lambda: extract_features(windows.x, windows.geometry))  # noqa: F821
+        rows.append(
+            {
+                "res": res,
+                "n_taxels": lay.n_taxels,
+                "grid_shape": list(lay.grid_shape),
+                "stages": {"layout": t_layout, "encode": t_enc, "noise": t_noise, "window": t_win, "features": t_feat},
+            }
+        )
+        print(
+            f"  res {res:3d}: {lay.n_taxels:6d} taxels, "
+            + ", ".join(f"{k} {v['cpu_s']:.2f}" for k, v in rows[-1]["stages"].items()),
+            flush=True,
+        )
         del frames, clean, windows
     n = np.array([r["n_taxels"] for r in rows])
-    fits = {name: {"cpu": loglog_slope(n, [r["stages"][name]["cpu_s"] for r in rows]),
-                   "wall": loglog_slope(n, [r["stages"][name]["wall_s"] for r in rows])}
-            for name in rows[0]["stages"]}
+    fits = {
+        name: {
+            "cpu": loglog_slope(n, [r["stages"][name]["cpu_s"] for r in rows]),
+            "wall": loglog_slope(n, [r["stages"][name]["wall_s"] for r in rows]),
+        }
+        for name in rows[0]["stages"]
+    }
     return {"encoded_frames": int(fi.size), "n_windows": int(plan.kept.sum()), "sizes": rows, "fits": fits}
 
 
@@ -183,10 +209,22 @@ def plot(fr: dict, tx: dict, path: Path) -> None:
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
-    loglog_panel(axes[0], fr, "n_frames", 0.05, "dataset frames",
-                 f"time per stage vs frames ({fr['participants']} participants, more repetitions)")
-    loglog_panel(axes[1], tx, "n_taxels", 0.01, "taxels N (grid, res along the arm)",
-                 f"time per stage vs taxels ({tx['encoded_frames']} encoded frames)")
+    loglog_panel(
+        axes[0],
+        fr,
+        "n_frames",
+        0.05,
+        "dataset frames",
+        f"time per stage vs frames ({fr['participants']} participants, more repetitions)",
+    )
+    loglog_panel(
+        axes[1],
+        tx,
+        "n_taxels",
+        0.01,
+        "taxels N (grid, res along the arm)",
+        f"time per stage vs taxels ({tx['encoded_frames']} encoded frames)",
+    )
     for ax in axes:
         ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
@@ -209,9 +247,13 @@ def main(argv: list[str] | None = None) -> int:
     fr, last = frames_scaling(size, memory)
     print(f"taxels: res {size['resolutions']}", flush=True)
     tx = taxels_scaling(last, size["resolutions"], size["repeat"])
-    info = {**start, "mode": "quick" if args.quick else "full", "wall_s": time.perf_counter() - t0,
-            "loadavg_1min_end": machine()["loadavg_1min"],
-            "note": "slopes fitted to CPU seconds (all threads) on log-log axes; 1 = linear"}
+    info = {
+        **start,
+        "mode": "quick" if args.quick else "full",
+        "wall_s": time.perf_counter() - t0,
+        "loadavg_1min_end": machine()["loadavg_1min"],
+        "note": "slopes fitted to CPU seconds (all threads) on log-log axes; 1 = linear",
+    }
     head = {}
     for axis, res in (("frames", fr), ("taxels", tx)):
         for k, v in res["fits"].items():

@@ -30,7 +30,6 @@ from _common import machine, timeit, write_json  # noqa: E402
 
 
 def contact_bench(quick: bool) -> dict:
-    import numpy as np
     from hydra.utils import instantiate
 
     from sphri.config import compose
@@ -54,10 +53,18 @@ def contact_bench(quick: bool) -> dict:
     us = lambda t, n: 1e6 * t["best_s"] / n  # noqa: E731
     touched = len(set(zip(bc.frame.tolist(), bc.link.tolist())))
     return {
-        "whole_body": {"frames": ds.n_frames, "links": len(ds.links), "hands": 2, "us_per_frame": us(culled, ds.n_frames),
-                       "cpu_s": culled["cpu_s"], "triples": bc.stats["triples"], "triples_tested": bc.stats["tested"],
-                       "share_tested": bc.stats["tested"] / bc.stats["triples"], "frame_link_pairs_touched": touched,
-                       "contact_rows": bc.n_contacts},
+        "whole_body": {
+            "frames": ds.n_frames,
+            "links": len(ds.links),
+            "hands": 2,
+            "us_per_frame": us(culled, ds.n_frames),
+            "cpu_s": culled["cpu_s"],
+            "triples": bc.stats["triples"],
+            "triples_tested": bc.stats["tested"],
+            "share_tested": bc.stats["tested"] / bc.stats["triples"],
+            "frame_link_pairs_touched": touched,
+            "contact_rows": bc.n_contacts,
+        },
         "whole_body_no_culling": {"us_per_frame": us(full, ds.n_frames), "cpu_s": full["cpu_s"]},
         "arm_only_stage": {"frames": arm.n_frames, "links": 1, "hands": 1, "us_per_frame": us(arm_t, arm.n_frames)},
         "culling_speedup": full["best_s"] / culled["best_s"],
@@ -69,7 +76,9 @@ def study_bench(quick: bool) -> dict:
     from sphri.sessions.study import run_study
 
     with tempfile.TemporaryDirectory() as tmp:
-        ov = ["+experiment=scenario_study", f"output_dir={tmp}", f"cache.dir={tmp}/cache"] + (["+debug=fast"] if quick else [])
+        ov = ["+experiment=scenario_study", f"output_dir={tmp}", f"cache.dir={tmp}/cache"] + (
+            ["+debug=fast"] if quick else []
+        )
         t0 = time.perf_counter()
         c0 = time.process_time()
         res = run_study(ov, out=Path(tmp) / "study", log_mlflow=False)
@@ -78,11 +87,19 @@ def study_bench(quick: bool) -> dict:
         run_study(ov, out=Path(tmp) / "study2", log_mlflow=False)  # sessions and contacts from the stage cache
         again = time.perf_counter() - t1
     s = res.sessions
-    return {"participants": int(s["participant"].nunique()), "scenarios": int(s["scenario"].nunique()),
-            "repetitions": int(s["repetition"].max()), "sessions": len(s), "coded_episodes": len(res.coded),
-            "wall_s": wall, "cpu_s": cpu, "rerun_with_cache_s": again,
-            "phases_s": {k: round(v, 2) for k, v in res.seconds.items()},
-            "gesture_model_loso_accuracy": res.gesture_accuracy, "sentences": res.sentences}
+    return {
+        "participants": int(s["participant"].nunique()),
+        "scenarios": int(s["scenario"].nunique()),
+        "repetitions": int(s["repetition"].max()),
+        "sessions": len(s),
+        "coded_episodes": len(res.coded),
+        "wall_s": wall,
+        "cpu_s": cpu,
+        "rerun_with_cache_s": again,
+        "phases_s": {k: round(v, 2) for k, v in res.seconds.items()},
+        "gesture_model_loso_accuracy": res.gesture_accuracy,
+        "sentences": res.sentences,
+    }
 
 
 def main() -> int:
@@ -92,14 +109,22 @@ def main() -> int:
     import logging
 
     logging.basicConfig(level=logging.WARNING)
-    data = {"mode": "quick" if args.quick else "full", "machine": machine(), "contact": contact_bench(args.quick),
-            "study": study_bench(args.quick)}
+    data = {
+        "mode": "quick" if args.quick else "full",
+        "machine": machine(),
+        "contact": contact_bench(args.quick),
+        "study": study_bench(args.quick),
+    }
     path = write_json("scenario_study_quick" if args.quick else "scenario_study", data)
     c, st = data["contact"], data["study"]
-    print(f"contact: whole body {c['whole_body']['us_per_frame']:.0f} us/frame ({100 * c['whole_body']['share_tested']:.1f} % "
-          f"of (frame, hand, link) triples tested), no culling {c['whole_body_no_culling']['us_per_frame']:.0f}, "
-          f"arm-only stage {c['arm_only_stage']['us_per_frame']:.0f}")
-    print(f"study: {st['sessions']} sessions in {st['wall_s']:.1f} s wall ({st['cpu_s']:.1f} s CPU); rerun {st['rerun_with_cache_s']:.1f} s")
+    print(
+        f"contact: whole body {c['whole_body']['us_per_frame']:.0f} us/frame ({100 * c['whole_body']['share_tested']:.1f} % "
+        f"of (frame, hand, link) triples tested), no culling {c['whole_body_no_culling']['us_per_frame']:.0f}, "
+        f"arm-only stage {c['arm_only_stage']['us_per_frame']:.0f}"
+    )
+    print(
+        f"study: {st['sessions']} sessions in {st['wall_s']:.1f} s wall ({st['cpu_s']:.1f} s CPU); rerun {st['rerun_with_cache_s']:.1f} s"
+    )
     print(f"wrote {path}")
     return 0
 

@@ -47,15 +47,23 @@ def study_grid() -> tuple[list[str], str]:
 
 def run_variant(work: Path, experiment: str, variant: str | None, tag: str, timeout_s: float) -> dict[str, Any]:
     sweep = work / f"sweep_{tag}"
-    cmd = [sys.executable, "-m", "sphri", "-m", f"+experiment={experiment}", f"output_dir={work}",
-           f"hydra.sweep.dir={sweep}"] + ([f"sensitivity={variant}"] if variant else [])
+    cmd = [
+        sys.executable,
+        "-m",
+        "sphri",
+        "-m",
+        f"+experiment={experiment}",
+        f"output_dir={work}",
+        f"hydra.sweep.dir={sweep}",
+    ] + ([f"sensitivity={variant}"] if variant else [])
     wall = timed(cmd, work / f"{tag}.log", timeout_s)
     runs = job_runs(sweep)
     failed = [r["res"] for r in runs if r["status"] != "FINISHED"]
     if failed:
         raise RuntimeError(f"{tag}: jobs at res {failed} did not finish (log {work / f'{tag}.log'})")
     return {
-        "wall_s": wall, "n_jobs": len(runs),
+        "wall_s": wall,
+        "n_jobs": len(runs),
         "job_s": {str(r["res"]): r["job_s"] for r in runs},
         "accuracy": {str(r["res"]): r["accuracy_mean"] for r in runs},
         "slowest_job": max(runs, key=lambda r: r["job_s"] or 0)["res"],
@@ -83,10 +91,13 @@ def main(argv: list[str] | None = None) -> int:
                 print(f"   {measured[v]['wall_s']:.0f} s for {measured[v]['n_jobs']} jobs", flush=True)
             rest = [v for v in variants if v not in measured]
             result["measured"] = measured
-            result["estimated_study_s"] = (sum(m["wall_s"] for m in measured.values())
-                                           + measured["reference"]["wall_s"] * len(rest))
-            result["estimate_note"] = (f"estimated: measured {sorted(measured)} + the reference's wall time for each of "
-                                       f"{rest} (noise and filter variants cost about what the reference does)")
+            result["estimated_study_s"] = sum(m["wall_s"] for m in measured.values()) + measured["reference"][
+                "wall_s"
+            ] * len(rest)
+            result["estimate_note"] = (
+                f"estimated: measured {sorted(measured)} + the reference's wall time for each of "
+                f"{rest} (noise and filter variants cost about what the reference does)"
+            )
             name = "sensitivity"
         result["machine_after"] = machine()
         path = write_json(name, result)

@@ -52,10 +52,20 @@ from bench_pipeline import STAGES, MemoryProbe, StageProbe, compose_cfg  # noqa:
 from sphri.models.rf import RandomForest  # noqa: E402
 from sphri.types import WindowedFrames  # noqa: E402
 
-FULL = {"participants": [4, 8, 12, 18], "repetitions": [5, 10, 20], "resolutions": [1, 2, 4, 8, 12, 18, 24],
-        "draws": 3, "n_boot": 2000}
-QUICK = {"participants": [4, 8, 12], "repetitions": [5, 10, 20], "resolutions": [1, 2, 4, 8, 12, 18, 24],
-         "draws": 1, "n_boot": 1000}
+FULL = {
+    "participants": [4, 8, 12, 18],
+    "repetitions": [5, 10, 20],
+    "resolutions": [1, 2, 4, 8, 12, 18, 24],
+    "draws": 3,
+    "n_boot": 2000,
+}
+QUICK = {
+    "participants": [4, 8, 12],
+    "repetitions": [5, 10, 20],
+    "resolutions": [1, 2, 4, 8, 12, 18, 24],
+    "draws": 1,
+    "n_boot": 1000,
+}
 
 
 class FeatureForest(RandomForest):
@@ -71,8 +81,12 @@ class FeatureForest(RandomForest):
 def feature_windows(windows: WindowedFrames, features: np.ndarray, rows: np.ndarray) -> WindowedFrames:
     """``windows`` restricted to ``rows``, with ``x`` replaced by the (n, 1, 32) features of those rows."""
     return WindowedFrames(
-        x=features[rows][:, None, :], y=windows.y[rows], groups=windows.groups[rows], geometry=windows.geometry,
-        trial_row=windows.trial_row[rows], n_dropped=0,
+        x=features[rows][:, None, :],
+        y=windows.y[rows],
+        groups=windows.groups[rows],
+        geometry=windows.geometry,
+        trial_row=windows.trial_row[rows],
+        n_dropped=0,
     )
 
 
@@ -83,8 +97,14 @@ def repetition_rank(trials) -> np.ndarray:
     return rank.reindex(trials.index).to_numpy(dtype=np.int64)
 
 
-def loso_scores(model_params: dict, windows: WindowedFrames, features: np.ndarray, rows: np.ndarray,
-                participants: list[str], seed: int) -> tuple[np.ndarray, float, float]:
+def loso_scores(
+    model_params: dict,
+    windows: WindowedFrames,
+    features: np.ndarray,
+    rows: np.ndarray,
+    participants: list[str],
+    seed: int,
+) -> tuple[np.ndarray, float, float]:
     """Per-participant LOSO accuracy (in ``participants`` order), CPU and wall seconds."""
     from sphri.evaluate.cv import LeaveOneSubjectOut
 
@@ -124,20 +144,33 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
             model_params = {k2: v for k2, v in model.get_params().items() if k2 != "geometry"}
         stats = probe.stats
         if k == 0:
-            upstream_cpu = sum(s["cpu_s"] for n, s in stats.items() if n in ("hand", "robot", "data", "contact",
-                                                                              "surface", "plan"))
-        per_res.append({
-            "res": res, "n_taxels": int(windows.x.shape[2]),
-            "pitch_u_mm": describe(p.get("layout"), p.get("surface"))["pitch_u_mm"],
-            "encode_cpu_s": sum(stats[n]["cpu_s"] for n in ("layout", "encode", "noise", "filter") if n in stats) + feat_cpu,
-            "features": features, "windows": windows,
-        })
-        print(f"  res {res:3d}: {windows.x.shape[2]:5d} taxels, encode + features {per_res[-1]['encode_cpu_s']:.1f} s CPU",
-              flush=True)
+            upstream_cpu = sum(
+                s["cpu_s"] for n, s in stats.items() if n in ("hand", "robot", "data", "contact", "surface", "plan")
+            )
+        per_res.append(
+            {
+                "res": res,
+                "n_taxels": int(windows.x.shape[2]),
+                "pitch_u_mm": describe(p.get("layout"), p.get("surface"))["pitch_u_mm"],
+                "encode_cpu_s": sum(stats[n]["cpu_s"] for n in ("layout", "encode", "noise", "filter") if n in stats)
+                + feat_cpu,
+                "features": features,
+                "windows": windows,
+            }
+        )
+        print(
+            f"  res {res:3d}: {windows.x.shape[2]:5d} taxels, encode + features {per_res[-1]['encode_cpu_s']:.1f} s CPU",
+            flush=True,
+        )
         data = p.get("data")
         del windows
-    return {"data": data, "per_res": per_res, "upstream_cpu_s": upstream_cpu, "model_params": model_params,
-            "seed": int(cfg.seed)}
+    return {
+        "data": data,
+        "per_res": per_res,
+        "upstream_cpu_s": upstream_cpu,
+        "model_params": model_params,
+        "seed": int(cfg.seed),
+    }
 
 
 def run_grid(size: dict, prep: dict) -> dict:
@@ -161,8 +194,11 @@ def run_grid(size: dict, prep: dict) -> dict:
         n_draws = 1 if n_p == len(everyone) else size["draws"]
         for n_r in size["repetitions"]:
             for draw in range(n_draws):
-                chosen = everyone[:n_p] if draw == 0 else sorted(
-                    np.random.default_rng([draw, n_p]).choice(everyone, n_p, replace=False).tolist())
+                chosen = (
+                    everyone[:n_p]
+                    if draw == 0
+                    else sorted(np.random.default_rng([draw, n_p]).choice(everyone, n_p, replace=False).tolist())
+                )
                 rows = np.flatnonzero(np.isin(groups, chosen) & (rank < n_r))
                 scores = np.full((n_p, len(res)), np.nan)
                 cpu = wall = 0.0
@@ -173,32 +209,65 @@ def run_grid(size: dict, prep: dict) -> dict:
                     wall += w
                 sat = paired_saturation(scores, RuleSettings().primary, n_boot=size["n_boot"], seed=0)
                 lo, hi = sat.interval if sat.interval is not None else (sat.index, sat.index)
-                cells.append({
-                    "participants": n_p, "repetitions": n_r, "draw": draw, "chosen": chosen,
-                    "n_trials": int(rows.size), "loso_cpu_s": cpu, "loso_wall_s": wall,
-                    "cost_cpu_s": cpu + shared_cpu * rows.size / n_all,
-                    "mean_accuracy": sat.stats.mean.tolist(), "se_accuracy": sat.stats.se.tolist(),
-                    "saturation_res": int(res[sat.index]), "saturation_pitch_mm": float(pitch[sat.index]),
-                    "saturation_index": sat.index, "best_res": int(res[sat.best_index]),
-                    "interval_res": [int(res[lo]), int(res[hi])],
-                    "interval_pitch_mm": [float(pitch[hi]), float(pitch[lo])],
-                    "interval_steps": int(hi - lo), "interval_width_mm": float(pitch[lo] - pitch[hi]),
-                    "at_finest": bool(sat.at_finest), "note": sat.note,
-                })
+                cells.append(
+                    {
+                        "participants": n_p,
+                        "repetitions": n_r,
+                        "draw": draw,
+                        "chosen": chosen,
+                        "n_trials": int(rows.size),
+                        "loso_cpu_s": cpu,
+                        "loso_wall_s": wall,
+                        "cost_cpu_s": cpu + shared_cpu * rows.size / n_all,
+                        "mean_accuracy": sat.stats.mean.tolist(),
+                        "se_accuracy": sat.stats.se.tolist(),
+                        "saturation_res": int(res[sat.index]),
+                        "saturation_pitch_mm": float(pitch[sat.index]),
+                        "saturation_index": sat.index,
+                        "best_res": int(res[sat.best_index]),
+                        "interval_res": [int(res[lo]), int(res[hi])],
+                        "interval_pitch_mm": [float(pitch[hi]), float(pitch[lo])],
+                        "interval_steps": int(hi - lo),
+                        "interval_width_mm": float(pitch[lo] - pitch[hi]),
+                        "at_finest": bool(sat.at_finest),
+                        "note": sat.note,
+                    }
+                )
                 c = cells[-1]
-                print(f"  P={n_p:2d} R={n_r:2d} draw {draw}: {rows.size:4d} trials, saturation res {c['saturation_res']} "
-                      f"[{c['interval_res'][0]}, {c['interval_res'][1]}], acc {max(c['mean_accuracy']):.3f}, "
-                      f"LOSO {cpu:.1f} s CPU", flush=True)
-    ref = next(c for c in cells if c["participants"] == max(size["participants"])
-               and c["repetitions"] == max(size["repetitions"]) and c["draw"] == 0)
+                print(
+                    f"  P={n_p:2d} R={n_r:2d} draw {draw}: {rows.size:4d} trials, saturation res {c['saturation_res']} "
+                    f"[{c['interval_res'][0]}, {c['interval_res'][1]}], acc {max(c['mean_accuracy']):.3f}, "
+                    f"LOSO {cpu:.1f} s CPU",
+                    flush=True,
+                )
+    ref = next(
+        c
+        for c in cells
+        if c["participants"] == max(size["participants"])
+        and c["repetitions"] == max(size["repetitions"])
+        and c["draw"] == 0
+    )
     for c in cells:
         c["steps_from_reference"] = abs(c["saturation_index"] - ref["saturation_index"])
         c["mm_from_reference"] = abs(c["saturation_pitch_mm"] - ref["saturation_pitch_mm"])
         c["reference_in_interval"] = c["interval_res"][0] <= ref["saturation_res"] <= c["interval_res"][1]
-    return {"resolutions": res.tolist(), "pitch_u_mm": pitch.tolist(), "shared_cpu_s": shared_cpu,
-            "cells": cells, "reference": {k: ref[k] for k in ("participants", "repetitions", "saturation_res",
-                                                              "saturation_pitch_mm", "interval_res",
-                                                              "interval_width_mm")}}
+    return {
+        "resolutions": res.tolist(),
+        "pitch_u_mm": pitch.tolist(),
+        "shared_cpu_s": shared_cpu,
+        "cells": cells,
+        "reference": {
+            k: ref[k]
+            for k in (
+                "participants",
+                "repetitions",
+                "saturation_res",
+                "saturation_pitch_mm",
+                "interval_res",
+                "interval_width_mm",
+            )
+        },
+    }
 
 
 def verdict(grid: dict) -> dict:
@@ -207,29 +276,47 @@ def verdict(grid: dict) -> dict:
     for c in grid["cells"]:
         key = (c["participants"], c["repetitions"])
         by.setdefault(key, []).append(c)
-    ref_steps = next(c for c in grid["cells"] if c["participants"] == grid["reference"]["participants"]
-                     and c["repetitions"] == grid["reference"]["repetitions"])["interval_steps"]
+    ref_steps = next(
+        c
+        for c in grid["cells"]
+        if c["participants"] == grid["reference"]["participants"]
+        and c["repetitions"] == grid["reference"]["repetitions"]
+    )["interval_steps"]
     table = []
     for (n_p, n_r), cs in sorted(by.items(), key=lambda kv: np.mean([c["cost_cpu_s"] for c in kv[1]])):
         worst = max(c["steps_from_reference"] for c in cs)
         width = max(c["interval_steps"] for c in cs)
-        table.append({"participants": n_p, "repetitions": n_r, "draws": len(cs),
-                      "cost_cpu_s": float(np.mean([c["cost_cpu_s"] for c in cs])),
-                      "worst_steps_from_reference": worst, "worst_mm_from_reference": max(c["mm_from_reference"] for c in cs),
-                      "widest_interval_steps": width, "widest_interval_mm": max(c["interval_width_mm"] for c in cs),
-                      "stable": bool(worst <= 1 and width <= ref_steps + 1)})
+        table.append(
+            {
+                "participants": n_p,
+                "repetitions": n_r,
+                "draws": len(cs),
+                "cost_cpu_s": float(np.mean([c["cost_cpu_s"] for c in cs])),
+                "worst_steps_from_reference": worst,
+                "worst_mm_from_reference": max(c["mm_from_reference"] for c in cs),
+                "widest_interval_steps": width,
+                "widest_interval_mm": max(c["interval_width_mm"] for c in cs),
+                "stable": bool(worst <= 1 and width <= ref_steps + 1),
+            }
+        )
     # the cheapest size from which every size with at least as many participants and repetitions is
     # stable (a single lucky small cell does not count)
     ok = {(t["participants"], t["repetitions"]): t["stable"] for t in table}
-    settled = [t for t in table if all(v for (p, r), v in ok.items()
-                                       if p >= t["participants"] and r >= t["repetitions"])]
+    settled = [
+        t for t in table if all(v for (p, r), v in ok.items() if p >= t["participants"] and r >= t["repetitions"])
+    ]
     cheapest = settled[0] if settled else None
-    return {"by_size": table, "rule": "stable = every draw's saturation point within one sweep step of the "
-            "largest size's, and its bootstrap interval at most one step wider than the largest size's; "
-            "stable_from = the cheapest size from which every size with at least as many participants and "
-            "repetitions is stable",
-            "stable_from": None if cheapest is None else f"{cheapest['participants']} participants x "
-            f"{cheapest['repetitions']} repetitions ({cheapest['cost_cpu_s']:.0f} s CPU per sweep)"}
+    return {
+        "by_size": table,
+        "rule": "stable = every draw's saturation point within one sweep step of the "
+        "largest size's, and its bootstrap interval at most one step wider than the largest size's; "
+        "stable_from = the cheapest size from which every size with at least as many participants and "
+        "repetitions is stable",
+        "stable_from": None
+        if cheapest is None
+        else f"{cheapest['participants']} participants x "
+        f"{cheapest['repetitions']} repetitions ({cheapest['cost_cpu_s']:.0f} s CPU per sweep)",
+    }
 
 
 def plot(grid: dict, ver: dict, path: Path) -> None:
@@ -244,11 +331,19 @@ def plot(grid: dict, ver: dict, path: Path) -> None:
     markers = dict(zip(reps, "os^Dv"))
     parts = sorted({c["participants"] for c in cells})
     colors = {p: f"C{i}" for i, p in enumerate(parts)}
-    for ax, key, label in ((axes[0], "interval_width_mm", "bootstrap interval width (mm of pitch)"),
-                           (axes[1], "mm_from_reference", "distance from the largest size's point (mm)")):
+    for ax, key, label in (
+        (axes[0], "interval_width_mm", "bootstrap interval width (mm of pitch)"),
+        (axes[1], "mm_from_reference", "distance from the largest size's point (mm)"),
+    ):
         for c in cells:
-            ax.scatter(c["cost_cpu_s"], c[key], color=colors[c["participants"]],
-                       marker=markers[c["repetitions"]], s=45, alpha=0.8)
+            ax.scatter(
+                c["cost_cpu_s"],
+                c[key],
+                color=colors[c["participants"]],
+                marker=markers[c["repetitions"]],
+                s=45,
+                alpha=0.8,
+            )
         pts = sorted((c["cost_cpu_s"], c[key]) for c in cells)
         front, best = [], np.inf
         for x, y in pts:
@@ -272,8 +367,15 @@ def plot(grid: dict, ver: dict, path: Path) -> None:
     for c in cells:
         if c["draw"] != 0:
             continue
-        axes[2].plot(pitch, c["mean_accuracy"], marker=markers[c["repetitions"]], color=colors[c["participants"]],
-                     lw=0.8, ms=4, alpha=0.8)
+        axes[2].plot(
+            pitch,
+            c["mean_accuracy"],
+            marker=markers[c["repetitions"]],
+            color=colors[c["participants"]],
+            lw=0.8,
+            ms=4,
+            alpha=0.8,
+        )
         axes[2].axvline(c["saturation_pitch_mm"], color=colors[c["participants"]], lw=0.5, alpha=0.4)
     axes[2].set_xscale("log")
     axes[2].set_xticks(pitch, [f"{x:.0f}" for x in pitch])
@@ -300,27 +402,41 @@ def main(argv: list[str] | None = None) -> int:
     memory = MemoryProbe()
     start = machine()
     t0 = time.perf_counter()
-    print(f"largest dataset: {max(size['participants'])} participants x {max(size['repetitions'])} repetitions", flush=True)
+    print(
+        f"largest dataset: {max(size['participants'])} participants x {max(size['repetitions'])} repetitions",
+        flush=True,
+    )
     with tempfile.TemporaryDirectory(prefix="sphri-bench-") as tmp:
         prep = prepare(size, memory, tmp)
     grid = run_grid(size, prep)
     ver = verdict(grid)
-    info: dict[str, Any] = {**start, "mode": "quick" if args.quick else "full", "wall_s": time.perf_counter() - t0,
-                            "loadavg_1min_end": machine()["loadavg_1min"], "n_boot": size["n_boot"],
-                            "draws": size["draws"], "model": prep["model_params"]}
+    info: dict[str, Any] = {
+        **start,
+        "mode": "quick" if args.quick else "full",
+        "wall_s": time.perf_counter() - t0,
+        "loadavg_1min_end": machine()["loadavg_1min"],
+        "n_boot": size["n_boot"],
+        "draws": size["draws"],
+        "model": prep["model_params"],
+    }
     ref = grid["reference"]
-    head = {"reference_size": f"{ref['participants']} x {ref['repetitions']}",
-            "reference_saturation_res": ref["saturation_res"],
-            "reference_saturation_pitch_mm": ref["saturation_pitch_mm"],
-            "reference_interval_res": f"{ref['interval_res'][0]}..{ref['interval_res'][1]}",
-            "stable_from": ver["stable_from"] or "none in the grid",
-            "cells": len(grid["cells"]), "total_loso_cpu_s": sum(c["loso_cpu_s"] for c in grid["cells"])}
+    head = {
+        "reference_size": f"{ref['participants']} x {ref['repetitions']}",
+        "reference_saturation_res": ref["saturation_res"],
+        "reference_saturation_pitch_mm": ref["saturation_pitch_mm"],
+        "reference_interval_res": f"{ref['interval_res'][0]}..{ref['interval_res'][1]}",
+        "stable_from": ver["stable_from"] or "none in the grid",
+        "cells": len(grid["cells"]),
+        "total_loso_cpu_s": sum(c["loso_cpu_s"] for c in grid["cells"]),
+    }
     path = write_json("stability", {"info": info, "headline": head, "verdict": ver, "grid": grid})
     plot(grid, ver, OUT / "stability.png")
     for t in ver["by_size"]:
-        print(f"  {t['participants']:2d} x {t['repetitions']:2d}: cost {t['cost_cpu_s']:6.1f} s, worst shift "
-              f"{t['worst_steps_from_reference']} steps ({t['worst_mm_from_reference']:.1f} mm), widest interval "
-              f"{t['widest_interval_steps']} steps, {'stable' if t['stable'] else 'not stable'}")
+        print(
+            f"  {t['participants']:2d} x {t['repetitions']:2d}: cost {t['cost_cpu_s']:6.1f} s, worst shift "
+            f"{t['worst_steps_from_reference']} steps ({t['worst_mm_from_reference']:.1f} mm), widest interval "
+            f"{t['widest_interval_steps']} steps, {'stable' if t['stable'] else 'not stable'}"
+        )
     print(f"  stable from {ver['stable_from']}; {info['wall_s']:.0f} s in all")
     print(f"wrote {path} and {OUT / 'stability.png'}")
     return 0

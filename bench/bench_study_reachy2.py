@@ -33,8 +33,10 @@ from _common import OUT, machine, write_json  # noqa: E402
 
 NAME = "scenario_study_reachy2"
 COMMAND = ["-m", "sphri.coverage", "+experiment=scenario_study", "robot=reachy2", "mlflow=false"]
-SHARED = ("The machine (2 cores) was shared with other agents' jobs while this ran: see loadavg_before/after "
-          "(1, 5, 15 min); wall times are inflated by that load, CPU seconds much less.")
+SHARED = (
+    "The machine (2 cores) was shared with other agents' jobs while this ran: see loadavg_before/after "
+    "(1, 5, 15 min); wall times are inflated by that load, CPU seconds much less."
+)
 
 
 def clear_numba_cache(root: Path) -> int:
@@ -52,18 +54,29 @@ def run(cold_numba: bool) -> dict:
         load0 = os.getloadavg()
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
-        proc = subprocess.run([sys.executable, *COMMAND, f"out={tmp}/out", f"cache.dir={tmp}/cache"], cwd=root,
-                              capture_output=True, text=True)
+        proc = subprocess.run(
+            [sys.executable, *COMMAND, f"out={tmp}/out", f"cache.dir={tmp}/cache"],
+            cwd=root,
+            capture_output=True,
+            text=True,
+        )
         wall = time.perf_counter() - t0
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         if proc.returncode:
             raise SystemExit(f"the study failed (rc {proc.returncode}): {proc.stderr[-2000:]}")
         phases = json.loads((Path(tmp) / "out" / "timing.json").read_text())
         summary = json.loads((Path(tmp) / "out" / "summary.json").read_text())
-    return {"wall_s": wall, "cpu_s": (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime),
-            "phases_s": phases, "numba_cache": "cleared first" if cold_numba else "as left by earlier runs",
-            "numba_files_cleared": cleared, "loadavg_before": list(load0), "loadavg_after": list(os.getloadavg()),
-            "figure_formats": summary["settings"]["figure_formats"], "n_sessions": summary["n_sessions"]}
+    return {
+        "wall_s": wall,
+        "cpu_s": (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime),
+        "phases_s": phases,
+        "numba_cache": "cleared first" if cold_numba else "as left by earlier runs",
+        "numba_files_cleared": cleared,
+        "loadavg_before": list(load0),
+        "loadavg_after": list(os.getloadavg()),
+        "figure_formats": summary["settings"]["figure_formats"],
+        "n_sessions": summary["n_sessions"],
+    }
 
 
 def imported(run_dir: Path) -> dict:
@@ -71,8 +84,12 @@ def imported(run_dir: Path) -> dict:
     grab = lambda pat: float(re.search(pat, log).group(1))  # noqa: E731
     m = re.search(r"Elapsed \(wall clock\) time \(h:mm:ss or m:ss\): (?:(\d+):)?(\d+):([\d.]+)", log)
     wall = float(m.group(1) or 0) * 3600 + float(m.group(2)) * 60 + float(m.group(3))
-    return {"wall_s": wall, "cpu_s": grab(r"User time \(seconds\): ([\d.]+)") + grab(r"System time \(seconds\): ([\d.]+)"),
-            "phases_s": json.loads((run_dir / "out" / "timing.json").read_text()), "source": str(run_dir)}
+    return {
+        "wall_s": wall,
+        "cpu_s": grab(r"User time \(seconds\): ([\d.]+)") + grab(r"System time \(seconds\): ([\d.]+)"),
+        "phases_s": json.loads((run_dir / "out" / "timing.json").read_text()),
+        "source": str(run_dir),
+    }
 
 
 def main() -> None:
@@ -83,9 +100,14 @@ def main() -> None:
     ap.add_argument("--note", default="", help="what else to say about this entry")
     args = ap.parse_args()
     entry = imported(args.import_run) if args.import_run else run(args.cold_numba)
-    entry.update({"machine": machine(), "note": " ".join(x for x in (args.note, SHARED) if x),
-                  "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
-                  "command": "python " + " ".join(COMMAND) + " out=DIR cache.dir=<empty>"})
+    entry.update(
+        {
+            "machine": machine(),
+            "note": " ".join(x for x in (args.note, SHARED) if x),
+            "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+            "command": "python " + " ".join(COMMAND) + " out=DIR cache.dir=<empty>",
+        }
+    )
     path = OUT / f"{NAME}.json"
     data = json.loads(path.read_text()) if path.is_file() else {}
     data[args.label] = entry

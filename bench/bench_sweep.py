@@ -56,8 +56,15 @@ QUICK = {"resolutions": "range(1,51,7)", "n_resolutions": 8, "overrides": ["data
 def sweep_cmd(size: dict, work: Path) -> list[str]:
     """The ``make sweep`` command line, pointed at ``work`` for its cache, MLflow store and sweep dir."""
     return [
-        sys.executable, "-m", "sphri", "-m", "+experiment=resolution_sweep", "model=rf",
-        f"encoder.res={size['resolutions']}", f"output_dir={work}", f"hydra.sweep.dir={work}/sweep",
+        sys.executable,
+        "-m",
+        "sphri",
+        "-m",
+        "+experiment=resolution_sweep",
+        "model=rf",
+        f"encoder.res={size['resolutions']}",
+        f"output_dir={work}",
+        f"hydra.sweep.dir={work}/sweep",
         *size["overrides"],
     ]
 
@@ -90,14 +97,16 @@ def job_runs(sweep_dir: Path) -> list[dict[str, Any]]:
     out = []
     for run in runs:
         m, t = run.data.metrics, run.data.tags
-        out.append({
-            "res": int(run.data.params["encoder.res"]),
-            "status": run.info.status,
-            "accuracy_mean": m.get("accuracy_mean"),
-            "stage_s": {s: float(m.get(f"time/{s}_s", 0.0)) for s in STAGES},
-            "from_cache": [s for s in t.get("sphri.from_cache", "").split(",") if s and s != "none"],
-            "job_s": (run.info.end_time - run.info.start_time) / 1e3 if run.info.end_time else None,
-        })
+        out.append(
+            {
+                "res": int(run.data.params["encoder.res"]),
+                "status": run.info.status,
+                "accuracy_mean": m.get("accuracy_mean"),
+                "stage_s": {s: float(m.get(f"time/{s}_s", 0.0)) for s in STAGES},
+                "from_cache": [s for s in t.get("sphri.from_cache", "").split(",") if s and s != "none"],
+                "job_s": (run.info.end_time - run.info.start_time) / 1e3 if run.info.end_time else None,
+            }
+        )
     return sorted(out, key=lambda r: r["res"])
 
 
@@ -143,7 +152,9 @@ def single_job_baseline(size: dict, work: Path, res: int) -> dict[str, Any]:
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--quick", action="store_true", help="8 resolutions on 4 participants (default: exactly `make sweep`)")
+    parser.add_argument(
+        "--quick", action="store_true", help="8 resolutions on 4 participants (default: exactly `make sweep`)"
+    )
     parser.add_argument("--keep", type=Path, default=None, help="work in this directory and keep it")
     args = parser.parse_args(argv)
     size = QUICK if args.quick else FULL
@@ -167,8 +178,10 @@ def main(argv: list[str] | None = None) -> int:
         parallel = 2  # conf/hydra/launcher/local.yaml: n_jobs
         shares = stage_shares(runs, cold_s, parallel)
         finest = max(r["res"] for r in runs)
-        print(f"sweep cold {cold_s:.0f} s, report {report_s:.0f} s, resume {resume_s:.0f} s; baseline job at res {finest}",
-              flush=True)
+        print(
+            f"sweep cold {cold_s:.0f} s, report {report_s:.0f} s, resume {resume_s:.0f} s; baseline job at res {finest}",
+            flush=True,
+        )
         base = single_job_baseline(size, work, finest)
         result = {
             "machine": env_load,
@@ -181,7 +194,9 @@ def main(argv: list[str] | None = None) -> int:
             "resume_skipped": sum(1 for s in statuses if s.get("status") == "SKIPPED"),
             "jobs": len(runs),
             "jobs_finished": sum(1 for r in runs if r["status"] == "FINISHED"),
-            "contact_computed": sum(1 for r in runs if "contact" not in r["from_cache"] and r["stage_s"]["contact"] > 0),
+            "contact_computed": sum(
+                1 for r in runs if "contact" not in r["from_cache"] and r["stage_s"]["contact"] > 0
+            ),
             **shares,
             "baseline_single_job": base,
             "other_per_job_s": shares["stage_share"]["other"] * shares["worker_s"] / max(1, len(runs)),
@@ -190,11 +205,18 @@ def main(argv: list[str] | None = None) -> int:
         }
         path = write_json(name, result)
         share = ", ".join(f"{k} {v:.0%}" for k, v in result["stage_share"].items() if v >= 0.005)
-        print(f"wrote {path}: {len(runs)} jobs in {cold_s / 60:.1f} min (contact computed by {result['contact_computed']} job); "
-              f"shares: {share}; resume skipped {result['resume_skipped']}/{len(statuses)} in {resume_s:.0f} s; "
-              f"features once vs per fold at res {finest}: {base['features_once_speedup']:.1f}x less CPU", flush=True)
-        ok = (result["jobs_finished"] == size["n_resolutions"] and result["resume_skipped"] == size["n_resolutions"]
-              and result["contact_computed"] == 1 and base["same_fold_accuracies"])
+        print(
+            f"wrote {path}: {len(runs)} jobs in {cold_s / 60:.1f} min (contact computed by {result['contact_computed']} job); "
+            f"shares: {share}; resume skipped {result['resume_skipped']}/{len(statuses)} in {resume_s:.0f} s; "
+            f"features once vs per fold at res {finest}: {base['features_once_speedup']:.1f}x less CPU",
+            flush=True,
+        )
+        ok = (
+            result["jobs_finished"] == size["n_resolutions"]
+            and result["resume_skipped"] == size["n_resolutions"]
+            and result["contact_computed"] == 1
+            and base["same_fold_accuracies"]
+        )
         return 0 if ok else 1
     finally:
         if tmp is not None:

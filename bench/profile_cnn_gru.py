@@ -46,7 +46,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import numpy as np  # noqa: E402
 import torch  # noqa: E402
 import torch.nn.functional as F  # noqa: E402
-
 from _common import machine, write_json  # noqa: E402
 from bench_models import get_windows  # noqa: E402
 
@@ -57,8 +56,27 @@ CATEGORIES = [
     ("conv_forward", ("convolution", "conv2d", "mkldnn_conv")),
     ("gru", ("gru", "rnn", "_thnn_fused")),
     ("optimizer", ("adam", "_foreach", "optimizer")),
-    ("data_movement", ("index", "copy_", "cat", "pad", "to_copy", "clone", "contiguous", "stack", "_to_copy",
-                       "select", "slice", "reshape", "view", "permute", "transpose", "empty")),
+    (
+        "data_movement",
+        (
+            "index",
+            "copy_",
+            "cat",
+            "pad",
+            "to_copy",
+            "clone",
+            "contiguous",
+            "stack",
+            "_to_copy",
+            "select",
+            "slice",
+            "reshape",
+            "view",
+            "permute",
+            "transpose",
+            "empty",
+        ),
+    ),
     ("matmul_linear", ("mm", "addmm", "matmul", "linear", "bmm")),
     ("elementwise", ("relu", "threshold", "add", "mul", "sub", "div", "sigmoid", "tanh")),
 ]
@@ -83,7 +101,7 @@ def matmul_gflops(seconds: float = 1.5, n: int = 1024) -> float:
         while time.process_time() - c0 < seconds:
             a @ b
             k += 1
-        return 2 * n ** 3 * k / (time.process_time() - c0) / 1e9
+        return 2 * n**3 * k / (time.process_time() - c0) / 1e9
     finally:
         torch.set_num_threads(prev)
 
@@ -104,6 +122,7 @@ def profile_res(win, batches: int) -> dict:
     opt = torch.optim.AdamW(net.parameters(), lr=m.lr, weight_decay=m.weight_decay)
     dev = torch.device("cpu")
     from sphri.models.cnn_gru import resolve_precision
+
     m.precision_ = resolve_precision(m.precision, dev)
     xt = torch.from_numpy(np.ascontiguousarray(x[tr]))
     yt = torch.from_numpy(y[tr].astype(np.int64))
@@ -126,7 +145,7 @@ def profile_res(win, batches: int) -> dict:
         step(order[3])
     flops_per_window = counter.get_total_flops() / order[3].numel()
     with torch.profiler.profile(activities=[torch.profiler.ProfilerActivity.CPU]) as prof:
-        for b in order[3:3 + batches]:
+        for b in order[3 : 3 + batches]:
             step(b)
     cats: dict[str, float] = defaultdict(float)
     top = []
@@ -146,7 +165,10 @@ def profile_res(win, batches: int) -> dict:
     m._loss_acc(net, xt[:nva], yt[:nva], dev)
     val = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "trials": nva}
     return {
-        "grid_shape": grid, "n_train": int(xt.shape[0]), "precision": m.precision_, "batches_profiled": batches,
+        "grid_shape": grid,
+        "n_train": int(xt.shape[0]),
+        "precision": m.precision_,
+        "batches_profiled": batches,
         "ops_self_cpu_s": {k: round(v, 3) for k, v in sorted(cats.items(), key=lambda kv: -kv[1])},
         "ops_share": {k: round(v / total, 3) for k, v in sorted(cats.items(), key=lambda kv: -kv[1])},
         "top_ops": [{"op": k, "self_cpu_s": round(v, 3)} for v, k in top[:12]],
@@ -169,9 +191,17 @@ def profile_fit(win, flops_per_window: float | None = None, peak_gflops: float |
     m.fit(win.x[tr], np.asarray(win.y)[tr], groups=g[tr])
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     ran = len(m.history_)
-    out = {"wall_s": round(wall, 1), "cpu_s": round(cpu, 1), "epochs_run": ran, "best_epoch": m.best_epoch_,
-           "epochs_discarded": ran - m.best_epoch_, "discarded_share": round((ran - m.best_epoch_) / ran, 3),
-           "n_train": m.n_train_, "n_val": m.n_val_, "history": m.history_}
+    out = {
+        "wall_s": round(wall, 1),
+        "cpu_s": round(cpu, 1),
+        "epochs_run": ran,
+        "best_epoch": m.best_epoch_,
+        "epochs_discarded": ran - m.best_epoch_,
+        "discarded_share": round((ran - m.best_epoch_) / ran, 3),
+        "n_train": m.n_train_,
+        "n_val": m.n_val_,
+        "history": m.history_,
+    }
     if flops_per_window and peak_gflops:
         floor = m.best_epoch_ * m.n_train_ * flops_per_window / 1e9 / peak_gflops
         out["floor_cpu_s"] = round(floor, 1)
@@ -186,8 +216,11 @@ def sweep_estimate(out: dict, participants: int, reps: int, cores: int = 2) -> d
     from sphri.layout.common import grid_dims
     from sphri.pipeline import make_pipeline
 
-    pts = [(int(np.prod(e["grid_shape"])), e["epoch"]["cpu_s"] + e["validation_pass"]["cpu_s"])
-           for e in out["res"].values() if "epoch" in e]
+    pts = [
+        (int(np.prod(e["grid_shape"])), e["epoch"]["cpu_s"] + e["validation_pass"]["cpu_s"])
+        for e in out["res"].values()
+        if "epoch" in e
+    ]
     pts.sort()
     n_tax = np.array([t for t, _ in pts], dtype=float)
     cost = np.array([c for _, c in pts])
@@ -199,8 +232,15 @@ def sweep_estimate(out: dict, participants: int, reps: int, cores: int = 2) -> d
     e18 = out["res"].get("18", {})
     if fit18 and "epoch" in e18:
         calib = fit18["cpu_s"] / fit18["epochs_run"] / (e18["epoch"]["cpu_s"] + e18["validation_pass"]["cpu_s"])
-    cfg = compose(["data=synthetic", "data.regions=[arm]", f"data.participants={participants}",
-                   f"data.repetitions={reps}", "seed=0"])
+    cfg = compose(
+        [
+            "data=synthetic",
+            "data.regions=[arm]",
+            f"data.participants={participants}",
+            f"data.repetitions={reps}",
+            "seed=0",
+        ]
+    )
     surface = make_pipeline(cfg, StageCache(root=cfg.cache.dir, enabled=bool(cfg.cache.enabled))).get("surface")
     per_res = {}
     for r in range(1, 51):
@@ -209,8 +249,10 @@ def sweep_estimate(out: dict, participants: int, reps: int, cores: int = 2) -> d
     total = sum(per_res.values())
     return {
         "epoch_cpu_s_points": [[int(t), round(float(c), 2)] for t, c in pts],
-        "epochs_per_fit": epochs, "calibration_to_res18_fit": round(float(calib), 3),
-        "folds": participants, "cores": cores,
+        "epochs_per_fit": epochs,
+        "calibration_to_res18_fit": round(float(calib), 3),
+        "folds": participants,
+        "cores": cores,
         "per_res_wall_min": {str(r): round(v / 60, 1) for r, v in per_res.items() if r in (1, 6, 18, 36, 50)},
         "sweep_wall_h": round(float(total) / 3600, 1),
     }
@@ -225,8 +267,13 @@ def main(argv=None) -> int:
     args = ap.parse_args(argv)
     participants, reps = (6, 5) if args.quick else (18, 20)
     torch.set_num_threads(2)
-    out = {"machine": machine(), "quick": args.quick, "threads": torch.get_num_threads(),
-           "matmul_gflops_1_thread": round(matmul_gflops(), 1), "res": {}}
+    out = {
+        "machine": machine(),
+        "quick": args.quick,
+        "threads": torch.get_num_threads(),
+        "matmul_gflops_1_thread": round(matmul_gflops(), 1),
+        "res": {},
+    }
     for res in sorted(set(args.res) | set(args.fit_res)):
         win, source, _ = get_windows("pipeline", res, participants, reps, seed=0)
         entry = {"data_source": source, "windows": list(win.x.shape)}

@@ -55,7 +55,12 @@ def main() -> int:
         t0 = time.perf_counter()
         proc = subprocess.run(cmd, cwd=HERE.parent)
         status[script.stem] = (proc.returncode, time.perf_counter() - t0)
-    lines = ["# sphri benchmarks", "", f"Run: {time.strftime('%Y-%m-%d %H:%M')}, mode {'full' if args.full else 'quick'}.", ""]
+    lines = [
+        "# sphri benchmarks",
+        "",
+        f"Run: {time.strftime('%Y-%m-%d %H:%M')}, mode {'full' if args.full else 'quick'}.",
+        "",
+    ]
     lines += ["| benchmark | exit | wall s |", "| --- | --- | --- |"]
     lines += [f"| {name} | {rc} | {dt:.1f} |" for name, (rc, dt) in status.items()]
     for path in sorted(OUT.glob("*.json")):

@@ -67,8 +67,13 @@ def curves(jobs: pd.DataFrame, base: str | None) -> pd.DataFrame:
     job_mean = jobs.groupby(["group", "res", "seed"])["accuracy"].mean().reset_index()
     out = []
     for (g, r), d in job_mean.groupby(["group", "res"]):
-        row = {"group": g, "res": r, "n_seeds": len(d), "accuracy_mean": d["accuracy"].mean(),
-               "seed_se": _se(d["accuracy"].to_numpy())}
+        row = {
+            "group": g,
+            "res": r,
+            "n_seeds": len(d),
+            "accuracy_mean": d["accuracy"].mean(),
+            "seed_se": _se(d["accuracy"].to_numpy()),
+        }
         if base is not None and g != base:
             a = jobs[(jobs.group == g) & (jobs.res == r)].set_index(["seed", "participant"])["accuracy"]
             b = jobs[(jobs.group == base) & (jobs.res == r)].set_index(["seed", "participant"])["accuracy"]
@@ -103,8 +108,11 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("sweep", type=Path, nargs="+", help="multirun directories (their jobs are pooled)")
     p.add_argument("--output-dir", type=Path, default=Path("outputs"), help="the runs' output_dir (mlartifacts)")
-    p.add_argument("--base", default=None, help="group the others are paired against (default: the one holding "
-                   "'reference', else none)")
+    p.add_argument(
+        "--base",
+        default=None,
+        help="group the others are paired against (default: the one holding 'reference', else none)",
+    )
     args = p.parse_args(argv)
     jobs = load_jobs(args.sweep, args.output_dir)
     groups = sorted(jobs.group.unique())

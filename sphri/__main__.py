@@ -20,8 +20,8 @@ from __future__ import annotations
 import logging
 import os
 import sys
-import traceback
 import time
+import traceback
 import warnings
 from pathlib import Path
 
@@ -30,8 +30,17 @@ from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
-from sphri.config import (CONF_DIR, ConfigError, check_choices, check_inputs, check_output_dir, compose,
-                          normalize_overrides, register_schemas, validate)
+from sphri.config import (
+    CONF_DIR,
+    ConfigError,
+    check_choices,
+    check_inputs,
+    check_output_dir,
+    compose,
+    normalize_overrides,
+    register_schemas,
+    validate,
+)
 from sphri.errors import report, take_verbose_flag, verbose_requested
 
 log = logging.getLogger("sphri")
@@ -65,9 +74,9 @@ def quiet_console() -> None:
 def run_job(cfg: DictConfig) -> dict | None:
     """One job: validate, run the pipeline, track, summarize."""
     from sphri import pipeline
+    from sphri.tracking.mlflow_tracker import summary_text
     from sphri.tracking.parent import read_parent, stop_if_killed, write_status
     from sphri.tracking.store import BrokenStore
-    from sphri.tracking.mlflow_tracker import summary_text
 
     stop_if_killed()  # a serial sweep signalled during an earlier job starts no more jobs
     hc = HydraConfig.get()
@@ -151,17 +160,29 @@ def run_job(cfg: DictConfig) -> dict | None:
     elif tracker.enabled and tracker.log_model:  # asked for explicitly (true)
         # already recorded: log the model into that run unless it holds one (never silently nothing)
         held = tracker.logged_models(cfg.output_dir, run_id)
-        model_note = (f"model already logged in that run: {held[0]}" if held else _log_model(cfg, tracker, run_id))
+        model_note = f"model already logged in that run: {held[0]}" if held else _log_model(cfg, tracker, run_id)
     summary = result.summary()
     from_cache = result.stages["evaluate"].source == "cache" if "evaluate" in result.stages else False
-    write_status(job_dir, job_num, "FINISHED", None, run_id, overrides=swept,
-                  accuracy=summary.get("accuracy_mean"), macro_f1=summary.get("macro_f1_mean"),
-                  seconds=time.perf_counter() - t_start, from_cache=from_cache)
+    write_status(
+        job_dir,
+        job_num,
+        "FINISHED",
+        None,
+        run_id,
+        overrides=swept,
+        accuracy=summary.get("accuracy_mean"),
+        macro_f1=summary.get("macro_f1_mean"),
+        seconds=time.perf_counter() - t_start,
+        from_cache=from_cache,
+    )
     text = summary_text(result)
     (job_dir / "summary.txt").write_text(text + "\n")
     if multirun:  # the job's summary box is in its summary.txt; the sweep prints one line per job and a table
-        say(f"({' '.join(swept)}) accuracy {summary.get('accuracy_mean', float('nan')):.3f}"
-            + (" (from cache)" if from_cache else "") + f"; {job_dir / 'summary.txt'}")
+        say(
+            f"({' '.join(swept)}) accuracy {summary.get('accuracy_mean', float('nan')):.3f}"
+            + (" (from cache)" if from_cache else "")
+            + f"; {job_dir / 'summary.txt'}"
+        )
         return {"run_id": run_id, **summary}
     from sphri.tracking.mlflow_tracker import ui_hint
 
@@ -227,8 +248,11 @@ def hide_schema_options() -> None:
         return
 
     def get_group_options(self, *args, **kwargs):
-        return [name for name in original(self, *args, **kwargs)
-                if not name.endswith("_schema") and name not in INTERNAL_GROUPS]
+        return [
+            name
+            for name in original(self, *args, **kwargs)
+            if not name.endswith("_schema") and name not in INTERNAL_GROUPS
+        ]
 
     get_group_options._sphri_hides_schemas = True  # type: ignore[attr-defined]
     ConfigLoaderImpl.get_group_options = get_group_options  # type: ignore[method-assign]

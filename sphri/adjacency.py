@@ -261,8 +261,9 @@ def _join_seam(lab: np.ndarray, n_lab: int, wrap: bool, diagonal: bool) -> np.nd
     return comp
 
 
-def _component_weight_grid(active: np.ndarray, tw: np.ndarray, grid_shape: tuple[int, int], wrap: bool,
-                           diagonal: bool) -> np.ndarray:
+def _component_weight_grid(
+    active: np.ndarray, tw: np.ndarray, grid_shape: tuple[int, int], wrap: bool, diagonal: bool
+) -> np.ndarray:
     """Grid path of :meth:`Adjacency.component_weight`."""
     m, n = active.shape
     h, wd = grid_shape

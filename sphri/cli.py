@@ -29,6 +29,7 @@ from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, check_inputs, co
 from sphri.errors import clean_errors
 from sphri.stages import PARAM_GROUPS, STAGE_GROUPS
 
+
 def components(group: str) -> list[tuple[str, str]]:
     """(name, one-line description) of each YAML file in ``conf/<group>/``."""
     folder = CONF_DIR / group
@@ -235,16 +236,32 @@ def cmd_warmup() -> int:
     print("compiling sphri's numba kernels into numba's cache (once per machine and sphri version)...", flush=True)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="sphri-warmup-") as tmp:
-        run = subprocess.run([sys.executable, "-m", "sphri", "+debug=fast", "tracking.enabled=false",
-                              f"output_dir={tmp}", f"hydra.run.dir={tmp}/run"],
-                             cwd=tmp, capture_output=True, text=True)
+        run = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "sphri",
+                "+debug=fast",
+                "tracking.enabled=false",
+                f"output_dir={tmp}",
+                f"hydra.run.dir={tmp}/run",
+            ],
+            cwd=tmp,
+            capture_output=True,
+            text=True,
+        )
     seconds = time.perf_counter() - t0
     if run.returncode != 0:
         tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
         print(f"sphri: warmup failed after {seconds:.0f} s: {tail[0]}", file=sys.stderr)
         return 1
-    compiled = [line.split("compiled ", 1)[1] for line in (run.stdout + run.stderr).splitlines() if "numba kernels in" in line]
-    print(f"done in {seconds:.1f} s: " + (f"compiled {compiled[-1]}" if compiled else "every kernel was already in the cache"))
+    compiled = [
+        line.split("compiled ", 1)[1] for line in (run.stdout + run.stderr).splitlines() if "numba kernels in" in line
+    ]
+    print(
+        f"done in {seconds:.1f} s: "
+        + (f"compiled {compiled[-1]}" if compiled else "every kernel was already in the cache")
+    )
     return 0
 
 
@@ -256,13 +273,22 @@ def main(argv: list[str] | None = None) -> int:
     p_list.add_argument("groups", nargs="*", help="groups to list (default: all)")
     p_show = sub.add_parser("show", help="every setting of the chosen components: value, default, meaning")
     p_show.add_argument("overrides", nargs="*", help="choices and overrides, e.g. encoder=coverage noise.p=0.05")
-    p_show.add_argument("--group", action="append", default=None,
-                        help="groups to show (default: those named in the overrides, else every group)")
+    p_show.add_argument(
+        "--group",
+        action="append",
+        default=None,
+        help="groups to show (default: those named in the overrides, else every group)",
+    )
     p_val = sub.add_parser("validate", help="compose and check a config without running it")
-    p_val.add_argument("overrides", nargs="*",
-                       help="overrides as for python -m sphri; a sweep (-m, a,b,c, range(), +experiment=...) checks every job")
-    sub.add_parser("warmup", help="compile sphri's numba kernels into numba's cache now (make install runs it), "
-                                  "so the first job does not")
+    p_val.add_argument(
+        "overrides",
+        nargs="*",
+        help="overrides as for python -m sphri; a sweep (-m, a,b,c, range(), +experiment=...) checks every job",
+    )
+    sub.add_parser(
+        "warmup",
+        help="compile sphri's numba kernels into numba's cache now (make install runs it), so the first job does not",
+    )
     args, extra = parser.parse_known_args(argv)
     if extra and args.cmd != "validate":
         parser.error(f"unrecognized arguments: {' '.join(extra)}")

@@ -182,19 +182,21 @@ def decode(tree: Any, arrays: Any) -> Any:
             fields = {f.name: f for f in dataclasses.fields(cls)}
             if set(stored) != set(fields):
                 missing, extra = sorted(set(fields) - set(stored)), sorted(set(stored) - set(fields))
-                raise DecodeError(f"{cls.__qualname__}: fields differ from the contract (missing {missing}, unknown {extra})")
-            values = {k: dec(v) for k, v in stored.items()}
+                raise DecodeError(
+                    f"{cls.__qualname__}: fields differ from the contract (missing {missing}, unknown {extra})"
+                )
+            decoded = {k: dec(v) for k, v in stored.items()}
             try:
                 hints = typing.get_type_hints(cls)
             except Exception:  # an annotation that cannot be evaluated: skip the shallow checks
                 hints = {}
-            for k, v in values.items():
+            for k, v in decoded.items():
                 if k in hints:
                     _check_field(cls, k, hints[k], v)
-            obj = cls(**{k: v for k, v in values.items() if fields[k].init})
+            obj = cls(**{k: v for k, v in decoded.items() if fields[k].init})
             for k, f in fields.items():
                 if not f.init:
-                    object.__setattr__(obj, k, values[k])
+                    object.__setattr__(obj, k, decoded[k])
             check = getattr(obj, "check_decoded", None)
             if callable(check):  # the class's own consistency rules (ValueError naming the field)
                 check()

@@ -61,9 +61,9 @@ def split_line(line: str) -> tuple[str, str]:
         return line, ""
     head, _, word = line.rpartition(" ")
     prefix = word[0] if word[:1] in ("+", "~") else ""
-    body = word[len(prefix):]
+    body = word[len(prefix) :]
     cut = max(body.rfind("."), body.rfind("="), body.rfind("/"))
-    return head + " ", prefix + body[:cut + 1]
+    return head + " ", prefix + body[: cut + 1]
 
 
 def is_path_word(line: str) -> bool:

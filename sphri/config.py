@@ -16,9 +16,10 @@ import importlib
 import math
 import os
 import re
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Optional, Sequence
+from typing import Any
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
@@ -198,7 +199,7 @@ class RootConfig:
     tracking: Any = None
     debug: Any = None
     experiment: Any = None
-    variant: Optional[str] = None
+    variant: str | None = None
     """Name of the assumption variant a job belongs to (set by ``conf/sensitivity/<name>.yaml``; the
     report computes the requirement per variant). None outside a sensitivity study."""
 
@@ -269,14 +270,18 @@ def check_choices(overrides: Sequence[str]) -> None:
         if isinstance(o.value(), Glob):  # glob(...) picks among the options (Hydra needs its loader to expand it)
             values = o.value().filter([x for x in options if not x.endswith("_schema")])
             if not values:
-                raise ConfigError(f"{o.input_line} is invalid: the glob matches no {group} "
-                                  f"option; options: {', '.join(x for x in options if not x.endswith('_schema'))}")
+                raise ConfigError(
+                    f"{o.input_line} is invalid: the glob matches no {group} "
+                    f"option; options: {', '.join(x for x in options if not x.endswith('_schema'))}"
+                )
             continue
         values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]
         for value in values:
             if isinstance(value, str) and value not in options:
-                raise ConfigError(f"{group}={value} is invalid: no such {group} option; options: "
-                                  f"{', '.join(options)}{close_match(value, options)}")
+                raise ConfigError(
+                    f"{group}={value} is invalid: no such {group} option; options: "
+                    f"{', '.join(options)}{close_match(value, options)}"
+                )
 
 
 def compose(overrides: Sequence[str] = (), config_name: str = "config", check: bool = True) -> DictConfig:
@@ -322,8 +327,12 @@ def _check_bool_overrides(cfg: DictConfig, overrides: Sequence[str]) -> None:
             given = yaml.safe_load(text)
         except Exception:  # noqa: BLE001 - not a plain key=value: Hydra has judged it already
             continue
-        if isinstance(value, bool) and isinstance(given, (int, float)) and not isinstance(given, bool) \
-                and not (given in (0, 1) and type(given) is int):
+        if (
+            isinstance(value, bool)
+            and isinstance(given, (int, float))
+            and not isinstance(given, bool)
+            and not (given in (0, 1) and type(given) is int)
+        ):
             raise ConfigError(f"{key.strip()}={text} is invalid: must be true or false")
 
 
@@ -375,8 +384,9 @@ def _explain(exc: BaseException) -> str:
         if isinstance(cause, (ConfigKeyError, ConfigAttributeError)) and dataclasses.is_dataclass(typ):
             names = [f.name for f in dataclasses.fields(typ) if f.name != "_target_"]
             owner = key.rsplit(".", 1)[0] if "." in key else "the top level"
-            return (f"{key} is not a known key{close_match(key.rsplit('.', 1)[-1], names)}; "
-                    f"{owner} has: {', '.join(names)}")
+            return (
+                f"{key} is not a known key{close_match(key.rsplit('.', 1)[-1], names)}; {owner} has: {', '.join(names)}"
+            )
         first = next((ln.strip() for ln in str(cause).splitlines() if ln.strip()), type(cause).__name__)
         if isinstance(cause, ValidationError):
             return f"{key} is invalid: {first}"
@@ -400,8 +410,10 @@ def check_output_dir(output_dir: str) -> None:
         limit = 255
     long = [part for part in path.parts if len(part.encode()) > limit]
     if long:
-        raise ConfigError(f"output_dir is invalid: the name {long[0][:40]}... is {len(long[0].encode())} bytes long, "
-                          f"more than this file system's {limit}")
+        raise ConfigError(
+            f"output_dir is invalid: the name {long[0][:40]}... is {len(long[0].encode())} bytes long, "
+            f"more than this file system's {limit}"
+        )
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():
@@ -477,7 +489,9 @@ def check_known_keys(cfg: DictConfig, prefix: str = "") -> None:
     if dataclasses.is_dataclass(typ):
         names = [f.name for f in dataclasses.fields(typ)]
         for key in cfg.keys():
-            if key not in names and not (prefix == "" and key == "hydra"):  # Hydra's own node (compose with return_hydra_config)
+            if key not in names and not (
+                prefix == "" and key == "hydra"
+            ):  # Hydra's own node (compose with return_hydra_config)
                 full = f"{prefix}{key}"
                 raise ConfigError(
                     f"{full} is not a known key{close_match(str(key), names)}; "
@@ -489,7 +503,6 @@ def check_known_keys(cfg: DictConfig, prefix: str = "") -> None:
         node = cfg._get_node(key)
         if isinstance(node, DictConfig) and not node._is_missing() and not node._is_none():
             check_known_keys(node, f"{prefix}{key}.")
-
 
 
 def field_docs(schema: type) -> dict[str, str]:
@@ -513,9 +526,13 @@ def field_docs(schema: type) -> dict[str, str]:
             continue
         body = tree.body[0].body if tree.body and isinstance(tree.body[0], ast.ClassDef) else []
         for stmt, nxt in zip(body, body[1:]):
-            if (isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name)
-                    and isinstance(nxt, ast.Expr) and isinstance(nxt.value, ast.Constant)
-                    and isinstance(nxt.value.value, str)):
+            if (
+                isinstance(stmt, ast.AnnAssign)
+                and isinstance(stmt.target, ast.Name)
+                and isinstance(nxt, ast.Expr)
+                and isinstance(nxt.value, ast.Constant)
+                and isinstance(nxt.value.value, str)
+            ):
                 out[stmt.target.id] = " ".join(nxt.value.value.split())
     return out
 

@@ -28,9 +28,10 @@ import json
 import logging
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
@@ -66,7 +67,7 @@ def split_args(argv: Sequence[str]) -> tuple[list[str], list[str], dict[str, str
         key, eq, value = arg.partition("=")
         if not eq:
             raise ConfigError(f"argument {arg!r} is invalid: expected key=value")
-        bare = key[len("coverage."):] if key.startswith("coverage.") else key
+        bare = key[len("coverage.") :] if key.startswith("coverage.") else key
         if bare in ANALYSIS_KEYS:
             analysis.append(f"{bare}={value}")
         elif bare in RUN_KEYS:
@@ -109,8 +110,12 @@ def analysis_from(settings: CoverageSchema) -> CoverageAnalysis:
     return CoverageAnalysis(**kwargs)
 
 
-def run(overrides: Sequence[str] = (), settings: CoverageSchema | None = None, out: str | Path | None = None,
-        log_mlflow: bool = True) -> CoverageRun:
+def run(
+    overrides: Sequence[str] = (),
+    settings: CoverageSchema | None = None,
+    out: str | Path | None = None,
+    log_mlflow: bool = True,
+) -> CoverageRun:
     """Analyse every region of the composed config's data; write files; log MLflow."""
     from sphri.pipeline import make_pipeline, open_cache
 
@@ -150,13 +155,23 @@ def run(overrides: Sequence[str] = (), settings: CoverageSchema | None = None, o
         results[region] = result
         seconds[f"{region}.stages"] = t1 - t0
         seconds[f"{region}.analysis"] = time.perf_counter() - t1
-        meta = {"dataset": dataset.name, "synthetic": bool(dataset.synthetic), "robot": robot.name,
-                "n_participants": int(dataset.trials["participant"].nunique())}
+        meta = {
+            "dataset": dataset.name,
+            "synthetic": bool(dataset.synthetic),
+            "robot": robot.name,
+            "n_participants": int(dataset.trials["participant"].nunique()),
+        }
         log.info("coverage %s: %s", region, result.sentences[ALL])
-    (out_dir / "settings.json").write_text(json.dumps(
-        {"coverage": dataclasses.asdict(settings), "overrides": overrides, "regions": regions, **meta}, indent=2))
+    (out_dir / "settings.json").write_text(
+        json.dumps(
+            {"coverage": dataclasses.asdict(settings), "overrides": overrides, "regions": regions, **meta}, indent=2
+        )
+    )
     (out_dir / "recommendation.txt").write_text(
-        "".join(f"[{r}]\n" + "\n".join(res.sentences[n] for n in [ALL] + res.groups) + "\n\n" for r, res in results.items()))
+        "".join(
+            f"[{r}]\n" + "\n".join(res.sentences[n] for n in [ALL] + res.groups) + "\n\n" for r, res in results.items()
+        )
+    )
     result = CoverageRun(out_dir, results, files, None, seconds)
     if log_mlflow:
         result.mlflow_run_id = log_coverage(base, settings, result, overrides, meta)
@@ -182,12 +197,17 @@ def log_coverage(cfg, settings: CoverageSchema, cov: CoverageRun, overrides: Seq
         "sphri.git_commit": git_commit(),
         "sphri.coverage_dir": str(cov.out_dir.resolve()),
         "mlflow.note.content": "\n\n".join(
-            f"[{r}]\n" + "\n".join(res.sentences[n] for n in [ALL] + res.groups) for r, res in cov.regions.items()),
+            f"[{r}]\n" + "\n".join(res.sentences[n] for n in [ALL] + res.groups) for r, res in cov.regions.items()
+        ),
     }
     run = tracker._retry(lambda: client.create_run(exp, tags=tags, run_name=f"coverage-by-{settings.by}"))
     run_id = run.info.run_id
     try:
-        params = {k: v for k, v in flatten_params(cfg).items() if k.split(".")[0] in ("seed", "data", "robot", "contact", "surface")}
+        params = {
+            k: v
+            for k, v in flatten_params(cfg).items()
+            if k.split(".")[0] in ("seed", "data", "robot", "contact", "surface")
+        }
         params.update({f"coverage.{k}": str(getattr(settings, k)) for k in ANALYSIS_KEYS})
         params["coverage.regions"] = ",".join(cov.regions)
         now = int(time.time() * 1000)
@@ -195,11 +215,18 @@ def log_coverage(cfg, settings: CoverageSchema, cov: CoverageRun, overrides: Seq
         for region, res in cov.regions.items():
             summ = res.summary()
             for g, entry in summ["groups"].items():
-                for key in ("area_share_at_capture", "n_contact_frames", "heldout_captured_mean", "heldout_area_share_mean"):
+                for key in (
+                    "area_share_at_capture",
+                    "n_contact_frames",
+                    "heldout_captured_mean",
+                    "heldout_area_share_mean",
+                ):
                     if key in entry:
                         metrics.append(Metric(f"{region}/{key}/{_metric_name(g)}", float(entry[key]), now, 0))
             if "comparison" in summ:
-                metrics.append(Metric(f"{region}/n_significant_pairs", float(summ["comparison"]["n_significant"]), now, 0))
+                metrics.append(
+                    Metric(f"{region}/n_significant_pairs", float(summ["comparison"]["n_significant"]), now, 0)
+                )
                 for row in res.comparison.table.itertuples(index=False):
                     name = f"{_metric_name(row.cond_a)}-{_metric_name(row.cond_b)}"
                     if row.p_holm == row.p_holm:
@@ -242,7 +269,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(s)
         for n in res.notes:
             print("note: " + n)
-        print(f"files: {res.out_dir} (report.html)" + (f"; MLflow run {res.mlflow_run_id}" if res.mlflow_run_id else ""))
+        print(
+            f"files: {res.out_dir} (report.html)" + (f"; MLflow run {res.mlflow_run_id}" if res.mlflow_run_id else "")
+        )
         return 0
     for region, r in res.regions.items():
         print(f"[{region}] {r.link}: {r.samples.n} elements, {r.curves[ALL].n_frames} contact frames")
@@ -251,11 +280,15 @@ def main(argv: Sequence[str] | None = None) -> int:
             print("  " + r.sentences[n])
             g = summary.get(n, {})
             if "heldout_captured_mean" in g:  # the in-sample sentence is optimistic: say what held-out people get
-                print(f"    on held-out participants the same area captures {g['heldout_captured_mean']:.0%} "
-                      f"of their contact frames (worst participant {g['heldout_captured_min']:.0%})")
+                print(
+                    f"    on held-out participants the same area captures {g['heldout_captured_mean']:.0%} "
+                    f"of their contact frames (worst participant {g['heldout_captured_min']:.0%})"
+                )
         if r.comparison is not None:
             t = r.comparison.table
-            print(f"  {int(t['significant'].sum())}/{len(t)} pairs of {r.by} differ (Holm, alpha {r.comparison.alpha:g})")
+            print(
+                f"  {int(t['significant'].sum())}/{len(t)} pairs of {r.by} differ (Holm, alpha {r.comparison.alpha:g})"
+            )
         for note in r.notes:
             print(f"  note: {note}")
     print(f"files: {res.out_dir}" + (f"; MLflow run {res.mlflow_run_id}" if res.mlflow_run_id else ""))

@@ -16,7 +16,7 @@ import functools
 import os
 import sys
 import traceback
-from typing import Callable, Sequence
+from collections.abc import Callable, Sequence
 
 #: Command-line flag that shows tracebacks (removed from argv before parsing).
 VERBOSE_FLAG = "--verbose"

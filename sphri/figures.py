@@ -26,10 +26,10 @@ from __future__ import annotations
 import logging
 import os
 import re
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator, Sequence
 
 log = logging.getLogger(__name__)
 
@@ -157,8 +157,16 @@ def mark(fig, provenance: Provenance) -> None:
     if provenance.ids:
         parts.append(provenance.ids)
     if parts:
-        fig.text(0.995, 0.995, " | ".join(parts), ha="right", va="top", fontsize=MIN_FONT_PT,
-                 color=BANNER_COLOURS[bool(provenance.synthetic)], gid="sphri-banner")
+        fig.text(
+            0.995,
+            0.995,
+            " | ".join(parts),
+            ha="right",
+            va="top",
+            fontsize=MIN_FONT_PT,
+            color=BANNER_COLOURS[bool(provenance.synthetic)],
+            gid="sphri-banner",
+        )
         engine = fig.get_layout_engine()
         if engine is not None and hasattr(engine, "set") and "rect" in engine.get():
             # keep a strip for the marks: constrained layout lays titles and legends out below it
@@ -263,8 +271,11 @@ def _text_over_data(ax, renderer) -> list[str]:
             if len(pts) >= 2 and line.get_linestyle() not in ("None", "", " ", "none"):
                 hit = MplPath(pts).intersects_bbox(box, filled=False)
             if not hit and line.get_marker() not in (None, "None", "", " ", "none"):
-                hit = bool(np.any((pts[:, 0] >= box.x0) & (pts[:, 0] <= box.x1) & (pts[:, 1] >= box.y0)
-                                  & (pts[:, 1] <= box.y1)))
+                hit = bool(
+                    np.any(
+                        (pts[:, 0] >= box.x0) & (pts[:, 0] <= box.x1) & (pts[:, 1] >= box.y0) & (pts[:, 1] <= box.y1)
+                    )
+                )
             if hit:
                 out.append(f"text {t.get_text()[:40]!r} lies over the data line {line.get_label()[:40]!r}")
                 break
@@ -276,7 +287,6 @@ def _span_problems(ax) -> list[str]:
     axis' width: the view was widened past the data (a reference line, a fixed limit), leaving it empty.
     Axes holding a map (an image, contours, a mesh) are filled by it and not checked."""
     import numpy as np
-
     from matplotlib.collections import QuadMesh
     from matplotlib.contour import ContourSet
 
@@ -290,8 +300,10 @@ def _span_problems(ax) -> list[str]:
         return []
     share = (x.max() - x.min()) / ax.bbox.width
     if share < MIN_DATA_SPAN:
-        return [f"data span {100 * share:.0f} % of the axis width (< {100 * MIN_DATA_SPAN:.0f} %): empty space "
-                f"in {ax.get_title(loc='left') or ax.get_title() or 'a panel'!r}"]
+        return [
+            f"data span {100 * share:.0f} % of the axis width (< {100 * MIN_DATA_SPAN:.0f} %): empty space "
+            f"in {ax.get_title(loc='left') or ax.get_title() or 'a panel'!r}"
+        ]
     return []
 
 
@@ -358,8 +370,9 @@ def only_formats(formats: Sequence[str]) -> Iterator[None]:
         _formats.pop()
 
 
-def save(fig, path: Path | str, formats: Sequence[str] | None = None, close: bool = True,
-         check: bool = True) -> list[Path]:
+def save(
+    fig, path: Path | str, formats: Sequence[str] | None = None, close: bool = True, check: bool = True
+) -> list[Path]:
     """Write ``fig`` as ``path`` and its siblings in the other ``formats`` (same stem; default
     :data:`FORMATS`, or those of the enclosing :func:`only_formats`).
 

@@ -26,8 +26,9 @@ import importlib
 import json
 import logging
 import os
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
@@ -41,8 +42,9 @@ MEMO_NAME = "fingerprints.json"
 _CHUNK = 1 << 20
 
 
-def input_path(default: Any = None, *, kind: str = "file", relative_to: str | None = None,
-               references: str | None = None) -> Any:
+def input_path(
+    default: Any = None, *, kind: str = "file", relative_to: str | None = None, references: str | None = None
+) -> Any:
     """A schema field naming what the component reads (see the module docstring).
 
     ``kind``: ``file`` (a path), ``dir`` (a folder: every file below it, hidden
@@ -117,7 +119,9 @@ def _files_below(root: Path, exclude: frozenset[Path] = frozenset()) -> list[Pat
     """Regular files below ``root`` (sorted; hidden names and the ``exclude`` folders skipped)."""
     out = []
     for dirpath, dirnames, filenames in os.walk(root):
-        dirnames[:] = sorted(d for d in dirnames if not d.startswith(".") and Path(dirpath, d).absolute() not in exclude)
+        dirnames[:] = sorted(
+            d for d in dirnames if not d.startswith(".") and Path(dirpath, d).absolute() not in exclude
+        )
         out += [Path(dirpath) / f for f in sorted(filenames) if not f.startswith(".")]
     return out
 

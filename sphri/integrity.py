@@ -36,7 +36,6 @@ NO_KEY = bytes(DIGEST_SIZE)
 KEY_ENV = {"cache": "SPHRI_CACHE_KEY", "model": "SPHRI_MODEL_KEY"}
 
 
-
 def plain_digest(*parts: bytes) -> bytes:
     """BLAKE2b-256 of the length-framed ``parts``."""
     h = hashlib.blake2b(digest_size=DIGEST_SIZE)

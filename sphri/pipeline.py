@@ -22,8 +22,9 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 from hydra.utils import get_class, instantiate
@@ -36,6 +37,7 @@ from sphri.stages import CONTRACTS, PERSISTED, STAGE_BY_NAME, STAGE_GROUPS, stag
 from sphri.types import CVResult, FoldRecord, GestureDataset, RunMeta, TaxelGeometry
 
 log = logging.getLogger(__name__)
+
 
 @dataclass
 class StageRecord:
@@ -95,8 +97,14 @@ class Pipeline:
     """Per stage being computed (a stack): wall seconds its upstream stages took."""
     _computing: list[str] = field(default_factory=list, repr=False)
 
-    def add(self, name: str, config: Any, compute: Callable[[], Any], extra: dict[str, Any] | None = None,
-            files: dict[str, str] | None = None) -> str:
+    def add(
+        self,
+        name: str,
+        config: Any,
+        compute: Callable[[], Any],
+        extra: dict[str, Any] | None = None,
+        files: dict[str, str] | None = None,
+    ) -> str:
         """Declare stage ``name`` of :data:`sphri.stages.STAGES`; returns its cache key.
 
         Its inputs come from the stage table (their keys enter this key) and
@@ -115,12 +123,17 @@ class Pipeline:
         files = dict(files or {})
         upstream_nodes = [self.nodes[n] for n in used]
         key = stage_key(name, version, config, {**inputs, **({"files": files} if files else {})})
-        path_inputs = {**inputs, **{n.name: n.path_key for n in upstream_nodes}, **({"files": sorted(files)} if files else {})}
+        path_inputs = {
+            **inputs,
+            **{n.name: n.path_key for n in upstream_nodes},
+            **({"files": sorted(files)} if files else {}),
+        }
         path_key = stage_key(name, version, config, path_inputs)
         all_files = {k: v for n in upstream_nodes for k, v in n.files.items()} | files
         reads = frozenset(used).union(*(n.reads for n in upstream_nodes))
-        self.nodes[name] = _Node(name, key, compute, persist=name in PERSISTED, path_key=path_key, files=all_files,
-                                 reads=reads)
+        self.nodes[name] = _Node(
+            name, key, compute, persist=name in PERSISTED, path_key=path_key, files=all_files, reads=reads
+        )
         return key
 
     def get(self, name: str) -> Any:
@@ -155,8 +168,9 @@ class Pipeline:
 
         try:
             if node.persist:
-                node.value = self.cache.get_or_compute(name, node.key, compute, contract=CONTRACTS.get(name),
-                                                       files=node.files, path_key=node.path_key)
+                node.value = self.cache.get_or_compute(
+                    name, node.key, compute, contract=CONTRACTS.get(name), files=node.files, path_key=node.path_key
+                )
             else:
                 node.value = compute()
         finally:
@@ -245,8 +259,9 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
     """Wire the stages for ``cfg``; nothing is computed until :meth:`Pipeline.get`."""
     region = chain_region(cfg)
     groups = [g for g in STAGE_GROUPS if g != "tracking"]
-    p = Pipeline(cfg, cache, components={g: build(cfg[g]) for g in groups if g != "model"},
-                 versions=component_versions(cfg))
+    p = Pipeline(
+        cfg, cache, components={g: build(cfg[g]) for g in groups if g != "model"}, versions=component_versions(cfg)
+    )
     comp = p.components
     res = int(cfg.encoder.res)
     seed = int(cfg.seed)
@@ -261,27 +276,43 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
 
     p.add("hand", result_config(cfg.hand), lambda: comp["hand"].build(), files=files("hand"))
     p.add("robot", result_config(cfg.robot), lambda: comp["robot"].build(), files=files("robot"))
+
     def data():
         # a component that declares USES_ROBOT = False (a recorded dataset) gets no robot
         robot = p.get("robot") if "robot" in p.nodes["data"].reads else None
         return comp["data"].load(hand=p.get("hand"), robot=robot)
 
     p.add("data", result_config(cfg.data), data, files=files("data"))
-    p.add("contact", result_config(cfg.contact),
-          lambda: comp["contact"].compute(p.get("data"), p.get("robot")), files=files("contact"))
-    p.add("surface", result_config(cfg.surface), lambda: comp["surface"].fit(link()), extra={"region": region},
-          files=files("surface"))
+    p.add(
+        "contact",
+        result_config(cfg.contact),
+        lambda: comp["contact"].compute(p.get("data"), p.get("robot")),
+        files=files("contact"),
+    )
+    p.add(
+        "surface",
+        result_config(cfg.surface),
+        lambda: comp["surface"].fit(link()),
+        extra={"region": region},
+        files=files("surface"),
+    )
 
     def layout():
         extra = {"contacts": p.get("contact")} if "contact" in p.nodes["layout"].reads else {}
         return comp["layout"].build(link(), p.get("surface"), res, **extra)
 
     p.add("layout", {"layout": result_config(cfg.layout), "res": res}, layout, files=files("layout"))
-    p.add("plan", result_config(cfg.window), lambda: comp["window"].plan(p.get("contact"), p.get("data")),
-          files=files("window"))
+    p.add(
+        "plan",
+        result_config(cfg.window),
+        lambda: comp["window"].plan(p.get("contact"), p.get("data")),
+        files=files("window"),
+    )
 
     def encode():
-        return comp["encoder"].encode(p.get("contact"), link(), p.get("surface"), p.get("layout"), p.get("plan").selected_frames())
+        return comp["encoder"].encode(
+            p.get("contact"), link(), p.get("surface"), p.get("layout"), p.get("plan").selected_frames()
+        )
 
     p.add("encode", result_config(cfg.encoder), encode, files=files("encoder"))
 
@@ -295,8 +326,13 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         return apply_to_windows(comp["noise"], windows, trial_keys(dataset)[windows.trial_row], seed)
 
     # assembling the windows is the window component's: its version enters the key
-    p.add("noise", {"noise": result_config(cfg.noise), "seed": seed}, noise, extra={"window": p.versions["window"]},
-          files=files("noise"))
+    p.add(
+        "noise",
+        {"noise": result_config(cfg.noise), "seed": seed},
+        noise,
+        extra={"window": p.versions["window"]},
+        files=files("noise"),
+    )
     p.add("filter", result_config(cfg.filter), lambda: comp["filter"].apply(p.get("noise")), files=files("filter"))
 
     def evaluate():
@@ -312,13 +348,20 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
 
         run_cv = comp["cv"].run
         # finished folds are kept in the cache as they come (a plugin CV without ``resume`` runs as before)
-        kw = ({"resume": FoldCache(cache, p.nodes["evaluate"].key)}
-              if cache.enabled and _accepts(run_cv, "resume") else {})
+        kw = (
+            {"resume": FoldCache(cache, p.nodes["evaluate"].key)}
+            if cache.enabled and _accepts(run_cv, "resume")
+            else {}
+        )
         result = run_cv(make_model, windows, seed, **kw)
         return result, run_meta(cfg, dataset, p.get("robot"), region, p.get("surface"), p.get("layout"), windows)
 
-    p.add("evaluate", {"model": result_config(cfg.model), "cv": result_config(cfg.cv), "seed": seed}, evaluate,
-          files=files("model", "cv"))
+    p.add(
+        "evaluate",
+        {"model": result_config(cfg.model), "cv": result_config(cfg.cv), "seed": seed},
+        evaluate,
+        files=files("model", "cv"),
+    )
     return p
 
 
@@ -370,8 +413,10 @@ def participant_warnings(cfg, dataset, windows) -> list[str]:
     out = []
     lost = [p for p in loaded if p not in have]
     if lost:
-        out.append(f"participant(s) {lost} have no window with contact: {cfg.cv.get('_target_', '').rsplit('.', 1)[-1]} "
-                   f"runs on {len(have)} of {len(loaded) + empty} participants")
+        out.append(
+            f"participant(s) {lost} have no window with contact: {cfg.cv.get('_target_', '').rsplit('.', 1)[-1]} "
+            f"runs on {len(have)} of {len(loaded) + empty} participants"
+        )
     if empty:
         out.append(f"{empty} participant(s) without a usable trial left out by the data stage (named in its log)")
     if asked is not None and len(loaded) + empty < int(asked):

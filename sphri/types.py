@@ -141,10 +141,7 @@ class Robot:
 
     def link_for(self, region: str) -> Link:
         if region not in self.regions:
-            raise KeyError(
-                f"robot {self.name!r} has no skin region {region!r}; "
-                f"regions: {sorted(self.regions)}"
-            )
+            raise KeyError(f"robot {self.name!r} has no skin region {region!r}; regions: {sorted(self.regions)}")
         return self.links[self.regions[region]]
 
 
@@ -311,7 +308,7 @@ class TaxelGeometry:
         return int(self.position_m.shape[0])
 
     @classmethod
-    def from_layout(cls, layout: "Layout", surface: "SurfaceMap") -> "TaxelGeometry":
+    def from_layout(cls, layout: Layout, surface: SurfaceMap) -> TaxelGeometry:
         return cls(
             grid_shape=layout.grid_shape,
             uv=layout.uv,
@@ -377,15 +374,17 @@ class CVResult:
             cm = np.asarray(f.confusion)
             where = f"CVResult fold {f.fold!r}"
             if cm.shape != (g, g) or cm.dtype.kind not in "iu":
-                raise ValueError(f"{where}: confusion must be ({g}, {g}) integers for {g} labels, "
-                                 f"got {cm.dtype} {cm.shape}")
+                raise ValueError(
+                    f"{where}: confusion must be ({g}, {g}) integers for {g} labels, got {cm.dtype} {cm.shape}"
+                )
             if (cm < 0).any() or int(cm.sum()) != f.n_test:
                 raise ValueError(f"{where}: confusion counts must be >= 0 and sum to n_test={f.n_test}")
             if np.asarray(f.recall).shape != (g,):
                 raise ValueError(f"{where}: recall must be ({g},), got {np.asarray(f.recall).shape}")
             if f.n_test < 1 or not abs(f.accuracy - np.trace(cm) / f.n_test) <= 1e-9:
-                raise ValueError(f"{where}: accuracy {f.accuracy!r} is not the confusion matrix's "
-                                 f"{np.trace(cm)}/{f.n_test}")
+                raise ValueError(
+                    f"{where}: accuracy {f.accuracy!r} is not the confusion matrix's {np.trace(cm)}/{f.n_test}"
+                )
             if not 0.0 <= f.macro_f1 <= 1.0:
                 raise ValueError(f"{where}: macro_f1 {f.macro_f1!r} outside [0, 1]")
 

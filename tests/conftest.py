@@ -55,17 +55,41 @@ def sweep_then_report(tmp_path: Path):
     ``tmp_path/outputs/sweep`` (serial launcher), checked to finish all ``n_jobs``, then ``python -m sphri.report``
     on it, checked to exit 0; returns ``(sweep_dir, report_process)``."""
     repo = Path(__file__).resolve().parent.parent
-    env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1",
-           "PYTHONPATH": os.pathsep.join([str(repo), os.environ.get("PYTHONPATH", "")])}
+    env = {
+        **os.environ,
+        "PYTHONUNBUFFERED": "1",
+        "HYDRA_FULL_ERROR": "1",
+        "PYTHONPATH": os.pathsep.join([str(repo), os.environ.get("PYTHONPATH", "")]),
+    }
     out, sweep = tmp_path / "outputs", tmp_path / "outputs" / "sweep"
 
     def run(sweep_args: list[str], n_jobs: int, report_args: list[str], timeout: int = 600):
-        job = subprocess.run([sys.executable, "-m", "sphri", "-m", *sweep_args, f"output_dir={out}",
-                              f"hydra.sweep.dir={sweep}", "hydra/launcher=serial"],
-                             cwd=tmp_path, env=env, capture_output=True, text=True, timeout=timeout)
+        job = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "sphri",
+                "-m",
+                *sweep_args,
+                f"output_dir={out}",
+                f"hydra.sweep.dir={sweep}",
+                "hydra/launcher=serial",
+            ],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
         assert job.returncode == 0 and f"{n_jobs} of {n_jobs} jobs finished" in job.stdout, job.stderr[-3000:]
-        rep = subprocess.run([sys.executable, "-m", "sphri.report", str(sweep), *report_args],
-                             cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+        rep = subprocess.run(
+            [sys.executable, "-m", "sphri.report", str(sweep), *report_args],
+            cwd=tmp_path,
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=300,
+        )
         assert rep.returncode == 0, rep.stderr[-3000:]
         return sweep, rep
 

@@ -7,8 +7,8 @@ import ast
 import functools
 import re
 from collections import defaultdict
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Iterable, Mapping, Sequence
 
 import pytest
 
@@ -95,8 +95,10 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
 def test_no_import_cycles_between_packages():
     graph = dependency_graph()
     found = cycles(graph)
-    detail = "; ".join(" <-> ".join(c) + " (" + ", ".join(f"{a}->{b}" for a in c for b in sorted(graph[a] & set(c))) + ")"
-                       for c in found)
+    detail = "; ".join(
+        " <-> ".join(c) + " (" + ", ".join(f"{a}->{b}" for a in c for b in sorted(graph[a] & set(c))) + ")"
+        for c in found
+    )
     assert not found, f"import cycles between sphri packages: {detail}"
 
 
@@ -126,8 +128,12 @@ def _lazy_exports(tree: ast.AST) -> dict[str, str]:
     """``name -> module`` of a package's ``lazy_exports(package, {...})`` (``sphri._lazy``)."""
     out = {}
     for node in ast.walk(tree):
-        if (isinstance(node, ast.Call) and getattr(node.func, "id", "") == "lazy_exports" and len(node.args) == 2
-                and isinstance(node.args[1], ast.Dict)):
+        if (
+            isinstance(node, ast.Call)
+            and getattr(node.func, "id", "") == "lazy_exports"
+            and len(node.args) == 2
+            and isinstance(node.args[1], ast.Dict)
+        ):
             out.update({k.value: v.value for k, v in zip(node.args[1].keys, node.args[1].values)})
     return out
 
@@ -198,7 +204,7 @@ def find_cycle(graph: Mapping[str, Iterable[str]], members: Sequence[str]) -> li
     while True:  # walk inside the component until a node repeats: that stretch is a cycle
         step = sorted(w for w in graph.get(path[-1], ()) if w in inside)[0]
         if step in seen:
-            return path[seen[step]:] + [step]
+            return path[seen[step] :] + [step]
         seen[step] = len(path)
         path.append(step)
 
@@ -210,8 +216,12 @@ def check_no_file_cycles(graph: Mapping[str, Mapping[str, str]]) -> None:
     for comp in found:
         loop = find_cycle(graph, comp)
         where = ", ".join(f"{a} -> {b} ({graph[a][b]})" for a, b in zip(loop, loop[1:]))
-        lines.append(f"{' -> '.join(loop)} [{where}]" + (f"; all of {comp} are tied" if len(comp) > len(loop) - 1 else ""))
-    assert not found, "import cycles between files of sphri (move the shared piece to the lower module):\n  " + "\n  ".join(lines)
+        lines.append(
+            f"{' -> '.join(loop)} [{where}]" + (f"; all of {comp} are tied" if len(comp) > len(loop) - 1 else "")
+        )
+    assert not found, (
+        "import cycles between files of sphri (move the shared piece to the lower module):\n  " + "\n  ".join(lines)
+    )
 
 
 def layer_table(text: str | None = None) -> list[tuple[str, list[str]]]:
@@ -259,8 +269,10 @@ def check_layers(graph: Mapping[str, Mapping[str, str]], table: Sequence[tuple[s
             high = layer_of(dst, table)
             if high is not None and high[0] > low[0]:
                 bad.append(f"{src} (layer {low[1]}) imports {dst} (layer {high[1]}) at {where}")
-    assert not bad, ("imports against the layer order of docs/ARCHITECTURE.md (a layer imports only itself and "
-                     "the layers below it):\n  " + "\n  ".join(bad))
+    assert not bad, (
+        "imports against the layer order of docs/ARCHITECTURE.md (a layer imports only itself and "
+        "the layers below it):\n  " + "\n  ".join(bad)
+    )
 
 
 def test_no_import_cycles_between_files():
@@ -268,8 +280,12 @@ def test_no_import_cycles_between_files():
 
 
 def test_file_cycle_check_names_the_loop():
-    graph = {"sphri.a": {"sphri.b": "sphri/a.py:3"}, "sphri.b": {"sphri.c": "sphri/b.py:7"},
-             "sphri.c": {"sphri.a": "sphri/c.py:9"}, "sphri.d": {"sphri.a": "sphri/d.py:1"}}
+    graph = {
+        "sphri.a": {"sphri.b": "sphri/a.py:3"},
+        "sphri.b": {"sphri.c": "sphri/b.py:7"},
+        "sphri.c": {"sphri.a": "sphri/c.py:9"},
+        "sphri.d": {"sphri.a": "sphri/d.py:1"},
+    }
     with pytest.raises(AssertionError, match=r"sphri\.a -> sphri\.b -> sphri\.c -> sphri\.a .*sphri/c\.py:9"):
         check_no_file_cycles(graph)
     check_no_file_cycles({"sphri.a": {"sphri.b": "sphri/a.py:3"}, "sphri.b": {}})
@@ -284,14 +300,16 @@ def test_module_graph_counts_every_kind_of_import(tmp_path):
     (pkg / "low.py").write_text("X = 1\n")
     (pkg / "cmd.py").write_text("def main():\n    return 0\n")
     (pkg / "pkg" / "__init__.py").write_text(
-        "from sphri._lazy import lazy_exports\n__getattr__, __all__ = lazy_exports('sphri.pkg', {'Thing': 'sphri.pkg.impl'})\n")
+        "from sphri._lazy import lazy_exports\n__getattr__, __all__ = lazy_exports('sphri.pkg', {'Thing': 'sphri.pkg.impl'})\n"
+    )
     (pkg / "pkg" / "impl.py").write_text("from .. import low\nfrom . import other\nThing = low.X\n")
     (pkg / "pkg" / "other.py").write_text("")
     (pkg / "_lazy.py").write_text("")
     (pkg / "high.py").write_text(
         "from typing import TYPE_CHECKING\nimport numpy\nif TYPE_CHECKING:\n    from sphri import cmd\n"
         "def f():\n    from sphri.pkg import Thing\n    return Thing\n"
-        "if __name__ == '__main__':\n    from sphri.cmd import main\n    main()\n")
+        "if __name__ == '__main__':\n    from sphri.cmd import main\n    main()\n"
+    )
     graph = module_graph(pkg)
     assert graph["sphri.high"] == {"sphri.pkg.impl": "sphri/high.py:6", "sphri.cmd": "sphri/high.py:9"}
     assert graph["sphri.pkg.impl"] == {"sphri.low": "sphri/pkg/impl.py:1", "sphri.pkg.other": "sphri/pkg/impl.py:2"}
@@ -314,8 +332,11 @@ def test_layer_check_names_both_modules_of_a_violation():
     table = layer_table()
     graph = {m: dict(deps) for m, deps in module_graph().items()}
     graph["sphri.types"]["sphri.pipeline"] = "sphri/types.py:1"  # the bottom importing the chain
-    with pytest.raises(AssertionError, match=r"sphri\.types \(layer foundation\) imports sphri\.pipeline \(layer chain\) "
-                       r"at sphri/types\.py:1"):
+    with pytest.raises(
+        AssertionError,
+        match=r"sphri\.types \(layer foundation\) imports sphri\.pipeline \(layer chain\) "
+        r"at sphri/types\.py:1",
+    ):
         check_layers(graph, table)
     graph = {m: dict(deps) for m, deps in module_graph().items()}
     graph["sphri.brand_new"] = {}

@@ -86,7 +86,7 @@ def test_failed_compute_leaves_no_entry(tmp_path: Path):
     assert not cache.path("data", "k").exists()
 
 
-def _worker(root: str, counter: str, out: "mp.Queue") -> None:
+def _worker(root: str, counter: str, out: mp.Queue) -> None:
     cache = StageCache(Path(root))
 
     def compute():

@@ -45,8 +45,13 @@ def write_arm(path: Path, scale: float = 1.0) -> None:
 def test_replaced_mesh_recomputes_robot_stages_and_log_names_it(tmp_path: Path, caplog):
     mesh = tmp_path / "arm.obj"
     write_arm(mesh)
-    robot = ["robot=mesh", f"robot.links={{l_arm: {mesh}}}", "robot.regions={arm: l_arm}", "robot.units=m",
-             "encoder.res=3"]
+    robot = [
+        "robot=mesh",
+        f"robot.links={{l_arm: {mesh}}}",
+        "robot.regions={arm: l_arm}",
+        "robot.units=m",
+        "encoder.res=3",
+    ]
     first, cfg = make(tmp_path, *robot)
     assert set(sources(first, "contact", "surface").values()) == {"computed"}
     again, _ = make(tmp_path, *robot)
@@ -57,7 +62,11 @@ def test_replaced_mesh_recomputes_robot_stages_and_log_names_it(tmp_path: Path, 
     caplog.set_level(logging.INFO, logger="sphri")
     changed, cfg2 = make(tmp_path, *robot)
     assert sources(changed, "data", "contact", "surface", "layout") == {
-        "data": "computed", "contact": "computed", "surface": "computed", "layout": "computed"}
+        "data": "computed",
+        "contact": "computed",
+        "surface": "computed",
+        "layout": "computed",
+    }
     assert re.search(r"stage contact: input file\(s\) changed since the cached entry: .*arm\.obj", caplog.text)
     assert pipeline.config_hash(cfg2) != hash_before, "sweep resume must not skip a job whose mesh changed"
     surf = changed.get("surface")
@@ -110,17 +119,28 @@ def test_file_fields_are_declared_by_the_schemas(tmp_path: Path):
     """Every config field naming a file is found through its schema (no hand list in the pipeline)."""
     from sphri.inputs import declared_files
 
-    cfg = compose(["layout=density", f"layout.density_path={tmp_path / 'd.npz'}", "encoder=coverage",
-                   "robot=mesh", "robot.links={l_arm: a.obj}", "robot.regions={arm: l_arm}", f"robot.root={tmp_path}",
-                   f"hand.definition_path={tmp_path / 'hand.json'}"])
+    cfg = compose(
+        [
+            "layout=density",
+            f"layout.density_path={tmp_path / 'd.npz'}",
+            "encoder=coverage",
+            "robot=mesh",
+            "robot.links={l_arm: a.obj}",
+            "robot.regions={arm: l_arm}",
+            f"robot.root={tmp_path}",
+            f"hand.definition_path={tmp_path / 'hand.json'}",
+        ]
+    )
     assert [p for _, p in declared_files(cfg.layout)] == [tmp_path / "d.npz"]
     assert [p for _, p in declared_files(cfg.robot)] == [tmp_path / "a.obj"]
     assert [p for _, p in declared_files(cfg.hand)] == [tmp_path / "hand.json"]
     urdf = compose(["robot=urdf", f"robot.path={tmp_path / 'r.urdf'}", "robot.links=[arm]", "robot.regions={arm: arm}"])
     (tmp_path / "meshes").mkdir()
     (tmp_path / "meshes" / "arm.stl").write_bytes(b"solid")
-    (tmp_path / "r.urdf").write_text('<robot name="r"><link name="arm"><collision><geometry>'
-                                     '<mesh filename="package://r/meshes/arm.stl"/></geometry></collision></link></robot>')
+    (tmp_path / "r.urdf").write_text(
+        '<robot name="r"><link name="arm"><collision><geometry>'
+        '<mesh filename="package://r/meshes/arm.stl"/></geometry></collision></link></robot>'
+    )
     assert [p for _, p in declared_files(urdf.robot)] == [tmp_path / "r.urdf", tmp_path / "meshes" / "arm.stl"]
 
 
@@ -156,11 +176,19 @@ def test_crafted_entry_executes_nothing_and_is_recomputed(tmp_path: Path, kind: 
         payload = pickle.dumps(_Payload(str(marker)))
     elif kind == "npz_object_array":
         meta = {"stage": "data", "key": key, "files": {}, "value": {"__nd__": "a0"}}
-        payload = _npz({"a0": np.array([_Payload(str(marker))], dtype=object),
-                        "__meta__": np.frombuffer(json.dumps(meta).encode(), np.uint8)})
+        payload = _npz(
+            {
+                "a0": np.array([_Payload(str(marker))], dtype=object),
+                "__meta__": np.frombuffer(json.dumps(meta).encode(), np.uint8),
+            }
+        )
     else:  # a class outside sphri named in the JSON
-        meta = {"stage": "data", "key": key, "files": {},
-                "value": {"__dc__": "os:system", "f": {"command": f"touch {marker}"}}}
+        meta = {
+            "stage": "data",
+            "key": key,
+            "files": {},
+            "value": {"__dc__": "os:system", "f": {"command": f"touch {marker}"}},
+        }
         payload = _npz({"__meta__": np.frombuffer(json.dumps(meta).encode(), np.uint8)})
     plant(p.cache, "data", key, payload)
     dataset = p.get("data")

@@ -43,7 +43,7 @@ def _evaluation(correct: int = 30) -> tuple[CVResult, RunMeta]:
 
 def _payload(path: Path) -> bytes:
     """The npz payload of a format-3 entry."""
-    return path.read_bytes()[len(MAGIC) + 64:]
+    return path.read_bytes()[len(MAGIC) + 64 :]
 
 
 def _arrays(payload: bytes) -> dict[str, np.ndarray]:
@@ -133,16 +133,19 @@ def _deep_json(depth: int) -> str:
     return "[" * depth + "]" * depth
 
 
-@pytest.mark.parametrize("case", ["int8_overflow", "deep_json", "confusion_3x3", "accuracy_not_the_matrix",
-                                  "old_format"])
+@pytest.mark.parametrize(
+    "case", ["int8_overflow", "deep_json", "confusion_3x3", "accuracy_not_the_matrix", "old_format"]
+)
 def test_a_crafted_entry_is_discarded_and_recomputed_not_raised(tmp_path, case, caplog):
     cache = StageCache(tmp_path, key=None)
     _computes(cache)
     path = cache.path("evaluate", "k1")
     payload = _payload(path)
     if case == "int8_overflow":
+
         def edit(meta):
             meta["value"]["__tuple__"][0]["f"]["model"] = {"__np__": "|i1", "v": 1000}
+
         blob = seal(_with_meta(payload, edit))
     elif case == "deep_json":
         doc = json.dumps({"stage": "evaluate", "key": "k1", "files": {}, "value": None})
@@ -157,8 +160,10 @@ def test_a_crafted_entry_is_discarded_and_recomputed_not_raised(tmp_path, case, 
         arrays[ref] = np.array([[30, 70, 0], [0, 0, 0], [0, 0, 0]], dtype=np.int64)
         blob = seal(_npz(arrays))
     elif case == "accuracy_not_the_matrix":
+
         def edit(meta):
             meta["value"]["__tuple__"][0]["f"]["folds"][0]["f"]["accuracy"] = 0.99
+
         blob = seal(_with_meta(payload, edit))
     else:  # an entry of the previous format, valid in its day
         import hashlib

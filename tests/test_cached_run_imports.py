@@ -27,7 +27,11 @@ runpy.run_module("sphri", run_name="__main__")
 
 def _job(tmp_path: Path, probe: bool) -> subprocess.CompletedProcess:
     args = ["+debug=fast", f"output_dir={tmp_path / 'out'}", "tracking.enabled=false"]
-    cmd = [sys.executable, "-c", PROBE.format(heavy=HEAVY, args=args)] if probe else [sys.executable, "-m", "sphri", *args]
+    cmd = (
+        [sys.executable, "-c", PROBE.format(heavy=HEAVY, args=args)]
+        if probe
+        else [sys.executable, "-m", "sphri", *args]
+    )
     out = subprocess.run(cmd, cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-3000:]
     return out

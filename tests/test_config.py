@@ -79,7 +79,11 @@ def test_grid_encoder_on_an_irregular_layout_fails_at_composition(overrides, nam
 
 
 def test_plus_and_plain_group_overrides_are_equivalent():
-    assert normalize_overrides(["+robot=reachy", "encoder.res=18", "+foo=1"]) == ["robot=reachy", "encoder.res=18", "+foo=1"]
+    assert normalize_overrides(["+robot=reachy", "encoder.res=18", "+foo=1"]) == [
+        "robot=reachy",
+        "encoder.res=18",
+        "+foo=1",
+    ]
     a = compose(["+robot=reachy", "encoder.res=18"])
     b = compose(["robot=reachy", "encoder.res=18"])
     assert a == b

@@ -28,8 +28,12 @@ def sweep_params(name: str) -> dict[str, list[str]]:
     params = dict(cfg.hydra.sweeper.params or {})
     assert params, f"conf/experiment/{name}.yaml sweeps nothing (hydra.sweeper.params is empty)"
     parsed = OverridesParser.create().parse_overrides([f"{k}={v}" for k, v in params.items()])
-    return {o.get_key_element(): list(o.sweep_string_iterator()) if o.is_sweep_override()
-            else [o.get_value_element_as_str()] for o in parsed}
+    return {
+        o.get_key_element(): list(o.sweep_string_iterator())
+        if o.is_sweep_override()
+        else [o.get_value_element_as_str()]
+        for o in parsed
+    }
 
 
 def all_jobs(params: dict[str, list[str]]) -> list[list[str]]:
@@ -89,5 +93,5 @@ def test_experiment_smoke_runs_in_debug_mode(name: str, tmp_path: Path):
         assert 0.0 <= result.summary()["accuracy_mean"] <= 1.0
         ran.append(job)
     covered = {o for job in ran for o in job}
-    for key, values in params.items():
+    for key, _values in params.items():
         assert any(o.startswith(f"{key}=") for o in covered), f"{name}: {key} never varied in the smoke run"

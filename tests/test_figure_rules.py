@@ -125,8 +125,15 @@ def _effects(scen):
     rows = []
     for i in range(len(scen)):
         for j in range(i + 1, len(scen)):
-            rows.append(dict(cond_a=scen[i], cond_b=scen[j], diff_swd_mm=10.0 * (i + j), effect_dz=0.4 * (j - i),
-                             p_holm=0.01 * (1 + i + j)))
+            rows.append(
+                dict(
+                    cond_a=scen[i],
+                    cond_b=scen[j],
+                    diff_swd_mm=10.0 * (i + j),
+                    effect_dz=0.4 * (j - i),
+                    p_holm=0.01 * (1 + i + j),
+                )
+            )
     return pd.DataFrame(rows)
 
 
@@ -139,13 +146,21 @@ def _all_text(fig) -> list[str]:
 def test_effect_matrix_is_drawn_once_with_human_labels_and_the_banner(tmp_path, kept):
     from sphri.sessions.render import plot_effects
 
-    plot_effects(_effects(SCEN), SCEN, 0.05, tmp_path / "effects.png", "Paired effect per pair (SYNTHETIC)",
-                 provenance=figures.Provenance(synthetic=True, ids="study"))
+    plot_effects(
+        _effects(SCEN),
+        SCEN,
+        0.05,
+        tmp_path / "effects.png",
+        "Paired effect per pair (SYNTHETIC)",
+        provenance=figures.Provenance(synthetic=True, ids="study"),
+    )
     fig = kept[-1]
     ax = fig.axes[0]
     img = ax.images[0].get_array()
     assert img.shape == (3, 3), "the strict lower triangle: rows S2..S4 against columns S1..S3"
-    assert np.ma.getmaskarray(img)[np.triu_indices(3, k=1)].all() and not np.ma.getmaskarray(img)[np.tril_indices(3)].any()
+    assert (
+        np.ma.getmaskarray(img)[np.triu_indices(3, k=1)].all() and not np.ma.getmaskarray(img)[np.tril_indices(3)].any()
+    )
     assert ax.images[0].get_clip_path() is not None
     cells = [t for t in ax.texts if "mm" in t.get_text()]
     assert len(cells) == 6 and all(t.get_position()[0] <= t.get_position()[1] for t in cells)  # one per pair
@@ -161,19 +176,45 @@ def _comparison(conds):
     rows, pp = [], []
     for i in range(len(conds)):
         for j in range(i + 1, len(conds)):
-            rows.append(dict(cond_a=conds[i], cond_b=conds[j], mean_between_swd_mm=20.0 + 5 * i + 3 * j,
-                             p_holm=0.002 * (1 + i + j)))
-            pp.append(dict(participant="p1", cond_a=conds[i], cond_b=conds[j], between_mm=1.0,
-                           within_a_mm=10.0 + i, within_b_mm=10.0 + j, diff_mm=1.0))
-    return PairwiseComparison(conditions=list(conds), table=pd.DataFrame(rows), per_participant=pd.DataFrame(pp),
-                              alpha=0.05, alternative="greater", swd_p=2.0, n_projections=64)
+            rows.append(
+                dict(
+                    cond_a=conds[i],
+                    cond_b=conds[j],
+                    mean_between_swd_mm=20.0 + 5 * i + 3 * j,
+                    p_holm=0.002 * (1 + i + j),
+                )
+            )
+            pp.append(
+                dict(
+                    participant="p1",
+                    cond_a=conds[i],
+                    cond_b=conds[j],
+                    between_mm=1.0,
+                    within_a_mm=10.0 + i,
+                    within_b_mm=10.0 + j,
+                    diff_mm=1.0,
+                )
+            )
+    return PairwiseComparison(
+        conditions=list(conds),
+        table=pd.DataFrame(rows),
+        per_participant=pd.DataFrame(pp),
+        alpha=0.05,
+        alternative="greater",
+        swd_p=2.0,
+        n_projections=64,
+    )
 
 
 def test_swd_matrix_masks_the_upper_triangle(tmp_path, kept, recwarn):
     from sphri.analysis.render import plot_swd_heatmap
 
-    plot_swd_heatmap(_comparison(SCEN), tmp_path / "swd.png", "Scenario maps: paired SWD",
-                     provenance=figures.Provenance(synthetic=True, ids="study"))
+    plot_swd_heatmap(
+        _comparison(SCEN),
+        tmp_path / "swd.png",
+        "Scenario maps: paired SWD",
+        provenance=figures.Provenance(synthetic=True, ids="study"),
+    )
     assert not [w for w in recwarn if issubclass(w.category, PendingDeprecationWarning)]
     fig = kept[-1]
     ax = fig.axes[0]
@@ -194,10 +235,22 @@ def test_placement_figure_fits_a_page_and_typesets_the_budget(tmp_path, kept):
 
     parts = [f"part_{k:02d}_left" for k in range(80)]
     ranking = pd.DataFrame({"part": parts, "frames_per_cm2": np.linspace(2.0, 0.01, 80)})
-    table = pd.DataFrame({"group": ["all", "S2_path_redirection"], "parts": ["part_00_left;part_01_left"] * 2,
-                          "area_share": [0.1, 0.09], "captured": [0.7, 0.8], "heldout_captured": [0.65, 0.75]})
-    plot_placement(ranking, table, tmp_path / "placement.png", "Placement under 2000 cm^2 (SYNTHETIC)",
-                   provenance=figures.Provenance(synthetic=True))
+    table = pd.DataFrame(
+        {
+            "group": ["all", "S2_path_redirection"],
+            "parts": ["part_00_left;part_01_left"] * 2,
+            "area_share": [0.1, 0.09],
+            "captured": [0.7, 0.8],
+            "heldout_captured": [0.65, 0.75],
+        }
+    )
+    plot_placement(
+        ranking,
+        table,
+        tmp_path / "placement.png",
+        "Placement under 2000 cm^2 (SYNTHETIC)",
+        provenance=figures.Provenance(synthetic=True),
+    )
     fig = kept[-1]
     assert fig.get_figheight() <= figures.PAGE_HEIGHT_IN
     text = _all_text(fig)
@@ -210,8 +263,13 @@ def test_gesture_histogram_uses_human_scenario_names(tmp_path, kept):
     from sphri.sessions.render import plot_gesture_histogram
     from sphri.types import GESTURES
 
-    hist = pd.DataFrame([dict(scenario=s, gesture=g, n_episodes=10, expected=1.0, expected_sd=0.2, count=1)
-                         for s in SCEN[:2] for g in GESTURES])
+    hist = pd.DataFrame(
+        [
+            dict(scenario=s, gesture=g, n_episodes=10, expected=1.0, expected_sd=0.2, count=1)
+            for s in SCEN[:2]
+            for g in GESTURES
+        ]
+    )
     plot_gesture_histogram(hist, tmp_path / "g.png", "Gestures (SYNTHETIC)", provenance=figures.Provenance(True))
     titles = [ax.get_title() for ax in kept[-1].axes]
     assert titles[1].startswith("S2: path redirection\n")

@@ -26,7 +26,10 @@ def test_only_formats_restricts_what_save_writes(tmp_path):
         ax.plot([0, 1], [0, 1])
         assert [p.suffix for p in figures.save(fig, tmp_path / "a.png")] == [".png"]
         fig, ax = figures.new_figure("one", 2.0)
-        assert sorted(p.suffix for p in figures.save(fig, tmp_path / "b.png", formats=("png", "pdf"))) == [".pdf", ".png"]
+        assert sorted(p.suffix for p in figures.save(fig, tmp_path / "b.png", formats=("png", "pdf"))) == [
+            ".pdf",
+            ".png",
+        ]
     fig, ax = figures.new_figure("one", 2.0)
     assert len(figures.save(fig, tmp_path / "c.png")) == 3  # back to PNG + PDF + SVG after the block
     with pytest.raises(ValueError, match="figure formats"):
@@ -72,9 +75,13 @@ def test_confusion_matrix_fits_one_column_without_layout_problems(tmp_path, monk
     cv = CVResult("loso", "rf", folds)
     seen = []
     monkeypatch.setattr(figures, "layout_problems", lambda fig, *a: seen.append(_real_problems(fig)) or seen[-1])
-    out = artifacts.write_confusion_png(cv, tmp_path / "confusion.png", title="rf, LOSO over 3 folds",
-                                        provenance=figures.Provenance(synthetic=True, ids="res 18"),
-                                        formats=("png", "pdf", "svg"))
+    out = artifacts.write_confusion_png(
+        cv,
+        tmp_path / "confusion.png",
+        title="rf, LOSO over 3 folds",
+        provenance=figures.Provenance(synthetic=True, ids="res 18"),
+        formats=("png", "pdf", "svg"),
+    )
     assert seen == [[]]
     assert {p.suffix for p in tmp_path.iterdir()} == {".png", ".pdf", ".svg"} and out.exists()
 

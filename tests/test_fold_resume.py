@@ -25,8 +25,14 @@ import pytest
 from sphri.cache import read_entry
 from sphri.types import CVResult, RunMeta
 
-ARGS = ["+debug=fast", "model=cnn_gru", "encoder.res=4", "model.max_epochs=20", "cv.threads_per_worker=1",
-        "tracking.enabled=false"]
+ARGS = [
+    "+debug=fast",
+    "model=cnn_gru",
+    "encoder.res=4",
+    "model.max_epochs=20",
+    "cv.threads_per_worker=1",
+    "tracking.enabled=false",
+]
 N_FOLDS = 3  # +debug=fast: 3 participants, leave-one-subject-out
 
 
@@ -56,7 +62,9 @@ def reference(tmp_path_factory) -> tuple[Path, str, CVResult]:
     out = tmp_path_factory.mktemp("reference") / "out"
     out.parent.mkdir(exist_ok=True)
     _run(out)
-    assert not list((out / "cache").glob("evaluate_fold/*.entry")), "fold entries are removed once the evaluation is stored"
+    assert not list((out / "cache").glob("evaluate_fold/*.entry")), (
+        "fold entries are removed once the evaluation is stored"
+    )
     key, cv = _evaluation(out)
     assert len(cv.folds) == N_FOLDS
     return out, key, cv
@@ -67,12 +75,15 @@ def _kill_after_first_fold(out: Path, *extra: str) -> int:
     returns how many fold entries the dead job left."""
     folds = out / "cache" / "evaluate_fold"
     log = (out.parent / "killed.log").open("w")
-    proc = subprocess.Popen(_cmd(out, *extra), cwd=out.parent, env=_env(), stdout=log, stderr=subprocess.STDOUT,
-                            start_new_session=True)
+    proc = subprocess.Popen(
+        _cmd(out, *extra), cwd=out.parent, env=_env(), stdout=log, stderr=subprocess.STDOUT, start_new_session=True
+    )
     try:
         deadline = time.monotonic() + 600
         while not list(folds.glob("*.entry")):
-            assert proc.poll() is None, "the job ended before any fold was kept: " + (out.parent / "killed.log").read_text()[-3000:]
+            assert proc.poll() is None, (
+                "the job ended before any fold was kept: " + (out.parent / "killed.log").read_text()[-3000:]
+            )
             assert time.monotonic() < deadline, "no fold finished in 600 s"
             time.sleep(0.05)
     finally:

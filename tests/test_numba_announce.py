@@ -23,7 +23,9 @@ print("KERNELS", a.kernels, "SECONDS", round(a.seconds, 3))
 
 def _run(cache_dir: Path) -> str:
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache_dir), "PYTHONPATH": str(REPO)}
-    out = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True, env=env, cwd=cache_dir, timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-c", PROBE], capture_output=True, text=True, env=env, cwd=cache_dir, timeout=300
+    )
     assert out.returncode == 0, out.stderr[-2000:]
     return out.stdout
 

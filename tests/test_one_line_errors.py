@@ -23,12 +23,15 @@ def _one_line(proc: subprocess.CompletedProcess, code: int, *words: str) -> str:
     return err[0]
 
 
-@pytest.mark.parametrize("override, words", [
-    ("output_dir=afile", ("output_dir=afile", "is a file")),  # was NotADirectoryError from Hydra's run folder
-    ("output_dir=" + "a" * 5000, ("output_dir", "5000 bytes")),  # was OSError: File name too long
-    ("output_dir=", ("output_dir=''",)),  # composed cache.dir=/cache
-    ("seed=123456789012345678901234567890", ("seed=", "2**63")),  # was OverflowError after stages computed
-])
+@pytest.mark.parametrize(
+    "override, words",
+    [
+        ("output_dir=afile", ("output_dir=afile", "is a file")),  # was NotADirectoryError from Hydra's run folder
+        ("output_dir=" + "a" * 5000, ("output_dir", "5000 bytes")),  # was OSError: File name too long
+        ("output_dir=", ("output_dir=''",)),  # composed cache.dir=/cache
+        ("seed=123456789012345678901234567890", ("seed=", "2**63")),  # was OverflowError after stages computed
+    ],
+)
 def test_bad_run_settings_stop_in_one_line_before_any_stage(tmp_path: Path, override: str, words: tuple[str, ...]):
     (tmp_path / "afile").write_text("not a folder")
     proc = _run(["sphri", "+debug=fast", override], tmp_path)
@@ -48,8 +51,9 @@ def test_glob_sweep_expands_to_components_only(tmp_path: Path):
 def test_an_empty_sweep_is_refused_without_a_parent_run(tmp_path: Path):
     """`encoder.res=range(5,5)` exited 0 with an empty MLflow parent run."""
     out = tmp_path / "o"
-    proc = _run(["sphri", "-m", "+debug=fast", "encoder.res=range(5,5)", f"output_dir={out}",
-                 "hydra/launcher=serial"], tmp_path)
+    proc = _run(
+        ["sphri", "-m", "+debug=fast", "encoder.res=range(5,5)", f"output_dir={out}", "hydra/launcher=serial"], tmp_path
+    )
     _one_line(proc, 2, "encoder.res=range(5,5)", "no job was started")
     assert not (out / "mlflow.db").exists()
 
@@ -92,7 +96,9 @@ def test_a_read_only_output_dir_and_store_are_refused_before_computing(tmp_path:
     db = locked / "mlflow.db"
     db.write_bytes(b"")
     real = os.access
-    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if Path(p).is_relative_to(locked) else real(p, mode, **kw))
+    monkeypatch.setattr(
+        os, "access", lambda p, mode, **kw: False if Path(p).is_relative_to(locked) else real(p, mode, **kw)
+    )
     with pytest.raises(ConfigError, match="read-only"):
         check_output_dir(str(locked / "out"))
     check_output_dir(str(tmp_path / "elsewhere"))  # a writable parent: fine

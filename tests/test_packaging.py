@@ -22,7 +22,9 @@ def installed(tmp_path_factory) -> Path:
     wheels, target = root / "dist", root / "site"
     build = subprocess.run(
         [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", str(wheels), str(REPO)],
-        capture_output=True, text=True, cwd=root,
+        capture_output=True,
+        text=True,
+        cwd=root,
     )
     assert build.returncode == 0, build.stderr[-3000:]
     (wheel,) = wheels.glob("sphri-*.whl")
@@ -31,11 +33,14 @@ def installed(tmp_path_factory) -> Path:
     in_repo = {"sphri/conf/" + p.relative_to(REPO / "conf").as_posix() for p in (REPO / "conf").rglob("*.yaml")}
     assert shipped == in_repo, f"configs missing from the wheel: {sorted(in_repo - shipped)[:5]}"
     templates = {"sphri/templates/" + p.name for p in (REPO / "sphri" / "templates").glob("*.html.j2")}
-    assert templates and templates <= set(names), f"report templates missing from the wheel: {sorted(templates - set(names))}"
+    assert templates and templates <= set(names), (
+        f"report templates missing from the wheel: {sorted(templates - set(names))}"
+    )
     assert not any(n.startswith(("tests/", "bench/", "conf/")) for n in names)
     install = subprocess.run(
         [sys.executable, "-m", "pip", "install", "-q", "--no-deps", "--target", str(target), str(wheel)],
-        capture_output=True, text=True,
+        capture_output=True,
+        text=True,
     )
     assert install.returncode == 0, install.stderr[-3000:]
     return target
@@ -50,7 +55,10 @@ def _env(site: Path) -> dict[str, str]:
 def test_wheel_finds_its_configs_outside_the_repository(installed, tmp_path):
     probe = subprocess.run(
         [sys.executable, "-c", "import sphri, sphri.config as c; print(sphri.__file__); print(c.CONF_DIR)"],
-        capture_output=True, text=True, cwd=tmp_path, env=_env(installed),
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=_env(installed),
     )
     assert probe.returncode == 0, probe.stderr[-3000:]
     module_file, conf_dir = probe.stdout.split()
@@ -61,7 +69,11 @@ def test_wheel_finds_its_configs_outside_the_repository(installed, tmp_path):
 def test_wheel_runs_a_debug_job_from_another_directory(installed, tmp_path):
     job = subprocess.run(
         [sys.executable, "-m", "sphri", "+debug=fast", "tracking.enabled=false"],
-        capture_output=True, text=True, cwd=tmp_path, env=_env(installed), timeout=600,
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=_env(installed),
+        timeout=600,
     )
     assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
     assert "accuracy" in job.stdout
@@ -70,8 +82,9 @@ def test_wheel_runs_a_debug_job_from_another_directory(installed, tmp_path):
 
 def _sphri(site: Path, cwd: Path, *args: str, timeout: int = 600) -> subprocess.CompletedProcess:
     """``python -m <args>`` with only the installed wheel on the path, from ``cwd``."""
-    return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, cwd=cwd,
-                          env=_env(site), timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", *args], capture_output=True, text=True, cwd=cwd, env=_env(site), timeout=timeout
+    )
 
 
 @pytest.fixture(scope="module")
@@ -112,19 +125,35 @@ def test_wheel_console_script_completes_from_its_configs(installed, tmp_path):
     """The wheel's ``sphri`` script (sphri.completion) answers a TAB from the wheel's own configs, twice
     (the second from its kept answer)."""
     script = installed / "bin" / "sphri"
-    assert script.is_file(), sorted(p.name for p in (installed / "bin").iterdir()) if (installed / "bin").is_dir() else []
+    assert script.is_file(), (
+        sorted(p.name for p in (installed / "bin").iterdir()) if (installed / "bin").is_dir() else []
+    )
     env = {**_env(installed), "COMP_LINE": "sphri encoder=", "XDG_CACHE_HOME": str(tmp_path / "xdg")}
     for _ in range(2):
-        tab = subprocess.run([sys.executable, str(script), "-sc", "query=bash"], capture_output=True, text=True,
-                             env=env, cwd=tmp_path, timeout=120)
+        tab = subprocess.run(
+            [sys.executable, str(script), "-sc", "query=bash"],
+            capture_output=True,
+            text=True,
+            env=env,
+            cwd=tmp_path,
+            timeout=120,
+        )
         assert tab.returncode == 0, tab.stderr[-3000:]
         assert tab.stdout.split() == ["encoder=coverage", "encoder=ellipse", "encoder=proximity"], tab.stdout
     assert len(list((tmp_path / "xdg" / "sphri" / "completion").iterdir())) == 1
 
 
 def test_wheel_runs_the_scenario_study_at_debug_size(installed, tmp_path):
-    study = _sphri(installed, tmp_path, "sphri.coverage", "+experiment=scenario_study", "+debug=fast", "out=study",
-                   "experiment.scenario_study.figure_formats=[png]", "experiment.scenario_study.view_faces=3000")
+    study = _sphri(
+        installed,
+        tmp_path,
+        "sphri.coverage",
+        "+experiment=scenario_study",
+        "+debug=fast",
+        "out=study",
+        "experiment.scenario_study.figure_formats=[png]",
+        "experiment.scenario_study.view_faces=3000",
+    )
     assert study.returncode == 0, (study.stdout + study.stderr)[-3000:]
     assert (tmp_path / "study" / "report.html").is_file()
 
@@ -134,9 +163,23 @@ def test_wheel_exports_a_model_and_runs_skin_live_on_the_simulator(installed, tm
     export = _sphri(installed, tmp_path, "sphri.hardware.train_export", "out=m.sphrimodel", *small, "model.n_jobs=1")
     assert export.returncode == 0, (export.stdout + export.stderr)[-3000:]
     link = tmp_path / "skin.tty"
-    sim = subprocess.Popen([sys.executable, "-m", "sphri.hardware.simulate", "skin", *small, f"link={link}",
-                            "realtime=false", "hold_s=60"], cwd=tmp_path, env=_env(installed),
-                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    sim = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sphri.hardware.simulate",
+            "skin",
+            *small,
+            f"link={link}",
+            "realtime=false",
+            "hold_s=60",
+        ],
+        cwd=tmp_path,
+        env=_env(installed),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     try:
         import time
 
@@ -145,8 +188,18 @@ def test_wheel_exports_a_model_and_runs_skin_live_on_the_simulator(installed, tm
                 break
             time.sleep(0.1)
         assert link.exists(), sim.communicate(timeout=30)[0][-3000:]
-        live = _sphri(installed, tmp_path, "sphri.hardware.skin", "live", f"port={link}", "model=m.sphrimodel",
-                      "idle_s=3", "show=off", "out=pred.jsonl", timeout=300)
+        live = _sphri(
+            installed,
+            tmp_path,
+            "sphri.hardware.skin",
+            "live",
+            f"port={link}",
+            "model=m.sphrimodel",
+            "idle_s=3",
+            "show=off",
+            "out=pred.jsonl",
+            timeout=300,
+        )
     finally:
         sim.terminate()
         sim.wait(30)
@@ -156,8 +209,13 @@ def test_wheel_exports_a_model_and_runs_skin_live_on_the_simulator(installed, tm
 
 def test_wheel_knows_the_commit_it_was_built_from(installed, tmp_path):
     """No checkout beside an installed wheel: MLflow runs record the commit setup.py wrote into it."""
-    probe = subprocess.run([sys.executable, "-c", "from sphri.tracking.mlflow_tracker import git_commit; print(git_commit())"],
-                           capture_output=True, text=True, cwd=tmp_path, env=_env(installed))
+    probe = subprocess.run(
+        [sys.executable, "-c", "from sphri.tracking.mlflow_tracker import git_commit; print(git_commit())"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=_env(installed),
+    )
     assert probe.returncode == 0, probe.stderr[-3000:]
     head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=REPO).stdout.strip()
     assert probe.stdout.strip().removesuffix("+dirty") == head
@@ -166,11 +224,18 @@ def test_wheel_knows_the_commit_it_was_built_from(installed, tmp_path):
 def test_wheel_builds_the_packaged_reachy2_from_its_own_data(installed, tmp_path):
     """robot=reachy2 reads its derivative (URDF, PLY meshes, licence) from the installed package, not from a checkout."""
     data = installed / "sphri" / "robots" / "data" / "reachy2"
-    assert (data / "LICENSE").is_file() and (data / "SOURCE.md").is_file() and len(list((data / "meshes").glob("*.ply"))) == 10
-    code = ("from hydra.utils import instantiate; from sphri.config import compose; "
-            "r = instantiate(compose(['robot=reachy2']).robot).build(); "
-            "print(len(r.tree.links), len(r.skipped), r.links['head'].faces.shape[0])")
-    probe = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path,
-                           env=_env(installed), timeout=600)
+    assert (
+        (data / "LICENSE").is_file()
+        and (data / "SOURCE.md").is_file()
+        and len(list((data / "meshes").glob("*.ply"))) == 10
+    )
+    code = (
+        "from hydra.utils import instantiate; from sphri.config import compose; "
+        "r = instantiate(compose(['robot=reachy2']).robot).build(); "
+        "print(len(r.tree.links), len(r.skipped), r.links['head'].faces.shape[0])"
+    )
+    probe = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=_env(installed), timeout=600
+    )
     assert probe.returncode == 0, probe.stderr[-3000:]
     assert probe.stdout.split() == ["18", "78", "414"]

@@ -125,4 +125,3 @@ def test_config_hash_follows_component_versions(monkeypatch):
     assert pipeline.config_hash(cfg) != before
     # tracking is not part of a job's result
     assert "tracking" not in pipeline.component_versions(cfg)
-

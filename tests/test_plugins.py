@@ -30,7 +30,9 @@ def _run(lab: Path, *args: str, cwd: Path) -> subprocess.CompletedProcess:
 
 def test_user_components_run_end_to_end(lab, tmp_path):
     search = f"hydra.searchpath=[file://{lab / 'conf'}]"
-    job = _run(lab, "-m", "sphri", "+debug=fast", "plugins=[labext]", search, *PLUGIN, "tracking.enabled=false", cwd=tmp_path)
+    job = _run(
+        lab, "-m", "sphri", "+debug=fast", "plugins=[labext]", search, *PLUGIN, "tracking.enabled=false", cwd=tmp_path
+    )
     assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
     assert "model       NearestCentroid" in job.stdout
     assert "taxels" in job.stdout and "grid" not in job.stdout.split("resolution")[1].split("\n")[0]
@@ -45,10 +47,28 @@ def test_user_components_are_refused_unless_their_package_is_listed(lab, tmp_pat
 
 def test_a_user_class_missing_its_stage_method_fails_at_composition(lab, tmp_path):
     search = f"hydra.searchpath=[file://{lab / 'conf'}]"
-    out = _run(lab, "-m", "sphri.cli", "validate", "plugins=[labext]", search, "encoder=nearest",
-               "encoder._target_=labext.skin.VertexLayout", cwd=tmp_path)
+    out = _run(
+        lab,
+        "-m",
+        "sphri.cli",
+        "validate",
+        "plugins=[labext]",
+        search,
+        "encoder=nearest",
+        "encoder._target_=labext.skin.VertexLayout",
+        cwd=tmp_path,
+    )
     assert out.returncode == 2
     assert "does not implement the encoder protocol: missing encode" in out.stderr
-    out = _run(lab, "-m", "sphri.cli", "validate", "plugins=[labext]", search, "encoder=nearest",
-               "encoder._target_=labext.skin.NoSuchEncoder", cwd=tmp_path)
+    out = _run(
+        lab,
+        "-m",
+        "sphri.cli",
+        "validate",
+        "plugins=[labext]",
+        search,
+        "encoder=nearest",
+        "encoder._target_=labext.skin.NoSuchEncoder",
+        cwd=tmp_path,
+    )
     assert out.returncode == 2 and "cannot be imported as a class" in out.stderr

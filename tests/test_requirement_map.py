@@ -3,7 +3,6 @@ end (multirun + report) writing requirement_map.csv and its layout-checked figur
 
 from __future__ import annotations
 
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -12,8 +11,17 @@ import yaml
 from sphri.config import CONF_DIR, compose
 from sphri.report.sweep import false_on_rate, group_keys
 
-MAP_COLUMNS = {"false_on_rate", "res", "pitch_mm", "accuracy_mean", "accuracy_se", "required_pitch_mm",
-               "required_pitch_lo_mm", "required_pitch_hi_mm", "false_on_per_frame"}
+MAP_COLUMNS = {
+    "false_on_rate",
+    "res",
+    "pitch_mm",
+    "accuracy_mean",
+    "accuracy_se",
+    "required_pitch_mm",
+    "required_pitch_lo_mm",
+    "required_pitch_hi_mm",
+    "false_on_per_frame",
+}
 
 
 def swept(name: str) -> dict[str, list[str]]:
@@ -41,24 +49,34 @@ def test_false_on_rate_is_range_checked_and_read_back_from_the_noise_params():
         compose(["+experiment=requirement_map", "noise.p=1.5"])
     with pytest.raises(Exception, match="noise.salt_vs_pepper"):
         compose(["+experiment=requirement_map", "noise.salt_vs_pepper=-0.1"])
-    assert false_on_rate({"noise": "salt_pepper", "noise.p": "0.02", "noise.mode": "replace",
-                          "noise.salt_vs_pepper": "1.0"}) == 0.02
-    assert false_on_rate({"noise": "salt_pepper", "noise.p": "0.02", "noise.mode": "replace",
-                          "noise.salt_vs_pepper": "0.5"}) == pytest.approx(0.01)  # the paper's 2 % noise
+    assert (
+        false_on_rate(
+            {"noise": "salt_pepper", "noise.p": "0.02", "noise.mode": "replace", "noise.salt_vs_pepper": "1.0"}
+        )
+        == 0.02
+    )
+    assert false_on_rate(
+        {"noise": "salt_pepper", "noise.p": "0.02", "noise.mode": "replace", "noise.salt_vs_pepper": "0.5"}
+    ) == pytest.approx(0.01)  # the paper's 2 % noise
     assert false_on_rate({"noise": "salt_pepper", "noise.p": "0.02", "noise.mode": "flip"}) == 0.02
     assert false_on_rate({"noise": "none"}) == 0.0
     assert np.isnan(false_on_rate({"noise": "gaussian", "noise.sigma": "0.05"}))
 
 
 def test_seeds_are_replicates_not_groups():
-    jobs = [{"seed": str(s), "model.seed": str(s), "noise.p": p, "encoder.res": str(r)}
-            for s in (0, 1, 2) for p in ("0", "0.01") for r in (2, 6)]
+    jobs = [
+        {"seed": str(s), "model.seed": str(s), "noise.p": p, "encoder.res": str(r)}
+        for s in (0, 1, 2)
+        for p in ("0", "0.01")
+        for r in (2, 6)
+    ]
     assert group_keys(jobs) == ["noise.p"]
 
 
 def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
-    sweep, rep = sweep_then_report(["+experiment=requirement_map_quick", "tracking.confusion_png=false"], 18,
-                                   ["n_boot=200", "mlflow=false"])
+    sweep, rep = sweep_then_report(
+        ["+experiment=requirement_map_quick", "tracking.confusion_png=false"], 18, ["n_boot=200", "mlflow=false"]
+    )
     assert "grouped by noise.p" in rep.stdout and "[requirement map]" in rep.stdout
     assert "measured between the sweep's seeds" in rep.stdout and "tolerance used" in rep.stdout
     # the figure machinery's layout check logs any clipped or overlapping text as a warning naming the file
@@ -71,7 +89,7 @@ def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
     assert sorted(table["false_on_rate"].unique()) == pytest.approx(rates) and len(table) == len(rates) * len(res)
     assert (table["seeds"] == 2).all() and (table["participants"] == 3).all()
     assert table["false_on_per_frame"].to_numpy() == pytest.approx(table["false_on_rate"] * table["n_taxels"])
-    for rate, rows in table.groupby("false_on_rate"):
+    for _rate, rows in table.groupby("false_on_rate"):
         assert rows["required_pitch_mm"].nunique() == 1 and rows["required"].sum() == 1
         req = rows[rows["required"]].iloc[0]
         assert req["pitch_mm"] == pytest.approx(req["required_pitch_mm"])

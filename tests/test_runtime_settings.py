@@ -62,8 +62,14 @@ RUNTIME = _runtime_settings()
 
 def test_the_known_runtime_settings_are_declared():
     names = {f"{g}.{f}" for g, _, f in RUNTIME}
-    assert {"cv.workers", "cv.threads_per_worker", "cv.progress", "model.n_jobs", "model.threads",
-            "contact.chunk_frames"} <= names, names
+    assert {
+        "cv.workers",
+        "cv.threads_per_worker",
+        "cv.progress",
+        "model.n_jobs",
+        "model.threads",
+        "contact.chunk_frames",
+    } <= names, names
 
 
 @pytest.mark.parametrize("group,option,name", RUNTIME, ids=[f"{g}={o}.{f}" for g, o, f in RUNTIME])
@@ -75,11 +81,14 @@ def test_a_runtime_setting_changes_neither_the_hash_nor_a_stage_key(tmp_path, gr
     assert other[1] == base[1], "stage keys changed"
 
 
-@pytest.mark.parametrize("override,stages", [
-    ("encoder.res=5", {"layout", "encode", "noise", "filter", "evaluate"}),
-    ("model.n_estimators=7", {"evaluate"}),
-    ("contact.margin_m=0.001", {"contact", "plan", "encode", "noise", "filter", "evaluate"}),
-])
+@pytest.mark.parametrize(
+    "override,stages",
+    [
+        ("encoder.res=5", {"layout", "encode", "noise", "filter", "evaluate"}),
+        ("model.n_estimators=7", {"evaluate"}),
+        ("contact.margin_m=0.001", {"contact", "plan", "encode", "noise", "filter", "evaluate"}),
+    ],
+)
 def test_a_result_setting_changes_the_hash_and_its_stages(tmp_path, override, stages):
     h0, k0 = _keys([], tmp_path)
     h1, k1 = _keys([override], tmp_path)
@@ -89,26 +98,41 @@ def test_a_result_setting_changes_the_hash_and_its_stages(tmp_path, override, st
 
 def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
-    return subprocess.run([sys.executable, "-m", "sphri", *args], capture_output=True, text=True, cwd=cwd,
-                          env=env, timeout=900)
+    return subprocess.run(
+        [sys.executable, "-m", "sphri", *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=900
+    )
 
 
 def test_rerun_with_other_runtime_settings_recomputes_nothing_and_skips_the_sweep(tmp_path):
     out = f"output_dir={tmp_path / 'out'}"
     first = _run(["-m", "+debug=fast", "encoder.res=2,4", out, "hydra/launcher=serial"], tmp_path)
     assert first.returncode == 0, (first.stdout + first.stderr)[-3000:]
-    again = _run(["-m", "+debug=fast", "encoder.res=2,4", "cv.workers=2", "cv.progress=false", out,
-                  "hydra/launcher=serial"], tmp_path)
+    again = _run(
+        ["-m", "+debug=fast", "encoder.res=2,4", "cv.workers=2", "cv.progress=false", out, "hydra/launcher=serial"],
+        tmp_path,
+    )
     assert again.returncode == 0, (again.stdout + again.stderr)[-3000:]
     assert "2 of 2 jobs finished (2 skipped" in again.stdout, again.stdout[-3000:]
     # the sweep's console: one line per job with the sweep's progress, then one table of every job
-    assert re.search(r"\[sweep 2/2 done: 0 failed, 0 skipped; .* ETA .*\] job #1 \(.*encoder.res=4.*\) accuracy 0\.\d{3}",
-                     first.stdout), first.stdout[-3000:]
+    assert re.search(
+        r"\[sweep 2/2 done: 0 failed, 0 skipped; .* ETA .*\] job #1 \(.*encoder.res=4.*\) accuracy 0\.\d{3}",
+        first.stdout,
+    ), first.stdout[-3000:]
     assert re.search(r"#1\s+encoder.res=4\s+FINISHED\s+0\.\d{3}\s+0\.\d{3}\s+\d+ s\s+no", first.stdout)
     assert re.search(r"#0\s+encoder.res=2\s+SKIPPED", again.stdout) and "=====" not in first.stdout  # no per-job boxes
     # a single run with other runtime settings: every stage comes from the cache
-    single = _run(["+debug=fast", "encoder.res=2", "cv.progress=false", "model.n_jobs=1", "contact.chunk_frames=777",
-                   out, "tracking.enabled=false"], tmp_path)
+    single = _run(
+        [
+            "+debug=fast",
+            "encoder.res=2",
+            "cv.progress=false",
+            "model.n_jobs=1",
+            "contact.chunk_frames=777",
+            out,
+            "tracking.enabled=false",
+        ],
+        tmp_path,
+    )
     assert single.returncode == 0, (single.stdout + single.stderr)[-3000:]
     log = single.stdout + single.stderr
     assert "stage evaluate  from cache" in log, log[-3000:]

@@ -40,8 +40,13 @@ def test_cli_validate_refuses_a_typo(capsys):
     assert "model.n_estimator" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("regions, match", [("[leg]", r"robot 'reachy' has no region 'leg'; its regions: \['arm', 'torso'\]"),
-                                            ("[arms]", r"no region 'arms' \(did you mean arm\?\)")])
+@pytest.mark.parametrize(
+    "regions, match",
+    [
+        ("[leg]", r"robot 'reachy' has no region 'leg'; its regions: \['arm', 'torso'\]"),
+        ("[arms]", r"no region 'arms' \(did you mean arm\?\)"),
+    ],
+)
 def test_regions_are_checked_against_the_robot(regions, match):
     with pytest.raises(ConfigError, match=match):
         compose([f"data.regions={regions}"])
@@ -92,10 +97,17 @@ def test_chance_level_counts_the_classes_present():
 
 def _windows(participants: list[str]) -> WindowedFrames:
     n = 2 * len(participants)
-    geom = TaxelGeometry(grid_shape=(1, 2), uv=None, position_m=np.zeros((2, 3)), wrap_v=False,
-                         metres_per_u=0.0, metres_per_v=0.0)
-    return WindowedFrames(x=np.zeros((n, 3, 2), np.float32), y=np.tile([0, 1], len(participants)),
-                          groups=np.repeat(participants, 2), geometry=geom, trial_row=np.arange(n), n_dropped=0)
+    geom = TaxelGeometry(
+        grid_shape=(1, 2), uv=None, position_m=np.zeros((2, 3)), wrap_v=False, metres_per_u=0.0, metres_per_v=0.0
+    )
+    return WindowedFrames(
+        x=np.zeros((n, 3, 2), np.float32),
+        y=np.tile([0, 1], len(participants)),
+        groups=np.repeat(participants, 2),
+        geometry=geom,
+        trial_row=np.arange(n),
+        n_dropped=0,
+    )
 
 
 def test_loso_min_participants_refuses_fewer_folds():
@@ -118,11 +130,18 @@ def test_missing_participants_are_named_in_the_summary_warnings():
     trials = pd.DataFrame({"participant": ["participant_01", "participant_02", "participant_03"]})
     dataset = SimpleNamespace(trials=trials, repairs={"participant_without_trials": 1})
     warnings = participant_warnings(cfg, dataset, _windows(["participant_01", "participant_03"]))
-    assert any("['participant_02'] have no window with contact" in w and "runs on 2 of 4 participants" in w
-               for w in warnings)
+    assert any(
+        "['participant_02'] have no window with contact" in w and "runs on 2 of 4 participants" in w for w in warnings
+    )
     assert any("1 participant(s) without a usable trial" in w for w in warnings)
-    assert participant_warnings(compose(["data.participants=2"]), SimpleNamespace(trials=trials[:2], repairs={}),
-                                _windows(["participant_01", "participant_02"])) == []
+    assert (
+        participant_warnings(
+            compose(["data.participants=2"]),
+            SimpleNamespace(trials=trials[:2], repairs={}),
+            _windows(["participant_01", "participant_02"]),
+        )
+        == []
+    )
 
 
 def test_summary_shows_chance_from_the_gestures_present(tmp_path):
@@ -139,15 +158,23 @@ def _run(args: list[str], tmp_path: Path, env_extra: dict | None = None) -> subp
     env = {**os.environ, "PYTHONPATH": str(REPO), **(env_extra or {})}
     env.pop("HYDRA_FULL_ERROR", None)
     env.update(env_extra or {})
-    return subprocess.run([sys.executable, "-m", *args], cwd=tmp_path, env=env, capture_output=True, text=True,
-                          timeout=300)
+    return subprocess.run(
+        [sys.executable, "-m", *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300
+    )
 
 
 def test_main_entry_point_prints_one_line_for_a_mesh_error_and_the_traceback_on_request(tmp_path):
     tri = tmp_path / "tri.obj"
     tri.write_text("v 0 0 0\nv 0.1 0 0\nv 0 0.1 0\nf 1 2 3\n")
-    args = ["sphri", "robot=mesh", f"robot.links={{l_arm: {tri}}}", "robot.regions={arm: l_arm}", "+debug=fast",
-            f"output_dir={tmp_path / 'out'}", "tracking.enabled=false"]
+    args = [
+        "sphri",
+        "robot=mesh",
+        f"robot.links={{l_arm: {tri}}}",
+        "robot.regions={arm: l_arm}",
+        "+debug=fast",
+        f"output_dir={tmp_path / 'out'}",
+        "tracking.enabled=false",
+    ]
     res = _run(args, tmp_path)
     assert res.returncode == 1, res.stderr
     assert "Traceback" not in res.stderr and "LinAlgError" not in res.stderr
@@ -160,12 +187,22 @@ def test_main_entry_point_prints_one_line_for_a_mesh_error_and_the_traceback_on_
 
 
 def test_main_entry_point_data_error_is_one_line(tmp_path):
-    res = _run(["sphri", "data=vr_gesture", f"data.root={tmp_path / 'nowhere'}", "robot=reachy",
-                f"output_dir={tmp_path / 'out'}", "tracking.enabled=false"], tmp_path)
+    res = _run(
+        [
+            "sphri",
+            "data=vr_gesture",
+            f"data.root={tmp_path / 'nowhere'}",
+            "robot=reachy",
+            f"output_dir={tmp_path / 'out'}",
+            "tracking.enabled=false",
+        ],
+        tmp_path,
+    )
     # a missing input folder is refused with the config, before any stage (exit 2, the key named)
     assert res.returncode == 2 and "Traceback" not in res.stderr
     assert [ln for ln in res.stderr.splitlines() if ln.startswith("sphri:")] == [
-        f"sphri: invalid config: data.root='{tmp_path / 'nowhere'}' is invalid: no such folder"]
+        f"sphri: invalid config: data.root='{tmp_path / 'nowhere'}' is invalid: no such folder"
+    ]
 
 
 @pytest.mark.parametrize(
@@ -174,8 +211,16 @@ def test_main_entry_point_data_error_is_one_line(tmp_path):
         ("sphri.data.stats", ["data=vr_gesture", "data.root=/nonexistent/ds"], "data error"),
         ("sphri.data.synthesize", ["out=/proc/sphri-ds", "data.participants=2", "+debug=fast"], "file error"),
         ("sphri.coverage", ["data=vr_gesture", "data.root=/nonexistent/ds", "mlflow=false"], "data error"),
-        ("sphri.hardware.train_export", ["out=m.sphrimodel", "data=vr_gesture", "data.root=/nonexistent/ds"], "data error"),
-        ("sphri.hardware.skin", ["live", "port=socket://127.0.0.1:9", "model=/nonexistent/m.sphrimodel"], "model file error"),
+        (
+            "sphri.hardware.train_export",
+            ["out=m.sphrimodel", "data=vr_gesture", "data.root=/nonexistent/ds"],
+            "data error",
+        ),
+        (
+            "sphri.hardware.skin",
+            ["live", "port=socket://127.0.0.1:9", "model=/nonexistent/m.sphrimodel"],
+            "model file error",
+        ),
         ("sphri.cli", ["validate", "+seeed=3"], "invalid config"),
     ],
 )

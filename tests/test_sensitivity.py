@@ -3,7 +3,6 @@ end (multirun + report) with the requirement per variant."""
 
 from __future__ import annotations
 
-
 import pandas as pd
 import yaml
 
@@ -47,8 +46,11 @@ def test_the_full_study_sweeps_every_variant_over_a_coarse_grid():
 
 
 def test_quick_preset_runs_end_to_end_and_reports_each_variant(sweep_then_report):
-    sweep, rep = sweep_then_report(["+experiment=requirement_sensitivity_quick", "tracking.confusion_png=false"], 9,
-                                   ["n_boot=200", "mlflow=false", "formats=png"])
+    sweep, rep = sweep_then_report(
+        ["+experiment=requirement_sensitivity_quick", "tracking.confusion_png=false"],
+        9,
+        ["n_boot=200", "mlflow=false", "formats=png"],
+    )
     assert rep.returncode == 0, rep.stderr[-3000:]
     assert "grouped by variant" in rep.stdout
     assert "under the reference assumptions; between" in rep.stdout and "across the 3 assumptions tested" in rep.stdout

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import subprocess
 from pathlib import Path
 
 import pytest
@@ -67,16 +68,28 @@ def test_validate_checks_every_job_of_a_sweep_and_runs_none(tmp_path):
     import subprocess
     import sys
 
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]),
-                                                       os.environ.get("PYTHONPATH", "")])}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")]),
+    }
 
     def validate(*args):
-        return subprocess.run([sys.executable, "-m", "sphri.cli", "validate", *args], capture_output=True, text=True,
-                              cwd=tmp_path, env=env, timeout=300)
+        return subprocess.run(
+            [sys.executable, "-m", "sphri.cli", "validate", *args],
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+            env=env,
+            timeout=300,
+        )
 
     bad = validate("-m", "+debug=fast", "encoder.res=0,4,abc")
     assert bad.returncode == 2
-    assert "2 of 3 points fail validation" in bad.stderr and "encoder.res=0" in bad.stderr and "encoder.res=abc" in bad.stderr
+    assert (
+        "2 of 3 points fail validation" in bad.stderr
+        and "encoder.res=0" in bad.stderr
+        and "encoder.res=abc" in bad.stderr
+    )
     ok = validate("+debug=fast", "encoder.res=range(2,5)")  # sweep syntax without -m
     assert ok.returncode == 0 and "all 3 jobs compose and validate" in ok.stdout
     # an experiment's own sweep, through the sweeper, narrowed on the command line to its end resolutions
@@ -100,14 +113,18 @@ def test_a_misspelt_component_lists_the_real_options_not_the_schemas():
         compose(["encoder=elipse"])
     msg = str(err.value)
     assert "encoder=elipse is invalid" in msg and "did you mean ellipse?" in msg and "_schema" not in msg
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]),
-                                                       os.environ.get("PYTHONPATH", "")])}
-    run = subprocess.run([sys.executable, "-m", "sphri", "-m", "layout=grid,hexx"], capture_output=True, text=True,
-                         env=env, timeout=120)
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")]),
+    }
+    run = subprocess.run(
+        [sys.executable, "-m", "sphri", "-m", "layout=grid,hexx"], capture_output=True, text=True, env=env, timeout=120
+    )
     assert run.returncode == 2
     assert run.stderr.strip().splitlines() == [
         "sphri: invalid config: layout=hexx is invalid: no such layout option; options: density, file, grid, hex, "
-        "random (did you mean hex?)"]
+        "random (did you mean hex?)"
+    ]
 
 
 def test_tab_completion_offers_components_not_schemas():
@@ -115,10 +132,14 @@ def test_tab_completion_offers_components_not_schemas():
     import subprocess
     import sys
 
-    env = {**os.environ, "COMP_LINE": "sphri encoder=",
-           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")])}
-    run = subprocess.run([sys.executable, "-m", "sphri", "-sc", "query=bash"], capture_output=True, text=True,
-                         env=env, timeout=120)
+    env = {
+        **os.environ,
+        "COMP_LINE": "sphri encoder=",
+        "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")]),
+    }
+    run = subprocess.run(
+        [sys.executable, "-m", "sphri", "-sc", "query=bash"], capture_output=True, text=True, env=env, timeout=120
+    )
     assert run.stdout.split() == ["encoder=coverage", "encoder=ellipse", "encoder=proximity"], run.stdout + run.stderr
 
 
@@ -128,8 +149,12 @@ def _complete(line: str, cache: Path) -> str:
     import subprocess
     import sys
 
-    env = {**os.environ, "COMP_LINE": line, "XDG_CACHE_HOME": str(cache),
-           "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")])}
+    env = {
+        **os.environ,
+        "COMP_LINE": line,
+        "XDG_CACHE_HOME": str(cache),
+        "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")]),
+    }
     probe = "import sys; sys.argv = ['sphri', '-sc', 'query=bash']; from sphri.completion import main; main()"
     run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, env=env, timeout=120)
     assert run.returncode == 0, run.stderr[-2000:]
@@ -223,22 +248,25 @@ def test_row_never_hangs_on_a_head_wider_than_the_width():
     assert text.startswith("x" * 120) and all(len(line) <= 100 for line in text.splitlines()[1:])
 
 
-def _run(args: list[str], cwd: Path, module: str = "sphri") -> "subprocess.CompletedProcess":
+def _run(args: list[str], cwd: Path, module: str = "sphri") -> subprocess.CompletedProcess:
     import os
     import subprocess
     import sys
 
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}  # as a user runs it: not verbose
-    return subprocess.run([sys.executable, "-m", module, *args], cwd=cwd, env=env, capture_output=True, text=True,
-                          timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", module, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=600
+    )
 
 
 def test_an_unknown_key_or_a_wrong_type_is_one_line_with_or_without_plus(tmp_path):
     """Hydra's own message was six lines with a wrong hint ("use +model.lr=0.1", which fails too)."""
-    for args, want in ((["model.lr=0.1"], "model.lr is not a known key"),
-                       (["+model.lr=0.1"], "model.lr is not a known key"),
-                       (["model.n_estimator=5"], "(did you mean n_estimators?)"),
-                       (["encoder.res=abc"], "encoder.res is invalid")):
+    for args, want in (
+        (["model.lr=0.1"], "model.lr is not a known key"),
+        (["+model.lr=0.1"], "model.lr is not a known key"),
+        (["model.n_estimator=5"], "(did you mean n_estimators?)"),
+        (["encoder.res=abc"], "encoder.res is invalid"),
+    ):
         proc = _run([*args, "+debug=fast", f"output_dir={tmp_path}"], tmp_path)
         assert proc.returncode == 2, (args, proc.stderr)
         lines = (proc.stdout + proc.stderr).strip().splitlines()
@@ -253,16 +281,30 @@ def test_a_missing_input_path_fails_validation_and_starts_nothing(tmp_path):
     proc = _run(["data=vr_gesture", f"data.root={tmp_path / 'nope'}", f"output_dir={tmp_path / 'out'}"], tmp_path)
     assert proc.returncode == 2 and proc.stderr.count("no such folder") == 1, proc.stderr  # said once
     assert not (tmp_path / "out" / "mlflow.db").exists()  # no FAILED run left behind
-    proc = _run(["validate", "-m", "data=vr_gesture", f"data.root={tmp_path / 'nope'},{tmp_path}"], tmp_path,
-                module="sphri.cli")
+    proc = _run(
+        ["validate", "-m", "data=vr_gesture", f"data.root={tmp_path / 'nope'},{tmp_path}"], tmp_path, module="sphri.cli"
+    )
     assert proc.returncode == 2 and "1 of 2 points fail validation" in proc.stderr
 
 
 def test_a_failing_job_in_a_sweep_is_one_line_with_its_log_and_the_console_is_quiet(tmp_path, arm_mesh_roots):
     good, bad = arm_mesh_roots
-    proc = _run(["-m", "+debug=fast", "encoder.res=2", "robot=mesh", "robot.links={l_arm: arm.obj}",
-                 "robot.regions={arm: l_arm}", "robot.units=m", f"robot.root={good},{bad}",
-                 f"output_dir={tmp_path / 'out'}", "hydra/launcher=serial", "tracking.enabled=false"], tmp_path)
+    proc = _run(
+        [
+            "-m",
+            "+debug=fast",
+            "encoder.res=2",
+            "robot=mesh",
+            "robot.links={l_arm: arm.obj}",
+            "robot.regions={arm: l_arm}",
+            "robot.units=m",
+            f"robot.root={good},{bad}",
+            f"output_dir={tmp_path / 'out'}",
+            "hydra/launcher=serial",
+            "tracking.enabled=false",
+        ],
+        tmp_path,
+    )
     assert proc.returncode == 1
     console = proc.stdout + proc.stderr
     assert "Traceback" not in console and "stage noise" not in console, console[-3000:]
@@ -289,8 +331,11 @@ def test_warmup_reports_what_it_compiled_and_fails_in_one_line(monkeypatch: pyte
     assert "+debug=fast" in calls[0] and "tracking.enabled=false" in calls[0]
     assert "compiled 8 numba kernels in 31.6 s" in capsys.readouterr().out
 
-    monkeypatch.setattr(subprocess, "run", lambda cmd, **kw: subprocess.CompletedProcess(
-        cmd, 1, stdout="", stderr="Traceback ...\nValueError: boom\n"))
+    monkeypatch.setattr(
+        subprocess,
+        "run",
+        lambda cmd, **kw: subprocess.CompletedProcess(cmd, 1, stdout="", stderr="Traceback ...\nValueError: boom\n"),
+    )
     assert cli.main(["warmup"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("sphri: warmup failed") and "ValueError: boom" in err[0]

@@ -23,8 +23,9 @@ def _env() -> dict[str, str]:
 
 
 def _sphri(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "sphri", *args], cwd=cwd, env=_env(), capture_output=True, text=True,
-                          timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "sphri", *args], cwd=cwd, env=_env(), capture_output=True, text=True, timeout=timeout
+    )
 
 
 def _runs(out: Path, kind: str | None = None) -> list:
@@ -40,12 +41,23 @@ def _runs(out: Path, kind: str | None = None) -> list:
 def test_four_concurrent_first_runs_share_one_new_store(tmp_path: Path):
     """Four first runs at once into one new output_dir: all finish, four runs in the store (about 60 s on 2 cores)."""
     out = tmp_path / "race"
-    args = [sys.executable, "-m", "sphri", "+debug=fast", "encoder.res=2", "data.participants=2", "data.repetitions=1",
-            f"output_dir={out}"]
+    args = [
+        sys.executable,
+        "-m",
+        "sphri",
+        "+debug=fast",
+        "encoder.res=2",
+        "data.participants=2",
+        "data.repetitions=1",
+        f"output_dir={out}",
+    ]
     # four different experiments (seeds): the same one four times would be recorded once
-    procs = [subprocess.Popen([*args, f"seed={i}"], cwd=tmp_path, env=_env(), stdout=subprocess.PIPE,
-                              stderr=subprocess.STDOUT, text=True)
-             for i in range(4)]
+    procs = [
+        subprocess.Popen(
+            [*args, f"seed={i}"], cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        )
+        for i in range(4)
+    ]
     logs = [p.communicate(timeout=600)[0] for p in procs]
     for p, log in zip(procs, logs):
         assert p.returncode == 0, log[-3000:]
@@ -122,7 +134,9 @@ def test_store_left_broken_by_a_migration_is_refused_before_computing(tmp_path: 
 @pytest.mark.parametrize("values", ["2,abc", "0,2"])
 def test_sweep_with_an_invalid_point_starts_no_job(tmp_path: Path, values: str):
     out = tmp_path / "out"
-    proc = _sphri(["-m", "+debug=fast", f"encoder.res={values}", f"output_dir={out}", "hydra/launcher=serial"], cwd=tmp_path)
+    proc = _sphri(
+        ["-m", "+debug=fast", f"encoder.res={values}", f"output_dir={out}", "hydra/launcher=serial"], cwd=tmp_path
+    )
     assert proc.returncode == 2, proc.stderr[-3000:]
     bad = "abc" if "abc" in values else "0"
     assert f"encoder.res={bad}" in proc.stderr and "no job was started" in proc.stderr
@@ -134,9 +148,24 @@ def test_sweep_with_an_invalid_point_starts_no_job(tmp_path: Path, values: str):
 def test_killed_sweep_ends_its_parent_killed(tmp_path: Path, sig: int):
     out = tmp_path / "out"
     sweep_dir = out / "sweeps" / "k"
-    proc = subprocess.Popen([sys.executable, "-m", "sphri", "-m", "+debug=fast", "encoder.res=range(2,20)",
-                             f"output_dir={out}", "hydra/launcher=serial", f"hydra.sweep.dir={sweep_dir}"],
-                            cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "sphri",
+            "-m",
+            "+debug=fast",
+            "encoder.res=range(2,20)",
+            f"output_dir={out}",
+            "hydra/launcher=serial",
+            f"hydra.sweep.dir={sweep_dir}",
+        ],
+        cwd=tmp_path,
+        env=_env(),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
     deadline = time.time() + 300
     while not (sweep_dir / PARENT_FILE).exists() and time.time() < deadline and proc.poll() is None:
         time.sleep(0.2)
@@ -172,8 +201,14 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     """The same sweep again, into its own sweep dir and then into a new timestamped one: both skip the
     finished jobs and reopen the one parent run."""
     out = tmp_path / "out"
-    fixed = ["-m", "+debug=fast", "encoder.res=2,3", f"output_dir={out}", "hydra/launcher=serial",
-             f"hydra.sweep.dir={out}/sweeps/s"]
+    fixed = [
+        "-m",
+        "+debug=fast",
+        "encoder.res=2,3",
+        f"output_dir={out}",
+        "hydra/launcher=serial",
+        f"hydra.sweep.dir={out}/sweeps/s",
+    ]
     first = _sphri(fixed, cwd=tmp_path)
     assert first.returncode == 0, first.stderr[-3000:]
     again = _sphri(fixed, cwd=tmp_path)
@@ -193,8 +228,17 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     assert sorted(p.name for p in new_dir.iterdir() if p.is_dir()) == ["0", "1"]
     assert all(not (new_dir / j / ".hydra").exists() for j in ("0", "1"))
     # one more point: only that job starts, under its own number
-    more = _sphri(["-m", "+debug=fast", "encoder.res=2,3,4", f"output_dir={out}", "hydra/launcher=serial",
-                   f"hydra.sweep.dir={out}/sweeps/t"], cwd=tmp_path)
+    more = _sphri(
+        [
+            "-m",
+            "+debug=fast",
+            "encoder.res=2,3,4",
+            f"output_dir={out}",
+            "hydra/launcher=serial",
+            f"hydra.sweep.dir={out}/sweeps/t",
+        ],
+        cwd=tmp_path,
+    )
     assert more.returncode == 0, more.stderr[-3000:]
     assert "3 of 3 jobs finished (2 skipped" in more.stdout
     assert [j for j in ("0", "1", "2") if (out / "sweeps" / "t" / j / ".hydra").exists()] == ["2"]

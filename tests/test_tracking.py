@@ -23,15 +23,37 @@ def fake_result() -> RunResult:
     for i in range(3):
         conf = rng.integers(0, 5, size=(8, 8))
         acc = float(np.trace(conf) / conf.sum())
-        folds.append(FoldResult(f"participant_0{i + 1}", int(conf.sum()), acc, acc * 0.9, conf, np.diag(conf) / conf.sum(1)))
+        folds.append(
+            FoldResult(f"participant_0{i + 1}", int(conf.sum()), acc, acc * 0.9, conf, np.diag(conf) / conf.sum(1))
+        )
     meta = RunMeta(
-        dataset="synthetic", synthetic=True, n_participants=3, n_trials=48, n_frames=4800,
-        frame_rate_hz=30.0, repairs={}, robot="reachy", region="arm", link="arm", surface="cylinder",
-        surface_fit_residual_mm=1.2, n_windows=48, n_dropped_no_contact=0, window_frames=50,
-        resolution={"n_taxels": 342, "grid_shape": (18, 19), "pitch_u_mm": 13.4, "pitch_v_mm": 13.2,
-                    "area_per_taxel_cm2": 1.77, "taxels_per_24cm": 17.9},
+        dataset="synthetic",
+        synthetic=True,
+        n_participants=3,
+        n_trials=48,
+        n_frames=4800,
+        frame_rate_hz=30.0,
+        repairs={},
+        robot="reachy",
+        region="arm",
+        link="arm",
+        surface="cylinder",
+        surface_fit_residual_mm=1.2,
+        n_windows=48,
+        n_dropped_no_contact=0,
+        window_frames=50,
+        resolution={
+            "n_taxels": 342,
+            "grid_shape": (18, 19),
+            "pitch_u_mm": 13.4,
+            "pitch_v_mm": 13.2,
+            "area_per_taxel_cm2": 1.77,
+            "taxels_per_24cm": 17.9,
+        },
     )
-    return RunResult(CVResult("loso", "rf", folds), meta, {"contact": StageRecord("contact", "k", "cache", 0.1)}, "abc123")
+    return RunResult(
+        CVResult("loso", "rf", folds), meta, {"contact": StageRecord("contact", "k", "cache", 0.1)}, "abc123"
+    )
 
 
 def test_default_store_is_absolute_sqlite(tmp_path: Path):
@@ -87,15 +109,27 @@ def test_params_are_flat_scalars():
 
 def _sphri(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1"}
-    return subprocess.run([sys.executable, "-m", "sphri", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "sphri", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
+    )
 
 
 def test_parallel_multirun_makes_one_parent_with_four_children(tmp_path: Path):
     from mlflow.tracking import MlflowClient
 
     out = tmp_path / "outputs"
-    proc = _sphri(["-m", "+robot=reachy", "+debug=fast", "encoder.res=1,2,3,4", f"output_dir={out}",
-                   "hydra/launcher=local", "hydra.launcher.n_jobs=2"], cwd=tmp_path)
+    proc = _sphri(
+        [
+            "-m",
+            "+robot=reachy",
+            "+debug=fast",
+            "encoder.res=1,2,3,4",
+            f"output_dir={out}",
+            "hydra/launcher=local",
+            "hydra.launcher.n_jobs=2",
+        ],
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     client = MlflowClient(default_uri(out))
     exp = client.get_experiment_by_name("sphri-debug")
@@ -121,9 +155,21 @@ def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path, arm_mesh_roots
 
     good, bad = arm_mesh_roots
     out = tmp_path / "outputs"
-    proc = _sphri(["-m", "+debug=fast", "encoder.res=2", "robot=mesh", "robot.links={l_arm: arm.obj}",
-                   "robot.regions={arm: l_arm}", "robot.units=m", f"robot.root={good},{bad}", f"output_dir={out}",
-                   "hydra/launcher=serial"], cwd=tmp_path)
+    proc = _sphri(
+        [
+            "-m",
+            "+debug=fast",
+            "encoder.res=2",
+            "robot=mesh",
+            "robot.links={l_arm: arm.obj}",
+            "robot.regions={arm: l_arm}",
+            "robot.units=m",
+            f"robot.root={good},{bad}",
+            f"output_dir={out}",
+            "hydra/launcher=serial",
+        ],
+        cwd=tmp_path,
+    )
     assert proc.returncode == 1, "a sweep with a failed job exits non-zero: " + proc.stderr[-2000:]
     client = MlflowClient(default_uri(out))
     runs = client.search_runs([client.get_experiment_by_name("sphri-debug").experiment_id])
@@ -158,8 +204,12 @@ def test_job_run_has_standard_source_tags_debug_experiment_and_derived_metrics(t
 
     from mlflow.tracking import MlflowClient
 
-    job = subprocess.run([sys.executable, "-m", "sphri", "+debug=fast", f"output_dir={tmp_path}"],
-                         capture_output=True, text=True, timeout=600)
+    job = subprocess.run(
+        [sys.executable, "-m", "sphri", "+debug=fast", f"output_dir={tmp_path}"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert job.returncode == 0, job.stderr[-2000:]
     client = MlflowClient(tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
     assert client.get_experiment_by_name("sphri") is None
@@ -169,7 +219,9 @@ def test_job_run_has_standard_source_tags_debug_experiment_and_derived_metrics(t
     # MLflow's tag providers ran (as in mlflow.start_run): user, source, commit of this checkout
     assert tags["mlflow.user"] and tags["mlflow.source.type"] == "LOCAL"
     assert tags["mlflow.source.name"].endswith("__main__.py") and tags["sphri.debug"] == "true"
-    assert len(tags["mlflow.source.git.commit"]) == 40 and tags["sphri.git_commit"].startswith(tags["mlflow.source.git.commit"])
+    assert len(tags["mlflow.source.git.commit"]) == 40 and tags["sphri.git_commit"].startswith(
+        tags["mlflow.source.git.commit"]
+    )
     (data,) = run.inputs.dataset_inputs  # the dataset as an MLflow input, keyed by the data stage's content key
     assert data.dataset.name == "synthetic" and data.dataset.digest and data.dataset.source_type == "code"
     assert {t.key: t.value for t in data.tags}["mlflow.data.context"] == "training"
@@ -192,8 +244,9 @@ def test_a_cnn_gru_job_records_device_precision_cpu_and_torch(tmp_path):
     from sphri.models.cnn_gru import resolve_precision
     from sphri.tracking.machine import cpu
 
-    job = _sphri(["+debug=fast", "model=cnn_gru", "encoder.res=3", "model.max_epochs=1", f"output_dir={tmp_path}"],
-                 cwd=tmp_path)
+    job = _sphri(
+        ["+debug=fast", "model=cnn_gru", "encoder.res=3", "model.max_epochs=1", f"output_dir={tmp_path}"], cwd=tmp_path
+    )
     assert job.returncode == 0, job.stderr[-2000:]
     client = MlflowClient(tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
     (run,) = client.search_runs([client.get_experiment_by_name("sphri-debug").experiment_id])
@@ -222,10 +275,26 @@ def test_a_job_logged_to_a_real_mlflow_server_reads_back_over_rest(tmp_path):
         port = s.getsockname()[1]
     uri = f"http://127.0.0.1:{port}"
     mlflow_bin = Path(sys.executable).with_name("mlflow")
-    server = subprocess.Popen([str(mlflow_bin), "server", "--backend-store-uri", f"sqlite:///{tmp_path / 'server.db'}",
-                               "--artifacts-destination", str(tmp_path / "server-artifacts"), "--host", "127.0.0.1",
-                               "--port", str(port), "--workers", "1"],
-                              cwd=tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT, start_new_session=True)
+    server = subprocess.Popen(
+        [
+            str(mlflow_bin),
+            "server",
+            "--backend-store-uri",
+            f"sqlite:///{tmp_path / 'server.db'}",
+            "--artifacts-destination",
+            str(tmp_path / "server-artifacts"),
+            "--host",
+            "127.0.0.1",
+            "--port",
+            str(port),
+            "--workers",
+            "1",
+        ],
+        cwd=tmp_path,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.STDOUT,
+        start_new_session=True,
+    )
     try:
         for _ in range(180):
             try:
@@ -235,9 +304,22 @@ def test_a_job_logged_to_a_real_mlflow_server_reads_back_over_rest(tmp_path):
                 time.sleep(1)
         else:
             raise AssertionError("mlflow server did not answer in 180 s")
-        job = subprocess.run([sys.executable, "-m", "sphri", "+debug=fast", "encoder.res=4", f"tracking.uri={uri}",
-                              "tracking.log_model=true", f"output_dir={tmp_path / 'out'}"],
-                             capture_output=True, text=True, cwd=tmp_path, timeout=600)
+        job = subprocess.run(
+            [
+                sys.executable,
+                "-m",
+                "sphri",
+                "+debug=fast",
+                "encoder.res=4",
+                f"tracking.uri={uri}",
+                "tracking.log_model=true",
+                f"output_dir={tmp_path / 'out'}",
+            ],
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+            timeout=600,
+        )
         assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
         assert f"open {uri}" in job.stdout
         client = MlflowClient(uri)

@@ -28,9 +28,22 @@ def logged(tmp_path_factory) -> tuple[Path, str]:
     """(output_dir, run id) of a debug job that logged and registered its model as `gestures`."""
     tmp = tmp_path_factory.mktemp("model_run")
     out = tmp / "out"
-    job = subprocess.run([sys.executable, "-m", "sphri", *DATA, f"output_dir={out}", "tracking.log_model=true",
-                          "tracking.register_model=gestures"],
-                         capture_output=True, text=True, cwd=tmp, env=_env(), timeout=600)
+    job = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sphri",
+            *DATA,
+            f"output_dir={out}",
+            "tracking.log_model=true",
+            "tracking.register_model=gestures",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=tmp,
+        env=_env(),
+        timeout=600,
+    )
     assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
     status = json.loads(next(out.glob("runs/*/*/sphri_status.json")).read_text())
     return out, status["mlflow_run_id"]
@@ -52,7 +65,9 @@ def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windo
         "print(json.dumps({'labels': model.predict(x).tolist(),"
         " 'shape': list(model.metadata.get_input_schema().inputs[0].shape)}))\n"
     )
-    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=_env(), timeout=300, cwd=tmp_path)
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=_env(), timeout=300, cwd=tmp_path
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     got = json.loads(proc.stdout.strip().splitlines()[-1])
     assert got["shape"] == [-1, windows.x.shape[1], windows.x.shape[2]]  # the signature: (n, L, N) windows
@@ -110,8 +125,9 @@ def test_log_model_on_an_already_recorded_config_logs_it_or_says_where_it_is(tmp
     args = [sys.executable, "-m", "sphri", *DATA, f"output_dir={out}"]
     runs = []
     for flag in ("false", "true", "true"):
-        job = subprocess.run([*args, f"tracking.log_model={flag}"], capture_output=True, text=True, cwd=tmp_path,
-                             env=_env(), timeout=600)
+        job = subprocess.run(
+            [*args, f"tracking.log_model={flag}"], capture_output=True, text=True, cwd=tmp_path, env=_env(), timeout=600
+        )
         assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
         runs.append(job.stdout)
     assert "model " not in runs[0].split("model       rf")[-1]

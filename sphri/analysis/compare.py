@@ -32,10 +32,10 @@ the default with an even trial count, stays exact).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from itertools import combinations
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 import pandas as pd
@@ -47,8 +47,17 @@ from sphri.analysis.swd import SharedSupportSW
 HalvesFn = Callable[[str, str, str], "tuple[np.ndarray, np.ndarray] | list[tuple[np.ndarray, np.ndarray]] | None"]
 
 TABLE_COLUMNS = (
-    "cond_a", "cond_b", "n_participants", "mean_between_swd_mm", "mean_within_swd_mm",
-    "mean_diff_swd_mm", "p_value", "p_holm", "significant", "exact", "n_permutations",
+    "cond_a",
+    "cond_b",
+    "n_participants",
+    "mean_between_swd_mm",
+    "mean_within_swd_mm",
+    "mean_diff_swd_mm",
+    "p_value",
+    "p_holm",
+    "significant",
+    "exact",
+    "n_permutations",
 )
 
 
@@ -89,10 +98,12 @@ class PairwiseComparison:
         pp = self.per_participant
         out = {}
         for cond in self.conditions:
-            vals = np.concatenate([
-                pp.loc[pp["cond_a"] == cond, "within_a_mm"].to_numpy(float),
-                pp.loc[pp["cond_b"] == cond, "within_b_mm"].to_numpy(float),
-            ])
+            vals = np.concatenate(
+                [
+                    pp.loc[pp["cond_a"] == cond, "within_a_mm"].to_numpy(float),
+                    pp.loc[pp["cond_b"] == cond, "within_b_mm"].to_numpy(float),
+                ]
+            )
             out[cond] = float(vals.mean()) if vals.size else float("nan")
         return out
 
@@ -101,8 +112,12 @@ class PairwiseComparison:
         ``<prefix>_p_holm_matrix.csv``."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
-        paths = [out / f"{prefix}_pairs.csv", out / f"{prefix}_participants.csv",
-                 out / f"{prefix}_matrix_mm.csv", out / f"{prefix}_p_holm_matrix.csv"]
+        paths = [
+            out / f"{prefix}_pairs.csv",
+            out / f"{prefix}_participants.csv",
+            out / f"{prefix}_matrix_mm.csv",
+            out / f"{prefix}_p_holm_matrix.csv",
+        ]
         self.table.to_csv(paths[0], index=False, float_format="%.6g")
         self.per_participant.to_csv(paths[1], index=False, float_format="%.6g")
         self.matrix("mean_between_swd_mm").to_csv(paths[2], float_format="%.6g")
@@ -183,43 +198,79 @@ def paired_swd_tests(
                     raise ValueError(f"halves({part!r}, {a!r}, {b!r}) must be two (2, {sw.support.shape[0]}) arrays")
                 ia, ib = id(split[0]), id(split[1])
                 # the four comparisons: a1-b2, a2-b1, a1-a2, b1-b2
-                idx4.append([job(("ab", ia, ib), ha[0], hb[1]), job(("ba", ia, ib), ha[1], hb[0]),
-                             job(("w", ia), ha[0], ha[1]), job(("w", ib), hb[0], hb[1])])
+                idx4.append(
+                    [
+                        job(("ab", ia, ib), ha[0], hb[1]),
+                        job(("ba", ia, ib), ha[1], hb[0]),
+                        job(("w", ia), ha[0], ha[1]),
+                        job(("w", ib), hb[0], hb[1]),
+                    ]
+                )
             used.append(part)
             n_splits.append(len(splits))
         plan.append((a, b, used, idx4, n_splits))
-    all_dist = np.concatenate([np.zeros(0)] + [  # mm; in chunks (each row is a whole-surface weighting)
-        sw.distances(np.stack(wa_all[i:i + 128]), np.stack(wb_all[i:i + 128])) * 1e3 for i in range(0, len(wa_all), 128)])
+    all_dist = np.concatenate(
+        [np.zeros(0)]
+        + [  # mm; in chunks (each row is a whole-surface weighting)
+            sw.distances(np.stack(wa_all[i : i + 128]), np.stack(wb_all[i : i + 128])) * 1e3
+            for i in range(0, len(wa_all), 128)
+        ]
+    )
     rows, prows = [], []
     for idx, (a, b, used, idx4, n_splits) in enumerate(plan):
         n = len(used)
         row = {"cond_a": a, "cond_b": b, "n_participants": n}
         if n == 0:
-            row.update(mean_between_swd_mm=np.nan, mean_within_swd_mm=np.nan, mean_diff_swd_mm=np.nan,
-                       p_value=np.nan, exact=False, n_permutations=0)
+            row.update(
+                mean_between_swd_mm=np.nan,
+                mean_within_swd_mm=np.nan,
+                mean_diff_swd_mm=np.nan,
+                p_value=np.nan,
+                exact=False,
+                n_permutations=0,
+            )
             rows.append(row)
             continue
         flat = all_dist[np.asarray(idx4)]  # one row per split
         owner = np.repeat(np.arange(n), n_splits)
-        dist = np.stack([np.bincount(owner, flat[:, c], minlength=n) for c in range(4)], axis=1) / np.asarray(n_splits)[:, None]
+        dist = (
+            np.stack([np.bincount(owner, flat[:, c], minlength=n) for c in range(4)], axis=1)
+            / np.asarray(n_splits)[:, None]
+        )
         between = dist[:, :2].mean(axis=1)
         within = dist[:, 2:].mean(axis=1)
         diff = between - within
-        res = sign_flip_test(diff, alternative=alternative, exact_max=exact_max,
-                             n_permutations=n_permutations, seed=seed + idx)
+        res = sign_flip_test(
+            diff, alternative=alternative, exact_max=exact_max, n_permutations=n_permutations, seed=seed + idx
+        )
         row.update(
-            mean_between_swd_mm=float(between.mean()), mean_within_swd_mm=float(within.mean()),
-            mean_diff_swd_mm=res.statistic, p_value=res.p_value, exact=res.exact,
+            mean_between_swd_mm=float(between.mean()),
+            mean_within_swd_mm=float(within.mean()),
+            mean_diff_swd_mm=res.statistic,
+            p_value=res.p_value,
+            exact=res.exact,
             n_permutations=res.n_permutations,
         )
         rows.append(row)
         for part, bt, wa_, wb_, df, ns in zip(used, between, dist[:, 2], dist[:, 3], diff, n_splits):
-            prows.append({"participant": part, "cond_a": a, "cond_b": b, "between_mm": bt,
-                          "within_a_mm": wa_, "within_b_mm": wb_, "diff_mm": df, "n_splits": ns})
+            prows.append(
+                {
+                    "participant": part,
+                    "cond_a": a,
+                    "cond_b": b,
+                    "between_mm": bt,
+                    "within_a_mm": wa_,
+                    "within_b_mm": wb_,
+                    "diff_mm": df,
+                    "n_splits": ns,
+                }
+            )
     table = pd.DataFrame(rows)
     table["p_holm"] = holm(table["p_value"].to_numpy(float))
     table["significant"] = table["p_holm"].to_numpy(float) <= alpha
     table = table[list(TABLE_COLUMNS)]
-    per = pd.DataFrame(prows, columns=["participant", "cond_a", "cond_b", "between_mm", "within_a_mm",
-                                       "within_b_mm", "diff_mm", "n_splits"])
+    per = pd.DataFrame(
+        prows,
+        columns=["participant", "cond_a", "cond_b", "between_mm", "within_a_mm", "within_b_mm", "diff_mm", "n_splits"],
+    )
     return PairwiseComparison(conditions, table, per, float(alpha), alternative, sw.p, sw.n_projections)

@@ -28,7 +28,6 @@ import numpy as np
 import pandas as pd
 
 from sphri.analysis.compare import PairwiseComparison, n_rotations, paired_swd_tests, rotated_halves
-from sphri.surface.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
 from sphri.analysis.placement import (
     CoverageCurve,
     coverage_curve,
@@ -38,6 +37,7 @@ from sphri.analysis.placement import (
 )
 from sphri.analysis.schema import CoverageSchema
 from sphri.analysis.swd import SharedSupportSW
+from sphri.surface.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
 from sphri.types import GESTURES, Contacts, GestureDataset, Link, SurfaceMap
 
 log = logging.getLogger(__name__)
@@ -75,10 +75,15 @@ class RegionCoverage:
     def summary(self) -> dict[str, Any]:
         """JSON-ready numbers of the region."""
         out: dict[str, Any] = {
-            "region": self.region, "link": self.link, "by": self.by,
-            "n_elements": self.samples.n, "area_cm2": self.samples.total_area_m2 * 1e4,
-            "element_spacing_mm": self.samples.spacing_m * 1e3, "notes": self.notes,
-            "seconds": self.seconds, "groups": {},
+            "region": self.region,
+            "link": self.link,
+            "by": self.by,
+            "n_elements": self.samples.n,
+            "area_cm2": self.samples.total_area_m2 * 1e4,
+            "element_spacing_mm": self.samples.spacing_m * 1e3,
+            "notes": self.notes,
+            "seconds": self.seconds,
+            "groups": {},
         }
         for g, c in self.curves.items():
             entry = {
@@ -97,8 +102,11 @@ class RegionCoverage:
         if self.comparison is not None:
             t = self.comparison.table
             out["comparison"] = {
-                "n_pairs": int(len(t)), "n_significant": int(t["significant"].sum()), "alpha": self.comparison.alpha,
-                "swd_p": self.comparison.swd_p, "n_projections": self.comparison.n_projections,
+                "n_pairs": int(len(t)),
+                "n_significant": int(t["significant"].sum()),
+                "alpha": self.comparison.alpha,
+                "swd_p": self.comparison.swd_p,
+                "n_projections": self.comparison.n_projections,
                 "exact": bool(t["exact"].all()) if len(t) else True,
                 "n_permutations": sorted({int(x) for x in t["n_permutations"]}),
             }
@@ -138,10 +146,25 @@ class CoverageAnalysis:
         render: bool = True,
         heldout: bool = True,
     ) -> None:
-        CoverageSchema(by=by, pair_by=pair_by, bandwidth_mm=bandwidth_mm, kernel=kernel, footprint=footprint,
-                       spacing_mm=spacing_mm, capture=capture, n_projections=n_projections, swd_p=swd_p,
-                       alpha=alpha, alternative=alternative, exact_max=exact_max, n_permutations=n_permutations,
-                       seed=seed, views=views, render=render, heldout=heldout)
+        CoverageSchema(
+            by=by,
+            pair_by=pair_by,
+            bandwidth_mm=bandwidth_mm,
+            kernel=kernel,
+            footprint=footprint,
+            spacing_mm=spacing_mm,
+            capture=capture,
+            n_projections=n_projections,
+            swd_p=swd_p,
+            alpha=alpha,
+            alternative=alternative,
+            exact_max=exact_max,
+            n_permutations=n_permutations,
+            seed=seed,
+            views=views,
+            render=render,
+            heldout=heldout,
+        )
         self.by, self.pair_by = by, pair_by
         self.bandwidth_mm, self.kernel, self.footprint, self.spacing_mm = bandwidth_mm, kernel, footprint, spacing_mm
         self.capture, self.n_projections, self.swd_p, self.alpha = capture, n_projections, swd_p, alpha
@@ -149,9 +172,17 @@ class CoverageAnalysis:
         self.seed, self.views, self.render, self.heldout = seed, views, render, heldout
 
     # ------------------------------------------------------------------ analysis
-    def analyze(self, dataset: GestureDataset, contacts: Contacts | None, link: Link, surface: SurfaceMap | None,
-                region: str | None = None, samples: SurfaceSamples | None = None, kernel: SurfaceKernel | None = None,
-                touched: tuple[np.ndarray, np.ndarray] | None = None) -> RegionCoverage:
+    def analyze(
+        self,
+        dataset: GestureDataset,
+        contacts: Contacts | None,
+        link: Link,
+        surface: SurfaceMap | None,
+        region: str | None = None,
+        samples: SurfaceSamples | None = None,
+        kernel: SurfaceKernel | None = None,
+        touched: tuple[np.ndarray, np.ndarray] | None = None,
+    ) -> RegionCoverage:
         """Maps, curves and tests for the trials of ``region`` (all trials when None) on ``link``.
 
         ``samples``/``kernel`` replace the link's own (e.g. a whole robot's
@@ -162,18 +193,24 @@ class CoverageAnalysis:
         trials = dataset.trials
         for col, key in ((self.by, "coverage.by"), (self.pair_by, "coverage.pair_by")):
             if col not in trials.columns:
-                raise ValueError(f"{key}={col!r} is not a column of dataset {dataset.name!r}'s trials; "
-                                 f"columns: {list(trials.columns)}")
+                raise ValueError(
+                    f"{key}={col!r} is not a column of dataset {dataset.name!r}'s trials; "
+                    f"columns: {list(trials.columns)}"
+                )
         if contacts is not None and contacts.n_frames != dataset.n_frames:
-            raise ValueError(f"contacts cover {contacts.n_frames} frames but dataset {dataset.name!r} has "
-                             f"{dataset.n_frames}: they come from different datasets")
+            raise ValueError(
+                f"contacts cover {contacts.n_frames} frames but dataset {dataset.name!r} has "
+                f"{dataset.n_frames}: they come from different datasets"
+            )
         notes: list[str] = []
         in_region = np.ones(len(trials), dtype=bool)
         if region is not None and "region" in trials.columns:
             in_region = (trials["region"] == region).to_numpy()
             if not in_region.any():
-                raise ValueError(f"dataset {dataset.name!r} has no trials in region {region!r}; "
-                                 f"regions: {sorted(pd.unique(trials['region']))}")
+                raise ValueError(
+                    f"dataset {dataset.name!r} has no trials in region {region!r}; "
+                    f"regions: {sorted(pd.unique(trials['region']))}"
+                )
         frame_trial = dataset.frame_trial_index()
         samples = samples if samples is not None else sample_link(link, self.spacing_mm, self.seed)
         kernel = kernel if kernel is not None else SurfaceKernel(samples, self.bandwidth_mm, self.kernel)
@@ -181,8 +218,12 @@ class CoverageAnalysis:
         if touched is None:
             sel = in_region[frame_trial[contacts.frame]]
             frames, elements = touched_elements(
-                samples, contacts.frame[sel], contacts.point_m[sel], contacts.normal[sel],
-                contacts.patch_radius_m[sel], self.footprint,
+                samples,
+                contacts.frame[sel],
+                contacts.point_m[sel],
+                contacts.normal[sel],
+                contacts.patch_radius_m[sel],
+                self.footprint,
             )
         else:
             frames, elements = (np.asarray(x, dtype=np.int64) for x in touched)
@@ -225,8 +266,11 @@ class CoverageAnalysis:
                 held.append(h)
             if curve.n_frames == 0:
                 notes.append(f"group {n!r} has no contact frames on {link.name}")
-        heldout = pd.concat(held, ignore_index=True) if held else pd.DataFrame(
-            columns=["group", "unit", "area_share", "captured", "n_frames"])
+        heldout = (
+            pd.concat(held, ignore_index=True)
+            if held
+            else pd.DataFrame(columns=["group", "unit", "area_share", "captured", "n_frames"])
+        )
         t3 = time.perf_counter()
 
         comparison = None
@@ -238,32 +282,54 @@ class CoverageAnalysis:
             comparison = self._compare(kernel, trials, in_region, frames, elements, trial_of, groups, labels, units)
             n_max = int(comparison.table["n_participants"].max())
             if n_max <= self.exact_max and 2.0**-n_max > self.alpha:
-                notes.append(f"with {n_max} {self.pair_by} value(s) the exact sign-flip test cannot reach "
-                             f"p <= {self.alpha:g} (smallest p = 2^-{n_max} = {2.0**-n_max:.3g})")
+                notes.append(
+                    f"with {n_max} {self.pair_by} value(s) the exact sign-flip test cannot reach "
+                    f"p <= {self.alpha:g} (smallest p = 2^-{n_max} = {2.0**-n_max:.3g})"
+                )
         t4 = time.perf_counter()
         return RegionCoverage(
-            region=region or ALL, link=link.name, by=self.by, groups=groups, samples=samples, uv=uv,
-            surface_kind=kind, counts=counts, densities=densities, curves=curves, regions=regions,
-            sentences=sentences, heldout=heldout, comparison=comparison, notes=notes,
+            region=region or ALL,
+            link=link.name,
+            by=self.by,
+            groups=groups,
+            samples=samples,
+            uv=uv,
+            surface_kind=kind,
+            counts=counts,
+            densities=densities,
+            curves=curves,
+            regions=regions,
+            sentences=sentences,
+            heldout=heldout,
+            comparison=comparison,
+            notes=notes,
             seconds={"surface": t1 - t0, "contacts": t2 - t1, "maps_and_curves": t3 - t2, "tests": t4 - t3},
         )
 
-    def _compare(self, kernel: SurfaceKernel, trials: pd.DataFrame, in_region: np.ndarray, frames: np.ndarray,
-                 elements: np.ndarray, trial_of: np.ndarray, groups: list[str], labels: np.ndarray,
-                 units: np.ndarray) -> PairwiseComparison:
+    def _compare(
+        self,
+        kernel: SurfaceKernel,
+        trials: pd.DataFrame,
+        in_region: np.ndarray,
+        frames: np.ndarray,
+        elements: np.ndarray,
+        trial_of: np.ndarray,
+        groups: list[str],
+        labels: np.ndarray,
+        units: np.ndarray,
+    ) -> PairwiseComparison:
         """Split-half paired SWD tests between every pair of groups (see :mod:`sphri.analysis.compare`)."""
         s = kernel.samples
         n_trials = len(trials)
         # per-trial element counts, only for trials with contact
         has = np.zeros(n_trials, dtype=bool)
         has[trial_of] = True
-        ordinal = (trials["trial_ordinal"].to_numpy() if "trial_ordinal" in trials.columns
-                   else np.arange(n_trials))
+        ordinal = trials["trial_ordinal"].to_numpy() if "trial_ordinal" in trials.columns else np.arange(n_trials)
         order = np.argsort(trial_of, kind="stable")
         starts = np.searchsorted(trial_of[order], np.arange(n_trials + 1))
 
         def trial_counts(tr: np.ndarray) -> np.ndarray:
-            el = np.concatenate([elements[order[starts[t]:starts[t + 1]]] for t in tr])
+            el = np.concatenate([elements[order[starts[t] : starts[t + 1]]] for t in tr])
             return np.bincount(el, minlength=s.n).astype(float)
 
         members: dict[tuple[str, str], np.ndarray] = {}
@@ -294,8 +360,17 @@ class CoverageAnalysis:
 
         participants = sorted({u for u, _ in members})
         sw = SharedSupportSW(s.points_m, self.n_projections, self.swd_p, self.seed)
-        return paired_swd_tests(sw, participants, groups, halves, alpha=self.alpha, alternative=self.alternative,
-                                exact_max=self.exact_max, n_permutations=self.n_permutations, seed=self.seed)
+        return paired_swd_tests(
+            sw,
+            participants,
+            groups,
+            halves,
+            alpha=self.alpha,
+            alternative=self.alternative,
+            exact_max=self.exact_max,
+            n_permutations=self.n_permutations,
+            seed=self.seed,
+        )
 
 
 # ----------------------------------------------------------------------------- files
@@ -312,8 +387,12 @@ def write_density_npz(result: RegionCoverage, group: str, path: str | Path) -> P
     format ``layout=density`` reads (``layout.density_path``)."""
     s = result.samples
     arrays = {
-        "points_m": s.points_m, "density": result.densities[group], "mask": result.curves[group].mask,
-        "area_m2": s.area_m2, "normal": s.normal, "counts": result.counts[group],
+        "points_m": s.points_m,
+        "density": result.densities[group],
+        "mask": result.curves[group].mask,
+        "area_m2": s.area_m2,
+        "normal": s.normal,
+        "counts": result.counts[group],
     }
     if result.uv is not None:
         arrays["uv"] = result.uv
@@ -322,8 +401,15 @@ def write_density_npz(result: RegionCoverage, group: str, path: str | Path) -> P
     return path
 
 
-def write_region(result: RegionCoverage, out_dir: str | Path, link: Link, surface: SurfaceMap | None,
-                 render: bool = True, views: int = 4, provenance=None) -> list[Path]:
+def write_region(
+    result: RegionCoverage,
+    out_dir: str | Path,
+    link: Link,
+    surface: SurfaceMap | None,
+    render: bool = True,
+    views: int = 4,
+    provenance=None,
+) -> list[Path]:
     """Write a region's files under ``out_dir``; returns their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -356,18 +442,48 @@ def write_region(result: RegionCoverage, out_dir: str | Path, link: Link, surfac
             paths.append(view.render(dens, out / f"map_{safe_name(n)}.png", label, views=views, provenance=provenance))
             paths.append(view.write_ply(dens, out / f"map_{safe_name(n)}.ply"))
             if grid is not None:
-                paths.append(rd.render_uv(surface, result.samples, dens, out / f"uv_{safe_name(n)}.png", label, grid,
-                                          provenance=provenance))
+                paths.append(
+                    rd.render_uv(
+                        surface,
+                        result.samples,
+                        dens,
+                        out / f"uv_{safe_name(n)}.png",
+                        label,
+                        grid,
+                        provenance=provenance,
+                    )
+                )
         small = rd.LinkView(link, result.samples, target_faces=4000)
-        paths.append(rd.plot_overview(small, {n: result.densities[n] for n in names}, out / "overview.png",
-                                      f"{title}: contact density by {result.by}", views=views, surface=surface,
-                                      samples=result.samples, grid=grid, provenance=provenance))
-        paths.append(rd.plot_coverage_curves([result.curves[n] for n in names], out / "coverage_curve.png",
-                                             f"{title}: greedy skin placement", provenance=provenance))
+        paths.append(
+            rd.plot_overview(
+                small,
+                {n: result.densities[n] for n in names},
+                out / "overview.png",
+                f"{title}: contact density by {result.by}",
+                views=views,
+                surface=surface,
+                samples=result.samples,
+                grid=grid,
+                provenance=provenance,
+            )
+        )
+        paths.append(
+            rd.plot_coverage_curves(
+                [result.curves[n] for n in names],
+                out / "coverage_curve.png",
+                f"{title}: greedy skin placement",
+                provenance=provenance,
+            )
+        )
         if result.comparison is not None:
-            paths.append(rd.plot_swd_heatmap(result.comparison, out / "swd_heatmap.png",
-                                             f"{title}: touch distributions by {result.by}",
-                                             provenance=provenance))
+            paths.append(
+                rd.plot_swd_heatmap(
+                    result.comparison,
+                    out / "swd_heatmap.png",
+                    f"{title}: touch distributions by {result.by}",
+                    provenance=provenance,
+                )
+            )
         result.seconds["render"] = time.perf_counter() - t0
     (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_json_default))
     paths.append(out / "summary.json")

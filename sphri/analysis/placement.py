@@ -175,8 +175,14 @@ def heldout_capture(
         k = int(np.searchsorted(captured, int(np.ceil(capture * n_train - 1e-9)), side="left"))
         area_share = float(s.area_m2[order[:k]].sum() / total_area)
         held = first[~train]
-        rows.append({"unit": names[c], "area_share": area_share, "captured": float(np.mean(held < k)),
-                     "n_frames": int(held.size)})
+        rows.append(
+            {
+                "unit": names[c],
+                "area_share": area_share,
+                "captured": float(np.mean(held < k)),
+                "n_frames": int(held.size),
+            }
+        )
     return pd.DataFrame(rows, columns=cols)
 
 

@@ -16,8 +16,8 @@ Densities are shown as % of contact per cm^2 (density in 1/m^2 times 0.01).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import matplotlib
 
@@ -28,8 +28,8 @@ import trimesh  # noqa: E402
 
 from sphri import figures  # noqa: E402
 from sphri.analysis.compare import PairwiseComparison  # noqa: E402
-from sphri.surface.density import SurfaceSamples  # noqa: E402
 from sphri.analysis.placement import CoverageCurve  # noqa: E402
+from sphri.surface.density import SurfaceSamples  # noqa: E402
 from sphri.types import Link, SurfaceMap  # noqa: E402
 
 #: density (1/m^2) -> % of contact per cm^2
@@ -166,8 +166,11 @@ class LinkView:
         xy = np.stack([tris[keep] @ right, tris[keep] @ up], axis=-1)
         # rasterized: thousands of faces as one bitmap inside the PDF/SVG (text and axes stay vector); filled
         # without antialiasing, so neighbouring faces meet without seams and need no stroked edges (half the time)
-        ax.add_collection(PolyCollection(xy, facecolors=colours[keep], edgecolors="none", linewidths=0.0,
-                                         antialiased=False, rasterized=True))
+        ax.add_collection(
+            PolyCollection(
+                xy, facecolors=colours[keep], edgecolors="none", linewidths=0.0, antialiased=False, rasterized=True
+            )
+        )
         span_x = np.abs(self.display[:, :2]).max() * 1.05
         span_z = np.abs(self.display[:, 2]).max() * 1.05
         ax.set_xlim(-span_x, span_x)
@@ -180,8 +183,14 @@ class LinkView:
         up = self.rotation.T @ np.array([0.0, 0.0, 1.0])
         return f"{_direction_name(up)} end", f"{_direction_name(-up)} end"
 
-    def render(self, density: np.ndarray, path: str | Path, title: str, views: int = 4,
-               provenance: figures.Provenance | None = None) -> Path:
+    def render(
+        self,
+        density: np.ndarray,
+        path: str | Path,
+        title: str,
+        views: int = 4,
+        provenance: figures.Provenance | None = None,
+    ) -> Path:
         """``views`` views around the long axis with a shared colour bar -> ``path`` (+ PDF, SVG).
 
         The first view names the link-frame ends of the long axis (landmarks to orient the views)."""
@@ -213,7 +222,9 @@ class LinkView:
         """Vertex-coloured PLY (link frame, metres) of ``density``."""
         vals = self.vertex_values(density) * PERCENT_PER_CM2
         vmax = vmax if vmax is not None else float(vals.max())
-        rgba = (plt.get_cmap(CMAP)(np.clip(vals / vmax, 0, 1) if vmax > 0 else np.zeros_like(vals)) * 255).astype(np.uint8)
+        rgba = (plt.get_cmap(CMAP)(np.clip(vals / vmax, 0, 1) if vmax > 0 else np.zeros_like(vals)) * 255).astype(
+            np.uint8
+        )
         mesh = trimesh.Trimesh(self.vertices, self.faces, vertex_colors=rgba, process=False, validate=False)
         path = Path(path)
         mesh.export(path)
@@ -260,16 +271,24 @@ def draw_uv(ax, grid: dict, surface: SurfaceMap, density: np.ndarray, vmax: floa
     img = np.einsum("kj,kj->k", np.asarray(density)[grid["idx"]], grid["w"]).reshape(grid["shape"]) * PERCENT_PER_CM2
     img = np.where(grid["valid"], img, np.nan)
     extent = (0.0, surface.metres_per_v * 100, 0.0, surface.metres_per_u * 100)
-    im = ax.imshow(img, origin="lower", extent=extent, cmap=CMAP, vmin=0, vmax=vmax, aspect="equal",
-                   interpolation="nearest")
+    im = ax.imshow(
+        img, origin="lower", extent=extent, cmap=CMAP, vmin=0, vmax=vmax, aspect="equal", interpolation="nearest"
+    )
     if labels:  # every chart runs u along the link and v around it (sphri.surface.charts)
         ax.set_xlabel("around the link (cm)")
         ax.set_ylabel("along the link (cm)")
     return im
 
 
-def render_uv(surface: SurfaceMap, samples: SurfaceSamples, density: np.ndarray, path: str | Path, title: str,
-              grid: dict | None = None, provenance: figures.Provenance | None = None) -> Path:
+def render_uv(
+    surface: SurfaceMap,
+    samples: SurfaceSamples,
+    density: np.ndarray,
+    path: str | Path,
+    title: str,
+    grid: dict | None = None,
+    provenance: figures.Provenance | None = None,
+) -> Path:
     """The unwrapped (u, v) map of ``density`` with a colour bar -> ``path`` (+ PDF, SVG)."""
     grid = grid or uv_grid(surface, samples)
     vmax = _vmax([density])
@@ -285,9 +304,17 @@ def render_uv(surface: SurfaceMap, samples: SurfaceSamples, density: np.ndarray,
     return Path(path)
 
 
-def plot_overview(view: LinkView, densities: dict[str, np.ndarray], path: str | Path, title: str,
-                  views: int = 4, surface: SurfaceMap | None = None, samples: SurfaceSamples | None = None,
-                  grid: dict | None = None, provenance: figures.Provenance | None = None) -> Path:
+def plot_overview(
+    view: LinkView,
+    densities: dict[str, np.ndarray],
+    path: str | Path,
+    title: str,
+    views: int = 4,
+    surface: SurfaceMap | None = None,
+    samples: SurfaceSamples | None = None,
+    grid: dict | None = None,
+    provenance: figures.Provenance | None = None,
+) -> Path:
     """One row per group: ``views`` views (and the (u, v) map with a chart), all on one colour scale
     (the rows are compared) with one colour bar -> ``path`` (+ PDF, SVG)."""
     names = list(densities)
@@ -298,7 +325,9 @@ def plot_overview(view: LinkView, densities: dict[str, np.ndarray], path: str | 
         grid = uv_grid(surface, samples)
     vmax = _vmax(list(densities.values()))
     with figures.style():
-        fig, axes = figures.new_figure("two", figures.fit_page(1.25 * len(names) + 0.7), nrows=len(names), ncols=cols, squeeze=False)
+        fig, axes = figures.new_figure(
+            "two", figures.fit_page(1.25 * len(names) + 0.7), nrows=len(names), ncols=cols, squeeze=False
+        )
         for r, name in enumerate(names):
             d = densities[name]
             for c, az in enumerate(azims):
@@ -307,7 +336,9 @@ def plot_overview(view: LinkView, densities: dict[str, np.ndarray], path: str | 
                 if r == 0:
                     ax.set_title(f"from {view.camera(az)}")
                 if c == 0:
-                    ax.text(-0.04, 0.5, figures.human(name), transform=ax.transAxes, rotation=90, va="center", ha="right")
+                    ax.text(
+                        -0.04, 0.5, figures.human(name), transform=ax.transAxes, rotation=90, va="center", ha="right"
+                    )
             if with_uv:
                 ax = axes[r, cols - 1]
                 draw_uv(ax, grid, surface, d, vmax, labels=False)
@@ -322,8 +353,9 @@ def plot_overview(view: LinkView, densities: dict[str, np.ndarray], path: str | 
     return Path(path)
 
 
-def plot_coverage_curves(curves: Sequence[CoverageCurve], path: str | Path, title: str,
-                         provenance: figures.Provenance | None = None) -> Path:
+def plot_coverage_curves(
+    curves: Sequence[CoverageCurve], path: str | Path, title: str, provenance: figures.Provenance | None = None
+) -> Path:
     """Share of contact frames captured vs share of area covered, one line per group -> ``path`` (+ PDF, SVG)."""
     with figures.style():
         fig, ax = figures.new_figure("one", 3.3)
@@ -333,8 +365,13 @@ def plot_coverage_curves(curves: Sequence[CoverageCurve], path: str | Path, titl
                 continue
             lw, colour = (2.0, "black") if c.group == "all" else (1.0, None)
             r = c.resampled(401)
-            line, = ax.plot(r["area_share"], r["frame_share"], lw=lw, color=colour,
-                            label=f"{figures.human(c.group)} ({100 * c.area_at_capture:.0f} %)")
+            (line,) = ax.plot(
+                r["area_share"],
+                r["frame_share"],
+                lw=lw,
+                color=colour,
+                label=f"{figures.human(c.group)} ({100 * c.area_at_capture:.0f} %)",
+            )
             ax.plot([c.area_at_capture], [c.capture], "o", color=line.get_color(), ms=3)
         if curves:
             ax.axhline(curves[0].capture, color="0.5", lw=0.6, ls="--")
@@ -350,8 +387,9 @@ def plot_coverage_curves(curves: Sequence[CoverageCurve], path: str | Path, titl
     return Path(path)
 
 
-def plot_swd_heatmap(comp: PairwiseComparison, path: str | Path, title: str,
-                     provenance: figures.Provenance | None = None) -> Path:
+def plot_swd_heatmap(
+    comp: PairwiseComparison, path: str | Path, title: str, provenance: figures.Provenance | None = None
+) -> Path:
     """Mean paired SWD (mm) between conditions with Holm-corrected p-values in the cells (* where <= alpha)
     -> ``path`` (+ PDF, SVG). The matrix is symmetric: drawn once, the lower triangle with the diagonal. The
     colour scale spans the off-diagonal cells; the diagonal (each condition's split-half baseline) is grey,
@@ -384,14 +422,20 @@ def plot_swd_heatmap(comp: PairwiseComparison, path: str | Path, title: str,
                     pv = p.iat[i, j]
                     text += f"\np={pv:.3f}" if pv >= 0.001 else "\np<.001"
                     text += " *" if pv <= comp.alpha else ""
-                ax.text(j, i, text, ha="center", va="center", fontsize=figures.MIN_FONT_PT,
-                        color="black" if i == j or val >= mid else "white")
+                ax.text(
+                    j,
+                    i,
+                    text,
+                    ha="center",
+                    va="center",
+                    fontsize=figures.MIN_FONT_PT,
+                    color="black" if i == j or val >= mid else "white",
+                )
         ax.set_xticks(range(n), names, rotation=45, ha="right")
         ax.set_yticks(range(n), names)
         # the colour bar in the empty upper triangle, not beside the matrix
         cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if n >= 3 else None
-        cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical",
-                          shrink=0.8)
+        cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical", shrink=0.8)
         cb.set_label(f"mean paired SW{comp.swd_p:g}\ndistance (mm)")
         if cax is not None:
             cax.xaxis.set_label_position("top")

@@ -9,7 +9,6 @@ naming the full key (``coverage.bandwidth_mm``).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 from sphri.config import require, require_choice, require_range, store
 
@@ -55,7 +54,7 @@ class CoverageSchema:
     """Views around the long axis in the PNG renders."""
     render: bool = True
     """Write the figures (PNG, PDF, SVG) and PLY meshes (False: numbers and .npz only)."""
-    marks: Optional[bool] = None
+    marks: bool | None = None
     """The SYNTHETIC DATA banner on the figures: None = for synthetic data only, true = always, false = never."""
     heldout: bool = True
     """Also score each participant's frames with the placement chosen from the others."""
@@ -67,8 +66,12 @@ class CoverageSchema:
         require_choice("coverage.kernel", self.kernel, KERNELS)
         require_choice("coverage.footprint", self.footprint, FOOTPRINTS)
         require_range("coverage.spacing_mm", self.spacing_mm, lo=0.5, hi=100.0)
-        require(self.spacing_mm <= self.bandwidth_mm, "coverage.spacing_mm", self.spacing_mm,
-                f"must be <= coverage.bandwidth_mm={self.bandwidth_mm} (the kernel must span several samples)")
+        require(
+            self.spacing_mm <= self.bandwidth_mm,
+            "coverage.spacing_mm",
+            self.spacing_mm,
+            f"must be <= coverage.bandwidth_mm={self.bandwidth_mm} (the kernel must span several samples)",
+        )
         require_range("coverage.capture", self.capture, lo=0.0, hi=1.0, lo_open=True)
         require_range("coverage.n_projections", self.n_projections, lo=1, hi=100_000)
         require_range("coverage.swd_p", self.swd_p, lo=1.0, hi=10.0)

@@ -210,7 +210,11 @@ def sliced_wasserstein(
         raise ValueError(f"x_a and x_b must have the same dimension, got {xa.shape[1]} and {xb.shape[1]}")
     wa = _weights(w_a, xa.shape[0], "w_a")
     wb = _weights(w_b, xb.shape[0], "w_b")
-    theta = projection_directions(n_projections, xa.shape[1], seed) if directions is None else _directions(directions, xa.shape[1])
+    theta = (
+        projection_directions(n_projections, xa.shape[1], seed)
+        if directions is None
+        else _directions(directions, xa.shape[1])
+    )
     wpp = _wp_projected(theta @ xa.T, wa, theta @ xb.T, wb, p)
     return float(np.mean(wpp) ** (1.0 / p))
 

@@ -37,13 +37,14 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import io
 import json
 import logging
-import io
 import zipfile
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterator, TypeVar
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -217,8 +218,9 @@ class StageCache:
 
     def write(self, stage: str, key: str, value: Any, files: dict[str, str] | None = None) -> Path:
         """Store ``value``; raises :class:`~sphri.codec.EncodeError` when it cannot be stored as arrays + JSON."""
-        return write_entry(self.path(stage, key), value, {"stage": stage, "key": key, "files": files or {}},
-                           key=self.key)
+        return write_entry(
+            self.path(stage, key), value, {"stage": stage, "key": key, "files": files or {}}, key=self.key
+        )
 
     def changed_files(self, stage: str, path_key: str, key: str, files: dict[str, str]) -> list[str]:
         """Files whose content differs from the entry last stored for the same config and paths."""
@@ -240,8 +242,15 @@ class StageCache:
         with contextlib.suppress(OSError):
             write_atomic(path, json.dumps({"key": key, "files": files}).encode())
 
-    def get_or_compute(self, stage: str, key: str, compute: Callable[[], T], contract: Any = None,
-                       files: dict[str, str] | None = None, path_key: str | None = None) -> T:
+    def get_or_compute(
+        self,
+        stage: str,
+        key: str,
+        compute: Callable[[], T],
+        contract: Any = None,
+        files: dict[str, str] | None = None,
+        path_key: str | None = None,
+    ) -> T:
         """Return the cached value of (stage, key), computing and storing it if needed.
 
         ``contract``: what the value must be (see :func:`sphri.codec.check_contract`).
@@ -264,8 +273,11 @@ class StageCache:
             if path_key is not None and files:
                 changed = self.changed_files(stage, path_key, key, files)
                 if changed:
-                    log.info("stage %s: input file(s) changed since the cached entry: %s; recomputing",
-                             stage, ", ".join(changed))
+                    log.info(
+                        "stage %s: input file(s) changed since the cached entry: %s; recomputing",
+                        stage,
+                        ", ".join(changed),
+                    )
             value = compute()
             try:
                 self.write(stage, key, value, files)

@@ -341,24 +341,33 @@ def _winding(qx, qy, qz, TRI, NB, NI, CS, CU, CV, stack):
     while top > 0:
         top -= 1
         k = stack[top]
-        outside = (
-            qx < NB[k, 0] or qx > NB[k, 3]
-            or qy < NB[k, 1] or qy > NB[k, 4]
-            or qz < NB[k, 2] or qz > NB[k, 5]
-        )
+        outside = qx < NB[k, 0] or qx > NB[k, 3] or qy < NB[k, 1] or qy > NB[k, 4] or qz < NB[k, 2] or qz > NB[k, 5]
         if outside and CS[k, 0] >= 0:
             ex = 0.5 * (NB[k, 0] + NB[k, 3])
             ey = 0.5 * (NB[k, 1] + NB[k, 4])
             ez = 0.5 * (NB[k, 2] + NB[k, 5])
             s = CS[k, 0]
             for e in range(s, s + CS[k, 1]):
-                total += _solid_angle(qx, qy, qz, ex, ey, ez, CU[e, 0], CU[e, 1], CU[e, 2],
-                                      CV[e, 0], CV[e, 1], CV[e, 2])
+                total += _solid_angle(
+                    qx, qy, qz, ex, ey, ez, CU[e, 0], CU[e, 1], CU[e, 2], CV[e, 0], CV[e, 1], CV[e, 2]
+                )
         elif NI[k, 0] < 0:
             s = NI[k, 2]
             for j in range(s, s + NI[k, 3]):
-                total += _solid_angle(qx, qy, qz, TRI[j, 0], TRI[j, 1], TRI[j, 2], TRI[j, 3], TRI[j, 4],
-                                      TRI[j, 5], TRI[j, 6], TRI[j, 7], TRI[j, 8])
+                total += _solid_angle(
+                    qx,
+                    qy,
+                    qz,
+                    TRI[j, 0],
+                    TRI[j, 1],
+                    TRI[j, 2],
+                    TRI[j, 3],
+                    TRI[j, 4],
+                    TRI[j, 5],
+                    TRI[j, 6],
+                    TRI[j, 7],
+                    TRI[j, 8],
+                )
         else:
             stack[top] = NI[k, 0]
             stack[top + 1] = NI[k, 1]
@@ -432,8 +441,7 @@ def _side_bound2(p0x, p0y, p0z, p1x, p1y, p1z, TRI, j, h0, h1):
 
 
 @njit(cache=True, fastmath=False)
-def _nearest(p0x, p0y, p0z, p1x, p1y, p1z, best2, TRI, DEG, NB, NI, stack,
-             bj, bt, bqx, bqy, bqz, bu, bv, bw):
+def _nearest(p0x, p0y, p0z, p1x, p1y, p1z, best2, TRI, DEG, NB, NI, stack, bj, bt, bqx, bqy, bqz, bu, bv, bw):
     """Nearest triangle to the segment closer than sqrt(best2).
 
     (bj, bt, ...) is the record so far (bj = -1: none; triangle bj is not
@@ -484,9 +492,28 @@ def _nearest(p0x, p0y, p0z, p1x, p1y, p1z, best2, TRI, DEG, NB, NI, stack,
                     if _side_bound2(p0x, p0y, p0z, p1x, p1y, p1z, TRI, j, s0, s1) >= best2:
                         continue
                 d2, t, qx, qy, qz, u, v, w = _seg_tri(
-                    p0x, p0y, p0z, p1x, p1y, p1z,
-                    TRI[j, 0], TRI[j, 1], TRI[j, 2], TRI[j, 3], TRI[j, 4], TRI[j, 5],
-                    TRI[j, 6], TRI[j, 7], TRI[j, 8], nx, ny, nz, deg, s0, s1, best2,
+                    p0x,
+                    p0y,
+                    p0z,
+                    p1x,
+                    p1y,
+                    p1z,
+                    TRI[j, 0],
+                    TRI[j, 1],
+                    TRI[j, 2],
+                    TRI[j, 3],
+                    TRI[j, 4],
+                    TRI[j, 5],
+                    TRI[j, 6],
+                    TRI[j, 7],
+                    TRI[j, 8],
+                    nx,
+                    ny,
+                    nz,
+                    deg,
+                    s0,
+                    s1,
+                    best2,
                 )
                 if d2 < best2:
                     best2 = d2
@@ -547,8 +574,9 @@ def nearest_triangles(Q, TRI, DEG, NB, NI, out):
             x = Q[i, 0]
             y = Q[i, 1]
             z = Q[i, 2]
-            d2, j, t, qx, qy, qz, u, v, w = _nearest(x, y, z, x, y, z, _INF, TRI, DEG, NB, NI, stack,
-                                                     -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+            d2, j, t, qx, qy, qz, u, v, w = _nearest(
+                x, y, z, x, y, z, _INF, TRI, DEG, NB, NI, stack, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+            )
             out[i] = j
 
 
@@ -597,8 +625,28 @@ def _seed_test(p0x, p0y, p0z, p1x, p1y, p1z, TRI, DEG, GRID, GDIM, SEED):
         s0 = TRI[j0, 9] * (p0x - TRI[j0, 0]) + TRI[j0, 10] * (p0y - TRI[j0, 1]) + TRI[j0, 11] * (p0z - TRI[j0, 2])
         s1 = TRI[j0, 9] * (p1x - TRI[j0, 0]) + TRI[j0, 10] * (p1y - TRI[j0, 1]) + TRI[j0, 11] * (p1z - TRI[j0, 2])
     e2, et, eqx, eqy, eqz, eu, ev, ew = _seg_tri(
-        p0x, p0y, p0z, p1x, p1y, p1z, TRI[j0, 0], TRI[j0, 1], TRI[j0, 2], TRI[j0, 3], TRI[j0, 4], TRI[j0, 5],
-        TRI[j0, 6], TRI[j0, 7], TRI[j0, 8], TRI[j0, 9], TRI[j0, 10], TRI[j0, 11], DEG[j0], s0, s1, _INF,
+        p0x,
+        p0y,
+        p0z,
+        p1x,
+        p1y,
+        p1z,
+        TRI[j0, 0],
+        TRI[j0, 1],
+        TRI[j0, 2],
+        TRI[j0, 3],
+        TRI[j0, 4],
+        TRI[j0, 5],
+        TRI[j0, 6],
+        TRI[j0, 7],
+        TRI[j0, 8],
+        TRI[j0, 9],
+        TRI[j0, 10],
+        TRI[j0, 11],
+        DEG[j0],
+        s0,
+        s1,
+        _INF,
     )
     return j0, e2, et, eqx, eqy, eqz, eu, ev, ew
 
@@ -606,15 +654,19 @@ def _seed_test(p0x, p0y, p0z, p1x, p1y, p1z, TRI, DEG, GRID, GDIM, SEED):
 @njit(cache=True, fastmath=False, inline="always")
 def _box_far(p0x, p0y, p0z, p1x, p1y, p1z, R, BOX):
     return (
-        min(p0x, p1x) - R > BOX[3] or max(p0x, p1x) + R < BOX[0]
-        or min(p0y, p1y) - R > BOX[4] or max(p0y, p1y) + R < BOX[1]
-        or min(p0z, p1z) - R > BOX[5] or max(p0z, p1z) + R < BOX[2]
+        min(p0x, p1x) - R > BOX[3]
+        or max(p0x, p1x) + R < BOX[0]
+        or min(p0y, p1y) - R > BOX[4]
+        or max(p0y, p1y) + R < BOX[1]
+        or min(p0z, p1z) - R > BOX[5]
+        or max(p0z, p1z) + R < BOX[2]
     )
 
 
 @njit(cache=True, fastmath=False, inline="always")
-def _query_segment(p0x, p0y, p0z, p1x, p1y, p1z, R, mode, BOX, TRI, DEG, TPL, NB, NI, HP, CS, CU, CV,
-                   GRID, GDIM, SEED, stack):
+def _query_segment(
+    p0x, p0y, p0z, p1x, p1y, p1z, R, mode, BOX, TRI, DEG, TPL, NB, NI, HP, CS, CU, CV, GRID, GDIM, SEED, stack
+):
     """One capsule: (d2, inside, j, t, qx, qy, qz, u, v, w); j = -1 when nothing lies within R.
 
     Box cull; exact distance to the seed triangle; bounded search (by R, or
@@ -628,16 +680,19 @@ def _query_segment(p0x, p0y, p0z, p1x, p1y, p1z, R, mode, BOX, TRI, DEG, TPL, NB
         return _INF, False, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     j0, e2, et, eqx, eqy, eqz, eu, ev, ew = _seed_test(p0x, p0y, p0z, p1x, p1y, p1z, TRI, DEG, GRID, GDIM, SEED)
     if e2 < R * R:
-        d2, j, t, qx, qy, qz, u, v, w = _nearest(p0x, p0y, p0z, p1x, p1y, p1z, e2, TRI, DEG, NB, NI, stack,
-                                                 j0, et, eqx, eqy, eqz, eu, ev, ew)
+        d2, j, t, qx, qy, qz, u, v, w = _nearest(
+            p0x, p0y, p0z, p1x, p1y, p1z, e2, TRI, DEG, NB, NI, stack, j0, et, eqx, eqy, eqz, eu, ev, ew
+        )
     else:
-        d2, j, t, qx, qy, qz, u, v, w = _nearest(p0x, p0y, p0z, p1x, p1y, p1z, R * R, TRI, DEG, NB, NI, stack,
-                                                 -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+        d2, j, t, qx, qy, qz, u, v, w = _nearest(
+            p0x, p0y, p0z, p1x, p1y, p1z, R * R, TRI, DEG, NB, NI, stack, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        )
     if j < 0:
         if mode == 0 or HP.shape[0] == 0 or not _reaches_hull(p0x, p0y, p0z, p1x, p1y, p1z, HP):
             return _INF, False, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-        d2, j, t, qx, qy, qz, u, v, w = _nearest(p0x, p0y, p0z, p1x, p1y, p1z, e2, TRI, DEG, NB, NI, stack,
-                                                 j0, et, eqx, eqy, eqz, eu, ev, ew)
+        d2, j, t, qx, qy, qz, u, v, w = _nearest(
+            p0x, p0y, p0z, p1x, p1y, p1z, e2, TRI, DEG, NB, NI, stack, j0, et, eqx, eqy, eqz, eu, ev, ew
+        )
     inside = False
     if mode != 0 and d2 > 0.0 and HP.shape[0] > 0:
         sx = p0x + t * (p1x - p0x)
@@ -650,8 +705,7 @@ def _query_segment(p0x, p0y, p0z, p1x, p1y, p1z, R, mode, BOX, TRI, DEG, TPL, NB
 
 
 @njit(cache=True, fastmath=False, parallel=True)
-def finish_rows(P0, P1, radius, TRI, DEG, TN, TID, shift, o_d, o_in, o_c, o_tri, o_t, o_q, o_b, o_s, o_n, o_pr,
-                o_dp):
+def finish_rows(P0, P1, radius, TRI, DEG, TN, TID, shift, o_d, o_in, o_c, o_tri, o_t, o_q, o_b, o_s, o_n, o_pr, o_dp):
     """Derive every output field from the search record, in place (world frame).
 
     On entry ``o_d`` holds d2, ``o_in`` inside, ``o_tri`` the BVH triangle
@@ -708,8 +762,7 @@ def finish_rows(P0, P1, radius, TRI, DEG, TN, TID, shift, o_d, o_in, o_c, o_tri,
             nx = TN[j, 0]
             ny = TN[j, 1]
             nz = TN[j, 2]
-            dplane = abs(TRI[j, 9] * (sx - TRI[j, 0]) + TRI[j, 10] * (sy - TRI[j, 1])
-                         + TRI[j, 11] * (sz - TRI[j, 2]))
+            dplane = abs(TRI[j, 9] * (sx - TRI[j, 0]) + TRI[j, 10] * (sy - TRI[j, 1]) + TRI[j, 11] * (sz - TRI[j, 2]))
         o_n[i, 0] = nx
         o_n[i, 1] = ny
         o_n[i, 2] = nz
@@ -732,8 +785,33 @@ def finish_rows(P0, P1, radius, TRI, DEG, TN, TID, shift, o_d, o_in, o_c, o_tri,
 
 
 @njit(cache=True, fastmath=False, parallel=True)
-def query_capsules(P0, P1, radius, margin, mode, BOX, TRI, DEG, TPL, NB, NI, HP, CS, CU, CV, GRID, GDIM, SEED, shift,
-                   d2_out, in_out, tri_out, t_out, q_out, b_out):
+def query_capsules(
+    P0,
+    P1,
+    radius,
+    margin,
+    mode,
+    BOX,
+    TRI,
+    DEG,
+    TPL,
+    NB,
+    NI,
+    HP,
+    CS,
+    CU,
+    CV,
+    GRID,
+    GDIM,
+    SEED,
+    shift,
+    d2_out,
+    in_out,
+    tri_out,
+    t_out,
+    q_out,
+    b_out,
+):
     """Exact search for every capsule i (segments P0[i]-P1[i], world frame).
 
     Writes the search record (squared distance, inside, BVH triangle or -1,
@@ -755,8 +833,28 @@ def query_capsules(P0, P1, radius, margin, mode, BOX, TRI, DEG, TPL, NB, NI, HP,
             p1y = P1[i, 1] - shift[1]
             p1z = P1[i, 2] - shift[2]
             d2, ins, j, t, qx, qy, qz, u, v, w = _query_segment(
-                p0x, p0y, p0z, p1x, p1y, p1z, radius[i] + margin, mode, BOX, TRI, DEG, TPL, NB, NI, HP, CS,
-                CU, CV, GRID, GDIM, SEED, stack,
+                p0x,
+                p0y,
+                p0z,
+                p1x,
+                p1y,
+                p1z,
+                radius[i] + margin,
+                mode,
+                BOX,
+                TRI,
+                DEG,
+                TPL,
+                NB,
+                NI,
+                HP,
+                CS,
+                CU,
+                CV,
+                GRID,
+                GDIM,
+                SEED,
+                stack,
             )
             d2_out[i] = d2
             in_out[i] = ins
@@ -772,8 +870,33 @@ def query_capsules(P0, P1, radius, margin, mode, BOX, TRI, DEG, TPL, NB, NI, HP,
 
 
 @njit(cache=True, fastmath=False, parallel=True)
-def query_spheres(P0, P1, radius, margin, k, BOX, TRI, DEG, TPL, NB, NI, HP, CS, CU, CV, GRID, GDIM, SEED, shift,
-                  d2_out, in_out, tri_out, t_out, q_out, b_out):
+def query_spheres(
+    P0,
+    P1,
+    radius,
+    margin,
+    k,
+    BOX,
+    TRI,
+    DEG,
+    TPL,
+    NB,
+    NI,
+    HP,
+    CS,
+    CU,
+    CV,
+    GRID,
+    GDIM,
+    SEED,
+    shift,
+    d2_out,
+    in_out,
+    tri_out,
+    t_out,
+    q_out,
+    b_out,
+):
     """The paper's approximation: each capsule as k spheres of its radius along its segment.
 
     Sphere centres are at t = 0.5 for k = 1 and t = i / (k - 1) otherwise.
@@ -811,15 +934,17 @@ def query_spheres(P0, P1, radius, margin, k, BOX, TRI, DEG, TPL, NB, NI, HP, CS,
                     cz = p0z + ts * (p1z - p0z)
                     if _box_far(cx, cy, cz, cx, cy, cz, np.sqrt(bd2), BOX):
                         continue
-                    j0, e2, et, eqx, eqy, eqz, eu, ev, ew = _seed_test(cx, cy, cz, cx, cy, cz, TRI, DEG, GRID, GDIM,
-                                                                       SEED)
+                    j0, e2, et, eqx, eqy, eqz, eu, ev, ew = _seed_test(
+                        cx, cy, cz, cx, cy, cz, TRI, DEG, GRID, GDIM, SEED
+                    )
                     if e2 < bd2:
                         d2, j, t, qx, qy, qz, u, v, w = _nearest(
-                            cx, cy, cz, cx, cy, cz, e2, TRI, DEG, NB, NI, stack, j0, et, eqx, eqy, eqz, eu, ev, ew)
+                            cx, cy, cz, cx, cy, cz, e2, TRI, DEG, NB, NI, stack, j0, et, eqx, eqy, eqz, eu, ev, ew
+                        )
                     else:
                         d2, j, t, qx, qy, qz, u, v, w = _nearest(
-                            cx, cy, cz, cx, cy, cz, bd2, TRI, DEG, NB, NI, stack, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                            0.0)
+                            cx, cy, cz, cx, cy, cz, bd2, TRI, DEG, NB, NI, stack, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+                        )
                     if j >= 0 and d2 < bd2:
                         bd2 = d2
                         bj = j

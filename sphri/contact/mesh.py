@@ -134,8 +134,19 @@ class MeshAccel:
     def kernel_arrays(self) -> tuple:
         """The arrays the compiled kernels take, in their order (see ``_kernels``)."""
         return (
-            self.box, self.tri, self.tri_deg, self.tri_plane, self.nodes_box, self.nodes_int, self.hull,
-            self.closure, self.close_u, self.close_v, self.grid, self.grid_dim, self.grid_seed,
+            self.box,
+            self.tri,
+            self.tri_deg,
+            self.tri_plane,
+            self.nodes_box,
+            self.nodes_int,
+            self.hull,
+            self.closure,
+            self.close_u,
+            self.close_v,
+            self.grid,
+            self.grid_dim,
+            self.grid_seed,
         )
 
     @property
@@ -173,9 +184,7 @@ def _as_mesh_arrays(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray
         bad = np.argwhere(~np.isfinite(v).all(axis=1)).ravel()
         raise ValueError(f"vertices hold NaN/inf at rows {bad[:5].tolist()} ({bad.size} rows)")
     if f.min() < 0 or f.max() >= v.shape[0]:
-        raise ValueError(
-            f"faces index vertices out of range [0, {v.shape[0]}): min {f.min()}, max {f.max()}"
-        )
+        raise ValueError(f"faces index vertices out of range [0, {v.shape[0]}): min {f.min()}, max {f.max()}")
     return v, f
 
 
@@ -260,11 +269,23 @@ def _is_convex_surface(v, f, hull_n, hull_d, tol) -> bool:
     points (the depth below a convex boundary is concave along a face, so
     these bound it well for faces much smaller than the hull).
     """
-    w = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0], [0, 0.5, 0.5], [0.5, 0, 0.5],
-                  [1 / 3, 1 / 3, 1 / 3], [2 / 3, 1 / 6, 1 / 6], [1 / 6, 2 / 3, 1 / 6], [1 / 6, 1 / 6, 2 / 3]])
+    w = np.array(
+        [
+            [1, 0, 0],
+            [0, 1, 0],
+            [0, 0, 1],
+            [0.5, 0.5, 0],
+            [0, 0.5, 0.5],
+            [0.5, 0, 0.5],
+            [1 / 3, 1 / 3, 1 / 3],
+            [2 / 3, 1 / 6, 1 / 6],
+            [1 / 6, 2 / 3, 1 / 6],
+            [1 / 6, 1 / 6, 2 / 3],
+        ]
+    )
     chunk = max(1, 2_000_000 // (w.shape[0] * max(1, hull_n.shape[0])))
     for s in range(0, f.shape[0], chunk):
-        pts = np.einsum("kj,fjd->fkd", w, v[f[s:s + chunk]]).reshape(-1, 3)
+        pts = np.einsum("kj,fjd->fkd", w, v[f[s : s + chunk]]).reshape(-1, 3)
         depth = (pts @ hull_n.T - hull_d).max(axis=1)  # <= 0 inside; -depth = distance to the boundary
         if (depth < -tol).any():
             return False
@@ -288,7 +309,7 @@ def _closures(tri_v: np.ndarray, node_start, node_count, local_v: np.ndarray):
         s, c = int(node_start[k]), int(node_count[k])
         if c <= LEAF_SIZE:
             continue
-        fk = tri_v[s:s + c]
+        fk = tri_v[s : s + c]
         e = np.concatenate([fk[:, [0, 1]], fk[:, [1, 2]], fk[:, [2, 0]]])
         sign = np.where(e[:, 0] < e[:, 1], 1, -1)
         key = np.sort(e, axis=1)
@@ -380,15 +401,13 @@ def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:
         cen = t.mean(axis=1)
         step = max(1, 4_000_000 // hull_n.shape[0])
         for s in range(0, f.shape[0], step):
-            tri_plane[s:s + step] = np.argmax(cen[s:s + step] @ hull_n.T - hull_d, axis=1)
+            tri_plane[s : s + step] = np.argmax(cen[s : s + step] @ hull_n.T - hull_d, axis=1)
 
     lo = np.minimum(np.minimum(a, b), c)
     hi = np.maximum(np.maximum(a, b), c)
     order, node_lo, node_hi, left, right, start, count = _build_bvh(lo, hi)
 
-    tri = np.concatenate(
-        [a, b, c, geo_n, side.reshape(-1, 9), side_off], axis=1
-    )[order]
+    tri = np.concatenate([a, b, c, geo_n, side.reshape(-1, 9), side_off], axis=1)[order]
     m = node_lo.shape[0]
     if mode == "winding":
         # merge vertices at identical positions so that shared edges cancel
@@ -436,7 +455,7 @@ def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:
     )
 
 
-_CACHE: "OrderedDict[tuple, MeshAccel]" = OrderedDict()
+_CACHE: OrderedDict[tuple, MeshAccel] = OrderedDict()
 _CACHE_SIZE = 16
 _LOCK = threading.Lock()
 

@@ -76,8 +76,17 @@ class ContactQuery:
 
 def _out_tuple(res: ContactQuery) -> tuple:
     return (
-        res.distance, res.inside, res.in_contact, res.triangle, res.segment_t, res.point,
-        res.barycentric, res.segment_point, res.normal, res.patch_radius, res.depth,
+        res.distance,
+        res.inside,
+        res.in_contact,
+        res.triangle,
+        res.segment_t,
+        res.point,
+        res.barycentric,
+        res.segment_point,
+        res.normal,
+        res.patch_radius,
+        res.depth,
     )
 
 
@@ -134,25 +143,39 @@ class SearchRecord:
     bary: np.ndarray
 
     @classmethod
-    def empty(cls, n: int) -> "SearchRecord":
-        return cls(np.empty(n), np.empty(n, dtype=np.bool_), np.empty(n, dtype=np.int64), np.empty(n),
-                   np.empty((n, 3)), np.empty((n, 3)))
+    def empty(cls, n: int) -> SearchRecord:
+        return cls(
+            np.empty(n),
+            np.empty(n, dtype=np.bool_),
+            np.empty(n, dtype=np.int64),
+            np.empty(n),
+            np.empty((n, 3)),
+            np.empty((n, 3)),
+        )
 
-    def head(self, n: int) -> "SearchRecord":
+    def head(self, n: int) -> SearchRecord:
         """Views of the first n rows (buffers are reused across chunks)."""
         return SearchRecord(self.d2[:n], self.inside[:n], self.tri[:n], self.t[:n], self.q[:n], self.bary[:n])
 
-    def take(self, rows: np.ndarray) -> "SearchRecord":
-        return SearchRecord(self.d2[rows], self.inside[rows], self.tri[rows], self.t[rows], self.q[rows],
-                            self.bary[rows])
+    def take(self, rows: np.ndarray) -> SearchRecord:
+        return SearchRecord(
+            self.d2[rows], self.inside[rows], self.tri[rows], self.t[rows], self.q[rows], self.bary[rows]
+        )
 
     def in_contact(self, radius: np.ndarray) -> np.ndarray:
         """(n,) bool: distance < radius or inside."""
         return self.inside | (self.d2 < radius * radius)
 
 
-def search(mesh: MeshAccel, p0: np.ndarray, p1: np.ndarray, radius: np.ndarray, margin: float = 0.0,
-           spheres: int = 0, record: SearchRecord | None = None) -> SearchRecord:
+def search(
+    mesh: MeshAccel,
+    p0: np.ndarray,
+    p1: np.ndarray,
+    radius: np.ndarray,
+    margin: float = 0.0,
+    spheres: int = 0,
+    record: SearchRecord | None = None,
+) -> SearchRecord:
     """The compiled search on checked float64 arrays (world frame); see :class:`SearchRecord`.
 
     ``spheres = k > 0`` answers the paper's approximation instead (each
@@ -191,13 +214,15 @@ def finish(mesh: MeshAccel, p0: np.ndarray, p1: np.ndarray, radius: np.ndarray, 
         depth=np.empty(n),
     )
     if n:
-        _kernels.finish_rows(p0, p1, radius, mesh.tri, mesh.tri_deg, mesh.tri_normal, mesh.tri_id, mesh.shift,
-                             *_out_tuple(res))
+        _kernels.finish_rows(
+            p0, p1, radius, mesh.tri, mesh.tri_deg, mesh.tri_normal, mesh.tri_id, mesh.shift, *_out_tuple(res)
+        )
     return res
 
 
-def query_prepared(mesh: MeshAccel, p0: np.ndarray, p1: np.ndarray, radius: np.ndarray,
-                   margin: float = 0.0, spheres: int = 0) -> ContactQuery:
+def query_prepared(
+    mesh: MeshAccel, p0: np.ndarray, p1: np.ndarray, radius: np.ndarray, margin: float = 0.0, spheres: int = 0
+) -> ContactQuery:
     """:func:`capsule_mesh_query` on a prepared mesh and checked float64 arrays (see :func:`search`)."""
     return finish(mesh, p0, p1, radius, search(mesh, p0, p1, radius, margin, spheres))
 
@@ -266,6 +291,7 @@ def winding_number(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) 
     pts = _as_points(points, "points") - mesh.shift
     out = np.empty(pts.shape[0])
     # a flat mesh resolves to mode "none" and has no closures: the kernel then sums every triangle
-    _kernels.winding_numbers(pts, mesh.tri, mesh.nodes_box, mesh.nodes_int, mesh.closure, mesh.close_u, mesh.close_v,
-                             out)
+    _kernels.winding_numbers(
+        pts, mesh.tri, mesh.nodes_box, mesh.nodes_int, mesh.closure, mesh.close_u, mesh.close_v, out
+    )
     return out

@@ -21,9 +21,11 @@ import trimesh
 
 #: Directions (unit, irrational components) of the parity rays of :func:`inside_by_rays`.
 PARITY_DIRECTIONS = np.array(
-    [[0.5773502691896258, 0.5773502691896257, 0.5773502691896259],
-     [-0.2672612419124244, 0.5345224838248488, -0.8017837257372732],
-     [0.8728715609439696, -0.2182178902359924, -0.4364357804719848]]
+    [
+        [0.5773502691896258, 0.5773502691896257, 0.5773502691896259],
+        [-0.2672612419124244, 0.5345224838248488, -0.8017837257372732],
+        [0.8728715609439696, -0.2182178902359924, -0.4364357804719848],
+    ]
 )
 
 ENGINES: tuple[str, ...] = ("auto", "embree", "triangle")
@@ -65,8 +67,9 @@ def _intersector(mesh: trimesh.Trimesh, engine: str):
 
 
 def _mesh(vertices, faces) -> trimesh.Trimesh:
-    return trimesh.Trimesh(np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64),
-                           process=False, validate=False)
+    return trimesh.Trimesh(
+        np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64), process=False, validate=False
+    )
 
 
 def _unit(d: np.ndarray) -> np.ndarray:

@@ -62,8 +62,7 @@ def _check_dataset(dataset: GestureDataset) -> None:
     c = dataset.hand.n_capsules
     if poses.ndim != 3 or poses.shape[1:] != (c, 7):
         raise ValueError(
-            f"dataset {dataset.name!r}: poses must have shape (F, {c}, 7) for a hand of {c} capsules, "
-            f"got {poses.shape}"
+            f"dataset {dataset.name!r}: poses must have shape (F, {c}, 7) for a hand of {c} capsules, got {poses.shape}"
         )
     if c > np.iinfo(np.int16).max:
         raise ValueError(f"dataset {dataset.name!r}: {c} capsules do not fit Contacts.capsule (int16)")
@@ -113,8 +112,16 @@ def frames_near_link(p0: np.ndarray, p1: np.ndarray, reach_m: float, mesh: MeshA
         from sphri.contact import _kernels
 
         c = mesh.shift
-        _kernels.frames_near(np.ascontiguousarray(p0, dtype=np.float64), np.ascontiguousarray(p1, dtype=np.float64),
-                             float(reach_m), float(c[0]), float(c[1]), float(c[2]), float(mesh.sphere_radius), out)
+        _kernels.frames_near(
+            np.ascontiguousarray(p0, dtype=np.float64),
+            np.ascontiguousarray(p1, dtype=np.float64),
+            float(reach_m),
+            float(c[0]),
+            float(c[1]),
+            float(c[2]),
+            float(mesh.sphere_radius),
+            out,
+        )
     return out
 
 
@@ -172,7 +179,7 @@ class ContactStage:
             bar = _progress(frames.size, f"contact {region} ({link.name})")
             try:
                 for s in range(0, frames.size, self.chunk_frames):
-                    fr = frames[s:s + self.chunk_frames]
+                    fr = frames[s : s + self.chunk_frames]
                     p0, p1 = self._segments(dataset, fr)
                     near = frames_near_link(p0, p1, reach, mesh)
                     if near.any():
@@ -191,8 +198,15 @@ class ContactStage:
         order = np.lexsort((cat["capsule"], cat["frame"]))
         return Contacts(n_frames=n_frames, **{k: v[order] for k, v in cat.items()})
 
-    def _chunk(self, mesh: MeshAccel, p0: np.ndarray, p1: np.ndarray, frames: np.ndarray, radius: np.ndarray,
-               record: SearchRecord) -> list[dict[str, np.ndarray]]:
+    def _chunk(
+        self,
+        mesh: MeshAccel,
+        p0: np.ndarray,
+        p1: np.ndarray,
+        frames: np.ndarray,
+        radius: np.ndarray,
+        record: SearchRecord,
+    ) -> list[dict[str, np.ndarray]]:
         """Contact rows of the capsules of ``frames`` ((F, C, 3) segment ends)."""
         from sphri.contact.query import finish, search
 

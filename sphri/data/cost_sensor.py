@@ -50,8 +50,17 @@ CELL_THRESHOLD = 0.01
 SUBSAMPLES = 8
 
 #: Columns of :func:`sensor_trials`.
-SENSOR_COLUMNS = ["participant", "region", "gesture", "sensor_contact", "sensor_frames", "area_fraction",
-                  "duration_s", "window_row", "window_col"]
+SENSOR_COLUMNS = [
+    "participant",
+    "region",
+    "gesture",
+    "sensor_contact",
+    "sensor_frames",
+    "area_fraction",
+    "duration_s",
+    "window_row",
+    "window_col",
+]
 
 
 def sensor_grid(link, surface: SurfaceMap):
@@ -63,8 +72,10 @@ def sensor_grid(link, surface: SurfaceMap):
     layout = build_grid(link, surface, rows)
     h, w = layout.grid_shape
     if h < COST_CELLS or w < COST_CELLS:
-        raise ValueError(f"link {link.name!r}: a {COST_PITCH_M * 1e3:g} mm grid has {h} x {w} cells, fewer than "
-                         f"CoST's {COST_CELLS} x {COST_CELLS}")
+        raise ValueError(
+            f"link {link.name!r}: a {COST_PITCH_M * 1e3:g} mm grid has {h} x {w} cells, fewer than "
+            f"CoST's {COST_CELLS} x {COST_CELLS}"
+        )
     return layout
 
 
@@ -77,14 +88,19 @@ def best_window(on_sum: np.ndarray, wrap_v: bool, size: int = COST_CELLS) -> tup
     c = np.zeros((h + 1, ext.shape[1] + 1))
     c[1:, 1:] = ext.cumsum(0).cumsum(1)
     r = np.arange(h - size + 1)
-    s = c[r[:, None] + size, cols[None, :] + size] - c[r[:, None], cols[None, :] + size] \
-        - c[r[:, None] + size, cols[None, :]] + c[r[:, None], cols[None, :]]
+    s = (
+        c[r[:, None] + size, cols[None, :] + size]
+        - c[r[:, None], cols[None, :] + size]
+        - c[r[:, None] + size, cols[None, :]]
+        + c[r[:, None], cols[None, :]]
+    )
     i, j = np.unravel_index(int(np.argmax(s)), s.shape)
     return int(r[i]), int(cols[j])
 
 
-def sensor_trials(dataset: GestureDataset, contacts: Contacts, robot: Robot, surface_component,
-                  threshold: float = CELL_THRESHOLD) -> pd.DataFrame:
+def sensor_trials(
+    dataset: GestureDataset, contacts: Contacts, robot: Robot, surface_component, threshold: float = CELL_THRESHOLD
+) -> pd.DataFrame:
     """One row per trial (:data:`SENSOR_COLUMNS`) of the simulated CoST sensor (see the module docstring).
 
     ``surface_component``: an object with ``fit(link) -> SurfaceMap`` (the
@@ -99,8 +115,11 @@ def sensor_trials(dataset: GestureDataset, contacts: Contacts, robot: Robot, sur
     start = trials["start"].to_numpy(np.int64)
     regions = trials["region"].astype(str).to_numpy()
     out = {
-        "sensor_contact": np.zeros(n, bool), "sensor_frames": np.zeros(n, np.int64),
-        "area_fraction": np.full(n, np.nan), "duration_s": np.zeros(n), "window_row": np.full(n, -1, np.int64),
+        "sensor_contact": np.zeros(n, bool),
+        "sensor_frames": np.zeros(n, np.int64),
+        "area_fraction": np.full(n, np.nan),
+        "duration_s": np.zeros(n),
+        "window_row": np.full(n, -1, np.int64),
         "window_col": np.full(n, -1, np.int64),
     }
     cf = np.asarray(contacts.frame, np.int64)
@@ -113,15 +132,18 @@ def sensor_trials(dataset: GestureDataset, contacts: Contacts, robot: Robot, sur
         surface = surface_component.fit(link)
         layout = sensor_grid(link, surface)
         h, w = layout.grid_shape
-        on = encode_grid(contacts, surface, layout, frames, True, threshold, SUBSAMPLES,
-                         "CoST sensor").values.reshape(-1, h, w).astype(bool)
+        on = (
+            encode_grid(contacts, surface, layout, frames, True, threshold, SUBSAMPLES, "CoST sensor")
+            .values.reshape(-1, h, w)
+            .astype(bool)
+        )
         t_of = owner[frames]
         bounds = np.flatnonzero(np.r_[True, np.diff(t_of) != 0, True])
         for a, b in zip(bounds[:-1], bounds[1:]):
             t = int(t_of[a])
             o = on[a:b]
             i, j = best_window(o.sum(0), surface.wrap_v)
-            cells = o[:, i:i + COST_CELLS][:, :, (j + np.arange(COST_CELLS)) % w].reshape(b - a, -1).sum(1)
+            cells = o[:, i : i + COST_CELLS][:, :, (j + np.arange(COST_CELLS)) % w].reshape(b - a, -1).sum(1)
             hit = cells > 0
             out["window_row"][t], out["window_col"][t] = i, j
             if not hit.any():
@@ -131,8 +153,14 @@ def sensor_trials(dataset: GestureDataset, contacts: Contacts, robot: Robot, sur
             out["sensor_frames"][t] = int(hit.sum())
             out["area_fraction"][t] = float(cells[hit].mean() / COST_CELLS**2)
             out["duration_s"][t] = float(f[-1] - f[0] + 1) / dataset.frame_rate_hz
-    df = pd.DataFrame({"participant": trials["participant"].to_numpy(), "region": regions,
-                       "gesture": trials["gesture"].to_numpy(), **out})
+    df = pd.DataFrame(
+        {
+            "participant": trials["participant"].to_numpy(),
+            "region": regions,
+            "gesture": trials["gesture"].to_numpy(),
+            **out,
+        }
+    )
     return df[SENSOR_COLUMNS]
 
 
@@ -142,6 +170,8 @@ def describe_sensor(robot: Robot, region: str, surface_component, threshold: flo
     surface = surface_component.fit(link)
     layout = sensor_grid(link, surface)
     h, w = layout.grid_shape
-    return (f"simulated CoST sensor on {region} ({link.name}): {COST_CELLS} x {COST_CELLS} window of a {h} x {w} grid, "
-            f"pitch {layout.pitch_u_m * 1e3:.1f} mm along x {layout.pitch_v_m * 1e3:.1f} mm around, binary "
-            f"(cell on at >= {threshold:.0%} covered or holding a patch centre), placed where each trial touches")
+    return (
+        f"simulated CoST sensor on {region} ({link.name}): {COST_CELLS} x {COST_CELLS} window of a {h} x {w} grid, "
+        f"pitch {layout.pitch_u_m * 1e3:.1f} mm along x {layout.pitch_v_m * 1e3:.1f} mm around, binary "
+        f"(cell on at >= {threshold:.0%} covered or holding a patch centre), placed where each trial touches"
+    )

@@ -24,7 +24,7 @@ participants with equal label and length are 26.8 mm RMS apart, 11.7 mm with
 from __future__ import annotations
 
 from collections import defaultdict
-from typing import Hashable, Sequence
+from collections.abc import Hashable, Sequence
 
 import numpy as np
 
@@ -97,5 +97,7 @@ def find_duplicates(
 def describe(pair: tuple[str, str, int, int], what: str = "trials") -> str:
     """``participant_01 and participant_04 hold near-identical recordings (16 of 16 trials match ...)``."""
     a, b, shared, of = pair
-    return (f"{a} and {b} hold near-identical recordings ({shared} of {of} {what} match: same label and length, "
-            f"hand path within {TOLERANCE_M * 1000:g} mm RMS)")
+    return (
+        f"{a} and {b} hold near-identical recordings ({shared} of {of} {what} match: same label and length, "
+        f"hand path within {TOLERANCE_M * 1000:g} mm RMS)"
+    )

@@ -18,8 +18,9 @@ from __future__ import annotations
 
 import json
 import re
+from collections.abc import Iterable, Sequence
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -142,7 +143,9 @@ def read_manifest(path: Path) -> dict[str, Any]:
         raise ManifestError(f"{path}: num_trials={m['num_trials']} but {len(trials)} trials are listed")
     total = sum(int(t["frame_count"]) for t in trials)
     if m["num_frames_total"] != total:
-        raise ManifestError(f"{path}: num_frames_total={m['num_frames_total']} but the trials' frame_count sum to {total}")
+        raise ManifestError(
+            f"{path}: num_frames_total={m['num_frames_total']} but the trials' frame_count sum to {total}"
+        )
     return m
 
 

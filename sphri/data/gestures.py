@@ -74,8 +74,14 @@ DURATION_CALIBRATION: dict[str, float] = {
 #:   come from pressure spreading in its textile sensor (not measured here), which the generator does not
 #:   fake. Left outside.
 DEPTH_M: dict[str, float] = {
-    "poke": 0.008, "tap": 0.026, "pat": 0.004, "hit": 0.0035,
-    "push": 0.016, "rub": 0.006, "stroke": 0.006, "grab": 0.017,
+    "poke": 0.008,
+    "tap": 0.026,
+    "pat": 0.004,
+    "hit": 0.0035,
+    "push": 0.016,
+    "rub": 0.006,
+    "stroke": 0.006,
+    "grab": 0.017,
 }
 
 #: Number of touches: (choices, expected count over participants).
@@ -89,36 +95,85 @@ TOUCH_COUNTS: dict[str, tuple[tuple[int, ...], float]] = {
 CONTACT_FRACTION = {"tap": 0.35, "pat": 0.4, "stroke": 0.65}
 
 # Finger shapes: rows thumb, index, middle, ring, pinky; columns abduction, 3 flexions (radians).
-RELAXED = np.array([[0.0, 0.20, 0.20, 0.15], [0.0, 0.30, 0.35, 0.20], [0.0, 0.30, 0.35, 0.20],
-                    [0.0, 0.32, 0.38, 0.22], [0.0, 0.35, 0.40, 0.25]])
-FLAT = np.array([[-0.15, 0.05, 0.05, 0.05], [0.0, 0.05, 0.05, 0.03], [0.0, 0.05, 0.05, 0.03],
-                 [0.0, 0.05, 0.05, 0.03], [0.0, 0.05, 0.05, 0.03]])
-POINT = np.array([[0.0, 0.60, 0.50, 0.35], [0.0, 0.05, 0.08, 0.05], [0.0, 1.50, 1.60, 1.00],
-                  [0.0, 1.50, 1.60, 1.00], [0.0, 1.50, 1.60, 1.00]])
-TAP = np.array([[0.0, 0.30, 0.50, 0.40], [0.0, 0.45, 0.55, 0.30], [0.0, 0.70, 1.40, 0.90],
-                [0.0, 0.70, 1.40, 0.90], [0.0, 0.70, 1.40, 0.90]])
+RELAXED = np.array(
+    [
+        [0.0, 0.20, 0.20, 0.15],
+        [0.0, 0.30, 0.35, 0.20],
+        [0.0, 0.30, 0.35, 0.20],
+        [0.0, 0.32, 0.38, 0.22],
+        [0.0, 0.35, 0.40, 0.25],
+    ]
+)
+FLAT = np.array(
+    [
+        [-0.15, 0.05, 0.05, 0.05],
+        [0.0, 0.05, 0.05, 0.03],
+        [0.0, 0.05, 0.05, 0.03],
+        [0.0, 0.05, 0.05, 0.03],
+        [0.0, 0.05, 0.05, 0.03],
+    ]
+)
+POINT = np.array(
+    [
+        [0.0, 0.60, 0.50, 0.35],
+        [0.0, 0.05, 0.08, 0.05],
+        [0.0, 1.50, 1.60, 1.00],
+        [0.0, 1.50, 1.60, 1.00],
+        [0.0, 1.50, 1.60, 1.00],
+    ]
+)
+TAP = np.array(
+    [
+        [0.0, 0.30, 0.50, 0.40],
+        [0.0, 0.45, 0.55, 0.30],
+        [0.0, 0.70, 1.40, 0.90],
+        [0.0, 0.70, 1.40, 0.90],
+        [0.0, 0.70, 1.40, 0.90],
+    ]
+)
 TAP2 = TAP.copy()
 TAP2[2] = [0.0, 0.45, 0.55, 0.30]
-FIST = np.array([[0.0, 0.70, 0.60, 0.50], [0.0, 1.50, 1.70, 1.10], [0.0, 1.50, 1.70, 1.10],
-                 [0.0, 1.50, 1.70, 1.10], [0.0, 1.50, 1.70, 1.10]])
-SLIDE_FINGERS = np.array([[0.0, 0.30, 0.30, 0.20], [0.0, 0.30, 0.15, 0.10], [0.0, 0.30, 0.15, 0.10],
-                    [0.0, 0.30, 0.15, 0.10], [0.0, 0.60, 0.60, 0.40]])
-GRAB_OPEN = np.array([[0.0, 0.00, 0.10, 0.10], [0.0, 0.15, 0.20, 0.10], [0.0, 0.15, 0.20, 0.10],
-                      [0.0, 0.15, 0.20, 0.10], [0.0, 0.15, 0.20, 0.10]])
+FIST = np.array(
+    [
+        [0.0, 0.70, 0.60, 0.50],
+        [0.0, 1.50, 1.70, 1.10],
+        [0.0, 1.50, 1.70, 1.10],
+        [0.0, 1.50, 1.70, 1.10],
+        [0.0, 1.50, 1.70, 1.10],
+    ]
+)
+SLIDE_FINGERS = np.array(
+    [
+        [0.0, 0.30, 0.30, 0.20],
+        [0.0, 0.30, 0.15, 0.10],
+        [0.0, 0.30, 0.15, 0.10],
+        [0.0, 0.30, 0.15, 0.10],
+        [0.0, 0.60, 0.60, 0.40],
+    ]
+)
+GRAB_OPEN = np.array(
+    [
+        [0.0, 0.00, 0.10, 0.10],
+        [0.0, 0.15, 0.20, 0.10],
+        [0.0, 0.15, 0.20, 0.10],
+        [0.0, 0.15, 0.20, 0.10],
+        [0.0, 0.15, 0.20, 0.10],
+    ]
+)
 
 
 #: Population rates of the per-participant habits (probability that a trial uses the variant).
 #: Assumptions (no published rates for these variants); ``data.preference_concentration`` and
 #: ``data.variability`` set how much participants differ around them.
 HABITS: dict[str, float] = {
-    "hit_fist": 0.3,       # hit with the fist's knuckles instead of the palm
+    "hit_fist": 0.3,  # hit with the fist's knuckles instead of the palm
     "slide_fingers": 0.3,  # rub / stroke with the finger pads instead of the palm
-    "tap_two": 0.6,        # tap with index and middle fingers
-    "rub_across": 0.25,    # rub around the link instead of along it
-    "pat_fingers": 0.25,   # pat with the finger pads (closer to a tap)
-    "push_tip": 0.15,      # push with the index fingertip (closer to a poke)
-    "grab_side": 0.5,      # which way the fingers wrap in a grab
-    "stroke_sign": 0.5,    # preferred stroke direction along the link
+    "tap_two": 0.6,  # tap with index and middle fingers
+    "rub_across": 0.25,  # rub around the link instead of along it
+    "pat_fingers": 0.25,  # pat with the finger pads (closer to a tap)
+    "push_tip": 0.15,  # push with the index fingertip (closer to a poke)
+    "grab_side": 0.5,  # which way the fingers wrap in a grab
+    "stroke_sign": 0.5,  # preferred stroke direction along the link
 }
 
 
@@ -171,7 +226,7 @@ class Style:
         return self.habits.get(name, HABITS[name])
 
     @classmethod
-    def draw(cls, rng: np.random.Generator, spread: Spread, gestures=tuple(DEPTH_M)) -> "Style":
+    def draw(cls, rng: np.random.Generator, spread: Spread, gestures=tuple(DEPTH_M)) -> Style:
         v = spread.variability
         sp = spread
 
@@ -271,11 +326,13 @@ def penetration_depth(rng: np.random.Generator, gesture: str, style: Style, spre
     return float(min(d, spread.depth_max_m))
 
 
-def _touch_train(total: float, n: int, kappa: float, depth: float, rng: np.random.Generator) -> list[tuple[float, float, float]]:
+def _touch_train(
+    total: float, n: int, kappa: float, depth: float, rng: np.random.Generator
+) -> list[tuple[float, float, float]]:
     c = total / (n + (n - 1) * (1.0 - kappa) / kappa)
     g = c * (1.0 - kappa) / kappa
     out, t = [], 0.0
-    for i in range(n):
+    for _i in range(n):
         ci = c * float(rng.uniform(0.85, 1.15))
         out.append((t, t + ci, depth * float(rng.uniform(0.8, 1.2))))
         t += ci + g * float(rng.uniform(0.8, 1.2))
@@ -295,7 +352,9 @@ def add_brush_and_retouch(plan: ContactPlan, rng: np.random.Generator, spread: S
     if rng.random() < spread.rate(spread.brush_rate):
         gap, dur = float(rng.uniform(0.15, 0.5)), float(rng.uniform(0.03, 0.12))
         shift = gap + dur
-        plan.touches = [(0.0, dur, float(rng.uniform(0.001, 0.004)))] + [(a + shift, b + shift, d) for a, b, d in plan.touches]
+        plan.touches = [(0.0, dur, float(rng.uniform(0.001, 0.004)))] + [
+            (a + shift, b + shift, d) for a, b, d in plan.touches
+        ]
         plan.slide = [(t + shift, x) for t, x in plan.slide]
         plan.finger_knots = [(t + shift, f) for t, f in plan.finger_knots]
     if rng.random() < spread.rate(spread.retouch_rate):
@@ -305,8 +364,14 @@ def add_brush_and_retouch(plan: ContactPlan, rng: np.random.Generator, spread: S
     return plan
 
 
-def plan_contact(gesture: str, rng: np.random.Generator, style: Style, wrap_radius_m: float, finger_radius_m: float,
-                 spread: Spread | None = None) -> ContactPlan:
+def plan_contact(
+    gesture: str,
+    rng: np.random.Generator,
+    style: Style,
+    wrap_radius_m: float,
+    finger_radius_m: float,
+    spread: Spread | None = None,
+) -> ContactPlan:
     """Draw the contact phase of one ``gesture`` trial for a participant's ``style``.
 
     ``wrap_radius_m``: radius of the link's cross-section at the touch point
@@ -319,8 +384,9 @@ def plan_contact(gesture: str, rng: np.random.Generator, style: Style, wrap_radi
     return add_brush_and_retouch(plan, rng, spread)
 
 
-def _plan(gesture: str, rng: np.random.Generator, style: Style, wrap_radius_m: float, finger_radius_m: float,
-          sp: Spread) -> ContactPlan:
+def _plan(
+    gesture: str, rng: np.random.Generator, style: Style, wrap_radius_m: float, finger_radius_m: float, sp: Spread
+) -> ContactPlan:
     depth = penetration_depth(rng, gesture, style, sp)
     yaw = style.yaw + rng.normal(0.0, np.radians(20.0))
     tilt = float(rng.uniform(0.0, np.radians(10.0)))
@@ -338,45 +404,111 @@ def _plan(gesture: str, rng: np.random.Generator, style: Style, wrap_radius_m: f
         return _touch_train(dur * n / expected / rate, n, CONTACT_FRACTION[g], depth, rng)
 
     if gesture == "poke":
-        return ContactPlan(gesture, "index_tip", POINT + 0.5 * spread, [(0.0, dur, depth)], hover_m=float(rng.uniform(0.03, 0.05)),
-                           ramp_s=0.15 * slow, yaw=yaw, tilt=float(rng.uniform(0.0, np.radians(25.0))), tilt_azimuth=az)
+        return ContactPlan(
+            gesture,
+            "index_tip",
+            POINT + 0.5 * spread,
+            [(0.0, dur, depth)],
+            hover_m=float(rng.uniform(0.03, 0.05)),
+            ramp_s=0.15 * slow,
+            yaw=yaw,
+            tilt=float(rng.uniform(0.0, np.radians(25.0))),
+            tilt_azimuth=az,
+        )
     if gesture == "tap":
         shape = TAP2 if rng.random() < style.habit("tap_two") else TAP
         touches = multi("tap")
-        plan = ContactPlan(gesture, "index_tip", shape + 0.5 * spread, touches, hover_m=float(rng.uniform(0.015, 0.025)),
-                           ramp_s=0.08 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az, slide_angle=float(rng.uniform(0, 2 * np.pi)))
+        plan = ContactPlan(
+            gesture,
+            "index_tip",
+            shape + 0.5 * spread,
+            touches,
+            hover_m=float(rng.uniform(0.015, 0.025)),
+            ramp_s=0.08 * slow,
+            yaw=yaw,
+            tilt=tilt,
+            tilt_azimuth=az,
+            slide_angle=float(rng.uniform(0, 2 * np.pi)),
+        )
         plan.slide = [(a, float(rng.normal(0.0, 0.004))) for a, _, _ in touches]
         return plan
     if gesture == "pat":
         fingers = rng.random() < style.habit("pat_fingers")
         touches = multi("pat")
-        plan = ContactPlan(gesture, "fingers" if fingers else "palm", SLIDE_FINGERS if fingers else FLAT + spread, touches,
-                           hover_m=float(rng.uniform(0.03, 0.05)), ramp_s=0.10 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az,
-                           slide_angle=float(rng.uniform(0, 2 * np.pi)))
+        plan = ContactPlan(
+            gesture,
+            "fingers" if fingers else "palm",
+            SLIDE_FINGERS if fingers else FLAT + spread,
+            touches,
+            hover_m=float(rng.uniform(0.03, 0.05)),
+            ramp_s=0.10 * slow,
+            yaw=yaw,
+            tilt=tilt,
+            tilt_azimuth=az,
+            slide_angle=float(rng.uniform(0, 2 * np.pi)),
+        )
         plan.slide = [(a, float(rng.normal(0.0, 0.006))) for a, _, _ in touches]
         return plan
     if gesture == "hit":
         fist = rng.random() < style.habit("hit_fist")
-        return ContactPlan(gesture, "fist" if fist else "palm", FIST if fist else FLAT + spread, [(0.0, dur, depth)],
-                           hover_m=float(rng.uniform(0.08, 0.12)), ramp_s=0.05 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az)
+        return ContactPlan(
+            gesture,
+            "fist" if fist else "palm",
+            FIST if fist else FLAT + spread,
+            [(0.0, dur, depth)],
+            hover_m=float(rng.uniform(0.08, 0.12)),
+            ramp_s=0.05 * slow,
+            yaw=yaw,
+            tilt=tilt,
+            tilt_azimuth=az,
+        )
     if gesture == "push":
         if rng.random() < style.habit("push_tip"):
-            return ContactPlan(gesture, "index_tip", POINT + 0.5 * spread, [(0.0, dur, depth)],
-                               hover_m=float(rng.uniform(0.03, 0.05)), ramp_s=0.25 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az)
-        return ContactPlan(gesture, "palm", FLAT + spread, [(0.0, dur, depth)], hover_m=float(rng.uniform(0.03, 0.05)),
-                           ramp_s=0.25 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az)
+            return ContactPlan(
+                gesture,
+                "index_tip",
+                POINT + 0.5 * spread,
+                [(0.0, dur, depth)],
+                hover_m=float(rng.uniform(0.03, 0.05)),
+                ramp_s=0.25 * slow,
+                yaw=yaw,
+                tilt=tilt,
+                tilt_azimuth=az,
+            )
+        return ContactPlan(
+            gesture,
+            "palm",
+            FLAT + spread,
+            [(0.0, dur, depth)],
+            hover_m=float(rng.uniform(0.03, 0.05)),
+            ramp_s=0.25 * slow,
+            yaw=yaw,
+            tilt=tilt,
+            tilt_azimuth=az,
+        )
     if gesture == "rub":
         fingers = rng.random() < style.habit("slide_fingers")
         across = rng.random() < style.habit("rub_across")
         angle = (np.pi / 2 if across else 0.0) + rng.normal(0.0, np.radians(20.0))
         amp = float(rng.uniform(0.015, 0.03)) * extent
         freq = float(rng.uniform(1.5, 3.0)) * rate
-        plan = ContactPlan(gesture, "fingers" if fingers else "palm", SLIDE_FINGERS if fingers else FLAT + spread,
-                           [(0.0, dur, depth)], hover_m=float(rng.uniform(0.02, 0.04)), ramp_s=0.15 * slow, yaw=yaw,
-                           tilt=tilt, tilt_azimuth=az, slide_angle=float(angle))
+        plan = ContactPlan(
+            gesture,
+            "fingers" if fingers else "palm",
+            SLIDE_FINGERS if fingers else FLAT + spread,
+            [(0.0, dur, depth)],
+            hover_m=float(rng.uniform(0.02, 0.04)),
+            ramp_s=0.15 * slow,
+            yaw=yaw,
+            tilt=tilt,
+            tilt_azimuth=az,
+            slide_angle=float(angle),
+        )
         half = 0.5 / freq
         k = np.arange(1, max(int(dur / half), 1) + 1)
-        plan.slide = [(0.0, 0.0)] + [(float(t), float(amp * (1 if i % 2 else -1))) for i, t in zip(k, k * half) if t < dur]
+        plan.slide = [(0.0, 0.0)] + [
+            (float(t), float(amp * (1 if i % 2 else -1))) for i, t in zip(k, k * half) if t < dur
+        ]
         return plan
     if gesture == "stroke":
         fingers = rng.random() < style.habit("slide_fingers")
@@ -384,20 +516,43 @@ def _plan(gesture: str, rng: np.random.Generator, style: Style, wrap_radius_m: f
         length = float(rng.uniform(0.06, 0.12)) * style.scale * extent
         sign = 1.0 if rng.random() < style.habit("stroke_sign") else -1.0
         angle = (0.0 if sign > 0 else np.pi) + rng.normal(0.0, np.radians(10.0))
-        plan = ContactPlan(gesture, "fingers" if fingers else "palm", SLIDE_FINGERS if fingers else FLAT + spread, touches,
-                           hover_m=float(rng.uniform(0.02, 0.04)), ramp_s=0.12 * slow, yaw=yaw, tilt=tilt, tilt_azimuth=az,
-                           slide_angle=float(angle))
+        plan = ContactPlan(
+            gesture,
+            "fingers" if fingers else "palm",
+            SLIDE_FINGERS if fingers else FLAT + spread,
+            touches,
+            hover_m=float(rng.uniform(0.02, 0.04)),
+            ramp_s=0.12 * slow,
+            yaw=yaw,
+            tilt=tilt,
+            tilt_azimuth=az,
+            slide_angle=float(angle),
+        )
         for a, b, _ in touches:
             plan.slide += [(a, -0.5 * length), (b, 0.5 * length)]
         return plan
     if gesture == "grab":
         side = 1.0 if rng.random() < style.habit("grab_side") else -1.0
         closed = _grab_fingers(wrap_radius_m + finger_radius_m, style.scale) * float(rng.uniform(1.2, 1.4))
-        plan = ContactPlan(gesture, "palm", GRAB_OPEN, [(0.0, dur, depth)], hover_m=float(rng.uniform(0.03, 0.05)),
-                           ramp_s=0.2 * slow, yaw=np.pi / 2 * side + rng.normal(0.0, np.radians(10.0)), tilt=tilt,
-                           tilt_azimuth=az, grab=True)
+        plan = ContactPlan(
+            gesture,
+            "palm",
+            GRAB_OPEN,
+            [(0.0, dur, depth)],
+            hover_m=float(rng.uniform(0.03, 0.05)),
+            ramp_s=0.2 * slow,
+            yaw=np.pi / 2 * side + rng.normal(0.0, np.radians(10.0)),
+            tilt=tilt,
+            tilt_azimuth=az,
+            grab=True,
+        )
         close = min(0.25, 0.3 * dur)
-        plan.finger_knots = [(0.0, GRAB_OPEN), (close, closed), (max(dur - close, close), closed), (dur + 0.1, GRAB_OPEN)]
+        plan.finger_knots = [
+            (0.0, GRAB_OPEN),
+            (close, closed),
+            (max(dur - close, close), closed),
+            (dur + 0.1, GRAB_OPEN),
+        ]
         return plan
     raise ValueError(f"unknown gesture {gesture!r}")
 

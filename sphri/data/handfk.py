@@ -43,7 +43,9 @@ _SPLAY = np.array([0.0, 0.10, 0.0, -0.10, -0.20])  # base yaw of the finger chai
 _THUMB_DIR = np.array([0.65, 0.70, -0.25])  # thumb metacarpal at rest
 _THUMB_FLEX_TO = np.array([0.35, -0.55, -0.75])  # where thumb flexion points (across the palm)
 _PALM_START = np.array([[0.030, 0.016, 0.0], [0.030, 0.002, 0.0], [0.030, -0.012, 0.0], [0.035, -0.025, 0.0]])
-_PALM_TOWARD = np.array([[0.085, 0.022, -0.004], [0.088, 0.004, -0.004], [0.083, -0.013, -0.004], [0.075, -0.030, -0.004]])
+_PALM_TOWARD = np.array(
+    [[0.085, 0.022, -0.004], [0.088, 0.004, -0.004], [0.083, -0.013, -0.004], [0.075, -0.030, -0.004]]
+)
 
 
 def _unit(v: np.ndarray) -> np.ndarray:
@@ -168,7 +170,11 @@ def _pose_kernel(start, frame, length, rot, pos, perm, offset, out):  # pragma: 
         for c in range(start.shape[1]):
             for i in range(3):
                 for j in range(3):
-                    f[i, j] = rot[t, i, 0] * frame[t, c, 0, j] + rot[t, i, 1] * frame[t, c, 1, j] + rot[t, i, 2] * frame[t, c, 2, j]
+                    f[i, j] = (
+                        rot[t, i, 0] * frame[t, c, 0, j]
+                        + rot[t, i, 1] * frame[t, c, 1, j]
+                        + rot[t, i, 2] * frame[t, c, 2, j]
+                    )
             for i in range(3):
                 for j in range(3):
                     r[i, j] = f[i, 0] * perm[c, 0, j] + f[i, 1] * perm[c, 1, j] + f[i, 2] * perm[c, 2, j]
@@ -178,7 +184,9 @@ def _pose_kernel(start, frame, length, rot, pos, perm, offset, out):  # pragma: 
             m2 = start[t, c, 2] + h * frame[t, c, 2, 0]
             for i in range(3):
                 centre = rot[t, i, 0] * m0 + rot[t, i, 1] * m1 + rot[t, i, 2] * m2
-                out[t, c, i] = pos[t, i] + centre - (r[i, 0] * offset[c, 0] + r[i, 1] * offset[c, 1] + r[i, 2] * offset[c, 2])
+                out[t, c, i] = (
+                    pos[t, i] + centre - (r[i, 0] * offset[c, 0] + r[i, 1] * offset[c, 1] + r[i, 2] * offset[c, 2])
+                )
             # Shepperd: the largest of w, x, y, z as pivot
             tr = r[0, 0] + r[1, 1] + r[2, 2]
             if tr >= r[0, 0] and tr >= r[1, 1] and tr >= r[2, 2]:
@@ -222,14 +230,13 @@ class HandRig:
     """Size of this hand model relative to the study's (middle1 segment length ratio): scales the palm layout."""
 
     @classmethod
-    def from_hand(cls, hand: HandModel) -> "HandRig":
+    def from_hand(cls, hand: HandModel) -> HandRig:
         index = {n: i for i, n in enumerate(hand.names)}
         need = [f"{c}{k}" for c in CHAINS for k in (1, 2, 3)] + list(PALM_CAPSULES)
         missing = [n for n in need if n not in index]
         if missing:
             raise ValueError(
-                f"the synthetic hand needs capsules {need}; the hand model lacks {missing} "
-                f"(it has {list(hand.names)})"
+                f"the synthetic hand needs capsules {need}; the hand model lacks {missing} (it has {list(hand.names)})"
             )
         extra = [n for n in hand.names if n not in need]
         if extra:
@@ -237,13 +244,18 @@ class HandRig:
         chain_slot = np.array([[index[f"{c}{k}"] for k in (1, 2, 3)] for c in CHAINS])
         palm_slot = np.array([index[n] for n in PALM_CAPSULES])
         # Q maps local e_axis to e_0 (cyclic permutations, det +1): R_joint = R_bone @ Q.
-        perms = {0: np.eye(3), 1: np.array([[0, 1, 0], [0, 0, 1], [1, 0, 0]], float),
-                 2: np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], float)}
+        perms = {
+            0: np.eye(3),
+            1: np.array([[0, 1, 0], [0, 0, 1], [1, 0, 0]], float),
+            2: np.array([[0, 0, 1], [1, 0, 0], [0, 1, 0]], float),
+        }
         axis_perm = np.stack([perms[int(a)] for a in hand.axis])
         palm_scale = float(hand.segment_length_m[index["middle1"]] / _MIDDLE1_SEGMENT_M)
         if not 0.2 < palm_scale < 5.0:
-            raise ValueError(f"hand capsule middle1 has a {hand.segment_length_m[index['middle1']]:.4f} m segment; "
-                             f"the synthetic hand expects about {_MIDDLE1_SEGMENT_M:.4f} m")
+            raise ValueError(
+                f"hand capsule middle1 has a {hand.segment_length_m[index['middle1']]:.4f} m segment; "
+                f"the synthetic hand expects about {_MIDDLE1_SEGMENT_M:.4f} m"
+            )
         return cls(hand=hand, chain_slot=chain_slot, palm_slot=palm_slot, axis_perm=axis_perm, palm_scale=palm_scale)
 
     def bone_lengths(self, scale: float) -> tuple[np.ndarray, np.ndarray]:
@@ -293,9 +305,14 @@ class HandRig:
         t, c = start.shape[:2]
         out = np.empty((t, c, 7))
         _pose_kernel(
-            np.ascontiguousarray(start, dtype=np.float64), np.ascontiguousarray(frame, dtype=np.float64),
-            np.asarray(length, dtype=np.float64), np.ascontiguousarray(rot, dtype=np.float64),
-            np.ascontiguousarray(pos, dtype=np.float64), self.axis_perm, self.hand.center_offset_m, out,
+            np.ascontiguousarray(start, dtype=np.float64),
+            np.ascontiguousarray(frame, dtype=np.float64),
+            np.asarray(length, dtype=np.float64),
+            np.ascontiguousarray(rot, dtype=np.float64),
+            np.ascontiguousarray(pos, dtype=np.float64),
+            self.axis_perm,
+            self.hand.center_offset_m,
+            out,
         )
         return out
 

@@ -25,8 +25,8 @@ and flags each row whose ratio falls outside its band (:data:`BANDS`).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import pandas as pd
@@ -63,8 +63,14 @@ BANDS: dict[str, tuple[float, float]] = {
 def length_table(trials: pd.DataFrame, frame_rate_hz: float) -> pd.DataFrame:
     """``trials`` (participant, region, gesture, n_frames) -> one row per trial with ``frames`` at 30 Hz and ``log``."""
     frames = trials["n_frames"].to_numpy(np.float64) * VR_FRAME_RATE_HZ / float(frame_rate_hz)
-    out = pd.DataFrame({"participant": trials["participant"].to_numpy(), "region": trials["region"].to_numpy(),
-                        "gesture": trials["gesture"].to_numpy(), "frames": frames})
+    out = pd.DataFrame(
+        {
+            "participant": trials["participant"].to_numpy(),
+            "region": trials["region"].to_numpy(),
+            "gesture": trials["gesture"].to_numpy(),
+            "frames": frames,
+        }
+    )
     out = out[out["frames"] >= MIN_FRAMES].reset_index(drop=True)
     out["log"] = np.log(out["frames"])
     return out
@@ -116,8 +122,14 @@ def manifest_lengths(root: str | Path, regions: Sequence[str] = ("arm",)) -> pd.
             m = read_manifest(path)
             rate = float(m.get("frame_rate_hz", VR_FRAME_RATE_HZ))
             for t in m["trials"]:
-                rows.append({"participant": pid, "region": region, "gesture": t["gesture_label"],
-                             "n_frames": int(t["frame_count"]) * VR_FRAME_RATE_HZ / rate})
+                rows.append(
+                    {
+                        "participant": pid,
+                        "region": region,
+                        "gesture": t["gesture_label"],
+                        "n_frames": int(t["frame_count"]) * VR_FRAME_RATE_HZ / rate,
+                    }
+                )
     if not rows:
         raise FileNotFoundError(f"{root}: no manifests for regions {list(regions)}")
     return length_table(pd.DataFrame(rows), VR_FRAME_RATE_HZ)
@@ -131,8 +143,15 @@ def flag_row(statistic: str, gesture: str, value: float, ref: float, band: str) 
     lo, hi = BANDS[band]
     ratio = value / ref if ref else float("nan")
     ok = bool(np.isfinite(ratio) and lo <= ratio <= hi)
-    return {"statistic": statistic, "gesture": gesture, "value": value, "reference": ref, "ratio": ratio,
-            "band": f"{lo:g}-{hi:g}x", "flag": "ok" if ok else "OUTSIDE"}
+    return {
+        "statistic": statistic,
+        "gesture": gesture,
+        "value": value,
+        "reference": ref,
+        "ratio": ratio,
+        "band": f"{lo:g}-{hi:g}x",
+        "flag": "ok" if ok else "OUTSIDE",
+    }
 
 
 def compare(measured: dict[str, dict], reference: dict[str, dict]) -> pd.DataFrame:
@@ -150,8 +169,14 @@ def compare(measured: dict[str, dict], reference: dict[str, dict]) -> pd.DataFra
             for q in QUANTILES:
                 k = f"q{int(round(q * 100)):02d}"
                 rows.append(flag_row(f"length {k}", g, mg[k], rg[k], "quantile"))
-        for k in ("between_var", "interaction_var", "within_sd", "participant_median_min", "participant_median_max",
-                  "max_frames"):
+        for k in (
+            "between_var",
+            "interaction_var",
+            "within_sd",
+            "participant_median_min",
+            "participant_median_max",
+            "max_frames",
+        ):
             rows.append(flag_row(k, "all", m[k], ref[k], k))
         for r in rows:
             r.setdefault("region", region)
@@ -163,8 +188,10 @@ def format_comparison(table: pd.DataFrame, title: str) -> str:
     head = f"{'region':6s} {'statistic':24s} {'gesture':7s} {'value':>9s} {'ref':>9s} {'ratio':>6s} {'band':>10s}  flag"
     lines = [title, head, "-" * len(head)]
     for _, r in table.iterrows():
-        lines.append(f"{r['region']:6s} {r['statistic']:24s} {r['gesture']:7s} {r['value']:9.3f} {r['reference']:9.3f} "
-                     f"{r['ratio']:6.2f} {r['band']:>10s}  {r['flag']}")
+        lines.append(
+            f"{r['region']:6s} {r['statistic']:24s} {r['gesture']:7s} {r['value']:9.3f} {r['reference']:9.3f} "
+            f"{r['ratio']:6.2f} {r['band']:>10s}  {r['flag']}"
+        )
     n_out = int((table["flag"] != "ok").sum()) if len(table) else 0
     lines.append(f"{len(table) - n_out}/{len(table)} rows inside their band; {n_out} OUTSIDE")
     return "\n".join(lines)

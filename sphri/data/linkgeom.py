@@ -35,8 +35,10 @@ class LinkSurface:
         if not usable.any():
             from sphri.robots.validate import MeshError
 
-            raise MeshError(f"link {link.name!r}: no usable outward surface to place hands on "
-                            "(0 non-degenerate faces); a link needs a 3-D surface")
+            raise MeshError(
+                f"link {link.name!r}: no usable outward surface to place hands on "
+                "(0 non-degenerate faces); a link needs a 3-D surface"
+            )
         pts, face = sample_surface(link, n_samples, seed)
         nrm = unit[face]
         if link.watertight and np.einsum("ij,ij->i", v[f[usable, 0]], unit[usable]) @ area[usable] < 0:
@@ -52,8 +54,10 @@ class LinkSurface:
         if len(pts) < 3 or not np.isfinite(pts).all():
             from sphri.robots.validate import MeshError
 
-            raise MeshError(f"link {link.name!r}: no usable outward surface to place hands on "
-                            f"({int(usable.sum())} non-degenerate face(s)); a link needs a 3-D surface")
+            raise MeshError(
+                f"link {link.name!r}: no usable outward surface to place hands on "
+                f"({int(usable.sum())} non-degenerate face(s)); a link needs a 3-D surface"
+            )
         # principal axes of the surface samples: long axis first, right-handed
         _, _, axes = principal_axes(pts, centre=self.centroid)
         axes[2] = np.cross(axes[0], axes[1])
@@ -82,11 +86,13 @@ class LinkSurface:
         """
         lo, hi = self.axial_range
         frac = (self.axial - lo) / (hi - lo)
-        logw = -0.5 * ((frac - axial_frac) / max(axial_sd, 1e-3)) ** 2 + angle_kappa * (np.cos(self.angle - angle) - 1.0)
+        logw = -0.5 * ((frac - axial_frac) / max(axial_sd, 1e-3)) ** 2 + angle_kappa * (
+            np.cos(self.angle - angle) - 1.0
+        )
         side = np.abs(self.normals @ self.long_axis) < 0.64
         return np.where(side, logw, -np.inf) if side.any() else logw
 
-    def sampler(self, logw: np.ndarray) -> "PlaceSampler":
+    def sampler(self, logw: np.ndarray) -> PlaceSampler:
         """A fast sampler of touch points with log-weights ``logw`` (:meth:`preference`)."""
         return PlaceSampler(self, logw)
 

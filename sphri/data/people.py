@@ -30,13 +30,21 @@ import numpy as np
 
 from sphri.data.reference_stats import COST_DURATION_MS, VR_LENGTH_SPREAD
 
-
 #: Range of each kind of field: (lo, hi) inclusive.
 _RANGES = {
-    "variability": (0.0, 5.0), "_sd": (0.0, 3.0), "_rate": (0.0, 1.0), "_fraction": (0.0, 1.0),
-    "hand_length_sd_mm": (0.0, 50.0), "_mm": (100.0, 300.0), "length_tail_df": (2.05, 1000.0), "long_trial_max_s": (8.0, 3600.0),
-    "approach_s": (0.05, 10.0), "depth_max_m": (0.001, 0.2), "preference_concentration": (0.01, 1000.0),
-    "site_kappa_max": (0.5, 50.0), "nondominant_speed": (0.1, 2.0),
+    "variability": (0.0, 5.0),
+    "_sd": (0.0, 3.0),
+    "_rate": (0.0, 1.0),
+    "_fraction": (0.0, 1.0),
+    "hand_length_sd_mm": (0.0, 50.0),
+    "_mm": (100.0, 300.0),
+    "length_tail_df": (2.05, 1000.0),
+    "long_trial_max_s": (8.0, 3600.0),
+    "approach_s": (0.05, 10.0),
+    "depth_max_m": (0.001, 0.2),
+    "preference_concentration": (0.01, 1000.0),
+    "site_kappa_max": (0.5, 50.0),
+    "nondominant_speed": (0.1, 2.0),
 }
 
 
@@ -136,7 +144,7 @@ class Spread:
             require_range(f"{prefix}.{f.name}", getattr(self, f.name), lo=lo, hi=hi)
 
     @classmethod
-    def from_kwargs(cls, **kw) -> "Spread":
+    def from_kwargs(cls, **kw) -> Spread:
         """A Spread from the data config's fields (others ignored)."""
         names = {f.name for f in fields(cls)}
         return cls(**{k: float(v) for k, v in kw.items() if k in names})

@@ -57,8 +57,26 @@ COST_AREA_FRACTION: dict[str, tuple[float, float]] = {
 
 #: VR gesture dataset manifests: region -> gesture -> median trial length (frames, rest to rest).
 VR_MEDIAN_TRIAL_FRAMES: dict[str, dict[str, float]] = {
-    "arm": {"grab": 111.0, "hit": 96.0, "pat": 135.0, "poke": 108.5, "push": 101.5, "rub": 143.0, "stroke": 157.0, "tap": 119.5},
-    "torso": {"grab": 113.0, "hit": 97.0, "pat": 131.5, "poke": 104.5, "push": 97.5, "rub": 140.0, "stroke": 150.5, "tap": 117.0},
+    "arm": {
+        "grab": 111.0,
+        "hit": 96.0,
+        "pat": 135.0,
+        "poke": 108.5,
+        "push": 101.5,
+        "rub": 143.0,
+        "stroke": 157.0,
+        "tap": 119.5,
+    },
+    "torso": {
+        "grab": 113.0,
+        "hit": 97.0,
+        "pat": 131.5,
+        "poke": 104.5,
+        "push": 97.5,
+        "rub": 140.0,
+        "stroke": 150.5,
+        "tap": 117.0,
+    },
 }
 
 #: The VR manifests' trial-length spread (``python -m sphri.data.stats`` with the manifests, see

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
 
 from sphri.config import require, require_choice, require_range, store
 from sphri.data.duplicates import DUPLICATE_POLICIES
@@ -12,7 +11,7 @@ from sphri.inputs import input_path
 from sphri.types import GESTURES
 
 
-def _check_common(seed: int, participants: Optional[int], repetitions: Optional[int], regions: list, gestures: list) -> None:
+def _check_common(seed: int, participants: int | None, repetitions: int | None, regions: list, gestures: list) -> None:
     require_range("data.seed", seed, lo=0)
     if participants is not None:
         require_range("data.participants", participants, lo=1)
@@ -44,11 +43,11 @@ class SyntheticDataSchema(Spread):
 
     _target_: str = "sphri.data.synthetic.SyntheticData"
     seed: int = 0
-    participants: Optional[int] = 18
-    repetitions: Optional[int] = 20
+    participants: int | None = 18
+    repetitions: int | None = 20
     regions: list[str] = field(default_factory=lambda: ["arm"])
     gestures: list[str] = field(default_factory=lambda: list(GESTURES))
-    root: Optional[str] = None
+    root: str | None = None
     frame_rate_hz: float = 30.0
     tracking_rate_hz: float = 30.0
     """Hand-tracking updates per second, jittered 15 % [Q2: Quest hand tracking samples at 30 Hz]."""
@@ -87,14 +86,14 @@ class VRGestureDataSchema:
     """``data=vr_gesture``: the recorded VR gesture dataset (:class:`sphri.data.vr_gesture.VRGestureData`)."""
 
     _target_: str = "sphri.data.vr_gesture.VRGestureData"
-    root: Optional[str] = input_path(None, kind="dir")
+    root: str | None = input_path(None, kind="dir")
     seed: int = 0
-    participants: Optional[int] = None
-    repetitions: Optional[int] = None
+    participants: int | None = None
+    repetitions: int | None = None
     regions: list[str] = field(default_factory=lambda: ["arm"])
     gestures: list[str] = field(default_factory=lambda: list(GESTURES))
     min_frames: int = 10
-    frame_rate_hz: Optional[float] = None
+    frame_rate_hz: float | None = None
     quat_tolerance: float = 1e-3
     units: str = "m"
     """Units of the pose files' positions: m (the format's), cm or mm (scaled to metres on load)."""
@@ -102,8 +101,12 @@ class VRGestureDataSchema:
     """Two participant ids with near-identical trials (a copied folder): refuse, warn (load both) or off."""
 
     def __post_init__(self) -> None:
-        require(isinstance(self.root, str) and self.root != "", "data.root", self.root,
-                "set the dataset folder (the one holding arm/, torso/ and assets/), e.g. data.root=/data/VR-gesture-dataset")
+        require(
+            isinstance(self.root, str) and self.root != "",
+            "data.root",
+            self.root,
+            "set the dataset folder (the one holding arm/, torso/ and assets/), e.g. data.root=/data/VR-gesture-dataset",
+        )
         _check_common(self.seed, self.participants, self.repetitions, self.regions, self.gestures)
         require_range("data.min_frames", self.min_frames, lo=1)
         if self.frame_rate_hz is not None:

@@ -59,13 +59,15 @@ from __future__ import annotations
 import json
 import logging
 import sys
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import pandas as pd
 from scipy.spatial import cKDTree
 
+from sphri.config import ConfigError
+from sphri.data.cost_sensor import CELL_THRESHOLD, describe_sensor, sensor_trials
 from sphri.data.lengths import (
     COMPARISON_COLUMNS,
     compare,
@@ -75,7 +77,6 @@ from sphri.data.lengths import (
     length_table,
     manifest_lengths,
 )
-from sphri.data.cost_sensor import CELL_THRESHOLD, describe_sensor, sensor_trials
 from sphri.data.linkgeom import LinkSurface
 from sphri.data.reference_stats import (
     COST_AREA_FRACTION,
@@ -88,7 +89,6 @@ from sphri.data.reference_stats import (
     VR_LENGTH_SPREAD,
     median_trial_frames,
 )
-from sphri.config import ConfigError
 from sphri.errors import clean_errors
 from sphri.types import GESTURES, Contacts, GestureDataset, Robot
 
@@ -217,7 +217,9 @@ def gesture_summary(stats: pd.DataFrame) -> pd.DataFrame:
                 "duration_ms": float(touched["duration_s"].mean() * 1000.0) if len(touched) else float("nan"),
                 "ref_duration_ms": COST_DURATION_MS[gesture][0],
                 "area_cm2": float(touched["area_m2"].mean() * 1e4) if len(touched) else float("nan"),
-                "area_fraction": float(touched["area_m2"].mean() / COST_SENSOR_AREA_M2) if len(touched) else float("nan"),
+                "area_fraction": float(touched["area_m2"].mean() / COST_SENSOR_AREA_M2)
+                if len(touched)
+                else float("nan"),
                 "ref_area_fraction": COST_AREA_FRACTION[gesture][0],
                 "capsules": float(touched["n_capsules"].mean()) if len(touched) else float("nan"),
             }
@@ -241,17 +243,37 @@ def calibration_checks(summary: pd.DataFrame) -> list[tuple[str, bool, str]]:
     for region, s in summary.groupby("region", sort=False):
         for _, r in s.iterrows():
             rel = r["duration_ms"] / r["ref_duration_ms"] - 1.0
-            out.append((f"{region}/{r['gesture']} duration", bool(abs(rel) <= DURATION_TOLERANCE),
-                        f"{r['duration_ms']:.0f} ms vs CoST {r['ref_duration_ms']:.0f} ms ({rel:+.0%})"))
+            out.append(
+                (
+                    f"{region}/{r['gesture']} duration",
+                    bool(abs(rel) <= DURATION_TOLERANCE),
+                    f"{r['duration_ms']:.0f} ms vs CoST {r['ref_duration_ms']:.0f} ms ({rel:+.0%})",
+                )
+            )
             rel = r["median_frames"] / r["ref_median_frames"] - 1.0
-            out.append((f"{region}/{r['gesture']} trial length", bool(abs(rel) <= TRIAL_LENGTH_TOLERANCE),
-                        f"median {r['median_frames']:.1f} vs VR {r['ref_median_frames']:.1f} frames ({rel:+.0%})"))
+            out.append(
+                (
+                    f"{region}/{r['gesture']} trial length",
+                    bool(abs(rel) <= TRIAL_LENGTH_TOLERANCE),
+                    f"median {r['median_frames']:.1f} vs VR {r['ref_median_frames']:.1f} frames ({rel:+.0%})",
+                )
+            )
         areas = s.set_index("gesture")["area_cm2"]
         if "grab" in areas and "poke" in areas and len(areas) > 1:
-            out.append((f"{region} area: grab largest", bool(areas.idxmax() == "grab"),
-                        f"largest {areas.idxmax()} ({areas.max():.1f} cm2)"))
-            out.append((f"{region} area: poke smallest", bool(areas.idxmin() == "poke"),
-                        f"smallest {areas.idxmin()} ({areas.min():.1f} cm2)"))
+            out.append(
+                (
+                    f"{region} area: grab largest",
+                    bool(areas.idxmax() == "grab"),
+                    f"largest {areas.idxmax()} ({areas.max():.1f} cm2)",
+                )
+            )
+            out.append(
+                (
+                    f"{region} area: poke smallest",
+                    bool(areas.idxmin() == "poke"),
+                    f"smallest {areas.idxmin()} ({areas.min():.1f} cm2)",
+                )
+            )
     return out
 
 
@@ -271,8 +293,10 @@ def format_summary(summary: pd.DataFrame, dataset_name: str = "", frame_rate_hz:
             f"{r['median_frames']:7.1f} {r['ref_median_frames']:6.1f} | {r['duration_ms']:7.0f} {r['ref_duration_ms']:6.0f} | "
             f"{r['area_cm2']:8.1f} {r['area_fraction']:5.2f} {r['ref_area_fraction']:5.2f} | {r['capsules']:4.1f}"
         )
-    lines.append("references: trial length = VR gesture dataset manifests (median, ~30 Hz frames); "
-                 "duration and area = CoST (Jung et al. 2017, Table 4); see sphri/data/reference_stats.py")
+    lines.append(
+        "references: trial length = VR gesture dataset manifests (median, ~30 Hz frames); "
+        "duration and area = CoST (Jung et al. 2017, Table 4); see sphri/data/reference_stats.py"
+    )
     return "\n".join(lines)
 
 
@@ -284,15 +308,18 @@ def duration_comparison(stats: pd.DataFrame) -> pd.DataFrame:
     for (region, gesture), g in touched.groupby(["region", "gesture"], sort=False):
         d = g["duration_s"].to_numpy() * 1000.0
         mean, sd = COST_DURATION_MS[str(gesture)]
-        for name, value, ref, band in (("duration mean ms", float(d.mean()), mean, "duration_mean"),
-                                       ("duration sd ms", float(d.std(ddof=1)) if len(d) > 1 else float("nan"), sd,
-                                        "duration_sd")):
+        for name, value, ref, band in (
+            ("duration mean ms", float(d.mean()), mean, "duration_mean"),
+            ("duration sd ms", float(d.std(ddof=1)) if len(d) > 1 else float("nan"), sd, "duration_sd"),
+        ):
             row = flag_row(name, str(gesture), value, ref, band)
             row["region"] = region
             rows.append(row)
     out = pd.DataFrame(rows, columns=COMPARISON_COLUMNS)
     order = {g: i for i, g in enumerate(GESTURES)}
-    out = out.sort_values(["region", "gesture"], key=lambda s: s.map(order) if s.name == "gesture" else s, kind="stable")
+    out = out.sort_values(
+        ["region", "gesture"], key=lambda s: s.map(order) if s.name == "gesture" else s, kind="stable"
+    )
     return out.reset_index(drop=True)
 
 
@@ -333,8 +360,13 @@ def spatial_checks(table: pd.DataFrame) -> list[tuple[str, bool, str]]:
     area = table[table["statistic"] == SPATIAL_STATISTICS[0][0]]
     for region, a in area.groupby("region", sort=False):
         n_in = int((a["flag"] == "ok").sum())
-        out.append((f"{region} CoST sensor area", n_in >= min(6, len(a)),
-                    f"{n_in}/{len(a)} gestures in band; outside: {', '.join(a.loc[a['flag'] != 'ok', 'gesture']) or '-'}"))
+        out.append(
+            (
+                f"{region} CoST sensor area",
+                n_in >= min(6, len(a)),
+                f"{n_in}/{len(a)} gestures in band; outside: {', '.join(a.loc[a['flag'] != 'ok', 'gesture']) or '-'}",
+            )
+        )
     return out
 
 
@@ -353,8 +385,9 @@ def reference_spread(reference: str | None, regions: Sequence[str]) -> tuple[dic
     return VR_LENGTH_SPREAD, "VR manifests (numbers stored in sphri.data.reference_stats.VR_LENGTH_SPREAD)"
 
 
-def dataset_statistics(overrides: Sequence[str] = (), cost_threshold: float = CELL_THRESHOLD
-                       ) -> tuple[GestureDataset, pd.DataFrame, pd.DataFrame, pd.DataFrame, list[str]]:
+def dataset_statistics(
+    overrides: Sequence[str] = (), cost_threshold: float = CELL_THRESHOLD
+) -> tuple[GestureDataset, pd.DataFrame, pd.DataFrame, pd.DataFrame, list[str]]:
     """Compose the config, build hand, robot, dataset and contacts; return (dataset, trial stats, summary,
     simulated CoST sensor per trial, one line per region describing that sensor)."""
     from hydra.utils import instantiate
@@ -369,7 +402,9 @@ def dataset_statistics(overrides: Sequence[str] = (), cost_threshold: float = CE
     stats = trial_statistics(dataset, contacts, robot)
     surface = instantiate(cfg.surface)
     sensor = sensor_trials(dataset, contacts, robot, surface, cost_threshold)
-    lines = [describe_sensor(robot, r, surface, cost_threshold) for r in sorted(set(dataset.trials["region"].astype(str)))]
+    lines = [
+        describe_sensor(robot, r, surface, cost_threshold) for r in sorted(set(dataset.trials["region"].astype(str)))
+    ]
     return dataset, stats, gesture_summary(stats), sensor, lines
 
 
@@ -417,9 +452,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     print(format_comparison(table, f"distributions against {source} and CoST (Jung et al. 2017, Table 4):"))
     print()
     print("\n".join(sensor_lines))
-    print(format_comparison(spatial, f"the simulated CoST sensor ({COST_CELLS} x {COST_CELLS}, 160 x 160 mm) against "
-                                     "CoST (Jung et al. 2017, Table 4): contact-area fraction (cells on / 64) and "
-                                     "contact duration; trials the sensor saw:"))
+    print(
+        format_comparison(
+            spatial,
+            f"the simulated CoST sensor ({COST_CELLS} x {COST_CELLS}, 160 x 160 mm) against "
+            "CoST (Jung et al. 2017, Table 4): contact-area fraction (cells on / 64) and "
+            "contact duration; trials the sensor saw:",
+        )
+    )
     table = pd.concat([table, spatial], ignore_index=True)
     if json_out:
         Path(json_out).parent.mkdir(parents=True, exist_ok=True)

@@ -14,8 +14,8 @@ from __future__ import annotations
 import logging
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from sphri.errors import clean_errors
 from sphri.types import GestureDataset
@@ -61,8 +61,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0 if overrides is None else 2
     t = time.perf_counter()
     ds = synthesize(out, overrides)
-    print(f"wrote {len(ds.trials)} trials, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
-          f"to {Path(out).resolve()} in {time.perf_counter() - t:.1f} s")
+    print(
+        f"wrote {len(ds.trials)} trials, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
+        f"to {Path(out).resolve()} in {time.perf_counter() - t:.1f} s"
+    )
     return 0
 
 

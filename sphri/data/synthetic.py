@@ -44,9 +44,10 @@ from __future__ import annotations
 
 import logging
 import zlib
+from collections.abc import Sequence
 from dataclasses import dataclass
 from dataclasses import fields as dataclass_fields
-from typing import TYPE_CHECKING, Optional, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -158,11 +159,11 @@ class SyntheticData:
     def __init__(
         self,
         seed: int = 0,
-        participants: Optional[int] = DEFAULT_PARTICIPANTS,
-        repetitions: Optional[int] = DEFAULT_REPETITIONS,
+        participants: int | None = DEFAULT_PARTICIPANTS,
+        repetitions: int | None = DEFAULT_REPETITIONS,
         regions: Sequence[str] = ("arm",),
         gestures: Sequence[str] = GESTURES,
-        root: Optional[str] = None,
+        root: str | None = None,
         frame_rate_hz: float = 30.0,
         tracking_rate_hz: float = 30.0,
         jitter_mm: float = 3.0,
@@ -217,8 +218,17 @@ class SyntheticData:
                 rng = np.random.default_rng([self.seed, k, region_stream(region)])
                 gestures, poses, lengths = self._participant_region(rng, style, rig, surfaces[region], region)
                 for o, (g, n) in enumerate(zip(gestures, lengths), 1):
-                    records.append(dict(participant=pid, region=region, trial_ordinal=o, trial_id=trial_id(o, g),
-                                        gesture=g, start=start, n_frames=int(n)))
+                    records.append(
+                        dict(
+                            participant=pid,
+                            region=region,
+                            trial_ordinal=o,
+                            trial_id=trial_id(o, g),
+                            gesture=g,
+                            start=start,
+                            n_frames=int(n),
+                        )
+                    )
                     start += int(n)
                 chunks.append(poses)
         poses = np.concatenate(chunks, axis=0) if chunks else np.zeros((0, hand.n_capsules, 7), np.float32)
@@ -247,10 +257,14 @@ class SyntheticData:
         kappa = w * float(rng.uniform(0.5, sp.site_kappa_max))
         samplers = {}
         for g in self.gestures:
-            samplers[g] = surf.sampler(surf.preference(
-                axial_frac=float(np.clip(axial + v * sp.site_interaction_sd * rng.standard_normal(), 0.1, 0.9)),
-                axial_sd=axial_sd, angle=angle + v * sp.site_angle_interaction_sd * float(rng.standard_normal()),
-                angle_kappa=kappa))
+            samplers[g] = surf.sampler(
+                surf.preference(
+                    axial_frac=float(np.clip(axial + v * sp.site_interaction_sd * rng.standard_normal(), 0.1, 0.9)),
+                    axial_sd=axial_sd,
+                    angle=angle + v * sp.site_angle_interaction_sd * float(rng.standard_normal()),
+                    angle_kappa=kappa,
+                )
+            )
         order = [g for g in self.gestures for _ in range(self.repetitions)]
         order = [order[i] for i in rng.permutation(len(order))]
         if not order:
@@ -287,8 +301,16 @@ class SyntheticData:
         return order, poses.astype(np.float32), [len(m.fingers) for m in motions]
 
     def _trial(
-        self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str,
-        plan: ContactPlan, i: int, m_l: np.ndarray, f_l: np.ndarray,
+        self,
+        rng: np.random.Generator,
+        style: Style,
+        rig: HandRig,
+        surf: LinkSurface,
+        region: str,
+        plan: ContactPlan,
+        i: int,
+        m_l: np.ndarray,
+        f_l: np.ndarray,
     ) -> _TrialMotion:
         from sphri.data.handfk import EFFECTORS, rotvec_to_matrix
 
@@ -311,8 +333,12 @@ class SyntheticData:
         c0, c1 = hk[0][0], hk[-1][0]
         # whole-trial length: the study's median for the gesture, times the participant's, the participant x
         # gesture and a heavy-tailed trial factor; now and then a trial nobody ended (tens of seconds)
-        log_len = (np.log(median_trial_frames(region, gesture) / VR_FRAME_RATE_HZ) + style.length
-                   + style.length_g.get(gesture, 0.0) + sp.heavy(rng, sp.length_trial_sd_for(region, gesture)))
+        log_len = (
+            np.log(median_trial_frames(region, gesture) / VR_FRAME_RATE_HZ)
+            + style.length
+            + style.length_g.get(gesture, 0.0)
+            + sp.heavy(rng, sp.length_trial_sd_for(region, gesture))
+        )
         total = float(np.exp(log_len))
         if rng.random() < sp.rate(sp.long_trial_rate):
             total += float(np.exp(rng.uniform(np.log(8.0), np.log(sp.long_trial_max_s))))
@@ -388,7 +414,9 @@ class SyntheticData:
 
         w_rest1 = rng.normal(0.0, 0.3, size=3)
         w_rest2 = rng.normal(0.0, 0.3, size=3)
-        omega = interpolate(t, [rest1, t_hover, t_leave, t_gone], np.stack([w_rest1, np.zeros(3), np.zeros(3), w_rest2]))
+        omega = interpolate(
+            t, [rest1, t_hover, t_leave, t_gone], np.stack([w_rest1, np.zeros(3), np.zeros(3), w_rest2])
+        )
 
         # tracking noise, one draw per tracking sample (held with it)
         ns = n_samples
@@ -401,5 +429,11 @@ class SyntheticData:
             sample_noise[j : j + int(rng.integers(1, 4))] += self.jump_mm / 1000.0 * rng.standard_normal(3)
         pos_noise = sample_noise[held]
         joint_noise = 0.0003 * rng.standard_normal((ns, hand.n_capsules, 3))[held]
-        return _TrialMotion(fingers=fingers, rot=rot, target=target, effector=EFFECTORS.index(plan.effector),
-                            pos_noise=pos_noise, joint_noise=joint_noise)
+        return _TrialMotion(
+            fingers=fingers,
+            rot=rot,
+            target=target,
+            effector=EFFECTORS.index(plan.effector),
+            pos_noise=pos_noise,
+            joint_noise=joint_noise,
+        )

@@ -48,8 +48,8 @@ from __future__ import annotations
 import difflib
 import logging
 from collections import Counter
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Optional, Sequence
 
 import numpy as np
 import pyarrow as pa
@@ -105,9 +105,16 @@ def _likely_unit(ratio: float, units: str) -> str:
     return min(POSITION_UNITS, key=lambda u: abs(np.log10(ratio * POSITION_UNITS[u] / POSITION_UNITS[units] / 0.5)))
 
 
-def check_position_scale(where: str, who: str, poses: Sequence[np.ndarray], hand: HandModel,
-                         robot: Optional[Robot], region: str, units: str,
-                         trials: Optional[Sequence[dict]] = None) -> None:
+def check_position_scale(
+    where: str,
+    who: str,
+    poses: Sequence[np.ndarray],
+    hand: HandModel,
+    robot: Robot | None,
+    region: str,
+    units: str,
+    trials: Sequence[dict] | None = None,
+) -> None:
     """Refuse positions whose scale cannot be metres (see the module docstring); ``poses`` (F, C, 7) in metres.
 
     The participant's scale is the median over its frames; each trial's own median (up to 20
@@ -194,8 +201,6 @@ def find_participants(root: Path, regions: Sequence[str]) -> list[str]:
     return sorted(found, key=lambda s: (int(PARTICIPANT_RE.match(s).group(1)), s))
 
 
-
-
 class VRGestureData:
     """The recorded VR gesture dataset at ``root`` (see the module docstring).
 
@@ -215,20 +220,22 @@ class VRGestureData:
 
     def __init__(
         self,
-        root: Optional[str] = None,
+        root: str | None = None,
         seed: int = 0,
-        participants: Optional[int] = None,
-        repetitions: Optional[int] = None,
+        participants: int | None = None,
+        repetitions: int | None = None,
         regions: Sequence[str] = ("arm",),
         gestures: Sequence[str] = GESTURES,
         min_frames: int = 10,
-        frame_rate_hz: Optional[float] = None,
+        frame_rate_hz: float | None = None,
         quat_tolerance: float = 1e-3,
         units: str = "m",
         duplicates: str = "refuse",
     ):
         if root is None:
-            raise DatasetError("data.root is not set: give the dataset folder, e.g. data.root=/path/to/VR-gesture-dataset")
+            raise DatasetError(
+                "data.root is not set: give the dataset folder, e.g. data.root=/path/to/VR-gesture-dataset"
+            )
         self.root = Path(root)
         self.seed = int(seed)
         self.participants = participants
@@ -249,7 +256,7 @@ class VRGestureData:
         self.duplicates = duplicates
 
     # ------------------------------------------------------------------ public
-    def load(self, hand: HandModel, robot: Optional[Robot] = None) -> GestureDataset:
+    def load(self, hand: HandModel, robot: Robot | None = None) -> GestureDataset:
         """Read the selected trials into a :class:`GestureDataset` (poses float32, link frames)."""
         if robot is not None:
             for region in self.regions:
@@ -273,33 +280,54 @@ class VRGestureData:
                     log.info("%s has no %s folder; skipped", pid, region)
                     continue
                 manifest, trials, poses = self._load_one(pid, region, hand, repairs)
-                check_position_scale(str(parquet_path(self.root, region, pid)), pid, poses, hand, robot, region,
-                                     self.units, trials)
+                check_position_scale(
+                    str(parquet_path(self.root, region, pid)), pid, poses, hand, robot, region, self.units, trials
+                )
                 n_usable[pid] += len(trials)
                 generators.add(manifest.get(GENERATOR_KEY) == GENERATOR_VALUE)
                 if "frame_rate_hz" in manifest:
                     rates.add(float(manifest["frame_rate_hz"]))
                 for t, p in zip(trials, poses):
                     records.append(
-                        dict(participant=pid, region=region, trial_ordinal=t["trial_ordinal"], trial_id=t["trial_id"],
-                             gesture=t["gesture_label"], start=start, n_frames=len(p))
+                        dict(
+                            participant=pid,
+                            region=region,
+                            trial_ordinal=t["trial_ordinal"],
+                            trial_id=t["trial_id"],
+                            gesture=t["gesture_label"],
+                            start=start,
+                            n_frames=len(p),
+                        )
                     )
                     chunks.append(p)
                     start += len(p)
                     if self.duplicates != "off":
                         prints.append((pid, (region, t["gesture_label"], len(p)), fingerprint(p)))
-        empty = [pid for pid in pids if n_usable[pid] == 0 and any((self.root / r / pid).is_dir() for r in self.regions)]
+        empty = [
+            pid for pid in pids if n_usable[pid] == 0 and any((self.root / r / pid).is_dir() for r in self.regions)
+        ]
         if empty:
             repairs["participant_without_trials"] += len(empty)
-            log.warning("%s: participant(s) %s have no usable trial (gestures %s, min_frames %d): left out of the "
-                        "dataset", self.root, empty, self.gestures, self.min_frames)
+            log.warning(
+                "%s: participant(s) %s have no usable trial (gestures %s, min_frames %d): left out of the dataset",
+                self.root,
+                empty,
+                self.gestures,
+                self.min_frames,
+            )
         for pair in find_duplicates(prints):
             if self.duplicates == "refuse":
-                raise DatasetError(f"{self.root}: {describe(pair)}: a copied participant folder? Remove one, or set "
-                                   "data.duplicates=warn to load both")
+                raise DatasetError(
+                    f"{self.root}: {describe(pair)}: a copied participant folder? Remove one, or set "
+                    "data.duplicates=warn to load both"
+                )
             repairs["duplicate_participants"] += 1
-            log.warning("%s: duplicate_participants: %s: both loaded (data.duplicates=warn); they are not independent "
-                        "people, so leave-one-subject-out overstates accuracy", self.root, describe(pair))
+            log.warning(
+                "%s: duplicate_participants: %s: both loaded (data.duplicates=warn); they are not independent "
+                "people, so leave-one-subject-out overstates accuracy",
+                self.root,
+                describe(pair),
+            )
         if len(generators) > 1:
             raise DatasetError(f"{self.root}: mixes sphri-generated and recorded manifests ('{GENERATOR_KEY}' key)")
         synthetic = generators == {True}
@@ -324,7 +352,9 @@ class VRGestureData:
     def _frame_rate(self, rates: set[float]) -> float:
         if self.frame_rate_hz is not None:
             if rates and float(self.frame_rate_hz) not in rates:
-                log.warning("data.frame_rate_hz=%s overrides the manifests' frame_rate_hz=%s", self.frame_rate_hz, rates)
+                log.warning(
+                    "data.frame_rate_hz=%s overrides the manifests' frame_rate_hz=%s", self.frame_rate_hz, rates
+                )
             return float(self.frame_rate_hz)
         return rates.pop() if rates else DEFAULT_FRAME_RATE_HZ
 
@@ -342,8 +372,12 @@ class VRGestureData:
             if g not in self.gestures:
                 continue
             if t["frame_count"] < self.min_frames:
-                notes.add("dropped_short_trial", 1, f"trial {t['trial_ordinal']} ({t['trial_id']}) has "
-                          f"{t['frame_count']} frame(s) < data.min_frames={self.min_frames}, dropped")
+                notes.add(
+                    "dropped_short_trial",
+                    1,
+                    f"trial {t['trial_ordinal']} ({t['trial_id']}) has "
+                    f"{t['frame_count']} frame(s) < data.min_frames={self.min_frames}, dropped",
+                )
                 continue
             if self.repetitions is not None and per_gesture[g] >= self.repetitions:
                 continue
@@ -407,8 +441,9 @@ class VRGestureData:
             return manifest, [], []
         ordinals = [int(t["trial_ordinal"]) for t in wanted]
         try:
-            table = pq.read_table(ppath, columns=columns, filters=[("trial_ordinal", "in", ordinals)],
-                                  page_checksum_verification=True)
+            table = pq.read_table(
+                ppath, columns=columns, filters=[("trial_ordinal", "in", ordinals)], page_checksum_verification=True
+            )
         except (pa.ArrowException, OSError) as exc:  # e.g. a damaged data page: "ZSTD decompression failed"
             raise DatasetError(f"{ppath}: cannot read its pose data ({type(exc).__name__}: {exc})") from None
         notes = _Notes(ppath, repairs)
@@ -480,22 +515,36 @@ class VRGestureData:
                 raise ManifestError(f"{ppath}: trial {o} ({t['trial_id']}) is in the manifest but has no rows")
             s, n = where[o]
             if n != t["frame_count"]:
-                raise ManifestError(f"{ppath}: trial {o}: {n} rows but the manifest's frame_count is {t['frame_count']}")
+                raise ManifestError(
+                    f"{ppath}: trial {o}: {n} rows but the manifest's frame_count is {t['frame_count']}"
+                )
             lab = set(labels[s : s + n].tolist())
             if len(lab) != 1:
-                raise DatasetError(f"{ppath}: trial {o}: column gesture_label has several values {sorted(map(str, lab))}")
+                raise DatasetError(
+                    f"{ppath}: trial {o}: column gesture_label has several values {sorted(map(str, lab))}"
+                )
             g = lab.pop()
             if g not in GESTURES:
-                raise DatasetError(f"{ppath}: trial {o}: column gesture_label={g!r} is not a known gesture ({list(GESTURES)})")
+                raise DatasetError(
+                    f"{ppath}: trial {o}: column gesture_label={g!r} is not a known gesture ({list(GESTURES)})"
+                )
             if g != t["gesture_label"]:
-                raise ManifestError(f"{ppath}: trial {o}: gesture_label {g!r} but the manifest says {t['gesture_label']!r}")
+                raise ManifestError(
+                    f"{ppath}: trial {o}: gesture_label {g!r} but the manifest says {t['gesture_label']!r}"
+                )
             ids = set(tids[s : s + n].tolist())
             if ids != {t["trial_id"]}:
-                raise ManifestError(f"{ppath}: trial {o}: column trial_id {sorted(map(str, ids))} but the manifest says {t['trial_id']!r}")
+                raise ManifestError(
+                    f"{ppath}: trial {o}: column trial_id {sorted(map(str, ids))} but the manifest says {t['trial_id']!r}"
+                )
             if "start_frame" in t and "end_frame" in t and n:
                 if frame[s] != t["start_frame"] or frame[s + n - 1] != t["end_frame"]:
-                    notes.add("frame_range_mismatch", 1, f"trial {o}: column frame spans {frame[s]}..{frame[s + n - 1]}, "
-                              f"the manifest says {t['start_frame']}..{t['end_frame']} (kept)")
+                    notes.add(
+                        "frame_range_mismatch",
+                        1,
+                        f"trial {o}: column frame spans {frame[s]}..{frame[s + n - 1]}, "
+                        f"the manifest says {t['start_frame']}..{t['end_frame']} (kept)",
+                    )
             p, ok = self._repair(o, poses[s : s + n], hand, notes)
             if ok:
                 out_trials.append(t)
@@ -513,13 +562,21 @@ class VRGestureData:
             fixed, orphan = hold_last_valid(p, bad, np.array([0]))
             if orphan.any():
                 caps = [hand.names[i] for i in np.flatnonzero(orphan.any(axis=0))]
-                notes.add("dropped_untracked_trial", 1, f"trial {o}: capsule(s) {caps} never have a valid pose "
-                          f"(columns {caps[0]}_pos_*/rot_*), trial dropped")
+                notes.add(
+                    "dropped_untracked_trial",
+                    1,
+                    f"trial {o}: capsule(s) {caps} never have a valid pose "
+                    f"(columns {caps[0]}_pos_*/rot_*), trial dropped",
+                )
                 return p, False
             nb = int(bad.sum())
             caps = sorted({hand.names[i] for i in np.nonzero(bad)[1]})
-            notes.add("held_invalid_pose", nb, f"trial {o}: {nb} capsule pose(s) with NaN/inf/zero values "
-                      f"(capsules {caps}) held from the last valid frame")
+            notes.add(
+                "held_invalid_pose",
+                nb,
+                f"trial {o}: {nb} capsule pose(s) with NaN/inf/zero values "
+                f"(capsules {caps}) held from the last valid frame",
+            )
             p = fixed
             q64 = p[..., 3:].astype(np.float64)
             norm = np.sqrt((q64 * q64).sum(axis=-1))
@@ -528,6 +585,10 @@ class VRGestureData:
             p = p.copy()
             p[..., 3:][off] = (q64[off] / norm[off][:, None]).astype(np.float32)
             caps = sorted({hand.names[i] for i in np.nonzero(off)[1]})
-            notes.add("normalized_quaternion", int(off.sum()), f"trial {o}: {int(off.sum())} quaternion(s) with |q| "
-                      f"off 1 by > {self.quat_tolerance:g} (capsules {caps}, columns *_rot_*) normalized")
+            notes.add(
+                "normalized_quaternion",
+                int(off.sum()),
+                f"trial {o}: {int(off.sum())} quaternion(s) with |q| "
+                f"off 1 by > {self.quat_tolerance:g} (capsules {caps}, columns *_rot_*) normalized",
+            )
         return p, True

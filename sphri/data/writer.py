@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import logging
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import numpy as np
 import pyarrow as pa
@@ -34,7 +34,9 @@ log = logging.getLogger(__name__)
 ROW_GROUP_ROWS = 1024
 
 
-def write_dataset(dataset: GestureDataset, robot: Robot, out: str | Path, meta: Optional[dict[str, Any]] = None) -> list[Path]:
+def write_dataset(
+    dataset: GestureDataset, robot: Robot, out: str | Path, meta: dict[str, Any] | None = None
+) -> list[Path]:
     """Write ``dataset`` under ``out`` (parquet + manifest per participant and region, ``assets/``).
 
     ``assets/`` gets ``hand_capsule_definition.json`` (Unity convention) and
@@ -66,17 +68,22 @@ def write_dataset(dataset: GestureDataset, robot: Robot, out: str | Path, meta: 
     return written
 
 
-def _write_participant(dataset, group, out: Path, pid: str, region: str, link_name: str, cols: list[str],
-                       meta: Optional[dict[str, Any]]) -> list[Path]:
+def _write_participant(
+    dataset, group, out: Path, pid: str, region: str, link_name: str, cols: list[str], meta: dict[str, Any] | None
+) -> list[Path]:
     group = group.sort_values("trial_ordinal")
     starts = group["start"].to_numpy(np.int64)
     counts = group["n_frames"].to_numpy(np.int64)
-    rows = np.concatenate([np.arange(s, s + n) for s, n in zip(starts, counts)]) if len(group) else np.zeros(0, np.int64)
+    rows = (
+        np.concatenate([np.arange(s, s + n) for s, n in zip(starts, counts)]) if len(group) else np.zeros(0, np.int64)
+    )
     poses = dataset.poses[rows].reshape(len(rows), -1).astype(np.float32, copy=False)
     ordinals = group["trial_ordinal"].to_numpy(np.int64)
     # session frame numbers: trials back to back from 1, like the study's manifests
     first = 1 + np.concatenate([[0], np.cumsum(counts)[:-1]]) if len(group) else np.zeros(0, np.int64)
-    within = np.arange(len(rows)) - np.repeat(np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) if len(group) else rows
+    within = (
+        np.arange(len(rows)) - np.repeat(np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) if len(group) else rows
+    )
     arrays = {
         "trial_id": pa.array(np.repeat(group["trial_id"].to_numpy(object), counts).tolist(), pa.string()),
         "trial_ordinal": pa.array(np.repeat(ordinals, counts), pa.int64()),

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sphri.encode.common import check_frame_index, make_frames, select_rows, tangent_basis
 from sphri.config import Configured
+from sphri.encode.common import check_frame_index, make_frames, select_rows, tangent_basis
 from sphri.encode.ellipse import check_contact_rows, encode_grid
 from sphri.encode.schema import CoverageEncoderSchema
 from sphri.encode.spatial import VoxelHash, coverage_kernel, sunflower_disc, voxel_size
@@ -26,9 +26,8 @@ def taxel_samples(layout: Layout, n: int) -> tuple[np.ndarray, np.ndarray]:
     r = np.sqrt(np.maximum(np.asarray(layout.area_m2, dtype=np.float64), 0.0) / np.pi)
     e1, e2 = tangent_basis(np.asarray(layout.normal, dtype=np.float64))
     disc = sunflower_disc(n)
-    pts = (
-        layout.position_m[:, None, :]
-        + r[:, None, None] * (disc[None, :, 0, None] * e1[:, None, :] + disc[None, :, 1, None] * e2[:, None, :])
+    pts = layout.position_m[:, None, :] + r[:, None, None] * (
+        disc[None, :, 0, None] * e1[:, None, :] + disc[None, :, 1, None] * e2[:, None, :]
     )
     return pts, r
 
@@ -56,7 +55,11 @@ def encode_3d_coverage(
         np.ascontiguousarray(layout.normal, dtype=np.float64),
         r,
         np.ascontiguousarray(pts),
-        vh.origin, vh.cell_m, vh.dims, vh.start, vh.order,
+        vh.origin,
+        vh.cell_m,
+        vh.dims,
+        vh.start,
+        vh.order,
         out,
         int(min(max(1, m // 256), 64)),
     )

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sphri.encode.common import check_frame_index, make_frames, select_rows
 from sphri.config import Configured
+from sphri.encode.common import check_frame_index, make_frames, select_rows
 from sphri.encode.schema import EllipseEncoderSchema
 from sphri.layout.common import row_offsets
 from sphri.types import Contacts, Frames, Layout, Link, SurfaceMap

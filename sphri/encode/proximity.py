@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sphri.encode.common import capsule_radius, check_frame_index, make_frames, select_rows
 from sphri.config import Configured
+from sphri.encode.common import capsule_radius, check_frame_index, make_frames, select_rows
 from sphri.encode.schema import ProximityEncoderSchema
 from sphri.encode.spatial import VoxelHash, proximity_kernel, voxel_size
 from sphri.layout.common import nn_spacing
@@ -66,8 +66,14 @@ class ProximityEncoder(Configured):
             np.ascontiguousarray(layout.normal, dtype=np.float64),
             float(self.sensing_distance_m),
             float(self.depth_scale_m),
-            vh.origin, vh.cell_m, vh.dims, vh.start, vh.order,
-            binary, out_u8, out_f32,
+            vh.origin,
+            vh.cell_m,
+            vh.dims,
+            vh.start,
+            vh.order,
+            binary,
+            out_u8,
+            out_f32,
             int(min(max(1, m // 256), 64)),
         )
         return make_frames(out, layout, surface)

@@ -94,8 +94,28 @@ def _add_interval(s, x0, x1, n_int, head, nxt, a0, a1, subs, n_subs):  # pragma:
 
 @njit(cache=True)
 def _raster_frame(
-    lo, hi, cu, cv, qa, qb, qc, h, w, ss, row_offset, wrap, cov, mark, forced, touched,
-    head, nxt, a0, a1, subs, tmp,
+    lo,
+    hi,
+    cu,
+    cv,
+    qa,
+    qb,
+    qc,
+    h,
+    w,
+    ss,
+    row_offset,
+    wrap,
+    cov,
+    mark,
+    forced,
+    touched,
+    head,
+    nxt,
+    a0,
+    a1,
+    subs,
+    tmp,
 ):  # pragma: no cover - numba
     """Accumulate the union of ellipses ``lo..hi-1`` into ``cov``.
 
@@ -240,8 +260,30 @@ def _raster_all(
             hi = start[m + 1]
             if hi == lo:
                 continue
-            n_t = _raster_frame(lo, hi, cu, cv, qa, qb, qc, h, w, ss, row_offset, wrap,
-                                cov, mark, forced, touched, head, nxt, a0, a1, subs, tmp)
+            n_t = _raster_frame(
+                lo,
+                hi,
+                cu,
+                cv,
+                qa,
+                qb,
+                qc,
+                h,
+                w,
+                ss,
+                row_offset,
+                wrap,
+                cov,
+                mark,
+                forced,
+                touched,
+                head,
+                nxt,
+                a0,
+                a1,
+                subs,
+                tmp,
+            )
             while n_t < 0:  # interval scratch too small: reset, grow, redo the frame
                 for cell in range(n_cells):
                     cov[cell] = 0.0
@@ -252,8 +294,30 @@ def _raster_all(
                 a0 = np.empty(cap, dtype=np.float64)
                 a1 = np.empty(cap, dtype=np.float64)
                 tmp = np.empty(cap, dtype=np.int64)
-                n_t = _raster_frame(lo, hi, cu, cv, qa, qb, qc, h, w, ss, row_offset, wrap,
-                                    cov, mark, forced, touched, head, nxt, a0, a1, subs, tmp)
+                n_t = _raster_frame(
+                    lo,
+                    hi,
+                    cu,
+                    cv,
+                    qa,
+                    qb,
+                    qc,
+                    h,
+                    w,
+                    ss,
+                    row_offset,
+                    wrap,
+                    cov,
+                    mark,
+                    forced,
+                    touched,
+                    head,
+                    nxt,
+                    a0,
+                    a1,
+                    subs,
+                    tmp,
+                )
             for t in range(n_t):
                 cell = touched[t]
                 val = cov[cell]
@@ -296,8 +360,15 @@ def rasterize(
     _raster_all(
         np.ascontiguousarray(start, dtype=np.int64),
         *(np.ascontiguousarray(x, dtype=np.float64) for x in (cu, cv, qa, qb, qc)),
-        int(h), int(w), int(subsamples),
+        int(h),
+        int(w),
+        int(subsamples),
         np.ascontiguousarray(row_offset, dtype=np.float64),
-        bool(wrap), bool(binary), float(threshold), out_u8, out_f32, n_chunks,
+        bool(wrap),
+        bool(binary),
+        float(threshold),
+        out_u8,
+        out_f32,
+        n_chunks,
     )
     return out_u8 if binary else out_f32

@@ -85,6 +85,7 @@ def grid_encoder_needs_grid_layout(cfg) -> None:
     schemas: ``NEEDS_CHART_GRID`` (encoder), ``CHART_GRID`` (layout),
     ``HAS_CHART`` (surface); a new component declares its own.
     """
+
     def flag(group: str, name: str) -> bool:
         return bool(getattr(OmegaConf.get_type(cfg[group]), name, False))
 

@@ -58,8 +58,21 @@ def _visit(hash_origin, cell, dims, vstart, vorder, c, radius, out, n_out):  # p
 
 @njit(cache=True, parallel=True)
 def coverage_kernel(
-    start, centre, cnormal, cradius, tpos, tnormal, tradius, samples, hash_origin, cell, dims, vstart, vorder,
-    out, n_chunks,
+    start,
+    centre,
+    cnormal,
+    cradius,
+    tpos,
+    tnormal,
+    tradius,
+    samples,
+    hash_origin,
+    cell,
+    dims,
+    vstart,
+    vorder,
+    out,
+    n_chunks,
 ):  # pragma: no cover - numba
     """out[m, t] = fraction of taxel t's sample points inside any patch of frame m.
 
@@ -120,8 +133,23 @@ def coverage_kernel(
 
 @njit(cache=True, parallel=True)
 def proximity_kernel(
-    start, sphere, sradius, cnormal, tpos, tnormal, sensing, depth_scale, hash_origin, cell, dims, vstart, vorder,
-    binary, out_u8, out_f32, n_chunks,
+    start,
+    sphere,
+    sradius,
+    cnormal,
+    tpos,
+    tnormal,
+    sensing,
+    depth_scale,
+    hash_origin,
+    cell,
+    dims,
+    vstart,
+    vorder,
+    binary,
+    out_u8,
+    out_f32,
+    n_chunks,
 ):  # pragma: no cover - numba
     """Taxel t reads capsule sphere (s, rc) of frame m when ``|p_t - s| - rc <= sensing``.
 

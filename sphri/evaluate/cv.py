@@ -30,8 +30,9 @@ import logging
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, Optional, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -114,7 +115,7 @@ class FoldStore(Protocol):
     """Where finished folds are kept for a rerun (see the module doc). Must be picklable: the
     workers of ``cv.workers > 1`` save their own folds."""
 
-    def load(self, fold: str) -> Optional[FoldRecord]:
+    def load(self, fold: str) -> FoldRecord | None:
         """The record of fold ``fold`` if one was kept (None: compute it)."""
 
     def save(self, record: FoldRecord) -> None:
@@ -129,7 +130,7 @@ def run_fold(
     fold: Fold,
     threads: int,
     featurized: bool = False,
-    resume: Optional[FoldStore] = None,
+    resume: FoldStore | None = None,
 ) -> tuple[FoldResult, dict[str, float]]:
     """Fit a fresh model on ``fold.train``, score it on ``fold.test``; with ``resume``, keep the finished
     fold there (in the process that computed it).
@@ -167,17 +168,25 @@ def run_fold(
     return res, timing
 
 
-def _usable(record: Optional[FoldRecord], fold: Fold, y: np.ndarray) -> bool:
+def _usable(record: FoldRecord | None, fold: Fold, y: np.ndarray) -> bool:
     """A kept record belongs to this fold: same name, as many test trials, the same true labels."""
     if record is None:
         return False
     r = record.result
-    ok = (r.fold == fold.name and r.n_test == fold.test.size
-          and np.array_equal(np.asarray(r.confusion).sum(axis=1),
-                             np.bincount(y[fold.test], minlength=np.asarray(r.confusion).shape[0])))
+    ok = (
+        r.fold == fold.name
+        and r.n_test == fold.test.size
+        and np.array_equal(
+            np.asarray(r.confusion).sum(axis=1), np.bincount(y[fold.test], minlength=np.asarray(r.confusion).shape[0])
+        )
+    )
     if not ok:
-        log.warning("fold %s: the kept result does not match this fold (%s, %d test trials); recomputing it",
-                    fold.name, r.fold, r.n_test)
+        log.warning(
+            "fold %s: the kept result does not match this fold (%s, %d test trials); recomputing it",
+            fold.name,
+            r.fold,
+            r.n_test,
+        )
     return ok
 
 
@@ -224,8 +233,8 @@ class CrossValidation:
     def __init__(
         self,
         workers: int = 1,
-        threads_per_worker: Optional[int] = None,
-        max_folds: Optional[int] = None,
+        threads_per_worker: int | None = None,
+        max_folds: int | None = None,
         progress: bool = True,
     ):
         if workers < 1:
@@ -252,8 +261,8 @@ class CrossValidation:
         make_model: Callable[[], Any],
         windows: WindowedFrames,
         seed: int = 0,
-        on_fold: Optional[Callable[[FoldResult, dict[str, float]], None]] = None,
-        resume: Optional[FoldStore] = None,
+        on_fold: Callable[[FoldResult, dict[str, float]], None] | None = None,
+        resume: FoldStore | None = None,
     ) -> CVResult:
         """Evaluate ``make_model()`` on every fold (the first ``max_folds``) -> :class:`CVResult`.
 
@@ -281,15 +290,27 @@ class CrossValidation:
         probe = make_model()
         name = model_name(probe)
         if kept:
-            log.info("%s %s: %d of %d folds loaded from the cache (kept by an interrupted run), computing %d",
-                     self.SCHEME, name, len(kept), len(folds), len(todo))
+            log.info(
+                "%s %s: %d of %d folds loaded from the cache (kept by an interrupted run), computing %d",
+                self.SCHEME,
+                name,
+                len(kept),
+                len(folds),
+                len(todo),
+            )
         workers = max(1, min(self.workers, len(todo)))
         threads = self.threads_per_worker or max(1, available_cores() // workers)
         featurized = transforms_per_trial(probe)
         if featurized and todo:
             x, timing = transform_once(probe, x, threads=self.threads_per_worker or available_cores())
-            log.info("%s %s: per-trial features %s computed once in %.1f s (%.1f CPU s)", self.SCHEME, name,
-                     x.shape, timing["wall_s"], timing["cpu_s"])
+            log.info(
+                "%s %s: per-trial features %s computed once in %.1f s (%.1f CPU s)",
+                self.SCHEME,
+                name,
+                x.shape,
+                timing["wall_s"],
+                timing["cpu_s"],
+            )
         del probe
         bar = tqdm(
             total=len(folds),
@@ -313,8 +334,15 @@ class CrossValidation:
                     res, timing = record.result, {"wall_s": record.wall_s, "cpu_s": record.cpu_s}
                 else:
                     res, timing = next(computed)
-                    log.debug("%s %s fold %s: accuracy %.3f in %.1f s (%.1f CPU s)", self.SCHEME, name, res.fold,
-                              res.accuracy, timing["wall_s"], timing["cpu_s"])
+                    log.debug(
+                        "%s %s fold %s: accuracy %.3f in %.1f s (%.1f CPU s)",
+                        self.SCHEME,
+                        name,
+                        res.fold,
+                        res.accuracy,
+                        timing["wall_s"],
+                        timing["cpu_s"],
+                    )
                 results.append(res)
                 if on_fold is not None:
                     on_fold(res, timing)
@@ -334,7 +362,7 @@ class LeaveOneSubjectOut(CrossValidation):
 
     SCHEME = "loso"
 
-    def __init__(self, min_participants: Optional[int] = None, **common: Any):
+    def __init__(self, min_participants: int | None = None, **common: Any):
         """``min_participants``: refuse fewer participants with windows (None: run); ``common``: see the base class."""
         super().__init__(**common)
         self.min_participants = min_participants
@@ -376,8 +404,8 @@ class WithinSubjectKFold(CrossValidation):
         self,
         k: int = 5,
         workers: int = 1,
-        threads_per_worker: Optional[int] = None,
-        max_folds: Optional[int] = None,
+        threads_per_worker: int | None = None,
+        max_folds: int | None = None,
         progress: bool = True,
     ):
         super().__init__(workers=workers, threads_per_worker=threads_per_worker, max_folds=max_folds, progress=progress)

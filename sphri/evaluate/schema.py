@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 from sphri.config import require_range, runtime_setting, store
 
@@ -15,9 +14,9 @@ class FoldsSchema:
     _target_: str = ""
     workers: int = runtime_setting(1)
     """Folds run in parallel processes (1: in this process)."""
-    threads_per_worker: Optional[int] = runtime_setting(None)
+    threads_per_worker: int | None = runtime_setting(None)
     """Threads each fold may use (None: available cores // workers)."""
-    max_folds: Optional[int] = None
+    max_folds: int | None = None
     """Evaluate only the first k folds (debugging; None: all)."""
     progress: bool = runtime_setting(True)
     """Progress bar over folds (shown only on a terminal)."""
@@ -35,7 +34,7 @@ class LosoSchema(FoldsSchema):
     """``cv=loso``: leave-one-subject-out over participants."""
 
     _target_: str = "sphri.evaluate.cv.LeaveOneSubjectOut"
-    min_participants: Optional[int] = None
+    min_participants: int | None = None
     """Refuse to run on fewer participants with windows (None: run, with a named warning in the summary)."""
 
     def __post_init__(self) -> None:

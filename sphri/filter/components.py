@@ -129,8 +129,10 @@ def taxel_areas_m2(windows: WindowedFrames, who: str) -> np.ndarray:
     geom = windows.geometry
     n = int(np.asarray(windows.x).shape[2])
     if geom.area_m2 is None:
-        raise ValueError(f"{who}: windows.geometry.area_m2 is None; a spatial filter needs each taxel's area "
-                         "(the pipeline's geometries carry the layout's; build TaxelGeometry with area_m2=...)")
+        raise ValueError(
+            f"{who}: windows.geometry.area_m2 is None; a spatial filter needs each taxel's area "
+            "(the pipeline's geometries carry the layout's; build TaxelGeometry with area_m2=...)"
+        )
     area = np.asarray(geom.area_m2, dtype=np.float64)
     if area.shape != (n,):
         raise ValueError(f"{who}: windows.geometry.area_m2 has shape {area.shape}, the windows have {n} taxels")

@@ -36,8 +36,12 @@ class MedianFilterSchema:
 
     def __post_init__(self) -> None:
         require_range("filter.frames", self.frames, lo=1, hi=1000)
-        require(self.frames % 2 == 1, "filter.frames", self.frames,
-                "must be odd for filter=median (an even window has no middle reading; use filter=debounce)")
+        require(
+            self.frames % 2 == 1,
+            "filter.frames",
+            self.frames,
+            "must be odd for filter=median (an even window has no middle reading; use filter=debounce)",
+        )
 
 
 @dataclass

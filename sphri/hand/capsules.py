@@ -11,8 +11,9 @@ import json
 import logging
 import math
 import re
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Optional, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -55,7 +56,9 @@ def load_definition(path: str | Path) -> list[dict[str, Any]]:
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise HandDefinitionError(f"{path}: not valid JSON ({exc})") from None
     if not isinstance(raw, list) or not raw:
-        raise HandDefinitionError(f"{path}: expected a non-empty JSON list of capsule entries, got {type(raw).__name__}")
+        raise HandDefinitionError(
+            f"{path}: expected a non-empty JSON list of capsule entries, got {type(raw).__name__}"
+        )
 
     def fail(i: int, entry: Any, msg: str) -> HandDefinitionError:
         nm = entry.get("column_prefix", entry.get("name")) if isinstance(entry, dict) else None
@@ -103,10 +106,17 @@ def load_definition(path: str | Path) -> list[dict[str, Any]]:
             raise fail(i, e, f"center_offset_m={off!r} must be 3 finite numbers (metres)")
         finger = e.get("finger", finger_of(name))
         if finger not in FINGERS:
-            raise fail(i, e, f"cannot tell the finger of {name!r}; add \"finger\": one of {list(FINGERS)}")
+            raise fail(i, e, f'cannot tell the finger of {name!r}; add "finger": one of {list(FINGERS)}')
         specs.append(
-            dict(name=name, finger=finger, radius_m=radius, height_m=height, axis=int(orient),
-                 center_offset_m=[float(v) for v in off], _index=e.get("capsule_index"))
+            dict(
+                name=name,
+                finger=finger,
+                radius_m=radius,
+                height_m=height,
+                axis=int(orient),
+                center_offset_m=[float(v) for v in off],
+                _index=e.get("capsule_index"),
+            )
         )
     idx = [s.pop("_index") for s in specs]
     if all(isinstance(k, int) and not isinstance(k, bool) for k in idx):
@@ -134,7 +144,7 @@ class HandCapsules:
 
     VERSION = "1"
 
-    def __init__(self, capsules: Sequence[Any] = (), definition_path: Optional[str] = None, scale: float = 1.0):
+    def __init__(self, capsules: Sequence[Any] = (), definition_path: str | None = None, scale: float = 1.0):
         self.capsules = [_as_dict(s) for s in capsules]
         self.definition_path = definition_path
         self.scale = float(scale)

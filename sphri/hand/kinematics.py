@@ -58,9 +58,7 @@ def validate_quaternions(q: np.ndarray, what: str = "quaternions") -> None:
         )
 
 
-def repair_quaternions(
-    q: np.ndarray, starts: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray]:
+def repair_quaternions(q: np.ndarray, starts: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """Replace invalid quaternions by the nearest valid one of the same series.
 
     ``q`` is (F, ...) with the last axis 4 (x, y, z, w); axis 0 is time (frames)

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
 
 from omegaconf import MISSING
 
@@ -61,7 +60,7 @@ class HandCapsulesSchema:
     _target_: str = "sphri.hand.capsules.HandCapsules"
     capsules: list[CapsuleSpec] = field(default_factory=list)
     """The capsules, in pose-column order (ignored when ``definition_path`` is set)."""
-    definition_path: Optional[str] = input_path(None)
+    definition_path: str | None = input_path(None)
     """A dataset's ``hand_capsule_definition.json`` to read instead of ``capsules``."""
     scale: float = 1.0
     """Factor applied to every radius, height and offset (1 = as defined)."""
@@ -69,8 +68,12 @@ class HandCapsulesSchema:
     def __post_init__(self) -> None:
         require_range("hand.scale", self.scale, lo=0.0, lo_open=True)
         if self.definition_path is None:
-            require(len(self.capsules) > 0, "hand.capsules", self.capsules,
-                    "at least one capsule (or set hand.definition_path)")
+            require(
+                len(self.capsules) > 0,
+                "hand.capsules",
+                self.capsules,
+                "at least one capsule (or set hand.definition_path)",
+            )
             check_capsules(self.capsules)
 
 

@@ -69,7 +69,9 @@ class ActuatorMap:
         require_choice("intensity", intensity, ("depth", "constant"))
         require_range("intensity_min", intensity_min, lo=1, hi=255)
         require_range("intensity_max", intensity_max, lo=1, hi=255)
-        require(intensity_min <= intensity_max, "intensity_min", intensity_min, f"must be <= intensity_max={intensity_max}")
+        require(
+            intensity_min <= intensity_max, "intensity_min", intensity_min, f"must be <= intensity_max={intensity_max}"
+        )
         require_range("depth_full_m", depth_full_m, lo=0.0, hi=0.5, lo_open=True)
         require_choice("trigger", trigger, ("contact", "onset"))
         self.pulse_ms = int(pulse_ms)

@@ -20,8 +20,8 @@ from __future__ import annotations
 import logging
 import sys
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -32,8 +32,8 @@ from sphri.hardware.glove_protocol import (
     ACTUATORS,
     N_ACTUATORS,
     Ack,
-    ActuateCommand,
     AckStatus,
+    ActuateCommand,
     GloveDecoder,
     encode_actuate,
 )
@@ -74,7 +74,9 @@ def schedule(
     intensity = np.asarray(intensity)
     remaining_ms = np.asarray(remaining_ms, dtype=np.float64)
     if intensity.shape != remaining_ms.shape or intensity.ndim != 2 or intensity.shape[1] != N_ACTUATORS:
-        raise ValueError(f"intensity and remaining_ms must both be (F, {N_ACTUATORS}), got {intensity.shape} and {remaining_ms.shape}")
+        raise ValueError(
+            f"intensity and remaining_ms must both be (F, {N_ACTUATORS}), got {intensity.shape} and {remaining_ms.shape}"
+        )
     if not frame_rate_hz > 0:
         raise ValueError(f"frame_rate_hz={frame_rate_hz} must be > 0")
     rate_hz = frame_rate_hz if not rate_hz else float(rate_hz)
@@ -135,8 +137,10 @@ class GloveReport:
         if self.acked or self.missing_acks or self.refused:
             lat = np.asarray(self.ack_latency_ms)
             med = f", median ACK latency {np.median(lat):.1f} ms" if lat.size else ""
-            out.append(f"acks: {self.acked} ok, {self.refused} refused, {self.missing_acks} missing, "
-                       f"{self.unexpected_acks} unexpected{med}")
+            out.append(
+                f"acks: {self.acked} ok, {self.refused} refused, {self.missing_acks} missing, "
+                f"{self.unexpected_acks} unexpected{med}"
+            )
         errors = {k: v for k, v in self.decoder.items() if v and k not in ("bytes_in", "frames", "good_bytes")}
         if errors:
             out.append("receive errors: " + ", ".join(f"{k}={v}" for k, v in errors.items()))
@@ -173,7 +177,9 @@ class GloveDriver:
 
     def send(self, intensity: Sequence[int], pulse_ms: Sequence[int], label: str = "") -> ActuateCommand:
         """Send one ACTUATE (next sequence number) and process any replies."""
-        cmd = ActuateCommand(self._seq, self.glove_id, tuple(int(v) for v in intensity), tuple(int(v) for v in pulse_ms))
+        cmd = ActuateCommand(
+            self._seq, self.glove_id, tuple(int(v) for v in intensity), tuple(int(v) for v in pulse_ms)
+        )
         self._seq = (self._seq + 1) % 256
         data = encode_actuate(cmd)
         self.link.write(data)
@@ -245,8 +251,12 @@ class GloveDriver:
         self.report.missing_acks += 1
         n = self.report.missing_acks
         if n <= 20:
-            log.warning("glove: no ACK for message seq=%d within %.2f s%s", seq, self.ack_timeout_s,
-                        " (further missing ACKs are logged at DEBUG level)" if n == 20 else "")
+            log.warning(
+                "glove: no ACK for message seq=%d within %.2f s%s",
+                seq,
+                self.ack_timeout_s,
+                " (further missing ACKs are logged at DEBUG level)" if n == 20 else "",
+            )
         else:
             log.debug("glove: no ACK for message seq=%d", seq)
 
@@ -306,16 +316,26 @@ def replay(settings: GloveReplaySettings, overrides: Sequence[str], out: Callabl
     t = dataset.trials.iloc[row]
     start, n = int(t["start"]), int(t["n_frames"])
     depth = part_depths(contacts, hand, start, n)
-    amap = ActuatorMap(settings.pulse_ms, settings.intensity, settings.intensity_min, settings.intensity_max,
-                       settings.depth_full_m, settings.trigger)
+    amap = ActuatorMap(
+        settings.pulse_ms,
+        settings.intensity,
+        settings.intensity_min,
+        settings.intensity_max,
+        settings.depth_full_m,
+        settings.trigger,
+    )
     level, remaining = amap.desired(depth, dataset.frame_rate_hz)
     messages = schedule(level, remaining, dataset.frame_rate_hz, settings.rate_hz or None)
     touching = (depth > 0).sum(axis=0)
-    out(f"trial {row}: {t['participant']} {t['region']} #{int(t['trial_ordinal'])} {t['trial_id']} "
-        f"({t['gesture']}), {n} frames at {dataset.frame_rate_hz:g} Hz = {n / dataset.frame_rate_hz:.2f} s")
+    out(
+        f"trial {row}: {t['participant']} {t['region']} #{int(t['trial_ordinal'])} {t['trial_id']} "
+        f"({t['gesture']}), {n} frames at {dataset.frame_rate_hz:g} Hz = {n / dataset.frame_rate_hz:.2f} s"
+    )
     out("frames in contact per actuator: " + ", ".join(f"{a}={int(c)}" for a, c in zip(ACTUATORS, touching)))
-    out(f"{len(messages)} message(s) to {settings.port} (glove {settings.glove_id}, "
-        f"{'real time' if settings.realtime else 'as fast as possible'})")
+    out(
+        f"{len(messages)} message(s) to {settings.port} (glove {settings.glove_id}, "
+        f"{'real time' if settings.realtime else 'as fast as possible'})"
+    )
     loop = is_loopback(settings.port)
     acks = settings.acks == "on" or (settings.acks == "auto" and not loop)
     show = settings.show == "on" or (settings.show == "auto" and loop)

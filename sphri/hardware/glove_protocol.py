@@ -82,8 +82,7 @@ class ActuateCommand:
 
     def describe(self) -> str:
         parts = [
-            f"{name}={i}/{p}ms" if i else f"{name}=off"
-            for name, i, p in zip(ACTUATORS, self.intensity, self.pulse_ms)
+            f"{name}={i}/{p}ms" if i else f"{name}=off" for name, i, p in zip(ACTUATORS, self.intensity, self.pulse_ms)
         ]
         return f"ACTUATE seq={self.seq} glove={self.glove_id} " + " ".join(parts)
 

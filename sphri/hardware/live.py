@@ -67,8 +67,10 @@ class Prediction:
 
     def line(self) -> str:
         what = "TOUCH " if self.kind == "touch" else "window"
-        return (f"{what} frames {self.start:6d}-{self.frame:6d}  {self.gesture:<7s} p={self.probability:.2f}  "
-                f"latency {self.latency_ms:6.1f} ms (model {self.compute_ms:.1f} ms)")
+        return (
+            f"{what} frames {self.start:6d}-{self.frame:6d}  {self.gesture:<7s} p={self.probability:.2f}  "
+            f"latency {self.latency_ms:6.1f} ms (model {self.compute_ms:.1f} ms)"
+        )
 
     def as_dict(self) -> dict:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
@@ -238,8 +240,7 @@ class LiveClassifier:
         compute = (t1 - t0) * 1000.0
         self.compute_ms.append(compute)
         latency = (t1 - self._received[end % self._cap]) * 1000.0
-        return Prediction(kind, end, start, k, labels[k] if k < len(labels) else str(k), float(p[k]),
-                          latency, compute)
+        return Prediction(kind, end, start, k, labels[k] if k < len(labels) else str(k), float(p[k]), latency, compute)
 
 
 def auto_stride(frame_rate_hz: float, target_hz: float = 15.0) -> int:

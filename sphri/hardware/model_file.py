@@ -116,7 +116,7 @@ class ModelBundle:
             "n_taxels": int(self.n_taxels),
             "grid_shape": list(self.geometry.grid_shape) if self.geometry.grid_shape else None,
             "model": type(self.estimator).__name__,
-            "created": self.meta.get("created") or _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+            "created": self.meta.get("created") or _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
             "meta": self.meta,
         }
 
@@ -130,8 +130,11 @@ def _estimator_state(estimator: Any) -> tuple[dict[str, Any], dict[str, np.ndarr
     head: dict[str, Any] = {}
     arrays: dict[str, np.ndarray] = {}
     if isinstance(estimator, (RandomForest, CnnGru)):
-        params = {k: (list(v) if isinstance(v, tuple) else v)
-                  for k, v in estimator.get_params(deep=False).items() if k != "geometry"}
+        params = {
+            k: (list(v) if isinstance(v, tuple) else v)
+            for k, v in estimator.get_params(deep=False).items()
+            if k != "geometry"
+        }
         head = {"kind": estimator.NAME, "params": params}
         arrays = {"classes": np.asarray(estimator.classes_)}
     if isinstance(estimator, RandomForest):
@@ -188,8 +191,10 @@ def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: Taxel
         found = skops_types(path, data)
         untrusted = sorted(found - set(TRUSTED_TYPES) - _PLAIN_TYPES)
         if untrusted:
-            raise ModelFileError(f"{path}: the forest payload holds untrusted types {untrusted} (outside sphri's "
-                                 "list); refused (not loaded)")
+            raise ModelFileError(
+                f"{path}: the forest payload holds untrusted types {untrusted} (outside sphri's "
+                "list); refused (not loaded)"
+            )
         model = RandomForest(**params, geometry=geometry)
         try:
             model.forest_ = sio.loads(data, trusted=sorted(found))
@@ -198,8 +203,9 @@ def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: Taxel
         from sklearn.ensemble import RandomForestClassifier
 
         if type(model.forest_) is not RandomForestClassifier:
-            raise ModelFileError(f"{path}: the forest payload holds a {type(model.forest_).__name__}, "
-                                 "not a RandomForestClassifier")
+            raise ModelFileError(
+                f"{path}: the forest payload holds a {type(model.forest_).__name__}, not a RandomForestClassifier"
+            )
         model.classes_ = model.forest_.classes_
         model.n_features_in_ = len(FEATURE_NAMES)
         model.feature_names_ = FEATURE_NAMES
@@ -213,10 +219,20 @@ def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: Taxel
         try:
             state = torch.load(io.BytesIO(z["state_dict"].tobytes()), map_location="cpu", weights_only=True)
         except Exception as exc:  # torch's weights-only unpickler refuses anything but tensors
-            raise ModelFileError(f"{path}: the network weights are not a plain state dict ({type(exc).__name__}: {exc})") from None
+            raise ModelFileError(
+                f"{path}: the network weights are not a plain state dict ({type(exc).__name__}: {exc})"
+            ) from None
         grid, wrap = model._layout(geometry.n_taxels)
-        net = CnnGruNet(geometry.n_taxels, grid, wrap, [int(c) for c in model.channels], [int(s) for s in model.strides],
-                        int(model.embed_size), int(model.hidden), len(classes))
+        net = CnnGruNet(
+            geometry.n_taxels,
+            grid,
+            wrap,
+            [int(c) for c in model.channels],
+            [int(s) for s in model.strides],
+            int(model.embed_size),
+            int(model.hidden),
+            len(classes),
+        )
         try:
             net.load_state_dict(state)
         except (RuntimeError, KeyError) as exc:
@@ -231,8 +247,14 @@ def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: Taxel
 
 def seal_model(head_bytes: bytes, payload: bytes, key: bytes | None = None) -> bytes:
     """A model file's bytes: magic, header, its two digests (over magic, header and payload), payload."""
-    return (MAGIC + struct.pack("<I", len(head_bytes)) + head_bytes + plain_digest(MAGIC, head_bytes, payload)
-            + keyed_digest(key, MAGIC, head_bytes, payload) + payload)
+    return (
+        MAGIC
+        + struct.pack("<I", len(head_bytes))
+        + head_bytes
+        + plain_digest(MAGIC, head_bytes, payload)
+        + keyed_digest(key, MAGIC, head_bytes, payload)
+        + payload
+    )
 
 
 class _FromEnv:
@@ -254,8 +276,12 @@ def save_model(bundle: ModelBundle, path: str | os.PathLike, key: Any = FROM_ENV
     g = bundle.geometry
     header = bundle.header()
     header["estimator"] = est_head
-    header["geometry"] = {"wrap_v": bool(g.wrap_v), "metres_per_u": float(g.metres_per_u),
-                          "metres_per_v": float(g.metres_per_v), "has_uv": g.uv is not None}
+    header["geometry"] = {
+        "wrap_v": bool(g.wrap_v),
+        "metres_per_u": float(g.metres_per_u),
+        "metres_per_v": float(g.metres_per_v),
+        "has_uv": g.uv is not None,
+    }
     arrays["position_m"] = np.asarray(g.position_m, dtype=np.float64)
     if g.uv is not None:
         arrays["uv"] = np.asarray(g.uv, dtype=np.float64)
@@ -282,8 +308,9 @@ def _split(path: Path) -> tuple[dict[str, Any], bytes, bytes, bytes, bytes]:
             f"(a crafted one could run code); {_EXPORT}"
         )
     if blob.startswith(V2_MAGIC):
-        raise ModelFileError(f"{path}: a sphri-model/2 file, whose checksum does not cover its header "
-                             f"(labels, window length); {_EXPORT}")
+        raise ModelFileError(
+            f"{path}: a sphri-model/2 file, whose checksum does not cover its header (labels, window length); {_EXPORT}"
+        )
     if not blob.startswith(MAGIC) or len(blob) < len(MAGIC) + 4:
         raise ModelFileError(f"{path}: not a sphri model file (make one with python -m sphri.hardware.train_export)")
     (n,) = struct.unpack_from("<I", blob, len(MAGIC))
@@ -310,11 +337,18 @@ def inspect_model(path: str | os.PathLike) -> dict[str, Any]:
 def _check_header(path: Path, header: dict[str, Any]) -> None:
     """Field types and ranges of a header, each error naming the file and field."""
     labels = header.get("labels")
-    if (not isinstance(labels, list) or not labels or not all(isinstance(x, str) and x for x in labels)
-            or len(set(labels)) != len(labels)):
+    if (
+        not isinstance(labels, list)
+        or not labels
+        or not all(isinstance(x, str) and x for x in labels)
+        or len(set(labels)) != len(labels)
+    ):
         raise ModelFileError(f"{path}: header field labels must be a list of distinct gesture names, got {labels!r}")
-    checks = (("window_length", int, 1, 100_000), ("n_taxels", int, 1, 1_000_000),
-              ("frame_rate_hz", (int, float), 1e-3, 1e6))
+    checks = (
+        ("window_length", int, 1, 100_000),
+        ("n_taxels", int, 1, 1_000_000),
+        ("frame_rate_hz", (int, float), 1e-3, 1e6),
+    )
     for name, typ, lo, hi in checks:
         v = header.get(name)
         if isinstance(v, bool) or not isinstance(v, typ) or not lo <= v <= hi:
@@ -349,20 +383,34 @@ def load_model(path: str | os.PathLike, key: Any = FROM_ENV) -> ModelBundle:
                 metres_per_v=float(geo_head["metres_per_v"]),
             )
             if geometry.n_taxels != header["n_taxels"]:
-                raise ModelFileError(f"{path}: header says {header['n_taxels']} taxels, geometry has {geometry.n_taxels}")
+                raise ModelFileError(
+                    f"{path}: header says {header['n_taxels']} taxels, geometry has {geometry.n_taxels}"
+                )
             from sphri.adjacency import metric_coords
 
             metric_coords(geometry)  # grid shape, chart and positions agree (ValueError naming the field)
             estimator = _restore_estimator(path, header["estimator"], z, geometry)
         classes = np.asarray(getattr(estimator, "classes_", []))
-        if classes.size and (classes.dtype.kind not in "iu" or classes.min() < 0
-                             or classes.max() >= len(header["labels"])):
-            raise ModelFileError(f"{path}: the estimator predicts classes {classes.tolist()} but the header names "
-                                 f"{len(header['labels'])} labels")
+        if classes.size and (
+            classes.dtype.kind not in "iu" or classes.min() < 0 or classes.max() >= len(header["labels"])
+        ):
+            raise ModelFileError(
+                f"{path}: the estimator predicts classes {classes.tolist()} but the header names "
+                f"{len(header['labels'])} labels"
+            )
     except ModelFileError:
         raise
-    except (KeyError, TypeError, ValueError, OSError, AttributeError, EOFError, OverflowError, IndexError,
-            zipfile.BadZipFile) as exc:  # a field missing or of the wrong kind
+    except (
+        KeyError,
+        TypeError,
+        ValueError,
+        OSError,
+        AttributeError,
+        EOFError,
+        OverflowError,
+        IndexError,
+        zipfile.BadZipFile,
+    ) as exc:  # a field missing or of the wrong kind
         raise ModelFileError(f"{path}: malformed model file ({type(exc).__name__}: {exc})") from None
     meta = header.get("meta") or {}
     if not isinstance(meta, dict):
@@ -407,14 +455,18 @@ def resolve_model_path(spec: str, tracking_uri: str | None = None, allow_remote:
                 mlflow.set_tracking_uri(tracking_uri)
             local = mlflow.artifacts.download_artifacts(artifact_uri=spec, tracking_uri=tracking_uri)
         except Exception as exc:  # mlflow raises many types (missing run, no server)
-            raise ModelFileError(f"cannot fetch model {spec!r} from MLflow ({tracking_uri or 'default tracking URI'}): {exc}") from None
+            raise ModelFileError(
+                f"cannot fetch model {spec!r} from MLflow ({tracking_uri or 'default tracking URI'}): {exc}"
+            ) from None
         finally:
             mlflow.set_tracking_uri(before)
         p = Path(local)
         if p.is_dir():
             found = sorted(p.rglob("*.sphrimodel"))
             if len(found) != 1:
-                raise ModelFileError(f"{spec}: expected one .sphrimodel file in the artifact folder, found {len(found)}")
+                raise ModelFileError(
+                    f"{spec}: expected one .sphrimodel file in the artifact folder, found {len(found)}"
+                )
             p = found[0]
         return p
     return Path(spec)

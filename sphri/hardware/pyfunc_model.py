@@ -35,8 +35,10 @@ class SphriGestureModel(PythonModel):
         x = np.asarray(model_input, dtype=np.float32)
         want = (self.bundle.window_length, self.bundle.n_taxels)
         if x.ndim != 3 or x.shape[1:] != want:
-            raise ValueError(f"sphri model: windows must be (n, {want[0]}, {want[1]}) (n windows of L frames "
-                             f"x N taxels); got shape {x.shape}")
+            raise ValueError(
+                f"sphri model: windows must be (n, {want[0]}, {want[1]}) (n windows of L frames "
+                f"x N taxels); got shape {x.shape}"
+            )
         proba = self.bundle.predict_proba(x)
         return np.asarray(self.bundle.labels)[np.argmax(proba, axis=1)]
 

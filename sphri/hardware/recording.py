@@ -181,8 +181,9 @@ def check_output_path(path: str | os.PathLike) -> Path:
     if path.is_dir():
         raise RecordingError(f"out={path} is an existing directory; give a file name, e.g. out={path / 'rec.npz'}")
     if path.exists() or path.is_symlink():
-        raise RecordingError(f"out={path} exists and is never replaced; remove it first or give another name, "
-                             f"e.g. out={free_name(path)}")
+        raise RecordingError(
+            f"out={path} exists and is never replaced; remove it first or give another name, e.g. out={free_name(path)}"
+        )
     for parent in path.parents:
         if parent.exists():
             if not parent.is_dir():
@@ -196,8 +197,15 @@ def check_output_path(path: str | os.PathLike) -> Path:
 
 
 def _record_dtype(n_taxels: int) -> np.dtype:
-    return np.dtype([("values", "<f4", (n_taxels,)), ("host_time_s", "<f8"), ("device_time_us", "<i8"),
-                     ("seq", "<i8"), ("segment", "<i8")])
+    return np.dtype(
+        [
+            ("values", "<f4", (n_taxels,)),
+            ("host_time_s", "<f8"),
+            ("device_time_us", "<i8"),
+            ("seq", "<i8"),
+            ("segment", "<i8"),
+        ]
+    )
 
 
 class PartialWriter:
@@ -213,8 +221,13 @@ class PartialWriter:
     in the file; ``n_synced``: frames fsynced (safe from a power cut too).
     """
 
-    def __init__(self, out: str | os.PathLike, chunk_frames: int = 50, meta: dict[str, Any] | None = None,
-                 sync_interval_s: float = 1.0) -> None:
+    def __init__(
+        self,
+        out: str | os.PathLike,
+        chunk_frames: int = 50,
+        meta: dict[str, Any] | None = None,
+        sync_interval_s: float = 1.0,
+    ) -> None:
         self.out = check_output_path(out)
         self.chunk_frames = max(1, int(chunk_frames))
         self.sync_interval_s = float(sync_interval_s)
@@ -258,12 +271,15 @@ class PartialWriter:
             row["segment"][0] = segment
             self._write_all(row.tobytes())
             self.n_written += 1
-            if (self.n_written - self.n_synced >= self.chunk_frames
-                    or time.monotonic() - self._last_sync >= self.sync_interval_s):
+            if (
+                self.n_written - self.n_synced >= self.chunk_frames
+                or time.monotonic() - self._last_sync >= self.sync_interval_s
+            ):
                 self._sync()
         except OSError as exc:
-            raise RecordingError(f"writing {self.path} failed after {self.n_synced} frames "
-                                 f"({exc.strerror or exc})") from None
+            raise RecordingError(
+                f"writing {self.path} failed after {self.n_synced} frames ({exc.strerror or exc})"
+            ) from None
 
     def _write_all(self, data: bytes) -> None:
         view = memoryview(data)
@@ -286,8 +302,9 @@ class PartialWriter:
         try:
             self._sync()
         except OSError as exc:
-            raise RecordingError(f"writing {self.path} failed after {self.n_synced} frames "
-                                 f"({exc.strerror or exc})") from None
+            raise RecordingError(
+                f"writing {self.path} failed after {self.n_synced} frames ({exc.strerror or exc})"
+            ) from None
 
     def close(self) -> None:
         if not self._fh.closed:
@@ -318,8 +335,15 @@ def _load_partial(path: Path, blob: bytes) -> SkinRecording:
     grid = head.get("grid_shape")
     n_tax = int(head["n_taxels"])
     grid_shape = (int(grid[0]), int(grid[1])) if grid and int(grid[0]) * int(grid[1]) == n_tax else None
-    return SkinRecording(rec["values"], rec["host_time_s"], rec["device_time_us"], rec["seq"], rec["segment"],
-                         grid_shape, {**head, "partial": True, "torn_bytes": len(body) - k * dtype.itemsize})
+    return SkinRecording(
+        rec["values"],
+        rec["host_time_s"],
+        rec["device_time_us"],
+        rec["seq"],
+        rec["segment"],
+        grid_shape,
+        {**head, "partial": True, "torn_bytes": len(body) - k * dtype.itemsize},
+    )
 
 
 def save_with_fallback(rec: SkinRecording, path: str | os.PathLike, say=print) -> tuple[Path, BaseException | None]:
@@ -335,8 +359,7 @@ def save_with_fallback(rec: SkinRecording, path: str | os.PathLike, say=print) -
         stamp = time.strftime("%Y%m%d-%H%M%S")
         fallback = free_name(Path.cwd() / f"{Path(path).stem or 'recording'}-recovered-{stamp}-{os.getpid()}.npz")
         saved = save_recording(rec, fallback, replace=False)
-        say(f"could not write {path} ({type(exc).__name__}: {exc}); saved the {rec.n_frames} frames to "
-            f"{saved} instead")
+        say(f"could not write {path} ({type(exc).__name__}: {exc}); saved the {rec.n_frames} frames to {saved} instead")
         return saved, exc
 
 

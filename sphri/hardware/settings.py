@@ -13,8 +13,9 @@ passed to :func:`sphri.config.compose` for the pipeline part.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any, Optional, Sequence, TypeVar
+from typing import Any, TypeVar
 
 from omegaconf import OmegaConf
 from omegaconf.errors import OmegaConfBaseException
@@ -25,8 +26,12 @@ T = TypeVar("T")
 
 
 def _port(value: str) -> None:
-    require(isinstance(value, str) and value.strip() != "", "port", value,
-            "a device path (/dev/ttyUSB0) or pyserial URL (loop://, socket://host:port)")
+    require(
+        isinstance(value, str) and value.strip() != "",
+        "port",
+        value,
+        "a device path (/dev/ttyUSB0) or pyserial URL (loop://, socket://host:port)",
+    )
 
 
 def _baud(value: int) -> None:
@@ -63,7 +68,7 @@ class GloveReplaySettings:
     """Glove id carried in every message (0..255), e.g. 0 = left, 1 = right."""
     trial: int = 0
     """0-based trial index: among ``participant``'s trials, or among all trials when unset."""
-    participant: Optional[str] = None
+    participant: str | None = None
     """Participant whose trial is played (e.g. participant_01); None = index all trials."""
     realtime: bool = True
     """Pace messages at the tracking rate; false sends as fast as possible."""
@@ -81,11 +86,11 @@ class GloveReplaySettings:
     """Intensity (1..255) at depth_full_m and beyond, or always (constant)."""
     depth_full_m: float = 0.01
     """Penetration depth in metres that gives intensity_max."""
-    acks: Optional[str] = "auto"
+    acks: str | None = "auto"
     """Wait for acknowledgements: on, off, or auto (off for loop://, on otherwise)."""
     ack_timeout_s: float = 0.25
     """An ACK later than this (seconds) counts as missing."""
-    show: Optional[str] = "auto"
+    show: str | None = "auto"
     """Print every message: on, off, or auto (on for loop://)."""
 
     def __post_init__(self) -> None:
@@ -99,8 +104,12 @@ class GloveReplaySettings:
         require_choice("intensity", self.intensity, ("depth", "constant"))
         require_range("intensity_min", self.intensity_min, lo=1, hi=255)
         require_range("intensity_max", self.intensity_max, lo=1, hi=255)
-        require(self.intensity_min <= self.intensity_max, "intensity_min", self.intensity_min,
-                f"must be <= intensity_max={self.intensity_max}")
+        require(
+            self.intensity_min <= self.intensity_max,
+            "intensity_min",
+            self.intensity_min,
+            f"must be <= intensity_max={self.intensity_max}",
+        )
         require_range("depth_full_m", self.depth_full_m, lo=0.0, hi=0.5, lo_open=True)
         self.acks = _switch(self.acks, "acks", ("auto", "on", "off"))
         require_range("ack_timeout_s", self.ack_timeout_s, lo=0.0, hi=60.0, lo_open=True)
@@ -167,7 +176,7 @@ class SkinLiveSettings:
     """Device or pyserial URL of the skin."""
     model: str = "???"
     """Model file (from train_export), or with allow_remote=true an MLflow artifact URI runs:/<run_id>/<path>."""
-    tracking_uri: Optional[str] = None
+    tracking_uri: str | None = None
     """MLflow tracking URI for runs:/ models (None = sqlite:///outputs/mlflow.db, the pipeline's default)."""
     allow_remote: bool = False
     """Fetch a remote model (runs:/, models:/, http://...); off by default: only local files are read."""
@@ -189,7 +198,7 @@ class SkinLiveSettings:
     """Up to this many frames lost in a row (sequence gap) are filled by holding the last frame (0 = off)."""
     out: str = ""
     """Also write every prediction as a JSON line to this file (empty = no file)."""
-    show: Optional[str] = "all"
+    show: str | None = "all"
     """Print: all (sliding windows and touches), touches (one line per touch), off."""
     frames: int = 0
     """Stop after this many good frames (0 = no limit)."""
@@ -239,7 +248,7 @@ class SimulateSettings:
     """skin: pipeline (encoded synthetic trials of the composed config) or pattern (moving blobs)."""
     trials: int = 8
     """skin, pipeline source: number of trials streamed (-1 = all selected)."""
-    participant: Optional[str] = None
+    participant: str | None = None
     """skin, pipeline source: stream only this participant's trials."""
     taxels: int = 0
     """skin, pattern source: taxel count (0 = from grid)."""
@@ -282,8 +291,7 @@ class SimulateSettings:
     """glove: stop after this many seconds (0 = until the host disconnects)."""
 
     def __post_init__(self) -> None:
-        require(self.port == "pty" or self.port.startswith("socket://"), "port", self.port,
-                "pty or socket://HOST:PORT")
+        require(self.port == "pty" or self.port.startswith("socket://"), "port", self.port, "pty or socket://HOST:PORT")
         require_range("seed", self.seed, lo=0)
         require_choice("source", self.source, ("pipeline", "pattern"))
         require(self.trials == -1 or self.trials >= 1, "trials", self.trials, "a count >= 1, or -1 for all")
@@ -296,8 +304,12 @@ class SimulateSettings:
         for key in ("garbage_rate", "corrupt_rate", "drop_rate", "truncate_rate", "wrong_count_rate", "ack_drop_rate"):
             require_range(key, getattr(self, key), lo=0.0, hi=1.0)
         total = self.corrupt_rate + self.drop_rate + self.truncate_rate + self.wrong_count_rate
-        require(total <= 1.0, "corrupt_rate", self.corrupt_rate,
-                f"corrupt + drop + truncate + wrong_count rates must sum to <= 1 (got {total:g})")
+        require(
+            total <= 1.0,
+            "corrupt_rate",
+            self.corrupt_rate,
+            f"corrupt + drop + truncate + wrong_count rates must sum to <= 1 (got {total:g})",
+        )
         require_range("unplug_after_s", self.unplug_after_s, lo=0.0)
         require_range("unplug_s", self.unplug_s, lo=0.0, hi=600.0)
         require_range("hold_s", self.hold_s, lo=0.0, hi=600.0)
@@ -325,7 +337,9 @@ def parse_cli(argv: Sequence[str], cls: type[T], pipeline: bool) -> tuple[T, lis
         key = arg.split("=", 1)[0]
         (mine if key in names else rest).append(arg)
     if rest and not pipeline:
-        raise ConfigError(f"unknown setting(s) {', '.join(a.split('=', 1)[0] for a in rest)}; settings: {', '.join(names)}")
+        raise ConfigError(
+            f"unknown setting(s) {', '.join(a.split('=', 1)[0] for a in rest)}; settings: {', '.join(names)}"
+        )
     try:
         node = OmegaConf.merge(OmegaConf.structured(cls), OmegaConf.from_dotlist(mine))
         settings = OmegaConf.to_object(node)

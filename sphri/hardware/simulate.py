@@ -35,9 +35,9 @@ import termios
 import threading
 import time
 import tty
+from collections.abc import Callable, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -142,7 +142,7 @@ class SocketEndpoint:
     """A listening TCP socket; the host connects with ``socket://HOST:PORT``."""
 
     def __init__(self, url: str) -> None:
-        hostport = url[len("socket://"):].split("?", 1)[0]
+        hostport = url[len("socket://") :].split("?", 1)[0]
         host, _, port = hostport.rpartition(":")
         try:
             port_n = int(port)
@@ -162,7 +162,7 @@ class SocketEndpoint:
         while not stop.is_set():
             try:
                 self.conn, _ = self.server.accept()
-            except socket.timeout:
+            except TimeoutError:
                 continue
             self.conn.settimeout(1.0)
             self.conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
@@ -177,7 +177,7 @@ class SocketEndpoint:
                 raise Stopped()
             try:
                 n = self.conn.send(view)
-            except socket.timeout:
+            except TimeoutError:
                 continue
             except OSError as exc:
                 raise HostGone(str(exc)) from None
@@ -243,7 +243,9 @@ class SkinStream:
     grid_shape: tuple[int, int] | None
 
 
-def pipeline_stream(overrides: Sequence[str], trials: int, participant: str | None, gap_s: float, seed: int) -> SkinStream:
+def pipeline_stream(
+    overrides: Sequence[str], trials: int, participant: str | None, gap_s: float, seed: int
+) -> SkinStream:
     """Encoded trials (with the configured noise) of the composed config, separated by gaps."""
     from sphri.hardware.source import encode_trials, open_pipeline, pick_rows
 
@@ -255,15 +257,28 @@ def pipeline_stream(overrides: Sequence[str], trials: int, participant: str | No
     for k, (gap, vals, tail) in enumerate(zip(enc.gap, enc.values, enc.tail)):
         chunks += [gap, vals, tail]
         owner += [np.full(len(gap), -1), np.full(len(vals), k), np.full(len(tail), -1)]
-        meta.append({"row": int(enc.rows[k]), "label": int(enc.labels[k]), "gesture": GESTURES[int(enc.labels[k])],
-                     "participant": enc.participants[k], "onset": int(enc.onsets[k])})
+        meta.append(
+            {
+                "row": int(enc.rows[k]),
+                "label": int(enc.labels[k]),
+                "gesture": GESTURES[int(enc.labels[k])],
+                "participant": enc.participants[k],
+                "onset": int(enc.onsets[k]),
+            }
+        )
     if enc.gap:
         chunks.append(enc.gap[0])
         owner.append(np.full(len(enc.gap[0]), -1))
     n = enc.n_taxels
     values = np.concatenate(chunks) if chunks else np.zeros((0, n), np.float32)
-    return SkinStream(values.astype(np.float32), np.concatenate(owner).astype(np.int64) if owner else np.zeros(0, np.int64),
-                      meta, enc.frame_rate_hz, enc.binary, enc.geometry.grid_shape)
+    return SkinStream(
+        values.astype(np.float32),
+        np.concatenate(owner).astype(np.int64) if owner else np.zeros(0, np.int64),
+        meta,
+        enc.frame_rate_hz,
+        enc.binary,
+        enc.geometry.grid_shape,
+    )
 
 
 def pattern_stream(grid: tuple[int, int], frames: int, seed: int, noise: float = 0.01) -> SkinStream:
@@ -363,8 +378,12 @@ class SkinSimulator:
         self.say = say
         self.fmt = choose_format(settings.format, stream.binary)
         self.rate_hz = settings.rate_hz or stream.rate_hz
-        self.ledger = SkinLedger(format=self.fmt.name, n_taxels=int(stream.values.shape[1]), rate_hz=self.rate_hz,
-                                 grid_shape=list(stream.grid_shape) if stream.grid_shape else None)
+        self.ledger = SkinLedger(
+            format=self.fmt.name,
+            n_taxels=int(stream.values.shape[1]),
+            rate_hz=self.rate_hz,
+            grid_shape=list(stream.grid_shape) if stream.grid_shape else None,
+        )
         self.rng = np.random.default_rng(settings.seed)
         self.stop = threading.Event()
         self.ready = threading.Event()
@@ -419,7 +438,9 @@ class SkinSimulator:
             if k >= 0:
                 first_frame.setdefault(k, i)
         self._connect()
-        self.say(f"skin simulator: streaming {len(values)} frames of {n_taxels} taxels ({self.fmt.name}) at {self.rate_hz:g} Hz")
+        self.say(
+            f"skin simulator: streaming {len(values)} frames of {n_taxels} taxels ({self.fmt.name}) at {self.rate_hz:g} Hz"
+        )
         seq = 0
         t0 = time.monotonic()
         stream_t0 = t0
@@ -486,7 +507,9 @@ class SkinSimulator:
             entry = {**meta, "good_start": got[0] if got else -1, "good_end": got[-1] + 1 if got else -1}
             first = first_frame.get(k)
             onset = meta.get("onset", -1)
-            if first is not None and onset >= 0:  # the onset frame's position among intact frames, if it was sent intact
+            if (
+                first is not None and onset >= 0
+            ):  # the onset frame's position among intact frames, if it was sent intact
                 entry["good_onset"] = good_at.get(first + onset, -1)
             led.trials.append(entry)
         self.endpoint.drain(self.stop)
@@ -637,14 +660,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         settings, overrides = parse_cli(args, SimulateSettings, pipeline=(device == "skin"))
         if device == "skin":
             if settings.source == "pipeline":
-                stream = pipeline_stream(overrides, settings.trials, settings.participant, settings.gap_s, settings.seed)
+                stream = pipeline_stream(
+                    overrides, settings.trials, settings.participant, settings.gap_s, settings.seed
+                )
             else:
                 if overrides:
                     raise ConfigError(f"pipeline overrides {overrides} need source=pipeline")
                 grid = parse_grid(settings.grid)
                 assert grid is not None
                 if settings.taxels and settings.taxels != grid[0] * grid[1]:
-                    raise ConfigError(f"taxels={settings.taxels} is invalid: grid={settings.grid} holds {grid[0] * grid[1]}")
+                    raise ConfigError(
+                        f"taxels={settings.taxels} is invalid: grid={settings.grid} holds {grid[0] * grid[1]}"
+                    )
                 stream = pattern_stream(grid, settings.frames, settings.seed)
             endpoint = make_endpoint(settings)
             sim: SkinSimulator | GloveSimulator = SkinSimulator(stream, settings, endpoint)
@@ -671,7 +698,11 @@ def main(argv: Sequence[str] | None = None) -> int:
         Path(settings.report).parent.mkdir(parents=True, exist_ok=True)
         Path(settings.report).write_text(json.dumps(ledger.to_json(), indent=1))
     summary = {k: v for k, v in ledger.to_json().items() if isinstance(v, (int, float)) and v}
-    print(f"{device} simulator finished: " + ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in summary.items()), flush=True)
+    print(
+        f"{device} simulator finished: "
+        + ", ".join(f"{k}={v:g}" if isinstance(v, float) else f"{k}={v}" for k, v in summary.items()),
+        flush=True,
+    )
     return 0
 
 

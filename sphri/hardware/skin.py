@@ -23,8 +23,8 @@ import sys
 import threading
 import time
 from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
-from typing import Callable, Iterator, Sequence
 
 import numpy as np
 
@@ -109,7 +109,7 @@ class SkinReader:
         if self.start_command:
             link.write(encode_control(CMD_START))
 
-    def __enter__(self) -> "SkinReader":
+    def __enter__(self) -> SkinReader:
         self.link.open()
         return self
 
@@ -134,8 +134,10 @@ class SkinReader:
         if len(self._held) >= 4 * self.consensus_frames:
             seen = ", ".join(f"{k} taxels x{v}" for k, v in counts.most_common())
             self._held.clear()
-            raise StreamMismatch(f"{self.link.port}: no taxel count agreed over the first {4 * self.consensus_frames} "
-                                 f"valid frames ({seen}); give taxels= or grid=")
+            raise StreamMismatch(
+                f"{self.link.port}: no taxel count agreed over the first {4 * self.consensus_frames} "
+                f"valid frames ({seen}); give taxels= or grid="
+            )
         return []
 
     def _settle(self, n: int) -> list[ReceivedFrame]:
@@ -154,13 +156,22 @@ class SkinReader:
         top = max(counts.values())
         n = next(h.frame.n_taxels for h in self._held if counts[h.frame.n_taxels] == top)
         if top < self.consensus_frames // 2 + 1:
-            log.warning("skin stream: only %d frame(s) read before the stream stopped; taking %d taxels "
-                        "(%d of them agree)", len(self._held), n, top)
+            log.warning(
+                "skin stream: only %d frame(s) read before the stream stopped; taking %d taxels (%d of them agree)",
+                len(self._held),
+                n,
+                top,
+            )
         return self._settle(n)
 
-    def frames(self, max_frames: int = 0, duration_s: float = 0.0, idle_s: float = 0.0,
-               until: Callable[[], bool] | None = None,
-               stop: Callable[[], bool] | None = None) -> Iterator[ReceivedFrame]:
+    def frames(
+        self,
+        max_frames: int = 0,
+        duration_s: float = 0.0,
+        idle_s: float = 0.0,
+        until: Callable[[], bool] | None = None,
+        stop: Callable[[], bool] | None = None,
+    ) -> Iterator[ReceivedFrame]:
         """Yield good frames until ``max_frames``, ``duration_s`` or ``idle_s`` without a frame (0 = no limit),
         until ``until()`` is true once nothing more is waiting on the port (a source that can say it has
         finished, e.g. the simulator's ``finished`` event: the stop is then an event, not a timeout), or
@@ -181,8 +192,14 @@ class SkinReader:
             count += 1
             yield rf
 
-    def _frames(self, max_frames: int, duration_s: float, idle_s: float,
-                until: Callable[[], bool] | None, stop: Callable[[], bool] | None) -> Iterator[ReceivedFrame]:
+    def _frames(
+        self,
+        max_frames: int,
+        duration_s: float,
+        idle_s: float,
+        until: Callable[[], bool] | None,
+        stop: Callable[[], bool] | None,
+    ) -> Iterator[ReceivedFrame]:
         t_start = time.monotonic()
         last = t_start
         count = 0
@@ -233,8 +250,19 @@ class SkinReader:
 
 
 def _error_line(stats) -> str:
-    keys = ("skipped_bytes", "bad_header", "bad_checksum", "truncated", "wrong_count", "bad_message",
-            "duplicates", "seq_gaps", "seq_missing", "seq_restarts", "resets")
+    keys = (
+        "skipped_bytes",
+        "bad_header",
+        "bad_checksum",
+        "truncated",
+        "wrong_count",
+        "bad_message",
+        "duplicates",
+        "seq_gaps",
+        "seq_missing",
+        "seq_restarts",
+        "resets",
+    )
     d = stats.as_dict()
     return ", ".join(f"{k}={d[k]}" for k in keys)
 
@@ -256,7 +284,7 @@ class _StopSignals:
             raise KeyboardInterrupt
         self.received = signal.Signals(signum).name
 
-    def __enter__(self) -> "_StopSignals":
+    def __enter__(self) -> _StopSignals:
         if threading.current_thread() is threading.main_thread():
             for sig in self.SIGNALS:
                 self._old[sig] = signal.signal(sig, self._handle)
@@ -270,8 +298,9 @@ class _StopSignals:
         return self.received is not None
 
 
-def record(settings: SkinRecordSettings, out: Callable[[str], None] = print,
-           until: Callable[[], bool] | None = None) -> dict:
+def record(
+    settings: SkinRecordSettings, out: Callable[[str], None] = print, until: Callable[[], bool] | None = None
+) -> dict:
     """``skin record``: read frames until a stop condition, save them; returns a summary.
 
     ``until``: an extra stop condition for a source that can say it has
@@ -293,17 +322,30 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print,
     grid = parse_grid(settings.grid)
     taxels = settings.taxels or (grid[0] * grid[1] if grid else 0)
     started = time.time()
-    partial = PartialWriter(settings.out, settings.chunk_frames,
-                            {"port": settings.port, "grid_shape": list(grid) if grid else None,
-                             "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started))},
-                            sync_interval_s=settings.sync_interval_s)
-    reader = SkinReader(settings.port, settings.baud, taxels, settings.reconnect,
-                        settings.reconnect_timeout_s, start_command=settings.start_command,
-                        consensus_frames=settings.consensus_frames)
+    partial = PartialWriter(
+        settings.out,
+        settings.chunk_frames,
+        {
+            "port": settings.port,
+            "grid_shape": list(grid) if grid else None,
+            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
+        },
+        sync_interval_s=settings.sync_interval_s,
+    )
+    reader = SkinReader(
+        settings.port,
+        settings.baud,
+        taxels,
+        settings.reconnect,
+        settings.reconnect_timeout_s,
+        start_command=settings.start_command,
+        consensus_frames=settings.consensus_frames,
+    )
     got: list[ReceivedFrame] = []  # one append per frame: a signal never leaves the fields unequal
     error: BaseException | None = None
-    out(f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames written to {partial.path} "
-        "as they arrive)")
+    out(
+        f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames written to {partial.path} as they arrive)"
+    )
 
     def keep(rf: ReceivedFrame) -> None:
         got.append(rf)
@@ -352,27 +394,46 @@ def record(settings: SkinRecordSettings, out: Callable[[str], None] = print,
             "decoder": stats,
             "protocol": "sphri-skin/1",
         }
-        rec = SkinRecording(arr, np.asarray([rf.host_time_s for rf in got]),
-                            np.asarray([rf.frame.device_time_us for rf in got]),
-                            np.asarray([rf.frame.seq for rf in got]), np.asarray([rf.segment for rf in got]),
-                            grid, meta)
+        rec = SkinRecording(
+            arr,
+            np.asarray([rf.host_time_s for rf in got]),
+            np.asarray([rf.frame.device_time_us for rf in got]),
+            np.asarray([rf.frame.seq for rf in got]),
+            np.asarray([rf.segment for rf in got]),
+            grid,
+            meta,
+        )
         try:
             path, save_error = save_with_fallback(rec, settings.out, say=out)
         except Exception as exc:  # the fallback failed too: the partial file holds what was written
-            out(f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {partial.n_written} of "
-                f"{rec.n_frames} frames are in {partial.path} (python -c \"from sphri.hardware.recording import "
-                f"load_recording; load_recording('{partial.path}')\" reads it)")
-            return {"frames": rec.n_frames, "path": str(partial.path), "decoder": stats, "error": str(exc),
-                    "reconnects": reader.link.reconnects}
+            out(
+                f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {partial.n_written} of "
+                f'{rec.n_frames} frames are in {partial.path} (python -c "from sphri.hardware.recording import '
+                f"load_recording; load_recording('{partial.path}')\" reads it)"
+            )
+            return {
+                "frames": rec.n_frames,
+                "path": str(partial.path),
+                "decoder": stats,
+                "error": str(exc),
+                "reconnects": reader.link.reconnects,
+            }
         partial.remove()
-    out(f"saved {rec.n_frames} frames x {rec.n_taxels} taxels to {path} ({reader.stop_reason}); "
-        f"rate {rec.rate_hz:.1f} Hz; reconnects {reader.link.reconnects}")
+    out(
+        f"saved {rec.n_frames} frames x {rec.n_taxels} taxels to {path} ({reader.stop_reason}); "
+        f"rate {rec.rate_hz:.1f} Hz; reconnects {reader.link.reconnects}"
+    )
     out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}")
     if error is not None:
         out(f"stopped early: {error}")
     error = error or save_error
-    return {"frames": rec.n_frames, "path": str(path), "decoder": stats, "error": str(error) if error else None,
-            "reconnects": reader.link.reconnects}
+    return {
+        "frames": rec.n_frames,
+        "path": str(path),
+        "decoder": stats,
+        "error": str(error) if error else None,
+        "reconnects": reader.link.reconnects,
+    }
 
 
 # --------------------------------------------------------------------------- live
@@ -385,23 +446,42 @@ def default_tracking_uri() -> str | None:
         return None
 
 
-def live(settings: SkinLiveSettings, out: Callable[[str], None] = print,
-         until: Callable[[], bool] | None = None) -> dict:
+def live(
+    settings: SkinLiveSettings, out: Callable[[str], None] = print, until: Callable[[], bool] | None = None
+) -> dict:
     """``skin live``: classify the streamed frames; returns a summary with latencies.
 
     ``until``: an extra stop condition, as in :func:`record`."""
     from sphri.hardware.live import LiveClassifier, auto_stride
     from sphri.hardware.model_file import load_model, resolve_model_path
 
-    bundle = load_model(resolve_model_path(settings.model, settings.tracking_uri or default_tracking_uri(),
-                                            allow_remote=settings.allow_remote))
+    bundle = load_model(
+        resolve_model_path(
+            settings.model, settings.tracking_uri or default_tracking_uri(), allow_remote=settings.allow_remote
+        )
+    )
     stride = settings.stride or auto_stride(bundle.frame_rate_hz)
-    clf = LiveClassifier(bundle, stride, settings.onset_taxels, settings.calibrate_frames, settings.release_frames,
-                         min(settings.persist, bundle.window_length), cluster_taxels=settings.cluster_taxels)
-    out(f"model {bundle.meta.get('model', type(bundle.estimator).__name__)}: {bundle.n_taxels} taxels, "
-        f"window {bundle.window_length} frames at {bundle.frame_rate_hz:g} Hz; a prediction every {stride} frames")
-    reader = SkinReader(settings.port, settings.baud, bundle.n_taxels, settings.reconnect,
-                        settings.reconnect_timeout_s, start_command=settings.start_command)
+    clf = LiveClassifier(
+        bundle,
+        stride,
+        settings.onset_taxels,
+        settings.calibrate_frames,
+        settings.release_frames,
+        min(settings.persist, bundle.window_length),
+        cluster_taxels=settings.cluster_taxels,
+    )
+    out(
+        f"model {bundle.meta.get('model', type(bundle.estimator).__name__)}: {bundle.n_taxels} taxels, "
+        f"window {bundle.window_length} frames at {bundle.frame_rate_hz:g} Hz; a prediction every {stride} frames"
+    )
+    reader = SkinReader(
+        settings.port,
+        settings.baud,
+        bundle.n_taxels,
+        settings.reconnect,
+        settings.reconnect_timeout_s,
+        start_command=settings.start_command,
+    )
     sink = open(settings.out, "w") if settings.out else None
     preds = []
     error: BaseException | None = None
@@ -443,7 +523,9 @@ def live(settings: SkinLiveSettings, out: Callable[[str], None] = print,
                     if settings.show == "all" or (settings.show == "touches" and p.kind == "touch"):
                         out(p.line())
                     if sink is not None:
-                        sink.write(json.dumps({**p.as_dict(), "seq": rf.frame.seq, "host_time_s": rf.host_time_s}) + "\n")
+                        sink.write(
+                            json.dumps({**p.as_dict(), "seq": rf.frame.seq, "host_time_s": rf.host_time_s}) + "\n"
+                        )
     except KeyboardInterrupt:
         reader.stop_reason = "interrupted"
     except (PortLost, StreamMismatch) as exc:
@@ -470,13 +552,19 @@ def live(settings: SkinLiveSettings, out: Callable[[str], None] = print,
         "error": str(error) if error else None,
     }
     if bundle.frame_rate_hz and stream_rate and abs(stream_rate / bundle.frame_rate_hz - 1) > 0.2:
-        out(f"warning: the skin streams at {stream_rate:.1f} Hz but the model was trained at {bundle.frame_rate_hz:g} Hz")
-    out(f"{n_frames} frames, {len(preds)} predictions ({summary['touches']} touches) in {wall:.1f} s: "
+        out(
+            f"warning: the skin streams at {stream_rate:.1f} Hz but the model was trained at {bundle.frame_rate_hz:g} Hz"
+        )
+    out(
+        f"{n_frames} frames, {len(preds)} predictions ({summary['touches']} touches) in {wall:.1f} s: "
         f"{summary['predictions_per_s']:.1f} predictions/s; latency median {summary['latency_ms_median']:.1f} ms, "
         f"p95 {summary['latency_ms_p95']:.1f} ms; model {summary['model_ms_mean']:.1f} ms per window "
-        f"(up to {summary['capacity_predictions_per_s']:.0f} predictions/s)")
-    out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}; "
-        f"{filled} lost frame(s) filled by holding the previous one")
+        f"(up to {summary['capacity_predictions_per_s']:.0f} predictions/s)"
+    )
+    out(
+        f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}; "
+        f"{filled} lost frame(s) filled by holding the previous one"
+    )
     if error is not None:
         out(f"stopped early: {error}")
     return summary

@@ -191,8 +191,11 @@ class SkinDecoder(StreamDecoder):
                 keep.append(frame)
                 continue
             self.stats.frames -= 1
-            self._count("wrong_count", self._unsettled.get(id(frame), -1),
-                        f"{frame.n_taxels} taxels, expected {n} (seq {frame.seq}; outvoted among the first frames)")
+            self._count(
+                "wrong_count",
+                self._unsettled.get(id(frame), -1),
+                f"{frame.n_taxels} taxels, expected {n} (seq {frame.seq}; outvoted among the first frames)",
+            )
         self._unsettled.clear()
         return keep
 
@@ -229,7 +232,9 @@ class SkinDecoder(StreamDecoder):
             else:
                 self._unsettled[id(frame)] = offset
         elif frame.n_taxels != self.expected_taxels:
-            self._count("wrong_count", offset, f"{frame.n_taxels} taxels, expected {self.expected_taxels} (seq {frame.seq})")
+            self._count(
+                "wrong_count", offset, f"{frame.n_taxels} taxels, expected {self.expected_taxels} (seq {frame.seq})"
+            )
             return False
         return True
 

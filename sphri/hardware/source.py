@@ -9,8 +9,8 @@ sees in simulation (same encoder, layout and noise).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Sequence
 
 import numpy as np
 
@@ -98,7 +98,8 @@ def encode_trials(pipeline, rows: Sequence[int], gap_s: float = 0.5) -> EncodedT
         values.append(v.astype(np.float32))
 
         def untouched(slots: np.ndarray, trial_key: int) -> np.ndarray:
-            blank = dataclasses.replace(frames, values=np.zeros((len(slots), v.shape[1]), dtype=v.dtype))
+            # called at once, in this iteration: the loop's frames and v are the ones meant
+            blank = dataclasses.replace(frames, values=np.zeros((len(slots), v.shape[1]), dtype=v.dtype))  # noqa: B023
             out = noise.apply(blank, slots, np.full(len(slots), trial_key, dtype=np.int64), seed)
             return np.asarray(out.values).astype(np.float32)
 
@@ -127,8 +128,10 @@ def pick_rows(trials, count: int, participant: str | None, seed: int) -> np.ndar
     if participant is not None:
         rows = np.flatnonzero(trials["participant"].to_numpy() == participant)
         if rows.size == 0:
-            raise ConfigError(f"participant={participant!r} is invalid: not in the dataset "
-                              f"({', '.join(sorted(set(trials['participant']))[:10])} ...)")
+            raise ConfigError(
+                f"participant={participant!r} is invalid: not in the dataset "
+                f"({', '.join(sorted(set(trials['participant']))[:10])} ...)"
+            )
     rows = np.random.default_rng(seed).permutation(rows)
     return rows if count < 0 else rows[:count]
 

@@ -17,9 +17,9 @@ from __future__ import annotations
 import datetime as _dt
 import logging
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Optional, Sequence
 
 import numpy as np
 
@@ -38,7 +38,7 @@ class TrainExportSettings:
 
     out: str = "???"
     """Model file to write, e.g. outputs/models/rf.sphrimodel."""
-    holdout: Optional[str] = None
+    holdout: str | None = None
     """Participant left out of training (to try the model live on their trials)."""
     mlflow: bool = False
     """Also log the file as an artifact (model/<name>) of a new MLflow run."""
@@ -62,7 +62,9 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
     if holdout is not None:
         train = windows.groups != holdout
         if train.all():
-            raise ConfigError(f"holdout={holdout!r} is invalid: no such participant among {sorted(set(windows.groups))}")
+            raise ConfigError(
+                f"holdout={holdout!r} is invalid: no such participant among {sorted(set(windows.groups))}"
+            )
     if train.sum() < 2 or len(np.unique(windows.y[train])) < 2:
         raise ConfigError("the pipeline gives fewer than two gestures to train on; use more data (data.participants)")
     # instantiate a partial and pass the geometry in the call: hydra would turn a
@@ -72,7 +74,7 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
     acc = float(np.mean(model.predict(windows.x[train]) == windows.y[train]))
     dataset = pipeline.get("data")
     meta = {
-        "created": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
         "model": str(cfg.model._target_).rsplit(".", 1)[-1],
         "overrides": list(overrides),
         "config_hash": config_hash(cfg),
@@ -89,8 +91,9 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
     return ModelBundle(model, windows.geometry, int(windows.x.shape[1]), float(dataset.frame_rate_hz), GESTURES, meta)
 
 
-def log_pyfunc_model(tracking_uri: str, run_id: str, bundle: ModelBundle, example: np.ndarray,
-                     registered_name: str | None = None) -> str:
+def log_pyfunc_model(
+    tracking_uri: str, run_id: str, bundle: ModelBundle, example: np.ndarray, registered_name: str | None = None
+) -> str:
     """Log ``bundle`` into run ``run_id`` as an MLflow pyfunc model (artifact ``model``) with a signature
     and ``example`` (one window, (1, L, N) float32) as its input example; register it as
     ``registered_name`` if given. Returns its ``runs:/`` URI.
@@ -151,8 +154,9 @@ def log_to_mlflow(pipeline, bundle: ModelBundle) -> str:
     uri = tracker.resolve_uri(pipeline.cfg.output_dir)
     client = MlflowClient(tracking_uri=uri)
     exp = tracker.experiment_id(pipeline.cfg.output_dir)
-    run = client.create_run(exp, run_name=f"train_export {bundle.meta.get('model', 'model')}",
-                            tags={"sphri.kind": "model_export"})
+    run = client.create_run(
+        exp, run_name=f"train_export {bundle.meta.get('model', 'model')}", tags={"sphri.kind": "model_export"}
+    )
     model_uri = log_pyfunc_model(uri, run.info.run_id, bundle, training_windows(pipeline).x[:1])
     client.set_terminated(run.info.run_id)
     return model_uri
@@ -166,8 +170,9 @@ def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
     p = make_pipeline(cfg, open_cache(cfg))
     bundle = fit_bundle(p, None)
     tracker = build(cfg.tracking)
-    return log_pyfunc_model(tracker.resolve_uri(cfg.output_dir), run_id, bundle, training_windows(p).x[:1],
-                            registered_name)
+    return log_pyfunc_model(
+        tracker.resolve_uri(cfg.output_dir), run_id, bundle, training_windows(p).x[:1], registered_name
+    )
 
 
 @clean_errors("sphri.hardware.train_export")
@@ -187,8 +192,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         print(f"sphri.hardware.train_export: invalid setting: {exc}", file=sys.stderr)
         return 2
     path = save_model(bundle, settings.out)
-    print(f"saved {bundle.meta['model']} ({bundle.meta['n_train']} windows, train accuracy "
-          f"{bundle.meta['train_accuracy']:.3f}; {bundle.n_taxels} taxels, L={bundle.window_length}) to {path}")
+    print(
+        f"saved {bundle.meta['model']} ({bundle.meta['n_train']} windows, train accuracy "
+        f"{bundle.meta['train_accuracy']:.3f}; {bundle.n_taxels} taxels, L={bundle.window_length}) to {path}"
+    )
     if settings.mlflow:
         print(f"logged to MLflow: model={log_to_mlflow(p, bundle)}")
     return 0

@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import serial
 
@@ -69,7 +69,7 @@ class Link:
         reconnect: bool = False,
         reconnect_interval_s: float = 0.5,
         reconnect_timeout_s: float = 30.0,
-        on_connect: Callable[["Link"], None] | None = None,
+        on_connect: Callable[[Link], None] | None = None,
     ) -> None:
         self.port = port
         self.baud = baud
@@ -81,7 +81,7 @@ class Link:
         self.reconnects = 0
         self._ser: serial.SerialBase | None = None
 
-    def open(self) -> "Link":
+    def open(self) -> Link:
         self._ser = open_port(self.port, self.baud, self.read_timeout_s)
         log.info("opened %s at %d baud", self.port, self.baud)
         if self.on_connect is not None:
@@ -96,7 +96,7 @@ class Link:
                 pass
             self._ser = None
 
-    def __enter__(self) -> "Link":
+    def __enter__(self) -> Link:
         return self.open()
 
     def __exit__(self, *exc: object) -> None:

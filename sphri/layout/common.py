@@ -9,6 +9,7 @@ from sphri.surface.charts import chart_of, from_uv, to_uv
 from sphri.surface.meshutil import face_areas, face_normals, project_along, sample_surface
 from sphri.types import Link, SurfaceMap
 
+
 def long_axis_length_m(surface: SurfaceMap) -> float:
     """Length of the link along its long axis (metres): what ``res`` divides."""
     return chart_of(surface).long_axis_length_m(surface)
@@ -37,9 +38,14 @@ def grid_dims(surface: SurfaceMap, res: int, aspect: float = 1.0, hex_rows: bool
     cols = surface.metres_per_v / (pitch * aspect * stretch)
     # of the integer (rows, cols) around the ideal, the one closest to the square grid's count,
     # then the closest to equilateral
-    options = [(max(1, a), max(1, b)) for a in {int(np.floor(rows)), int(np.ceil(rows))}
-               for b in {int(np.floor(cols)), int(np.ceil(cols))}]
-    return min(options, key=lambda o: (abs(o[0] * o[1] - h * w), abs(np.log(o[0] / rows)) + abs(np.log(o[1] / cols)), o))
+    options = [
+        (max(1, a), max(1, b))
+        for a in {int(np.floor(rows)), int(np.ceil(rows))}
+        for b in {int(np.floor(cols)), int(np.ceil(cols))}
+    ]
+    return min(
+        options, key=lambda o: (abs(o[0] * o[1] - h * w), abs(np.log(o[0] / rows)) + abs(np.log(o[1] / cols)), o)
+    )
 
 
 def grid_uv(h: int, w: int, hex_rows: bool = False) -> np.ndarray:
@@ -79,7 +85,9 @@ def n_area_samples(n_taxels: int) -> int:
     return int(np.clip(30 * n_taxels, 100_000, 3_000_000))
 
 
-def grid_cell_areas(link: Link, surface: SurfaceMap, grid_shape: tuple[int, int], offsets: np.ndarray, seed: int) -> np.ndarray:
+def grid_cell_areas(
+    link: Link, surface: SurfaceMap, grid_shape: tuple[int, int], offsets: np.ndarray, seed: int
+) -> np.ndarray:
     """(H*W,) float64 mesh area (m^2) mapping into each chart cell (area-weighted samples)."""
     h, w = grid_shape
     n = n_area_samples(h * w)

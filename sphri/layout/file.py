@@ -143,7 +143,11 @@ def build_file_layout(
         log.warning(
             "layout.file %s: taxels lie up to %.1f mm (median %.1f mm) from link %r's surface "
             "(> layout.max_offset_mm=%g): check layout.transform / layout.scale",
-            path, worst, med, link.name, max_offset_mm,
+            path,
+            worst,
+            med,
+            link.name,
+            max_offset_mm,
         )
     fn = face_normals(link)[tri]
     n_norm = np.linalg.norm(nrm, axis=1, keepdims=True)
@@ -188,4 +192,6 @@ class FileLayout:
     def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
         """Read, place and project the file's taxels; ``res`` is ignored (logged)."""
         log.info("layout=file ignores res=%s: the sensor file %s fixes the taxels", res, self.path)
-        return build_file_layout(link, surface, self.path, self.transform, self.scale, self.dedupe_mm, self.max_offset_mm)
+        return build_file_layout(
+            link, surface, self.path, self.transform, self.scale, self.dedupe_mm, self.max_offset_mm
+        )

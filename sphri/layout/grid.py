@@ -29,7 +29,9 @@ from sphri.types import Layout, Link, SurfaceMap
 log = logging.getLogger(__name__)
 
 
-def build_grid(link: Link, surface: SurfaceMap, res: int, aspect: float = 1.0, hex_rows: bool = False, seed: int = 0) -> Layout:
+def build_grid(
+    link: Link, surface: SurfaceMap, res: int, aspect: float = 1.0, hex_rows: bool = False, seed: int = 0
+) -> Layout:
     """A (hex) grid layout of ``res`` rows along the link (see module docstring)."""
     name = "layout.hex" if hex_rows else "layout.grid"
     res = check_res(res, name)
@@ -45,7 +47,13 @@ def build_grid(link: Link, surface: SurfaceMap, res: int, aspect: float = 1.0, h
     area = grid_cell_areas(link, surface, (h, w), offsets, seed)
     area[~valid] = 0.0
     if not valid.all():
-        log.info("%s on link %r: %d of %d cells lie outside every chart face (area 0)", name, link.name, (~valid).sum(), h * w)
+        log.info(
+            "%s on link %r: %d of %d cells lie outside every chart face (area 0)",
+            name,
+            link.name,
+            (~valid).sum(),
+            h * w,
+        )
     return Layout(
         kind="hex" if hex_rows else "grid",
         position_m=pos,

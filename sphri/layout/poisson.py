@@ -22,15 +22,15 @@ from __future__ import annotations
 
 import heapq
 import logging
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 from numba import njit
 from scipy.spatial import cKDTree
 
-from sphri.layout.common import grid_equivalent_count, nn_spacing, voronoi_areas
 from sphri.config import Configured
+from sphri.layout.common import grid_equivalent_count, nn_spacing, voronoi_areas
 from sphri.layout.schema import DensityLayoutSchema, RandomLayoutSchema, check_res
 from sphri.surface.charts import to_uv
 from sphri.surface.meshutil import face_areas, face_normals, sample_surface
@@ -99,7 +99,9 @@ def sample_elimination(points: np.ndarray, radius: np.ndarray, n_keep: int) -> n
     return np.flatnonzero(alive)
 
 
-def _irregular_layout(link: Link, surface: SurfaceMap, kind: str, pts: np.ndarray, nrm: np.ndarray, seed: int) -> Layout:
+def _irregular_layout(
+    link: Link, surface: SurfaceMap, kind: str, pts: np.ndarray, nrm: np.ndarray, seed: int
+) -> Layout:
     pitch = float(np.mean(nn_spacing(pts))) if len(pts) > 1 else float(np.sqrt(face_areas(link).sum()))
     area = voronoi_areas(link, pts, seed + 1)
     return Layout(
@@ -114,7 +116,9 @@ def _irregular_layout(link: Link, surface: SurfaceMap, kind: str, pts: np.ndarra
     )
 
 
-def build_random(link: Link, surface: SurfaceMap, res: int, aspect: float = 1.0, seed: int = 0, candidates: int = 5) -> Layout:
+def build_random(
+    link: Link, surface: SurfaceMap, res: int, aspect: float = 1.0, seed: int = 0, candidates: int = 5
+) -> Layout:
     """Poisson-disk taxels, as many as the grid at ``res`` would have."""
     res = check_res(res, "layout.random")
     n = grid_equivalent_count(link, surface, res, aspect)
@@ -159,7 +163,9 @@ def nearest_density(points_m: np.ndarray, density: np.ndarray, link: Link, sourc
         if np.median(dist) > 0.1 * scale:
             log.warning(
                 "layout.density: the density map (%s) lies %.1f mm (median) from link %r's surface; is it for this link?",
-                source, np.median(dist) * 1e3, link.name,
+                source,
+                np.median(dist) * 1e3,
+                link.name,
             )
         return density[nearest]
 

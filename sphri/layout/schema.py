@@ -27,8 +27,12 @@ def check_res(res: int, who: str = "encoder.res") -> int:
         ok = not isinstance(res, bool) and int(res) == res and 1 <= int(res) <= MAX_RES
     except (TypeError, ValueError):
         ok = False
-    require(ok, "encoder.res", res,
-            f"must be an integer in [1, {MAX_RES}]" + ("" if who == "encoder.res" else f" (read by {who})"))
+    require(
+        ok,
+        "encoder.res",
+        res,
+        f"must be an integer in [1, {MAX_RES}]" + ("" if who == "encoder.res" else f" (read by {who})"),
+    )
     return int(res)
 
 
@@ -124,8 +128,12 @@ class FileLayoutSchema:
     """Warn when taxels lie farther than this from the link surface before projection (mm)."""
 
     def __post_init__(self) -> None:
-        require(len(self.transform) in (0, 6, 16), "layout.transform", list(self.transform),
-                "must be [] (identity), 6 numbers (xyz + rpy) or 16 (a 4x4 matrix, row-major)")
+        require(
+            len(self.transform) in (0, 6, 16),
+            "layout.transform",
+            list(self.transform),
+            "must be [] (identity), 6 numbers (xyz + rpy) or 16 (a 4x4 matrix, row-major)",
+        )
         require_range("layout.scale", self.scale, lo=0.0, lo_open=True)
         require_range("layout.dedupe_mm", self.dedupe_mm, lo=0.0)
         require_range("layout.max_offset_mm", self.max_offset_mm, lo=0.0, lo_open=True)

@@ -25,8 +25,8 @@ from __future__ import annotations
 import copy
 import logging
 import math
+from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import Iterator
 
 import numpy as np
 import torch
@@ -63,7 +63,9 @@ class GridEncoder(nn.Module):
     ``wrap_v``, circular along W (v), so any H, W >= 1 works.
     """
 
-    def __init__(self, grid_shape: tuple[int, int], channels: list[int], strides: list[int], wrap_v: bool, embed_size: int):
+    def __init__(
+        self, grid_shape: tuple[int, int], channels: list[int], strides: list[int], wrap_v: bool, embed_size: int
+    ):
         super().__init__()
         cin = 1
         h, w = grid_shape
@@ -356,9 +358,14 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         n = np.unique(np.asarray(groups)).size
         k = min(n - 1, max(1, int(round(self.val_fraction * n)))) if n >= 2 else 0
         if k < int(self.min_val_participants):
-            log.warning("CNN-GRU: early stopping would hold out %d of %d training participants (fewer than "
-                        "model.min_val_participants=%d): training all %d epochs without a validation split",
-                        k, n, int(self.min_val_participants), int(self.max_epochs))
+            log.warning(
+                "CNN-GRU: early stopping would hold out %d of %d training participants (fewer than "
+                "model.min_val_participants=%d): training all %d epochs without a validation split",
+                k,
+                n,
+                int(self.min_val_participants),
+                int(self.max_epochs),
+            )
             return 0.0
         return float(self.val_fraction)
 
@@ -384,8 +391,9 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         order = torch.randperm(n, generator=gen) if gen is not None else torch.arange(n)
         return list(torch.split(order, int(self.batch_size)))
 
-    def _loss_acc(self, net: CnnGruNet, x: torch.Tensor, y: torch.Tensor, dev: torch.device,
-                  table: torch.Tensor | None = None) -> tuple[float, float]:
+    def _loss_acc(
+        self, net: CnnGruNet, x: torch.Tensor, y: torch.Tensor, dev: torch.device, table: torch.Tensor | None = None
+    ) -> tuple[float, float]:
         """Mean loss and accuracy; ``x`` windows, or frame ids (n, L) into ``table``."""
         net.eval()
         total, correct = 0.0, 0
@@ -411,7 +419,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         return {"device": str(dev), "precision": resolve_precision(self.precision, dev)}
 
     # -- estimator API -----------------------------------------------------
-    def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> "CnnGru":
+    def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> CnnGru:
         """Train on windows x (n, L, N) float32 and labels y (n,) int64."""
         self._check_params()
         x = check_windows(x)
@@ -428,8 +436,14 @@ class CnnGru(ClassifierMixin, BaseEstimator):
             torch.manual_seed(self.seed)
             gen = torch.Generator().manual_seed(self.seed)
             net = CnnGruNet(
-                x.shape[2], grid, wrap, [int(c) for c in self.channels], [int(s) for s in self.strides],
-                int(self.embed_size), int(self.hidden), len(self.classes_),
+                x.shape[2],
+                grid,
+                wrap,
+                [int(c) for c in self.channels],
+                [int(s) for s in self.strides],
+                int(self.embed_size),
+                int(self.hidden),
+                len(self.classes_),
             )
             yt = torch.from_numpy(y_idx.astype(np.int64))
             x_tr_np = x[tr]
@@ -455,8 +469,12 @@ class CnnGru(ClassifierMixin, BaseEstimator):
                 # a warm-up of a quarter of the steps, at least 2 (torch divides by the warm-up's length
                 # minus one); fewer than 3 steps in all leave nothing to schedule: constant lr
                 sched = torch.optim.lr_scheduler.OneCycleLR(
-                    opt, max_lr=self.lr, total_steps=total_steps,
-                    pct_start=max(0.25, 2.0 / total_steps), anneal_strategy="cos", cycle_momentum=False,
+                    opt,
+                    max_lr=self.lr,
+                    total_steps=total_steps,
+                    pct_start=max(0.25, 2.0 / total_steps),
+                    anneal_strategy="cos",
+                    cycle_momentum=False,
                 )
             has_val = va.size > 0
             x_tr = xt[torch.from_numpy(tr)]
@@ -483,7 +501,9 @@ class CnnGru(ClassifierMixin, BaseEstimator):
                     val_loss, val_acc = self._loss_acc(net, x_va, y_va, dev, table)
                 else:
                     val_loss, val_acc = float("nan"), float("nan")
-                history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss, "val_accuracy": val_acc})
+                history.append(
+                    {"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss, "val_accuracy": val_acc}
+                )
                 score = val_loss if has_val else train_loss
                 if score < best - 1e-4:
                     best, best_epoch, stale = score, epoch, 0

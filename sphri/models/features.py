@@ -33,6 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
 from sphri.adjacency import Adjacency, metric_coords, taxel_adjacency
 from sphri.types import TaxelGeometry
 
@@ -79,6 +80,7 @@ assert len(FEATURE_NAMES) == 32, len(FEATURE_NAMES)
 
 #: Elements (trials x frames x taxels) processed at once; bounds memory.
 _CHUNK_ELEMENTS = 1 << 21
+
 
 @dataclass(frozen=True)
 class TaxelCoords:
@@ -143,8 +145,9 @@ def taxel_coords(geometry: TaxelGeometry) -> TaxelCoords:
         # a single taxel without any chart: its size is unknown, so features
         # are in taxel units (area 1 per active taxel).
         pa = pb = 1.0
-    return TaxelCoords(a_m=a, b_m=b, circumference_m=circ, pitch_a_m=pa, pitch_b_m=pb, grid_shape=grid,
-                       adjacency=adjacency)
+    return TaxelCoords(
+        a_m=a, b_m=b, circumference_m=circ, pitch_a_m=pa, pitch_b_m=pb, grid_shape=grid, adjacency=adjacency
+    )
 
 
 def check_windows(x: np.ndarray, n_taxels: int | None = None, what: str = "x") -> np.ndarray:

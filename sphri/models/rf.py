@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from typing import Optional
-
 import numpy as np
 from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.ensemble import RandomForestClassifier
@@ -35,10 +33,10 @@ class RandomForest(ClassifierMixin, BaseEstimator):
     def __init__(
         self,
         n_estimators: int = 100,
-        max_depth: Optional[int] = None,
+        max_depth: int | None = None,
         min_samples_leaf: int = 1,
         max_features: str = "sqrt",
-        class_weight: Optional[str] = None,
+        class_weight: str | None = None,
         n_jobs: int = -1,
         seed: int = 0,
         active_threshold: float = 0.5,
@@ -74,11 +72,11 @@ class RandomForest(ClassifierMixin, BaseEstimator):
         """(n, L, N) windows -> (n, 32) float64 features (:data:`FEATURE_NAMES`)."""
         return extract_features(x, self.geometry, self.active_threshold, coords=self._coords())
 
-    def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> "RandomForest":
+    def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> RandomForest:
         """Fit the forest on windows x (n, L, N) and labels y (n,). ``groups`` is unused."""
         return self.fit_features(self.transform(x), y)
 
-    def fit_features(self, feats: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> "RandomForest":
+    def fit_features(self, feats: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> RandomForest:
         """Fit the forest on precomputed features (n, 32) (:meth:`transform`) and labels y (n,)."""
         feats = self._check_features(feats)
         y = np.asarray(y)

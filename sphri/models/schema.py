@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
 
 from sphri.config import require, require_choice, require_range, runtime_setting, store
 
@@ -15,13 +14,13 @@ class RandomForestSchema:
     _target_: str = "sphri.models.rf.RandomForest"
     n_estimators: int = 100
     """Number of trees."""
-    max_depth: Optional[int] = None
+    max_depth: int | None = None
     """Maximum tree depth (None: grow until leaves are pure)."""
     min_samples_leaf: int = 1
     """Minimum trials in a leaf."""
     max_features: str = "sqrt"
     """Features tried per split: "sqrt", "log2" (of 32)."""
-    class_weight: Optional[str] = None
+    class_weight: str | None = None
     """None, "balanced" or "balanced_subsample"."""
     n_jobs: int = runtime_setting(-1)
     """Threads for the forest (-1: all the cores the CV leaves it)."""
@@ -98,13 +97,25 @@ class CnnGruSchema:
         require_range("model.val_fraction", self.val_fraction, lo=0.0, hi=1.0, hi_open=True)
         require_range("model.min_val_participants", self.min_val_participants, lo=1)
         require_range("model.hidden", self.hidden, lo=1)
-        require(len(self.channels) >= 1 and all(c >= 1 for c in self.channels), "model.channels",
-                list(self.channels), "at least one positive width")
-        require(len(self.strides) == len(self.channels) and all(s >= 1 for s in self.strides), "model.strides",
-                list(self.strides), f"one stride >= 1 per channel entry ({len(self.channels)})")
+        require(
+            len(self.channels) >= 1 and all(c >= 1 for c in self.channels),
+            "model.channels",
+            list(self.channels),
+            "at least one positive width",
+        )
+        require(
+            len(self.strides) == len(self.channels) and all(s >= 1 for s in self.strides),
+            "model.strides",
+            list(self.strides),
+            f"one stride >= 1 per channel entry ({len(self.channels)})",
+        )
         require_range("model.embed_size", self.embed_size, lo=1)
-        require(self.device in ("auto", "cpu", "cuda") or self.device.startswith("cuda:"), "model.device",
-                self.device, "auto, cpu, cuda or cuda:K")
+        require(
+            self.device in ("auto", "cpu", "cuda") or self.device.startswith("cuda:"),
+            "model.device",
+            self.device,
+            "auto, cpu, cuda or cuda:K",
+        )
         require_choice("model.precision", self.precision, ["auto", "float32", "bf16"])
         require_range("model.seed", self.seed, lo=0)
         require_range("model.threads", self.threads, lo=0)

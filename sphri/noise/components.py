@@ -156,7 +156,9 @@ class SaltPepperNoise(Configured):
         v, fi, tk, seed = _check(frames, frame_index, trial_key, seed, "noise=salt_pepper")
         out = np.empty_like(v)
         if v.size:
-            _salt_pepper(v, out, fi, tk, np.uint64(seed), float(self.p), float(self.salt_vs_pepper), self.mode == "flip")
+            _salt_pepper(
+                v, out, fi, tk, np.uint64(seed), float(self.p), float(self.salt_vs_pepper), self.mode == "flip"
+            )
         return _like(frames, out)
 
 

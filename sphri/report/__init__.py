@@ -27,7 +27,22 @@ from sphri.report.saturation import (
 from sphri.report.sweep import ReportError, Sweep, load_sweep
 
 __all__ = [
-    "Envelope", "RerunNoise", "ReportError", "ReportFiles", "RuleSettings", "Saturation", "Sweep", "SweepReport", "analyze",
-    "Tolerance", "curve_stats", "envelope_saturation", "load_sweep", "make_report", "paired_saturation", "physical_interval", "saturation",
+    "Envelope",
+    "RerunNoise",
+    "ReportError",
+    "ReportFiles",
+    "RuleSettings",
+    "Saturation",
+    "Sweep",
+    "SweepReport",
+    "analyze",
+    "Tolerance",
+    "curve_stats",
+    "envelope_saturation",
+    "load_sweep",
+    "make_report",
+    "paired_saturation",
+    "physical_interval",
+    "saturation",
     "saturation_index",
 ]

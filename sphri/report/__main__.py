@@ -31,11 +31,19 @@ from sphri.report.build import check_formats, make_report
 from sphri.report.saturation import Tolerance
 from sphri.report.sweep import ReportError
 
-
 #: ``key=value`` arguments and the option each one stands for.
-KEYS = {"uri": "--uri", "output_dir": "--output-dir", "out": "--out", "tolerances": "--tolerances",
-        "tolerance": "--tolerance", "n_boot": "--n-boot", "ci": "--ci", "seed": "--seed", "marks": "--marks",
-        "formats": "--formats"}
+KEYS = {
+    "uri": "--uri",
+    "output_dir": "--output-dir",
+    "out": "--out",
+    "tolerances": "--tolerances",
+    "tolerance": "--tolerance",
+    "n_boot": "--n-boot",
+    "ci": "--ci",
+    "seed": "--seed",
+    "marks": "--marks",
+    "formats": "--formats",
+}
 
 
 def from_key_values(argv: list[str]) -> list[str]:
@@ -57,25 +65,45 @@ def from_key_values(argv: list[str]) -> list[str]:
 
 
 def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(prog="python -m sphri.report", description=__doc__.split("\n\n")[0],
-                                formatter_class=argparse.RawDescriptionHelpFormatter)
+    p = argparse.ArgumentParser(
+        prog="python -m sphri.report",
+        description=__doc__.split("\n\n")[0],
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     p.add_argument("source", help="sweep directory (holding mlflow_parent_run.json) or the parent MLflow run id")
-    p.add_argument("--uri", default=None, help="MLflow tracking URI (default: the sweep's, else sqlite:///<output-dir>/mlflow.db)")
-    p.add_argument("--output-dir", default="outputs", help="the runs' output_dir, for the default store (default: outputs)")
+    p.add_argument(
+        "--uri", default=None, help="MLflow tracking URI (default: the sweep's, else sqlite:///<output-dir>/mlflow.db)"
+    )
+    p.add_argument(
+        "--output-dir", default="outputs", help="the runs' output_dir, for the default store (default: outputs)"
+    )
     p.add_argument("--out", default=None, help="where to write the report (default: <sweep dir>/report)")
-    p.add_argument("--tolerances", default="se,0.01,0.02",
-                   help="tolerances of the paired rule shown side by side: se (one paired standard error), 2se, "
-                        "or accuracy units (0.01 = 1 point); default se,0.01,0.02")
-    p.add_argument("--tolerance", default="0.01",
-                   help="the tolerance the requirement sentence uses (added to --tolerances if missing; default 0.01)")
+    p.add_argument(
+        "--tolerances",
+        default="se,0.01,0.02",
+        help="tolerances of the paired rule shown side by side: se (one paired standard error), 2se, "
+        "or accuracy units (0.01 = 1 point); default se,0.01,0.02",
+    )
+    p.add_argument(
+        "--tolerance",
+        default="0.01",
+        help="the tolerance the requirement sentence uses (added to --tolerances if missing; default 0.01)",
+    )
     p.add_argument("--n-boot", type=int, default=2000, help="participant bootstrap resamples (default 2000)")
     p.add_argument("--ci", type=float, default=0.95, help="interval coverage (default 0.95)")
     p.add_argument("--seed", type=int, default=0, help="bootstrap seed (default 0)")
     p.add_argument("--no-log", action="store_true", help="do not log the report to the MLflow parent run")
-    p.add_argument("--marks", default="auto", choices=("auto", "true", "false"),
-                   help="the SYNTHETIC DATA banner and sweep id on the figures: auto (for synthetic runs), true, false")
-    p.add_argument("--formats", default="png,pdf,svg",
-                   help="figure file formats, comma-separated, png included (default png,pdf,svg)")
+    p.add_argument(
+        "--marks",
+        default="auto",
+        choices=("auto", "true", "false"),
+        help="the SYNTHETIC DATA banner and sweep id on the figures: auto (for synthetic runs), true, false",
+    )
+    p.add_argument(
+        "--formats",
+        default="png,pdf,svg",
+        help="figure file formats, comma-separated, png included (default png,pdf,svg)",
+    )
     args = p.parse_args(from_key_values(list(sys.argv[1:] if argv is None else argv)))
     for name, ok, expected in (("--n-boot", args.n_boot >= 0, ">= 0"), ("--ci", 0 < args.ci < 1, "in (0, 1)")):
         if not ok:
@@ -101,10 +129,16 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.WARNING)
     rule = args.rule
     try:
-        _, files, text = make_report(args.source, uri=args.uri, output_dir=args.output_dir, out_dir=args.out,
-                                     rule=rule, log_to_mlflow=not args.no_log,
-                                     marks={"auto": None, "true": True, "false": False}[args.marks],
-                                     formats=args.formats)
+        _, files, text = make_report(
+            args.source,
+            uri=args.uri,
+            output_dir=args.output_dir,
+            out_dir=args.out,
+            rule=rule,
+            log_to_mlflow=not args.no_log,
+            marks={"auto": None, "true": True, "false": False}[args.marks],
+            formats=args.formats,
+        )
     except (ReportError, ValueError) as exc:
         print(f"sphri.report: {exc}", file=sys.stderr)
         return 2

@@ -18,8 +18,15 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sphri.report.saturation import (ENVELOPE_ALPHA, Envelope, Saturation, Tolerance, curve_stats,
-                                     envelope_saturation, physical_interval)
+from sphri.report.saturation import (
+    ENVELOPE_ALPHA,
+    Envelope,
+    Saturation,
+    Tolerance,
+    curve_stats,
+    envelope_saturation,
+    physical_interval,
+)
 from sphri.report.sweep import Sweep
 from sphri.types import GESTURES
 
@@ -67,18 +74,24 @@ class RuleSettings:
     def describe(self) -> str:
         """The rule in a few sentences."""
         others = [t.describe() for t in self.parsed() if t.name != self.primary_tolerance.name]
-        text = ("Each resolution is compared with the best one participant by participant. With several seeds the "
-                "best resolution is cross-fitted: chosen on the other seeds and measured on each seed in turn (no "
-                "winner's curse); with one seed it is chosen and measured on the same runs. A participant's deficit "
-                "is their accuracy at the best resolution minus theirs at this one; the paired deficit is its mean "
-                "over participants, with its paired standard error. A resolution is outside the tolerance when its "
-                "paired deficit exceeds the tolerance by more than its noise margin (z paired standard errors, "
-                f"one-sided, family-wise {self.alpha:g} over the resolutions). The requirement is the coarsest "
-                "resolution from which every finer swept resolution is inside the tolerance (an envelope, not a "
-                f"first crossing). The requirement sentence uses a tolerance of {self.primary_tolerance.describe()}"
-                + (", raised to the measured rerun noise of one run's mean accuracy when that is larger"
-                   if self.noise_floor else "")
-                + ("; the tolerance table also shows " + ", ".join(others) if others else "") + ".")
+        text = (
+            "Each resolution is compared with the best one participant by participant. With several seeds the "
+            "best resolution is cross-fitted: chosen on the other seeds and measured on each seed in turn (no "
+            "winner's curse); with one seed it is chosen and measured on the same runs. A participant's deficit "
+            "is their accuracy at the best resolution minus theirs at this one; the paired deficit is its mean "
+            "over participants, with its paired standard error. A resolution is outside the tolerance when its "
+            "paired deficit exceeds the tolerance by more than its noise margin (z paired standard errors, "
+            f"one-sided, family-wise {self.alpha:g} over the resolutions). The requirement is the coarsest "
+            "resolution from which every finer swept resolution is inside the tolerance (an envelope, not a "
+            f"first crossing). The requirement sentence uses a tolerance of {self.primary_tolerance.describe()}"
+            + (
+                ", raised to the measured rerun noise of one run's mean accuracy when that is larger"
+                if self.noise_floor
+                else ""
+            )
+            + ("; the tolerance table also shows " + ", ".join(others) if others else "")
+            + "."
+        )
         if self.n_boot == 0:
             return text + " No bootstrap interval was requested."
         return (
@@ -214,8 +227,9 @@ def requirement_maps(groups: list[GroupReport]) -> list[RequirementMap]:
         if len(rates) < 2 or len(rates) != len(members):
             continue  # one rate, or two curves share a rate (another noise setting varies): not a map
         members.sort(key=lambda t: t[0])
-        out.append(RequirementMap(", ".join(f"{k}={v}" for k, v in other), [r for r, _ in members],
-                                  [g for _, g in members]))
+        out.append(
+            RequirementMap(", ".join(f"{k}={v}" for k, v in other), [r for r, _ in members], [g for _, g in members])
+        )
     return out
 
 
@@ -290,28 +304,38 @@ def sensitivity(groups: list[GroupReport], rule: RuleSettings) -> list[Sensitivi
 def _sensitivity_sentence(ref: GroupReport | None, members: list[GroupReport], rule: RuleSettings) -> str:
     if not all(g.has_pitch for g in members):
         vals = [int(g.recommended["n_taxels"]) for g in members]
-        head = (f"at least {int(ref.recommended['n_taxels'])} taxels under the reference assumptions"
-                if ref is not None else "no reference variant in this sweep")
+        head = (
+            f"at least {int(ref.recommended['n_taxels'])} taxels under the reference assumptions"
+            if ref is not None
+            else "no reference variant in this sweep"
+        )
         return f"The skin needs {head}; between {min(vals)} and {max(vals)} taxels across the {len(members)} assumptions tested."
     pitches = {g.keys.get(VARIANT_KEY, g.label): float(g.recommended["pitch_mm"]) for g in members}
     lo_v, hi_v = min(pitches, key=pitches.get), max(pitches, key=pitches.get)
     if ref is not None:
-        head = (f"A taxel pitch of at most {_fmt_pitch(pitches[ref.keys[VARIANT_KEY]])} mm "
-                f"({_pitch_interval_words(ref.pitch_interval_mm, ref.sat, rule)}) under the reference assumptions")
+        head = (
+            f"A taxel pitch of at most {_fmt_pitch(pitches[ref.keys[VARIANT_KEY]])} mm "
+            f"({_pitch_interval_words(ref.pitch_interval_mm, ref.sat, rule)}) under the reference assumptions"
+        )
     else:
         head = "No reference variant in this sweep (conf/sensitivity/reference.yaml)"
     finest = [g.keys.get(VARIANT_KEY, g.label) for g in members if g.sat.at_finest]
-    tail = (f"; between {_fmt_pitch(pitches[lo_v])} mm ({lo_v}) and {_fmt_pitch(pitches[hi_v])} mm ({hi_v}) across the "
-            f"{len(members)} assumptions tested (accuracy within {rule.primary_tolerance.describe()} of each one's "
-            "best, paired over participants).")
+    tail = (
+        f"; between {_fmt_pitch(pitches[lo_v])} mm ({lo_v}) and {_fmt_pitch(pitches[hi_v])} mm ({hi_v}) across the "
+        f"{len(members)} assumptions tested (accuracy within {rule.primary_tolerance.describe()} of each one's "
+        "best, paired over participants)."
+    )
     if finest:
-        tail += (f" Under {', '.join(finest)} the finest resolution swept was chosen: accuracy may still rise at a "
-                 "finer pitch, so the requirement there may be finer than stated.")
+        tail += (
+            f" Under {', '.join(finest)} the finest resolution swept was chosen: accuracy may still rise at a "
+            "finer pitch, so the requirement there may be finer than stated."
+        )
     return head + tail
 
 
-def _seed_matrix(folds: pd.DataFrame, rows: pd.DataFrame, res: list[int], seeds: list[str], column: str,
-                 participants: list[str]) -> np.ndarray:
+def _seed_matrix(
+    folds: pd.DataFrame, rows: pd.DataFrame, res: list[int], seeds: list[str], column: str, participants: list[str]
+) -> np.ndarray:
     """(S, P, R) per-seed matrices of ``column`` (NaN where a seed lacks a resolution)."""
     out = np.full((len(seeds), len(participants), len(res)), np.nan)
     for i, sd in enumerate(seeds):
@@ -346,18 +370,35 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     recall_s = {g: _seed_matrix(folds, rows, res, seeds, f"recall_{g}", participants) for g in GESTURES}
     recall = {g: _seed_mean(m) for g, m in recall_s.items()}
 
-    by_tol = [(t, *envelope_saturation(acc_s, t, n_boot=rule.n_boot, ci=rule.ci, seed=rule.seed, alpha=rule.alpha,
-                                       noise_floor=rule.noise_floor)) for t in rule.parsed()]
+    by_tol = [
+        (
+            t,
+            *envelope_saturation(
+                acc_s, t, n_boot=rule.n_boot, ci=rule.ci, seed=rule.seed, alpha=rule.alpha, noise_floor=rule.noise_floor
+            ),
+        )
+        for t in rule.parsed()
+    ]
     sat, envelope = next((st, env) for t, st, env in by_tol if t.name == rule.primary_tolerance.name)
     by_tol = [(t, st) for t, st, _ in by_tol]
     st = sat.stats
     # One row per resolution: the lowest seed's job names the point (its confusion matrix, its geometry).
     first_seed = rows.sort_values("seed", key=lambda c: c.map(_natural_key), kind="stable").drop_duplicates("res")
     first_seed = first_seed.set_index("res").loc[res].reset_index()
-    pts = first_seed[["res", "run_id", "n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm",
-                      "area_per_taxel_cm2", "taxels_per_24cm"]].copy()
-    pts["false_on_rate"] = (first_seed["false_on_rate"].to_numpy(float) if "false_on_rate" in first_seed
-                            else np.nan)
+    pts = first_seed[
+        [
+            "res",
+            "run_id",
+            "n_taxels",
+            "grid_h",
+            "grid_w",
+            "pitch_u_mm",
+            "pitch_v_mm",
+            "area_per_taxel_cm2",
+            "taxels_per_24cm",
+        ]
+    ].copy()
+    pts["false_on_rate"] = first_seed["false_on_rate"].to_numpy(float) if "false_on_rate" in first_seed else np.nan
     pu, pv = pts["pitch_u_mm"].to_numpy(float), pts["pitch_v_mm"].to_numpy(float)
     pts["pitch_mm"] = np.where(np.isfinite(pv) & (pv > 0), np.fmax(pu, pv), pu)
     pts["accuracy_mean"], pts["accuracy_std"], pts["accuracy_se"], pts["n"] = st.mean, st.std, st.se, st.n
@@ -371,20 +412,43 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     gesture_sat = {}
     for g, m in recall_s.items():
         if np.isfinite(m).any():
-            gesture_sat[g] = envelope_saturation(m, rule.primary_tolerance, n_boot=0, alpha=rule.alpha,
-                                                 noise_floor=rule.noise_floor)[0]
+            gesture_sat[g] = envelope_saturation(
+                m, rule.primary_tolerance, n_boot=0, alpha=rule.alpha, noise_floor=rule.noise_floor
+            )[0]
 
     first = rows.iloc[0]
     context = {k: first[k] for k in ("robot", "region", "link", "dataset", "synthetic", "cv_scheme", "model")}
     keys = {k: str(first[f"key.{k}"]) for k in sweep.group_keys}
     pitch_iv = physical_interval(pts["pitch_mm"].to_numpy(float), sat)
     area_iv = physical_interval(pts["area_per_taxel_cm2"].to_numpy(float), sat)
-    g = GroupReport(label, keys, pts, participants, acc, f1, recall, sat, pitch_iv, area_iv, gesture_sat, envelope,
-                    seeds, acc_s, context, "", "", "")
+    g = GroupReport(
+        label,
+        keys,
+        pts,
+        participants,
+        acc,
+        f1,
+        recall,
+        sat,
+        pitch_iv,
+        area_iv,
+        gesture_sat,
+        envelope,
+        seeds,
+        acc_s,
+        context,
+        "",
+        "",
+        "",
+    )
     pitch = pts["pitch_mm"].to_numpy(float)
     area = pts["area_per_taxel_cm2"].to_numpy(float)
-    g.by_tolerance = [ToleranceRow(t, st_, physical_interval(pitch, st_), physical_interval(area, st_),
-                                   t.name == rule.primary_tolerance.name) for t, st_ in by_tol]
+    g.by_tolerance = [
+        ToleranceRow(
+            t, st_, physical_interval(pitch, st_), physical_interval(area, st_), t.name == rule.primary_tolerance.name
+        )
+        for t, st_ in by_tol
+    ]
     g.requirement, g.facts, g.interval_text, g.warnings = _sentences(g, rule)
     return g
 
@@ -404,8 +468,10 @@ def noise_text(g: GroupReport) -> str:
         tol += f" (the {env.tolerance_requested} asked for, raised to the rerun noise)"
     elif env.tolerance_floor > 0:
         tol += f" (above the rerun noise {env.tolerance_floor:.3f})"
-    return (f"{env.noise.describe()}; {seeds}; {tol}; noise margin {env.z:.2f} paired standard errors "
-            f"(family-wise {env.alpha:g})" + ("" if env.crossfit else "; best point not cross-fitted (one seed)"))
+    return (
+        f"{env.noise.describe()}; {seeds}; {tol}; noise margin {env.z:.2f} paired standard errors "
+        f"(family-wise {env.alpha:g})" + ("" if env.crossfit else "; best point not cross-fitted (one seed)")
+    )
 
 
 def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[str]]:
@@ -418,75 +484,107 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     if rule.primary_tolerance.n_se is not None:
         tol += f" ({sat.tolerance:.3f} at that point)"
     elif sat.tolerance > float(rule.primary_tolerance.points) + 1e-12:
-        tol = (f"{100 * sat.tolerance:.1f} points of accuracy ({sat.tolerance:.3f}: the measured rerun noise, "
-               f"above the {rule.primary_tolerance.describe()} asked for)")
+        tol = (
+            f"{100 * sat.tolerance:.1f} points of accuracy ({sat.tolerance:.3f}: the measured rerun noise, "
+            f"above the {rule.primary_tolerance.describe()} asked for)"
+        )
     if len(g.points) == 1:
-        where_pt = (f"{_fmt_pitch(rec['pitch_mm'])} mm pitch, {rec['area_per_taxel_cm2']:.2f} cm^2 per taxel"
-                    if g.has_pitch else _taxels(rec["n_taxels"]))
-        req = (f"One resolution only (encoder.res={rec['res']}, {where_pt}) on this link ({where}): accuracy "
-               f"{rec['accuracy_mean']:.3f} +/- {rec['accuracy_std']:.3f}; no saturation point without a sweep "
-               "over encoder.res.")
+        where_pt = (
+            f"{_fmt_pitch(rec['pitch_mm'])} mm pitch, {rec['area_per_taxel_cm2']:.2f} cm^2 per taxel"
+            if g.has_pitch
+            else _taxels(rec["n_taxels"])
+        )
+        req = (
+            f"One resolution only (encoder.res={rec['res']}, {where_pt}) on this link ({where}): accuracy "
+            f"{rec['accuracy_mean']:.3f} +/- {rec['accuracy_std']:.3f}; no saturation point without a sweep "
+            "over encoder.res."
+        )
     elif g.has_pitch and np.isfinite(rec["pitch_mm"]):
         area = rec["area_per_taxel_cm2"]
         area_txt = f"{area:.2f} cm^2 per taxel" if np.isfinite(area) and area > 0 else "area per taxel unknown"
-        req = (f"A taxel pitch of at most {_fmt_pitch(rec['pitch_mm'])} mm ({_pitch_interval_words(g.pitch_interval_mm, sat, rule)}; "
-               f"{area_txt}) keeps accuracy within {tol} of the best, paired over participants, on this link ({where}).")
+        req = (
+            f"A taxel pitch of at most {_fmt_pitch(rec['pitch_mm'])} mm ({_pitch_interval_words(g.pitch_interval_mm, sat, rule)}; "
+            f"{area_txt}) keeps accuracy within {tol} of the best, paired over participants, on this link ({where})."
+        )
         gap = getattr(sat, "gap", float("nan"))
         if np.isfinite(gap) and gap > sat.tolerance and sat.gap_interval is not None:
             # the rule allows a noise margin: say so where the measured gap exceeds the tolerance itself
-            req += (f" Within the tolerance by the rule's noise margin: the gap to the best measured there is "
-                    f"{100 * gap:.1f} points ({rule.ci:.0%} CI {100 * sat.gap_interval[0]:.1f} to "
-                    f"{100 * sat.gap_interval[1]:.1f}).")
+            req += (
+                f" Within the tolerance by the rule's noise margin: the gap to the best measured there is "
+                f"{100 * gap:.1f} points ({rule.ci:.0%} CI {100 * sat.gap_interval[0]:.1f} to "
+                f"{100 * sat.gap_interval[1]:.1f})."
+            )
     else:
         iv = sat.interval
-        iv_txt = (f"{rule.ci:.0%} interval encoder.res {g.points['res'].iloc[iv[0]]} to {g.points['res'].iloc[iv[1]]}"
-                  if iv is not None else "no interval: " + (sat.note or "not computed"))
-        req = (f"At least {int(rec['n_taxels']) if np.isfinite(rec['n_taxels']) else rec['res']} taxels "
-               f"(encoder.res={rec['res']}; {iv_txt}) keep accuracy within {tol} of the best, paired over "
-               f"participants, on this link ({where}).")
-    facts = (f"Saturation at encoder.res={rec['res']} ({_taxels(rec['n_taxels'])}): accuracy "
-             f"{rec['accuracy_mean']:.3f} +/- {rec['accuracy_std']:.3f} vs best {best['accuracy_mean']:.3f} "
-             f"+/- {best['accuracy_std']:.3f} at encoder.res={best['res']}")
+        iv_txt = (
+            f"{rule.ci:.0%} interval encoder.res {g.points['res'].iloc[iv[0]]} to {g.points['res'].iloc[iv[1]]}"
+            if iv is not None
+            else "no interval: " + (sat.note or "not computed")
+        )
+        req = (
+            f"At least {int(rec['n_taxels']) if np.isfinite(rec['n_taxels']) else rec['res']} taxels "
+            f"(encoder.res={rec['res']}; {iv_txt}) keep accuracy within {tol} of the best, paired over "
+            f"participants, on this link ({where})."
+        )
+    facts = (
+        f"Saturation at encoder.res={rec['res']} ({_taxels(rec['n_taxels'])}): accuracy "
+        f"{rec['accuracy_mean']:.3f} +/- {rec['accuracy_std']:.3f} vs best {best['accuracy_mean']:.3f} "
+        f"+/- {best['accuracy_std']:.3f} at encoder.res={best['res']}"
+    )
     if g.has_pitch:
         facts += f" ({_fmt_pitch(best['pitch_mm'])} mm)"
     facts += "."
     if sat.gap_interval is not None and sat.index != sat.best_index:
-        facts += (f" Paired over participants, the saturation point is {sat.gap:.3f} below the best "
-                  f"({rule.ci:.0%} CI {sat.gap_interval[0]:.3f} to {sat.gap_interval[1]:.3f}).")
+        facts += (
+            f" Paired over participants, the saturation point is {sat.gap:.3f} below the best "
+            f"({rule.ci:.0%} CI {sat.gap_interval[0]:.3f} to {sat.gap_interval[1]:.3f})."
+        )
     if len(g.points) == 1:
         facts = ""
         iv = "No interval: one resolution only."
     elif g.pitch_interval_mm is not None and g.has_pitch:
         lo, hi = g.pitch_interval_mm
-        iv = (f"{rule.ci:.0%} bootstrap interval over {sat.n_participants} participants: "
-              f"{_fmt_pitch(lo)} to {_fmt_pitch(hi)} mm pitch")
+        iv = (
+            f"{rule.ci:.0%} bootstrap interval over {sat.n_participants} participants: "
+            f"{_fmt_pitch(lo)} to {_fmt_pitch(hi)} mm pitch"
+        )
         if g.area_interval_cm2 is not None:
             iv += f" ({g.area_interval_cm2[0]:.2f} to {g.area_interval_cm2[1]:.2f} cm^2 per taxel)"
         iv += f"; encoder.res {g.points['res'].iloc[sat.interval[0]]} to {g.points['res'].iloc[sat.interval[1]]}."
     elif sat.interval is not None and len(g.points) > 1:
-        iv = (f"{rule.ci:.0%} bootstrap interval over {sat.n_participants} participants: encoder.res "
-              f"{g.points['res'].iloc[sat.interval[0]]} to {g.points['res'].iloc[sat.interval[1]]}.")
+        iv = (
+            f"{rule.ci:.0%} bootstrap interval over {sat.n_participants} participants: encoder.res "
+            f"{g.points['res'].iloc[sat.interval[0]]} to {g.points['res'].iloc[sat.interval[1]]}."
+        )
     else:
         iv = "No bootstrap interval: " + (sat.note or "not computed") + "."
     warn = []
     if g.envelope.finest_outside:
-        warn.append("even the finest resolution swept is outside the tolerance of the best: accuracy falls at the fine "
-                    "end, so no swept resolution keeps every finer one within tolerance")
+        warn.append(
+            "even the finest resolution swept is outside the tolerance of the best: accuracy falls at the fine "
+            "end, so no swept resolution keeps every finer one within tolerance"
+        )
     elif sat.at_finest:
-        warn.append("the finest resolution swept was chosen: accuracy may still rise; extend the sweep to a finer pitch")
+        warn.append(
+            "the finest resolution swept was chosen: accuracy may still rise; extend the sweep to a finer pitch"
+        )
     elif sat.index == 0 and len(g.points) > 1:
-        warn.append("the coarsest resolution swept is already within tolerance of the best: a coarser skin may do, "
-                    "or this model does not use spatial detail")
+        warn.append(
+            "the coarsest resolution swept is already within tolerance of the best: a coarser skin may do, "
+            "or this model does not use spatial detail"
+        )
     note = "; ".join(n for n in sat.note.split("; ") if n and "falls at the fine end" not in n)
     if note and sat.interval is not None:
         warn.append(note)
     if np.nanmax(sat.stats.mean) < CHANCE + 0.05:
-        warn.append(f"the best accuracy ({np.nanmax(sat.stats.mean):.3f}) is near chance ({CHANCE:.3f}): the curve carries little information")
+        warn.append(
+            f"the best accuracy ({np.nanmax(sat.stats.mean):.3f}) is near chance ({CHANCE:.3f}): the curve carries little information"
+        )
     return req, facts, iv, warn
 
 
 def _pitch_interval_words(iv: tuple[float, float] | None, sat: Saturation, rule: RuleSettings) -> str:
-    """"95 % interval 5.1 to 6.0 mm", or why there is none: a requirement never states a point alone."""
+    """ "95 % interval 5.1 to 6.0 mm", or why there is none: a requirement never states a point alone."""
     if iv is None:
         return "no interval: " + (sat.note.split(";")[0] if sat.note else "not computed")
     return f"{rule.ci:.0%} interval {_fmt_pitch(iv[0])} to {_fmt_pitch(iv[1])} mm"

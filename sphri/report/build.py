@@ -15,17 +15,17 @@ from __future__ import annotations
 import json
 import logging
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Sequence
 
 import numpy as np
 import pandas as pd
 
 from sphri.report.analysis import RuleSettings, SweepReport, analyze
 from sphri.report.figures import plot_bootstrap, plot_curves, plot_recall, plot_tornado
-from sphri.report.reqmap import map_rows, plot_map
 from sphri.report.render import comparison_rows, render_html, render_text, sensitivity_rows, tolerance_rows
+from sphri.report.reqmap import map_rows, plot_map
 from sphri.report.sweep import ReportError, Sweep, load_sweep
 
 log = logging.getLogger(__name__)
@@ -34,8 +34,13 @@ log = logging.getLogger(__name__)
 #: Figure files the report writes (besides ``confusion_<group>.png``).
 #: Formats of every figure (:data:`sphri.figures.FORMATS`).
 FIGURE_FORMATS = ("png", "pdf", "svg")
-FIGURE_FILES = ("accuracy_vs_resolution.png", "recall_vs_resolution.png", "saturation_bootstrap.png",
-                "sensitivity_tornado.png", "requirement_map.png")
+FIGURE_FILES = (
+    "accuracy_vs_resolution.png",
+    "recall_vs_resolution.png",
+    "saturation_bootstrap.png",
+    "sensitivity_tornado.png",
+    "requirement_map.png",
+)
 
 
 @dataclass
@@ -63,13 +68,16 @@ def check_formats(formats: Sequence[str]) -> tuple[str, ...]:
     formats = tuple(dict.fromkeys(str(f).strip().lower() for f in formats))
     bad = [f for f in formats if f not in FIGURE_FORMATS]
     if bad or "png" not in formats:
-        raise ValueError(f"formats={','.join(formats)} is invalid: choose from {','.join(FIGURE_FORMATS)}, "
-                         f"png included (the HTML page shows the PNGs)")
+        raise ValueError(
+            f"formats={','.join(formats)} is invalid: choose from {','.join(FIGURE_FORMATS)}, "
+            f"png included (the HTML page shows the PNGs)"
+        )
     return formats
 
 
-def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path, marks: bool | None,
-                formats: Sequence[str] = FIGURE_FORMATS) -> dict[str, Path]:
+def _confusions(
+    sweep: Sweep, report: SweepReport, out_dir: Path, marks: bool | None, formats: Sequence[str] = FIGURE_FORMATS
+) -> dict[str, Path]:
     """Each group's confusion matrix at its saturation point, redrawn from that job's ``confusion.csv`` under
     the report's own marks (PNG, PDF, SVG); a run logged before that file existed gives its images as logged."""
     import shutil
@@ -91,19 +99,27 @@ def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path, marks: bool | 
             except Exception:  # artifacts disabled for the job, or a run from before confusion.csv
                 counts = None
             if counts is not None:
-                prov = Provenance(synthetic=bool(g.context["synthetic"]), ids=f"sweep {report.sweep.sweep_id}",
-                                  show=marks)
-                draw_confusion(counts.to_numpy(float), [str(c) for c in counts.columns], dst,
-                               f"{g.label} at {int(g.recommended['res'])} taxels along the link", prov,
-                               formats=formats)
+                prov = Provenance(
+                    synthetic=bool(g.context["synthetic"]), ids=f"sweep {report.sweep.sweep_id}", show=marks
+                )
+                draw_confusion(
+                    counts.to_numpy(float),
+                    [str(c) for c in counts.columns],
+                    dst,
+                    f"{g.label} at {int(g.recommended['res'])} taxels along the link",
+                    prov,
+                    formats=formats,
+                )
                 out[g.label] = dst
                 continue
             for fmt in formats:
                 try:
                     src = client.download_artifacts(run_id, f"confusion.{fmt}", tmp)
                 except Exception as exc:
-                    report.notes.append(f"{g.label}: no confusion.{fmt} artifact (nor confusion.csv) in run {run_id} "
-                                        f"({type(exc).__name__})")
+                    report.notes.append(
+                        f"{g.label}: no confusion.{fmt} artifact (nor confusion.csv) in run {run_id} "
+                        f"({type(exc).__name__})"
+                    )
                     continue
                 shutil.copyfile(src, dst.with_suffix("." + fmt))
         if dst.exists():
@@ -111,8 +127,9 @@ def _confusions(sweep: Sweep, report: SweepReport, out_dir: Path, marks: bool | 
     return out
 
 
-def write_report(report: SweepReport, out_dir: Path, marks: bool | None = None,
-                 formats: Sequence[str] = FIGURE_FORMATS) -> ReportFiles:
+def write_report(
+    report: SweepReport, out_dir: Path, marks: bool | None = None, formats: Sequence[str] = FIGURE_FORMATS
+) -> ReportFiles:
     """Figures (``formats``: PNG, PDF, SVG by default), confusion matrices, tables, HTML and text of ``report``
     into ``out_dir``.
 
@@ -129,15 +146,21 @@ def write_report(report: SweepReport, out_dir: Path, marks: bool | None = None,
             old.unlink()
     with only_formats(formats):
         figures = {"curves": plot_curves(report, out_dir / "accuracy_vs_resolution.png", marks=marks)}
-        for name, fig in (("recall", plot_recall(report, out_dir / "recall_vs_resolution.png", marks=marks)),
-                          ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png", marks=marks)),
-                          ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png", marks=marks)),
-                          ("map", plot_map(report, out_dir / "requirement_map.png", marks=marks))):
+        for name, fig in (
+            ("recall", plot_recall(report, out_dir / "recall_vs_resolution.png", marks=marks)),
+            ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png", marks=marks)),
+            ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png", marks=marks)),
+            ("map", plot_map(report, out_dir / "requirement_map.png", marks=marks)),
+        ):
             if fig is not None:
                 figures[name] = fig
     confusions = _confusions(report.sweep, report, out_dir, marks, formats)
 
-    tables = {"comparison": out_dir / "saturation.csv", "points": out_dir / "points.csv", "json": out_dir / "saturation.json"}
+    tables = {
+        "comparison": out_dir / "saturation.csv",
+        "points": out_dir / "points.csv",
+        "json": out_dir / "saturation.json",
+    }
     pd.DataFrame(comparison_rows(report)).to_csv(tables["comparison"], index=False, float_format="%.6g")
     tables["tolerances"] = out_dir / "tolerances.csv"
     pd.DataFrame(tolerance_rows(report)).to_csv(tables["tolerances"], index=False, float_format="%.6g")
@@ -186,28 +209,45 @@ def _plain(x):
 
 
 def _json(report: SweepReport) -> dict:
-    return _plain({
-        "sweep_id": report.sweep.sweep_id,
-        "parent_run_id": report.sweep.parent_id,
-        "synthetic": report.synthetic,
-        "rule": report.rule.describe(),
-        "tolerances": list(report.rule.tolerances), "primary_tolerance": report.rule.primary_tolerance.name,
-        "n_boot": report.rule.n_boot,
-        "ci": report.rule.ci, "seed": report.rule.seed,
-        "groups": [
-            {**row, "requirement": g.requirement, "interval": g.interval_text, "facts": g.facts,
-             "warnings": g.warnings, "saturation_index": g.sat.index, "best_index": g.sat.best_index,
-             "interval_index": g.sat.interval, "note": g.sat.note}
-            for g, row in zip(report.groups, comparison_rows(report))
-        ],
-        "tolerance_table": tolerance_rows(report),
-        "sensitivity": [{"others": s.label, "sentence": s.sentence,
-                         "variants": [r for r in sensitivity_rows(report) if r["others"] == s.label]}
-                        for s in report.sensitivity],
-        "requirement_map": map_rows(report),
-        "notes": report.notes,
-        "failed": report.sweep.failed,
-    })
+    return _plain(
+        {
+            "sweep_id": report.sweep.sweep_id,
+            "parent_run_id": report.sweep.parent_id,
+            "synthetic": report.synthetic,
+            "rule": report.rule.describe(),
+            "tolerances": list(report.rule.tolerances),
+            "primary_tolerance": report.rule.primary_tolerance.name,
+            "n_boot": report.rule.n_boot,
+            "ci": report.rule.ci,
+            "seed": report.rule.seed,
+            "groups": [
+                {
+                    **row,
+                    "requirement": g.requirement,
+                    "interval": g.interval_text,
+                    "facts": g.facts,
+                    "warnings": g.warnings,
+                    "saturation_index": g.sat.index,
+                    "best_index": g.sat.best_index,
+                    "interval_index": g.sat.interval,
+                    "note": g.sat.note,
+                }
+                for g, row in zip(report.groups, comparison_rows(report))
+            ],
+            "tolerance_table": tolerance_rows(report),
+            "sensitivity": [
+                {
+                    "others": s.label,
+                    "sentence": s.sentence,
+                    "variants": [r for r in sensitivity_rows(report) if r["others"] == s.label],
+                }
+                for s in report.sensitivity
+            ],
+            "requirement_map": map_rows(report),
+            "notes": report.notes,
+            "failed": report.sweep.failed,
+        }
+    )
 
 
 def log_report(report: SweepReport, files: ReportFiles, text: str) -> str:
@@ -218,10 +258,14 @@ def log_report(report: SweepReport, files: ReportFiles, text: str) -> str:
     s = report.sweep
     client = MlflowClient(tracking_uri=s.uri)
     client.log_artifacts(s.parent_id, str(files.out_dir), artifact_path="report")
-    tags = [RunTag("mlflow.note.content", text[:50000]),
-            RunTag("sphri.synthetic", {"all": "true", "some": "mixed", "none": "false"}[report.synthetic]),
-            RunTag("sphri.report.requirement",
-                   " | ".join([s.sentence for s in report.sensitivity] + [g.requirement for g in report.groups])[:5000])]
+    tags = [
+        RunTag("mlflow.note.content", text[:50000]),
+        RunTag("sphri.synthetic", {"all": "true", "some": "mixed", "none": "false"}[report.synthetic]),
+        RunTag(
+            "sphri.report.requirement",
+            " | ".join([s.sentence for s in report.sensitivity] + [g.requirement for g in report.groups])[:5000],
+        ),
+    ]
     note = s.parent_tags.get("mlflow.note.content", "")
     if note.startswith("sweep:") and "sphri.sweep_note" not in s.parent_tags:
         tags.append(RunTag("sphri.sweep_note", note[:5000]))  # keep the sweep command the report replaces
@@ -231,8 +275,17 @@ def log_report(report: SweepReport, files: ReportFiles, text: str) -> str:
     now = int(time.time() * 1000)
     for row in comparison_rows(report):
         name = slug(str(row["group"]))
-        for key in ("saturation_pitch_mm", "pitch_low_mm", "pitch_high_mm", "area_per_taxel_cm2",
-                    "saturation_res", "accuracy", "tolerance", "best_accuracy", "gap_to_best"):
+        for key in (
+            "saturation_pitch_mm",
+            "pitch_low_mm",
+            "pitch_high_mm",
+            "area_per_taxel_cm2",
+            "saturation_res",
+            "accuracy",
+            "tolerance",
+            "best_accuracy",
+            "gap_to_best",
+        ):
             v = float(row[key]) if row[key] is not None else float("nan")
             if np.isfinite(v):
                 metrics.append(Metric(f"saturation/{name}/{key}", v, now, 0))
@@ -240,10 +293,16 @@ def log_report(report: SweepReport, files: ReportFiles, text: str) -> str:
     return s.parent_id
 
 
-def make_report(source: str | Path, uri: str | None = None, output_dir: str | Path = "outputs",
-                out_dir: str | Path | None = None, rule: RuleSettings = RuleSettings(),
-                log_to_mlflow: bool = True, marks: bool | None = None,
-                formats: Sequence[str] = FIGURE_FORMATS) -> tuple[SweepReport, ReportFiles, str]:
+def make_report(
+    source: str | Path,
+    uri: str | None = None,
+    output_dir: str | Path = "outputs",
+    out_dir: str | Path | None = None,
+    rule: RuleSettings = RuleSettings(),  # noqa: B008 (frozen dataclass)
+    log_to_mlflow: bool = True,
+    marks: bool | None = None,
+    formats: Sequence[str] = FIGURE_FORMATS,
+) -> tuple[SweepReport, ReportFiles, str]:
     """Report on the sweep ``source`` (its directory or parent run id); returns (report, files, text).
 
     ``formats``: the figures' file formats (PNG, PDF and SVG by default; PNG alone for a quick look).

@@ -96,8 +96,9 @@ def _nice_log_ticks(axis, values: np.ndarray) -> None:
     if values.size == 0:
         return
     lo, hi = values.min(), values.max()
-    ticks = [m * 10.0**k for k in range(int(np.floor(np.log10(lo))) - 1, int(np.ceil(np.log10(hi))) + 1)
-             for m in (1, 2, 5)]
+    ticks = [
+        m * 10.0**k for k in range(int(np.floor(np.log10(lo))) - 1, int(np.ceil(np.log10(hi))) + 1) for m in (1, 2, 5)
+    ]
     ticks = [x for x in ticks if lo / 1.5 <= x <= hi * 1.5]
     if sum(lo <= x <= hi for x in ticks) < 2:  # a short sweep: label its ends as well
         ticks = sorted({*ticks, float(f"{lo:.3g}"), float(f"{hi:.3g}")})
@@ -158,8 +159,20 @@ def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> P
             if g.sat.interval is not None:  # the bootstrap interval: an error bar through the saturation point
                 ends = g.points[xcol].iloc[list(g.sat.interval)].to_numpy(float)
                 xerr = [[max(x0 - ends.min(), 0.0)], [max(ends.max() - x0, 0.0)]]
-            axes[0].errorbar([x0], [y0], xerr=xerr, fmt="*", ms=11, color=color, mec="black", ecolor=color,
-                             elinewidth=2.0, capsize=3, zorder=5, label=f"saturation: {g.label}")
+            axes[0].errorbar(
+                [x0],
+                [y0],
+                xerr=xerr,
+                fmt="*",
+                ms=11,
+                color=color,
+                mec="black",
+                ecolor=color,
+                elinewidth=2.0,
+                capsize=3,
+                zorder=5,
+                label=f"saturation: {g.label}",
+            )
         xs = _all(report, xcol)
         for ax, name in zip(axes, ("accuracy", "macro F1")):
             ax.axhline(CHANCE, color="0.4", ls="--", lw=0.8, label=f"chance ({CHANCE:.3g})")
@@ -179,12 +192,17 @@ def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> P
             for ax in axes:
                 if inside:
                     ax.axvline(study, color="0.2", ls=":", lw=1.0)
-            extra.append((Line2D([], [], color="0.2", ls=":", lw=1.0),
-                          f"study: 18 taxels / 24 cm ({study:.1f} mm)" + ("" if inside else ", outside the sweep")))
+            extra.append(
+                (
+                    Line2D([], [], color="0.2", ls=":", lw=1.0),
+                    f"study: 18 taxels / 24 cm ({study:.1f} mm)" + ("" if inside else ", outside the sweep"),
+                )
+            )
             lo, hi = _log_limits(xs) if xs.size else (None, None)
             axes[0].set_xlim(hi, lo)  # finer to the right
-            top = axes[0].secondary_xaxis("top", functions=(lambda p: 240.0 / np.maximum(p, 1e-9),
-                                                            lambda t: 240.0 / np.maximum(t, 1e-9)))
+            top = axes[0].secondary_xaxis(
+                "top", functions=(lambda p: 240.0 / np.maximum(p, 1e-9), lambda t: 240.0 / np.maximum(t, 1e-9))
+            )
             top.set_xlabel("taxels per 24 cm along the link (the study's axis)")
             _nice_log_ticks(top.xaxis, 240.0 / xs)
             cmap = _shared_count_map(report)
@@ -205,8 +223,10 @@ def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> P
         handles += [h for h, _ in extra]
         labels += [lab for _, lab in extra]
         if any(g.sat.interval is not None for g in report.groups):
-            labels = [f"{lab} ({report.rule.ci:.0%} bootstrap interval)" if lab.startswith("saturation") else lab
-                      for lab in labels]
+            labels = [
+                f"{lab} ({report.rule.ci:.0%} bootstrap interval)" if lab.startswith("saturation") else lab
+                for lab in labels
+            ]
         # outside the panels: the legend never hides data
         # as many columns as the longest label leaves room for (7 pt text: about 0.052 in per character)
         fits = int(0.95 * fig.get_figwidth() / (0.052 * max(map(len, labels)) + 0.45))
@@ -228,8 +248,9 @@ def plot_recall(report: SweepReport, path: Path, max_groups: int = 6, marks: boo
     ncol = min(2, len(groups))
     nrow = int(np.ceil(len(groups) / ncol))
     with figures.style():
-        fig, axes = figures.new_figure("two" if ncol > 1 else "one", 2.4 * nrow + 0.9, nrows=nrow, ncols=ncol,
-                                       squeeze=False, sharey=True)
+        fig, axes = figures.new_figure(
+            "two" if ncol > 1 else "one", 2.4 * nrow + 0.9, nrows=nrow, ncols=ncol, squeeze=False, sharey=True
+        )
         colors = plt.get_cmap("tab10")
         for ax, g in zip(axes.ravel(), groups):
             x = g.points[xcol].to_numpy(float)
@@ -253,12 +274,17 @@ def plot_recall(report: SweepReport, path: Path, max_groups: int = 6, marks: boo
             ax.grid(True, which="both", alpha=0.3)
         for ax in axes[:, 0]:
             ax.set_ylabel("recall (mean over participants)")
-        for ax in axes.ravel()[len(groups):]:
+        for ax in axes.ravel()[len(groups) :]:
             ax.set_visible(False)
         handles, labels = axes[0, 0].get_legend_handles_labels()
         if handles:
-            fig.legend(handles, labels, loc="outside lower center", ncol=8 if ncol > 1 else 4,
-                       title="gesture (dot: its saturation point)")
+            fig.legend(
+                handles,
+                labels,
+                loc="outside lower center",
+                ncol=8 if ncol > 1 else 4,
+                title="gesture (dot: its saturation point)",
+            )
         return _finish(fig, report, path, marks)
 
 
@@ -310,14 +336,20 @@ def plot_tornado(report: SweepReport, path: Path, marks: bool | None = None) -> 
                 if iv is not None:
                     ax.plot(iv, [y, y], "-", color=color, lw=5, alpha=0.35, solid_capstyle="butt")
                 ax.plot([v], [y], "o", color=color)
-            ax.set_yticks(range(len(sens.variants)), [figures.human(g.keys.get("variant", g.label)) for g in reversed(sens.variants)])
+            ax.set_yticks(
+                range(len(sens.variants)),
+                [figures.human(g.keys.get("variant", g.label)) for g in reversed(sens.variants)],
+            )
             if sens.reference is not None:
                 ax.axvline(float(sens.reference.recommended[col]), color="black", ls="--", lw=0.8)
             ax.set_xlabel("saturation pitch (mm)" if pitch else "taxels at saturation")
             ax.grid(True, axis="x", alpha=0.3)
             ax.set_title(sens.label or "assumption variants", loc="left")
         if pitch_all:
-            fig.supxlabel(f"dot: the rule ({report.rule.primary_tolerance.describe()}); bar: {report.rule.ci:.0%} "
-                          "bootstrap interval; dashed: reference; red: finest point swept",
-                          color="0.3", fontsize=figures.MIN_FONT_PT)
+            fig.supxlabel(
+                f"dot: the rule ({report.rule.primary_tolerance.describe()}); bar: {report.rule.ci:.0%} "
+                "bootstrap interval; dashed: reference; red: finest point swept",
+                color="0.3",
+                fontsize=figures.MIN_FONT_PT,
+            )
         return _finish(fig, report, path, marks)

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sphri.report.analysis import GroupReport, SweepReport, noise_text
+from sphri.report.analysis import SweepReport, noise_text
 
 
 def map_rows(report: SweepReport) -> list[dict[str, object]]:
@@ -37,24 +37,40 @@ def map_rows(report: SweepReport) -> list[dict[str, object]]:
             rec, iv = g.recommended, g.pitch_interval_mm
             dip = m.dip_index(g)
             for i, p in g.points.iterrows():
-                rows.append({
-                    "map": m.label, "false_on_rate": rate, "res": int(p["res"]), "n_taxels": p["n_taxels"],
-                    "pitch_mm": p["pitch_mm"], "area_per_taxel_cm2": p["area_per_taxel_cm2"],
-                    "accuracy_mean": p["accuracy_mean"], "accuracy_se": p["accuracy_se"],
-                    "accuracy_std": p["accuracy_std"], "participants": int(p["n"]), "seeds": int(p["n_seeds"]),
-                    "false_on_per_frame": rate * float(p["n_taxels"]),
-                    "deficit": float(g.sat.deficit[i]), "deficit_se": float(g.sat.deficit_se[i]),
-                    "outside_tolerance": bool(g.envelope.outside[i]), "dip": dip == i,
-                    "required": i == g.sat.index,
-                    "required_res": int(rec["res"]), "required_pitch_mm": rec["pitch_mm"],
-                    "required_pitch_lo_mm": iv[0] if iv else float("nan"),
-                    "required_pitch_hi_mm": iv[1] if iv else float("nan"),
-                    "required_at_finest": bool(g.sat.at_finest), "finest_outside": bool(g.envelope.finest_outside),
-                    "best_res": int(g.best["res"]), "best_accuracy": g.best["accuracy_mean"],
-                    "tolerance": g.sat.tolerance, "rerun_noise_per_participant": g.envelope.noise.per_participant,
-                    "rerun_noise_curve": g.envelope.noise.curve, "rerun_noise_source": g.envelope.noise.source,
-                    "synthetic": bool(g.context["synthetic"]),
-                })
+                rows.append(
+                    {
+                        "map": m.label,
+                        "false_on_rate": rate,
+                        "res": int(p["res"]),
+                        "n_taxels": p["n_taxels"],
+                        "pitch_mm": p["pitch_mm"],
+                        "area_per_taxel_cm2": p["area_per_taxel_cm2"],
+                        "accuracy_mean": p["accuracy_mean"],
+                        "accuracy_se": p["accuracy_se"],
+                        "accuracy_std": p["accuracy_std"],
+                        "participants": int(p["n"]),
+                        "seeds": int(p["n_seeds"]),
+                        "false_on_per_frame": rate * float(p["n_taxels"]),
+                        "deficit": float(g.sat.deficit[i]),
+                        "deficit_se": float(g.sat.deficit_se[i]),
+                        "outside_tolerance": bool(g.envelope.outside[i]),
+                        "dip": dip == i,
+                        "required": i == g.sat.index,
+                        "required_res": int(rec["res"]),
+                        "required_pitch_mm": rec["pitch_mm"],
+                        "required_pitch_lo_mm": iv[0] if iv else float("nan"),
+                        "required_pitch_hi_mm": iv[1] if iv else float("nan"),
+                        "required_at_finest": bool(g.sat.at_finest),
+                        "finest_outside": bool(g.envelope.finest_outside),
+                        "best_res": int(g.best["res"]),
+                        "best_accuracy": g.best["accuracy_mean"],
+                        "tolerance": g.sat.tolerance,
+                        "rerun_noise_per_participant": g.envelope.noise.per_participant,
+                        "rerun_noise_curve": g.envelope.noise.curve,
+                        "rerun_noise_source": g.envelope.noise.source,
+                        "synthetic": bool(g.context["synthetic"]),
+                    }
+                )
     return rows
 
 
@@ -71,11 +87,15 @@ def map_text(report: SweepReport) -> list[str]:
             dtxt = ""
             if dip is not None:
                 p = g.points.iloc[dip]
-                dtxt = (f"; dip at res {int(p['res'])} ({p['pitch_mm']:.1f} mm, {rate * float(p['n_taxels']):.1f} "
-                        f"false-on taxels per frame, accuracy {p['accuracy_mean']:.3f})")
-            lines.append(f"  false-on {100 * rate:g} %: pitch at most {rec['pitch_mm']:.1f} mm ({ivt}), res "
-                         f"{int(rec['res'])}, tolerance {g.sat.tolerance:.3f}, best {g.best['accuracy_mean']:.3f} at "
-                         f"res {int(g.best['res'])}" + (" [finest point]" if g.sat.at_finest else "") + dtxt)
+                dtxt = (
+                    f"; dip at res {int(p['res'])} ({p['pitch_mm']:.1f} mm, {rate * float(p['n_taxels']):.1f} "
+                    f"false-on taxels per frame, accuracy {p['accuracy_mean']:.3f})"
+                )
+            lines.append(
+                f"  false-on {100 * rate:g} %: pitch at most {rec['pitch_mm']:.1f} mm ({ivt}), res "
+                f"{int(rec['res'])}, tolerance {g.sat.tolerance:.3f}, best {g.best['accuracy_mean']:.3f} at "
+                f"res {int(g.best['res'])}" + (" [finest point]" if g.sat.at_finest else "") + dtxt
+            )
         lines.append("  " + noise_text(m.curves[0]) + f" (false-on {100 * m.rates[0]:g} %; each rate in the CSV)")
     return lines
 
@@ -110,9 +130,20 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
         hi = np.array([g.pitch_interval_mm[1] if g.pitch_interval_mm else np.nan for g in m.curves])
         xerr = np.vstack([np.where(np.isfinite(lo), req - lo, 0.0), np.where(np.isfinite(hi), hi - req, 0.0)])
         ax.plot(req, y, "-", color="white", lw=1.5, clip_on=False, zorder=4)
-        ax.errorbar(req, y, xerr=np.maximum(xerr, 0.0), fmt="o", color="white", mec="black", ecolor="black",
-                    elinewidth=1.2, capsize=3, clip_on=False, zorder=5,
-                    label=f"required pitch ({report.rule.ci:.0%} interval)")
+        ax.errorbar(
+            req,
+            y,
+            xerr=np.maximum(xerr, 0.0),
+            fmt="o",
+            color="white",
+            mec="black",
+            ecolor="black",
+            elinewidth=1.2,
+            capsize=3,
+            clip_on=False,
+            zorder=5,
+            label=f"required pitch ({report.rule.ci:.0%} interval)",
+        )
         ax.set_xscale("log")
         _nice_log_ticks(ax.xaxis, pitch[np.isfinite(pitch)])
         ax.invert_xaxis()

@@ -156,7 +156,9 @@ def _batch_stats(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return mean, std, se, n.astype(np.int64)
 
 
-def _rule(mean: np.ndarray, se: np.ndarray, n_se: float, tolerance: float | None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _rule(
+    mean: np.ndarray, se: np.ndarray, n_se: float, tolerance: float | None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Vectorized rule on (B, R) curves -> (selected, best, tolerance) each (B,); -1 where no finite point."""
     valid = np.isfinite(mean)
     any_valid = valid.any(axis=1)
@@ -216,7 +218,11 @@ def saturation(
     index, best_index = int(sel[0]), int(best[0])
     n_part = int(s.shape[0])
     gap_vals = s[:, best_index] - s[:, index]
-    gap = float(np.nanmean(gap_vals)) if np.isfinite(gap_vals).any() else float(stats.mean[best_index] - stats.mean[index])
+    gap = (
+        float(np.nanmean(gap_vals))
+        if np.isfinite(gap_vals).any()
+        else float(stats.mean[best_index] - stats.mean[index])
+    )
 
     notes = []
     n_missing = int((~np.isfinite(s)).sum())
@@ -227,19 +233,37 @@ def saturation(
             "only one participant: no standard error and no bootstrap interval; the rule's tolerance is "
             + ("the fixed tolerance" if tolerance is not None else "0, so the saturation point is the best point")
         )
-        return Saturation(index, best_index, float(tol[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes))
+        return Saturation(
+            index, best_index, float(tol[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes)
+        )
     if n_boot == 0:
         notes.append("no bootstrap requested (n_boot=0): no interval")
-        return Saturation(index, best_index, float(tol[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes))
+        return Saturation(
+            index, best_index, float(tol[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes)
+        )
 
-    interval, picked, gap_interval = _bootstrap(s, index, best_index, n_boot, ci, seed, notes,
-                                                lambda sb: _rule(*_batch_stats(sb)[0:3:2], n_se, tolerance)[0])
-    return Saturation(index, best_index, float(tol[0]), stats, n_part, interval, ci, int(picked.size), picked, gap,
-                      gap_interval, "; ".join(notes))
+    interval, picked, gap_interval = _bootstrap(
+        s, index, best_index, n_boot, ci, seed, notes, lambda sb: _rule(*_batch_stats(sb)[0:3:2], n_se, tolerance)[0]
+    )
+    return Saturation(
+        index,
+        best_index,
+        float(tol[0]),
+        stats,
+        n_part,
+        interval,
+        ci,
+        int(picked.size),
+        picked,
+        gap,
+        gap_interval,
+        "; ".join(notes),
+    )
 
 
-def _bootstrap(s: np.ndarray, index: int, best_index: int, n_boot: int, ci: float, seed: int, notes: list[str],
-               select) -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
+def _bootstrap(
+    s: np.ndarray, index: int, best_index: int, n_boot: int, ci: float, seed: int, notes: list[str], select
+) -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
     """Participant bootstrap of a rule: ``select`` maps (B, P, R) resamples to (B,) selected indices.
 
     Returns the percentile interval of the selected index, the selected
@@ -255,15 +279,16 @@ def _bootstrap(s: np.ndarray, index: int, best_index: int, n_boot: int, ci: floa
     for start in range(0, n_boot, chunk):
         b = min(chunk, n_boot - start)
         sb = s[rng.integers(0, n_part, size=(b, n_part))]  # (b, P, R): whole participants, paired across points
-        boot_sel[start:start + b] = select(sb)
+        boot_sel[start : start + b] = select(sb)
         with np.errstate(invalid="ignore"), _quiet():
-            boot_gap[start:start + b] = np.nanmean(sb[:, :, best_index] - sb[:, :, index], axis=1)
+            boot_gap[start : start + b] = np.nanmean(sb[:, :, best_index] - sb[:, :, index], axis=1)
     interval, picked, gap_interval = _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
     return interval, picked, gap_interval
 
 
-def _bootstrap_intervals(boot_sel: np.ndarray, boot_gap: np.ndarray, n_part: int, ci: float,
-                         notes: list[str]) -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
+def _bootstrap_intervals(
+    boot_sel: np.ndarray, boot_gap: np.ndarray, n_part: int, ci: float, notes: list[str]
+) -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
     """(interval of the selected point, the selections kept, interval of the paired gap) from the
     bootstrap's draws (``-1``: no finite point in that resample, dropped); notes what it dropped."""
     ok = boot_sel >= 0
@@ -271,7 +296,10 @@ def _bootstrap_intervals(boot_sel: np.ndarray, boot_gap: np.ndarray, n_part: int
         notes.append(f"{int((~ok).sum())} of {boot_sel.size} resamples had no finite point and were dropped")
     lo_q, hi_q = (1.0 - ci) / 2.0, (1.0 + ci) / 2.0
     picked = boot_sel[ok]
-    interval = (int(np.quantile(picked, lo_q, method="inverted_cdf")), int(np.quantile(picked, hi_q, method="inverted_cdf")))
+    interval = (
+        int(np.quantile(picked, lo_q, method="inverted_cdf")),
+        int(np.quantile(picked, hi_q, method="inverted_cdf")),
+    )
     g = boot_gap[np.isfinite(boot_gap)]
     gap_interval = (float(np.quantile(g, lo_q)), float(np.quantile(g, hi_q))) if g.size else None
     if n_part < 5:
@@ -325,7 +353,7 @@ class Tolerance:
     """Fixed tolerance in score units, or None for an SE tolerance."""
 
     @classmethod
-    def parse(cls, text: str | float) -> "Tolerance":
+    def parse(cls, text: str | float) -> Tolerance:
         t = str(text).strip().lower()
         try:
             if t.endswith("se"):
@@ -335,8 +363,10 @@ class Tolerance:
                 return cls(t, k, None)
             v = float(t)
         except ValueError:
-            raise ValueError(f"tolerance {text!r} is invalid: write se, 2se (paired standard errors) or a number "
-                             "in accuracy units such as 0.01") from None
+            raise ValueError(
+                f"tolerance {text!r} is invalid: write se, 2se (paired standard errors) or a number "
+                "in accuracy units such as 0.01"
+            ) from None
         if not np.isfinite(v) or not 0 <= v < 1:
             raise ValueError(f"tolerance {text!r} is invalid: a fixed tolerance must be in [0, 1) accuracy units")
         return cls(f"{v:g}", None, v)
@@ -403,20 +433,40 @@ def paired_saturation(
     notes = []
     n_missing = int((~np.isfinite(s)).sum())
     if n_missing:
-        notes.append(f"{n_missing} of {s.size} participant x point scores are missing (NaN) and were left out of their pairs")
+        notes.append(
+            f"{n_missing} of {s.size} participant x point scores are missing (NaN) and were left out of their pairs"
+        )
     if n_part < 2:
-        notes.append("only one participant: no paired standard error and no bootstrap interval"
-                     + ("; the SE tolerance is 0, so the saturation point is the best point" if tol.n_se is not None else ""))
-        return Saturation(index, best_index, float(allowed[0]), stats, n_part, None, ci, 0, None, gap, None,
-                          "; ".join(notes), **base)
+        notes.append(
+            "only one participant: no paired standard error and no bootstrap interval"
+            + ("; the SE tolerance is 0, so the saturation point is the best point" if tol.n_se is not None else "")
+        )
+        return Saturation(
+            index, best_index, float(allowed[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes), **base
+        )
     if n_boot == 0:
         notes.append("no bootstrap requested (n_boot=0): no interval")
-        return Saturation(index, best_index, float(allowed[0]), stats, n_part, None, ci, 0, None, gap, None,
-                          "; ".join(notes), **base)
-    interval, picked, gap_interval = _bootstrap(s, index, best_index, n_boot, ci, seed, notes,
-                                                lambda sb: _paired_rule(sb, tol)[0])
-    return Saturation(index, best_index, float(allowed[0]), stats, n_part, interval, ci, int(picked.size), picked, gap,
-                      gap_interval, "; ".join(notes), **base)
+        return Saturation(
+            index, best_index, float(allowed[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes), **base
+        )
+    interval, picked, gap_interval = _bootstrap(
+        s, index, best_index, n_boot, ci, seed, notes, lambda sb: _paired_rule(sb, tol)[0]
+    )
+    return Saturation(
+        index,
+        best_index,
+        float(allowed[0]),
+        stats,
+        n_part,
+        interval,
+        ci,
+        int(picked.size),
+        picked,
+        gap,
+        gap_interval,
+        "; ".join(notes),
+        **base,
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -440,11 +490,16 @@ class RerunNoise:
     neighbouring resolutions, the fallback for a sweep without replicates)."""
 
     def describe(self) -> str:
-        how = ("measured between the sweep's seeds at the same point" if self.source == "seeds" else
-               "no seeds to measure it: estimated from each participant's jitter between neighbouring resolutions "
-               "(an upper estimate when the curve still changes between neighbours)")
-        return (f"rerun noise {self.per_participant:.3f} per participant, {self.curve:.3f} on the participant mean "
-                f"of one run ({how})")
+        how = (
+            "measured between the sweep's seeds at the same point"
+            if self.source == "seeds"
+            else "no seeds to measure it: estimated from each participant's jitter between neighbouring resolutions "
+            "(an upper estimate when the curve still changes between neighbours)"
+        )
+        return (
+            f"rerun noise {self.per_participant:.3f} per participant, {self.curve:.3f} on the participant mean "
+            f"of one run ({how})"
+        )
 
 
 def rerun_noise(scores: np.ndarray) -> RerunNoise:
@@ -479,8 +534,9 @@ def _as_seeds(scores: np.ndarray) -> np.ndarray:
     if s.ndim == 2:
         s = s[None]
     if s.ndim != 3:
-        raise ValueError(f"scores must be a (participants, points) or (seeds, participants, points) array, "
-                         f"got shape {s.shape}")
+        raise ValueError(
+            f"scores must be a (participants, points) or (seeds, participants, points) array, got shape {s.shape}"
+        )
     if 0 in s.shape:
         raise ValueError(f"scores is empty (shape {s.shape}): no seeds, participants or sweep points")
     return np.where(np.isfinite(s), s, np.nan)
@@ -496,7 +552,7 @@ def _wmean(x: np.ndarray, w: np.ndarray, axis: int) -> np.ndarray:
         return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
 
 
-def _envelope_rule(s: np.ndarray, w: np.ndarray, tol: "Tolerance", floor: float, z: float) -> tuple[np.ndarray, ...]:
+def _envelope_rule(s: np.ndarray, w: np.ndarray, tol: Tolerance, floor: float, z: float) -> tuple[np.ndarray, ...]:
     """The envelope rule on B resamples.
 
     ``s`` (B, S, P, R) scores, ``w`` (B, S) seed weights (how often each seed was drawn; 0 = left out).
@@ -548,8 +604,15 @@ def _envelope_rule(s: np.ndarray, w: np.ndarray, tol: "Tolerance", floor: float,
     finest_valid = n_r - 1 - np.argmax(valid[:, ::-1], axis=1)
     selected = np.where(selected == -2, finest_valid, selected)
     any_valid = valid.any(axis=1)
-    return (np.where(any_valid, selected, -1), np.where(any_valid, best_all, -1), deficit, dse, allowed,
-            crossfit, last_out)
+    return (
+        np.where(any_valid, selected, -1),
+        np.where(any_valid, best_all, -1),
+        deficit,
+        dse,
+        allowed,
+        crossfit,
+        last_out,
+    )
 
 
 def _family_z(n_points: int, alpha: float) -> float:
@@ -587,7 +650,7 @@ class Envelope:
 
 def envelope_saturation(
     scores: np.ndarray,
-    tolerance: "Tolerance | str | float" = "0.01",
+    tolerance: Tolerance | str | float = "0.01",
     n_boot: int = 2000,
     ci: float = 0.95,
     seed: int = 0,
@@ -639,8 +702,9 @@ def envelope_saturation(
     stats = CurveStats(mean[0], std[0], se[0], n[0])
     outside = np.isfinite(deficit[0]) & (deficit[0] > allowed[0] + z * dse[0] + _EPS) & np.isfinite(mean[0])
     finest_outside = bool(last_out[0] == n_pts - 1)
-    env = Envelope(noise, tol.name, float(floor), float(z), float(alpha), n_seeds, bool(crossfit[0]), finest_outside,
-                   outside)
+    env = Envelope(
+        noise, tol.name, float(floor), float(z), float(alpha), n_seeds, bool(crossfit[0]), finest_outside, outside
+    )
     base = dict(rule="envelope", deficit=deficit[0], deficit_se=dse[0], tolerance_name=tol.name)
     gap = float(deficit[0, index])
     notes = []
@@ -648,17 +712,29 @@ def envelope_saturation(
     if n_missing:
         notes.append(f"{n_missing} of {s.size} seed x participant x point scores are missing (NaN) and were skipped")
     if n_seeds < 2:
-        notes.append("one seed: the best point is chosen and measured on the same runs (no cross-fitting over "
-                     "seeds, so the best is biased high and the requirement errs fine)")
+        notes.append(
+            "one seed: the best point is chosen and measured on the same runs (no cross-fitting over "
+            "seeds, so the best is biased high and the requirement errs fine)"
+        )
     if finest_outside:
-        notes.append("even the finest point swept is outside the tolerance of the best: the curve falls at the fine "
-                     "end, so no swept resolution keeps every finer one within tolerance")
+        notes.append(
+            "even the finest point swept is outside the tolerance of the best: the curve falls at the fine "
+            "end, so no swept resolution keeps every finer one within tolerance"
+        )
     tol_at = float(allowed[0, index])
     if n_part < 2 or n_boot == 0:
-        notes.insert(0, "only one participant: no standard error and no bootstrap interval" if n_part < 2
-                     else "no bootstrap requested (n_boot=0): no interval")
-        return (Saturation(index, best_index, tol_at, stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes),
-                           **base), env)
+        notes.insert(
+            0,
+            "only one participant: no standard error and no bootstrap interval"
+            if n_part < 2
+            else "no bootstrap requested (n_boot=0): no interval",
+        )
+        return (
+            Saturation(
+                index, best_index, tol_at, stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes), **base
+            ),
+            env,
+        )
 
     rng = np.random.default_rng(seed)
     boot_sel = np.empty(n_boot, dtype=np.int64)
@@ -674,8 +750,24 @@ def envelope_saturation(
         else:
             wb = np.ones((b, 1))
         sel_b, _, def_b, _, _, _, _ = _envelope_rule(sb, wb, tol, floor, z)
-        boot_sel[start:start + b] = sel_b
-        boot_gap[start:start + b] = def_b[np.arange(b), index]
+        boot_sel[start : start + b] = sel_b
+        boot_gap[start : start + b] = def_b[np.arange(b), index]
     interval, picked, gap_interval = _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
-    return (Saturation(index, best_index, tol_at, stats, n_part, interval, ci, int(picked.size), picked, gap,
-                       gap_interval, "; ".join(notes), **base), env)
+    return (
+        Saturation(
+            index,
+            best_index,
+            tol_at,
+            stats,
+            n_part,
+            interval,
+            ci,
+            int(picked.size),
+            picked,
+            gap,
+            gap_interval,
+            "; ".join(notes),
+            **base,
+        ),
+        env,
+    )

@@ -47,14 +47,36 @@ STATUS_FILE = "sphri_status.json"
 _RUN_ID = re.compile(r"^[0-9a-f]{32}$")
 
 #: Group keys shown first, in this order, when they vary.
-KEY_ORDER = ("variant", "robot", "data", "surface", "layout", "encoder", "noise", "filter", "window", "contact", "model", "cv")
+KEY_ORDER = (
+    "variant",
+    "robot",
+    "data",
+    "surface",
+    "layout",
+    "encoder",
+    "noise",
+    "filter",
+    "window",
+    "contact",
+    "model",
+    "cv",
+)
 
 #: The param whose values are replicates of one sweep point, not groups (the run's ``seed``).
 REPLICATE_KEY = "seed"
 
 #: Per-resolution columns read from the jobs' ``resolution.*`` params (floats).
-RESOLUTION_PARAMS = ("n_taxels", "grid_h", "grid_w", "pitch_u_mm", "pitch_v_mm", "area_per_taxel_cm2",
-                     "taxels_per_24cm", "link_length_mm", "circumference_mm")
+RESOLUTION_PARAMS = (
+    "n_taxels",
+    "grid_h",
+    "grid_w",
+    "pitch_u_mm",
+    "pitch_v_mm",
+    "area_per_taxel_cm2",
+    "taxels_per_24cm",
+    "link_length_mm",
+    "circumference_mm",
+)
 
 
 class ReportError(ValueError):
@@ -84,7 +106,7 @@ class Sweep:
 
     @property
     def synthetic(self) -> str:
-        """"all", "some" or "none": whether the jobs ran on SYNTHETIC data."""
+        """ "all", "some" or "none": whether the jobs ran on SYNTHETIC data."""
         flags = self.runs["synthetic"].astype(bool)
         return "all" if flags.all() else ("some" if flags.any() else "none")
 
@@ -101,7 +123,9 @@ def _natural(s: str) -> list[Any]:
     return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]
 
 
-def resolve_source(source: str | Path, uri: str | None = None, output_dir: str | Path = "outputs") -> tuple[str, str, Path | None]:
+def resolve_source(
+    source: str | Path, uri: str | None = None, output_dir: str | Path = "outputs"
+) -> tuple[str, str, Path | None]:
     """(parent run id, tracking URI, sweep dir or None) for a sweep dir or a parent run id."""
     path = Path(source)
     if path.is_dir():
@@ -115,7 +139,9 @@ def resolve_source(source: str | Path, uri: str | None = None, output_dir: str |
             info = json.loads(parent_file.read_text())
             run_id = str(info["run_id"])
         except (ValueError, KeyError) as exc:
-            raise ReportError(f"{parent_file}: unreadable ({type(exc).__name__}: {exc}); expected {{run_id, sweep_id, uri}}") from None
+            raise ReportError(
+                f"{parent_file}: unreadable ({type(exc).__name__}: {exc}); expected {{run_id, sweep_id, uri}}"
+            ) from None
         return run_id, uri or str(info.get("uri") or default_uri(output_dir)), path.resolve()
     text = str(source).strip()
     if _RUN_ID.match(text):
@@ -133,7 +159,7 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
 
     os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")  # one bar per job is noise here
     parent_id, uri, sweep_dir = resolve_source(source, uri, output_dir)
-    if uri.startswith("sqlite:///") and not Path(uri[len("sqlite:///"):]).exists():
+    if uri.startswith("sqlite:///") and not Path(uri[len("sqlite:///") :]).exists():
         raise ReportError(f"tracking store {uri} does not exist (wrong --output-dir or --uri?)")
     client = MlflowClient(tracking_uri=uri)
     try:
@@ -169,7 +195,9 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
     failed_runs = [r for r in runs if r.info.status == "FAILED"]
     other = [r for r in runs if r.info.status not in ("FINISHED", "FAILED")]
     if other:
-        notes.append(f"{len(other)} job(s) not finished ({', '.join(sorted({r.info.status for r in other}))}): left out")
+        notes.append(
+            f"{len(other)} job(s) not finished ({', '.join(sorted({r.info.status for r in other}))}): left out"
+        )
     if not finished:
         raise ReportError(f"sweep {sweep_id}: none of its {len(runs)} jobs finished; nothing to report")
 
@@ -178,29 +206,39 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
     n_before = len(table)
     table = table.drop_duplicates("config_hash", keep="last")
     if len(table) < n_before:
-        notes.append(f"{n_before - len(table)} duplicate job(s) with the same config hash: the latest run of each is used")
+        notes.append(
+            f"{n_before - len(table)} duplicate job(s) with the same config hash: the latest run of each is used"
+        )
 
     params = {r.info.run_id: dict(r.data.params) for r in finished}
     keys = group_keys([params[rid] for rid in table["run_id"]])
     for k in keys:  # "key.robot" (the component choice) beside "robot" (the robot's name)
         table[f"key.{k}"] = [params[rid].get(k, "") for rid in table["run_id"]]
-    table["group"] = [group_label({k: params[rid].get(k, "") for k in keys}, model)
-                      for rid, model in zip(table["run_id"], table["model"])]
+    table["group"] = [
+        group_label({k: params[rid].get(k, "") for k in keys}, model)
+        for rid, model in zip(table["run_id"], table["model"])
+    ]
     n_before = len(table)
     table["seed"] = [params[rid].get(REPLICATE_KEY, "0") for rid in table["run_id"]]
     table = table.drop_duplicates(["group", "res", "seed"], keep="last")
     if len(table) < n_before:
-        notes.append(f"{n_before - len(table)} job(s) repeat a (group, resolution, seed) with a different config: "
-                     "the latest is used")
+        notes.append(
+            f"{n_before - len(table)} job(s) repeat a (group, resolution, seed) with a different config: "
+            "the latest is used"
+        )
     table = table.reset_index(drop=True)
 
-    folds = pd.concat([_fold_rows(client, r) for r in finished if r.info.run_id in set(table["run_id"])], ignore_index=True)
+    folds = pd.concat(
+        [_fold_rows(client, r) for r in finished if r.info.run_id in set(table["run_id"])], ignore_index=True
+    )
     no_scores = sorted(set(table["run_id"]) - set(folds["run_id"]))
     if no_scores:
         notes.append(f"{len(no_scores)} job(s) logged no per-participant scores: left out")
         table = table[~table["run_id"].isin(no_scores)].reset_index(drop=True)
     if table.empty:
-        raise ReportError(f"sweep {sweep_id}: no finished job has per-participant scores (per_participant.csv or participant/<id>/accuracy)")
+        raise ReportError(
+            f"sweep {sweep_id}: no finished job has per-participant scores (per_participant.csv or participant/<id>/accuracy)"
+        )
 
     failed = []
     done = set(zip(table["group"], table["res"].astype(str)))
@@ -211,12 +249,14 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
         if (label, p.get("encoder.res", "?")) in done:
             n_superseded += 1  # failed once, finished on a resumed run
             continue
-        failed.append({
-            "run_id": r.info.run_id,
-            "res": p.get("encoder.res", "?"),
-            "group": label,
-            "error": r.data.tags.get("sphri.error", "no error recorded"),
-        })
+        failed.append(
+            {
+                "run_id": r.info.run_id,
+                "res": p.get("encoder.res", "?"),
+                "group": label,
+                "error": r.data.tags.get("sphri.error", "no error recorded"),
+            }
+        )
     if n_superseded:
         notes.append(f"{n_superseded} failed job run(s) were superseded by a finished run of the same point")
     return Sweep(parent_id, uri, sweep_id, sweep_dir, ptags, table, folds, keys, failed, notes)
@@ -245,7 +285,9 @@ def _run_row(run: Any) -> dict[str, Any]:
     try:
         res = int(p["encoder.res"])
     except (KeyError, ValueError):
-        raise ReportError(f"job run {run.info.run_id} has no integer param encoder.res (got {p.get('encoder.res')!r})") from None
+        raise ReportError(
+            f"job run {run.info.run_id} has no integer param encoder.res (got {p.get('encoder.res')!r})"
+        ) from None
     row: dict[str, Any] = {
         "run_id": run.info.run_id,
         "start_time": int(run.info.start_time or 0),
@@ -297,8 +339,14 @@ def group_keys(params: list[dict[str, str]]) -> list[str]:
     """
     if not params:
         return []
-    candidates = sorted({k for p in params for k in p
-                         if k not in ("encoder.res", REPLICATE_KEY) and not k.startswith(("resolution.", "meta."))})
+    candidates = sorted(
+        {
+            k
+            for p in params
+            for k in p
+            if k not in ("encoder.res", REPLICATE_KEY) and not k.startswith(("resolution.", "meta."))
+        }
+    )
     varying = [k for k in candidates if len({p.get(k, "") for p in params}) > 1]
     seeds = {p.get(REPLICATE_KEY, "") for p in params}
     if len(seeds) > 1:  # settings the seed alone fixes (model.seed: ${seed}) vary with the replicates, not by group
@@ -333,7 +381,7 @@ def group_label(values: dict[str, str], model: str) -> str:
     if not values or not any(values.values()):
         return model
     if len(values) == 1:
-        (k, v), = values.items()
+        ((k, v),) = values.items()
         return v if "." not in k else f"{k}={v}"
     return ", ".join(f"{k}={v}" for k, v in values.items())
 
@@ -353,8 +401,11 @@ def _fold_rows(client: Any, run: Any) -> pd.DataFrame:
         df = df.rename(columns={"fold": "participant"})
     else:
         pat = re.compile(r"^participant/(?P<p>.+)/accuracy$")
-        rows = [{"participant": m.group("p"), "accuracy": float(v)}
-                for k, v in run.data.metrics.items() if (m := pat.match(k))]
+        rows = [
+            {"participant": m.group("p"), "accuracy": float(v)}
+            for k, v in run.data.metrics.items()
+            if (m := pat.match(k))
+        ]
         df = pd.DataFrame(rows, columns=["participant", "accuracy"])
     for c in cols:
         if c not in df.columns:

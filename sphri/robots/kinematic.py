@@ -20,8 +20,9 @@ resolution study runs on any of them (``data.regions=[upper_arm_l]``).
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -183,7 +184,7 @@ class WholeBodyRobot(Robot):
                     return mult * value(src, depth + 1) + off
                 return np.broadcast_to(np.asarray(joints.get(name, self.rest.get(name, 0.0)), dtype=np.float64), (f,))
 
-            for i, name in enumerate(tree.links):
+            for i, _name in enumerate(tree.links):
                 m = (root if tree.parent[i] < 0 else out[:, tree.parent[i]]) @ tree.origin[i]
                 for step in tree.steps[i]:
                     mot = np.tile(np.eye(4), (f, 1, 1))
@@ -195,10 +196,12 @@ class WholeBodyRobot(Robot):
                     m = m @ mot @ step.after
                 out[:, i] = m
             return out
-        for i, name in enumerate(tree.links):
+        for i, _name in enumerate(tree.links):
             m = (root if tree.parent[i] < 0 else out[:, tree.parent[i]]) @ tree.origin[i]
             for jname, axis in tree.joints[i]:
-                angle = np.broadcast_to(np.asarray(joints.get(jname, self.rest.get(jname, 0.0)), dtype=np.float64), (f,))
+                angle = np.broadcast_to(
+                    np.asarray(joints.get(jname, self.rest.get(jname, 0.0)), dtype=np.float64), (f,)
+                )
                 rot = np.tile(np.eye(4), (f, 1, 1))
                 rot[:, :3, :3] = rotation_about(axis, angle)
                 m = m @ rot
@@ -226,8 +229,14 @@ class KinematicRobot:
 
     VERSION = "1"
 
-    def __init__(self, name: str, links: Mapping[str, Any], parts: Mapping[str, Any], groups: Mapping[str, Any] | None = None,
-                 rest: Mapping[str, float] | None = None):
+    def __init__(
+        self,
+        name: str,
+        links: Mapping[str, Any],
+        parts: Mapping[str, Any],
+        groups: Mapping[str, Any] | None = None,
+        rest: Mapping[str, float] | None = None,
+    ):
         self.name = str(name)
         spec = check_kinematic(links, parts, groups, rest)  # the schema's checks (sphri.robots.schema)
         self.specs = spec.links
@@ -249,8 +258,15 @@ class KinematicRobot:
             owners = {by_part[m] for m in members}
             if len(owners) == 1:
                 regions[g] = owners.pop()
-        return WholeBodyRobot(name=self.name, links=links, regions=regions, tree=self.tree, parts=tuple(self.parts),
-                              groups={k: tuple(v) for k, v in self.groups.items()}, rest=dict(self.rest))
+        return WholeBodyRobot(
+            name=self.name,
+            links=links,
+            regions=regions,
+            tree=self.tree,
+            parts=tuple(self.parts),
+            groups={k: tuple(v) for k, v in self.groups.items()},
+            rest=dict(self.rest),
+        )
 
 
 def build_tree(specs: Mapping[str, dict]) -> JointTree:
@@ -272,4 +288,3 @@ def build_tree(specs: Mapping[str, dict]) -> JointTree:
 def check_parts(parts: Any, specs: Mapping[str, Any]) -> list[BodyPart]:
     """``robot.parts`` as :class:`BodyPart` (checks: :func:`sphri.robots.schema.check_part_specs`)."""
     return [BodyPart(**p) for p in check_part_specs(parts, specs)]
-

@@ -8,8 +8,8 @@ be in the link's own frame, and validated by
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping, Optional
 
 from sphri.config import ConfigError, require_choice
 from sphri.robots.schema import UNITS, check_regions, check_str_map
@@ -32,10 +32,10 @@ class MeshRobot:
 
     def __init__(
         self,
-        links: Optional[Mapping[str, str]],
-        regions: Optional[Mapping[str, str]],
+        links: Mapping[str, str] | None,
+        regions: Mapping[str, str] | None,
         name: str = "mesh",
-        root: Optional[str] = None,
+        root: str | None = None,
         root_required: bool = False,
         units: str = "auto",
     ):
@@ -73,6 +73,12 @@ class MeshRobot:
             for name, path in self.paths().items()
         }
         for link in links.values():
-            log.info("robot %s: link %s: %d vertices, %d faces, watertight=%s",
-                     self.name, link.name, len(link.vertices), len(link.faces), link.watertight)
+            log.info(
+                "robot %s: link %s: %d vertices, %d faces, watertight=%s",
+                self.name,
+                link.name,
+                len(link.vertices),
+                len(link.faces),
+                link.watertight,
+            )
         return Robot(name=self.name, links=links, regions=dict(self.regions))

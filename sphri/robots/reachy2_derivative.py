@@ -99,7 +99,7 @@ def _strip(el: ET.Element, keep: set[str]) -> None:
 
 def derive(src: Path, out: Path = OUT, budget: int = FACE_BUDGET) -> dict:
     """Write the derivative (see the module docstring); returns the manifest."""
-    from sphri.robots.urdf_tree import GEOMETRY_ORDER, _XACRO, MeshResolver, mesh_uri
+    from sphri.robots.urdf_tree import _XACRO, GEOMETRY_ORDER, MeshResolver, mesh_uri
 
     src = Path(src)
     urdf = src / "reachy2.urdf"
@@ -142,14 +142,24 @@ def derive(src: Path, out: Path = OUT, budget: int = FACE_BUDGET) -> dict:
         m = trimesh.load(str(src / "obj_meshes" / info["source"]), process=False, force="mesh")
         d = decimate_to(m, budget)
         d.export(str(out / "meshes" / f"{key}.ply"), file_type="ply", encoding="binary")
-        info.update(faces_source=int(len(m.faces)), faces=int(len(d.faces)),
-                    area_cm2_source=round(float(m.area) * 1e4, 1), area_cm2=round(float(d.area) * 1e4, 1))
-        info.update({k: round(v, 3) for k, v in surface_error_mm(m, d).items()} if len(d.faces) < len(m.faces)
-                    else {"max_mm": 0.0, "mean_mm": 0.0})
+        info.update(
+            faces_source=int(len(m.faces)),
+            faces=int(len(d.faces)),
+            area_cm2_source=round(float(m.area) * 1e4, 1),
+            area_cm2=round(float(d.area) * 1e4, 1),
+        )
+        info.update(
+            {k: round(v, 3) for k, v in surface_error_mm(m, d).items()}
+            if len(d.faces) < len(m.faces)
+            else {"max_mm": 0.0, "mean_mm": 0.0}
+        )
     ET.indent(new)
-    text = ("<?xml version=\"1.0\"?>\n<!-- Derived from Pollen Robotics' Reachy 2 description (Apache-2.0; see SOURCE.md "
-            "and LICENSE beside this file) by sphri.robots.reachy2_derivative. -->\n" + ET.tostring(new, encoding="unicode")
-            + "\n")
+    text = (
+        '<?xml version="1.0"?>\n<!-- Derived from Pollen Robotics\' Reachy 2 description (Apache-2.0; see SOURCE.md '
+        "and LICENSE beside this file) by sphri.robots.reachy2_derivative. -->\n"
+        + ET.tostring(new, encoding="unicode")
+        + "\n"
+    )
     (out / "reachy2.urdf").write_text(text)
     shutil.copyfile(src / "LICENSE", out / "LICENSE")
     manifest = {"source": str(urdf.name), "face_budget": budget, "error_samples": ERROR_SAMPLES, "meshes": meshes}
@@ -163,29 +173,31 @@ def source_md(manifest: dict, src: Path) -> str:
 
     origin = (src / "SOURCE.md").read_text() if (src / "SOURCE.md").is_file() else ""
     found = re.search(r"\b[0-9a-f]{40}\b", origin)
-    when = re.search(r"\(\d{4}-\d{2}-\d{2}\)", origin[found.end():found.end() + 20]) if found else None
+    when = re.search(r"\(\d{4}-\d{2}-\d{2}\)", origin[found.end() : found.end() + 20]) if found else None
     commit = f"commit {found.group(0)}{' ' + when.group(0) if when else ''}" if found else ""
     rows = "\n".join(
         f"| {k}.ply | {v['source']} | {v['faces_source']} | {v['faces']} | {v['area_cm2_source']} | {v['area_cm2']} | "
-        f"{v['max_mm']:.2f} | {v['mean_mm']:.3f} |" for k, v in sorted(manifest["meshes"].items()))
+        f"{v['max_mm']:.2f} | {v['mean_mm']:.3f} |"
+        for k, v in sorted(manifest["meshes"].items())
+    )
     return f"""# Reachy 2 (Pollen Robotics): a compact derivative shipped with sphri
 
 Derived from Pollen Robotics' Reachy 2 description: the public repository
 pollen-robotics/reachy2_mujoco, folder `reachy2_mujoco/description/`
-({commit or 'commit: see the source folder SOURCE.md'}).
+({commit or "commit: see the source folder SOURCE.md"}).
 Copyright Pollen Robotics, licensed under the Apache License 2.0 (`LICENSE`
 beside this file). Modified by sphri: the URDF is reduced (comments,
 inertials, limits, materials, gazebo / transmission / ros2_control elements
 removed; per link only the geometry sphri loads: collision meshes, else visual
 meshes, else primitives) and the meshes are converted to binary PLY and
-decimated by vertex clustering to at most {manifest['face_budget']} faces each.
+decimated by vertex clustering to at most {manifest["face_budget"]} faces each.
 
 Regenerate (needs the full description, e.g. ../shared/robots/reachy2):
 
-    python -m sphri.robots.reachy2_derivative --src ../shared/robots/reachy2 --faces {manifest['face_budget']}
+    python -m sphri.robots.reachy2_derivative --src ../shared/robots/reachy2 --faces {manifest["face_budget"]}
 
 Surface error of each shipped mesh against its source, from
-{manifest['error_samples']} area-weighted samples on each surface to the other
+{manifest["error_samples"]} area-weighted samples on each surface to the other
 (the larger of the two directions), in mm:
 
 | file | source | faces (source) | faces | area cm^2 (source) | area cm^2 | max error mm | mean error mm |
@@ -202,7 +214,9 @@ def main(argv: list[str] | None = None) -> int:
     a = ap.parse_args(argv)
     m = derive(Path(a.src), Path(a.out), a.faces)
     for k, v in sorted(m["meshes"].items()):
-        print(f"{k}: {v['faces_source']} -> {v['faces']} faces, error max {v['max_mm']:.2f} mm, mean {v['mean_mm']:.3f} mm")
+        print(
+            f"{k}: {v['faces_source']} -> {v['faces']} faces, error max {v['max_mm']:.2f} mm, mean {v['mean_mm']:.3f} mm"
+        )
     return 0
 
 

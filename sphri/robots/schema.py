@@ -13,9 +13,10 @@ implementation, so composing a config never loads a mesh library.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Optional
+from typing import Any
 
 from omegaconf import MISSING
 
@@ -41,7 +42,9 @@ def _get(spec: Any, key: str) -> Any:
 def check_parametric_link(spec: Any, key: str) -> None:
     """Range-check one parametric link (mapping or :class:`ParametricLinkSpec`); ``key`` e.g. ``robot.links.l_arm``."""
     size = list(_get(spec, "size_m"))
-    require(len(size) == 3 and all(s > 0 for s in size), f"{key}.size_m", size, "3 extents (x, y, z) in metres, all > 0")
+    require(
+        len(size) == 3 and all(s > 0 for s in size), f"{key}.size_m", size, "3 extents (x, y, z) in metres, all > 0"
+    )
     centre = list(_get(spec, "center_m"))
     require(len(centre) == 3, f"{key}.center_m", centre, "3 coordinates (x, y, z) in metres")
     require_choice(f"{key}.axis", _get(spec, "axis"), AXES)
@@ -52,15 +55,27 @@ def check_parametric_link(spec: Any, key: str) -> None:
     require(len(prof) >= 2, f"{key}.profile", prof, "at least 2 stations [t, scale_a, scale_b]")
     for i, row in enumerate(prof):
         require(len(row) == 3, f"{key}.profile[{i}]", row, "[t, scale_a, scale_b]: 3 numbers")
-        require(0.0 < row[1] <= 1.0 and 0.0 < row[2] <= 1.0, f"{key}.profile[{i}]", row,
-                "scales must lie in (0, 1] (fractions of size_m)")
+        require(
+            0.0 < row[1] <= 1.0 and 0.0 < row[2] <= 1.0,
+            f"{key}.profile[{i}]",
+            row,
+            "scales must lie in (0, 1] (fractions of size_m)",
+        )
     ts = [row[0] for row in prof]
-    require(ts[0] == 0.0 and ts[-1] == 1.0 and all(b > a for a, b in zip(ts, ts[1:])), f"{key}.profile", ts,
-            "stations t must rise strictly from 0 to 1 (fractions of the length along axis)")
+    require(
+        ts[0] == 0.0 and ts[-1] == 1.0 and all(b > a for a, b in zip(ts, ts[1:])),
+        f"{key}.profile",
+        ts,
+        "stations t must rise strictly from 0 to 1 (fractions of the length along axis)",
+    )
     for col, label in ((1, "scale_a"), (2, "scale_b")):
         top = max(row[col] for row in prof)
-        require(abs(top - 1.0) < 1e-9, f"{key}.profile", prof,
-                f"the largest {label} must be 1 so that size_m is the link's true size (found {top:g})")
+        require(
+            abs(top - 1.0) < 1e-9,
+            f"{key}.profile",
+            prof,
+            f"the largest {label} must be 1 so that size_m is the link's true size (found {top:g})",
+        )
 
 
 def loft_spec(spec: Any, key: str) -> dict[str, Any]:
@@ -151,7 +166,7 @@ class MeshRobotSchema:
     """Link name -> mesh file (relative paths are relative to ``root``)."""
     regions: Any = None
     """Skin region -> link name."""
-    root: Optional[str] = None
+    root: str | None = None
     """Folder that relative paths start from (None: the working directory)."""
     root_required: bool = False
     """Refuse to build when ``root`` is None (robots whose meshes come with a dataset)."""
@@ -171,9 +186,9 @@ class UrdfRobotSchema:
 
     _target_: str = "sphri.robots.urdf.UrdfRobot"
     name: str = "urdf"
-    path: Optional[str] = input_path(None, references="sphri.robots.urdf:mesh_files")
+    path: str | None = input_path(None, references="sphri.robots.urdf:mesh_files")
     """The URDF file; ``package://`` mesh URIs resolve relative to its folder (or ``mesh_root``)."""
-    builtin: Optional[str] = None
+    builtin: str | None = None
     """A description that ships inside sphri instead of ``path``: reachy2 (robot=reachy2)."""
     links: Any = None
     """URDF links to load (each mesh in that link's own frame); with ``parts``: null loads every link that loads."""
@@ -197,23 +212,37 @@ class UrdfRobotSchema:
     """Whole-body robot: joint name -> value of the rest pose (others 0)."""
     exclude: Any = None
     """Whole-body robot: links left out (named in the skipped-link report)."""
-    mesh_root: Optional[str] = input_path(None, kind="dir")
+    mesh_root: str | None = input_path(None, kind="dir")
     """Folder that mesh URIs resolve against (null: the URDF's folder)."""
 
     def __post_init__(self) -> None:
-        require(self.path not in (None, "") or self.builtin is not None, "robot.path", self.path,
-                "the URDF file (or robot.builtin=reachy2)")
+        require(
+            self.path not in (None, "") or self.builtin is not None,
+            "robot.path",
+            self.path,
+            "the URDF file (or robot.builtin=reachy2)",
+        )
         if self.builtin is not None:
             require_choice("robot.builtin", self.builtin, list(BUILTIN))
         require_choice("robot.units", self.units, UNITS)
         if self.parts is not None:
             require_choice("robot.geometry", self.geometry, GEOMETRIES + ("auto",))
-            require(self.regions is None, "robot.regions", self.regions,
-                    "null for a whole-body robot (regions come from robot.parts)")
-            require(self.links is None or len(self.links) > 0, "robot.links", self.links, "null (every link) or link names")
+            require(
+                self.regions is None,
+                "robot.regions",
+                self.regions,
+                "null for a whole-body robot (regions come from robot.parts)",
+            )
+            require(
+                self.links is None or len(self.links) > 0, "robot.links", self.links, "null (every link) or link names"
+            )
             return
-        require(self.links is not None and len(self.links) > 0, "robot.links", self.links,
-                "at least one URDF link name (or robot.parts for a whole-body robot)")
+        require(
+            self.links is not None and len(self.links) > 0,
+            "robot.links",
+            self.links,
+            "at least one URDF link name (or robot.parts for a whole-body robot)",
+        )
         require(len(set(self.links)) == len(self.links), "robot.links", list(self.links), "names must be unique")
         check_regions(check_str_map(self.regions, "robot.regions", "skin region -> link"), list(self.links))
         require_choice("robot.geometry", self.geometry, GEOMETRIES)
@@ -225,11 +254,20 @@ def check_joints(joints: Any) -> dict[str, float]:
     """``robot.joints`` as ``{name: float}`` (None -> {})."""
     if joints is None:
         return {}
-    require(isinstance(joints, Mapping) or hasattr(joints, "items"), "robot.joints", joints,
-            "a mapping joint name -> value (radians), e.g. robot.joints={r_elbow: 1.57}")
+    require(
+        isinstance(joints, Mapping) or hasattr(joints, "items"),
+        "robot.joints",
+        joints,
+        "a mapping joint name -> value (radians), e.g. robot.joints={r_elbow: 1.57}",
+    )
     out = {}
     for k, v in joints.items():
-        require(isinstance(v, (int, float)) and not isinstance(v, bool), f"robot.joints.{k}", v, "a number (radians or metres)")
+        require(
+            isinstance(v, (int, float)) and not isinstance(v, bool),
+            f"robot.joints.{k}",
+            v,
+            "a number (radians or metres)",
+        )
         out[str(k)] = float(v)
     return out
 
@@ -238,8 +276,12 @@ def check_merge(merge: Any, links: list[str]) -> dict[str, list[str]]:
     """``robot.merge`` as ``{link: [descendant links]}`` (None -> {})."""
     if merge is None:
         return {}
-    require(isinstance(merge, Mapping) or hasattr(merge, "items"), "robot.merge", merge,
-            "a mapping link -> [descendant links], e.g. robot.merge={l_upper_arm: [l_forearm]}")
+    require(
+        isinstance(merge, Mapping) or hasattr(merge, "items"),
+        "robot.merge",
+        merge,
+        "a mapping link -> [descendant links], e.g. robot.merge={l_upper_arm: [l_forearm]}",
+    )
     out = {}
     for link, extra in merge.items():
         require(link in links, f"robot.merge.{link}", link, f"must be one of robot.links {links}")
@@ -282,8 +324,13 @@ def check_tree_link(spec: Any, key: str) -> dict[str, Any]:
         raise ConfigError(f"{key}.shape is missing: a loft (size_m, center_m, axis, profile, ...)")
     shape = loft_spec(shape, f"{key}.shape")
     check_parametric_link(shape, f"{key}.shape")
-    return {"parent": None if parent in (None, "") else str(parent), "xyz": xyz, "rpy": rpy, "joints": joints,
-            "shape": shape}
+    return {
+        "parent": None if parent in (None, "") else str(parent),
+        "xyz": xyz,
+        "rpy": rpy,
+        "joints": joints,
+        "shape": shape,
+    }
 
 
 def tree_order(specs: Mapping[str, dict]) -> list[str]:
@@ -338,12 +385,21 @@ def check_part_specs(parts: Any, links: Mapping[str, Any]) -> list[dict[str, Any
         min_cos = float(_opt(spec, "min_cos", 0.0) or 0.0)
         if not 0.0 <= min_cos < 1.0 or (min_cos > 0 and side is None):
             raise ConfigError(f"{key}.min_cos={min_cos} is invalid: in [0, 1), and only with a side")
-        unknown = sorted(set(spec.keys() if hasattr(spec, "keys") else []) - {"link", "side", "z_min", "z_max", "min_cos"})
+        unknown = sorted(
+            set(spec.keys() if hasattr(spec, "keys") else []) - {"link", "side", "z_min", "z_max", "min_cos"}
+        )
         if unknown:
             raise ConfigError(f"{key}: unknown key(s) {unknown}; allowed: link, side, z_min, z_max, min_cos")
-        out.append({"name": str(name), "link": str(link), "side": None if side is None else str(side),
-                    "z_min": None if z_min is None else float(z_min), "z_max": None if z_max is None else float(z_max),
-                    "min_cos": min_cos})
+        out.append(
+            {
+                "name": str(name),
+                "link": str(link),
+                "side": None if side is None else str(side),
+                "z_min": None if z_min is None else float(z_min),
+                "z_max": None if z_max is None else float(z_max),
+                "min_cos": min_cos,
+            }
+        )
     return out
 
 

@@ -17,8 +17,9 @@ without ``merge`` every link stays in its own frame and joints are unused.
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Optional, Sequence
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -30,6 +31,7 @@ from sphri.robots.validate import MeshError, make_link, read_mesh
 from sphri.types import Robot
 
 log = logging.getLogger(__name__)
+
 
 def mesh_files(urdf_path: Path) -> list[Path]:
     """The mesh files a URDF names that resolve to a file (its cache fingerprint covers them).
@@ -50,7 +52,7 @@ def mesh_files(urdf_path: Path) -> list[Path]:
     return out
 
 
-def primitive_mesh(geometry: Any) -> Optional[trimesh.Trimesh]:
+def primitive_mesh(geometry: Any) -> trimesh.Trimesh | None:
     """Trimesh of a URDF box/cylinder/sphere geometry (metres), None for a mesh or a zero-size primitive."""
     if geometry.box is not None:
         size = np.asarray(geometry.box.size, dtype=np.float64)
@@ -98,20 +100,20 @@ class UrdfRobot:
 
     def __init__(
         self,
-        path: Optional[str] = None,
-        links: Optional[Sequence[str]] = None,
-        regions: Optional[Mapping[str, str]] = None,
+        path: str | None = None,
+        links: Sequence[str] | None = None,
+        regions: Mapping[str, str] | None = None,
         name: str = "urdf",
         geometry: str = "collision",
-        joints: Optional[Mapping[str, float]] = None,
-        merge: Optional[Mapping[str, Sequence[str]]] = None,
+        joints: Mapping[str, float] | None = None,
+        merge: Mapping[str, Sequence[str]] | None = None,
         units: str = "auto",
-        builtin: Optional[str] = None,
+        builtin: str | None = None,
         parts: Any = None,
         groups: Any = None,
         rest: Any = None,
-        exclude: Optional[Sequence[str]] = None,
-        mesh_root: Optional[str] = None,
+        exclude: Sequence[str] | None = None,
+        mesh_root: str | None = None,
     ):
         if builtin is not None:
             require_choice("robot.builtin", builtin, list(BUILTIN))
@@ -126,9 +128,19 @@ class UrdfRobot:
             # a whole kinematic robot (sphri.robots.urdf_tree): every link that loads, parts from YAML
             if regions is not None:
                 raise ConfigError("robot.regions must be null for a whole-body robot: regions come from robot.parts")
-            self.whole_body = UrdfWholeBody(self.path, parts, name=self.name, groups=groups, rest=rest, exclude=exclude,
-                                            merge=merge, links=links, mesh_root=mesh_root, geometry=str(geometry),
-                                            units=str(units))
+            self.whole_body = UrdfWholeBody(
+                self.path,
+                parts,
+                name=self.name,
+                groups=groups,
+                rest=rest,
+                exclude=exclude,
+                merge=merge,
+                links=links,
+                mesh_root=mesh_root,
+                geometry=str(geometry),
+                units=str(units),
+            )
             return
         if links is None:
             raise ConfigError("robot.links is missing: URDF link names to load (or robot.parts for a whole-body robot)")
@@ -210,8 +222,9 @@ class UrdfRobot:
             mesh = trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
             if len(parts) > 1:
                 notes.append(f"{len(parts)} geometry elements concatenated (they may overlap)")
-            links[name] = make_link(name, mesh.vertices, mesh.faces, units=self.units,
-                                    source=f"{path.name} {self.geometry}", notes=notes)
+            links[name] = make_link(
+                name, mesh.vertices, mesh.faces, units=self.units, source=f"{path.name} {self.geometry}", notes=notes
+            )
         return Robot(name=self.name, links=links, regions=dict(self.regions))
 
     def _link_parts(self, urdf: Any, name: str, resolver: MeshResolver, notes: list[str]) -> list[trimesh.Trimesh]:
@@ -253,8 +266,10 @@ class UrdfRobot:
                             m.apply_transform(np.asarray(el.origin, dtype=np.float64))
                         fallback.append(m)
             if not fallback and parts:
-                msg = (f"{self.geometry} mesh file(s) missing ({'; '.join(missing)}) and no collision primitives: "
-                       f"using the {len(parts)} element(s) found")
+                msg = (
+                    f"{self.geometry} mesh file(s) missing ({'; '.join(missing)}) and no collision primitives: "
+                    f"using the {len(parts)} element(s) found"
+                )
                 log.warning("robot %s: link %s: %s", self.name, name, msg)
                 notes.append(msg)
                 return parts
@@ -263,8 +278,10 @@ class UrdfRobot:
                     f"link {name!r}: {self.geometry} mesh file(s) not found: {'; '.join(missing)}; "
                     f"and the link has no collision primitives to fall back to"
                 )
-            msg = (f"{self.geometry} mesh file(s) missing ({'; '.join(missing)}): "
-                   f"using the link's {len(fallback)} collision primitive(s) instead")
+            msg = (
+                f"{self.geometry} mesh file(s) missing ({'; '.join(missing)}): "
+                f"using the link's {len(fallback)} collision primitive(s) instead"
+            )
             log.warning("robot %s: link %s: %s", self.name, name, msg)
             notes.append(msg)
             parts = fallback

@@ -40,10 +40,11 @@ from __future__ import annotations
 import logging
 import re
 import xml.etree.ElementTree as ET
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any, Mapping, Optional, Sequence
+from typing import Any
 
 import numpy as np
 import trimesh
@@ -132,7 +133,7 @@ class UrdfModel:
         return out[::-1]
 
 
-def _floats(text: Optional[str], n: int, where: str, path: Path, default: Sequence[float]) -> tuple[float, ...]:
+def _floats(text: str | None, n: int, where: str, path: Path, default: Sequence[float]) -> tuple[float, ...]:
     if text is None:
         return tuple(float(x) for x in default)
     try:
@@ -146,7 +147,7 @@ def _floats(text: Optional[str], n: int, where: str, path: Path, default: Sequen
     return vals
 
 
-def _origin(el: Optional[ET.Element], where: str, path: Path) -> np.ndarray:
+def _origin(el: ET.Element | None, where: str, path: Path) -> np.ndarray:
     m = np.eye(4)
     if el is None:
         return m
@@ -167,16 +168,26 @@ def _geometries(link: ET.Element, tag: str, name: str, path: Path) -> list[Geome
         where = f"link {name!r} {tag}"
         origin = _origin(el.find("origin"), where, path)
         if shape.tag == "mesh":
-            out.append(Geometry("mesh", origin, filename=str(shape.get("filename", "")),
-                                scale=_floats(shape.get("scale"), 3, f"{where} mesh scale", path, (1, 1, 1))))
+            out.append(
+                Geometry(
+                    "mesh",
+                    origin,
+                    filename=str(shape.get("filename", "")),
+                    scale=_floats(shape.get("scale"), 3, f"{where} mesh scale", path, (1, 1, 1)),
+                )
+            )
         elif shape.tag == "box":
-            out.append(Geometry("box", origin, size=_floats(shape.get("size"), 3, f"{where} box size", path, (0, 0, 0))))
+            out.append(
+                Geometry("box", origin, size=_floats(shape.get("size"), 3, f"{where} box size", path, (0, 0, 0)))
+            )
         elif shape.tag == "cylinder":
             r = _floats(shape.get("radius"), 1, f"{where} cylinder radius", path, (0,))
             h = _floats(shape.get("length"), 1, f"{where} cylinder length", path, (0,))
             out.append(Geometry("cylinder", origin, size=(r[0], h[0])))
         elif shape.tag == "sphere":
-            out.append(Geometry("sphere", origin, size=_floats(shape.get("radius"), 1, f"{where} sphere radius", path, (0,))))
+            out.append(
+                Geometry("sphere", origin, size=_floats(shape.get("radius"), 1, f"{where} sphere radius", path, (0,)))
+            )
     return out
 
 
@@ -226,8 +237,13 @@ def parse_urdf(path: str | Path) -> UrdfModel:
         if child in joint_of:
             notes.append(f"joint {name!r} ignored: link {child!r} already has a parent joint {joint_of[child].name!r}")
             continue
-        axis = _floats(el.find("axis").get("xyz") if el.find("axis") is not None else None, 3, f"joint {name!r} axis",
-                       path, (1, 0, 0))
+        axis = _floats(
+            el.find("axis").get("xyz") if el.find("axis") is not None else None,
+            3,
+            f"joint {name!r} axis",
+            path,
+            (1, 0, 0),
+        )
         if kind in MOVABLE and not np.linalg.norm(axis) > 0:
             notes.append(f"joint {name!r}: zero axis, held fixed")
             kind = "fixed"
@@ -240,8 +256,9 @@ def parse_urdf(path: str | Path) -> UrdfModel:
             mult = _floats(mim.get("multiplier"), 1, f"joint {name!r} mimic multiplier", path, (1,))[0]
             off = _floats(mim.get("offset"), 1, f"joint {name!r} mimic offset", path, (0,))[0]
             mimic = (str(mim.get("joint", "")), mult, off)
-        joint_of[child] = UrdfJoint(name, kind, parent, child, _origin(el.find("origin"), f"joint {name!r}", path),
-                                    axis, mimic)
+        joint_of[child] = UrdfJoint(
+            name, kind, parent, child, _origin(el.find("origin"), f"joint {name!r}", path), axis, mimic
+        )
     # a cycle would leave every link of it with a parent: walk up from each link
     for start in links:
         seen, cur = set(), start
@@ -251,6 +268,7 @@ def parse_urdf(path: str | Path) -> UrdfModel:
             seen.add(cur)
             cur = joint_of[cur].parent
     roots = [n for n in links if n not in joint_of]
+
     # the root: the parentless link with the largest subtree
     def size(r: str) -> int:
         return sum(1 for n in links if _root_of(n, joint_of) == r)
@@ -291,12 +309,12 @@ class MeshResolver:
                 index.setdefault(p.name.lower(), []).append(p)
         return index
 
-    def resolve(self, uri: str) -> tuple[Optional[Path], list[Path], str]:
+    def resolve(self, uri: str) -> tuple[Path | None, list[Path], str]:
         """``(path or None, candidates tried, note)``; the note is empty for a direct hit."""
         rel = uri
         for prefix in ("package://", "file://", "model://"):
             if rel.startswith(prefix):
-                rel = rel[len(prefix):]
+                rel = rel[len(prefix) :]
                 break
         direct = Path(rel)
         if direct.is_absolute():
@@ -334,7 +352,7 @@ def mesh_uri(filename: str) -> str:
     return _FIND.sub(lambda m: f"package://{m.group(1)}/", filename)
 
 
-def _primitive(g: Geometry) -> Optional[trimesh.Trimesh]:
+def _primitive(g: Geometry) -> trimesh.Trimesh | None:
     if g.kind == "box":
         return trimesh.creation.box(extents=g.size) if all(s > 0 for s in g.size) else None
     if g.kind == "cylinder":
@@ -369,7 +387,9 @@ def _repaired_file(path: Path, scale: Sequence[float], units: str):
     return _REPAIRED[key]
 
 
-def link_geometry(link: UrdfLink, resolver, order, units: str = "auto") -> tuple[Optional[trimesh.Trimesh], str, list[str]]:
+def link_geometry(
+    link: UrdfLink, resolver, order, units: str = "auto"
+) -> tuple[trimesh.Trimesh | None, str, list[str]]:
     """``(mesh in the link frame or None, what it is made of, notes)`` by the preference ``order``."""
     notes: list[str] = []
     problems: list[str] = []
@@ -450,10 +470,20 @@ class UrdfWholeBody:
 
     VERSION = "1"
 
-    def __init__(self, path: str | Path, parts: Any, name: str = "urdf", groups: Any = None, rest: Any = None,
-                 exclude: Sequence[str] | None = None, merge: Mapping[str, Sequence[str]] | None = None,
-                 links: Sequence[str] | None = None, mesh_root: str | Path | None = None, geometry: str = "auto",
-                 units: str = "m"):
+    def __init__(
+        self,
+        path: str | Path,
+        parts: Any,
+        name: str = "urdf",
+        groups: Any = None,
+        rest: Any = None,
+        exclude: Sequence[str] | None = None,
+        merge: Mapping[str, Sequence[str]] | None = None,
+        links: Sequence[str] | None = None,
+        mesh_root: str | Path | None = None,
+        geometry: str = "auto",
+        units: str = "m",
+    ):
         self.path = Path(path).expanduser()
         self.name = str(name)
         spec = load_parts_spec(parts)
@@ -478,9 +508,12 @@ class UrdfWholeBody:
         skipped = list(model.skipped)
         gone = {n for n, r in skipped if r.startswith("not connected")}  # (a repeated name's first link stays)
         connected = [n for n in model.links if n not in gone]
-        for key, names in (("robot.exclude", self.exclude), ("robot.merge", list(self.merge) +
-                                                             [c for v in self.merge.values() for c in v]),
-                           ("robot.rest", []), ("robot.links", self.links or [])):
+        for key, names in (
+            ("robot.exclude", self.exclude),
+            ("robot.merge", list(self.merge) + [c for v in self.merge.values() for c in v]),
+            ("robot.rest", []),
+            ("robot.links", self.links or []),
+        ):
             bad = sorted(set(names) - set(model.links))
             if bad:
                 raise ConfigError(f"{key}: {bad} not links of {model.path}; its links: {sorted(model.links)}")
@@ -506,8 +539,10 @@ class UrdfWholeBody:
             geom[n] = mesh
             notes[n] = [f"geometry: {what}"] + nn
         if model.root not in geom:
-            raise ConfigError(f"{model.path}: the root link {model.root!r} has no loadable geometry; the whole-body tree "
-                              "needs its root (the base) to have a surface")
+            raise ConfigError(
+                f"{model.path}: the root link {model.root!r} has no loadable geometry; the whole-body tree "
+                "needs its root (the base) to have a surface"
+            )
         mimic = {j.name: j.mimic for j in model.joint_of.values() if j.mimic is not None}
         actuated = [j.name for j in model.joint_of.values() if j.kind in MOVABLE and j.mimic is None]
 
@@ -543,12 +578,17 @@ class UrdfWholeBody:
             mesh = geom[n]
             rep = mesh.metadata.get("sphri_link")
             if rep is not None:  # one validated mesh file, moved rigidly: no second repair
-                links[n] = Link(name=n, vertices=np.asarray(mesh.vertices, dtype=np.float64),
-                                faces=np.asarray(mesh.faces, dtype=np.int64), watertight=rep.watertight,
-                                notes=tuple(notes[n]) + tuple(rep.notes))
+                links[n] = Link(
+                    name=n,
+                    vertices=np.asarray(mesh.vertices, dtype=np.float64),
+                    faces=np.asarray(mesh.faces, dtype=np.int64),
+                    watertight=rep.watertight,
+                    notes=tuple(notes[n]) + tuple(rep.notes),
+                )
             else:
-                links[n] = make_link(n, mesh.vertices, mesh.faces, units="m", source=f"{model.path.name} {n}",
-                                     notes=notes[n])
+                links[n] = make_link(
+                    n, mesh.vertices, mesh.faces, units="m", source=f"{model.path.name} {n}", notes=notes[n]
+                )
         regions = {n: n for n in links}
         for p in part_list:
             regions[p.name] = p.link
@@ -561,20 +601,33 @@ class UrdfWholeBody:
         for _, r in skipped:
             key = r.split(" (")[0].split(":")[0]
             reasons[key] = reasons.get(key, 0) + 1
-        log.info("robot %s: %d links with a surface from %s; skipped %d links: %s", self.name,
-                 len(links), model.path, len(skipped), ", ".join(f"{k} ({v})" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1])))
+        log.info(
+            "robot %s: %d links with a surface from %s; skipped %d links: %s",
+            self.name,
+            len(links),
+            model.path,
+            len(skipped),
+            ", ".join(f"{k} ({v})" for k, v in sorted(reasons.items(), key=lambda kv: -kv[1])),
+        )
         for note in model.notes:
             log.info("robot %s: %s", self.name, note)
-        return WholeBodyRobot(name=self.name, links=links, regions=regions, tree=tree, parts=tuple(part_list),
-                              groups={k: tuple(v) for k, v in groups.items()}, rest=dict(self.rest),
-                              skipped=tuple(skipped))
+        return WholeBodyRobot(
+            name=self.name,
+            links=links,
+            regions=regions,
+            tree=tree,
+            parts=tuple(part_list),
+            groups={k: tuple(v) for k, v in groups.items()},
+            rest=dict(self.rest),
+            skipped=tuple(skipped),
+        )
 
     @staticmethod
     def _tree(model: UrdfModel, surface: list[str]) -> JointTree:
         """The :class:`JointTree` over the ``surface`` links, skipped frames folded into the joint chains."""
         keep = set(surface)
 
-        def anchor(n: str) -> Optional[str]:
+        def anchor(n: str) -> str | None:
             cur = n
             while cur in model.joint_of:
                 cur = model.joint_of[cur].parent
@@ -597,7 +650,7 @@ class UrdfWholeBody:
                 continue
             origin = np.eye(4)
             chain: list[JointStep] = []
-            cur: Optional[UrdfJoint] = None
+            cur: UrdfJoint | None = None
             after = np.eye(4)
             for j in model.path_from(parent[n], n):
                 if cur is None:
@@ -612,8 +665,13 @@ class UrdfWholeBody:
                 chain.append(_step(cur, after))
             origins[i] = origin
             steps.append(tuple(chain))
-        return JointTree(links=tuple(order), parent=tuple(-1 if parent[n] is None else order.index(parent[n]) for n in order),
-                         origin=origins, joints=tuple(() for _ in order), steps=tuple(steps))
+        return JointTree(
+            links=tuple(order),
+            parent=tuple(-1 if parent[n] is None else order.index(parent[n]) for n in order),
+            origin=origins,
+            joints=tuple(() for _ in order),
+            steps=tuple(steps),
+        )
 
 
 def _step(j: UrdfJoint, after: np.ndarray) -> JointStep:

@@ -15,7 +15,8 @@ What was found and done goes to ``Link.notes`` and the log.
 from __future__ import annotations
 
 import logging
-from typing import TYPE_CHECKING, Sequence
+from collections.abc import Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -38,7 +39,6 @@ MAJOR_COMPONENT_FRACTION = 0.25
 #: An open mesh whose face centres all lie within this fraction of its largest
 #: extent from its convex hull is treated as a (slightly inexact) convex hull.
 CONVEX_TOL = 0.01
-
 
 
 class MeshError(ValueError):
@@ -273,7 +273,9 @@ def make_link(
                 f = f[:, ::-1].copy()
             changed = int((f != before).any(axis=1).sum())
             if changed:
-                note(f"open surface: re-oriented {changed} faces (consistent winding, most area facing away from the centroid)")
+                note(
+                    f"open surface: re-oriented {changed} faces (consistent winding, most area facing away from the centroid)"
+                )
     return Link(name=name, vertices=v, faces=f, watertight=closed, notes=tuple(out))
 
 
@@ -293,7 +295,7 @@ def load_mesh_file(path, name: str, units: str = "auto", key: str = "") -> Link:
     return make_link(name, loaded.vertices, loaded.faces, units=units, source=str(path))
 
 
-def read_mesh(path, label: str = "") -> "trimesh.Trimesh":
+def read_mesh(path, label: str = "") -> trimesh.Trimesh:
     """The triangles of a mesh file (as stored, unprocessed; scenes flattened), or a :class:`MeshError`
     that names the file (``label`` first, e.g. ``"link 'arm': "``): the one reader of mesh files."""
     import trimesh

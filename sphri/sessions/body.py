@@ -22,8 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import sparse
 
-from sphri.surface.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
 from sphri.sessions.contact import BodyContacts
+from sphri.surface.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
 from sphri.types import Link
 
 
@@ -66,9 +66,15 @@ class BodySurface:
         for p in self.parts:
             m = self.part == p
             a = self.samples.area_m2[m] * 1e4
-            rows.append(dict(part=p, area_cm2=float(a.sum()), reachable_cm2=float(a[reach[m] == ""].sum()),
-                             floor_facing_cm2=float(a[reach[m] == "floor"].sum()),
-                             buried_cm2=float(a[reach[m] == "buried"].sum())))
+            rows.append(
+                dict(
+                    part=p,
+                    area_cm2=float(a.sum()),
+                    reachable_cm2=float(a[reach[m] == ""].sum()),
+                    floor_facing_cm2=float(a[reach[m] == "floor"].sum()),
+                    buried_cm2=float(a[reach[m] == "buried"].sum()),
+                )
+            )
         return pd.DataFrame(rows)
 
 
@@ -84,18 +90,29 @@ def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray,
     tri = vertices[faces]
     out = np.empty(len(points))
     for i in range(0, len(points), chunk):
-        p = points[i:i + chunk]
+        p = points[i : i + chunk]
         a, b, c = (tri[None, :, k, :] - p[:, None, :] for k in range(3))
         la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
         det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
-        den = (la * lb * lc + np.einsum("pfi,pfi->pf", a, b) * lc + np.einsum("pfi,pfi->pf", b, c) * la
-               + np.einsum("pfi,pfi->pf", c, a) * lb)
-        out[i:i + chunk] = np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
+        den = (
+            la * lb * lc
+            + np.einsum("pfi,pfi->pf", a, b) * lc
+            + np.einsum("pfi,pfi->pf", b, c) * la
+            + np.einsum("pfi,pfi->pf", c, a) * lb
+        )
+        out[i : i + chunk] = np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
     return out
 
 
-def reachable_elements(robot, links: tuple[str, ...], points: np.ndarray, normals: np.ndarray, link_of: np.ndarray,
-                       floor_height_m: float = FLOOR_HEIGHT_M, down_cos: float = DOWN_COS) -> np.ndarray:
+def reachable_elements(
+    robot,
+    links: tuple[str, ...],
+    points: np.ndarray,
+    normals: np.ndarray,
+    link_of: np.ndarray,
+    floor_height_m: float = FLOOR_HEIGHT_M,
+    down_cos: float = DOWN_COS,
+) -> np.ndarray:
     """(P,) object: '' where a hand can reach the element (world ``points`` / ``normals`` at the rest pose),
     'buried' for one inside another link, else 'floor' for one turned to the floor below ``floor_height_m``."""
     out = np.full(len(points), "", dtype=object)
@@ -114,8 +131,15 @@ def reachable_elements(robot, links: tuple[str, ...], points: np.ndarray, normal
     return out
 
 
-def body_surface(robot, links: tuple[str, ...], spacing_mm: float, bandwidth_mm: float, seed: int = 0,
-                 floor_height_m: float | None = FLOOR_HEIGHT_M, down_cos: float = DOWN_COS) -> BodySurface:
+def body_surface(
+    robot,
+    links: tuple[str, ...],
+    spacing_mm: float,
+    bandwidth_mm: float,
+    seed: int = 0,
+    floor_height_m: float | None = FLOOR_HEIGHT_M,
+    down_cos: float = DOWN_COS,
+) -> BodySurface:
     """The whole surface (see the module docstring); ``floor_height_m=None`` skips the reachability test."""
     rest = robot.rest_poses()
     order = list(robot.tree.links)
@@ -140,8 +164,14 @@ def body_surface(robot, links: tuple[str, ...], spacing_mm: float, bandwidth_mm:
     offset = np.r_[0, np.cumsum([s.n for s in local])].astype(np.int64)
     area_all = np.concatenate(area)
     total = float(area_all.sum())
-    joined = SurfaceSamples(robot.name, np.concatenate(pts), np.concatenate(nrm), np.concatenate(face), area_all,
-                            float(np.sqrt(total / offset[-1])))
+    joined = SurfaceSamples(
+        robot.name,
+        np.concatenate(pts),
+        np.concatenate(nrm),
+        np.concatenate(face),
+        area_all,
+        float(np.sqrt(total / offset[-1])),
+    )
     kernel = object.__new__(SurfaceKernel)
     kernel.samples = joined
     kernel.bandwidth_m = float(bandwidth_mm) * 1e-3
@@ -155,9 +185,21 @@ def body_surface(robot, links: tuple[str, ...], spacing_mm: float, bandwidth_mm:
     link_all = np.concatenate(link_of)
     reach = None
     if floor_height_m is not None:
-        reach = reachable_elements(robot, tuple(links), joined.points_m, joined.normal, link_all, floor_height_m, down_cos)
-    return BodySurface(tuple(links), local, offset, joined, kernel, part_all, link_all, mesh,
-                       [p for p in names if (part_all == p).any()], reach)
+        reach = reachable_elements(
+            robot, tuple(links), joined.points_m, joined.normal, link_all, floor_height_m, down_cos
+        )
+    return BodySurface(
+        tuple(links),
+        local,
+        offset,
+        joined,
+        kernel,
+        part_all,
+        link_all,
+        mesh,
+        [p for p in names if (part_all == p).any()],
+        reach,
+    )
 
 
 def touched_pairs(body: BodySurface, bc: BodyContacts, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -55,13 +55,25 @@ class BodyContacts:
     def n_contacts(self) -> int:
         return int(self.frame.size)
 
-    def take(self, rows: np.ndarray) -> "BodyContacts":
-        return BodyContacts(self.n_frames, self.links, self.frame[rows], self.hand[rows], self.link[rows],
-                            self.capsule[rows], self.point_m[rows], self.normal[rows], self.patch_radius_m[rows],
-                            self.depth_m[rows], dict(self.stats))
+    def take(self, rows: np.ndarray) -> BodyContacts:
+        return BodyContacts(
+            self.n_frames,
+            self.links,
+            self.frame[rows],
+            self.hand[rows],
+            self.link[rows],
+            self.capsule[rows],
+            self.point_m[rows],
+            self.normal[rows],
+            self.patch_radius_m[rows],
+            self.depth_m[rows],
+            dict(self.stats),
+        )
 
 
-def body_contacts(ds: SessionDataset, robot: Robot, contact, chunk_frames: int = 4000, cull: bool = True) -> BodyContacts:
+def body_contacts(
+    ds: SessionDataset, robot: Robot, contact, chunk_frames: int = 4000, cull: bool = True
+) -> BodyContacts:
     """Contacts of both hands with every link of ``ds.links`` (see module); ``contact`` is a contact component."""
     missing = [ln for ln in ds.links if ln not in robot.links]
     if missing:
@@ -116,13 +128,34 @@ def body_contacts(ds: SessionDataset, robot: Robot, contact, chunk_frames: int =
     if not parts:
         z = np.zeros(0)
         z3 = np.zeros((0, 3))
-        return BodyContacts(ds.n_frames, tuple(ds.links), np.zeros(0, np.int64), np.zeros(0, np.int8),
-                            np.zeros(0, np.int16), np.zeros(0, np.int16), z3, z3.copy(), z, z.copy(),
-                            {"triples": tested, "tested": passed})
-    cat = {k: np.concatenate([p[k] for p in parts]) for k in ("frame", "hand", "link", "capsule", "point_m", "normal",
-                                                               "patch_radius_m", "depth_m")}
+        return BodyContacts(
+            ds.n_frames,
+            tuple(ds.links),
+            np.zeros(0, np.int64),
+            np.zeros(0, np.int8),
+            np.zeros(0, np.int16),
+            np.zeros(0, np.int16),
+            z3,
+            z3.copy(),
+            z,
+            z.copy(),
+            {"triples": tested, "tested": passed},
+        )
+    cat = {
+        k: np.concatenate([p[k] for p in parts])
+        for k in ("frame", "hand", "link", "capsule", "point_m", "normal", "patch_radius_m", "depth_m")
+    }
     order = np.lexsort((cat["capsule"], cat["link"], cat["hand"], cat["frame"]))
-    return BodyContacts(ds.n_frames, tuple(ds.links), cat["frame"][order].astype(np.int64), cat["hand"][order],
-                        cat["link"][order], cat["capsule"][order].astype(np.int16), cat["point_m"][order],
-                        cat["normal"][order], cat["patch_radius_m"][order], cat["depth_m"][order],
-                        {"triples": tested, "tested": passed})
+    return BodyContacts(
+        ds.n_frames,
+        tuple(ds.links),
+        cat["frame"][order].astype(np.int64),
+        cat["hand"][order],
+        cat["link"][order],
+        cat["capsule"][order].astype(np.int16),
+        cat["point_m"][order],
+        cat["normal"][order],
+        cat["patch_radius_m"][order],
+        cat["depth_m"][order],
+        {"triples": tested, "tested": passed},
+    )

@@ -17,9 +17,24 @@ import pandas as pd
 from sphri.sessions.contact import BodyContacts
 from sphri.sessions.format import SessionDataset
 
-EPISODE_COLUMNS = ("session", "participant", "scenario", "repetition", "episode", "start_frame", "end_frame",
-                   "n_frames", "duration_s", "n_contact_frames", "hands", "dominant_hand", "dominant_link",
-                   "dominant_part", "parts", "coded")
+EPISODE_COLUMNS = (
+    "session",
+    "participant",
+    "scenario",
+    "repetition",
+    "episode",
+    "start_frame",
+    "end_frame",
+    "n_frames",
+    "duration_s",
+    "n_contact_frames",
+    "hands",
+    "dominant_hand",
+    "dominant_link",
+    "dominant_part",
+    "parts",
+    "coded",
+)
 
 
 def part_of_rows(bc: BodyContacts, robot) -> np.ndarray:
@@ -35,8 +50,9 @@ def part_of_rows(bc: BodyContacts, robot) -> np.ndarray:
     return out
 
 
-def segment_episodes(ds: SessionDataset, bc: BodyContacts, row_part: np.ndarray, gap_s: float = 2.0,
-                     min_frames: int = 2) -> pd.DataFrame:
+def segment_episodes(
+    ds: SessionDataset, bc: BodyContacts, row_part: np.ndarray, gap_s: float = 2.0, min_frames: int = 2
+) -> pd.DataFrame:
     """One row per episode (columns :data:`EPISODE_COLUMNS`)."""
     if not gap_s > 0:
         raise ValueError(f"gap_s={gap_s} is invalid: must be > 0 seconds")
@@ -47,7 +63,7 @@ def segment_episodes(ds: SessionDataset, bc: BodyContacts, row_part: np.ndarray,
     order = np.argsort(row_session, kind="stable")
     bounds = np.searchsorted(row_session[order], np.arange(len(ds.sessions) + 1))
     for si, s in enumerate(ds.sessions.itertuples(index=False)):
-        r = order[bounds[si]:bounds[si + 1]]
+        r = order[bounds[si] : bounds[si + 1]]
         frames = np.unique(bc.frame[r])
         if frames.size == 0:
             continue
@@ -64,10 +80,24 @@ def segment_episodes(ds: SessionDataset, bc: BodyContacts, row_part: np.ndarray,
             dparts = pd.Series(row_part[dr]).value_counts()
             coded = (not coded_done) and run.size >= min_frames
             coded_done |= coded
-            rows.append(dict(session=si, participant=s.participant, scenario=s.scenario, repetition=int(s.repetition),
-                             episode=k, start_frame=a, end_frame=b, n_frames=b - a + 1,
-                             duration_s=(b - a + 1) / ds.frame_rate_hz, n_contact_frames=int(run.size),
-                             hands=int((hands > 0).sum()), dominant_hand=dh,
-                             dominant_link=bc.links[int(np.argmax(link_counts))], dominant_part=str(dparts.index[0]),
-                             parts=";".join(str(p) for p in parts.index), coded=coded))
+            rows.append(
+                dict(
+                    session=si,
+                    participant=s.participant,
+                    scenario=s.scenario,
+                    repetition=int(s.repetition),
+                    episode=k,
+                    start_frame=a,
+                    end_frame=b,
+                    n_frames=b - a + 1,
+                    duration_s=(b - a + 1) / ds.frame_rate_hz,
+                    n_contact_frames=int(run.size),
+                    hands=int((hands > 0).sum()),
+                    dominant_hand=dh,
+                    dominant_link=bc.links[int(np.argmax(link_counts))],
+                    dominant_part=str(dparts.index[0]),
+                    parts=";".join(str(p) for p in parts.index),
+                    coded=coded,
+                )
+            )
     return pd.DataFrame(rows, columns=list(EPISODE_COLUMNS))

@@ -30,9 +30,10 @@ from __future__ import annotations
 import json
 import logging
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Optional, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -48,10 +49,23 @@ FORMAT_VERSION = 1
 HANDS: tuple[str, ...] = ("left", "right")
 #: Columns of :attr:`SessionDataset.sessions`, in order.
 SESSION_COLUMNS: tuple[str, ...] = (
-    "participant", "scenario", "repetition", "order", "start_position", "start", "n_frames",
+    "participant",
+    "scenario",
+    "repetition",
+    "order",
+    "start_position",
+    "start",
+    "n_frames",
 )
-MANIFEST_SESSION_KEYS: tuple[str, ...] = ("scenario", "repetition", "order", "start_position", "frame_rate_hz",
-                                          "n_frames", "file")
+MANIFEST_SESSION_KEYS: tuple[str, ...] = (
+    "scenario",
+    "repetition",
+    "order",
+    "start_position",
+    "frame_rate_hz",
+    "n_frames",
+    "file",
+)
 HEADER_KEYS: tuple[str, ...] = ("format", "version", "name", "synthetic", "robot", "links", "hands", "hand")
 
 
@@ -84,7 +98,7 @@ class SessionDataset:
     """(F, L, 7) float32: each link frame's position (m) and quaternion xyzw in the world."""
     frame_rate_hz: float
     robot: str = ""
-    truth: Optional[pd.DataFrame] = None
+    truth: pd.DataFrame | None = None
     """Generator-side labels of a synthetic dataset (scenario prior draws), None when recorded."""
 
     @property
@@ -115,18 +129,31 @@ def link_columns(links: Sequence[str]) -> list[str]:
 
 
 def _hand_json(hand: HandModel) -> dict[str, Any]:
-    return {"names": list(hand.names), "fingers": list(hand.fingers), "radius_m": hand.radius_m.tolist(),
-            "height_m": hand.height_m.tolist(), "axis": hand.axis.tolist(),
-            "center_offset_m": hand.center_offset_m.tolist()}
+    return {
+        "names": list(hand.names),
+        "fingers": list(hand.fingers),
+        "radius_m": hand.radius_m.tolist(),
+        "height_m": hand.height_m.tolist(),
+        "axis": hand.axis.tolist(),
+        "center_offset_m": hand.center_offset_m.tolist(),
+    }
 
 
 def write_sessions(ds: SessionDataset, out: str | Path) -> list[Path]:
     """Write ``ds`` in the session format under ``out``; returns the files written."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    header = {"format": FORMAT, "version": FORMAT_VERSION, "name": ds.name, "synthetic": bool(ds.synthetic),
-              "robot": ds.robot, "links": list(ds.links), "hands": list(HANDS), "hand": _hand_json(ds.hand),
-              "frame_rate_hz": float(ds.frame_rate_hz)}
+    header = {
+        "format": FORMAT,
+        "version": FORMAT_VERSION,
+        "name": ds.name,
+        "synthetic": bool(ds.synthetic),
+        "robot": ds.robot,
+        "links": list(ds.links),
+        "hands": list(HANDS),
+        "hand": _hand_json(ds.hand),
+        "frame_rate_hz": float(ds.frame_rate_hz),
+    }
     files = [out / "sessions.json"]
     files[0].write_text(json.dumps(header, indent=1) + "\n")
     hcols, lcols = hand_columns(ds.hand), link_columns(ds.links)
@@ -146,9 +173,17 @@ def write_sessions(ds: SessionDataset, out: str | Path) -> list[Path]:
                 df.insert(0, "frame", np.arange(int(r.n_frames), dtype=np.int32))
                 df.insert(0, "repetition", np.full(int(r.n_frames), int(r.repetition), dtype=np.int16))
                 parts.append(df)
-                entries.append({"scenario": str(scen), "repetition": int(r.repetition), "order": int(r.order),
-                                "start_position": str(r.start_position), "frame_rate_hz": float(ds.frame_rate_hz),
-                                "n_frames": int(r.n_frames), "file": fname})
+                entries.append(
+                    {
+                        "scenario": str(scen),
+                        "repetition": int(r.repetition),
+                        "order": int(r.order),
+                        "start_position": str(r.start_position),
+                        "frame_rate_hz": float(ds.frame_rate_hz),
+                        "n_frames": int(r.n_frames),
+                        "file": fname,
+                    }
+                )
             pd.concat(parts, ignore_index=True).to_parquet(pdir / fname, index=False, write_page_checksum=True)
             files.append(pdir / fname)
         entries.sort(key=lambda e: (e["order"], e["repetition"]))
@@ -181,23 +216,38 @@ def read_header(root: Path) -> dict:
     if h["format"] != FORMAT:
         raise SessionFormatError(f"{path}: field 'format' is {h['format']!r}, expected {FORMAT!r}")
     if h["version"] != FORMAT_VERSION:
-        raise SessionFormatError(f"{path}: field 'version' is {h['version']!r}; this sphri reads version {FORMAT_VERSION}")
+        raise SessionFormatError(
+            f"{path}: field 'version' is {h['version']!r}; this sphri reads version {FORMAT_VERSION}"
+        )
     if list(h["hands"]) != list(HANDS):
         raise SessionFormatError(f"{path}: field 'hands' is {h['hands']!r}, expected {list(HANDS)}")
-    if (not isinstance(h["links"], list) or not h["links"] or not all(isinstance(x, str) and x for x in h["links"])
-            or len(set(h["links"])) != len(h["links"])):
+    if (
+        not isinstance(h["links"], list)
+        or not h["links"]
+        or not all(isinstance(x, str) and x for x in h["links"])
+        or len(set(h["links"])) != len(h["links"])
+    ):
         raise SessionFormatError(f"{path}: field 'links' must be a non-empty list of unique link names")
     try:
         hd = h["hand"]
         hand = HandModel(
-            names=tuple(hd["names"]), fingers=tuple(hd["fingers"]), radius_m=np.asarray(hd["radius_m"], float),
-            height_m=np.asarray(hd["height_m"], float), axis=np.asarray(hd["axis"], np.int64),
-            center_offset_m=np.asarray(hd["center_offset_m"], float).reshape(-1, 3))
+            names=tuple(hd["names"]),
+            fingers=tuple(hd["fingers"]),
+            radius_m=np.asarray(hd["radius_m"], float),
+            height_m=np.asarray(hd["height_m"], float),
+            axis=np.asarray(hd["axis"], np.int64),
+            center_offset_m=np.asarray(hd["center_offset_m"], float).reshape(-1, 3),
+        )
     except (KeyError, TypeError, ValueError) as exc:
         raise SessionFormatError(f"{path}: field 'hand' is malformed ({exc})") from None
     n = len(hand.names)
-    if not (len(hand.fingers) == n and hand.radius_m.shape == (n,) and hand.height_m.shape == (n,)
-            and hand.axis.shape == (n,) and hand.center_offset_m.shape == (n, 3)):
+    if not (
+        len(hand.fingers) == n
+        and hand.radius_m.shape == (n,)
+        and hand.height_m.shape == (n,)
+        and hand.axis.shape == (n,)
+        and hand.center_offset_m.shape == (n, 3)
+    ):
         raise SessionFormatError(f"{path}: field 'hand': per-capsule arrays must all have {n} entries")
     h["hand_model"] = hand
     return h
@@ -221,14 +271,22 @@ def read_manifest(path: Path, rate_tol: float = 1e-6) -> list[dict]:
             if not isinstance(e[k], int) or isinstance(e[k], bool) or e[k] < (0 if k == "order" else 1):
                 raise SessionFormatError(f"{path}: sessions[{i}].{k}={e[k]!r} is invalid: a positive integer")
         rate = e["frame_rate_hz"]
-        if (isinstance(rate, bool) or not isinstance(rate, (int, float)) or not math.isfinite(rate)
-                or not MIN_RATE_HZ <= rate <= MAX_RATE_HZ):
-            raise SessionFormatError(f"{path}: sessions[{i}].frame_rate_hz={rate!r} is implausible: must be a number "
-                                     f"in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz")
+        if (
+            isinstance(rate, bool)
+            or not isinstance(rate, (int, float))
+            or not math.isfinite(rate)
+            or not MIN_RATE_HZ <= rate <= MAX_RATE_HZ
+        ):
+            raise SessionFormatError(
+                f"{path}: sessions[{i}].frame_rate_hz={rate!r} is implausible: must be a number "
+                f"in [{MIN_RATE_HZ:g}, {MAX_RATE_HZ:g}] Hz"
+            )
         f = e["file"]
         if not isinstance(f, str) or not f or Path(f).is_absolute() or ".." in Path(f).parts:
-            raise SessionFormatError(f"{path}: sessions[{i}].file={f!r} is invalid: a file name inside the "
-                                     "participant's folder (no absolute path, no '..')")
+            raise SessionFormatError(
+                f"{path}: sessions[{i}].file={f!r} is invalid: a file name inside the "
+                "participant's folder (no absolute path, no '..')"
+            )
         key = (e["scenario"], e["repetition"])
         if key in seen:
             raise SessionFormatError(f"{path}: sessions[{i}]: scenario {key[0]!r} repetition {key[1]} is listed twice")
@@ -246,9 +304,16 @@ class SessionData:
     VERSION = "1"
     USES_ROBOT = False
 
-    def __init__(self, root: Optional[str] = None, participants: Optional[int] = None, repetitions: Optional[int] = None,
-                 scenarios: Optional[Sequence[str]] = None, quat_tolerance: float = 1e-3, duplicates: str = "refuse",
-                 **_: Any):
+    def __init__(
+        self,
+        root: str | None = None,
+        participants: int | None = None,
+        repetitions: int | None = None,
+        scenarios: Sequence[str] | None = None,
+        quat_tolerance: float = 1e-3,
+        duplicates: str = "refuse",
+        **_: Any,
+    ):
         if not root:
             raise ValueError("data.root is empty: set it to a sessions folder (one holding sessions.json)")
         self.root = str(root)
@@ -259,8 +324,9 @@ class SessionData:
         from sphri.data.duplicates import DUPLICATE_POLICIES
 
         if duplicates not in DUPLICATE_POLICIES:
-            raise SessionFormatError(f"data.duplicates={duplicates!r} is invalid: allowed values: "
-                                     f"{list(DUPLICATE_POLICIES)}")
+            raise SessionFormatError(
+                f"data.duplicates={duplicates!r} is invalid: allowed values: {list(DUPLICATE_POLICIES)}"
+            )
         self.duplicates = duplicates
 
     def load(self, hand: HandModel | None = None, robot: Any = None) -> SessionDataset:
@@ -272,13 +338,15 @@ class SessionData:
         if hand is not None and tuple(hand.names) != tuple(shand.names):
             raise SessionFormatError(
                 f"{root / 'sessions.json'}: field 'hand' has capsules {list(shand.names)[:3]}..., "
-                f"but the configured hand has {list(hand.names)[:3]}...")
+                f"but the configured hand has {list(hand.names)[:3]}..."
+            )
         links = list(header["links"])
         if robot is not None:
             missing = [ln for ln in links if ln not in robot.links]
             if missing:
-                raise SessionFormatError(f"{root / 'sessions.json'}: field 'links' names {missing}, "
-                                         f"which robot {robot.name!r} does not have")
+                raise SessionFormatError(
+                    f"{root / 'sessions.json'}: field 'links' names {missing}, which robot {robot.name!r} does not have"
+                )
         pids = sorted(p.name for p in root.iterdir() if p.is_dir() and (p / "manifest.json").is_file())
         if not pids:
             raise SessionFormatError(f"{root}: no participant folder with a manifest.json")
@@ -295,8 +363,13 @@ class SessionData:
             named = {str(e["file"]) for e in entries}
             unnamed = sorted(p.name for p in (root / pid).glob("*.parquet") if p.name not in named)
             if unnamed:  # an entry lost from the manifest: its recording would be dropped without a word
-                log.warning("%s: %d session file(s) in %s are not named by the manifest and are not read: %s",
-                            mpath, len(unnamed), root / pid, ", ".join(unnamed[:5]))
+                log.warning(
+                    "%s: %d session file(s) in %s are not named by the manifest and are not read: %s",
+                    mpath,
+                    len(unnamed),
+                    root / pid,
+                    ", ".join(unnamed[:5]),
+                )
             if self.scenarios is not None:
                 entries = [e for e in entries if e["scenario"] in self.scenarios]
             if self.repetitions is not None:
@@ -306,18 +379,24 @@ class SessionData:
                 ppath = root / pid / str(e["file"])
                 inside = (root / pid).resolve()
                 if inside not in ppath.resolve().parents:
-                    raise SessionFormatError(f"{mpath}: field file={e['file']!r} of scenario {e['scenario']!r} "
-                                             f"repetition {e['repetition']} resolves outside {root / pid} (a link?)")
+                    raise SessionFormatError(
+                        f"{mpath}: field file={e['file']!r} of scenario {e['scenario']!r} "
+                        f"repetition {e['repetition']} resolves outside {root / pid} (a link?)"
+                    )
                 if e["file"] not in tables:
                     tables[e["file"]] = self._read_table(ppath, hcols, lcols)
                 tab = tables[e["file"]]
                 rows = tab[tab["repetition"].to_numpy() == e["repetition"]]
                 if len(rows) != e["n_frames"]:
-                    raise SessionFormatError(f"{ppath}: repetition {e['repetition']} has {len(rows)} rows but "
-                                             f"{mpath} field n_frames says {e['n_frames']}")
+                    raise SessionFormatError(
+                        f"{ppath}: repetition {e['repetition']} has {len(rows)} rows but "
+                        f"{mpath} field n_frames says {e['n_frames']}"
+                    )
                 fr = rows["frame"].to_numpy()
                 if not np.array_equal(fr, np.arange(len(fr))):
-                    raise SessionFormatError(f"{ppath}: column 'frame' of repetition {e['repetition']} must run 0..{len(fr) - 1}")
+                    raise SessionFormatError(
+                        f"{ppath}: column 'frame' of repetition {e['repetition']} must run 0..{len(fr) - 1}"
+                    )
                 h = rows[hcols].to_numpy(np.float32).reshape(len(rows), 2, c, 7)
                 lk = rows[lcols].to_numpy(np.float32).reshape(len(rows), nl, 7)
                 self._check_values(ppath, e, h, lk, hcols, lcols)
@@ -327,23 +406,40 @@ class SessionData:
                 if self.duplicates != "off":
                     prints.append((pid, (str(e["scenario"]), len(h)), fingerprint(h)))
                 rates.add(float(e["frame_rate_hz"]))
-                records.append(dict(participant=pid, scenario=str(e["scenario"]), repetition=int(e["repetition"]),
-                                    order=int(e["order"]), start_position=str(e["start_position"]), start=start,
-                                    n_frames=int(e["n_frames"])))
+                records.append(
+                    dict(
+                        participant=pid,
+                        scenario=str(e["scenario"]),
+                        repetition=int(e["repetition"]),
+                        order=int(e["order"]),
+                        start_position=str(e["start_position"]),
+                        start=start,
+                        n_frames=int(e["n_frames"]),
+                    )
+                )
                 start += int(e["n_frames"])
         for pair in find_duplicates(prints):
             if self.duplicates == "refuse":
-                raise SessionFormatError(f"{root}: {describe(pair, 'sessions')}: a copied participant folder? "
-                                         "Remove one, or set data.duplicates=warn to load both")
-            log.warning("%s: duplicate_participants: %s: both loaded (data.duplicates=warn); they are not "
-                        "independent people", root, describe(pair, "sessions"))
+                raise SessionFormatError(
+                    f"{root}: {describe(pair, 'sessions')}: a copied participant folder? "
+                    "Remove one, or set data.duplicates=warn to load both"
+                )
+            log.warning(
+                "%s: duplicate_participants: %s: both loaded (data.duplicates=warn); they are not independent people",
+                root,
+                describe(pair, "sessions"),
+            )
         if not records:
             raise SessionFormatError(f"{root}: no session left after selecting participants/scenarios/repetitions")
         if robot is not None:
             absent = [ln for ln in robot.links if ln not in links]
             if absent:
-                log.warning("%s: robot %r links %s have no poses in these sessions: no contact can be found on them",
-                            root / "sessions.json", robot.name, absent)
+                log.warning(
+                    "%s: robot %r links %s have no poses in these sessions: no contact can be found on them",
+                    root / "sessions.json",
+                    robot.name,
+                    absent,
+                )
         if len(rates) != 1:
             raise SessionFormatError(f"{root}: manifests mix frame rates {sorted(rates)}; one rate per dataset")
         truth = None
@@ -351,10 +447,17 @@ class SessionData:
         if header["synthetic"] and tpath.is_file():
             truth = pd.read_csv(tpath)
         return SessionDataset(
-            name=str(header["name"]), synthetic=bool(header["synthetic"]), hand=shand,
-            sessions=make_sessions_frame(records), hand_poses=np.concatenate(hands),
-            links=tuple(links), link_poses=np.concatenate(lposes), frame_rate_hz=rates.pop(),
-            robot=str(header["robot"]), truth=truth)
+            name=str(header["name"]),
+            synthetic=bool(header["synthetic"]),
+            hand=shand,
+            sessions=make_sessions_frame(records),
+            hand_poses=np.concatenate(hands),
+            links=tuple(links),
+            link_poses=np.concatenate(lposes),
+            frame_rate_hz=rates.pop(),
+            robot=str(header["robot"]),
+            truth=truth,
+        )
 
     @staticmethod
     def _check_units(path: Path, e: dict, h: np.ndarray, lk: np.ndarray) -> None:
@@ -365,7 +468,8 @@ class SessionData:
             if med > MAX_MEDIAN_DISTANCE_M:
                 raise SessionFormatError(
                     f"{path}: repetition {e['repetition']}: {what} positions lie {med:.4g} from the origin (median); "
-                    f"sessions are in metres (more than {MAX_MEDIAN_DISTANCE_M:g} m: millimetres or centimetres?)")
+                    f"sessions are in metres (more than {MAX_MEDIAN_DISTANCE_M:g} m: millimetres or centimetres?)"
+                )
 
     @staticmethod
     def _read_table(path: Path, hcols: list[str], lcols: list[str]) -> pd.DataFrame:
@@ -390,21 +494,27 @@ class SessionData:
         except (pa.ArrowInvalid, OSError) as exc:
             raise SessionFormatError(f"{path}: cannot read ({exc})") from None
 
-    def _check_values(self, path: Path, e: dict, h: np.ndarray, lk: np.ndarray, hcols: list[str], lcols: list[str]) -> None:
+    def _check_values(
+        self, path: Path, e: dict, h: np.ndarray, lk: np.ndarray, hcols: list[str], lcols: list[str]
+    ) -> None:
         for arr, cols in ((h.reshape(len(h), -1), hcols), (lk.reshape(len(lk), -1), lcols)):
             bad = ~np.isfinite(arr)
             if bad.any():
                 r, col = np.argwhere(bad)[0]
-                raise SessionFormatError(f"{path}: repetition {e['repetition']}, frame {r}: column {cols[col]!r} is "
-                                         f"NaN/inf ({int(bad.sum())} values)")
+                raise SessionFormatError(
+                    f"{path}: repetition {e['repetition']}, frame {r}: column {cols[col]!r} is "
+                    f"NaN/inf ({int(bad.sum())} values)"
+                )
         for arr, cols, what in ((h[..., 3:], hcols, "hand"), (lk[..., 3:], lcols, "link")):
             norm = np.linalg.norm(arr.astype(np.float64), axis=-1)
             bad = np.abs(norm - 1.0) > self.quat_tolerance
             if bad.any():
                 idx = np.argwhere(bad)[0]
                 col = cols[int(np.ravel_multi_index(tuple(idx[1:]), bad.shape[1:])) * 7 + 3]
-                raise SessionFormatError(f"{path}: repetition {e['repetition']}, frame {idx[0]}: {what} quaternion "
-                                         f"{col.rsplit('_', 2)[0]}_rot_* has norm {norm[tuple(idx)]:.4f}, not 1")
+                raise SessionFormatError(
+                    f"{path}: repetition {e['repetition']}, frame {idx[0]}: {what} quaternion "
+                    f"{col.rsplit('_', 2)[0]}_rot_* has norm {norm[tuple(idx)]:.4f}, not 1"
+                )
 
 
 __all__ = ["SessionDataset", "SessionData", "SessionFormatError", "write_sessions", "participant_id", "POSE_SUFFIXES"]

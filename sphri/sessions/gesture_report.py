@@ -67,8 +67,22 @@ def gesture_counts(labelled: pd.DataFrame, scenarios: list[str], n_boot: int = 1
     for s, si in scen_idx.items():
         n = H[si].sum()
         for g, gi in g_idx.items():
-            rows.append(dict(scenario=s, gesture=g, n_episodes=int(n), count=int(H[si, gi]), count_lo=hl[si, gi],
-                             count_hi=hh[si, gi], expected=S[si, gi], expected_lo=sl[si, gi], expected_hi=sh[si, gi],
-                             share=H[si, gi] / n if n else np.nan, share_lo=shl[si, gi], share_hi=shh[si, gi],
-                             n_participants=int(units.size), n_boot=int(n_boot)))
+            rows.append(
+                dict(
+                    scenario=s,
+                    gesture=g,
+                    n_episodes=int(n),
+                    count=int(H[si, gi]),
+                    count_lo=hl[si, gi],
+                    count_hi=hh[si, gi],
+                    expected=S[si, gi],
+                    expected_lo=sl[si, gi],
+                    expected_hi=sh[si, gi],
+                    share=H[si, gi] / n if n else np.nan,
+                    share_lo=shl[si, gi],
+                    share_hi=shh[si, gi],
+                    n_participants=int(units.size),
+                    n_boot=int(n_boot),
+                )
+            )
     return pd.DataFrame(rows)

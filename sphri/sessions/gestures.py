@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 
 from sphri.data.format import make_trials_frame
-from sphri.hand.kinematics import quat_to_matrix
 from sphri.data.handfk import matrix_to_quat
+from sphri.hand.kinematics import quat_to_matrix
 from sphri.sessions.format import SessionDataset
 from sphri.types import GESTURES, GestureDataset
 
@@ -64,18 +64,22 @@ def train_gesture_model(overrides: list[str], regions: list[str], cache) -> Gest
     from sphri.pipeline import make_pipeline
 
     feats, labels, accs, first = [], [], {}, None
-    for k, region in enumerate(regions):
+    for _k, region in enumerate(regions):
         cfg = compose([*overrides, f"data.regions=[{region}]"])
         p = make_pipeline(cfg, cache)
         result, _ = p.get("evaluate")
         accs[region] = float(result.summary()["accuracy_mean"])
-        windows = p.get("filter")  # the windows the model was evaluated on: noise on the windows, then the skin's filter
+        windows = p.get(
+            "filter"
+        )  # the windows the model was evaluated on: noise on the windows, then the skin's filter
         model = instantiate(cfg.model, _partial_=True, _convert_="all")(geometry=windows.geometry)
         if first is None:
             first = (cfg, model, windows)
         if not getattr(model, "TRANSFORM_PER_TRIAL", False):
             if len(regions) > 1:
-                log.warning("gesture model %s has no per-trial transform: trained on %s only", type(model).__name__, region)
+                log.warning(
+                    "gesture model %s has no per-trial transform: trained on %s only", type(model).__name__, region
+                )
             regions = [region]
             break
         feats.append(model.transform(windows.x))
@@ -118,16 +122,31 @@ def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, robot, gm: Gestur
     for link_name, eps in episodes.groupby("dominant_link", sort=True):
         link = robot.links[link_name]
         chunks, records, start = [], [], 0
-        for k, e in eps.iterrows():
+        for _k, e in eps.iterrows():
             a = max(int(ds.sessions["start"].iat[e.session]), int(e.start_frame) - pad)
             b = int(e.end_frame) + pad + 1
             b = min(b, int(ds.sessions["start"].iat[e.session] + ds.sessions["n_frames"].iat[e.session]))
             chunks.append(_to_link(ds.hand_poses[a:b, int(e.dominant_hand)], ds.link_poses[a:b, li[link_name]]))
-            records.append(dict(participant=e.participant, region=link_name, trial_ordinal=len(records) + 1,
-                                trial_id=f"{len(records) + 1:04d}_hit", gesture="hit", start=start, n_frames=b - a))
+            records.append(
+                dict(
+                    participant=e.participant,
+                    region=link_name,
+                    trial_ordinal=len(records) + 1,
+                    trial_id=f"{len(records) + 1:04d}_hit",
+                    gesture="hit",
+                    start=start,
+                    n_frames=b - a,
+                )
+            )
             start += b - a
-        gd = GestureDataset(name=ds.name, synthetic=ds.synthetic, hand=ds.hand, trials=make_trials_frame(records),
-                            poses=np.concatenate(chunks).astype(np.float32), frame_rate_hz=ds.frame_rate_hz)
+        gd = GestureDataset(
+            name=ds.name,
+            synthetic=ds.synthetic,
+            hand=ds.hand,
+            trials=make_trials_frame(records),
+            poses=np.concatenate(chunks).astype(np.float32),
+            frame_rate_hz=ds.frame_rate_hz,
+        )
         contacts = comp["contact"].compute(gd, robot)
         surface = comp["surface"].fit(link)
         extra = {"contacts": contacts} if getattr(comp["layout"], "uses_contacts", False) else {}
@@ -168,7 +187,16 @@ def gesture_histogram(labelled: pd.DataFrame, scenarios: list[str]) -> pd.DataFr
         for g in GESTURES:
             p = e[f"p_{g}"].to_numpy(float) if n else np.zeros(0)
             hard = int((e["gesture"] == g).sum()) if n else 0
-            rows.append(dict(scenario=s, gesture=g, n_episodes=n, count=hard, expected=float(p.sum()),
-                             expected_sd=float(np.sqrt((p * (1 - p)).sum())), share=hard / n if n else np.nan,
-                             mean_confidence=float(e.loc[e["gesture"] == g, "confidence"].mean()) if hard else np.nan))
+            rows.append(
+                dict(
+                    scenario=s,
+                    gesture=g,
+                    n_episodes=n,
+                    count=hard,
+                    expected=float(p.sum()),
+                    expected_sd=float(np.sqrt((p * (1 - p)).sum())),
+                    share=hard / n if n else np.nan,
+                    mean_confidence=float(e.loc[e["gesture"] == g, "confidence"].mean()) if hard else np.nan,
+                )
+            )
     return pd.DataFrame(rows)

@@ -15,7 +15,9 @@ import numpy as np
 import pandas as pd
 
 
-def frame_part_matrix(frames: np.ndarray, elements: np.ndarray, part_index: np.ndarray, n_parts: int) -> tuple[np.ndarray, np.ndarray]:
+def frame_part_matrix(
+    frames: np.ndarray, elements: np.ndarray, part_index: np.ndarray, n_parts: int
+) -> tuple[np.ndarray, np.ndarray]:
     """(unique frames (U,), (U, n_parts) bool) from (frame, element) pairs."""
     uf, inv = np.unique(frames, return_inverse=True)
     m = np.zeros((uf.size, n_parts), dtype=bool)
@@ -26,8 +28,15 @@ def frame_part_matrix(frames: np.ndarray, elements: np.ndarray, part_index: np.n
 def rank_parts(m: np.ndarray, parts: list[str], area_m2: np.ndarray) -> pd.DataFrame:
     n = max(m.shape[0], 1)
     frames = m.sum(axis=0)
-    df = pd.DataFrame({"part": parts, "area_cm2": area_m2 * 1e4, "contact_frames": frames,
-                       "frame_share": frames / n, "frames_per_cm2": frames / (area_m2 * 1e4)})
+    df = pd.DataFrame(
+        {
+            "part": parts,
+            "area_cm2": area_m2 * 1e4,
+            "contact_frames": frames,
+            "frame_share": frames / n,
+            "frames_per_cm2": frames / (area_m2 * 1e4),
+        }
+    )
     return df.sort_values(["frames_per_cm2", "part"], ascending=[False, True]).reset_index(drop=True)
 
 
@@ -54,8 +63,15 @@ def captured(m: np.ndarray, chosen: list[int]) -> float:
     return float(m[:, chosen].any(axis=1).mean()) if chosen else 0.0
 
 
-def placement_table(m: np.ndarray, frame_group: np.ndarray, frame_unit: np.ndarray, groups: list[str], parts: list[str],
-                    area_m2: np.ndarray, budget_m2: float) -> pd.DataFrame:
+def placement_table(
+    m: np.ndarray,
+    frame_group: np.ndarray,
+    frame_unit: np.ndarray,
+    groups: list[str],
+    parts: list[str],
+    area_m2: np.ndarray,
+    budget_m2: float,
+) -> pd.DataFrame:
     """One row per group (``all`` first): chosen parts, area, in-sample and held-out capture."""
     total = float(area_m2.sum())
     rows = []
@@ -71,10 +87,19 @@ def placement_table(m: np.ndarray, frame_group: np.ndarray, frame_unit: np.ndarr
             c = greedy_parts(mg[tr], area_m2, budget_m2)
             held.append((captured(mg[~tr], c), int((~tr).sum())))
         hv = np.array([h for h, _ in held]) if held else np.zeros(0)
-        rows.append(dict(group=g, n_contact_frames=int(mg.shape[0]), parts=";".join(parts[j] for j in chosen),
-                         area_cm2=float(area_m2[chosen].sum() * 1e4), area_share=float(area_m2[chosen].sum() / total),
-                         captured=captured(mg, chosen), heldout_captured=float(hv.mean()) if hv.size else np.nan,
-                         heldout_min=float(hv.min()) if hv.size else np.nan, n_heldout_units=int(hv.size)))
+        rows.append(
+            dict(
+                group=g,
+                n_contact_frames=int(mg.shape[0]),
+                parts=";".join(parts[j] for j in chosen),
+                area_cm2=float(area_m2[chosen].sum() * 1e4),
+                area_share=float(area_m2[chosen].sum() / total),
+                captured=captured(mg, chosen),
+                heldout_captured=float(hv.mean()) if hv.size else np.nan,
+                heldout_min=float(hv.min()) if hv.size else np.nan,
+                n_heldout_units=int(hv.size),
+            )
+        )
     return pd.DataFrame(rows)
 
 
@@ -97,5 +122,7 @@ def sentence(row: dict | pd.Series, groups: dict[str, tuple[str, ...]]) -> str:
     words = names[0] if len(names) == 1 else ", ".join(names[:-1]) + " and " + names[-1]
     held = row["heldout_captured"]
     held_s = f" ({100 * held:.0f} % on held-out participants)" if held == held else ""
-    return (f"[{row['group']}] covering the {words} ({row['area_cm2']:.0f} cm^2, {100 * row['area_share']:.0f} % of the "
-            f"reachable surface) captures {100 * row['captured']:.0f} % of contact frames{held_s}")
+    return (
+        f"[{row['group']}] covering the {words} ({row['area_cm2']:.0f} cm^2, {100 * row['area_share']:.0f} % of the "
+        f"reachable surface) captures {100 * row['captured']:.0f} % of contact frames{held_s}"
+    )

@@ -43,29 +43,48 @@ def body_view(body: BodySurface, faces: int = 20000) -> LinkView:
     return LinkView(body.mesh, body.samples, target_faces=faces)
 
 
-def plot_views(view: LinkView, densities: dict[str, np.ndarray], path: str | Path, title: str,
-               provenance: figures.Provenance | None = None) -> Path:
+def plot_views(
+    view: LinkView,
+    densities: dict[str, np.ndarray],
+    path: str | Path,
+    title: str,
+    provenance: figures.Provenance | None = None,
+) -> Path:
     """Rows: maps; columns: front, left, back, right, top; one colour scale and bar. Rows shrink so that the
     figure fits a page (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
     names = list(densities)
     vmax = _vmax(list(densities.values()))
     with figures.style():
-        fig, axes = figures.new_figure("two", figures.fit_page(1.6 * len(names) + 0.7), nrows=len(names), ncols=len(VIEWS),
-                                       squeeze=False)
+        fig, axes = figures.new_figure(
+            "two", figures.fit_page(1.6 * len(names) + 0.7), nrows=len(names), ncols=len(VIEWS), squeeze=False
+        )
         for r, n in enumerate(names):
             for c, (vt, az, el) in enumerate(VIEWS):
                 ax = axes[r, c]
                 view.draw(ax, densities[n], az, vmax, elev_deg=el)
                 if r == 0:
                     ax.set_title(vt)
-            axes[r, 0].text(-0.06, 0.5, figures.human(n).replace(": ", "\n", 1), transform=axes[r, 0].transAxes, rotation=90,
-                            ha="right", va="center")
+            axes[r, 0].text(
+                -0.06,
+                0.5,
+                figures.human(n).replace(": ", "\n", 1),
+                transform=axes[r, 0].transAxes,
+                rotation=90,
+                ha="right",
+                va="center",
+            )
         _colourbar(fig, vmax, ax=axes)
         return _finish(fig, title, path, provenance)
 
 
-def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, title: str,
-               provenance: figures.Provenance | None = None) -> Path:
+def plot_atlas(
+    body: BodySurface,
+    robot,
+    density: np.ndarray,
+    path: str | Path,
+    title: str,
+    provenance: figures.Provenance | None = None,
+) -> Path:
     """One unrolled chart per body part: angle around the link's long axis vs position along it (cm)."""
     parts = body.parts
     cols = 5
@@ -73,13 +92,15 @@ def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, 
     vals = np.asarray(density) * PERCENT_PER_CM2
     vmax = _vmax([density])
     axis_of = {}
-    for li, name in enumerate(body.links):
+    for li, _name in enumerate(body.links):
         s = body.local[li]
         d = s.points_m - s.points_m.mean(axis=0)
         _, _, vt = np.linalg.svd(d, full_matrices=False)
         axis_of[li] = (s.points_m.mean(axis=0), vt)
     with figures.style():
-        fig, axes = figures.new_figure("two", figures.fit_page(1.45 * rows + 0.8), nrows=rows, ncols=cols, squeeze=False)
+        fig, axes = figures.new_figure(
+            "two", figures.fit_page(1.45 * rows + 0.8), nrows=rows, ncols=cols, squeeze=False
+        )
         for k, p in enumerate(parts):
             ax = axes[k // cols, k % cols]
             idx = np.flatnonzero(body.part == p)
@@ -88,7 +109,9 @@ def plot_atlas(body: BodySurface, robot, density: np.ndarray, path: str | Path, 
             local = body.local[li].points_m[idx - body.offset[li]] - centre
             along = local @ vt[0] * 100
             ang = np.degrees(np.arctan2(local @ vt[2], local @ vt[1]))
-            ax.scatter(ang, along, c=vals[idx], cmap=CMAP, vmin=0, vmax=vmax, s=2, marker="s", linewidths=0, rasterized=True)
+            ax.scatter(
+                ang, along, c=vals[idx], cmap=CMAP, vmin=0, vmax=vmax, s=2, marker="s", linewidths=0, rasterized=True
+            )
             ax.set_title(f"{figures.human(p)}\n({body.samples.area_m2[idx].sum() * 1e4:.0f} cm$^2$)")
             ax.set_xlim(-180, 180)
             ax.set_xticks([-180, 0, 180])
@@ -116,8 +139,9 @@ def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: st
     return path
 
 
-def plot_gesture_histogram(hist: pd.DataFrame, path: str | Path, title: str,
-                           provenance: figures.Provenance | None = None) -> Path:
+def plot_gesture_histogram(
+    hist: pd.DataFrame, path: str | Path, title: str, provenance: figures.Provenance | None = None
+) -> Path:
     scen = list(pd.unique(hist["scenario"]))
     x = np.arange(len(GESTURES))
     with figures.style():
@@ -127,8 +151,9 @@ def plot_gesture_histogram(hist: pd.DataFrame, path: str | Path, title: str,
             h = hist[hist["scenario"] == s].set_index("gesture").loc[list(GESTURES)]
             n = max(int(h["n_episodes"].iloc[0]), 1)
             ax.bar(x, h["expected"] / n, color="#4c72b0", alpha=0.8, label="expected (sum of probabilities)")
-            ax.errorbar(x, h["expected"] / n, yerr=h["expected_sd"] / n, fmt="none", ecolor="black", capsize=1.5,
-                        lw=0.6)
+            ax.errorbar(
+                x, h["expected"] / n, yerr=h["expected_sd"] / n, fmt="none", ecolor="black", capsize=1.5, lw=0.6
+            )
             ax.plot(x, h["count"] / n, "o", color="#dd8452", ms=2.5, label="argmax count")
             ax.set_xticks(x, [figures.human(g) for g in GESTURES], rotation=90)
             ax.set_title(f"{figures.human(s)}\n({int(h['n_episodes'].iloc[0])} episodes)")
@@ -139,21 +164,36 @@ def plot_gesture_histogram(hist: pd.DataFrame, path: str | Path, title: str,
         return _finish(fig, title, path, provenance)
 
 
-def plot_placement(ranking: pd.DataFrame, table: pd.DataFrame, path: str | Path, title: str,
-                   provenance: figures.Provenance | None = None) -> Path:
+def plot_placement(
+    ranking: pd.DataFrame,
+    table: pd.DataFrame,
+    path: str | Path,
+    title: str,
+    provenance: figures.Provenance | None = None,
+) -> Path:
     """Left: parts ranked by contact frames per cm^2 (pooled), chosen ones dark. Right: capture per group."""
     chosen = set(str(table.loc[table["group"] == "all", "parts"].iat[0]).split(";"))
     with figures.style():
-        fig, (a, b) = figures.new_figure("two", figures.fit_page(0.12 * max(len(ranking), len(table)) + 1.4), ncols=2,
-                                         gridspec_kw={"width_ratios": [1.3, 1]})
+        fig, (a, b) = figures.new_figure(
+            "two",
+            figures.fit_page(0.12 * max(len(ranking), len(table)) + 1.4),
+            ncols=2,
+            gridspec_kw={"width_ratios": [1.3, 1]},
+        )
         r = ranking.iloc[::-1]
-        a.barh([figures.human(p) for p in r["part"]], r["frames_per_cm2"], color=["#c44e52" if p in chosen else "#bbbbbb" for p in r["part"]])
+        a.barh(
+            [figures.human(p) for p in r["part"]],
+            r["frames_per_cm2"],
+            color=["#c44e52" if p in chosen else "#bbbbbb" for p in r["part"]],
+        )
         a.set_xlabel("contact frames per cm$^2$ (pooled)")
         a.set_title("body parts (red: the pooled placement)", loc="left")
         y = np.arange(len(table))
         b.barh(y - 0.2, 100 * table["captured"], height=0.4, label="in sample", color="#4c72b0")
         b.barh(y + 0.2, 100 * table["heldout_captured"], height=0.4, label="held-out participants", color="#55a868")
-        b.set_yticks(y, [f"{figures.human(g)} ({100 * a_:.0f} % area)" for g, a_ in zip(table["group"], table["area_share"])])
+        b.set_yticks(
+            y, [f"{figures.human(g)} ({100 * a_:.0f} % area)" for g, a_ in zip(table["group"], table["area_share"])]
+        )
         b.invert_yaxis()
         b.set_xlim(0, 100)
         b.set_xlabel("contact frames captured (%)")
@@ -162,8 +202,14 @@ def plot_placement(ranking: pd.DataFrame, table: pd.DataFrame, path: str | Path,
         return _finish(fig, title, path, provenance)
 
 
-def plot_effects(effects: pd.DataFrame, scenarios: list[str], alpha: float, path: str | Path, title: str,
-                 provenance: figures.Provenance | None = None) -> Path:
+def plot_effects(
+    effects: pd.DataFrame,
+    scenarios: list[str],
+    alpha: float,
+    path: str | Path,
+    title: str,
+    provenance: figures.Provenance | None = None,
+) -> Path:
     """Scenario x scenario matrix of the paired effect, drawn once (the cells below the diagonal: the matrix
     is symmetric and its diagonal empty): cells coloured by d_z (mean between-minus-within SWD over its SD
     across participants), text: the mean difference in mm, d_z and the Holm-corrected p (* <= alpha)."""
@@ -190,14 +236,20 @@ def plot_effects(effects: pd.DataFrame, scenarios: list[str], alpha: float, path
             for j in range(i + 1):
                 t = text[i + 1][j] if n > 1 else ""
                 if t:
-                    ax.text(j, i, t, ha="center", va="center", fontsize=figures.MIN_FONT_PT,
-                            color="white" if abs(sub[i, j]) > 0.6 * lim else "black")
+                    ax.text(
+                        j,
+                        i,
+                        t,
+                        ha="center",
+                        va="center",
+                        fontsize=figures.MIN_FONT_PT,
+                        color="white" if abs(sub[i, j]) > 0.6 * lim else "black",
+                    )
         ax.set_xticks(range(k), names[:-1] if n > 1 else names, rotation=45, ha="right")
         ax.set_yticks(range(k), names[1:] if n > 1 else names)
         # the colour bar in the empty upper triangle
         cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if k >= 3 else None
-        cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical",
-                          shrink=0.8)
+        cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical", shrink=0.8)
         cb.set_label("effect size d$_z$\n(between - within SWD)")
         if cax is not None:
             cax.xaxis.set_label_position("top")

@@ -10,19 +10,22 @@ settings (``experiment.scenario_study.*`` in ``conf/experiment/scenario_study.ya
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Optional
 
 from sphri.config import cross_check, require, require_choice, require_range, store
 
 
-def _check_sizes(participants: Optional[int], repetitions: Optional[int], scenarios: Optional[list]) -> None:
+def _check_sizes(participants: int | None, repetitions: int | None, scenarios: list | None) -> None:
     if participants is not None:
         require_range("data.participants", participants, lo=1)
     if repetitions is not None:
         require_range("data.repetitions", repetitions, lo=1)
     if scenarios is not None:
-        require(len(scenarios) > 0 and len(set(scenarios)) == len(scenarios), "data.scenarios", scenarios,
-                "a non-empty list of unique scenario names (or null for all)")
+        require(
+            len(scenarios) > 0 and len(set(scenarios)) == len(scenarios),
+            "data.scenarios",
+            scenarios,
+            "a non-empty list of unique scenario names (or null for all)",
+        )
 
 
 @dataclass
@@ -31,10 +34,10 @@ class SyntheticSessionsSchema:
 
     _target_: str = "sphri.sessions.synthetic.SyntheticSessions"
     seed: int = 0
-    participants: Optional[int] = 12
-    repetitions: Optional[int] = 3
-    scenarios: Optional[list[str]] = None
-    priors: Optional[str] = None
+    participants: int | None = 12
+    repetitions: int | None = 3
+    scenarios: list[str] | None = None
+    priors: str | None = None
     """The YAML table of assumptions (None: sphri/sessions/scenario_priors.yaml)."""
     frame_rate_hz: float = 30.0
     variability: float = 1.0
@@ -53,10 +56,10 @@ class SessionDataSchema:
     """``data=sessions``: recorded sessions in the session format (``sphri/sessions/format.py``)."""
 
     _target_: str = "sphri.sessions.format.SessionData"
-    root: Optional[str] = None
-    participants: Optional[int] = None
-    repetitions: Optional[int] = None
-    scenarios: Optional[list[str]] = None
+    root: str | None = None
+    participants: int | None = None
+    repetitions: int | None = None
+    scenarios: list[str] | None = None
     quat_tolerance: float = 1e-3
     duplicates: str = "refuse"
     """Two participant ids with near-identical sessions (a copied folder): refuse, warn (load both) or off."""
@@ -64,8 +67,12 @@ class SessionDataSchema:
     def __post_init__(self) -> None:
         from sphri.data.duplicates import DUPLICATE_POLICIES
 
-        require(isinstance(self.root, str) and self.root != "", "data.root", self.root,
-                "set the sessions folder (the one holding sessions.json)")
+        require(
+            isinstance(self.root, str) and self.root != "",
+            "data.root",
+            self.root,
+            "set the sessions folder (the one holding sessions.json)",
+        )
         _check_sizes(self.participants, self.repetitions, self.scenarios)
         require_range("data.quat_tolerance", self.quat_tolerance, lo=0.0, lo_open=True, hi=0.5)
         require_choice("data.duplicates", self.duplicates, DUPLICATE_POLICIES)
@@ -92,7 +99,9 @@ class ScenarioStudySchema:
     exact_max: int = 12
     n_permutations: int = 9999
     seed: int = 0
-    gesture_regions: list[str] = field(default_factory=lambda: ["torso_front_upper", "shoulder_r", "upper_arm_r", "gripper_r"])
+    gesture_regions: list[str] = field(
+        default_factory=lambda: ["torso_front_upper", "shoulder_r", "upper_arm_r", "gripper_r"]
+    )
     """Body parts the gesture model is trained on (synthetic gesture study, data=synthetic; one chain each)."""
     gesture_res: int = 12
     """Skin resolution (encoder.res) of the gesture model."""
@@ -135,8 +144,12 @@ class ScenarioStudySchema:
         require_range(f"{key}.min_episode_frames", self.min_episode_frames, lo=1)
         require_range(f"{key}.bandwidth_mm", self.bandwidth_mm, lo=1.0, hi=500.0)
         require_range(f"{key}.spacing_mm", self.spacing_mm, lo=1.0, hi=100.0)
-        require(self.spacing_mm <= self.bandwidth_mm, f"{key}.spacing_mm", self.spacing_mm,
-                f"must be <= {key}.bandwidth_mm={self.bandwidth_mm}")
+        require(
+            self.spacing_mm <= self.bandwidth_mm,
+            f"{key}.spacing_mm",
+            self.spacing_mm,
+            f"must be <= {key}.bandwidth_mm={self.bandwidth_mm}",
+        )
         require_range(f"{key}.n_projections", self.n_projections, lo=1, hi=100_000)
         require_range(f"{key}.alpha", self.alpha, lo=0.0, hi=1.0, lo_open=True, hi_open=True)
         require_range(f"{key}.exact_max", self.exact_max, lo=0, hi=20)
@@ -149,15 +162,23 @@ class ScenarioStudySchema:
         require_range(f"{key}.reach_down_cos", self.reach_down_cos, lo=0.0, hi=1.0)
         require_range(f"{key}.pitch_mm", self.pitch_mm, lo=0.0)
         require_range(f"{key}.budget_taxels", self.budget_taxels, lo=0)
-        require(len(self.figure_formats) > 0 and set(self.figure_formats) <= {"png", "pdf", "svg"},
-                f"{key}.figure_formats", self.figure_formats, "one or more of png, pdf, svg")
+        require(
+            len(self.figure_formats) > 0 and set(self.figure_formats) <= {"png", "pdf", "svg"},
+            f"{key}.figure_formats",
+            self.figure_formats,
+            "one or more of png, pdf, svg",
+        )
         require_range(f"{key}.patch_cm2", self.patch_cm2, lo=1.0, hi=10_000.0)
         require_range(f"{key}.skin_pitch_mm", self.skin_pitch_mm, lo=0.5, hi=200.0)
         require_range(f"{key}.heldout_splits", self.heldout_splits, lo=0, hi=1000)
         require_choice(f"{key}.export_format", self.export_format, ["ply", "stl"])
         require_range(f"{key}.view_faces", self.view_faces, lo=100, hi=1_000_000)
-        require((self.pitch_mm > 0) == (self.budget_taxels > 0), f"{key}.budget_taxels", self.budget_taxels,
-                "set both pitch_mm and budget_taxels (a taxel budget) or neither (budget_cm2)")
+        require(
+            (self.pitch_mm > 0) == (self.budget_taxels > 0),
+            f"{key}.budget_taxels",
+            self.budget_taxels,
+            "set both pitch_mm and budget_taxels (a taxel budget) or neither (budget_cm2)",
+        )
 
     @property
     def design_pitch_mm(self) -> float:
@@ -202,10 +223,20 @@ def _check_study(cfg) -> None:
     if study_settings(cfg) is None:
         return
     target = str(cfg.data.get("_target_", ""))
-    require(target.startswith("sphri.sessions."), "data", target.rsplit(".", 1)[-1],
-            "the scenario study reads sessions: data=synthetic_sessions or data=sessions")
+    require(
+        target.startswith("sphri.sessions."),
+        "data",
+        target.rsplit(".", 1)[-1],
+        "the scenario study reads sessions: data=synthetic_sessions or data=sessions",
+    )
     target = str(cfg.robot.get("_target_", ""))
-    whole = target.endswith("KinematicRobot") or (target.endswith("urdf.UrdfRobot") and cfg.robot.get("parts") is not None)
-    require(whole, "robot", cfg.robot.get("name"),
-            "the scenario study needs a whole robot with a kinematic tree, e.g. robot=reachy2, robot=reachy_full "
-            "or robot=urdf robot.path=... robot.parts=...")
+    whole = target.endswith("KinematicRobot") or (
+        target.endswith("urdf.UrdfRobot") and cfg.robot.get("parts") is not None
+    )
+    require(
+        whole,
+        "robot",
+        cfg.robot.get("name"),
+        "the scenario study needs a whole robot with a kinematic tree, e.g. robot=reachy2, robot=reachy_full "
+        "or robot=urdf robot.path=... robot.parts=...",
+    )

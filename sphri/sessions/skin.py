@@ -37,8 +37,17 @@ from scipy import sparse
 from sphri.sessions.body import BodySurface
 
 #: Columns of ``budget_curve.csv``.
-CURVE_COLUMNS = ("scenario", "curve", "area_cm2", "area_share", "taxels", "captured", "captured_sd", "n_frames",
-                 "n_splits")
+CURVE_COLUMNS = (
+    "scenario",
+    "curve",
+    "area_cm2",
+    "area_share",
+    "taxels",
+    "captured",
+    "captured_sd",
+    "n_frames",
+    "n_splits",
+)
 
 
 @dataclass
@@ -83,8 +92,15 @@ def make_patches(body: BodySurface, patch_cm2: float, seed: int = 0) -> Patches:
             for c in np.unique(labels):
                 members = idx[labels == c]
                 of[members] = len(rows)
-                rows.append(dict(patch=f"{part}#{len(rows)}", link=link, part=part,
-                                 area_cm2=float(area_cm2[members].sum()), n_elements=int(members.size)))
+                rows.append(
+                    dict(
+                        patch=f"{part}#{len(rows)}",
+                        link=link,
+                        part=part,
+                        area_cm2=float(area_cm2[members].sum()),
+                        n_elements=int(members.size),
+                    )
+                )
     table = pd.DataFrame(rows, columns=["patch", "link", "part", "area_cm2", "n_elements"])
     return Patches(of, table)
 
@@ -107,14 +123,18 @@ def _kmeans(x: np.ndarray, k: int, iterations: int = 10) -> np.ndarray:
         labels = new
         n = np.bincount(labels, minlength=k)
         keep = n > 0
-        c = np.stack([np.bincount(labels, x[:, j], minlength=k) for j in range(x.shape[1])], axis=1)[keep] / n[keep, None]
+        c = (
+            np.stack([np.bincount(labels, x[:, j], minlength=k) for j in range(x.shape[1])], axis=1)[keep]
+            / n[keep, None]
+        )
         labels = np.unique(labels, return_inverse=True)[1]  # empty clusters dropped, labels 0..k'-1
         k = int(keep.sum())
     return labels
 
 
-def frame_patch_matrix(frames: np.ndarray, elements: np.ndarray, of_element: np.ndarray,
-                       n_patches: int) -> tuple[np.ndarray, sparse.csr_matrix]:
+def frame_patch_matrix(
+    frames: np.ndarray, elements: np.ndarray, of_element: np.ndarray, n_patches: int
+) -> tuple[np.ndarray, sparse.csr_matrix]:
     """(unique frames (U,), (U, n_patches) CSR of ones) from (frame, element) pairs; pairs out of reach dropped."""
     p = of_element[elements]
     keep = p >= 0
@@ -126,7 +146,9 @@ def frame_patch_matrix(frames: np.ndarray, elements: np.ndarray, of_element: np.
     return uf, m
 
 
-def greedy_patches(m: sparse.csr_matrix, area_m2: np.ndarray, budget_m2: float = np.inf) -> tuple[np.ndarray, np.ndarray]:
+def greedy_patches(
+    m: sparse.csr_matrix, area_m2: np.ndarray, budget_m2: float = np.inf
+) -> tuple[np.ndarray, np.ndarray]:
     """(order of patches, frames newly captured by each) by not-yet-captured frames per m^2 within ``budget_m2``.
 
     Without a budget every patch is ordered (those adding nothing last, smallest first); with one, only the
@@ -146,7 +168,7 @@ def greedy_patches(m: sparse.csr_matrix, area_m2: np.ndarray, budget_m2: float =
         j = int(np.argmax(ratio)) if k else 0
         if k == 0 or ratio[j] <= 0:
             break
-        rows = mc.indices[mc.indptr[j]:mc.indptr[j + 1]]
+        rows = mc.indices[mc.indptr[j] : mc.indptr[j + 1]]
         new = rows[~covered[rows]]
         covered[new] = True
         chosen[j] = True
@@ -188,23 +210,46 @@ def _on_grid(cum_area: np.ndarray, captured_at: np.ndarray, grid: np.ndarray) ->
     return captured_at[n - 1]
 
 
-def budget_curves(m: sparse.csr_matrix, frame_group: np.ndarray, frame_unit: np.ndarray, groups: list[str],
-                  area_m2: np.ndarray, pitch_mm: float, n_points: int = 101, heldout_splits: int = 10,
-                  seed: int = 0) -> pd.DataFrame:
+def budget_curves(
+    m: sparse.csr_matrix,
+    frame_group: np.ndarray,
+    frame_unit: np.ndarray,
+    groups: list[str],
+    area_m2: np.ndarray,
+    pitch_mm: float,
+    n_points: int = 101,
+    heldout_splits: int = 10,
+    seed: int = 0,
+) -> pd.DataFrame:
     """``budget_curve.csv``: per group (``all`` first) the in-sample and held-out curves on one area grid."""
     area = np.asarray(area_m2, dtype=np.float64)
     total = float(area.sum())
     # evenly spaced areas, and log-spaced ones from the smallest patch (the curve rises fastest there)
     small = float(area[area > 0].min()) if (area > 0).any() else total
-    grid = np.unique(np.r_[np.linspace(0.0, total, n_points), np.geomspace(small, total, n_points)]) if total > 0 else np.zeros(1)
+    grid = (
+        np.unique(np.r_[np.linspace(0.0, total, n_points), np.geomspace(small, total, n_points)])
+        if total > 0
+        else np.zeros(1)
+    )
     rng = np.random.default_rng(seed)
     rows = []
 
     def add(group, curve, cap, sd, n_frames, n_splits):
-        rows.append(pd.DataFrame({
-            "scenario": group, "curve": curve, "area_cm2": grid * 1e4, "area_share": grid / total if total else 0.0,
-            "taxels": np.floor(grid * 1e6 / pitch_mm ** 2 + 1e-9).astype(np.int64), "captured": cap,
-            "captured_sd": sd, "n_frames": n_frames, "n_splits": n_splits}))
+        rows.append(
+            pd.DataFrame(
+                {
+                    "scenario": group,
+                    "curve": curve,
+                    "area_cm2": grid * 1e4,
+                    "area_share": grid / total if total else 0.0,
+                    "taxels": np.floor(grid * 1e6 / pitch_mm**2 + 1e-9).astype(np.int64),
+                    "captured": cap,
+                    "captured_sd": sd,
+                    "n_frames": n_frames,
+                    "n_splits": n_splits,
+                }
+            )
+        )
 
     for g in ["all"] + list(groups):
         sel = np.ones(m.shape[0], bool) if g == "all" else frame_group == g
@@ -215,7 +260,7 @@ def budget_curves(m: sparse.csr_matrix, frame_group: np.ndarray, frame_unit: np.
         order, _ = greedy_patches(mg, area)
         cum = np.r_[0.0, np.cumsum(area[order])]
         fr = first_rank(mg, order)
-        cap = np.r_[0, np.cumsum(np.bincount(fr, minlength=len(order) + 1)[:len(order)])] / n
+        cap = np.r_[0, np.cumsum(np.bincount(fr, minlength=len(order) + 1)[: len(order)])] / n
         add(g, "in_sample", _on_grid(cum, cap, grid), np.nan, n, 0)
         units = np.asarray(pd.unique(ug))
         if units.size < 2 or heldout_splits < 1:
@@ -231,7 +276,7 @@ def budget_curves(m: sparse.csr_matrix, frame_group: np.ndarray, frame_unit: np.
                 o, _ = greedy_patches(mg[np.flatnonzero(train)], area)
                 c = np.r_[0.0, np.cumsum(area[o])]
                 f = first_rank(mg[np.flatnonzero(test)], o)
-                cp = np.r_[0, np.cumsum(np.bincount(f, minlength=len(o) + 1)[:len(o)])] / f.size
+                cp = np.r_[0, np.cumsum(np.bincount(f, minlength=len(o) + 1)[: len(o)])] / f.size
                 scores.append(_on_grid(c, cp, grid))
         if scores:
             s = np.stack(scores)
@@ -239,8 +284,16 @@ def budget_curves(m: sparse.csr_matrix, frame_group: np.ndarray, frame_unit: np.
     return pd.concat(rows, ignore_index=True)[list(CURVE_COLUMNS)] if rows else pd.DataFrame(columns=CURVE_COLUMNS)
 
 
-def patch_placement(m: sparse.csr_matrix, frame_group: np.ndarray, frame_unit: np.ndarray, groups: list[str],
-                    patches: Patches, budget_m2: float, heldout_splits: int = 10, seed: int = 0) -> pd.DataFrame:
+def patch_placement(
+    m: sparse.csr_matrix,
+    frame_group: np.ndarray,
+    frame_unit: np.ndarray,
+    groups: list[str],
+    patches: Patches,
+    budget_m2: float,
+    heldout_splits: int = 10,
+    seed: int = 0,
+) -> pd.DataFrame:
     """Per group (``all`` first): the patches chosen under the budget, their area, in-sample and held-out capture
     (half the participants choose, the other half is scored; mean over 2 x ``heldout_splits``)."""
     area = patches.area_m2
@@ -262,18 +315,27 @@ def patch_placement(m: sparse.csr_matrix, frame_group: np.ndarray, frame_unit: n
                     o, _ = greedy_patches(mg[np.flatnonzero(train)], area, budget_m2)
                     held.append(float((first_rank(mg[np.flatnonzero(test)], o) < len(o)).mean()))
         chosen_parts = patches.table["part"].to_numpy()[order]
-        rows.append(dict(group=g, n_contact_frames=int(n), n_patches=int(order.size),
-                         patches=";".join(patches.table["patch"].to_numpy()[order]),
-                         parts=";".join(dict.fromkeys(chosen_parts.tolist())),
-                         area_cm2=float(area[order].sum() * 1e4), area_share=float(area[order].sum() / total),
-                         captured=float(new.sum() / n) if n else np.nan,
-                         heldout_captured=float(np.mean(held)) if held else np.nan,
-                         heldout_sd=float(np.std(held, ddof=1)) if len(held) > 1 else np.nan, n_heldout=len(held)))
+        rows.append(
+            dict(
+                group=g,
+                n_contact_frames=int(n),
+                n_patches=int(order.size),
+                patches=";".join(patches.table["patch"].to_numpy()[order]),
+                parts=";".join(dict.fromkeys(chosen_parts.tolist())),
+                area_cm2=float(area[order].sum() * 1e4),
+                area_share=float(area[order].sum() / total),
+                captured=float(new.sum() / n) if n else np.nan,
+                heldout_captured=float(np.mean(held)) if held else np.nan,
+                heldout_sd=float(np.std(held, ddof=1)) if len(held) > 1 else np.nan,
+                n_heldout=len(held),
+            )
+        )
     return pd.DataFrame(rows)
 
 
-def _face_patches(body: BodySurface, li: int, vertices: np.ndarray, faces: np.ndarray,
-                  of_element: np.ndarray) -> np.ndarray:
+def _face_patches(
+    body: BodySurface, li: int, vertices: np.ndarray, faces: np.ndarray, of_element: np.ndarray
+) -> np.ndarray:
     """(F,) patch of each face (link frame): that of the nearest element on the same side (normals agree)."""
     from scipy.spatial import cKDTree
 
@@ -290,8 +352,17 @@ def _face_patches(body: BodySurface, li: int, vertices: np.ndarray, faces: np.nd
     return of_element[body.offset[li] + nb[np.arange(len(cen)), pick]]
 
 
-def export_patches(body: BodySurface, robot, patches: Patches, order: np.ndarray, m: sparse.csr_matrix,
-                   new_counts: np.ndarray, pitch_mm: float, out_dir: Path, fmt: str = "ply") -> list[Path]:
+def export_patches(
+    body: BodySurface,
+    robot,
+    patches: Patches,
+    order: np.ndarray,
+    m: sparse.csr_matrix,
+    new_counts: np.ndarray,
+    pitch_mm: float,
+    out_dir: Path,
+    fmt: str = "ply",
+) -> list[Path]:
     """Write ``out_dir/<link>__<patch>.<fmt>`` per chosen patch (link frame) and ``manifest.json`` / ``.csv``."""
     import trimesh
     from trimesh.remesh import subdivide_to_size
@@ -302,7 +373,6 @@ def export_patches(body: BodySurface, robot, patches: Patches, order: np.ndarray
     chosen = set(order.tolist())
     rank = {int(p): i for i, p in enumerate(order)}
     rows, files = [], []
-    cum = 0.0
     for li, link_name in enumerate(body.links):
         mine = [int(p) for p in np.flatnonzero(patches.table["link"].to_numpy() == link_name) if int(p) in chosen]
         if not mine:
@@ -322,20 +392,35 @@ def export_patches(body: BodySurface, robot, patches: Patches, order: np.ndarray
                 mesh.export(out_dir / name)
                 files.append(out_dir / name)
             area_cm2 = float(mesh.area * 1e4) if mesh is not None else 0.0
-            rows.append(dict(link=link_name, part=row["part"], patch=row["patch"], file=name, order=rank[p] + 1,
-                             area_cm2=area_cm2, sampled_area_cm2=float(row["area_cm2"]),
-                             taxels=int(np.floor(area_cm2 * 100.0 / pitch_mm ** 2 + 1e-9)),
-                             share_captured_alone=float(alone[p]), share_added=float(new_counts[rank[p]] / n_frames),
-                             n_faces=int(len(sel))))
+            rows.append(
+                dict(
+                    link=link_name,
+                    part=row["part"],
+                    patch=row["patch"],
+                    file=name,
+                    order=rank[p] + 1,
+                    area_cm2=area_cm2,
+                    sampled_area_cm2=float(row["area_cm2"]),
+                    taxels=int(np.floor(area_cm2 * 100.0 / pitch_mm**2 + 1e-9)),
+                    share_captured_alone=float(alone[p]),
+                    share_added=float(new_counts[rank[p]] / n_frames),
+                    n_faces=int(len(sel)),
+                )
+            )
     man = pd.DataFrame(rows).sort_values("order").reset_index(drop=True)
     if len(man):
         man["cumulative_share"] = man["share_added"].cumsum()
     man.to_csv(out_dir / "manifest.csv", index=False, float_format="%.6g")
-    meta = {"frame": "each link's own frame (the robot description's link frame), metres", "pitch_mm": pitch_mm,
-            "n_contact_frames": int(m.shape[0]), "area_cm2": float(man["area_cm2"].sum()) if len(man) else 0.0,
-            "captured": float(man["share_added"].sum()) if len(man) else 0.0,
-            "taxels": int(man["taxels"].sum()) if len(man) else 0, "robot": robot.name,
-            "patches": json.loads(man.to_json(orient="records"))}
+    meta = {
+        "frame": "each link's own frame (the robot description's link frame), metres",
+        "pitch_mm": pitch_mm,
+        "n_contact_frames": int(m.shape[0]),
+        "area_cm2": float(man["area_cm2"].sum()) if len(man) else 0.0,
+        "captured": float(man["share_added"].sum()) if len(man) else 0.0,
+        "taxels": int(man["taxels"].sum()) if len(man) else 0,
+        "robot": robot.name,
+        "patches": json.loads(man.to_json(orient="records")),
+    }
     (out_dir / "manifest.json").write_text(json.dumps(meta, indent=1))
     return files + [out_dir / "manifest.csv", out_dir / "manifest.json"]
 
@@ -372,16 +457,27 @@ class SkinDesign:
         return np.isin(self.patches.of_element, self.order)
 
 
-def skin_design(body: BodySurface, frames: np.ndarray, elements: np.ndarray, frame_session: np.ndarray,
-                sessions: pd.DataFrame, scenarios: list[str], patch_cm2: float, pitch_mm: float, budget_m2: float,
-                heldout_splits: int = 10, seed: int = 0) -> SkinDesign:
+def skin_design(
+    body: BodySurface,
+    frames: np.ndarray,
+    elements: np.ndarray,
+    frame_session: np.ndarray,
+    sessions: pd.DataFrame,
+    scenarios: list[str],
+    patch_cm2: float,
+    pitch_mm: float,
+    budget_m2: float,
+    heldout_splits: int = 10,
+    seed: int = 0,
+) -> SkinDesign:
     """Patches, budget curves and the patch-level placement from the study's (frame, element) pairs."""
     patches = make_patches(body, patch_cm2, seed)
     uf, m = frame_patch_matrix(frames, elements, patches.of_element, len(patches.table))
     f_scen = sessions["scenario"].to_numpy()[frame_session[uf]]
     f_unit = sessions["participant"].to_numpy()[frame_session[uf]]
-    curves = budget_curves(m, f_scen, f_unit, scenarios, patches.area_m2, pitch_mm, heldout_splits=heldout_splits,
-                           seed=seed)
+    curves = budget_curves(
+        m, f_scen, f_unit, scenarios, patches.area_m2, pitch_mm, heldout_splits=heldout_splits, seed=seed
+    )
     placement = patch_placement(m, f_scen, f_unit, scenarios, patches, budget_m2, heldout_splits, seed)
     order, new = greedy_patches(m, patches.area_m2, budget_m2)
     return SkinDesign(patches, uf, m, curves, placement, order, new, float(pitch_mm), float(budget_m2))
@@ -396,6 +492,15 @@ def write_design(design: SkinDesign, body: BodySurface, robot, out: Path, fmt: s
     t["frames_per_cm2"] = t["contact_frames"] / t["area_cm2"]
     t.to_csv(files[1], index_label="patch_id", float_format="%.6g")
     design.placement.to_csv(files[2], index=False, float_format="%.6g")
-    files += export_patches(body, robot, design.patches, design.order, design.matrix, design.new_counts,
-                            design.pitch_mm, out / "skin_export", fmt)
+    files += export_patches(
+        body,
+        robot,
+        design.patches,
+        design.order,
+        design.matrix,
+        design.new_counts,
+        design.pitch_mm,
+        out / "skin_export",
+        fmt,
+    )
     return files

@@ -11,8 +11,14 @@ from sphri import figures
 from sphri.sessions.render import _finish
 
 
-def plot_budget_curve(curves: pd.DataFrame, pitch_mm: float, budget_cm2: float, path: str | Path, title: str,
-                      provenance: figures.Provenance | None = None) -> Path:
+def plot_budget_curve(
+    curves: pd.DataFrame,
+    pitch_mm: float,
+    budget_cm2: float,
+    path: str | Path,
+    title: str,
+    provenance: figures.Provenance | None = None,
+) -> Path:
     """Captured share of contact frames against skin area (cm^2; top axis: taxels at ``pitch_mm``).
 
     Left: pooled, in-sample and held-out (mean +/- SD over the splits). Right: in-sample per scenario.
@@ -20,15 +26,25 @@ def plot_budget_curve(curves: pd.DataFrame, pitch_mm: float, budget_cm2: float, 
     with figures.style():
         fig, (a, b) = figures.new_figure("two", 2.9, ncols=2, sharey=True)
         pooled = curves[curves["scenario"] == "all"]
-        for kind, colour, label in (("in_sample", "#4c72b0", "in sample"), ("heldout", "#55a868", "held-out participants")):
+        for kind, colour, label in (
+            ("in_sample", "#4c72b0", "in sample"),
+            ("heldout", "#55a868", "held-out participants"),
+        ):
             c = pooled[pooled["curve"] == kind]
             if not len(c):
                 continue
             a.step(c["area_cm2"], 100 * c["captured"], where="post", color=colour, label=label)
             sd = c["captured_sd"].to_numpy(float)
             if np.isfinite(sd).any():
-                a.fill_between(c["area_cm2"], 100 * (c["captured"] - sd), 100 * np.minimum(c["captured"] + sd, 1),
-                               step="post", color=colour, alpha=0.2, linewidth=0)
+                a.fill_between(
+                    c["area_cm2"],
+                    100 * (c["captured"] - sd),
+                    100 * np.minimum(c["captured"] + sd, 1),
+                    step="post",
+                    color=colour,
+                    alpha=0.2,
+                    linewidth=0,
+                )
         a.set_title("pooled over scenarios", loc="left")
         a.set_ylabel("contact frames captured (%)")
         a.legend(loc="lower right")
@@ -41,7 +57,7 @@ def plot_budget_curve(curves: pd.DataFrame, pitch_mm: float, budget_cm2: float, 
             b.set_xlim(-0.02 * right, right)
         b.set_title("per scenario (in sample)", loc="left")
         b.legend(loc="lower right")
-        k = pitch_mm ** 2 / 100.0  # cm^2 per taxel
+        k = pitch_mm**2 / 100.0  # cm^2 per taxel
         for ax in (a, b):
             ax.axvline(budget_cm2, color="#555555", linestyle=":", linewidth=1)
             ax.set_xlabel("skin area (cm$^2$)")
@@ -51,8 +67,14 @@ def plot_budget_curve(curves: pd.DataFrame, pitch_mm: float, budget_cm2: float, 
         return _finish(fig, title, path, provenance)
 
 
-def plot_skin(view, pooled: np.ndarray, chosen: np.ndarray, path: str | Path, title: str,
-              provenance: figures.Provenance | None = None) -> Path:
+def plot_skin(
+    view,
+    pooled: np.ndarray,
+    chosen: np.ndarray,
+    path: str | Path,
+    title: str,
+    provenance: figures.Provenance | None = None,
+) -> Path:
     """The pooled contact density on the whole robot, and on the chosen patches only (the recommended skin)."""
     from sphri.sessions.render import plot_views
 

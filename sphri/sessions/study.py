@@ -23,9 +23,10 @@ import dataclasses
 import json
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -113,16 +114,22 @@ def load_sessions_and_contacts(cfg, cache):
     ds = _cached(cache, "sessions", ver["data"], data_cfg, inputs, lambda: comp["data"].load(hand, robot))
     t1 = time.perf_counter()
     k_data = stage_key("sessions", ver["data"], data_cfg, inputs)
-    bc = _cached(cache, "body_contact", ver["contact"] + "-wb1", result_config(cfg.contact),
-                 {"data": k_data, "robot": k_robot, "hand": k_hand}, lambda: body_contacts(ds, robot, comp["contact"]))
+    bc = _cached(
+        cache,
+        "body_contact",
+        ver["contact"] + "-wb1",
+        result_config(cfg.contact),
+        {"data": k_data, "robot": k_robot, "hand": k_hand},
+        lambda: body_contacts(ds, robot, comp["contact"]),
+    )
     return hand, robot, ds, bc, {"sessions": t1 - t0, "contact": time.perf_counter() - t1}
 
 
 def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflow: bool = True) -> StudyResult:
     """Run the study for the composed ``overrides`` (they must select ``+experiment=scenario_study``)."""
     from sphri.analysis.coverage import CoverageAnalysis
-    from sphri.pipeline import open_cache
     from sphri.config import ConfigError, compose
+    from sphri.pipeline import open_cache
     from sphri.sessions.body import body_surface, touched_pairs
     from sphri.sessions.episodes import part_of_rows, segment_episodes
     from sphri.sessions.gestures import gesture_histogram, label_episodes, train_gesture_model
@@ -152,27 +159,54 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     coded = episodes[episodes["coded"]].reset_index(drop=True)
     n_none = len(ds.sessions) - coded["session"].nunique()
     if n_none:
-        notes.append(f"{n_none} of {len(ds.sessions)} sessions have no coded episode (no contact of >= "
-                     f"{st.min_episode_frames} frames)")
+        notes.append(
+            f"{n_none} of {len(ds.sessions)} sessions have no coded episode (no contact of >= "
+            f"{st.min_episode_frames} frames)"
+        )
     seconds["episodes"] = time.perf_counter() - t
 
     # gesture model, trained in this job on the gesture dataset, labels the coded episodes
     t = time.perf_counter()
     n_part = int(ds.sessions["participant"].nunique())
-    train_ov = [o for o in overrides if o.lstrip("+").split("=")[0] in ("debug", "cache.dir", "output_dir", "cache.enabled",
-                                                                        "seed", "model", "noise", "encoder", "layout",
-                                                                        "surface", "window", "contact", "hand")]
+    train_ov = [
+        o
+        for o in overrides
+        if o.lstrip("+").split("=")[0]
+        in (
+            "debug",
+            "cache.dir",
+            "output_dir",
+            "cache.enabled",
+            "seed",
+            "model",
+            "noise",
+            "encoder",
+            "layout",
+            "surface",
+            "window",
+            "contact",
+            "hand",
+        )
+    ]
     train_ov += robot_overrides(overrides)
-    train_ov += ["data=synthetic", f"data.participants={max(n_part, 2)}",
-                 f"data.repetitions={st.gesture_repetitions}", f"encoder.res={st.gesture_res}", "tracking.enabled=false"]
+    train_ov += [
+        "data=synthetic",
+        f"data.participants={max(n_part, 2)}",
+        f"data.repetitions={st.gesture_repetitions}",
+        f"encoder.res={st.gesture_res}",
+        "tracking.enabled=false",
+    ]
     gm = train_gesture_model(train_ov, list(st.gesture_regions), cache)
     labelled = label_episodes(coded, ds, robot, gm, seed=int(cfg.seed))
     outside = labelled[~labelled["in_training"]]
     if len(outside):
         parts = outside["dominant_part"].value_counts()
-        msg = (f"{len(outside)} of {len(labelled)} coded episodes lie on body parts the gesture model never saw "
-               f"(trained on {gm.region}): " + ", ".join(f"{p} ({n})" for p, n in parts.items())
-               + "; their labels are extrapolated")
+        msg = (
+            f"{len(outside)} of {len(labelled)} coded episodes lie on body parts the gesture model never saw "
+            f"(trained on {gm.region}): "
+            + ", ".join(f"{p} ({n})" for p, n in parts.items())
+            + "; their labels are extrapolated"
+        )
         log.warning(msg)
         notes.append("WARNING: " + msg)
     hist = gesture_histogram(labelled, scenarios)
@@ -180,38 +214,71 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
 
     # whole-body maps, tests and coverage curves (by scenario, paired by participant)
     t = time.perf_counter()
-    body = body_surface(robot, ds.links, st.spacing_mm, st.bandwidth_mm, st.seed,
-                        floor_height_m=st.reach_floor_height_m, down_cos=st.reach_down_cos)
+    body = body_surface(
+        robot,
+        ds.links,
+        st.spacing_mm,
+        st.bandwidth_mm,
+        st.seed,
+        floor_height_m=st.reach_floor_height_m,
+        down_cos=st.reach_down_cos,
+    )
     fsi = ds.frame_session_index()
     in_coded = np.zeros(ds.n_frames, dtype=bool)
     for e in coded.itertuples():
-        in_coded[e.start_frame:e.end_frame + 1] = True
+        in_coded[e.start_frame : e.end_frame + 1] = True
     rows = np.flatnonzero(in_coded[bc.frame])
     frames, elements = touched_pairs(body, bc, rows)
-    trials = pd.DataFrame({
-        "participant": ds.sessions["participant"], "region": "body",
-        "trial_ordinal": ds.sessions["repetition"], "trial_id": [f"{i:04d}_hit" for i in range(len(ds.sessions))],
-        "gesture": session_gestures(len(ds.sessions), labelled), "start": ds.sessions["start"],
-        "n_frames": ds.sessions["n_frames"], "scenario": ds.sessions["scenario"],
-        "start_position": ds.sessions["start_position"], "repetition": ds.sessions["repetition"].astype(str),
-    })
-    gd = GestureDataset(name=ds.name, synthetic=ds.synthetic, hand=hand, trials=trials,
-                        poses=ds.hand_poses[:, 1], frame_rate_hz=ds.frame_rate_hz)
-    analysis = CoverageAnalysis(by=st.by, pair_by="participant", bandwidth_mm=st.bandwidth_mm,
-                                spacing_mm=st.spacing_mm, capture=0.9, n_projections=st.n_projections, alpha=st.alpha,
-                                exact_max=st.exact_max, n_permutations=st.n_permutations, seed=st.seed, render=False)
-    cov = analysis.analyze(gd, None, body.mesh, None, None, samples=body.samples, kernel=body.kernel,
-                           touched=(frames, elements))
+    trials = pd.DataFrame(
+        {
+            "participant": ds.sessions["participant"],
+            "region": "body",
+            "trial_ordinal": ds.sessions["repetition"],
+            "trial_id": [f"{i:04d}_hit" for i in range(len(ds.sessions))],
+            "gesture": session_gestures(len(ds.sessions), labelled),
+            "start": ds.sessions["start"],
+            "n_frames": ds.sessions["n_frames"],
+            "scenario": ds.sessions["scenario"],
+            "start_position": ds.sessions["start_position"],
+            "repetition": ds.sessions["repetition"].astype(str),
+        }
+    )
+    gd = GestureDataset(
+        name=ds.name,
+        synthetic=ds.synthetic,
+        hand=hand,
+        trials=trials,
+        poses=ds.hand_poses[:, 1],
+        frame_rate_hz=ds.frame_rate_hz,
+    )
+    analysis = CoverageAnalysis(
+        by=st.by,
+        pair_by="participant",
+        bandwidth_mm=st.bandwidth_mm,
+        spacing_mm=st.spacing_mm,
+        capture=0.9,
+        n_projections=st.n_projections,
+        alpha=st.alpha,
+        exact_max=st.exact_max,
+        n_permutations=st.n_permutations,
+        seed=st.seed,
+        render=False,
+    )
+    cov = analysis.analyze(
+        gd, None, body.mesh, None, None, samples=body.samples, kernel=body.kernel, touched=(frames, elements)
+    )
     notes += cov.notes
     comp = cov.comparison
     if comp is not None:
         n_max = int(comp.table["n_participants"].max()) if len(comp.table) else 0
         m = len(comp.table)
-        if n_max and n_max <= st.exact_max and m * 2.0 ** -n_max > st.alpha:
+        if n_max and n_max <= st.exact_max and m * 2.0**-n_max > st.alpha:
             need = int(np.ceil(np.log2(m / st.alpha)))
-            notes.append(f"power: with {n_max} participants the smallest Holm-corrected p over {m} scenario pairs is "
-                         f"{m} x 2^-{n_max} = {m * 2.0 ** -n_max:.3g} > alpha {st.alpha:g}: no pair can reach "
-                         f"significance; at least {need} participants are needed")
+            notes.append(
+                f"power: with {n_max} participants the smallest Holm-corrected p over {m} scenario pairs is "
+                f"{m} x 2^-{n_max} = {m * 2.0**-n_max:.3g} > alpha {st.alpha:g}: no pair can reach "
+                f"significance; at least {need} participants are needed"
+            )
     seconds["maps_and_tests"] = time.perf_counter() - t
 
     # body parts ranked, placement under the budget (pooled and per scenario, held-out participants)
@@ -221,7 +288,9 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     parts = [p for p in body.parts if reach_area[p] > 0]
     unreachable = [p for p in body.parts if reach_area[p] <= 0]
     if unreachable:
-        notes.append(f"body parts a hand cannot reach (no reachable area), left out of ranking and placement: {unreachable}")
+        notes.append(
+            f"body parts a hand cannot reach (no reachable area), left out of ranking and placement: {unreachable}"
+        )
     part_index = {p: i for i, p in enumerate(parts)}
     pidx = np.array([part_index.get(p, 0) for p in body.part], dtype=np.int64)
     sel = body.reachable[elements]
@@ -243,25 +312,65 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
             continue
         a = float(area[cols].sum())
         n = int(mat[:, cols].any(axis=1).sum())
-        group_rows.append(dict(scenario="all", part=f"group:{g}", area_cm2=a * 1e4, contact_frames=n,
-                               frame_share=n / max(len(uf), 1), frames_per_cm2=n / (a * 1e4)))
+        group_rows.append(
+            dict(
+                scenario="all",
+                part=f"group:{g}",
+                area_cm2=a * 1e4,
+                contact_frames=n,
+                frame_share=n / max(len(uf), 1),
+                frames_per_cm2=n / (a * 1e4),
+            )
+        )
     ranking_all = pd.concat(per + [pd.DataFrame(group_rows)], ignore_index=True)
     placement = placement_table(mat, f_scen, f_unit, scenarios, parts, area, st.budget_m2)
     sentences = [sentence(r, robot.groups) for _, r in placement.iterrows()]
-    budget = (f"{st.budget_taxels} taxels at {st.pitch_mm:g} mm pitch ({st.budget_m2 * 1e4:.0f} cm^2)"
-              if st.budget_taxels else f"{st.budget_cm2:g} cm^2")
+    budget = (
+        f"{st.budget_taxels} taxels at {st.pitch_mm:g} mm pitch ({st.budget_m2 * 1e4:.0f} cm^2)"
+        if st.budget_taxels
+        else f"{st.budget_cm2:g} cm^2"
+    )
     seconds["placement"] = time.perf_counter() - t
 
     # the skin design: patches within parts, greedy by captured contact per cm^2, budget curve, export
     t = time.perf_counter()
     from sphri.sessions.skin import skin_design
 
-    design = skin_design(body, frames, elements, fsi, ds.sessions, scenarios, st.patch_cm2, st.design_pitch_mm,
-                         st.budget_m2, st.heldout_splits, st.seed)
+    design = skin_design(
+        body,
+        frames,
+        elements,
+        fsi,
+        ds.sessions,
+        scenarios,
+        st.patch_cm2,
+        st.design_pitch_mm,
+        st.budget_m2,
+        st.heldout_splits,
+        st.seed,
+    )
     seconds["skin_design"] = time.perf_counter() - t
 
-    result = StudyResult(out_dir, st, ds.synthetic, ds.sessions, episodes, labelled, hist, ranking_all, placement,
-                         sentences, comp, cov, notes, [], seconds, gm.accuracy_mean, design=design, truth=ds.truth)
+    result = StudyResult(
+        out_dir,
+        st,
+        ds.synthetic,
+        ds.sessions,
+        episodes,
+        labelled,
+        hist,
+        ranking_all,
+        placement,
+        sentences,
+        comp,
+        cov,
+        notes,
+        [],
+        seconds,
+        gm.accuracy_mean,
+        design=design,
+        truth=ds.truth,
+    )
     t = time.perf_counter()
     with figures.only_formats(st.figure_formats):
         result.files = write_outputs(result, cfg, robot, body, ds, gm, budget, label)
@@ -289,8 +398,15 @@ def _mask_npz(body, robot, density: np.ndarray, chosen: set[str], out_dir: Path)
         dens = np.where(mask, d + 0.05 * max(float(d.max()), 1e-12), 0.0)
         s = body.local[li]
         path = out_dir / f"placement_{name}.npz"
-        np.savez_compressed(path, points_m=s.points_m, normal=s.normal, density=dens, mask=mask, area_m2=s.area_m2,
-                            part=body.part[sl].astype(str))
+        np.savez_compressed(
+            path,
+            points_m=s.points_m,
+            normal=s.normal,
+            density=dens,
+            mask=mask,
+            area_m2=s.area_m2,
+            part=body.part[sl].astype(str),
+        )
         files.append(path)
     return files
 
@@ -304,14 +420,28 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     cov = res.coverage
     scen = cov.groups
     dens = {s: cov.densities[s] for s in scen}
-    np.savez_compressed(out / "density_maps.npz", points_m=body.samples.points_m, normal=body.samples.normal,
-                        area_m2=body.samples.area_m2, part=body.part.astype(str), link=np.array(body.links)[body.link_of],
-                        scenarios=np.array(scen), density=np.stack([cov.densities[s] for s in scen]),
-                        pooled=cov.densities[ALL], counts=np.stack([cov.counts[s] for s in scen]))
+    np.savez_compressed(
+        out / "density_maps.npz",
+        points_m=body.samples.points_m,
+        normal=body.samples.normal,
+        area_m2=body.samples.area_m2,
+        part=body.part.astype(str),
+        link=np.array(body.links)[body.link_of],
+        scenarios=np.array(scen),
+        density=np.stack([cov.densities[s] for s in scen]),
+        pooled=cov.densities[ALL],
+        counts=np.stack([cov.counts[s] for s in scen]),
+    )
     files.append(out / "density_maps.npz")
-    per = pd.DataFrame({"element": np.arange(body.samples.n), "link": np.array(body.links)[body.link_of],
-                        "part": body.part, "area_cm2": body.samples.area_m2 * 1e4,
-                        **{f"density_{s}": cov.densities[s] * 1e-2 for s in [ALL] + scen}})
+    per = pd.DataFrame(
+        {
+            "element": np.arange(body.samples.n),
+            "link": np.array(body.links)[body.link_of],
+            "part": body.part,
+            "area_cm2": body.samples.area_m2 * 1e4,
+            **{f"density_{s}": cov.densities[s] * 1e-2 for s in [ALL] + scen},
+        }
+    )
     per.to_csv(out / "density_maps.csv", index=False, float_format="%.6g")
     files.append(out / "density_maps.csv")
     res.sessions.to_csv(out / "sessions.csv", index=False)
@@ -324,10 +454,21 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     areas.to_csv(out / "body_part_area.csv", index=False, float_format="%.1f")
     files.append(out / "body_part_area.csv")
     if getattr(robot, "skipped", ()):  # a robot read from a URDF: what has no surface here, and why
-        pd.DataFrame(list(robot.skipped), columns=["link", "reason"]).to_csv(out / "robot_skipped_links.csv", index=False)
+        pd.DataFrame(list(robot.skipped), columns=["link", "reason"]).to_csv(
+            out / "robot_skipped_links.csv", index=False
+        )
         files.append(out / "robot_skipped_links.csv")
-    files += [out / n for n in ("sessions.csv", "episodes.csv", "coded_episodes.csv", "gesture_histogram.csv",
-                                "body_part_ranking.csv", "placement.csv")]
+    files += [
+        out / n
+        for n in (
+            "sessions.csv",
+            "episodes.csv",
+            "coded_episodes.csv",
+            "gesture_histogram.csv",
+            "body_part_ranking.csv",
+            "placement.csv",
+        )
+    ]
     files += _design_and_gesture_files(res, body, robot, out)
     if res.comparison is not None:
         files += res.comparison.write_csv(out, "swd")
@@ -338,17 +479,37 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     files += _mask_npz(body, robot, cov.densities[ALL], chosen, out)
     (out / "placement.txt").write_text("\n".join(res.sentences) + f"\n(budget {budget}; {label})\n")
     files.append(out / "placement.txt")
-    summary = {"dataset": ds.name, "synthetic": ds.synthetic, "robot": robot.name,
-               "n_participants": int(ds.sessions["participant"].nunique()), "n_sessions": int(len(ds.sessions)),
-               "scenarios": scen, "n_coded_episodes": int(len(res.coded)), "gesture_model": {
-                   "regions": gm.regions, "loso_accuracy": gm.accuracy, "res": gm.res, "loso_accuracy_mean": gm.accuracy_mean,
-                   "loso_accuracy_std": gm.accuracy_std, "n_trials": gm.n_trials},
-               "surface": {"area_cm2": float(areas["area_cm2"].sum()), "reachable_cm2": float(areas["reachable_cm2"].sum()),
-                           "floor_facing_cm2": float(areas["floor_facing_cm2"].sum()),
-                           "buried_cm2": float(areas["buried_cm2"].sum()),
-                           "floor_height_m": res.settings.reach_floor_height_m, "down_cos": res.settings.reach_down_cos},
-               "budget": budget, "skin_design": _design_summary(res.design), "sentences": res.sentences, "notes": res.notes, "seconds": res.seconds,
-               "settings": dataclasses.asdict(res.settings)}
+    summary = {
+        "dataset": ds.name,
+        "synthetic": ds.synthetic,
+        "robot": robot.name,
+        "n_participants": int(ds.sessions["participant"].nunique()),
+        "n_sessions": int(len(ds.sessions)),
+        "scenarios": scen,
+        "n_coded_episodes": int(len(res.coded)),
+        "gesture_model": {
+            "regions": gm.regions,
+            "loso_accuracy": gm.accuracy,
+            "res": gm.res,
+            "loso_accuracy_mean": gm.accuracy_mean,
+            "loso_accuracy_std": gm.accuracy_std,
+            "n_trials": gm.n_trials,
+        },
+        "surface": {
+            "area_cm2": float(areas["area_cm2"].sum()),
+            "reachable_cm2": float(areas["reachable_cm2"].sum()),
+            "floor_facing_cm2": float(areas["floor_facing_cm2"].sum()),
+            "buried_cm2": float(areas["buried_cm2"].sum()),
+            "floor_height_m": res.settings.reach_floor_height_m,
+            "down_cos": res.settings.reach_down_cos,
+        },
+        "budget": budget,
+        "skin_design": _design_summary(res.design),
+        "sentences": res.sentences,
+        "notes": res.notes,
+        "seconds": res.seconds,
+        "settings": dataclasses.asdict(res.settings),
+    }
     if ds.truth is not None and len(res.coded):
         tr = ds.truth.reset_index(drop=True)
         c = res.coded
@@ -357,49 +518,91 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         ok = c["gesture"].to_numpy() != ""
         summary["against_generator"] = {
             "gesture_agreement": float((c["gesture"].to_numpy()[ok] == truth_g[ok]).mean()) if ok.any() else None,
-            "dominant_part_agreement": float((c["dominant_part"].to_numpy() == truth_p).mean())}
+            "dominant_part_agreement": float((c["dominant_part"].to_numpy() == truth_p).mean()),
+        }
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     files.append(out / "summary.json")
     if not res.settings.render:
         return files
-    from sphri.sessions.render import (body_view, plot_atlas, plot_effects, plot_gesture_histogram, plot_placement,
-                                       plot_views, write_density_ply)
-
     from sphri.figures import Provenance, human
+    from sphri.sessions.render import (
+        body_view,
+        plot_atlas,
+        plot_effects,
+        plot_gesture_histogram,
+        plot_placement,
+        plot_views,
+        write_density_ply,
+    )
 
     prov = Provenance(synthetic=bool(ds.synthetic), ids=ds.name)  # one banner on every figure (sphri.figures.mark)
     view = body_view(body, res.settings.view_faces)
     figs = {}
-    figs["maps"] = plot_views(view, {**dens, "pooled": cov.densities[ALL]}, out / "maps_views.png",
-                              f"Contact density per {cov.by}, one colour scale", provenance=prov)
+    figs["maps"] = plot_views(
+        view,
+        {**dens, "pooled": cov.densities[ALL]},
+        out / "maps_views.png",
+        f"Contact density per {cov.by}, one colour scale",
+        provenance=prov,
+    )
     for s in scen:
-        files.append(plot_views(view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png",
-                                f"{human(s)}", provenance=prov))
-    figs["atlas"] = plot_atlas(body, robot, cov.densities[ALL], out / "atlas_pooled.png",
-                               f"Atlas of the whole surface, pooled over scenarios", provenance=prov)
+        files.append(
+            plot_views(view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{human(s)}", provenance=prov)
+        )
+    figs["atlas"] = plot_atlas(
+        body,
+        robot,
+        cov.densities[ALL],
+        out / "atlas_pooled.png",
+        "Atlas of the whole surface, pooled over scenarios",
+        provenance=prov,
+    )
     files.append(write_density_ply(view, {"pooled": cov.densities[ALL], **dens}, out / "density_mesh.ply"))
     if res.comparison is not None:
-        figs["swd"] = plot_swd_heatmap(res.comparison, out / "swd_matrix.png",
-                                       f"Scenario maps: paired sliced Wasserstein", provenance=prov)
-        figs["effects"] = plot_effects(_effects(res.comparison), scen, res.settings.alpha, out / "swd_effects.png",
-                                       f"Scenario maps differ? Paired effect per pair", provenance=prov)
-    figs["gestures"] = plot_gesture_histogram(res.histogram, out / "gesture_histogram.png",
-                                              f"Gestures of the coded episodes per scenario (model LOSO "
-                                              f"accuracy {100 * gm.accuracy_mean:.0f} %)", provenance=prov)
+        figs["swd"] = plot_swd_heatmap(
+            res.comparison, out / "swd_matrix.png", "Scenario maps: paired sliced Wasserstein", provenance=prov
+        )
+        figs["effects"] = plot_effects(
+            _effects(res.comparison),
+            scen,
+            res.settings.alpha,
+            out / "swd_effects.png",
+            "Scenario maps differ? Paired effect per pair",
+            provenance=prov,
+        )
+    figs["gestures"] = plot_gesture_histogram(
+        res.histogram,
+        out / "gesture_histogram.png",
+        f"Gestures of the coded episodes per scenario (model LOSO accuracy {100 * gm.accuracy_mean:.0f} %)",
+        provenance=prov,
+    )
     if res.design is not None:
         from sphri.sessions.skin_render import plot_budget_curve, plot_skin
 
         d = res.design
         figs["budget_curve"] = plot_budget_curve(
-            d.curves, d.pitch_mm, d.budget_m2 * 1e4, out / "budget_curve.png",
+            d.curves,
+            d.pitch_mm,
+            d.budget_m2 * 1e4,
+            out / "budget_curve.png",
             f"Contact captured against skin area, patches of ~{res.settings.patch_cm2:g} cm$^2$",
-            provenance=prov)
-        figs["skin"] = plot_skin(view, cov.densities[ALL], d.element_mask, out / "skin_design.png",
-                                 f"The recommended skin under {budget}: pooled density on the chosen patches",
-                                 provenance=prov)
-    figs["placement"] = plot_placement(res.ranking[res.ranking["scenario"] == "all"].query("~part.str.startswith('group:')"),
-                                       res.placement, out / "placement.png", f"Placement under {budget}",
-                                       provenance=prov)
+            provenance=prov,
+        )
+        figs["skin"] = plot_skin(
+            view,
+            cov.densities[ALL],
+            d.element_mask,
+            out / "skin_design.png",
+            f"The recommended skin under {budget}: pooled density on the chosen patches",
+            provenance=prov,
+        )
+    figs["placement"] = plot_placement(
+        res.ranking[res.ranking["scenario"] == "all"].query("~part.str.startswith('group:')"),
+        res.placement,
+        out / "placement.png",
+        f"Placement under {budget}",
+        provenance=prov,
+    )
     files += list(figs.values())
     files.append(write_report(res, figs, summary, budget, label, out / "report.html"))
     return files
@@ -415,8 +618,9 @@ def _design_and_gesture_files(res: StudyResult, body, robot, out: Path) -> list[
     if res.design is not None:
         files += write_design(res.design, body, robot, out, res.settings.export_format)
     scen = sorted(pd.unique(res.sessions["scenario"]))
-    gesture_counts(res.coded, scen, seed=res.settings.seed).to_csv(out / "gesture_counts.csv", index=False,
-                                                                   float_format="%.4g")
+    gesture_counts(res.coded, scen, seed=res.settings.seed).to_csv(
+        out / "gesture_counts.csv", index=False, float_format="%.4g"
+    )
     files.append(out / "gesture_counts.csv")
     if res.truth is not None and len(res.coded):
         confusion_against_generator(res.coded, res.truth).to_csv(out / "gesture_confusion.csv", float_format="%.4g")
@@ -429,10 +633,15 @@ def _design_summary(design) -> dict | None:
         return None
     row = design.placement.iloc[0]
     pooled = design.curves[(design.curves["scenario"] == "all")]
-    out = {"patches": int(len(design.patches.table)), "pitch_mm": design.pitch_mm,
-           "budget_cm2": design.budget_m2 * 1e4, "chosen_patches": int(row["n_patches"]),
-           "area_cm2": float(row["area_cm2"]), "captured": float(row["captured"]),
-           "heldout_captured": float(row["heldout_captured"])}
+    out = {
+        "patches": int(len(design.patches.table)),
+        "pitch_mm": design.pitch_mm,
+        "budget_cm2": design.budget_m2 * 1e4,
+        "chosen_patches": int(row["n_patches"]),
+        "area_cm2": float(row["area_cm2"]),
+        "captured": float(row["captured"]),
+        "heldout_captured": float(row["heldout_captured"]),
+    }
     for kind in ("in_sample", "heldout"):
         c = pooled[pooled["curve"] == kind]
         if len(c):  # the smallest area on the curve capturing 90 % of the frames
@@ -448,10 +657,20 @@ def _effects(comp) -> pd.DataFrame:
     for r in comp.table.itertuples(index=False):
         d = pp[(pp["cond_a"] == r.cond_a) & (pp["cond_b"] == r.cond_b)]["diff_mm"].to_numpy(float)
         sd = float(d.std(ddof=1)) if d.size > 1 else float("nan")
-        rows.append(dict(cond_a=r.cond_a, cond_b=r.cond_b, n_participants=r.n_participants,
-                         between_swd_mm=r.mean_between_swd_mm, within_swd_mm=r.mean_within_swd_mm,
-                         diff_swd_mm=r.mean_diff_swd_mm, effect_dz=float(d.mean() / sd) if sd and sd == sd else float("nan"),
-                         p_value=r.p_value, p_holm=r.p_holm, significant=r.significant))
+        rows.append(
+            dict(
+                cond_a=r.cond_a,
+                cond_b=r.cond_b,
+                n_participants=r.n_participants,
+                between_swd_mm=r.mean_between_swd_mm,
+                within_swd_mm=r.mean_within_swd_mm,
+                diff_swd_mm=r.mean_diff_swd_mm,
+                effect_dz=float(d.mean() / sd) if sd and sd == sd else float("nan"),
+                p_value=r.p_value,
+                p_holm=r.p_holm,
+                significant=r.significant,
+            )
+        )
     return pd.DataFrame(rows)
 
 
@@ -461,14 +680,23 @@ def write_report(res: StudyResult, figs: dict, summary: dict, budget: str, label
     from sphri.templating import render_page
 
     page = render_page(
-        "scenario_study.html.j2", label=label, summary=summary, gm=summary["gesture_model"], budget=budget,
-        episode_gap_s=res.settings.episode_gap_s, sentences=res.sentences, notes=res.notes, figs=figs,
-        placement=res.placement, effects=_effects(res.comparison) if "swd" in figs else None,
+        "scenario_study.html.j2",
+        label=label,
+        summary=summary,
+        gm=summary["gesture_model"],
+        budget=budget,
+        episode_gap_s=res.settings.episode_gap_s,
+        sentences=res.sentences,
+        notes=res.notes,
+        figs=figs,
+        placement=res.placement,
+        effects=_effects(res.comparison) if "swd" in figs else None,
         design=(res.design.placement.drop(columns=["patches"]) if "budget_curve" in figs else None),
         patch_cm2=res.settings.patch_cm2,
         histogram=res.histogram.pivot(index="scenario", columns="gesture", values="count").reset_index(),
         ranking=res.ranking[res.ranking["scenario"] == "all"],
-        timing=json.dumps({k: round(v, 1) for k, v in res.seconds.items()}))
+        timing=json.dumps({k: round(v, 1) for k, v in res.seconds.items()}),
+    )
     path.write_text(page, encoding="utf-8")
     return path
 
@@ -485,9 +713,14 @@ def log_study(cfg, res: StudyResult, overrides: Sequence[str], ds) -> str | None
         return None
     client = tracker.client(cfg.output_dir)
     exp = tracker.experiment_id(cfg.output_dir)
-    tags = {"sphri.kind": "scenario_study", "sphri.dataset": ds.name, "sphri.synthetic": str(ds.synthetic).lower(),
-            "sphri.git_commit": git_commit(), "sphri.study_dir": str(res.out_dir.resolve()),
-            "mlflow.note.content": "\n".join(res.sentences)}
+    tags = {
+        "sphri.kind": "scenario_study",
+        "sphri.dataset": ds.name,
+        "sphri.synthetic": str(ds.synthetic).lower(),
+        "sphri.git_commit": git_commit(),
+        "sphri.study_dir": str(res.out_dir.resolve()),
+        "mlflow.note.content": "\n".join(res.sentences),
+    }
     run = tracker._retry(lambda: client.create_run(exp, tags=tags, run_name="scenario_study"))
     run_id = run.info.run_id
     try:

@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import sys
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Sequence
 
 from sphri.sessions.format import SessionDataset
 
@@ -42,8 +42,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0 if overrides is None else 2
     t = time.perf_counter()
     ds = synthesize(out, overrides)
-    print(f"wrote {len(ds.sessions)} sessions, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
-          f"to {Path(out).resolve()} in {time.perf_counter() - t:.1f} s")
+    print(
+        f"wrote {len(ds.sessions)} sessions, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
+        f"to {Path(out).resolve()} in {time.perf_counter() - t:.1f} s"
+    )
     return 0
 
 

@@ -30,8 +30,9 @@ Latin square; starting positions are fixed per participant. Participant
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Optional, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -39,9 +40,9 @@ import yaml
 
 from sphri.data.format import participant_id
 from sphri.data.gestures import Style
-from sphri.data.people import Spread
 from sphri.data.handfk import HandRig, matrix_to_quat
 from sphri.data.linkgeom import LinkSurface
+from sphri.data.people import Spread
 from sphri.data.synthetic import SyntheticData
 from sphri.hand.kinematics import quat_to_matrix
 from sphri.sessions.format import SessionDataset, make_sessions_frame
@@ -53,8 +54,16 @@ DEFAULT_PRIORS = Path(__file__).with_name("scenario_priors.yaml")
 #: Starting directions in the robot's base frame at t=0 (robot faces +x, its left is +y).
 DIRECTIONS = {"front": 0.0, "front_left": 45.0, "left": 90.0, "rear": 180.0, "right": -90.0, "front_right": -45.0}
 MOTIONS = ("none", "base", "arm")
-SCENARIO_KEYS = ("start_positions", "start_distance_m", "approach_s", "robot_motion", "parts", "gestures",
-                 "two_hands", "duration_scale")
+SCENARIO_KEYS = (
+    "start_positions",
+    "start_distance_m",
+    "approach_s",
+    "robot_motion",
+    "parts",
+    "gestures",
+    "two_hands",
+    "duration_scale",
+)
 
 
 class PriorsError(ValueError):
@@ -102,8 +111,10 @@ def load_priors(path: str | Path, part_names: Sequence[str]) -> dict[str, Any]:
             base = p[:-5] if p.endswith("_near") else p[:-4] if p.endswith("_far") else None
             ok = (p in parts) if base is None else (f"{base}_l" in parts and f"{base}_r" in parts)
             if not ok:
-                raise PriorsError(f"{key}.parts.{p}: no such body part on the robot (parts: {sorted(parts)}; "
-                                  "suffix _near/_far needs <part>_l and <part>_r)")
+                raise PriorsError(
+                    f"{key}.parts.{p}: no such body part on the robot (parts: {sorted(parts)}; "
+                    "suffix _near/_far needs <part>_l and <part>_r)"
+                )
             if not float(w) >= 0:
                 raise PriorsError(f"{key}.parts.{p}={w!r} is invalid: a weight >= 0")
         for g, w in s["gestures"].items():
@@ -128,7 +139,7 @@ def resolve_part(part: str, side: float, rng: np.random.Generator) -> str:
     for suffix, near in (("_near", True), ("_far", False)):
         if part.endswith(suffix):
             left = side > 0 if abs(side) > 1e-9 else bool(rng.random() < 0.5)
-            return f"{part[:-len(suffix)]}_{'l' if left == near else 'r'}"
+            return f"{part[: -len(suffix)]}_{'l' if left == near else 'r'}"
     return part
 
 
@@ -211,9 +222,17 @@ class SyntheticSessions:
 
     VERSION = "2"
 
-    def __init__(self, seed: int = 0, participants: Optional[int] = 12, repetitions: Optional[int] = 3,
-                 scenarios: Optional[Sequence[str]] = None, priors: Optional[str] = None,
-                 frame_rate_hz: float = 30.0, variability: float = 1.0, **_: Any):
+    def __init__(
+        self,
+        seed: int = 0,
+        participants: int | None = 12,
+        repetitions: int | None = 3,
+        scenarios: Sequence[str] | None = None,
+        priors: str | None = None,
+        frame_rate_hz: float = 30.0,
+        variability: float = 1.0,
+        **_: Any,
+    ):
         self.seed = int(seed)
         self.participants = 12 if participants is None else int(participants)
         self.repetitions = 3 if repetitions is None else int(repetitions)
@@ -225,8 +244,10 @@ class SyntheticSessions:
 
     def load(self, hand: HandModel, robot: Robot) -> SessionDataset:
         if getattr(robot, "tree", None) is None:
-            raise ValueError(f"data=synthetic_sessions needs a whole robot with a kinematic tree (robot=reachy_full); "
-                             f"robot {robot.name!r} has none")
+            raise ValueError(
+                f"data=synthetic_sessions needs a whole robot with a kinematic tree (robot=reachy_full); "
+                f"robot {robot.name!r} has none"
+            )
         table = load_priors(self.priors, [p.name for p in robot.parts])
         names = list(table["scenarios"])
         if self.scenarios is not None:
@@ -248,21 +269,49 @@ class SyntheticSessions:
                     scen = names[si]
                     rng = np.random.default_rng([self.seed, k, si + 1, rep])
                     h, lk, info = self._session(rng, style, rig, robot, surfaces, table, scen, k)
-                    records.append(dict(participant=pid, scenario=scen, repetition=rep, order=(rep - 1) * n_s + pos,
-                                        start_position=info.pop("start_position"), start=start, n_frames=len(h)))
+                    records.append(
+                        dict(
+                            participant=pid,
+                            scenario=scen,
+                            repetition=rep,
+                            order=(rep - 1) * n_s + pos,
+                            start_position=info.pop("start_position"),
+                            start=start,
+                            n_frames=len(h),
+                        )
+                    )
                     truth.append(dict(participant=pid, scenario=scen, repetition=rep, **info))
                     hands.append(h)
                     lposes.append(lk)
                     start += len(h)
         return SessionDataset(
-            name="synthetic_sessions", synthetic=True, hand=hand, sessions=make_sessions_frame(records),
-            hand_poses=np.concatenate(hands).astype(np.float32), links=tuple(robot.tree.links),
-            link_poses=np.concatenate(lposes).astype(np.float32), frame_rate_hz=self.frame_rate_hz,
-            robot=robot.name, truth=pd.DataFrame(truth))
+            name="synthetic_sessions",
+            synthetic=True,
+            hand=hand,
+            sessions=make_sessions_frame(records),
+            hand_poses=np.concatenate(hands).astype(np.float32),
+            links=tuple(robot.tree.links),
+            link_poses=np.concatenate(lposes).astype(np.float32),
+            frame_rate_hz=self.frame_rate_hz,
+            robot=robot.name,
+            truth=pd.DataFrame(truth),
+        )
 
     # ------------------------------------------------------------------ internals
-    def _touch(self, rng, style, rig, robot, surfaces, part: str, gesture: str, poses: np.ndarray, position: str,
-               towards: np.ndarray, static: bool) -> np.ndarray:
+    def _touch(
+        self,
+        rng,
+        style,
+        rig,
+        robot,
+        surfaces,
+        part: str,
+        gesture: str,
+        poses: np.ndarray,
+        position: str,
+        towards: np.ndarray,
+        static: bool,
+    ) -> np.ndarray:
         """One gesture-generator trial on ``part`` (T, C, 7) in the part's link frame."""
         key = (part, position)
         surf = surfaces.get(key) if static else None
@@ -270,8 +319,15 @@ class SyntheticSessions:
             surf = LinkSurface(part_link(robot, part, poses, towards), n_samples=6000)
             if static:
                 surfaces[key] = surf
-        gen = SyntheticData(seed=self.seed, participants=1, repetitions=1, regions=[part], gestures=[gesture],
-                            frame_rate_hz=self.frame_rate_hz, variability=self.variability)
+        gen = SyntheticData(
+            seed=self.seed,
+            participants=1,
+            repetitions=1,
+            regions=[part],
+            gestures=[gesture],
+            frame_rate_hz=self.frame_rate_hz,
+            variability=self.variability,
+        )
         _, out, _ = gen._participant_region(rng, style, rig, surf, part)
         return out.astype(np.float64)
 
@@ -310,8 +366,9 @@ class SyntheticSessions:
         touches = []
         for p in parts:
             spec = next(x for x in robot.parts if x.name == p)
-            local = self._touch(rng, style, rig, robot, surfaces, p, gesture, final, position, d,
-                                static=s["robot_motion"] == "none")
+            local = self._touch(
+                rng, style, rig, robot, surfaces, p, gesture, final, position, d, static=s["robot_motion"] == "none"
+            )
             idx = np.round(np.arange(int(round(len(local) * scale))) / scale).astype(int).clip(0, len(local) - 1)
             touches.append(transform_poses(local[idx], final[li[spec.link]]))
         n_touch = max(len(x) for x in touches)
@@ -341,10 +398,18 @@ class SyntheticSessions:
             app = np.repeat(shape[None], n_app, axis=0)
             app[..., :3] += ((1 - w)[:, None] * (idle[h] - centre)[None, :])[:, None, :]
             out[:n_app, h] = app
-            out[n_app:n_app + n_touch, h] = tr
-            out[n_app + n_touch:, h] = tr[-1]
+            out[n_app : n_app + n_touch, h] = tr
+            out[n_app + n_touch :, h] = tr[-1]
         lk = np.concatenate([poses_app, np.repeat(final[None], n_touch + n_tail, axis=0)])
-        info = dict(start_position=position, gesture=gesture, part=part, two_hands=two,
-                    second_part=parts[1] if two else "", approach_s=approach, duration_scale=scale,
-                    touch_start_frame=n_app, touch_frames=n_touch)
+        info = dict(
+            start_position=position,
+            gesture=gesture,
+            part=part,
+            two_hands=two,
+            second_part=parts[1] if two else "",
+            approach_s=approach,
+            duration_scale=scale,
+            touch_start_frame=n_app,
+            touch_frames=n_touch,
+        )
         return out.astype(np.float32), pose7(lk).astype(np.float32), info

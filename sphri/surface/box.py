@@ -16,8 +16,8 @@ import logging
 import numpy as np
 import trimesh
 
-from sphri.surface.charts import primitive_distance
 from sphri.config import Configured
+from sphri.surface.charts import primitive_distance
 from sphri.surface.meshutil import check_link, sample_surface
 from sphri.surface.schema import BoxSurfaceSchema
 from sphri.types import Link, SurfaceMap
@@ -60,7 +60,9 @@ def fit_box(link: Link, n_samples: int = 20000, seed: int = 0, warn_residual_mm:
     residual = float(np.sqrt(np.mean(primitive_distance(sm, pts) ** 2)))
     notes = []
     if residual * 1e3 > warn_residual_mm:
-        notes.append(f"poor box fit: RMS residual {residual * 1e3:.2f} mm > surface.warn_residual_mm={warn_residual_mm:g}")
+        notes.append(
+            f"poor box fit: RMS residual {residual * 1e3:.2f} mm > surface.warn_residual_mm={warn_residual_mm:g}"
+        )
         log.warning("surface.box on link %r: %s", link.name, notes[-1])
     params["notes"] = tuple(notes)
     return SurfaceMap(

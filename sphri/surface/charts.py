@@ -218,8 +218,10 @@ def chart_of(surface: SurfaceMap | str) -> Chart:
     try:
         return _CHARTS[kind]
     except KeyError:
-        raise ValueError(f"surface kind {kind!r} has no registered chart; known: {sorted(_CHARTS)} "
-                         "(register one with sphri.surface.charts.register_chart)") from None
+        raise ValueError(
+            f"surface kind {kind!r} has no registered chart; known: {sorted(_CHARTS)} "
+            "(register one with sphri.surface.charts.register_chart)"
+        ) from None
 
 
 class CylinderChart:

@@ -91,7 +91,9 @@ class SurfaceSamples:
         first = np.where(agree.any(axis=1), agree.argmax(axis=1), 0)
         return idx[np.arange(idx.shape[0]), first].astype(np.int64)
 
-    def interpolation(self, points: np.ndarray, normals: np.ndarray | None = None, k: int = 6) -> tuple[np.ndarray, np.ndarray]:
+    def interpolation(
+        self, points: np.ndarray, normals: np.ndarray | None = None, k: int = 6
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Inverse-distance weights of the ``k`` nearest samples of (K, 3) points:
         ``idx (K, k)`` and ``w (K, k)`` (rows sum to 1; samples facing away
         from ``normals`` get zero weight unless none faces the same way)."""
@@ -109,7 +111,9 @@ class SurfaceSamples:
         w /= w.sum(axis=1, keepdims=True)
         return idx, w
 
-    def interpolate(self, values: np.ndarray, points: np.ndarray, normals: np.ndarray | None = None, k: int = 6) -> np.ndarray:
+    def interpolate(
+        self, values: np.ndarray, points: np.ndarray, normals: np.ndarray | None = None, k: int = 6
+    ) -> np.ndarray:
         """Values (..., P) at the samples -> (..., K) at (K, 3) points (see :meth:`interpolation`)."""
         idx, w = self.interpolation(points, normals, k)
         return np.einsum("...kj,kj->...k", np.asarray(values, dtype=np.float64)[..., idx], w)
@@ -246,8 +250,7 @@ def touched_elements(
         reach = float((r + snap).max())
         if reach > 0:
             indptr, nbr, dist = _neighbour_csr(samples, reach)
-            frame, elem = _expand(frame, elem, r, snap, np.ascontiguousarray(pts), samples.points_m,
-                                  indptr, nbr, dist)
+            frame, elem = _expand(frame, elem, r, snap, np.ascontiguousarray(pts), samples.points_m, indptr, nbr, dist)
     key = np.sort(frame * samples.n + elem)  # sort-based unique (numpy's hash unique is slow here)
     if key.size:
         key = key[np.r_[True, key[1:] != key[:-1]]]

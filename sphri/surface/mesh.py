@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from sphri.surface.meshutil import check_link, face_areas, principal_axes, sample_surface
 from sphri.config import Configured
+from sphri.surface.meshutil import check_link, face_areas, principal_axes, sample_surface
 from sphri.surface.schema import MeshSurfaceSchema
 from sphri.types import Link, SurfaceMap
 

@@ -10,7 +10,6 @@ module for its array helpers and never pays trimesh's import).
 from __future__ import annotations
 
 import logging
-
 from typing import TYPE_CHECKING
 
 import numpy as np

@@ -71,7 +71,7 @@ def point_triangle(p, a, b, c, degenerate):
     point = np.where(interior[..., None], proj, 0.0)
     bary = np.where(interior[..., None], bary, 0.0)
     # the three edges (a->b, b->c, c->a) with barycentric weights of their ends
-    for (x, y, ix, iy) in ((a, b, 0, 1), (b, c, 1, 2), (c, a, 2, 0)):
+    for x, y, ix, iy in ((a, b, 0, 1), (b, c, 1, 2), (c, a, 2, 0)):
         d2, t = point_segment(p, x, y)
         better = d2 < best
         best = np.where(better, d2, best)
@@ -144,7 +144,7 @@ def segment_triangle(p0, p1, a, b, c, degenerate):
         tbest = np.where(better, tt, tbest)
         point = np.where(better[..., None], q, point)
         bary = np.where(better[..., None], bc, bary)
-    for (x0, x1, ix, iy) in ((a, b, 0, 1), (b, c, 1, 2), (c, a, 2, 0)):
+    for x0, x1, ix, iy in ((a, b, 0, 1), (b, c, 1, 2), (c, a, 2, 0)):
         d2, s, t = segment_segment(p0, p1, x0, x1)
         better = (~hit) & (d2 < best)
         best = np.where(better, d2, best)
@@ -170,13 +170,13 @@ def winding_direct(vertices: np.ndarray, faces: np.ndarray, points: np.ndarray) 
     tri = vertices[faces]
     out = np.empty(points.shape[0])
     for s in range(0, points.shape[0], 256):
-        q = points[s:s + 256, None, None, :]
+        q = points[s : s + 256, None, None, :]
         r = tri[None] - q  # (P, F, 3, 3)
         a, b, c = r[..., 0, :], r[..., 1, :], r[..., 2, :]
         la, lb, lc = (np.sqrt(_dot(x, x)) for x in (a, b, c))
         num = _dot(a, np.cross(b, c))
         den = la * lb * lc + _dot(a, b) * lc + _dot(b, c) * la + _dot(c, a) * lb
-        out[s:s + 256] = (2.0 * np.arctan2(num, den)).sum(axis=1) / (4.0 * np.pi)
+        out[s : s + 256] = (2.0 * np.arctan2(num, den)).sum(axis=1) / (4.0 * np.pi)
     return out
 
 
@@ -221,9 +221,7 @@ def reference_query(vertices, faces, p0, p1, radius, inside: str = "hull", chunk
     bary = np.empty((n, 3))
     for s in range(0, n, chunk):
         e = min(n, s + chunk)
-        d2, t, q, bc = segment_triangle(
-            p0[s:e, None, :], p1[s:e, None, :], a[None], b[None], c[None], degenerate[None]
-        )
+        d2, t, q, bc = segment_triangle(p0[s:e, None, :], p1[s:e, None, :], a[None], b[None], c[None], degenerate[None])
         j = np.argmin(d2, axis=1)
         rows = np.arange(e - s)
         dist[s:e] = np.sqrt(d2[rows, j])
@@ -324,7 +322,7 @@ def random_capsules(
     n_in = int(round(inside_fraction * n))
     n_near = int(round(near_fraction * n))
     kind[:n_in] = 2
-    kind[n_in:n_in + n_near] = 1
+    kind[n_in : n_in + n_near] = 1
     rng.shuffle(kind)
     centre = np.empty((n, 3))
     lo, hi = v.min(axis=0), v.max(axis=0)

@@ -55,7 +55,7 @@ def reference_raster(
             for s in shifts:
                 dx = xx + s * w - cv[k]
                 hit |= qa[k] * dy * dy + 2 * qb[k] * dy * dx + qc[k] * dx * dx <= 1.0
-            inside[r_lo * ss:(r_hi + 1) * ss] |= hit
+            inside[r_lo * ss : (r_hi + 1) * ss] |= hit
         cov[f] = inside.reshape(h, ss, w, ss).mean(axis=(1, 3))
     cov = cov.reshape(m, h * w)
     if not binary:

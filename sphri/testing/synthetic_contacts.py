@@ -8,7 +8,6 @@ centimetre), as in the VR study where the hand could sink into the hull.
 from __future__ import annotations
 
 import numpy as np
-
 from scipy.spatial import cKDTree
 
 from sphri.surface.meshutil import face_normals, sample_surface

@@ -164,7 +164,9 @@ def blob_windows(
     for s in range(0, n, step):
         sl = slice(s, s + step)
         da = np.maximum(np.abs(a_t - ca[sl, :, None]) - half_a, 0.0)
-        db = np.abs(np.mod(b_t - cb[sl, :, None] + 0.5 * ARM_CIRCUMFERENCE_M, ARM_CIRCUMFERENCE_M) - 0.5 * ARM_CIRCUMFERENCE_M)
+        db = np.abs(
+            np.mod(b_t - cb[sl, :, None] + 0.5 * ARM_CIRCUMFERENCE_M, ARM_CIRCUMFERENCE_M) - 0.5 * ARM_CIRCUMFERENCE_M
+        )
         db = np.maximum(db - half_b, 0.0)
         inside = (da / ra[sl, :, None]) ** 2 + (db / rb[sl, :, None]) ** 2 <= 1.0
         x[sl] = inside & on[sl, :, None]

@@ -36,7 +36,11 @@ def write_confusion_csv(cv: CVResult, path: Path) -> Path:
 
 
 def write_confusion_png(
-    cv: CVResult, path: Path, title: str | None = None, provenance=None, formats: tuple[str, ...] = ("png",),
+    cv: CVResult,
+    path: Path,
+    title: str | None = None,
+    provenance=None,
+    formats: tuple[str, ...] = ("png",),
     check: bool = True,
 ) -> Path:
     """Row-normalised confusion matrix summed over folds, one column wide (``sphri.figures``).
@@ -44,13 +48,26 @@ def write_confusion_png(
     ``formats``: files written beside ``path``; ``provenance``: a :class:`sphri.figures.Provenance`;
     ``check``: run the layout check (:func:`sphri.figures.save`).
     """
-    return draw_confusion(confusion_counts(cv), list(cv.labels), path,
-                          title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)", provenance, formats,
-                          check)
+    return draw_confusion(
+        confusion_counts(cv),
+        list(cv.labels),
+        path,
+        title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)",
+        provenance,
+        formats,
+        check,
+    )
 
 
-def draw_confusion(total: np.ndarray, labels: list[str], path: Path, title: str, provenance=None,
-                   formats: tuple[str, ...] = ("png",), check: bool = True) -> Path:
+def draw_confusion(
+    total: np.ndarray,
+    labels: list[str],
+    path: Path,
+    title: str,
+    provenance=None,
+    formats: tuple[str, ...] = ("png",),
+    check: bool = True,
+) -> Path:
     """Row-normalised confusion matrix of the counts ``total`` (rows: true) -> ``path`` (and ``formats`` beside it)."""
     from sphri import figures
 
@@ -67,8 +84,15 @@ def draw_confusion(total: np.ndarray, labels: list[str], path: Path, title: str,
         for i in range(norm.shape[0]):
             for j in range(norm.shape[1]):
                 if total[i].sum() > 0:
-                    ax.text(j, i, f"{norm[i, j]:.2f}".lstrip("0") if norm[i, j] < 1 else "1", ha="center", va="center",
-                            fontsize=figures.MIN_FONT_PT, color="white" if norm[i, j] > 0.5 else "black")
+                    ax.text(
+                        j,
+                        i,
+                        f"{norm[i, j]:.2f}".lstrip("0") if norm[i, j] < 1 else "1",
+                        ha="center",
+                        va="center",
+                        fontsize=figures.MIN_FONT_PT,
+                        color="white" if norm[i, j] > 0.5 else "black",
+                    )
         ax.set_title(title, loc="left")
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="share of the true gesture's trials")
         if provenance is not None:

@@ -17,8 +17,19 @@ from importlib import metadata
 from pathlib import Path
 
 #: The CPU flags that change which kernels numpy, MKL/oneDNN and torch run (AVX2 vs AVX-512, native bf16).
-SIMD_FLAGS = ("avx", "avx2", "fma", "avx512f", "avx512bw", "avx512_vnni", "avx512_bf16", "amx_bf16", "amx_tile",
-              "asimd", "sve")
+SIMD_FLAGS = (
+    "avx",
+    "avx2",
+    "fma",
+    "avx512f",
+    "avx512bw",
+    "avx512_vnni",
+    "avx512_bf16",
+    "amx_bf16",
+    "amx_tile",
+    "asimd",
+    "sve",
+)
 
 #: Libraries whose version can change a job's numbers or its speed.
 LIBRARIES = ("numpy", "scipy", "scikit-learn", "torch", "numba")

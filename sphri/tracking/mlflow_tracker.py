@@ -28,14 +28,15 @@ import random
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, TypeVar
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
 from sphri import __version__
-from sphri.tracking import machine
 from sphri.stages import PARAM_GROUPS  # groups whose component and scalar settings become params
+from sphri.tracking import machine
 
 if TYPE_CHECKING:
     from mlflow.tracking import MlflowClient
@@ -49,7 +50,7 @@ T = TypeVar("T")
 
 PARENT_FILE = "mlflow_parent_run.json"
 """Written into a sweep directory: the parent run id and tracking URI."""
-_CLIENTS: dict[str, "MlflowClient"] = {}
+_CLIENTS: dict[str, MlflowClient] = {}
 """This process's MLflow client of each tracking URI (every tracker of a sweep's launching process shares it)."""
 
 #: Settings of a group that are not MLflow params (paths, large nested definitions).
@@ -66,12 +67,18 @@ def git_commit() -> str:
     setup.py), else ``"unknown"``."""
     here = Path(__file__).resolve().parent
     try:
-        out = subprocess.run(["git", "rev-parse", "--show-toplevel", "HEAD"], capture_output=True, text=True,
-                             timeout=5, cwd=here)
+        out = subprocess.run(
+            ["git", "rev-parse", "--show-toplevel", "HEAD"], capture_output=True, text=True, timeout=5, cwd=here
+        )
         top, commit = (out.stdout.split() + ["", ""])[:2]
         if out.returncode == 0 and commit and here.is_relative_to(Path(top).resolve()):
-            dirty = subprocess.run(["git", "status", "--porcelain", "--untracked-files=no"], capture_output=True,
-                                   text=True, timeout=5, cwd=here).stdout.strip()
+            dirty = subprocess.run(
+                ["git", "status", "--porcelain", "--untracked-files=no"],
+                capture_output=True,
+                text=True,
+                timeout=5,
+                cwd=here,
+            ).stdout.strip()
             return commit + ("+dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError, ValueError):
         pass
@@ -98,7 +105,7 @@ def source_tags() -> dict[str, str]:
     return tags
 
 
-def dataset_input(cfg: "DictConfig", result: "RunResult") -> Any:
+def dataset_input(cfg: DictConfig, result: RunResult) -> Any:
     """The job's dataset as an MLflow dataset input (``mlflow.data``; context ``training``): named after
     the dataset, its digest the data stage's content key (the same data gives the same digest), its
     source the dataset folder (``data.root``) or, for generated data, the generator and its settings."""
@@ -135,7 +142,7 @@ def sweep_params(overrides: list[str]) -> dict[str, str]:
     return out
 
 
-def model_runtime(cfg: "DictConfig") -> dict[str, str]:
+def model_runtime(cfg: DictConfig) -> dict[str, str]:
     """``run.<key>`` params from the model's ``runtime()`` (device, precision as resolved on this
     machine: ``model.device=auto`` -> ``cuda`` or ``cpu``); empty for a model without one."""
     from hydra.utils import get_class, instantiate
@@ -159,7 +166,7 @@ def component_name(node: Any, choice: str | None = None) -> str:
     return str(target).rsplit(".", 1)[-1] or "?"
 
 
-def flatten_params(cfg: "DictConfig", choices: dict[str, str] | None = None) -> dict[str, str]:
+def flatten_params(cfg: DictConfig, choices: dict[str, str] | None = None) -> dict[str, str]:
     """Curated params: ``<group>`` = component, ``<group>.<key>`` = scalar settings."""
     from omegaconf import OmegaConf
 
@@ -185,9 +192,17 @@ class MlflowTracker:
 
     VERSION = "1"
 
-    def __init__(self, enabled: bool = True, uri: str | None = None, experiment: str = "sphri",
-                 artifacts: bool = True, retries: int = 8, log_model: bool | None = None,
-                 register_model: str | None = None, confusion_png: bool = True) -> None:
+    def __init__(
+        self,
+        enabled: bool = True,
+        uri: str | None = None,
+        experiment: str = "sphri",
+        artifacts: bool = True,
+        retries: int = 8,
+        log_model: bool | None = None,
+        register_model: str | None = None,
+        confusion_png: bool = True,
+    ) -> None:
         self.enabled = enabled
         self.uri = uri
         self.experiment = experiment
@@ -202,7 +217,7 @@ class MlflowTracker:
     def resolve_uri(self, output_dir: str | os.PathLike) -> str:
         return self.uri or default_uri(output_dir)
 
-    def client(self, output_dir: str | os.PathLike) -> "MlflowClient":
+    def client(self, output_dir: str | os.PathLike) -> MlflowClient:
         """The MLflow client; opening it creates (or checks) the store, so call it before computing."""
         if self._client is None:
             uri = self.resolve_uri(output_dir)
@@ -238,13 +253,16 @@ class MlflowTracker:
 
         return self._retry(get_or_create)
 
-    def log_batches(self, client: "MlflowClient", run_id: str, metrics: list, params: list) -> None:
+    def log_batches(self, client: MlflowClient, run_id: str, metrics: list, params: list) -> None:
         """Log metrics and params in MLflow's batches of 100, retrying a locked store."""
         for start in range(0, max(len(metrics), len(params)), 100):
-            self._retry(lambda s=start: client.log_batch(run_id, metrics=metrics[s:s + 100], params=params[s:s + 100]))
+            self._retry(
+                lambda s=start: client.log_batch(run_id, metrics=metrics[s : s + 100], params=params[s : s + 100])
+            )
 
-    def finish_analysis_run(self, client: "MlflowClient", run_id: str, metrics: list, params: list,
-                            out_dir: str | os.PathLike) -> None:
+    def finish_analysis_run(
+        self, client: MlflowClient, run_id: str, metrics: list, params: list, out_dir: str | os.PathLike
+    ) -> None:
         """Log an analysis run's numbers and every file of ``out_dir``, then end it FINISHED (FAILED on error)."""
         try:
             self.log_batches(client, run_id, metrics, params)
@@ -266,9 +284,16 @@ class MlflowTracker:
         raise AssertionError("unreachable")
 
     # -- sweeps --------------------------------------------------------------
-    def start_parent(self, output_dir: str, sweep_dir: str, sweep_id: str, overrides: list[str],
-                     sweep_hash: str | None = None, base: "DictConfig | None" = None,
-                     swept: dict[str, str] | None = None) -> str:
+    def start_parent(
+        self,
+        output_dir: str,
+        sweep_dir: str,
+        sweep_id: str,
+        overrides: list[str],
+        sweep_hash: str | None = None,
+        base: DictConfig | None = None,
+        swept: dict[str, str] | None = None,
+    ) -> str:
         """Create a sweep's parent run with MLflow's source tags and the sweep's params: the settings
         every job shares (``base``, the composed sweep config), then each swept key with its values as
         given (the command line's overrides and an experiment's ``hydra.sweeper.params``)."""
@@ -292,8 +317,15 @@ class MlflowTracker:
         self.log_batches(client, run.info.run_id, [], params)
         return run.info.run_id
 
-    def end_parent(self, output_dir: str, run_id: str, n_jobs: int, n_failed: int, status: str | None = None,
-                   skipped: dict[int, str] | None = None) -> None:
+    def end_parent(
+        self,
+        output_dir: str,
+        run_id: str,
+        n_jobs: int,
+        n_failed: int,
+        status: str | None = None,
+        skipped: dict[int, str] | None = None,
+    ) -> None:
         """End a sweep's parent run: ``status`` FINISHED, FAILED or KILLED (None: FAILED if a job failed).
 
         ``skipped``: job number -> the run that had already finished it; those of other sweeps are named
@@ -323,8 +355,11 @@ class MlflowTracker:
         if exp is None:
             return None
         query = f"tags.`sphri.sweep_hash` = '{sweep_hash}' and tags.`sphri.kind` = 'sweep'"
-        runs = self._retry(lambda: client.search_runs([exp.experiment_id], query, max_results=1,
-                                                      order_by=["attributes.start_time DESC"]))
+        runs = self._retry(
+            lambda: client.search_runs(
+                [exp.experiment_id], query, max_results=1, order_by=["attributes.start_time DESC"]
+            )
+        )
         if not runs:
             return None
         run = runs[0]
@@ -346,8 +381,10 @@ class MlflowTracker:
         exp = self._retry(lambda: client.get_experiment_by_name(self.experiment))
         if exp is None:
             return None
-        query = (f"tags.`sphri.config_hash` = '{config_hash}' and tags.`sphri.kind` = 'job' "
-                 "and attributes.status = 'FINISHED'")
+        query = (
+            f"tags.`sphri.config_hash` = '{config_hash}' and tags.`sphri.kind` = 'job' "
+            "and attributes.status = 'FINISHED'"
+        )
         runs = self._retry(lambda: client.search_runs([exp.experiment_id], query, max_results=1))
         return runs[0].info.run_id if runs else None
 
@@ -358,7 +395,11 @@ class MlflowTracker:
         tags = self._retry(lambda: client.get_run(run_id)).data.tags
         n = int(tags.get("sphri.reruns", "0") or 0) + 1
         stamp = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-        for key, value in (("sphri.reruns", str(n)), ("sphri.last_rerun", stamp), ("sphri.last_rerun_dir", str(job_dir))):
+        for key, value in (
+            ("sphri.reruns", str(n)),
+            ("sphri.last_rerun", stamp),
+            ("sphri.last_rerun_dir", str(job_dir)),
+        ):
             self._retry(lambda k=key, v=value: client.set_tag(run_id, k, v))
         return n
 
@@ -366,12 +407,15 @@ class MlflowTracker:
         """``models:/<model_id>`` of every model logged from run ``run_id`` (MLflow's logged models)."""
         client = self.client(output_dir)
         exp_id = self._retry(lambda: client.get_run(run_id)).info.experiment_id
-        found = self._retry(lambda: client.search_logged_models(
-            experiment_ids=[exp_id], filter_string=f"source_run_id = '{run_id}'"))
+        found = self._retry(
+            lambda: client.search_logged_models(experiment_ids=[exp_id], filter_string=f"source_run_id = '{run_id}'")
+        )
         return [f"models:/{m.model_id}" for m in found]
 
     # -- jobs ----------------------------------------------------------------
-    def _start_job(self, cfg: "DictConfig", job_dir: Path, parent: dict | None, run_name: str, tags: dict[str, str]) -> str:
+    def _start_job(
+        self, cfg: DictConfig, job_dir: Path, parent: dict | None, run_name: str, tags: dict[str, str]
+    ) -> str:
         output_dir = cfg.output_dir
         client = self.client(output_dir)
         exp_id = self.experiment_id(output_dir)
@@ -387,8 +431,15 @@ class MlflowTracker:
         run = self._retry(lambda: client.create_run(exp_id, tags=tags, run_name=run_name))
         return run.info.run_id
 
-    def log_job(self, cfg: "DictConfig", result: "RunResult", job_dir: Path, parent: dict | None = None,
-                run_name: str | None = None, choices: dict[str, str] | None = None) -> str:
+    def log_job(
+        self,
+        cfg: DictConfig,
+        result: RunResult,
+        job_dir: Path,
+        parent: dict | None = None,
+        run_name: str | None = None,
+        choices: dict[str, str] | None = None,
+    ) -> str:
         """Log a finished job; returns the MLflow run id."""
         from mlflow.entities import Metric, Param
 
@@ -406,8 +457,11 @@ class MlflowTracker:
         }
         evaluate = result.stages.get("evaluate")
         evaluated_here = evaluate is None or evaluate.source == "computed"
-        tags["sphri.evaluated"] = ("in this run" if evaluated_here else
-                                   "earlier (the evaluation came from the cache: sphri.machine.* is this run's machine)")
+        tags["sphri.evaluated"] = (
+            "in this run"
+            if evaluated_here
+            else "earlier (the evaluation came from the cache: sphri.machine.* is this run's machine)"
+        )
         run_id = self._start_job(cfg, job_dir, parent, run_name or self._run_name(cfg, meta, choices), tags)
         client = self.client(cfg.output_dir)
         params = flatten_params(cfg, choices)
@@ -415,11 +469,23 @@ class MlflowTracker:
             params.update(model_runtime(cfg))
         for k, v in meta.resolution.items():
             params[f"resolution.{k}"] = f"{v:.6g}" if isinstance(v, float) else str(v)
-        for k in ("robot", "region", "link", "n_participants", "n_trials", "n_windows", "n_dropped_no_contact", "frame_rate_hz"):
+        for k in (
+            "robot",
+            "region",
+            "link",
+            "n_participants",
+            "n_trials",
+            "n_windows",
+            "n_dropped_no_contact",
+            "frame_rate_hz",
+        ):
             params[f"meta.{k}"] = str(getattr(meta, k))
         now = int(time.time() * 1000)
-        derived = [Metric(f"resolution/{k}", float(v), now, 0) for k, v in meta.resolution.items()
-                   if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)]  # the UI plots and sorts these
+        derived = [
+            Metric(f"resolution/{k}", float(v), now, 0)
+            for k, v in meta.resolution.items()
+            if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+        ]  # the UI plots and sorts these
         metrics = derived
         for i, fold in enumerate(result.cv.folds):
             metrics += [
@@ -442,8 +508,14 @@ class MlflowTracker:
         self._retry(lambda: client.set_terminated(run_id, "FINISHED"))
         return run_id
 
-    def log_failure(self, cfg: "DictConfig", exc: BaseException, job_dir: Path, parent: dict | None = None,
-                    choices: dict[str, str] | None = None) -> str | None:
+    def log_failure(
+        self,
+        cfg: DictConfig,
+        exc: BaseException,
+        job_dir: Path,
+        parent: dict | None = None,
+        choices: dict[str, str] | None = None,
+    ) -> str | None:
         """Record a failed job as a FAILED run carrying its error."""
         try:
             from mlflow.entities import Param
@@ -460,7 +532,7 @@ class MlflowTracker:
             return None
 
     @staticmethod
-    def _failed_name(cfg: "DictConfig", choices: dict[str, str] | None) -> str:
+    def _failed_name(cfg: DictConfig, choices: dict[str, str] | None) -> str:
         """A failed job's run name: what its finished run would be called (from the config alone:
         the job never got as far as its metadata), then ``(failed)``."""
         try:
@@ -472,11 +544,11 @@ class MlflowTracker:
             return "job (failed)"
 
     @staticmethod
-    def _run_name(cfg: "DictConfig", meta: "RunMeta", choices: dict[str, str] | None) -> str:
+    def _run_name(cfg: DictConfig, meta: RunMeta, choices: dict[str, str] | None) -> str:
         model = component_name(cfg.model, (choices or {}).get("model"))
         return f"{meta.robot}-{meta.region}-res{cfg.encoder.res}-{model}"
 
-    def _log_artifacts(self, client: "MlflowClient", run_id: str, cfg: "DictConfig", result: "RunResult") -> None:
+    def _log_artifacts(self, client: MlflowClient, run_id: str, cfg: DictConfig, result: RunResult) -> None:
         from omegaconf import OmegaConf
 
         from sphri.tracking.artifacts import write_confusion_csv, write_confusion_png, write_fold_csv
@@ -491,9 +563,14 @@ class MlflowTracker:
             # PNG is for browsing runs in the MLflow UI, so it skips the vector files and the check.
             write_confusion_csv(result.cv, tmp_path / "confusion.csv")
             if self.confusion_png:
-                write_confusion_png(result.cv, tmp_path / "confusion.png", formats=("png",), check=False,
-                                    title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
-                                    provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {cfg.encoder.res}"))
+                write_confusion_png(
+                    result.cv,
+                    tmp_path / "confusion.png",
+                    formats=("png",),
+                    check=False,
+                    title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
+                    provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {cfg.encoder.res}"),
+                )
             (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
             (tmp_path / "meta.json").write_text(json.dumps(dataclasses.asdict(result.meta), indent=2, default=str))
             self._retry(lambda: client.log_artifacts(run_id, str(tmp_path)))
@@ -516,7 +593,7 @@ def ui_hint(uri: str) -> str:
     return "make ui" if uri == default and in_checkout else f"mlflow ui --backend-store-uri {uri}"
 
 
-def summary_text(result: "RunResult") -> str:
+def summary_text(result: RunResult) -> str:
     """The one-screen summary printed at the end of a run."""
     from sphri.evaluate.metrics import chance_level, summarize
 

@@ -22,8 +22,9 @@ import json
 import logging
 import signal
 import time
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 from omegaconf import DictConfig
 
@@ -82,8 +83,9 @@ def job_statuses(sweep_dir: str | Path) -> list[dict[str, Any]]:
     return sorted(out, key=lambda s: int(s.get("job", 0)))
 
 
-def write_status(job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None,
-                  **details) -> None:
+def write_status(
+    job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None, **details
+) -> None:
     """``sphri_status.json``: the job's end state (and, for the sweep's table, its swept values, accuracy,
     macro-F1, seconds and whether its evaluation came from the cache)."""
     job_dir.mkdir(parents=True, exist_ok=True)
@@ -113,8 +115,10 @@ def progress_line(sweep_dir: str | Path, job: int, what: str) -> str:
     elapsed = time.time() - float(info["started"])
     ran = max(done - skipped, 1)
     eta = elapsed / ran * (n - done) if done < n else 0.0
-    return (f"[sweep {done}/{n} done: {failed} failed, {skipped} skipped; {elapsed / 60:.1f} min, "
-            f"ETA {eta / 60:.1f} min] job #{job} {what}")
+    return (
+        f"[sweep {done}/{n} done: {failed} failed, {skipped} skipped; {elapsed / 60:.1f} min, "
+        f"ETA {eta / 60:.1f} min] job #{job} {what}"
+    )
 
 
 def results_table(statuses: Sequence[dict[str, Any]]) -> str:
@@ -128,13 +132,17 @@ def results_table(statuses: Sequence[dict[str, Any]]) -> str:
     fixed = {k for k, v in seen.items() if len(v) == 1 and len(statuses) > 1}  # the same in every job: not swept
     for s in statuses:
         acc, f1 = s.get("accuracy"), s.get("macro_f1")
-        rows.append((
-            f"#{s.get('job')}", " ".join(o for o in s.get("overrides") or [] if o.partition("=")[0] not in fixed) or "-",
-            str(s.get("status", "?")) + ("" if s.get("status") != "FAILED" else f": {str(s.get('error'))[:60]}"),
-            f"{acc:.3f}" if isinstance(acc, (int, float)) else "-", f"{f1:.3f}" if isinstance(f1, (int, float)) else "-",
-            f"{s['seconds']:.0f} s" if isinstance(s.get("seconds"), (int, float)) else "-",
-            "yes" if s.get("from_cache") else ("-" if s.get("status") != "FINISHED" else "no"),
-        ))
+        rows.append(
+            (
+                f"#{s.get('job')}",
+                " ".join(o for o in s.get("overrides") or [] if o.partition("=")[0] not in fixed) or "-",
+                str(s.get("status", "?")) + ("" if s.get("status") != "FAILED" else f": {str(s.get('error'))[:60]}"),
+                f"{acc:.3f}" if isinstance(acc, (int, float)) else "-",
+                f"{f1:.3f}" if isinstance(f1, (int, float)) else "-",
+                f"{s['seconds']:.0f} s" if isinstance(s.get("seconds"), (int, float)) else "-",
+                "yes" if s.get("from_cache") else ("-" if s.get("status") != "FINISHED" else "no"),
+            )
+        )
     widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
     return "\n".join("  ".join(c.ljust(w) for c, w in zip(r, widths)).rstrip() for r in rows)
 
@@ -164,8 +172,9 @@ def open_parent(config: DictConfig, overrides: Sequence[str]) -> dict[str, Any] 
         return info
     sweep_id = sweep_id_of(sweep_dir)
     swept = {str(k): str(v) for k, v in (config.hydra.sweeper.get("params") or {}).items()}
-    run_id = tracker.start_parent(config.output_dir, str(sweep_dir), sweep_id, list(overrides), sweep_hash=h,
-                                  base=config, swept=swept)
+    run_id = tracker.start_parent(
+        config.output_dir, str(sweep_dir), sweep_id, list(overrides), sweep_hash=h, base=config, swept=swept
+    )
     info = {"run_id": run_id, "sweep_id": sweep_id, "uri": uri}
     (sweep_dir / PARENT_FILE).write_text(json.dumps(info))
     log.info("MLflow parent run %s for sweep %s", run_id, sweep_id)
@@ -187,10 +196,14 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
         from sphri.pipeline import build
 
         try:
-            skipped = {int(s["job"]): s["mlflow_run_id"] for s in statuses
-                       if s.get("status") == "SKIPPED" and s.get("mlflow_run_id")}
-            build(config.tracking).end_parent(config.output_dir, parent["run_id"], len(statuses), len(failed), status,
-                                              skipped)
+            skipped = {
+                int(s["job"]): s["mlflow_run_id"]
+                for s in statuses
+                if s.get("status") == "SKIPPED" and s.get("mlflow_run_id")
+            }
+            build(config.tracking).end_parent(
+                config.output_dir, parent["run_id"], len(statuses), len(failed), status, skipped
+            )
         except Exception as exc:  # never hide the sweep's own outcome
             log.error("could not end the MLflow parent run %s: %s", parent["run_id"], exc)
     if statuses:
@@ -203,7 +216,10 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
     if interrupted:
         msg += f"; sweep {interrupted}"
     reports = sweep_dir / "report"
-    msg += (f"; report: {reports / 'report.html'}" if (reports / "report.html").is_file()
-            else f"; its report: python -m sphri.report {sweep_dir}")
+    msg += (
+        f"; report: {reports / 'report.html'}"
+        if (reports / "report.html").is_file()
+        else f"; its report: python -m sphri.report {sweep_dir}"
+    )
     print(msg)
     return status, failed

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 from sphri.config import require, store
 
@@ -13,7 +12,7 @@ class MlflowTrackingConfig:
     _target_: str = "sphri.tracking.mlflow_tracker.MlflowTracker"
     enabled: bool = True
     """Log each job to MLflow (false: run without tracking)."""
-    uri: Optional[str] = None
+    uri: str | None = None
     """Tracking URI; None = SQLite at ``<output_dir>/mlflow.db`` (absolute path).
     Any MLflow URI works, e.g. ``http://127.0.0.1:5000`` for a local server."""
     experiment: str = "sphri"
@@ -25,26 +24,41 @@ class MlflowTrackingConfig:
     (about 0.3 s a job; the sweep report redraws its matrices from the counts either way)."""
     retries: int = 8
     """Retries of a tracking write that hits a locked SQLite database."""
-    log_model: Optional[bool] = None
+    log_model: bool | None = None
     """Log the job's model, fit once more on every participant, as an MLflow pyfunc model (artifact
     ``model``: ``mlflow.pyfunc.load_model("runs:/<run_id>/model")``, ``skin live model=runs:/...``).
     None (default): for a single job, not for the jobs of a sweep (the refit recomputes the job's
     windows and trains once more: about a third of a Random Forest job's time); true or false: always
     or never."""
-    register_model: Optional[str] = None
+    register_model: str | None = None
     """Also register that model under this name in the MLflow model registry (``models:/<name>/<version>``)."""
 
     def __post_init__(self) -> None:
         require(bool(self.experiment.strip()), "tracking.experiment", self.experiment, "must be a non-empty name")
         require(self.retries >= 0, "tracking.retries", self.retries, "must be >= 0")
         if self.register_model is not None:
-            require(bool(self.register_model.strip()), "tracking.register_model", self.register_model,
-                    "must be a non-empty model name (or null)")
-            require(self.log_model is not False, "tracking.register_model", self.register_model,
-                    "needs tracking.log_model=true (or null)")
+            require(
+                bool(self.register_model.strip()),
+                "tracking.register_model",
+                self.register_model,
+                "must be a non-empty model name (or null)",
+            )
+            require(
+                self.log_model is not False,
+                "tracking.register_model",
+                self.register_model,
+                "needs tracking.log_model=true (or null)",
+            )
         if self.uri is not None:
-            ok = self.uri.startswith(("sqlite:///", "http://", "https://", "postgresql", "mysql", "databricks", "file:"))
-            require(ok, "tracking.uri", self.uri, "must be an MLflow tracking URI (sqlite:///ABS.db, http://127.0.0.1:PORT, ...)")
+            ok = self.uri.startswith(
+                ("sqlite:///", "http://", "https://", "postgresql", "mysql", "databricks", "file:")
+            )
+            require(
+                ok,
+                "tracking.uri",
+                self.uri,
+                "must be an MLflow tracking URI (sqlite:///ABS.db, http://127.0.0.1:PORT, ...)",
+            )
 
 
 store(group="tracking", name="mlflow_schema", node=MlflowTrackingConfig)

@@ -34,8 +34,8 @@ import shutil
 import sqlite3
 import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
-from typing import Iterator
 
 TMP_PREFIX = "_alembic_tmp_"
 
@@ -48,7 +48,7 @@ def sqlite_path(uri: str) -> Path | None:
     """The database file of a ``sqlite:///`` URI (None for other stores)."""
     if not uri.startswith("sqlite:///"):
         return None
-    return Path(uri[len("sqlite:///"):])
+    return Path(uri[len("sqlite:///") :])
 
 
 @contextlib.contextmanager
@@ -177,8 +177,10 @@ def ensure_store(uri: str) -> None:
         return
     if db.exists() and not (os.access(db, os.R_OK | os.W_OK) and os.access(db.parent, os.W_OK)):
         # SQLite writes a journal beside the file (and the lock lives there): both must be writable
-        raise BrokenStore(f"MLflow store {db} is read-only (the file or its folder); nothing was computed. "
-                          "Make it writable, or give another tracking.uri or output_dir")
+        raise BrokenStore(
+            f"MLflow store {db} is read-only (the file or its folder); nothing was computed. "
+            "Make it writable, or give another tracking.uri or output_dir"
+        )
     with store_lock(db):
         found = problems(db)
         if found:
@@ -226,7 +228,7 @@ def repair(db: Path) -> str:
         with contextlib.closing(sqlite3.connect(db)) as con:
             for t in _tables(db):
                 if t.startswith(TMP_PREFIX):
-                    real = t[len(TMP_PREFIX):]
+                    real = t[len(TMP_PREFIX) :]
                     if real in _tables(db):
                         con.execute(f'DROP TABLE "{t}"')
                     else:

@@ -23,8 +23,8 @@ import os
 
 import numpy as np
 
-from sphri.types import Contacts, Frames, GestureDataset, Layout, SurfaceMap, TaxelGeometry, WindowedFrames, WindowPlan
 from sphri.config import Configured
+from sphri.types import Contacts, Frames, GestureDataset, Layout, SurfaceMap, TaxelGeometry, WindowedFrames, WindowPlan
 from sphri.window.schema import OnsetWindowSchema
 
 log = logging.getLogger(__name__)
@@ -51,8 +51,9 @@ def available_memory_bytes() -> float | None:
         return None
 
 
-def check_memory(what: str, shape: tuple[int, ...], itemsize: int, max_memory_gib: float | None,
-                 copies: int = 1) -> None:
+def check_memory(
+    what: str, shape: tuple[int, ...], itemsize: int, max_memory_gib: float | None, copies: int = 1
+) -> None:
     """Refuse an allocation of ``copies`` arrays of ``shape`` x ``itemsize`` bytes above the limit
     (``window.max_memory_gib``, else a quarter of the available memory), before it is made."""
     need = float(np.prod(np.asarray(shape, dtype=np.float64))) * itemsize * copies
@@ -117,7 +118,9 @@ class OnsetWindow(Configured):
         if n_none:
             log.warning(
                 "window: %d of %d trials have no contact at all (%s them, window.no_contact=%s)",
-                n_none, len(onset), "dropped" if self.no_contact == "drop" else "kept as zero windows",
+                n_none,
+                len(onset),
+                "dropped" if self.no_contact == "drop" else "kept as zero windows",
                 self.no_contact,
             )
         kept = ~none if self.no_contact == "drop" else np.ones(len(onset), dtype=bool)

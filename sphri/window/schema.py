@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Optional
 
 from sphri.config import require_choice, require_range, runtime_setting, store
 
@@ -17,7 +16,7 @@ class OnsetWindowSchema:
     """Window length L in frames (at the dataset's frame rate); clipped or zero-padded."""
     no_contact: str = "drop"
     """Trials without any contact: drop them, or keep an all-zero window starting at frame 0."""
-    max_memory_gib: Optional[float] = runtime_setting(None)
+    max_memory_gib: float | None = runtime_setting(None)
     """Refuse windows (n_windows x frames x taxels float32) larger than this (GiB) before allocating them
     (None: a quarter of the memory available when the stage starts, since the noise and filter stages each
     hold a copy of the windows)."""

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import pytest
-
 from coverage_fixtures import Study, make_study
 
 

@@ -38,7 +38,9 @@ def hand_stub() -> HandModel:
     return HandModel(("palm",), ("palm",), np.array([0.01]), np.array([0.03]), np.array([1]), np.zeros((1, 3)))
 
 
-def make_contacts(link: Link, frame: np.ndarray, points: np.ndarray, radius: float | np.ndarray, n_frames: int) -> Contacts:
+def make_contacts(
+    link: Link, frame: np.ndarray, points: np.ndarray, radius: float | np.ndarray, n_frames: int
+) -> Contacts:
     mesh = trimesh.Trimesh(link.vertices, link.faces, process=False)
     cp, _, tri = trimesh.proximity.closest_point(mesh, points)
     order = np.argsort(frame, kind="stable")
@@ -47,9 +49,18 @@ def make_contacts(link: Link, frame: np.ndarray, points: np.ndarray, radius: flo
     normal = np.asarray(mesh.face_normals)[tri]
     r = np.broadcast_to(np.asarray(radius, float), (k,))[order] if np.ndim(radius) else np.full(k, float(radius))
     return Contacts(
-        n_frames=n_frames, frame=frame.astype(np.int64), capsule=np.zeros(k, np.int16), distance_m=np.zeros(k),
-        inside=np.zeros(k, bool), point_m=cp, segment_point_m=cp + 0.005 * normal, triangle=tri.astype(np.int64),
-        barycentric=np.full((k, 3), 1 / 3), normal=normal, patch_radius_m=r, depth_m=np.full(k, 0.002),
+        n_frames=n_frames,
+        frame=frame.astype(np.int64),
+        capsule=np.zeros(k, np.int16),
+        distance_m=np.zeros(k),
+        inside=np.zeros(k, bool),
+        point_m=cp,
+        segment_point_m=cp + 0.005 * normal,
+        triangle=tri.astype(np.int64),
+        barycentric=np.full((k, 3), 1 / 3),
+        normal=normal,
+        patch_radius_m=r,
+        depth_m=np.full(k, 0.002),
     )
 
 
@@ -60,8 +71,14 @@ class Study:
     contacts: Contacts
 
 
-def make_study(participants: int = 6, repetitions: int = 4, seed: int = 0, targets=None,
-               frames_per_trial: int = 24, contact_frames: int = 12) -> Study:
+def make_study(
+    participants: int = 6,
+    repetitions: int = 4,
+    seed: int = 0,
+    targets=None,
+    frames_per_trial: int = 24,
+    contact_frames: int = 12,
+) -> Study:
     """Trials of each target gesture by each participant; contacts on the cylinder."""
     targets = targets or TARGETS
     rng = np.random.default_rng(seed)
@@ -71,14 +88,18 @@ def make_study(participants: int = 6, repetitions: int = 4, seed: int = 0, targe
     for p in range(participants):
         ordinal = 0
         offset = rng.normal(0, 0.004, 2)  # a participant's own aim (m)
-        for rep in range(repetitions):
+        for _rep in range(repetitions):
             for g, (ang, z, spread, caps) in targets.items():
                 ordinal += 1
                 rows.append((f"participant_{p:02d}", "arm", ordinal, f"{ordinal:04d}_{g}", g, start, frames_per_trial))
                 first = start + int(rng.integers(2, frames_per_trial - contact_frames))
                 for f in range(first, first + contact_frames):
                     for _ in range(caps):
-                        a = rng.uniform(0, 2 * np.pi) if ang is None else ang + offset[0] / RADIUS + rng.normal(0, spread / RADIUS)
+                        a = (
+                            rng.uniform(0, 2 * np.pi)
+                            if ang is None
+                            else ang + offset[0] / RADIUS + rng.normal(0, spread / RADIUS)
+                        )
                         h = z + offset[1] + rng.normal(0, spread if ang is not None else 0.006)
                         h = float(np.clip(h, -HEIGHT / 2 + 0.005, HEIGHT / 2 - 0.005))
                         fr.append(f)
@@ -89,5 +110,3 @@ def make_study(participants: int = 6, repetitions: int = 4, seed: int = 0, targe
     ds = GestureDataset("handmade", True, hand_stub(), trials, np.zeros((n_frames, 1, 7), np.float32), 30.0)
     contacts = make_contacts(link, np.asarray(fr, np.int64), np.asarray(pts, float), 0.008, n_frames)
     return Study(link, ds, contacts)
-
-

@@ -15,7 +15,8 @@ from sphri.types import Robot
 
 def test_split_args_routes_each_key():
     ov, dot, run = cli.split_args(
-        ["+debug=fast", "data.regions=[torso]", "by=gesture", "out=/x", "coverage.bandwidth_mm=8", "mlflow=false"])
+        ["+debug=fast", "data.regions=[torso]", "by=gesture", "out=/x", "coverage.bandwidth_mm=8", "mlflow=false"]
+    )
     assert ov == ["+debug=fast", "data.regions=[torso]"]
     assert dot == ["by=gesture", "bandwidth_mm=8"]
     assert run == {"out": "/x", "mlflow": "false"}
@@ -27,8 +28,13 @@ def test_split_args_routes_each_key():
 
 @pytest.mark.parametrize(
     "arg,key",
-    [("bandwidth_mm=abc", "bandwidth_mm"), ("kernel=manhattan", "coverage.kernel"), ("capture=1.5", "coverage.capture"),
-     ("n_permutations=5", "coverage.n_permutations"), ("exact_max=25", "coverage.exact_max")],
+    [
+        ("bandwidth_mm=abc", "bandwidth_mm"),
+        ("kernel=manhattan", "coverage.kernel"),
+        ("capture=1.5", "coverage.capture"),
+        ("n_permutations=5", "coverage.n_permutations"),
+        ("exact_max=25", "coverage.exact_max"),
+    ],
 )
 def test_bad_settings_name_the_key(arg, key):
     with pytest.raises(ConfigError) as err:
@@ -50,7 +56,9 @@ def test_main_reports_config_errors(capsys):
 class FakePipeline:
     def __init__(self, study, surface):
         self.values = {
-            "data": study.dataset, "contact": study.contacts, "surface": surface,
+            "data": study.dataset,
+            "contact": study.contacts,
+            "surface": surface,
             "robot": Robot("handmade", {"cyl": study.link}, {"arm": "cyl"}),
         }
 
@@ -59,15 +67,27 @@ class FakePipeline:
 
 
 def fake_cfg(tmp_path: Path):
-    groups = {g: {"_target_": f"sphri.fake.{g}"} for g in
-              ("robot", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv")}
-    return OmegaConf.create({
-        "seed": 0, "output_dir": str(tmp_path), "cache": {"dir": str(tmp_path / "cache"), "enabled": False},
-        "data": {"_target_": "sphri.fake.data", "regions": ["arm"]},
-        "tracking": {"_target_": "sphri.tracking.mlflow_tracker.MlflowTracker", "enabled": True, "uri": None,
-                     "experiment": "sphri", "artifacts": True, "retries": 2},
-        **groups,
-    })
+    groups = {
+        g: {"_target_": f"sphri.fake.{g}"}
+        for g in ("robot", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv")
+    }
+    return OmegaConf.create(
+        {
+            "seed": 0,
+            "output_dir": str(tmp_path),
+            "cache": {"dir": str(tmp_path / "cache"), "enabled": False},
+            "data": {"_target_": "sphri.fake.data", "regions": ["arm"]},
+            "tracking": {
+                "_target_": "sphri.tracking.mlflow_tracker.MlflowTracker",
+                "enabled": True,
+                "uri": None,
+                "experiment": "sphri",
+                "artifacts": True,
+                "retries": 2,
+            },
+            **groups,
+        }
+    )
 
 
 def test_run_writes_region_files_and_logs_an_mlflow_run(study, tmp_path, monkeypatch):
@@ -116,8 +136,17 @@ def test_real_pipeline_debug_fast(tmp_path):
 
 def test_console_shows_heldout_capture_and_notes(tmp_path, capsys):
     """The console says what held-out participants get and the caveats, not only the in-sample sentence."""
-    rc = cli.main([f"output_dir={tmp_path}", "+debug=fast", "data.regions=[arm]", "render=false",
-                   "n_projections=32", f"out={tmp_path / 'cov'}", "mlflow=false"])
+    rc = cli.main(
+        [
+            f"output_dir={tmp_path}",
+            "+debug=fast",
+            "data.regions=[arm]",
+            "render=false",
+            "n_projections=32",
+            f"out={tmp_path / 'cov'}",
+            "mlflow=false",
+        ]
+    )
     assert rc == 0
     out = capsys.readouterr().out
     assert "on held-out participants the same area captures" in out

@@ -59,7 +59,8 @@ def test_different_gestures_differ_and_identical_ones_do_not(surface):
     targets = {"poke": TARGETS["poke"], "tap": TARGETS["poke"], "stroke": TARGETS["stroke"]}
     st = make_study(participants=8, repetitions=4, seed=3, targets=targets)
     res = CoverageAnalysis(n_projections=64, render=False, heldout=False).analyze(
-        st.dataset, st.contacts, st.link, surface, "arm")
+        st.dataset, st.contacts, st.link, surface, "arm"
+    )
     assert res.groups == ["poke", "stroke", "tap"]  # the study's gesture order
     t = res.comparison.table.set_index(["cond_a", "cond_b"])
     assert t.loc[("poke", "stroke"), "significant"] and t.loc[("stroke", "tap"), "significant"]
@@ -74,10 +75,14 @@ def test_grouping_by_any_trial_column(study, surface):
     trials = ds.trials.copy()
     trials["scenario"] = np.where(trials["trial_ordinal"] % 2 == 0, "even", "odd")
     ds2 = type(ds)(ds.name, ds.synthetic, ds.hand, trials, ds.poses, ds.frame_rate_hz)
-    res = CoverageAnalysis(by="scenario", render=False, n_projections=32).analyze(ds2, study.contacts, study.link, surface, "arm")
+    res = CoverageAnalysis(by="scenario", render=False, n_projections=32).analyze(
+        ds2, study.contacts, study.link, surface, "arm"
+    )
     assert res.groups == ["even", "odd"]
     assert len(res.comparison.table) == 1
-    by_p = CoverageAnalysis(by="participant", render=False, heldout=False).analyze(ds, study.contacts, study.link, surface, "arm")
+    by_p = CoverageAnalysis(by="participant", render=False, heldout=False).analyze(
+        ds, study.contacts, study.link, surface, "arm"
+    )
     assert by_p.comparison is None and any("pair_by" in n for n in by_p.notes)
     assert group_order(trials["gesture"], "gesture") == ["poke", "stroke", "grab"]
 
@@ -108,8 +113,17 @@ def test_files_written_and_readable(result, study, surface, tmp_path):
     names = {p.name for p in paths}
     for g in ["all", "poke"]:
         assert {f"density_{g}.npz", f"map_{g}.png", f"map_{g}.ply", f"uv_{g}.png"} <= names
-    assert {"overview.png", "coverage_curve.png", "coverage_curve.csv", "swd_heatmap.png", "swd_pairs.csv",
-            "swd_p_holm_matrix.csv", "recommendation.txt", "summary.json", "heldout.csv"} <= names
+    assert {
+        "overview.png",
+        "coverage_curve.png",
+        "coverage_curve.csv",
+        "swd_heatmap.png",
+        "swd_pairs.csv",
+        "swd_p_holm_matrix.csv",
+        "recommendation.txt",
+        "summary.json",
+        "heldout.csv",
+    } <= names
     with np.load(tmp_path / "density_poke.npz") as z:
         assert z["points_m"].shape == (result.samples.n, 3) and z["density"].shape == (result.samples.n,)
         assert z["mask"].dtype == bool and z["mask"].sum() == result.curves["poke"].k
@@ -143,8 +157,15 @@ def test_every_coverage_figure_is_clean_in_three_formats(result, study, surface,
 
     caplog.set_level(logging.WARNING, logger="sphri.figures")
     small = dataclasses.replace(result, groups=result.groups[:2])
-    paths = write_region(small, tmp_path, study.link, surface, render=True, views=4,
-                         provenance=Provenance(synthetic=True, ids="test study"))
+    paths = write_region(
+        small,
+        tmp_path,
+        study.link,
+        surface,
+        render=True,
+        views=4,
+        provenance=Provenance(synthetic=True, ids="test study"),
+    )
     pngs = [p for p in paths if p.suffix == ".png"]
     assert {p.stem for p in pngs} >= {"map_all", "uv_all", "overview", "coverage_curve", "swd_heatmap"}
     for png in pngs:
@@ -175,8 +196,13 @@ def test_every_repetition_enters_the_swd_tests(surface):
     trials = ds.trials.copy()
     third = trials["trial_ordinal"] > 4  # the third repetition of both gestures
     trials.loc[third, "gesture"] = "grab"
-    moved = an.analyze(type(ds)(ds.name, ds.synthetic, ds.hand, trials, ds.poses, ds.frame_rate_hz), st.contacts,
-                       st.link, surface, "arm").comparison
+    moved = an.analyze(
+        type(ds)(ds.name, ds.synthetic, ds.hand, trials, ds.poses, ds.frame_rate_hz),
+        st.contacts,
+        st.link,
+        surface,
+        "arm",
+    ).comparison
     pf = full.per_participant.set_index(["participant", "cond_a", "cond_b"])
     pm = moved.per_participant.set_index(["participant", "cond_a", "cond_b"])
     key = [k for k in pf.index if k[1:] == ("poke", "stroke")]

@@ -62,8 +62,13 @@ def test_no_frames_and_bad_inputs():
 def test_circular_range_and_region_words():
     assert _circular_range(np.array([0.1, 0.2, 0.15])) == pytest.approx((0.1, 0.2))
     assert _circular_range(np.array([0.95, 0.02, 0.05])) == pytest.approx((0.95, 0.05))  # wraps the seam
-    part = {"area_cm2": 12.34, "share": 1.0, "centroid_mm": [1.0, -40.0, -410.0], "u_range": (0.55, 0.98),
-            "v_range": (0.95, 0.05)}
+    part = {
+        "area_cm2": 12.34,
+        "share": 1.0,
+        "centroid_mm": [1.0, -40.0, -410.0],
+        "u_range": (0.55, 0.98),
+        "v_range": (0.95, 0.05),
+    }
     assert region_text(part, "cylinder") == "12.3 cm^2 at (1, -40, -410) mm, h 0.55-0.98, a 342-18 deg"
     part["v_range"] = (0.30, 0.25)
     assert "all around" in region_text(part, "cylinder")

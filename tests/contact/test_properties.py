@@ -6,14 +6,13 @@ from __future__ import annotations
 import os
 
 import numpy as np
+from contact_checks import TOL_M, check_against_reference, check_fields
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from sphri.contact import capsule_mesh_query
 from sphri.testing.contact_reference import arm_stand_in, random_capsules
-
-from contact_checks import TOL_M, check_against_reference, check_fields
 
 V, F = arm_stand_in()
 #: ``make test-all`` (SPHRI_DEEP_TESTS=1) runs ten times as many examples.
@@ -117,10 +116,14 @@ def test_degenerate_triangles(seed):
     extra_v = np.array([[0.0, 0.0, -0.30], [0.0, 0.0, -0.35], [0.0, 0.0, -0.40], [0.06, 0.0, -0.36]])
     v = np.concatenate([V, extra_v])
     k = V.shape[0]
-    bad = np.array([[k, k + 1, k + 2],  # collinear: a segment inside the arm
-                    [k + 3, k + 3, k + 3],  # a point outside the arm
-                    [k + 1, k + 1, k + 2],  # repeated vertex
-                    [0, 0, 1]])
+    bad = np.array(
+        [
+            [k, k + 1, k + 2],  # collinear: a segment inside the arm
+            [k + 3, k + 3, k + 3],  # a point outside the arm
+            [k + 1, k + 1, k + 2],  # repeated vertex
+            [0, 0, 1],
+        ]
+    )
     f = np.concatenate([F, bad])
     p0, p1, r, _ = random_capsules(V, F, 150, seed=seed)
     # also aim at the stray point and the inner segment
@@ -159,8 +162,9 @@ def test_float32_inputs_are_computed_in_float64(seed):
     p0, p1, r, _ = random_capsules(V, F, 300, seed=seed)
     v32, a32, b32, r32 = V.astype(np.float32), p0.astype(np.float32), p1.astype(np.float32), r.astype(np.float32)
     q32 = capsule_mesh_query(v32, F.astype(np.int32), a32, b32, r32)
-    q64 = capsule_mesh_query(v32.astype(np.float64), F, a32.astype(np.float64), b32.astype(np.float64),
-                             r32.astype(np.float64))
+    q64 = capsule_mesh_query(
+        v32.astype(np.float64), F, a32.astype(np.float64), b32.astype(np.float64), r32.astype(np.float64)
+    )
     assert q32.distance.dtype == np.float64
     assert np.array_equal(q32.distance, q64.distance) and np.array_equal(q32.in_contact, q64.in_contact)
 

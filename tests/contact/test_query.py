@@ -4,11 +4,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from contact_checks import TOL_M, check_against_reference, check_fields
 
 from sphri.contact import capsule_mesh_query, prepare_mesh, sphere_mesh_query, winding_number
 from sphri.testing.contact_reference import random_capsules, reference_query, winding_direct
-
-from contact_checks import TOL_M, check_against_reference, check_fields
 
 
 def test_hard_set_on_stand_in(standin):

@@ -3,7 +3,6 @@ the contact stage over a study-sized dataset (740,000 frames x 19 capsules; its 
 
 from __future__ import annotations
 
-
 import numpy as np
 import pandas as pd
 import pytest
@@ -31,9 +30,12 @@ def test_stage_over_a_study_sized_dataset():
     rng = np.random.default_rng(0)
     c = 19
     hand = HandModel(
-        names=tuple(f"c{i}" for i in range(c)), fingers=("palm",) * c,
-        radius_m=rng.uniform(0.007, 0.023, c), height_m=rng.uniform(0.03, 0.09, c),
-        axis=np.zeros(c, dtype=np.int64), center_offset_m=rng.normal(scale=0.02, size=(c, 3)),
+        names=tuple(f"c{i}" for i in range(c)),
+        fingers=("palm",) * c,
+        radius_m=rng.uniform(0.007, 0.023, c),
+        height_m=rng.uniform(0.03, 0.09, c),
+        axis=np.zeros(c, dtype=np.int64),
+        center_offset_m=rng.normal(scale=0.02, size=(c, 3)),
     )
     v, f = arm_stand_in()
     robot = Robot("r", {"l_arm": Link("l_arm", v, f, watertight=False)}, {"arm": "l_arm"})
@@ -48,11 +50,17 @@ def test_stage_over_a_study_sized_dataset():
     poses = np.concatenate([pos, q], axis=-1).astype(np.float32)
     per = 134
     k = n // per
-    trials = pd.DataFrame({
-        "participant": "participant_01", "region": "arm", "trial_ordinal": np.arange(k) + 1,
-        "trial_id": [f"{i + 1:04d}_pat" for i in range(k)], "gesture": "pat",
-        "start": np.arange(k) * per, "n_frames": per,
-    })[list(TRIAL_COLUMNS)]
+    trials = pd.DataFrame(
+        {
+            "participant": "participant_01",
+            "region": "arm",
+            "trial_ordinal": np.arange(k) + 1,
+            "trial_id": [f"{i + 1:04d}_pat" for i in range(k)],
+            "gesture": "pat",
+            "start": np.arange(k) * per,
+            "n_frames": per,
+        }
+    )[list(TRIAL_COLUMNS)]
     ds = GestureDataset("big", True, hand, trials, poses, 30.0)
     comp = ExactContact()
     comp.compute(GestureDataset("warm", True, hand, trials.iloc[:1], poses, 30.0), robot)  # compile

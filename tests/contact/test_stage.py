@@ -14,10 +14,10 @@ import sphri.contact.schema  # noqa: F401  (registers the schemas)
 from sphri.config import CONF_DIR, ConfigError
 from sphri.contact import capsule_mesh_query, sphere_mesh_query
 from sphri.contact.exact import ExactContact
-from sphri.testing.contact_reference import arm_stand_in
 from sphri.contact.schema import ExactContactSchema, SphereContactSchema
 from sphri.contact.spheres import SphereContact
 from sphri.hand.kinematics import capsule_segments
+from sphri.testing.contact_reference import arm_stand_in
 from sphri.types import TRIAL_COLUMNS, Contacts, GestureDataset, HandModel, Link, Robot
 
 
@@ -66,8 +66,14 @@ def _dataset(n_trials: int = 8, frames: int = 60, seed: int = 0) -> GestureDatas
         rows.append(("participant_01", region, i + 1, f"{i + 1:04d}_pat", "pat", start, frames))
         start += frames
     trials = pd.DataFrame(rows, columns=list(TRIAL_COLUMNS))
-    return GestureDataset(name="test", synthetic=True, hand=hand, trials=trials,
-                          poses=np.concatenate(poses).astype(np.float32), frame_rate_hz=30.0)
+    return GestureDataset(
+        name="test",
+        synthetic=True,
+        hand=hand,
+        trials=trials,
+        poses=np.concatenate(poses).astype(np.float32),
+        frame_rate_hz=30.0,
+    )
 
 
 def _brute_force(ds: GestureDataset, robot: Robot, margin: float = 0.0, k: int = 0):
@@ -82,8 +88,11 @@ def _brute_force(ds: GestureDataset, robot: Robot, margin: float = 0.0, k: int =
         a = p0[frames].reshape(-1, 3)
         b = p1[frames].reshape(-1, 3)
         r = np.tile(ds.hand.radius_m + margin, frames.size)
-        q = sphere_mesh_query(link.vertices, link.faces, a, b, r, k=k) if k else \
-            capsule_mesh_query(link.vertices, link.faces, a, b, r)
+        q = (
+            sphere_mesh_query(link.vertices, link.faces, a, b, r, k=k)
+            if k
+            else capsule_mesh_query(link.vertices, link.faces, a, b, r)
+        )
         hit = np.flatnonzero(q.in_contact)
         rows.append((frames[hit // c], hit % c, q.distance[hit], q.inside[hit], q.depth[hit]))
     fr, cap, d, ins, dep = (np.concatenate(x) for x in zip(*rows))
@@ -95,9 +104,17 @@ def _check_contacts(con: Contacts, ds: GestureDataset):
     k = con.n_contacts
     assert con.n_frames == ds.n_frames
     assert con.frame.dtype == np.int64 and con.capsule.dtype == np.int16 and con.triangle.dtype == np.int64
-    for name, shape in (("distance_m", (k,)), ("inside", (k,)), ("point_m", (k, 3)), ("segment_point_m", (k, 3)),
-                        ("triangle", (k,)), ("barycentric", (k, 3)), ("normal", (k, 3)),
-                        ("patch_radius_m", (k,)), ("depth_m", (k,))):
+    for name, shape in (
+        ("distance_m", (k,)),
+        ("inside", (k,)),
+        ("point_m", (k, 3)),
+        ("segment_point_m", (k, 3)),
+        ("triangle", (k,)),
+        ("barycentric", (k, 3)),
+        ("normal", (k, 3)),
+        ("patch_radius_m", (k,)),
+        ("depth_m", (k,)),
+    ):
         assert getattr(con, name).shape == shape, name
     key = con.frame * 1000 + con.capsule
     assert (np.diff(key) > 0).all(), "rows must be sorted by frame then capsule, without duplicates"

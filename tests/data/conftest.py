@@ -52,11 +52,29 @@ def compute_contacts(dataset: GestureDataset, robot: Robot) -> Contacts:
     for region in np.unique(region_of_frame):
         link = robot.link_for(str(region))
         fr = np.flatnonzero(region_of_frame == region)
-        q = capsule_mesh_query(link.vertices, link.faces, p0[fr].reshape(-1, 3), p1[fr].reshape(-1, 3),
-                               np.tile(dataset.hand.radius_m, len(fr)))
+        q = capsule_mesh_query(
+            link.vertices,
+            link.faces,
+            p0[fr].reshape(-1, 3),
+            p1[fr].reshape(-1, 3),
+            np.tile(dataset.hand.radius_m, len(fr)),
+        )
         i = np.flatnonzero(q.in_contact)
-        parts.append((fr[i // c], i % c, q.distance[i], q.inside[i], q.point[i], q.segment_point[i], q.triangle[i],
-                      q.barycentric[i], q.normal[i], q.patch_radius[i], q.depth[i]))
+        parts.append(
+            (
+                fr[i // c],
+                i % c,
+                q.distance[i],
+                q.inside[i],
+                q.point[i],
+                q.segment_point[i],
+                q.triangle[i],
+                q.barycentric[i],
+                q.normal[i],
+                q.patch_radius[i],
+                q.depth[i],
+            )
+        )
     cols = [np.concatenate(x) for x in zip(*parts)]
     order = np.lexsort((cols[1], cols[0]))
     cols = [x[order] for x in cols]

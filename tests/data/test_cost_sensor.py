@@ -40,13 +40,23 @@ def _dataset(hand, gestures_frames):
     """Trials of 30 frames each on the arm, one per (gesture, participant) entry."""
     rows, start = [], 0
     for k, (g, p) in enumerate(gestures_frames, 1):
-        rows.append(dict(participant=p, region="arm", trial_ordinal=k, trial_id=f"{k:04d}_{g}", gesture=g,
-                         start=start, n_frames=30))
+        rows.append(
+            dict(
+                participant=p,
+                region="arm",
+                trial_ordinal=k,
+                trial_id=f"{k:04d}_{g}",
+                gesture=g,
+                start=start,
+                n_frames=30,
+            )
+        )
         start += 30
     poses = np.zeros((start, hand.n_capsules, 7), np.float32)
     poses[..., 6] = 1.0
-    return GestureDataset(name="toy", synthetic=True, hand=hand, trials=make_trials_frame(rows), poses=poses,
-                          frame_rate_hz=30.0)
+    return GestureDataset(
+        name="toy", synthetic=True, hand=hand, trials=make_trials_frame(rows), poses=poses, frame_rate_hz=30.0
+    )
 
 
 def test_known_patches_give_known_fractions_and_durations(hand, robot):
@@ -58,13 +68,19 @@ def test_known_patches_give_known_fractions_and_durations(hand, robot):
     _, w = layout.grid_shape
     cell = 6 * w + 5
     p, n = layout.position_m[cell], layout.normal[cell]
-    ds = _dataset(hand, [("poke", "participant_01"), ("grab", "participant_01"), ("hit", "participant_01"),
-                         ("grab", "participant_02")])
+    ds = _dataset(
+        hand,
+        [("poke", "participant_01"), ("grab", "participant_01"), ("hit", "participant_01"), ("grab", "participant_02")],
+    )
     frame, radius = [], []
-    frame += list(range(5, 15)); radius += [0.005] * 10                 # poke: frames 5..14
-    frame += list(range(30 + 2, 30 + 8)); radius += [0.025] * 6        # grab: frames 2..7 and 20..21 (gap)
-    frame += [30 + 20, 30 + 21]; radius += [0.005, 0.005]
-    frame += list(range(90 + 0, 90 + 30)); radius += [0.025] * 30      # grab 2: the whole trial
+    frame += list(range(5, 15))
+    radius += [0.005] * 10  # poke: frames 5..14
+    frame += list(range(30 + 2, 30 + 8))
+    radius += [0.025] * 6  # grab: frames 2..7 and 20..21 (gap)
+    frame += [30 + 20, 30 + 21]
+    radius += [0.005, 0.005]
+    frame += list(range(90 + 0, 90 + 30))
+    radius += [0.025] * 30  # grab 2: the whole trial
     k = len(frame)
     contacts = make_contacts(frame, np.tile(p, (k, 1)), np.tile(n, (k, 1)), radius, ds.n_frames)
     st = sensor_trials(ds, contacts, robot, surface)
@@ -83,11 +99,17 @@ def test_known_patches_give_known_fractions_and_durations(hand, robot):
     area = table[table["statistic"] == "CoST sensor area mean"].set_index("gesture")
     assert area.index.tolist() == ["poke", "grab"]  # GESTURES order; hit never reached the sensor
     grab_mean = ((6 * 9 + 2) / 8 / 64 + 9 / 64) / 2
-    assert np.isclose(area.loc["grab", "value"], grab_mean) and area.loc["grab", "reference"] == COST_AREA_FRACTION["grab"][0]
+    assert (
+        np.isclose(area.loc["grab", "value"], grab_mean)
+        and area.loc["grab", "reference"] == COST_AREA_FRACTION["grab"][0]
+    )
     assert np.isclose(area.loc["poke", "ratio"], (1 / 64) / COST_AREA_FRACTION["poke"][0])
     assert (area["flag"] == "OUTSIDE").all() and (area["band"] == "0.65-1.35x").all()  # far below CoST
     dur = table[table["statistic"] == "CoST sensor dur mean ms"].set_index("gesture")
-    assert np.isclose(dur.loc["poke", "value"], 1000 * 10 / 30) and dur.loc["poke", "reference"] == COST_DURATION_MS["poke"][0]
+    assert (
+        np.isclose(dur.loc["poke", "value"], 1000 * 10 / 30)
+        and dur.loc["poke", "reference"] == COST_DURATION_MS["poke"][0]
+    )
     assert dur.loc["poke", "flag"] == "OUTSIDE"  # 333 ms is 0.51x CoST's 650 ms
     sd = table[table["statistic"] == "CoST sensor area sd"].set_index("gesture")
     assert np.isnan(sd.loc["poke", "value"]) and sd.loc["poke", "flag"] == "OUTSIDE"  # one trial: no SD
@@ -99,9 +121,19 @@ def test_spatial_check_needs_six_of_eight_gestures_in_band(n_in, passes):
     rows = []
     for k, g in enumerate(gestures):
         ratio = 1.0 if k < n_in else 2.0
-        rows.append({"participant": "p", "region": "arm", "gesture": g, "sensor_contact": True, "sensor_frames": 5,
-                     "area_fraction": COST_AREA_FRACTION[g][0] * ratio, "duration_s": 1.0, "window_row": 0,
-                     "window_col": 0})
+        rows.append(
+            {
+                "participant": "p",
+                "region": "arm",
+                "gesture": g,
+                "sensor_contact": True,
+                "sensor_frames": 5,
+                "area_fraction": COST_AREA_FRACTION[g][0] * ratio,
+                "duration_s": 1.0,
+                "window_row": 0,
+                "window_col": 0,
+            }
+        )
     table = spatial_comparison(pd.DataFrame(rows))
     ((name, ok, detail),) = spatial_checks(table)
     assert name == "arm CoST sensor area" and ok is passes and detail.startswith(f"{n_in}/8 gestures in band")

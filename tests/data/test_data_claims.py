@@ -11,15 +11,13 @@ import shutil
 
 import numpy as np
 import pyarrow as pa
-import pyarrow.parquet as pq
 import pytest
 import trimesh
+from test_data_vr_gesture import edit_parquet, first_trial_rows, set_column
 
 from sphri.data.format import manifest_path, parquet_path
 from sphri.data.vr_gesture import DatasetError, VRGestureData
 from sphri.robots.validate import MeshError, make_link
-
-from test_data_vr_gesture import edit_parquet, first_trial_rows, set_column
 
 P2 = "participant_02"
 
@@ -56,8 +54,11 @@ def test_copied_participant_is_refused_naming_both_ids(written, hand, noise_m):
     Identical, and near-identical (positions moved by up to 0.5 mm), copies are refused by default."""
     load(written, hand)  # three different people: no false alarm
     copy_participant(written, P2, "participant_07", noise_m=noise_m)
-    with pytest.raises(DatasetError, match=r"participant_02 and participant_07 hold near-identical recordings "
-                                           r"\(16 of 16 trials.*data\.duplicates=warn"):
+    with pytest.raises(
+        DatasetError,
+        match=r"participant_02 and participant_07 hold near-identical recordings "
+        r"\(16 of 16 trials.*data\.duplicates=warn",
+    ):
         load(written, hand)
 
 
@@ -74,6 +75,7 @@ def test_copied_participant_warned_with_both_ids_when_allowed(written, hand, cap
 
 def test_one_trial_in_millimetres_is_refused_by_ordinal(written, hand, robot):
     """Reproducer (issue 29): one trial in mm among trials in metres was dropped as "no contact"."""
+
     def trial_in_mm(t: pa.Table) -> pa.Table:
         rows = first_trial_rows(t, 3)
         for name in t.column_names:
@@ -84,14 +86,18 @@ def test_one_trial_in_millimetres_is_refused_by_ordinal(written, hand, robot):
         return t
 
     edit_parquet(written, trial_in_mm, pid=P2)
-    with pytest.raises(DatasetError, match=rf"{P2}\.parquet: trial 3 \(0003_\w+\): .*looks like mm, the others like "
-                                           r"data\.units=m"):
+    with pytest.raises(
+        DatasetError,
+        match=rf"{P2}\.parquet: trial 3 \(0003_\w+\): .*looks like mm, the others like "
+        r"data\.units=m",
+    ):
         load(written, hand, robot)
 
 
 def test_reversed_frame_index_is_refused(written, hand):
     """Reproducer (issue 29): a reversed ``frame_index_in_trial`` was "kept; poses unaffected" while the
     loader reordered the poses by it."""
+
     def reverse(t: pa.Table) -> pa.Table:
         rows = first_trial_rows(t, 2)
         idx = t.column("frame_index_in_trial").to_numpy().copy()
@@ -99,8 +105,11 @@ def test_reversed_frame_index_is_refused(written, hand):
         return set_column(t, "frame_index_in_trial", idx)
 
     edit_parquet(written, reverse)
-    with pytest.raises(DatasetError, match=r"participant_01\.parquet: trial 2: column frame goes backwards .* "
-                                           r"frame_index_in_trial=1: the index disagrees with the recording order"):
+    with pytest.raises(
+        DatasetError,
+        match=r"participant_01\.parquet: trial 2: column frame goes backwards .* "
+        r"frame_index_in_trial=1: the index disagrees with the recording order",
+    ):
         load(written, hand)
 
 
@@ -120,9 +129,12 @@ def test_stray_part_far_away_does_not_flip_units():
     shrank 1000x; the run reported a 0.6 mm pitch). The main part reads as metres, so the mesh is not
     scaled; the stray part would still distort the surface, so it is refused with the settings."""
     v, f = _arm_with(*_box((0.01, 0.01, 0.01), at=(10.0, 0.0, 0.0)))
-    with pytest.raises(MeshError, match=r"its main part \(320 of 332 faces, 0\.24 across\) reads as metres but 1 "
-                                        r"other part\(s\) stretch the mesh to 10 across: a stray part .*"
-                                        r"set robot\.units=m to use the mesh as it is"):
+    with pytest.raises(
+        MeshError,
+        match=r"its main part \(320 of 332 faces, 0\.24 across\) reads as metres but 1 "
+        r"other part\(s\) stretch the mesh to 10 across: a stray part .*"
+        r"set robot\.units=m to use the mesh as it is",
+    ):
         make_link("arm", v, f, units="auto")
     link = make_link("arm", v, f, units="m")  # as the user says: kept, unscaled
     assert np.ptp(link.vertices[:, 2]) == pytest.approx(0.24, rel=1e-6) and np.ptp(link.vertices[:, 0]) > 9.0
@@ -130,8 +142,9 @@ def test_stray_part_far_away_does_not_flip_units():
     v, f = _arm_with(*_box((1.0, 1.0, 1.0), at=(300.0, 0.0, 0.0)), arm=(60.0, 80.0, 240.0))
     assert np.ptp(make_link("arm", v, f, units="auto").vertices[:, 2]) == pytest.approx(0.24, rel=1e-6)
     # the arm alone is unchanged
-    assert np.ptp(make_link("arm", *_arm_with(np.zeros((0, 3)), np.zeros((0, 3), np.int64)),
-                            units="auto").vertices[:, 2]) == pytest.approx(0.24, rel=1e-6)
+    assert np.ptp(
+        make_link("arm", *_arm_with(np.zeros((0, 3)), np.zeros((0, 3), np.int64)), units="auto").vertices[:, 2]
+    ) == pytest.approx(0.24, rel=1e-6)
 
 
 def test_major_parts_disagreeing_on_units_are_refused():

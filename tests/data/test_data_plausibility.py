@@ -9,11 +9,10 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
+from test_data_vr_gesture import edit_manifest, edit_parquet
 
 from sphri.data.format import ManifestError, parquet_path
 from sphri.data.vr_gesture import DatasetError, VRGestureData
-
-from test_data_vr_gesture import edit_manifest, edit_parquet
 
 P2 = "participant_02"
 
@@ -34,7 +33,9 @@ def scale_positions(table: pa.Table, factor: float) -> pa.Table:
 @pytest.mark.parametrize("unit,factor", [("mm", 1000.0), ("cm", 100.0)])
 def test_one_participant_in_mm_or_cm_is_refused_and_named(written, hand, robot, unit, factor):
     edit_parquet(written, lambda t: scale_positions(t, factor), pid=P2)
-    with pytest.raises(DatasetError, match=rf"{P2}\.parquet: {P2}'s hand positions are implausible.*data\.units={unit}"):
+    with pytest.raises(
+        DatasetError, match=rf"{P2}\.parquet: {P2}'s hand positions are implausible.*data\.units={unit}"
+    ):
         load(written, hand, robot)
 
 

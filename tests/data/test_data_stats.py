@@ -18,9 +18,33 @@ def toy(hand):
     robot = Robot(name="toy", links={"box": link}, regions={"arm": "box"})
     trials = make_trials_frame(
         [
-            dict(participant="participant_01", region="arm", trial_ordinal=1, trial_id="0001_poke", gesture="poke", start=0, n_frames=30),
-            dict(participant="participant_01", region="arm", trial_ordinal=2, trial_id="0002_grab", gesture="grab", start=30, n_frames=40),
-            dict(participant="participant_01", region="arm", trial_ordinal=3, trial_id="0003_hit", gesture="hit", start=70, n_frames=10),
+            dict(
+                participant="participant_01",
+                region="arm",
+                trial_ordinal=1,
+                trial_id="0001_poke",
+                gesture="poke",
+                start=0,
+                n_frames=30,
+            ),
+            dict(
+                participant="participant_01",
+                region="arm",
+                trial_ordinal=2,
+                trial_id="0002_grab",
+                gesture="grab",
+                start=30,
+                n_frames=40,
+            ),
+            dict(
+                participant="participant_01",
+                region="arm",
+                trial_ordinal=3,
+                trial_id="0003_hit",
+                gesture="hit",
+                start=70,
+                n_frames=10,
+            ),
         ]
     )
     poses = np.zeros((80, hand.n_capsules, 7), np.float32)
@@ -36,9 +60,17 @@ def contacts(rows):
     a = np.array(rows, dtype=np.float64).reshape(k, 5)
     point = np.c_[a[:, 2], a[:, 3], np.full(k, 0.05)]
     return Contacts(
-        n_frames=80, frame=a[:, 0].astype(np.int64), capsule=a[:, 1].astype(np.int16), distance_m=np.zeros(k),
-        inside=np.zeros(k, bool), point_m=point, segment_point_m=point, triangle=np.zeros(k, np.int64),
-        barycentric=np.full((k, 3), 1 / 3), normal=np.tile([0.0, 0.0, 1.0], (k, 1)), patch_radius_m=a[:, 4],
+        n_frames=80,
+        frame=a[:, 0].astype(np.int64),
+        capsule=a[:, 1].astype(np.int16),
+        distance_m=np.zeros(k),
+        inside=np.zeros(k, bool),
+        point_m=point,
+        segment_point_m=point,
+        triangle=np.zeros(k, np.int64),
+        barycentric=np.full((k, 3), 1 / 3),
+        normal=np.tile([0.0, 0.0, 1.0], (k, 1)),
+        patch_radius_m=a[:, 4],
         depth_m=np.full(k, 0.001),
     )
 

@@ -63,8 +63,14 @@ def _end_gaps(ds, robot, region):
     link = robot.link_for(region)
     t = ds.trials[ds.trials.region == region]
     ends = np.r_[t["start"].to_numpy(), (t["start"] + t["n_frames"] - 1).to_numpy()]
-    q = capsule_mesh_query(link.vertices, link.faces, p0[ends].reshape(-1, 3), p1[ends].reshape(-1, 3),
-                           np.tile(ds.hand.radius_m, len(ends)), margin=0.5)
+    q = capsule_mesh_query(
+        link.vertices,
+        link.faces,
+        p0[ends].reshape(-1, 3),
+        p1[ends].reshape(-1, 3),
+        np.tile(ds.hand.radius_m, len(ends)),
+        margin=0.5,
+    )
     return (q.distance - np.tile(ds.hand.radius_m, len(ends))).reshape(len(ends), -1).min(axis=1)
 
 
@@ -132,7 +138,9 @@ def test_any_link_shape(hand, contacts_of):
     m = trimesh.creation.capsule(height=0.3, radius=0.05, count=[24, 24])
     link = Link(name="bar", vertices=np.asarray(m.vertices), faces=np.asarray(m.faces, dtype=np.int64), watertight=True)
     box = trimesh.creation.box(extents=[0.4, 0.3, 0.2])
-    slab = Link(name="slab", vertices=np.asarray(box.vertices), faces=np.asarray(box.faces, dtype=np.int64), watertight=True)
+    slab = Link(
+        name="slab", vertices=np.asarray(box.vertices), faces=np.asarray(box.faces, dtype=np.int64), watertight=True
+    )
     robot = Robot(name="toy", links={"bar": link, "slab": slab}, regions={"arm": "bar", "chest": "slab"})
     ds = gen(hand, robot, participants=1, repetitions=1, regions=["arm", "chest"])
     stats = trial_statistics(ds, contacts_of(ds, robot), robot)
@@ -184,9 +192,10 @@ _HAND: dict = {}
 
 def _hand():
     if "hand" not in _HAND:
-        from sphri.hand.capsules import HandCapsules
         from omegaconf import OmegaConf
+
         from sphri.config import CONF_DIR
+        from sphri.hand.capsules import HandCapsules
 
         cfg = OmegaConf.load(CONF_DIR / "hand" / "quest_capsules.yaml")
         _HAND["hand"] = HandCapsules(capsules=cfg.capsules).build()
@@ -203,9 +212,10 @@ def test_smoothstep_inverse():
 
 
 def test_scaled_hand_model(robot, contacts_of):
-    from sphri.hand.capsules import HandCapsules
     from omegaconf import OmegaConf
+
     from sphri.config import CONF_DIR
+    from sphri.hand.capsules import HandCapsules
 
     cfg = OmegaConf.load(CONF_DIR / "hand" / "quest_capsules.yaml")
     big = HandCapsules(capsules=cfg.capsules, scale=1.3).build()

@@ -53,7 +53,9 @@ def test_variability_scales_the_spread(hand, robot):
     lo = spread_of(SyntheticData(seed=2, participants=6, repetitions=3, variability=0.5).load(hand=hand, robot=robot))
     hi = spread_of(SyntheticData(seed=2, participants=6, repetitions=3, variability=1.5).load(hand=hand, robot=robot))
     assert hi["between_var"] > 2 * lo["between_var"]
-    assert np.mean([hi["gestures"][g]["sd_log"] for g in GESTURES]) > np.mean([lo["gestures"][g]["sd_log"] for g in GESTURES])
+    assert np.mean([hi["gestures"][g]["sd_log"] for g in GESTURES]) > np.mean(
+        [lo["gestures"][g]["sd_log"] for g in GESTURES]
+    )
 
 
 def test_people_differ_per_gesture_not_by_one_factor():
@@ -67,8 +69,18 @@ def test_people_differ_per_gesture_not_by_one_factor():
 
 
 def test_seeds_reproduce_exactly_with_every_spread(hand, robot):
-    kw = dict(participants=2, repetitions=2, regions=["arm"], brush_rate=0.5, retouch_rate=0.5, deep_rate=0.5,
-              boundary_early_rate=0.3, boundary_late_rate=0.3, long_trial_rate=0.2, jumps_per_trial=1.0)
+    kw = dict(
+        participants=2,
+        repetitions=2,
+        regions=["arm"],
+        brush_rate=0.5,
+        retouch_rate=0.5,
+        deep_rate=0.5,
+        boundary_early_rate=0.3,
+        boundary_late_rate=0.3,
+        long_trial_rate=0.2,
+        jumps_per_trial=1.0,
+    )
     a = SyntheticData(seed=5, **kw).load(hand=hand, robot=robot)
     b = SyntheticData(seed=5, **kw).load(hand=hand, robot=robot)
     assert np.array_equal(a.poses, b.poses) and a.trials.equals(b.trials)
@@ -76,8 +88,9 @@ def test_seeds_reproduce_exactly_with_every_spread(hand, robot):
 
 def test_jitter_mm_is_the_sd_of_the_tracked_hand_position(hand, robot):
     def wrist(jitter):
-        ds = SyntheticData(seed=3, participants=1, repetitions=2, jitter_mm=jitter,
-                           jumps_per_trial=0.0).load(hand=hand, robot=robot)
+        ds = SyntheticData(seed=3, participants=1, repetitions=2, jitter_mm=jitter, jumps_per_trial=0.0).load(
+            hand=hand, robot=robot
+        )
         return ds.poses[:, 0, :3].astype(np.float64)
 
     # same seed, same draws: the difference is the jitter alone, one value per tracking sample
@@ -98,8 +111,11 @@ def test_schema_checks_the_knobs():
 
 
 def _trials(lengths: dict[str, list[int]]) -> pd.DataFrame:
-    rows = [{"participant": p, "region": "arm", "gesture": g, "n_frames": n}
-            for p, ns in lengths.items() for g, n in zip(GESTURES * 4, ns)]
+    rows = [
+        {"participant": p, "region": "arm", "gesture": g, "n_frames": n}
+        for p, ns in lengths.items()
+        for g, n in zip(GESTURES * 4, ns)
+    ]
     return pd.DataFrame(rows)
 
 
@@ -134,4 +150,6 @@ def test_stored_reference_matches_the_manifests(shared_dir):
         for k in ("between_var", "within_sd", "participant_median_min", "participant_median_max", "max_frames"):
             assert s[region][k] == pytest.approx(VR_LENGTH_SPREAD[region][k], abs=1e-3)
         for g in GESTURES:
-            assert s[region]["gestures"][g]["sd_log"] == pytest.approx(VR_LENGTH_SPREAD[region]["gestures"][g]["sd_log"], abs=1e-3)
+            assert s[region]["gestures"][g]["sd_log"] == pytest.approx(
+                VR_LENGTH_SPREAD[region]["gestures"][g]["sd_log"], abs=1e-3
+            )

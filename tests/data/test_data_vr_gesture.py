@@ -76,7 +76,11 @@ def test_selection_participants_gestures_repetitions(written, small, hand):
         assert np.array_equal(ds.poses[t.start : t.start + t.n_frames], small.poses[r.start : r.start + r.n_frames])
     # the first trial by ordinal of each gesture is the one kept
     first = small.trials[(small.trials.region == "arm") & small.trials.gesture.isin(["poke", "grab"])]
-    first = first[first.participant.isin(["participant_01", "participant_02"])].groupby(["participant", "gesture"]).trial_ordinal.min()
+    first = (
+        first[first.participant.isin(["participant_01", "participant_02"])]
+        .groupby(["participant", "gesture"])
+        .trial_ordinal.min()
+    )
     got = ds.trials.set_index(["participant", "gesture"]).trial_ordinal
     assert got.sort_index().tolist() == first.sort_index().tolist()
 
@@ -135,7 +139,9 @@ def test_missing_column(written, hand):
 
 
 def test_misnamed_column(written, hand):
-    edit_parquet(written, lambda t: t.rename_columns([("middle1_pos_X" if c == "middle1_pos_x" else c) for c in t.column_names]))
+    edit_parquet(
+        written, lambda t: t.rename_columns([("middle1_pos_X" if c == "middle1_pos_x" else c) for c in t.column_names])
+    )
     with pytest.raises(DatasetError, match=r"missing column.*'middle1_pos_x'.*misnamed\? found 'middle1_pos_X'"):
         load(written, hand)
 
@@ -297,7 +303,9 @@ def test_unknown_gesture_label(written, hand):
         m["trials"][0]["trial_id"] = "0001_wave"
 
     edit_manifest(written, edit)
-    with pytest.raises(DatasetError, match=r"manifest.json: trial 1: column gesture_label='wave' is not a known gesture"):
+    with pytest.raises(
+        DatasetError, match=r"manifest.json: trial 1: column gesture_label='wave' is not a known gesture"
+    ):
         load(written, hand)
 
 
@@ -330,7 +338,13 @@ def test_manifest_frame_count_disagrees(written, hand):
 
 
 def test_manifest_total_disagrees(written, hand):
-    edit_manifest(written, lambda m: m.update(num_frames_total=m["num_frames_total"] + 5, trials=m["trials"][:-1] + [dict(m["trials"][-1], frame_count=m["trials"][-1]["frame_count"] + 5)]))
+    edit_manifest(
+        written,
+        lambda m: m.update(
+            num_frames_total=m["num_frames_total"] + 5,
+            trials=m["trials"][:-1] + [dict(m["trials"][-1], frame_count=m["trials"][-1]["frame_count"] + 5)],
+        ),
+    )
     with pytest.raises(ManifestError, match=r"num_frames_total=\d+ but participant_01.parquet has \d+ rows"):
         load(written, hand)
 

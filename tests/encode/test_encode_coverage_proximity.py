@@ -10,10 +10,10 @@ from sphri.config import ConfigError
 from sphri.encode.coverage import CoverageEncoder
 from sphri.encode.ellipse import EllipseEncoder
 from sphri.encode.proximity import ProximityEncoder
-from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
 from sphri.layout.poisson import RandomLayout
 from sphri.surface.mesh import MeshSurface
 from sphri.surface.meshutil import link_from_trimesh
+from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
 from sphri.types import Layout
 
 
@@ -24,8 +24,14 @@ def plate():
     xy = np.array([(x, y) for x in (-0.02, 0.0, 0.02) for y in (-0.02, 0.0, 0.02)])
     pos = np.column_stack([xy, np.full(9, 0.01)])
     lay = Layout(
-        kind="file", position_m=pos, normal=np.tile([0.0, 0, 1], (9, 1)), area_m2=np.full(9, np.pi * 0.005**2),
-        uv=None, grid_shape=None, pitch_u_m=0.02, pitch_v_m=0.02,
+        kind="file",
+        position_m=pos,
+        normal=np.tile([0.0, 0, 1], (9, 1)),
+        area_m2=np.full(9, np.pi * 0.005**2),
+        uv=None,
+        grid_shape=None,
+        pitch_u_m=0.02,
+        pitch_v_m=0.02,
     )
     return link, MeshSurface().fit(link), lay
 
@@ -77,8 +83,13 @@ def test_proximity_range_depth_and_side(plate):
     rows = []
     for f, hgt in enumerate(heights):
         rows.append((f, [0, 0, 0.01], up, hgt))
-    c = make_contacts([r[0] for r in rows] + [3], [r[1] for r in rows] + [[0, 0, -0.01]],
-                      [r[2] for r in rows] + [-up], [0.001] * 4, n_frames=4)
+    c = make_contacts(
+        [r[0] for r in rows] + [3],
+        [r[1] for r in rows] + [[0, 0, -0.01]],
+        [r[2] for r in rows] + [-up],
+        [0.001] * 4,
+        n_frames=4,
+    )
     # place the spheres explicitly: segment point above the taxel, radius 8 mm
     c.segment_point_m = np.array([[0, 0, 0.01 + h] for h in heights] + [[0, 0, -0.016]])
     c.distance_m = np.abs(c.segment_point_m[:, 2]) - 0.01
@@ -87,8 +98,11 @@ def test_proximity_range_depth_and_side(plate):
     b = ProximityEncoder(sensing_distance_m=0.005).encode(c, link, sm, lay, np.arange(4)).values
     assert b.dtype == np.uint8
     assert b[0, 4] == 1 and b[1, 4] == 0 and b[2, 4] == 1 and b[3].sum() == 0
-    d = ProximityEncoder(sensing_distance_m=0.005, intensity="depth", depth_scale_m=0.01).encode(
-        c, link, sm, lay, np.arange(4)).values
+    d = (
+        ProximityEncoder(sensing_distance_m=0.005, intensity="depth", depth_scale_m=0.01)
+        .encode(c, link, sm, lay, np.arange(4))
+        .values
+    )
     assert d.dtype == np.float32
     assert d[0, 4] == pytest.approx((0.005 - 0.003) / 0.015)
     assert d[2, 4] == pytest.approx((0.005 + 0.002) / 0.015)
@@ -122,8 +136,11 @@ def test_proximity_matches_brute_force(cyl_link, cyl_map):
     lay = RandomLayout(seed=3).build(cyl_link, cyl_map, 18)
     c = synthetic_contacts(cyl_link, 60, seed=6)
     sd, ds = 0.006, 0.01
-    got = ProximityEncoder(res=18, sensing_distance_m=sd, intensity="depth", depth_scale_m=ds).encode(
-        c, cyl_link, cyl_map, lay, np.arange(60)).values
+    got = (
+        ProximityEncoder(res=18, sensing_distance_m=sd, intensity="depth", depth_scale_m=ds)
+        .encode(c, cyl_link, cyl_map, lay, np.arange(60))
+        .values
+    )
     radius = np.where(c.inside, c.depth_m - c.distance_m, c.depth_m + c.distance_m)
     want = np.zeros_like(got)
     for k in range(c.n_contacts):

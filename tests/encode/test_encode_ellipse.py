@@ -13,12 +13,12 @@ from sphri.config import ConfigError
 from sphri.encode.common import SkinFrames, select_rows
 from sphri.encode.ellipse import EllipseEncoder
 from sphri.encode.raster import patch_ellipses, rasterize
-from sphri.testing.raster_reference import iou, reference_raster
-from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
 from sphri.layout.common import row_offsets
 from sphri.layout.grid import HexLayout
 from sphri.layout.poisson import RandomLayout
 from sphri.surface.charts import from_uv, to_uv
+from sphri.testing.raster_reference import iou, reference_raster
+from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
 
 #: Hypothesis examples per property (SPHRI_DEEP_TESTS=1 for a deep run).
 EXAMPLES = 500 if os.environ.get("SPHRI_DEEP_TESTS") else 50
@@ -91,7 +91,10 @@ def test_tiny_patch_activates_its_taxel(cyl_link, cyl_map, grids, res):
     c = make_contacts(np.arange(20), pts, nrm, np.full(20, 1e-5), n_frames=20)
     v = EllipseEncoder(res=res).encode(c, cyl_link, cyl_map, lay, np.arange(20)).values
     assert (v.sum(axis=1) == 1).all()
-    cell = np.minimum((to_uv(cyl_map, pts)[:, 0] * h).astype(int), h - 1) * w + (to_uv(cyl_map, pts)[:, 1] * w).astype(int) % w
+    cell = (
+        np.minimum((to_uv(cyl_map, pts)[:, 0] * h).astype(int), h - 1) * w
+        + (to_uv(cyl_map, pts)[:, 1] * w).astype(int) % w
+    )
     assert (v[np.arange(20), cell] == 1).all()
     # coverage mode: a tiny but non-zero fraction (its exact area), nothing else
     cov = EllipseEncoder(res=res, binary=False).encode(c, cyl_link, cyl_map, lay, np.arange(20)).values
@@ -156,9 +159,13 @@ def test_clear_errors(cyl_link, cyl_map, grids):
 
 @settings(max_examples=EXAMPLES, deadline=None)
 @given(
-    cu=st.floats(0.0, 9.999), cv=st.floats(0.0, 7.999),
-    a1=st.floats(0.01, 12.0), a2=st.floats(0.01, 12.0), th=st.floats(0.0, np.pi),
-    wrap=st.booleans(), hexr=st.booleans(),
+    cu=st.floats(0.0, 9.999),
+    cv=st.floats(0.0, 7.999),
+    a1=st.floats(0.01, 12.0),
+    a2=st.floats(0.01, 12.0),
+    th=st.floats(0.0, np.pi),
+    wrap=st.booleans(),
+    hexr=st.booleans(),
 )
 def test_raster_properties(cu, cv, a1, a2, th, wrap, hexr):
     """Any ellipse: its centre taxel is on, coverage matches brute force to sub-row accuracy."""

@@ -34,12 +34,29 @@ def compose_one(path: Path, **overrides):
 
 def test_every_group_has_configs():
     names = {(p.parent.name, p.stem) for p in YAMLS}
-    for want in [("surface", "cylinder"), ("surface", "box"), ("surface", "mesh"), ("layout", "grid"),
-                 ("layout", "hex"), ("layout", "random"), ("layout", "density"), ("layout", "file"),
-                 ("encoder", "ellipse"), ("encoder", "coverage"), ("encoder", "proximity"),
-                 ("noise", "salt_pepper"), ("noise", "gaussian"), ("noise", "dead_taxels"),
-                 ("noise", "crosstalk"), ("noise", "none"), ("filter", "none"), ("filter", "debounce"),
-                 ("filter", "median"), ("filter", "despeckle"), ("window", "onset")]:
+    for want in [
+        ("surface", "cylinder"),
+        ("surface", "box"),
+        ("surface", "mesh"),
+        ("layout", "grid"),
+        ("layout", "hex"),
+        ("layout", "random"),
+        ("layout", "density"),
+        ("layout", "file"),
+        ("encoder", "ellipse"),
+        ("encoder", "coverage"),
+        ("encoder", "proximity"),
+        ("noise", "salt_pepper"),
+        ("noise", "gaussian"),
+        ("noise", "dead_taxels"),
+        ("noise", "crosstalk"),
+        ("noise", "none"),
+        ("filter", "none"),
+        ("filter", "debounce"),
+        ("filter", "median"),
+        ("filter", "despeckle"),
+        ("window", "onset"),
+    ]:
         assert want in names
 
 

@@ -20,7 +20,7 @@ class SpyModel(ClassifierMixin, BaseEstimator):
     Trial ids are read from x[:, 0, 0]; the rest of x is the data.
     """
 
-    fitted: list["SpyModel"] = []
+    fitted: list[SpyModel] = []
 
     def __init__(self, geometry: TaxelGeometry | None = None):
         self.geometry = geometry
@@ -51,10 +51,12 @@ def spy_windows(participants: int = 5, per_class: int = 3) -> WindowedFrames:
     offset = (np.arange(participants) + 1.0) ** 2  # per person; leaving anyone out moves the mean
     x += np.repeat(offset, per_class * len(GESTURES))[:, None, None].astype(np.float32)
     x[:, 0, 0] = np.arange(n)
-    geom = TaxelGeometry(grid_shape=(2, 3), uv=None, position_m=rng.random((6, 3)), wrap_v=False,
-                         metres_per_u=0.0, metres_per_v=0.0)
-    return WindowedFrames(x=x, y=y.astype(np.int64), groups=groups, geometry=geom,
-                          trial_row=np.arange(n, dtype=np.int64), n_dropped=0)
+    geom = TaxelGeometry(
+        grid_shape=(2, 3), uv=None, position_m=rng.random((6, 3)), wrap_v=False, metres_per_u=0.0, metres_per_v=0.0
+    )
+    return WindowedFrames(
+        x=x, y=y.astype(np.int64), groups=groups, geometry=geom, trial_row=np.arange(n, dtype=np.int64), n_dropped=0
+    )
 
 
 @pytest.fixture
@@ -267,7 +269,9 @@ def test_resume_computes_only_the_folds_not_kept_and_gives_the_same_result(spy, 
     assert tested == [["participant_02"], ["participant_04"], ["participant_05"]]
     assert "2 of 5 folds loaded from the cache" in caplog.text and "computing 3" in caplog.text
     assert seen == [f.fold for f in full.folds]  # on_fold still in fold order
-    assert [(f.fold, f.accuracy, f.macro_f1) for f in again.folds] == [(f.fold, f.accuracy, f.macro_f1) for f in full.folds]
+    assert [(f.fold, f.accuracy, f.macro_f1) for f in again.folds] == [
+        (f.fold, f.accuracy, f.macro_f1) for f in full.folds
+    ]
     assert sorted(store.records) == sorted(full_store.records)
 
 

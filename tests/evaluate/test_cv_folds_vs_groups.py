@@ -3,17 +3,19 @@
 from __future__ import annotations
 
 import pytest
+from test_cv import spy_windows
 
 from sphri.evaluate.cv import CVError, WithinSubjectKFold
-
-from test_cv import spy_windows
 
 
 def test_more_folds_than_a_participants_windows_is_refused_naming_both_numbers():
     """Reproducer (issue 29): ``cv.k=1000`` silently became 46 one-trial folds."""
     win = spy_windows(participants=3, per_class=2)  # 16 windows per participant
-    with pytest.raises(CVError, match=r"cv\.k=1000 is more than the 16 windows of participant_0\d \(the participant "
-                                      r"with the fewest of 3\).*set cv\.k<=16"):
+    with pytest.raises(
+        CVError,
+        match=r"cv\.k=1000 is more than the 16 windows of participant_0\d \(the participant "
+        r"with the fewest of 3\).*set cv\.k<=16",
+    ):
         WithinSubjectKFold(k=1000).splits(win)
     with pytest.raises(CVError, match=r"cv\.k=17 is more than the 16 windows"):
         WithinSubjectKFold(k=17).splits(win)

@@ -19,8 +19,14 @@ from sphri.types import TaxelGeometry, WindowedFrames
 
 def windows(x: np.ndarray, geom: TaxelGeometry) -> WindowedFrames:
     t = x.shape[0]
-    return WindowedFrames(x=x.astype(np.float32), y=np.zeros(t, np.int64), groups=np.array(["a"] * t),
-                          geometry=geom, trial_row=np.arange(t, dtype=np.int64), n_dropped=0)
+    return WindowedFrames(
+        x=x.astype(np.float32),
+        y=np.zeros(t, np.int64),
+        groups=np.array(["a"] * t),
+        geometry=geom,
+        trial_row=np.arange(t, dtype=np.int64),
+        n_dropped=0,
+    )
 
 
 def grid_frames(h: int, w: int, cells_per_frame: list[list[tuple[int, int]]]) -> np.ndarray:
@@ -83,8 +89,7 @@ def test_the_threshold_is_physical_area_not_a_taxel_count():
     coarse = grid_geometry(10, 10, pitch_m=0.01)
     fine = grid_geometry(20, 20, pitch_m=0.005)
     xc = grid_frames(10, 10, [[(r, c) for r in (2, 3) for c in (2, 3)] + [(8, 8)]])
-    xf = grid_frames(20, 20, [[(r, c) for r in range(4, 8) for c in range(4, 8)]
-                              + [(15, c) for c in range(11)]])
+    xf = grid_frames(20, 20, [[(r, c) for r in range(4, 8) for c in range(4, 8)] + [(15, c) for c in range(11)]])
     oc = DespeckleFilter(min_area_mm2=300).apply(windows(xc, coarse)).x
     of = DespeckleFilter(min_area_mm2=300).apply(windows(xf, fine)).x
     assert oc.sum() == 4 and of.sum() == 16
@@ -136,7 +141,7 @@ def test_a_scattered_layout_works_and_matches_flood_fill():
     out = DespeckleFilter(min_area_mm2=2.5 * area_one).apply(windows(x, geom)).x
     np.testing.assert_array_equal(out[0, 0], patch.astype(np.float32))
     assert out[0, 1].sum() == 0
-    active = (np.random.default_rng(5).random((20, geom.n_taxels)) < 0.3)
+    active = np.random.default_rng(5).random((20, geom.n_taxels)) < 0.3
     got = taxel_adjacency(geom).component_weight(active, geom.area_m2)
     np.testing.assert_allclose(got, brute_component_area(active, geom, True), rtol=1e-12)
 
@@ -155,9 +160,9 @@ def test_zero_area_is_identity_and_a_tiny_area_changes_nothing():
 def test_analogue_readings_below_threshold_are_left_and_input_untouched():
     geom = grid_geometry(6, 6, pitch_m=0.01)
     x = np.zeros((1, 1, 6, 6), np.float32)
-    x[0, 0, 1:4, 1:4] = 0.8          # a 9-taxel touch
-    x[0, 0, 5, 5] = 0.9              # a lone on-taxel
-    x[0, 0, 0, 5] = 0.3              # below threshold: not on, left as it is
+    x[0, 0, 1:4, 1:4] = 0.8  # a 9-taxel touch
+    x[0, 0, 5, 5] = 0.9  # a lone on-taxel
+    x[0, 0, 0, 5] = 0.3  # below threshold: not on, left as it is
     x = x.reshape(1, 1, 36)
     before = x.copy()
     out = DespeckleFilter(min_area_mm2=250).apply(windows(x, geom)).x.reshape(6, 6)
@@ -186,13 +191,16 @@ def test_geometry_without_areas_is_named():
         DespeckleFilter(min_area_mm2=10).apply(windows(np.ones((1, 2, 16)), bad))
 
 
-@pytest.mark.parametrize("override, key", [
-    ("filter.min_area_mm2=-1", "filter.min_area_mm2"),
-    ("filter.min_area_mm2=nan", "filter.min_area_mm2"),
-    ("filter.min_area_mm2=2e6", "filter.min_area_mm2"),
-    ("filter.active_threshold=0", "filter.active_threshold"),
-    ("filter.active_threshold=1.5", "filter.active_threshold"),
-])
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("filter.min_area_mm2=-1", "filter.min_area_mm2"),
+        ("filter.min_area_mm2=nan", "filter.min_area_mm2"),
+        ("filter.min_area_mm2=2e6", "filter.min_area_mm2"),
+        ("filter.active_threshold=0", "filter.active_threshold"),
+        ("filter.active_threshold=1.5", "filter.active_threshold"),
+    ],
+)
 def test_invalid_values_fail_at_composition_in_one_line(override: str, key: str):
     with pytest.raises(ConfigError, match=key) as err:
         compose(["filter=despeckle", override])
@@ -207,8 +215,9 @@ def test_config_composes_and_the_pipeline_windows_carry_taxel_areas(tmp_path: Pa
     assert exp.filter._target_.endswith("DespeckleFilter") and exp.filter.min_area_mm2 == 200
     assert exp.variant == "despeckle200" and exp.model._target_.endswith("RandomForest")
     assert compose(["+experiment=despeckle_compare", "sensitivity=reference"]).filter._target_.endswith("NoFilter")
-    cfg = compose(["+debug=fast", "tracking.enabled=false", f"cache.dir={tmp_path}", "encoder.res=30",
-                   "filter=despeckle"])
+    cfg = compose(
+        ["+debug=fast", "tracking.enabled=false", f"cache.dir={tmp_path}", "encoder.res=30", "filter=despeckle"]
+    )
     p = pipeline.make_pipeline(cfg, StageCache(tmp_path))
     noisy, filtered, layout = p.get("noise"), p.get("filter"), p.get("layout")
     np.testing.assert_array_equal(filtered.geometry.area_m2, layout.area_m2)

@@ -17,8 +17,14 @@ from sphri.types import TaxelGeometry, WindowedFrames
 def windows(x: np.ndarray) -> WindowedFrames:
     t, _, n = x.shape
     geom = TaxelGeometry(None, None, np.zeros((n, 3)), False, 0.0, 0.0)
-    return WindowedFrames(x=x, y=np.zeros(t, np.int64), groups=np.array(["a"] * t), geometry=geom,
-                          trial_row=np.arange(t, dtype=np.int64), n_dropped=0)
+    return WindowedFrames(
+        x=x,
+        y=np.zeros(t, np.int64),
+        groups=np.array(["a"] * t),
+        geometry=geom,
+        trial_row=np.arange(t, dtype=np.int64),
+        n_dropped=0,
+    )
 
 
 def brute_debounce(x: np.ndarray, k: int) -> np.ndarray:
@@ -27,13 +33,13 @@ def brute_debounce(x: np.ndarray, k: int) -> np.ndarray:
     for t in range(x.shape[1]):
         if t - k + 1 < 0:
             continue
-        out[:, t] = x[:, t - k + 1:t + 1].min(axis=1)
+        out[:, t] = x[:, t - k + 1 : t + 1].min(axis=1)
     return out
 
 
 def brute_median(x: np.ndarray, k: int) -> np.ndarray:
     pad = np.concatenate([np.zeros((x.shape[0], k - 1, x.shape[2]), x.dtype), x], axis=1)
-    return np.stack([np.median(pad[:, t:t + k], axis=1) for t in range(x.shape[1])], axis=1)
+    return np.stack([np.median(pad[:, t : t + k], axis=1) for t in range(x.shape[1])], axis=1)
 
 
 def test_debounce_needs_k_consecutive_frames_on():
@@ -74,8 +80,9 @@ def test_median_removes_isolated_blips_and_keeps_sustained_touch():
     np.testing.assert_array_equal(out, [0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 0])
 
 
-@pytest.mark.parametrize("flt", [NoFilter(), DebounceFilter(frames=2), MedianFilter(frames=3)],
-                         ids=["none", "debounce", "median"])
+@pytest.mark.parametrize(
+    "flt", [NoFilter(), DebounceFilter(frames=2), MedianFilter(frames=3)], ids=["none", "debounce", "median"]
+)
 def test_shapes_dtype_and_input_untouched(flt):
     rng = np.random.default_rng(0)
     x = (rng.random((4, 8, 5)) < 0.4).astype(np.float32)

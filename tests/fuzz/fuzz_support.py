@@ -40,10 +40,19 @@ VERDICTS = (NAMED, WARNED, UNCHANGED, TRACEBACK, SILENT, LOST)
 
 def fuzz_settings(small: int, large: int) -> settings:
     """Seeded hypothesis settings: ``small`` cases in ``make test``, ``large`` under SPHRI_DEEP_TESTS=1."""
-    return settings(max_examples=large if DEEP else small, derandomize=True, database=None, deadline=None,
-                    print_blob=True,
-                    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture,
-                                           HealthCheck.data_too_large, HealthCheck.filter_too_much])
+    return settings(
+        max_examples=large if DEEP else small,
+        derandomize=True,
+        database=None,
+        deadline=None,
+        print_blob=True,
+        suppress_health_check=[
+            HealthCheck.too_slow,
+            HealthCheck.function_scoped_fixture,
+            HealthCheck.data_too_large,
+            HealthCheck.filter_too_much,
+        ],
+    )
 
 
 class Tally:
@@ -67,8 +76,13 @@ class Tally:
         if not out:
             return
         Path(out).mkdir(parents=True, exist_ok=True)
-        doc = {"target": self.target, "size": "large" if DEEP else "small", "cases": self.cases,
-               "verdicts": {**{v: self.verdicts.get(v, 0) for v in VERDICTS}, **self.verdicts}, "kinds": dict(sorted(self.kinds.items()))}
+        doc = {
+            "target": self.target,
+            "size": "large" if DEEP else "small",
+            "cases": self.cases,
+            "verdicts": {**{v: self.verdicts.get(v, 0) for v in VERDICTS}, **self.verdicts},
+            "kinds": dict(sorted(self.kinds.items())),
+        }
         (Path(out) / f"{self.target}.json").write_text(json.dumps(doc, indent=1) + "\n")
 
 
@@ -92,7 +106,7 @@ class WarningCatcher(logging.Handler):
     def emit(self, record: logging.LogRecord) -> None:
         self.records.append(record)
 
-    def __enter__(self) -> "WarningCatcher":
+    def __enter__(self) -> WarningCatcher:
         self.logger = logging.getLogger("sphri")
         self.old_level = self.logger.level
         self.logger.addHandler(self)
@@ -110,11 +124,16 @@ from hypothesis import strategies as st  # noqa: E402
 
 #: JSON values of the wrong type or range: what a crafted or damaged field holds.
 JSON_JUNK = st.one_of(
-    st.none(), st.booleans(), st.sampled_from([-1, 0, 1, 2**63, -(2**63) - 1, 1e308, -1e-9, float("nan"),
-                                              float("inf"), "", "nan", "__nd__", "a0", "__META__"]),
-    st.integers(-(2**70), 2**70), st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=8),
-    st.lists(st.integers(-3, 3), max_size=3), st.dictionaries(st.sampled_from(["__nd__", "__tuple__", "c", "f", "x"]),
-                                                             st.integers(-1, 3), max_size=2),
+    st.none(),
+    st.booleans(),
+    st.sampled_from(
+        [-1, 0, 1, 2**63, -(2**63) - 1, 1e308, -1e-9, float("nan"), float("inf"), "", "nan", "__nd__", "a0", "__META__"]
+    ),
+    st.integers(-(2**70), 2**70),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=8),
+    st.lists(st.integers(-3, 3), max_size=3),
+    st.dictionaries(st.sampled_from(["__nd__", "__tuple__", "c", "f", "x"]), st.integers(-1, 3), max_size=2),
 )
 
 
@@ -148,8 +167,12 @@ def mutate_json(doc, data) -> str:
 
 def mutate_bytes(blob: bytes, data, header: bytes = b"") -> tuple[str, bytes]:
     """One raw corruption of ``blob``: ``(kind, new bytes)``. ``header``: another file's first bytes (swap)."""
-    kind = data.draw(st.sampled_from(["flip byte", "truncate", "append bytes", "insert bytes", "zero range",
-                                      "swap header", "empty file"]), label="corruption")
+    kind = data.draw(
+        st.sampled_from(
+            ["flip byte", "truncate", "append bytes", "insert bytes", "zero range", "swap header", "empty file"]
+        ),
+        label="corruption",
+    )
     b = bytearray(blob)
     if kind == "flip byte":
         for _ in range(data.draw(st.integers(1, 4), label="flips")):

@@ -14,20 +14,52 @@ import sys
 
 import pytest
 import yaml
+from fuzz_support import NAMED, SILENT, UNCHANGED, Tally, fuzz_settings, named_or_raise
 from hypothesis import given
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from fuzz_support import NAMED, SILENT, UNCHANGED, Tally, fuzz_settings, named_or_raise
 from sphri.config import CONF_DIR, ConfigError, compose
 
 GROUPS = ("data", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv", "tracking")
 
 #: Values of the wrong type or range for any field.
 VALUES = st.one_of(
-    st.sampled_from(["abc", "-1", "0", "-0.5", "1e308", "1e-320", "inf", "-inf", "nan", ".nan", "[1,2]", "[]",
-                     "{a: 1}", "null", "true", "''", "99999999999999999999999", "${nope}", "${seed}", "glob(*)",
-                     "range(1,3)", "choice(1,2)", "'a b'", "1,2", "=", "x=y", "[", "}", "\\", "0x10", "1_000"]),
+    st.sampled_from(
+        [
+            "abc",
+            "-1",
+            "0",
+            "-0.5",
+            "1e308",
+            "1e-320",
+            "inf",
+            "-inf",
+            "nan",
+            ".nan",
+            "[1,2]",
+            "[]",
+            "{a: 1}",
+            "null",
+            "true",
+            "''",
+            "99999999999999999999999",
+            "${nope}",
+            "${seed}",
+            "glob(*)",
+            "range(1,3)",
+            "choice(1,2)",
+            "'a b'",
+            "1,2",
+            "=",
+            "x=y",
+            "[",
+            "}",
+            "\\",
+            "0x10",
+            "1_000",
+        ]
+    ),
     st.integers(-(2**70), 2**70).map(str),
     st.floats(allow_nan=True, allow_infinity=True).map(repr),
     st.text(alphabet=st.characters(codec="utf-8", exclude_categories=("Cs",)), max_size=10),
@@ -104,8 +136,13 @@ def test_wrong_values_for_every_schema_field(tally, field, value):
 @pytest.mark.parametrize("override", ["encoder.res=abc", "noise.p={a: 1}", "window.frames=1e308"])
 def test_the_command_line_prints_one_line_not_a_traceback(override, tmp_path):
     """The CLI's own path (Hydra app + sphri's handler), in a subprocess: one line, exit 2, no traceback."""
-    r = subprocess.run([sys.executable, "-m", "sphri", override, f"output_dir={tmp_path}"],
-                       capture_output=True, text=True, timeout=120, cwd=tmp_path)
+    r = subprocess.run(
+        [sys.executable, "-m", "sphri", override, f"output_dir={tmp_path}"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+        cwd=tmp_path,
+    )
     assert r.returncode == 2, r.stderr
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert "Traceback" not in r.stderr and len(lines) == 1 and "invalid config" in lines[0], r.stderr

@@ -22,20 +22,25 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
+from fuzz_support import NAMED, SILENT, UNCHANGED, WARNED, Tally, WarningCatcher, fuzz_settings, named_or_raise
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fuzz_support import NAMED, SILENT, UNCHANGED, WARNED, Tally, WarningCatcher, fuzz_settings, named_or_raise
 from sphri.data.format import ManifestError, manifest_path, parquet_path
-from sphri.data.vr_gesture import DatasetError, VRGestureData
+from sphri.data.vr_gesture import VRGestureData
 
 PID = "participant_01"
 
 #: Values a manifest field is set to: wrong types, out-of-range and non-finite numbers.
 JUNK = st.one_of(
-    st.none(), st.booleans(), st.sampled_from([-30, -1, 0, 1e-9, 5000, 10**30, math.nan, math.inf, -math.inf]),
-    st.integers(-(2**70), 2**70), st.floats(allow_nan=True, allow_infinity=True),
-    st.text(max_size=12), st.lists(st.integers(), max_size=3), st.dictionaries(st.text(max_size=3), st.integers(), max_size=2),
+    st.none(),
+    st.booleans(),
+    st.sampled_from([-30, -1, 0, 1e-9, 5000, 10**30, math.nan, math.inf, -math.inf]),
+    st.integers(-(2**70), 2**70),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=12),
+    st.lists(st.integers(), max_size=3),
+    st.dictionaries(st.text(max_size=3), st.integers(), max_size=2),
 )
 
 
@@ -49,7 +54,8 @@ def template(tmp_path_factory):
     hand = load_component("hand", "quest_capsules").build()
     robot = load_component("robot", "reachy").build()
     ds = SyntheticData(seed=7, participants=1, repetitions=1, regions=["arm"], gestures=["tap", "hit"]).load(
-        hand=hand, robot=robot)
+        hand=hand, robot=robot
+    )
     root = tmp_path_factory.mktemp("fuzz-data") / "ds"
     write_dataset(ds, robot, root)
     ref = load(root, hand)
@@ -69,8 +75,12 @@ def load(root: Path, hand):
 
 
 def same(a, b) -> bool:
-    return (a.frame_rate_hz == b.frame_rate_hz and a.poses.shape == b.poses.shape
-            and np.array_equal(a.poses, b.poses, equal_nan=True) and a.trials.equals(b.trials))
+    return (
+        a.frame_rate_hz == b.frame_rate_hz
+        and a.poses.shape == b.poses.shape
+        and np.array_equal(a.poses, b.poses, equal_nan=True)
+        and a.trials.equals(b.trials)
+    )
 
 
 def verdict(root: Path, hand, ref) -> str:
@@ -115,7 +125,8 @@ def corrupt(kind: str, data, root: Path) -> None:
             name = data.draw(st.sampled_from(pose), label="column")
             values = table.column(name).to_numpy().copy()
             values[data.draw(st.integers(0, n - 1), label="row")] = data.draw(
-                st.sampled_from([np.nan, np.inf, -np.inf]), label="value")
+                st.sampled_from([np.nan, np.inf, -np.inf]), label="value"
+            )
             i = table.schema.get_field_index(name)
             table = table.set_column(i, table.schema.field(i), pa.array(values, table.schema.field(i).type))
         pq.write_table(table, pq_path)
@@ -128,18 +139,26 @@ def corrupt(kind: str, data, root: Path) -> None:
         pq.write_table(table.set_column(i, table.schema.field(i).name, col), pq_path)
     elif kind == "column of another type":
         name = _column(data, table)
-        to = data.draw(st.sampled_from(["float64", "float32", "int64", "int32", "string", "bool", "dictionary"]),
-                       label="type")
+        to = data.draw(
+            st.sampled_from(["float64", "float32", "int64", "int32", "string", "bool", "dictionary"]), label="type"
+        )
         i = table.schema.get_field_index(name)
         col = table.column(name)
         if to == "dictionary":
-            new = col.dictionary_encode() if pa.types.is_string(col.type) else pc.cast(col, pa.string()).dictionary_encode()
+            new = (
+                col.dictionary_encode()
+                if pa.types.is_string(col.type)
+                else pc.cast(col, pa.string()).dictionary_encode()
+            )
         elif to in ("int64", "int32") and pa.types.is_floating(col.type):
             new = pc.cast(col, pa.string())  # a lossy float -> int cast is another file, not a corruption
             to = "string"
         elif to == "bool":
-            new = pc.cast(pc.cast(col, pa.string()), pa.string()) if pa.types.is_string(col.type) else pc.not_equal(
-                col, pa.scalar(0, col.type))
+            new = (
+                pc.cast(pc.cast(col, pa.string()), pa.string())
+                if pa.types.is_string(col.type)
+                else pc.not_equal(col, pa.scalar(0, col.type))
+            )
         else:
             try:
                 new = pc.cast(col, getattr(pa, to)())
@@ -162,8 +181,11 @@ def corrupt(kind: str, data, root: Path) -> None:
         pq.write_table(table.take(pa.array(order)), pq_path)
     elif kind == "dropped or repeated rows":
         rows = sorted(data.draw(st.sets(st.integers(0, n - 1), min_size=1, max_size=10), label="rows"))
-        order = np.delete(np.arange(n), rows) if data.draw(st.booleans(), label="drop") else np.sort(
-            np.concatenate([np.arange(n), rows]))
+        order = (
+            np.delete(np.arange(n), rows)
+            if data.draw(st.booleans(), label="drop")
+            else np.sort(np.concatenate([np.arange(n), rows]))
+        )
         pq.write_table(table.take(pa.array(order)), pq_path)
     elif kind == "truncate manifest":
         text = man_path.read_text()
@@ -184,9 +206,22 @@ def corrupt(kind: str, data, root: Path) -> None:
         raise AssertionError(kind)
 
 
-KINDS = ["truncate parquet", "flip parquet byte", "non-finite cells", "null cells", "column of another type",
-         "missing column", "renamed column", "shuffled rows", "swapped rows", "dropped or repeated rows",
-         "truncate manifest", "manifest field", "manifest frame rate", "missing manifest field"]
+KINDS = [
+    "truncate parquet",
+    "flip parquet byte",
+    "non-finite cells",
+    "null cells",
+    "column of another type",
+    "missing column",
+    "renamed column",
+    "shuffled rows",
+    "swapped rows",
+    "dropped or repeated rows",
+    "truncate manifest",
+    "manifest field",
+    "manifest frame rate",
+    "missing manifest field",
+]
 
 
 @fuzz_settings(small=28, large=420)
@@ -223,7 +258,6 @@ def test_a_flipped_bit_in_a_data_page_is_named_not_a_changed_pose(template, tmp_
     bad[col.data_page_offset + col.total_compressed_size // 2] ^= 1  # inside the largest column's values
     parquet_path(root, "arm", PID).write_bytes(bytes(bad))
     assert verdict(root, hand, ref) == NAMED
-
 
 
 @pytest.mark.parametrize("value", [[], [1], "1", 1.5, 2**70])

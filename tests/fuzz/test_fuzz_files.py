@@ -15,7 +15,6 @@ digests, malformed fields) must give a ``ModelFileError`` or load, never a trace
 
 from __future__ import annotations
 
-import copy
 import dataclasses
 import io
 import json
@@ -25,11 +24,21 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from fuzz_support import (
+    NAMED,
+    SILENT,
+    UNCHANGED,
+    WARNED,
+    Tally,
+    WarningCatcher,
+    fuzz_settings,
+    mutate_bytes,
+    mutate_json,
+    named_or_raise,
+)
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fuzz_support import (NAMED, SILENT, UNCHANGED, WARNED, Tally, WarningCatcher, fuzz_settings, mutate_bytes,
-                          mutate_json, named_or_raise)
 from sphri.cache import MAGIC, StageCache, seal
 from sphri.hardware.model_file import MAGIC as MODEL_MAGIC
 from sphri.hardware.model_file import ModelBundle, load_model, save_model, seal_model
@@ -87,7 +96,9 @@ OTHER = _evaluation(60)
 def _entry_bytes(value, key: bytes | None) -> bytes:
     with tempfile.TemporaryDirectory() as tmp:
         cache = StageCache(Path(tmp), key=key)
-        return cache.path("evaluate", "k").parent.mkdir(parents=True) or cache.write("evaluate", "k", value).read_bytes()
+        return (
+            cache.path("evaluate", "k").parent.mkdir(parents=True) or cache.write("evaluate", "k", value).read_bytes()
+        )
 
 
 def _forge(blob: bytes, data) -> tuple[str, bytes]:
@@ -190,9 +201,13 @@ def test_corrupted_or_edited_model_files(model_files, tallies, signed_edit, data
         path.write_bytes(blob)
         try:
             bundle = load_model(path, key=key)
-            same = (bundle.labels == ref.labels and bundle.window_length == ref.window_length
-                    and bundle.frame_rate_hz == ref.frame_rate_hz and bundle.n_taxels == ref.n_taxels
-                    and np.array_equal(bundle.predict_proba(x), ref_proba))
+            same = (
+                bundle.labels == ref.labels
+                and bundle.window_length == ref.window_length
+                and bundle.frame_rate_hz == ref.frame_rate_hz
+                and bundle.n_taxels == ref.n_taxels
+                and np.array_equal(bundle.predict_proba(x), ref_proba)
+            )
             v = UNCHANGED if same else ("signed edit accepted" if signed_edit else SILENT)
         except Exception as exc:  # noqa: BLE001 - judged: named, or re-raised as a traceback
             try:

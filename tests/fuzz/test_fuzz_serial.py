@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from fuzz_support import LOST, SILENT, UNCHANGED, WARNED, Tally, fuzz_settings
 from hypothesis import given
 from hypothesis import strategies as st
 
-from fuzz_support import LOST, SILENT, UNCHANGED, WARNED, Tally, fuzz_settings
 from sphri.hardware.skin_protocol import SYNC, SkinDecoder, ValueFormat, encode_frame, quantize
 
 N = 12  # taxels
@@ -35,9 +35,14 @@ def _frame(seq: int, fmt: ValueFormat, rng: np.random.Generator, n: int = N) -> 
 
 
 @fuzz_settings(small=40, large=400)
-@given(fmt=st.sampled_from(list(ValueFormat)), n_frames=st.integers(1, 30), seed=st.integers(0, 2**32 - 1),
-       faults=st.lists(st.sampled_from(["garbage", "sync garbage", "cut", "flip", "wrong count", "repeat"]),
-                       max_size=30), chunks=st.lists(st.integers(1, 64), min_size=1, max_size=8), data=st.data())
+@given(
+    fmt=st.sampled_from(list(ValueFormat)),
+    n_frames=st.integers(1, 30),
+    seed=st.integers(0, 2**32 - 1),
+    faults=st.lists(st.sampled_from(["garbage", "sync garbage", "cut", "flip", "wrong count", "repeat"]), max_size=30),
+    chunks=st.lists(st.integers(1, 64), min_size=1, max_size=8),
+    data=st.data(),
+)
 def test_corrupted_serial_streams_lose_no_intact_frame(tally, fmt, n_frames, seed, faults, chunks, data):
     rng = np.random.default_rng(seed)
     stream = bytearray()

@@ -17,12 +17,21 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from fuzz_support import (
+    SILENT,
+    UNCHANGED,
+    WARNED,
+    Tally,
+    WarningCatcher,
+    fuzz_settings,
+    mutate_bytes,
+    mutate_json,
+    named_or_raise,
+)
+from hydra.utils import instantiate
 from hypothesis import given
 from hypothesis import strategies as st
-from hydra.utils import instantiate
 
-from fuzz_support import (NAMED, SILENT, UNCHANGED, WARNED, Tally, WarningCatcher, fuzz_settings, mutate_bytes,
-                          mutate_json, named_or_raise)
 from sphri.config import compose
 from sphri.sessions.format import SessionData, write_sessions
 
@@ -52,8 +61,11 @@ def _same(a, b) -> bool:
         pd.testing.assert_frame_equal(a.sessions, b.sessions)
     except AssertionError:
         return False
-    return (a.links == b.links and np.array_equal(a.hand_poses, b.hand_poses, equal_nan=True)
-            and np.array_equal(a.link_poses, b.link_poses, equal_nan=True))
+    return (
+        a.links == b.links
+        and np.array_equal(a.hand_poses, b.hand_poses, equal_nan=True)
+        and np.array_equal(a.link_poses, b.link_poses, equal_nan=True)
+    )
 
 
 KINDS = ["sessions.json field", "manifest field", "json bytes", "parquet bytes", "non-finite cell", "missing column"]
@@ -68,8 +80,11 @@ def test_corrupted_session_files(template, tally, kind, data):
         shutil.copytree(root0, root)
         parquets = sorted(root.glob("participant_*/*.parquet"))
         if kind in ("sessions.json field", "manifest field"):
-            path = root / "sessions.json" if kind == "sessions.json field" else data.draw(
-                st.sampled_from(sorted(root.glob("participant_*/manifest.json"))), label="manifest")
+            path = (
+                root / "sessions.json"
+                if kind == "sessions.json field"
+                else data.draw(st.sampled_from(sorted(root.glob("participant_*/manifest.json"))), label="manifest")
+            )
             doc = json.loads(path.read_text())
             mutate_json(doc, data)
             path.write_text(json.dumps(doc, allow_nan=True))
@@ -88,13 +103,18 @@ def test_corrupted_session_files(template, tally, kind, data):
         else:
             path = data.draw(st.sampled_from(parquets), label="file")
             df = pd.read_parquet(path)
-            cols = [c for c in df.columns if c.endswith(("_pos_x", "_rot_w"))] if kind == "non-finite cell" else list(df.columns)
+            cols = (
+                [c for c in df.columns if c.endswith(("_pos_x", "_rot_w"))]
+                if kind == "non-finite cell"
+                else list(df.columns)
+            )
             col = data.draw(st.sampled_from(cols), label="column")
             if kind == "missing column":
                 df = df.drop(columns=[col])
             else:
                 df.loc[data.draw(st.integers(0, len(df) - 1), label="row"), col] = data.draw(
-                    st.sampled_from([np.nan, np.inf, -np.inf]), label="value")
+                    st.sampled_from([np.nan, np.inf, -np.inf]), label="value"
+                )
             df.to_parquet(path, index=False)
         with WarningCatcher() as warned:
             try:
@@ -150,8 +170,9 @@ def test_a_session_lost_from_the_manifest_is_warned(template, tmp_path, caplog):
     assert f"not named by the manifest and are not read: {gone}" in caplog.text
 
 
-@pytest.mark.parametrize("where, field", [("manifest", "scenario"), ("manifest", "start_position"),
-                                          ("header", "links")])
+@pytest.mark.parametrize(
+    "where, field", [("manifest", "scenario"), ("manifest", "start_position"), ("header", "links")]
+)
 def test_a_name_field_wrapped_in_a_list_is_named(template, tmp_path, where, field):
     """Found by this campaign: ``sessions[0].scenario`` or ``sessions.json`` ``links`` wrapped in a list
     raised ``TypeError: unhashable type: 'list'`` (a traceback); ``start_position`` wrapped loaded a

@@ -124,8 +124,13 @@ def test_segments_match_scipy(seed):
     rng = np.random.default_rng(seed)
     c = 4
     specs = [
-        _spec(name=f"c{i}", axis=int(rng.integers(3)), off=rng.normal(0, 0.02, 3), radius_m=0.01,
-              height_m=float(rng.uniform(0.0, 0.08)))
+        _spec(
+            name=f"c{i}",
+            axis=int(rng.integers(3)),
+            off=rng.normal(0, 0.02, 3),
+            radius_m=0.01,
+            height_m=float(rng.uniform(0.0, 0.08)),
+        )
         for i in range(c)
     ]
     h = HandCapsules(capsules=specs).build()
@@ -235,8 +240,14 @@ def _write(tmp_path: Path, entries) -> str:
 
 
 def _entry(i=1, name="index1", **kw):
-    e = {"capsule_index": i, "column_prefix": name, "height_m": 0.05, "radius_m": 0.01, "orientation": 0.0,
-         "center_offset_m": {"x": 0.01, "y": 0.0, "z": 0.0}}
+    e = {
+        "capsule_index": i,
+        "column_prefix": name,
+        "height_m": 0.05,
+        "radius_m": 0.01,
+        "orientation": 0.0,
+        "center_offset_m": {"x": 0.01, "y": 0.0, "z": 0.0},
+    }
     e.update(kw)
     return e
 

@@ -14,8 +14,11 @@ from sphri.config import ConfigError, compose, require_range
 @pytest.mark.parametrize("value", ["inf", "nan", "-inf"])
 def test_non_finite_hand_scale_is_refused_at_composition(value):
     """Reproducer (issue 29): ``hand.scale=inf`` passed validation."""
-    with pytest.raises(ConfigError, match=rf"hand\.scale={value.replace('inf', 'inf')}.* is invalid: must be a finite "
-                                          r"number in \(0, inf\)"):
+    with pytest.raises(
+        ConfigError,
+        match=rf"hand\.scale={value.replace('inf', 'inf')}.* is invalid: must be a finite "
+        r"number in \(0, inf\)",
+    ):
         compose(["+debug=fast", f"hand.scale={value}"])
 
 
@@ -30,9 +33,16 @@ def test_every_range_refuses_non_finite_values():
 def test_non_finite_hand_scale_is_one_line_and_exit_2_from_the_command_line(tmp_path):
     """Reproducer (issue 29), as a user types it: ``python -m sphri +debug=fast hand.scale=inf``."""
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    run = subprocess.run([sys.executable, "-m", "sphri", "+debug=fast", "hand.scale=inf"], cwd=tmp_path, env=env,
-                         capture_output=True, text=True, timeout=600)
+    run = subprocess.run(
+        [sys.executable, "-m", "sphri", "+debug=fast", "hand.scale=inf"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert run.returncode == 2, run.stderr
     assert run.stderr.strip().splitlines() == [
-        "sphri: invalid config: hand.scale=inf is invalid: must be a finite number in (0, inf)"]
+        "sphri: invalid config: hand.scale=inf is invalid: must be a finite number in (0, inf)"
+    ]
     assert not (tmp_path / "outputs" / "cache").exists()  # nothing ran

@@ -56,9 +56,18 @@ def make_contacts(n_frames: int, rows: list[tuple[int, int, float]]) -> Contacts
     depth = np.array([r[2] for r in rows], dtype=np.float64)
     z3 = np.zeros((k, 3))
     return Contacts(
-        n_frames=n_frames, frame=fr, capsule=cap, distance_m=np.zeros(k), inside=np.zeros(k, bool),
-        point_m=z3, segment_point_m=z3, triangle=np.zeros(k, np.int64), barycentric=z3,
-        normal=z3, patch_radius_m=np.full(k, 0.01), depth_m=depth,
+        n_frames=n_frames,
+        frame=fr,
+        capsule=cap,
+        distance_m=np.zeros(k),
+        inside=np.zeros(k, bool),
+        point_m=z3,
+        segment_point_m=z3,
+        triangle=np.zeros(k, np.int64),
+        barycentric=z3,
+        normal=z3,
+        patch_radius_m=np.full(k, 0.01),
+        depth_m=depth,
     )
 
 

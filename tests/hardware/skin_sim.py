@@ -13,7 +13,9 @@ from sphri.hardware.skin_protocol import ValueFormat, quantize
 
 def run_record(tmp_path, sim_kw: dict, rec_kw: dict | None = None, frames: int = 400, seed: int = 1):
     """Start a pattern-source skin simulator, record from it, return (ledger, summary, recording, stream)."""
-    settings = SimulateSettings(source="pattern", frames=frames, seed=seed, **{"realtime": False, "hold_s": 3.0, **sim_kw})
+    settings = SimulateSettings(
+        source="pattern", frames=frames, seed=seed, **{"realtime": False, "hold_s": 3.0, **sim_kw}
+    )
     stream = pattern_stream((18, 6), frames, seed)
     sim = SkinSimulator(stream, settings, make_endpoint(settings), say=lambda m: None)
     th = start_in_thread(sim)
@@ -21,8 +23,13 @@ def run_record(tmp_path, sim_kw: dict, rec_kw: dict | None = None, frames: int =
     lines: list[str] = []
     try:
         # stops when the simulator says every frame was sent and read (an event); idle_s only guards against a hang
-        summary = record(SkinRecordSettings(port=sim.endpoint.url, out=str(out), **{"idle_s": 60.0, "grid": "18x6", **(rec_kw or {})}),
-                         out=lines.append, until=sim.finished.is_set)
+        summary = record(
+            SkinRecordSettings(
+                port=sim.endpoint.url, out=str(out), **{"idle_s": 60.0, "grid": "18x6", **(rec_kw or {})}
+            ),
+            out=lines.append,
+            until=sim.finished.is_set,
+        )
     finally:
         sim.stop.set()
         th.join(10)

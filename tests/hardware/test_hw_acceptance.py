@@ -31,8 +31,13 @@ def stream_live(overrides, participant, model_path, out_dir):
     th = start_in_thread(sim)
     pred = out_dir / f"{participant}.jsonl"
     try:
-        summary = live(SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(pred),
-                                        stride=30, show="off"), out=lambda m: None, until=sim.finished.is_set)
+        summary = live(
+            SkinLiveSettings(
+                port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(pred), stride=30, show="off"
+            ),
+            out=lambda m: None,
+            until=sim.finished.is_set,
+        )
     finally:
         sim.stop.set()
         th.join(10)

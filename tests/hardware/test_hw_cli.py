@@ -15,8 +15,12 @@ from sphri.hardware.recording import load_recording
 
 def start_simulator(args: list[str], timeout_s: float = 60.0) -> tuple[subprocess.Popen, str]:
     """Start ``python -m sphri.hardware.simulate ...``; return it and the URL it announces."""
-    proc = subprocess.Popen([sys.executable, "-m", "sphri.hardware.simulate", *args],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "sphri.hardware.simulate", *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     t0 = time.monotonic()
     assert proc.stdout is not None
     for line in proc.stdout:
@@ -32,15 +36,38 @@ def start_simulator(args: list[str], timeout_s: float = 60.0) -> tuple[subproces
 def test_simulate_then_record_from_the_command_line(tmp_path, port):
     report = tmp_path / "ledger.json"
     extra = [f"link={tmp_path / 'skin.tty'}"] if port == "pty" else []
-    sim, url = start_simulator(["skin", "source=pattern", f"port={port}", "frames=300", "realtime=false",
-                                "corrupt_rate=0.05", "seed=4", "hold_s=10", f"report={report}", *extra])
+    sim, url = start_simulator(
+        [
+            "skin",
+            "source=pattern",
+            f"port={port}",
+            "frames=300",
+            "realtime=false",
+            "corrupt_rate=0.05",
+            "seed=4",
+            "hold_s=10",
+            f"report={report}",
+            *extra,
+        ]
+    )
     if port == "pty":
         assert url == str(tmp_path / "skin.tty")
     out = tmp_path / "rec.npz"
     try:
         rec_proc = subprocess.run(
-            [sys.executable, "-m", "sphri.hardware.skin", "record", f"port={url}", f"out={out}", "idle_s=5", "grid=18x6"],
-            capture_output=True, text=True, timeout=120,
+            [
+                sys.executable,
+                "-m",
+                "sphri.hardware.skin",
+                "record",
+                f"port={url}",
+                f"out={out}",
+                "idle_s=5",
+                "grid=18x6",
+            ],
+            capture_output=True,
+            text=True,
+            timeout=120,
         )
     finally:
         sim.wait(timeout=60)
@@ -56,16 +83,26 @@ def test_simulate_then_record_from_the_command_line(tmp_path, port):
 def test_record_names_a_missing_port_and_exits_1(tmp_path):
     proc = subprocess.run(
         [sys.executable, "-m", "sphri.hardware.skin", "record", "port=/dev/ttyNOPE9", f"out={tmp_path / 'r.npz'}"],
-        capture_output=True, text=True, timeout=60,
+        capture_output=True,
+        text=True,
+        timeout=60,
     )
     assert proc.returncode == 1
     assert "/dev/ttyNOPE9" in proc.stderr and "cannot open" in proc.stderr
 
 
 def test_bad_settings_exit_2_naming_the_key():
-    proc = subprocess.run([sys.executable, "-m", "sphri.hardware.skin", "live", "port=loop://", "model=m", "stride=-1"],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "sphri.hardware.skin", "live", "port=loop://", "model=m", "stride=-1"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2 and "stride" in proc.stderr
-    proc = subprocess.run([sys.executable, "-m", "sphri.hardware.simulate", "skin", "corrupt_rate=2"],
-                          capture_output=True, text=True, timeout=60)
+    proc = subprocess.run(
+        [sys.executable, "-m", "sphri.hardware.simulate", "skin", "corrupt_rate=2"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
     assert proc.returncode == 2 and "corrupt_rate" in proc.stderr

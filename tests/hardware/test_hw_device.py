@@ -1,7 +1,7 @@
 """Tests on real hardware: skipped unless SPHRI_SKIN_PORT / SPHRI_GLOVE_PORT name a device.
 
-    SPHRI_SKIN_PORT=/dev/ttyACM0 pytest -m hardware tests/hardware
-    SPHRI_GLOVE_PORT=/dev/rfcomm0 pytest -m hardware tests/hardware
+SPHRI_SKIN_PORT=/dev/ttyACM0 pytest -m hardware tests/hardware
+SPHRI_GLOVE_PORT=/dev/rfcomm0 pytest -m hardware tests/hardware
 """
 
 from __future__ import annotations

@@ -12,7 +12,9 @@ from sphri.hardware.glove_protocol import Ack, ActuateCommand, GloveDecoder, enc
 from sphri.hardware.skin_protocol import SkinDecoder, ValueFormat, encode_control, encode_frame, find_control
 
 DOC = Path(__file__).resolve().parents[2] / "docs" / "PROTOCOLS.md"
-BLOCK = re.compile(r"```text\n# (?P<kind>glove ACTUATE|glove ACK|skin frame|skin control): (?P<fields>.*)\n(?P<hex>(?:[0-9a-f ]+\n)+)```")
+BLOCK = re.compile(
+    r"```text\n# (?P<kind>glove ACTUATE|glove ACK|skin frame|skin control): (?P<fields>.*)\n(?P<hex>(?:[0-9a-f ]+\n)+)```"
+)
 
 
 def examples() -> list[tuple[str, dict[str, str], bytes]]:
@@ -38,7 +40,9 @@ def test_documented_example_decodes(kind, fields, data):
     if kind == "glove ACTUATE":
         dec = GloveDecoder()
         (msg,) = dec.feed(data)
-        want = ActuateCommand(int(fields["seq"]), int(fields["glove_id"]), ints(fields["intensity"]), ints(fields["pulse_ms"]))
+        want = ActuateCommand(
+            int(fields["seq"]), int(fields["glove_id"]), ints(fields["intensity"]), ints(fields["pulse_ms"])
+        )
         assert msg == want
         assert encode_actuate(want) == data and dec.stats.errors == 0
     elif kind == "glove ACK":

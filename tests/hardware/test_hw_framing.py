@@ -187,7 +187,9 @@ def test_wrong_count_duplicates_gaps_restarts():
 def test_first_frame_sets_the_expected_count():
     rng = np.random.default_rng(2)
     dec = SkinDecoder()
-    out = dec.feed(encode_frame(0, 0, rng.random(8)) + encode_frame(1, 0, rng.random(9)) + encode_frame(2, 0, rng.random(8)))
+    out = dec.feed(
+        encode_frame(0, 0, rng.random(8)) + encode_frame(1, 0, rng.random(9)) + encode_frame(2, 0, rng.random(8))
+    )
     assert [x.seq for x in out] == [0, 2] and dec.expected_taxels == 8 and dec.stats.wrong_count == 1
 
 

@@ -163,8 +163,11 @@ def test_realtime_play_paces_messages():
 
 @pytest.mark.parametrize("port", ["pty", "socket://127.0.0.1:0"])
 def test_driver_counts_missing_acks_against_the_simulator(port):
-    sim = GloveSimulator(SimulateSettings(port=port, ack_drop_rate=0.3, seed=5), make_endpoint(SimulateSettings(port=port)),
-                         say=lambda m: None)
+    sim = GloveSimulator(
+        SimulateSettings(port=port, ack_drop_rate=0.3, seed=5),
+        make_endpoint(SimulateSettings(port=port)),
+        say=lambda m: None,
+    )
     th = start_in_thread(sim)
     depth = np.zeros((60, 6))
     depth[3:50, 0] = np.linspace(0.001, 0.012, 47)  # intensity changes: a message per frame
@@ -190,7 +193,9 @@ def test_missing_port_gives_a_clear_error():
 
 
 def test_replay_settings_parse_and_validate():
-    s, rest = parse_cli(["port=loop://", "trial=2", "pulse_ms=80", "+debug=fast", "robot=nao_child"], GloveReplaySettings, pipeline=True)
+    s, rest = parse_cli(
+        ["port=loop://", "trial=2", "pulse_ms=80", "+debug=fast", "robot=nao_child"], GloveReplaySettings, pipeline=True
+    )
     assert (s.trial, s.pulse_ms) == (2, 80) and rest == ["+debug=fast", "robot=nao_child"]
     with pytest.raises(ConfigError, match="pulse_ms"):
         parse_cli(["pulse_ms=0"], GloveReplaySettings, pipeline=True)

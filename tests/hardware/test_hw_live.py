@@ -140,16 +140,20 @@ def test_live_against_the_simulator_rate_and_touches(tmp_path, make_geometry):
     geo = make_geometry(18, 6)
     model_path = save_model(ModelBundle(small_rf(geo, length=30), geo, 30, 90.0), tmp_path / "rf.sphrimodel")
     frames = 500
-    sim_settings = SimulateSettings(port="socket://127.0.0.1:0", source="pattern", frames=frames, seed=2,
-                                    realtime=True, rate_hz=90.0, hold_s=2.0)
+    sim_settings = SimulateSettings(
+        port="socket://127.0.0.1:0", source="pattern", frames=frames, seed=2, realtime=True, rate_hz=90.0, hold_s=2.0
+    )
     stream = pattern_stream((18, 6), frames, 2)
     sim = SkinSimulator(stream, sim_settings, make_endpoint(sim_settings), say=lambda m: None)
     th = start_in_thread(sim)
     out = tmp_path / "pred.jsonl"
     lines: list[str] = []
     try:
-        summary = live(SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(out)),
-                       out=lines.append, until=sim.finished.is_set)
+        summary = live(
+            SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(out)),
+            out=lines.append,
+            until=sim.finished.is_set,
+        )
     finally:
         sim.stop.set()
         th.join(10)
@@ -172,15 +176,28 @@ def test_live_fills_lost_frames_to_keep_the_timing(tmp_path, make_geometry):
     geo = make_geometry(18, 6)
     model_path = save_model(ModelBundle(small_rf(geo, length=30), geo, 30, 90.0), tmp_path / "rf.sphrimodel")
     frames = 420
-    sim_settings = SimulateSettings(port="socket://127.0.0.1:0", source="pattern", frames=frames, seed=3,
-                                    realtime=False, hold_s=30.0, drop_rate=0.05, corrupt_rate=0.03)
+    sim_settings = SimulateSettings(
+        port="socket://127.0.0.1:0",
+        source="pattern",
+        frames=frames,
+        seed=3,
+        realtime=False,
+        hold_s=30.0,
+        drop_rate=0.05,
+        corrupt_rate=0.03,
+    )
     stream = pattern_stream((18, 6), frames, 3)
     sim = SkinSimulator(stream, sim_settings, make_endpoint(sim_settings), say=lambda m: None)
     th = start_in_thread(sim)
     out = tmp_path / "pred.jsonl"
     try:
-        summary = live(SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(out),
-                                        stride=50, show="off"), out=lambda m: None, until=sim.finished.is_set)
+        summary = live(
+            SkinLiveSettings(
+                port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(out), stride=50, show="off"
+            ),
+            out=lambda m: None,
+            until=sim.finished.is_set,
+        )
     finally:
         sim.stop.set()
         th.join(10)

@@ -39,8 +39,9 @@ def _windows(geo, n=6, length=20, seed=3):
 def test_old_pickle_model_file_runs_nothing(tmp_path, make_geometry):
     marker = tmp_path / "pwned"
     payload = pickle.dumps({"estimator": _Payload(marker), "geometry": None})
-    head = json.dumps({"format": "sphri-model/1", "n_taxels": 6, "labels": [], "window_length": 10,
-                       "frame_rate_hz": 30}).encode()
+    head = json.dumps(
+        {"format": "sphri-model/1", "n_taxels": 6, "labels": [], "window_length": 10, "frame_rate_hz": 30}
+    ).encode()
     import hashlib
 
     blob = OLD_MAGIC + struct.pack("<I", len(head)) + head + hashlib.blake2b(payload, digest_size=32).digest() + payload
@@ -54,12 +55,22 @@ def test_old_pickle_model_file_runs_nothing(tmp_path, make_geometry):
     bare.write_bytes(pickle.dumps(_Payload(marker)))
     with pytest.raises(ModelFileError, match="bare.sphrimodel"):
         load_model(bare)
-    head2 = json.dumps({"format": "sphri-model/2", "n_taxels": 6, "labels": [], "window_length": 10,
-                        "frame_rate_hz": 30, "grid_shape": None,
-                        "geometry": {"wrap_v": False, "metres_per_u": 0, "metres_per_v": 0, "has_uv": False},
-                        "estimator": {"kind": "rf", "params": {}}}).encode()
+    head2 = json.dumps(
+        {
+            "format": "sphri-model/2",
+            "n_taxels": 6,
+            "labels": [],
+            "window_length": 10,
+            "frame_rate_hz": 30,
+            "grid_shape": None,
+            "geometry": {"wrap_v": False, "metres_per_u": 0, "metres_per_v": 0, "has_uv": False},
+            "estimator": {"kind": "rf", "params": {}},
+        }
+    ).encode()
     new = tmp_path / "new.sphrimodel"
-    new.write_bytes(MAGIC + struct.pack("<I", len(head2)) + head2 + hashlib.blake2b(payload, digest_size=32).digest() + payload)
+    new.write_bytes(
+        MAGIC + struct.pack("<I", len(head2)) + head2 + hashlib.blake2b(payload, digest_size=32).digest() + payload
+    )
     with pytest.raises(ModelFileError, match="new.sphrimodel"):
         load_model(new)
     assert not marker.exists()
@@ -120,8 +131,16 @@ def test_cnn_gru_round_trip_predicts_identically(tmp_path, make_geometry, grid):
     rng = np.random.default_rng(0)
     x = (rng.random((24, 10, geo.n_taxels)) < 0.2).astype(np.float32)
     y = np.arange(24) % 3
-    model = CnnGru(max_epochs=2, batch_size=8, hidden=8, channels=(4, 4), strides=(1, 1), threads=1,
-                   precision="float32", geometry=geo).fit(x, y)
+    model = CnnGru(
+        max_epochs=2,
+        batch_size=8,
+        hidden=8,
+        channels=(4, 4),
+        strides=(1, 1),
+        threads=1,
+        precision="float32",
+        geometry=geo,
+    ).fit(x, y)
     path = save_model(ModelBundle(model, geo, 10, 30.0), tmp_path / "cnn.sphrimodel")
     back = load_model(path)
     np.testing.assert_array_equal(back.estimator.predict_proba(x), model.predict_proba(x))
@@ -139,8 +158,9 @@ def test_unsupported_estimator_is_refused_at_save(tmp_path, make_geometry):
         save_model(ModelBundle(Other(), make_geometry(2, 2), 5, 30.0), tmp_path / "o.sphrimodel")
 
 
-@pytest.mark.parametrize("spec", ["runs:/abc/model/rf.sphrimodel", "http://example.invalid/rf.sphrimodel",
-                                  "models:/skin/1"])
+@pytest.mark.parametrize(
+    "spec", ["runs:/abc/model/rf.sphrimodel", "http://example.invalid/rf.sphrimodel", "models:/skin/1"]
+)
 def test_remote_models_need_an_explicit_opt_in(spec):
     with pytest.raises(ModelFileError, match="allow_remote=true"):
         resolve_model_path(spec)

@@ -95,7 +95,9 @@ def test_a_type_skops_trusts_but_sphri_does_not_is_refused_in_one_line(rf_file, 
 def test_a_keyed_model_file_refuses_files_without_the_key(rf_file, monkeypatch):
     path, model, geo = rf_file
     monkeypatch.setenv("SPHRI_MODEL_KEY", "lab key")
-    with pytest.raises(ModelFileError, match=r"rf\.sphrimodel: not signed with the configured model key.*without the key"):
+    with pytest.raises(
+        ModelFileError, match=r"rf\.sphrimodel: not signed with the configured model key.*without the key"
+    ):
         load_model(path)  # saved before the key was set
     signed = save_model(ModelBundle(model, geo, 20, 90.0), path.with_name("signed.sphrimodel"))
     x = (np.random.default_rng(1).random((4, 20, geo.n_taxels)) < 0.2).astype(np.float32)
@@ -120,13 +122,14 @@ def test_a_keyed_model_file_refuses_files_without_the_key(rf_file, monkeypatch):
 def test_a_previous_format_file_is_refused_with_the_command_to_export_it_again(rf_file):
     path, _, _ = rf_file
     blob = path.read_bytes()
-    path.write_bytes(b"SPHRIMODEL2\n" + blob[len(MAGIC):])
+    path.write_bytes(b"SPHRIMODEL2\n" + blob[len(MAGIC) :])
     with pytest.raises(ModelFileError, match=r"rf\.sphrimodel: a sphri-model/2 file.*train_export"):
         load_model(path)
 
 
-@pytest.mark.parametrize("case", ["labels_not_a_list", "duplicate_labels", "window_length_text", "too_few_labels",
-                                  "deep_header"])
+@pytest.mark.parametrize(
+    "case", ["labels_not_a_list", "duplicate_labels", "window_length_text", "too_few_labels", "deep_header"]
+)
 def test_malformed_headers_are_one_named_error(rf_file, case):
     path, _, _ = rf_file
     blob = path.read_bytes()
@@ -141,8 +144,13 @@ def test_malformed_headers_are_one_named_error(rf_file, case):
         header["labels"] = ["hit", "tap"]
     head = ("[" * 100_000 + "]" * 100_000).encode() if case == "deep_header" else json.dumps(header).encode()
     path.write_bytes(seal_model(head, rest[64:]))
-    field = {"labels_not_a_list": "labels", "duplicate_labels": "labels", "window_length_text": "window_length",
-             "too_few_labels": "labels", "deep_header": "header"}[case]
+    field = {
+        "labels_not_a_list": "labels",
+        "duplicate_labels": "labels",
+        "window_length_text": "window_length",
+        "too_few_labels": "labels",
+        "deep_header": "header",
+    }[case]
     with pytest.raises(ModelFileError, match=rf"rf\.sphrimodel.*{field}"):
         load_model(path)
 

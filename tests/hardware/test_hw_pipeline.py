@@ -26,8 +26,17 @@ def test_replay_cli_shows_the_command_stream(out_dir):
 
     out = io.StringIO()
     with redirect_stdout(out):
-        rc = glove.main(["replay", "port=loop://", "trial=0", "participant=participant_01", "realtime=false",
-                         *SMALL, f"output_dir={out_dir}"])
+        rc = glove.main(
+            [
+                "replay",
+                "port=loop://",
+                "trial=0",
+                "participant=participant_01",
+                "realtime=false",
+                *SMALL,
+                f"output_dir={out_dir}",
+            ]
+        )
     text = out.getvalue()
     assert rc == 0, text
     assert "participant_01" in text and "frames in contact per actuator" in text
@@ -66,8 +75,13 @@ def test_train_export_then_live_on_streamed_trials(out_dir):
     th = start_in_thread(sim)
     pred = out_dir / "pred.jsonl"
     try:
-        summary = live(SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(pred),
-                                        stride=10, show="off"), out=lambda m: None, until=sim.finished.is_set)
+        summary = live(
+            SkinLiveSettings(
+                port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(pred), stride=10, show="off"
+            ),
+            out=lambda m: None,
+            until=sim.finished.is_set,
+        )
     finally:
         sim.stop.set()
         th.join(10)
@@ -80,7 +94,11 @@ def test_train_export_then_live_on_streamed_trials(out_dir):
         aligned += abs(mine[0]["start"] - trial["good_onset"]) <= 2
         # within 0.2 s of the onset: generator data version 3 (CoST-calibrated depths) starts light touches
         # shallower, so poke and pat cross the activity threshold 3 to 5 frames after their first contact
-        assert 0 <= mine[0]["start"] - trial["good_onset"] <= 6, (trial["gesture"], mine[0]["start"], trial["good_onset"])
+        assert 0 <= mine[0]["start"] - trial["good_onset"] <= 6, (
+            trial["gesture"],
+            mine[0]["start"],
+            trial["good_onset"],
+        )
     assert aligned >= 2
     # trained on these very trials: live agrees with the labels
     right = sum(
@@ -99,7 +117,10 @@ def test_train_export_logs_the_model_to_mlflow(out_dir):
     model_path = out_dir / "logged.sphrimodel"
     text = io.StringIO()
     with redirect_stdout(text):
-        assert train_export.main([f"out={model_path}", "mlflow=true", *SMALL, f"output_dir={out_dir}", "model.n_jobs=1"]) == 0
+        assert (
+            train_export.main([f"out={model_path}", "mlflow=true", *SMALL, f"output_dir={out_dir}", "model.n_jobs=1"])
+            == 0
+        )
     uri = next(ln.split("model=")[1] for ln in text.getvalue().splitlines() if "model=runs:/" in ln)
     assert uri.startswith("runs:/") and uri.endswith("/model")  # an MLflow pyfunc model holding the file
     with pytest.raises(ModelFileError, match="allow_remote"):

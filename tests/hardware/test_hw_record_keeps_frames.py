@@ -17,16 +17,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from skin_sim import check_good_frames_kept, run_record
 
-from sphri.hardware.recording import (PartialWriter, RecordingError, SkinRecording, load_recording,
-                                      save_recording)
+from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording, load_recording, save_recording
 from sphri.hardware.settings import SimulateSettings, SkinRecordSettings
 from sphri.hardware.simulate import SkinSimulator, make_endpoint, pattern_stream, start_in_thread
 from sphri.hardware.skin import main as skin_main
 from sphri.hardware.skin import record
 from sphri.hardware.skin_protocol import ValueFormat, quantize
-
-from skin_sim import check_good_frames_kept, run_record
 
 REPO = Path(__file__).resolve().parents[2]
 #: with this seed and wrong_count_rate=0.05 the simulator's FIRST frame carries a wrong taxel count
@@ -37,8 +35,9 @@ SOCKET = "socket://127.0.0.1:0"
 
 @pytest.mark.parametrize("rec_kw", [{"grid": "18x6"}, {"grid": ""}], ids=["grid_given", "consensus"])
 def test_a_glitched_first_frame_costs_no_good_frame(tmp_path, rec_kw):
-    ledger, summary, rec, stream, _ = run_record(tmp_path, {"port": SOCKET, "wrong_count_rate": 0.05}, rec_kw, 300,
-                                                  GLITCHED_FIRST_SEED)
+    ledger, summary, rec, stream, _ = run_record(
+        tmp_path, {"port": SOCKET, "wrong_count_rate": 0.05}, rec_kw, 300, GLITCHED_FIRST_SEED
+    )
     assert ledger.good_index[0] == 1 and ledger.good_seq[0] == 1  # the first frame sent was a wrong-count one
     assert ledger.wrong_count >= 5
     check_good_frames_kept(ledger, rec, stream)
@@ -58,15 +57,23 @@ def test_a_stream_shorter_than_the_consensus_is_saved(tmp_path):
 
 def _small_recording(n: int = 5) -> SkinRecording:
     rng = np.random.default_rng(0)
-    return SkinRecording(rng.random((n, 108)).astype(np.float32), np.arange(n, dtype=float), np.arange(n),
-                         np.arange(n), np.zeros(n), (18, 6), {})
+    return SkinRecording(
+        rng.random((n, 108)).astype(np.float32),
+        np.arange(n, dtype=float),
+        np.arange(n),
+        np.arange(n),
+        np.zeros(n),
+        (18, 6),
+        {},
+    )
 
 
 def test_an_existing_recording_is_never_replaced(tmp_path):
     out = save_recording(_small_recording(300), tmp_path / "rec.npz")
     before = out.read_bytes()
-    settings = SimulateSettings(source="pattern", port="socket://127.0.0.1:0", frames=50, seed=2,
-                                realtime=False, hold_s=30.0)
+    settings = SimulateSettings(
+        source="pattern", port="socket://127.0.0.1:0", frames=50, seed=2, realtime=False, hold_s=30.0
+    )
     sim = SkinSimulator(pattern_stream((18, 6), 50, 2), settings, make_endpoint(settings), say=lambda m: None)
     th = start_in_thread(sim)
     try:
@@ -92,8 +99,9 @@ def test_a_file_appearing_at_out_while_recording_is_not_replaced(tmp_path, monke
     """Another process writes ``out`` during the recording: the frames go to the fallback file instead."""
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "rec.npz"
-    settings = SimulateSettings(source="pattern", port="socket://127.0.0.1:0", frames=40, seed=2,
-                                realtime=False, hold_s=30.0)
+    settings = SimulateSettings(
+        source="pattern", port="socket://127.0.0.1:0", frames=40, seed=2, realtime=False, hold_s=30.0
+    )
     sim = SkinSimulator(pattern_stream((18, 6), 40, 2), settings, make_endpoint(settings), say=lambda m: None)
     th = start_in_thread(sim)
 
@@ -114,8 +122,9 @@ def test_a_file_appearing_at_out_while_recording_is_not_replaced(tmp_path, monke
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
 def test_a_signal_saves_the_recording(tmp_path, sig, frames_on_disk):
     want = 30
-    settings = SimulateSettings(source="pattern", port="socket://127.0.0.1:0", frames=20_000, seed=2,
-                                realtime=True, rate_hz=200.0, hold_s=30.0)
+    settings = SimulateSettings(
+        source="pattern", port="socket://127.0.0.1:0", frames=20_000, seed=2, realtime=True, rate_hz=200.0, hold_s=30.0
+    )
     stream = pattern_stream((18, 6), 20_000, 2)
     sim = SkinSimulator(stream, settings, make_endpoint(settings), say=lambda m: None)
     th = start_in_thread(sim)
@@ -123,9 +132,21 @@ def test_a_signal_saves_the_recording(tmp_path, sig, frames_on_disk):
     env = {**os.environ, "PYTHONPATH": f"{REPO}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
     # no fsync before 1000 frames or 60 s: the partial file must hold the frames all the same
     proc = subprocess.Popen(
-        [sys.executable, "-m", "sphri.hardware.skin", "record", f"port={sim.endpoint.url}", f"out={out}",
-         "grid=18x6", "chunk_frames=1000", "sync_interval_s=60"],
-        cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+        [
+            sys.executable,
+            "-m",
+            "sphri.hardware.skin",
+            "record",
+            f"port={sim.endpoint.url}",
+            f"out={out}",
+            "grid=18x6",
+            "chunk_frames=1000",
+            "sync_interval_s=60",
+        ],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
     )
     partial = out.with_name(out.name + ".partial")
     try:
@@ -146,8 +167,9 @@ def test_a_signal_saves_the_recording(tmp_path, sig, frames_on_disk):
     rec = load_recording(out)
     assert rec.n_frames >= want and not partial.exists()
     np.testing.assert_array_equal(rec.seq, np.arange(rec.n_frames))
-    np.testing.assert_array_equal(rec.values, quantize(stream.values[: rec.n_frames], ValueFormat.BITS)
-                                  .astype(np.float32))
+    np.testing.assert_array_equal(
+        rec.values, quantize(stream.values[: rec.n_frames], ValueFormat.BITS).astype(np.float32)
+    )
     assert rec.meta["stop_reason"] == f"{sig.name} received"
     assert f"saved {rec.n_frames} frames" in stdout.decode()
 

@@ -24,8 +24,13 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def _simulator(frames: int, **kw):
-    settings = SimulateSettings(source="pattern", port="socket://127.0.0.1:0", frames=frames, seed=2,
-                                **{"realtime": False, "hold_s": 30.0, **kw})
+    settings = SimulateSettings(
+        source="pattern",
+        port="socket://127.0.0.1:0",
+        frames=frames,
+        seed=2,
+        **{"realtime": False, "hold_s": 30.0, **kw},
+    )
     stream = pattern_stream((18, 6), frames, 2)
     sim = SkinSimulator(stream, settings, make_endpoint(settings), say=lambda m: None)
     return sim, stream, start_in_thread(sim)
@@ -67,9 +72,20 @@ def test_killed_mid_recording_keeps_the_frames_read_so_far(tmp_path, frames_on_d
     out = tmp_path / "rec.npz"
     env = {**os.environ, "PYTHONPATH": f"{REPO}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
     proc = subprocess.Popen(
-        [sys.executable, "-m", "sphri.hardware.skin", "record", f"port={sim.endpoint.url}", f"out={out}",
-         "grid=18x6", "chunk_frames=5"],
-        cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+        [
+            sys.executable,
+            "-m",
+            "sphri.hardware.skin",
+            "record",
+            f"port={sim.endpoint.url}",
+            f"out={out}",
+            "grid=18x6",
+            "chunk_frames=5",
+        ],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
     )
     partial = out.with_name(out.name + ".partial")
     try:
@@ -91,7 +107,9 @@ def test_killed_mid_recording_keeps_the_frames_read_so_far(tmp_path, frames_on_d
     assert rec.n_frames >= want and rec.grid_shape == (18, 6)
     # the frames on disk are the first ones the skin sent, intact
     np.testing.assert_array_equal(rec.seq, np.arange(rec.n_frames))
-    np.testing.assert_array_equal(rec.values, quantize(stream.values[: rec.n_frames], ValueFormat.BITS).astype(np.float32))
+    np.testing.assert_array_equal(
+        rec.values, quantize(stream.values[: rec.n_frames], ValueFormat.BITS).astype(np.float32)
+    )
 
 
 def test_a_failure_at_the_end_saves_to_a_fallback_in_the_working_directory(tmp_path, monkeypatch):
@@ -142,8 +160,9 @@ def test_a_full_disk_while_recording_stops_and_keeps_every_frame_read(tmp_path, 
     sim, stream, th = _simulator(200)
     out = tmp_path / "rec.npz"
     try:
-        summary = record(SkinRecordSettings(port=sim.endpoint.url, out=str(out), frames=100, chunk_frames=10),
-                         out=lambda m: None)
+        summary = record(
+            SkinRecordSettings(port=sim.endpoint.url, out=str(out), frames=100, chunk_frames=10), out=lambda m: None
+        )
     finally:
         sim.stop.set()
         th.join(10)

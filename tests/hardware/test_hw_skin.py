@@ -6,12 +6,11 @@ import json
 
 import numpy as np
 import pytest
+from skin_sim import check_good_frames_kept, run_record
 
 from sphri.config import ConfigError
 from sphri.hardware.recording import RecordingError, SkinRecording, load_recording, save_recording
 from sphri.hardware.settings import SkinRecordSettings, parse_cli
-
-from skin_sim import check_good_frames_kept, run_record
 
 
 def trailing_lost(ledger) -> int:
@@ -44,8 +43,14 @@ def test_record_keeps_every_good_frame_with_5_percent_corrupt(tmp_path, port):
 def test_record_survives_every_kind_of_fault(tmp_path):
     ledger, summary, rec, stream, _ = run_record(
         tmp_path,
-        {"port": "socket://127.0.0.1:0", "garbage_rate": 0.05, "corrupt_rate": 0.04, "drop_rate": 0.03,
-         "truncate_rate": 0.04, "wrong_count_rate": 0.03},
+        {
+            "port": "socket://127.0.0.1:0",
+            "garbage_rate": 0.05,
+            "corrupt_rate": 0.04,
+            "drop_rate": 0.03,
+            "truncate_rate": 0.04,
+            "wrong_count_rate": 0.03,
+        },
         frames=600,
     )
     dec = summary["decoder"]
@@ -62,8 +67,15 @@ def test_record_survives_every_kind_of_fault(tmp_path):
 def test_unplugged_and_plugged_back_with_reconnect(tmp_path, port):
     ledger, summary, rec, stream, _ = run_record(
         tmp_path,
-        {"port": port, "link": str(tmp_path / "skin.tty") if port == "pty" else "", "realtime": True,
-         "rate_hz": 500.0, "unplug_after_s": 0.25, "unplug_s": 0.4, "hold_s": 2.0},
+        {
+            "port": port,
+            "link": str(tmp_path / "skin.tty") if port == "pty" else "",
+            "realtime": True,
+            "rate_hz": 500.0,
+            "unplug_after_s": 0.25,
+            "unplug_s": 0.4,
+            "hold_s": 2.0,
+        },
         {"reconnect": True, "reconnect_timeout_s": 5.0},
     )
     assert ledger.unplugs == 1 and ledger.starts == 2
@@ -79,8 +91,15 @@ def test_unplugged_and_plugged_back_with_reconnect(tmp_path, port):
 def test_vanished_port_without_reconnect_saves_and_says_so(tmp_path):
     ledger, summary, rec, stream, lines = run_record(
         tmp_path,
-        {"port": "pty", "link": str(tmp_path / "skin.tty"), "realtime": True, "rate_hz": 500.0,
-         "unplug_after_s": 0.2, "unplug_s": 0.5, "hold_s": 0.5},
+        {
+            "port": "pty",
+            "link": str(tmp_path / "skin.tty"),
+            "realtime": True,
+            "rate_hz": 500.0,
+            "unplug_after_s": 0.2,
+            "unplug_s": 0.5,
+            "hold_s": 0.5,
+        },
     )
     assert summary["error"] is not None
     assert "skin.tty" in summary["error"] and "vanished" in summary["error"] and "reconnect=true" in summary["error"]
@@ -91,8 +110,9 @@ def test_vanished_port_without_reconnect_saves_and_says_so(tmp_path):
 
 
 def test_wrong_skin_is_refused_with_a_clear_message(tmp_path):
-    ledger, summary, rec, _, _ = run_record(tmp_path, {"port": "socket://127.0.0.1:0"}, {"taxels": 50, "grid": ""},
-                                           frames=100)
+    ledger, summary, rec, _, _ = run_record(
+        tmp_path, {"port": "socket://127.0.0.1:0"}, {"taxels": 50, "grid": ""}, frames=100
+    )
     assert "50" in summary["error"] and "wrong taxel count" in summary["error"]
     assert rec.n_frames == 0
 

@@ -7,9 +7,9 @@ import importlib.util
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import pytest
 
@@ -41,10 +41,18 @@ def submitit_plugin() -> None:
 def run_sphri() -> Callable[..., subprocess.CompletedProcess]:
     """``run_sphri(args, cwd, env=None, timeout=600)``: ``python -m sphri ARGS`` in a subprocess."""
 
-    def run(args: list[str], cwd: Path, env: dict[str, str] | None = None, timeout: int = 600) -> subprocess.CompletedProcess:
+    def run(
+        args: list[str], cwd: Path, env: dict[str, str] | None = None, timeout: int = 600
+    ) -> subprocess.CompletedProcess:
         full_env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1", **(env or {})}
-        return subprocess.run([sys.executable, "-m", "sphri", *args], cwd=cwd, env=full_env,
-                              capture_output=True, text=True, timeout=timeout)
+        return subprocess.run(
+            [sys.executable, "-m", "sphri", *args],
+            cwd=cwd,
+            env=full_env,
+            capture_output=True,
+            text=True,
+            timeout=timeout,
+        )
 
     return run
 

@@ -72,7 +72,10 @@ def sbatch(args: list[str]) -> int:
     (root / f"{job_id}.sbatch").write_text(text)
     subprocess.Popen(
         [sys.executable, __file__, "--run", str(job_id), str(script_path.resolve())],
-        start_new_session=True, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+        start_new_session=True,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
         env={**os.environ, "PYTHONPATH": str(Path(__file__).resolve().parent)},
     )
     print(f"Submitted batch job {job_id}")
@@ -94,9 +97,17 @@ def _run_array(job_id: str, script_path: str) -> None:
 
     def run(task: int | None) -> None:
         name = job_id if task is None else f"{job_id}_{task}"
-        env = {**os.environ, "SLURM_JOB_ID": f"{job_id}{'' if task is None else task}", "SLURM_NTASKS": "1",
-               "SLURM_PROCID": "0", "SLURM_LOCALID": "0", "SLURM_NODEID": "0", "SLURM_JOB_NUM_NODES": "1",
-               "SLURM_JOB_NODELIST": "localhost", "SLURM_SUBMIT_DIR": os.getcwd()}
+        env = {
+            **os.environ,
+            "SLURM_JOB_ID": f"{job_id}{'' if task is None else task}",
+            "SLURM_NTASKS": "1",
+            "SLURM_PROCID": "0",
+            "SLURM_LOCALID": "0",
+            "SLURM_NODEID": "0",
+            "SLURM_JOB_NUM_NODES": "1",
+            "SLURM_JOB_NODELIST": "localhost",
+            "SLURM_SUBMIT_DIR": os.getcwd(),
+        }
         if "cpus-per-task" in opts:
             env["SLURM_CPUS_PER_TASK"] = opts["cpus-per-task"]
         if task is not None:

@@ -6,14 +6,19 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+import fake_slurm  # tests/launchers/fake_slurm.py (pytest puts this folder on sys.path)
 import pytest
 import yaml
-from omegaconf import OmegaConf
-
-import fake_slurm  # tests/launchers/fake_slurm.py (pytest puts this folder on sys.path)
 from launcher_support import (
-    RAY_TARGET, SCHEMA_MATCH_WARNING, SETUP_THREADS, SLURM_TARGET, THREAD_VARS, compose_with_hydra, ray_options,
+    RAY_TARGET,
+    SCHEMA_MATCH_WARNING,
+    SETUP_THREADS,
+    SLURM_TARGET,
+    THREAD_VARS,
+    compose_with_hydra,
+    ray_options,
 )
+from omegaconf import OmegaConf
 
 pytestmark = pytest.mark.filterwarnings(SCHEMA_MATCH_WARNING)
 
@@ -63,8 +68,18 @@ def test_ray_launcher_instantiates_with_valid_options(ray_plugin, tmp_path: Path
 
 def test_slurm_config_composes_with_cfg_hydra(run_sphri, tmp_path: Path):
     """Needs no plugin: slurm.yaml lists its fields itself (test_config composes every YAML under `make test`)."""
-    proc = run_sphri(["hydra/launcher=slurm", "hydra.launcher.partition=cpu", "hydra.launcher.cpus_per_task=8",
-                      f"output_dir={tmp_path}", "--cfg", "hydra"], cwd=tmp_path, timeout=120)
+    proc = run_sphri(
+        [
+            "hydra/launcher=slurm",
+            "hydra.launcher.partition=cpu",
+            "hydra.launcher.cpus_per_task=8",
+            f"output_dir={tmp_path}",
+            "--cfg",
+            "hydra",
+        ],
+        cwd=tmp_path,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     launcher = yaml.safe_load(proc.stdout)["hydra"]["launcher"]
     assert launcher["_target_"] == SLURM_TARGET
@@ -76,7 +91,9 @@ def test_slurm_config_composes_with_cfg_hydra(run_sphri, tmp_path: Path):
     assert launcher["setup"][0] == SETUP_THREADS
     assert all(v in launcher["setup"][1] for v in THREAD_VARS[1:])
     # a misspelt key is refused, naming it
-    bad = run_sphri(["hydra/launcher=slurm", "hydra.launcher.partiton=cpu", "--cfg", "hydra"], cwd=tmp_path, timeout=120)
+    bad = run_sphri(
+        ["hydra/launcher=slurm", "hydra.launcher.partiton=cpu", "--cfg", "hydra"], cwd=tmp_path, timeout=120
+    )
     assert bad.returncode != 0 and "partiton" in bad.stderr
 
 
@@ -96,8 +113,15 @@ def test_slurm_parameters_make_a_valid_sbatch_script(submitit_plugin, tmp_path: 
     from hydra_plugins.hydra_submitit_launcher.config import BaseQueueConf
     from submitit.slurm.slurm import _make_sbatch_string
 
-    cfg = compose_with_hydra(["hydra/launcher=slurm", "hydra.launcher.partition=cpu", "hydra.launcher.cpus_per_task=6",
-                              "hydra.launcher.account=lab", f"output_dir={tmp_path}"])
+    cfg = compose_with_hydra(
+        [
+            "hydra/launcher=slurm",
+            "hydra.launcher.partition=cpu",
+            "hydra.launcher.cpus_per_task=6",
+            "hydra.launcher.account=lab",
+            f"output_dir={tmp_path}",
+        ]
+    )
     launcher = instantiate(cfg.hydra.launcher)
     params = dict(launcher.params)
     assert params["submitit_folder"].startswith(f"{tmp_path}/multirun/")
@@ -108,9 +132,12 @@ def test_slurm_parameters_make_a_valid_sbatch_script(submitit_plugin, tmp_path: 
     base = set(OmegaConf.structured(BaseQueueConf).keys())
     monkeypatch.setenv("PATH", f"{fake_slurm.install(tmp_path / 'bin')}:{os.environ['PATH']}")
     executor = submitit.AutoExecutor(cluster="slurm", folder=tmp_path / "submitit")
-    executor.update_parameters(**{k if k in base else f"slurm_{k}": v for k, v in params.items()})  # refuses unknown keys
-    script = _make_sbatch_string(command="python -m submitit.core._submit X", folder=tmp_path, map_count=5,
-                                 **executor._executor.parameters)
+    executor.update_parameters(
+        **{k if k in base else f"slurm_{k}": v for k, v in params.items()}
+    )  # refuses unknown keys
+    script = _make_sbatch_string(
+        command="python -m submitit.core._submit X", folder=tmp_path, map_count=5, **executor._executor.parameters
+    )
     opts = fake_slurm.sbatch_options(script)
     assert opts["partition"] == "cpu" and opts["account"] == "lab" and opts["cpus-per-task"] == "6"
     assert opts["time"] == "120" and opts["mem"] == "16GB" and opts["array"] == "0-4%5"

@@ -8,17 +8,18 @@ import json
 from pathlib import Path
 
 import pytest
-from omegaconf import OmegaConf
-
 from launcher_support import SCHEMA_MATCH_WARNING, THREAD_VARS, compose_with_hydra, job_logs
+from omegaconf import OmegaConf
 
 pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings(SCHEMA_MATCH_WARNING)]
 
 
 def test_ray_sweep_one_parent_three_children(ray_plugin, run_sphri, sweep_runs, tmp_path: Path):
     out = tmp_path / "outputs"
-    proc = run_sphri(["-m", "hydra/launcher=ray", "+robot=reachy", "+debug=fast", "encoder.res=2,3,4",
-                      f"output_dir={out}"], cwd=tmp_path)
+    proc = run_sphri(
+        ["-m", "hydra/launcher=ray", "+robot=reachy", "+debug=fast", "encoder.res=2,3,4", f"output_dir={out}"],
+        cwd=tmp_path,
+    )
     assert proc.returncode == 0, proc.stderr[-4000:]
     assert "3 of 3 jobs finished" in proc.stdout, proc.stdout[-3000:]
     assert "Ray Launcher is launching 3 jobs" in proc.stderr + proc.stdout

@@ -12,9 +12,8 @@ import os
 import time
 from pathlib import Path
 
-import pytest
-
 import fake_slurm
+import pytest
 from launcher_support import SETUP_THREADS, THREAD_VARS
 
 pytestmark = pytest.mark.slow
@@ -25,10 +24,22 @@ def test_slurm_sweep_through_fake_sbatch(submitit_plugin, run_sphri, sweep_runs,
     slurm_dir = tmp_path / "slurm"
     bin_dir = fake_slurm.install(tmp_path / "bin")
     env = {"PATH": f"{bin_dir}:{os.environ['PATH']}", "FAKE_SLURM_DIR": str(slurm_dir)}
-    proc = run_sphri(["-m", "hydra/launcher=slurm", "+debug=fast", "encoder.res=2,3", f"output_dir={out}",
-                      "hydra.launcher.partition=fake", "hydra.launcher.cpus_per_task=1",
-                      "hydra.launcher.array_parallelism=2", "hydra.launcher.timeout_min=10"],
-                     cwd=tmp_path, env=env, timeout=900)
+    proc = run_sphri(
+        [
+            "-m",
+            "hydra/launcher=slurm",
+            "+debug=fast",
+            "encoder.res=2,3",
+            f"output_dir={out}",
+            "hydra.launcher.partition=fake",
+            "hydra.launcher.cpus_per_task=1",
+            "hydra.launcher.array_parallelism=2",
+            "hydra.launcher.timeout_min=10",
+        ],
+        cwd=tmp_path,
+        env=env,
+        timeout=900,
+    )
     assert proc.returncode == 0, proc.stderr[-4000:]
     assert "2 of 2 jobs finished" in proc.stdout, proc.stdout[-3000:]
 
@@ -41,7 +52,10 @@ def test_slurm_sweep_through_fake_sbatch(submitit_plugin, run_sphri, sweep_runs,
     assert text.index(SETUP_THREADS) < text.index("srun ")
     # submitit returns once the results are written; the batch scripts end a moment later
     deadline = time.monotonic() + 60
-    while len(states := {p.name: p.read_text() for p in (slurm_dir / "state").glob("*")}) < 2 and time.monotonic() < deadline:
+    while (
+        len(states := {p.name: p.read_text() for p in (slurm_dir / "state").glob("*")}) < 2
+        and time.monotonic() < deadline
+    ):
         time.sleep(0.2)
     assert sorted(states.values()) == ["COMPLETED", "COMPLETED"], states
     for seen in (json.loads(p.read_text()) for p in (slurm_dir / "env").glob("*.json")):

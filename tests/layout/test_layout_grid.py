@@ -52,7 +52,10 @@ def test_grid_shape_and_units(cyl_link, cyl_map):
 
 
 def test_aspect_and_extreme_res(cyl_link, cyl_map):
-    assert GridLayout(aspect=2.0).build(cyl_link, cyl_map, 24).grid_shape == (24, round(24 * cyl_map.metres_per_v / 0.24 / 2))
+    assert GridLayout(aspect=2.0).build(cyl_link, cyl_map, 24).grid_shape == (
+        24,
+        round(24 * cyl_map.metres_per_v / 0.24 / 2),
+    )
     one = GridLayout().build(cyl_link, cyl_map, 1)
     assert one.grid_shape == (1, 1) and one.n_taxels == 1
     big = GridLayout().build(cyl_link, cyl_map, 200)

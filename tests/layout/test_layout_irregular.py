@@ -67,9 +67,16 @@ def contacts_at(points: np.ndarray, normals: np.ndarray | None = None):
     k = points.shape[0]
     base = empty_contacts(k)
     return dataclasses.replace(
-        base, frame=np.arange(k, dtype=np.int64), capsule=np.zeros(k, dtype=np.int16), distance_m=np.zeros(k),
-        inside=np.zeros(k, dtype=bool), point_m=points, segment_point_m=points, triangle=np.zeros(k, dtype=np.int64),
-        barycentric=np.full((k, 3), 1 / 3), normal=np.tile([1.0, 0.0, 0.0], (k, 1)) if normals is None else normals,
+        base,
+        frame=np.arange(k, dtype=np.int64),
+        capsule=np.zeros(k, dtype=np.int16),
+        distance_m=np.zeros(k),
+        inside=np.zeros(k, dtype=bool),
+        point_m=points,
+        segment_point_m=points,
+        triangle=np.zeros(k, dtype=np.int64),
+        barycentric=np.full((k, 3), 1 / 3),
+        normal=np.tile([1.0, 0.0, 0.0], (k, 1)) if normals is None else normals,
         patch_radius_m=np.full(k, 0.005),
         depth_m=np.full(k, 0.001),
     )
@@ -131,7 +138,9 @@ def test_file_layout_reads_dedupes_and_places(tmp_path, caplog):
     assert lay_id.n_taxels == 3 and lay_id.kind == "file" and lay_id.grid_shape is None
     np.testing.assert_allclose(lay_id.position_m[:, 0], 0.05, atol=1e-12)
     with caplog.at_level(logging.INFO):
-        lay = FileLayout(path=str(path), transform=[0, 0.01, 0, 0, 0, np.pi / 2]).build(link, MeshSurface().fit(link), 18)
+        lay = FileLayout(path=str(path), transform=[0, 0.01, 0, 0, 0, np.pi / 2]).build(
+            link, MeshSurface().fit(link), 18
+        )
     assert "ignores res=18" in caplog.text
     np.testing.assert_allclose(lay.position_m[:, 1], 0.05, atol=1e-9)  # x -> y, on the +y face
     np.testing.assert_allclose(lay.normal, np.tile([0, 1, 0], (3, 1)), atol=1e-9)

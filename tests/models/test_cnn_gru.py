@@ -17,8 +17,14 @@ TINY = dict(max_epochs=2, batch_size=8, hidden=8, channels=[4, 4, 4], threads=1)
 
 def geometry(shape: tuple[int, int] | None, n: int, wrap: bool) -> TaxelGeometry:
     rng = np.random.default_rng(0)
-    return TaxelGeometry(grid_shape=shape, uv=rng.random((n, 2)), position_m=rng.random((n, 3)), wrap_v=wrap,
-                         metres_per_u=0.24, metres_per_v=0.26)
+    return TaxelGeometry(
+        grid_shape=shape,
+        uv=rng.random((n, 2)),
+        position_m=rng.random((n, 3)),
+        wrap_v=wrap,
+        metres_per_u=0.24,
+        metres_per_v=0.26,
+    )
 
 
 def toy_xy(n_taxels: int, n: int = 24, length: int = 6, seed: int = 0):
@@ -59,7 +65,9 @@ def test_circular_padding_wraps_around_v():
     assert not torch.allclose(flat(rolled), flat(frames), atol=1e-4)
 
 
-@pytest.mark.parametrize("shape,strides", [((1, 1), [2, 2, 1]), ((18, 19), [2, 2, 1]), ((5, 3), [1, 2, 3]), ((4, 7), [1, 1, 1])])
+@pytest.mark.parametrize(
+    "shape,strides", [((1, 1), [2, 2, 1]), ((18, 19), [2, 2, 1]), ((5, 3), [1, 2, 3]), ((4, 7), [1, 1, 1])]
+)
 @pytest.mark.parametrize("size", [1, 2, 3])
 def test_pooling_matrix_equals_adaptive_average_pooling(shape, strides, size):
     torch.manual_seed(1)
@@ -88,8 +96,9 @@ def test_each_precision_runs_and_is_deterministic(precision):
     a = CnnGru(geometry=geometry((3, 4), 12, True), precision=precision, **TINY).fit(x, y)
     expected = resolve_precision(precision, torch.device("cpu"))
     assert a.precision_ == expected
-    assert expected == ("bf16" if precision == "bf16" or (precision == "auto" and native_bf16(torch.device("cpu")))
-                        else "float32")
+    assert expected == (
+        "bf16" if precision == "bf16" or (precision == "auto" and native_bf16(torch.device("cpu"))) else "float32"
+    )
     b = clone(a).fit(x, y)
     p = a.predict_proba(x)
     assert p.dtype == np.float64 and np.all(np.isfinite(p))
@@ -115,8 +124,9 @@ def test_input_scaling_is_fit_on_the_training_split_only():
     groups = np.repeat(["a", "b", "c", "d"], 10)
     x = rng.random((40, 5, 6)).astype(np.float32) + np.repeat([0.0, 1.0, 3.0, 7.0], 10)[:, None, None]
     y = np.arange(40) % 4
-    m = CnnGru(geometry=geometry((2, 3), 6, False), val_fraction=0.25, min_val_participants=1, seed=1,
-               **TINY).fit(x, y, groups=groups)
+    m = CnnGru(geometry=geometry((2, 3), 6, False), val_fraction=0.25, min_val_participants=1, seed=1, **TINY).fit(
+        x, y, groups=groups
+    )
     tr, va = validation_split(np.unique(y, return_inverse=True)[1], groups, 0.25, seed=1)
     assert m.n_val_ == va.size == 10
     assert float(m.net_.x_mean) == pytest.approx(float(x[tr].mean()), rel=1e-5)
@@ -137,8 +147,10 @@ def test_device_auto_is_cuda_when_available_else_cpu(monkeypatch):
     assert CnnGru().device == "auto"
     want = "cuda" if torch.cuda.is_available() else "cpu"
     assert cnn_gru.resolve_device("auto").type == want
-    assert CnnGru().runtime() == {"device": str(cnn_gru.resolve_device("auto")),
-                                  "precision": resolve_precision("auto", torch.device(want))}
+    assert CnnGru().runtime() == {
+        "device": str(cnn_gru.resolve_device("auto")),
+        "precision": resolve_precision("auto", torch.device(want)),
+    }
     x, y = toy_xy(4)
     m = CnnGru(geometry=geometry((2, 2), 4, False), **TINY).fit(x, y)
     assert next(m.net_.parameters()).device.type == want
@@ -274,15 +286,21 @@ def test_a_small_study_trains_every_epoch_instead_of_stopping_on_one_persons_los
     x = (rng.random((50, 5, 6)) < 0.3).astype(np.float32)
     y = np.arange(50) % 4
     groups = np.repeat([f"p{i}" for i in range(5)], 10)
-    settings = dict(geometry=geometry((2, 3), 6, False), val_fraction=0.15, patience=1, seed=0, **{**TINY, "max_epochs": 6})
+    settings = dict(
+        geometry=geometry((2, 3), 6, False), val_fraction=0.15, patience=1, seed=0, **{**TINY, "max_epochs": 6}
+    )
     with caplog.at_level(logging.WARNING, logger="sphri.models.cnn_gru"):
         m = CnnGru(**settings).fit(x, y, groups=groups)
     assert m.n_val_ == 0 and len(m.history_) == 6  # every epoch, no split
     assert "min_val_participants=3" in caplog.text and "1 of 5" in caplog.text
     old = CnnGru(**settings, min_val_participants=1).fit(x, y, groups=groups)  # the earlier behaviour, when asked
     assert old.n_val_ == 10
-    assert CnnGru(min_val_participants=3, val_fraction=0.15).early_stopping_fraction(
-        np.repeat([f"p{i}" for i in range(17)], 2)) == 0.15  # the paper's 18 participants: 3 held out, unchanged
+    assert (
+        CnnGru(min_val_participants=3, val_fraction=0.15).early_stopping_fraction(
+            np.repeat([f"p{i}" for i in range(17)], 2)
+        )
+        == 0.15
+    )  # the paper's 18 participants: 3 held out, unchanged
 
 
 def test_cnn_gru_beats_chance_on_a_small_study(tmp_path):
@@ -301,8 +319,19 @@ def test_cnn_gru_beats_chance_on_a_small_study(tmp_path):
     from sphri.config import compose
     from sphri.evaluate.metrics import chance_level
 
-    cfg = compose(["model=cnn_gru", "encoder.res=6", "data.participants=6", "data.repetitions=10", "cv.max_folds=3",
-                   "cv.threads_per_worker=1", "cv.progress=false", "tracking.enabled=false", f"output_dir={tmp_path}"])
+    cfg = compose(
+        [
+            "model=cnn_gru",
+            "encoder.res=6",
+            "data.participants=6",
+            "data.repetitions=10",
+            "cv.max_folds=3",
+            "cv.threads_per_worker=1",
+            "cv.progress=false",
+            "tracking.enabled=false",
+            f"output_dir={tmp_path}",
+        ]
+    )
     result = pipeline.run(cfg)
     assert len(result.cv.folds) == 3
     assert chance_level(result.cv) == pytest.approx(0.125)

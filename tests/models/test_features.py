@@ -158,8 +158,9 @@ def test_bad_inputs_are_named():
         extract_features(np.full((2, 5, 12), np.nan, np.float32), geom)
     with pytest.raises(ValueError, match="n_trials, L, N_taxels"):
         extract_features(np.zeros((5, 12), np.float32), geom)
-    bad = TaxelGeometry(grid_shape=(5, 5), uv=geom.uv, position_m=geom.position_m, wrap_v=False,
-                        metres_per_u=0.03, metres_per_v=0.04)
+    bad = TaxelGeometry(
+        grid_shape=(5, 5), uv=geom.uv, position_m=geom.position_m, wrap_v=False, metres_per_u=0.03, metres_per_v=0.04
+    )
     with pytest.raises(ValueError, match="grid_shape"):
         taxel_coords(bad)
 

@@ -143,8 +143,9 @@ def test_input_checks_and_ranges():
 
 
 @settings(max_examples=EXAMPLES, deadline=None)
-@given(seed=st.integers(0, 2**31), trial=st.integers(-(2**62), 2**62), frame=st.integers(0, 2**40),
-       p=st.floats(0.0, 1.0))
+@given(
+    seed=st.integers(0, 2**31), trial=st.integers(-(2**62), 2**62), frame=st.integers(0, 2**40), p=st.floats(0.0, 1.0)
+)
 def test_noise_is_a_function_of_its_key(seed, trial, frame, p):
     v = np.zeros((2, 64), dtype=np.uint8)
     fi = np.array([frame, frame], dtype=np.int64)

@@ -47,8 +47,14 @@ def windows_with_padding(t=6, length=10, h=4, w=5, seed=0) -> tuple[WindowedFram
         real[i, :k] = True
     uv = np.column_stack([np.repeat((np.arange(h) + 0.5) / h, w), np.tile((np.arange(w) + 0.5) / w, h)])
     geom = TaxelGeometry((h, w), uv, np.column_stack([uv, np.zeros(n)]), True, 0.24, 0.25)
-    win = WindowedFrames(x=x, y=np.arange(t) % 8, groups=np.array(["a", "b"] * (t // 2)), geometry=geom,
-                         trial_row=np.arange(t, dtype=np.int64), n_dropped=0)
+    win = WindowedFrames(
+        x=x,
+        y=np.arange(t) % 8,
+        groups=np.array(["a", "b"] * (t // 2)),
+        geometry=geom,
+        trial_row=np.arange(t, dtype=np.int64),
+        n_dropped=0,
+    )
     return win, real
 
 

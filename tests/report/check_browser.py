@@ -26,8 +26,14 @@ def demo_report(root: Path) -> Path:
 
     from sphri.report import make_report
 
-    truth = make_sweep(root / "outputs", root / "sweep", [1, 2, 3, 4, 6, 9, 13, 18, 36], models=["rf", "cnn_gru"],
-                       top={"rf": 0.85, "cnn_gru": 0.75}, fail={("cnn_gru", 36)})
+    truth = make_sweep(
+        root / "outputs",
+        root / "sweep",
+        [1, 2, 3, 4, 6, 9, 13, 18, 36],
+        models=["rf", "cnn_gru"],
+        top={"rf": 0.85, "cnn_gru": 0.75},
+        fail={("cnn_gru", 36)},
+    )
     _, files, text = make_report(truth.sweep_dir)
     print(text)
     return files.html
@@ -38,9 +44,19 @@ def screenshot(html: Path, out: Path, width: int = 1200, height: int = 2400) -> 
     exe = shutil.which("chromium") or shutil.which("chromium-browser") or shutil.which("google-chrome")
     if exe is None:
         raise SystemExit("chromium not found: apt-get install -y chromium")
-    cmd = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
-           "--disable-component-update", "--disable-sync", "--no-first-run", f"--screenshot={out}",
-           f"--window-size={width},{height}", html.resolve().as_uri()]
+    cmd = [
+        exe,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        "--no-first-run",
+        f"--screenshot={out}",
+        f"--window-size={width},{height}",
+        html.resolve().as_uri(),
+    ]
     subprocess.run(cmd, check=True, capture_output=True, timeout=120)
     if not out.is_file() or out.stat().st_size == 0:
         raise SystemExit(f"chromium wrote no screenshot to {out}")

@@ -43,11 +43,24 @@ def grid_resolution(res: int) -> dict:
     """What ``sphri.layout.units.describe`` reports for a res-``res`` grid on the arm."""
     h, w = res, max(1, int(round(res * CIRCUMFERENCE_MM / LENGTH_MM)))
     pu, pv = LENGTH_MM / h, CIRCUMFERENCE_MM / w
-    return {"layout_kind": "grid", "surface_kind": "cylinder", "n_taxels": h * w, "n_taxels_on_surface": h * w,
-            "grid_h": h, "grid_w": w, "pitch_u_mm": pu, "pitch_v_mm": pv,
-            "area_per_taxel_cm2": pu * pv / 100.0, "skin_area_cm2": LENGTH_MM * CIRCUMFERENCE_MM / 100.0,
-            "taxels_per_cm_u": 10 / pu, "taxels_per_cm_v": 10 / pv, "taxels_per_24cm": 240.0 / pu,
-            "link_length_mm": LENGTH_MM, "circumference_mm": CIRCUMFERENCE_MM, "fit_residual_mm": 1.0}
+    return {
+        "layout_kind": "grid",
+        "surface_kind": "cylinder",
+        "n_taxels": h * w,
+        "n_taxels_on_surface": h * w,
+        "grid_h": h,
+        "grid_w": w,
+        "pitch_u_mm": pu,
+        "pitch_v_mm": pv,
+        "area_per_taxel_cm2": pu * pv / 100.0,
+        "skin_area_cm2": LENGTH_MM * CIRCUMFERENCE_MM / 100.0,
+        "taxels_per_cm_u": 10 / pu,
+        "taxels_per_cm_v": 10 / pv,
+        "taxels_per_24cm": 240.0 / pu,
+        "link_length_mm": LENGTH_MM,
+        "circumference_mm": CIRCUMFERENCE_MM,
+        "fit_residual_mm": 1.0,
+    }
 
 
 def true_curve(res: np.ndarray, top: float, tau: float) -> np.ndarray:
@@ -73,11 +86,15 @@ def _fold(name: str, acc: float, rng: np.random.Generator, per_gesture: int, res
     return FoldResult(name, n, a, float(f1.mean()), conf, recall)
 
 
-def fake_cfg(output_dir: Path, res: int, model: str, robot: str = "reachy", variant: str | None = None,
-             noise_p: float = 0.02) -> OmegaConf:
-    target = {"rf": "sphri.models.rf.RandomForest", "cnn_gru": "sphri.models.cnn_gru.CnnGru"}.get(model, "sphri.models.X")
+def fake_cfg(
+    output_dir: Path, res: int, model: str, robot: str = "reachy", variant: str | None = None, noise_p: float = 0.02
+) -> OmegaConf:
+    target = {"rf": "sphri.models.rf.RandomForest", "cnn_gru": "sphri.models.cnn_gru.CnnGru"}.get(
+        model, "sphri.models.X"
+    )
     cfg = {
-        "seed": 0, "output_dir": str(output_dir),
+        "seed": 0,
+        "output_dir": str(output_dir),
         "data": {"_target_": "sphri.data.synthetic.SyntheticGestures", "seed": 0, "participants": 8},
         "robot": {"_target_": f"sphri.robots.{robot}.Robot"},
         "contact": {"_target_": "sphri.contact.Exact"},
@@ -109,10 +126,22 @@ class FakeSweep:
     participants: list[str] = field(default_factory=list)
 
 
-def make_sweep(out: Path, sweep_dir: Path, res: list[int], models: list[str] = ("rf",), robots: list[str] = ("reachy",),
-               n_participants: int = 8, synthetic: bool = True, fail: set[tuple[str, int]] = frozenset(),
-               artifacts: bool = True, confusion_png: bool = False, seed: int = 0, top: dict[str, float] | None = None,
-               tau: float = 3.0, variants: dict[str, tuple[float, float]] | None = None) -> FakeSweep:
+def make_sweep(
+    out: Path,
+    sweep_dir: Path,
+    res: list[int],
+    models: list[str] = ("rf",),
+    robots: list[str] = ("reachy",),
+    n_participants: int = 8,
+    synthetic: bool = True,
+    fail: set[tuple[str, int]] = frozenset(),
+    artifacts: bool = True,
+    confusion_png: bool = False,
+    seed: int = 0,
+    top: dict[str, float] | None = None,
+    tau: float = 3.0,
+    variants: dict[str, tuple[float, float]] | None = None,
+) -> FakeSweep:
     """Log a fake sweep into the store at ``out`` (its output_dir), sweep dir ``sweep_dir``; return its truth.
 
     Several sweeps may share one store (creating an MLflow database takes seconds).
@@ -127,7 +156,9 @@ def make_sweep(out: Path, sweep_dir: Path, res: list[int], models: list[str] = (
     tracker = MlflowTracker(artifacts=artifacts, confusion_png=confusion_png)
     sweep_id = sweep_dir.name
     parent_id = tracker.start_parent(str(out), str(sweep_dir), sweep_id, ["encoder.res=" + ",".join(map(str, res))])
-    (sweep_dir / PARENT_FILE).write_text(json.dumps({"run_id": parent_id, "sweep_id": sweep_id, "uri": default_uri(out)}))
+    (sweep_dir / PARENT_FILE).write_text(
+        json.dumps({"run_id": parent_id, "sweep_id": sweep_id, "uri": default_uri(out)})
+    )
     parent = {"run_id": parent_id, "sweep_id": sweep_id}
     participants = [f"participant_{i + 1:02d}" for i in range(n_participants)]
     offsets = rng.normal(0, 0.04, n_participants)
@@ -135,11 +166,21 @@ def make_sweep(out: Path, sweep_dir: Path, res: list[int], models: list[str] = (
     top = top or {}
     job = 0
     n_fail = 0
-    combos = ([(robots[0], models[0], v) for v in variants] if variants
-              else [(robot, model, None) for robot in robots for model in models])
+    combos = (
+        [(robots[0], models[0], v) for v in variants]
+        if variants
+        else [(robot, model, None) for robot in robots for model in models]
+    )
     for robot, model, variant in combos:
-        label = (variant if variant is not None else f"robot={robot}, model={model}" if len(robots) > 1 and len(models) > 1
-                 else robot if len(robots) > 1 else model)
+        label = (
+            variant
+            if variant is not None
+            else f"robot={robot}, model={model}"
+            if len(robots) > 1 and len(models) > 1
+            else robot
+            if len(robots) > 1
+            else model
+        )
         truth.labels.append(label)
         mat = np.full((n_participants, len(res)), np.nan)
         v_tau, v_p = variants[variant] if variant is not None else (tau, 0.02)
@@ -150,8 +191,15 @@ def make_sweep(out: Path, sweep_dir: Path, res: list[int], models: list[str] = (
             job_dir.mkdir(parents=True, exist_ok=True)
             choices = {"model": model, "robot": robot, "layout": "grid", "noise": "salt_pepper"}
             if (model, r) in fail:
-                rid = tracker.log_failure(cfg, RuntimeError(f"boom at res {r}"), job_dir, parent=parent, choices=choices)
-                status = {"job": job, "status": "FAILED", "error": f"RuntimeError: boom at res {r}", "mlflow_run_id": rid}
+                rid = tracker.log_failure(
+                    cfg, RuntimeError(f"boom at res {r}"), job_dir, parent=parent, choices=choices
+                )
+                status = {
+                    "job": job,
+                    "status": "FAILED",
+                    "error": f"RuntimeError: boom at res {r}",
+                    "mlflow_run_id": rid,
+                }
                 n_fail += 1
             else:
                 folds = []
@@ -159,14 +207,30 @@ def make_sweep(out: Path, sweep_dir: Path, res: list[int], models: list[str] = (
                     acc = float(np.clip(curve[j] + offsets[i] + rng.normal(0, 0.02), 0.0, 1.0))
                     folds.append(_fold(p, acc, rng, per_gesture=20, res=r))
                     mat[i, j] = folds[-1].accuracy
-                meta = RunMeta(dataset="synthetic" if synthetic else "vr_gesture", synthetic=synthetic,
-                               n_participants=n_participants, n_trials=16 * n_participants, n_frames=1000,
-                               frame_rate_hz=30.0, repairs={}, robot=robot, region="arm", link="r_arm",
-                               surface="cylinder", surface_fit_residual_mm=1.0, n_windows=160,
-                               n_dropped_no_contact=0, window_frames=50, resolution=grid_resolution(r))
-                result = RunResult(CVResult("loso", model, folds), meta,
-                                   {"contact": StageRecord("contact", "k", "cache", 0.1)},
-                                   f"hash-{robot}-{model}-{variant}-{r}")
+                meta = RunMeta(
+                    dataset="synthetic" if synthetic else "vr_gesture",
+                    synthetic=synthetic,
+                    n_participants=n_participants,
+                    n_trials=16 * n_participants,
+                    n_frames=1000,
+                    frame_rate_hz=30.0,
+                    repairs={},
+                    robot=robot,
+                    region="arm",
+                    link="r_arm",
+                    surface="cylinder",
+                    surface_fit_residual_mm=1.0,
+                    n_windows=160,
+                    n_dropped_no_contact=0,
+                    window_frames=50,
+                    resolution=grid_resolution(r),
+                )
+                result = RunResult(
+                    CVResult("loso", model, folds),
+                    meta,
+                    {"contact": StageRecord("contact", "k", "cache", 0.1)},
+                    f"hash-{robot}-{model}-{variant}-{r}",
+                )
                 rid = tracker.log_job(cfg, result, job_dir, parent=parent, choices=choices)
                 status = {"job": job, "status": "FINISHED", "error": None, "mlflow_run_id": rid}
             (job_dir / "sphri_status.json").write_text(json.dumps(status))

@@ -9,8 +9,14 @@ import pytest
 from sphri.report.saturation import envelope_saturation, paired_saturation, rerun_noise
 
 
-def replicates(curve: np.ndarray, rng: np.random.Generator, seeds: int = 3, participants: int = 18,
-               noise: float = 0.034, spread: float = 0.05) -> np.ndarray:
+def replicates(
+    curve: np.ndarray,
+    rng: np.random.Generator,
+    seeds: int = 3,
+    participants: int = 18,
+    noise: float = 0.034,
+    spread: float = 0.05,
+) -> np.ndarray:
     """(S, P, R) scores: ``curve`` + a participant offset (cancels in pairs) + rerun noise per seed and point."""
     offsets = rng.normal(0.0, spread, (1, participants, 1))
     return curve[None, None, :] + offsets + rng.normal(0.0, noise, (seeds, participants, curve.size))
@@ -26,7 +32,7 @@ def test_dip_curve_never_gives_a_point_followed_by_points_outside_the_tolerance(
     sat, env = envelope_saturation(s, "0.01", n_boot=300, seed=0)
     assert sat.index == 7 and sat.rule == "envelope"
     assert env.outside[5] and env.outside[6] and not env.outside[7:].any()
-    assert (curve.max() - curve[sat.index:] <= 0.01 + 1e-12).all()
+    assert (curve.max() - curve[sat.index :] <= 0.01 + 1e-12).all()
     lo, hi = sat.interval
     assert lo <= sat.index <= hi and lo >= 7, "no resample may place the requirement before the dip"
 
@@ -131,8 +137,9 @@ def test_requirement_map_flags_the_dip_and_lines_curves_up_by_false_on_rate():
     def curve(values: np.ndarray, rate: float, noise_key: str) -> SimpleNamespace:
         sat, env = envelope_saturation(replicates(values, rng, noise=0.01), "0.01", n_boot=0)
         points = pd.DataFrame({"false_on_rate": rate, "res": np.arange(1, 8), "pitch_u_mm": 10.0 / np.arange(1, 8)})
-        return SimpleNamespace(sat=sat, envelope=env, points=points, has_pitch=True,
-                               keys={"noise.p": noise_key, "model": "rf"})
+        return SimpleNamespace(
+            sat=sat, envelope=env, points=points, has_pitch=True, keys={"noise.p": noise_key, "model": "rf"}
+        )
 
     clean, noisy = curve(flat_rise, 0.0, "0"), curve(dip_curve, 0.02, "0.02")
     (m,) = requirement_maps([noisy, clean])

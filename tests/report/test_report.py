@@ -9,14 +9,13 @@ from html.parser import HTMLParser
 import numpy as np
 import pandas as pd
 import pytest
+from fake_sweep import grid_resolution, make_sweep
 from markupsafe import escape  # the page's autoescape (' as &#39;)
 
 from sphri.report import RuleSettings, load_sweep, make_report
-from sphri.report.saturation import envelope_saturation
 from sphri.report.__main__ import main
+from sphri.report.saturation import envelope_saturation
 from sphri.report.sweep import ReportError, group_keys
-
-from fake_sweep import grid_resolution, make_sweep
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 RULE = RuleSettings(n_boot=400, seed=0)
@@ -93,10 +92,12 @@ def test_saturation_numbers_match_the_logged_scores(built):
     lo_res, hi_res = truth.res[expected.interval[0]], truth.res[expected.interval[1]]
     pitches = [max(grid_resolution(x)["pitch_u_mm"], grid_resolution(x)["pitch_v_mm"]) for x in (hi_res, lo_res)]
     # the sentence never states the point alone: the interval is in it, and the tolerance it uses
-    assert (f"A taxel pitch of at most {pitch:.1f} mm (95% interval {min(pitches):.1f} to {max(pitches):.1f} mm; "
-            f"{r['area_per_taxel_cm2']:.2f} cm^2 per taxel) keeps accuracy within {100 * expected.tolerance:.1f} points "
-            f"of accuracy ({expected.tolerance:.3f}: the measured rerun noise, above the 1 point of accuracy (0.01) "
-            "asked for) of the best, paired over participants, on this link") in rf.requirement
+    assert (
+        f"A taxel pitch of at most {pitch:.1f} mm (95% interval {min(pitches):.1f} to {max(pitches):.1f} mm; "
+        f"{r['area_per_taxel_cm2']:.2f} cm^2 per taxel) keeps accuracy within {100 * expected.tolerance:.1f} points "
+        f"of accuracy ({expected.tolerance:.3f}: the measured rerun noise, above the 1 point of accuracy (0.01) "
+        "asked for) of the best, paired over participants, on this link"
+    ) in rf.requirement
     # one seed: the rerun noise is estimated from the jitter between neighbouring resolutions, and stated
     assert env.noise.source == "neighbours" and expected.tolerance == pytest.approx(env.noise.curve)
     assert f"rerun noise {env.noise.per_participant:.3f} per participant" in text
@@ -109,7 +110,9 @@ def test_saturation_numbers_match_the_logged_scores(built):
     saved = json.loads(files.tables["json"].read_text())
     row = next(g for g in saved["groups"] if g["group"] == "rf")
     assert row["saturation_res"] == res and row["saturation_pitch_mm"] == pytest.approx(pitch, rel=1e-5)
-    assert row["pitch_low_mm"] == pytest.approx(min(pitches), rel=1e-5) and row["interval_index"] == list(expected.interval)
+    assert row["pitch_low_mm"] == pytest.approx(min(pitches), rel=1e-5) and row["interval_index"] == list(
+        expected.interval
+    )
     assert isinstance(row["tolerance"], float) and isinstance(row["synthetic"], bool)
 
 
@@ -145,9 +148,18 @@ def test_files_text_and_mlflow_parent(built):
 
     truth, report, files, text = built
     assert files.out_dir == truth.sweep_dir / "report"
-    for name in ("report.html", "summary.txt", "accuracy_vs_resolution.png", "recall_vs_resolution.png",
-                 "saturation_bootstrap.png", "confusion_rf.png", "confusion_cnn_gru.png", "saturation.csv",
-                 "points.csv", "saturation.json"):
+    for name in (
+        "report.html",
+        "summary.txt",
+        "accuracy_vs_resolution.png",
+        "recall_vs_resolution.png",
+        "saturation_bootstrap.png",
+        "confusion_rf.png",
+        "confusion_cnn_gru.png",
+        "saturation.csv",
+        "points.csv",
+        "saturation.json",
+    ):
         assert (files.out_dir / name).is_file(), name
     assert (files.out_dir / "accuracy_vs_resolution.png").read_bytes()[:8] == PNG_MAGIC
     assert text.startswith("sphri skin resolution report")
@@ -176,8 +188,9 @@ def test_per_gesture_recall_finds_the_gestures_that_need_fine_skin(built):
 
 
 def test_morphology_sweep_compares_robots_and_real_data_is_not_labelled_synthetic(store, tmp_path):
-    truth = make_sweep(store, tmp_path / "morph", [2, 6, 18], robots=["reachy", "nao_child"], synthetic=False,
-                       n_participants=4)
+    truth = make_sweep(
+        store, tmp_path / "morph", [2, 6, 18], robots=["reachy", "nao_child"], synthetic=False, n_participants=4
+    )
     report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False, formats=PNG_ONLY)
     assert report.sweep.group_keys == ["robot"]
     assert [g.label for g in report.groups] == ["nao_child", "reachy"]
@@ -190,7 +203,9 @@ def test_morphology_sweep_compares_robots_and_real_data_is_not_labelled_syntheti
 
 def test_one_participant_sweep_reports_no_interval_with_a_note(store, tmp_path):
     truth = make_sweep(store, tmp_path / "one", [1, 4, 12], n_participants=1)
-    report, files, text = make_report(truth.sweep_dir, rule=RULE, out_dir=tmp_path / "rep", log_to_mlflow=False, formats=PNG_ONLY)
+    report, files, text = make_report(
+        truth.sweep_dir, rule=RULE, out_dir=tmp_path / "rep", log_to_mlflow=False, formats=PNG_ONLY
+    )
     g = report.groups[0]
     assert g.sat.interval is None and g.pitch_interval_mm is None
     assert "No bootstrap interval: only one participant" in g.interval_text
@@ -220,14 +235,29 @@ def test_resumed_sweep_finds_jobs_through_status_files(store, tmp_path, two_mode
     old = load_sweep(two_model_sweep.sweep_dir).runs
     for i, rid in enumerate(old[old["group"] == "rf"]["run_id"][:3]):
         (new_dir / str(i)).mkdir()
-        (new_dir / str(i) / "sphri_status.json").write_text(json.dumps({"job": i, "status": "SKIPPED", "mlflow_run_id": rid}))
+        (new_dir / str(i) / "sphri_status.json").write_text(
+            json.dumps({"job": i, "status": "SKIPPED", "mlflow_run_id": rid})
+        )
     sw = load_sweep(new_dir)
     assert len(sw.runs) == 3 and set(sw.runs["run_id"]) <= set(old["run_id"])
 
 
 def test_cli_prints_the_summary_and_fails_clearly(two_model_sweep, tmp_path, capsys):
-    assert main([str(two_model_sweep.sweep_dir), "--n-boot", "100", "--no-log", "--out", str(tmp_path / "r"),
-                 "--formats", "png"]) == 0
+    assert (
+        main(
+            [
+                str(two_model_sweep.sweep_dir),
+                "--n-boot",
+                "100",
+                "--no-log",
+                "--out",
+                str(tmp_path / "r"),
+                "--formats",
+                "png",
+            ]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     assert "A taxel pitch of at most" in out and str(tmp_path / "r" / "report.html") in out
     assert main([str(tmp_path)]) == 2
@@ -247,9 +277,15 @@ def test_group_keys_keep_only_settings_not_fixed_by_components():
     assert group_keys(params) == ["model", "model.n_estimators"]
     assert group_keys(params[:2]) == ["model"]
     # assumption variants: what a variant fixes (its encoder, its noise.p) is not a key of its own
-    variants = [{"variant": v, "encoder": e, "noise.p": p, "model": "rf", "encoder.res": str(r)}
-                for v, e, p in (("reference", "ellipse", "0.02"), ("coverage", "coverage", "0.02"),
-                                ("noise0", "ellipse", "0.0")) for r in (1, 2)]
+    variants = [
+        {"variant": v, "encoder": e, "noise.p": p, "model": "rf", "encoder.res": str(r)}
+        for v, e, p in (
+            ("reference", "ellipse", "0.02"),
+            ("coverage", "coverage", "0.02"),
+            ("noise0", "ellipse", "0.0"),
+        )
+        for r in (1, 2)
+    ]
     assert group_keys(variants) == ["variant"]
     assert group_keys([{**p, "model": m} for p in variants for m in ("rf", "cnn_gru")]) == ["variant", "model"]
     with pytest.raises(ReportError, match="neither"):
@@ -303,8 +339,25 @@ def test_tolerance_table_in_html_csv_and_text(built):
 
 
 def test_cli_tolerance_options(two_model_sweep, tmp_path, capsys):
-    assert main([str(two_model_sweep.sweep_dir), "--n-boot", "50", "--no-log", "--out", str(tmp_path / "r"),
-                 "--tolerances", "se,2se", "--tolerance", "0.03", "--formats", "png"]) == 0
+    assert (
+        main(
+            [
+                str(two_model_sweep.sweep_dir),
+                "--n-boot",
+                "50",
+                "--no-log",
+                "--out",
+                str(tmp_path / "r"),
+                "--tolerances",
+                "se,2se",
+                "--tolerance",
+                "0.03",
+                "--formats",
+                "png",
+            ]
+        )
+        == 0
+    )
     tol = pd.read_csv(tmp_path / "r" / "tolerances.csv")
     assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "2se", "se"]
     assert "within 3 points of accuracy (0.03) of the best" in capsys.readouterr().out
@@ -313,8 +366,20 @@ def test_cli_tolerance_options(two_model_sweep, tmp_path, capsys):
 
 
 def test_cli_takes_key_value_arguments_like_every_sphri_command(two_model_sweep, tmp_path, capsys):
-    assert main([str(two_model_sweep.sweep_dir), "n_boot=50", "mlflow=false", f"out={tmp_path / 'kv'}", "formats=png",
-                 "tolerances=se,2se", "tolerance=0.03"]) == 0
+    assert (
+        main(
+            [
+                str(two_model_sweep.sweep_dir),
+                "n_boot=50",
+                "mlflow=false",
+                f"out={tmp_path / 'kv'}",
+                "formats=png",
+                "tolerances=se,2se",
+                "tolerance=0.03",
+            ]
+        )
+        == 0
+    )
     tol = pd.read_csv(tmp_path / "kv" / "tolerances.csv")
     assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "2se", "se"]
     with pytest.raises(SystemExit, match="unknown argument 'n_boots'"):
@@ -327,15 +392,19 @@ def test_cli_takes_key_value_arguments_like_every_sphri_command(two_model_sweep,
     assert "formats=pdf,svg is invalid" in err and "png included" in err, err
     with pytest.raises(ValueError, match="formats=png,tiff is invalid"):
         make_report(two_model_sweep.sweep_dir, formats=("png", "tiff"))
-    assert main([str(two_model_sweep.sweep_dir), "n_boot=50", "mlflow=false", f"out={tmp_path / 'png'}", "formats=png"]) == 0
+    assert (
+        main([str(two_model_sweep.sweep_dir), "n_boot=50", "mlflow=false", f"out={tmp_path / 'png'}", "formats=png"])
+        == 0
+    )
     assert {p.suffix for p in (tmp_path / "png").glob("*_vs_resolution.*")} == {".png"}
 
 
 def test_sensitivity_sweep_reports_the_requirement_per_assumption(store, tmp_path):
     """Variants with known curves: noise0 saturates coarser (tau 1.5), noise5 finer (tau 8) than the reference (3)."""
     variants = {"reference": (3.0, 0.02), "noise0": (1.5, 0.0), "noise5": (8.0, 0.05)}
-    truth = make_sweep(store, tmp_path / "sens", [1, 2, 3, 4, 6, 9, 13, 18, 27, 36, 50], variants=variants,
-                       n_participants=10, seed=3)
+    truth = make_sweep(
+        store, tmp_path / "sens", [1, 2, 3, 4, 6, 9, 13, 18, 27, 36, 50], variants=variants, n_participants=10, seed=3
+    )
     report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False, formats=PNG_ONLY)
     assert report.sweep.group_keys == ["variant"], "noise.p is fixed by the variant: not a key of its own"
     assert sorted(g.label for g in report.groups) == ["noise0", "noise5", "reference"]
@@ -345,9 +414,14 @@ def test_sensitivity_sweep_reports_the_requirement_per_assumption(store, tmp_pat
     assert pitch["noise0"] >= pitch["reference"] >= pitch["noise5"]
     ref = sens.reference
     lo, hi = ref.pitch_interval_mm
-    assert sens.sentence.startswith(f"A taxel pitch of at most {pitch['reference']:.1f} mm (95% interval {lo:.1f} to "
-                                    f"{hi:.1f} mm) under the reference assumptions; between")
-    assert f"between {min(pitch.values()):.1f} mm" in sens.sentence and f"and {max(pitch.values()):.1f} mm" in sens.sentence
+    assert sens.sentence.startswith(
+        f"A taxel pitch of at most {pitch['reference']:.1f} mm (95% interval {lo:.1f} to "
+        f"{hi:.1f} mm) under the reference assumptions; between"
+    )
+    assert (
+        f"between {min(pitch.values()):.1f} mm" in sens.sentence
+        and f"and {max(pitch.values()):.1f} mm" in sens.sentence
+    )
     assert "across the 3 assumptions tested" in sens.sentence
     table = pd.read_csv(files.tables["sensitivity"])
     assert sorted(table["variant"]) == ["noise0", "noise5", "reference"]

@@ -31,8 +31,7 @@ def test_every_report_figure_is_clean_in_three_formats(two_model_sweep, store, t
     assert set(files.confusions) == {"rf", "cnn_gru"}  # redrawn here from the jobs' counts: checked too
     _check_formats([*files.figures.values(), *files.confusions.values()])
     variants = {"reference": (3.0, 0.02), "noise0": (1.5, 0.0), "noise5": (8.0, 0.05)}
-    truth = make_sweep(store, tmp_path / "sens", [1, 3, 6, 13, 27, 50], variants=variants,
-                       n_participants=6, seed=3)
+    truth = make_sweep(store, tmp_path / "sens", [1, 3, 6, 13, 27, 50], variants=variants, n_participants=6, seed=3)
     _, sens, _ = make_report(truth.sweep_dir, rule=RULE, out_dir=tmp_path / "sens_report", log_to_mlflow=False)
     assert "tornado" in sens.figures
     _check_formats(sens.figures.values())
@@ -41,10 +40,12 @@ def test_every_report_figure_is_clean_in_three_formats(two_model_sweep, store, t
 
 def test_marks_switch_the_synthetic_banner_off(two_model_sweep, tmp_path):
     svg = ("png", "svg")  # the banner is text in the SVG
-    _, on, _ = make_report(two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "on", log_to_mlflow=False,
-                           formats=svg)
-    _, off, _ = make_report(two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "off", log_to_mlflow=False,
-                            marks=False, formats=svg)
+    _, on, _ = make_report(
+        two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "on", log_to_mlflow=False, formats=svg
+    )
+    _, off, _ = make_report(
+        two_model_sweep.sweep_dir, rule=RULE, out_dir=tmp_path / "off", log_to_mlflow=False, marks=False, formats=svg
+    )
     assert not list((tmp_path / "on").glob("*.pdf")), "only the formats asked for"
     for a, b in ((on.figures["curves"], off.figures["curves"]), (on.confusions["rf"], off.confusions["rf"])):
         assert "SYNTHETIC DATA" in a.with_suffix(".svg").read_text()
@@ -69,13 +70,19 @@ def test_short_sweep_fills_the_axis_and_recall_at_zero_stays_visible(store, tmp_
 
     monkeypatch.setattr(figures, "save", save)
     short = make_sweep(store, tmp_path / "short", [2, 4], n_participants=4, seed=5)
-    _, files, _ = make_report(short.sweep_dir, rule=RULE, out_dir=tmp_path / "short_report", log_to_mlflow=False,
-                              formats=("png",))
+    _, files, _ = make_report(
+        short.sweep_dir, rule=RULE, out_dir=tmp_path / "short_report", log_to_mlflow=False, formats=("png",)
+    )
     curves = kept[files.figures["curves"].stem]
     assert figures.layout_problems(curves) == []
     for ax in curves.axes[:2]:
-        x = np.concatenate([ax.transData.transform(line.get_xydata())[:, 0] for line in ax.get_lines()
-                            if line.get_transform() is ax.transData])
+        x = np.concatenate(
+            [
+                ax.transData.transform(line.get_xydata())[:, 0]
+                for line in ax.get_lines()
+                if line.get_transform() is ax.transData
+            ]
+        )
         assert (x.max() - x.min()) / ax.bbox.width >= 0.6
         assert not ax.texts, "reference lines are named in the legend, not by text over the data"
     legend = [t.get_text() for t in curves.legends[0].get_texts()]

@@ -111,9 +111,14 @@ def test_bad_inputs_raise_clear_errors():
 
 
 @settings(max_examples=50, deadline=None)
-@given(arrays(np.float64, st.tuples(st.integers(1, 6), st.integers(1, 8)),
-              elements=st.one_of(st.floats(0, 1), st.just(np.nan))),
-       st.floats(0, 3))
+@given(
+    arrays(
+        np.float64,
+        st.tuples(st.integers(1, 6), st.integers(1, 8)),
+        elements=st.one_of(st.floats(0, 1), st.just(np.nan)),
+    ),
+    st.floats(0, 3),
+)
 def test_rule_properties(scores, n_se):
     if not np.isfinite(scores).any():
         return

@@ -108,8 +108,14 @@ def test_loft_closed_outward_exact_size(size, axis, scales, exponent, n):
 
 
 def _spec(**kw):
-    spec = dict(size_m=[0.05, 0.05, 0.2], center_m=[0, 0, 0], axis="z",
-                profile=[[0.0, 1.0, 1.0], [1.0, 1.0, 1.0]], exponent=2.0, n_around=16)
+    spec = dict(
+        size_m=[0.05, 0.05, 0.2],
+        center_m=[0, 0, 0],
+        axis="z",
+        profile=[[0.0, 1.0, 1.0], [1.0, 1.0, 1.0]],
+        exponent=2.0,
+        n_around=16,
+    )
     spec.update(kw)
     return spec
 
@@ -151,8 +157,12 @@ def test_schema_checks_on_composition():
 
 def test_mesh_robot_real_assets(shared_dir):
     root = shared_dir / "vr-gesture-dataset"
-    robot = MeshRobot(name="m", links={"l_arm": "assets/arm_mesh.obj", "torso": "assets/torso_mesh.obj"},
-                      regions={"arm": "l_arm", "torso": "torso"}, root=str(root)).build()
+    robot = MeshRobot(
+        name="m",
+        links={"l_arm": "assets/arm_mesh.obj", "torso": "assets/torso_mesh.obj"},
+        regions={"arm": "l_arm", "torso": "torso"},
+        root=str(root),
+    ).build()
     arm = robot.link_for("arm")
     assert not arm.watertight
     np.testing.assert_allclose(np.ptp(arm.vertices, axis=0), [0.0718, 0.0928, 0.2408], atol=1e-3)
@@ -182,7 +192,9 @@ def test_reachy_vr_reads_data_root(shared_dir):
 
 def test_reachy_vr_without_root_says_what_to_set():
     cfg = _compose_reachy_vr(None)
-    with pytest.raises(ConfigError, match=r"robot=reachy_vr reads its meshes from data\.root; set data=vr_gesture data\.root=PATH"):
+    with pytest.raises(
+        ConfigError, match=r"robot=reachy_vr reads its meshes from data\.root; set data=vr_gesture data\.root=PATH"
+    ):
         _build(cfg)
 
 
@@ -251,7 +263,9 @@ def toy_urdf(tmp_path):
 
 
 def test_urdf_primitives_collision(toy_urdf):
-    robot = UrdfRobot(path=str(toy_urdf), links=["base", "upper", "lower"], regions={"arm": "upper", "torso": "base"}).build()
+    robot = UrdfRobot(
+        path=str(toy_urdf), links=["base", "upper", "lower"], regions={"arm": "upper", "torso": "base"}
+    ).build()
     base = robot.links["base"]
     np.testing.assert_allclose(base.vertices.min(axis=0), [-0.1, -0.15, -0.1])
     np.testing.assert_allclose(base.vertices.max(axis=0), [0.1, 0.15, 0.3])
@@ -263,7 +277,9 @@ def test_urdf_primitives_collision(toy_urdf):
 
 def test_urdf_visual_fallback_and_resolution(toy_urdf, caplog):
     with caplog.at_level(logging.WARNING, logger="sphri.robots.urdf"):
-        robot = UrdfRobot(path=str(toy_urdf), links=["upper", "lower"], regions={"arm": "upper"}, geometry="visual").build()
+        robot = UrdfRobot(
+            path=str(toy_urdf), links=["upper", "lower"], regions={"arm": "upper"}, geometry="visual"
+        ).build()
     assert "missing_upper.stl" in caplog.text and "collision primitive" in caplog.text
     assert any("collision primitive" in n for n in robot.links["upper"].notes)
     lower = robot.links["lower"]  # Lower.STL resolved to meshes/lower.stl; URDF scale 0.001 -> metres
@@ -286,8 +302,13 @@ def test_urdf_errors(toy_urdf, tmp_path):
     with pytest.raises(ConfigError, match=r"\['hand'\] not in"):
         UrdfRobot(path=str(toy_urdf), links=["hand"], regions={"arm": "hand"}).build()
     with pytest.raises(ConfigError, match=r"robot\.joints: \['knee'\]"):
-        UrdfRobot(path=str(toy_urdf), links=["upper"], regions={"arm": "upper"}, joints={"knee": 1.0},
-                  merge={"upper": ["lower"]}).build()
+        UrdfRobot(
+            path=str(toy_urdf),
+            links=["upper"],
+            regions={"arm": "upper"},
+            joints={"knee": 1.0},
+            merge={"upper": ["lower"]},
+        ).build()
     with pytest.raises(ConfigError, match=r"robot\.geometry"):
         UrdfRobot(path=str(toy_urdf), links=["upper"], regions={"arm": "upper"}, geometry="inertial")
     with pytest.raises(ConfigError, match=r"robot\.merge\.lower"):
@@ -296,20 +317,32 @@ def test_urdf_errors(toy_urdf, tmp_path):
 
 def test_urdf_mesh_without_fallback_names_path(tmp_path):
     p = tmp_path / "r.urdf"
-    p.write_text('<robot name="r"><link name="a"><collision><geometry>'
-                 '<mesh filename="package://r/meshes/gone.stl"/></geometry></collision></link></robot>')
+    p.write_text(
+        '<robot name="r"><link name="a"><collision><geometry>'
+        '<mesh filename="package://r/meshes/gone.stl"/></geometry></collision></link></robot>'
+    )
     with pytest.raises(FileNotFoundError, match=r"link 'a'.*package://r/meshes/gone\.stl.*tried .*gone\.stl"):
         UrdfRobot(path=str(p), links=["a"], regions={"arm": "a"}).build()
 
 
 def test_urdf_yaml_composes(toy_urdf):
-    cfg = _compose("urdf", [f"robot.path={toy_urdf}", "robot.links=[upper,base]", "robot.regions={arm:upper,torso:base}",
-                            "robot.joints={elbow:1.5707963}", "robot.merge={upper:[lower]}"])
+    cfg = _compose(
+        "urdf",
+        [
+            f"robot.path={toy_urdf}",
+            "robot.links=[upper,base]",
+            "robot.regions={arm:upper,torso:base}",
+            "robot.joints={elbow:1.5707963}",
+            "robot.merge={upper:[lower]}",
+        ],
+    )
     robot = _build(cfg)
     assert set(robot.links) == {"upper", "base"}
     assert robot.links["upper"].vertices[:, 2].min() == pytest.approx(-0.22, abs=1e-3)
-    cfg = _compose("urdf", [f"robot.path={toy_urdf}", "robot.links=[upper]", "robot.regions={arm:upper}",
-                            "robot.joints={elbow:fast}"])
+    cfg = _compose(
+        "urdf",
+        [f"robot.path={toy_urdf}", "robot.links=[upper]", "robot.regions={arm:upper}", "robot.joints={elbow:fast}"],
+    )
     with pytest.raises(ConfigError, match=r"robot\.joints\.elbow"):
         OmegaConf.to_object(cfg.robot)
 
@@ -326,8 +359,12 @@ def test_mesh_yaml_composes(tmp_path):
 def test_reachy2021_urdf_fallback(shared_dir, caplog):
     path = shared_dir / "robots" / "reachy2021" / "reachy.URDF"
     with caplog.at_level(logging.WARNING, logger="sphri.robots.urdf"):
-        robot = UrdfRobot(path=str(path), links=["l_upper_arm", "torso", "l_shoulder"],
-                          regions={"arm": "l_upper_arm", "torso": "torso"}, geometry="visual").build()
+        robot = UrdfRobot(
+            path=str(path),
+            links=["l_upper_arm", "torso", "l_shoulder"],
+            regions={"arm": "l_upper_arm", "torso": "torso"},
+            geometry="visual",
+        ).build()
     assert "upper_arm.dae" in caplog.text and "torso.dae" in caplog.text
     arm = robot.link_for("arm")  # collision cylinder r 0.04, length 0.25, centre z -0.16
     np.testing.assert_allclose(np.ptp(arm.vertices, axis=0), [0.08, 0.08, 0.25], atol=1e-3)
@@ -341,7 +378,9 @@ def test_reachy2021_urdf_fallback(shared_dir, caplog):
 
 def test_icub_urdf(shared_dir):
     path = shared_dir / "robots" / "icub" / "iCubGazeboV2_5_model.urdf"
-    robot = UrdfRobot(path=str(path), links=["r_forearm", "chest"], regions={"arm": "r_forearm", "torso": "chest"}).build()
+    robot = UrdfRobot(
+        path=str(path), links=["r_forearm", "chest"], regions={"arm": "r_forearm", "torso": "chest"}
+    ).build()
     # bounding boxes from SOURCE.txt (binary STL in mm, URDF scale 0.001)
     np.testing.assert_allclose(np.ptp(robot.link_for("arm").vertices, axis=0), [0.146, 0.074, 0.110], atol=1.5e-3)
     np.testing.assert_allclose(np.ptp(robot.link_for("torso").vertices, axis=0), [0.242, 0.233, 0.278], atol=1.5e-3)
@@ -351,8 +390,9 @@ def test_icub_urdf(shared_dir):
 
 def test_poppy_urdf(shared_dir):
     path = shared_dir / "robots" / "poppy_humanoid" / "Poppy_Humanoid.URDF"
-    robot = UrdfRobot(path=str(path), links=["l_upper_arm", "l_forearm", "chest"],
-                      regions={"arm": "l_upper_arm", "torso": "chest"}).build()
+    robot = UrdfRobot(
+        path=str(path), links=["l_upper_arm", "l_forearm", "chest"], regions={"arm": "l_upper_arm", "torso": "chest"}
+    ).build()
     arm = robot.link_for("arm")
     assert 0.10 < np.ptp(arm.vertices, axis=0).max() < 0.16  # upper arm about 0.148 m joint to joint
     assert arm.watertight and signed_volume(arm.vertices, arm.faces) > 0
@@ -366,20 +406,23 @@ def test_kinematic_schema_checks_without_the_implementation():
     import subprocess
     import sys
 
-    code = ("import sys\n"
-            "from sphri.config import ConfigError, compose\n"
-            "for bad in (['+robot.rest.nope=1.0'], ['robot.links.neck.parent=head'], ['robot.parts.torso_top.side=+w']):\n"
-            "    try:\n"
-            "        compose(['robot=reachy_full', *bad])\n"
-            "    except ConfigError as exc:\n"
-            "        print(str(exc).split(';')[0])\n"
-            "print(sorted(m for m in sys.modules if m.startswith('sphri.robots.')))\n")
+    code = (
+        "import sys\n"
+        "from sphri.config import ConfigError, compose\n"
+        "for bad in (['+robot.rest.nope=1.0'], ['robot.links.neck.parent=head'], ['robot.parts.torso_top.side=+w']):\n"
+        "    try:\n"
+        "        compose(['robot=reachy_full', *bad])\n"
+        "    except ConfigError as exc:\n"
+        "        print(str(exc).split(';')[0])\n"
+        "print(sorted(m for m in sys.modules if m.startswith('sphri.robots.')))\n"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True).stdout
-    assert out.splitlines() == ["robot.rest: unknown joint(s) ['nope']",
-                                "robot.links: the parents of ['neck', 'head'] form a cycle",
-                                "robot.parts.torso_top.side='+w' is invalid: allowed values: ['+x', '-x', '+y', '-y', '+z', "
-                                "'-z'] or null",
-                                "['sphri.robots.schema']"]
+    assert out.splitlines() == [
+        "robot.rest: unknown joint(s) ['nope']",
+        "robot.links: the parents of ['neck', 'head'] form a cycle",
+        "robot.parts.torso_top.side='+w' is invalid: allowed values: ['+x', '-x', '+y', '-y', '+z', '-z'] or null",
+        "['sphri.robots.schema']",
+    ]
     from sphri.config import compose as compose_sphri
     from sphri.robots.kinematic import KinematicRobot
 

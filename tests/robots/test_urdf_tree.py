@@ -21,17 +21,53 @@ REPO = Path(__file__).resolve().parents[2]
 
 #: The tree robot=reachy2 builds: link -> its parent in the tree of surface links.
 REACHY2_PARENT = {
-    "base_link": None, "back_bar_base": "base_link", "torso": "back_bar_base", "left_bar_inner": "torso",
-    "right_bar_inner": "torso", "head": "torso", "antenna_left_link": "head", "antenna_right_link": "head",
-    "l_shoulder_first_link": "torso", "l_elbow_arm_link": "l_shoulder_first_link",
-    "l_elbow_first_link": "l_elbow_arm_link", "l_elbow_forearm_link": "l_elbow_first_link",
-    "l_hand_palm_link": "l_elbow_forearm_link", "r_shoulder_first_link": "torso", "r_elbow_arm_link": "r_shoulder_first_link",
-    "r_elbow_first_link": "r_elbow_arm_link", "r_elbow_forearm_link": "r_elbow_first_link",
+    "base_link": None,
+    "back_bar_base": "base_link",
+    "torso": "back_bar_base",
+    "left_bar_inner": "torso",
+    "right_bar_inner": "torso",
+    "head": "torso",
+    "antenna_left_link": "head",
+    "antenna_right_link": "head",
+    "l_shoulder_first_link": "torso",
+    "l_elbow_arm_link": "l_shoulder_first_link",
+    "l_elbow_first_link": "l_elbow_arm_link",
+    "l_elbow_forearm_link": "l_elbow_first_link",
+    "l_hand_palm_link": "l_elbow_forearm_link",
+    "r_shoulder_first_link": "torso",
+    "r_elbow_arm_link": "r_shoulder_first_link",
+    "r_elbow_first_link": "r_elbow_arm_link",
+    "r_elbow_forearm_link": "r_elbow_first_link",
     "r_hand_palm_link": "r_elbow_forearm_link",
 }
-PARTS = {"head", "antenna_l", "antenna_r", "torso_top", "torso_front_upper", "torso_front_lower", "torso_back_upper",
-         "torso_back_lower", "shoulder_l", "shoulder_r", "shoulder_ball_l", "shoulder_ball_r", "upper_arm_l", "upper_arm_r", "elbow_l", "elbow_r", "wrist_l",
-         "wrist_r", "forearm_l", "forearm_r", "gripper_l", "gripper_r", "pedestal_back", "pedestal_l", "pedestal_r", "base"}
+PARTS = {
+    "head",
+    "antenna_l",
+    "antenna_r",
+    "torso_top",
+    "torso_front_upper",
+    "torso_front_lower",
+    "torso_back_upper",
+    "torso_back_lower",
+    "shoulder_l",
+    "shoulder_r",
+    "shoulder_ball_l",
+    "shoulder_ball_r",
+    "upper_arm_l",
+    "upper_arm_r",
+    "elbow_l",
+    "elbow_r",
+    "wrist_l",
+    "wrist_r",
+    "forearm_l",
+    "forearm_r",
+    "gripper_l",
+    "gripper_r",
+    "pedestal_back",
+    "pedestal_l",
+    "pedestal_r",
+    "base",
+}
 
 
 def _reachy2(*overrides):
@@ -87,7 +123,7 @@ def test_packaged_reachy2_rest_pose_and_joints_move_the_right_links(packaged):
     def top(name, poses=rest):
         link = r.links[name]
         m = poses[names.index(name)]
-        return (link.vertices @ m[:3, :3].T + m[:3, 3])
+        return link.vertices @ m[:3, :3].T + m[:3, 3]
 
     head = top("head")
     assert 1.20 < head[:, 2].max() < 1.25  # Reachy 2 head top about 1.23 m
@@ -168,15 +204,18 @@ def lab(tmp_path):
     urdf.parent.mkdir()
     urdf.write_text(LAB_URDF)
     parts = tmp_path / "parts.yaml"
-    parts.write_text("parts:\n  base: {link: base}\n  lift: {link: slider}\n  arm_top: {link: arm, side: +z, min_cos: 0.5}\n"
-                     "  arm: {link: arm}\n  twin: {link: twin}\ngroups:\n  arm_all: [arm_top, arm]\nrest: {tilt: 0.3}\n")
+    parts.write_text(
+        "parts:\n  base: {link: base}\n  lift: {link: slider}\n  arm_top: {link: arm, side: +z, min_cos: 0.5}\n"
+        "  arm: {link: arm}\n  twin: {link: twin}\ngroups:\n  arm_all: [arm_top, arm]\nrest: {tilt: 0.3}\n"
+    )
     return urdf, root, parts
 
 
 def test_lab_urdf_with_parts_file_builds_tree_and_names_what_it_skipped(lab):
     urdf, root, parts = lab
-    cfg = compose(["robot=urdf", f"robot.path={urdf}", f"robot.parts={parts}", f"robot.mesh_root={root}",
-                   "robot.geometry=auto"])
+    cfg = compose(
+        ["robot=urdf", f"robot.path={urdf}", f"robot.parts={parts}", f"robot.mesh_root={root}", "robot.geometry=auto"]
+    )
     r = instantiate(cfg.robot).build()
     assert list(r.tree.links) == ["base", "slider", "arm", "twin"]
     assert _parents(r) == {"base": None, "slider": "base", "arm": "slider", "twin": "slider"}
@@ -199,7 +238,11 @@ def test_lab_urdf_with_parts_file_builds_tree_and_names_what_it_skipped(lab):
     slider = world.copy()
     slider[:3, 3] += world[:3, :3] @ [0, 0, 0.5 + lift]
     dummy = slider @ _tf([0.1, 0, 0], rpy_matrix([0, 0, np.pi / 2]))
-    arm = dummy @ _tf([0, 0.2, 0], np.eye(3)) @ _tf([0, 0, 0], axis_rotation(np.array([1, 1, 0.0]) / np.sqrt(2), np.array(q)))
+    arm = (
+        dummy
+        @ _tf([0, 0.2, 0], np.eye(3))
+        @ _tf([0, 0, 0], axis_rotation(np.array([1, 1, 0.0]) / np.sqrt(2), np.array(q)))
+    )
     twin = dummy @ _tf([0, 0, 0], axis_rotation(np.array([0, 0, 1.0]), np.array(-2 * q + 0.1)))
     names = list(r.tree.links)
     assert np.allclose(poses[names.index("slider")], slider)
@@ -207,8 +250,11 @@ def test_lab_urdf_with_parts_file_builds_tree_and_names_what_it_skipped(lab):
     assert np.allclose(poses[names.index("twin")], twin)  # the mimic joint follows tilt
     # the rest pose comes from the parts file
     rest_twin = r.rest_poses()[names.index("twin")]
-    expect = _tf([0, 0, 0.5], np.eye(3)) @ _tf([0.1, 0, 0], rpy_matrix([0, 0, np.pi / 2])) @ _tf(
-        [0, 0, 0], axis_rotation(np.array([0, 0, 1.0]), np.array(-2 * 0.3 + 0.1)))
+    expect = (
+        _tf([0, 0, 0.5], np.eye(3))
+        @ _tf([0.1, 0, 0], rpy_matrix([0, 0, np.pi / 2]))
+        @ _tf([0, 0, 0], axis_rotation(np.array([0, 0, 1.0]), np.array(-2 * 0.3 + 0.1)))
+    )
     assert np.allclose(rest_twin, expect)
 
 
@@ -249,10 +295,24 @@ def test_bad_descriptions_are_one_line_errors_naming_the_file(lab, tmp_path):
     with pytest.raises(RobotFileError, match=r"broken.yaml: not valid YAML"):
         UrdfWholeBody(urdf, str(ypath))
     # the command line prints one line naming the file, no traceback
-    res = subprocess.run([sys.executable, "-m", "sphri.coverage", "+experiment=scenario_study", "robot=reachy2",
-                          "robot.builtin=null", f"robot.path={cut}", f"out={tmp_path / 'out'}",
-                          f"output_dir={tmp_path / 'runs'}", f"cache.dir={tmp_path / 'cache'}", "tracking.enabled=false"],
-                         capture_output=True, text=True, cwd=REPO)
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sphri.coverage",
+            "+experiment=scenario_study",
+            "robot=reachy2",
+            "robot.builtin=null",
+            f"robot.path={cut}",
+            f"out={tmp_path / 'out'}",
+            f"output_dir={tmp_path / 'runs'}",
+            f"cache.dir={tmp_path / 'cache'}",
+            "tracking.enabled=false",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
     assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr[-2000:]
     errors = [ln for ln in res.stderr.splitlines() if ln.startswith("sphri")]
     assert len(errors) == 1 and "robot file error" in errors[0] and str(cut) in errors[0], res.stderr[-2000:]
@@ -263,13 +323,21 @@ def test_scenario_study_accepts_urdf_robots_with_parts_only(lab):
     compose(["+experiment=scenario_study", "robot=reachy2"])
     compose(["+experiment=scenario_study", "robot=urdf", f"robot.path={urdf}", f"robot.parts={parts}"])
     with pytest.raises(ConfigError, match=r"kinematic tree"):
-        compose(["+experiment=scenario_study", "robot=urdf", f"robot.path={urdf}", "robot.links=[base]",
-                 "robot.regions={torso: base}"])
+        compose(
+            [
+                "+experiment=scenario_study",
+                "robot=urdf",
+                f"robot.path={urdf}",
+                "robot.links=[base]",
+                "robot.regions={torso: base}",
+            ]
+        )
     with pytest.raises(ConfigError, match=r"robot.path"):
         compose(["robot=urdf", "robot.links=[base]", "robot.regions={torso: base}"])
 
 
 # ----------------------------------------------------------------- the packaged derivative
+
 
 def test_vertex_clustering_keeps_within_the_face_budget_and_near_the_surface():
     import trimesh

@@ -41,8 +41,26 @@ def test_matches_the_arm_only_stage_on_each_link(small, contacts):
     frames = np.unique(contacts.frame[rows])
     a, b = int(frames[0]), int(frames[-1]) + 1
     poses = _to_link(ds.hand_poses[a:b, 1], ds.link_poses[a:b, li])
-    gd = GestureDataset("t", True, ds.hand, make_trials_frame([dict(participant="p", region=name, trial_ordinal=1,
-                        trial_id="0001_hit", gesture="hit", start=0, n_frames=b - a)]), poses.astype(np.float32), 30.0)
+    gd = GestureDataset(
+        "t",
+        True,
+        ds.hand,
+        make_trials_frame(
+            [
+                dict(
+                    participant="p",
+                    region=name,
+                    trial_ordinal=1,
+                    trial_id="0001_hit",
+                    gesture="hit",
+                    start=0,
+                    n_frames=b - a,
+                )
+            ]
+        ),
+        poses.astype(np.float32),
+        30.0,
+    )
     ref = stage.compute(gd, robot)
     sel = rows[(contacts.frame[rows] >= a) & (contacts.frame[rows] < b)]
     # rows decided exactly at the contact boundary may differ by rounding of the two transforms
@@ -60,17 +78,35 @@ def test_matches_the_arm_only_stage_on_each_link(small, contacts):
 def _fake(frames, n_frames=400, hand=None):
     k = len(frames)
     z3 = np.zeros((k, 3))
-    return BodyContacts(n_frames, ("a", "b"), np.asarray(frames, np.int64), np.asarray(hand if hand is not None else [1] * k, np.int8),
-                        np.zeros(k, np.int16), np.zeros(k, np.int16), z3, z3 + [0, 0, 1], np.full(k, 0.01), np.full(k, 0.001))
+    return BodyContacts(
+        n_frames,
+        ("a", "b"),
+        np.asarray(frames, np.int64),
+        np.asarray(hand if hand is not None else [1] * k, np.int8),
+        np.zeros(k, np.int16),
+        np.zeros(k, np.int16),
+        z3,
+        z3 + [0, 0, 1],
+        np.full(k, 0.01),
+        np.full(k, 0.001),
+    )
 
 
 class _DS:
     frame_rate_hz = 10.0
 
     def __init__(self, n):
-        self.sessions = pd.DataFrame({"participant": ["p1", "p1"], "scenario": ["S1", "S2"], "repetition": [1, 1],
-                                      "order": [0, 1], "start_position": ["front"] * 2, "start": [0, n // 2],
-                                      "n_frames": [n // 2, n // 2]})
+        self.sessions = pd.DataFrame(
+            {
+                "participant": ["p1", "p1"],
+                "scenario": ["S1", "S2"],
+                "repetition": [1, 1],
+                "order": [0, 1],
+                "start_position": ["front"] * 2,
+                "start": [0, n // 2],
+                "n_frames": [n // 2, n // 2],
+            }
+        )
         self.n = n
 
     @property
@@ -109,4 +145,6 @@ def test_greedy_placement_and_its_sentence():
     groups = {"shoulders": ("shoulder_l", "shoulder_r")}
     assert name_parts(["shoulder_l", "gripper_r", "shoulder_r"], groups) == ["shoulders", "gripper r"]
     text = sentence(row, groups)
-    assert text.startswith("[all] covering the shoulders (300 cm^2, 38 % of the reachable surface) captures 80 % of contact frames")
+    assert text.startswith(
+        "[all] covering the shoulders (300 cm^2, 38 % of the reachable surface) captures 80 % of contact frames"
+    )

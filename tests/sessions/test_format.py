@@ -12,14 +12,16 @@ from hydra.utils import instantiate
 from sphri.config import ConfigError, compose
 from sphri.sessions.contact import body_contacts
 from sphri.sessions.episodes import part_of_rows, segment_episodes
-from sphri.sessions.format import SessionData, SessionFormatError, write_sessions
+from sphri.sessions.format import SessionData, SessionFormatError
 from sphri.sessions.synthesize import main as synthesize_main
 
 
 def test_synthesizer_command_writes_sessions_that_load_back_identically(small, tmp_path):
     cfg, hand, robot, ds = small
     assert synthesize_main([f"out={tmp_path}", "data.participants=2", "data.repetitions=1"]) == 0
-    loaded = instantiate(compose(["data=sessions", f"data.root={tmp_path}", "robot=reachy_full"]).data).load(hand, robot)
+    loaded = instantiate(compose(["data=sessions", f"data.root={tmp_path}", "robot=reachy_full"]).data).load(
+        hand, robot
+    )
     assert loaded.synthetic and loaded.name == ds.name and loaded.links == ds.links
     pd.testing.assert_frame_equal(loaded.sessions, ds.sessions)
     assert np.array_equal(loaded.hand_poses, ds.hand_poses) and np.array_equal(loaded.link_poses, ds.link_poses)
@@ -35,7 +37,9 @@ def test_synthesizer_command_writes_sessions_that_load_back_identically(small, t
 
 def test_loader_selects_participants_scenarios_and_repetitions(small, written):
     _, hand, robot, ds = small
-    one = SessionData(root=str(written), participants=1, scenarios=["S1_attention", "S5_appreciation"]).load(hand, robot)
+    one = SessionData(root=str(written), participants=1, scenarios=["S1_attention", "S5_appreciation"]).load(
+        hand, robot
+    )
     assert list(one.sessions["participant"].unique()) == ["participant_01"]
     assert sorted(one.sessions["scenario"]) == ["S1_attention", "S5_appreciation"]
 
@@ -64,14 +68,18 @@ def test_broken_files_give_named_errors(small, written, tmp_path):
     m = json.loads((root / "participant_01" / "manifest.json").read_text())
     m["sessions"][0]["n_frames"] += 5
     (root / "participant_01" / "manifest.json").write_text(json.dumps(m))
-    with pytest.raises(SessionFormatError, match=r"participant_01/S\w+\.parquet: repetition 1 has \d+ rows but .*n_frames"):
+    with pytest.raises(
+        SessionFormatError, match=r"participant_01/S\w+\.parquet: repetition 1 has \d+ rows but .*n_frames"
+    ):
         load(root)
 
     root = _copy(written, tmp_path / "c")
     m = json.loads((root / "participant_02" / "manifest.json").read_text())
     del m["sessions"][1]["start_position"]
     (root / "participant_02" / "manifest.json").write_text(json.dumps(m))
-    with pytest.raises(SessionFormatError, match=r"manifest.json: sessions\[1\] is missing field\(s\) \['start_position'\]"):
+    with pytest.raises(
+        SessionFormatError, match=r"manifest.json: sessions\[1\] is missing field\(s\) \['start_position'\]"
+    ):
         load(root)
 
     root = _copy(written, tmp_path / "d")
@@ -82,7 +90,9 @@ def test_broken_files_give_named_errors(small, written, tmp_path):
     with pytest.raises(SessionFormatError, match=r"S3_move_aside.parquet: missing column\(s\) \['link/head_rot_w'\]"):
         load(root)
     df.to_parquet(path)
-    with pytest.raises(SessionFormatError, match=r"S3_move_aside.parquet: repetition 1, frame 7: column 'right/index1_pos_x' is NaN"):
+    with pytest.raises(
+        SessionFormatError, match=r"S3_move_aside.parquet: repetition 1, frame 7: column 'right/index1_pos_x' is NaN"
+    ):
         load(root)
     df = pd.read_parquet(path).fillna(0.0)
     df.loc[3, "link/torso_rot_w"] = 3.0
@@ -103,7 +113,7 @@ def test_bad_priors_are_named(small, tmp_path):
     from sphri.sessions.synthetic import PriorsError, SyntheticSessions
 
     _, hand, robot, _ = small
-    text = (SyntheticSessions().priors and open(SyntheticSessions().priors).read())
+    text = SyntheticSessions().priors and open(SyntheticSessions().priors).read()
     bad = tmp_path / "p.yaml"
     bad.write_text(text.replace("shoulder_near: 5", "elbow_near: 5"))
     with pytest.raises(PriorsError, match=r"p.yaml: scenarios.S1_attention.parts.elbow_near: no such body part"):
@@ -124,7 +134,7 @@ def test_synthetic_sessions_follow_the_study_design(small):
     base = ds.links.index("base")
     for scen, moves in (("S2_path_redirection", True), ("S3_move_aside", False)):
         r = s[s["scenario"] == scen].iloc[0]
-        lp = ds.link_poses[r.start:r.start + r.n_frames, base, :3]
+        lp = ds.link_poses[r.start : r.start + r.n_frames, base, :3]
         assert (np.ptp(lp, axis=0).max() > 0.05) == moves
     assert set(ds.truth["part"]) <= {p.name for p in robot.parts}
 
@@ -137,8 +147,11 @@ def test_positions_in_millimetres_are_refused_and_links_without_poses_named(smal
     pos = [c for c in df.columns if c.endswith(("_pos_x", "_pos_y", "_pos_z"))]
     df[pos] = df[pos] * 1000.0
     df.to_parquet(path)
-    with pytest.raises(SessionFormatError, match=r"S4_behaviour_correction.parquet: repetition 1: hand positions lie "
-                                                 r"[\d.]+ from the origin .*millimetres or centimetres"):
+    with pytest.raises(
+        SessionFormatError,
+        match=r"S4_behaviour_correction.parquet: repetition 1: hand positions lie "
+        r"[\d.]+ from the origin .*millimetres or centimetres",
+    ):
         SessionData(root=str(root)).load(hand, robot)
     # a robot link the sessions never pose: named in a warning (no contact can be found on it)
     root = _copy(written, tmp_path / "nolink")

@@ -28,7 +28,9 @@ def test_winding_number_is_one_inside_zero_outside():
 def test_reachable_area_drops_floor_facing_low_faces_and_buried_ones(tmp_path):
     path = tmp_path / "blocks.urdf"
     path.write_text(URDF)
-    robot = UrdfWholeBody(path, {"base": {"link": "base"}, "ball": {"link": "ball"}, "shelf": {"link": "shelf"}}).build()
+    robot = UrdfWholeBody(
+        path, {"base": {"link": "base"}, "ball": {"link": "ball"}, "shelf": {"link": "shelf"}}
+    ).build()
     body = body_surface(robot, robot.tree.links, spacing_mm=8.0, bandwidth_mm=15.0, floor_height_m=0.3, down_cos=0.5)
     t = body.area_table().set_index("part")
     ball_area = t.loc["ball", "area_cm2"]
@@ -60,4 +62,7 @@ def test_sessions_without_a_label_are_never_counted_as_a_gesture():
     # the gesture model's own job trains on the study's robot, with its robot.* settings
     assert robot_overrides(["+experiment=scenario_study", "seed=1"]) == ["robot=reachy_full"]
     assert robot_overrides(["robot=urdf", "robot.path=/x.urdf", "+robot.parts=/p.yaml", "out=d"]) == [
-        "robot=urdf", "robot.path=/x.urdf", "+robot.parts=/p.yaml"]
+        "robot=urdf",
+        "robot.path=/x.urdf",
+        "+robot.parts=/p.yaml",
+    ]

@@ -12,10 +12,22 @@ from sphri.coverage import main
 def test_packaged_reachy2_runs_a_small_scenario_study(tmp_path, monkeypatch):
     monkeypatch.setenv("SPHRI_SHARED", str(tmp_path / "no_shared"))  # nothing may come from ../shared
     out, runs = tmp_path / "out", tmp_path / "runs"
-    rc = main(["+experiment=scenario_study", "robot=reachy2", "+debug=fast", "data.participants=2",
-               "data.repetitions=1", "data.scenarios=[S3_move_aside,S4_behaviour_correction]",
-               "experiment.scenario_study.gesture_repetitions=2", "experiment.scenario_study.render=false",
-               f"out={out}", f"output_dir={runs}", f"cache.dir={runs}/cache", "tracking.enabled=false"])
+    rc = main(
+        [
+            "+experiment=scenario_study",
+            "robot=reachy2",
+            "+debug=fast",
+            "data.participants=2",
+            "data.repetitions=1",
+            "data.scenarios=[S3_move_aside,S4_behaviour_correction]",
+            "experiment.scenario_study.gesture_repetitions=2",
+            "experiment.scenario_study.render=false",
+            f"out={out}",
+            f"output_dir={runs}",
+            f"cache.dir={runs}/cache",
+            "tracking.enabled=false",
+        ]
+    )
     assert rc == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["robot"] == "reachy2"

@@ -19,8 +19,20 @@ def robot():
 
 def test_listed_and_has_every_body_part(robot):
     assert "reachy_full" in [n for n, _ in components("robot")]
-    for part in ("head", "shoulder_l", "shoulder_r", "upper_arm_r", "forearm_l", "wrist_r", "gripper_l", "gripper_r",
-                 "torso_front_upper", "torso_back_lower", "pedestal", "base"):
+    for part in (
+        "head",
+        "shoulder_l",
+        "shoulder_r",
+        "upper_arm_r",
+        "forearm_l",
+        "wrist_r",
+        "gripper_l",
+        "gripper_r",
+        "torso_front_upper",
+        "torso_back_lower",
+        "pedestal",
+        "base",
+    ):
         assert part in robot.regions
     assert robot.regions["torso_front"] == "torso"  # a group on one link is a region too
     assert all(link.watertight for link in robot.links.values())
@@ -63,8 +75,11 @@ def test_parts_split_the_torso_by_side_and_height(robot):
 
 
 def test_groups_are_regroupable_and_checked():
-    r = instantiate(compose(["robot=reachy_full", "+robot.groups.hands=[gripper_l,gripper_r]",
-                             "robot.groups.shoulders=[shoulder_l]"]).robot).build()
+    r = instantiate(
+        compose(
+            ["robot=reachy_full", "+robot.groups.hands=[gripper_l,gripper_r]", "robot.groups.shoulders=[shoulder_l]"]
+        ).robot
+    ).build()
     assert r.groups["hands"] == ("gripper_l", "gripper_r") and r.groups["shoulders"] == ("shoulder_l",)
     assert "hands" not in r.regions and r.regions["shoulders"] == "shoulder_l"  # a region must lie on one link
     with pytest.raises(ConfigError, match=r"robot.groups.hands.*unknown body part"):
@@ -76,8 +91,15 @@ def test_groups_are_regroupable_and_checked():
 
 
 def test_resolution_study_runs_on_a_body_part(tmp_path):
-    cfg = compose(["robot=reachy_full", "data.regions=[upper_arm_l]", "+debug=fast", "tracking.enabled=false",
-                   f"cache.dir={tmp_path}"])
+    cfg = compose(
+        [
+            "robot=reachy_full",
+            "data.regions=[upper_arm_l]",
+            "+debug=fast",
+            "tracking.enabled=false",
+            f"cache.dir={tmp_path}",
+        ]
+    )
     result = pipeline.run(cfg, StageCache(tmp_path))
     assert len(result.cv.folds) == 3
     assert 0.0 <= result.summary()["accuracy_mean"] <= 1.0

@@ -12,7 +12,7 @@ import shutil
 
 import pytest
 
-from sphri.sessions.format import SessionData, SessionFormatError, write_sessions
+from sphri.sessions.format import SessionData, SessionFormatError
 
 
 def _copy(src, dst):
@@ -34,12 +34,19 @@ def test_manifest_path_leaving_the_participant_folder_is_refused(small, written,
     other = json.loads((root / "participant_01" / "manifest.json").read_text())["sessions"][0]
 
     def borrow(m):  # participant_02's first session now names participant_01's file (counts made to agree)
-        m["sessions"][0].update(file=f"../participant_01/{other['file']}", scenario=other["scenario"],
-                                repetition=other["repetition"], n_frames=other["n_frames"])
+        m["sessions"][0].update(
+            file=f"../participant_01/{other['file']}",
+            scenario=other["scenario"],
+            repetition=other["repetition"],
+            n_frames=other["n_frames"],
+        )
 
     _edit(root, "participant_02", borrow)
-    with pytest.raises(SessionFormatError, match=r"participant_02/manifest\.json: sessions\[0\]\.file="
-                                                 r"'\.\./participant_01/.*no absolute path, no '\.\.'"):
+    with pytest.raises(
+        SessionFormatError,
+        match=r"participant_02/manifest\.json: sessions\[0\]\.file="
+        r"'\.\./participant_01/.*no absolute path, no '\.\.'",
+    ):
         SessionData(root=str(root)).load(hand, robot)
 
     root = _copy(written, tmp_path / "abs")
@@ -64,8 +71,11 @@ def test_implausible_session_frame_rate_is_refused(small, written, tmp_path, rat
     _, hand, robot, _ = small
     root = _copy(written, tmp_path / "rate")
     _edit(root, "participant_02", lambda m: [e.update(frame_rate_hz=rate) for e in m["sessions"]])
-    with pytest.raises(SessionFormatError, match=r"participant_02/manifest\.json: sessions\[0\]\.frame_rate_hz="
-                                                 r".* is implausible: must be a number in \[1, 1000\] Hz"):
+    with pytest.raises(
+        SessionFormatError,
+        match=r"participant_02/manifest\.json: sessions\[0\]\.frame_rate_hz="
+        r".* is implausible: must be a number in \[1, 1000\] Hz",
+    ):
         SessionData(root=str(root)).load(hand, robot)
 
 
@@ -76,8 +86,11 @@ def test_copied_participant_is_refused_or_warned_naming_both_ids(small, written,
     SessionData(root=str(written)).load(hand, robot)  # two different people: no false alarm
     root = _copy(written, tmp_path / "dup")
     shutil.copytree(root / "participant_01", root / "participant_05")
-    with pytest.raises(SessionFormatError, match=r"participant_01 and participant_05 hold near-identical recordings "
-                                                 r"\(5 of 5 sessions.*data\.duplicates=warn"):
+    with pytest.raises(
+        SessionFormatError,
+        match=r"participant_01 and participant_05 hold near-identical recordings "
+        r"\(5 of 5 sessions.*data\.duplicates=warn",
+    ):
         SessionData(root=str(root)).load(hand, robot)
     with caplog.at_level(logging.WARNING, logger="sphri.sessions.format"):
         ds = SessionData(root=str(root), duplicates="warn").load(hand, robot)

@@ -11,10 +11,9 @@ import pytest
 import trimesh
 from hydra.utils import instantiate
 
-from sphri.coverage import main
 from sphri.config import ConfigError, compose
+from sphri.coverage import main
 from sphri.types import GESTURES
-
 
 #: What ``sphri.figures`` said about the study's figures (text past the canvas, too small, overlapping).
 LAYOUT_PROBLEMS: list[str] = []
@@ -34,15 +33,25 @@ def study(tmp_path_factory):
     try:
         # PNG only and a coarser mesh: layout checks see every figure; three formats are tested
         # for the coverage figures (tests/analysis), which share sphri.figures.save
-        rc = main(["+experiment=scenario_study", "+debug=fast", f"out={out}", f"output_dir={runs}",
-                   "experiment.scenario_study.figure_formats=[png]", "experiment.scenario_study.view_faces=3000",
-                   f"cache.dir={runs}/cache"])
+        rc = main(
+            [
+                "+experiment=scenario_study",
+                "+debug=fast",
+                f"out={out}",
+                f"output_dir={runs}",
+                "experiment.scenario_study.figure_formats=[png]",
+                "experiment.scenario_study.view_faces=3000",
+                f"cache.dir={runs}/cache",
+            ]
+        )
     finally:
         logging.getLogger("sphri.figures").removeHandler(handler)
     assert rc == 0
     assert (runs / "mlflow.db").is_file()
     # sessions and whole-body contacts are stage-cache entries: a second study reuses them
-    assert list((runs / "cache" / "sessions").glob("*.entry")) and list((runs / "cache" / "body_contact").glob("*.entry"))
+    assert list((runs / "cache" / "sessions").glob("*.entry")) and list(
+        (runs / "cache" / "body_contact").glob("*.entry")
+    )
     return out
 
 
@@ -59,9 +68,24 @@ def test_sessions_and_contacts_come_from_the_stage_cache(tmp_path):
 
 
 def test_writes_the_report_and_every_table(study):
-    for name in ("report.html", "maps_views.png", "atlas_pooled.png", "swd_matrix.png", "gesture_histogram.png",
-                 "placement.png", "swd_effects.png", "density_mesh.ply", "density_maps.npz", "swd_pairs.csv", "swd_p_holm_matrix.csv",
-                 "swd_effects.csv", "gesture_histogram.csv", "body_part_ranking.csv", "placement.csv", "placement.txt"):
+    for name in (
+        "report.html",
+        "maps_views.png",
+        "atlas_pooled.png",
+        "swd_matrix.png",
+        "gesture_histogram.png",
+        "placement.png",
+        "swd_effects.png",
+        "density_mesh.ply",
+        "density_maps.npz",
+        "swd_pairs.csv",
+        "swd_p_holm_matrix.csv",
+        "swd_effects.csv",
+        "gesture_histogram.csv",
+        "body_part_ranking.csv",
+        "placement.csv",
+        "placement.txt",
+    ):
         assert (study / name).is_file() and (study / name).stat().st_size > 0, name
     scen = ["S1_attention", "S2_path_redirection", "S3_move_aside", "S4_behaviour_correction", "S5_appreciation"]
     for s in scen:
@@ -87,7 +111,9 @@ def test_writes_the_report_and_every_table(study):
     summary = json.loads((study / "summary.json").read_text())
     assert summary["synthetic"] and summary["n_sessions"] == 3 * 5 * 2
     notes = " ".join(summary["notes"])
-    assert "power" in notes and "never saw" in notes  # 3 participants cannot reach Holm significance; parts off the model
+    assert (
+        "power" in notes and "never saw" in notes
+    )  # 3 participants cannot reach Holm significance; parts off the model
 
 
 def test_every_study_figure_is_clean_in_the_chosen_formats(study):
@@ -108,9 +134,16 @@ def test_density_mesh_carries_the_density_as_a_vertex_attribute(study):
 def test_layout_density_reads_the_placement_mask(study):
     npz = sorted(study.glob("placement_*.npz"))
     assert npz
-    link = npz[0].stem[len("placement_"):]
-    cfg = compose(["robot=reachy_full", f"data.regions=[{link}]", "layout=density", "encoder=coverage",
-                   f"layout.density_path={npz[0]}"])
+    link = npz[0].stem[len("placement_") :]
+    cfg = compose(
+        [
+            "robot=reachy_full",
+            f"data.regions=[{link}]",
+            "layout=density",
+            "encoder=coverage",
+            f"layout.density_path={npz[0]}",
+        ]
+    )
     robot = instantiate(cfg.robot).build()
     surface = instantiate(cfg.surface).fit(robot.links[link])
     layout = instantiate(cfg.layout).build(robot.links[link], surface, 6)
@@ -126,7 +159,12 @@ def test_study_settings_are_checked():
         compose(["+experiment=scenario_study", "experiment.scenario_study.pitch_mm=10"])
     with pytest.raises(ConfigError, match=r"robot='reachy' is invalid.*kinematic tree"):
         compose(["+experiment=scenario_study", "robot=reachy"])
-    for key, value in (("patch_cm2", "0.5"), ("skin_pitch_mm", "0"), ("heldout_splits", "-1"), ("export_format", "obj")):
+    for key, value in (
+        ("patch_cm2", "0.5"),
+        ("skin_pitch_mm", "0"),
+        ("heldout_splits", "-1"),
+        ("export_format", "obj"),
+    ):
         with pytest.raises(ConfigError, match=rf"experiment.scenario_study.{key}"):
             compose(["+experiment=scenario_study", f"experiment.scenario_study.{key}={value}"])
     from sphri.pipeline import chain_region
@@ -147,16 +185,47 @@ def test_report_escapes_scenario_names_and_notes(tmp_path):
         figs[name].write_bytes(b"\x89PNG\r\n\x1a\n" + name.encode())
     empty = pd.DataFrame()
     res = StudyResult(
-        out_dir=tmp_path, settings=ScenarioStudySchema(), synthetic=True, sessions=empty, episodes=empty, coded=empty,
-        histogram=pd.DataFrame({"scenario": [hostile, hostile, "S1"], "gesture": ["tap", "pat", "tap"], "count": [2, 1, 3]}),
-        ranking=pd.DataFrame({"scenario": ["all", "all", hostile], "part": [hostile, "head", "head"],
-                              "frames_per_cm2": [0.5, float("nan"), 0.1]}),
-        placement=pd.DataFrame({"group": ["all", hostile], "parts": ["head", "head"], "held_out_share": [0.81234, 0.5]}),
-        sentences=[f"Cover head first ({hostile})."], comparison=None, coverage=None,
-        notes=[f"WARNING: scenario {hostile} has one session"], files=[], seconds={"study": 1.234})
-    summary = {"dataset": hostile, "robot": "reachy", "n_participants": 3, "n_sessions": 6, "n_coded_episodes": 5,
-               "gesture_model": {"regions": ["head"], "res": 4, "loso_accuracy": {hostile: 0.5},
-                                 "loso_accuracy_mean": 0.5, "loso_accuracy_std": 0.1, "n_trials": 12}}
+        out_dir=tmp_path,
+        settings=ScenarioStudySchema(),
+        synthetic=True,
+        sessions=empty,
+        episodes=empty,
+        coded=empty,
+        histogram=pd.DataFrame(
+            {"scenario": [hostile, hostile, "S1"], "gesture": ["tap", "pat", "tap"], "count": [2, 1, 3]}
+        ),
+        ranking=pd.DataFrame(
+            {
+                "scenario": ["all", "all", hostile],
+                "part": [hostile, "head", "head"],
+                "frames_per_cm2": [0.5, float("nan"), 0.1],
+            }
+        ),
+        placement=pd.DataFrame(
+            {"group": ["all", hostile], "parts": ["head", "head"], "held_out_share": [0.81234, 0.5]}
+        ),
+        sentences=[f"Cover head first ({hostile})."],
+        comparison=None,
+        coverage=None,
+        notes=[f"WARNING: scenario {hostile} has one session"],
+        files=[],
+        seconds={"study": 1.234},
+    )
+    summary = {
+        "dataset": hostile,
+        "robot": "reachy",
+        "n_participants": 3,
+        "n_sessions": 6,
+        "n_coded_episodes": 5,
+        "gesture_model": {
+            "regions": ["head"],
+            "res": 4,
+            "loso_accuracy": {hostile: 0.5},
+            "loso_accuracy_mean": 0.5,
+            "loso_accuracy_std": 0.1,
+            "n_trials": 12,
+        },
+    }
     page = write_report(res, figs, summary, "40 cm^2", hostile, tmp_path / "report.html").read_text()
     assert "<script" not in page.lower()
     assert page.count("&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;") == 10
@@ -175,7 +244,7 @@ def test_budget_curve_rises_to_one_and_held_out_stays_below(study):
         assert c["area_cm2"].is_monotonic_increasing and c["captured"].is_monotonic_increasing, (s, kind)
         assert c["captured"].iloc[0] == 0 and c["captured"].between(0, 1).all()
         # taxels at the pitch: area / pitch^2 (the CSV rounds the area to 6 digits)
-        assert np.abs(c["taxels"] - c["area_cm2"] * 100 / pitch ** 2).max() <= 1.0
+        assert np.abs(c["taxels"] - c["area_cm2"] * 100 / pitch**2).max() <= 1.0
     pooled = curve[curve["scenario"] == "all"].set_index("curve")
     ins, held = pooled.loc["in_sample"], pooled.loc["heldout"]
     assert ins["captured"].iloc[-1] == pytest.approx(1.0)  # every patch taken: every frame captured
@@ -196,7 +265,9 @@ def test_patch_placement_and_export_a_lab_can_build_from(study):
     manifest = pd.read_csv(study / "skin_export" / "manifest.csv")
     meta = json.loads((study / "skin_export" / "manifest.json").read_text())
     assert len(meta["patches"]) == len(manifest) == place["n_patches"].iloc[0]
-    assert {"link", "part", "patch", "file", "area_cm2", "taxels", "share_captured_alone", "share_added"} <= set(manifest)
+    assert {"link", "part", "patch", "file", "area_cm2", "taxels", "share_captured_alone", "share_added"} <= set(
+        manifest
+    )
     assert manifest["sampled_area_cm2"].sum() <= 2000 + 1e-6
     assert manifest["share_added"].sum() == pytest.approx(place["captured"].iloc[0])
     for r in manifest.itertuples():

@@ -10,9 +10,22 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def _run(tmp_path, *overrides):
-    return subprocess.run([sys.executable, "-m", "sphri.coverage", "+experiment=scenario_study", *overrides,
-                           f"out={tmp_path / 'out'}", f"output_dir={tmp_path / 'runs'}", f"cache.dir={tmp_path / 'cache'}",
-                           "tracking.enabled=false"], capture_output=True, text=True, cwd=REPO)
+    return subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "sphri.coverage",
+            "+experiment=scenario_study",
+            *overrides,
+            f"out={tmp_path / 'out'}",
+            f"output_dir={tmp_path / 'runs'}",
+            f"cache.dir={tmp_path / 'cache'}",
+            "tracking.enabled=false",
+        ],
+        capture_output=True,
+        text=True,
+        cwd=REPO,
+    )
 
 
 def test_bad_priors_and_session_files_are_one_line(tmp_path):
@@ -21,8 +34,10 @@ def test_bad_priors_and_session_files_are_one_line(tmp_path):
     sessions = tmp_path / "sessions"
     sessions.mkdir()
     (sessions / "sessions.json").write_text("{not json")
-    for overrides, needle in (((f"data.priors={priors}",), str(priors)),
-                              (("data=sessions", f"data.root={sessions}"), str(sessions / "sessions.json"))):
+    for overrides, needle in (
+        ((f"data.priors={priors}",), str(priors)),
+        (("data=sessions", f"data.root={sessions}"), str(sessions / "sessions.json")),
+    ):
         res = _run(tmp_path, *overrides)
         assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr[-3000:]
         errors = [ln for ln in res.stderr.splitlines() if ln.startswith("sphri")]

@@ -12,10 +12,9 @@ import os
 
 import pytest
 from hypothesis import HealthCheck, settings
+from stress_fixtures import LINK_NAMES, degenerate_for, make_link, robot_of
 
 from sphri.contact.exact import ExactContact
-
-from stress_fixtures import LINK_NAMES, degenerate_for, make_link, robot_of
 
 DEEP = bool(os.environ.get("SPHRI_DEEP_TESTS"))
 

@@ -15,7 +15,7 @@ an empty trial (0 frames).
 from __future__ import annotations
 
 from dataclasses import fields, is_dataclass
-from functools import lru_cache
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -43,7 +43,7 @@ TRIAL_FRAMES = 6
 CONFIGS = ("tangent", "vertex_edge", "inside", "seam", "cap_centre", "through", "no_contact", "mixed", "empty")
 
 
-@lru_cache(maxsize=None)
+@cache
 def reachy_arm() -> Link:
     """The built-in Reachy arm (``conf/robot/reachy.yaml``, closed loft, 24 cm along z)."""
     spec = OmegaConf.to_container(OmegaConf.load(CONF_DIR / "robot" / "reachy.yaml"), resolve=True)
@@ -93,7 +93,7 @@ def translated(link: Link, offset: np.ndarray, name: str | None = None) -> Link:
     )
 
 
-@lru_cache(maxsize=None)
+@cache
 def make_link(name: str) -> Link:
     """One of :data:`LINK_NAMES` (cached; Links are frozen)."""
     if name == "arm":
@@ -196,12 +196,18 @@ def degenerate_dataset(link: Link, participants: int = 2, seed: int = 0) -> Gest
         d = vn[i] if np.linalg.norm(vn[i]) > 0 else np.array([0.0, 0.0, 1.0])
         j = int(rng.choice(good_faces))
         a, b = v[f[j, 0]], v[f[j, 1]]
-        rows.append(frame(index1=(v[i] + 0.5 * hand.segment_length_m[0] * d, quat_from_to(0, d)),
-                          palm=(0.5 * (a + b) + 0.5 * r1 * fn[j], ident)))
+        rows.append(
+            frame(
+                index1=(v[i] + 0.5 * hand.segment_length_m[0] * d, quat_from_to(0, d)),
+                palm=(0.5 * (a + b) + 0.5 * r1 * fn[j], ident),
+            )
+        )
     configs["vertex_edge"] = rows
     configs["inside"] = [frame(palm=(centre + rng.normal(scale=1e-4, size=3), ident)) for _ in range(TRIAL_FRAMES)]
     rows = []
-    for _ in range(TRIAL_FRAMES):  # finger across the angular seam (v = 0), pressed 80 % of its radius into the cylinder
+    for _ in range(
+        TRIAL_FRAMES
+    ):  # finger across the angular seam (v = 0), pressed 80 % of its radius into the cylinder
         t = rng.uniform(cyl["u_min"] * 0.5, cyl["u_max"] * 0.5)
         p = origin + t * axis + (cyl["radius"] + 0.2 * r0) * ref
         rows.append(frame(index1=(p, quat_from_to(0, np.cross(axis, ref)))))
@@ -212,8 +218,9 @@ def degenerate_dataset(link: Link, participants: int = 2, seed: int = 0) -> Gest
         sign = 1.0 if s % 2 == 0 else -1.0
         rows.append(frame(palm=(origin + end * axis + sign * 0.5 * r1 * axis, ident)))
     configs["cap_centre"] = rows
-    configs["through"] = [frame(thumb1=(origin + rng.normal(scale=1e-3, size=3), quat_from_to(2, axis)))
-                          for _ in range(TRIAL_FRAMES)]
+    configs["through"] = [
+        frame(thumb1=(origin + rng.normal(scale=1e-3, size=3), quat_from_to(2, axis))) for _ in range(TRIAL_FRAMES)
+    ]
     configs["no_contact"] = [frame() for _ in range(TRIAL_FRAMES)]
     rows = []
     for _ in range(TRIAL_FRAMES):  # everything at once near random surface points, random orientations
@@ -231,23 +238,35 @@ def degenerate_dataset(link: Link, participants: int = 2, seed: int = 0) -> Gest
     start = 0
     ordinal = 0
     for p in range(participants):
-        for g, (name, rows) in enumerate(configs.items()):
+        for g, (_name, rows) in enumerate(configs.items()):
             ordinal += 1
             gesture = GESTURES[g % len(GESTURES)]
-            records.append({
-                "participant": f"participant_{p + 1:02d}", "region": "arm", "trial_ordinal": ordinal,
-                "trial_id": f"{ordinal:04d}_{gesture}", "gesture": gesture, "start": start, "n_frames": len(rows),
-            })
+            records.append(
+                {
+                    "participant": f"participant_{p + 1:02d}",
+                    "region": "arm",
+                    "trial_ordinal": ordinal,
+                    "trial_id": f"{ordinal:04d}_{gesture}",
+                    "gesture": gesture,
+                    "start": start,
+                    "n_frames": len(rows),
+                }
+            )
             poses += rows
             start += len(rows)
     return GestureDataset(
-        name=f"stress_{link.name}", synthetic=True, hand=hand, trials=make_trials_frame(records),
-        poses=np.asarray(poses, dtype=np.float32).reshape(-1, 3, 7), frame_rate_hz=30.0,
+        name=f"stress_{link.name}",
+        synthetic=True,
+        hand=hand,
+        trials=make_trials_frame(records),
+        poses=np.asarray(poses, dtype=np.float32).reshape(-1, 3, 7),
+        frame_rate_hz=30.0,
     )
 
 
-def near_surface_dataset(link: Link, n_frames: int, seed: int, participants: int = 2,
-                         spheres: bool = False) -> GestureDataset:
+def near_surface_dataset(
+    link: Link, n_frames: int, seed: int, participants: int = 2, spheres: bool = False
+) -> GestureDataset:
     """:func:`stress_hand` capsules near random surface points of ``link``, random orientations.
 
     Each capsule's centre sits at ``h`` from a surface point along its face
@@ -265,15 +284,22 @@ def near_surface_dataset(link: Link, n_frames: int, seed: int, participants: int
     pos = pts + h[:, None] * nrm
     quat = Rotation.random(len(pts), random_state=int(rng.integers(2**31))).as_quat()
     poses = np.concatenate([pos, quat], axis=1).reshape(-1, 3, 7).astype(np.float32)
-    records = [{
-        "participant": f"participant_{p + 1:02d}", "region": "arm", "trial_ordinal": p + 1,
-        "trial_id": f"{p + 1:04d}_{GESTURES[p % len(GESTURES)]}", "gesture": GESTURES[p % len(GESTURES)],
-        "start": p * n_frames, "n_frames": n_frames,
-    } for p in range(participants)]
+    records = [
+        {
+            "participant": f"participant_{p + 1:02d}",
+            "region": "arm",
+            "trial_ordinal": p + 1,
+            "trial_id": f"{p + 1:04d}_{GESTURES[p % len(GESTURES)]}",
+            "gesture": GESTURES[p % len(GESTURES)],
+            "start": p * n_frames,
+            "n_frames": n_frames,
+        }
+        for p in range(participants)
+    ]
     return GestureDataset(f"near_{link.name}", True, hand, make_trials_frame(records), poses, 30.0)
 
 
-@lru_cache(maxsize=None)
+@cache
 def degenerate_for(name: str) -> GestureDataset:
     """:func:`degenerate_dataset` of :func:`make_link` ``(name)``, built once (do not mutate it)."""
     return degenerate_dataset(make_link(name))
@@ -300,15 +326,23 @@ def transform_dataset(ds: GestureDataset, rot: Rotation, shift: np.ndarray, scal
 
 def transform_link(link: Link, rot: Rotation, shift: np.ndarray, scale: float = 1.0) -> Link:
     """``link`` moved by ``x -> scale * (rot x) + shift``."""
-    return Link(link.name, scale * rot.apply(np.asarray(link.vertices, dtype=np.float64)) + shift,
-                np.asarray(link.faces), link.watertight, link.notes)
+    return Link(
+        link.name,
+        scale * rot.apply(np.asarray(link.vertices, dtype=np.float64)) + shift,
+        np.asarray(link.faces),
+        link.watertight,
+        link.notes,
+    )
 
 
 def nonfinite_fields(obj: Any, prefix: str = "") -> list[str]:
     """Names of the float array fields of a dataclass (or dict) holding NaN or inf."""
     bad = []
-    items = ((fl.name, getattr(obj, fl.name)) for fl in fields(obj)) if is_dataclass(obj) else (
-        obj.items() if isinstance(obj, dict) else ())
+    items = (
+        ((fl.name, getattr(obj, fl.name)) for fl in fields(obj))
+        if is_dataclass(obj)
+        else (obj.items() if isinstance(obj, dict) else ())
+    )
     for name, val in items:
         if isinstance(val, np.ndarray) and np.issubdtype(val.dtype, np.floating):
             if not np.all(np.isfinite(val)):
@@ -320,8 +354,9 @@ def nonfinite_fields(obj: Any, prefix: str = "") -> list[str]:
     return bad
 
 
-def compare_contacts(a: Contacts, b: Contacts, rot: Rotation, shift: np.ndarray, scale: float, tol: float,
-                     radius_m: np.ndarray) -> list[str]:
+def compare_contacts(
+    a: Contacts, b: Contacts, rot: Rotation, shift: np.ndarray, scale: float, tol: float, radius_m: np.ndarray
+) -> list[str]:
     """Differences between ``b`` and ``a`` mapped through ``x -> scale * (rot x) + shift``.
 
     ``tol`` (metres, in ``b``'s units) absorbs the float32 rounding of the

@@ -35,7 +35,9 @@ def test_precomputed_features_give_the_pipelines_fold_accuracies():
     direct = LeaveOneSubjectOut(progress=False).run(lambda: RandomForest(geometry=windows.geometry, **params), windows)
     feats = RandomForest(geometry=windows.geometry).transform(windows.x)
     rows = np.arange(len(windows.y))
-    shortcut = LeaveOneSubjectOut(progress=False).run(lambda: FeatureForest(**params), feature_windows(windows, feats, rows))
+    shortcut = LeaveOneSubjectOut(progress=False).run(
+        lambda: FeatureForest(**params), feature_windows(windows, feats, rows)
+    )
     assert [f.fold for f in direct.folds] == [f.fold for f in shortcut.folds]
     for a, b in zip(direct.folds, shortcut.folds):
         assert a.accuracy == b.accuracy
@@ -45,11 +47,13 @@ def test_precomputed_features_give_the_pipelines_fold_accuracies():
 
 
 def test_repetition_rank_counts_within_participant_and_gesture():
-    trials = pd.DataFrame({
-        "participant": ["a", "a", "a", "b", "a", "b"],
-        "gesture": ["hit", "pat", "hit", "hit", "hit", "hit"],
-        "trial_ordinal": [1, 2, 3, 1, 4, 2],
-    })
+    trials = pd.DataFrame(
+        {
+            "participant": ["a", "a", "a", "b", "a", "b"],
+            "gesture": ["hit", "pat", "hit", "hit", "hit", "hit"],
+            "trial_ordinal": [1, 2, 3, 1, 4, 2],
+        }
+    )
     assert repetition_rank(trials).tolist() == [0, 0, 1, 0, 2, 1]
 
 

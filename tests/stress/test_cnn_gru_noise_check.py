@@ -16,33 +16,56 @@ sys.path.insert(0, str(BENCH))
 from cnn_gru_noise_check import load, summarize  # noqa: E402
 
 
-def write_job(sweep: Path, out: Path, job: int, overrides: list[str], parts: list[str], acc: list[float],
-              status: str = "FINISHED") -> None:
+def write_job(
+    sweep: Path, out: Path, job: int, overrides: list[str], parts: list[str], acc: list[float], status: str = "FINISHED"
+) -> None:
     d = sweep / str(job)
     d.mkdir(parents=True)
     run = f"{sweep.name}-run{job}"
-    (d / "sphri_status.json").write_text(json.dumps({"job": job, "status": status, "mlflow_run_id": run,
-                                                     "overrides": overrides, "seconds": 10.0 + job,
-                                                     "from_cache": False}))
+    (d / "sphri_status.json").write_text(
+        json.dumps(
+            {
+                "job": job,
+                "status": status,
+                "mlflow_run_id": run,
+                "overrides": overrides,
+                "seconds": 10.0 + job,
+                "from_cache": False,
+            }
+        )
+    )
     art = out / "mlartifacts" / run / "artifacts"
     art.mkdir(parents=True)
     pd.DataFrame({"fold": parts, "accuracy": acc, "macro_f1": np.asarray(acc) - 0.05}).to_csv(
-        art / "per_participant.csv", index=False)
+        art / "per_participant.csv", index=False
+    )
 
 
 def test_points_and_paired_differences(tmp_path: Path):
     out = tmp_path / "outputs"
     a, b = tmp_path / "a", tmp_path / "b"
     # sweep a: res 8 and 18, 3 folds, both noises; sweep b: res 50 on 2 folds (another cv.max_folds)
-    vals = {("salt_pepper", 8): [0.6, 0.3, 0.5], ("salt_pepper", 18): [0.5, 0.2, 0.5],
-            ("none", 8): [0.7, 0.5, 0.6], ("none", 18): [0.8, 0.6, 0.7]}
+    vals = {
+        ("salt_pepper", 8): [0.6, 0.3, 0.5],
+        ("salt_pepper", 18): [0.5, 0.2, 0.5],
+        ("none", 8): [0.7, 0.5, 0.6],
+        ("none", 18): [0.8, 0.6, 0.7],
+    }
     for j, ((noise, res), acc) in enumerate(vals.items()):
-        write_job(a, out, j, ["model=cnn_gru", f"encoder.res={res}", f"noise={noise}", "cv.max_folds=3"],
-                  ["p1", "p2", "p3"], acc)
-    write_job(b, out, 0, ["model=cnn_gru", "encoder.res=50", "noise=salt_pepper", "cv.max_folds=2"],
-              ["p1", "p2"], [0.9, 0.2])
-    write_job(b, out, 1, ["model=cnn_gru", "encoder.res=50", "noise=none"], ["p1", "p2"], [0.1, 0.1],
-              status="FAILED")  # a failed job is left out
+        write_job(
+            a,
+            out,
+            j,
+            ["model=cnn_gru", f"encoder.res={res}", f"noise={noise}", "cv.max_folds=3"],
+            ["p1", "p2", "p3"],
+            acc,
+        )
+    write_job(
+        b, out, 0, ["model=cnn_gru", "encoder.res=50", "noise=salt_pepper", "cv.max_folds=2"], ["p1", "p2"], [0.9, 0.2]
+    )
+    write_job(
+        b, out, 1, ["model=cnn_gru", "encoder.res=50", "noise=none"], ["p1", "p2"], [0.1, 0.1], status="FAILED"
+    )  # a failed job is left out
     df, jobs = load([a, b], out)
     s = summarize(df, jobs)
     pts = {(p["noise"], p["res"]): p for p in s["points"]}

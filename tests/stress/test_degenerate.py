@@ -15,6 +15,7 @@ import pytest
 import trimesh
 from hypothesis import given
 from hypothesis import strategies as st
+from stress_fixtures import CONFIGS, degenerate_for, nonfinite_fields, reachy_arm, robot_of
 
 from sphri.contact.exact import ExactContact
 from sphri.encode.coverage import CoverageEncoder
@@ -33,8 +34,6 @@ from sphri.surface.cylinder import CylinderSurface
 from sphri.surface.meshutil import link_from_trimesh
 from sphri.types import Link
 from sphri.window.onset import OnsetWindow
-
-from stress_fixtures import CONFIGS, degenerate_for, nonfinite_fields, reachy_arm, robot_of
 
 
 def _quiet(caplog):
@@ -92,12 +91,18 @@ def test_cylinder_of_a_very_short_link_keeps_its_axis(height_m, caplog):
     assert not nonfinite_fields(sm)
 
 
-@pytest.mark.filterwarnings("ignore:invalid value encountered in divide:RuntimeWarning")  # trimesh: a plate has no volume
+@pytest.mark.filterwarnings(
+    "ignore:invalid value encountered in divide:RuntimeWarning"
+)  # trimesh: a plate has no volume
 def test_cylinder_and_box_of_a_sphere_and_of_a_flat_plate_are_finite(caplog):
     _quiet(caplog)
     ball = link_from_trimesh(trimesh.creation.icosphere(subdivisions=3, radius=0.05), "ball")
-    plate = Link("plate", np.array([[0, 0, 0], [0.1, 0, 0], [0.1, 0.2, 0], [0, 0.2, 0.0]]),
-                 np.array([[0, 1, 2], [0, 2, 3]]), watertight=False)
+    plate = Link(
+        "plate",
+        np.array([[0, 0, 0], [0.1, 0, 0], [0.1, 0.2, 0], [0, 0.2, 0.0]]),
+        np.array([[0, 1, 2], [0, 2, 3]]),
+        watertight=False,
+    )
     for link in (ball, plate):
         for surface in (CylinderSurface().fit(link), BoxSurface().fit(link)):
             assert not nonfinite_fields(surface), (link.name, surface.kind)
@@ -231,8 +236,13 @@ def test_float32_contact_arrays_encode_like_float64(degenerate):
     surface = CylinderSurface().fit(link)
     lay = GridLayout().build(link, surface, 18)
     fi = OnsetWindow(frames=6).plan(contacts, ds).selected_frames()
-    c32 = replace(contacts, **{k: getattr(contacts, k).astype(np.float32) for k in (
-        "distance_m", "point_m", "segment_point_m", "normal", "patch_radius_m", "depth_m")})
+    c32 = replace(
+        contacts,
+        **{
+            k: getattr(contacts, k).astype(np.float32)
+            for k in ("distance_m", "point_m", "segment_point_m", "normal", "patch_radius_m", "depth_m")
+        },
+    )
     for enc in (EllipseEncoder(res=18, binary=False), ProximityEncoder(res=18, intensity="depth")):
         a = enc.encode(contacts, link, surface, lay, fi).values
         b = enc.encode(c32, link, surface, lay, fi).values

@@ -16,6 +16,7 @@ import logging
 
 import numpy as np
 import pytest
+from stress_fixtures import CONFIGS, LINK_NAMES, nonfinite_fields
 
 from sphri.encode.coverage import CoverageEncoder
 from sphri.encode.ellipse import EllipseEncoder
@@ -31,8 +32,6 @@ from sphri.surface.cylinder import CylinderSurface
 from sphri.surface.mesh import MeshSurface
 from sphri.surface.meshutil import sample_surface
 from sphri.window.onset import OnsetWindow
-
-from stress_fixtures import CONFIGS, LINK_NAMES, nonfinite_fields
 
 SURFACES = {"cylinder": CylinderSurface, "box": BoxSurface, "mesh": MeshSurface}
 RESOLUTIONS = (1, 6)

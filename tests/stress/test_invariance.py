@@ -13,23 +13,13 @@
 from __future__ import annotations
 
 from dataclasses import replace
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
 from hypothesis import assume, given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
-
-from sphri.contact.exact import ExactContact
-from sphri.encode.coverage import CoverageEncoder
-from sphri.encode.ellipse import EllipseEncoder
-from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
-from sphri.layout.grid import GridLayout, HexLayout
-from sphri.surface.charts import to_uv
-from sphri.surface.cylinder import CylinderSurface
-from sphri.window.onset import OnsetWindow
-
 from stress_fixtures import (
     FAR_OFFSET_M,
     compare_contacts,
@@ -39,6 +29,15 @@ from stress_fixtures import (
     transform_dataset,
     transform_link,
 )
+
+from sphri.contact.exact import ExactContact
+from sphri.encode.coverage import CoverageEncoder
+from sphri.encode.ellipse import EllipseEncoder
+from sphri.layout.grid import GridLayout, HexLayout
+from sphri.surface.charts import to_uv
+from sphri.surface.cylinder import CylinderSurface
+from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
+from sphri.window.onset import OnsetWindow
 
 seeds = st.integers(min_value=0, max_value=2**31 - 1)
 #: float32 poses: rounding of a coordinate of magnitude x is about 6e-8 x.
@@ -151,12 +150,12 @@ def _seam_patches(surface, seed: int, n_frames: int):
     return make_contacts(frame, point, normal, patch, n_frames)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _surface():
     return CylinderSurface().fit(reachy_arm())
 
 
-@lru_cache(maxsize=None)
+@cache
 def _base(res: int, hexgrid: bool):
     return _surface(), (HexLayout if hexgrid else GridLayout)().build(reachy_arm(), _surface(), res)
 
@@ -181,7 +180,7 @@ def test_the_seam_setting_turns_the_angular_origin():
         assert turned.params[key] == pytest.approx(base.params[key], abs=1e-12)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _real_contacts(seed: int, n_frames: int):
     return synthetic_contacts(reachy_arm(), n_frames, contact_fraction=1.0, seed=seed)
 

@@ -29,13 +29,26 @@ def fake_sweep(tmp_path: Path) -> tuple[Path, Path, dict]:
                 run = f"run{job}"
                 d = sweep / str(job)
                 d.mkdir(parents=True)
-                (d / "sphri_status.json").write_text(json.dumps({  # job 0 resumed: skipped, no accuracy field
-                    "job": job, "status": "SKIPPED" if job == 0 else "FINISHED", "mlflow_run_id": run,
-                    "overrides": [f"seed={seed}", f"sensitivity={variant}", f"encoder.res={res}",
-                                  "experiment=despeckle_compare"]}))
+                (d / "sphri_status.json").write_text(
+                    json.dumps(
+                        {  # job 0 resumed: skipped, no accuracy field
+                            "job": job,
+                            "status": "SKIPPED" if job == 0 else "FINISHED",
+                            "mlflow_run_id": run,
+                            "overrides": [
+                                f"seed={seed}",
+                                f"sensitivity={variant}",
+                                f"encoder.res={res}",
+                                "experiment=despeckle_compare",
+                            ],
+                        }
+                    )
+                )
                 art = out / "mlartifacts" / run / "artifacts"
                 art.mkdir(parents=True)
-                pd.DataFrame({"fold": ["p1", "p2", "p3"], "accuracy": a}).to_csv(art / "per_participant.csv", index=False)
+                pd.DataFrame({"fold": ["p1", "p2", "p3"], "accuracy": a}).to_csv(
+                    art / "per_participant.csv", index=False
+                )
                 job += 1
     (sweep / str(job)).mkdir()
     (sweep / str(job) / "sphri_status.json").write_text(json.dumps({"status": "FAILED", "overrides": []}))
@@ -52,7 +65,9 @@ def test_seed_means_and_paired_differences(tmp_path: Path):
     assert ref18.accuracy_mean == pytest.approx(np.mean([acc[("reference", 18, s)].mean() for s in (0, 1)]))
     assert ref18.seed_se == pytest.approx(0.005)  # seed means 0.58 and 0.59
     d18 = t.loc[("sensitivity=despeckle200", 18)]
-    assert d18["vs_sensitivity=reference"] == pytest.approx(0.05) and d18["vs_sensitivity=reference_se"] == pytest.approx(0.0)
+    assert d18["vs_sensitivity=reference"] == pytest.approx(0.05) and d18[
+        "vs_sensitivity=reference_se"
+    ] == pytest.approx(0.0)
     assert t.loc[("sensitivity=despeckle200", 8)]["vs_sensitivity=reference"] == pytest.approx(0.0)
     lines = {line.split(":")[0]: line for line in dips(jobs)}
     assert "res 8 - res 18 = +0.040" in lines["sensitivity=reference"]

@@ -9,40 +9,39 @@ and the Random Forest's features on any windows at any resolution.
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pandas as pd
 from hypothesis import given
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+from stress_fixtures import make_link
 
 from sphri.encode.coverage import CoverageEncoder
 from sphri.encode.ellipse import EllipseEncoder
 from sphri.encode.proximity import ProximityEncoder
-from sphri.testing.synthetic_contacts import make_contacts
 from sphri.layout.grid import GridLayout, HexLayout
 from sphri.models.features import extract_features
 from sphri.noise.components import CrosstalkNoise, DeadTaxelsNoise, GaussianNoise, NoNoise, SaltPepperNoise
 from sphri.surface.box import BoxSurface
 from sphri.surface.charts import from_uv, jacobian, to_uv
 from sphri.surface.cylinder import CylinderSurface
+from sphri.testing.synthetic_contacts import make_contacts
 from sphri.types import GESTURES, Frames, GestureDataset, HandModel, TaxelGeometry
 from sphri.window.onset import OnsetWindow
-
-from stress_fixtures import make_link
 
 seeds = st.integers(min_value=0, max_value=2**31 - 1)
 chart_links = st.sampled_from(["arm", "sphere", "disc", "slivers", "far"])
 chart_kinds = st.sampled_from(["cylinder", "box"])
 
 
-@lru_cache(maxsize=None)
+@cache
 def _surface(link: str, kind: str):
     return (CylinderSurface() if kind == "cylinder" else BoxSurface()).fit(make_link(link))
 
 
-@lru_cache(maxsize=None)
+@cache
 def _grid(link: str, kind: str, res: int, hexgrid: bool):
     return (HexLayout if hexgrid else GridLayout)().build(make_link(link), _surface(link, kind), res)
 
@@ -137,8 +136,14 @@ def test_every_noise_kind_keeps_readings_in_range(values, grid, seed):
         from sphri.encode.common import SkinFrames
 
         frames = SkinFrames(values=values, grid_shape=None, geometry=geometry)
-    for noise in (SaltPepperNoise(p=0.3), SaltPepperNoise(mode="flip"), GaussianNoise(sigma=1.0),
-                  DeadTaxelsNoise(fraction=1.0, value=1.0), CrosstalkNoise(alpha=1.0), NoNoise()):
+    for noise in (
+        SaltPepperNoise(p=0.3),
+        SaltPepperNoise(mode="flip"),
+        GaussianNoise(sigma=1.0),
+        DeadTaxelsNoise(fraction=1.0, value=1.0),
+        CrosstalkNoise(alpha=1.0),
+        NoNoise(),
+    ):
         out = noise.apply(frames, fi, tk, seed).values
         assert out.shape == values.shape
         assert out.dtype in (values.dtype, np.float32)
@@ -151,11 +156,17 @@ def _toy_dataset(lengths):
     lengths = np.asarray(lengths, dtype=np.int64)
     starts = np.concatenate([[0], np.cumsum(lengths)[:-1]]).astype(np.int64)
     n = len(lengths)
-    trials = pd.DataFrame({
-        "participant": [f"participant_{i % 3 + 1:02d}" for i in range(n)], "region": ["arm"] * n,
-        "trial_ordinal": np.arange(1, n + 1), "trial_id": [f"{i + 1:04d}_x" for i in range(n)],
-        "gesture": [GESTURES[i % 8] for i in range(n)], "start": starts, "n_frames": lengths,
-    })
+    trials = pd.DataFrame(
+        {
+            "participant": [f"participant_{i % 3 + 1:02d}" for i in range(n)],
+            "region": ["arm"] * n,
+            "trial_ordinal": np.arange(1, n + 1),
+            "trial_id": [f"{i + 1:04d}_x" for i in range(n)],
+            "gesture": [GESTURES[i % 8] for i in range(n)],
+            "start": starts,
+            "n_frames": lengths,
+        }
+    )
     hand = HandModel(("a",), ("palm",), np.array([0.01]), np.array([0.02]), np.array([0]), np.zeros((1, 3)))
     return GestureDataset("toy", True, hand, trials, np.zeros((int(lengths.sum()), 1, 7), np.float32), 30.0)
 
@@ -172,8 +183,9 @@ def test_onset_windows_match_a_per_trial_reference(lengths, density, window, kee
     ds = _toy_dataset(lengths)
     f = ds.n_frames
     hit = np.flatnonzero(rng.random(f) < density)
-    contacts = make_contacts(hit, np.zeros((hit.size, 3)), np.tile([0, 0, 1.0], (hit.size, 1)),
-                             np.full(hit.size, 0.01), f)
+    contacts = make_contacts(
+        hit, np.zeros((hit.size, 3)), np.tile([0, 0, 1.0], (hit.size, 1)), np.full(hit.size, 0.01), f
+    )
     comp = OnsetWindow(frames=window, no_contact="keep" if keep else "drop")
     plan = comp.plan(contacts, ds)
     values = rng.random((len(plan.selected_frames()), 3)).astype(np.float32)

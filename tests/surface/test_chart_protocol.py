@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 import trimesh
 
-from sphri.surface.meshutil import link_from_trimesh
 from sphri.surface import charts
 from sphri.surface.charts import CylinderChart, chart_of, register_chart
 from sphri.surface.cylinder import CylinderSurface
+from sphri.surface.meshutil import link_from_trimesh
 
 
 class MirroredChart(CylinderChart):

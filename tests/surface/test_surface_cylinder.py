@@ -2,9 +2,8 @@
 
 from __future__ import annotations
 
-import os
-
 import logging
+import os
 
 import numpy as np
 import pytest
@@ -58,7 +57,9 @@ def test_uv_round_trip_on_the_primitive(cyl_map):
 @given(u=st.floats(0.05, 0.95), v=st.floats(0.0, 1.0, exclude_max=True), r=st.floats(0.6, 1.4))
 def test_jacobian_matches_finite_differences(cyl_map, u, v, r):
     p0 = from_uv(cyl_map, np.array([[u, v]]))
-    centre = cyl_map.params["origin"] + ((p0 - cyl_map.params["origin"]) @ cyl_map.params["axis"]) * cyl_map.params["axis"]
+    centre = (
+        cyl_map.params["origin"] + ((p0 - cyl_map.params["origin"]) @ cyl_map.params["axis"]) * cyl_map.params["axis"]
+    )
     p = centre + r * (p0 - centre)  # off the surface too: the chart is defined in space
     j = jacobian(cyl_map, p)[0]
     eps = 1e-6

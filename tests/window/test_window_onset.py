@@ -19,15 +19,17 @@ def dataset(n_frames_per_trial, gestures=None):
     counts = np.asarray(n_frames_per_trial)
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     gestures = gestures or ["hit", "pat", "poke", "push", "rub", "stroke", "tap", "grab"][:n]
-    trials = pd.DataFrame({
-        "participant": [f"participant_{i % 2 + 1:02d}" for i in range(n)],
-        "region": ["arm"] * n,
-        "trial_ordinal": np.arange(1, n + 1),
-        "trial_id": [f"{i + 1:04d}_{g}" for i, g in enumerate(gestures)],
-        "gesture": gestures,
-        "start": starts,
-        "n_frames": counts,
-    })
+    trials = pd.DataFrame(
+        {
+            "participant": [f"participant_{i % 2 + 1:02d}" for i in range(n)],
+            "region": ["arm"] * n,
+            "trial_ordinal": np.arange(1, n + 1),
+            "trial_id": [f"{i + 1:04d}_{g}" for i, g in enumerate(gestures)],
+            "gesture": gestures,
+            "start": starts,
+            "n_frames": counts,
+        }
+    )
     hand = HandModel(("wrist1",), ("palm",), np.array([0.01]), np.array([0.04]), np.array([0]), np.zeros((1, 3)))
     poses = np.zeros((int(counts.sum()), 1, 7), dtype=np.float32)
     return GestureDataset("toy", True, hand, trials, poses, 30.0)
@@ -39,7 +41,9 @@ def contacts_at(frames, n_frames):
 
 
 def toy_layout(n=4):
-    lay = Layout("grid", np.zeros((n, 3)), np.tile([0, 0, 1.0], (n, 1)), np.ones(n), np.zeros((n, 2)), (1, n), 0.01, 0.01)
+    lay = Layout(
+        "grid", np.zeros((n, 3)), np.tile([0, 0, 1.0], (n, 1)), np.ones(n), np.zeros((n, 2)), (1, n), 0.01, 0.01
+    )
     sm = SurfaceMap("cylinder", True, 0.24, 0.25, True, 0.0, {})
     return lay, sm
 
@@ -98,7 +102,8 @@ def test_no_contact_rules(caplog):
     np.testing.assert_array_equal(keep.frame_index[1], np.arange(45, 55))
     lay, sm = toy_layout(3)
     w = OnsetWindow(frames=10, no_contact="keep").assemble(
-        Frames(np.zeros((20, 3), np.uint8), (1, 3)), keep, ds, lay, sm)
+        Frames(np.zeros((20, 3), np.uint8), (1, 3)), keep, ds, lay, sm
+    )
     assert w.x.shape == (2, 10, 3) and w.n_dropped == 0 and not w.x[0].any()
 
 

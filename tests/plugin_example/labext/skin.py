@@ -40,9 +40,16 @@ class VertexLayout:
         pick = np.random.default_rng(self.seed).permutation(len(mesh.vertices))[: res * res]
         pos = np.asarray(mesh.vertices[pick], dtype=np.float64)
         spacing = float(np.median(cKDTree(pos).query(pos, k=2)[0][:, 1])) if len(pos) > 1 else 0.01
-        return Layout(kind="vertices", position_m=pos, normal=np.asarray(mesh.vertex_normals[pick], dtype=np.float64),
-                      area_m2=np.full(len(pos), mesh.area / len(pos)), uv=None, grid_shape=None,
-                      pitch_u_m=spacing, pitch_v_m=spacing)
+        return Layout(
+            kind="vertices",
+            position_m=pos,
+            normal=np.asarray(mesh.vertex_normals[pick], dtype=np.float64),
+            area_m2=np.full(len(pos), mesh.area / len(pos)),
+            uv=None,
+            grid_shape=None,
+            pitch_u_m=spacing,
+            pitch_v_m=spacing,
+        )
 
 
 class NearestCentroid:
