@@ -1,15 +1,15 @@
-"""``python -m sphri.cache info|clear [STAGE ...]``: see and trim the stage cache, never the MLflow store.
+"""``sphri cache info|clear [STAGE ...]``: see and trim the stage cache, never the MLflow store.
 
 ::
 
-    python -m sphri.cache info                          # entries and size per stage under outputs/cache
-    python -m sphri.cache info dir=/shared/sphri/cache  # another cache folder
-    python -m sphri.cache clear evaluate                # drop one stage's entries (recomputed when needed)
-    python -m sphri.cache clear older_than_days=14      # drop entries not read or written for two weeks
-    python -m sphri.cache clear                         # drop every entry (asks nothing: it is only a cache)
+    sphri cache info                          # entries and size per stage under outputs/cache
+    sphri cache info dir=/shared/sphri/cache  # another cache folder
+    sphri cache clear evaluate                # drop one stage's entries (recomputed when needed)
+    sphri cache clear older_than_days=14      # drop entries not read or written for two weeks
+    sphri cache clear                         # drop every entry (asks nothing: it is only a cache)
 
-Arguments are ``key=value`` (``dir``, default ``outputs/cache``;
-``older_than_days``) plus stage names. Entries are removed under their lock,
+``python -m sphri.cache`` is the same command. Arguments are ``key=value`` (``dir``, default
+``outputs/cache``; ``older_than_days``) plus stage names (:class:`CacheArgs`). Entries are removed under their lock,
 so a job computing the same entry is not disturbed; orphan lock and
 temporary files go with them. Runs, reports and ``mlflow.db`` are never
 touched (``make clean`` removes everything).
@@ -17,16 +17,38 @@ touched (``make clean`` removes everything).
 
 from __future__ import annotations
 
-import os
+import dataclasses
 import sys
 import time
 from pathlib import Path
+from typing import Literal
 
 from sphri.cache import SUFFIX
+from sphri.command.args import ArgsError, arg, run
 
 
-class CacheCliError(ValueError):
-    """A bad argument of ``python -m sphri.cache``."""
+class CacheCliError(ArgsError):
+    """A bad argument of ``sphri cache``: a folder or stage that is not there."""
+
+
+def _days(value: float | None) -> str | None:
+    return "must be >= 0" if value is not None and value < 0 else None
+
+
+@dataclasses.dataclass
+class CacheArgs:
+    action: Literal["info", "clear"] = arg(
+        positional=True, metavar="info|clear", help="info: entries and size per stage; clear: remove entries"
+    )
+    stages: list[str] = arg([], positional=True, metavar="STAGE", help="stages to show or clear (default: every stage)")
+    dir: Path = arg(Path("outputs/cache"), help="the cache folder")
+    older_than_days: float | None = arg(
+        None, check=_days, help="clear only the entries not read or written for this many days"
+    )
+
+    def __post_init__(self) -> None:
+        if self.older_than_days is not None and self.action != "clear":
+            raise ValueError(f"older_than_days={self.older_than_days:g} is only for clear")
 
 
 def _entries(root: Path, stages: list[str]) -> dict[str, list[Path]]:
@@ -85,38 +107,21 @@ def clear(root: Path, stages: list[str], older_than_days: float | None = None) -
     return n, freed
 
 
-def main(argv: list[str] | None = None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help") or argv[0] not in ("info", "clear"):
-        try:
-            print(__doc__)
-        except BrokenPipeError:  # `--help | head`: the reader went away
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0 if argv and argv[0] in ("-h", "--help") else 2
-    cmd, rest = argv[0], argv[1:]
-    root, older, stages = Path("outputs/cache"), None, []
-    try:
-        for a in rest:
-            key, eq, value = a.partition("=")
-            if not eq:
-                stages.append(a)
-            elif key == "dir":
-                root = Path(value)
-            elif key == "older_than_days" and cmd == "clear":
-                try:
-                    older = float(value)
-                except ValueError:
-                    raise CacheCliError(f"older_than_days={value} is invalid: must be a number of days") from None
-                if older < 0:
-                    raise CacheCliError(f"older_than_days={value} is invalid: must be >= 0")
-            else:
-                raise CacheCliError(f"unknown argument {a!r} for {cmd}")
-        if cmd == "info":
-            print(info(root, stages))
-        else:
-            n, freed = clear(root, stages, older)
-            print(f"removed {n} entries ({_human(freed)}) from {root.resolve()}")
-    except CacheCliError as exc:
-        print(f"sphri.cache: {exc}", file=sys.stderr)
-        return 2
+def command(args: CacheArgs) -> int:
+    """See (info) or trim (clear) the stage cache; runs, reports and mlflow.db are never touched."""
+    if args.action == "info":
+        print(info(args.dir, args.stages))
+    else:
+        n, freed = clear(args.dir, args.stages, args.older_than_days)
+        print(f"removed {n} entries ({_human(freed)}) from {args.dir.resolve()}")
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m sphri.cache``: the ``sphri cache`` verb."""
+    from sphri.errors import clean_errors
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    return clean_errors("sphri.cache")(
+        lambda a: run(CacheArgs, a, command, "sphri.cache", "", "python -m sphri.cache")
+    )(argv)

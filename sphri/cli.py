@@ -1,22 +1,21 @@
-"""``python -m sphri.cli``: list components and validate configs without running.
+"""``sphri list|show|validate|warmup``: list components, show and validate configs without running.
 
 ::
 
-    python -m sphri.cli list                 # every group and its components
-    python -m sphri.cli list robot           # one group, with each file's summary
-    python -m sphri.cli show noise=crosstalk # every setting of a component: value, default, meaning
-    python -m sphri.cli validate +robot=reachy encoder.res=18
-    python -m sphri.cli validate -m encoder.res=0,4           # a sweep: every job is checked
-    python -m sphri.cli validate +experiment=resolution_sweep # its 100 jobs
+    sphri list                           # every group and its components
+    sphri list robot                     # one group, with each file's summary
+    sphri show noise=crosstalk           # every setting of a component: value, default, meaning
+    sphri validate +robot=reachy encoder.res=18
+    sphri validate -m encoder.res=0,4    # a sweep: every job is checked
+    sphri validate +experiment=resolution_sweep   # its 100 jobs
 
-``validate`` composes the config exactly as ``python -m sphri`` would, runs
-every schema's checks, and prints the chosen components; it exits 2 with a
-message naming the key on any problem.
+``python -m sphri.cli VERB ...`` is the same command (an alias). ``validate`` composes the config
+exactly as ``sphri run`` would, runs every schema's checks, and prints the chosen components; it exits
+2 with a message naming the key on any problem. Arguments are read by :mod:`sphri.command.args`.
 """
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import re
 import sys
@@ -25,8 +24,8 @@ from pathlib import Path
 
 import yaml
 
+from sphri.command.args import arg
 from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, check_inputs, compose, validate
-from sphri.errors import clean_errors
 from sphri.stages import PARAM_GROUPS, STAGE_GROUPS
 
 
@@ -112,22 +111,22 @@ def help_text() -> str:
     lines = [
         "sphri: design robot tactile skins from interaction data.",
         "",
-        "usage:",
-        "  python -m sphri [group=option ...] [key=value ...]      one job (one MLflow run)",
-        "  python -m sphri -m key=a,b,c [...]                      a sweep (one MLflow parent run)",
+        "usage (`python -m sphri` is the same as `sphri run`):",
+        "  sphri [run] [group=option ...] [key=value ...]          one job (one MLflow run)",
+        "  sphri sweep key=a,b,c [...]   (or sphri -m ...)         a sweep (one MLflow parent run)",
         "",
-        "common commands:",
-        "  python -m sphri +robot=reachy encoder.res=18            the paper's resolution",
-        "  python -m sphri +debug=fast                             a seconds-long smoke run",
-        "  python -m sphri -m +experiment=resolution_sweep model=rf   the 50-resolution curve",
-        "  python -m sphri.report SWEEP_DIR                        the sweep's report",
-        "  python -m sphri.coverage data.regions=[arm,torso] out=DIR   where people touch",
-        "  python -m sphri.cli list [GROUP] | validate OVERRIDES   components; check a config",
-        "  python -m sphri --cfg job [overrides]                   print the composed config",
-        "  python -m sphri --hydra-help                            Hydra's own flags",
+        "common commands (`sphri help` lists every verb):",
+        "  sphri +robot=reachy encoder.res=18                      the paper's resolution",
+        "  sphri +debug=fast                                       a seconds-long smoke run",
+        "  sphri sweep +experiment=resolution_sweep model=rf       the 50-resolution curve",
+        "  sphri report SWEEP_DIR                                  the sweep's report",
+        "  sphri coverage data.regions=[arm,torso] out=DIR         where people touch",
+        "  sphri list [GROUP] | sphri validate OVERRIDES           components; check a config",
+        "  sphri --cfg job [overrides]                             print the composed config",
+        "  sphri --hydra-help                                      Hydra's own flags",
         "",
-        "config groups (group=option; * marks the default; `python -m sphri.cli list GROUP` says what each",
-        "option is, `python -m sphri.cli show GROUP=OPTION` every setting of it):",
+        "config groups (group=option; * marks the default; `sphri list GROUP` says what each option is,",
+        "`sphri show GROUP=OPTION` every setting of it):",
     ]
     for group in DEFAULT_GROUPS:
         if not (CONF_DIR / group).is_dir():
@@ -265,46 +264,71 @@ def cmd_warmup() -> int:
     return 0
 
 
-@clean_errors("sphri")
+@dataclasses.dataclass
+class ListArgs:
+    groups: list[str] = arg([], positional=True, metavar="GROUP", help="config groups to list (default: every group)")
+
+
+@dataclasses.dataclass
+class ShowArgs:
+    overrides: list[str] = arg([], rest=True, help="choices and overrides, e.g. encoder=coverage noise.p=0.05")
+    group: list[str] = arg([], help="groups to show (default: those named in the overrides, else every group)")
+
+
+@dataclasses.dataclass
+class ValidateArgs:
+    overrides: list[str] = arg(
+        [],
+        rest=True,
+        help="overrides as for `sphri run`; a sweep (-m, a,b,c, range(), +experiment=...) checks every job",
+    )
+
+
+@dataclasses.dataclass
+class WarmupArgs:
+    pass
+
+
+def list_command(args: ListArgs) -> int:
+    """The components of each config group (of the groups named), one line each."""
+    return cmd_list(args.groups)
+
+
+def show_command(args: ShowArgs) -> int:
+    """Every setting of the chosen components: its value, the default where it differs, its meaning."""
+    return cmd_show(args.overrides, args.group or None)
+
+
+def validate_command(args: ValidateArgs) -> int:
+    """Compose the config exactly as `sphri run` would and run every check without running a stage; a sweep
+    checks every job. Exits 2 with a line naming the key on any problem."""
+    return cmd_validate(args.overrides)
+
+
+def warmup_command(args: WarmupArgs) -> int:
+    """Run the +debug=fast chain once (tracking off, in a temporary folder) so that every numba kernel is
+    compiled into numba's cache; later jobs load them (`make install` runs it)."""
+    return cmd_warmup()
+
+
+#: The verbs ``python -m sphri.cli`` answers (``sphri list`` and so on; :mod:`sphri.command`).
+CLI_VERBS = ("list", "show", "validate", "warmup")
+
+
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m sphri.cli", description=__doc__.split("\n\n")[0])
-    sub = parser.add_subparsers(dest="cmd", required=True)
-    p_list = sub.add_parser("list", help="list the components of each config group")
-    p_list.add_argument("groups", nargs="*", help="groups to list (default: all)")
-    p_show = sub.add_parser("show", help="every setting of the chosen components: value, default, meaning")
-    p_show.add_argument("overrides", nargs="*", help="choices and overrides, e.g. encoder=coverage noise.p=0.05")
-    p_show.add_argument(
-        "--group",
-        action="append",
-        default=None,
-        help="groups to show (default: those named in the overrides, else every group)",
-    )
-    p_val = sub.add_parser("validate", help="compose and check a config without running it")
-    p_val.add_argument(
-        "overrides",
-        nargs="*",
-        help="overrides as for python -m sphri; a sweep (-m, a,b,c, range(), +experiment=...) checks every job",
-    )
-    sub.add_parser(
-        "warmup",
-        help="compile sphri's numba kernels into numba's cache now (make install runs it), so the first job does not",
-    )
-    args, extra = parser.parse_known_args(argv)
-    if extra and args.cmd != "validate":
-        parser.error(f"unrecognized arguments: {' '.join(extra)}")
-    if extra:  # `-m` (a sweep) is sphri's option, not this parser's
-        args.overrides = [*extra, *args.overrides]
+    """``python -m sphri.cli VERB ...``: the same verbs as ``sphri VERB ...``."""
+    from sphri.command import UnknownVerb, call, find, help_text
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help", "help"):
+        print(help_text(CLI_VERBS, prog="python -m sphri.cli"))
+        return 0 if argv else 2
     try:
-        if args.cmd == "list":
-            return cmd_list(args.groups)
-        if args.cmd == "show":
-            return cmd_show(args.overrides, args.group)
-        if args.cmd == "warmup":
-            return cmd_warmup()
-        return cmd_validate(args.overrides)
-    except ConfigError as exc:
-        print(f"sphri: invalid config: {exc}", file=sys.stderr)
+        verb = find(argv[0], CLI_VERBS)
+    except UnknownVerb as exc:
+        print(f"sphri: {exc}", file=sys.stderr)
         return 2
+    return call(verb, argv[1:], prog="sphri", usage_prog=f"python -m sphri.cli {verb.name}")
 
 
 if __name__ == "__main__":

@@ -13,7 +13,14 @@ sphri's ``conf/`` or ``sphri/`` package starts afresh; file paths (``key=./``)
 always go to Hydra. Hand-written (no library offers a completion cache for
 Hydra apps) for measured speed: ``bench/bench_startup.py`` times both.
 
-This module is the console script's entry (``sphri``): it must stay light.
+The first word completes to a verb of ``sphri <verb>`` (:data:`sphri.command.VERBS`, read without
+importing anything heavy) as well as to Hydra's overrides (no verb is ``run``); after ``run`` or
+``sweep`` Hydra answers as before, after a ``key=value`` verb its keys (and their choices) from its
+argument dataclass, plus Hydra's overrides where the verb takes them (``validate``, ``show``,
+``stats``, ...). Every answer but a path's is kept the same way.
+
+This module is the console script's entry (``sphri``): it must stay light. Anything but a TAB goes
+to the verb dispatcher :func:`sphri.command.main`.
 """
 
 from __future__ import annotations
@@ -94,10 +101,74 @@ def _hydra_answer(line: str) -> str:
     return out.getvalue()
 
 
+def _verb_line(line: str) -> tuple[object | None, str]:
+    """(the verb of ``line`` when its first word is complete and names one, else None; the line as Hydra
+    would see it: the verb left out, ``sweep`` as ``-m``)."""
+    from sphri.command import BY_NAME
+
+    words = line.split(" ")
+    if len(words) < 3 or words[1] not in BY_NAME:  # the first word is still being typed, or is an override
+        return None, line
+    verb = BY_NAME[words[1]]
+    rest = words[2:]
+    if verb.kind == "args":
+        own = {k + "=" for k in _schema_keys(verb)}
+        rest = [w for w in rest if not any(w.startswith(k) for k in own)]
+    return verb, " ".join([words[0], *(["-m"] if verb.name == "sweep" else []), *rest])
+
+
+def _schema_keys(verb) -> list[str]:
+    from sphri.command.args import keys
+
+    return [k.name for k in keys(verb.load(verb.schema)) if not k.rest]
+
+
+def _verb_answer(verb, line: str) -> str:
+    """The words a ``key=value`` verb offers after ``line``: its keys (``key=`` and ``key=choice``), the
+    choices of the positional argument being typed, and where it takes overrides, Hydra's answer."""
+    from sphri.command.args import keys
+
+    ks = keys(verb.load(verb.schema))
+    context = line.rpartition(" ")[0].split(" ")[2:]
+    bare = [w for w in context if w and "=" not in w and not w.startswith(("-", "+", "~"))]
+    positional = [k for k in ks if k.positional]
+    words = []
+    if len(bare) < len(positional):
+        words += positional[len(bare)].choices()
+    for k in ks:
+        if k.rest:
+            continue
+        words.append(f"{k.name}=")
+        words += [f"{k.name}={c}" for c in k.choices()]
+    text = "\n".join(words) + "\n"
+    if any(k.rest for k in ks):
+        text += _hydra_answer(_verb_line(line)[1])
+    return text
+
+
+def _compute(line: str) -> str:
+    """The completion output for ``line``: verbs and Hydra's overrides for the first word, then what the
+    verb takes."""
+    from sphri.command import VERBS
+
+    verb, hydra_line = _verb_line(line)
+    if verb is None:
+        if len(line.split(" ")) == 2:  # the first word: a verb, or an override of `run`
+            return "\n".join(v.name for v in VERBS) + "\n" + _hydra_answer(line)
+        return _hydra_answer(line)
+    if verb.kind == "hydra":
+        return _hydra_answer(hydra_line)
+    if verb.kind == "args":
+        return _verb_answer(verb, line)
+    if verb.kind == "help":
+        return "\n".join(v.name for v in VERBS) + "\n"
+    return ""  # a verb that parses its own arguments: the shell completes file names
+
+
 def answer(line: str) -> str:
     """The completion output for ``COMP_LINE`` = ``line`` (from the cache when this context was asked before)."""
     if is_path_word(line):
-        return _hydra_answer(line)
+        return _compute(line)
     context, stem = split_line(line)
     key = hashlib.sha256(json.dumps([fingerprint(), context, stem]).encode()).hexdigest()[:32]
     path = cache_dir() / f"{key}.txt"
@@ -105,7 +176,7 @@ def answer(line: str) -> str:
         return path.read_text()
     except OSError:
         pass
-    text = _hydra_answer(context + stem)
+    text = _compute(context + stem)
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
@@ -125,12 +196,12 @@ def _is_query(args: list[str]) -> bool:
     return False
 
 
-def main() -> None:
-    """The ``sphri`` console script: a bash completion query is answered here, anything else by
-    :func:`sphri.__main__.main`."""
+def main() -> int:
+    """The ``sphri`` console script: a bash completion query is answered here, anything else by the verb
+    dispatcher :func:`sphri.command.main` (no verb: :func:`sphri.__main__.main`, a Hydra job)."""
     if _is_query(sys.argv[1:]) and "COMP_LINE" in os.environ:
         sys.stdout.write(answer(os.environ["COMP_LINE"]))
-        return
-    from sphri.__main__ import main as run
+        return 0
+    from sphri.command import main as dispatch
 
-    run()
+    return dispatch()

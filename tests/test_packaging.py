@@ -123,7 +123,7 @@ def test_wheel_cli_show_returns(installed, tmp_path):
 
 def test_wheel_console_script_completes_from_its_configs(installed, tmp_path):
     """The wheel's ``sphri`` script (sphri.completion) answers a TAB from the wheel's own configs, twice
-    (the second from its kept answer)."""
+    (the second from its kept answer), and dispatches ``sphri help`` and ``sphri list robot``."""
     script = installed / "bin" / "sphri"
     assert script.is_file(), (
         sorted(p.name for p in (installed / "bin").iterdir()) if (installed / "bin").is_dir() else []
@@ -141,6 +141,19 @@ def test_wheel_console_script_completes_from_its_configs(installed, tmp_path):
         assert tab.returncode == 0, tab.stderr[-3000:]
         assert tab.stdout.split() == ["encoder=coverage", "encoder=ellipse", "encoder=proximity"], tab.stdout
     assert len(list((tmp_path / "xdg" / "sphri" / "completion").iterdir())) == 1
+    # the same script dispatches verbs (sphri.command ships in the wheel): its list, and one verb run for real
+    verbs = subprocess.run(
+        [sys.executable, str(script), "help"], capture_output=True, text=True, env=_env(installed), cwd=tmp_path
+    )
+    assert verbs.returncode == 0 and "  report " in verbs.stdout and "  validate " in verbs.stdout, verbs.stderr
+    groups = subprocess.run(
+        [sys.executable, str(script), "list", "robot"],
+        capture_output=True,
+        text=True,
+        env=_env(installed),
+        cwd=tmp_path,
+    )
+    assert groups.returncode == 0 and "  reachy2 " in groups.stdout, groups.stderr[-3000:]
 
 
 def test_wheel_runs_the_scenario_study_at_debug_size(installed, tmp_path):

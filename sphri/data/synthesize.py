@@ -1,4 +1,7 @@
-"""``python -m sphri.data.synthesize out=DIR [overrides]``: write a synthetic dataset to disk.
+"""``sphri synthesize out=DIR [overrides]``: write a synthetic dataset to disk.
+
+``python -m sphri.data.synthesize`` is the same command (:class:`SynthesizeArgs`);
+``sphri synthesize what=sessions`` writes the scenario sessions (:mod:`sphri.sessions.synthesize`).
 
 Composes the config with the overrides (``data.participants=4
 data.repetitions=4 data.regions=[arm,torso] robot=...``), generates the
@@ -11,12 +14,14 @@ loads with ``data=vr_gesture data.root=DIR`` (labelled synthetic).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
 
+from sphri.command.args import arg, first_paragraph, run
 from sphri.errors import clean_errors
 from sphri.types import GestureDataset
 
@@ -38,34 +43,35 @@ def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> GestureDataset
     return dataset
 
 
-def out_and_overrides(argv: list[str], prog: str, doc: str | None) -> tuple[str | None, list[str] | None]:
-    """``out=DIR`` and the config overrides of a synthesize command (also ``python -m sphri.sessions.synthesize``).
+def _nonempty(value: str) -> str | None:
+    return None if value else "must be a folder"
 
-    Prints the help (returns ``(None, None)``) or a usage line (``(None, [])``)."""
+
+@dataclasses.dataclass
+class SynthesizeArgs:
+    out: str = arg(metavar="DIR", check=_nonempty, help="the folder to write")
+    overrides: list[str] = arg([], rest=True, help="config overrides, e.g. data.participants=4 data.repetitions=1")
+
+
+def command(args: SynthesizeArgs) -> int:
+    """Generate the configured synthetic gesture dataset in memory, exactly as a run does, and write it under
+    out=DIR in the VR dataset's layout (it loads with data=vr_gesture data.root=DIR)."""
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    if any(a in ("-h", "--help") for a in argv):
-        print(doc)
-        return None, None
-    outs = [a.split("=", 1)[1] for a in argv if a.startswith("out=")]
-    if len(outs) != 1 or not outs[0]:
-        print(f"usage: {prog} out=DIR [data.participants=N ...]", file=sys.stderr)
-        return None, []
-    return outs[0], [a for a in argv if not a.startswith("out=")]
+    t = time.perf_counter()
+    ds = synthesize(args.out, args.overrides)
+    print(
+        f"wrote {len(ds.trials)} trials, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
+        f"to {Path(args.out).resolve()} in {time.perf_counter() - t:.1f} s"
+    )
+    return 0
 
 
 @clean_errors("sphri.data.synthesize")
 def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m sphri.data.synthesize``: the ``sphri synthesize`` verb."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    out, overrides = out_and_overrides(argv, "python -m sphri.data.synthesize", __doc__)
-    if out is None:
-        return 0 if overrides is None else 2
-    t = time.perf_counter()
-    ds = synthesize(out, overrides)
-    print(
-        f"wrote {len(ds.trials)} trials, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
-        f"to {Path(out).resolve()} in {time.perf_counter() - t:.1f} s"
-    )
-    return 0
+    summary = first_paragraph(command.__doc__)
+    return run(SynthesizeArgs, argv, command, "sphri.data.synthesize", summary, "python -m sphri.data.synthesize")
 
 
 if __name__ == "__main__":

@@ -1,6 +1,7 @@
 """Regenerate sphri's packaged Reachy 2 (``sphri/robots/data/reachy2/``) from Pollen Robotics' description.
 
-    python -m sphri.robots.reachy2_derivative --src ../shared/robots/reachy2 [--faces 4000] [--out DIR]
+    sphri derive-reachy2 src=../shared/robots/reachy2 [faces=4000] [out=DIR]
+    python -m sphri.robots.reachy2_derivative --src ../shared/robots/reachy2   # the same
 
 Reads ``reachy2.urdf`` and ``obj_meshes/`` of the source folder (Apache-2.0,
 pollen-robotics/reachy2_mujoco; see its SOURCE.md) and writes:
@@ -26,14 +27,17 @@ face count within the budget.
 
 from __future__ import annotations
 
-import argparse
+import dataclasses
 import json
 import shutil
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import trimesh
+
+from sphri.command.args import arg
 
 #: Default face budget per mesh.
 FACE_BUDGET = 4000
@@ -206,18 +210,35 @@ Surface error of each shipped mesh against its source, from
 """
 
 
-def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m sphri.robots.reachy2_derivative", description=__doc__.splitlines()[0])
-    ap.add_argument("--src", required=True, help="folder holding reachy2.urdf, obj_meshes/ and LICENSE")
-    ap.add_argument("--faces", type=int, default=FACE_BUDGET, help="face budget per mesh")
-    ap.add_argument("--out", default=str(OUT), help="output folder (default: the packaged one)")
-    a = ap.parse_args(argv)
-    m = derive(Path(a.src), Path(a.out), a.faces)
+def _positive(n: int) -> str | None:
+    return None if n > 0 else "must be > 0"
+
+
+@dataclasses.dataclass
+class DeriveArgs:
+    src: Path = arg(metavar="DIR", help="folder holding reachy2.urdf, obj_meshes/ and LICENSE")
+    faces: int = arg(FACE_BUDGET, check=_positive, help="face budget per mesh")
+    out: Path = arg(OUT, help="output folder (default: the packaged one)")
+
+
+def command(args: DeriveArgs) -> int:
+    """Regenerate sphri's packaged Reachy 2 (reduced URDF, decimated PLY meshes, their measured surface error,
+    licence) from Pollen Robotics' description."""
+    m = derive(args.src, args.out, args.faces)
     for k, v in sorted(m["meshes"].items()):
         print(
             f"{k}: {v['faces_source']} -> {v['faces']} faces, error max {v['max_mm']:.2f} mm, mean {v['mean_mm']:.3f} mm"
         )
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m sphri.robots.reachy2_derivative``: the ``sphri derive-reachy2`` verb."""
+    from sphri.command.args import first_paragraph, run
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    prog = "python -m sphri.robots.reachy2_derivative"
+    return run(DeriveArgs, argv, command, "sphri.robots.reachy2_derivative", first_paragraph(command.__doc__), prog)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,6 @@
-"""``python -m sphri.sessions.synthesize out=DIR [overrides]``: write the synthetic scenario sessions to disk.
+"""``sphri synthesize what=sessions out=DIR [overrides]``: write the synthetic scenario sessions to disk.
+
+``python -m sphri.sessions.synthesize out=DIR [overrides]`` is the same command.
 
 Composes ``data=synthetic_sessions robot=reachy_full`` plus the overrides
 (``data.participants=4 data.repetitions=1 +debug=fast ...``), generates the
@@ -10,11 +12,18 @@ format (:mod:`sphri.sessions.format`). The folder then loads with
 
 from __future__ import annotations
 
+import dataclasses
+import logging
 import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Literal
 
+from sphri.command.args import arg, first_paragraph, run
+from sphri.data.synthesize import SynthesizeArgs
+from sphri.data.synthesize import command as write_gestures
+from sphri.errors import clean_errors
 from sphri.sessions.format import SessionDataset
 
 
@@ -33,20 +42,43 @@ def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> SessionDataset
     return ds
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    from sphri.data.synthesize import out_and_overrides
+@dataclasses.dataclass
+class SynthesizeAnyArgs(SynthesizeArgs):
+    what: Literal["gestures", "sessions"] = arg(
+        "gestures",
+        help="gestures: a gesture dataset (loads with data=vr_gesture data.root=DIR); sessions: the scenario "
+        "sessions (data=synthetic_sessions; loads with data=sessions data.root=DIR)",
+    )
 
-    argv = list(sys.argv[1:] if argv is None else argv)
-    out, overrides = out_and_overrides(argv, "python -m sphri.sessions.synthesize", __doc__)
-    if out is None:
-        return 0 if overrides is None else 2
+
+def write_sessions(args: SynthesizeArgs) -> int:
+    """Generate the scenario sessions (data=synthetic_sessions robot=reachy_full plus the overrides) exactly as
+    the scenario study does and write them under out=DIR (they load with data=sessions data.root=DIR)."""
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     t = time.perf_counter()
-    ds = synthesize(out, overrides)
+    ds = synthesize(args.out, args.overrides)
     print(
         f"wrote {len(ds.sessions)} sessions, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
-        f"to {Path(out).resolve()} in {time.perf_counter() - t:.1f} s"
+        f"to {Path(args.out).resolve()} in {time.perf_counter() - t:.1f} s"
     )
     return 0
+
+
+def command(args: SynthesizeAnyArgs) -> int:
+    """Write synthetic data to out=DIR, generated exactly as a run generates it: a gesture dataset (the
+    default) or, with what=sessions, the scenario sessions."""
+    if args.what == "sessions":
+        return write_sessions(args)
+    return write_gestures(args)
+
+
+@clean_errors("sphri.sessions.synthesize")
+def main(argv: Sequence[str] | None = None) -> int:
+    """``python -m sphri.sessions.synthesize``: ``sphri synthesize what=sessions``."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    summary = first_paragraph(write_sessions.__doc__)
+    usage = "python -m sphri.sessions.synthesize"
+    return run(SynthesizeArgs, argv, write_sessions, "sphri.sessions.synthesize", summary, usage)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ start as a copy of it, and MLflow adds its Default experiment on first open,
 as it does for a fresh store. Any problem with that copy falls back to
 migrating from scratch.
 
-``python -m sphri.tracking.store repair PATH/mlflow.db`` repairs one: a store
+``sphri store repair PATH/mlflow.db`` (or ``python -m sphri.tracking.store repair ...``) repairs one: a store
 without runs is moved aside (``mlflow.db.broken-<time>``) and created anew;
 otherwise a backup is taken (``mlflow.db.bak-<time>``), each leftover
 ``_alembic_tmp_X`` is dropped (or renamed to ``X`` when ``X`` is missing) and
@@ -28,6 +28,7 @@ the schema upgraded to MLflow's head.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import json
 import os
 import shutil
@@ -36,6 +37,9 @@ import sys
 import time
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Literal
+
+from sphri.command.args import arg
 
 TMP_PREFIX = "_alembic_tmp_"
 
@@ -255,22 +259,36 @@ def repair(db: Path) -> str:
         return f"{db}: repaired ({n_runs} runs kept; backup at {backup})"
 
 
-def main(argv: list[str] | None = None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if len(argv) != 2 or argv[0] not in ("repair", "check"):
-        print("usage: python -m sphri.tracking.store {check|repair} PATH/mlflow.db", file=sys.stderr)
-        return 2
-    db = Path(argv[1])
-    if argv[0] == "check":
-        found = problems(db)
-        print(f"{db}: " + ("; ".join(found) + f" (repair: {repair_command(db)})" if found else "ok"))
+@dataclasses.dataclass
+class StoreArgs:
+    action: Literal["check", "repair"] = arg(
+        positional=True, metavar="check|repair", help="check: say what is wrong (exit 1 if anything); repair: fix it"
+    )
+    db: Path = arg(positional=True, metavar="PATH/mlflow.db", help="the SQLite MLflow store")
+
+
+def command(args: StoreArgs) -> int:
+    """Check an MLflow SQLite store for what an interrupted migration leaves, or repair it (a backup is
+    kept; a store without runs is moved aside and created anew)."""
+    if args.action == "check":
+        found = problems(args.db)
+        print(f"{args.db}: " + ("; ".join(found) + f" (repair: {repair_command(args.db)})" if found else "ok"))
         return 1 if found else 0
     try:
-        print(repair(db))
+        print(repair(args.db))
     except BrokenStore as exc:
         print(f"sphri: {exc}", file=sys.stderr)
         return 1
     return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m sphri.tracking.store``: the ``sphri store`` verb."""
+    from sphri.command.args import first_paragraph, run
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    summary = first_paragraph(command.__doc__)
+    return run(StoreArgs, argv, command, "sphri.tracking.store", summary, "python -m sphri.tracking.store")
 
 
 if __name__ == "__main__":

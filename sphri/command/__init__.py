@@ -1,0 +1,280 @@
+"""``sphri <verb>``: one command for everything sphri does.
+
+::
+
+    sphri +debug=fast                    # no verb: run one job (Hydra overrides, exactly as before)
+    sphri sweep encoder.res=2,4          # = sphri -m encoder.res=2,4
+    sphri report outputs/sweeps/resolution_rf
+    sphri list robot
+    sphri help                           # every verb with one line; `sphri VERB --help` its arguments
+
+``run`` and ``sweep`` hand their arguments to Hydra; every other verb reads ``key=value`` arguments
+through one parser (:mod:`sphri.command.args`), typed by a dataclass beside the verb's code, which
+also takes the ``--key value`` spellings. Each verb's module keeps its ``python -m sphri.<module>``
+spelling as an alias (:attr:`Verb.module`). A first word that is not a verb but looks like an
+override (``key=value``, ``+group=x``, ``~key``, ``-m``, ``--cfg``) is the ``run`` verb; any other
+word is an unknown verb: one line naming the close matches, exit 2.
+
+Standard library only at import: the console script (:mod:`sphri.completion`) reads :data:`VERBS`
+to complete the first word on every TAB.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+import os
+import sys
+import textwrap
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Verb:
+    """One verb of ``sphri``.
+
+    ``kind`` says who parses its arguments: ``hydra`` (run, sweep: Hydra's overrides), ``args``
+    (sphri's ``key=value`` parser: ``schema`` is the argument dataclass, ``target`` the function
+    taking an instance of it), or ``main`` (``target`` is a ``main(argv) -> int`` that parses its
+    own arguments)."""
+
+    name: str
+    summary: str
+    kind: str
+    target: str
+    schema: str = ""
+    module: str = ""  # the `python -m` alias, where one exists
+
+    def load(self, ref: str):
+        module, _, attr = ref.partition(":")
+        return getattr(importlib.import_module(module), attr)
+
+
+VERBS: tuple[Verb, ...] = (
+    Verb(
+        "run",
+        "run one job (the default verb: `sphri +debug=fast` is `sphri run +debug=fast`)",
+        "hydra",
+        "sphri.__main__:main",
+        "",
+        "sphri",
+    ),
+    Verb(
+        "sweep",
+        "run a sweep, one job per point (`sphri sweep encoder.res=2,4` is `sphri -m encoder.res=2,4`)",
+        "hydra",
+        "sphri.__main__:main",
+        "",
+        "sphri",
+    ),
+    Verb(
+        "report",
+        "the report of a finished sweep: figures, tables, the requirement sentence",
+        "args",
+        "sphri.report.__main__:command",
+        "sphri.report.__main__:ReportArgs",
+        "sphri.report",
+    ),
+    Verb(
+        "coverage",
+        "where people touch the robot: coverage maps, the scenario study",
+        "main",
+        "sphri.coverage:main",
+        "",
+        "sphri.coverage",
+    ),
+    Verb("list", "the components of each config group", "args", "sphri.cli:list_command", "sphri.cli:ListArgs"),
+    Verb(
+        "show",
+        "every setting of the chosen components: value, default, meaning",
+        "args",
+        "sphri.cli:show_command",
+        "sphri.cli:ShowArgs",
+    ),
+    Verb(
+        "validate",
+        "compose and check a config (every job of a sweep) without running it",
+        "args",
+        "sphri.cli:validate_command",
+        "sphri.cli:ValidateArgs",
+    ),
+    Verb(
+        "warmup",
+        "compile sphri's numba kernels into numba's cache now, so the first job does not",
+        "args",
+        "sphri.cli:warmup_command",
+        "sphri.cli:WarmupArgs",
+    ),
+    Verb(
+        "cache",
+        "see (info) and trim (clear) the stage cache, never the MLflow store",
+        "args",
+        "sphri.cache_cli:command",
+        "sphri.cache_cli:CacheArgs",
+        "sphri.cache",
+    ),
+    Verb(
+        "store",
+        "check or repair an MLflow store (mlflow.db)",
+        "args",
+        "sphri.tracking.store:command",
+        "sphri.tracking.store:StoreArgs",
+        "sphri.tracking.store",
+    ),
+    Verb(
+        "synthesize",
+        "write a synthetic gesture dataset (or the scenario sessions) to disk",
+        "args",
+        "sphri.sessions.synthesize:command",
+        "sphri.sessions.synthesize:SynthesizeAnyArgs",
+        "sphri.data.synthesize",
+    ),
+    Verb(
+        "stats",
+        "contact statistics of a gesture dataset against published references",
+        "args",
+        "sphri.data.stats:command",
+        "sphri.data.stats:StatsArgs",
+        "sphri.data.stats",
+    ),
+    Verb(
+        "export",
+        "train a model on the configured data and write a model file for live use",
+        "main",
+        "sphri.hardware.train_export:main",
+        "",
+        "sphri.hardware.train_export",
+    ),
+    Verb(
+        "skin",
+        "record from or classify live a tactile skin on a serial port",
+        "main",
+        "sphri.hardware.skin:main",
+        "",
+        "sphri.hardware.skin",
+    ),
+    Verb(
+        "glove",
+        "record from a sensing glove on a serial port",
+        "main",
+        "sphri.hardware.glove:main",
+        "",
+        "sphri.hardware.glove",
+    ),
+    Verb(
+        "simulate",
+        "a simulated skin or glove on a local link, for live sessions without hardware",
+        "main",
+        "sphri.hardware.simulate:main",
+        "",
+        "sphri.hardware.simulate",
+    ),
+    Verb(
+        "derive-reachy2",
+        "regenerate the packaged Reachy 2 from Pollen Robotics' description",
+        "args",
+        "sphri.robots.reachy2_derivative:command",
+        "sphri.robots.reachy2_derivative:DeriveArgs",
+        "sphri.robots.reachy2_derivative",
+    ),
+    Verb("help", "this list; `sphri help VERB` (or `sphri VERB --help`) a verb's arguments", "help", ""),
+)
+
+BY_NAME: dict[str, Verb] = {v.name: v for v in VERBS}
+HELP_WORDS = ("help", "-h", "--help")
+
+
+class UnknownVerb(ValueError):
+    """A first word that is neither a verb nor an override."""
+
+
+def is_override(word: str) -> bool:
+    """A word Hydra reads (``key=value``, ``+group=x``, ``~key``, a flag): the ``run`` verb's."""
+    return "=" in word or word.startswith(("-", "+", "~"))
+
+
+def find(word: str, names: Sequence[str] | None = None) -> Verb:
+    """The verb named ``word`` (among ``names``), or :class:`UnknownVerb` naming the close matches."""
+    names = list(names or BY_NAME)
+    if word in names:
+        return BY_NAME[word]
+    close = difflib.get_close_matches(word, names, n=3, cutoff=0.5)
+    hint = f" (did you mean {' or '.join(close)}?)" if close else ""
+    raise UnknownVerb(f"unknown verb {word!r}{hint}; verbs: {', '.join(names)}")
+
+
+def help_text(names: Sequence[str] | None = None, prog: str = "sphri") -> str:
+    """Every verb (of ``names``) with its one-line description."""
+    verbs = [BY_NAME[n] for n in (names or BY_NAME)]
+    width = max(len(v.name) for v in verbs) + 4
+    lines = []
+    if names is None:
+        lines += [
+            "sphri: design robot tactile skins from interaction data.",
+            "",
+            f"usage: {prog} [VERB] [arguments]      no verb is `run` (Hydra overrides: {prog} +debug=fast)",
+            f"       {prog} VERB --help             a verb's arguments ({prog} run --help: the config groups)",
+        ]
+    else:
+        lines += [f"usage: {prog} VERB [arguments]      ({prog} VERB --help: its arguments)"]
+    lines += ["", "verbs:"]
+    for v in verbs:
+        lines.append(
+            textwrap.fill(v.summary, 100, initial_indent=f"  {v.name:<{width}}", subsequent_indent=" " * (width + 2))
+        )
+    return "\n".join(lines)
+
+
+def call(verb: Verb, argv: Sequence[str], prog: str = "", usage_prog: str = "") -> int:
+    """Run ``verb`` with its arguments; its exit code. ``prog`` prefixes its one-line errors
+    (default ``sphri VERB``), ``usage_prog`` names it in its usage line (default ``prog``)."""
+    argv = list(argv)
+    prog = prog or f"sphri {verb.name}"
+    if verb.kind == "help":
+        if argv and argv[0] in BY_NAME and argv[0] != "help":
+            return call(BY_NAME[argv[0]], ["--help"])
+        _print(help_text())
+        return 0
+    if verb.kind == "hydra":
+        if verb.name == "sweep" and not any(a in ("-m", "--multirun") for a in argv):
+            argv = ["-m", *argv]
+        sys.argv = [sys.argv[0] if sys.argv else "sphri", *argv]
+        verb.load(verb.target)()  # sphri.__main__.main: exits non-zero itself on a failure (one line)
+        return 0
+    if verb.kind == "main":
+        return int(verb.load(verb.target)(argv) or 0)
+    from sphri.command.args import first_paragraph, run
+    from sphri.errors import clean_errors
+
+    schema = verb.load(verb.schema)
+    body = verb.load(verb.target)
+    summary = first_paragraph(body.__doc__) or verb.summary
+
+    @clean_errors(prog)
+    def main(args: list[str]) -> int:
+        return run(schema, args, body, prog, summary, usage_prog or prog)
+
+    return main(argv)
+
+
+def _print(text: str) -> None:
+    try:
+        print(text)
+    except BrokenPipeError:  # `sphri help | head`: the reader went away
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """``sphri [VERB] [arguments]``: the console script's dispatcher (see the module docstring)."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in ("-h", "--help"):
+        argv[0] = "help"
+    if not argv or is_override(argv[0]):
+        return call(BY_NAME["run"], argv)
+    try:
+        verb = find(argv[0])
+    except UnknownVerb as exc:
+        print(f"sphri: {exc}", file=sys.stderr)
+        return 2
+    return call(verb, argv[1:])

@@ -1,0 +1,420 @@
+"""One ``key=value`` parser for sphri's commands (every verb but ``run``/``sweep``, which Hydra parses).
+
+A command declares its arguments once, as a dataclass whose fields are made with :func:`arg`; the
+field's type is the value's type and its ``help`` the line ``--help`` prints. :func:`parse` reads
+
+- ``key=value``, ``--key value``, ``--key=value`` (``--some-key`` for ``some_key``), and the
+  field's extra spellings (``flags``, e.g. ``--no-log`` for ``mlflow=false``);
+- bare words, for the ``positional`` fields in order (a list field takes every remaining word);
+- anything else, into the ``rest`` field when there is one (the Hydra overrides of a command that
+  composes a config, e.g. ``data.participants=4`` or ``-m``), else it is an error.
+
+Values are converted to the field's type: ``str``, ``int``, ``float``, ``bool`` (true/false, yes/no,
+on/off, 1/0), ``Path``, a ``Literal``'s choices, ``X | None`` (``none`` for a non-string ``X``), and
+``list[X]`` (comma-separated, or repeated keys, or words). A field's ``check`` returns what the value
+must be, or None. Each problem is :class:`ArgsError`: one line naming the key and what it allows
+(:func:`run` prints it and returns 2). Standard library only: the TAB completion reads the schemas.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import re
+import sys
+import textwrap
+import types
+import typing
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any, Literal, TypeVar
+
+T = TypeVar("T")
+
+_TRUE = ("true", "yes", "on", "1")
+_FALSE = ("false", "no", "off", "0")
+_KEY = re.compile(r"[A-Za-z_][\w.\-]*")
+HELP_FLAGS = ("-h", "--help")
+
+
+class ArgsError(ValueError):
+    """A bad command-line argument: one line naming the key and what it allows."""
+
+
+class HelpRequested(Exception):
+    """``-h``/``--help`` was given: the message is the help text."""
+
+
+def arg(
+    default: Any = dataclasses.MISSING,
+    *,
+    help: str = "",
+    positional: bool = False,
+    rest: bool = False,
+    flags: dict[str, str | None] | None = None,
+    check: Callable[[Any], str | None] | None = None,
+    metavar: str = "",
+) -> Any:
+    """A field of a command's argument dataclass.
+
+    ``flags`` maps extra spellings to a fixed value (``{"--no-log": "false"}``) or to None (the
+    spelling takes the next word as its value). ``check(value)`` returns what a valid value must
+    be (``"must be >= 0"``) or None. ``rest`` marks a ``list[str]`` field that collects every
+    argument that is not one of the command's keys (for Hydra overrides)."""
+    meta = {
+        "help": help,
+        "positional": positional,
+        "rest": rest,
+        "flags": dict(flags or {}),
+        "check": check,
+        "metavar": metavar,
+    }
+    if isinstance(default, (list, tuple)):
+        items = list(default)
+        return dataclasses.field(default_factory=lambda: list(items), metadata=meta)
+    return dataclasses.field(default=default, metadata=meta)
+
+
+@dataclasses.dataclass(frozen=True)
+class Key:
+    """One argument of a command, read from its dataclass field."""
+
+    name: str
+    type: Any
+    default: Any
+    required: bool
+    help: str
+    positional: bool
+    rest: bool
+    flags: dict[str, str | None]
+    check: Callable[[Any], str | None] | None
+    metavar: str
+
+    @property
+    def is_list(self) -> bool:
+        return _is_list(self.type)
+
+    @property
+    def is_bool(self) -> bool:
+        return _base(self.type) is bool
+
+    def choices(self) -> tuple[str, ...]:
+        """The allowed values of a ``Literal`` (or bool) key, else ()."""
+        t = _base(_item(self.type) if self.is_list else self.type)
+        if typing.get_origin(t) is Literal:
+            return tuple(str(c) for c in typing.get_args(t))
+        if t is bool:
+            return ("true", "false")
+        return ()
+
+    def spellings(self) -> list[str]:
+        dashed = "--" + self.name.replace("_", "-")
+        return list(dict.fromkeys([f"--{self.name}", dashed, *self.flags]))
+
+
+def keys(cls: type) -> list[Key]:
+    """The arguments of the command whose dataclass is ``cls``."""
+    hints = typing.get_type_hints(cls)
+    out = []
+    for f in dataclasses.fields(cls):
+        m = f.metadata
+        if f.default is not dataclasses.MISSING:
+            default, required = f.default, False
+        elif f.default_factory is not dataclasses.MISSING:
+            default, required = f.default_factory(), False
+        else:
+            default, required = None, True
+        out.append(
+            Key(
+                name=f.name,
+                type=hints[f.name],
+                default=default,
+                required=required,
+                help=m.get("help", ""),
+                positional=m.get("positional", False),
+                rest=m.get("rest", False),
+                flags=m.get("flags", {}),
+                check=m.get("check"),
+                metavar=m.get("metavar", ""),
+            )
+        )
+    return out
+
+
+def _is_optional(t: Any) -> bool:
+    return typing.get_origin(t) in (typing.Union, types.UnionType) and type(None) in typing.get_args(t)
+
+
+def _base(t: Any) -> Any:
+    """``X`` of ``X | None``."""
+    if _is_optional(t):
+        (inner,) = [a for a in typing.get_args(t) if a is not type(None)]
+        return inner
+    return t
+
+
+def _is_list(t: Any) -> bool:
+    return typing.get_origin(_base(t)) in (list, tuple)
+
+
+def _item(t: Any) -> Any:
+    args = typing.get_args(_base(t))
+    return args[0] if args else str
+
+
+def _type_words(t: Any) -> str:
+    """What a value of type ``t`` must be, in words."""
+    t = _base(t)
+    if typing.get_origin(t) is Literal:
+        return "one of " + ", ".join(str(c) for c in typing.get_args(t))
+    return {int: "an integer", float: "a number", bool: "true or false", Path: "a path", str: "text"}.get(t, str(t))
+
+
+def _scalar(key: Key, t: Any, text: str, shown: str) -> Any:
+    """``text`` as a value of type ``t`` (``shown`` is how the argument is quoted in an error)."""
+    if _is_optional(t):
+        inner = _base(t)
+        if inner is not str and text.lower() in ("none", "null", ""):
+            return None
+        t = inner
+    bad = ArgsError(f"{shown} is invalid: must be {_type_words(t)}")
+    if typing.get_origin(t) is Literal:
+        for choice in typing.get_args(t):
+            if text == str(choice):
+                return choice
+        close = difflib.get_close_matches(text, [str(c) for c in typing.get_args(t)], n=1)
+        raise ArgsError(str(bad) + (f" (did you mean {close[0]}?)" if close else ""))
+    if t is bool:
+        if text.lower() in _TRUE:
+            return True
+        if text.lower() in _FALSE:
+            return False
+        raise bad
+    if t is int:
+        try:
+            return int(text)
+        except ValueError:
+            raise bad from None
+    if t is float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise bad from None
+        if value != value:  # nan passes every range check
+            raise bad
+        return value
+    if t is Path:
+        return Path(text)
+    return text
+
+
+def _convert(key: Key, words: list[str], shown: str) -> Any:
+    """The value of ``key`` from its words (one word unless the key is a list)."""
+    if key.is_list:
+        items = [w.strip() for word in words for w in (word.split(",") if not key.positional else [word])]
+        items = [w for w in items if w]
+        value: Any = [_scalar(key, _item(key.type), w, f"{key.name}={w}") for w in items]
+        if typing.get_origin(_base(key.type)) is tuple:
+            value = tuple(value)
+    else:
+        value = _scalar(key, key.type, words[-1], shown)
+    if key.check is not None:
+        try:
+            problem = key.check(value)
+        except ValueError as exc:  # a validator's own message (it names the value)
+            raise ArgsError(" ".join(str(exc).split())) from None
+        if problem:
+            raise ArgsError(f"{shown} is invalid: {problem}")
+    return value
+
+
+def _usage_word(key: Key) -> str:
+    name = key.metavar or key.name.upper()
+    if key.positional:
+        word = f"{name} ..." if key.is_list else name
+        return word if key.required else f"[{word}]"
+    return f"{key.name}={_metavar(key)}"
+
+
+def _metavar(key: Key) -> str:
+    """How a key's value is shown in the usage and help: its metavar, choices, or type."""
+    if key.metavar:
+        return key.metavar
+    if key.choices():
+        return "|".join(key.choices()) + (",..." if key.is_list else "")
+    t = _base(_item(key.type) if key.is_list else key.type)
+    word = {int: "INT", float: "NUMBER", bool: "BOOL", Path: "PATH"}.get(t, "TEXT")
+    return f"{word},..." if key.is_list else word
+
+
+def usage(cls: type, prog: str) -> str:
+    """``usage: PROG POSITIONAL [key=value ...]`` of a command."""
+    ks = keys(cls)
+    words = [_usage_word(k) for k in ks if k.positional]
+    words += [_usage_word(k) for k in ks if k.required and not k.positional and not k.rest]
+    if any(not k.positional and not k.rest and not k.required for k in ks):
+        words.append("[key=value ...]")
+    words += [f"[{k.metavar or 'overrides'} ...]" for k in ks if k.rest]
+    return " ".join(["usage:", prog, *words])
+
+
+def help_text(cls: type, prog: str, summary: str = "") -> str:
+    """``--help`` of a command: usage, summary, then one line per key (type, default, meaning)."""
+    lines = [usage(cls, prog)]
+    if summary:
+        lines += ["", textwrap.fill(" ".join(summary.split()), width=100)]
+    ks = keys(cls)
+    if ks:
+        lines += ["", "arguments (key=value, or --key value):"]
+    for k in ks:
+        if k.rest:
+            head = f"  {k.metavar or 'overrides'}"
+        elif k.positional:
+            head = f"  {k.metavar or k.name.upper()}"
+        else:
+            head = f"  {k.name}={_metavar(k)}"
+        if k.required:
+            tail = " (required)"
+        elif k.rest or k.default in (None, [], ()):
+            tail = ""
+        else:
+            d = ",".join(map(str, k.default)) if isinstance(k.default, (list, tuple)) else k.default
+            tail = f" (default {str(d).lower() if isinstance(d, bool) else d})"
+        extra = [s for s in k.flags if k.flags[s] is not None]
+        alias = f"; {', '.join(extra)} for {k.name}={'/'.join(str(k.flags[s]) for s in extra)}" if extra else ""
+        text = (k.help + tail + alias).strip()
+        if len(head) > 28:
+            lines.append(head)
+            head = ""
+        lines.append(
+            textwrap.fill(
+                text, width=100, initial_indent=f"{head:<30}", subsequent_indent=" " * 30, break_on_hyphens=False
+            )
+        )
+    return "\n".join(lines)
+
+
+def parse(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary: str = "") -> T:
+    """The arguments ``argv`` as an instance of ``cls`` (raises :class:`ArgsError`, or
+    :class:`HelpRequested` for ``-h``/``--help``)."""
+    ks = keys(cls)
+    by_name = {k.name: k for k in ks}
+    by_flag: dict[str, tuple[Key, str | None]] = {}
+    for k in ks:
+        if not k.rest:
+            for s in k.spellings():
+                by_flag[s] = (k, k.flags.get(s))
+    rest_key = next((k for k in ks if k.rest), None)
+    positional = [k for k in ks if k.positional]
+    words: dict[str, list[str]] = {}
+    shown: dict[str, str] = {}
+    rest: list[str] = []
+
+    def put(k: Key, value: str, spelled: str) -> None:
+        words[k.name] = [*words.get(k.name, []), value] if k.is_list else [value]  # a repeated key: last wins
+        shown[k.name] = spelled
+
+    args = list(argv)
+    if any(a in HELP_FLAGS for a in args):
+        raise HelpRequested(help_text(cls, prog, summary))
+    i = 0
+    while i < len(args):
+        a = args[i]
+        i += 1
+        if a.startswith("--") or a in by_flag:
+            flag, eq, inline = a.partition("=")
+            if flag in by_flag:
+                k, fixed = by_flag[flag]
+                if fixed is not None and not eq:
+                    put(k, fixed, f"{flag}")
+                    continue
+                if eq:
+                    put(k, inline, f"{k.name}={inline}")
+                    continue
+                if k.is_bool and not (i < len(args) and args[i].lower() in (*_TRUE, *_FALSE)):
+                    put(k, "true", flag)
+                    continue
+                if i >= len(args) or args[i].partition("=")[0] in by_flag:  # at the end, or another flag follows
+                    raise ArgsError(f"{flag} needs a value ({k.help or _type_words(k.type)})")
+                put(k, args[i], f"{k.name}={args[i]}")
+                i += 1
+                continue
+            if rest_key is not None:
+                rest.append(a)
+                continue
+            raise ArgsError(_unknown(flag, ks))
+        key, eq, value = a.partition("=")
+        if eq and _KEY.fullmatch(key) and key in by_name and not by_name[key].rest:
+            put(by_name[key], value, a)
+            continue
+        if eq and _KEY.fullmatch(key.lstrip("+~")):
+            if rest_key is not None:
+                rest.append(a)
+                continue
+            raise ArgsError(_unknown(key, ks))
+        if a.startswith(("-", "+", "~")) and rest_key is not None:
+            rest.append(a)
+            continue
+        slot = next((k for k in positional if k.is_list or k.name not in words), None)
+        if slot is not None:
+            put(slot, a, f"{slot.name}={a}")
+            continue
+        if rest_key is not None:
+            rest.append(a)
+            continue
+        raise ArgsError(f"unexpected argument {a!r}: {usage(cls, prog).removeprefix('usage: ')}")
+
+    values: dict[str, Any] = {}
+    for k in ks:
+        if k.rest:
+            values[k.name] = rest
+        elif k.name in words:
+            values[k.name] = _convert(k, words[k.name], shown[k.name])
+        elif k.required:
+            what = f" ({k.help})" if k.help else ""
+            raise ArgsError(f"missing {_usage_word(k).strip('[]')}{what}; {usage(cls, prog)}")
+    try:
+        return cls(**values)
+    except ArgsError:
+        raise
+    except (TypeError, ValueError) as exc:  # a __post_init__ check across keys
+        raise ArgsError(" ".join(str(exc).split())) from None
+
+
+def _unknown(key: str, ks: list[Key]) -> str:
+    name = key.lstrip("-").replace("-", "_")
+    names = [k.name for k in ks if not k.rest]
+    close = difflib.get_close_matches(name, names, n=1)
+    hint = f" (did you mean {close[0]}?)" if close else ""
+    return f"unknown argument {key!r}{hint}; keys: {', '.join(names) or 'none'}"
+
+
+def run(
+    cls: type[T],
+    argv: Sequence[str],
+    body: Callable[[T], int],
+    prog: str,
+    summary: str = "",
+    usage_prog: str = "",
+) -> int:
+    """Parse ``argv`` into ``cls`` and call ``body`` with it. A bad argument (:class:`ArgsError`, from
+    the parser or raised by ``body``) is one line on stderr (``<prog>: <problem>``) and exit code 2;
+    ``--help`` prints the help and returns 0."""
+    try:
+        args = parse(cls, argv, usage_prog or prog, summary)
+    except HelpRequested as h:
+        print(h)
+        return 0
+    except ArgsError as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+    try:
+        return body(args)
+    except ArgsError as exc:  # found by the command itself (a folder or stage that is not there)
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+
+
+def first_paragraph(doc: str | None) -> str:
+    """The first paragraph of a docstring, joined to one line."""
+    return " ".join((doc or "").strip().split("\n\n")[0].split())

@@ -1,0 +1,280 @@
+"""``sphri <verb>`` (issue 30, point 6): one dispatcher, one ``key=value`` parser, the old spellings as aliases."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Literal
+
+import pytest
+
+from sphri.command import BY_NAME, VERBS, find, help_text, main
+from sphri.command.args import ArgsError, HelpRequested, arg, keys, parse
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def _env(**extra: str) -> dict[str, str]:
+    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
+    env["PYTHONPATH"] = os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])
+    return {**env, **extra}
+
+
+def _python(args: list[str], cwd: Path, timeout: int = 300, **env: str) -> subprocess.CompletedProcess:
+    return subprocess.run(
+        [sys.executable, *args], capture_output=True, text=True, cwd=cwd, env=_env(**env), timeout=timeout
+    )
+
+
+# --------------------------------------------------------------------------- the parser, on a schema of every type
+def _even(n: int) -> str | None:
+    return None if n % 2 == 0 else "must be even"
+
+
+@dataclasses.dataclass
+class Toy:
+    source: str = arg(positional=True, metavar="SOURCE", help="where from")
+    extra: list[str] = arg([], positional=True, help="more words")
+    n: int = arg(2, check=_even, help="an even count")
+    rate: float = arg(0.5, help="a rate")
+    log: bool = arg(True, flags={"--no-log": "false"}, help="log it")
+    mode: Literal["fast", "slow"] = arg("fast", help="how")
+    names: list[str] = arg(["a", "b"], help="names")
+    out: Path | None = arg(None, help="where to")
+    limit: int | None = arg(None, help="a limit")
+    output_dir: str = arg("outputs", help="a key with an underscore")
+
+
+@dataclasses.dataclass
+class Composes:
+    out: str = arg(metavar="DIR", help="the folder")
+    overrides: list[str] = arg([], rest=True, help="config overrides")
+
+
+def test_every_spelling_of_a_key_gives_the_same_typed_value():
+    kv = parse(Toy, ["src", "n=4", "rate=0.25", "log=false", "mode=slow", "names=x,y", "out=o", "limit=3"])
+    flags = parse(
+        Toy,
+        ["src", "--n", "4", "--rate=0.25", "--no-log", "--mode", "slow", "--names", "x,y", "--out", "o", "--limit=3"],
+    )
+    assert kv == flags
+    assert kv.n == 4 and kv.rate == 0.25 and kv.log is False and kv.mode == "slow"
+    assert kv.names == ["x", "y"] and kv.out == Path("o") and kv.limit == 3
+    assert (
+        parse(Toy, ["src", "--output-dir", "d"]).output_dir == "d" == parse(Toy, ["src", "--output_dir=d"]).output_dir
+    )
+    assert parse(Toy, ["src", "--log"]).log is True  # a bool flag alone is true
+    assert parse(Toy, ["src", "limit=none"]).limit is None
+    assert parse(Toy, ["src", "names=x", "names=y"]).names == ["x", "y"]  # a repeated list key adds
+    assert parse(Toy, ["src", "n=4", "n=6"]).n == 6  # a repeated key: the last wins, as in Hydra
+    words = parse(Toy, ["src", "w1", "w2", "n=8"])
+    assert words.source == "src" and words.extra == ["w1", "w2"] and words.n == 8
+    # defaults come from the dataclass, unchanged
+    d = parse(Toy, ["src"])
+    assert (d.n, d.rate, d.log, d.mode, d.names, d.out, d.limit) == (2, 0.5, True, "fast", ["a", "b"], None, None)
+
+
+@pytest.mark.parametrize(
+    "argv, message",
+    [
+        (["src", "n=abc"], "n=abc is invalid: must be an integer"),
+        (["src", "n=3"], "n=3 is invalid: must be even"),
+        (["src", "rate=fast"], "rate=fast is invalid: must be a number"),
+        (["src", "rate=nan"], "rate=nan is invalid: must be a number"),
+        (["src", "log=maybe"], "log=maybe is invalid: must be true or false"),
+        (["src", "mode=slwo"], "mode=slwo is invalid: must be one of fast, slow (did you mean slow?)"),
+        (["src", "limit=many"], "limit=many is invalid: must be an integer"),
+        (["src", "--n"], "--n needs a value (an even count)"),
+        (["src", "nn=4"], "unknown argument 'nn' (did you mean n?); keys: source, extra, n, rate"),
+        (["src", "--ratee", "1"], "unknown argument '--ratee' (did you mean rate?)"),
+        ([], "missing SOURCE (where from); usage: toy SOURCE [EXTRA ...] [key=value ...]"),
+    ],
+)
+def test_a_bad_argument_is_one_line_naming_the_key_and_what_it_allows(argv, message):
+    with pytest.raises(ArgsError) as err:
+        parse(Toy, argv, prog="toy")
+    text = str(err.value)
+    assert message in text and "\n" not in text
+
+
+def test_a_command_that_composes_a_config_passes_its_overrides_on():
+    a = parse(Composes, ["out=d", "data.participants=2", "+debug=fast", "-m", "robot.links={l_arm: arm.obj}"])
+    assert a.out == "d" and a.overrides == ["data.participants=2", "+debug=fast", "-m", "robot.links={l_arm: arm.obj}"]
+    with pytest.raises(ArgsError, match="missing out=DIR"):
+        parse(Composes, ["data.participants=2"])
+
+
+def test_help_lists_every_key_with_its_type_default_and_meaning():
+    with pytest.raises(HelpRequested) as h:
+        parse(Toy, ["--help"], prog="toy", summary="A toy.")
+    text = str(h.value)
+    assert text.startswith("usage: toy SOURCE [EXTRA ...] [key=value ...]\n\nA toy.")
+    for line in ("n=INT", "an even count (default 2)", "mode=fast|slow", "--no-log for log=false", "names=TEXT,..."):
+        assert line in text, line
+    assert max(map(len, text.splitlines())) <= 100
+    assert [k.name for k in keys(Composes)] == ["out", "overrides"]
+
+
+# --------------------------------------------------------------------------- the dispatcher
+def test_every_verb_is_listed_with_one_line_and_loads_its_command():
+    text = help_text()
+    for v in VERBS:
+        assert f"  {v.name} " in text, v.name
+        assert v.summary and "\n" not in v.summary
+        if v.kind in ("args", "main", "hydra"):
+            assert callable(v.load(v.target)), v.name
+        if v.kind == "args":
+            assert dataclasses.is_dataclass(v.load(v.schema)), v.name
+    for name in ("run", "sweep", "report", "coverage", "list", "show", "validate", "cache", "store", "skin", "glove"):
+        assert name in BY_NAME
+    for name in ("simulate", "export", "synthesize", "stats", "warmup", "help"):
+        assert name in BY_NAME
+
+
+def test_help_and_unknown_verbs(capsys):
+    for spelling in (["help"], ["--help"], ["-h"]):
+        assert main(spelling) == 0
+        assert "verbs:" in capsys.readouterr().out
+    assert main(["repot", "DIR"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("sphri: unknown verb 'repot' (did you mean report")
+    assert "verbs: run, sweep, report" in err[0]
+    with pytest.raises(ValueError, match="did you mean validate"):
+        find("validat")
+
+
+def test_each_verb_answers_help_through_the_dispatcher(capsys):
+    """Every verb's arguments from ``sphri VERB --help`` (the hardware verbs print their own usage)."""
+    for v in VERBS:
+        if v.kind in ("hydra", "help"):
+            continue
+        assert main([v.name, "--help"]) == 0, v.name
+        out = capsys.readouterr().out
+        assert out.strip(), v.name
+        if v.kind == "args":
+            assert out.startswith(f"usage: sphri {v.name}"), (v.name, out[:200])
+    assert main(["help", "report"]) == 0 and "n_boot=INT" in capsys.readouterr().out
+
+
+def test_cheap_verbs_run_for_real(tmp_path, capsys):
+    assert main(["list", "robot"]) == 0
+    assert "  reachy2 " in capsys.readouterr().out
+    assert main(["show", "noise=crosstalk", "noise.alpha=0.3"]) == 0
+    assert "[changed; default 0.1]" in capsys.readouterr().out
+    assert main(["show", "--group", "nosuch"]) == 2
+    assert main(["validate", "+robot=reachy", "encoder.res=18"]) == 0
+    assert "config OK" in capsys.readouterr().out
+    assert main(["validate", "noise.p=1.5"]) == 2
+    assert "noise.p" in capsys.readouterr().err
+    (tmp_path / "cache" / "data").mkdir(parents=True)
+    assert main(["cache", "info", f"dir={tmp_path / 'cache'}"]) == 0
+    assert "data           0 entries" in capsys.readouterr().out
+    db = tmp_path / "mlflow.db"
+    db.write_text("not a database")
+    assert main(["store", "check", str(db)]) == 1
+    assert "not a readable SQLite database" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(
+    "argv, line",
+    [
+        (["cache", "infoo"], "sphri cache: action=infoo is invalid: must be one of info, clear (did you mean info?)"),
+        (["cache", "info", "dir"], "sphri cache: no stage ['dir'] in outputs/cache"),
+        (["cache", "clear", "older_than_days=soon"], "sphri cache: older_than_days=soon is invalid: must be a number"),
+        (["report", "DIR", "n_boot=-1"], "sphri report: n_boot=-1 is invalid: must be >= 0"),
+        (["report", "DIR", "--ci"], "sphri report: --ci needs a value (interval coverage)"),
+        (["report"], "sphri report: missing SOURCE"),
+        (["synthesize", "data.participants=2"], "sphri synthesize: missing out=DIR (the folder to write)"),
+        (["synthesize", "out=d", "what=both"], "sphri synthesize: what=both is invalid: must be one of gestures"),
+        (["stats", "cost_threshold=2"], "sphri stats: cost_threshold=2 is invalid: must be in (0, 1]"),
+        (["store", "fix", "x.db"], "sphri store: action=fix is invalid: must be one of check, repair"),
+        (["derive-reachy2", "src=x", "faces=0"], "sphri derive-reachy2: faces=0 is invalid: must be > 0"),
+        (["list", "--groups"], "sphri list: --groups needs a value"),
+        (["warmup", "now"], "sphri warmup: unexpected argument 'now'"),
+    ],
+)
+def test_a_wrong_type_or_a_missing_value_is_one_line_and_exit_2(argv, line, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "outputs" / "cache").mkdir(parents=True)
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(line), err
+
+
+# --------------------------------------------------------------------------- the console script and the aliases
+def test_the_old_module_spellings_still_work(tmp_path):
+    """Every documented ``python -m sphri.<module>`` spelling is an alias of its verb, with its error prefix."""
+    (tmp_path / "cache" / "evaluate").mkdir(parents=True)
+    cache = _python(["-m", "sphri.cache", "info", f"dir={tmp_path / 'cache'}"], tmp_path)
+    assert cache.returncode == 0 and "evaluate       0 entries" in cache.stdout, cache.stderr
+    report = _python(["-m", "sphri.report", str(tmp_path), "--n-boot", "10", "--no-log"], tmp_path)
+    assert report.returncode == 2 and report.stderr.strip().startswith("sphri.report: "), report.stderr
+    assert "mlflow_parent_run.json" in report.stderr
+    derive = _python(["-m", "sphri.robots.reachy2_derivative", "--src", str(tmp_path), "--faces", "x"], tmp_path)
+    assert derive.returncode == 2
+    assert derive.stderr.strip() == "sphri.robots.reachy2_derivative: faces=x is invalid: must be an integer"
+    cli = _python(["-m", "sphri.cli", "list", "noise"], tmp_path)
+    assert cli.returncode == 0 and "  crosstalk " in cli.stdout
+    assert _python(["-m", "sphri.cli", "lists"], tmp_path).stderr.startswith("sphri: unknown verb 'lists'")
+
+
+def _console(args: list[str], cwd: Path, timeout: int = 600, **env: str) -> subprocess.CompletedProcess:
+    """The ``sphri`` console script (``sphri.completion:main``, as pip's wrapper runs it)."""
+    probe = "import sys; from sphri.completion import main; sys.argv[0] = 'sphri'; sys.exit(main())"
+    return _python(["-c", probe, *args], cwd, timeout, **env)
+
+
+def test_console_script_runs_a_job_with_or_without_the_run_verb(tmp_path):
+    job = _console(["run", "+debug=fast", "tracking.enabled=false", f"output_dir={tmp_path / 'out'}"], tmp_path)
+    assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
+    assert "accuracy" in job.stdout
+    bad = _console(["+debug=fast", "encoder.res=abc", f"output_dir={tmp_path / 'o2'}"], tmp_path)
+    assert bad.returncode == 2 and bad.stderr.strip().startswith("sphri: invalid config: encoder.res"), bad.stderr
+    sweep = _console(["sweep", "+debug=fast", "encoder.res=0,4", f"output_dir={tmp_path / 'o3'}"], tmp_path)
+    assert sweep.returncode == 2 and "encoder.res=0" in sweep.stderr, sweep.stderr[-2000:]  # swept: -m was added
+    assert not (tmp_path / "o3" / "mlflow.db").exists()
+    verbs = _console(["help"], tmp_path)
+    assert verbs.returncode == 0 and "  validate " in verbs.stdout
+
+
+def test_the_console_script_imports_only_the_standard_library():
+    """The first word of every TAB reads the verb table: ``sphri.completion`` and ``sphri.command`` (with its
+    parser) must not pull in Hydra, numpy or yaml."""
+    probe = (
+        "import sys; import sphri.completion, sphri.command, sphri.command.args; "
+        "print(sorted({m.split('.')[0] for m in sys.modules} & {'hydra', 'omegaconf', 'numpy', 'yaml', 'torch'}))"
+    )
+    out = _python(["-c", probe], REPO)
+    assert out.returncode == 0 and out.stdout.strip() == "[]", out.stdout + out.stderr
+
+
+def _tab(line: str, cache: Path) -> list[str]:
+    probe = "import sys; sys.argv = ['sphri', '-sc', 'query=bash']; from sphri.completion import main; main()"
+    run = _python(["-c", probe], REPO, 300, COMP_LINE=line, XDG_CACHE_HOME=str(cache))
+    assert run.returncode == 0, run.stderr[-2000:]
+    return run.stdout.split()
+
+
+def test_tab_completes_verbs_first_then_what_each_verb_takes(tmp_path):
+    first = _tab("sphri ", tmp_path)
+    assert {v.name for v in VERBS} <= set(first) and "encoder=" in first  # a verb, or an override of `run`
+    assert "+debug=" in _tab("sphri +de", tmp_path)
+    report = _tab("sphri report DIR ", tmp_path)
+    assert {"n_boot=", "marks=auto", "marks=false", "mlflow=", "formats="} <= set(report)
+    assert "encoder=" not in report  # report takes no config overrides
+    assert {"info", "clear", "dir="} <= set(_tab("sphri cache ", tmp_path))
+    hydra = ["encoder=coverage", "encoder=ellipse", "encoder=proximity"]
+    assert _tab("sphri run encoder=", tmp_path) == hydra
+    assert set(hydra) <= set(_tab("sphri validate encoder=", tmp_path))  # validate takes overrides
+    assert {"json=", "cost_threshold=", "encoder="} <= set(_tab("sphri stats ", tmp_path))
+    assert "report" in _tab("sphri help ", tmp_path)
+    # asked again, the verbs come from the cache: nothing heavy is imported
+    probe = (
+        "import sys; from sphri.completion import answer; words = answer('sphri '); "
+        "print('report' in words.split(), 'hydra' in sys.modules)"
+    )
+    again = _python(["-c", probe], REPO, 300, XDG_CACHE_HOME=str(tmp_path))
+    assert again.stdout.split() == ["True", "False"], again.stdout + again.stderr
