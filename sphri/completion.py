@@ -33,6 +33,10 @@ import os
 import re
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sphri.command import Verb
 
 _PACKAGE = Path(__file__).resolve().parent
 _PATH_START = (".", "/", "\\", "~")
@@ -101,7 +105,7 @@ def _hydra_answer(line: str) -> str:
     return out.getvalue()
 
 
-def _verb_line(line: str) -> tuple[object | None, str]:
+def _verb_line(line: str) -> tuple[Verb | None, str]:
     """(the verb of ``line`` when its first word is complete and names one, else None; the line as Hydra
     would see it: the verb left out, ``sweep`` as ``-m``)."""
     from sphri.command import BY_NAME
@@ -117,13 +121,13 @@ def _verb_line(line: str) -> tuple[object | None, str]:
     return verb, " ".join([words[0], *(["-m"] if verb.name == "sweep" else []), *rest])
 
 
-def _schema_keys(verb) -> list[str]:
+def _schema_keys(verb: Verb) -> list[str]:
     from sphri.command.args import keys
 
     return [k.name for k in keys(verb.load(verb.schema)) if not k.rest]
 
 
-def _verb_answer(verb, line: str) -> str:
+def _verb_answer(verb: Verb, line: str) -> str:
     """The words a ``key=value`` verb offers after ``line``: its keys (``key=`` and ``key=choice``), the
     choices of the positional argument being typed, and where it takes overrides, Hydra's answer."""
     from sphri.command.args import keys
@@ -132,7 +136,7 @@ def _verb_answer(verb, line: str) -> str:
     context = line.rpartition(" ")[0].split(" ")[2:]
     bare = [w for w in context if w and "=" not in w and not w.startswith(("-", "+", "~"))]
     positional = [k for k in ks if k.positional]
-    words = []
+    words: list[str] = []
     if len(bare) < len(positional):
         words += positional[len(bare)].choices()
     for k in ks:
