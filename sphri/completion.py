@@ -157,8 +157,9 @@ def _compute(line: str) -> str:
 
     verb, hydra_line = _verb_line(line)
     if verb is None:
-        if len(line.split(" ")) == 2:  # the first word: a verb, or an override of `run`
-            return "\n".join(v.name for v in VERBS) + "\n" + _hydra_answer(line)
+        words = line.split(" ")
+        if len(words) == 2 and not any(c in words[1] for c in "=./") and not words[1].startswith(("+", "~", "-")):
+            return "\n".join(v.name for v in VERBS) + "\n" + _hydra_answer(line)  # a verb, or an override of run
         return _hydra_answer(line)
     if verb.kind == "hydra":
         return _hydra_answer(hydra_line)

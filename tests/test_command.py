@@ -262,6 +262,7 @@ def test_tab_completes_verbs_first_then_what_each_verb_takes(tmp_path):
     first = _tab("sphri ", tmp_path)
     assert {v.name for v in VERBS} <= set(first) and "encoder=" in first  # a verb, or an override of `run`
     assert "+debug=" in _tab("sphri +de", tmp_path)
+    assert _tab("sphri encoder=", tmp_path) == ["encoder=coverage", "encoder=ellipse", "encoder=proximity"]  # no verb
     report = _tab("sphri report DIR ", tmp_path)
     assert {"n_boot=", "marks=auto", "marks=false", "mlflow=", "formats="} <= set(report)
     assert "encoder=" not in report  # report takes no config overrides
