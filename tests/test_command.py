@@ -218,6 +218,8 @@ def test_the_old_module_spellings_still_work(tmp_path):
     assert derive.stderr.strip() == "sphri.robots.reachy2_derivative: faces=x is invalid: must be an integer"
     cli = _python(["-m", "sphri.cli", "list", "noise"], tmp_path)
     assert cli.returncode == 0 and "  crosstalk " in cli.stdout
+    verb = _python(["-m", "sphri.command", "list", "noise"], tmp_path)  # the console script without the script
+    assert verb.returncode == 0 and verb.stdout == cli.stdout
     assert _python(["-m", "sphri.cli", "lists"], tmp_path).stderr.startswith("sphri: unknown verb 'lists'")
 
 
