@@ -18,8 +18,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from sphri.config import Configured
+from sphri.geometry.link import check_link, face_normals, principal_axes, sample_surface
 from sphri.surface.charts import primitive_distance
-from sphri.surface.meshutil import check_link, face_normals, principal_axes, sample_surface
 from sphri.surface.schema import CylinderSurfaceSchema
 from sphri.types import Link, SurfaceMap
 
