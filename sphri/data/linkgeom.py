@@ -72,7 +72,8 @@ class LinkSurface:
         self.angle = np.arctan2(d @ axes[2], d @ axes[1])
         radial = d - self.axial[:, None] * axes[0]
         self.radius = np.linalg.norm(radial, axis=1)
-        self._tree = cKDTree(pts)  # of the outward samples kept here (not the link's samples)
+        self.tree = cKDTree(pts)
+        """KD-tree of :attr:`points` (the outward samples kept here)."""
 
     @property
     def length_m(self) -> float:
@@ -111,7 +112,7 @@ class LinkSurface:
 
     def project(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nearest surface samples to points ``q`` (..., 3): (points, normals)."""
-        _, idx = self._tree.query(q)
+        _, idx = self.tree.query(q)
         return self.points[idx], self.normals[idx]
 
     def height_profile(self, p: np.ndarray, n: np.ndarray, direction: np.ndarray, s: np.ndarray) -> np.ndarray:

@@ -20,6 +20,7 @@ __getattr__, __all__ = lazy_exports(
     {
         "LinkGeometry": "sphri.geometry.link",
         "geometry_of": "sphri.geometry.link",
+        "geometry_of_arrays": "sphri.geometry.link",
         "check_link": "sphri.geometry.link",
         "closest_points": "sphri.geometry.link",
         "face_areas": "sphri.geometry.link",
