@@ -351,3 +351,23 @@ def test_layer_table_names_only_modules_that_exist():
     assert not stale, f"docs/ARCHITECTURE.md's layer table names modules that do not exist: {stale}"
     twice = sorted({n for _, names in table for n in names if sum(n in ns for _, ns in table) > 1})
     assert not twice, f"docs/ARCHITECTURE.md's layer table names these in two rows: {twice}"
+
+
+def test_the_geometry_floor_sits_below_the_surfaces_and_the_stages():
+    """issue 30 point 5: sphri.geometry is its own row under the bodies and surfaces; it imports only the
+    foundation, and importing a surface or a stage from it is a violation the layer check names."""
+    table = layer_table()
+    floor, bodies = layer_of("sphri.geometry.link", table), layer_of("sphri.surface.density", table)
+    assert floor is not None and bodies is not None and floor[1] == "geometry floor" and floor[0] < bodies[0]
+    graph = module_graph()
+    assert {m for m in graph if m.startswith("sphri.geometry")} >= {"sphri.geometry.link", "sphri.geometry.samples"}
+    above = [
+        (m, d) for m in graph if m.startswith("sphri.geometry") for d in graph[m] if layer_of(d, table)[0] > floor[0]
+    ]
+    assert not above, above
+    bad = {m: dict(deps) for m, deps in graph.items()}
+    bad["sphri.geometry.samples"]["sphri.surface.density"] = "sphri/geometry/samples.py:1"
+    with pytest.raises(
+        AssertionError, match=r"sphri\.geometry\.samples \(layer geometry floor\) imports sphri\.surface"
+    ):
+        check_layers(bad, table)

@@ -22,8 +22,9 @@ from numba import njit
 from scipy import sparse
 from scipy.sparse.csgraph import connected_components
 
+from sphri.geometry.samples import SurfaceSamples
 from sphri.surface.charts import chart_of
-from sphri.surface.density import SurfaceKernel, SurfaceSamples, _neighbour_csr
+from sphri.surface.density import SurfaceKernel
 
 
 @dataclass
@@ -214,8 +215,8 @@ def describe_regions(
     if not mask.any():
         return []
     idx = np.flatnonzero(mask)
-    indptr, nbr, _ = _neighbour_csr(samples, 2.5 * samples.spacing_m)
-    g = sparse.csr_matrix((np.ones(nbr.size), nbr, indptr), shape=(samples.n, samples.n))
+    indptr, nbr, _ = samples.neighbours(2.5 * samples.spacing_m)
+    g = sparse.csr_matrix((np.ones(nbr.size), nbr, indptr), shape=(samples.n, samples.n), copy=True)
     _, labels = connected_components(g[idx][:, idx], directed=False)
     w = samples.area_m2 if weight is None else np.asarray(weight, dtype=np.float64)
     total = float(w[idx].sum())

@@ -29,13 +29,12 @@ Inside modes (what "the capsule is inside the link's solid" means):
 
 from __future__ import annotations
 
-import hashlib
-import threading
-from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
+
+from sphri.geometry.link import geometry_of_arrays
 
 #: Inside modes accepted by :func:`prepare_mesh` (see the module docstring).
 INSIDE_MODES: tuple[str, ...] = ("auto", "hull", "winding", "none")
@@ -455,33 +454,15 @@ def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:
     )
 
 
-_CACHE: OrderedDict[tuple, MeshAccel] = OrderedDict()
-_CACHE_SIZE = 16
-_LOCK = threading.Lock()
-
-
 def prepare_mesh(vertices: np.ndarray, faces: np.ndarray, inside: str = "auto") -> MeshAccel:
     """Acceleration data for a mesh (vertices (V, 3) metres, faces (F, 3) int).
 
-    ``inside`` is one of :data:`INSIDE_MODES`. Results are cached by the
-    bytes of the mesh and the mode (a small LRU), so calling this once per
-    frame chunk costs one hash.
+    ``inside`` is one of :data:`INSIDE_MODES`. Results are kept on the mesh's
+    geometry (:func:`sphri.geometry.link.geometry_of_arrays`, shared by the
+    bytes of the mesh), one per mode, so calling this once per frame chunk
+    costs one hash.
     """
     if inside not in INSIDE_MODES:
         raise ValueError(f"inside={inside!r} is invalid: allowed values: {list(INSIDE_MODES)}")
     v, f = _as_mesh_arrays(vertices, faces)
-    h = hashlib.blake2b(digest_size=16)
-    h.update(v.tobytes())
-    h.update(f.tobytes())
-    key = (h.hexdigest(), v.shape, f.shape, inside)
-    with _LOCK:
-        hit = _CACHE.get(key)
-        if hit is not None:
-            _CACHE.move_to_end(key)
-            return hit
-    accel = _build(v, f, inside)
-    with _LOCK:
-        _CACHE[key] = accel
-        while len(_CACHE) > _CACHE_SIZE:
-            _CACHE.popitem(last=False)
-    return accel
+    return geometry_of_arrays(v, f).derived(("contact", inside), lambda: _build(v, f, inside))

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 import numpy as np
 import trimesh
 
+from sphri.geometry.link import geometry_of_arrays
+
 #: Directions (unit, irrational components) of the parity rays of :func:`inside_by_rays`.
 PARITY_DIRECTIONS = np.array(
     [
@@ -50,26 +52,15 @@ def has_embree() -> bool:
     return bool(getattr(trimesh.ray, "has_embree", False))
 
 
-def _intersector(mesh: trimesh.Trimesh, engine: str):
+def _intersector(vertices: np.ndarray, faces: np.ndarray, engine: str):
+    """The mesh's intersector for ``engine``, kept on its geometry (:func:`sphri.geometry.link.geometry_of_arrays`)."""
     if engine not in ENGINES:
         raise ValueError(f"engine={engine!r} is invalid: allowed values: {list(ENGINES)}")
     if engine == "auto":
         engine = "embree" if has_embree() else "triangle"
-    if engine == "embree":
-        if not has_embree():
-            raise RuntimeError("engine='embree' needs the embreex package (pip install embreex)")
-        from trimesh.ray.ray_pyembree import RayMeshIntersector
-
-        return RayMeshIntersector(mesh, scale_to_box=True)
-    from trimesh.ray.ray_triangle import RayMeshIntersector
-
-    return RayMeshIntersector(mesh)
-
-
-def _mesh(vertices, faces) -> trimesh.Trimesh:
-    return trimesh.Trimesh(
-        np.asarray(vertices, dtype=np.float64), np.asarray(faces, dtype=np.int64), process=False, validate=False
-    )
+    if engine == "embree" and not has_embree():
+        raise RuntimeError("engine='embree' needs the embreex package (pip install embreex)")
+    return geometry_of_arrays(vertices, faces).intersector(engine)
 
 
 def _unit(d: np.ndarray) -> np.ndarray:
@@ -117,7 +108,7 @@ def first_hits(vertices, faces, origins, directions, engine: str = "auto") -> Ra
     bary = np.full((n, 3), np.nan)
     if n == 0:
         return RayHits(tri, dist, point, bary)
-    rmi = _intersector(_mesh(v, f), engine)
+    rmi = _intersector(v, f, engine)
     idx_tri, idx_ray = rmi.intersects_id(o, d, multiple_hits=False)[:2]
     idx_tri = np.asarray(idx_tri, dtype=np.int64)
     idx_ray = np.asarray(idx_ray, dtype=np.int64)
@@ -139,7 +130,7 @@ def inside_by_rays(vertices, faces, points, engine: str = "auto") -> np.ndarray:
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces, dtype=np.int64)
     pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
-    rmi = _intersector(_mesh(v, f), engine)
+    rmi = _intersector(v, f, engine)
     votes = np.zeros(pts.shape[0], dtype=np.int64)
     for d in PARITY_DIRECTIONS:
         dirs = np.broadcast_to(d, pts.shape).copy()

@@ -1,7 +1,8 @@
 """Where on a link the synthetic hand may touch: surface samples, axes and local frames.
 
-:class:`LinkSurface` samples the link's triangle mesh (area-weighted, fixed
-seed so it never depends on the data seed), finds its principal axes (the
+:class:`LinkSurface` takes the link's samples, normals and areas from its
+geometry (:func:`sphri.geometry.geometry_of`: area-weighted, fixed seed so
+it never depends on the data seed), finds its principal axes (the
 long axis is the direction of largest spread) and answers the generator's
 questions: sample a touch point near a preferred place, give the local frame
 there (outward normal, the long axis in the tangent plane), project points
@@ -13,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sphri.surface.meshutil import DEGENERATE_AREA_M2, principal_axes, sample_surface, triangle_normals_areas
+from sphri.geometry.link import DEGENERATE_AREA_M2, geometry_of, principal_axes
 from sphri.types import Link
 
 
@@ -26,11 +27,13 @@ class LinkSurface:
     """
 
     def __init__(self, link: Link, n_samples: int = 20000, seed: int = 12345):
-        v = np.asarray(link.vertices, dtype=np.float64)
-        f = np.asarray(link.faces, dtype=np.int64)
+        v = np.asarray(link.vertices)
+        f = np.asarray(link.faces)
         if v.ndim != 2 or v.shape[1] != 3 or f.ndim != 2 or f.shape[1] != 3 or len(f) == 0:
             raise ValueError(f"link {link.name!r}: needs (V, 3) vertices and (F, 3) faces, got {v.shape}, {f.shape}")
-        unit, area = triangle_normals_areas(v, f)
+        geom = geometry_of(link)
+        v, f = geom.vertices, geom.faces
+        unit, area = geom.face_normals, geom.face_areas
         usable = area > DEGENERATE_AREA_M2
         if not usable.any():
             from sphri.robots.validate import MeshError
@@ -39,7 +42,7 @@ class LinkSurface:
                 f"link {link.name!r}: no usable outward surface to place hands on "
                 "(0 non-degenerate faces); a link needs a 3-D surface"
             )
-        pts, face = sample_surface(link, n_samples, seed)
+        pts, face = geom.sample(n_samples, seed)
         nrm = unit[face]
         if link.watertight and np.einsum("ij,ij->i", v[f[usable, 0]], unit[usable]) @ area[usable] < 0:
             nrm = -nrm  # wound inwards: the signed volume is negative
@@ -69,7 +72,8 @@ class LinkSurface:
         self.angle = np.arctan2(d @ axes[2], d @ axes[1])
         radial = d - self.axial[:, None] * axes[0]
         self.radius = np.linalg.norm(radial, axis=1)
-        self._tree = cKDTree(pts)
+        self.tree = cKDTree(pts)
+        """KD-tree of :attr:`points` (the outward samples kept here)."""
 
     @property
     def length_m(self) -> float:
@@ -108,7 +112,7 @@ class LinkSurface:
 
     def project(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Nearest surface samples to points ``q`` (..., 3): (points, normals)."""
-        _, idx = self._tree.query(q)
+        _, idx = self.tree.query(q)
         return self.points[idx], self.normals[idx]
 
     def height_profile(self, p: np.ndarray, n: np.ndarray, direction: np.ndarray, s: np.ndarray) -> np.ndarray:

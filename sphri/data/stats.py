@@ -65,7 +65,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.spatial import cKDTree
 
 from sphri.command.args import arg, first_paragraph, run
 from sphri.data.cost_sensor import CELL_THRESHOLD, describe_sensor, sensor_trials
@@ -163,7 +162,7 @@ def _trial_areas(dataset: GestureDataset, contacts: Contacts, robot: Robot, ct: 
     for region in np.unique(regions):
         surf = LinkSurface(robot.link_for(str(region)), n_samples=6000)
         per_sample = surf.area_m2 / 6000.0
-        tree = cKDTree(surf.points)
+        tree = surf.tree
         r_rows = rows & (regions[ct] == region)
         idx = np.flatnonzero(r_rows)
         if idx.size == 0:

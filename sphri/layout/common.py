@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sphri.geometry.link import face_areas, face_normals, project_along, sample_surface
 from sphri.surface.charts import chart_of, from_uv, to_uv
-from sphri.surface.meshutil import face_areas, face_normals, project_along, sample_surface
 from sphri.types import Link, SurfaceMap
 
 

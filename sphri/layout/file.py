@@ -22,10 +22,10 @@ from pathlib import Path
 
 import numpy as np
 
+from sphri.geometry.link import check_link, closest_points, face_normals
 from sphri.layout.common import nn_spacing, voronoi_areas
 from sphri.layout.schema import FileLayoutSchema
 from sphri.surface.charts import to_uv
-from sphri.surface.meshutil import check_link, closest_points, face_normals
 from sphri.types import Layout, Link, SurfaceMap
 
 log = logging.getLogger(__name__)

@@ -21,8 +21,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from sphri.config import require_choice
+from sphri.geometry.link import triangle_normals_areas
 from sphri.robots.schema import UNITS
-from sphri.surface.meshutil import triangle_normals_areas
 from sphri.types import Link
 
 if TYPE_CHECKING:  # trimesh (about 0.5-1 s to import) loads where a mesh is checked or read, not on a cached run

@@ -337,15 +337,13 @@ def _face_patches(
     body: BodySurface, li: int, vertices: np.ndarray, faces: np.ndarray, of_element: np.ndarray
 ) -> np.ndarray:
     """(F,) patch of each face (link frame): that of the nearest element on the same side (normals agree)."""
-    from scipy.spatial import cKDTree
-
     s = body.local[li]
     tri = vertices[faces]
     cen = tri.mean(axis=1)
     nrm = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-18)
     k = min(8, s.n)
-    _, nb = cKDTree(s.points_m).query(cen, k=k)
+    _, nb = s.tree.query(cen, k=k)
     nb = nb.reshape(len(cen), k)
     agree = np.einsum("fkd,fd->fk", s.normal[nb], nrm) > 0.0
     pick = np.where(agree.any(axis=1), np.argmax(agree, axis=1), 0)

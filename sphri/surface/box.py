@@ -17,8 +17,8 @@ import numpy as np
 import trimesh
 
 from sphri.config import Configured
+from sphri.geometry.link import check_link, sample_surface
 from sphri.surface.charts import primitive_distance
-from sphri.surface.meshutil import check_link, sample_surface
 from sphri.surface.schema import BoxSurfaceSchema
 from sphri.types import Link, SurfaceMap
 

@@ -18,8 +18,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from sphri.config import Configured
+from sphri.geometry.link import check_link, geometry_of
 from sphri.surface.charts import primitive_distance
-from sphri.surface.meshutil import check_link, face_normals, principal_axes, sample_surface
 from sphri.surface.schema import CylinderSurfaceSchema
 from sphri.types import Link, SurfaceMap
 
@@ -93,15 +93,16 @@ def fit_cylinder(
 ) -> SurfaceMap:
     """Fit a cylinder to ``link`` and return its chart (see module docstring)."""
     check_link(link)
-    pts, face = sample_surface(link, n_samples, seed)
-    nrm = face_normals(link)[face]
-    centroid, eig, pca = principal_axes(pts)
+    geom = geometry_of(link)
+    pts, face = geom.sample(n_samples, seed)
+    nrm = geom.face_normals[face]
+    centroid, eig, pca = geom.axes(n_samples, seed)
     notes: list[str] = []
     if axis == "auto":
         candidates = [pca[0], pca[1], pca[2]]
     else:
         candidates = [_LINK_AXES[axis]]
-    used_vertices = np.asarray(link.vertices, dtype=np.float64)[np.unique(np.asarray(link.faces))]
+    used_vertices = geom.used_vertices
 
     fits = []
     for a0 in candidates:

@@ -1,10 +1,9 @@
 """Contact density on a link's surface: samples, footprints and kernel smoothing.
 
-The surface is represented by ``P`` area-weighted random samples (about one
-per ``spacing_mm``^2); each sample stands for its surface Voronoi cell (the
-surface points nearer to it than to any other sample), whose area is
-measured by Monte-Carlo with 24 dense points per sample. Those cells are the
-*surface elements* of the coverage analysis.
+The surface is represented by the link's surface elements
+(:class:`~sphri.geometry.samples.SurfaceSamples` from
+:func:`~sphri.geometry.samples.sample_link`, kept on the link's geometry with
+their search tree and neighbour graphs; re-exported here).
 
 - :func:`touched_elements`: the (frame, element) pairs of a set of contacts:
   each contact row touches the element nearest its ``point_m`` (among the 4
@@ -24,16 +23,19 @@ measured by Monte-Carlo with 24 dense points per sample. Those cells are the
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 from numba import njit
 from scipy import sparse
 from scipy.sparse.csgraph import dijkstra
-from scipy.spatial import cKDTree
 
-from sphri.surface.meshutil import check_link, face_areas, face_normals, sample_surface
-from sphri.types import Link
+from sphri.geometry.samples import (
+    AREA_POINTS_PER_SAMPLE,
+    MIN_NORMAL_DOT,
+    SurfaceSamples,
+    knn_graph,
+    neighbour_csr,
+    sample_link,
+)
 
 KERNELS = ("geodesic", "euclidean")
 FOOTPRINTS = ("patch", "point")
@@ -41,141 +43,15 @@ FOOTPRINTS = ("patch", "point")
 CUTOFF_SIGMAS = 3.0
 #: Neighbours per sample in the geodesic graph.
 GRAPH_K = 10
-#: Opposite-facing samples (normals more than 120 degrees apart) are never neighbours.
-MIN_NORMAL_DOT = -0.5
-#: Dense points per sample that measure the cells' areas.
-AREA_POINTS_PER_SAMPLE = 24
-
-
-@dataclass(frozen=True)
-class SurfaceSamples:
-    """``P`` samples of a link surface with their cells' areas (metres, link frame)."""
-
-    link: str
-    points_m: np.ndarray
-    """(P, 3) float64 sample positions on the surface."""
-    normal: np.ndarray
-    """(P, 3) float64 outward unit normals (of the sampled triangle)."""
-    face: np.ndarray
-    """(P,) int64 triangle of each sample."""
-    area_m2: np.ndarray
-    """(P,) float64 area of each sample's surface Voronoi cell (sums to the link's area)."""
-    spacing_m: float
-    """Nominal spacing: sqrt(area / P)."""
-
-    @property
-    def n(self) -> int:
-        return int(self.points_m.shape[0])
-
-    @property
-    def total_area_m2(self) -> float:
-        return float(self.area_m2.sum())
-
-    def nearest(self, points: np.ndarray, normals: np.ndarray | None = None, k: int = 4) -> np.ndarray:
-        """(K,) int64 nearest sample to each of (K, 3) points; with ``normals``
-        (K, 3) the nearest of the ``k`` closest whose normal agrees (dot > 0),
-        falling back to the nearest."""
-        pts = np.asarray(points, dtype=np.float64)
-        if pts.ndim != 2 or pts.shape[1] != 3:
-            raise ValueError(f"points must be (K, 3) metres, got {pts.shape}")
-        if pts.shape[0] == 0:
-            return np.zeros(0, dtype=np.int64)
-        tree = _tree(self)
-        kk = min(k, self.n)
-        _, idx = tree.query(pts, k=kk)
-        idx = idx.reshape(pts.shape[0], kk)
-        if normals is None or kk == 1:
-            return idx[:, 0].astype(np.int64)
-        nrm = np.asarray(normals, dtype=np.float64)
-        agree = np.einsum("kjc,kc->kj", self.normal[idx], nrm) > 0
-        first = np.where(agree.any(axis=1), agree.argmax(axis=1), 0)
-        return idx[np.arange(idx.shape[0]), first].astype(np.int64)
-
-    def interpolation(
-        self, points: np.ndarray, normals: np.ndarray | None = None, k: int = 6
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Inverse-distance weights of the ``k`` nearest samples of (K, 3) points:
-        ``idx (K, k)`` and ``w (K, k)`` (rows sum to 1; samples facing away
-        from ``normals`` get zero weight unless none faces the same way)."""
-        pts = np.asarray(points, dtype=np.float64)
-        if pts.ndim != 2 or pts.shape[1] != 3:
-            raise ValueError(f"points must be (K, 3) metres, got {pts.shape}")
-        kk = min(k, self.n)
-        d, idx = _tree(self).query(pts, k=kk)
-        d, idx = d.reshape(-1, kk), idx.reshape(-1, kk)
-        w = 1.0 / (d + 0.05 * self.spacing_m)
-        if normals is not None:
-            ok = np.einsum("kjc,kc->kj", self.normal[idx], np.asarray(normals, dtype=np.float64)) > 0
-            ok[~ok.any(axis=1), 0] = True
-            w = w * ok
-        w /= w.sum(axis=1, keepdims=True)
-        return idx, w
-
-    def interpolate(
-        self, values: np.ndarray, points: np.ndarray, normals: np.ndarray | None = None, k: int = 6
-    ) -> np.ndarray:
-        """Values (..., P) at the samples -> (..., K) at (K, 3) points (see :meth:`interpolation`)."""
-        idx, w = self.interpolation(points, normals, k)
-        return np.einsum("...kj,kj->...k", np.asarray(values, dtype=np.float64)[..., idx], w)
-
-
-_TREES: dict[int, tuple[SurfaceSamples, cKDTree]] = {}
-
-
-def _tree(s: SurfaceSamples) -> cKDTree:
-    hit = _TREES.get(id(s))
-    if hit is not None and hit[0] is s:
-        return hit[1]
-    tree = cKDTree(s.points_m)
-    if len(_TREES) > 16:
-        _TREES.clear()
-    _TREES[id(s)] = (s, tree)
-    return tree
-
-
-def sample_link(link: Link, spacing_mm: float = 4.0, seed: int = 0, max_samples: int = 80_000) -> SurfaceSamples:
-    """Area-weighted samples about ``spacing_mm`` apart, with their cells' areas."""
-    check_link(link)
-    if not spacing_mm > 0:
-        raise ValueError(f"spacing_mm={spacing_mm} is invalid: must be > 0")
-    areas = face_areas(link)
-    total = float(areas.sum())
-    n = int(np.ceil(total / (spacing_mm * 1e-3) ** 2))
-    if n > max_samples:
-        raise ValueError(
-            f"link {link.name!r}: {total * 1e4:.0f} cm^2 at {spacing_mm} mm spacing needs {n} samples "
-            f"(> {max_samples}); raise the spacing"
-        )
-    n = max(n, 64)
-    pts, face = sample_surface(link, n, seed)
-    normals = face_normals(link)[face]
-    dense, dface = sample_surface(link, AREA_POINTS_PER_SAMPLE * n, seed + 1)
-    s0 = SurfaceSamples(link.name, pts, normals, face, np.full(n, total / n), float(np.sqrt(total / n)))
-    owner = s0.nearest(dense, face_normals(link)[dface])
-    counts = np.bincount(owner, minlength=n).astype(np.float64)
-    # cells no dense point fell in keep a sliver of area so every element is usable
-    counts = np.maximum(counts, 0.5)
-    area = total * counts / counts.sum()
-    return SurfaceSamples(link.name, pts, normals, face, area, float(np.sqrt(total / n)))
-
-
-# ----------------------------------------------------------------------------- footprints
-
-
-def _neighbour_csr(s: SurfaceSamples, radius_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Same-facing sample pairs within ``radius_m``, CSR sorted by distance per row."""
-    pairs = _tree(s).query_pairs(radius_m, output_type="ndarray")
-    if pairs.size:
-        same = np.einsum("kc,kc->k", s.normal[pairs[:, 0]], s.normal[pairs[:, 1]]) > 0
-        pairs = pairs[same]
-    i = np.concatenate([pairs[:, 0], pairs[:, 1]]) if pairs.size else np.zeros(0, np.int64)
-    j = np.concatenate([pairs[:, 1], pairs[:, 0]]) if pairs.size else np.zeros(0, np.int64)
-    d = np.linalg.norm(s.points_m[i] - s.points_m[j], axis=1)
-    order = np.lexsort((d, i))
-    i, j, d = i[order], j[order], d[order]
-    indptr = np.zeros(s.n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(i, minlength=s.n), out=indptr[1:])
-    return indptr, j.astype(np.int64), d
+__all__ = [
+    "AREA_POINTS_PER_SAMPLE",
+    "MIN_NORMAL_DOT",
+    "SurfaceKernel",
+    "SurfaceSamples",
+    "graph_stretch",
+    "sample_link",
+    "touched_elements",
+]
 
 
 @njit(cache=True)
@@ -249,7 +125,7 @@ def touched_elements(
         snap = np.linalg.norm(samples.points_m[elem] - pts, axis=1)
         reach = float((r + snap).max())
         if reach > 0:
-            indptr, nbr, dist = _neighbour_csr(samples, reach)
+            indptr, nbr, dist = neighbour_csr(samples, reach)  # a reach per call: not kept
             frame, elem = _expand(frame, elem, r, snap, np.ascontiguousarray(pts), samples.points_m, indptr, nbr, dist)
     key = np.sort(frame * samples.n + elem)  # sort-based unique (numpy's hash unique is slow here)
     if key.size:
@@ -269,7 +145,7 @@ def graph_stretch(spacing_m: float, k: int = GRAPH_K, bandwidth_m: float | None 
     rng = np.random.default_rng(seed)
     pts = np.zeros((n, 3))
     pts[:, :2] = rng.random((n, 2)) * side
-    g = _knn_graph(pts, np.tile([0.0, 0.0, 1.0], (n, 1)), k)
+    g = knn_graph(pts, np.tile([0.0, 0.0, 1.0], (n, 1)), k)
     centre = np.flatnonzero(np.linalg.norm(pts[:, :2] - side / 2, axis=1) < side / 6)[:40]
     dg = dijkstra(g, directed=False, indices=centre, limit=CUTOFF_SIGMAS * h)
     de = np.linalg.norm(pts[centre][:, None, :] - pts[None, :, :], axis=2)
@@ -277,19 +153,6 @@ def graph_stretch(spacing_m: float, k: int = GRAPH_K, bandwidth_m: float | None 
     if not ok.any():
         return 1.0
     return float(max(np.median(dg[ok] / de[ok]), 1.0))
-
-
-def _knn_graph(points: np.ndarray, normals: np.ndarray, k: int) -> sparse.csr_matrix:
-    n = points.shape[0]
-    kk = min(k + 1, n)
-    d, idx = cKDTree(points).query(points, k=kk)
-    rows = np.repeat(np.arange(n), kk - 1)
-    cols = idx[:, 1:].ravel()
-    w = d[:, 1:].ravel()
-    ok = np.einsum("kc,kc->k", normals[rows], normals[cols]) > MIN_NORMAL_DOT
-    ok &= w > 0
-    g = sparse.csr_matrix((w[ok], (rows[ok], cols[ok])), shape=(n, n))
-    return g.maximum(g.T).tocsr()
 
 
 class SurfaceKernel:
@@ -308,13 +171,13 @@ class SurfaceKernel:
         pts = samples.points_m
         n = samples.n
         if kernel == "euclidean":
-            pairs = _tree(samples).query_pairs(cut, output_type="ndarray")
+            pairs = samples.tree.query_pairs(cut, output_type="ndarray")
             i = np.concatenate([pairs[:, 0], pairs[:, 1], np.arange(n)])
             j = np.concatenate([pairs[:, 1], pairs[:, 0], np.arange(n)])
             d = np.linalg.norm(pts[i] - pts[j], axis=1)
         else:
             self.stretch = graph_stretch(samples.spacing_m, GRAPH_K, self.bandwidth_m)
-            g = _knn_graph(pts, samples.normal, GRAPH_K)
+            g = samples.knn_graph(GRAPH_K)
             ii, jj, dd = [], [], []
             chunk = max(1, int(2e7 // max(n, 1)))
             for s in range(0, n, chunk):

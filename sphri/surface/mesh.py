@@ -6,10 +6,8 @@ and its surface area, which layouts use to size a grid-equivalent count.
 
 from __future__ import annotations
 
-import numpy as np
-
 from sphri.config import Configured
-from sphri.surface.meshutil import check_link, face_areas, principal_axes, sample_surface
+from sphri.geometry.link import check_link, geometry_of
 from sphri.surface.schema import MeshSurfaceSchema
 from sphri.types import Link, SurfaceMap
 
@@ -17,10 +15,9 @@ from sphri.types import Link, SurfaceMap
 def fit_mesh(link: Link, n_samples: int = 20000, seed: int = 0) -> SurfaceMap:
     """Chart-less surface of ``link``: params ``long_axis``, ``length_m``, ``area_m2``, ``centroid``."""
     check_link(link)
-    pts, _ = sample_surface(link, n_samples, seed)
-    centroid, _, axes = principal_axes(pts)
-    used = np.asarray(link.vertices, dtype=np.float64)[np.unique(np.asarray(link.faces))]
-    t = (used - centroid) @ axes[0]
+    geom = geometry_of(link)
+    centroid, _, axes = geom.axes(n_samples, seed)
+    t = (geom.used_vertices - centroid) @ axes[0]
     return SurfaceMap(
         kind="mesh",
         has_uv=False,
@@ -31,7 +28,7 @@ def fit_mesh(link: Link, n_samples: int = 20000, seed: int = 0) -> SurfaceMap:
         params={
             "long_axis": axes[0],
             "length_m": float(t.max() - t.min()),
-            "area_m2": float(face_areas(link).sum()),
+            "area_m2": geom.area_m2,
             "centroid": centroid,
             "notes": (),
         },

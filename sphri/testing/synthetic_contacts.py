@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from sphri.surface.meshutil import face_normals, sample_surface
+from sphri.geometry.link import face_normals, sample_surface
 from sphri.types import Contacts, Link
 
 
