@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -69,3 +70,47 @@ def write_json(name: str, data: dict[str, Any]) -> Path:
 
     path.write_text(json.dumps(data, indent=2, default=conv) + "\n")
     return path
+
+
+@contextmanager
+def figure(path: Path, ncols: int, figsize: tuple[float, float], dpi: int = 110) -> Iterator[tuple[Any, Any]]:
+    """``(fig, axes)``: one row of ``ncols`` axes on the headless Agg backend; on leaving the block the figure is
+    laid out and saved to ``path`` (closed in any case)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, ncols, figsize=figsize)
+    try:
+        yield fig, axes
+        fig.tight_layout()
+        fig.savefig(path, dpi=dpi)
+    finally:
+        plt.close(fig)
+
+
+def begin(doc: str, quick_help: str, argv: list[str] | None) -> tuple[bool, dict[str, Any], float]:
+    """Start a benchmark whose only option is ``--quick`` (its smallest size): parse the command line, set
+    logging to errors only; returns (whether ``--quick`` was given, :func:`machine` now, ``time.perf_counter()``),
+    what :func:`run_info` reports from."""
+    import argparse
+    import logging
+
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help=quick_help)
+    quick = ap.parse_args(argv).quick
+    logging.basicConfig(level=logging.ERROR)
+    return quick, machine(), time.perf_counter()
+
+
+def run_info(start: dict[str, Any], quick: bool, t0: float, **extra: Any) -> dict[str, Any]:
+    """A benchmark JSON's ``info``: the machine at the start (:func:`machine`), the mode, the wall seconds since
+    ``t0`` (``time.perf_counter``), the load average at the end, then ``extra``."""
+    return {
+        **start,
+        "mode": "quick" if quick else "full",
+        "wall_s": time.perf_counter() - t0,
+        "loadavg_1min_end": machine()["loadavg_1min"],
+        **extra,
+    }

@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import OUT, machine, timeit, write_json  # noqa: E402
+from _common import OUT, figure, machine, timeit, write_json  # noqa: E402
 
 from sphri.contact import capsule_mesh_query, prepare_mesh, sphere_mesh_query  # noqa: E402
 from sphri.testing.contact_reference import arm_stand_in, compare, random_capsules, reference_query  # noqa: E402
@@ -166,36 +166,28 @@ def main() -> int:
 
 def plot(results: dict, path: Path, n: int) -> None:
     """Run time per capsule against two errors: contact disagreements and distance error."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     floor_rate, floor_err = 1e-3, 1e-6
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
-    for name, res in results.items():
-        if "contact_disagreements" not in res:
-            continue
-        m = res.get("n_capsules", n)
-        us = 1e6 / res["capsules_per_s"]
-        rate = max(100.0 * res["contact_disagreements"] / m, floor_rate)
-        err = max(1000.0 * res.get("p99_distance_error_m", res.get("max_distance_error_m", 0.0)), floor_err)
-        label = name.replace("_proximity_k5", ".proximity k=5").replace("spheres_k", "k=")
-        color = "C3" if name.startswith("exact") else ("C2" if name.startswith("trimesh") else "C0")
-        for ax, y in zip(axes, (rate, err)):
-            ax.scatter(us, y, s=40, color=color)
-            ax.annotate(label, (us, y), textcoords="offset points", xytext=(4, 5), fontsize=8, rotation=20)
-    axes[0].set_ylabel(f"contact disagreements with the exact reference (%)\n(0 drawn at {floor_rate:g})")
-    axes[1].set_ylabel(f"p99 distance error of contacts (mm)\n(0 drawn at {floor_err:g})")
-    for ax in axes:
-        ax.set_xscale("log")
-        ax.set_yscale("log")
-        ax.set_xlabel("wall time per capsule (microseconds, log)")
-        ax.grid(True, which="both", alpha=0.3)
-    fig.suptitle("capsule vs arm hull, hard set: exact kernel (red), k spheres (blue), trimesh.proximity (green)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    with figure(path, 2, (11, 4.5), dpi=120) as (fig, axes):
+        for name, res in results.items():
+            if "contact_disagreements" not in res:
+                continue
+            m = res.get("n_capsules", n)
+            us = 1e6 / res["capsules_per_s"]
+            rate = max(100.0 * res["contact_disagreements"] / m, floor_rate)
+            err = max(1000.0 * res.get("p99_distance_error_m", res.get("max_distance_error_m", 0.0)), floor_err)
+            label = name.replace("_proximity_k5", ".proximity k=5").replace("spheres_k", "k=")
+            color = "C3" if name.startswith("exact") else ("C2" if name.startswith("trimesh") else "C0")
+            for ax, y in zip(axes, (rate, err)):
+                ax.scatter(us, y, s=40, color=color)
+                ax.annotate(label, (us, y), textcoords="offset points", xytext=(4, 5), fontsize=8, rotation=20)
+        axes[0].set_ylabel(f"contact disagreements with the exact reference (%)\n(0 drawn at {floor_rate:g})")
+        axes[1].set_ylabel(f"p99 distance error of contacts (mm)\n(0 drawn at {floor_err:g})")
+        for ax in axes:
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            ax.set_xlabel("wall time per capsule (microseconds, log)")
+            ax.grid(True, which="both", alpha=0.3)
+        fig.suptitle("capsule vs arm hull, hard set: exact kernel (red), k spheres (blue), trimesh.proximity (green)")
 
 
 if __name__ == "__main__":

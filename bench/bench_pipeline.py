@@ -52,7 +52,7 @@ from pathlib import Path
 from typing import Any
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import OUT, machine, write_json  # noqa: E402
+from _common import OUT, figure, machine, write_json  # noqa: E402
 
 #: Chain order of the pipeline's stages.
 STAGES = ("hand", "robot", "data", "contact", "surface", "layout", "plan", "encode", "noise", "filter", "evaluate")
@@ -384,48 +384,44 @@ def summarize(default: dict, sweep: dict, quick: bool) -> dict:
 
 def plot(default: dict, sweep: dict, path: Path) -> None:
     """Left: exclusive seconds per stage of the default run; right: the sweep cold, warm, uncached."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(15, 4.5))
-    if "stages" in default:
-        st = default["stages"]
-        names = [s for s in STAGES if s in st]
-        axes[0].barh(names, [st[s]["wall_s"] for s in names], color="C0", label="wall")
-        axes[0].barh(names, [st[s]["cpu_s"] for s in names], color="C1", alpha=0.5, label="CPU (all threads)")
-        axes[0].invert_yaxis()
-        axes[0].set_xlabel("seconds (exclusive)")
-        axes[0].set_title(f"default run, cold: {default['n_trials']} trials, res {default['res']}")
-        axes[0].legend(fontsize=8)
-        axes[1].barh(names, [st[s]["peak_rss_mb"] for s in names], color="C2", label="peak RSS")
-        axes[1].barh(names, [st[s]["rss_start_mb"] for s in names], color="k", alpha=0.3, label="RSS at start")
-        axes[1].invert_yaxis()
-        axes[1].set_xlabel("MB")
-        axes[1].set_title(f"memory per stage ({default['memory_method']})", fontsize=9)
-        axes[1].legend(fontsize=8)
-    if "cold" in sweep:
-        res = [str(p["res"]) for p in sweep["cold"]]
-        x = list(range(len(res)))
-        bottom = [0.0] * len(res)
-        for i, name in enumerate(STAGES):
-            vals = [p["stages"].get(name, {}).get("wall_s", 0.0) for p in sweep["cold"]]
-            if max(vals) < 0.02:
-                continue
-            axes[2].bar([xi - 0.2 for xi in x], vals, 0.4, bottom=bottom, label=f"cold: {name}", color=f"C{i % 10}")
-            bottom = [b + v for b, v in zip(bottom, vals)]
-        axes[2].bar([xi + 0.2 for xi in x], [p["wall_s"] for p in sweep["warm"]], 0.4, color="k", label="warm (cached)")
-        if "uncached" in sweep:
-            axes[2].scatter(x, [p["wall_s"] for p in sweep["uncached"]], color="r", marker="_", s=400, label="no cache")
-        axes[2].set_xticks(x, res)
-        axes[2].set_xlabel("encoder.res (sweep point, in run order)")
-        axes[2].set_ylabel("wall seconds")
-        axes[2].set_title(f"RF sweep, {sweep['participants']} participants: cold vs warm cache")
-        axes[2].legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    with figure(path, 3, (15, 4.5)) as (fig, axes):
+        if "stages" in default:
+            st = default["stages"]
+            names = [s for s in STAGES if s in st]
+            axes[0].barh(names, [st[s]["wall_s"] for s in names], color="C0", label="wall")
+            axes[0].barh(names, [st[s]["cpu_s"] for s in names], color="C1", alpha=0.5, label="CPU (all threads)")
+            axes[0].invert_yaxis()
+            axes[0].set_xlabel("seconds (exclusive)")
+            axes[0].set_title(f"default run, cold: {default['n_trials']} trials, res {default['res']}")
+            axes[0].legend(fontsize=8)
+            axes[1].barh(names, [st[s]["peak_rss_mb"] for s in names], color="C2", label="peak RSS")
+            axes[1].barh(names, [st[s]["rss_start_mb"] for s in names], color="k", alpha=0.3, label="RSS at start")
+            axes[1].invert_yaxis()
+            axes[1].set_xlabel("MB")
+            axes[1].set_title(f"memory per stage ({default['memory_method']})", fontsize=9)
+            axes[1].legend(fontsize=8)
+        if "cold" in sweep:
+            res = [str(p["res"]) for p in sweep["cold"]]
+            x = list(range(len(res)))
+            bottom = [0.0] * len(res)
+            for i, name in enumerate(STAGES):
+                vals = [p["stages"].get(name, {}).get("wall_s", 0.0) for p in sweep["cold"]]
+                if max(vals) < 0.02:
+                    continue
+                axes[2].bar([xi - 0.2 for xi in x], vals, 0.4, bottom=bottom, label=f"cold: {name}", color=f"C{i % 10}")
+                bottom = [b + v for b, v in zip(bottom, vals)]
+            axes[2].bar(
+                [xi + 0.2 for xi in x], [p["wall_s"] for p in sweep["warm"]], 0.4, color="k", label="warm (cached)"
+            )
+            if "uncached" in sweep:
+                axes[2].scatter(
+                    x, [p["wall_s"] for p in sweep["uncached"]], color="r", marker="_", s=400, label="no cache"
+                )
+            axes[2].set_xticks(x, res)
+            axes[2].set_xlabel("encoder.res (sweep point, in run order)")
+            axes[2].set_ylabel("wall seconds")
+            axes[2].set_title(f"RF sweep, {sweep['participants']} participants: cold vs warm cache")
+            axes[2].legend(fontsize=7)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -27,7 +27,6 @@ runs after a warm-up run on the smallest size. Writes
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
@@ -35,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import OUT, machine, write_json  # noqa: E402
+from _common import OUT, begin, figure, run_info, write_json  # noqa: E402
 from bench_pipeline import STAGES, MemoryProbe, StageProbe, compose_cfg  # noqa: E402
 
 FULL = {"participants": 4, "repetitions": [3, 6, 12, 24], "resolutions": [2, 4, 9, 18, 36, 72, 100], "repeat": 2}
@@ -203,57 +202,36 @@ def loglog_panel(ax, scan: dict, size_key: str, ref_at_first_s: float, xlabel: s
 
 
 def plot(fr: dict, tx: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(13, 4.8))
-    loglog_panel(
-        axes[0],
-        fr,
-        "n_frames",
-        0.05,
-        "dataset frames",
-        f"time per stage vs frames ({fr['participants']} participants, more repetitions)",
-    )
-    loglog_panel(
-        axes[1],
-        tx,
-        "n_taxels",
-        0.01,
-        "taxels N (grid, res along the arm)",
-        f"time per stage vs taxels ({tx['encoded_frames']} encoded frames)",
-    )
-    for ax in axes:
-        ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    with figure(path, 2, (13, 4.8)) as (fig, axes):
+        loglog_panel(
+            axes[0],
+            fr,
+            "n_frames",
+            0.05,
+            "dataset frames",
+            f"time per stage vs frames ({fr['participants']} participants, more repetitions)",
+        )
+        loglog_panel(
+            axes[1],
+            tx,
+            "n_taxels",
+            0.01,
+            "taxels N (grid, res along the arm)",
+            f"time per stage vs taxels ({tx['encoded_frames']} encoded frames)",
+        )
+        for ax in axes:
+            ax.grid(True, which="both", alpha=0.3)
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="3 participants x 4/8/16 repetitions")
-    args = ap.parse_args(argv)
-    import logging
-
-    logging.basicConfig(level=logging.ERROR)
-    size = QUICK if args.quick else FULL
+    quick, start, t0 = begin(__doc__, "3 participants x 4/8/16 repetitions", argv)
+    size = QUICK if quick else FULL
     memory = MemoryProbe()
-    start = machine()
-    t0 = time.perf_counter()
     print(f"frames: {size['participants']} participants x {size['repetitions']} repetitions", flush=True)
     fr, last = frames_scaling(size, memory)
     print(f"taxels: res {size['resolutions']}", flush=True)
     tx = taxels_scaling(last, size["resolutions"], size["repeat"])
-    info = {
-        **start,
-        "mode": "quick" if args.quick else "full",
-        "wall_s": time.perf_counter() - t0,
-        "loadavg_1min_end": machine()["loadavg_1min"],
-        "note": "slopes fitted to CPU seconds (all threads) on log-log axes; 1 = linear",
-    }
+    info = run_info(start, quick, t0, note="slopes fitted to CPU seconds (all threads) on log-log axes; 1 = linear")
     head = {}
     for axis, res in (("frames", fr), ("taxels", tx)):
         for k, v in res["fits"].items():

@@ -36,7 +36,6 @@ the same resolutions, 1 draw (under 3 minutes on 2 cores). Writes
 
 from __future__ import annotations
 
-import argparse
 import sys
 import tempfile
 import time
@@ -46,7 +45,7 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import OUT, machine, write_json  # noqa: E402
+from _common import OUT, begin, figure, run_info, write_json  # noqa: E402
 from bench_pipeline import STAGES, MemoryProbe, StageProbe, compose_cfg  # noqa: E402
 
 from sphri.models.rf import RandomForest  # noqa: E402
@@ -320,88 +319,73 @@ def verdict(grid: dict) -> dict:
 
 
 def plot(grid: dict, ver: dict, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 3, figsize=(16, 4.8))
-    cells = grid["cells"]
-    reps = sorted({c["repetitions"] for c in cells})
-    markers = dict(zip(reps, "os^Dv"))
-    parts = sorted({c["participants"] for c in cells})
-    colors = {p: f"C{i}" for i, p in enumerate(parts)}
-    for ax, key, label in (
-        (axes[0], "interval_width_mm", "bootstrap interval width (mm of pitch)"),
-        (axes[1], "mm_from_reference", "distance from the largest size's point (mm)"),
-    ):
+    with figure(path, 3, (16, 4.8)) as (fig, axes):
+        cells = grid["cells"]
+        reps = sorted({c["repetitions"] for c in cells})
+        markers = dict(zip(reps, "os^Dv"))
+        parts = sorted({c["participants"] for c in cells})
+        colors = {p: f"C{i}" for i, p in enumerate(parts)}
+        for ax, key, label in (
+            (axes[0], "interval_width_mm", "bootstrap interval width (mm of pitch)"),
+            (axes[1], "mm_from_reference", "distance from the largest size's point (mm)"),
+        ):
+            for c in cells:
+                ax.scatter(
+                    c["cost_cpu_s"],
+                    c[key],
+                    color=colors[c["participants"]],
+                    marker=markers[c["repetitions"]],
+                    s=45,
+                    alpha=0.8,
+                )
+            pts = sorted((c["cost_cpu_s"], c[key]) for c in cells)
+            front, best = [], np.inf
+            for x, y in pts:
+                if y < best:
+                    front.append((x, y))
+                    best = y
+            front.append((pts[-1][0], front[-1][1]))
+            ax.step([x for x, _ in front], [y for _, y in front], where="post", color="k", lw=0.8, label="Pareto front")
+            ax.set_xscale("log")
+            ax.set_xlabel("sweep cost (CPU seconds, log)")
+            ax.set_ylabel(label)
+            ax.grid(True, which="both", alpha=0.3)
+        for p in parts:
+            axes[0].scatter([], [], color=colors[p], marker="o", label=f"{p} participants")
+        for r in reps:
+            axes[0].scatter([], [], color="gray", marker=markers[r], label=f"{r} repetitions")
+        axes[0].legend(fontsize=7)
+        axes[0].set_title("run time vs interval width")
+        axes[1].set_title("run time vs shift of the saturation point")
+        pitch = np.array(grid["pitch_u_mm"])
         for c in cells:
-            ax.scatter(
-                c["cost_cpu_s"],
-                c[key],
-                color=colors[c["participants"]],
+            if c["draw"] != 0:
+                continue
+            axes[2].plot(
+                pitch,
+                c["mean_accuracy"],
                 marker=markers[c["repetitions"]],
-                s=45,
+                color=colors[c["participants"]],
+                lw=0.8,
+                ms=4,
                 alpha=0.8,
             )
-        pts = sorted((c["cost_cpu_s"], c[key]) for c in cells)
-        front, best = [], np.inf
-        for x, y in pts:
-            if y < best:
-                front.append((x, y))
-                best = y
-        front.append((pts[-1][0], front[-1][1]))
-        ax.step([x for x, _ in front], [y for _, y in front], where="post", color="k", lw=0.8, label="Pareto front")
-        ax.set_xscale("log")
-        ax.set_xlabel("sweep cost (CPU seconds, log)")
-        ax.set_ylabel(label)
-        ax.grid(True, which="both", alpha=0.3)
-    for p in parts:
-        axes[0].scatter([], [], color=colors[p], marker="o", label=f"{p} participants")
-    for r in reps:
-        axes[0].scatter([], [], color="gray", marker=markers[r], label=f"{r} repetitions")
-    axes[0].legend(fontsize=7)
-    axes[0].set_title("run time vs interval width")
-    axes[1].set_title("run time vs shift of the saturation point")
-    pitch = np.array(grid["pitch_u_mm"])
-    for c in cells:
-        if c["draw"] != 0:
-            continue
-        axes[2].plot(
-            pitch,
-            c["mean_accuracy"],
-            marker=markers[c["repetitions"]],
-            color=colors[c["participants"]],
-            lw=0.8,
-            ms=4,
-            alpha=0.8,
-        )
-        axes[2].axvline(c["saturation_pitch_mm"], color=colors[c["participants"]], lw=0.5, alpha=0.4)
-    axes[2].set_xscale("log")
-    axes[2].set_xticks(pitch, [f"{x:.0f}" for x in pitch])
-    axes[2].minorticks_off()
-    axes[2].invert_xaxis()
-    axes[2].set_xlabel("taxel pitch along the arm (mm, log; finer to the right)")
-    axes[2].set_ylabel("LOSO accuracy (mean over participants)")
-    axes[2].set_title("curves (draw 0); lines: saturation points")
-    axes[2].grid(True, which="both", alpha=0.3)
-    fig.suptitle(f"RF resolution sweep vs synthetic data size; stable from {ver['stable_from']}", fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+            axes[2].axvline(c["saturation_pitch_mm"], color=colors[c["participants"]], lw=0.5, alpha=0.4)
+        axes[2].set_xscale("log")
+        axes[2].set_xticks(pitch, [f"{x:.0f}" for x in pitch])
+        axes[2].minorticks_off()
+        axes[2].invert_xaxis()
+        axes[2].set_xlabel("taxel pitch along the arm (mm, log; finer to the right)")
+        axes[2].set_ylabel("LOSO accuracy (mean over participants)")
+        axes[2].set_title("curves (draw 0); lines: saturation points")
+        axes[2].grid(True, which="both", alpha=0.3)
+        fig.suptitle(f"RF resolution sweep vs synthetic data size; stable from {ver['stable_from']}", fontsize=10)
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--quick", action="store_true", help="P in {4, 8, 12}, R in {5, 10, 20}, 1 draw")
-    args = ap.parse_args(argv)
-    import logging
-
-    logging.basicConfig(level=logging.ERROR)
-    size = QUICK if args.quick else FULL
+    quick, start, t0 = begin(__doc__, "P in {4, 8, 12}, R in {5, 10, 20}, 1 draw", argv)
+    size = QUICK if quick else FULL
     memory = MemoryProbe()
-    start = machine()
-    t0 = time.perf_counter()
     print(
         f"largest dataset: {max(size['participants'])} participants x {max(size['repetitions'])} repetitions",
         flush=True,
@@ -410,15 +394,14 @@ def main(argv: list[str] | None = None) -> int:
         prep = prepare(size, memory, tmp)
     grid = run_grid(size, prep)
     ver = verdict(grid)
-    info: dict[str, Any] = {
-        **start,
-        "mode": "quick" if args.quick else "full",
-        "wall_s": time.perf_counter() - t0,
-        "loadavg_1min_end": machine()["loadavg_1min"],
-        "n_boot": size["n_boot"],
-        "draws": size["draws"],
-        "model": prep["model_params"],
-    }
+    info: dict[str, Any] = run_info(
+        start,
+        quick,
+        t0,
+        n_boot=size["n_boot"],
+        draws=size["draws"],
+        model=prep["model_params"],
+    )
     ref = grid["reference"]
     head = {
         "reference_size": f"{ref['participants']} x {ref['repetitions']}",

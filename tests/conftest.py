@@ -20,6 +20,11 @@ settings.load_profile("explore" if os.environ.get("SPHRI_DEEP_TESTS") else "repe
 SHARED = Path(os.environ.get("SPHRI_SHARED", REPO.parent / "shared"))
 
 
+def _python(args: list[str], cwd: Path, env: dict[str, str] | None = None, timeout: int = 600):
+    """``python <args>`` in ``cwd``, its output captured as text."""
+    return subprocess.run([sys.executable, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+
+
 @pytest.fixture(scope="session")
 def shared_dir() -> Path:
     """The ../shared folder with the real study's assets; skips the test when absent."""
@@ -29,12 +34,10 @@ def shared_dir() -> Path:
 
 
 @pytest.fixture()
-def arm_mesh_roots(tmp_path: Path) -> tuple[Path, Path]:
-    """(good, bad): folders holding ``arm.obj``, the parametric Reachy arm or a file that is not a mesh.
-
-    With ``robot=mesh robot.links={l_arm: arm.obj} robot.regions={arm: l_arm} robot.root=...``
-    a job on ``bad`` passes validation and fails at the robot stage.
-    """
+def failing_mesh_sweep(tmp_path: Path) -> list[str]:
+    """Overrides of a two-job sweep (``-m``, serial launcher) whose second job fails at run time: the robot is
+    ``arm.obj`` in ``robot.root={good},{bad}``, the parametric Reachy arm in ``good``, a file that is not a mesh
+    in ``bad`` (it passes validation and fails at the robot stage). Add ``output_dir=...`` and run."""
     import trimesh
 
     from sphri import pipeline
@@ -46,7 +49,17 @@ def arm_mesh_roots(tmp_path: Path) -> tuple[Path, Path]:
     link = pipeline.build(compose(["+debug=fast"]).robot).build().link_for("arm")
     trimesh.Trimesh(link.vertices, link.faces, process=False).export(good / "arm.obj")
     (bad / "arm.obj").write_text("this is not a mesh\n")
-    return good, bad
+    return [
+        "-m",
+        "+debug=fast",
+        "encoder.res=2",
+        "robot=mesh",
+        "robot.links={l_arm: arm.obj}",
+        "robot.regions={arm: l_arm}",
+        "robot.units=m",
+        f"robot.root={good},{bad}",
+        "hydra/launcher=serial",
+    ]
 
 
 @pytest.fixture()
@@ -54,19 +67,17 @@ def sweep_then_report(tmp_path: Path):
     """``run(sweep_args, n_jobs, report_args)``: ``python -m sphri -m <sweep_args>`` into
     ``tmp_path/outputs/sweep`` (serial launcher), checked to finish all ``n_jobs``, then ``python -m sphri.report``
     on it, checked to exit 0; returns ``(sweep_dir, report_process)``."""
-    repo = Path(__file__).resolve().parent.parent
     env = {
         **os.environ,
         "PYTHONUNBUFFERED": "1",
         "HYDRA_FULL_ERROR": "1",
-        "PYTHONPATH": os.pathsep.join([str(repo), os.environ.get("PYTHONPATH", "")]),
+        "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")]),
     }
     out, sweep = tmp_path / "outputs", tmp_path / "outputs" / "sweep"
 
     def run(sweep_args: list[str], n_jobs: int, report_args: list[str], timeout: int = 600):
-        job = subprocess.run(
+        job = _python(
             [
-                sys.executable,
                 "-m",
                 "sphri",
                 "-m",
@@ -75,22 +86,41 @@ def sweep_then_report(tmp_path: Path):
                 f"hydra.sweep.dir={sweep}",
                 "hydra/launcher=serial",
             ],
-            cwd=tmp_path,
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=timeout,
+            tmp_path,
+            env,
+            timeout,
         )
         assert job.returncode == 0 and f"{n_jobs} of {n_jobs} jobs finished" in job.stdout, job.stderr[-3000:]
-        rep = subprocess.run(
-            [sys.executable, "-m", "sphri.report", str(sweep), *report_args],
-            cwd=tmp_path,
-            env=env,
-            capture_output=True,
-            text=True,
-            timeout=300,
-        )
+        rep = _python(["-m", "sphri.report", str(sweep), *report_args], tmp_path, env, 300)
         assert rep.returncode == 0, rep.stderr[-3000:]
         return sweep, rep
+
+    return run
+
+
+@pytest.fixture()
+def study_error_line(tmp_path: Path):
+    """``run(*overrides)``: ``python -m sphri.coverage +experiment=scenario_study <overrides>`` (outputs, runs and
+    cache under ``tmp_path``, no tracking), checked to exit 1 with no traceback and exactly one line starting
+    with ``sphri``; returns that line."""
+
+    def run(*overrides: str) -> str:
+        res = _python(
+            [
+                "-m",
+                "sphri.coverage",
+                "+experiment=scenario_study",
+                *overrides,
+                f"out={tmp_path / 'out'}",
+                f"output_dir={tmp_path / 'runs'}",
+                f"cache.dir={tmp_path / 'cache'}",
+                "tracking.enabled=false",
+            ],
+            REPO,
+        )
+        assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr[-3000:]
+        errors = [ln for ln in res.stderr.splitlines() if ln.startswith("sphri")]
+        assert len(errors) == 1, res.stderr[-3000:]
+        return errors[0]
 
     return run

@@ -61,20 +61,13 @@ def test_python_m_sphri_cache_runs_the_command(tmp_path):
     """The documented spelling: ``python -m sphri.cache`` (``sphri/cache/__main__.py``) runs the same command."""
     root = _cache(tmp_path)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
-    run = subprocess.run(
-        [sys.executable, "-m", "sphri.cache", "info", f"dir={root}"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
+
+    def cache(*args: str) -> subprocess.CompletedProcess:
+        cmd = [sys.executable, "-m", "sphri.cache", *args]
+        return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
+
+    run = cache("info", f"dir={root}")
     assert run.returncode == 0, run.stderr
     assert "evaluate       2 entries" in run.stdout
-    bad = subprocess.run(
-        [sys.executable, "-m", "sphri.cache", "info", f"dir={tmp_path / 'none'}"],
-        capture_output=True,
-        text=True,
-        env=env,
-        timeout=120,
-    )
+    bad = cache("info", f"dir={tmp_path / 'none'}")
     assert bad.returncode == 2 and bad.stderr.strip() == f"sphri.cache: dir={tmp_path / 'none'}: no cache folder there"

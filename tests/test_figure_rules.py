@@ -3,6 +3,8 @@ drawn once, figures that fit a page, one banner, and the layout checks that find
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -121,19 +123,16 @@ def test_human_labels():
 SCEN = ["S1_greeting", "S2_path_redirection", "S3_handover", "S4_behaviour_correction"]
 
 
+def _pairs(conds) -> list[tuple[int, int, str, str]]:
+    """(i, j, a, b) for every pair of conditions, i < j."""
+    return [(i, j, a, b) for (i, a), (j, b) in itertools.combinations(enumerate(conds), 2)]
+
+
 def _effects(scen):
-    rows = []
-    for i in range(len(scen)):
-        for j in range(i + 1, len(scen)):
-            rows.append(
-                dict(
-                    cond_a=scen[i],
-                    cond_b=scen[j],
-                    diff_swd_mm=10.0 * (i + j),
-                    effect_dz=0.4 * (j - i),
-                    p_holm=0.01 * (1 + i + j),
-                )
-            )
+    rows = [
+        dict(cond_a=a, cond_b=b, diff_swd_mm=10.0 * (i + j), effect_dz=0.4 * (j - i), p_holm=0.01 * (1 + i + j))
+        for i, j, a, b in _pairs(scen)
+    ]
     return pd.DataFrame(rows)
 
 
@@ -174,27 +173,19 @@ def _comparison(conds):
     from sphri.analysis.compare import PairwiseComparison
 
     rows, pp = [], []
-    for i in range(len(conds)):
-        for j in range(i + 1, len(conds)):
-            rows.append(
-                dict(
-                    cond_a=conds[i],
-                    cond_b=conds[j],
-                    mean_between_swd_mm=20.0 + 5 * i + 3 * j,
-                    p_holm=0.002 * (1 + i + j),
-                )
+    for i, j, a, b in _pairs(conds):
+        rows.append(dict(cond_a=a, cond_b=b, mean_between_swd_mm=20.0 + 5 * i + 3 * j, p_holm=0.002 * (1 + i + j)))
+        pp.append(
+            dict(
+                participant="p1",
+                cond_a=a,
+                cond_b=b,
+                between_mm=1.0,
+                within_a_mm=10.0 + i,
+                within_b_mm=10.0 + j,
+                diff_mm=1.0,
             )
-            pp.append(
-                dict(
-                    participant="p1",
-                    cond_a=conds[i],
-                    cond_b=conds[j],
-                    between_mm=1.0,
-                    within_a_mm=10.0 + i,
-                    within_b_mm=10.0 + j,
-                    diff_mm=1.0,
-                )
-            )
+        )
     return PairwiseComparison(
         conditions=list(conds),
         table=pd.DataFrame(rows),

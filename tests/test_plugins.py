@@ -45,7 +45,14 @@ def test_user_components_are_refused_unless_their_package_is_listed(lab, tmp_pat
     assert "encoder._target_='labext.skin.NearestTaxelEncoder'" in out.stderr and "plugins=[labext]" in out.stderr
 
 
-def test_a_user_class_missing_its_stage_method_fails_at_composition(lab, tmp_path):
+@pytest.mark.parametrize(
+    "target, message",
+    [
+        ("labext.skin.VertexLayout", "does not implement the encoder protocol: missing encode"),
+        ("labext.skin.NoSuchEncoder", "cannot be imported as a class"),
+    ],
+)
+def test_a_user_class_missing_its_stage_method_fails_at_composition(lab, tmp_path, target, message):
     search = f"hydra.searchpath=[file://{lab / 'conf'}]"
     out = _run(
         lab,
@@ -55,20 +62,7 @@ def test_a_user_class_missing_its_stage_method_fails_at_composition(lab, tmp_pat
         "plugins=[labext]",
         search,
         "encoder=nearest",
-        "encoder._target_=labext.skin.VertexLayout",
+        f"encoder._target_={target}",
         cwd=tmp_path,
     )
-    assert out.returncode == 2
-    assert "does not implement the encoder protocol: missing encode" in out.stderr
-    out = _run(
-        lab,
-        "-m",
-        "sphri.cli",
-        "validate",
-        "plugins=[labext]",
-        search,
-        "encoder=nearest",
-        "encoder._target_=labext.skin.NoSuchEncoder",
-        cwd=tmp_path,
-    )
-    assert out.returncode == 2 and "cannot be imported as a class" in out.stderr
+    assert out.returncode == 2 and message in out.stderr, out.stderr[-2000:]

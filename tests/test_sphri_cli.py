@@ -287,24 +287,8 @@ def test_a_missing_input_path_fails_validation_and_starts_nothing(tmp_path):
     assert proc.returncode == 2 and "1 of 2 points fail validation" in proc.stderr
 
 
-def test_a_failing_job_in_a_sweep_is_one_line_with_its_log_and_the_console_is_quiet(tmp_path, arm_mesh_roots):
-    good, bad = arm_mesh_roots
-    proc = _run(
-        [
-            "-m",
-            "+debug=fast",
-            "encoder.res=2",
-            "robot=mesh",
-            "robot.links={l_arm: arm.obj}",
-            "robot.regions={arm: l_arm}",
-            "robot.units=m",
-            f"robot.root={good},{bad}",
-            f"output_dir={tmp_path / 'out'}",
-            "hydra/launcher=serial",
-            "tracking.enabled=false",
-        ],
-        tmp_path,
-    )
+def test_a_failing_job_in_a_sweep_is_one_line_with_its_log_and_the_console_is_quiet(tmp_path, failing_mesh_sweep):
+    proc = _run([*failing_mesh_sweep, f"output_dir={tmp_path / 'out'}", "tracking.enabled=false"], tmp_path)
     assert proc.returncode == 1
     console = proc.stdout + proc.stderr
     assert "Traceback" not in console and "stage noise" not in console, console[-3000:]

@@ -11,8 +11,9 @@ import numpy as np
 
 from sphri.config import build, compose
 from sphri.pipeline import RunResult, StageRecord
+from sphri.testing.runs import toy_meta
 from sphri.tracking.mlflow_tracker import MlflowTracker, default_uri, flatten_params, summary_text
-from sphri.types import CVResult, FoldResult, RunMeta
+from sphri.types import CVResult, FoldResult
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -26,33 +27,8 @@ def fake_result() -> RunResult:
         folds.append(
             FoldResult(f"participant_0{i + 1}", int(conf.sum()), acc, acc * 0.9, conf, np.diag(conf) / conf.sum(1))
         )
-    meta = RunMeta(
-        dataset="synthetic",
-        synthetic=True,
-        n_participants=3,
-        n_trials=48,
-        n_frames=4800,
-        frame_rate_hz=30.0,
-        repairs={},
-        robot="reachy",
-        region="arm",
-        link="arm",
-        surface="cylinder",
-        surface_fit_residual_mm=1.2,
-        n_windows=48,
-        n_dropped_no_contact=0,
-        window_frames=50,
-        resolution={
-            "n_taxels": 342,
-            "grid_shape": (18, 19),
-            "pitch_u_mm": 13.4,
-            "pitch_v_mm": 13.2,
-            "area_per_taxel_cm2": 1.77,
-            "taxels_per_24cm": 17.9,
-        },
-    )
     return RunResult(
-        CVResult("loso", "rf", folds), meta, {"contact": StageRecord("contact", "k", "cache", 0.1)}, "abc123"
+        CVResult("loso", "rf", folds), toy_meta(), {"contact": StageRecord("contact", "k", "cache", 0.1)}, "abc123"
     )
 
 
@@ -149,27 +125,12 @@ def test_parallel_multirun_makes_one_parent_with_four_children(tmp_path: Path):
     assert parent.tags["mlflow.user"] and parent.tags["mlflow.source.git.commit"] and parent.tags["sphri.version"]
 
 
-def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path, arm_mesh_roots):
+def test_failed_job_is_recorded_and_sweep_goes_on(tmp_path: Path, failing_mesh_sweep):
     """A job failing at run time (a mesh file that is not a mesh) is a FAILED run; the other job still runs."""
     from mlflow.tracking import MlflowClient
 
-    good, bad = arm_mesh_roots
     out = tmp_path / "outputs"
-    proc = _sphri(
-        [
-            "-m",
-            "+debug=fast",
-            "encoder.res=2",
-            "robot=mesh",
-            "robot.links={l_arm: arm.obj}",
-            "robot.regions={arm: l_arm}",
-            "robot.units=m",
-            f"robot.root={good},{bad}",
-            f"output_dir={out}",
-            "hydra/launcher=serial",
-        ],
-        cwd=tmp_path,
-    )
+    proc = _sphri([*failing_mesh_sweep, f"output_dir={out}"], cwd=tmp_path)
     assert proc.returncode == 1, "a sweep with a failed job exits non-zero: " + proc.stderr[-2000:]
     client = MlflowClient(default_uri(out))
     runs = client.search_runs([client.get_experiment_by_name("sphri-debug").experiment_id])

@@ -51,6 +51,18 @@ def _clamp01(x):
     return x
 
 
+@njit(cache=True, fastmath=False, inline="always")
+def _on_edge(px, py, pz, ox, oy, oz, ex, ey, ez, t):
+    """The point q = o + t * e and its squared distance to p: (d2, qx, qy, qz)."""
+    qx = ox + t * ex
+    qy = oy + t * ey
+    qz = oz + t * ez
+    dx = px - qx
+    dy = py - qy
+    dz = pz - qz
+    return dx * dx + dy * dy + dz * dz, qx, qy, qz
+
+
 @njit(cache=True, fastmath=False)
 def _pt_tri(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     """Closest point of a non-degenerate triangle to p: (d2, qx, qy, qz, u, v, w)."""
@@ -77,13 +89,8 @@ def _pt_tri(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     vc = d1 * d4 - d3 * d2
     if vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
         t = d1 / (d1 - d3)
-        qx = ax + t * abx
-        qy = ay + t * aby
-        qz = az + t * abz
-        dx = px - qx
-        dy = py - qy
-        dz = pz - qz
-        return dx * dx + dy * dy + dz * dz, qx, qy, qz, 1.0 - t, t, 0.0
+        d2e, qx, qy, qz = _on_edge(px, py, pz, ax, ay, az, abx, aby, abz, t)
+        return d2e, qx, qy, qz, 1.0 - t, t, 0.0
     cpx = px - cx
     cpy = py - cy
     cpz = pz - cz
@@ -94,23 +101,13 @@ def _pt_tri(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
     vb = d5 * d2 - d1 * d6
     if vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
         t = d2 / (d2 - d6)
-        qx = ax + t * acx
-        qy = ay + t * acy
-        qz = az + t * acz
-        dx = px - qx
-        dy = py - qy
-        dz = pz - qz
-        return dx * dx + dy * dy + dz * dz, qx, qy, qz, 1.0 - t, 0.0, t
+        d2e, qx, qy, qz = _on_edge(px, py, pz, ax, ay, az, acx, acy, acz, t)
+        return d2e, qx, qy, qz, 1.0 - t, 0.0, t
     va = d3 * d6 - d5 * d4
     if va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
         t = (d4 - d3) / ((d4 - d3) + (d5 - d6))
-        qx = bx + t * (cx - bx)
-        qy = by + t * (cy - by)
-        qz = bz + t * (cz - bz)
-        dx = px - qx
-        dy = py - qy
-        dz = pz - qz
-        return dx * dx + dy * dy + dz * dz, qx, qy, qz, 0.0, 1.0 - t, t
+        d2e, qx, qy, qz = _on_edge(px, py, pz, bx, by, bz, cx - bx, cy - by, cz - bz, t)
+        return d2e, qx, qy, qz, 0.0, 1.0 - t, t
     den = 1.0 / (va + vb + vc)
     v = vb * den
     w = vc * den
@@ -236,22 +233,15 @@ def _seg_tri(p0x, p0y, p0z, p1x, p1y, p1z, ax, ay, az, bx, by, bz, cx, cy, cz, n
     bv = 0.0
     bw = 0.0
     found = False
-    if not deg:
-        d2, qx, qy, qz, u, v, w = _pt_tri(p0x, p0y, p0z, ax, ay, az, bx, by, bz, cx, cy, cz)
+    # the two ends (t = 0, 1)
+    for e in range(0 if deg else 2):
+        if e == 0:
+            d2, qx, qy, qz, u, v, w = _pt_tri(p0x, p0y, p0z, ax, ay, az, bx, by, bz, cx, cy, cz)
+        else:
+            d2, qx, qy, qz, u, v, w = _pt_tri(p1x, p1y, p1z, ax, ay, az, bx, by, bz, cx, cy, cz)
         if d2 < bd:
             bd = d2
-            bt = 0.0
-            bqx = qx
-            bqy = qy
-            bqz = qz
-            bu = u
-            bv = v
-            bw = w
-            found = True
-        d2, qx, qy, qz, u, v, w = _pt_tri(p1x, p1y, p1z, ax, ay, az, bx, by, bz, cx, cy, cz)
-        if d2 < bd:
-            bd = d2
-            bt = 1.0
+            bt = float(e)
             bqx = qx
             bqy = qy
             bqz = qz
@@ -664,6 +654,21 @@ def _box_far(p0x, p0y, p0z, p1x, p1y, p1z, R, BOX):
 
 
 @njit(cache=True, fastmath=False, inline="always")
+def _search(p0x, p0y, p0z, p1x, p1y, p1z, bound2, seed, TRI, DEG, NB, NI, stack):
+    """Nearest triangle closer than ``sqrt(bound2)``: (d2, j, t, qx, qy, qz, u, v, w), j = -1 when none.
+
+    ``seed`` is :func:`_seed_test`'s answer; the search starts from it (a
+    tighter bound) when it lies within the bound.
+    """
+    j0, e2, et, eqx, eqy, eqz, eu, ev, ew = seed
+    if e2 < bound2:
+        return _nearest(p0x, p0y, p0z, p1x, p1y, p1z, e2, TRI, DEG, NB, NI, stack, j0, et, eqx, eqy, eqz, eu, ev, ew)
+    return _nearest(
+        p0x, p0y, p0z, p1x, p1y, p1z, bound2, TRI, DEG, NB, NI, stack, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    )
+
+
+@njit(cache=True, fastmath=False, inline="always")
 def _query_segment(
     p0x, p0y, p0z, p1x, p1y, p1z, R, mode, BOX, TRI, DEG, TPL, NB, NI, HP, CS, CU, CV, GRID, GDIM, SEED, stack
 ):
@@ -678,21 +683,12 @@ def _query_segment(
     """
     if _box_far(p0x, p0y, p0z, p1x, p1y, p1z, R, BOX):
         return _INF, False, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    j0, e2, et, eqx, eqy, eqz, eu, ev, ew = _seed_test(p0x, p0y, p0z, p1x, p1y, p1z, TRI, DEG, GRID, GDIM, SEED)
-    if e2 < R * R:
-        d2, j, t, qx, qy, qz, u, v, w = _nearest(
-            p0x, p0y, p0z, p1x, p1y, p1z, e2, TRI, DEG, NB, NI, stack, j0, et, eqx, eqy, eqz, eu, ev, ew
-        )
-    else:
-        d2, j, t, qx, qy, qz, u, v, w = _nearest(
-            p0x, p0y, p0z, p1x, p1y, p1z, R * R, TRI, DEG, NB, NI, stack, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-        )
+    seed = _seed_test(p0x, p0y, p0z, p1x, p1y, p1z, TRI, DEG, GRID, GDIM, SEED)
+    d2, j, t, qx, qy, qz, u, v, w = _search(p0x, p0y, p0z, p1x, p1y, p1z, R * R, seed, TRI, DEG, NB, NI, stack)
     if j < 0:
         if mode == 0 or HP.shape[0] == 0 or not _reaches_hull(p0x, p0y, p0z, p1x, p1y, p1z, HP):
             return _INF, False, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-        d2, j, t, qx, qy, qz, u, v, w = _nearest(
-            p0x, p0y, p0z, p1x, p1y, p1z, e2, TRI, DEG, NB, NI, stack, j0, et, eqx, eqy, eqz, eu, ev, ew
-        )
+        d2, j, t, qx, qy, qz, u, v, w = _search(p0x, p0y, p0z, p1x, p1y, p1z, _INF, seed, TRI, DEG, NB, NI, stack)
     inside = False
     if mode != 0 and d2 > 0.0 and HP.shape[0] > 0:
         sx = p0x + t * (p1x - p0x)
@@ -784,97 +780,53 @@ def finish_rows(P0, P1, radius, TRI, DEG, TN, TID, shift, o_d, o_in, o_c, o_tri,
         o_dp[i] = dp
 
 
+@njit(cache=True, fastmath=False, inline="always")
+def _query_spheres(p0x, p0y, p0z, p1x, p1y, p1z, R, k, BOX, TRI, DEG, NB, NI, GRID, GDIM, SEED, stack):
+    """One capsule as ``k`` spheres of reach R along its segment: the :func:`_query_segment` record, never inside.
+
+    Sphere centres are at t = 0.5 for k = 1 and t = i / (k - 1) otherwise;
+    the distance is the least centre-to-surface distance, each centre's
+    search bounded by the best so far.
+    """
+    bd2 = R * R
+    bj = -1
+    bt = 0.0
+    bqx = 0.0
+    bqy = 0.0
+    bqz = 0.0
+    bu = 0.0
+    bv = 0.0
+    bw = 0.0
+    if not _box_far(p0x, p0y, p0z, p1x, p1y, p1z, R, BOX):
+        for s in range(k):
+            ts = 0.5 if k == 1 else s / (k - 1.0)
+            cx = p0x + ts * (p1x - p0x)
+            cy = p0y + ts * (p1y - p0y)
+            cz = p0z + ts * (p1z - p0z)
+            if _box_far(cx, cy, cz, cx, cy, cz, np.sqrt(bd2), BOX):
+                continue
+            seed = _seed_test(cx, cy, cz, cx, cy, cz, TRI, DEG, GRID, GDIM, SEED)
+            d2, j, t, qx, qy, qz, u, v, w = _search(cx, cy, cz, cx, cy, cz, bd2, seed, TRI, DEG, NB, NI, stack)
+            if j >= 0 and d2 < bd2:
+                bd2 = d2
+                bj = j
+                bt = ts
+                bqx = qx
+                bqy = qy
+                bqz = qz
+                bu = u
+                bv = v
+                bw = w
+    return bd2, False, bj, bt, bqx, bqy, bqz, bu, bv, bw
+
+
 @njit(cache=True, fastmath=False, parallel=True)
-def query_capsules(
+def query_rows(
     P0,
     P1,
     radius,
     margin,
     mode,
-    BOX,
-    TRI,
-    DEG,
-    TPL,
-    NB,
-    NI,
-    HP,
-    CS,
-    CU,
-    CV,
-    GRID,
-    GDIM,
-    SEED,
-    shift,
-    d2_out,
-    in_out,
-    tri_out,
-    t_out,
-    q_out,
-    b_out,
-):
-    """Exact search for every capsule i (segments P0[i]-P1[i], world frame).
-
-    Writes the search record (squared distance, inside, BVH triangle or -1,
-    segment parameter, local closest point, barycentric coordinates); the
-    last four only where a triangle was found. :func:`finish_rows` derives
-    the rest. The mesh arrays are ``MeshAccel.kernel_arrays``; ``shift`` its
-    origin. (Arrays are separate arguments: numba 0.68 mis-lowers unpacking
-    long tuples of arrays in prange loops.)
-    """
-    n = P0.shape[0]
-    nblocks = (n + _BLOCK - 1) // _BLOCK
-    for blk in prange(nblocks):
-        stack = np.empty(_STACK, dtype=np.int64)
-        for i in range(blk * _BLOCK, min(n, (blk + 1) * _BLOCK)):
-            p0x = P0[i, 0] - shift[0]
-            p0y = P0[i, 1] - shift[1]
-            p0z = P0[i, 2] - shift[2]
-            p1x = P1[i, 0] - shift[0]
-            p1y = P1[i, 1] - shift[1]
-            p1z = P1[i, 2] - shift[2]
-            d2, ins, j, t, qx, qy, qz, u, v, w = _query_segment(
-                p0x,
-                p0y,
-                p0z,
-                p1x,
-                p1y,
-                p1z,
-                radius[i] + margin,
-                mode,
-                BOX,
-                TRI,
-                DEG,
-                TPL,
-                NB,
-                NI,
-                HP,
-                CS,
-                CU,
-                CV,
-                GRID,
-                GDIM,
-                SEED,
-                stack,
-            )
-            d2_out[i] = d2
-            in_out[i] = ins
-            tri_out[i] = j
-            if j >= 0:
-                t_out[i] = t
-                q_out[i, 0] = qx
-                q_out[i, 1] = qy
-                q_out[i, 2] = qz
-                b_out[i, 0] = u
-                b_out[i, 1] = v
-                b_out[i, 2] = w
-
-
-@njit(cache=True, fastmath=False, parallel=True)
-def query_spheres(
-    P0,
-    P1,
-    radius,
-    margin,
     k,
     BOX,
     TRI,
@@ -897,13 +849,15 @@ def query_spheres(
     q_out,
     b_out,
 ):
-    """The paper's approximation: each capsule as k spheres of its radius along its segment.
+    """Search for every capsule i (segments P0[i]-P1[i], world frame): exact (``k = 0``, inside by ``mode``) or
+    the paper's approximation, each capsule as ``k > 0`` spheres of its radius (nothing ever inside).
 
-    Sphere centres are at t = 0.5 for k = 1 and t = i / (k - 1) otherwise.
-    The distance is the least centre-to-surface distance (exact point-to-
-    triangle); nothing is ever inside. Each centre's search is bounded by
-    the best so far, so later spheres cost little. Same record as
-    :func:`query_capsules`.
+    Writes the search record (squared distance, inside, BVH triangle or -1,
+    segment parameter, local closest point, barycentric coordinates); the
+    last four only where a triangle was found. :func:`finish_rows` derives
+    the rest. The mesh arrays are ``MeshAccel.kernel_arrays``; ``shift`` its
+    origin. (Arrays are separate arguments: numba 0.68 mis-lowers unpacking
+    long tuples of arrays in prange loops.)
     """
     n = P0.shape[0]
     nblocks = (n + _BLOCK - 1) // _BLOCK
@@ -917,55 +871,56 @@ def query_spheres(
             p1y = P1[i, 1] - shift[1]
             p1z = P1[i, 2] - shift[2]
             R = radius[i] + margin
-            bd2 = R * R
-            bj = -1
-            bt = 0.0
-            bqx = 0.0
-            bqy = 0.0
-            bqz = 0.0
-            bu = 0.0
-            bv = 0.0
-            bw = 0.0
-            if not _box_far(p0x, p0y, p0z, p1x, p1y, p1z, R, BOX):
-                for s in range(k):
-                    ts = 0.5 if k == 1 else s / (k - 1.0)
-                    cx = p0x + ts * (p1x - p0x)
-                    cy = p0y + ts * (p1y - p0y)
-                    cz = p0z + ts * (p1z - p0z)
-                    if _box_far(cx, cy, cz, cx, cy, cz, np.sqrt(bd2), BOX):
-                        continue
-                    j0, e2, et, eqx, eqy, eqz, eu, ev, ew = _seed_test(
-                        cx, cy, cz, cx, cy, cz, TRI, DEG, GRID, GDIM, SEED
-                    )
-                    if e2 < bd2:
-                        d2, j, t, qx, qy, qz, u, v, w = _nearest(
-                            cx, cy, cz, cx, cy, cz, e2, TRI, DEG, NB, NI, stack, j0, et, eqx, eqy, eqz, eu, ev, ew
-                        )
-                    else:
-                        d2, j, t, qx, qy, qz, u, v, w = _nearest(
-                            cx, cy, cz, cx, cy, cz, bd2, TRI, DEG, NB, NI, stack, -1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-                        )
-                    if j >= 0 and d2 < bd2:
-                        bd2 = d2
-                        bj = j
-                        bt = ts
-                        bqx = qx
-                        bqy = qy
-                        bqz = qz
-                        bu = u
-                        bv = v
-                        bw = w
-            d2_out[i] = bd2
-            in_out[i] = False
-            tri_out[i] = bj
-            if bj >= 0:
-                t_out[i] = bt
-                q_out[i, 0] = bqx
-                q_out[i, 1] = bqy
-                q_out[i, 2] = bqz
-                b_out[i, 0] = bu
-                b_out[i, 1] = bv
-                b_out[i, 2] = bw
+            if k == 0:
+                d2, ins, j, t, qx, qy, qz, u, v, w = _query_segment(
+                    p0x,
+                    p0y,
+                    p0z,
+                    p1x,
+                    p1y,
+                    p1z,
+                    R,
+                    mode,
+                    BOX,
+                    TRI,
+                    DEG,
+                    TPL,
+                    NB,
+                    NI,
+                    HP,
+                    CS,
+                    CU,
+                    CV,
+                    GRID,
+                    GDIM,
+                    SEED,
+                    stack,
+                )
+            else:
+                d2, ins, j, t, qx, qy, qz, u, v, w = _query_spheres(
+                    p0x, p0y, p0z, p1x, p1y, p1z, R, k, BOX, TRI, DEG, NB, NI, GRID, GDIM, SEED, stack
+                )
+            d2_out[i] = d2
+            in_out[i] = ins
+            tri_out[i] = j
+            if j >= 0:
+                t_out[i] = t
+                q_out[i, 0] = qx
+                q_out[i, 1] = qy
+                q_out[i, 2] = qz
+                b_out[i, 0] = u
+                b_out[i, 1] = v
+                b_out[i, 2] = w
+
+
+def query_capsules(P0, P1, radius, margin, mode, *arrays):
+    """The exact search (:func:`query_rows` with k = 0); ``mode`` 0/1/2: no inside test, hull, hull then winding."""
+    query_rows(P0, P1, radius, margin, mode, 0, *arrays)
+
+
+def query_spheres(P0, P1, radius, margin, k, *arrays):
+    """The paper's approximation (:func:`query_rows` with ``k`` > 0 spheres a capsule)."""
+    query_rows(P0, P1, radius, margin, 0, k, *arrays)
 
 
 @njit(cache=True, fastmath=False, parallel=True)

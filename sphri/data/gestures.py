@@ -95,71 +95,31 @@ TOUCH_COUNTS: dict[str, tuple[tuple[int, ...], float]] = {
 CONTACT_FRACTION = {"tap": 0.35, "pat": 0.4, "stroke": 0.65}
 
 # Finger shapes: rows thumb, index, middle, ring, pinky; columns abduction, 3 flexions (radians).
-RELAXED = np.array(
-    [
-        [0.0, 0.20, 0.20, 0.15],
-        [0.0, 0.30, 0.35, 0.20],
-        [0.0, 0.30, 0.35, 0.20],
-        [0.0, 0.32, 0.38, 0.22],
-        [0.0, 0.35, 0.40, 0.25],
-    ]
+
+
+def _hand(thumb: list[float], *fingers: list[float]) -> np.ndarray:
+    """(5, 4) finger angles from the thumb's row and the fingers' rows from the index on; the fingers not
+    given (the ones that move together) repeat the last row given."""
+    rows = [thumb, *fingers]
+    return np.array(rows + [fingers[-1]] * (5 - len(rows)))
+
+
+RELAXED = _hand(
+    [0.0, 0.20, 0.20, 0.15],
+    [0.0, 0.30, 0.35, 0.20],
+    [0.0, 0.30, 0.35, 0.20],
+    [0.0, 0.32, 0.38, 0.22],
+    [0.0, 0.35, 0.40, 0.25],
 )
-FLAT = np.array(
-    [
-        [-0.15, 0.05, 0.05, 0.05],
-        [0.0, 0.05, 0.05, 0.03],
-        [0.0, 0.05, 0.05, 0.03],
-        [0.0, 0.05, 0.05, 0.03],
-        [0.0, 0.05, 0.05, 0.03],
-    ]
-)
-POINT = np.array(
-    [
-        [0.0, 0.60, 0.50, 0.35],
-        [0.0, 0.05, 0.08, 0.05],
-        [0.0, 1.50, 1.60, 1.00],
-        [0.0, 1.50, 1.60, 1.00],
-        [0.0, 1.50, 1.60, 1.00],
-    ]
-)
-TAP = np.array(
-    [
-        [0.0, 0.30, 0.50, 0.40],
-        [0.0, 0.45, 0.55, 0.30],
-        [0.0, 0.70, 1.40, 0.90],
-        [0.0, 0.70, 1.40, 0.90],
-        [0.0, 0.70, 1.40, 0.90],
-    ]
-)
+FLAT = _hand([-0.15, 0.05, 0.05, 0.05], [0.0, 0.05, 0.05, 0.03])
+POINT = _hand([0.0, 0.60, 0.50, 0.35], [0.0, 0.05, 0.08, 0.05], [0.0, 1.50, 1.60, 1.00])
+TAP = _hand([0.0, 0.30, 0.50, 0.40], [0.0, 0.45, 0.55, 0.30], [0.0, 0.70, 1.40, 0.90])
 TAP2 = TAP.copy()
-TAP2[2] = [0.0, 0.45, 0.55, 0.30]
-FIST = np.array(
-    [
-        [0.0, 0.70, 0.60, 0.50],
-        [0.0, 1.50, 1.70, 1.10],
-        [0.0, 1.50, 1.70, 1.10],
-        [0.0, 1.50, 1.70, 1.10],
-        [0.0, 1.50, 1.70, 1.10],
-    ]
-)
-SLIDE_FINGERS = np.array(
-    [
-        [0.0, 0.30, 0.30, 0.20],
-        [0.0, 0.30, 0.15, 0.10],
-        [0.0, 0.30, 0.15, 0.10],
-        [0.0, 0.30, 0.15, 0.10],
-        [0.0, 0.60, 0.60, 0.40],
-    ]
-)
-GRAB_OPEN = np.array(
-    [
-        [0.0, 0.00, 0.10, 0.10],
-        [0.0, 0.15, 0.20, 0.10],
-        [0.0, 0.15, 0.20, 0.10],
-        [0.0, 0.15, 0.20, 0.10],
-        [0.0, 0.15, 0.20, 0.10],
-    ]
-)
+TAP2[2] = TAP[1]  # two-finger tap: the middle finger as the index
+FIST = _hand([0.0, 0.70, 0.60, 0.50], [0.0, 1.50, 1.70, 1.10])
+_PADS = [0.0, 0.30, 0.15, 0.10]  # index to ring sliding on their pads
+SLIDE_FINGERS = _hand([0.0, 0.30, 0.30, 0.20], _PADS, _PADS, _PADS, [0.0, 0.60, 0.60, 0.40])
+GRAB_OPEN = _hand([0.0, 0.00, 0.10, 0.10], [0.0, 0.15, 0.20, 0.10])
 
 
 #: Population rates of the per-participant habits (probability that a trial uses the variant).
@@ -398,162 +358,94 @@ def _plan(
     rate = style.rate_g.get(gesture, 1.0)
     extent = style.extent_g.get(gesture, 1.0)
 
+    def hover(lo: float, hi: float) -> float:
+        return float(rng.uniform(lo, hi))
+
     def multi(g: str) -> list[tuple[float, float, float]]:
         choices, expected = TOUCH_COUNTS[g]
         n = int(rng.choice(choices, p=style.counts[g]))
         return _touch_train(dur * n / expected / rate, n, CONTACT_FRACTION[g], depth, rng)
 
+    def plan(effector: str, fingers: np.ndarray, touches, hover_m: float, ramp_s: float, **kw) -> ContactPlan:
+        # ``hover_m`` is drawn by the caller before the draws in ``kw`` (the random stream's order)
+        kw = {"yaw": yaw, "tilt": tilt, **kw}
+        return ContactPlan(gesture, effector, fingers, touches, hover_m, ramp_s * slow, tilt_azimuth=az, **kw)
+
+    def pads_or_palm(habit: str) -> tuple[str, np.ndarray]:
+        fingers = rng.random() < style.habit(habit)
+        return ("fingers", SLIDE_FINGERS) if fingers else ("palm", FLAT + spread)
+
+    one = [(0.0, dur, depth)]
     if gesture == "poke":
-        return ContactPlan(
-            gesture,
+        return plan(
             "index_tip",
             POINT + 0.5 * spread,
-            [(0.0, dur, depth)],
-            hover_m=float(rng.uniform(0.03, 0.05)),
-            ramp_s=0.15 * slow,
-            yaw=yaw,
+            one,
+            hover(0.03, 0.05),
+            0.15,
             tilt=float(rng.uniform(0.0, np.radians(25.0))),
-            tilt_azimuth=az,
         )
-    if gesture == "tap":
-        shape = TAP2 if rng.random() < style.habit("tap_two") else TAP
-        touches = multi("tap")
-        plan = ContactPlan(
-            gesture,
-            "index_tip",
-            shape + 0.5 * spread,
-            touches,
-            hover_m=float(rng.uniform(0.015, 0.025)),
-            ramp_s=0.08 * slow,
-            yaw=yaw,
-            tilt=tilt,
-            tilt_azimuth=az,
-            slide_angle=float(rng.uniform(0, 2 * np.pi)),
-        )
-        plan.slide = [(a, float(rng.normal(0.0, 0.004))) for a, _, _ in touches]
-        return plan
-    if gesture == "pat":
-        fingers = rng.random() < style.habit("pat_fingers")
-        touches = multi("pat")
-        plan = ContactPlan(
-            gesture,
-            "fingers" if fingers else "palm",
-            SLIDE_FINGERS if fingers else FLAT + spread,
-            touches,
-            hover_m=float(rng.uniform(0.03, 0.05)),
-            ramp_s=0.10 * slow,
-            yaw=yaw,
-            tilt=tilt,
-            tilt_azimuth=az,
-            slide_angle=float(rng.uniform(0, 2 * np.pi)),
-        )
-        plan.slide = [(a, float(rng.normal(0.0, 0.006))) for a, _, _ in touches]
-        return plan
+    if gesture in ("tap", "pat"):
+        if gesture == "tap":
+            effector, shape = "index_tip", (TAP2 if rng.random() < style.habit("tap_two") else TAP) + 0.5 * spread
+            heights, ramp, jitter = (0.015, 0.025), 0.08, 0.004
+        else:
+            (effector, shape), heights, ramp, jitter = pads_or_palm("pat_fingers"), (0.03, 0.05), 0.10, 0.006
+        touches = multi(gesture)
+        out = plan(effector, shape, touches, hover(*heights), ramp, slide_angle=float(rng.uniform(0, 2 * np.pi)))
+        out.slide = [(a, float(rng.normal(0.0, jitter))) for a, _, _ in touches]
+        return out
     if gesture == "hit":
         fist = rng.random() < style.habit("hit_fist")
-        return ContactPlan(
-            gesture,
-            "fist" if fist else "palm",
-            FIST if fist else FLAT + spread,
-            [(0.0, dur, depth)],
-            hover_m=float(rng.uniform(0.08, 0.12)),
-            ramp_s=0.05 * slow,
-            yaw=yaw,
-            tilt=tilt,
-            tilt_azimuth=az,
-        )
+        effector, shape = ("fist", FIST) if fist else ("palm", FLAT + spread)
+        return plan(effector, shape, one, hover(0.08, 0.12), 0.05)
     if gesture == "push":
-        if rng.random() < style.habit("push_tip"):
-            return ContactPlan(
-                gesture,
-                "index_tip",
-                POINT + 0.5 * spread,
-                [(0.0, dur, depth)],
-                hover_m=float(rng.uniform(0.03, 0.05)),
-                ramp_s=0.25 * slow,
-                yaw=yaw,
-                tilt=tilt,
-                tilt_azimuth=az,
-            )
-        return ContactPlan(
-            gesture,
-            "palm",
-            FLAT + spread,
-            [(0.0, dur, depth)],
-            hover_m=float(rng.uniform(0.03, 0.05)),
-            ramp_s=0.25 * slow,
-            yaw=yaw,
-            tilt=tilt,
-            tilt_azimuth=az,
-        )
+        tip = rng.random() < style.habit("push_tip")
+        effector, shape = ("index_tip", POINT + 0.5 * spread) if tip else ("palm", FLAT + spread)
+        return plan(effector, shape, one, hover(0.03, 0.05), 0.25)
     if gesture == "rub":
-        fingers = rng.random() < style.habit("slide_fingers")
+        effector, shape = pads_or_palm("slide_fingers")
         across = rng.random() < style.habit("rub_across")
         angle = (np.pi / 2 if across else 0.0) + rng.normal(0.0, np.radians(20.0))
         amp = float(rng.uniform(0.015, 0.03)) * extent
         freq = float(rng.uniform(1.5, 3.0)) * rate
-        plan = ContactPlan(
-            gesture,
-            "fingers" if fingers else "palm",
-            SLIDE_FINGERS if fingers else FLAT + spread,
-            [(0.0, dur, depth)],
-            hover_m=float(rng.uniform(0.02, 0.04)),
-            ramp_s=0.15 * slow,
-            yaw=yaw,
-            tilt=tilt,
-            tilt_azimuth=az,
-            slide_angle=float(angle),
-        )
+        out = plan(effector, shape, one, hover(0.02, 0.04), 0.15, slide_angle=float(angle))
         half = 0.5 / freq
         k = np.arange(1, max(int(dur / half), 1) + 1)
-        plan.slide = [(0.0, 0.0)] + [
+        out.slide = [(0.0, 0.0)] + [
             (float(t), float(amp * (1 if i % 2 else -1))) for i, t in zip(k, k * half) if t < dur
         ]
-        return plan
+        return out
     if gesture == "stroke":
-        fingers = rng.random() < style.habit("slide_fingers")
+        effector, shape = pads_or_palm("slide_fingers")
         touches = multi("stroke")
         length = float(rng.uniform(0.06, 0.12)) * style.scale * extent
         sign = 1.0 if rng.random() < style.habit("stroke_sign") else -1.0
         angle = (0.0 if sign > 0 else np.pi) + rng.normal(0.0, np.radians(10.0))
-        plan = ContactPlan(
-            gesture,
-            "fingers" if fingers else "palm",
-            SLIDE_FINGERS if fingers else FLAT + spread,
-            touches,
-            hover_m=float(rng.uniform(0.02, 0.04)),
-            ramp_s=0.12 * slow,
-            yaw=yaw,
-            tilt=tilt,
-            tilt_azimuth=az,
-            slide_angle=float(angle),
-        )
+        out = plan(effector, shape, touches, hover(0.02, 0.04), 0.12, slide_angle=float(angle))
         for a, b, _ in touches:
-            plan.slide += [(a, -0.5 * length), (b, 0.5 * length)]
-        return plan
+            out.slide += [(a, -0.5 * length), (b, 0.5 * length)]
+        return out
     if gesture == "grab":
         side = 1.0 if rng.random() < style.habit("grab_side") else -1.0
         closed = _grab_fingers(wrap_radius_m + finger_radius_m, style.scale) * float(rng.uniform(1.2, 1.4))
-        plan = ContactPlan(
-            gesture,
+        out = plan(
             "palm",
             GRAB_OPEN,
-            [(0.0, dur, depth)],
-            hover_m=float(rng.uniform(0.03, 0.05)),
-            ramp_s=0.2 * slow,
+            one,
+            hover(0.03, 0.05),
+            0.2,
             yaw=np.pi / 2 * side + rng.normal(0.0, np.radians(10.0)),
-            tilt=tilt,
-            tilt_azimuth=az,
             grab=True,
         )
         close = min(0.25, 0.3 * dur)
-        plan.finger_knots = [
+        out.finger_knots = [
             (0.0, GRAB_OPEN),
             (close, closed),
             (max(dur - close, close), closed),
             (dur + 0.1, GRAB_OPEN),
         ]
-        return plan
+        return out
     raise ValueError(f"unknown gesture {gesture!r}")
 
 

@@ -31,52 +31,40 @@ COST_PITCH_M = 0.020
 #: Sensor area of CoST's 8 x 8 grid (160 x 160 mm), square metres.
 COST_SENSOR_AREA_M2 = (COST_CELLS * COST_PITCH_M) ** 2
 
-#: CoST Table 4: gesture -> (mean, SD) contact duration in milliseconds.
-COST_DURATION_MS: dict[str, tuple[float, float]] = {
-    "grab": (1373.0, 715.0),
-    "hit": (337.0, 403.0),
-    "pat": (709.0, 753.0),
-    "poke": (650.0, 502.0),
-    "push": (1181.0, 608.0),
-    "rub": (2170.0, 1142.0),
-    "stroke": (1722.0, 829.0),
-    "tap": (564.0, 486.0),
+#: CoST Table 4, per gesture: (mean, SD) contact duration in milliseconds and (mean, SD) contact area as a
+#: fraction of the 8 x 8 sensor.
+_COST_TABLE_4: dict[str, tuple[float, float, float, float]] = {
+    "grab": (1373.0, 715.0, 0.59, 0.17),
+    "hit": (337.0, 403.0, 0.15, 0.05),
+    "pat": (709.0, 753.0, 0.15, 0.07),
+    "poke": (650.0, 502.0, 0.08, 0.08),
+    "push": (1181.0, 608.0, 0.23, 0.16),
+    "rub": (2170.0, 1142.0, 0.21, 0.10),
+    "stroke": (1722.0, 829.0, 0.20, 0.08),
+    "tap": (564.0, 486.0, 0.12, 0.07),
 }
 
+#: CoST Table 4: gesture -> (mean, SD) contact duration in milliseconds.
+COST_DURATION_MS: dict[str, tuple[float, float]] = {g: (r[0], r[1]) for g, r in _COST_TABLE_4.items()}
+
 #: CoST Table 4: gesture -> (mean, SD) contact area, fraction of the 8 x 8 sensor.
-COST_AREA_FRACTION: dict[str, tuple[float, float]] = {
-    "grab": (0.59, 0.17),
-    "hit": (0.15, 0.05),
-    "pat": (0.15, 0.07),
-    "poke": (0.08, 0.08),
-    "push": (0.23, 0.16),
-    "rub": (0.21, 0.10),
-    "stroke": (0.20, 0.08),
-    "tap": (0.12, 0.07),
+COST_AREA_FRACTION: dict[str, tuple[float, float]] = {g: (r[2], r[3]) for g, r in _COST_TABLE_4.items()}
+
+#: VR gesture dataset manifests, per gesture: median trial length (frames, rest to rest) on the (arm, torso).
+_VR_MEDIANS: dict[str, tuple[float, float]] = {
+    "grab": (111.0, 113.0),
+    "hit": (96.0, 97.0),
+    "pat": (135.0, 131.5),
+    "poke": (108.5, 104.5),
+    "push": (101.5, 97.5),
+    "rub": (143.0, 140.0),
+    "stroke": (157.0, 150.5),
+    "tap": (119.5, 117.0),
 }
 
 #: VR gesture dataset manifests: region -> gesture -> median trial length (frames, rest to rest).
 VR_MEDIAN_TRIAL_FRAMES: dict[str, dict[str, float]] = {
-    "arm": {
-        "grab": 111.0,
-        "hit": 96.0,
-        "pat": 135.0,
-        "poke": 108.5,
-        "push": 101.5,
-        "rub": 143.0,
-        "stroke": 157.0,
-        "tap": 119.5,
-    },
-    "torso": {
-        "grab": 113.0,
-        "hit": 97.0,
-        "pat": 131.5,
-        "poke": 104.5,
-        "push": 97.5,
-        "rub": 140.0,
-        "stroke": 150.5,
-        "tap": 117.0,
-    },
+    region: {g: medians[i] for g, medians in _VR_MEDIANS.items()} for i, region in enumerate(("arm", "torso"))
 }
 
 #: The VR manifests' trial-length spread (``python -m sphri.data.stats`` with the manifests, see

@@ -260,40 +260,7 @@ def _raster_all(
             hi = start[m + 1]
             if hi == lo:
                 continue
-            n_t = _raster_frame(
-                lo,
-                hi,
-                cu,
-                cv,
-                qa,
-                qb,
-                qc,
-                h,
-                w,
-                ss,
-                row_offset,
-                wrap,
-                cov,
-                mark,
-                forced,
-                touched,
-                head,
-                nxt,
-                a0,
-                a1,
-                subs,
-                tmp,
-            )
-            while n_t < 0:  # interval scratch too small: reset, grow, redo the frame
-                for cell in range(n_cells):
-                    cov[cell] = 0.0
-                    mark[cell] = 0
-                    forced[cell] = 0
-                cap *= 4
-                nxt = np.empty(cap, dtype=np.int64)
-                a0 = np.empty(cap, dtype=np.float64)
-                a1 = np.empty(cap, dtype=np.float64)
-                tmp = np.empty(cap, dtype=np.int64)
+            while True:
                 n_t = _raster_frame(
                     lo,
                     hi,
@@ -318,6 +285,18 @@ def _raster_all(
                     subs,
                     tmp,
                 )
+                if n_t >= 0:
+                    break
+                # interval scratch too small: reset, grow, redo the frame
+                for cell in range(n_cells):
+                    cov[cell] = 0.0
+                    mark[cell] = 0
+                    forced[cell] = 0
+                cap *= 4
+                nxt = np.empty(cap, dtype=np.int64)
+                a0 = np.empty(cap, dtype=np.float64)
+                a1 = np.empty(cap, dtype=np.float64)
+                tmp = np.empty(cap, dtype=np.int64)
             for t in range(n_t):
                 cell = touched[t]
                 val = cov[cell]

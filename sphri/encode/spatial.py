@@ -56,6 +56,19 @@ def _visit(hash_origin, cell, dims, vstart, vorder, c, radius, out, n_out):  # p
     return n_out
 
 
+@njit(cache=True, inline="always")
+def _facing_dist2(t, k, tpos, tnormal, point, cnormal):  # pragma: no cover - numba
+    """(taxel t faces the same way as contact k (``n_t . n > 0``), squared distance from taxel t to
+    ``point[k]``); the distance is 0 when it does not face it."""
+    dn = tnormal[t, 0] * cnormal[k, 0] + tnormal[t, 1] * cnormal[k, 1] + tnormal[t, 2] * cnormal[k, 2]
+    if dn <= 0.0:
+        return False, 0.0
+    dx = tpos[t, 0] - point[k, 0]
+    dy = tpos[t, 1] - point[k, 1]
+    dz = tpos[t, 2] - point[k, 2]
+    return True, dx * dx + dy * dy + dz * dz
+
+
 @njit(cache=True, parallel=True)
 def coverage_kernel(
     start,
@@ -99,14 +112,9 @@ def coverage_kernel(
                 nc = _visit(hash_origin, cell, dims, vstart, vorder, centre[k], r + tr_max, cand, 0)
                 for q in range(nc):
                     t = cand[q]
-                    dn = tnormal[t, 0] * cnormal[k, 0] + tnormal[t, 1] * cnormal[k, 1] + tnormal[t, 2] * cnormal[k, 2]
-                    if dn <= 0.0:
-                        continue
-                    dx = tpos[t, 0] - centre[k, 0]
-                    dy = tpos[t, 1] - centre[k, 1]
-                    dz = tpos[t, 2] - centre[k, 2]
+                    facing, d2 = _facing_dist2(t, k, tpos, tnormal, centre, cnormal)
                     reach = r + tradius[t]
-                    if dx * dx + dy * dy + dz * dz > reach * reach:
+                    if not facing or d2 > reach * reach:
                         continue
                     for s in range(s_per):
                         if bits[t, s] == 1:
@@ -169,13 +177,10 @@ def proximity_kernel(
                 nc = _visit(hash_origin, cell, dims, vstart, vorder, sphere[k], reach, cand, 0)
                 for q in range(nc):
                     t = cand[q]
-                    dn = tnormal[t, 0] * cnormal[k, 0] + tnormal[t, 1] * cnormal[k, 1] + tnormal[t, 2] * cnormal[k, 2]
-                    if dn <= 0.0:
+                    facing, d2 = _facing_dist2(t, k, tpos, tnormal, sphere, cnormal)
+                    if not facing:
                         continue
-                    dx = tpos[t, 0] - sphere[k, 0]
-                    dy = tpos[t, 1] - sphere[k, 1]
-                    dz = tpos[t, 2] - sphere[k, 2]
-                    d = np.sqrt(dx * dx + dy * dy + dz * dz) - sradius[k]
+                    d = np.sqrt(d2) - sradius[k]
                     if d > sensing:
                         continue
                     if binary:

@@ -59,7 +59,7 @@ best point and the rule.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -204,19 +204,9 @@ def saturation(
         raise ValueError(f"n_se={n_se!r} is invalid: must be a finite number >= 0")
     if tolerance is not None and (not np.isfinite(tolerance) or tolerance < 0):
         raise ValueError(f"tolerance={tolerance!r} is invalid: must be a finite number >= 0 (score units)")
-    if not 0.0 < ci < 1.0:
-        raise ValueError(f"ci={ci!r} is invalid: must be in (0, 1)")
-    if n_boot < 0:
-        raise ValueError(f"n_boot={n_boot!r} is invalid: must be >= 0")
-    s = _as_matrix(scores)
-    s = s[np.isfinite(s).any(axis=1)]  # participants with no score at all carry no information
-    if s.shape[0] == 0:
-        raise ValueError("no finite score at any sweep point: nothing to find a saturation point on")
-    mean, std, se, n = _batch_stats(s[None])
-    stats = CurveStats(mean[0], std[0], se[0], n[0])
+    s, stats, mean, se = _scored(scores, ci, n_boot)
     sel, best, tol = _rule(mean, se, n_se, tolerance)
     index, best_index = int(sel[0]), int(best[0])
-    n_part = int(s.shape[0])
     gap_vals = s[:, best_index] - s[:, index]
     gap = (
         float(np.nanmean(gap_vals))
@@ -228,36 +218,55 @@ def saturation(
     n_missing = int((~np.isfinite(s)).sum())
     if n_missing:
         notes.append(f"{n_missing} of {s.size} participant x point scores are missing (NaN) and were skipped")
-    if n_part < 2:
-        notes.append(
-            "only one participant: no standard error and no bootstrap interval; the rule's tolerance is "
-            + ("the fixed tolerance" if tolerance is not None else "0, so the saturation point is the best point")
-        )
-        return Saturation(
-            index, best_index, float(tol[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes)
-        )
-    if n_boot == 0:
-        notes.append("no bootstrap requested (n_boot=0): no interval")
-        return Saturation(
-            index, best_index, float(tol[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes)
-        )
-
-    interval, picked, gap_interval = _bootstrap(
-        s, index, best_index, n_boot, ci, seed, notes, lambda sb: _rule(*_batch_stats(sb)[0:3:2], n_se, tolerance)[0]
+    single = "only one participant: no standard error and no bootstrap interval; the rule's tolerance is " + (
+        "the fixed tolerance" if tolerance is not None else "0, so the saturation point is the best point"
     )
-    return Saturation(
-        index,
-        best_index,
-        float(tol[0]),
-        stats,
-        n_part,
-        interval,
-        ci,
-        int(picked.size),
-        picked,
-        gap,
-        gap_interval,
-        "; ".join(notes),
+
+    def select(sb: np.ndarray) -> np.ndarray:
+        return _rule(*_batch_stats(sb)[0:3:2], n_se, tolerance)[0]
+
+    sat = Saturation(index, best_index, float(tol[0]), stats, s.shape[0], None, ci, 0, None, gap, None, "")
+    return _outcome(
+        sat, notes, single, n_boot, lambda: _bootstrap(s, index, best_index, n_boot, ci, seed, notes, select)
+    )
+
+
+def _check_bootstrap(ci: float, n_boot: int) -> None:
+    if not 0.0 < ci < 1.0:
+        raise ValueError(f"ci={ci!r} is invalid: must be in (0, 1)")
+    if n_boot < 0:
+        raise ValueError(f"n_boot={n_boot!r} is invalid: must be >= 0")
+
+
+def _scored(scores: np.ndarray, ci: float, n_boot: int) -> tuple[np.ndarray, CurveStats, np.ndarray, np.ndarray]:
+    """Check ``ci`` and ``n_boot``; (the (P, R) matrix without participants who have no finite score, its
+    curve, and the curve's mean and standard error as (1, R) batches). Raises ValueError when no score is finite."""
+    _check_bootstrap(ci, n_boot)
+    s = _as_matrix(scores)
+    s = s[np.isfinite(s).any(axis=1)]  # participants with no score at all carry no information
+    if s.shape[0] == 0:
+        raise ValueError("no finite score at any sweep point: nothing to find a saturation point on")
+    mean, std, se, n = _batch_stats(s[None])
+    return s, CurveStats(mean[0], std[0], se[0], n[0]), mean, se
+
+
+def _outcome(sat: Saturation, notes: list[str], single: str, n_boot: int, resample, note_first: bool = False):
+    """``sat`` (a rule's outcome without an interval) with its notes, and with the interval of its bootstrap
+    ``resample()`` -> (interval, selections kept, gap interval) when there are two participants or more and
+    ``n_boot`` > 0; otherwise a note why there is none (``single``: the note for one participant), last or with
+    ``note_first`` first."""
+    if sat.n_participants < 2 or n_boot == 0:
+        why = single if sat.n_participants < 2 else "no bootstrap requested (n_boot=0): no interval"
+        notes.insert(0 if note_first else len(notes), why)
+        return replace(sat, note="; ".join(notes))
+    interval, picked, gap_interval = resample()
+    return replace(
+        sat,
+        interval=interval,
+        n_boot=int(picked.size),
+        boot_index=picked,
+        gap_interval=gap_interval,
+        note="; ".join(notes),
     )
 
 
@@ -415,19 +424,9 @@ def paired_saturation(
     (score units); ``deficit``/``deficit_se`` hold the paired curve.
     """
     tol = tolerance if isinstance(tolerance, Tolerance) else Tolerance.parse(tolerance)
-    if not 0.0 < ci < 1.0:
-        raise ValueError(f"ci={ci!r} is invalid: must be in (0, 1)")
-    if n_boot < 0:
-        raise ValueError(f"n_boot={n_boot!r} is invalid: must be >= 0")
-    s = _as_matrix(scores)
-    s = s[np.isfinite(s).any(axis=1)]
-    if s.shape[0] == 0:
-        raise ValueError("no finite score at any sweep point: nothing to find a saturation point on")
-    mean, std, se, n = _batch_stats(s[None])
-    stats = CurveStats(mean[0], std[0], se[0], n[0])
+    s, stats, _, _ = _scored(scores, ci, n_boot)
     sel, best, deficit, dse, allowed = _paired_rule(s[None], tol)
     index, best_index = int(sel[0]), int(best[0])
-    n_part = int(s.shape[0])
     base = dict(rule="paired", deficit=deficit[0], deficit_se=dse[0], tolerance_name=tol.name)
     gap = float(deficit[0, index])
     notes = []
@@ -436,36 +435,16 @@ def paired_saturation(
         notes.append(
             f"{n_missing} of {s.size} participant x point scores are missing (NaN) and were left out of their pairs"
         )
-    if n_part < 2:
-        notes.append(
-            "only one participant: no paired standard error and no bootstrap interval"
-            + ("; the SE tolerance is 0, so the saturation point is the best point" if tol.n_se is not None else "")
-        )
-        return Saturation(
-            index, best_index, float(allowed[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes), **base
-        )
-    if n_boot == 0:
-        notes.append("no bootstrap requested (n_boot=0): no interval")
-        return Saturation(
-            index, best_index, float(allowed[0]), stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes), **base
-        )
-    interval, picked, gap_interval = _bootstrap(
-        s, index, best_index, n_boot, ci, seed, notes, lambda sb: _paired_rule(sb, tol)[0]
+    single = "only one participant: no paired standard error and no bootstrap interval" + (
+        "; the SE tolerance is 0, so the saturation point is the best point" if tol.n_se is not None else ""
     )
-    return Saturation(
-        index,
-        best_index,
-        float(allowed[0]),
-        stats,
-        n_part,
-        interval,
-        ci,
-        int(picked.size),
-        picked,
-        gap,
-        gap_interval,
-        "; ".join(notes),
-        **base,
+    sat = Saturation(index, best_index, float(allowed[0]), stats, s.shape[0], None, ci, 0, None, gap, None, "", **base)
+
+    def select(sb: np.ndarray) -> np.ndarray:
+        return _paired_rule(sb, tol)[0]
+
+    return _outcome(
+        sat, notes, single, n_boot, lambda: _bootstrap(s, index, best_index, n_boot, ci, seed, notes, select)
     )
 
 
@@ -680,10 +659,7 @@ def envelope_saturation(
     the best point and the rule (the rerun noise and the tolerance stay those of the full data).
     """
     tol = tolerance if isinstance(tolerance, Tolerance) else Tolerance.parse(tolerance)
-    if not 0.0 < ci < 1.0:
-        raise ValueError(f"ci={ci!r} is invalid: must be in (0, 1)")
-    if n_boot < 0:
-        raise ValueError(f"n_boot={n_boot!r} is invalid: must be >= 0")
+    _check_bootstrap(ci, n_boot)
     if not 0.0 <= alpha < 1.0:
         raise ValueError(f"alpha={alpha!r} is invalid: must be in [0, 1)")
     s = _as_seeds(scores)
@@ -721,53 +697,28 @@ def envelope_saturation(
             "even the finest point swept is outside the tolerance of the best: the curve falls at the fine "
             "end, so no swept resolution keeps every finer one within tolerance"
         )
-    tol_at = float(allowed[0, index])
-    if n_part < 2 or n_boot == 0:
-        notes.insert(
-            0,
-            "only one participant: no standard error and no bootstrap interval"
-            if n_part < 2
-            else "no bootstrap requested (n_boot=0): no interval",
-        )
-        return (
-            Saturation(
-                index, best_index, tol_at, stats, n_part, None, ci, 0, None, gap, None, "; ".join(notes), **base
-            ),
-            env,
-        )
 
-    rng = np.random.default_rng(seed)
-    boot_sel = np.empty(n_boot, dtype=np.int64)
-    boot_gap = np.empty(n_boot, dtype=np.float64)
-    chunk = max(1, int(1e6 // max(s.size, 1)))
-    for start in range(0, n_boot, chunk):
-        b = min(chunk, n_boot - start)
-        pidx = rng.integers(0, n_part, size=(b, n_part))
-        sb = np.moveaxis(s[:, pidx], 0, 1)  # (b, S, P, R)
-        if n_seeds >= 2:
-            draws = rng.integers(0, n_seeds, size=(b, n_seeds))
-            wb = np.stack([np.bincount(d, minlength=n_seeds) for d in draws]).astype(float)
-        else:
-            wb = np.ones((b, 1))
-        sel_b, _, def_b, _, _, _, _ = _envelope_rule(sb, wb, tol, floor, z)
-        boot_sel[start : start + b] = sel_b
-        boot_gap[start : start + b] = def_b[np.arange(b), index]
-    interval, picked, gap_interval = _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
-    return (
-        Saturation(
-            index,
-            best_index,
-            tol_at,
-            stats,
-            n_part,
-            interval,
-            ci,
-            int(picked.size),
-            picked,
-            gap,
-            gap_interval,
-            "; ".join(notes),
-            **base,
-        ),
-        env,
+    def resample() -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
+        rng = np.random.default_rng(seed)
+        boot_sel = np.empty(n_boot, dtype=np.int64)
+        boot_gap = np.empty(n_boot, dtype=np.float64)
+        chunk = max(1, int(1e6 // max(s.size, 1)))
+        for start in range(0, n_boot, chunk):
+            b = min(chunk, n_boot - start)
+            pidx = rng.integers(0, n_part, size=(b, n_part))
+            sb = np.moveaxis(s[:, pidx], 0, 1)  # (b, S, P, R)
+            if n_seeds >= 2:
+                draws = rng.integers(0, n_seeds, size=(b, n_seeds))
+                wb = np.stack([np.bincount(d, minlength=n_seeds) for d in draws]).astype(float)
+            else:
+                wb = np.ones((b, 1))
+            sel_b, _, def_b, _, _, _, _ = _envelope_rule(sb, wb, tol, floor, z)
+            boot_sel[start : start + b] = sel_b
+            boot_gap[start : start + b] = def_b[np.arange(b), index]
+        return _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
+
+    single = "only one participant: no standard error and no bootstrap interval"
+    sat = Saturation(
+        index, best_index, float(allowed[0, index]), stats, n_part, None, ci, 0, None, gap, None, "", **base
     )
+    return _outcome(sat, notes, single, n_boot, resample, note_first=True), env

@@ -8,6 +8,8 @@
   realistic statistics, made without the contact stage.
 - :mod:`sphri.testing.toy_windows`: gesture windows drawn directly (no hands,
   no contact), for model tests and benchmarks.
+- :mod:`sphri.testing.runs`: a :class:`~sphri.types.RunMeta` for tests that
+  log or report runs without running a job.
 
 Nothing in the pipeline imports this package.
 """

@@ -40,25 +40,25 @@ def small(hand, robot) -> GestureDataset:
     return SyntheticData(seed=7, participants=3, repetitions=2, regions=["arm", "torso"]).load(hand=hand, robot=robot)
 
 
-def compute_contacts(dataset: GestureDataset, robot: Robot) -> Contacts:
-    """Exact capsule-vs-link contacts (sphri.contact.capsule_mesh_query) as a Contacts table."""
+def hand_link_query(dataset: GestureDataset, link, frames: np.ndarray, margin: float = 0.0):
+    """Exact query (sphri.contact.capsule_mesh_query) of the hand's capsules in ``frames`` against ``link``;
+    row ``i * n_capsules + c`` is capsule c in ``frames[i]``."""
     from sphri.contact import capsule_mesh_query
     from sphri.hand.kinematics import capsule_segments
 
-    p0, p1 = capsule_segments(dataset.poses, dataset.hand)
+    p0, p1 = capsule_segments(dataset.poses[frames], dataset.hand)
+    radius = np.tile(dataset.hand.radius_m, len(frames))
+    return capsule_mesh_query(link.vertices, link.faces, p0.reshape(-1, 3), p1.reshape(-1, 3), radius, margin=margin)
+
+
+def compute_contacts(dataset: GestureDataset, robot: Robot) -> Contacts:
+    """Exact capsule-vs-link contacts (sphri.contact.capsule_mesh_query) as a Contacts table."""
     c = dataset.hand.n_capsules
     region_of_frame = dataset.trials["region"].to_numpy()[dataset.frame_trial_index()]
     parts = []
     for region in np.unique(region_of_frame):
-        link = robot.link_for(str(region))
         fr = np.flatnonzero(region_of_frame == region)
-        q = capsule_mesh_query(
-            link.vertices,
-            link.faces,
-            p0[fr].reshape(-1, 3),
-            p1[fr].reshape(-1, 3),
-            np.tile(dataset.hand.radius_m, len(fr)),
-        )
+        q = hand_link_query(dataset, robot.link_for(str(region)), fr)
         i = np.flatnonzero(q.in_contact)
         parts.append(
             (
@@ -85,6 +85,12 @@ def compute_contacts(dataset: GestureDataset, robot: Robot) -> Contacts:
 def contacts_of():
     """The :func:`compute_contacts` function, for tests that build their own datasets."""
     return compute_contacts
+
+
+@pytest.fixture(scope="session")
+def hand_query():
+    """The :func:`hand_link_query` function."""
+    return hand_link_query
 
 
 @pytest.fixture(scope="session")

@@ -16,35 +16,19 @@ def toy(hand):
     box = trimesh.creation.box(extents=[0.1, 0.1, 0.1])
     link = Link(name="box", vertices=np.asarray(box.vertices), faces=np.asarray(box.faces, np.int64), watertight=True)
     robot = Robot(name="toy", links={"box": link}, regions={"arm": "box"})
+    # participant 1's arm trials: poke frames 0..29, grab 30..69, hit 70..79
     trials = make_trials_frame(
         [
             dict(
                 participant="participant_01",
                 region="arm",
-                trial_ordinal=1,
-                trial_id="0001_poke",
-                gesture="poke",
-                start=0,
-                n_frames=30,
-            ),
-            dict(
-                participant="participant_01",
-                region="arm",
-                trial_ordinal=2,
-                trial_id="0002_grab",
-                gesture="grab",
-                start=30,
-                n_frames=40,
-            ),
-            dict(
-                participant="participant_01",
-                region="arm",
-                trial_ordinal=3,
-                trial_id="0003_hit",
-                gesture="hit",
-                start=70,
-                n_frames=10,
-            ),
+                trial_ordinal=i,
+                trial_id=f"{i:04d}_{gesture}",
+                gesture=gesture,
+                start=start,
+                n_frames=n,
+            )
+            for i, (gesture, start, n) in enumerate([("poke", 0, 30), ("grab", 30, 40), ("hit", 70, 10)], start=1)
         ]
     )
     poses = np.zeros((80, hand.n_capsules, 7), np.float32)

@@ -8,7 +8,6 @@ import trimesh
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sphri.contact import capsule_mesh_query
 from sphri.data.handfk import HandRig, matrix_to_quat, rotvec_to_matrix
 from sphri.data.stats import calibration_checks, gesture_summary, trial_statistics
 from sphri.data.synthetic import SyntheticData, inverse_smoothstep, smoothstep
@@ -57,29 +56,20 @@ def test_streams_per_participant_and_region(hand, robot, small):
     assert np.array_equal(two.poses, arm.poses[:n])
 
 
-def _end_gaps(ds, robot, region):
+def _end_gaps(ds, robot, region, hand_query):
     """Distance (m) of the hand from the link in the first and last frame of every trial of ``region``."""
-    p0, p1 = capsule_segments(ds.poses, ds.hand)
-    link = robot.link_for(region)
     t = ds.trials[ds.trials.region == region]
     ends = np.r_[t["start"].to_numpy(), (t["start"] + t["n_frames"] - 1).to_numpy()]
-    q = capsule_mesh_query(
-        link.vertices,
-        link.faces,
-        p0[ends].reshape(-1, 3),
-        p1[ends].reshape(-1, 3),
-        np.tile(ds.hand.radius_m, len(ends)),
-        margin=0.5,
-    )
+    q = hand_query(ds, robot.link_for(region), ends, margin=0.5)
     return (q.distance - np.tile(ds.hand.radius_m, len(ends))).reshape(len(ends), -1).min(axis=1)
 
 
-def test_trials_start_and_end_at_rest_away_from_the_link(small, robot, hand):
+def test_trials_start_and_end_at_rest_away_from_the_link(small, robot, hand, hand_query):
     # by default a few trials are mis-timed (started late, ended early): most still start and end at rest
     for region in ("arm", "torso"):
-        assert (_end_gaps(small, robot, region) > 0.08).mean() >= 0.9
+        assert (_end_gaps(small, robot, region, hand_query) > 0.08).mean() >= 0.9
     exact = gen(hand, robot, seed=7, participants=2, repetitions=2, boundary_early_rate=0.0, boundary_late_rate=0.0)
-    gap = _end_gaps(exact, robot, "arm")
+    gap = _end_gaps(exact, robot, "arm", hand_query)
     assert (gap > 0.08).all(), gap.min()
 
 

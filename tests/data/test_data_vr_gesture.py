@@ -195,21 +195,27 @@ def test_leading_invalid_pose_takes_the_next_valid_one(written, hand):
     assert ds.repairs["held_invalid_pose"] == 1
 
 
-def test_zero_quaternion_is_held(written, hand):
-    table = pq.read_table(parquet_path(written, "arm", P1))
-    k = int(first_trial_rows(table)[3])
+def scale_quaternion(root: Path, capsule: str, pick, factor: float) -> None:
+    """Multiply the four quaternion columns of ``capsule`` by ``factor`` on the rows ``pick`` of participant 1's
+    first arm trial (0 makes a zero quaternion, 1.7 a non-unit one)."""
+    table = pq.read_table(parquet_path(root, "arm", P1))
+    rows = first_trial_rows(table)[pick]
     cols = {}
     for s in "xyzw":
-        v = table.column(f"index3_rot_{s}").to_numpy().copy()
-        v[k] = 0.0
-        cols[f"index3_rot_{s}"] = v
+        v = table.column(f"{capsule}_rot_{s}").to_numpy().copy()
+        v[rows] *= factor
+        cols[f"{capsule}_rot_{s}"] = v
 
     def edit(t):
         for name, v in cols.items():
             t = set_column(t, name, v)
         return t
 
-    edit_parquet(written, edit)
+    edit_parquet(root, edit)
+
+
+def test_zero_quaternion_is_held(written, hand):
+    scale_quaternion(written, "index3", 3, 0.0)
     ds = load(written, hand)
     assert ds.repairs == {"held_invalid_pose": 1}
     c = hand.names.index("index3")
@@ -217,20 +223,7 @@ def test_zero_quaternion_is_held(written, hand):
 
 
 def test_non_unit_quaternion_is_normalized(written, hand):
-    table = pq.read_table(parquet_path(written, "arm", P1))
-    rows = first_trial_rows(table)[:4]
-    cols = {}
-    for s in "xyzw":
-        v = table.column(f"pinky1_rot_{s}").to_numpy().copy()
-        v[rows] *= 1.7
-        cols[f"pinky1_rot_{s}"] = v
-
-    def edit(t):
-        for name, v in cols.items():
-            t = set_column(t, name, v)
-        return t
-
-    edit_parquet(written, edit)
+    scale_quaternion(written, "pinky1", slice(0, 4), 1.7)
     ds = load(written, hand)
     assert ds.repairs == {"normalized_quaternion": 4}
     q = ds.poses[:4, hand.names.index("pinky1"), 3:].astype(np.float64)

@@ -122,13 +122,18 @@ def test_proximity_any_layout(cyl_link, cyl_map, grids):
     assert (far.values >= r.values).all() and far.values.sum() > r.values.sum()
 
 
-def test_schema_checks():
-    with pytest.raises(ConfigError, match="encoder.intensity"):
-        ProximityEncoder(intensity="pressure")
-    with pytest.raises(ConfigError, match="encoder.sensing_distance_m"):
-        ProximityEncoder(sensing_distance_m=-1.0)
-    with pytest.raises(ConfigError, match="encoder.samples_per_taxel"):
-        CoverageEncoder(samples_per_taxel=0)
+@pytest.mark.parametrize(
+    "cls, bad",
+    [
+        (ProximityEncoder, {"intensity": "pressure"}),
+        (ProximityEncoder, {"sensing_distance_m": -1.0}),
+        (CoverageEncoder, {"samples_per_taxel": 0}),
+    ],
+)
+def test_schema_checks(cls, bad):
+    (key,) = bad
+    with pytest.raises(ConfigError, match=f"encoder.{key}"):
+        cls(**bad)
 
 
 def test_proximity_matches_brute_force(cyl_link, cyl_map):

@@ -186,3 +186,19 @@ def test_raster_properties(cu, cv, a1, a2, th, wrap, hexr):
     assert np.isfinite(f).all() and f.min() >= 0 and f.max() <= 1
     assert np.abs(f - ref).max() < 0.15
     assert ((f >= 0.5 - 1e-9) <= (b == 1)).all()
+
+
+def test_a_frame_with_more_intervals_than_the_first_scratch_agrees_with_reference():
+    """300 ellipses in one frame make more sub-row intervals than the kernel's first scratch holds (1024):
+    the frame is redone with a larger one, and the result still matches brute-force supersampling."""
+    rng = np.random.default_rng(3)
+    k, h, w = 300, 24, 20
+    a = rng.uniform(0.2, 1.2, k)
+    args = (np.array([0, k]), rng.uniform(0, h, k), rng.uniform(0, w, k), 1 / a**2, np.zeros(k), 1 / a**2)
+    args = (*args, (h, w), np.zeros(h), True)
+    f = rasterize(*args, 8, False)
+    ref = reference_raster(*args, 32, False)
+    assert ((f > 0) & (f < 1)).mean() > 0.2  # many cells partly covered: not a saturated frame
+    assert np.abs(f - ref).max() < 0.05
+    b = rasterize(*args, 8, True)
+    assert ((f >= 0.5 - 1e-9) <= (b == 1)).all() and iou(b, reference_raster(*args, 32, True)) > 0.95

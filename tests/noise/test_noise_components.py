@@ -130,16 +130,22 @@ def test_input_checks_and_ranges():
         SaltPepperNoise().apply(f, fi, tk[:2], 0)
     with pytest.raises(ValueError, match="seed"):
         SaltPepperNoise().apply(f, fi, tk, -1)
-    with pytest.raises(ConfigError, match="noise.p"):
-        SaltPepperNoise(p=1.5)
-    with pytest.raises(ConfigError, match="noise.mode"):
-        SaltPepperNoise(mode="swap")
-    with pytest.raises(ConfigError, match="noise.sigma"):
-        GaussianNoise(sigma=-0.1)
-    with pytest.raises(ConfigError, match="noise.fraction"):
-        DeadTaxelsNoise(fraction=2.0)
-    with pytest.raises(ConfigError, match="noise.alpha"):
-        CrosstalkNoise(alpha=-1.0)
+
+
+@pytest.mark.parametrize(
+    "cls, bad",
+    [
+        (SaltPepperNoise, {"p": 1.5}),
+        (SaltPepperNoise, {"mode": "swap"}),
+        (GaussianNoise, {"sigma": -0.1}),
+        (DeadTaxelsNoise, {"fraction": 2.0}),
+        (CrosstalkNoise, {"alpha": -1.0}),
+    ],
+)
+def test_out_of_range_settings_name_the_key(cls, bad):
+    (key,) = bad
+    with pytest.raises(ConfigError, match=f"noise.{key}"):
+        cls(**bad)
 
 
 @settings(max_examples=EXAMPLES, deadline=None)

@@ -19,8 +19,9 @@ import numpy as np
 from omegaconf import OmegaConf
 
 from sphri.pipeline import RunResult, StageRecord
+from sphri.testing.runs import toy_meta
 from sphri.tracking.mlflow_tracker import PARENT_FILE, MlflowTracker, default_uri
-from sphri.types import GESTURES, CVResult, FoldResult, RunMeta
+from sphri.types import GESTURES, CVResult, FoldResult
 
 LENGTH_MM = 241.0  # the Reachy arm's long axis
 CIRCUMFERENCE_MM = 258.0
@@ -207,22 +208,16 @@ def make_sweep(
                     acc = float(np.clip(curve[j] + offsets[i] + rng.normal(0, 0.02), 0.0, 1.0))
                     folds.append(_fold(p, acc, rng, per_gesture=20, res=r))
                     mat[i, j] = folds[-1].accuracy
-                meta = RunMeta(
+                meta = toy_meta(
                     dataset="synthetic" if synthetic else "vr_gesture",
                     synthetic=synthetic,
                     n_participants=n_participants,
                     n_trials=16 * n_participants,
                     n_frames=1000,
-                    frame_rate_hz=30.0,
-                    repairs={},
                     robot=robot,
-                    region="arm",
                     link="r_arm",
-                    surface="cylinder",
                     surface_fit_residual_mm=1.0,
                     n_windows=160,
-                    n_dropped_no_contact=0,
-                    window_frames=50,
                     resolution=grid_resolution(r),
                 )
                 result = RunResult(

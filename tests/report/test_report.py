@@ -337,54 +337,35 @@ def test_tolerance_table_in_html_csv_and_text(built):
     assert not report.sensitivity and "tornado" not in files.figures, "no variants, no sensitivity section"
 
 
-def test_cli_tolerance_options(two_model_sweep, tmp_path, capsys):
-    assert (
-        main(
-            [
-                str(two_model_sweep.sweep_dir),
-                "--n-boot",
-                "50",
-                "--no-log",
-                "--out",
-                str(tmp_path / "r"),
-                "--tolerances",
-                "se,2se",
-                "--tolerance",
-                "0.03",
-                "--formats",
-                "png",
-            ]
-        )
-        == 0
-    )
-    tol = pd.read_csv(tmp_path / "r" / "tolerances.csv")
+@pytest.mark.parametrize("spelling", ["flags", "key=value"])
+def test_cli_tolerance_options(two_model_sweep, tmp_path, capsys, spelling):
+    """The report's options in argparse flags and in ``key=value`` words, like every sphri command."""
+    out = tmp_path / "r"
+    if spelling == "flags":
+        args = ["--n-boot", "50", "--no-log", "--out", str(out), "--tolerances", "se,2se", "--tolerance", "0.03"]
+        args += ["--formats", "png"]
+    else:
+        args = ["n_boot=50", "mlflow=false", f"out={out}", "formats=png", "tolerances=se,2se", "tolerance=0.03"]
+    assert main([str(two_model_sweep.sweep_dir), *args]) == 0
+    tol = pd.read_csv(out / "tolerances.csv")
     assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "2se", "se"]
     assert "within 3 points of accuracy (0.03) of the best" in capsys.readouterr().out
     assert main([str(two_model_sweep.sweep_dir), "--tolerances", "lots"]) == 2
 
 
-def test_cli_takes_key_value_arguments_like_every_sphri_command(two_model_sweep, tmp_path, capsys):
-    assert (
-        main(
-            [
-                str(two_model_sweep.sweep_dir),
-                "n_boot=50",
-                "mlflow=false",
-                f"out={tmp_path / 'kv'}",
-                "formats=png",
-                "tolerances=se,2se",
-                "tolerance=0.03",
-            ]
-        )
-        == 0
-    )
-    tol = pd.read_csv(tmp_path / "kv" / "tolerances.csv")
-    assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "2se", "se"]
-    capsys.readouterr()
-    assert main([str(two_model_sweep.sweep_dir), "n_boots=50"]) == 2
-    assert "unknown argument 'n_boots' (did you mean n_boot?)" in capsys.readouterr().err
-    assert main([str(two_model_sweep.sweep_dir), "mlflow=maybe"]) == 2
-    assert "mlflow=maybe is invalid" in capsys.readouterr().err
+@pytest.mark.parametrize(
+    "args, match",
+    [
+        (["n_boots=50"], "unknown argument 'n_boots' (did you mean n_boot?)"),
+        (["mlflow=maybe"], "mlflow=maybe is invalid"),
+    ],
+)
+def test_cli_refuses_bad_arguments(two_model_sweep, capsys, args, match):
+    assert main([str(two_model_sweep.sweep_dir), *args]) == 2
+    assert match in capsys.readouterr().err
+
+
+def test_cli_formats_are_checked(two_model_sweep, tmp_path, capsys):
     assert main([str(two_model_sweep.sweep_dir), "formats=pdf,svg"]) == 2  # names the value and the rule
     err = capsys.readouterr().err
     assert "formats=pdf,svg is invalid" in err and "png included" in err, err

@@ -3,10 +3,6 @@ a lab's robot via robot=urdf robot.parts=..., and the defects a real-world URDF 
 
 from __future__ import annotations
 
-import subprocess
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 from hydra.utils import instantiate
@@ -16,8 +12,6 @@ from sphri.errors import kind_of
 from sphri.robots.kinematic import axis_rotation, rpy_matrix
 from sphri.robots.schema import BUILTIN
 from sphri.robots.urdf_tree import RobotFileError, UrdfWholeBody, parse_urdf
-
-REPO = Path(__file__).resolve().parents[2]
 
 #: The tree robot=reachy2 builds: link -> its parent in the tree of surface links.
 REACHY2_PARENT = {
@@ -265,7 +259,7 @@ def _tf(xyz, rot):
     return m
 
 
-def test_bad_descriptions_are_one_line_errors_naming_the_file(lab, tmp_path):
+def test_bad_descriptions_are_one_line_errors_naming_the_file(lab, tmp_path, study_error_line):
     urdf, root, parts = lab
     text = BUILTIN["reachy2"].read_text()
     cut = tmp_path / "truncated.urdf"
@@ -295,27 +289,8 @@ def test_bad_descriptions_are_one_line_errors_naming_the_file(lab, tmp_path):
     with pytest.raises(RobotFileError, match=r"broken.yaml: not valid YAML"):
         UrdfWholeBody(urdf, str(ypath))
     # the command line prints one line naming the file, no traceback
-    res = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "sphri.coverage",
-            "+experiment=scenario_study",
-            "robot=reachy2",
-            "robot.builtin=null",
-            f"robot.path={cut}",
-            f"out={tmp_path / 'out'}",
-            f"output_dir={tmp_path / 'runs'}",
-            f"cache.dir={tmp_path / 'cache'}",
-            "tracking.enabled=false",
-        ],
-        capture_output=True,
-        text=True,
-        cwd=REPO,
-    )
-    assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr[-2000:]
-    errors = [ln for ln in res.stderr.splitlines() if ln.startswith("sphri")]
-    assert len(errors) == 1 and "robot file error" in errors[0] and str(cut) in errors[0], res.stderr[-2000:]
+    error = study_error_line("robot=reachy2", "robot.builtin=null", f"robot.path={cut}")
+    assert "robot file error" in error and str(cut) in error, error
 
 
 def test_scenario_study_accepts_urdf_robots_with_parts_only(lab):

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import shutil
+from pathlib import Path
+
 import pytest
 from hydra.utils import instantiate
 
@@ -28,3 +31,23 @@ def written(small, tmp_path_factory):
     root = tmp_path_factory.mktemp("sessions")
     write_sessions(ds, root)
     return root
+
+
+@pytest.fixture()
+def copy_written(written, tmp_path):
+    """``copy(name)``: a fresh copy of the ``written`` sessions in ``tmp_path / name``, to break."""
+    return lambda name: Path(shutil.copytree(written, tmp_path / name))
+
+
+@pytest.fixture(scope="module")
+def load_refused(small):
+    """``check(root, match)``: loading the sessions in ``root`` raises SessionFormatError matching ``match``."""
+    from sphri.sessions.format import SessionData, SessionFormatError
+
+    _, hand, robot, _ = small
+
+    def check(root: Path, match: str) -> None:
+        with pytest.raises(SessionFormatError, match=match):
+            SessionData(root=str(root)).load(hand, robot)
+
+    return check

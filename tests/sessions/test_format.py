@@ -12,7 +12,7 @@ from hydra.utils import instantiate
 from sphri.config import ConfigError, compose
 from sphri.sessions.contact import body_contacts
 from sphri.sessions.episodes import part_of_rows, segment_episodes
-from sphri.sessions.format import SessionData, SessionFormatError
+from sphri.sessions.format import SessionData
 from sphri.sessions.synthesize import main as synthesize_main
 
 
@@ -44,66 +44,41 @@ def test_loader_selects_participants_scenarios_and_repetitions(small, written):
     assert sorted(one.sessions["scenario"]) == ["S1_attention", "S5_appreciation"]
 
 
-def _copy(src, dst):
-    import shutil
-
-    shutil.copytree(src, dst)
-    return dst
-
-
-def test_broken_files_give_named_errors(small, written, tmp_path):
-    _, hand, robot, _ = small
-
-    def load(root):
-        return SessionData(root=str(root)).load(hand, robot)
-
-    root = _copy(written, tmp_path / "a")
+def test_broken_files_give_named_errors(copy_written, load_refused):
+    root = copy_written("a")
     h = json.loads((root / "sessions.json").read_text())
     h["format"] = "something"
     (root / "sessions.json").write_text(json.dumps(h))
-    with pytest.raises(SessionFormatError, match=r"sessions.json: field 'format'"):
-        load(root)
+    load_refused(root, r"sessions.json: field 'format'")
 
-    root = _copy(written, tmp_path / "b")
+    root = copy_written("b")
     m = json.loads((root / "participant_01" / "manifest.json").read_text())
     m["sessions"][0]["n_frames"] += 5
     (root / "participant_01" / "manifest.json").write_text(json.dumps(m))
-    with pytest.raises(
-        SessionFormatError, match=r"participant_01/S\w+\.parquet: repetition 1 has \d+ rows but .*n_frames"
-    ):
-        load(root)
+    load_refused(root, r"participant_01/S\w+\.parquet: repetition 1 has \d+ rows but .*n_frames")
 
-    root = _copy(written, tmp_path / "c")
+    root = copy_written("c")
     m = json.loads((root / "participant_02" / "manifest.json").read_text())
     del m["sessions"][1]["start_position"]
     (root / "participant_02" / "manifest.json").write_text(json.dumps(m))
-    with pytest.raises(
-        SessionFormatError, match=r"manifest.json: sessions\[1\] is missing field\(s\) \['start_position'\]"
-    ):
-        load(root)
+    load_refused(root, r"manifest.json: sessions\[1\] is missing field\(s\) \['start_position'\]")
 
-    root = _copy(written, tmp_path / "d")
+    root = copy_written("d")
     path = root / "participant_01" / "S3_move_aside.parquet"
     df = pd.read_parquet(path)
     df.loc[7, "right/index1_pos_x"] = np.nan
     df.drop(columns=["link/head_rot_w"]).to_parquet(path)
-    with pytest.raises(SessionFormatError, match=r"S3_move_aside.parquet: missing column\(s\) \['link/head_rot_w'\]"):
-        load(root)
+    load_refused(root, r"S3_move_aside.parquet: missing column\(s\) \['link/head_rot_w'\]")
     df.to_parquet(path)
-    with pytest.raises(
-        SessionFormatError, match=r"S3_move_aside.parquet: repetition 1, frame 7: column 'right/index1_pos_x' is NaN"
-    ):
-        load(root)
+    load_refused(root, r"S3_move_aside.parquet: repetition 1, frame 7: column 'right/index1_pos_x' is NaN")
     df = pd.read_parquet(path).fillna(0.0)
     df.loc[3, "link/torso_rot_w"] = 3.0
     df.to_parquet(path)
-    with pytest.raises(SessionFormatError, match=r"frame 3: link quaternion link/torso_rot_\* has norm"):
-        load(root)
+    load_refused(root, r"frame 3: link quaternion link/torso_rot_\* has norm")
 
-    root = _copy(written, tmp_path / "e")
+    root = copy_written("e")
     (root / "participant_02" / "S1_attention.parquet").write_bytes(b"not parquet")
-    with pytest.raises(SessionFormatError, match=r"S1_attention.parquet: not a readable parquet file"):
-        load(root)
+    load_refused(root, r"S1_attention.parquet: not a readable parquet file")
 
     with pytest.raises(ConfigError, match=r"data.root=None is invalid"):
         compose(["data=sessions"])
@@ -139,22 +114,21 @@ def test_synthetic_sessions_follow_the_study_design(small):
     assert set(ds.truth["part"]) <= {p.name for p in robot.parts}
 
 
-def test_positions_in_millimetres_are_refused_and_links_without_poses_named(small, written, tmp_path, caplog):
+def test_positions_in_millimetres_are_refused_and_links_without_poses_named(small, copy_written, load_refused, caplog):
     _, hand, robot, _ = small
-    root = _copy(written, tmp_path / "mm")
+    root = copy_written("mm")
     path = root / "participant_02" / "S4_behaviour_correction.parquet"
     df = pd.read_parquet(path)
     pos = [c for c in df.columns if c.endswith(("_pos_x", "_pos_y", "_pos_z"))]
     df[pos] = df[pos] * 1000.0
     df.to_parquet(path)
-    with pytest.raises(
-        SessionFormatError,
-        match=r"S4_behaviour_correction.parquet: repetition 1: hand positions lie "
+    load_refused(
+        root,
+        r"S4_behaviour_correction.parquet: repetition 1: hand positions lie "
         r"[\d.]+ from the origin .*millimetres or centimetres",
-    ):
-        SessionData(root=str(root)).load(hand, robot)
+    )
     # a robot link the sessions never pose: named in a warning (no contact can be found on it)
-    root = _copy(written, tmp_path / "nolink")
+    root = copy_written("nolink")
     h = json.loads((root / "sessions.json").read_text())
     h["links"] = [ln for ln in h["links"] if ln != "neck"]
     (root / "sessions.json").write_text(json.dumps(h))
