@@ -245,9 +245,9 @@ class Pipeline:
         node = self.nodes[name]
         if node.done:
             return node.value
-        shared = self.memo is not None and name in self.memo.stages
-        if shared and (name, node.key) in self.memo.values:
-            node.value, node.done = self.memo.values[(name, node.key)], True
+        memo = self.memo if self.memo is not None and name in self.memo.stages else None
+        if memo is not None and (name, node.key) in memo.values:
+            node.value, node.done = memo.values[(name, node.key)], True
             self.records[name] = StageRecord(name, node.key, "memory")
             return node.value
         t0 = time.perf_counter()
@@ -284,8 +284,8 @@ class Pipeline:
             if self._upstream_s:
                 self._upstream_s[-1] += total
         node.done = True
-        if shared:
-            self.memo.values[(name, node.key)] = node.value
+        if memo is not None:
+            memo.values[(name, node.key)] = node.value
         source = "computed" if computed else "cache"
         self.records[name] = StageRecord(name, node.key, source, dt)
         log.info("stage %-9s %s in %.2f s", name, "from cache" if source == "cache" else "computed", dt)
