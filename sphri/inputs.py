@@ -243,14 +243,14 @@ def memo_for(cfg: DictConfig) -> FingerprintMemo:
 
 def input_fingerprints(cfg: DictConfig, memo: FingerprintMemo | None = None) -> dict[str, dict[str, str]]:
     """``{group: {path: digest}}`` for every stage group whose component reads files."""
-    from sphri.stages import STAGE_GROUPS
+    from sphri.stages import RESULT_GROUPS
 
     memo = memo_for(cfg) if memo is None else memo
     exclude = frozenset(Path(str(d)).absolute() for d in (cfg.get("output_dir"), cfg.get("cache", {}).get("dir")) if d)
     out = {}
-    for group in STAGE_GROUPS:
+    for group in RESULT_GROUPS:  # tracking records a job, it computes nothing
         node = cfg.get(group)
-        if group == "tracking" or not isinstance(node, DictConfig):
+        if not isinstance(node, DictConfig):
             continue
         fp = fingerprints(node, memo, exclude)
         if fp:

@@ -9,7 +9,10 @@ command twice loads one small entry; changing ``encoder.res`` recomputes the
 layout, encoder and below, never data or contact.
 
 The stages, their inputs and which are kept on disk are the table in
-:mod:`sphri.stages`. Which stages are kept on disk is a cost decision: data,
+:mod:`sphri.stages`; how each is computed is :data:`COMPUTE`, once, and
+:func:`make_pipeline` is the one wiring every caller uses (jobs, streaming,
+episode coding, the scenario study, model export), handing data in memory as
+``inputs=`` where it has it (keyed by content, :func:`content_key`). Which stages are kept on disk is a cost decision: data,
 contact, surface, layout, the window plan and the evaluation are worth
 storing; encoded frames are cheap to recompute and large at fine
 resolutions (a res-50 grid is ~0.4 GB per sweep point); the noisy and
@@ -20,6 +23,7 @@ the model's input) are cheaper still.
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from collections.abc import Callable
@@ -33,8 +37,16 @@ from omegaconf import DictConfig, OmegaConf
 from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import ConfigError, build, result_config
 from sphri.inputs import input_fingerprints, memo_at
-from sphri.stages import CONTRACTS, PERSISTED, STAGE_BY_NAME, STAGE_GROUPS, stage_inputs
-from sphri.types import CVResult, FoldRecord, GestureDataset, RunMeta, TaxelGeometry
+from sphri.stages import (
+    PER_FIT_GROUPS,
+    RESULT_GROUPS,
+    STAGE_BY_NAME,
+    STAGE_GROUPS,
+    STAGES,
+    Stage,
+    stage_inputs,
+)
+from sphri.types import CVResult, FoldRecord, GestureDataset, RunMeta, TaxelGeometry, WindowPlan
 
 log = logging.getLogger(__name__)
 
@@ -82,6 +94,19 @@ class _Node:
 
 
 @dataclass
+class Memo:
+    """Stage values shared in memory by the pipelines of one process, by stage key.
+
+    The scenario study wires several chains (its sessions, a gesture chain per region, one per
+    coded link) on the same hand and robot: with one memo they are built once.
+    """
+
+    stages: frozenset[str] = frozenset({"hand", "robot"})
+    """The stages kept (those not stored on disk and costly to rebuild)."""
+    values: dict[tuple[str, str], Any] = field(default_factory=dict)
+
+
+@dataclass
 class Pipeline:
     """Lazy graph of the chain's stages for one composed config."""
 
@@ -93,9 +118,77 @@ class Pipeline:
     """``VERSION`` of each group's component."""
     nodes: dict[str, _Node] = field(default_factory=dict)
     records: dict[str, StageRecord] = field(default_factory=dict)
+    link_name: str | None = None
+    """The robot link the skin covers, by name (None: the link of the config's one region)."""
+    memo: Memo | None = None
+    """Stage values shared in memory with other pipelines of the process."""
+    stages: tuple[Stage, ...] = STAGES
+    """The table it was wired from."""
+    compute: dict[str, StageCompute] | None = None
+    """How each of its stages is computed (None: :data:`COMPUTE`)."""
     _upstream_s: list[float] = field(default_factory=list, repr=False)
     """Per stage being computed (a stack): wall seconds its upstream stages took."""
     _computing: list[str] = field(default_factory=list, repr=False)
+
+    # --- what a stage's compute reads besides its inputs (sphri.pipeline.COMPUTE) ---------------------------------
+
+    @property
+    def res(self) -> int:
+        """The grid resolution the layout is built at."""
+        return int(self.cfg.encoder.res)
+
+    @property
+    def seed(self) -> int:
+        """The run's seed (noise, models, folds)."""
+        return int(self.cfg.seed)
+
+    @property
+    def region(self) -> str:
+        """The skin region the chain evaluates (the link's name when the pipeline was given a link)."""
+        return self.link_name if self.link_name is not None else chain_region(self.cfg)
+
+    def link(self) -> Any:
+        """The robot link the skin covers."""
+        robot = self.get("robot")
+        return robot.links[self.link_name] if self.link_name is not None else robot.link_for(self.region)
+
+    def link_key(self) -> dict[str, str]:
+        """What names the link in the keys of the stages that read it."""
+        return {"link": self.link_name} if self.link_name is not None else {"region": self.region}
+
+    def uses(self, name: str) -> bool:
+        """Whether the stage being computed reads stage ``name`` (an optional input its component switched on)."""
+        return name in self.nodes[self._computing[-1]].reads
+
+    def key(self, name: str) -> str:
+        """The cache key of stage ``name``."""
+        return self.nodes[name].key
+
+    def given(self, inputs: dict[str, Any]) -> Pipeline:
+        """The same chain with ``inputs`` standing for some of its stages (see :func:`make_pipeline`).
+
+        Stages whose key is unchanged (those not below an input) keep the values this pipeline
+        already holds: nothing upstream is loaded or computed twice.
+        """
+        q = make_pipeline(
+            self.cfg, self.cache, inputs, stages=self.stages, compute=self.compute, link=self.link_name, memo=self.memo
+        )
+        for name, node in q.nodes.items():
+            mine = self.nodes.get(name)
+            if mine is not None and mine.done and not node.done and mine.key == node.key:
+                node.value, node.done = mine.value, True
+                q.records[name] = StageRecord(name, node.key, "memory")
+        return q
+
+    def give(self, name: str, value: Any) -> str:
+        """Stand ``value`` (in memory) for stage ``name``, keyed by its content; returns the key."""
+        stage = STAGE_BY_NAME[name]
+        if stage.contract is not None and not isinstance(value, stage.contract):
+            raise TypeError(f"inputs[{name!r}]: expected {stage.contract}, got {type(value).__name__}")
+        key = content_key(name, value)
+        self.nodes[name] = _Node(name, key, lambda: value, persist=False, path_key=key, value=value, done=True)
+        self.records[name] = StageRecord(name, key, "given")
+        return key
 
     def add(
         self,
@@ -119,7 +212,9 @@ class Pipeline:
         if missing:
             raise RuntimeError(f"stage {name!r} declared before its inputs {missing} (see sphri.stages.STAGES)")
         inputs = {**{n: self.nodes[n].key for n in used}, **(extra or {})}
-        version = "-".join(self.versions.get(g, "0") for g in stage.groups)
+        version = "-".join(
+            [*(self.versions.get(g, "0") for g in stage.groups), *([stage.revision] if stage.revision else [])]
+        )
         files = dict(files or {})
         upstream_nodes = [self.nodes[n] for n in used]
         key = stage_key(name, version, config, {**inputs, **({"files": files} if files else {})})
@@ -132,7 +227,7 @@ class Pipeline:
         all_files = {k: v for n in upstream_nodes for k, v in n.files.items()} | files
         reads = frozenset(used).union(*(n.reads for n in upstream_nodes))
         self.nodes[name] = _Node(
-            name, key, compute, persist=name in PERSISTED, path_key=path_key, files=all_files, reads=reads
+            name, key, compute, persist=stage.persisted, path_key=path_key, files=all_files, reads=reads
         )
         return key
 
@@ -149,6 +244,11 @@ class Pipeline:
             )
         node = self.nodes[name]
         if node.done:
+            return node.value
+        memo = self.memo if self.memo is not None and name in self.memo.stages else None
+        if memo is not None and (name, node.key) in memo.values:
+            node.value, node.done = memo.values[(name, node.key)], True
+            self.records[name] = StageRecord(name, node.key, "memory")
             return node.value
         t0 = time.perf_counter()
         self._upstream_s.append(0.0)
@@ -169,7 +269,12 @@ class Pipeline:
         try:
             if node.persist:
                 node.value = self.cache.get_or_compute(
-                    name, node.key, compute, contract=CONTRACTS.get(name), files=node.files, path_key=node.path_key
+                    name,
+                    node.key,
+                    compute,
+                    contract=STAGE_BY_NAME[name].contract,
+                    files=node.files,
+                    path_key=node.path_key,
                 )
             else:
                 node.value = compute()
@@ -179,6 +284,8 @@ class Pipeline:
             if self._upstream_s:
                 self._upstream_s[-1] += total
         node.done = True
+        if memo is not None:
+            memo.values[(name, node.key)] = node.value
         source = "computed" if computed else "cache"
         self.records[name] = StageRecord(name, node.key, source, dt)
         log.info("stage %-9s %s in %.2f s", name, "from cache" if source == "cache" else "computed", dt)
@@ -255,113 +362,162 @@ def chain_region(cfg: DictConfig) -> str:
     return regions[0]
 
 
-def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
-    """Wire the stages for ``cfg``; nothing is computed until :meth:`Pipeline.get`."""
-    region = chain_region(cfg)
-    groups = [g for g in STAGE_GROUPS if g != "tracking"]
-    p = Pipeline(
-        cfg, cache, components={g: build(cfg[g]) for g in groups if g != "model"}, versions=component_versions(cfg)
-    )
-    comp = p.components
-    res = int(cfg.encoder.res)
-    seed = int(cfg.seed)
-    fingerprints = input_fingerprints(cfg, memo_at(cache.root if cache.enabled else None))
+@dataclass(frozen=True)
+class StageCompute:
+    """How one stage of :mod:`sphri.stages` is computed, declared once for every caller's pipeline."""
 
-    def files(*groups: str) -> dict[str, str]:
-        """Fingerprints of the files the components of ``groups`` read."""
-        return {path: fp for g in groups for path, fp in fingerprints.get(g, {}).items()}
+    compute: Callable[[Pipeline], Any]
+    """The stage's value, from the pipeline: ``p.get`` of its inputs, ``p.components``, ``p.res``, ``p.seed``."""
+    config: Callable[[Pipeline], Any] | None = None
+    """The config its key hashes (default: the runtime-free subtree of the row's first group)."""
+    extra: Callable[[Pipeline], dict[str, Any]] | None = None
+    """Plain values its key also depends on (a region, a version)."""
 
-    def link():
-        return p.get("robot").link_for(region)
 
-    p.add("hand", result_config(cfg.hand), lambda: comp["hand"].build(), files=files("hand"))
-    p.add("robot", result_config(cfg.robot), lambda: comp["robot"].build(), files=files("robot"))
+def _data(p: Pipeline) -> Any:
+    # a component that declares USES_ROBOT = False (a recorded dataset) gets no robot
+    return p.components["data"].load(hand=p.get("hand"), robot=p.get("robot") if p.uses("robot") else None)
 
-    def data():
-        # a component that declares USES_ROBOT = False (a recorded dataset) gets no robot
-        robot = p.get("robot") if "robot" in p.nodes["data"].reads else None
-        return comp["data"].load(hand=p.get("hand"), robot=robot)
 
-    p.add("data", result_config(cfg.data), data, files=files("data"))
-    p.add(
-        "contact",
-        result_config(cfg.contact),
-        lambda: comp["contact"].compute(p.get("data"), p.get("robot")),
-        files=files("contact"),
-    )
-    p.add(
-        "surface",
-        result_config(cfg.surface),
-        lambda: comp["surface"].fit(link()),
-        extra={"region": region},
-        files=files("surface"),
+def _layout(p: Pipeline) -> Any:
+    # a layout placed by contact density (layout=density without a file) reads the contacts
+    extra = {"contacts": p.get("contact")} if p.uses("contact") else {}
+    return p.components["layout"].build(p.link(), p.get("surface"), p.res, **extra)
+
+
+def _encode(p: Pipeline) -> Any:
+    plan: WindowPlan = p.get("plan")
+    return p.components["encoder"].encode(
+        p.get("contact"), p.link(), p.get("surface"), p.get("layout"), plan.selected_frames()
     )
 
-    def layout():
-        extra = {"contacts": p.get("contact")} if "contact" in p.nodes["layout"].reads else {}
-        return comp["layout"].build(link(), p.get("surface"), res, **extra)
 
-    p.add("layout", {"layout": result_config(cfg.layout), "res": res}, layout, files=files("layout"))
-    p.add(
-        "plan",
-        result_config(cfg.window),
-        lambda: comp["window"].plan(p.get("contact"), p.get("data")),
-        files=files("window"),
+def _noise(p: Pipeline) -> Any:
+    # Noise on the windows as the model sees them (padded slots included), seeded per
+    # (seed, trial, slot in the window): see sphri.noise.components.apply_to_windows.
+    from sphri.noise.components import apply_to_windows
+
+    dataset: GestureDataset = p.get("data")
+    windows = p.components["window"].assemble(
+        p.get("encode"), p.get("plan"), dataset, p.get("layout"), p.get("surface")
     )
+    return apply_to_windows(p.components["noise"], windows, trial_keys(dataset)[windows.trial_row], p.seed)
 
-    def encode():
-        return comp["encoder"].encode(
-            p.get("contact"), link(), p.get("surface"), p.get("layout"), p.get("plan").selected_frames()
-        )
 
-    p.add("encode", result_config(cfg.encoder), encode, files=files("encoder"))
+def model_factory(cfg: DictConfig) -> Callable[..., Any]:
+    """The chain's per-fit component: ``model_factory(cfg)(geometry=...)`` is a new, unfitted model
+    (the evaluation's folds, model export and the gesture model of the study all make theirs here)."""
+    # instantiate() would turn a dataclass argument into a dict: bind it after.
+    return instantiate(cfg.model, _partial_=True, _convert_="all")
 
-    def noise():
-        # Noise on the windows as the model sees them (padded slots included), seeded per
-        # (seed, trial, slot in the window): see sphri.noise.components.apply_to_windows.
-        from sphri.noise.components import apply_to_windows
 
-        dataset: GestureDataset = p.get("data")
-        windows = comp["window"].assemble(p.get("encode"), p.get("plan"), dataset, p.get("layout"), p.get("surface"))
-        return apply_to_windows(comp["noise"], windows, trial_keys(dataset)[windows.trial_row], seed)
+def _evaluate(p: Pipeline) -> Any:
+    cfg, cache = p.cfg, p.cache
+    dataset: GestureDataset = p.get("data")
+    windows = p.get("filter")
+    geometry: TaxelGeometry = windows.geometry
 
+    factory = model_factory(cfg)
+
+    def make_model():
+        return factory(geometry=geometry)
+
+    run_cv = p.components["cv"].run
+    # finished folds are kept in the cache as they come (a plugin CV without ``resume`` runs as before)
+    kw = {"resume": FoldCache(cache, p.key("evaluate"))} if cache.enabled and _accepts(run_cv, "resume") else {}
+    result = run_cv(make_model, windows, p.seed, **kw)
+    meta = run_meta(cfg, dataset, p.get("robot"), p.region, p.get("surface"), p.get("layout"), windows)
+    return result, meta
+
+
+#: The compute of every stage of :data:`sphri.stages.STAGES`: the one place each is written.
+COMPUTE: dict[str, StageCompute] = {
+    "hand": StageCompute(lambda p: p.components["hand"].build()),
+    "robot": StageCompute(lambda p: p.components["robot"].build()),
+    "data": StageCompute(_data),
+    "contact": StageCompute(lambda p: p.components["contact"].compute(p.get("data"), p.get("robot"))),
+    "surface": StageCompute(lambda p: p.components["surface"].fit(p.link()), extra=lambda p: p.link_key()),
+    "layout": StageCompute(_layout, config=lambda p: {"layout": result_config(p.cfg.layout), "res": p.res}),
+    "plan": StageCompute(lambda p: p.components["window"].plan(p.get("contact"), p.get("data"))),
+    "encode": StageCompute(_encode),
     # assembling the windows is the window component's: its version enters the key
-    p.add(
-        "noise",
-        {"noise": result_config(cfg.noise), "seed": seed},
-        noise,
-        extra={"window": p.versions["window"]},
-        files=files("noise"),
-    )
-    p.add("filter", result_config(cfg.filter), lambda: comp["filter"].apply(p.get("noise")), files=files("filter"))
+    "noise": StageCompute(
+        _noise,
+        config=lambda p: {"noise": result_config(p.cfg.noise), "seed": p.seed},
+        extra=lambda p: {"window": p.versions["window"]},
+    ),
+    "filter": StageCompute(lambda p: p.components["filter"].apply(p.get("noise"))),
+    "evaluate": StageCompute(
+        _evaluate,
+        config=lambda p: {"model": result_config(p.cfg.model), "cv": result_config(p.cfg.cv), "seed": p.seed},
+    ),
+}
+if set(COMPUTE) != {s.name for s in STAGES}:  # pragma: no cover - a row without its compute, or the reverse
+    raise AssertionError(f"sphri.pipeline.COMPUTE {sorted(COMPUTE)} != the stages of sphri.stages.STAGES")
 
-    def evaluate():
-        dataset: GestureDataset = p.get("data")
-        windows = p.get("filter")
-        geometry: TaxelGeometry = windows.geometry
 
-        # instantiate() would turn a dataclass argument into a dict: bind it after.
-        model_factory = instantiate(cfg.model, _partial_=True, _convert_="all")
+def content_key(stage: str, value: Any) -> str:
+    """Key of a value handed to a pipeline (``inputs=``): a hash of its content as the cache would store it."""
+    import hashlib
+    import json
 
-        def make_model():
-            return model_factory(geometry=geometry)
+    from sphri.codec import EncodeError, encode
 
-        run_cv = comp["cv"].run
-        # finished folds are kept in the cache as they come (a plugin CV without ``resume`` runs as before)
-        kw = (
-            {"resume": FoldCache(cache, p.nodes["evaluate"].key)}
-            if cache.enabled and _accepts(run_cv, "resume")
-            else {}
-        )
-        result = run_cv(make_model, windows, seed, **kw)
-        return result, run_meta(cfg, dataset, p.get("robot"), region, p.get("surface"), p.get("layout"), windows)
+    try:
+        tree, arrays = encode(value)
+    except EncodeError as exc:
+        raise TypeError(f"inputs[{stage!r}]: a {type(value).__name__} cannot be keyed by its content ({exc})") from None
+    h = hashlib.blake2b(json.dumps(tree, sort_keys=True, default=str).encode(), digest_size=16)
+    for name in sorted(arrays):
+        a = np.ascontiguousarray(arrays[name])
+        h.update(f"{name}:{a.dtype.str}:{a.shape}".encode())
+        h.update(a.data if a.size else b"")
+    return stage_key(stage, "given", {"content": h.hexdigest()}, {})
 
-    p.add(
-        "evaluate",
-        {"model": result_config(cfg.model), "cv": result_config(cfg.cv), "seed": seed},
-        evaluate,
-        files=files("model", "cv"),
-    )
+
+def make_pipeline(
+    cfg: DictConfig,
+    cache: StageCache,
+    inputs: dict[str, Any] | None = None,
+    *,
+    stages: tuple[Stage, ...] = STAGES,
+    compute: dict[str, StageCompute] | None = None,
+    link: str | None = None,
+    memo: Memo | None = None,
+) -> Pipeline:
+    """Wire the stages for ``cfg``; nothing is computed until :meth:`Pipeline.get`.
+
+    The one wiring of the chain: jobs, sweeps, streaming (:mod:`sphri.hardware.source`), episode
+    coding (:mod:`sphri.sessions.gestures`), the scenario study and model export all call it.
+
+    ``inputs``: values in memory that stand for stages (``{"data": dataset}``): the stages below them
+    are computed by the same code, each keyed by the given value's content (:func:`content_key`),
+    and cached like any other. ``stages``/``compute``: another table of the same shape
+    (:data:`sphri.stages.SESSION_STAGES`). ``link``: the robot link the skin covers, by link name
+    (default: the link of the config's one region, ``data.regions``). ``memo``: stage values shared
+    in memory with other pipelines of the process (:class:`Memo`).
+    """
+    compute = COMPUTE if compute is None else compute
+    inputs = dict(inputs or {})
+    names = [s.name for s in stages]
+    unknown = sorted(set(inputs) - set(names))
+    if unknown:
+        raise ValueError(f"inputs {unknown} are not stages of the chain {names}")
+    lacking = [n for n in names if n not in compute and n not in inputs]
+    if lacking:
+        raise ValueError(f"stages {lacking} have no compute (sphri.pipeline.COMPUTE or the caller's table)")
+    groups = list(dict.fromkeys(g for s in stages for g in s.groups if g not in PER_FIT_GROUPS))
+    p = Pipeline(cfg, cache, components={g: build(cfg[g]) for g in groups}, versions=component_versions(cfg))
+    p.link_name, p.memo, p.stages, p.compute = link, memo, stages, compute
+    fingerprints = input_fingerprints(cfg, memo_at(cache.root if cache.enabled else None))
+    for stage in stages:
+        if stage.name in inputs:
+            p.give(stage.name, inputs[stage.name])
+            continue
+        how = compute[stage.name]
+        config = how.config(p) if how.config else result_config(cfg[stage.groups[0]])
+        files = {path: fp for g in stage.groups for path, fp in fingerprints.get(g, {}).items()}
+        p.add(stage.name, config, functools.partial(how.compute, p), how.extra(p) if how.extra else None, files)
     return p
 
 
@@ -393,7 +549,7 @@ def run_meta(cfg, dataset, robot, region, surface, layout, windows) -> RunMeta:
         repairs=dict(dataset.repairs),
         robot=robot.name,
         region=region,
-        link=robot.regions[region],
+        link=robot.regions.get(region, region),  # a pipeline given a link (episode coding) names it
         surface=surface.kind,
         surface_fit_residual_mm=float(surface.fit_residual_m * 1e3),
         resolution={**describe(layout, surface), "grid_shape": layout.grid_shape},
@@ -490,7 +646,7 @@ def component_versions(cfg: DictConfig) -> dict[str, str]:
     for group in STAGE_GROUPS:
         node = cfg.get(group)
         target = node.get("_target_") if isinstance(node, DictConfig) else None
-        if group != "tracking" and isinstance(target, str):
+        if group in RESULT_GROUPS and isinstance(target, str):
             out[group] = str(getattr(get_class(target), "VERSION", "0"))
     return out
 
@@ -502,7 +658,8 @@ def config_hash(cfg: DictConfig) -> str:
     (:mod:`sphri.inputs`), so that a sweep resumed after a component or an input file changed reruns its jobs."""
 
     c = OmegaConf.to_container(cfg, resolve=True)
-    for k in ("tracking", "cache", "output_dir", "resume", "plugins", "hydra", "debug", "experiment"):
+    not_result = [g for g in STAGE_GROUPS if g not in RESULT_GROUPS]  # tracking: how a job is recorded
+    for k in (*not_result, "cache", "output_dir", "resume", "plugins", "hydra", "debug", "experiment"):
         c.pop(k, None)
     for group in STAGE_GROUPS:  # runtime settings (threads, workers, progress, chunks) are not the experiment
         if group in c and isinstance(cfg.get(group), DictConfig):

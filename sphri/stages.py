@@ -12,13 +12,17 @@ Two tables, read by everything that needs to know the chain's shape:
   group whose component computes it, the stages whose results it reads
   (their cache keys enter its key), whether it is kept on disk and what its
   cache entry must decode into. :func:`sphri.pipeline.make_pipeline` wires
-  the stages from it, and :meth:`sphri.pipeline.Pipeline.get` refuses a
-  stage that reads a result its row does not lead to, so the table and the
-  cache keys cannot drift apart.
+  the stages from it (the one wiring every caller uses: jobs, streaming,
+  episode coding, model export), and :meth:`sphri.pipeline.Pipeline.get`
+  refuses a stage that reads a result its row does not lead to, so the
+  table and the cache keys cannot drift apart.
+- :data:`SESSION_STAGES`: the scenario study's chain (hand, robot, the
+  sessions and their whole-body contacts), wired by the same function.
 
 Adding a component to an existing group needs no change here (one module,
-one YAML). A new stage is a row here plus its compute function in
-``make_pipeline``.
+one YAML). A new stage is a row here plus its compute, declared once beside
+the table (:data:`sphri.pipeline.COMPUTE`; the study's in
+:mod:`sphri.sessions.study`).
 """
 
 from __future__ import annotations
@@ -41,6 +45,10 @@ class Component:
     """Module whose import registers the group's schemas in Hydra's ConfigStore."""
     params: bool = True
     """Its settings are logged as MLflow params and printed by ``cli validate``."""
+    result: bool = True
+    """Its settings and ``VERSION`` define a job's result (false: how a job is recorded, not what it computes)."""
+    per_fit: bool = False
+    """Instantiated for each fit with the skin's geometry (a model), not once per chain."""
 
 
 @dataclass(frozen=True)
@@ -60,6 +68,8 @@ class Stage:
     """Kept in the on-disk cache (a cost decision: see :mod:`sphri.pipeline`)."""
     contract: Any = None
     """Type(s) a persisted entry must decode into, else it is recomputed."""
+    revision: str = ""
+    """Appended to the components' ``VERSION`` in the key: a change of the stage's own compute."""
 
 
 #: Config groups of the chain, in stage order.
@@ -74,9 +84,9 @@ COMPONENTS: tuple[Component, ...] = (
     Component("noise", ("apply",), "sphri.noise.schema"),
     Component("filter", ("apply",), "sphri.filter.schema"),
     Component("window", ("plan", "assemble"), "sphri.window.schema"),
-    Component("model", ("fit", "predict"), "sphri.models.schema"),
+    Component("model", ("fit", "predict"), "sphri.models.schema", per_fit=True),
     Component("cv", ("run",), "sphri.evaluate.schema"),
-    Component("tracking", ("log_job",), "sphri.tracking.schema", params=False),
+    Component("tracking", ("log_job",), "sphri.tracking.schema", params=False, result=False),
 )
 
 #: The cached stages, in the order the chain computes them.
@@ -110,6 +120,15 @@ STAGES: tuple[Stage, ...] = (
     Stage("evaluate", ("cv", "model"), ("filter", "plan", "layout"), persisted=True, contract=(CVResult, RunMeta)),
 )
 
+#: The scenario study's cached stages: free-interaction sessions and their contacts with every link
+#: (:mod:`sphri.sessions`), on the hand and robot rows of :data:`STAGES`.
+SESSION_STAGES: tuple[Stage, ...] = (
+    STAGES[0],
+    STAGES[1],
+    Stage("sessions", ("data",), ("hand", "robot"), optional={"robot": ("USES_ROBOT", True)}, persisted=True),
+    Stage("body_contact", ("contact",), ("sessions", "robot", "hand"), persisted=True, revision="wb1"),
+)
+
 #: Config groups of the chain, in stage order (from :data:`COMPONENTS`).
 STAGE_GROUPS: tuple[str, ...] = tuple(c.group for c in COMPONENTS)
 
@@ -119,11 +138,17 @@ STAGE_METHODS: dict[str, tuple[str, ...]] = {c.group: c.methods for c in COMPONE
 #: Groups whose settings are MLflow params (from :data:`COMPONENTS`).
 PARAM_GROUPS: tuple[str, ...] = tuple(c.group for c in COMPONENTS if c.params)
 
+#: Groups whose settings and ``VERSION`` define a job's result (from :data:`COMPONENTS`).
+RESULT_GROUPS: tuple[str, ...] = tuple(c.group for c in COMPONENTS if c.result)
+
+#: Groups whose component is instantiated per fit, not once per chain (from :data:`COMPONENTS`).
+PER_FIT_GROUPS: frozenset[str] = frozenset(c.group for c in COMPONENTS if c.per_fit)
+
 #: Stages kept on disk, and what their entries must decode into (from :data:`STAGES`).
 PERSISTED: frozenset[str] = frozenset(s.name for s in STAGES if s.persisted)
 CONTRACTS: dict[str, Any] = {s.name: s.contract for s in STAGES if s.contract is not None}
 
-STAGE_BY_NAME: dict[str, Stage] = {s.name: s for s in STAGES}
+STAGE_BY_NAME: dict[str, Stage] = {s.name: s for chain in (STAGES, SESSION_STAGES) for s in chain}
 
 
 def stage_inputs(stage: Stage, component: Any) -> tuple[str, ...]:
@@ -151,10 +176,10 @@ def upstream(name: str, components: dict[str, Any]) -> frozenset[str]:
     return frozenset(seen)
 
 
-def _check_table() -> None:
+def _check_table(stages: tuple[Stage, ...]) -> None:
     groups = set(STAGE_GROUPS)
     names: set[str] = set()
-    for s in STAGES:
+    for s in stages:
         unknown = [g for g in s.groups if g not in groups]
         late = [i for i in s.inputs if i not in names]
         if unknown or late or not set(s.optional) <= set(s.inputs):
@@ -162,4 +187,5 @@ def _check_table() -> None:
         names.add(s.name)
 
 
-_check_table()
+_check_table(STAGES)
+_check_table(SESSION_STAGES)

@@ -3,7 +3,12 @@
 The hardware commands take the same overrides as ``python -m sphri`` and
 read the cached stages through :func:`sphri.pipeline.make_pipeline`, so a
 replayed trial or a simulated skin stream is exactly what the classifier
-sees in simulation (same encoder, layout and noise).
+sees in simulation: the frames of a trial's window are taken from the
+chain's own ``noise`` stage (the window plan restricted to the streamed
+trials handed in as the ``plan`` input, :meth:`sphri.pipeline.Pipeline.given`),
+so offline and streamed readings are equal by construction. Only the frames
+no window holds (before the contact onset, past the window, the gaps between
+trials) get draws of their own, from keys no window uses (:func:`outside_keys`).
 """
 
 from __future__ import annotations
@@ -54,63 +59,93 @@ class EncodedTrials:
         return self.geometry.n_taxels
 
 
+#: Mixed into a trial's key for the frames before its contact onset, and for the untouched gap
+#: streamed before it: streams only, no window holds these frames.
+PRE_ONSET_KEY = 0x3C3C3C3C
+GAP_KEY = 0x5A5A5A5A
+
+
+def outside_keys(trial_key: int, slot: np.ndarray) -> np.ndarray:
+    """Noise keys of frames outside the model's window at ``slot`` (frame - onset; negative before it).
+
+    Slots from the window's length on carry the trial's own key (the window never reaches them);
+    slots before the onset a key of their own, drawn at ``|slot|``."""
+    return np.where(slot < 0, trial_key ^ PRE_ONSET_KEY, trial_key).astype(np.int64)
+
+
 def encode_trials(pipeline, rows: Sequence[int], gap_s: float = 0.5) -> EncodedTrials:
     """Encode (and add the configured noise to) every frame of the trials ``rows``.
 
-    ``gap_s`` seconds of untouched frames (zeros through the same noise
-    model) are made for each trial, to stream before it. Noise is a pure
-    function of (seed, trial, slot): frames from the trial's onset on get
-    the slot they have in the model's window, so a stream carries exactly
-    the noisy frames the offline model saw (padded slots streamed as the
-    trial's tail); frames before the onset get their own draws.
+    The frames inside a trial's window are the chain's ``noise`` stage for these trials (the plan
+    restricted to ``rows`` is handed to the same pipeline; noise is a pure function of (seed, trial,
+    slot), so they equal the full offline run's), its padded slots streamed as the trial's tail.
+    Frames outside the window are encoded by the pipeline's encoder and drawn from
+    :func:`outside_keys`; ``gap_s`` seconds of untouched frames (zeros through the same noise model)
+    are made for each trial, to stream before it.
     """
-    from sphri.pipeline import build, chain_region, trial_keys
+    from sphri.encode.common import SkinFrames
+    from sphri.pipeline import trial_keys
 
-    cfg = pipeline.cfg
     dataset = pipeline.get("data")
     contacts = pipeline.get("contact")
-    surface = pipeline.get("surface")
-    layout = pipeline.get("layout")
-    link = pipeline.get("robot").link_for(chain_region(cfg))
-    encoder = build(cfg.encoder)
-    noise = build(cfg.noise)
-    seed = int(cfg.seed)
+    plan = pipeline.get("plan")
+    rows = np.asarray(rows, dtype=np.int64)
+    mine = plan.kept & np.isin(np.arange(len(plan.kept)), rows)
+    windows = pipeline.given({"plan": dataclasses.replace(plan, kept=mine)}).get("noise")
+    window_of = {int(r): w for w, r in enumerate(windows.trial_row)}
+    encoder, noise = pipeline.components["encoder"], pipeline.components["noise"]
+    link, surface, layout = pipeline.link(), pipeline.get("surface"), pipeline.get("layout")
+    seed = pipeline.seed
     keys = trial_keys(dataset)
     rate = float(dataset.frame_rate_hz)
     n_gap = int(round(gap_s * rate))
-    length = int(cfg.window.frames)
-    values, gaps, tails, onsets, binary = [], [], [], [], True
+    length = plan.length
+    n_taxels = int(windows.x.shape[2])
+    values, gaps, tails, onsets = [], [], [], []
     contact_frames = np.asarray(contacts.frame)
-    for row in rows:
-        t = dataset.trials.iloc[int(row)]
+
+    def drawn(index: np.ndarray, slot: np.ndarray, key: np.ndarray) -> np.ndarray:
+        """Frames ``index`` (-1: untouched) encoded, then noise at ``slot`` with ``key``."""
+        blank = index < 0
+        v = np.zeros((len(index), n_taxels), dtype=np.float32)
+        if not blank.all():
+            v[~blank] = np.asarray(encoder.encode(contacts, link, surface, layout, index[~blank]).values)
+        frames = SkinFrames(values=v, grid_shape=layout.grid_shape, geometry=windows.geometry)
+        return np.asarray(noise.apply(frames, slot, key, seed).values, dtype=np.float32)
+
+    for row in rows.tolist():
+        t = dataset.trials.iloc[row]
         start, n = int(t["start"]), int(t["n_frames"])
         first = int(np.searchsorted(contact_frames, start))
         touched = first < contact_frames.size and contact_frames[first] < start + n
         onset = int(contact_frames[first]) - start if touched else 0
         onsets.append(onset if touched else -1)
-        index = np.arange(start, start + n, dtype=np.int64)
-        frames = encoder.encode(contacts, link, surface, layout, index)
-        slot = np.arange(n, dtype=np.int64) - onset  # the frame's slot in the model's window
-        key = np.where(slot < 0, keys[row] ^ 0x3C3C3C3C, keys[row]).astype(np.int64)
-        frames = noise.apply(frames, np.abs(slot), key, seed)
-        v = np.asarray(frames.values)
-        binary &= v.dtype == np.uint8 or bool(np.isin(v, (0, 1)).all())
-        values.append(v.astype(np.float32))
-
-        def untouched(slots: np.ndarray, trial_key: int) -> np.ndarray:
-            # called at once, in this iteration: the loop's frames and v are the ones meant
-            blank = dataclasses.replace(frames, values=np.zeros((len(slots), v.shape[1]), dtype=v.dtype))  # noqa: B023
-            out = noise.apply(blank, slots, np.full(len(slots), trial_key, dtype=np.int64), seed)
-            return np.asarray(out.values).astype(np.float32)
-
-        gaps.append(untouched(np.arange(n_gap, dtype=np.int64), keys[row] ^ 0x5A5A5A5A))
-        tails.append(untouched(np.arange(n - onset, max(length, n - onset), dtype=np.int64), keys[row]))
-    labels = dataset.labels[np.asarray(rows, dtype=np.int64)] if len(rows) else np.zeros(0, np.int64)
+        v = np.zeros((n, n_taxels), dtype=np.float32)
+        inside = np.zeros(n, dtype=bool)
+        w = window_of.get(row)
+        if w is not None:  # the window's frames, as the chain made them
+            slots = plan.frame_index[row]
+            held = slots >= 0
+            v[slots[held] - start] = windows.x[w, held]
+            inside[slots[held] - start] = True
+            tails.append(np.asarray(windows.x[w, ~held], dtype=np.float32))
+        else:  # no window (dropped without contact): the slots a window would have padded
+            pad = np.arange(n - onset, max(length, n - onset), dtype=np.int64)
+            tails.append(drawn(np.full(len(pad), -1, np.int64), pad, np.full(len(pad), keys[row], np.int64)))
+        out = np.flatnonzero(~inside)
+        if out.size:
+            slot = out - onset
+            v[out] = drawn(start + out, np.abs(slot), outside_keys(int(keys[row]), slot))
+        values.append(v)
+        gap_slots = np.arange(n_gap, dtype=np.int64)
+        gaps.append(drawn(np.full(n_gap, -1, np.int64), gap_slots, np.full(n_gap, keys[row] ^ GAP_KEY, np.int64)))
+    labels = dataset.labels[rows] if len(rows) else np.zeros(0, np.int64)
+    binary = all(bool(np.isin(v, (0, 1)).all()) for v in values)
     return EncodedTrials(
         values=values,
         gap=gaps,
         tail=tails,
-        rows=np.asarray(rows, dtype=np.int64),
+        rows=rows,
         labels=np.asarray(labels, dtype=np.int64),
         onsets=np.asarray(onsets, dtype=np.int64),
         participants=[str(dataset.trials.iloc[int(r)]["participant"]) for r in rows],

@@ -54,7 +54,7 @@ def training_windows(pipeline) -> WindowedFrames:
 
 def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = ()) -> ModelBundle:
     """Fit ``cfg.model`` on all windows (except ``holdout``'s participant) -> :class:`ModelBundle`."""
-    from sphri.pipeline import build, config_hash
+    from sphri.pipeline import config_hash, model_factory
 
     cfg = pipeline.cfg
     windows = training_windows(pipeline)
@@ -67,9 +67,7 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
             )
     if train.sum() < 2 or len(np.unique(windows.y[train])) < 2:
         raise ConfigError("the pipeline gives fewer than two gestures to train on; use more data (data.participants)")
-    # instantiate a partial and pass the geometry in the call: hydra would turn a
-    # dataclass kwarg of instantiate() into a dict
-    model = build(cfg.model, _partial_=True)(geometry=windows.geometry)
+    model = model_factory(cfg)(geometry=windows.geometry)  # the chain's model, as its evaluation makes it
     model.fit(windows.x[train], windows.y[train])
     acc = float(np.mean(model.predict(windows.x[train]) == windows.y[train]))
     dataset = pipeline.get("data")

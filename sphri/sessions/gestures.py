@@ -7,10 +7,11 @@ reports its leave-one-subject-out accuracy, and fits the model on all trials.
 
 :func:`label_episodes` turns each coded episode into a trial of that chain on
 the episode's dominant link: the dominant hand's poses moved into the link's
-frame, the configured contact, surface, layout, encoder, window, noise and filter
-components, then the fitted model's class probabilities (features are in
-metres, so a Random Forest transfers between links; episodes on body parts
-the model never saw are flagged).
+frame make a dataset handed to the same chain (``make_pipeline(cfg, cache,
+inputs={"data": ...}, link=...)``: contact, surface, layout, plan, encode,
+noise and filter computed and cached as in a job), then the fitted model's
+class probabilities (features are in metres, so a Random Forest transfers
+between links; episodes on body parts the model never saw are flagged).
 """
 
 from __future__ import annotations
@@ -50,29 +51,27 @@ class GestureModel:
         return ", ".join(self.regions)
 
 
-def train_gesture_model(overrides: list[str], regions: list[str], cache) -> GestureModel:
+def train_gesture_model(overrides: list[str], regions: list[str], cache, memo=None) -> GestureModel:
     """Run the chain on each of ``regions`` (LOSO accuracy each) and fit one model on all their trials.
 
     A model whose input transform is per trial (``TRANSFORM_PER_TRIAL``, the
     Random Forest: features in metres from each skin's own geometry) is fitted
     on the features of every region's trials together; any other model only
-    on the first region's windows.
+    on the first region's windows. ``memo``: a :class:`sphri.pipeline.Memo` shared with the job's other chains.
     """
-    from hydra.utils import instantiate
-
     from sphri.config import compose
-    from sphri.pipeline import make_pipeline
+    from sphri.pipeline import make_pipeline, model_factory
 
     feats, labels, accs, first = [], [], {}, None
     for _k, region in enumerate(regions):
         cfg = compose([*overrides, f"data.regions=[{region}]"])
-        p = make_pipeline(cfg, cache)
+        p = make_pipeline(cfg, cache, memo=memo)
         result, _ = p.get("evaluate")
         accs[region] = float(result.summary()["accuracy_mean"])
         windows = p.get(
             "filter"
         )  # the windows the model was evaluated on: noise on the windows, then the skin's filter
-        model = instantiate(cfg.model, _partial_=True, _convert_="all")(geometry=windows.geometry)
+        model = model_factory(cfg)(geometry=windows.geometry)
         if first is None:
             first = (cfg, model, windows)
         if not getattr(model, "TRANSFORM_PER_TRIAL", False):
@@ -105,14 +104,15 @@ def _to_link(poses: np.ndarray, link_pose: np.ndarray) -> np.ndarray:
     return out
 
 
-def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, robot, gm: GestureModel, seed: int = 0) -> pd.DataFrame:
-    """Class probabilities (columns ``p_<gesture>``), ``gesture``, ``confidence``, ``in_training`` per episode."""
-    from sphri.pipeline import build, trial_keys
+def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, gm: GestureModel, cache, memo=None) -> pd.DataFrame:
+    """Class probabilities (columns ``p_<gesture>``), ``gesture``, ``confidence``, ``in_training`` per episode.
+
+    Each link's episodes are a dataset handed to the gesture model's chain (its config, seed included),
+    which computes their windows as it computed the training windows: one wiring, one cache.
+    """
+    from sphri.pipeline import make_pipeline
 
     cfg = gm.config
-    from sphri.noise.components import apply_to_windows
-
-    comp = {g: build(cfg[g]) for g in ("contact", "surface", "layout", "encoder", "noise", "window", "filter")}
     classes = [GESTURES[int(c)] for c in gm.model.classes_]
     out = episodes.copy()
     for g in GESTURES:
@@ -120,7 +120,6 @@ def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, robot, gm: Gestur
     pad = int(round(0.5 * ds.frame_rate_hz))
     li = {n: i for i, n in enumerate(ds.links)}
     for link_name, eps in episodes.groupby("dominant_link", sort=True):
-        link = robot.links[link_name]
         chunks, records, start = [], [], 0
         for _k, e in eps.iterrows():
             a = max(int(ds.sessions["start"].iat[e.session]), int(e.start_frame) - pad)
@@ -147,16 +146,8 @@ def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, robot, gm: Gestur
             poses=np.concatenate(chunks).astype(np.float32),
             frame_rate_hz=ds.frame_rate_hz,
         )
-        contacts = comp["contact"].compute(gd, robot)
-        surface = comp["surface"].fit(link)
-        extra = {"contacts": contacts} if getattr(comp["layout"], "uses_contacts", False) else {}
-        layout = comp["layout"].build(link, surface, gm.res, **extra)
-        plan = comp["window"].plan(contacts, gd)
-        fi = plan.selected_frames()
-        frames = comp["encoder"].encode(contacts, link, surface, layout, fi)
-        windows = comp["window"].assemble(frames, plan, gd, layout, surface)  # as in the chain: window, noise, filter
-        windows = apply_to_windows(comp["noise"], windows, trial_keys(gd)[windows.trial_row], seed)
-        windows = comp["filter"].apply(windows)
+        # the chain's windows: contact, surface, layout, plan, encode, noise, filter as in training
+        windows = make_pipeline(cfg, cache, inputs={"data": gd}, link=str(link_name), memo=memo).get("filter")
         if windows.x.shape[0] == 0:
             continue
         gm.model.geometry = windows.geometry

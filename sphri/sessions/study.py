@@ -12,9 +12,11 @@ Data flow (each step a module of :mod:`sphri.sessions`)::
       -> skin_design (sphri.sessions.skin)                patches within parts, budget curve, patch placement, export
       -> files, HTML report, MLflow run (sphri.kind=scenario_study)
 
-Sessions and contacts go through the stage cache (keys: data, hand, robot and
-contact configs plus component versions), so re-running with other study
-settings recomputes neither.
+Sessions and contacts are the stages of :data:`sphri.stages.SESSION_STAGES`, wired by
+:func:`sphri.pipeline.make_pipeline` like every chain (keys: data, hand, robot and
+contact configs, component versions and input-file fingerprints), so re-running with
+other study settings recomputes neither; the gesture chains of the same job share
+their hand and robot in memory (:class:`sphri.pipeline.Memo`).
 """
 
 from __future__ import annotations
@@ -64,10 +66,38 @@ class StudyResult:
     """The generator's draws per session (synthetic sessions), else None."""
 
 
-def _cached(cache, stage: str, version: str, config: Any, inputs: dict, compute):
-    from sphri.cache import stage_key
+def _sessions_config(p) -> dict[str, Any]:
+    """The sessions' key config: the data settings and the text of the priors table they are drawn from."""
+    from sphri.cache import stable_hash
+    from sphri.config import result_config
 
-    return cache.get_or_compute(stage, stage_key(stage, version, config, inputs), compute)
+    config: dict[str, Any] = {"data": result_config(p.cfg.data)}
+    priors = getattr(p.components["data"], "priors", None)
+    if priors and Path(priors).is_file():  # an edited table of assumptions regenerates the sessions
+        config["priors_table"] = stable_hash(Path(priors).read_text())
+    return config
+
+
+def _sessions(p) -> Any:
+    return p.components["data"].load(p.get("hand"), p.get("robot") if p.uses("robot") else None)
+
+
+def _body_contact(p) -> Any:
+    from sphri.sessions.contact import body_contacts
+
+    return body_contacts(p.get("sessions"), p.get("robot"), p.components["contact"])
+
+
+def session_compute() -> dict[str, Any]:
+    """The compute of every stage of :data:`sphri.stages.SESSION_STAGES` (hand and robot: the chain's own)."""
+    from sphri.pipeline import COMPUTE, StageCompute
+
+    return {
+        "hand": COMPUTE["hand"],
+        "robot": COMPUTE["robot"],
+        "sessions": StageCompute(_sessions, config=_sessions_config),
+        "body_contact": StageCompute(_body_contact),
+    }
 
 
 #: The ``gesture`` of a session without a coded, labelled episode (``by=gesture`` maps it apart, never as a gesture).
@@ -90,38 +120,17 @@ def robot_overrides(overrides: Sequence[str]) -> list[str]:
     return mine
 
 
-def load_sessions_and_contacts(cfg, cache):
-    """(hand, robot, sessions, body contacts) of a composed study config, through the stage cache."""
-    from sphri.cache import stage_key
-    from sphri.config import result_config
-    from sphri.pipeline import build, component_versions
-    from sphri.sessions.contact import body_contacts
+def load_sessions_and_contacts(cfg, cache, memo=None):
+    """(hand, robot, sessions, body contacts, seconds) of a composed study config, through the stage cache."""
+    from sphri.pipeline import make_pipeline
+    from sphri.stages import SESSION_STAGES
 
-    ver = component_versions(cfg)
-    comp = {g: build(cfg[g]) for g in ("hand", "robot", "data", "contact")}
-    k_hand = stage_key("hand", ver["hand"], result_config(cfg.hand), {})
-    k_robot = stage_key("robot", ver["robot"], result_config(cfg.robot), {})
-    hand = comp["hand"].build()
-    robot = comp["robot"].build()
-    inputs = {"hand": k_hand} if not getattr(comp["data"], "USES_ROBOT", True) else {"hand": k_hand, "robot": k_robot}
-    data_cfg = {"data": result_config(cfg.data)}
-    priors = getattr(comp["data"], "priors", None)
-    if priors and Path(priors).is_file():  # an edited table of assumptions regenerates the sessions
-        from sphri.cache import stable_hash
-
-        data_cfg["priors_table"] = stable_hash(Path(priors).read_text())
+    p = make_pipeline(cfg, cache, stages=SESSION_STAGES, compute=session_compute(), memo=memo)
+    hand, robot = p.get("hand"), p.get("robot")
     t0 = time.perf_counter()
-    ds = _cached(cache, "sessions", ver["data"], data_cfg, inputs, lambda: comp["data"].load(hand, robot))
+    ds = p.get("sessions")
     t1 = time.perf_counter()
-    k_data = stage_key("sessions", ver["data"], data_cfg, inputs)
-    bc = _cached(
-        cache,
-        "body_contact",
-        ver["contact"] + "-wb1",
-        result_config(cfg.contact),
-        {"data": k_data, "robot": k_robot, "hand": k_hand},
-        lambda: body_contacts(ds, robot, comp["contact"]),
-    )
+    bc = p.get("body_contact")
     return hand, robot, ds, bc, {"sessions": t1 - t0, "contact": time.perf_counter() - t1}
 
 
@@ -129,7 +138,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     """Run the study for the composed ``overrides`` (they must select ``+experiment=scenario_study``)."""
     from sphri.analysis.coverage import CoverageAnalysis
     from sphri.config import ConfigError, compose
-    from sphri.pipeline import open_cache
+    from sphri.pipeline import Memo, open_cache
     from sphri.sessions.body import body_surface, touched_pairs
     from sphri.sessions.episodes import part_of_rows, segment_episodes
     from sphri.sessions.gestures import gesture_histogram, label_episodes, train_gesture_model
@@ -149,7 +158,8 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     notes: list[str] = []
     t_all = time.perf_counter()
 
-    hand, robot, ds, bc, sec = load_sessions_and_contacts(cfg, cache)
+    memo = Memo()  # the sessions' chain and the gesture chains share the hand and robot
+    hand, robot, ds, bc, sec = load_sessions_and_contacts(cfg, cache, memo)
     seconds.update(sec)
     label = "SYNTHETIC" if ds.synthetic else "recorded"
     scenarios = sorted(pd.unique(ds.sessions["scenario"]))
@@ -196,8 +206,8 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         f"encoder.res={st.gesture_res}",
         "tracking.enabled=false",
     ]
-    gm = train_gesture_model(train_ov, list(st.gesture_regions), cache)
-    labelled = label_episodes(coded, ds, robot, gm, seed=int(cfg.seed))
+    gm = train_gesture_model(train_ov, list(st.gesture_regions), cache, memo)
+    labelled = label_episodes(coded, ds, gm, cache, memo)
     outside = labelled[~labelled["in_training"]]
     if len(outside):
         parts = outside["dominant_part"].value_counts()
