@@ -542,3 +542,35 @@ class CnnGru(ClassifierMixin, BaseEstimator):
     def predict(self, x: np.ndarray) -> np.ndarray:
         """(n,) predicted labels (values of ``classes_``)."""
         return self.classes_[np.argmax(self.predict_proba(x), axis=1)]
+
+    # -- model files (sphri.export.registry) -------------------------------
+    def save_state(self) -> tuple[dict, dict[str, np.ndarray]]:
+        """(hyperparameters and precision, arrays: classes and the network's state dict), no pickle."""
+        from sphri.models.persist import params_of, torch_state_array
+
+        check_is_fitted(self, "net_")
+        head = {"params": params_of(self), "precision_": getattr(self, "precision_", "float32")}
+        return head, {"classes": np.asarray(self.classes_), "state_dict": torch_state_array(self.net_)}
+
+    @classmethod
+    def load_state(cls, head: dict, arrays, geometry: TaxelGeometry) -> CnnGru:
+        """The fitted model of :meth:`save_state`'s output (weights read with ``torch.load(weights_only=True)``)."""
+        from sphri.models.persist import torch_state_load
+
+        model = cls(**dict(head.get("params") or {}), geometry=geometry)
+        classes = arrays["classes"]
+        grid, wrap = model._layout(geometry.n_taxels)
+        net = CnnGruNet(
+            geometry.n_taxels,
+            grid,
+            wrap,
+            [int(c) for c in model.channels],
+            [int(s) for s in model.strides],
+            int(model.embed_size),
+            int(model.hidden),
+            len(classes),
+        )
+        model.net_ = torch_state_load(arrays["state_dict"], net).eval()
+        model.classes_ = classes
+        model.precision_ = head.get("precision_", "float32")
+        return model

@@ -2,13 +2,14 @@
 
 ::
 
-    python -m sphri.hardware.train_export out=outputs/models/rf.sphrimodel +robot=reachy encoder.res=18
-    python -m sphri.hardware.train_export out=m.sphrimodel holdout=participant_03 +debug=fast mlflow=true
+    python -m sphri.export.train out=outputs/models/rf.sphrimodel +robot=reachy encoder.res=18
+    python -m sphri.export.train out=m.sphrimodel holdout=participant_03 +debug=fast mlflow=true
+    python -m sphri.hardware.train_export ...   # the same command under its earlier name
 
 The windows are exactly those the cross-validation sees (data, contact,
 layout, encoder, noise and window stages, all cached), but the model is fit
 once on every kept trial (minus ``holdout``'s). The file
-(:mod:`sphri.hardware.model_file`) carries the estimator, the skin's
+(:mod:`sphri.export.model_file`) carries the estimator, the skin's
 geometry, the window length and frame rate, for ``skin live``.
 """
 
@@ -25,8 +26,8 @@ import numpy as np
 
 from sphri.config import ConfigError, require
 from sphri.errors import clean_errors
-from sphri.hardware.model_file import ModelBundle, save_model
-from sphri.hardware.settings import parse_cli
+from sphri.export.model_file import ModelBundle, save_model
+from sphri.keyvalue import parse_cli
 from sphri.types import GESTURES, WindowedFrames
 
 log = logging.getLogger(__name__)
@@ -98,7 +99,7 @@ def log_pyfunc_model(
     and ``example`` (one window, (1, L, N) float32) as its input example; register it as
     ``registered_name`` if given. Returns its ``runs:/`` URI.
 
-    The model is :mod:`sphri.hardware.pyfunc_model` (MLflow "models from code") with the ``.sphrimodel``
+    The model is :mod:`sphri.export.pyfunc_model` (MLflow "models from code") with the ``.sphrimodel``
     file as its artifact: loading it unpickles nothing.
     """
     import tempfile
@@ -106,7 +107,7 @@ def log_pyfunc_model(
     import mlflow
     from mlflow.models import infer_signature
 
-    from sphri.hardware import pyfunc_model
+    from sphri.export import pyfunc_model
 
     example = np.asarray(example, dtype=np.float32)
     labels = np.asarray(bundle.labels)[np.argmax(bundle.predict_proba(example), axis=1)]
@@ -175,7 +176,7 @@ def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
     )
 
 
-@clean_errors("sphri.hardware.train_export")
+@clean_errors("sphri.export.train")
 def main(argv: Sequence[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if argv and argv[0] in ("-h", "--help", "help"):
@@ -184,12 +185,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     try:
         settings, overrides = parse_cli(argv, TrainExportSettings, pipeline=True)
-        from sphri.hardware.source import open_pipeline
+        from sphri.config import compose
+        from sphri.pipeline import make_pipeline, open_cache
 
-        p = open_pipeline(overrides)
+        cfg = compose(overrides)
+        p = make_pipeline(cfg, open_cache(cfg))
         bundle = fit_bundle(p, settings.holdout, overrides)
     except ConfigError as exc:
-        print(f"sphri.hardware.train_export: invalid setting: {exc}", file=sys.stderr)
+        print(f"sphri.export.train: invalid setting: {exc}", file=sys.stderr)
         return 2
     path = save_model(bundle, settings.out)
     print(

@@ -1,36 +1,42 @@
 """Trained-model files for live classification (``.sphrimodel``), without pickle.
 
-A file holds a fitted sphri estimator (``model=rf`` or ``model=cnn_gru``),
-the :class:`~sphri.types.TaxelGeometry` it was trained on, the window length
-L and frame rate, and the gesture labels. Layout::
+A file holds a fitted model (sphri's ``model=rf`` or ``model=cnn_gru``, or any class that persists
+itself, see :mod:`sphri.export.registry`), the :class:`~sphri.types.TaxelGeometry` it was trained on,
+the window length L and frame rate, and the gesture labels. Layout::
 
     b"SPHRIMODEL3\\n"
     uint32 LE  length of the JSON header
     JSON       header: format, labels, window_length, frame_rate_hz,
                n_taxels, grid_shape, model, created, meta, geometry scalars
-               and the estimator's kind and hyperparameters
+               and the model's own part (``estimator``: its NAME as ``kind``,
+               its import path as ``class`` unless it is sphri's own, and
+               what its ``save_state()`` wrote, e.g. ``params``)
     32 bytes   BLAKE2b digest over magic, header and payload
     32 bytes   HMAC-SHA256 over the same with the model key, or zeros
                (:mod:`sphri.integrity`)
     payload    an .npz (read with ``allow_pickle=False``) of arrays: taxel
-               positions and chart coordinates, classes, and the fitted part
-               of the estimator: the Random Forest's scikit-learn forest as
-               skops bytes (every type in it must be in sphri's own list,
-               :data:`TRUSTED_TYPES`, the only list skops is given), the
-               CNN-GRU's network as a torch state dict
-               (``torch.load(weights_only=True)``)
+               positions and chart coordinates, and the model's own arrays:
+               the Random Forest's classes and scikit-learn forest as skops
+               bytes (every type in it must be in its own list,
+               :data:`sphri.models.rf.TRUSTED_TYPES`, the only list skops is
+               given), the CNN-GRU's network as a torch state dict
+               (``torch.load(weights_only=True)``); see :mod:`sphri.models.persist`
+
+This module knows no model: the header's ``kind`` picks the class in the registry and the class
+reads its own state (``load_state``). A class that is not sphri's own is imported only from a
+package listed in ``plugins`` (``skin live plugins=[labext]``).
 
 The digests cover the header too: an edited label order or window length is
 a checksum mismatch. With ``SPHRI_MODEL_KEY`` (or ``SPHRI_MODEL_KEY_FILE``)
 set, :func:`save_model` signs the file and :func:`load_model` refuses a
 file not signed with that key. Nothing in a model file is unpickled, so a
 crafted file cannot run code: the old pickle format (``SPHRIMODEL1``), the
-previous format (``SPHRIMODEL2``, whose checksum left the header out) and
-any type outside the trusted list are refused with an error naming the file. Files can also live in MLflow or on a
+previous format (``SPHRIMODEL2``, whose checksum left the header out),
+any type outside a model's trusted list and any model class from a package
+not listed in ``plugins`` are refused with an error naming the file. Files can also live in MLflow or on a
 web server: :func:`resolve_model_path` fetches ``runs:/<run_id>/<path>`` (or
 any artifact URI) only with ``allow_remote=True`` (``skin live
-allow_remote=true``).
-"""
+allow_remote=true``)."""
 
 from __future__ import annotations
 
@@ -40,12 +46,14 @@ import json
 import os
 import struct
 import zipfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from sphri.export import registry
 from sphri.fsutil import write_atomic
 from sphri.integrity import DIGEST_SIZE, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest
 from sphri.types import GESTURES, TaxelGeometry
@@ -56,22 +64,6 @@ OLD_MAGIC = b"SPHRIMODEL1\n"
 V2_MAGIC = b"SPHRIMODEL2\n"
 FORMAT = "sphri-model/3"
 _DIGEST = DIGEST_SIZE
-
-#: The types a Random Forest's skops payload may hold besides plain containers
-#: and numbers (:data:`_PLAIN_TYPES`). These two lists are the only ones skops
-#: is given (its defaults, which trust many other scikit-learn estimators, are
-#: not used): a payload holding anything else is refused before loading.
-TRUSTED_TYPES = (
-    "sklearn.ensemble._forest.RandomForestClassifier",
-    "sklearn.tree._classes.DecisionTreeClassifier",
-    "sklearn.tree._tree.Tree",
-)
-_PLAIN_TYPES = frozenset(
-    [f"builtins.{t}" for t in ("dict", "list", "tuple", "str", "int", "float", "bool", "NoneType")]
-    + ["numpy.ndarray", "numpy.bool_", "numpy.bool"]
-    + [f"numpy.{k}{b}" for k in ("int", "uint") for b in (8, 16, 32, 64)]
-    + [f"numpy.float{b}" for b in (16, 32, 64)]
-)
 
 
 class ModelFileError(ValueError):
@@ -122,127 +114,23 @@ class ModelBundle:
 
 
 def _estimator_state(estimator: Any) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """(JSON header part, arrays) of a fitted sphri estimator; no pickle anywhere."""
-    from sphri.models.cnn_gru import CnnGru
-    from sphri.models.rf import RandomForest
-
-    name = type(estimator).__name__
-    head: dict[str, Any] = {}
-    arrays: dict[str, np.ndarray] = {}
-    if isinstance(estimator, (RandomForest, CnnGru)):
-        params = {
-            k: (list(v) if isinstance(v, tuple) else v)
-            for k, v in estimator.get_params(deep=False).items()
-            if k != "geometry"
-        }
-        head = {"kind": estimator.NAME, "params": params}
-        arrays = {"classes": np.asarray(estimator.classes_)}
-    if isinstance(estimator, RandomForest):
-        import skops.io as sio
-
-        arrays["forest_skops"] = np.frombuffer(sio.dumps(estimator.forest_), dtype=np.uint8)
-        return head, arrays
-    if isinstance(estimator, CnnGru):
-        import torch
-
-        buf = io.BytesIO()
-        torch.save({k: v.detach().cpu() for k, v in estimator.net_.state_dict().items()}, buf)
-        arrays["state_dict"] = np.frombuffer(buf.getvalue(), dtype=np.uint8)
-        head["precision_"] = getattr(estimator, "precision_", "float32")
-        return head, arrays
-    raise ModelFileError(
-        f"{name} cannot be saved in a model file: only sphri's model=rf and model=cnn_gru are stored "
-        "(as parameters and arrays; model files hold no pickles)"
-    )
-
-
-def skops_types(path: Path, data: bytes) -> set[str]:
-    """Every ``module.Class`` named in a skops archive's schema (read as JSON; nothing is imported)."""
+    """(JSON header part, arrays) of a fitted model: its own ``save_state()`` through the registry."""
     try:
-        with zipfile.ZipFile(io.BytesIO(data)) as zf:
-            schema = json.loads(zf.read("schema.json"))
-    except (zipfile.BadZipFile, KeyError, OSError, ValueError, RecursionError) as exc:
-        raise ModelFileError(f"{path}: the forest payload is unreadable ({type(exc).__name__}: {exc})") from None
-    found: set[str] = set()
-    stack = [schema]
-    while stack:
-        node = stack.pop()
-        if isinstance(node, dict):
-            if "__class__" in node or "__module__" in node:
-                found.add(f"{node.get('__module__')}.{node.get('__class__')}")
-            stack.extend(node.values())
-        elif isinstance(node, list):
-            stack.extend(node)
-    return found
+        return registry.state_of(estimator)
+    except registry.NotExportable as exc:
+        raise ModelFileError(str(exc)) from None
 
 
-def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: TaxelGeometry) -> Any:
-    """The estimator of a model file from its header part and npz arrays (see :func:`_estimator_state`)."""
-    kind = head.get("kind")
-    params = dict(head.get("params") or {})
-    classes = z["classes"]
-    if kind == "rf":
-        import skops.io as sio
-
-        from sphri.models.features import FEATURE_NAMES
-        from sphri.models.rf import RandomForest
-
-        data = z["forest_skops"].tobytes()
-        found = skops_types(path, data)
-        untrusted = sorted(found - set(TRUSTED_TYPES) - _PLAIN_TYPES)
-        if untrusted:
-            raise ModelFileError(
-                f"{path}: the forest payload holds untrusted types {untrusted} (outside sphri's "
-                "list); refused (not loaded)"
-            )
-        model = RandomForest(**params, geometry=geometry)
-        try:
-            model.forest_ = sio.loads(data, trusted=sorted(found))
-        except Exception as exc:  # skops raises several types on a damaged archive
-            raise ModelFileError(f"{path}: the forest payload is unreadable ({type(exc).__name__}: {exc})") from None
-        from sklearn.ensemble import RandomForestClassifier
-
-        if type(model.forest_) is not RandomForestClassifier:
-            raise ModelFileError(
-                f"{path}: the forest payload holds a {type(model.forest_).__name__}, not a RandomForestClassifier"
-            )
-        model.classes_ = model.forest_.classes_
-        model.n_features_in_ = len(FEATURE_NAMES)
-        model.feature_names_ = FEATURE_NAMES
-        return model
-    if kind == "cnn_gru":
-        import torch
-
-        from sphri.models.cnn_gru import CnnGru, CnnGruNet
-
-        model = CnnGru(**params, geometry=geometry)
-        try:
-            state = torch.load(io.BytesIO(z["state_dict"].tobytes()), map_location="cpu", weights_only=True)
-        except Exception as exc:  # torch's weights-only unpickler refuses anything but tensors
-            raise ModelFileError(
-                f"{path}: the network weights are not a plain state dict ({type(exc).__name__}: {exc})"
-            ) from None
-        grid, wrap = model._layout(geometry.n_taxels)
-        net = CnnGruNet(
-            geometry.n_taxels,
-            grid,
-            wrap,
-            [int(c) for c in model.channels],
-            [int(s) for s in model.strides],
-            int(model.embed_size),
-            int(model.hidden),
-            len(classes),
-        )
-        try:
-            net.load_state_dict(state)
-        except (RuntimeError, KeyError) as exc:
-            raise ModelFileError(f"{path}: the network weights do not fit the saved hyperparameters ({exc})") from None
-        net.eval()
-        model.net_ = net
-        model.classes_ = classes
-        model.precision_ = head.get("precision_", "float32")
-        return model
-    raise ModelFileError(f"{path}: unknown estimator kind {kind!r} (this sphri reads rf and cnn_gru)")
+def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: TaxelGeometry, plugins) -> Any:
+    """The model of a file's ``estimator`` header part and npz arrays: its class (from the registry, by
+    ``kind``) reads its own state with ``load_state``."""
+    try:
+        cls = registry.model_class(head, plugins)
+        return cls.load_state(head, z, geometry)
+    except ModelFileError:
+        raise
+    except ValueError as exc:
+        raise ModelFileError(f"{path}: {exc}") from None
 
 
 def seal_model(head_bytes: bytes, payload: bytes, key: bytes | None = None) -> bytes:
@@ -294,7 +182,7 @@ def save_model(bundle: ModelBundle, path: str | os.PathLike, key: Any = FROM_ENV
     return path
 
 
-_EXPORT = "export it again with python -m sphri.hardware.train_export"
+_EXPORT = "export it again with python -m sphri.export.train"
 
 
 def _split(path: Path) -> tuple[dict[str, Any], bytes, bytes, bytes, bytes]:
@@ -312,7 +200,7 @@ def _split(path: Path) -> tuple[dict[str, Any], bytes, bytes, bytes, bytes]:
             f"{path}: a sphri-model/2 file, whose checksum does not cover its header (labels, window length); {_EXPORT}"
         )
     if not blob.startswith(MAGIC) or len(blob) < len(MAGIC) + 4:
-        raise ModelFileError(f"{path}: not a sphri model file (make one with python -m sphri.hardware.train_export)")
+        raise ModelFileError(f"{path}: not a sphri model file (make one with python -m sphri.export.train)")
     (n,) = struct.unpack_from("<I", blob, len(MAGIC))
     h0 = len(MAGIC) + 4
     if len(blob) < h0 + n + 2 * _DIGEST:
@@ -358,10 +246,11 @@ def _check_header(path: Path, header: dict[str, Any]) -> None:
             raise ModelFileError(f"{path}: header field {name} must be an object, got {header.get(name)!r}")
 
 
-def load_model(path: str | os.PathLike, key: Any = FROM_ENV) -> ModelBundle:
+def load_model(path: str | os.PathLike, key: Any = FROM_ENV, plugins: Sequence[str] = ()) -> ModelBundle:
     """Read a model file written by :func:`save_model` (checks its digests over header and payload, its
     header fields, types and shapes; no pickle). ``key``: the model key (bytes), None, or the environment's
-    (default); with a key, a file not signed with it is refused."""
+    (default); with a key, a file not signed with it is refused. ``plugins``: packages whose model classes
+    the file may name (:func:`sphri.export.registry.model_class`); sphri's own models need none."""
     path = Path(path)
     header, head_bytes, digest, keyed, payload = _split(path)
     if plain_digest(MAGIC, head_bytes, payload) != digest:
@@ -389,7 +278,7 @@ def load_model(path: str | os.PathLike, key: Any = FROM_ENV) -> ModelBundle:
             from sphri.adjacency import metric_coords
 
             metric_coords(geometry)  # grid shape, chart and positions agree (ValueError naming the field)
-            estimator = _restore_estimator(path, header["estimator"], z, geometry)
+            estimator = _restore_estimator(path, header["estimator"], z, geometry, plugins)
         classes = np.asarray(getattr(estimator, "classes_", []))
         if classes.size and (
             classes.dtype.kind not in "iu" or classes.min() < 0 or classes.max() >= len(header["labels"])
