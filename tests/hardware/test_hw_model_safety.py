@@ -10,7 +10,7 @@ import struct
 import numpy as np
 import pytest
 
-from sphri.hardware.model_file import (
+from sphri.export.model_file import (
     MAGIC,
     OLD_MAGIC,
     ModelBundle,
