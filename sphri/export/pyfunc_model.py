@@ -29,7 +29,9 @@ class SphriGestureModel(PythonModel):
     def load_context(self, context) -> None:
         from sphri.export.model_file import load_model
 
-        self.bundle = load_model(context.artifacts[ARTIFACT])
+        # the packages the exporting job listed in plugins: a model class of one of them is imported back
+        plugins = (getattr(context, "model_config", None) or {}).get("plugins") or ()
+        self.bundle = load_model(context.artifacts[ARTIFACT], plugins=[str(x) for x in plugins])
 
     def predict(self, context, model_input: np.ndarray, params=None) -> np.ndarray:
         x = np.asarray(model_input, dtype=np.float32)

@@ -93,14 +93,20 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
 
 
 def log_pyfunc_model(
-    tracking_uri: str, run_id: str, bundle: ModelBundle, example: np.ndarray, registered_name: str | None = None
+    tracking_uri: str,
+    run_id: str,
+    bundle: ModelBundle,
+    example: np.ndarray,
+    registered_name: str | None = None,
+    plugins: Sequence[str] = (),
 ) -> str:
     """Log ``bundle`` into run ``run_id`` as an MLflow pyfunc model (artifact ``model``) with a signature
     and ``example`` (one window, (1, L, N) float32) as its input example; register it as
     ``registered_name`` if given. Returns its ``runs:/`` URI.
 
     The model is :mod:`sphri.export.pyfunc_model` (MLflow "models from code") with the ``.sphrimodel``
-    file as its artifact: loading it unpickles nothing.
+    file as its artifact: loading it unpickles nothing. ``plugins`` (the job's): packages whose model class
+    the pyfunc model may import back when it loads the file (stored in its ``model_config``).
     """
     import tempfile
 
@@ -122,6 +128,7 @@ def log_pyfunc_model(
                 signature=infer_signature(example, labels),
                 input_example=example,
                 registered_model_name=registered_name,
+                model_config={"plugins": [str(x) for x in plugins]},
                 pip_requirements=_requirements(),  # stated, not inferred: inference loads the model in a subprocess
             )
     return f"runs:/{run_id}/model"
@@ -158,7 +165,8 @@ def log_to_mlflow(pipeline, bundle: ModelBundle) -> str:
     run = client.create_run(
         exp, run_name=f"train_export {bundle.meta.get('model', 'model')}", tags={"sphri.kind": "model_export"}
     )
-    model_uri = log_pyfunc_model(uri, run.info.run_id, bundle, training_windows(pipeline).x[:1])
+    plugins = list(pipeline.cfg.get("plugins") or ())
+    model_uri = log_pyfunc_model(uri, run.info.run_id, bundle, training_windows(pipeline).x[:1], plugins=plugins)
     client.set_terminated(run.info.run_id)
     return model_uri
 
@@ -172,7 +180,12 @@ def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
     bundle = fit_bundle(p, None)
     tracker = build(cfg.tracking)
     return log_pyfunc_model(
-        tracker.resolve_uri(cfg.output_dir), run_id, bundle, training_windows(p).x[:1], registered_name
+        tracker.resolve_uri(cfg.output_dir),
+        run_id,
+        bundle,
+        training_windows(p).x[:1],
+        registered_name,
+        plugins=list(cfg.get("plugins") or ()),
     )
 
 

@@ -1,10 +1,11 @@
-"""Settings of the hardware commands and their ``key=value`` command-line parser.
+"""Settings of the hardware commands (their ``key=value`` parser is :mod:`sphri.keyvalue`).
 
-The hardware commands (``python -m sphri.hardware.glove|skin|simulate``) are
+The hardware commands (``python -m sphri.hardware.glove|skin``) are
 entry points beside the pipeline, not stages. Each has a settings dataclass
 below (typed fields with defaults, units in the names, range checks in
-``__post_init__`` naming the key; ``train_export`` keeps its own beside its
-code). Command lines are
+``__post_init__`` naming the key; the simulators keep theirs beside their
+code, ``sim_skin.SkinSimSettings`` and ``sim_glove.GloveSimSettings``, as
+``sphri.export.train`` does). Command lines are
 Hydra-like ``key=value`` pairs: keys of the settings are taken here, and
 everything else (``+debug=fast``, ``robot=nao_child``, ``data.seed=3``) is
 passed to :func:`sphri.config.compose` for the pipeline part.

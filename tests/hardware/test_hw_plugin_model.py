@@ -30,6 +30,16 @@ def lab(tmp_path_factory) -> Path:
     return root / "lab"
 
 
+def _overrides(lab: Path, out: Path) -> list[str]:
+    return [
+        *SMALL,
+        "plugins=[labext]",
+        f"hydra.searchpath=[file://{lab / 'conf'}]",
+        "model=prototype",
+        f"output_dir={out}",
+    ]
+
+
 def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, capsys):
     from sphri.export.train import fit_bundle, training_windows
     from sphri.hardware.settings import SkinLiveSettings
@@ -39,13 +49,7 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     from sphri.hardware.source import open_pipeline
     from sphri.hardware.transport import make_endpoint, start_in_thread
 
-    overrides = [
-        *SMALL,
-        "plugins=[labext]",
-        f"hydra.searchpath=[file://{lab / 'conf'}]",
-        "model=prototype",
-        f"output_dir={tmp_path / 'out'}",
-    ]
+    overrides = _overrides(lab, tmp_path / "out")
     model_path = tmp_path / "proto.sphrimodel"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(lab), str(REPO)])}
     export = subprocess.run(
@@ -62,7 +66,8 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     # the file names the class; without plugins=[labext] it is refused before anything is imported
     head = inspect_model(model_path)["estimator"]
     assert head["kind"] == "lab_prototype" and head["class"] == "labext.prototype:NearestPrototype"
-    assert "labext" not in sys.modules
+    for name in [m for m in sys.modules if m == "labext" or m.startswith("labext.")]:
+        monkeypatch.delitem(sys.modules, name)
     with pytest.raises(ModelFileError, match=r"proto\.sphrimodel: .*'labext'.*plugins=\[labext\]"):
         load_model(model_path)
     assert "labext" not in sys.modules
@@ -113,3 +118,33 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     touches = [r for r in rows if r["kind"] == "touch"]
     for trial in sim.ledger.trials:
         assert any(trial["good_start"] <= t["start"] < trial["good_end"] for t in touches), trial
+
+
+@pytest.mark.slow
+def test_a_plugin_model_is_served_as_an_mlflow_pyfunc_model(lab, tmp_path, monkeypatch):
+    """The pyfunc model of a job that lists plugins=[labext] loads its plugin model (model_config)."""
+    import io
+    from contextlib import redirect_stdout
+
+    import mlflow
+
+    from sphri.export import train
+    from sphri.hardware.source import open_pipeline
+
+    monkeypatch.syspath_prepend(str(lab))
+    overrides = _overrides(lab, tmp_path / "out")
+    text = io.StringIO()
+    with redirect_stdout(text):
+        assert train.main([f"out={tmp_path / 'proto.sphrimodel'}", "mlflow=true", *overrides]) == 0
+    uri = next(ln.split("model=")[1] for ln in text.getvalue().splitlines() if "model=runs:/" in ln)
+    windows = train.training_windows(open_pipeline(overrides))
+    bundle = load_model(tmp_path / "proto.sphrimodel", plugins=["labext"])
+    before = mlflow.get_tracking_uri()
+    mlflow.set_tracking_uri(f"sqlite:///{tmp_path / 'out' / 'mlflow.db'}")
+    try:
+        served = mlflow.pyfunc.load_model(uri)
+    finally:
+        mlflow.set_tracking_uri(before)
+    names = served.predict(windows.x.astype(np.float32))
+    want = np.asarray(bundle.labels)[np.argmax(bundle.predict_proba(windows.x), axis=1)]
+    np.testing.assert_array_equal(names, want)
