@@ -1,5 +1,5 @@
-"""A model from a package outside sphri (tests/plugin_example/labext/prototype.py, one module and one YAML) is
-trained, exported to a model file, loaded back and run live on the skin simulator, with no edit to sphri;
+"""A model from a package outside sphri (tests/plugin_example/labext/prototype.py, one module and one YAML) runs
+in a job, is exported to a model file, loaded back and run live on the skin simulator, with no edit to sphri;
 the file names its class, which sphri imports only from a package the reader lists in ``plugins``."""
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from sphri.types import GESTURES
 
 REPO = Path(__file__).resolve().parents[2]
 EXAMPLE = REPO / "tests" / "plugin_example"
-SMALL = ["+debug=fast", "data.participants=1", "data.repetitions=1"]
+SMALL = ["+debug=fast", "data.participants=2", "data.repetitions=1"]
 
 
 @pytest.fixture(scope="module")
@@ -52,6 +52,16 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     overrides = _overrides(lab, tmp_path / "out")
     model_path = tmp_path / "proto.sphrimodel"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(lab), str(REPO)])}
+    job = subprocess.run(  # a job cross-validates it like any model
+        [sys.executable, "-m", "sphri", *overrides, "tracking.enabled=false"],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+        env=env,
+        timeout=600,
+    )
+    assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
+    assert "model       lab_prototype, LOSO over 2 folds" in job.stdout and "accuracy    " in job.stdout
     export = subprocess.run(
         [sys.executable, "-m", "sphri.export.train", f"out={model_path}", *overrides],
         capture_output=True,
@@ -61,7 +71,7 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
         timeout=600,
     )
     assert export.returncode == 0, (export.stdout + export.stderr)[-3000:]
-    assert "saved NearestPrototype (8 windows" in export.stdout
+    assert "saved NearestPrototype (16 windows" in export.stdout
 
     # the file names the class; without plugins=[labext] it is refused before anything is imported
     head = inspect_model(model_path)["estimator"]
