@@ -94,12 +94,12 @@ def bench_model(overrides: list[str], reps: int) -> tuple[dict, Path]:
 
 
 def bench_end_to_end(overrides: list[str], model: Path, trials: int, rate_hz: float) -> dict:
-    from sphri.hardware.settings import SimulateSettings, SkinLiveSettings
-    from sphri.hardware.simulate import SkinSimulator, make_endpoint, pipeline_stream, start_in_thread
+    from sphri.hardware.settings import SkinLiveSettings
+    from sphri.hardware.simulate import SkinSimSettings, SkinSimulator, make_endpoint, pipeline_stream, start_in_thread
     from sphri.hardware.skin import live
 
     stream = pipeline_stream(overrides, trials, None, 0.5, 1)
-    s = SimulateSettings(port="socket://127.0.0.1:0", realtime=True, rate_hz=rate_hz, hold_s=30.0)
+    s = SkinSimSettings(port="socket://127.0.0.1:0", realtime=True, rate_hz=rate_hz, hold_s=30.0)
     sim = SkinSimulator(stream, s, make_endpoint(s), say=lambda m: None)
     th = start_in_thread(sim)
     try:

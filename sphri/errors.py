@@ -38,7 +38,7 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.cache", "CorruptEntry", "cache error"),
     ("sphri.hardware.transport", "PortError", "port error"),
     ("sphri.hardware.skin", "StreamMismatch", "port error"),
-    ("sphri.hardware.model_file", "ModelFileError", "model file error"),
+    ("sphri.export.model_file", "ModelFileError", "model file error"),
     ("sphri.hardware.recording", "RecordingError", "recording error"),
     ("sphri.report.sweep", "ReportError", "report error"),
     ("builtins", "OSError", "file error"),

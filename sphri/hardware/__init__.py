@@ -4,11 +4,11 @@ Entry points (``key=value`` arguments, pipeline overrides passed through):
 
 - ``python -m sphri.hardware.glove replay``: play a trial's contacts to the glove;
 - ``python -m sphri.hardware.skin record|live``: save a skin's frames, or
-  classify touch live with a model file;
-- ``python -m sphri.hardware.train_export``: fit the configured model on the
-  pipeline's windows and save a model file;
+  classify touch live with a model file (:mod:`sphri.export`, which also
+  trains and saves one: ``python -m sphri.export.train``);
 - ``python -m sphri.hardware.simulate skin|glove``: emulate a device on a
-  pseudo-terminal or socket.
+  pseudo-terminal or socket (:mod:`~sphri.hardware.sim_skin`,
+  :mod:`~sphri.hardware.sim_glove`).
 
 Protocols (``docs/PROTOCOLS.md``) are pure encoders/decoders
 (:mod:`~sphri.hardware.glove_protocol`, :mod:`~sphri.hardware.skin_protocol`,
@@ -17,7 +17,6 @@ Protocols (``docs/PROTOCOLS.md``) are pure encoders/decoders
 
 from sphri.hardware.framing import DecoderStats, StreamDecoder, crc8, crc16
 from sphri.hardware.glove_protocol import Ack, ActuateCommand, GloveDecoder, encode_ack, encode_actuate
-from sphri.hardware.model_file import ModelBundle, load_model, save_model
 from sphri.hardware.recording import SkinRecording, load_recording, save_recording
 from sphri.hardware.skin_protocol import SkinDecoder, SkinFrame, ValueFormat, encode_frame
 
@@ -26,7 +25,6 @@ __all__ = [
     "ActuateCommand",
     "DecoderStats",
     "GloveDecoder",
-    "ModelBundle",
     "SkinDecoder",
     "SkinFrame",
     "SkinRecording",
@@ -37,8 +35,6 @@ __all__ = [
     "encode_ack",
     "encode_actuate",
     "encode_frame",
-    "load_model",
     "load_recording",
-    "save_model",
     "save_recording",
 ]

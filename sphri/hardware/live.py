@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from sphri.adjacency import Adjacency, taxel_adjacency
-from sphri.hardware.model_file import ModelBundle
+from sphri.export.model_file import ModelBundle
 
 
 @dataclass(frozen=True)

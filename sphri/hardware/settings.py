@@ -1,10 +1,11 @@
-"""Settings of the hardware commands and their ``key=value`` command-line parser.
+"""Settings of the hardware commands (their ``key=value`` parser is :mod:`sphri.keyvalue`).
 
-The hardware commands (``python -m sphri.hardware.glove|skin|simulate``) are
+The hardware commands (``python -m sphri.hardware.glove|skin``) are
 entry points beside the pipeline, not stages. Each has a settings dataclass
 below (typed fields with defaults, units in the names, range checks in
-``__post_init__`` naming the key; ``train_export`` keeps its own beside its
-code). Command lines are
+``__post_init__`` naming the key; the simulators keep theirs beside their
+code, ``sim_skin.SkinSimSettings`` and ``sim_glove.GloveSimSettings``, as
+``sphri.export.train`` does). Command lines are
 Hydra-like ``key=value`` pairs: keys of the settings are taken here, and
 everything else (``+debug=fast``, ``robot=nao_child``, ``data.seed=3``) is
 passed to :func:`sphri.config.compose` for the pipeline part.
@@ -12,17 +13,10 @@ passed to :func:`sphri.config.compose` for the pipeline part.
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any, TypeVar
+from dataclasses import dataclass, field
 
-from omegaconf import OmegaConf
-from omegaconf.errors import OmegaConfBaseException
-
-from sphri.config import ConfigError, require, require_choice, require_range
-
-T = TypeVar("T")
+from sphri.config import require, require_choice, require_range
+from sphri.keyvalue import describe, field_names, parse_cli  # noqa: F401  (their home before; kept importable)
 
 
 def _port(value: str) -> None:
@@ -180,6 +174,8 @@ class SkinLiveSettings:
     """MLflow tracking URI for runs:/ models (None = sqlite:///outputs/mlflow.db, the pipeline's default)."""
     allow_remote: bool = False
     """Fetch a remote model (runs:/, models:/, http://...); off by default: only local files are read."""
+    plugins: list[str] = field(default_factory=list)
+    """Packages whose model classes a model file may name (e.g. [labext]); sphri's own models need none."""
     baud: int = 1_000_000
     """Bits per second (ignored by USB CDC devices and socket://)."""
     stride: int = 0
@@ -229,129 +225,3 @@ class SkinLiveSettings:
         require_range("duration_s", self.duration_s, lo=0.0)
         require_range("idle_s", self.idle_s, lo=0.0)
         require_range("reconnect_timeout_s", self.reconnect_timeout_s, lo=0.0)
-
-
-@dataclass
-class SimulateSettings:
-    """``python -m sphri.hardware.simulate skin|glove``: emulate a device."""
-
-    port: str = "pty"
-    """pty (a pseudo-terminal; its path is printed and linked at ``link``) or socket://HOST:PORT to listen on."""
-    link: str = ""
-    """pty only: a stable symlink to the pseudo-terminal (re-pointed after a simulated replug)."""
-    seed: int = 0
-    """Seeds the injected faults (and the pattern source)."""
-    report: str = ""
-    """Write what was sent (good frames, faults) or received as JSON to this file."""
-    # skin
-    source: str = "pipeline"
-    """skin: pipeline (encoded synthetic trials of the composed config) or pattern (moving blobs)."""
-    trials: int = 8
-    """skin, pipeline source: number of trials streamed (-1 = all selected)."""
-    participant: str | None = None
-    """skin, pipeline source: stream only this participant's trials."""
-    taxels: int = 0
-    """skin, pattern source: taxel count (0 = from grid)."""
-    grid: str = "18x6"
-    """skin, pattern source: grid shape HxW."""
-    frames: int = 600
-    """skin, pattern source: frames to stream."""
-    rate_hz: float = 0.0
-    """skin: frames per second (0 = the dataset's frame rate, 90 for patterns)."""
-    realtime: bool = True
-    """skin: pace frames at rate_hz; false streams as fast as the link takes them."""
-    format: str = "auto"
-    """skin: value format u8, u16, bits, or auto (bits for binary encoders, u8 otherwise)."""
-    gap_s: float = 0.5
-    """skin, pipeline source: untouched (noise-only) seconds before each trial."""
-    garbage_rate: float = 0.0
-    """skin: probability per frame of a burst of random bytes before it."""
-    corrupt_rate: float = 0.0
-    """skin: probability per frame of a flipped byte (bad checksum)."""
-    drop_rate: float = 0.0
-    """skin: probability per frame of not sending it (sequence gap)."""
-    truncate_rate: float = 0.0
-    """skin: probability per frame of sending only its first part."""
-    wrong_count_rate: float = 0.0
-    """skin: probability per frame of a valid frame with a wrong taxel count instead."""
-    unplug_after_s: float = 0.0
-    """skin: simulate unplugging after this many seconds of streaming (0 = never)."""
-    unplug_s: float = 1.0
-    """skin: how long the device stays unplugged (seconds)."""
-    wait_start: bool = True
-    """skin: wait for the host's START message before streaming (and after a replug)."""
-    hold_s: float = 1.0
-    """skin: keep the port open this long after the last frame (seconds)."""
-    # glove
-    ack_drop_rate: float = 0.0
-    """glove: probability of not acknowledging a command."""
-    ack_delay_s: float = 0.0
-    """glove: delay before each acknowledgement (seconds)."""
-    duration_s: float = 0.0
-    """glove: stop after this many seconds (0 = until the host disconnects)."""
-
-    def __post_init__(self) -> None:
-        require(self.port == "pty" or self.port.startswith("socket://"), "port", self.port, "pty or socket://HOST:PORT")
-        require_range("seed", self.seed, lo=0)
-        require_choice("source", self.source, ("pipeline", "pattern"))
-        require(self.trials == -1 or self.trials >= 1, "trials", self.trials, "a count >= 1, or -1 for all")
-        require_range("taxels", self.taxels, lo=0, hi=4096)
-        parse_grid(self.grid)
-        require_range("frames", self.frames, lo=1)
-        require_range("rate_hz", self.rate_hz, lo=0.0, hi=10_000.0)
-        require_choice("format", self.format, ("auto", "u8", "u16", "bits"))
-        require_range("gap_s", self.gap_s, lo=0.0, hi=60.0)
-        for key in ("garbage_rate", "corrupt_rate", "drop_rate", "truncate_rate", "wrong_count_rate", "ack_drop_rate"):
-            require_range(key, getattr(self, key), lo=0.0, hi=1.0)
-        total = self.corrupt_rate + self.drop_rate + self.truncate_rate + self.wrong_count_rate
-        require(
-            total <= 1.0,
-            "corrupt_rate",
-            self.corrupt_rate,
-            f"corrupt + drop + truncate + wrong_count rates must sum to <= 1 (got {total:g})",
-        )
-        require_range("unplug_after_s", self.unplug_after_s, lo=0.0)
-        require_range("unplug_s", self.unplug_s, lo=0.0, hi=600.0)
-        require_range("hold_s", self.hold_s, lo=0.0, hi=600.0)
-        require_range("ack_delay_s", self.ack_delay_s, lo=0.0, hi=10.0)
-        require_range("duration_s", self.duration_s, lo=0.0)
-
-
-def field_names(cls: type) -> list[str]:
-    return [f.name for f in dataclasses.fields(cls)]
-
-
-def parse_cli(argv: Sequence[str], cls: type[T], pipeline: bool) -> tuple[T, list[str]]:
-    """Split ``key=value`` arguments into ``cls`` settings and pipeline overrides.
-
-    Keys that are fields of ``cls`` set them (typed and range-checked); the
-    rest are returned as pipeline overrides when ``pipeline`` is true, and
-    refused otherwise. Raises :class:`ConfigError` naming the key.
-    """
-    names = field_names(cls)
-    mine: list[str] = []
-    rest: list[str] = []
-    for arg in argv:
-        if "=" not in arg:
-            raise ConfigError(f"argument {arg!r} is invalid: expected key=value (settings: {', '.join(names)})")
-        key = arg.split("=", 1)[0]
-        (mine if key in names else rest).append(arg)
-    if rest and not pipeline:
-        raise ConfigError(
-            f"unknown setting(s) {', '.join(a.split('=', 1)[0] for a in rest)}; settings: {', '.join(names)}"
-        )
-    try:
-        node = OmegaConf.merge(OmegaConf.structured(cls), OmegaConf.from_dotlist(mine))
-        settings = OmegaConf.to_object(node)
-    except ConfigError:
-        raise
-    except OmegaConfBaseException as exc:
-        key = getattr(exc, "full_key", None) or "?"
-        first = str(exc).strip().splitlines()[0]
-        raise ConfigError(f"{key}: {first}") from None
-    return settings, rest  # type: ignore[return-value]
-
-
-def describe(settings: Any) -> str:
-    """``key=value`` of every setting (for logs)."""
-    return " ".join(f"{f.name}={getattr(settings, f.name)}" for f in dataclasses.fields(settings))

@@ -452,13 +452,14 @@ def live(
     """``skin live``: classify the streamed frames; returns a summary with latencies.
 
     ``until``: an extra stop condition, as in :func:`record`."""
+    from sphri.export.model_file import load_model, resolve_model_path
     from sphri.hardware.live import LiveClassifier, auto_stride
-    from sphri.hardware.model_file import load_model, resolve_model_path
 
     bundle = load_model(
         resolve_model_path(
             settings.model, settings.tracking_uri or default_tracking_uri(), allow_remote=settings.allow_remote
-        )
+        ),
+        plugins=settings.plugins,
     )
     stride = settings.stride or auto_stride(bundle.frame_rate_hz)
     clf = LiveClassifier(
@@ -574,7 +575,7 @@ USAGE = """usage: python -m sphri.hardware.skin record|live [key=value ...]
 
 record: port=... out=rec.npz [taxels=0 grid=HxW frames=0 duration_s=0 idle_s=0 chunk_frames=50
         sync_interval_s=1 consensus_frames=9 reconnect=false reconnect_timeout_s=30 start_command=true baud=1000000]
-live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [allow_remote=false stride=0 onset_taxels=0
+live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [allow_remote=false plugins=[] stride=0 onset_taxels=0
         calibrate_frames=30 release_frames=10 out=predictions.jsonl show=all|touches|off
         frames=0 duration_s=0 idle_s=0 reconnect=false ...]
 (defaults and meanings: sphri/hardware/settings.py, SkinRecordSettings / SkinLiveSettings)

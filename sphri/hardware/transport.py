@@ -1,22 +1,40 @@
-"""Serial transport (pyserial): open a port or URL, read, write, reconnect.
+"""Serial transport, both ends: the host's port (pyserial) and a simulated device's endpoint.
 
 Everything protocol-specific lives in the pure decoders; this module only
-moves bytes. Any pyserial URL works: ``/dev/ttyUSB0``, ``/dev/rfcomm0``
-(Bluetooth serial), ``loop://`` (loopback, for dry runs),
-``socket://host:port`` (a simulator or a network bridge).
+moves bytes. Host side (:class:`Link`): any pyserial URL works: ``/dev/ttyUSB0``,
+``/dev/rfcomm0`` (Bluetooth serial), ``loop://`` (loopback, for dry runs),
+``socket://host:port`` (a simulator or a network bridge). A port that vanishes
+(unplugged device, closed socket) raises :class:`PortLost` with a message
+naming the port; :class:`Link` with ``reconnect=True`` instead retries opening
+it until ``reconnect_timeout_s``.
 
-A port that vanishes (unplugged device, closed socket) raises
-:class:`PortLost` with a message naming the port; :class:`Link` with
-``reconnect=True`` instead retries opening it until ``reconnect_timeout_s``.
+Device side (the simulators, :mod:`sphri.hardware.sim_skin` and
+:mod:`sphri.hardware.sim_glove`): a pseudo-terminal (:class:`PtyEndpoint`) or a
+listening socket (:class:`SocketEndpoint`) the host opens with the URLs above,
+the settings every simulated device shares (:class:`DeviceSettings`), and
+:func:`start_in_thread`.
 """
 
 from __future__ import annotations
 
+import errno
+import fcntl
 import logging
+import os
+import select
+import socket
+import struct
+import termios
+import threading
 import time
+import tty
 from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
 
 import serial
+
+from sphri.config import ConfigError, require, require_range
 
 log = logging.getLogger(__name__)
 
@@ -162,3 +180,214 @@ class Link:
             self.reconnects += 1
             log.warning("reconnected to %s after %.1f s", self.port, time.monotonic() - t0)
             return
+
+
+# =========================================================================== device side (simulators)
+@dataclass
+class DeviceSettings:
+    """What every simulated device takes (``python -m sphri.hardware.simulate skin|glove``)."""
+
+    port: str = "pty"
+    """pty (a pseudo-terminal; its path is printed and linked at ``link``) or socket://HOST:PORT to listen on."""
+    link: str = ""
+    """pty only: a stable symlink to the pseudo-terminal (re-pointed after a simulated replug)."""
+    seed: int = 0
+    """Seeds the injected faults (and the skin's pattern source)."""
+    report: str = ""
+    """Write what was sent (good frames, faults) or received as JSON to this file."""
+
+    def __post_init__(self) -> None:
+        require(self.port == "pty" or self.port.startswith("socket://"), "port", self.port, "pty or socket://HOST:PORT")
+        require_range("seed", self.seed, lo=0)
+
+
+class HostGone(RuntimeError):
+    """The host side closed the connection (socket endpoints)."""
+
+
+class Stopped(RuntimeError):
+    """The simulator was asked to stop."""
+
+
+# --------------------------------------------------------------------------- endpoints
+class PtyEndpoint:
+    """A pseudo-terminal: the host opens :attr:`name` (or the ``link`` symlink)."""
+
+    def __init__(self, link: str = "") -> None:
+        self.link = link
+        self.master: int | None = None
+        self.slave: int | None = None
+        self.name = ""
+
+    @property
+    def url(self) -> str:
+        return self.link or self.name
+
+    def open(self, stop: threading.Event) -> None:
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)  # no echo, no line editing, before any host opens it
+        os.set_blocking(self.master, False)
+        self.name = os.ttyname(self.slave)
+        if self.link:
+            tmp = f"{self.link}.tmp{os.getpid()}"
+            if os.path.lexists(tmp):
+                os.unlink(tmp)
+            os.symlink(self.name, tmp)
+            os.replace(tmp, self.link)
+
+    def write(self, data: bytes, stop: threading.Event) -> None:
+        view = memoryview(data)
+        while view:
+            if stop.is_set():
+                raise Stopped()
+            _, w, _ = select.select([], [self.master], [], 0.1)
+            if not w:
+                continue
+            try:
+                n = os.write(self.master, view)
+            except BlockingIOError:
+                continue
+            view = view[n:]
+
+    def read(self) -> bytes:
+        r, _, _ = select.select([self.master], [], [], 0)
+        if not r:
+            return b""
+        try:
+            return os.read(self.master, 4096)
+        except BlockingIOError:
+            return b""
+        except OSError as exc:  # EIO: no slave open (cannot happen while we hold one)
+            if exc.errno == errno.EIO:
+                return b""
+            raise
+
+    def pending(self) -> int:
+        """Bytes written but not yet read by the host."""
+        if self.slave is None:
+            return 0
+        return struct.unpack("i", fcntl.ioctl(self.slave, termios.FIONREAD, b"\0\0\0\0"))[0]
+
+    def drain(self, stop: threading.Event, timeout_s: float = 5.0) -> None:
+        """Wait until the host has read everything written (the kernel moves
+        bytes to the slave side asynchronously: settle twice, 20 ms apart)."""
+        t0 = time.monotonic()
+        settled = 0
+        while settled < 2 and time.monotonic() - t0 < timeout_s and not stop.is_set():
+            time.sleep(0.02)
+            settled = settled + 1 if self.pending() == 0 else 0
+
+    def unplug(self) -> None:
+        if self.link and os.path.islink(self.link):
+            os.unlink(self.link)
+        for fd in (self.master, self.slave):
+            if fd is not None:
+                os.close(fd)
+        self.master = self.slave = None
+
+    close = unplug
+
+
+class SocketEndpoint:
+    """A listening TCP socket; the host connects with ``socket://HOST:PORT``."""
+
+    def __init__(self, url: str) -> None:
+        hostport = url[len("socket://") :].split("?", 1)[0]
+        host, _, port = hostport.rpartition(":")
+        try:
+            port_n = int(port)
+        except ValueError:
+            raise ConfigError(f"port={url!r} is invalid: expected socket://HOST:PORT") from None
+        self.server = socket.create_server((host or "127.0.0.1", port_n))
+        self.server.settimeout(0.1)
+        self.host, self.port = self.server.getsockname()[:2]
+        self.conn: socket.socket | None = None
+        self._rx = b""
+
+    @property
+    def url(self) -> str:
+        return f"socket://{self.host}:{self.port}"
+
+    def open(self, stop: threading.Event) -> None:
+        while not stop.is_set():
+            try:
+                self.conn, _ = self.server.accept()
+            except TimeoutError:
+                continue
+            self.conn.settimeout(1.0)
+            self.conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            return
+        raise Stopped()
+
+    def write(self, data: bytes, stop: threading.Event) -> None:
+        assert self.conn is not None
+        view = memoryview(data)
+        while view:
+            if stop.is_set():
+                raise Stopped()
+            try:
+                n = self.conn.send(view)
+            except TimeoutError:
+                continue
+            except OSError as exc:
+                raise HostGone(str(exc)) from None
+            view = view[n:]
+
+    def read(self) -> bytes:
+        assert self.conn is not None
+        r, _, _ = select.select([self.conn], [], [], 0)
+        if not r:
+            return b""
+        try:
+            data = self.conn.recv(4096)
+        except OSError as exc:
+            raise HostGone(str(exc)) from None
+        if not data:
+            raise HostGone("the host closed the connection")
+        return data
+
+    def drain(self, stop: threading.Event, timeout_s: float = 5.0) -> None:
+        pass  # TCP delivers what was sent before the close
+
+    def unplug(self) -> None:
+        if self.conn is not None:
+            try:
+                self.conn.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            self.conn.close()
+            self.conn = None
+
+    def close(self) -> None:
+        self.unplug()
+        self.server.close()
+
+
+def open_endpoint(endpoint: PtyEndpoint | SocketEndpoint, stop: threading.Event, ready: threading.Event) -> None:
+    """Open ``endpoint`` and set ``ready`` as soon as a host can connect to its url."""
+    if isinstance(endpoint, SocketEndpoint):
+        ready.set()  # already listening; accept() waits for the host
+    endpoint.open(stop)
+    ready.set()
+
+
+def make_endpoint(settings: DeviceSettings) -> PtyEndpoint | SocketEndpoint:
+    """The endpoint ``settings.port`` names (``pty``, with ``settings.link``, or ``socket://HOST:PORT``)."""
+    if settings.port == "pty":
+        return PtyEndpoint(settings.link)
+    return SocketEndpoint(settings.port)
+
+
+def start_in_thread(sim: Any, timeout_s: float = 10.0) -> threading.Thread:
+    """Run a simulator (``run()``, a ``ready`` event) in a daemon thread; returns once its endpoint is open
+    (``sim.endpoint.url``)."""
+    result: dict = {}
+
+    def target() -> None:
+        result["ledger"] = sim.run()
+
+    th = threading.Thread(target=target, name=f"sphri-{type(sim).__name__}", daemon=True)
+    th.start()
+    if not sim.ready.wait(timeout_s):
+        raise TimeoutError(f"{type(sim).__name__} did not open its endpoint within {timeout_s} s")
+    return th

@@ -382,6 +382,20 @@ class CnnGru(ClassifierMixin, BaseEstimator):
             raise ValueError(f"geometry.grid_shape={g.grid_shape} does not hold {n_taxels} taxels")
         return (h, w), bool(g.wrap_v)
 
+    def _network(self, n_taxels: int, n_classes: int) -> CnnGruNet:
+        """A fresh network of these hyperparameters (for ``fit``, and for ``load_state`` to load weights into)."""
+        grid, wrap = self._layout(n_taxels)
+        return CnnGruNet(
+            n_taxels,
+            grid,
+            wrap,
+            [int(c) for c in self.channels],
+            [int(s) for s in self.strides],
+            int(self.embed_size),
+            int(self.hidden),
+            n_classes,
+        )
+
     def _autocast(self, dev: torch.device) -> torch.autocast:
         """bf16 autocast of the network's forward when the resolved precision is bf16."""
         use = getattr(self, "precision_", None) or resolve_precision(self.precision, dev)
@@ -426,7 +440,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         y = np.asarray(y)
         if y.ndim != 1 or y.shape[0] != x.shape[0]:
             raise ValueError(f"y must be (n_trials,) = ({x.shape[0]},), got shape {y.shape}")
-        grid, wrap = self._layout(x.shape[2])
+        self._layout(x.shape[2])  # the geometry fits x (a ValueError naming both otherwise)
         dev = resolve_device(self.device)
         self.precision_ = resolve_precision(self.precision, dev)
         self.classes_, y_idx = np.unique(y, return_inverse=True)
@@ -435,16 +449,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         with _torch_state(int(self.threads), dev), torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.seed)
             gen = torch.Generator().manual_seed(self.seed)
-            net = CnnGruNet(
-                x.shape[2],
-                grid,
-                wrap,
-                [int(c) for c in self.channels],
-                [int(s) for s in self.strides],
-                int(self.embed_size),
-                int(self.hidden),
-                len(self.classes_),
-            )
+            net = self._network(x.shape[2], len(self.classes_))
             yt = torch.from_numpy(y_idx.astype(np.int64))
             x_tr_np = x[tr]
             mean = float(x_tr_np.mean(dtype=np.float64))
@@ -542,3 +547,24 @@ class CnnGru(ClassifierMixin, BaseEstimator):
     def predict(self, x: np.ndarray) -> np.ndarray:
         """(n,) predicted labels (values of ``classes_``)."""
         return self.classes_[np.argmax(self.predict_proba(x), axis=1)]
+
+    # -- model files (sphri.export.registry) -------------------------------
+    def save_state(self) -> tuple[dict, dict[str, np.ndarray]]:
+        """(hyperparameters and precision, arrays: classes and the network's state dict), no pickle."""
+        from sphri.models.persist import params_of, torch_state_array
+
+        check_is_fitted(self, "net_")
+        head = {"params": params_of(self), "precision_": getattr(self, "precision_", "float32")}
+        return head, {"classes": np.asarray(self.classes_), "state_dict": torch_state_array(self.net_)}
+
+    @classmethod
+    def load_state(cls, head: dict, arrays, geometry: TaxelGeometry) -> CnnGru:
+        """The fitted model of :meth:`save_state`'s output (weights read with ``torch.load(weights_only=True)``)."""
+        from sphri.models.persist import torch_state_load
+
+        model = cls(**dict(head.get("params") or {}), geometry=geometry)
+        classes = arrays["classes"]
+        model.net_ = torch_state_load(arrays["state_dict"], model._network(geometry.n_taxels, len(classes))).eval()
+        model.classes_ = classes
+        model.precision_ = head.get("precision_", "float32")
+        return model

@@ -10,6 +10,14 @@ from sklearn.utils.validation import check_is_fitted
 from sphri.models.features import FEATURE_NAMES, TaxelCoords, extract_features, taxel_coords
 from sphri.types import TaxelGeometry
 
+#: The types the forest's skops payload in a model file may hold besides plain containers and numbers
+#: (:data:`sphri.models.persist.PLAIN_TYPES`); the only list skops is given when a file is read.
+TRUSTED_TYPES = (
+    "sklearn.ensemble._forest.RandomForestClassifier",
+    "sklearn.tree._classes.DecisionTreeClassifier",
+    "sklearn.tree._tree.Tree",
+)
+
 
 class RandomForest(ClassifierMixin, BaseEstimator):
     """Random Forest on the 32 features of :mod:`sphri.models.features`.
@@ -125,3 +133,27 @@ class RandomForest(ClassifierMixin, BaseEstimator):
         """(n,) predicted labels from precomputed features (n, 32)."""
         check_is_fitted(self, "forest_")
         return self.forest_.predict(self._check_features(feats))
+
+    # -- model files (sphri.export.registry) -------------------------------
+    def save_state(self) -> tuple[dict, dict[str, np.ndarray]]:
+        """(hyperparameters, arrays: classes and the forest as skops bytes), no pickle."""
+        from sphri.models.persist import params_of, skops_array
+
+        check_is_fitted(self, "forest_")
+        return {"params": params_of(self)}, {
+            "classes": np.asarray(self.classes_),
+            "forest_skops": skops_array(self.forest_),
+        }
+
+    @classmethod
+    def load_state(cls, head: dict, arrays, geometry: TaxelGeometry) -> RandomForest:
+        """The fitted forest of :meth:`save_state`'s output; a payload naming a type outside
+        :data:`TRUSTED_TYPES` is refused before skops loads anything."""
+        from sphri.models.persist import skops_load
+
+        model = cls(**dict(head.get("params") or {}), geometry=geometry)
+        model.forest_ = skops_load(arrays["forest_skops"], TRUSTED_TYPES, RandomForestClassifier, "forest payload")
+        model.classes_ = model.forest_.classes_
+        model.n_features_in_ = len(FEATURE_NAMES)
+        model.feature_names_ = FEATURE_NAMES
+        return model

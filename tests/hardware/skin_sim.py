@@ -5,15 +5,16 @@ from __future__ import annotations
 import numpy as np
 
 from sphri.hardware.recording import load_recording
-from sphri.hardware.settings import SimulateSettings, SkinRecordSettings
-from sphri.hardware.simulate import SkinSimulator, make_endpoint, pattern_stream, start_in_thread
+from sphri.hardware.settings import SkinRecordSettings
+from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pattern_stream
 from sphri.hardware.skin import record
 from sphri.hardware.skin_protocol import ValueFormat, quantize
+from sphri.hardware.transport import make_endpoint, start_in_thread
 
 
 def run_record(tmp_path, sim_kw: dict, rec_kw: dict | None = None, frames: int = 400, seed: int = 1):
     """Start a pattern-source skin simulator, record from it, return (ledger, summary, recording, stream)."""
-    settings = SimulateSettings(
+    settings = SkinSimSettings(
         source="pattern", frames=frames, seed=seed, **{"realtime": False, "hold_s": 3.0, **sim_kw}
     )
     stream = pattern_stream((18, 6), frames, seed)

@@ -21,12 +21,13 @@ def out_dir(tmp_path_factory):
 
 def stream_live(overrides, participant, model_path, out_dir):
     """Stream ``participant``'s trials from the simulator into `skin live`; (ledger, first touch per trial)."""
-    from sphri.hardware.settings import SimulateSettings, SkinLiveSettings
-    from sphri.hardware.simulate import SkinSimulator, make_endpoint, pipeline_stream, start_in_thread
+    from sphri.hardware.settings import SkinLiveSettings
+    from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pipeline_stream
     from sphri.hardware.skin import live
+    from sphri.hardware.transport import make_endpoint, start_in_thread
 
     stream = pipeline_stream(overrides, -1, participant, 0.5, 0)
-    settings = SimulateSettings(port="socket://127.0.0.1:0", realtime=False, hold_s=60.0)
+    settings = SkinSimSettings(port="socket://127.0.0.1:0", realtime=False, hold_s=60.0)
     sim = SkinSimulator(stream, settings, make_endpoint(settings), say=lambda m: None)
     th = start_in_thread(sim)
     pred = out_dir / f"{participant}.jsonl"
@@ -52,9 +53,9 @@ def stream_live(overrides, participant, model_path, out_dir):
 
 @pytest.mark.slow
 def test_live_classifies_streamed_synthetic_gestures(out_dir):
-    from sphri.hardware.model_file import save_model
+    from sphri.export.model_file import save_model
+    from sphri.export.train import fit_bundle, training_windows
     from sphri.hardware.source import open_pipeline
-    from sphri.hardware.train_export import fit_bundle, training_windows
 
     overrides = [*DATA, f"output_dir={out_dir}"]
     p = open_pipeline(overrides)

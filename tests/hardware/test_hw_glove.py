@@ -13,9 +13,9 @@ from sphri.config import ConfigError
 from sphri.hardware.actuators import ActuatorMap, capsule_actuator, part_depths
 from sphri.hardware.glove import GloveDriver, PlannedMessage, play, schedule, select_trial
 from sphri.hardware.glove_protocol import ACTUATORS, GloveDecoder
-from sphri.hardware.settings import GloveReplaySettings, SimulateSettings, parse_cli
-from sphri.hardware.simulate import GloveSimulator, make_endpoint, start_in_thread
-from sphri.hardware.transport import Link, PortError, open_port
+from sphri.hardware.settings import GloveReplaySettings, parse_cli
+from sphri.hardware.sim_glove import GloveSimSettings, GloveSimulator
+from sphri.hardware.transport import Link, PortError, make_endpoint, open_port, start_in_thread
 
 
 def glove_state(messages: list[PlannedMessage], n_frames: int, frame_rate_hz: float) -> np.ndarray:
@@ -164,8 +164,8 @@ def test_realtime_play_paces_messages():
 @pytest.mark.parametrize("port", ["pty", "socket://127.0.0.1:0"])
 def test_driver_counts_missing_acks_against_the_simulator(port):
     sim = GloveSimulator(
-        SimulateSettings(port=port, ack_drop_rate=0.3, seed=5),
-        make_endpoint(SimulateSettings(port=port)),
+        GloveSimSettings(port=port, ack_drop_rate=0.3, seed=5),
+        make_endpoint(GloveSimSettings(port=port)),
         say=lambda m: None,
     )
     th = start_in_thread(sim)

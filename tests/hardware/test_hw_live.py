@@ -7,11 +7,12 @@ import json
 import numpy as np
 import pytest
 
+from sphri.export.model_file import ModelBundle, ModelFileError, inspect_model, load_model, save_model
 from sphri.hardware.live import LiveClassifier, auto_stride
-from sphri.hardware.model_file import ModelBundle, ModelFileError, inspect_model, load_model, save_model
-from sphri.hardware.settings import SimulateSettings, SkinLiveSettings
-from sphri.hardware.simulate import SkinSimulator, make_endpoint, pattern_stream, start_in_thread
+from sphri.hardware.settings import SkinLiveSettings
+from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pattern_stream
 from sphri.hardware.skin import live
+from sphri.hardware.transport import make_endpoint, start_in_thread
 
 
 class Recorder:
@@ -140,7 +141,7 @@ def test_live_against_the_simulator_rate_and_touches(tmp_path, make_geometry):
     geo = make_geometry(18, 6)
     model_path = save_model(ModelBundle(small_rf(geo, length=30), geo, 30, 90.0), tmp_path / "rf.sphrimodel")
     frames = 500
-    sim_settings = SimulateSettings(
+    sim_settings = SkinSimSettings(
         port="socket://127.0.0.1:0", source="pattern", frames=frames, seed=2, realtime=True, rate_hz=90.0, hold_s=2.0
     )
     stream = pattern_stream((18, 6), frames, 2)
@@ -176,7 +177,7 @@ def test_live_fills_lost_frames_to_keep_the_timing(tmp_path, make_geometry):
     geo = make_geometry(18, 6)
     model_path = save_model(ModelBundle(small_rf(geo, length=30), geo, 30, 90.0), tmp_path / "rf.sphrimodel")
     frames = 420
-    sim_settings = SimulateSettings(
+    sim_settings = SkinSimSettings(
         port="socket://127.0.0.1:0",
         source="pattern",
         frames=frames,

@@ -10,11 +10,12 @@ import struct
 import numpy as np
 import pytest
 
-from sphri.hardware.model_file import (
+from sphri.export.model_file import (
     MAGIC,
     OLD_MAGIC,
     ModelBundle,
     ModelFileError,
+    inspect_model,
     load_model,
     resolve_model_path,
     save_model,
@@ -154,8 +155,120 @@ def test_unsupported_estimator_is_refused_at_save(tmp_path, make_geometry):
         def predict_proba(self, x):
             return np.zeros((len(x), 2))
 
-    with pytest.raises(ModelFileError, match="Other cannot be saved"):
+    with pytest.raises(ModelFileError, match="Other cannot be saved in a model file: it lacks NAME, save_state"):
         save_model(ModelBundle(Other(), make_geometry(2, 2), 5, 30.0), tmp_path / "o.sphrimodel")
+
+
+def _with_estimator_header(path, edit) -> None:
+    """Rewrite a model file's ``estimator`` header part and seal it again (a valid plain checksum, as anyone
+    without the model key can compute)."""
+    blob = path.read_bytes()
+    (n,) = struct.unpack_from("<I", blob, len(MAGIC))
+    h0 = len(MAGIC) + 4
+    header = json.loads(blob[h0 : h0 + n])
+    edit(header["estimator"])
+    path.write_bytes(seal_model(json.dumps(header).encode(), blob[h0 + n + 64 :], key=None))
+
+
+def test_a_header_naming_a_module_outside_the_plugins_imports_nothing(tmp_path, make_geometry, monkeypatch):
+    """The registry imports a model class only from a package the reader lists: a crafted header naming a
+    module whose import would run code is refused before the import (the marker file stays absent)."""
+    from tests.hardware.test_hw_live import small_rf
+
+    monkeypatch.delenv("SPHRI_MODEL_KEY", raising=False)
+    monkeypatch.delenv("SPHRI_MODEL_KEY_FILE", raising=False)
+    marker = tmp_path / "pwned"
+    (tmp_path / "evilpkg").mkdir()
+    (tmp_path / "evilpkg" / "__init__.py").write_text(f"open({str(marker)!r}, 'w').close()\nclass M:\n    NAME = 'm'\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    geo = make_geometry(3, 2)
+    path = save_model(ModelBundle(small_rf(geo), geo, 20, 90.0), tmp_path / "rf.sphrimodel", key=None)
+
+    def name_evil(est):
+        est["kind"], est["class"] = "m", "evilpkg:M"
+
+    _with_estimator_header(path, name_evil)
+    with pytest.raises(ModelFileError, match=r"rf\.sphrimodel: .*'evilpkg', which is not listed in plugins"):
+        load_model(path)
+    with pytest.raises(ModelFileError, match="not listed in plugins"):
+        load_model(path, plugins=["sphri", "labext"])
+    assert not marker.exists()
+    # listed: imported, then refused because it is no exportable model named as the header says
+    with pytest.raises(ModelFileError, match=r"evilpkg:M is not an exportable model named 'm'"):
+        load_model(path, plugins=["evilpkg"])
+
+    def unknown(est):
+        est["kind"] = "nosuch"
+        est.pop("class", None)
+
+    _with_estimator_header(path, unknown)
+    with pytest.raises(
+        ModelFileError, match=r"rf\.sphrimodel: unknown estimator kind 'nosuch' \(this sphri reads rf, cnn_gru"
+    ):
+        load_model(path)
+
+
+def test_sphri_models_are_found_by_name_whatever_class_the_header_names(tmp_path, make_geometry, monkeypatch):
+    from tests.hardware.test_hw_live import small_rf
+
+    monkeypatch.delenv("SPHRI_MODEL_KEY", raising=False)
+    monkeypatch.delenv("SPHRI_MODEL_KEY_FILE", raising=False)
+    geo = make_geometry(3, 2)
+    model = small_rf(geo)
+    path = save_model(ModelBundle(model, geo, 20, 90.0), tmp_path / "rf.sphrimodel", key=None)
+    assert "class" not in inspect_model(path)["estimator"]  # sphri's own: the name is enough
+    _with_estimator_header(path, lambda est: est.update({"class": "os:system"}))
+    x = _windows(geo)
+    np.testing.assert_array_equal(load_model(path).predict_proba(x), model.predict_proba(x))
+
+
+def test_a_registered_model_class_loads_without_plugins(tmp_path, make_geometry):
+    """A class registered in this process (sphri.export.registry.register) is trusted by its name; a class
+    may not take the name of one of sphri's own models."""
+    from sphri.export import registry
+
+    class Mean:
+        NAME = "test_mean_model"
+
+        def __init__(self, geometry=None):
+            self.geometry = geometry
+
+        def fit(self, x, y):
+            self.classes_ = np.unique(y)
+            self.w_ = np.stack([np.asarray(x)[y == c].mean(axis=(0, 1)) for c in self.classes_])
+            return self
+
+        def predict_proba(self, x):
+            s = np.asarray(x, dtype=np.float64).mean(axis=1) @ self.w_.T + 1e-9
+            return s / s.sum(axis=1, keepdims=True)
+
+        def save_state(self):
+            return {}, {"classes": self.classes_, "w": self.w_}
+
+        @classmethod
+        def load_state(cls, head, arrays, geometry):
+            m = cls(geometry)
+            m.classes_, m.w_ = arrays["classes"], arrays["w"]
+            return m
+
+    geo = make_geometry(3, 2)
+    x = _windows(geo, n=16)
+    model = Mean(geo).fit(x, np.arange(16) % 4)
+    path = save_model(ModelBundle(model, geo, 20, 90.0), tmp_path / "mean.sphrimodel", key=None)
+    with pytest.raises(ModelFileError, match="not listed in plugins"):  # a local class, not registered yet
+        load_model(path, key=None)
+    registry.register(Mean)
+    try:
+        back = load_model(path, key=None)
+        np.testing.assert_array_equal(back.estimator.predict_proba(x), model.predict_proba(x))
+    finally:
+        registry._REGISTERED.pop("test_mean_model", None)
+    Mean.NAME = "rf"
+    with pytest.raises(registry.NotExportable, match="model name 'rf' of .* is sphri's own"):
+        registry.register(Mean)
+    del Mean.load_state
+    with pytest.raises(registry.NotExportable, match="lacks load_state"):
+        registry.register(Mean)
 
 
 @pytest.mark.parametrize(

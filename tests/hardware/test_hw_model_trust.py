@@ -16,7 +16,7 @@ import struct
 import numpy as np
 import pytest
 
-from sphri.hardware.model_file import MAGIC, ModelBundle, ModelFileError, load_model, save_model, seal_model
+from sphri.export.model_file import MAGIC, ModelBundle, ModelFileError, load_model, save_model, seal_model
 from sphri.hardware.skin import main as skin_main
 from sphri.types import GESTURES
 from tests.hardware.test_hw_live import small_rf
@@ -123,7 +123,7 @@ def test_a_previous_format_file_is_refused_with_the_command_to_export_it_again(r
     path, _, _ = rf_file
     blob = path.read_bytes()
     path.write_bytes(b"SPHRIMODEL2\n" + blob[len(MAGIC) :])
-    with pytest.raises(ModelFileError, match=r"rf\.sphrimodel: a sphri-model/2 file.*train_export"):
+    with pytest.raises(ModelFileError, match=r"rf\.sphrimodel: a sphri-model/2 file.*sphri\.export\.train"):
         load_model(path)
 
 

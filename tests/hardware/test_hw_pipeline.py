@@ -56,11 +56,12 @@ def test_replay_cli_refuses_bad_settings(out_dir, capsys):
 
 
 def test_train_export_then_live_on_streamed_trials(out_dir):
+    from sphri.export.model_file import load_model
     from sphri.hardware import train_export
-    from sphri.hardware.model_file import load_model
-    from sphri.hardware.settings import SimulateSettings, SkinLiveSettings
-    from sphri.hardware.simulate import SkinSimulator, make_endpoint, pipeline_stream, start_in_thread
+    from sphri.hardware.settings import SkinLiveSettings
+    from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pipeline_stream
     from sphri.hardware.skin import live
+    from sphri.hardware.transport import make_endpoint, start_in_thread
 
     overrides = [*SMALL, f"output_dir={out_dir}", "model.n_jobs=1"]
     model_path = out_dir / "rf.sphrimodel"
@@ -70,7 +71,7 @@ def test_train_export_then_live_on_streamed_trials(out_dir):
     assert bundle.meta["n_train"] == 8 and bundle.window_length == 50 and bundle.frame_rate_hz == 30.0
 
     stream = pipeline_stream(overrides, 4, "participant_01", 0.5, 0)
-    sim_settings = SimulateSettings(port="socket://127.0.0.1:0", realtime=False, hold_s=30.0)
+    sim_settings = SkinSimSettings(port="socket://127.0.0.1:0", realtime=False, hold_s=30.0)
     sim = SkinSimulator(stream, sim_settings, make_endpoint(sim_settings), say=lambda m: None)
     th = start_in_thread(sim)
     pred = out_dir / "pred.jsonl"
@@ -111,8 +112,8 @@ def test_train_export_then_live_on_streamed_trials(out_dir):
 
 @pytest.mark.slow
 def test_train_export_logs_the_model_to_mlflow(out_dir):
-    from sphri.hardware import train_export
-    from sphri.hardware.model_file import ModelFileError, load_model, resolve_model_path
+    from sphri.export import train as train_export
+    from sphri.export.model_file import ModelFileError, load_model, resolve_model_path
 
     model_path = out_dir / "logged.sphrimodel"
     text = io.StringIO()

@@ -20,11 +20,12 @@ import pytest
 from skin_sim import check_good_frames_kept, run_record
 
 from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording, load_recording, save_recording
-from sphri.hardware.settings import SimulateSettings, SkinRecordSettings
-from sphri.hardware.simulate import SkinSimulator, make_endpoint, pattern_stream, start_in_thread
+from sphri.hardware.settings import SkinRecordSettings
+from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pattern_stream
 from sphri.hardware.skin import main as skin_main
 from sphri.hardware.skin import record
 from sphri.hardware.skin_protocol import ValueFormat, quantize
+from sphri.hardware.transport import make_endpoint, start_in_thread
 
 REPO = Path(__file__).resolve().parents[2]
 #: with this seed and wrong_count_rate=0.05 the simulator's FIRST frame carries a wrong taxel count
@@ -71,7 +72,7 @@ def _small_recording(n: int = 5) -> SkinRecording:
 def test_an_existing_recording_is_never_replaced(tmp_path):
     out = save_recording(_small_recording(300), tmp_path / "rec.npz")
     before = out.read_bytes()
-    settings = SimulateSettings(
+    settings = SkinSimSettings(
         source="pattern", port="socket://127.0.0.1:0", frames=50, seed=2, realtime=False, hold_s=30.0
     )
     sim = SkinSimulator(pattern_stream((18, 6), 50, 2), settings, make_endpoint(settings), say=lambda m: None)
@@ -99,7 +100,7 @@ def test_a_file_appearing_at_out_while_recording_is_not_replaced(tmp_path, monke
     """Another process writes ``out`` during the recording: the frames go to the fallback file instead."""
     monkeypatch.chdir(tmp_path)
     out = tmp_path / "rec.npz"
-    settings = SimulateSettings(
+    settings = SkinSimSettings(
         source="pattern", port="socket://127.0.0.1:0", frames=40, seed=2, realtime=False, hold_s=30.0
     )
     sim = SkinSimulator(pattern_stream((18, 6), 40, 2), settings, make_endpoint(settings), say=lambda m: None)
@@ -122,7 +123,7 @@ def test_a_file_appearing_at_out_while_recording_is_not_replaced(tmp_path, monke
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
 def test_a_signal_saves_the_recording(tmp_path, sig, frames_on_disk):
     want = 30
-    settings = SimulateSettings(
+    settings = SkinSimSettings(
         source="pattern", port="socket://127.0.0.1:0", frames=20_000, seed=2, realtime=True, rate_hz=200.0, hold_s=30.0
     )
     stream = pattern_stream((18, 6), 20_000, 2)

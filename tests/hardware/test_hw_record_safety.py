@@ -14,17 +14,18 @@ import numpy as np
 import pytest
 
 from sphri.hardware.recording import RecordingError, load_recording
-from sphri.hardware.settings import SimulateSettings, SkinRecordSettings
-from sphri.hardware.simulate import SkinSimulator, make_endpoint, pattern_stream, start_in_thread
+from sphri.hardware.settings import SkinRecordSettings
+from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pattern_stream
 from sphri.hardware.skin import main as skin_main
 from sphri.hardware.skin import record
 from sphri.hardware.skin_protocol import ValueFormat, quantize
+from sphri.hardware.transport import make_endpoint, start_in_thread
 
 REPO = Path(__file__).resolve().parents[2]
 
 
 def _simulator(frames: int, **kw):
-    settings = SimulateSettings(
+    settings = SkinSimSettings(
         source="pattern",
         port="socket://127.0.0.1:0",
         frames=frames,

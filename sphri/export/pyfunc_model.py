@@ -2,10 +2,10 @@
 
 MLflow's own flavours store a model by pickling it (cloudpickle), which
 sphri never loads (``docs/RELIABILITY.md``). This file is the model's code
-instead: :func:`sphri.hardware.train_export.log_pyfunc_model` logs it as the
+instead: :func:`sphri.export.train.log_pyfunc_model` logs it as the
 ``python_model`` with the job's ``.sphrimodel`` file as its one artifact, and
 ``mlflow.pyfunc.load_model`` runs it, which reads that file through
-:func:`sphri.hardware.model_file.load_model` (skops with trusted types and a
+:func:`sphri.export.model_file.load_model` (skops with trusted types and a
 weights-only torch state dict; no pickle anywhere)::
 
     import mlflow
@@ -27,9 +27,11 @@ class SphriGestureModel(PythonModel):
     """Names the gesture of each window: (n, L, N) float32 taxel readings -> (n,) gesture names."""
 
     def load_context(self, context) -> None:
-        from sphri.hardware.model_file import load_model
+        from sphri.export.model_file import load_model
 
-        self.bundle = load_model(context.artifacts[ARTIFACT])
+        # the packages the exporting job listed in plugins: a model class of one of them is imported back
+        plugins = (getattr(context, "model_config", None) or {}).get("plugins") or ()
+        self.bundle = load_model(context.artifacts[ARTIFACT], plugins=[str(x) for x in plugins])
 
     def predict(self, context, model_input: np.ndarray, params=None) -> np.ndarray:
         x = np.asarray(model_input, dtype=np.float32)

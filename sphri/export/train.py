@@ -1,0 +1,219 @@
+"""Fit the configured model on the configured pipeline's windows and save a model file.
+
+::
+
+    python -m sphri.export.train out=outputs/models/rf.sphrimodel +robot=reachy encoder.res=18
+    python -m sphri.export.train out=m.sphrimodel holdout=participant_03 +debug=fast mlflow=true
+    python -m sphri.hardware.train_export ...   # the same command under its earlier name
+
+The windows are exactly those the cross-validation sees (data, contact,
+layout, encoder, noise and window stages, all cached), but the model is fit
+once on every kept trial (minus ``holdout``'s). The file
+(:mod:`sphri.export.model_file`) carries the estimator, the skin's
+geometry, the window length and frame rate, for ``skin live``.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from sphri.config import ConfigError, require
+from sphri.errors import clean_errors
+from sphri.export.model_file import ModelBundle, save_model
+from sphri.keyvalue import parse_cli
+from sphri.types import GESTURES, WindowedFrames
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class TrainExportSettings:
+    """Settings of ``train_export`` (everything else is a pipeline override)."""
+
+    out: str = "???"
+    """Model file to write, e.g. outputs/models/rf.sphrimodel."""
+    holdout: str | None = None
+    """Participant left out of training (to try the model live on their trials)."""
+    mlflow: bool = False
+    """Also log the file as an artifact (model/<name>) of a new MLflow run."""
+
+    def __post_init__(self) -> None:
+        require(self.out not in ("", "???"), "out", self.out, "an output path, e.g. out=model.sphrimodel")
+
+
+def training_windows(pipeline) -> WindowedFrames:
+    """The pipeline's windows as the CV sees them: plan, encode, assemble, noise, filter."""
+    return pipeline.get("filter")
+
+
+def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = ()) -> ModelBundle:
+    """Fit ``cfg.model`` on all windows (except ``holdout``'s participant) -> :class:`ModelBundle`."""
+    from sphri.pipeline import config_hash, model_factory
+
+    cfg = pipeline.cfg
+    windows = training_windows(pipeline)
+    train = np.ones(len(windows.y), dtype=bool)
+    if holdout is not None:
+        train = windows.groups != holdout
+        if train.all():
+            raise ConfigError(
+                f"holdout={holdout!r} is invalid: no such participant among {sorted(set(windows.groups))}"
+            )
+    if train.sum() < 2 or len(np.unique(windows.y[train])) < 2:
+        raise ConfigError("the pipeline gives fewer than two gestures to train on; use more data (data.participants)")
+    model = model_factory(cfg)(geometry=windows.geometry)  # the chain's model, as its evaluation makes it
+    model.fit(windows.x[train], windows.y[train])
+    acc = float(np.mean(model.predict(windows.x[train]) == windows.y[train]))
+    dataset = pipeline.get("data")
+    meta = {
+        "created": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+        "model": str(cfg.model._target_).rsplit(".", 1)[-1],
+        "overrides": list(overrides),
+        "config_hash": config_hash(cfg),
+        "n_train": int(train.sum()),
+        "train_accuracy": acc,
+        "holdout": holdout,
+        "participants": sorted(set(windows.groups[train].tolist())),
+        "dataset": dataset.name,
+        "region": list(cfg.data.regions)[0],
+        "encoder": str(cfg.encoder._target_).rsplit(".", 1)[-1],
+        "encoder_res": int(cfg.encoder.res),
+    }
+    log.info("trained %s on %d windows (train accuracy %.3f)", meta["model"], meta["n_train"], acc)
+    return ModelBundle(model, windows.geometry, int(windows.x.shape[1]), float(dataset.frame_rate_hz), GESTURES, meta)
+
+
+def log_pyfunc_model(
+    tracking_uri: str,
+    run_id: str,
+    bundle: ModelBundle,
+    example: np.ndarray,
+    registered_name: str | None = None,
+    plugins: Sequence[str] = (),
+) -> str:
+    """Log ``bundle`` into run ``run_id`` as an MLflow pyfunc model (artifact ``model``) with a signature
+    and ``example`` (one window, (1, L, N) float32) as its input example; register it as
+    ``registered_name`` if given. Returns its ``runs:/`` URI.
+
+    The model is :mod:`sphri.export.pyfunc_model` (MLflow "models from code") with the ``.sphrimodel``
+    file as its artifact: loading it unpickles nothing. ``plugins`` (the job's): packages whose model class
+    the pyfunc model may import back when it loads the file (stored in its ``model_config``).
+    """
+    import tempfile
+
+    import mlflow
+    from mlflow.models import infer_signature
+
+    from sphri.export import pyfunc_model
+
+    example = np.asarray(example, dtype=np.float32)
+    labels = np.asarray(bundle.labels)[np.argmax(bundle.predict_proba(example), axis=1)]
+    mlflow.set_tracking_uri(tracking_uri)
+    with tempfile.TemporaryDirectory(prefix="sphri-model-") as tmp:
+        path = save_model(bundle, Path(tmp) / "model.sphrimodel")
+        with mlflow.start_run(run_id=run_id):
+            mlflow.pyfunc.log_model(
+                name="model",
+                python_model=pyfunc_model.__file__,
+                artifacts={pyfunc_model.ARTIFACT: str(path)},
+                signature=infer_signature(example, labels),
+                input_example=example,
+                registered_model_name=registered_name,
+                model_config={"plugins": [str(x) for x in plugins]},
+                pip_requirements=_requirements(),  # stated, not inferred: inference loads the model in a subprocess
+            )
+    return f"runs:/{run_id}/model"
+
+
+def _requirements() -> list[str]:
+    """What loading the pyfunc model needs: sphri itself (its model code imports it; install it from
+    its wheel or repository) and the libraries its model files are read with, pinned to the versions
+    that wrote them. Local version labels (``torch==2.13.0+cpu``) are dropped: no index serves them,
+    and the same release installs from PyPI."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    from sphri import __version__
+
+    out = [f"sphri=={__version__}"]
+    for dist in ("mlflow", "numpy", "scikit-learn", "skops", "torch"):
+        try:
+            out.append(f"{dist}=={version(dist).split('+', 1)[0]}")
+        except PackageNotFoundError:
+            out.append(dist)
+    return out
+
+
+def log_to_mlflow(pipeline, bundle: ModelBundle) -> str:
+    """Log ``bundle`` as the pyfunc model ``model`` of a new run; returns its ``runs:/`` URI."""
+    from mlflow import MlflowClient
+
+    from sphri.pipeline import build
+
+    tracker = build(pipeline.cfg.tracking)
+    uri = tracker.resolve_uri(pipeline.cfg.output_dir)
+    client = MlflowClient(tracking_uri=uri)
+    exp = tracker.experiment_id(pipeline.cfg.output_dir)
+    run = client.create_run(
+        exp, run_name=f"train_export {bundle.meta.get('model', 'model')}", tags={"sphri.kind": "model_export"}
+    )
+    plugins = list(pipeline.cfg.get("plugins") or ())
+    model_uri = log_pyfunc_model(uri, run.info.run_id, bundle, training_windows(pipeline).x[:1], plugins=plugins)
+    client.set_terminated(run.info.run_id)
+    return model_uri
+
+
+def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
+    """Fit the job's model on every participant's windows (from the stage cache the job just filled)
+    and log it into the job's run ``run_id`` as a pyfunc model; returns its ``runs:/`` URI."""
+    from sphri.pipeline import build, make_pipeline, open_cache
+
+    p = make_pipeline(cfg, open_cache(cfg))
+    bundle = fit_bundle(p, None)
+    tracker = build(cfg.tracking)
+    return log_pyfunc_model(
+        tracker.resolve_uri(cfg.output_dir),
+        run_id,
+        bundle,
+        training_windows(p).x[:1],
+        registered_name,
+        plugins=list(cfg.get("plugins") or ()),
+    )
+
+
+@clean_errors("sphri.export.train")
+def main(argv: Sequence[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] in ("-h", "--help", "help"):
+        print(__doc__)
+        return 0
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    try:
+        settings, overrides = parse_cli(argv, TrainExportSettings, pipeline=True)
+        from sphri.config import compose
+        from sphri.pipeline import make_pipeline, open_cache
+
+        cfg = compose(overrides)
+        p = make_pipeline(cfg, open_cache(cfg))
+        bundle = fit_bundle(p, settings.holdout, overrides)
+    except ConfigError as exc:
+        print(f"sphri.export.train: invalid setting: {exc}", file=sys.stderr)
+        return 2
+    path = save_model(bundle, settings.out)
+    print(
+        f"saved {bundle.meta['model']} ({bundle.meta['n_train']} windows, train accuracy "
+        f"{bundle.meta['train_accuracy']:.3f}; {bundle.n_taxels} taxels, L={bundle.window_length}) to {path}"
+    )
+    if settings.mlflow:
+        print(f"logged to MLflow: model={log_to_mlflow(p, bundle)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
