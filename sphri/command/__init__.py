@@ -142,9 +142,9 @@ VERBS: tuple[Verb, ...] = (
         "export",
         "train a model on the configured data and write a model file for live use",
         "main",
-        "sphri.hardware.train_export:main",
+        "sphri.export.train:main",
         "",
-        "sphri.hardware.train_export",
+        "sphri.export.train",
     ),
     Verb(
         "skin",
