@@ -33,6 +33,8 @@ def _changed(value):
         return not value
     if value is None:
         return 2
+    if isinstance(value, str):  # a choice (cv.backend); a new string setting names its other value here
+        return {"local": "ray"}[value]
     return value + 3
 
 

@@ -13,6 +13,13 @@ cannot leak across folds since nothing in the transform is fitted.
 Folds run one after another or in ``workers``
 processes (loky), each limited to its share of the cores (BLAS/OpenMP via
 threadpoolctl, torch threads, and the model's ``n_jobs``/``threads``).
+With ``backend="ray"`` every fold is a Ray task instead (``ray.remote``,
+reserving ``threads_per_worker`` CPUs, default 1), on the Ray instance this
+process runs in (a job of ``hydra/launcher=ray``), else the running cluster
+``ray.init(address="auto")`` finds (or ``$RAY_ADDRESS``), else a local
+instance started for this run: the folds of every job of a sweep spread over
+the cluster's nodes (docs/CLUSTER.md). The fold's code is the same
+:func:`run_fold` either way.
 
 Resume by fold: given a ``resume`` store (:class:`FoldStore`; the pipeline
 passes one over the stage cache, :class:`sphri.pipeline.FoldCache`), each
@@ -30,7 +37,7 @@ import logging
 import os
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any, Protocol
 
@@ -39,6 +46,7 @@ from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
 from sphri.evaluate.metrics import fold_metrics
+from sphri.evaluate.schema import BACKENDS
 from sphri.types import GESTURES, CVResult, FoldRecord, FoldResult, WindowedFrames
 
 log = logging.getLogger(__name__)
@@ -224,6 +232,82 @@ def _check_windows(windows: WindowedFrames) -> None:
         raise ValueError(f"windows.y holds labels outside 0..{len(GESTURES) - 1}: {np.unique(y)}")
 
 
+#: How to install Ray (the ``cluster`` extra pins a version hydra-ray-launcher accepts).
+RAY_HINT = 'pip install -e ".[cluster]" (docs/CLUSTER.md)'
+
+
+class RayFolds:
+    """The folds of one :meth:`CrossValidation.run` as Ray tasks (``backend="ray"``).
+
+    Joins the Ray instance this process is connected to (a Ray launcher job), else ``$RAY_ADDRESS``,
+    else a running cluster (``ray.init(address="auto")``), else starts a local instance with this
+    process's cores; disconnects (and stops a local instance) in :meth:`close` only if it connected.
+    The windows go to the object store once; each fold is ``run_fold`` as a task with ``num_cpus``
+    equal to its thread count, so Ray's scheduler spreads the folds of every job over the nodes.
+    """
+
+    def __init__(self, data_bytes: int = 0) -> None:
+        """``data_bytes``: size of the windows, to size the object store of a local instance."""
+        try:
+            import ray
+        except ModuleNotFoundError:
+            from sphri.config import ConfigError
+
+            raise ConfigError(f"cv.backend='ray' is invalid: needs Ray: {RAY_HINT}") from None
+
+        self.ray = ray
+        self.connected = False
+        self.pending: list[Any] = []
+        if ray.is_initialized():
+            return
+        if os.environ.get("RAY_ADDRESS"):
+            ray.init()
+        else:
+            try:
+                ray.init(address="auto")
+            except ConnectionError:  # no running cluster: a local instance for this run
+                store = max(100 * 2**20, 3 * int(data_bytes))  # the windows, with room for the results
+                ray.init(num_cpus=available_cores(), include_dashboard=False, object_store_memory=store)
+        self.connected = True
+
+    def submit(
+        self,
+        make_model: Callable[[], Any],
+        x: np.ndarray,
+        y: np.ndarray,
+        groups: np.ndarray,
+        folds: list[Fold],
+        threads: int,
+        featurized: bool,
+        resume: FoldStore | None,
+    ) -> Iterator[tuple[FoldResult, dict[str, float]]]:
+        """Start a task per fold now; yields their results in fold order."""
+        ray = self.ray
+        task = ray.remote(run_fold).options(num_cpus=threads)
+        shared = [ray.put(v) for v in (make_model, x, y, groups)]  # top-level refs: resolved in the task
+        self.pending = [task.remote(*shared, f, threads, featurized, resume) for f in folds]
+        log.info("%d folds submitted as Ray tasks (%d CPU each)", len(folds), threads)
+        return self._results()
+
+    def _results(self) -> Iterator[tuple[FoldResult, dict[str, float]]]:
+        while self.pending:
+            out = self.ray.get(self.pending[0])
+            self.pending.pop(0)
+            yield out
+
+    def close(self) -> None:
+        """Cancel the folds not collected (after an error), disconnect if this object connected."""
+        for ref in self.pending:
+            try:
+                self.ray.cancel(ref)
+            except Exception as exc:  # a finished or lost task: nothing to cancel
+                log.debug("ray.cancel: %s", exc)
+        self.pending = []
+        if self.connected:
+            self.ray.shutdown()
+            self.connected = False
+
+
 class CrossValidation:
     """Runs a model over folds; subclasses define :meth:`splits` and ``SCHEME``."""
 
@@ -236,7 +320,10 @@ class CrossValidation:
         threads_per_worker: int | None = None,
         max_folds: int | None = None,
         progress: bool = True,
+        backend: str = "local",
     ):
+        if backend not in BACKENDS:
+            raise ValueError(f"cv.backend={backend!r} is invalid: must be one of {', '.join(BACKENDS)}")
         if workers < 1:
             raise ValueError(f"cv.workers={workers} is invalid: must be >= 1")
         if threads_per_worker is not None and threads_per_worker < 1:
@@ -247,6 +334,7 @@ class CrossValidation:
         self.threads_per_worker = threads_per_worker
         self.max_folds = max_folds
         self.progress = progress
+        self.backend = backend
 
     def splits(self, windows: WindowedFrames, seed: int = 0) -> list[Fold]:
         raise NotImplementedError
@@ -284,7 +372,7 @@ class CrossValidation:
         if resume is not None:
             for f in folds:
                 record = resume.load(f.name)
-                if _usable(record, f, y):
+                if record is not None and _usable(record, f, y):
                     kept[f.name] = record
         todo = [f for f in folds if f.name not in kept]
         probe = make_model()
@@ -300,6 +388,8 @@ class CrossValidation:
             )
         workers = max(1, min(self.workers, len(todo)))
         threads = self.threads_per_worker or max(1, available_cores() // workers)
+        if self.backend == "ray":  # a task per fold, each reserving (and using) threads_per_worker CPUs
+            threads = self.threads_per_worker or 1
         featurized = transforms_per_trial(probe)
         if featurized and todo:
             x, timing = transform_once(probe, x, threads=self.threads_per_worker or available_cores())
@@ -319,8 +409,11 @@ class CrossValidation:
             disable=not (self.progress and sys.stderr.isatty()),
         )
         results: list[FoldResult] = []
+        ray_run = RayFolds(x.nbytes) if self.backend == "ray" and todo else None
         try:
-            if workers == 1:
+            if ray_run is not None:
+                computed = ray_run.submit(make_model, x, y, groups, todo, threads, featurized, resume)
+            elif workers == 1:
                 computed = (run_fold(make_model, x, y, groups, f, threads, featurized, resume) for f in todo)
             else:
                 from joblib import Parallel, delayed
@@ -350,6 +443,8 @@ class CrossValidation:
                 bar.set_postfix(acc=f"{np.mean([r.accuracy for r in results]):.3f}")
         finally:
             bar.close()
+            if ray_run is not None:
+                ray_run.close()
         return CVResult(scheme=self.SCHEME, model=name, folds=results)
 
 
@@ -407,8 +502,15 @@ class WithinSubjectKFold(CrossValidation):
         threads_per_worker: int | None = None,
         max_folds: int | None = None,
         progress: bool = True,
+        backend: str = "local",
     ):
-        super().__init__(workers=workers, threads_per_worker=threads_per_worker, max_folds=max_folds, progress=progress)
+        super().__init__(
+            workers=workers,
+            threads_per_worker=threads_per_worker,
+            max_folds=max_folds,
+            progress=progress,
+            backend=backend,
+        )
         if k < 2:
             raise ValueError(f"cv.k={k} is invalid: must be >= 2")
         self.k = k

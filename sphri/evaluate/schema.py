@@ -4,7 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sphri.config import require_range, runtime_setting, store
+from sphri.config import require, require_range, runtime_setting, store
+
+#: Where folds run: ``local`` (this process, or a loky pool of ``workers``) or ``ray`` (a Ray task each).
+BACKENDS = ("local", "ray")
 
 
 @dataclass
@@ -20,8 +23,14 @@ class FoldsSchema:
     """Evaluate only the first k folds (debugging; None: all)."""
     progress: bool = runtime_setting(True)
     """Progress bar over folds (shown only on a terminal)."""
+    backend: str = runtime_setting("local")
+    """Where folds run: ``local`` (this process, or ``workers`` loky processes) or ``ray`` (a Ray task per
+    fold with ``threads_per_worker`` CPUs, default 1: on the Ray launcher's cluster, else a running one, else
+    a local instance; docs/CLUSTER.md). Needs the ``ray`` package (the ``cluster`` extra), checked when the
+    folds start: a runtime setting composes and hashes the same on a machine without Ray."""
 
     def __post_init__(self) -> None:
+        require(self.backend in BACKENDS, "cv.backend", self.backend, f"must be one of {', '.join(BACKENDS)}")
         require_range("cv.workers", self.workers, lo=1)
         if self.threads_per_worker is not None:
             require_range("cv.threads_per_worker", self.threads_per_worker, lo=1)

@@ -56,6 +56,26 @@ def adaptive_pool_matrix(h: int, w: int, size: int) -> torch.Tensor:
     return torch.einsum("ai,bj->abij", axis(h), axis(w)).reshape(h * w, size * size)
 
 
+class CircularPadV(torch.autograd.Function):
+    """Circular pad of 1 along the last axis (v): ``cat([x[..., -1:], x, x[..., :1]])``.
+
+    The backward folds the two pad columns' gradients back onto the columns they copy (last and first)
+    instead of scattering three slices into zero tensors and summing them: the same gradients as
+    ``F.pad(x, (1, 1, 0, 0), mode="circular")`` (tests/models/test_cnn_gru_pad.py), less memory traffic.
+    """
+
+    @staticmethod
+    def forward(ctx, x: torch.Tensor) -> torch.Tensor:
+        return torch.cat([x[..., -1:], x, x[..., :1]], dim=-1)
+
+    @staticmethod
+    def backward(ctx, g: torch.Tensor) -> torch.Tensor:
+        grad = g[..., 1:-1].clone()
+        grad[..., :1] += g[..., -1:]  # this order (right pad, then left) sums a 1-wide v as autograd does
+        grad[..., -1:] += g[..., :1]
+        return grad
+
+
 class GridEncoder(nn.Module):
     """(B, 1, H, W) frames -> (B, channels[-1] * embed_size^2) embeddings.
 
@@ -83,8 +103,8 @@ class GridEncoder(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         for conv in self.convs:
-            if self.wrap_v:  # circular pad of 1 along v (cat: cheaper backward than F.pad)
-                x = torch.cat([x[..., -1:], x, x[..., :1]], dim=-1)
+            if self.wrap_v:  # circular pad of 1 along v (backward: the pad columns folded back)
+                x = CircularPadV.apply(x)
             x = F.relu(conv(x))
         return (x.flatten(2) @ self.pool).flatten(1)
 
