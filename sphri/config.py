@@ -19,7 +19,7 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
@@ -89,6 +89,9 @@ def build(node: DictConfig, **kwargs: Any) -> Any:
     """Instantiate a component from its config node (plain Python containers)."""
     from hydra.utils import instantiate
 
+    drop = chain_fields(OmegaConf.get_type(node)) if isinstance(node, DictConfig) else ()
+    if drop:  # the chain's settings (encoder.res) reach the chain through their owner, not the component
+        node = OmegaConf.masked_copy(node, [k for k in node.keys() if k not in drop])
     return instantiate(node, _convert_="all", **kwargs)
 
 
@@ -99,6 +102,111 @@ def plain(node: Any) -> Any:
 
 #: Field metadata key of a setting that cannot change a result (see :func:`runtime_setting`).
 RUNTIME_META = "sphri_runtime"
+
+
+#: Field metadata key of a setting's range (a :class:`Range`), checked by :class:`Schema`.
+RANGE_META = "sphri_range"
+
+#: Field metadata key of a setting the chain reads through its owner's accessor and that is not
+#: passed to the component (``encoder.res``: :func:`sphri.encode.schema.grid_res`).
+CHAIN_META = "sphri_chain"
+
+
+@dataclass(frozen=True)
+class Range:
+    """What values a setting accepts: ``[lo, hi]`` (open ends with ``*_open``, ``None`` unbounded), an
+    integer, or one of ``choices``. :meth:`check` raises :class:`ConfigError` naming the key."""
+
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple | None = None
+    integer: bool = False
+    optional: bool = False
+
+    def check(self, key: str, value: Any) -> None:
+        if value is None and self.optional:
+            return
+        if self.choices is not None:
+            require_choice(key, value, self.choices)
+            return
+        if self.integer:
+            try:
+                whole = not isinstance(value, bool) and int(value) == value
+            except (TypeError, ValueError, OverflowError):
+                whole = False
+            try:
+                require_range(key, value if whole else float("nan"), self.lo, self.hi, self.lo_open, self.hi_open)
+            except ConfigError:
+                lb, rb = "(" if self.lo_open or self.lo is None else "[", ")" if self.hi_open or self.hi is None else "]"
+                lo = "-inf" if self.lo is None else f"{self.lo:g}"
+                hi = "inf" if self.hi is None else f"{self.hi:g}"
+                raise ConfigError(f"{key}={value!r} is invalid: must be an integer in {lb}{lo}, {hi}{rb}") from None
+            return
+        require_range(key, value, self.lo, self.hi, self.lo_open, self.hi_open)
+
+
+def setting(
+    default: Any = dataclasses.MISSING,
+    *,
+    default_factory: Any = dataclasses.MISSING,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    choices: Iterable[Any] | None = None,
+    integer: bool = False,
+    optional: bool = False,
+    runtime: bool = False,
+    chain: bool = False,
+    metadata: dict | None = None,
+) -> Any:
+    """A schema field with its range as metadata: :class:`Schema` checks it at composition, naming
+    the key as ``<GROUP>.<field>`` (the prefix derived from the schema's group, never typed).
+    ``optional``: None passes. ``runtime``: see :func:`runtime_setting`. ``chain``: the chain reads
+    the value through its owner's accessor and the component is not given it."""
+    meta = dict(metadata or {})
+    if any(x is not None for x in (lo, hi, choices)) or integer:
+        meta[RANGE_META] = Range(lo, hi, lo_open, hi_open, None if choices is None else tuple(choices), integer, optional)
+    if runtime:
+        meta[RUNTIME_META] = True
+    if chain:
+        meta[CHAIN_META] = True
+    if default_factory is not dataclasses.MISSING:
+        return field(default_factory=default_factory, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass
+class Schema:
+    """Base of every schema dataclass (each group's base schema sets ``GROUP``; hardware settings
+    leave it empty). ``__post_init__`` checks every field declared with :func:`setting` against its
+    range, then :meth:`check` (rules across fields); errors name ``<GROUP>.<field>``."""
+
+    GROUP: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            rng = f.metadata.get(RANGE_META)
+            if rng is not None:
+                rng.check(self.key(f.name), getattr(self, f.name))
+        self.check()
+
+    def check(self) -> None:
+        """Checks that involve more than one field (none by default)."""
+
+    @classmethod
+    def key(cls, name: str) -> str:
+        """The full key of field ``name`` as a user spells it: ``<GROUP>.<name>``."""
+        return f"{cls.GROUP}.{name}" if cls.GROUP else name
+
+
+def chain_fields(schema: Any) -> tuple[str, ...]:
+    """Fields of ``schema`` declared with ``setting(..., chain=True)``: not passed to the component."""
+    if not (isinstance(schema, type) and dataclasses.is_dataclass(schema)):
+        return ()
+    return tuple(f.name for f in dataclasses.fields(schema) if f.metadata.get(CHAIN_META))
 
 
 def runtime_setting(default: Any) -> Any:
@@ -537,6 +645,12 @@ def field_docs(schema: type) -> dict[str, str]:
     return out
 
 
+def _component_fields(schema: type) -> list[str]:
+    """The settings a component takes: its schema's fields but ``_target_`` and the chain's own (:func:`chain_fields`)."""
+    chain = chain_fields(schema)
+    return [f.name for f in dataclasses.fields(schema) if f.name != "_target_" and f.name not in chain]
+
+
 class Configured:
     """Base of a component whose settings are exactly its schema's fields.
 
@@ -550,7 +664,7 @@ class Configured:
     SCHEMA: Any = None
 
     def __init__(self, **settings: Any) -> None:
-        names = [f.name for f in dataclasses.fields(self.SCHEMA) if f.name != "_target_"]
+        names = _component_fields(self.SCHEMA)
         unknown = sorted(set(settings) - set(names))
         if unknown:
             raise TypeError(f"{type(self).__name__}: unknown setting(s) {unknown}; its settings: {names}")
@@ -563,5 +677,5 @@ class Configured:
         """Hook run after the settings are set (derived state); nothing by default."""
 
     def __repr__(self) -> str:
-        names = [f.name for f in dataclasses.fields(self.SCHEMA) if f.name != "_target_"]
+        names = _component_fields(self.SCHEMA)
         return f"{type(self).__name__}({', '.join(f'{n}={getattr(self, n)!r}' for n in names)})"

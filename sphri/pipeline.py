@@ -32,6 +32,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import ConfigError, build, result_config
+from sphri.encode.schema import grid_res
 from sphri.inputs import input_fingerprints, memo_at
 from sphri.stages import CONTRACTS, PERSISTED, STAGE_BY_NAME, STAGE_GROUPS, stage_inputs
 from sphri.types import CVResult, FoldRecord, GestureDataset, RunMeta, TaxelGeometry
@@ -263,7 +264,7 @@ def make_pipeline(cfg: DictConfig, cache: StageCache) -> Pipeline:
         cfg, cache, components={g: build(cfg[g]) for g in groups if g != "model"}, versions=component_versions(cfg)
     )
     comp = p.components
-    res = int(cfg.encoder.res)
+    res = grid_res(cfg)
     seed = int(cfg.seed)
     fingerprints = input_fingerprints(cfg, memo_at(cache.root if cache.enabled else None))
 

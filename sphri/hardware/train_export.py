@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from sphri.config import ConfigError, require
+from sphri.encode.schema import grid_res
 from sphri.errors import clean_errors
 from sphri.hardware.model_file import ModelBundle, save_model
 from sphri.hardware.settings import parse_cli
@@ -85,7 +86,7 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
         "dataset": dataset.name,
         "region": list(cfg.data.regions)[0],
         "encoder": str(cfg.encoder._target_).rsplit(".", 1)[-1],
-        "encoder_res": int(cfg.encoder.res),
+        "encoder_res": grid_res(cfg),
     }
     log.info("trained %s on %d windows (train accuracy %.3f)", meta["model"], meta["n_train"], acc)
     return ModelBundle(model, windows.geometry, int(windows.x.shape[1]), float(dataset.frame_rate_hz), GESTURES, meta)

@@ -23,7 +23,8 @@ from sphri.layout.common import (
     grid_uv,
     project_chart_points,
 )
-from sphri.layout.schema import GridLayoutSchema, HexLayoutSchema, check_res
+from sphri.encode.schema import check_res
+from sphri.layout.schema import GridLayoutSchema, HexLayoutSchema
 from sphri.types import Layout, Link, SurfaceMap
 
 log = logging.getLogger(__name__)
