@@ -139,7 +139,10 @@ class Range:
             try:
                 require_range(key, value if whole else float("nan"), self.lo, self.hi, self.lo_open, self.hi_open)
             except ConfigError:
-                lb, rb = "(" if self.lo_open or self.lo is None else "[", ")" if self.hi_open or self.hi is None else "]"
+                lb, rb = (
+                    "(" if self.lo_open or self.lo is None else "[",
+                    ")" if self.hi_open or self.hi is None else "]",
+                )
                 lo = "-inf" if self.lo is None else f"{self.lo:g}"
                 hi = "inf" if self.hi is None else f"{self.hi:g}"
                 raise ConfigError(f"{key}={value!r} is invalid: must be an integer in {lb}{lo}, {hi}{rb}") from None
@@ -168,7 +171,9 @@ def setting(
     the value through its owner's accessor and the component is not given it."""
     meta = dict(metadata or {})
     if any(x is not None for x in (lo, hi, choices)) or integer:
-        meta[RANGE_META] = Range(lo, hi, lo_open, hi_open, None if choices is None else tuple(choices), integer, optional)
+        meta[RANGE_META] = Range(
+            lo, hi, lo_open, hi_open, None if choices is None else tuple(choices), integer, optional
+        )
     if runtime:
         meta[RUNTIME_META] = True
     if chain:

@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 
 from sphri.data.format import make_trials_frame
-from sphri.encode.schema import grid_res
 from sphri.data.handfk import matrix_to_quat
+from sphri.encode.schema import grid_res
 from sphri.hand.kinematics import quat_to_matrix
 from sphri.sessions.format import SessionDataset
 from sphri.types import GESTURES, GestureDataset
