@@ -1,11 +1,15 @@
 """Configuration: typed schemas, registration, composition and validation.
 
-Schemas live next to their code (``sphri/<stage>/schema.py``); each stage's
-module calls :func:`store` for its components. YAML files under ``conf/`` opt
-into a schema through their defaults list (``- ellipse_schema``), so a wrong
-key or type fails at composition. Value ranges are checked by each schema's
-``__post_init__``, which :func:`validate` triggers for every group before any
-stage runs, re-raising problems as :class:`ConfigError` naming the key.
+Schemas live next to their code (``sphri/<stage>/schema.py``), one base per
+group (a :class:`Schema` with ``GROUP``) and a subclass per component; each
+stage's module calls :func:`store` for its components, which files them as
+``schema_<group>_<name>``, apart from the choices. YAML files under ``conf/``
+opt into a schema through their defaults list
+(``- /schema_encoder_ellipse@_here_``), so a wrong key or type fails at
+composition, and hold only what differs from it. Value ranges are field
+metadata (:func:`setting`) checked by :class:`Schema`, which :func:`validate`
+triggers for every group before any stage runs, re-raising problems as
+:class:`ConfigError` naming the key (``<GROUP>.<field>``).
 """
 
 from __future__ import annotations
@@ -76,13 +80,25 @@ def cross_check(fn):
     return fn
 
 
-def store(group: str, name: str, node: type) -> None:
-    """Register a component schema ``node`` as ``<group>/<name>``.
+def schema_name(group: str, name: str) -> str:
+    """The ConfigStore name of a schema: a root-level entry (like ``sphri_root``), not an option of the
+    group, so a schema is never a choice nor listed by completion or ``glob(...)`` sweeps
+    (``encoder=ellipse`` picks ``conf/encoder/ellipse.yaml``)."""
+    return f"schema_{group}_{name}"
 
-    YAML files pick it up with ``defaults: [<name>]``; by convention ``name``
-    ends in ``_schema``.
+
+def store(group: str, name: str, node: type) -> None:
+    """Register a component schema ``node`` as ``schema_<group>_<name>``, and the group's base schema
+    (the class of ``node``'s bases that sets ``GROUP``) as ``schema_<group>_base``.
+
+    A YAML of ``conf/<group>/`` opts in with ``defaults: [/schema_<group>_<name>@_here_, _self_]``
+    and holds only what differs from it; ``_target_`` lives in the schema.
     """
-    ConfigStore.instance().store(group=group, name=name, node=node)
+    cs = ConfigStore.instance()
+    cs.store(name=schema_name(group, name.removesuffix("_schema")), node=node)
+    base = next((c for c in getattr(node, "__mro__", ()) if "GROUP" in vars(c) and c is not Schema), None)
+    if base is not None:
+        cs.store(name=schema_name(group, "base"), node=base)
 
 
 def build(node: DictConfig, **kwargs: Any) -> Any:
@@ -325,7 +341,7 @@ def register_schemas() -> None:
     global _registered
     if _registered:
         return
-    store(group=None, name="sphri_root", node=RootConfig)  # type: ignore[arg-type]
+    ConfigStore.instance().store(name="sphri_root", node=RootConfig)
     for mod in SCHEMA_MODULES:
         importlib.import_module(mod)
     _registered = True
@@ -365,7 +381,7 @@ def _search_dirs(overrides: Sequence[str]) -> list[Path]:
 
 def check_choices(overrides: Sequence[str]) -> None:
     """Refuse a component choice (``encoder=elipse``) that names no YAML file, with the real options
-    (internal ``*_schema`` entries left out) and the closest one. Runs before Hydra composes anything."""
+    and the closest one. Runs before Hydra composes anything."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.core.override_parser.types import Glob
 
@@ -381,11 +397,10 @@ def check_choices(overrides: Sequence[str]) -> None:
             continue
         options = sorted({p.stem for d in dirs for p in (d / group).glob("*.yaml")})
         if isinstance(o.value(), Glob):  # glob(...) picks among the options (Hydra needs its loader to expand it)
-            values = o.value().filter([x for x in options if not x.endswith("_schema")])
+            values = o.value().filter(options)
             if not values:
                 raise ConfigError(
-                    f"{o.input_line} is invalid: the glob matches no {group} "
-                    f"option; options: {', '.join(x for x in options if not x.endswith('_schema'))}"
+                    f"{o.input_line} is invalid: the glob matches no {group} option; options: {', '.join(options)}"
                 )
             continue
         values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]

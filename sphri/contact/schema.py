@@ -14,7 +14,7 @@ INSIDE_CHOICES: tuple[str, ...] = ("auto", "hull", "winding")
 @dataclass
 class ContactSchema(Schema):
     """Base of the contact group's schemas: range errors name ``contact.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema/contact/base@_here_, _self_]``)."""
+    into it (``defaults: [/schema_contact_base@_here_, _self_]``)."""
 
     GROUP: ClassVar[str] = "contact"
     _target_: str = "???"

@@ -11,7 +11,7 @@ from sphri.config import Schema, runtime_setting, setting, store
 @dataclass
 class CvSchema(Schema):
     """Base of the cv group's schemas: range errors name ``cv.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema/cv/base@_here_, _self_]``)."""
+    into it (``defaults: [/schema_cv_base@_here_, _self_]``)."""
 
     GROUP: ClassVar[str] = "cv"
     _target_: str = "???"

@@ -11,7 +11,7 @@ from sphri.config import Schema, require, setting, store
 @dataclass
 class FilterSchema(Schema):
     """Base of the filter group's schemas: range errors name ``filter.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema/filter/base@_here_, _self_]``)."""
+    into it (``defaults: [/schema_filter_base@_here_, _self_]``)."""
 
     GROUP: ClassVar[str] = "filter"
     _target_: str = "???"

@@ -17,7 +17,7 @@ from sphri.inputs import input_path
 @dataclass
 class LayoutSchema(Schema):
     """Base of the layout group's schemas: range errors name ``layout.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema/layout/base@_here_, _self_]``)."""
+    into it (``defaults: [/schema_layout_base@_here_, _self_]``)."""
 
     GROUP: ClassVar[str] = "layout"
     _target_: str = "???"

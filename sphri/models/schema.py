@@ -11,7 +11,7 @@ from sphri.config import Schema, require, runtime_setting, setting, store
 @dataclass
 class ModelSchema(Schema):
     """Base of the model group's schemas: range errors name ``model.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema/model/base@_here_, _self_]``)."""
+    into it (``defaults: [/schema_model_base@_here_, _self_]``)."""
 
     GROUP: ClassVar[str] = "model"
     _target_: str = "???"

@@ -11,7 +11,7 @@ from sphri.config import Schema, setting, store
 @dataclass
 class NoiseSchema(Schema):
     """Base of the noise group's schemas: range errors name ``noise.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema/noise/base@_here_, _self_]``)."""
+    into it (``defaults: [/schema_noise_base@_here_, _self_]``)."""
 
     GROUP: ClassVar[str] = "noise"
     _target_: str = "???"

@@ -18,7 +18,7 @@ AXIS_CHOICES = ("auto", "x", "y", "z")
 @dataclass
 class SurfaceSchema(Schema):
     """Base of the surface group's schemas: range errors name ``surface.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema/surface/base@_here_, _self_]``)."""
+    into it (``defaults: [/schema_surface_base@_here_, _self_]``)."""
 
     GROUP: ClassVar[str] = "surface"
     _target_: str = "???"

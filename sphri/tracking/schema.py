@@ -11,7 +11,7 @@ from sphri.config import Schema, require, store
 @dataclass
 class TrackingSchema(Schema):
     """Base of the tracking group's schemas: range errors name ``tracking.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema/tracking/base@_here_, _self_]``)."""
+    into it (``defaults: [/schema_tracking_base@_here_, _self_]``)."""
 
     GROUP: ClassVar[str] = "tracking"
     _target_: str = "???"

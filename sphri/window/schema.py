@@ -11,7 +11,7 @@ from sphri.config import Schema, setting, store
 @dataclass
 class WindowSchema(Schema):
     """Base of the window group's schemas: range errors name ``window.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema/window/base@_here_, _self_]``)."""
+    into it (``defaults: [/schema_window_base@_here_, _self_]``)."""
 
     GROUP: ClassVar[str] = "window"
     _target_: str = "???"
