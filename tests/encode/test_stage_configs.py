@@ -24,8 +24,8 @@ YAMLS = sorted(p for g in GROUPS for p in (CONF_DIR / g).glob("*.yaml"))
 def compose_one(path: Path, **overrides):
     raw = OmegaConf.load(path)
     defaults = list(raw.pop("defaults"))
-    assert defaults[-1] == "_self_" and defaults[0] == f"{path.stem}_schema"
-    schema = ConfigStore.instance().load(f"{path.parent.name}/{defaults[0]}.yaml").node
+    assert defaults[-1] == "_self_" and defaults[0] == f"/schema_{path.parent.name}_{path.stem}@_here_"
+    schema = ConfigStore.instance().load(f"schema_{path.parent.name}_{path.stem}.yaml").node
     cfg = OmegaConf.merge(schema, raw, OmegaConf.create(overrides))
     cfg = OmegaConf.create({"seed": 0, "component": cfg}).component  # under a root: `seed: ${seed}` resolves
     OmegaConf.to_object(cfg)  # runs the schema's range checks
