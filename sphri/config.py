@@ -179,14 +179,18 @@ def setting(
     optional: bool = False,
     runtime: bool = False,
     chain: bool = False,
+    range: Range | None = None,
     metadata: dict | None = None,
 ) -> Any:
     """A schema field with its range as metadata: :class:`Schema` checks it at composition, naming
     the key as ``<GROUP>.<field>`` (the prefix derived from the schema's group, never typed).
     ``optional``: None passes. ``runtime``: see :func:`runtime_setting`. ``chain``: the chain reads
-    the value through its owner's accessor and the component is not given it."""
+    the value through its owner's accessor and the component is not given it. ``range``: a
+    :class:`Range` object shared with a check outside the schema (instead of ``lo``/``hi``/...)."""
     meta = dict(metadata or {})
-    if any(x is not None for x in (lo, hi, choices)) or integer:
+    if range is not None:
+        meta[RANGE_META] = range
+    elif any(x is not None for x in (lo, hi, choices)) or integer:
         meta[RANGE_META] = Range(
             lo, hi, lo_open, hi_open, None if choices is None else tuple(choices), integer, optional
         )
@@ -685,7 +689,8 @@ class Configured:
 
     def __init__(self, **settings: Any) -> None:
         names = _component_fields(self.SCHEMA)
-        unknown = sorted(set(settings) - set(names))
+        # the chain's settings (encoder.res) are accepted and checked by the schema, not kept
+        unknown = sorted(set(settings) - set(names) - set(chain_fields(self.SCHEMA)))
         if unknown:
             raise TypeError(f"{type(self).__name__}: unknown setting(s) {unknown}; its settings: {names}")
         values = self.SCHEMA(**settings)

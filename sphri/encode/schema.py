@@ -1,23 +1,21 @@
 """Config schemas of the encoder group (``conf/encoder/*.yaml``).
 
 :class:`EncoderSchema` owns the grid resolution ``encoder.res`` (taxels along the
-link's long axis) and its check: the user spells it ``encoder.res``, the chain
+link's long axis) with its range (:data:`sphri.layout.schema.RES_RANGE`, which the
+layouts handed the value check too): the user spells it ``encoder.res``, the chain
 reads it through :func:`grid_res` (the layout is built with it), and no encoder
-is given it (``setting(chain=True)``).
+keeps it (``setting(chain=True)``).
 """
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
 from omegaconf import OmegaConf
 
-from sphri.config import RANGE_META, ConfigError, Schema, cross_check, setting, store
-
-#: Largest ``encoder.res`` (taxels along the long axis).
-MAX_RES = 1000
+from sphri.config import ConfigError, Schema, cross_check, setting, store
+from sphri.layout.schema import RES_RANGE, check_res
 
 #: ``encoder.res`` when the config says nothing (a plugin encoder without a schema).
 DEFAULT_RES = 18
@@ -29,21 +27,9 @@ class EncoderSchema(Schema):
 
     GROUP: ClassVar[str] = "encoder"
     _target_: str = "???"
-    res: int = setting(DEFAULT_RES, lo=1, hi=MAX_RES, integer=True, chain=True)
+    res: int = setting(DEFAULT_RES, range=RES_RANGE, chain=True)
     """Taxels along the link's long axis (the paper saturates near 18 per 24 cm); the layout is built
     with it, the encoder is not given it."""
-
-
-def check_res(res: Any, who: str = "encoder.res") -> int:
-    """The one check of the resolution, the range declared on :attr:`EncoderSchema.res`; a component
-    handed the value (``who``, e.g. ``layout.grid``) names itself. Raises
-    :class:`~sphri.config.ConfigError` naming ``encoder.res``."""
-    rng = next(f for f in dataclasses.fields(EncoderSchema) if f.name == "res").metadata[RANGE_META]
-    try:
-        rng.check("encoder.res", res)
-    except ConfigError as exc:
-        raise ConfigError(f"{exc} (read by {who})" if who != "encoder.res" else str(exc)) from None
-    return int(res)
 
 
 def grid_res(cfg: Any, check: bool = True) -> Any:

@@ -17,14 +17,13 @@ import logging
 import numpy as np
 
 from sphri.config import Configured
-from sphri.encode.schema import check_res
 from sphri.layout.common import (
     grid_cell_areas,
     grid_dims,
     grid_uv,
     project_chart_points,
 )
-from sphri.layout.schema import GridLayoutSchema, HexLayoutSchema
+from sphri.layout.schema import GridLayoutSchema, HexLayoutSchema, check_res
 from sphri.types import Layout, Link, SurfaceMap
 
 log = logging.getLogger(__name__)

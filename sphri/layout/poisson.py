@@ -30,9 +30,8 @@ from numba import njit
 from scipy.spatial import cKDTree
 
 from sphri.config import Configured
-from sphri.encode.schema import check_res
 from sphri.layout.common import grid_equivalent_count, nn_spacing, voronoi_areas
-from sphri.layout.schema import DensityLayoutSchema, RandomLayoutSchema
+from sphri.layout.schema import DensityLayoutSchema, RandomLayoutSchema, check_res
 from sphri.surface.charts import to_uv
 from sphri.surface.meshutil import face_areas, face_normals, sample_surface
 from sphri.types import Contacts, Layout, Link, SurfaceMap

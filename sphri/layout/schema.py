@@ -8,10 +8,27 @@ the encoder group (:func:`sphri.encode.schema.grid_res`) and handed to
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
+from typing import Any, ClassVar
 
-from sphri.config import Schema, require, setting, store
+from sphri.config import ConfigError, Range, Schema, require, setting, store
 from sphri.inputs import input_path
+
+#: Largest ``encoder.res`` (taxels along the long axis).
+MAX_RES = 1000
+
+#: The range of ``encoder.res``, declared on :attr:`sphri.encode.schema.EncoderSchema.res` (which the
+#: user sets) and checked here too, where a layout is handed the value (``build(link, surface, res)``).
+RES_RANGE = Range(lo=1, hi=MAX_RES, integer=True)
+
+
+def check_res(res: Any, who: str = "encoder.res") -> int:
+    """The one check of the resolution (:data:`RES_RANGE`); a component handed the value (``who``,
+    e.g. ``layout.grid``) names itself. Raises :class:`~sphri.config.ConfigError` naming ``encoder.res``."""
+    try:
+        RES_RANGE.check("encoder.res", res)
+    except ConfigError as exc:
+        raise ConfigError(f"{exc} (read by {who})" if who != "encoder.res" else str(exc)) from None
+    return int(res)
 
 
 @dataclass
