@@ -101,6 +101,20 @@ def store(group: str, name: str, node: type) -> None:
         cs.store(name=schema_name(group, "base"), node=base)
 
 
+def component_node(group: str, name: str, conf_dir: Path | None = None) -> DictConfig:
+    """``conf/<group>/<name>.yaml`` merged onto the schema it opts into: one component's settings,
+    typed, ``_target_`` included, without composing the whole config (interpolations to the root,
+    such as ``${seed}``, stay unresolved)."""
+    register_schemas()
+    raw = OmegaConf.load((conf_dir or CONF_DIR) / group / f"{name}.yaml")
+    defaults = [str(d) for d in raw.pop("defaults", [])]
+    entry = next((d for d in defaults if d.startswith("/schema_")), None)
+    if entry is None:
+        return raw
+    schema = ConfigStore.instance().load(entry[1:].removesuffix("@_here_") + ".yaml").node
+    return OmegaConf.merge(schema, raw)
+
+
 def build(node: DictConfig, **kwargs: Any) -> Any:
     """Instantiate a component from its config node (plain Python containers)."""
     from hydra.utils import instantiate
