@@ -96,3 +96,24 @@ def test_a_drifted_constructor_default_is_caught(monkeypatch):
     monkeypatch.setattr(RandomForest.__init__, "__signature__", sig.replace(parameters=params), raising=False)
     with pytest.raises(AssertionError, match="n_estimators"):
         test_component_defaults_are_the_schema_defaults("model", "rf")
+
+
+def test_schemas_are_never_choices_and_hydra_is_not_patched():
+    """Each group's options are its YAML files (the schemas are root-level ``schema_<group>_<name>``
+    entries), as Hydra itself lists them: what completion and ``glob(...)`` sweeps see, with no patch
+    of Hydra's loader."""
+    from hydra import initialize_config_dir
+    from hydra._internal.config_loader_impl import ConfigLoaderImpl
+    from hydra.core.global_hydra import GlobalHydra
+
+    import sphri.__main__  # noqa: F401 - the app module, which used to patch the loader on import of main()
+
+    original = ConfigLoaderImpl.get_group_options
+    register_schemas()
+    GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        loader = GlobalHydra.instance().config_loader()
+        for group in sorted({g for g, _ in COMPONENTS}):
+            assert loader.get_group_options(group) == sorted(p.stem for p in (CONF_DIR / group).glob("*.yaml"))
+    GlobalHydra.instance().clear()
+    assert ConfigLoaderImpl.get_group_options is original and not hasattr(original, "_sphri_hides_schemas")
