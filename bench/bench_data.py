@@ -20,9 +20,8 @@ from pathlib import Path
 
 import numpy as np
 from hydra.utils import instantiate
-from omegaconf import OmegaConf
 
-from sphri.config import CONF_DIR
+from sphri.config import component_node
 from sphri.data.synthetic import SyntheticData
 from sphri.data.vr_gesture import VRGestureData
 from sphri.data.writer import write_dataset
@@ -31,9 +30,7 @@ OUT = Path(__file__).resolve().parent.parent / "outputs" / "bench"
 
 
 def component(group: str, name: str):
-    cfg = OmegaConf.load(CONF_DIR / group / f"{name}.yaml")
-    cfg.pop("defaults", None)
-    return instantiate(cfg, _convert_="all")
+    return instantiate(component_node(group, name), _convert_="all")
 
 
 def timed(fn):

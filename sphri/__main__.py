@@ -233,31 +233,6 @@ def find_sweeper_plugin() -> None:
         hydra_plugins.__path__.append(str(here))
 
 
-INTERNAL_GROUPS = ("debug_model",)
-"""Config groups selected by interpolation in config.yaml, never on the command line."""
-
-
-def hide_schema_options() -> None:
-    """Leave the internal ``*_schema`` entries and the ``debug_model`` group out of Hydra's group listings
-    (tab completion, ``glob(...)`` sweeps): the typed schemas the YAML files opt into and the light models ``+debug=fast``
-    selects for itself are not choices a user makes."""
-    from hydra._internal.config_loader_impl import ConfigLoaderImpl
-
-    original = ConfigLoaderImpl.get_group_options
-    if getattr(original, "_sphri_hides_schemas", False):
-        return
-
-    def get_group_options(self, *args, **kwargs):
-        return [
-            name
-            for name in original(self, *args, **kwargs)
-            if not name.endswith("_schema") and name not in INTERNAL_GROUPS
-        ]
-
-    get_group_options._sphri_hides_schemas = True  # type: ignore[attr-defined]
-    ConfigLoaderImpl.get_group_options = get_group_options  # type: ignore[method-assign]
-
-
 def _fixed_overrides(args: list[str]) -> list[str] | None:
     """The overrides every job shares (a sweep's swept ones left out: its sweeper checks each job),
     for a composition check before Hydra's; None when a Hydra flag (``--cfg``, ``-sc``, ``--info``,
@@ -290,7 +265,6 @@ def main() -> None:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return
     register_schemas()
-    hide_schema_options()  # completion and glob(...) sweeps list the options a user chooses among
     sys.argv = [sys.argv[0], *normalize_overrides(take_verbose_flag(sys.argv[1:]))]
     try:
         check_choices(sys.argv[1:])  # a misspelt component: one line with the real options, before Hydra

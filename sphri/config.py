@@ -1,11 +1,15 @@
 """Configuration: typed schemas, registration, composition and validation.
 
-Schemas live next to their code (``sphri/<stage>/schema.py``); each stage's
-module calls :func:`store` for its components. YAML files under ``conf/`` opt
-into a schema through their defaults list (``- ellipse_schema``), so a wrong
-key or type fails at composition. Value ranges are checked by each schema's
-``__post_init__``, which :func:`validate` triggers for every group before any
-stage runs, re-raising problems as :class:`ConfigError` naming the key.
+Schemas live next to their code (``sphri/<stage>/schema.py``), one base per
+group (a :class:`Schema` with ``GROUP``) and a subclass per component; each
+stage's module calls :func:`store` for its components, which files them as
+``schema_<group>_<name>``, apart from the choices. YAML files under ``conf/``
+opt into a schema through their defaults list
+(``- /schema_encoder_ellipse@_here_``), so a wrong key or type fails at
+composition, and hold only what differs from it. Value ranges are field
+metadata (:func:`setting`) checked by :class:`Schema`, which :func:`validate`
+triggers for every group before any stage runs, re-raising problems as
+:class:`ConfigError` naming the key (``<GROUP>.<field>``).
 """
 
 from __future__ import annotations
@@ -19,7 +23,7 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
@@ -76,19 +80,48 @@ def cross_check(fn):
     return fn
 
 
-def store(group: str, name: str, node: type) -> None:
-    """Register a component schema ``node`` as ``<group>/<name>``.
+def schema_name(group: str, name: str) -> str:
+    """The ConfigStore name of a schema: a root-level entry (like ``sphri_root``), not an option of the
+    group, so a schema is never a choice nor listed by completion or ``glob(...)`` sweeps
+    (``encoder=ellipse`` picks ``conf/encoder/ellipse.yaml``)."""
+    return f"schema_{group}_{name}"
 
-    YAML files pick it up with ``defaults: [<name>]``; by convention ``name``
-    ends in ``_schema``.
+
+def store(group: str, name: str, node: type) -> None:
+    """Register a component schema ``node`` as ``schema_<group>_<name>``, and the group's base schema
+    (the class of ``node``'s bases that sets ``GROUP``) as ``schema_<group>_base``.
+
+    A YAML of ``conf/<group>/`` opts in with ``defaults: [/schema_<group>_<name>@_here_, _self_]``
+    and holds only what differs from it; ``_target_`` lives in the schema.
     """
-    ConfigStore.instance().store(group=group, name=name, node=node)
+    cs = ConfigStore.instance()
+    cs.store(name=schema_name(group, name.removesuffix("_schema")), node=node)
+    base = next((c for c in getattr(node, "__mro__", ()) if "GROUP" in vars(c) and c is not Schema), None)
+    if base is not None:
+        cs.store(name=schema_name(group, "base"), node=base)
+
+
+def component_node(group: str, name: str, conf_dir: Path | None = None) -> DictConfig:
+    """``conf/<group>/<name>.yaml`` merged onto the schema it opts into: one component's settings,
+    typed, ``_target_`` included, without composing the whole config (interpolations to the root,
+    such as ``${seed}``, stay unresolved)."""
+    register_schemas()
+    raw = OmegaConf.load((conf_dir or CONF_DIR) / group / f"{name}.yaml")
+    defaults = [str(d) for d in raw.pop("defaults", [])]
+    entry = next((d for d in defaults if d.startswith("/schema_")), None)
+    if entry is None:
+        return raw
+    schema = ConfigStore.instance().load(entry[1:].removesuffix("@_here_") + ".yaml").node
+    return OmegaConf.merge(schema, raw)
 
 
 def build(node: DictConfig, **kwargs: Any) -> Any:
     """Instantiate a component from its config node (plain Python containers)."""
     from hydra.utils import instantiate
 
+    drop = chain_fields(OmegaConf.get_type(node)) if isinstance(node, DictConfig) else ()
+    if drop:  # the chain's settings (encoder.res) reach the chain through their owner, not the component
+        node = OmegaConf.masked_copy(node, [k for k in node.keys() if k not in drop])
     return instantiate(node, _convert_="all", **kwargs)
 
 
@@ -99,6 +132,120 @@ def plain(node: Any) -> Any:
 
 #: Field metadata key of a setting that cannot change a result (see :func:`runtime_setting`).
 RUNTIME_META = "sphri_runtime"
+
+
+#: Field metadata key of a setting's range (a :class:`Range`), checked by :class:`Schema`.
+RANGE_META = "sphri_range"
+
+#: Field metadata key of a setting the chain reads through its owner's accessor and that is not
+#: passed to the component (``encoder.res``: :func:`sphri.encode.schema.grid_res`).
+CHAIN_META = "sphri_chain"
+
+
+@dataclass(frozen=True)
+class Range:
+    """What values a setting accepts: ``[lo, hi]`` (open ends with ``*_open``, ``None`` unbounded), an
+    integer, or one of ``choices``. :meth:`check` raises :class:`ConfigError` naming the key."""
+
+    lo: float | None = None
+    hi: float | None = None
+    lo_open: bool = False
+    hi_open: bool = False
+    choices: tuple | None = None
+    integer: bool = False
+    optional: bool = False
+
+    def check(self, key: str, value: Any) -> None:
+        if value is None and self.optional:
+            return
+        if self.choices is not None:
+            require_choice(key, value, self.choices)
+            return
+        if self.integer:
+            try:
+                whole = not isinstance(value, bool) and int(value) == value
+            except (TypeError, ValueError, OverflowError):
+                whole = False
+            try:
+                require_range(key, value if whole else float("nan"), self.lo, self.hi, self.lo_open, self.hi_open)
+            except ConfigError:
+                lb, rb = (
+                    "(" if self.lo_open or self.lo is None else "[",
+                    ")" if self.hi_open or self.hi is None else "]",
+                )
+                lo = "-inf" if self.lo is None else f"{self.lo:g}"
+                hi = "inf" if self.hi is None else f"{self.hi:g}"
+                raise ConfigError(f"{key}={value!r} is invalid: must be an integer in {lb}{lo}, {hi}{rb}") from None
+            return
+        require_range(key, value, self.lo, self.hi, self.lo_open, self.hi_open)
+
+
+def setting(
+    default: Any = dataclasses.MISSING,
+    *,
+    default_factory: Any = dataclasses.MISSING,
+    lo: float | None = None,
+    hi: float | None = None,
+    lo_open: bool = False,
+    hi_open: bool = False,
+    choices: Iterable[Any] | None = None,
+    integer: bool = False,
+    optional: bool = False,
+    runtime: bool = False,
+    chain: bool = False,
+    range: Range | None = None,
+    metadata: dict | None = None,
+) -> Any:
+    """A schema field with its range as metadata: :class:`Schema` checks it at composition, naming
+    the key as ``<GROUP>.<field>`` (the prefix derived from the schema's group, never typed).
+    ``optional``: None passes. ``runtime``: see :func:`runtime_setting`. ``chain``: the chain reads
+    the value through its owner's accessor and the component is not given it. ``range``: a
+    :class:`Range` object shared with a check outside the schema (instead of ``lo``/``hi``/...)."""
+    meta = dict(metadata or {})
+    if range is not None:
+        meta[RANGE_META] = range
+    elif any(x is not None for x in (lo, hi, choices)) or integer:
+        meta[RANGE_META] = Range(
+            lo, hi, lo_open, hi_open, None if choices is None else tuple(choices), integer, optional
+        )
+    if runtime:
+        meta[RUNTIME_META] = True
+    if chain:
+        meta[CHAIN_META] = True
+    if default_factory is not dataclasses.MISSING:
+        return field(default_factory=default_factory, metadata=meta)
+    return field(default=default, metadata=meta)
+
+
+@dataclass
+class Schema:
+    """Base of every schema dataclass (each group's base schema sets ``GROUP``; hardware settings
+    leave it empty). ``__post_init__`` checks every field declared with :func:`setting` against its
+    range, then :meth:`check` (rules across fields); errors name ``<GROUP>.<field>``."""
+
+    GROUP: ClassVar[str] = ""
+
+    def __post_init__(self) -> None:
+        for f in dataclasses.fields(self):
+            rng = f.metadata.get(RANGE_META)
+            if rng is not None:
+                rng.check(self.key(f.name), getattr(self, f.name))
+        self.check()
+
+    def check(self) -> None:
+        """Checks that involve more than one field (none by default)."""
+
+    @classmethod
+    def key(cls, name: str) -> str:
+        """The full key of field ``name`` as a user spells it: ``<GROUP>.<name>``."""
+        return f"{cls.GROUP}.{name}" if cls.GROUP else name
+
+
+def chain_fields(schema: Any) -> tuple[str, ...]:
+    """Fields of ``schema`` declared with ``setting(..., chain=True)``: not passed to the component."""
+    if not (isinstance(schema, type) and dataclasses.is_dataclass(schema)):
+        return ()
+    return tuple(f.name for f in dataclasses.fields(schema) if f.metadata.get(CHAIN_META))
 
 
 def runtime_setting(default: Any) -> Any:
@@ -212,7 +359,7 @@ def register_schemas() -> None:
     global _registered
     if _registered:
         return
-    store(group=None, name="sphri_root", node=RootConfig)  # type: ignore[arg-type]
+    ConfigStore.instance().store(name="sphri_root", node=RootConfig)
     for mod in SCHEMA_MODULES:
         importlib.import_module(mod)
     _registered = True
@@ -252,7 +399,7 @@ def _search_dirs(overrides: Sequence[str]) -> list[Path]:
 
 def check_choices(overrides: Sequence[str]) -> None:
     """Refuse a component choice (``encoder=elipse``) that names no YAML file, with the real options
-    (internal ``*_schema`` entries left out) and the closest one. Runs before Hydra composes anything."""
+    and the closest one. Runs before Hydra composes anything."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
     from hydra.core.override_parser.types import Glob
 
@@ -268,11 +415,10 @@ def check_choices(overrides: Sequence[str]) -> None:
             continue
         options = sorted({p.stem for d in dirs for p in (d / group).glob("*.yaml")})
         if isinstance(o.value(), Glob):  # glob(...) picks among the options (Hydra needs its loader to expand it)
-            values = o.value().filter([x for x in options if not x.endswith("_schema")])
+            values = o.value().filter(options)
             if not values:
                 raise ConfigError(
-                    f"{o.input_line} is invalid: the glob matches no {group} "
-                    f"option; options: {', '.join(x for x in options if not x.endswith('_schema'))}"
+                    f"{o.input_line} is invalid: the glob matches no {group} option; options: {', '.join(options)}"
                 )
             continue
         values = list(o.sweep_string_iterator()) if o.is_sweep_override() else [o.value()]
@@ -537,6 +683,12 @@ def field_docs(schema: type) -> dict[str, str]:
     return out
 
 
+def _component_fields(schema: type) -> list[str]:
+    """The settings a component takes: its schema's fields but ``_target_`` and the chain's own (:func:`chain_fields`)."""
+    chain = chain_fields(schema)
+    return [f.name for f in dataclasses.fields(schema) if f.name != "_target_" and f.name not in chain]
+
+
 class Configured:
     """Base of a component whose settings are exactly its schema's fields.
 
@@ -550,8 +702,9 @@ class Configured:
     SCHEMA: Any = None
 
     def __init__(self, **settings: Any) -> None:
-        names = [f.name for f in dataclasses.fields(self.SCHEMA) if f.name != "_target_"]
-        unknown = sorted(set(settings) - set(names))
+        names = _component_fields(self.SCHEMA)
+        # the chain's settings (encoder.res) are accepted and checked by the schema, not kept
+        unknown = sorted(set(settings) - set(names) - set(chain_fields(self.SCHEMA)))
         if unknown:
             raise TypeError(f"{type(self).__name__}: unknown setting(s) {unknown}; its settings: {names}")
         values = self.SCHEMA(**settings)
@@ -563,5 +716,5 @@ class Configured:
         """Hook run after the settings are set (derived state); nothing by default."""
 
     def __repr__(self) -> str:
-        names = [f.name for f in dataclasses.fields(self.SCHEMA) if f.name != "_target_"]
+        names = _component_fields(self.SCHEMA)
         return f"{type(self).__name__}({', '.join(f'{n}={getattr(self, n)!r}' for n in names)})"

@@ -36,6 +36,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import ConfigError, build, result_config
+from sphri.encode.schema import grid_res
 from sphri.inputs import input_fingerprints, memo_at
 from sphri.stages import (
     PER_FIT_GROUPS,
@@ -135,7 +136,7 @@ class Pipeline:
     @property
     def res(self) -> int:
         """The grid resolution the layout is built at."""
-        return int(self.cfg.encoder.res)
+        return grid_res(self.cfg)
 
     @property
     def seed(self) -> int:

@@ -35,7 +35,7 @@ def all_yaml() -> list[tuple[str, str]]:
 
 def overrides_for(group: str, name: str) -> list[str]:
     extra = REQUIRED.get(f"{group}/{name}", [])
-    if group == "debug_model":
+    if group == "_debug_model":
         debug, model = name.split("_", 1)
         return [f"debug={debug}", f"model={model}"]
     return [f"{group}={name}", *extra]

@@ -39,12 +39,14 @@ def _changed(value):
 
 
 def _schema_of(group: str, path: Path):
-    """The schema dataclass a component YAML opts into (its ``*_schema`` default), or None."""
+    """The schema dataclass a component YAML opts into (its ``/schema_<group>_<name>@_here_`` default), or None."""
     defaults = (yaml.safe_load(path.read_text()) or {}).get("defaults", [])
-    names = [d for d in defaults if isinstance(d, str) and d.endswith("_schema")]
+    names = [
+        d[1:].removesuffix("@_here_") for d in defaults if isinstance(d, str) and d.startswith(f"/schema_{group}_")
+    ]
     if not names:
         return None
-    return OmegaConf.get_type(ConfigStore.instance().repo[group][names[0] + ".yaml"].node)
+    return OmegaConf.get_type(ConfigStore.instance().repo[names[0] + ".yaml"].node)
 
 
 def _runtime_settings() -> list[tuple[str, str, str]]:

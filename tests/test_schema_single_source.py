@@ -21,8 +21,8 @@ def schema_of(group: str, path) -> type:
     for m in SCHEMA_MODULES:
         importlib.import_module(m)
     d = yaml.safe_load(path.read_text())
-    name = next(x for x in d["defaults"] if isinstance(x, str) and x.endswith("_schema"))
-    return OmegaConf.get_type(ConfigStore.instance().repo[group][name + ".yaml"].node)
+    entry = next(x for x in d["defaults"] if isinstance(x, str) and x.startswith(f"/schema_{group}_"))
+    return OmegaConf.get_type(ConfigStore.instance().repo[entry[1:].removesuffix("@_here_") + ".yaml"].node)
 
 
 FILES = [(g, p) for g in TRIMMED for p in sorted((CONF_DIR / g).glob("*.yaml"))]

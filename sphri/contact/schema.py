@@ -3,47 +3,47 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
-from sphri.config import require_choice, require_range, runtime_setting, store
+from sphri.config import Schema, setting, store
 
 #: Inside definitions a component may ask for (see :mod:`sphri.contact.mesh`).
 INSIDE_CHOICES: tuple[str, ...] = ("auto", "hull", "winding")
 
 
 @dataclass
-class ExactContactSchema:
-    """``contact=exact``: exact capsule-vs-mesh distance, inside test and contact patch."""
+class ContactSchema(Schema):
+    """Base of the contact group's schemas: range errors name ``contact.<field>``; a plugin's YAML may opt
+    into it (``defaults: [/schema_contact_base@_here_, _self_]``)."""
 
-    _target_: str = "sphri.contact.exact.ExactContact"
-    margin_m: float = 0.0
-    """Metres added to every capsule radius (0 = contact means touching)."""
-    inside: str = "auto"
-    """Solid used for inside: auto, hull (convex hull of the link) or winding (winding number)."""
-    chunk_frames: int = runtime_setting(20000)
-    """Frames processed at once (bounds memory: ~1 kB per frame and capsule row)."""
-
-    def __post_init__(self) -> None:
-        require_range("contact.margin_m", self.margin_m, lo=0.0, hi=1.0)
-        require_choice("contact.inside", self.inside, INSIDE_CHOICES)
-        require_range("contact.chunk_frames", self.chunk_frames, lo=1)
+    GROUP: ClassVar[str] = "contact"
+    _target_: str = "???"
 
 
 @dataclass
-class SphereContactSchema:
+class ExactContactSchema(ContactSchema):
+    """``contact=exact``: exact capsule-vs-mesh distance, inside test and contact patch."""
+
+    _target_: str = "sphri.contact.exact.ExactContact"
+    margin_m: float = setting(0.0, lo=0.0, hi=1.0)
+    """Metres added to every capsule radius (0 = contact means touching)."""
+    inside: str = setting("auto", choices=INSIDE_CHOICES)
+    """Solid used for inside: auto, hull (convex hull of the link) or winding (winding number)."""
+    chunk_frames: int = setting(20000, runtime=True, lo=1)
+    """Frames processed at once (bounds memory: ~1 kB per frame and capsule row)."""
+
+
+@dataclass
+class SphereContactSchema(ContactSchema):
     """``contact=spheres``: the paper's approximation, each capsule as k spheres."""
 
     _target_: str = "sphri.contact.spheres.SphereContact"
-    k: int = 5
+    k: int = setting(5, lo=1, hi=1000)
     """Spheres per capsule, centred evenly along its segment (ends included when k > 1)."""
-    margin_m: float = 0.0
+    margin_m: float = setting(0.0, lo=0.0, hi=1.0)
     """Metres added to every capsule radius (0 = contact means touching)."""
-    chunk_frames: int = runtime_setting(20000)
+    chunk_frames: int = setting(20000, runtime=True, lo=1)
     """Frames processed at once (bounds memory)."""
-
-    def __post_init__(self) -> None:
-        require_range("contact.k", self.k, lo=1, hi=1000)
-        require_range("contact.margin_m", self.margin_m, lo=0.0, hi=1.0)
-        require_range("contact.chunk_frames", self.chunk_frames, lo=1)
 
 
 store(group="contact", name="exact_schema", node=ExactContactSchema)

@@ -55,6 +55,7 @@ from sphri.data.format import make_trials_frame, participant_id, trial_id
 from sphri.data.gestures import RELAXED, ContactPlan, Style, plan_contact
 from sphri.data.people import Spread
 from sphri.data.reference_stats import VR_FRAME_RATE_HZ, median_trial_frames
+from sphri.data.schema import SyntheticDataSchema as _S  # the defaults, stated once
 from sphri.types import GESTURES, GestureDataset, HandModel, Robot
 
 if TYPE_CHECKING:  # imported where trials are generated: numba, trimesh and scipy stay out of a cached run
@@ -158,21 +159,21 @@ class SyntheticData:
 
     def __init__(
         self,
-        seed: int = 0,
-        participants: int | None = DEFAULT_PARTICIPANTS,
-        repetitions: int | None = DEFAULT_REPETITIONS,
+        seed: int = _S.seed,
+        participants: int | None = _S.participants,
+        repetitions: int | None = _S.repetitions,
         regions: Sequence[str] = ("arm",),
         gestures: Sequence[str] = GESTURES,
         root: str | None = None,
-        frame_rate_hz: float = 30.0,
-        tracking_rate_hz: float = 30.0,
-        jitter_mm: float = 3.0,
-        latency_ms: float = 45.0,
-        latency_sd_ms: float = 8.0,
-        dropouts_per_trial: float = 0.3,
-        dropout_max_frames: int = 12,
-        jumps_per_trial: float = 0.05,
-        jump_mm: float = 30.0,
+        frame_rate_hz: float = _S.frame_rate_hz,
+        tracking_rate_hz: float = _S.tracking_rate_hz,
+        jitter_mm: float = _S.jitter_mm,
+        latency_ms: float = _S.latency_ms,
+        latency_sd_ms: float = _S.latency_sd_ms,
+        dropouts_per_trial: float = _S.dropouts_per_trial,
+        dropout_max_frames: int = _S.dropout_max_frames,
+        jumps_per_trial: float = _S.jumps_per_trial,
+        jump_mm: float = _S.jump_mm,
         **spread,
     ):
         self.seed = int(seed)

@@ -1,80 +1,85 @@
 """Config schemas of the encoder group (``conf/encoder/*.yaml``).
 
-Every encoder has ``res``: taxels along the link's long axis (1..1000), which
-the pipeline also passes to the layout.
+:class:`EncoderSchema` owns the grid resolution ``encoder.res`` (taxels along the
+link's long axis) with its range (:data:`sphri.layout.schema.RES_RANGE`, which the
+layouts handed the value check too): the user spells it ``encoder.res``, the chain
+reads it through :func:`grid_res` (the layout is built with it), and no encoder
+keeps it (``setting(chain=True)``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 from omegaconf import OmegaConf
 
-from sphri.config import ConfigError, cross_check, require_choice, require_range, store
-from sphri.layout.schema import check_res
+from sphri.config import ConfigError, Schema, cross_check, setting, store
+from sphri.layout.schema import RES_RANGE, check_res
+
+#: ``encoder.res`` when the config says nothing (a plugin encoder without a schema).
+DEFAULT_RES = 18
 
 
 @dataclass
-class EllipseEncoderSchema:
+class EncoderSchema(Schema):
+    """Base of the encoder group's schemas: the grid resolution, which the chain owns."""
+
+    GROUP: ClassVar[str] = "encoder"
+    _target_: str = "???"
+    res: int = setting(DEFAULT_RES, range=RES_RANGE, chain=True)
+    """Taxels along the link's long axis (the paper saturates near 18 per 24 cm); the layout is built
+    with it, the encoder is not given it."""
+
+
+def grid_res(cfg: Any, check: bool = True) -> Any:
+    """The grid resolution of a composed config: ``encoder.res``, or :data:`DEFAULT_RES` for a plugin
+    encoder that declares no schema. The one reader of ``cfg.encoder.res``. ``check=False`` returns
+    the value as configured, unchecked (naming a run that failed, perhaps on that very value)."""
+    node = cfg.get("encoder") if hasattr(cfg, "get") else None
+    if node is None or "res" not in node:
+        return DEFAULT_RES
+    return check_res(cfg.encoder.res) if check else cfg.encoder.res
+
+
+@dataclass
+class EllipseEncoderSchema(EncoderSchema):
     """The paper's encoder: contact patches as ellipses rasterized on the (u, v) grid."""
 
     _target_: str = "sphri.encode.ellipse.EllipseEncoder"
     NEEDS_CHART_GRID: ClassVar[bool] = True
     """Rasterizes on a grid layout (``CHART_GRID``) of a surface with a chart (``HAS_CHART``)."""
-    res: int = 18
-    """Taxels along the link's long axis (the paper saturates near 18 per 24 cm)."""
     binary: bool = True
     """True: uint8 0/1 readings; False: float32 covered fraction of each taxel."""
-    threshold: float = 0.5
+    threshold: float = setting(0.5, lo=0.0, hi=1.0, lo_open=True)
     """Binary: a taxel is on when at least this fraction of its cell is covered
     (the taxel holding a patch centre is always on)."""
-    subsamples: int = 8
+    subsamples: int = setting(8, lo=1, hi=64)
     """Sub-rows per taxel row for the raster (exact along v); more = finer."""
-
-    def __post_init__(self) -> None:
-        check_res(self.res)
-        require_range("encoder.threshold", self.threshold, lo=0.0, hi=1.0, lo_open=True)
-        require_range("encoder.subsamples", self.subsamples, lo=1, hi=64)
 
 
 @dataclass
-class CoverageEncoderSchema:
+class CoverageEncoderSchema(EncoderSchema):
     """Fraction of each taxel's area covered by contact (float32), any layout."""
 
     _target_: str = "sphri.encode.coverage.CoverageEncoder"
-    res: int = 18
-    """Taxels along the link's long axis."""
-    subsamples: int = 8
+    subsamples: int = setting(8, lo=1, hi=64)
     """Grid layouts: sub-rows per taxel row of the chart raster."""
-    samples_per_taxel: int = 32
+    samples_per_taxel: int = setting(32, lo=1, hi=1024)
     """Other layouts: points sampled on each taxel's disc (area fraction resolution)."""
-
-    def __post_init__(self) -> None:
-        check_res(self.res)
-        require_range("encoder.subsamples", self.subsamples, lo=1, hi=64)
-        require_range("encoder.samples_per_taxel", self.samples_per_taxel, lo=1, hi=1024)
 
 
 @dataclass
-class ProximityEncoderSchema:
+class ProximityEncoderSchema(EncoderSchema):
     """A taxel senses a capsule surface within ``sensing_distance_m``, any layout."""
 
     _target_: str = "sphri.encode.proximity.ProximityEncoder"
-    res: int = 18
-    """Taxels along the link's long axis."""
-    sensing_distance_m: float = 0.005
+    sensing_distance_m: float = setting(0.005, lo=0.0, hi=0.5)
     """Range of the taxel (metres): active when a capsule surface is this close."""
-    intensity: str = "binary"
+    intensity: str = setting("binary", choices=("binary", "depth"))
     """binary (uint8 0/1) or depth (float32 pressure proxy, 0 at the range, 1 at depth_scale_m deep)."""
-    depth_scale_m: float = 0.01
+    depth_scale_m: float = setting(0.01, lo=0.0, hi=0.5, lo_open=True)
     """Penetration (metres) that reads 1.0 with intensity=depth."""
-
-    def __post_init__(self) -> None:
-        check_res(self.res)
-        require_range("encoder.sensing_distance_m", self.sensing_distance_m, lo=0.0, hi=0.5)
-        require_choice("encoder.intensity", self.intensity, ("binary", "depth"))
-        require_range("encoder.depth_scale_m", self.depth_scale_m, lo=0.0, hi=0.5, lo_open=True)
 
 
 @cross_check

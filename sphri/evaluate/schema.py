@@ -3,39 +3,41 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
-from sphri.config import require, require_range, runtime_setting, store
+from sphri.config import Schema, runtime_setting, setting, store
 
 #: Where folds run: ``local`` (this process, or a loky pool of ``workers``) or ``ray`` (a Ray task each).
 BACKENDS = ("local", "ray")
 
 
 @dataclass
-class FoldsSchema:
+class CvSchema(Schema):
+    """Base of the cv group's schemas: range errors name ``cv.<field>``; a plugin's YAML may opt
+    into it (``defaults: [/schema_cv_base@_here_, _self_]``)."""
+
+    GROUP: ClassVar[str] = "cv"
+    _target_: str = "???"
+
+
+@dataclass
+class FoldsSchema(CvSchema):
     """What every cross-validation scheme shares: parallel folds, a fold limit, progress."""
 
     _target_: str = ""
-    workers: int = runtime_setting(1)
+    workers: int = setting(1, runtime=True, lo=1)
     """Folds run in parallel processes (1: in this process)."""
-    threads_per_worker: int | None = runtime_setting(None)
+    threads_per_worker: int | None = setting(None, runtime=True, lo=1, optional=True)
     """Threads each fold may use (None: available cores // workers)."""
-    max_folds: int | None = None
+    max_folds: int | None = setting(None, lo=1, optional=True)
     """Evaluate only the first k folds (debugging; None: all)."""
     progress: bool = runtime_setting(True)
     """Progress bar over folds (shown only on a terminal)."""
-    backend: str = runtime_setting("local")
+    backend: str = setting("local", runtime=True, choices=BACKENDS)
     """Where folds run: ``local`` (this process, or ``workers`` loky processes) or ``ray`` (a Ray task per
     fold with ``threads_per_worker`` CPUs, default 1: on the Ray launcher's cluster, else a running one, else
     a local instance; docs/CLUSTER.md). Needs the ``ray`` package (the ``cluster`` extra), checked when the
     folds start: a runtime setting composes and hashes the same on a machine without Ray."""
-
-    def __post_init__(self) -> None:
-        require(self.backend in BACKENDS, "cv.backend", self.backend, f"must be one of {', '.join(BACKENDS)}")
-        require_range("cv.workers", self.workers, lo=1)
-        if self.threads_per_worker is not None:
-            require_range("cv.threads_per_worker", self.threads_per_worker, lo=1)
-        if self.max_folds is not None:
-            require_range("cv.max_folds", self.max_folds, lo=1)
 
 
 @dataclass
@@ -43,13 +45,8 @@ class LosoSchema(FoldsSchema):
     """``cv=loso``: leave-one-subject-out over participants."""
 
     _target_: str = "sphri.evaluate.cv.LeaveOneSubjectOut"
-    min_participants: int | None = None
+    min_participants: int | None = setting(None, lo=2, optional=True)
     """Refuse to run on fewer participants with windows (None: run, with a named warning in the summary)."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        if self.min_participants is not None:
-            require_range("cv.min_participants", self.min_participants, lo=2)
 
 
 @dataclass
@@ -57,12 +54,8 @@ class KFoldSchema(FoldsSchema):
     """``cv=kfold``: stratified k-fold within each participant, pooled (not comparable to LOSO)."""
 
     _target_: str = "sphri.evaluate.cv.WithinSubjectKFold"
-    k: int = 5
+    k: int = setting(5, lo=2)
     """Number of folds (each participant's trials split k ways, stratified by gesture)."""
-
-    def __post_init__(self) -> None:
-        require_range("cv.k", self.k, lo=2)
-        super().__post_init__()
 
 
 store(group="cv", name="loso_schema", node=LosoSchema)

@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from sphri.config import ConfigError, require
+from sphri.config import ConfigError, Schema, require
+from sphri.encode.schema import grid_res
 from sphri.errors import clean_errors
 from sphri.export.model_file import ModelBundle, save_model
 from sphri.keyvalue import parse_cli
@@ -34,7 +35,7 @@ log = logging.getLogger(__name__)
 
 
 @dataclass
-class TrainExportSettings:
+class TrainExportSettings(Schema):
     """Settings of ``train_export`` (everything else is a pipeline override)."""
 
     out: str = "???"
@@ -44,7 +45,7 @@ class TrainExportSettings:
     mlflow: bool = False
     """Also log the file as an artifact (model/<name>) of a new MLflow run."""
 
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         require(self.out not in ("", "???"), "out", self.out, "an output path, e.g. out=model.sphrimodel")
 
 
@@ -84,7 +85,7 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
         "dataset": dataset.name,
         "region": list(cfg.data.regions)[0],
         "encoder": str(cfg.encoder._target_).rsplit(".", 1)[-1],
-        "encoder_res": int(cfg.encoder.res),
+        "encoder_res": grid_res(cfg),
     }
     log.info("trained %s on %d windows (train accuracy %.3f)", meta["model"], meta["n_train"], acc)
     return ModelBundle(model, windows.geometry, int(windows.x.shape[1]), float(dataset.frame_rate_hz), GESTURES, meta)

@@ -3,53 +3,59 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
-from sphri.config import require, require_range, store
+from sphri.config import Schema, require, setting, store
 
 
 @dataclass
-class NoFilterSchema:
+class FilterSchema(Schema):
+    """Base of the filter group's schemas: range errors name ``filter.<field>``; a plugin's YAML may opt
+    into it (``defaults: [/schema_filter_base@_here_, _self_]``)."""
+
+    GROUP: ClassVar[str] = "filter"
+    _target_: str = "???"
+
+
+@dataclass
+class NoFilterSchema(FilterSchema):
     """No filter: the model sees the noisy readings as they are (the reference study)."""
 
     _target_: str = "sphri.filter.components.NoFilter"
 
 
 @dataclass
-class DebounceFilterSchema:
+class DebounceFilterSchema(FilterSchema):
     """Debounce: a taxel reads on only after it has been on for ``frames`` consecutive frames."""
 
     _target_: str = "sphri.filter.components.DebounceFilter"
-    frames: int = 2
+    frames: int = setting(2, lo=1, hi=1000)
     """Consecutive frames (k) a taxel must be on; output = minimum of its last k readings (1 = no filter)."""
-
-    def __post_init__(self) -> None:
-        require_range("filter.frames", self.frames, lo=1, hi=1000)
 
 
 @dataclass
-class MedianFilterSchema:
+class MedianFilterSchema(FilterSchema):
     """Causal running median of each taxel's last ``frames`` readings."""
 
     _target_: str = "sphri.filter.components.MedianFilter"
-    frames: int = 3
+    frames: int = setting(3, lo=1, hi=1000)
     """Readings (k, odd so that a binary reading stays binary) in the median; 1 = no filter."""
 
-    def __post_init__(self) -> None:
-        require_range("filter.frames", self.frames, lo=1, hi=1000)
+    def check(self) -> None:
         require(
             self.frames % 2 == 1,
-            "filter.frames",
+            self.key("frames"),
             self.frames,
             "must be odd for filter=median (an even window has no middle reading; use filter=debounce)",
         )
 
 
 @dataclass
-class DespeckleFilterSchema:
+class DespeckleFilterSchema(FilterSchema):
     """Spatial despeckle: per frame, groups of touched neighbouring taxels smaller than ``min_area_mm2`` are cleared."""
 
     _target_: str = "sphri.filter.components.DespeckleFilter"
-    min_area_mm2: float = 100.0
+    min_area_mm2: float = setting(100.0, lo=0.0, hi=1.0e6)
     """Smallest touch area kept (mm^2): a connected group of on-taxels whose summed taxel area is below it is
     set to off in that frame (0 = no filter). Set it below the smallest touch that must be seen: the default,
     100 mm^2 (1 cm^2), clears the largest patch of 11-13 % of poke and tap contact frames on the built-in
@@ -59,12 +65,8 @@ class DespeckleFilterSchema:
     diagonal: bool = True
     """Grids: taxels sharing a corner are neighbours too (8-connected, as the Random Forest's largest-contact
     feature); false = 4-connected. Scattered layouts: neighbours within 1.5 x the median spacing either way."""
-    active_threshold: float = 0.5
+    active_threshold: float = setting(0.5, lo=0.0, hi=1.0, lo_open=True)
     """Readings at or above it count as on (the Random Forest's threshold); readings below are left as they are."""
-
-    def __post_init__(self) -> None:
-        require_range("filter.min_area_mm2", self.min_area_mm2, lo=0.0, hi=1.0e6)
-        require_range("filter.active_threshold", self.active_threshold, lo=0.0, hi=1.0, lo_open=True)
 
 
 store(group="filter", name="none_schema", node=NoFilterSchema)

@@ -3,14 +3,24 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import ClassVar
 
 from omegaconf import MISSING
 
-from sphri.config import require, require_range, store
+from sphri.config import Schema, require, require_range, setting, store
 from sphri.inputs import input_path
 
 #: Hand parts a capsule may belong to.
 FINGERS: tuple[str, ...] = ("thumb", "index", "middle", "ring", "pinky", "palm")
+
+
+@dataclass
+class HandSchema(Schema):
+    """Base of the hand group's schemas: range errors name ``hand.<field>``; a plugin's YAML may opt
+    into it (``defaults: [/schema_hand_base@_here_, _self_]``)."""
+
+    GROUP: ClassVar[str] = "hand"
+    _target_: str = "???"
 
 
 @dataclass
@@ -54,7 +64,7 @@ def check_capsules(specs: list, key: str = "hand.capsules") -> None:
 
 
 @dataclass
-class HandCapsulesSchema:
+class HandCapsulesSchema(HandSchema):
     """``hand=quest_capsules``: the tracked hand as capsule colliders."""
 
     _target_: str = "sphri.hand.capsules.HandCapsules"
@@ -62,15 +72,14 @@ class HandCapsulesSchema:
     """The capsules, in pose-column order (ignored when ``definition_path`` is set)."""
     definition_path: str | None = input_path(None)
     """A dataset's ``hand_capsule_definition.json`` to read instead of ``capsules``."""
-    scale: float = 1.0
+    scale: float = setting(1.0, lo=0.0, lo_open=True)
     """Factor applied to every radius, height and offset (1 = as defined)."""
 
-    def __post_init__(self) -> None:
-        require_range("hand.scale", self.scale, lo=0.0, lo_open=True)
+    def check(self) -> None:
         if self.definition_path is None:
             require(
                 len(self.capsules) > 0,
-                "hand.capsules",
+                self.key("capsules"),
                 self.capsules,
                 "at least one capsule (or set hand.definition_path)",
             )

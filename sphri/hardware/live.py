@@ -45,6 +45,7 @@ import numpy as np
 
 from sphri.adjacency import Adjacency, taxel_adjacency
 from sphri.export.model_file import ModelBundle
+from sphri.hardware.settings import SkinLiveSettings as _L  # the defaults, stated once
 
 
 @dataclass(frozen=True)
@@ -101,12 +102,12 @@ class LiveClassifier:
         self,
         bundle: ModelBundle,
         stride: int = 6,
-        onset_activity: float = 0.0,
-        calibrate_frames: int = 30,
-        release_frames: int = 10,
-        persist: int = 3,
+        onset_activity: float = _L.onset_taxels,
+        calibrate_frames: int = _L.calibrate_frames,
+        release_frames: int = _L.release_frames,
+        persist: int = _L.persist,
         confirm: int = 2,
-        cluster_taxels: int = 6,
+        cluster_taxels: int = _L.cluster_taxels,
     ) -> None:
         if stride < 1:
             raise ValueError(f"stride={stride} must be >= 1")

@@ -2,10 +2,10 @@
 
 The hardware commands (``python -m sphri.hardware.glove|skin``) are
 entry points beside the pipeline, not stages. Each has a settings dataclass
-below (typed fields with defaults, units in the names, range checks in
-``__post_init__`` naming the key; the simulators keep theirs beside their
-code, ``sim_skin.SkinSimSettings`` and ``sim_glove.GloveSimSettings``, as
-``sphri.export.train`` does). Command lines are
+below (a :class:`sphri.config.Schema` like the pipeline's: typed fields with
+defaults, units in the names, ranges as field metadata (:func:`sphri.config.setting`)
+and rules across fields in ``check``, errors naming the key; the simulators and
+``sphri.export.train`` keep theirs beside their code, on the same base). Command lines are
 Hydra-like ``key=value`` pairs: keys of the settings are taken here, and
 everything else (``+debug=fast``, ``robot=nao_child``, ``data.seed=3``) is
 passed to :func:`sphri.config.compose` for the pipeline part.
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from sphri.config import require, require_choice, require_range
+from sphri.config import Schema, require, require_choice, setting
 from sphri.keyvalue import describe, field_names, parse_cli  # noqa: F401  (their home before; kept importable)
 
 
@@ -26,10 +26,6 @@ def _port(value: str) -> None:
         value,
         "a device path (/dev/ttyUSB0) or pyserial URL (loop://, socket://host:port)",
     )
-
-
-def _baud(value: int) -> None:
-    require_range("baud", value, lo=300, hi=12_000_000)
 
 
 def _switch(value, key: str, choices: tuple[str, ...]) -> str:
@@ -51,67 +47,56 @@ def parse_grid(text: str) -> tuple[int, int] | None:
 
 
 @dataclass
-class GloveReplaySettings:
+class GloveReplaySettings(Schema):
     """``python -m sphri.hardware.glove replay``: play one trial's contacts to a glove."""
 
     port: str = "loop://"
     """Device or pyserial URL; ``loop://`` is a dry run that prints the command stream."""
-    baud: int = 115200
+    baud: int = setting(115200, lo=300, hi=12_000_000)
     """Bits per second (the glove's Bluetooth serial module setting)."""
-    glove_id: int = 1
+    glove_id: int = setting(1, lo=0, hi=255)
     """Glove id carried in every message (0..255), e.g. 0 = left, 1 = right."""
-    trial: int = 0
+    trial: int = setting(0, lo=0)
     """0-based trial index: among ``participant``'s trials, or among all trials when unset."""
     participant: str | None = None
     """Participant whose trial is played (e.g. participant_01); None = index all trials."""
     realtime: bool = True
     """Pace messages at the tracking rate; false sends as fast as possible."""
-    rate_hz: float = 0.0
+    rate_hz: float = setting(0.0, lo=0.0, hi=1000.0)
     """Most messages per second (0 = the dataset's tracking frame rate)."""
-    pulse_ms: int = 60
+    pulse_ms: int = setting(60, lo=1, hi=65535)
     """Vibration pulse length in milliseconds."""
-    trigger: str = "contact"
+    trigger: str = setting("contact", choices=("contact", "onset"))
     """contact: pulse while the part touches (refreshed); onset: one pulse per contact onset."""
-    intensity: str = "depth"
+    intensity: str = setting("depth", choices=("depth", "constant"))
     """depth: scale with penetration depth; constant: always intensity_max."""
-    intensity_min: int = 80
+    intensity_min: int = setting(80, lo=1, hi=255)
     """Intensity (1..255) of a barely touching contact (intensity=depth)."""
-    intensity_max: int = 255
+    intensity_max: int = setting(255, lo=1, hi=255)
     """Intensity (1..255) at depth_full_m and beyond, or always (constant)."""
-    depth_full_m: float = 0.01
+    depth_full_m: float = setting(0.01, lo=0.0, hi=0.5, lo_open=True)
     """Penetration depth in metres that gives intensity_max."""
     acks: str | None = "auto"
     """Wait for acknowledgements: on, off, or auto (off for loop://, on otherwise)."""
-    ack_timeout_s: float = 0.25
+    ack_timeout_s: float = setting(0.25, lo=0.0, hi=60.0, lo_open=True)
     """An ACK later than this (seconds) counts as missing."""
     show: str | None = "auto"
     """Print every message: on, off, or auto (on for loop://)."""
 
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         _port(self.port)
-        _baud(self.baud)
-        require_range("glove_id", self.glove_id, lo=0, hi=255)
-        require_range("trial", self.trial, lo=0)
-        require_range("rate_hz", self.rate_hz, lo=0.0, hi=1000.0)
-        require_range("pulse_ms", self.pulse_ms, lo=1, hi=65535)
-        require_choice("trigger", self.trigger, ("contact", "onset"))
-        require_choice("intensity", self.intensity, ("depth", "constant"))
-        require_range("intensity_min", self.intensity_min, lo=1, hi=255)
-        require_range("intensity_max", self.intensity_max, lo=1, hi=255)
         require(
             self.intensity_min <= self.intensity_max,
             "intensity_min",
             self.intensity_min,
             f"must be <= intensity_max={self.intensity_max}",
         )
-        require_range("depth_full_m", self.depth_full_m, lo=0.0, hi=0.5, lo_open=True)
         self.acks = _switch(self.acks, "acks", ("auto", "on", "off"))
-        require_range("ack_timeout_s", self.ack_timeout_s, lo=0.0, hi=60.0, lo_open=True)
         self.show = _switch(self.show, "show", ("auto", "on", "off"))
 
 
 @dataclass
-class SkinRecordSettings:
+class SkinRecordSettings(Schema):
     """``python -m sphri.hardware.skin record``: save a skin's frames to a file."""
 
     port: str = "???"
@@ -119,51 +104,42 @@ class SkinRecordSettings:
     out: str = "???"
     """Output recording (.npz), written atomically; also on Ctrl+C, SIGTERM or a lost port. Checked before
     reading; an existing file is refused (never replaced)."""
-    baud: int = 1_000_000
+    baud: int = setting(1_000_000, lo=300, hi=12_000_000)
     """Bits per second (ignored by USB CDC devices and socket://)."""
-    taxels: int = 0
+    taxels: int = setting(0, lo=0, hi=4096)
     """Expected taxel count N (0 = grid's H*W, or without a grid the count most of the first consensus_frames carry)."""
     grid: str = ""
     """Grid shape HxW of the layout (rows along the link), e.g. 18x6; empty = not a grid. Sets the taxel count."""
-    consensus_frames: int = 9
+    consensus_frames: int = setting(9, lo=1, hi=1000)
     """With neither taxels nor grid: the count carried by consensus_frames // 2 + 1 of the first valid frames."""
-    frames: int = 0
+    frames: int = setting(0, lo=0)
     """Stop after this many good frames (0 = no limit)."""
-    duration_s: float = 0.0
+    duration_s: float = setting(0.0, lo=0.0)
     """Stop after this many seconds (0 = no limit)."""
-    idle_s: float = 0.0
+    idle_s: float = setting(0.0, lo=0.0)
     """Stop when no frame arrived for this many seconds (0 = wait forever)."""
     reconnect: bool = False
     """Retry a vanished port (unplugged device) instead of stopping."""
-    reconnect_timeout_s: float = 30.0
+    reconnect_timeout_s: float = setting(30.0, lo=0.0)
     """Give up reconnecting after this many seconds (0 = never)."""
     start_command: bool = True
     """Send the protocol's START message on (re)connect (skins may ignore it)."""
-    chunk_frames: int = 50
+    chunk_frames: int = setting(50, lo=1, hi=100_000)
     """Every frame is written to ``<out>.partial`` as it is read (a killed recorder loses none); the file
     is fsynced every chunk_frames frames or sync_interval_s seconds, whichever comes first (a power cut)."""
-    sync_interval_s: float = 1.0
+    sync_interval_s: float = setting(1.0, lo=0.0, hi=3600.0)
     """Longest time between two fsyncs of ``<out>.partial`` (seconds)."""
 
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         _port(self.port)
         require(self.out not in ("", "???"), "out", self.out, "an output path, e.g. out=recording.npz")
-        require_range("chunk_frames", self.chunk_frames, lo=1, hi=100_000)
-        require_range("sync_interval_s", self.sync_interval_s, lo=0.0, hi=3600.0)
-        require_range("consensus_frames", self.consensus_frames, lo=1, hi=1000)
-        _baud(self.baud)
-        require_range("taxels", self.taxels, lo=0, hi=4096)
         grid = parse_grid(self.grid)
         if grid is not None and self.taxels:
             require(grid[0] * grid[1] == self.taxels, "grid", self.grid, f"H*W must equal taxels={self.taxels}")
-        require_range("frames", self.frames, lo=0)
-        require_range("duration_s", self.duration_s, lo=0.0)
-        require_range("idle_s", self.idle_s, lo=0.0)
-        require_range("reconnect_timeout_s", self.reconnect_timeout_s, lo=0.0)
 
 
 @dataclass
-class SkinLiveSettings:
+class SkinLiveSettings(Schema):
     """``python -m sphri.hardware.skin live``: classify touch on a streaming skin."""
 
     port: str = "???"
@@ -176,52 +152,40 @@ class SkinLiveSettings:
     """Fetch a remote model (runs:/, models:/, http://...); off by default: only local files are read."""
     plugins: list[str] = field(default_factory=list)
     """Packages whose model classes a model file may name (e.g. [labext]); sphri's own models need none."""
-    baud: int = 1_000_000
+    baud: int = setting(1_000_000, lo=300, hi=12_000_000)
     """Bits per second (ignored by USB CDC devices and socket://)."""
-    stride: int = 0
+    stride: int = setting(0, lo=0, hi=10_000)
     """Frames between sliding-window predictions (0 = about 15 per second)."""
-    onset_taxels: float = 0.0
+    onset_taxels: float = setting(0.0, lo=0.0)
     """Touch activity (taxels held on for ``persist`` frames) that marks an onset; 0 = calibrate."""
-    calibrate_frames: int = 30
+    calibrate_frames: int = setting(30, lo=1)
     """Untouched frames at the start used to calibrate onset_taxels when it is 0."""
-    release_frames: int = 10
+    release_frames: int = setting(10, lo=1)
     """Frames below the onset activity that end a touch (re-arms onset detection)."""
-    persist: int = 3
+    persist: int = setting(3, lo=1, hi=100)
     """Frames a taxel must stay on to count toward touch activity (filters flickering noise)."""
-    cluster_taxels: int = 6
+    cluster_taxels: int = setting(6, lo=0, hi=4096)
     """Grids: this many connected taxels on in one frame also mark a touch (0 = off)."""
-    fill_gaps: int = 5
+    fill_gaps: int = setting(5, lo=0, hi=1000)
     """Up to this many frames lost in a row (sequence gap) are filled by holding the last frame (0 = off)."""
     out: str = ""
     """Also write every prediction as a JSON line to this file (empty = no file)."""
     show: str | None = "all"
     """Print: all (sliding windows and touches), touches (one line per touch), off."""
-    frames: int = 0
+    frames: int = setting(0, lo=0)
     """Stop after this many good frames (0 = no limit)."""
-    duration_s: float = 0.0
+    duration_s: float = setting(0.0, lo=0.0)
     """Stop after this many seconds (0 = no limit)."""
-    idle_s: float = 0.0
+    idle_s: float = setting(0.0, lo=0.0)
     """Stop when no frame arrived for this many seconds (0 = wait forever)."""
     reconnect: bool = False
     """Retry a vanished port instead of stopping."""
-    reconnect_timeout_s: float = 30.0
+    reconnect_timeout_s: float = setting(30.0, lo=0.0)
     """Give up reconnecting after this many seconds (0 = never)."""
     start_command: bool = True
     """Send the protocol's START message on (re)connect."""
 
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         _port(self.port)
         require(self.model not in ("", "???"), "model", self.model, "a model file or runs:/<run_id>/<path>")
-        _baud(self.baud)
-        require_range("stride", self.stride, lo=0, hi=10_000)
-        require_range("onset_taxels", self.onset_taxels, lo=0.0)
-        require_range("calibrate_frames", self.calibrate_frames, lo=1)
-        require_range("release_frames", self.release_frames, lo=1)
-        require_range("persist", self.persist, lo=1, hi=100)
-        require_range("cluster_taxels", self.cluster_taxels, lo=0, hi=4096)
-        require_range("fill_gaps", self.fill_gaps, lo=0, hi=1000)
         self.show = _switch(self.show, "show", ("all", "touches", "off"))
-        require_range("frames", self.frames, lo=0)
-        require_range("duration_s", self.duration_s, lo=0.0)
-        require_range("idle_s", self.idle_s, lo=0.0)
-        require_range("reconnect_timeout_s", self.reconnect_timeout_s, lo=0.0)

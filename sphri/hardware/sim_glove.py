@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from sphri.config import require_range
+from sphri.config import setting
 from sphri.hardware.glove_protocol import Ack, ActuateCommand, GloveDecoder, encode_ack
 from sphri.hardware.transport import DeviceSettings, HostGone, Stopped, open_endpoint
 
@@ -30,18 +30,12 @@ log = logging.getLogger(__name__)
 class GloveSimSettings(DeviceSettings):
     """``python -m sphri.hardware.simulate glove``: the glove's settings (and the endpoint's)."""
 
-    ack_drop_rate: float = 0.0
+    ack_drop_rate: float = setting(0.0, lo=0.0, hi=1.0)
     """Probability of not acknowledging a command."""
-    ack_delay_s: float = 0.0
+    ack_delay_s: float = setting(0.0, lo=0.0, hi=10.0)
     """Delay before each acknowledgement (seconds)."""
-    duration_s: float = 0.0
+    duration_s: float = setting(0.0, lo=0.0)
     """Stop after this many seconds (0 = until the host disconnects)."""
-
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        require_range("ack_drop_rate", self.ack_drop_rate, lo=0.0, hi=1.0)
-        require_range("ack_delay_s", self.ack_delay_s, lo=0.0, hi=10.0)
-        require_range("duration_s", self.duration_s, lo=0.0)
 
 
 @dataclass

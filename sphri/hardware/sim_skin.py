@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from sphri.config import ConfigError, require, require_choice, require_range
+from sphri.config import ConfigError, require, setting
 from sphri.hardware.settings import parse_grid
 from sphri.hardware.skin_protocol import CMD_START, ValueFormat, encode_frame, find_control
 from sphri.hardware.transport import DeviceSettings, HostGone, Stopped, make_endpoint, open_endpoint
@@ -38,57 +38,49 @@ log = logging.getLogger(__name__)
 class SkinSimSettings(DeviceSettings):
     """``python -m sphri.hardware.simulate skin``: the skin's settings (and the endpoint's)."""
 
-    source: str = "pipeline"
+    source: str = setting("pipeline", choices=("pipeline", "pattern"))
     """pipeline (encoded synthetic trials of the composed config) or pattern (moving blobs)."""
     trials: int = 8
     """pipeline source: number of trials streamed (-1 = all selected)."""
     participant: str | None = None
     """pipeline source: stream only this participant's trials."""
-    taxels: int = 0
+    taxels: int = setting(0, lo=0, hi=4096)
     """pattern source: taxel count (0 = from grid)."""
     grid: str = "18x6"
     """pattern source: grid shape HxW."""
-    frames: int = 600
+    frames: int = setting(600, lo=1)
     """pattern source: frames to stream."""
-    rate_hz: float = 0.0
+    rate_hz: float = setting(0.0, lo=0.0, hi=10_000.0)
     """Frames per second (0 = the dataset's frame rate, 90 for patterns)."""
     realtime: bool = True
     """Pace frames at rate_hz; false streams as fast as the link takes them."""
-    format: str = "auto"
+    format: str = setting("auto", choices=("auto", "u8", "u16", "bits"))
     """Value format u8, u16, bits, or auto (bits for binary encoders, u8 otherwise)."""
-    gap_s: float = 0.5
+    gap_s: float = setting(0.5, lo=0.0, hi=60.0)
     """pipeline source: untouched (noise-only) seconds before each trial."""
-    garbage_rate: float = 0.0
+    garbage_rate: float = setting(0.0, lo=0.0, hi=1.0)
     """Probability per frame of a burst of random bytes before it."""
-    corrupt_rate: float = 0.0
+    corrupt_rate: float = setting(0.0, lo=0.0, hi=1.0)
     """Probability per frame of a flipped byte (bad checksum)."""
-    drop_rate: float = 0.0
+    drop_rate: float = setting(0.0, lo=0.0, hi=1.0)
     """Probability per frame of not sending it (sequence gap)."""
-    truncate_rate: float = 0.0
+    truncate_rate: float = setting(0.0, lo=0.0, hi=1.0)
     """Probability per frame of sending only its first part."""
-    wrong_count_rate: float = 0.0
+    wrong_count_rate: float = setting(0.0, lo=0.0, hi=1.0)
     """Probability per frame of a valid frame with a wrong taxel count instead."""
-    unplug_after_s: float = 0.0
+    unplug_after_s: float = setting(0.0, lo=0.0)
     """Simulate unplugging after this many seconds of streaming (0 = never)."""
-    unplug_s: float = 1.0
+    unplug_s: float = setting(1.0, lo=0.0, hi=600.0)
     """How long the device stays unplugged (seconds)."""
     wait_start: bool = True
     """Wait for the host's START message before streaming (and after a replug)."""
-    hold_s: float = 1.0
+    hold_s: float = setting(1.0, lo=0.0, hi=600.0)
     """Keep the port open this long after the last frame (seconds)."""
 
-    def __post_init__(self) -> None:
-        super().__post_init__()
-        require_choice("source", self.source, ("pipeline", "pattern"))
+    def check(self) -> None:
+        super().check()
         require(self.trials == -1 or self.trials >= 1, "trials", self.trials, "a count >= 1, or -1 for all")
-        require_range("taxels", self.taxels, lo=0, hi=4096)
         parse_grid(self.grid)
-        require_range("frames", self.frames, lo=1)
-        require_range("rate_hz", self.rate_hz, lo=0.0, hi=10_000.0)
-        require_choice("format", self.format, ("auto", "u8", "u16", "bits"))
-        require_range("gap_s", self.gap_s, lo=0.0, hi=60.0)
-        for key in ("garbage_rate", "corrupt_rate", "drop_rate", "truncate_rate", "wrong_count_rate"):
-            require_range(key, getattr(self, key), lo=0.0, hi=1.0)
         total = self.corrupt_rate + self.drop_rate + self.truncate_rate + self.wrong_count_rate
         require(
             total <= 1.0,
@@ -96,9 +88,6 @@ class SkinSimSettings(DeviceSettings):
             self.corrupt_rate,
             f"corrupt + drop + truncate + wrong_count rates must sum to <= 1 (got {total:g})",
         )
-        require_range("unplug_after_s", self.unplug_after_s, lo=0.0)
-        require_range("unplug_s", self.unplug_s, lo=0.0, hi=600.0)
-        require_range("hold_s", self.hold_s, lo=0.0, hi=600.0)
 
 
 @dataclass

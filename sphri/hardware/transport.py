@@ -34,7 +34,7 @@ from typing import Any
 
 import serial
 
-from sphri.config import ConfigError, require, require_range
+from sphri.config import ConfigError, Schema, require, setting
 
 log = logging.getLogger(__name__)
 
@@ -184,21 +184,20 @@ class Link:
 
 # =========================================================================== device side (simulators)
 @dataclass
-class DeviceSettings:
+class DeviceSettings(Schema):
     """What every simulated device takes (``python -m sphri.hardware.simulate skin|glove``)."""
 
     port: str = "pty"
     """pty (a pseudo-terminal; its path is printed and linked at ``link``) or socket://HOST:PORT to listen on."""
     link: str = ""
     """pty only: a stable symlink to the pseudo-terminal (re-pointed after a simulated replug)."""
-    seed: int = 0
+    seed: int = setting(0, lo=0)
     """Seeds the injected faults (and the skin's pattern source)."""
     report: str = ""
     """Write what was sent (good frames, faults) or received as JSON to this file."""
 
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         require(self.port == "pty" or self.port.startswith("socket://"), "port", self.port, "pty or socket://HOST:PORT")
-        require_range("seed", self.seed, lo=0)
 
 
 class HostGone(RuntimeError):

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from sphri.config import Configured
 from sphri.geometry.link import check_link, closest_points, face_normals
 from sphri.layout.common import nn_spacing, voronoi_areas
 from sphri.layout.schema import FileLayoutSchema
@@ -168,26 +169,15 @@ def build_file_layout(
     )
 
 
-class FileLayout:
+class FileLayout(Configured):
     """``layout=file``: a real sensor's taxels (iCub skin files, .npz) on the link."""
 
     VERSION = "1"
 
-    def __init__(
-        self,
-        path: str = "",
-        transform: list[float] | None = None,
-        scale: float = 1.0,
-        dedupe_mm: float = 0.05,
-        max_offset_mm: float = 10.0,
-    ) -> None:
-        transform = [] if transform is None else [float(x) for x in transform]
-        FileLayoutSchema(path=path, transform=transform, scale=scale, dedupe_mm=dedupe_mm, max_offset_mm=max_offset_mm)
-        self.path = path
-        self.transform = transform
-        self.scale = scale
-        self.dedupe_mm = dedupe_mm
-        self.max_offset_mm = max_offset_mm
+    SCHEMA = FileLayoutSchema
+
+    def configured(self) -> None:
+        self.transform = [float(x) for x in self.transform]
 
     def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
         """Read, place and project the file's taxels; ``res`` is ignored (logged)."""

@@ -8,6 +8,7 @@ from sklearn.ensemble import RandomForestClassifier
 from sklearn.utils.validation import check_is_fitted
 
 from sphri.models.features import FEATURE_NAMES, TaxelCoords, extract_features, taxel_coords
+from sphri.models.schema import RandomForestSchema as _S  # the defaults, stated once (sklearn reads the signature)
 from sphri.types import TaxelGeometry
 
 #: The types the forest's skops payload in a model file may hold besides plain containers and numbers
@@ -40,14 +41,14 @@ class RandomForest(ClassifierMixin, BaseEstimator):
 
     def __init__(
         self,
-        n_estimators: int = 100,
-        max_depth: int | None = None,
-        min_samples_leaf: int = 1,
-        max_features: str = "sqrt",
-        class_weight: str | None = None,
-        n_jobs: int = -1,
-        seed: int = 0,
-        active_threshold: float = 0.5,
+        n_estimators: int = _S.n_estimators,
+        max_depth: int | None = _S.max_depth,
+        min_samples_leaf: int = _S.min_samples_leaf,
+        max_features: str = _S.max_features,
+        class_weight: str | None = _S.class_weight,
+        n_jobs: int = _S.n_jobs,
+        seed: int = _S.seed,
+        active_threshold: float = _S.active_threshold,
         geometry: TaxelGeometry | None = None,
     ):
         self.n_estimators = n_estimators

@@ -3,74 +3,69 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
-from sphri.config import require_choice, require_range, store
+from sphri.config import Schema, setting, store
 
 
 @dataclass
-class SaltPepperNoiseSchema:
+class NoiseSchema(Schema):
+    """Base of the noise group's schemas: range errors name ``noise.<field>``; a plugin's YAML may opt
+    into it (``defaults: [/schema_noise_base@_here_, _self_]``)."""
+
+    GROUP: ClassVar[str] = "noise"
+    _target_: str = "???"
+
+
+@dataclass
+class SaltPepperNoiseSchema(NoiseSchema):
     """Salt-and-pepper: independent per-taxel read errors; with probability p per taxel and frame a
     reading is replaced by 1 (salt) or 0 (pepper). An untouched skin of N taxels shows on average
     ``p * salt_vs_pepper * N`` false taxels per frame in replace mode (``p * N`` in flip mode)."""
 
     _target_: str = "sphri.noise.components.SaltPepperNoise"
-    p: float = 0.02
+    p: float = setting(0.02, lo=0.0, hi=1.0)
     """Probability that a taxel reading is corrupted, per taxel and per frame (paper: 0.02; applied to
     every slot of the model's window, padded slots included)."""
-    mode: str = "replace"
+    mode: str = setting("replace", choices=("replace", "flip"))
     """replace: set to a random 0/1 (half the corruptions leave a reading as it was); flip: invert it."""
-    salt_vs_pepper: float = 0.5
+    salt_vs_pepper: float = setting(0.5, lo=0.0, hi=1.0)
     """replace mode: probability that a corrupted reading becomes 1."""
-
-    def __post_init__(self) -> None:
-        require_range("noise.p", self.p, lo=0.0, hi=1.0)
-        require_choice("noise.mode", self.mode, ("replace", "flip"))
-        require_range("noise.salt_vs_pepper", self.salt_vs_pepper, lo=0.0, hi=1.0)
 
 
 @dataclass
-class GaussianNoiseSchema:
+class GaussianNoiseSchema(NoiseSchema):
     """Analogue read noise: additive N(0, sigma^2) per taxel and frame, clipped to [0, 1] (float32 readings)."""
 
     _target_: str = "sphri.noise.components.GaussianNoise"
-    sigma: float = 0.05
+    sigma: float = setting(0.05, lo=0.0, hi=10.0)
     """Standard deviation of the added noise (reading units, 1 = full scale)."""
-
-    def __post_init__(self) -> None:
-        require_range("noise.sigma", self.sigma, lo=0.0, hi=10.0)
 
 
 @dataclass
-class DeadTaxelsNoiseSchema:
+class DeadTaxelsNoiseSchema(NoiseSchema):
     """Broken taxels: a fixed fraction of the N taxels always reads ``value`` (same sensor in every trial);
     stuck-on taxels (value 1) are ``round(fraction * N)`` false taxels in every frame."""
 
     _target_: str = "sphri.noise.components.DeadTaxelsNoise"
-    fraction: float = 0.05
+    fraction: float = setting(0.05, lo=0.0, hi=1.0)
     """Fraction of the N taxels that are dead (round(fraction * N) of them, chosen by seed only)."""
-    value: float = 0.0
+    value: float = setting(0.0, lo=0.0, hi=1.0)
     """What a dead taxel reads (0 = silent, 1 = stuck on)."""
-
-    def __post_init__(self) -> None:
-        require_range("noise.fraction", self.fraction, lo=0.0, hi=1.0)
-        require_range("noise.value", self.value, lo=0.0, hi=1.0)
 
 
 @dataclass
-class CrosstalkNoiseSchema:
+class CrosstalkNoiseSchema(NoiseSchema):
     """Crosstalk: neighbour coupling; ``alpha`` of each reading appears on each neighbouring taxel
     (float32). Nothing appears on an untouched skin (0 false taxels per frame at any N)."""
 
     _target_: str = "sphri.noise.components.CrosstalkNoise"
-    alpha: float = 0.1
+    alpha: float = setting(0.1, lo=0.0, hi=1.0)
     """Coupling coefficient: fraction (0-1) of a taxel's reading added to each neighbour (result clipped to [0, 1])."""
-
-    def __post_init__(self) -> None:
-        require_range("noise.alpha", self.alpha, lo=0.0, hi=1.0)
 
 
 @dataclass
-class NoNoiseSchema:
+class NoNoiseSchema(NoiseSchema):
     """No noise: readings pass through unchanged."""
 
     _target_: str = "sphri.noise.components.NoNoise"

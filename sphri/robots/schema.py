@@ -16,11 +16,21 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from omegaconf import MISSING
 
-from sphri.config import ConfigError, close_match, cross_check, require, require_choice, require_range, store
+from sphri.config import (
+    ConfigError,
+    Schema,
+    close_match,
+    cross_check,
+    require,
+    require_choice,
+    require_range,
+    setting,
+    store,
+)
 from sphri.inputs import input_path
 
 #: Long-axis names of parametric links.
@@ -115,6 +125,14 @@ def check_regions(regions: Mapping[str, str], links: list[str], key: str = "robo
 
 
 @dataclass
+class RobotSchema(Schema):
+    """Base of the robot group's schemas: range errors name ``robot.<field>``."""
+
+    GROUP: ClassVar[str] = "robot"
+    _target_: str = "???"
+
+
+@dataclass
 class ParametricLinkSpec:
     """A link built by sphri: a loft of superellipse cross-sections along one axis.
 
@@ -138,7 +156,7 @@ class ParametricLinkSpec:
 
 
 @dataclass
-class ParametricRobotSchema:
+class ParametricRobotSchema(RobotSchema):
     """A built-in morphology from dimensions (no files)."""
 
     _target_: str = "sphri.robots.parametric.ParametricRobot"
@@ -146,15 +164,15 @@ class ParametricRobotSchema:
     links: dict[str, ParametricLinkSpec] = field(default_factory=dict)
     regions: dict[str, str] = field(default_factory=dict)
 
-    def __post_init__(self) -> None:
-        require(len(self.links) > 0, "robot.links", {}, "at least one link")
+    def check(self) -> None:
+        require(len(self.links) > 0, self.key("links"), {}, "at least one link")
         for name, spec in self.links.items():
             check_parametric_link(spec, f"robot.links.{name}")
         check_regions(self.regions, list(self.links))
 
 
 @dataclass
-class MeshRobotSchema:
+class MeshRobotSchema(RobotSchema):
     """A robot from mesh files, one per link (obj, stl, ply, dae, ...)."""
 
     _target_: str = "sphri.robots.mesh.MeshRobot"
@@ -170,25 +188,24 @@ class MeshRobotSchema:
     """Folder that relative paths start from (None: the working directory)."""
     root_required: bool = False
     """Refuse to build when ``root`` is None (robots whose meshes come with a dataset)."""
-    units: str = "auto"
+    units: str = setting("auto", choices=UNITS)
     """Mesh units: auto (mm when the main connected part of a link is larger than 5 m), m or mm."""
 
-    def __post_init__(self) -> None:
-        links = check_str_map(self.links, "robot.links", "link name -> mesh file")
-        require(len(links) > 0, "robot.links", {}, "at least one link: {name: path}")
-        check_regions(check_str_map(self.regions, "robot.regions", "skin region -> link"), list(links))
-        require_choice("robot.units", self.units, UNITS)
+    def check(self) -> None:
+        links = check_str_map(self.links, self.key("links"), "link name -> mesh file")
+        require(len(links) > 0, self.key("links"), {}, "at least one link: {name: path}")
+        check_regions(check_str_map(self.regions, self.key("regions"), "skin region -> link"), list(links))
 
 
 @dataclass
-class UrdfRobotSchema:
+class UrdfRobotSchema(RobotSchema):
     """A robot from a URDF file: chosen links as a plain robot, or with ``parts`` a whole kinematic robot."""
 
     _target_: str = "sphri.robots.urdf.UrdfRobot"
     name: str = "urdf"
     path: str | None = input_path(None, references="sphri.robots.urdf:mesh_files")
     """The URDF file; ``package://`` mesh URIs resolve relative to its folder (or ``mesh_root``)."""
-    builtin: str | None = None
+    builtin: str | None = setting(None, choices=list(BUILTIN), optional=True)
     """A description that ships inside sphri instead of ``path``: reachy2 (robot=reachy2)."""
     links: Any = None
     """URDF links to load (each mesh in that link's own frame); with ``parts``: null loads every link that loads."""
@@ -201,7 +218,7 @@ class UrdfRobotSchema:
     """Joint name -> angle (radians; metres for prismatic joints), others 0; used only by ``merge`` (plain robot)."""
     merge: Any = None
     """Link -> descendant links whose geometry joins it, placed at ``joints`` (plain) or the rest pose (``parts``)."""
-    units: str = "auto"
+    units: str = setting("auto", choices=UNITS)
     """Mesh units after the URDF's own scale: auto, m or mm."""
     parts: Any = input_path(None)
     """Whole-body robot: body part -> {link, side, z_min, z_max, min_cos}, or a YAML file holding
@@ -215,37 +232,37 @@ class UrdfRobotSchema:
     mesh_root: str | None = input_path(None, kind="dir")
     """Folder that mesh URIs resolve against (null: the URDF's folder)."""
 
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         require(
             self.path not in (None, "") or self.builtin is not None,
-            "robot.path",
+            self.key("path"),
             self.path,
             "the URDF file (or robot.builtin=reachy2)",
         )
-        if self.builtin is not None:
-            require_choice("robot.builtin", self.builtin, list(BUILTIN))
-        require_choice("robot.units", self.units, UNITS)
         if self.parts is not None:
-            require_choice("robot.geometry", self.geometry, GEOMETRIES + ("auto",))
+            require_choice(self.key("geometry"), self.geometry, GEOMETRIES + ("auto",))
             require(
                 self.regions is None,
-                "robot.regions",
+                self.key("regions"),
                 self.regions,
                 "null for a whole-body robot (regions come from robot.parts)",
             )
             require(
-                self.links is None or len(self.links) > 0, "robot.links", self.links, "null (every link) or link names"
+                self.links is None or len(self.links) > 0,
+                self.key("links"),
+                self.links,
+                "null (every link) or link names",
             )
             return
         require(
             self.links is not None and len(self.links) > 0,
-            "robot.links",
+            self.key("links"),
             self.links,
             "at least one URDF link name (or robot.parts for a whole-body robot)",
         )
-        require(len(set(self.links)) == len(self.links), "robot.links", list(self.links), "names must be unique")
-        check_regions(check_str_map(self.regions, "robot.regions", "skin region -> link"), list(self.links))
-        require_choice("robot.geometry", self.geometry, GEOMETRIES)
+        require(len(set(self.links)) == len(self.links), self.key("links"), list(self.links), "names must be unique")
+        check_regions(check_str_map(self.regions, self.key("regions"), "skin region -> link"), list(self.links))
+        require_choice(self.key("geometry"), self.geometry, GEOMETRIES)
         check_joints(self.joints)
         check_merge(self.merge, list(self.links))
 
@@ -452,7 +469,7 @@ def check_kinematic(links: Mapping[str, Any], parts: Any, groups: Any = None, re
 
 
 @dataclass
-class KinematicRobotSchema:
+class KinematicRobotSchema(RobotSchema):
     """A whole robot: a kinematic tree of parametric links with named body parts (no files)."""
 
     _target_: str = "sphri.robots.kinematic.KinematicRobot"
@@ -466,7 +483,7 @@ class KinematicRobotSchema:
     rest: Any = None
     """Joint name -> angle (radians) of the rest pose; other joints 0."""
 
-    def __post_init__(self) -> None:
+    def check(self) -> None:
         check_kinematic(self.links or {}, self.parts, self.groups, self.rest)
 
 

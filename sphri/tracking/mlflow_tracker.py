@@ -35,6 +35,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from sphri import __version__
+from sphri.encode.schema import grid_res
 from sphri.stages import PARAM_GROUPS  # groups whose component and scalar settings become params
 from sphri.tracking import machine
 
@@ -539,14 +540,14 @@ class MlflowTracker:
             robot = str(cfg.robot.get("name") or component_name(cfg.robot, (choices or {}).get("robot")))
             regions = list(cfg.data.get("regions") or [])
             model = component_name(cfg.model, (choices or {}).get("model"))
-            return f"{robot}-{regions[0] if regions else 'all'}-res{cfg.encoder.res}-{model} (failed)"
+            return f"{robot}-{regions[0] if regions else 'all'}-res{grid_res(cfg, check=False)}-{model} (failed)"
         except Exception:  # a config too broken to name: still a recognisable failed run
             return "job (failed)"
 
     @staticmethod
     def _run_name(cfg: DictConfig, meta: RunMeta, choices: dict[str, str] | None) -> str:
         model = component_name(cfg.model, (choices or {}).get("model"))
-        return f"{meta.robot}-{meta.region}-res{cfg.encoder.res}-{model}"
+        return f"{meta.robot}-{meta.region}-res{grid_res(cfg)}-{model}"
 
     def _log_artifacts(self, client: MlflowClient, run_id: str, cfg: DictConfig, result: RunResult) -> None:
         from omegaconf import OmegaConf
@@ -569,7 +570,7 @@ class MlflowTracker:
                     formats=("png",),
                     check=False,
                     title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
-                    provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {cfg.encoder.res}"),
+                    provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {grid_res(cfg)}"),
                 )
             (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
             (tmp_path / "meta.json").write_text(json.dumps(dataclasses.asdict(result.meta), indent=2, default=str))

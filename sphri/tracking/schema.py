@@ -3,12 +3,22 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
-from sphri.config import require, store
+from sphri.config import Schema, require, store
 
 
 @dataclass
-class MlflowTrackingConfig:
+class TrackingSchema(Schema):
+    """Base of the tracking group's schemas: range errors name ``tracking.<field>``; a plugin's YAML may opt
+    into it (``defaults: [/schema_tracking_base@_here_, _self_]``)."""
+
+    GROUP: ClassVar[str] = "tracking"
+    _target_: str = "???"
+
+
+@dataclass
+class MlflowTrackingConfig(TrackingSchema):
     _target_: str = "sphri.tracking.mlflow_tracker.MlflowTracker"
     enabled: bool = True
     """Log each job to MLflow (false: run without tracking)."""
@@ -33,19 +43,19 @@ class MlflowTrackingConfig:
     register_model: str | None = None
     """Also register that model under this name in the MLflow model registry (``models:/<name>/<version>``)."""
 
-    def __post_init__(self) -> None:
-        require(bool(self.experiment.strip()), "tracking.experiment", self.experiment, "must be a non-empty name")
-        require(self.retries >= 0, "tracking.retries", self.retries, "must be >= 0")
+    def check(self) -> None:
+        require(bool(self.experiment.strip()), self.key("experiment"), self.experiment, "must be a non-empty name")
+        require(self.retries >= 0, self.key("retries"), self.retries, "must be >= 0")
         if self.register_model is not None:
             require(
                 bool(self.register_model.strip()),
-                "tracking.register_model",
+                self.key("register_model"),
                 self.register_model,
                 "must be a non-empty model name (or null)",
             )
             require(
                 self.log_model is not False,
-                "tracking.register_model",
+                self.key("register_model"),
                 self.register_model,
                 "needs tracking.log_model=true (or null)",
             )
@@ -55,7 +65,7 @@ class MlflowTrackingConfig:
             )
             require(
                 ok,
-                "tracking.uri",
+                self.key("uri"),
                 self.uri,
                 "must be an MLflow tracking URI (sqlite:///ABS.db, http://127.0.0.1:PORT, ...)",
             )

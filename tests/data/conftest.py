@@ -7,16 +7,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 from hydra.utils import instantiate
-from omegaconf import OmegaConf
 
-from sphri.config import CONF_DIR
+from sphri.config import component_node
 from sphri.types import Contacts, GestureDataset, Robot
 
 
 def load_component(group: str, name: str, **overrides):
     """Instantiate ``conf/<group>/<name>.yaml`` without composing the whole config."""
-    cfg = OmegaConf.load(CONF_DIR / group / f"{name}.yaml")
-    cfg.pop("defaults", None)
+    cfg = component_node(group, name)
     for k, v in overrides.items():
         cfg[k] = v
     return instantiate(cfg, _convert_="all")

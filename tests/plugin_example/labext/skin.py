@@ -12,9 +12,6 @@ class NearestTaxelEncoder:
 
     VERSION = "1"
 
-    def __init__(self, res: int = 18):
-        self.res = res
-
     def encode(self, contacts, link, surface, layout, frame_index):
         fi = check_frame_index(contacts, frame_index, "encoder=nearest")
         rows, start = select_rows(contacts, fi)
