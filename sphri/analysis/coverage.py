@@ -216,6 +216,8 @@ class CoverageAnalysis:
         kernel = kernel if kernel is not None else SurfaceKernel(samples, self.bandwidth_mm, self.kernel)
         t1 = time.perf_counter()
         if touched is None:
+            if contacts is None:
+                raise ValueError("coverage: analyze needs contacts, or the touched (frame, element) pairs")
             sel = in_region[frame_trial[contacts.frame]]
             frames, elements = touched_elements(
                 samples,
@@ -332,11 +334,11 @@ class CoverageAnalysis:
             el = np.concatenate([elements[order[starts[t] : starts[t + 1]]] for t in tr])
             return np.bincount(el, minlength=s.n).astype(float)
 
-        members: dict[tuple[str, str], np.ndarray] = {}
+        member_lists: dict[tuple[str, str], list[np.integer]] = {}
         for t in np.flatnonzero(in_region & has):
-            members.setdefault((units[t], labels[t]), []).append(t)
-        members = {k: np.asarray(v) for k, v in members.items()}
-        cache: dict[tuple[str, str, int], np.ndarray] = {}
+            member_lists.setdefault((units[t], labels[t]), []).append(t)
+        members = {k: np.asarray(v) for k, v in member_lists.items()}
+        cache: dict[tuple[str, str, int, int], np.ndarray] = {}
 
         def half_masses(unit: str, cond: str, k: int, r: int) -> np.ndarray:
             key = (unit, cond, k, r)
@@ -397,7 +399,8 @@ def write_density_npz(result: RegionCoverage, group: str, path: str | Path) -> P
     if result.uv is not None:
         arrays["uv"] = result.uv
     path = Path(path)
-    np.savez_compressed(path, **arrays)
+    # the stub's allow_pickle: bool keyword takes the **arrays (whose names are fixed above)
+    np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
     return path
 
 
@@ -441,7 +444,7 @@ def write_region(
             label = f"{title}: {result.by} = {human(n)}" if n != ALL else f"{title}: all trials"
             paths.append(view.render(dens, out / f"map_{safe_name(n)}.png", label, views=views, provenance=provenance))
             paths.append(view.write_ply(dens, out / f"map_{safe_name(n)}.ply"))
-            if grid is not None:
+            if grid is not None and surface is not None:  # grid is built only from a surface
                 paths.append(
                     rd.render_uv(
                         surface,

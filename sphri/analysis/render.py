@@ -168,7 +168,12 @@ class LinkView:
         # without antialiasing, so neighbouring faces meet without seams and need no stroked edges (half the time)
         ax.add_collection(
             PolyCollection(
-                xy, facecolors=colours[keep], edgecolors="none", linewidths=0.0, antialiased=False, rasterized=True
+                xy,  # type: ignore[arg-type]  # the stub wants a Sequence; matplotlib takes a (K, 3, 2) array as is
+                facecolors=colours[keep],
+                edgecolors="none",
+                linewidths=0.0,
+                antialiased=False,
+                rasterized=True,
             )
         )
         span_x = np.abs(self.display[:, :2]).max() * 1.05
@@ -318,11 +323,11 @@ def plot_overview(
     """One row per group: ``views`` views (and the (u, v) map with a chart), all on one colour scale
     (the rows are compared) with one colour bar -> ``path`` (+ PDF, SVG)."""
     names = list(densities)
-    with_uv = surface is not None and surface.has_uv and samples is not None
-    cols = views + (1 if with_uv else 0)
+    uv: tuple[dict, SurfaceMap] | None = None  # (grid, surface) of the (u, v) column
+    if surface is not None and surface.has_uv and samples is not None:
+        uv = (grid if grid is not None else uv_grid(surface, samples), surface)
+    cols = views + (1 if uv is not None else 0)
     azims = view.azimuths(views)
-    if with_uv and grid is None:
-        grid = uv_grid(surface, samples)
     vmax = _vmax(list(densities.values()))
     with figures.style():
         fig, axes = figures.new_figure(
@@ -339,9 +344,9 @@ def plot_overview(
                     ax.text(
                         -0.04, 0.5, figures.human(name), transform=ax.transAxes, rotation=90, va="center", ha="right"
                     )
-            if with_uv:
+            if uv is not None:
                 ax = axes[r, cols - 1]
-                draw_uv(ax, grid, surface, d, vmax, labels=False)
+                draw_uv(ax, uv[0], uv[1], d, vmax, labels=False)
                 ax.tick_params(labelsize=figures.MIN_FONT_PT)
                 if r == 0:
                     ax.set_title("unwrapped (cm)")

@@ -150,6 +150,9 @@ class SaltPepperNoise(Configured):
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     SCHEMA = SaltPepperNoiseSchema
+    p: float  # these three set from SCHEMA by Configured
+    mode: str
+    salt_vs_pepper: float
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Noisy copy of ``frames`` (M, N), same dtype."""
@@ -169,6 +172,7 @@ class GaussianNoise(Configured):
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     SCHEMA = GaussianNoiseSchema
+    sigma: float  # set from SCHEMA by Configured
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Noisy float32 copy of ``frames``."""
@@ -193,6 +197,8 @@ class DeadTaxelsNoise(Configured):
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     SCHEMA = DeadTaxelsNoiseSchema
+    fraction: float  # these two set from SCHEMA by Configured
+    value: float
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Copy of ``frames`` with the dead taxels' columns set to ``value``."""
@@ -230,6 +236,7 @@ class CrosstalkNoise(Configured):
     VERSION = "3"
 
     SCHEMA = CrosstalkNoiseSchema
+    alpha: float  # set from SCHEMA by Configured
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """``clip(x + alpha * sum over neighbours, 0, 1)`` as float32 (deterministic)."""

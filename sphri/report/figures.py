@@ -301,7 +301,9 @@ def plot_bootstrap(report: SweepReport, path: Path, marks: bool | None = None) -
         union = sorted({int(r) for g in groups for r in g.points["res"]})
         where = {r: k for k, r in enumerate(union)}
         for i, g in enumerate(groups):
-            counts = np.bincount(g.sat.boot_index, minlength=len(g.points)) / len(g.sat.boot_index)
+            boot = g.sat.boot_index
+            assert boot is not None  # groups without one are left out above
+            counts = np.bincount(boot, minlength=len(g.points)) / len(boot)
             pos = np.array([where[int(r)] for r in g.points["res"]]) + (i - (len(groups) - 1) / 2) * width
             ax.bar(pos, counts, width=width, color=colors(report.groups.index(g) % 10), label=g.label)
         step = max(1, int(np.ceil(len(union) / 20)))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -40,7 +41,7 @@ def write_confusion_png(
     path: Path,
     title: str | None = None,
     provenance=None,
-    formats: tuple[str, ...] = ("png",),
+    formats: Sequence[str] = ("png",),
     check: bool = True,
 ) -> Path:
     """Row-normalised confusion matrix summed over folds, one column wide (``sphri.figures``).
@@ -65,7 +66,7 @@ def draw_confusion(
     path: Path,
     title: str,
     provenance=None,
-    formats: tuple[str, ...] = ("png",),
+    formats: Sequence[str] = ("png",),
     check: bool = True,
 ) -> Path:
     """Row-normalised confusion matrix of the counts ``total`` (rows: true) -> ``path`` (and ``formats`` beside it)."""
