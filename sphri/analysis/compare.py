@@ -179,7 +179,7 @@ def paired_swd_tests(
     keep: list[object] = []
     jobs: dict[tuple, int] = {}
 
-    def job(key, x, y) -> int:
+    def job(key: tuple, x: np.ndarray, y: np.ndarray) -> int:
         if key not in jobs:
             jobs[key] = len(wa_all)
             wa_all.append(x)

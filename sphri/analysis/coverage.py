@@ -22,7 +22,7 @@ import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -39,6 +39,9 @@ from sphri.analysis.schema import CoverageSchema
 from sphri.analysis.swd import SharedSupportSW
 from sphri.surface.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
 from sphri.types import GESTURES, Contacts, GestureDataset, Link, SurfaceMap
+
+if TYPE_CHECKING:
+    from sphri.figures import Provenance
 
 log = logging.getLogger(__name__)
 
@@ -349,7 +352,7 @@ class CoverageAnalysis:
                 cache[key] = rho * s.area_m2
             return cache[key]
 
-        def halves(unit: str, a: str, b: str):
+        def halves(unit: str, a: str, b: str) -> list[tuple[np.ndarray, np.ndarray]] | None:
             """Every trial enters: one split per rotation of the trial order when 2 k leaves trials out."""
             if (unit, a) not in members or (unit, b) not in members:
                 return None
@@ -411,7 +414,7 @@ def write_region(
     surface: SurfaceMap | None,
     render: bool = True,
     views: int = 4,
-    provenance=None,
+    provenance: Provenance | None = None,
 ) -> list[Path]:
     """Write a region's files under ``out_dir``; returns their paths."""
     out = Path(out_dir)

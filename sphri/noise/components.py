@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from typing import Protocol
 
 import numpy as np
 from numba import njit, prange
@@ -261,7 +262,13 @@ class NoNoise(Configured):
         return _like(frames, v)
 
 
-def apply_to_windows(noise, windows: WindowedFrames, trial_key: np.ndarray, seed: int) -> WindowedFrames:
+class NoiseModel(Protocol):
+    """What a ``noise`` component implements (``sphri.stages``: the group's method ``apply``)."""
+
+    def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames: ...
+
+
+def apply_to_windows(noise: NoiseModel, windows: WindowedFrames, trial_key: np.ndarray, seed: int) -> WindowedFrames:
     """``noise`` applied to the windows as the model sees them: every slot, padded slots included.
 
     ``windows.x`` (T, L, N) is read as T * L frames whose ``frame_index`` is

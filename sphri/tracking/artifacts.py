@@ -4,10 +4,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sphri.types import CVResult
+
+if TYPE_CHECKING:
+    from sphri.figures import Provenance
 
 
 def write_fold_csv(cv: CVResult, path: Path) -> Path:
@@ -40,7 +44,7 @@ def write_confusion_png(
     cv: CVResult,
     path: Path,
     title: str | None = None,
-    provenance=None,
+    provenance: Provenance | None = None,
     formats: Sequence[str] = ("png",),
     check: bool = True,
 ) -> Path:
@@ -65,7 +69,7 @@ def draw_confusion(
     labels: list[str],
     path: Path,
     title: str,
-    provenance=None,
+    provenance: Provenance | None = None,
     formats: Sequence[str] = ("png",),
     check: bool = True,
 ) -> Path:
