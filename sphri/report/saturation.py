@@ -59,7 +59,9 @@ best point and the rule.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -262,7 +264,14 @@ def saturation(
 
 
 def _bootstrap(
-    s: np.ndarray, index: int, best_index: int, n_boot: int, ci: float, seed: int, notes: list[str], select
+    s: np.ndarray,
+    index: int,
+    best_index: int,
+    n_boot: int,
+    ci: float,
+    seed: int,
+    notes: list[str],
+    select: Callable[[np.ndarray], np.ndarray],
 ) -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
     """Participant bootstrap of a rule: ``select`` maps (B, P, R) resamples to (B,) selected indices.
 
@@ -310,7 +319,7 @@ def _bootstrap_intervals(
 class _quiet:
     """Silence numpy's 'Mean of empty slice' warnings inside a block."""
 
-    def __enter__(self):
+    def __enter__(self) -> _quiet:
         import warnings
 
         self._w = warnings.catch_warnings()
@@ -318,7 +327,7 @@ class _quiet:
         warnings.simplefilter("ignore", RuntimeWarning)
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: Any) -> None:
         return self._w.__exit__(*exc)
 
 
