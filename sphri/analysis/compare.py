@@ -125,7 +125,7 @@ class PairwiseComparison:
         return paths
 
 
-def split_halves(ordinals: Sequence[int], k: int) -> tuple[np.ndarray, np.ndarray]:
+def split_halves(ordinals: Sequence[int] | np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
     """Positions (into ``ordinals``) of two alternating halves of ``k`` trials each.
 
     Trials are ordered by ``ordinals`` (ties by position); the first ``2 k``
@@ -138,7 +138,7 @@ def split_halves(ordinals: Sequence[int], k: int) -> tuple[np.ndarray, np.ndarra
     return pos[0::2], pos[1::2]
 
 
-def rotated_halves(ordinals: Sequence[int], k: int, r: int) -> tuple[np.ndarray, np.ndarray]:
+def rotated_halves(ordinals: Sequence[int] | np.ndarray, k: int, r: int) -> tuple[np.ndarray, np.ndarray]:
     """:func:`split_halves` of the trial order rotated by ``r`` (``r = 0``: the same): with ``n`` trials,
     the rotations ``0 .. n - 1`` put every trial in some split when ``2 k < n``."""
     o = np.asarray(ordinals)
@@ -174,9 +174,12 @@ def paired_swd_tests(
     if len(conditions) < 2:
         raise ValueError(f"need at least two conditions to compare, got {conditions}")
     # every distance once: a within-condition split (the same cached halves) recurs in each pair it enters
-    wa_all, wb_all, keep, jobs = [], [], [], {}
+    wa_all: list[np.ndarray] = []
+    wb_all: list[np.ndarray] = []
+    keep: list[object] = []
+    jobs: dict[tuple, int] = {}
 
-    def job(key, x, y) -> int:
+    def job(key: tuple, x: np.ndarray, y: np.ndarray) -> int:
         if key not in jobs:
             jobs[key] = len(wa_all)
             wa_all.append(x)

@@ -22,7 +22,7 @@ import re
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
@@ -39,6 +39,9 @@ from sphri.analysis.schema import CoverageSchema
 from sphri.analysis.swd import SharedSupportSW
 from sphri.surface.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
 from sphri.types import GESTURES, Contacts, GestureDataset, Link, SurfaceMap
+
+if TYPE_CHECKING:
+    from sphri.figures import Provenance
 
 log = logging.getLogger(__name__)
 
@@ -216,6 +219,8 @@ class CoverageAnalysis:
         kernel = kernel if kernel is not None else SurfaceKernel(samples, self.bandwidth_mm, self.kernel)
         t1 = time.perf_counter()
         if touched is None:
+            if contacts is None:
+                raise ValueError("coverage: analyze needs contacts, or the touched (frame, element) pairs")
             sel = in_region[frame_trial[contacts.frame]]
             frames, elements = touched_elements(
                 samples,
@@ -332,11 +337,11 @@ class CoverageAnalysis:
             el = np.concatenate([elements[order[starts[t] : starts[t + 1]]] for t in tr])
             return np.bincount(el, minlength=s.n).astype(float)
 
-        members: dict[tuple[str, str], np.ndarray] = {}
+        member_lists: dict[tuple[str, str], list[np.integer]] = {}
         for t in np.flatnonzero(in_region & has):
-            members.setdefault((units[t], labels[t]), []).append(t)
-        members = {k: np.asarray(v) for k, v in members.items()}
-        cache: dict[tuple[str, str, int], np.ndarray] = {}
+            member_lists.setdefault((units[t], labels[t]), []).append(t)
+        members = {k: np.asarray(v) for k, v in member_lists.items()}
+        cache: dict[tuple[str, str, int, int], np.ndarray] = {}
 
         def half_masses(unit: str, cond: str, k: int, r: int) -> np.ndarray:
             key = (unit, cond, k, r)
@@ -347,7 +352,7 @@ class CoverageAnalysis:
                 cache[key] = rho * s.area_m2
             return cache[key]
 
-        def halves(unit: str, a: str, b: str):
+        def halves(unit: str, a: str, b: str) -> list[tuple[np.ndarray, np.ndarray]] | None:
             """Every trial enters: one split per rotation of the trial order when 2 k leaves trials out."""
             if (unit, a) not in members or (unit, b) not in members:
                 return None
@@ -397,7 +402,8 @@ def write_density_npz(result: RegionCoverage, group: str, path: str | Path) -> P
     if result.uv is not None:
         arrays["uv"] = result.uv
     path = Path(path)
-    np.savez_compressed(path, **arrays)
+    # the stub's allow_pickle: bool keyword takes the **arrays (whose names are fixed above)
+    np.savez_compressed(path, **arrays)  # type: ignore[arg-type]
     return path
 
 
@@ -408,7 +414,7 @@ def write_region(
     surface: SurfaceMap | None,
     render: bool = True,
     views: int = 4,
-    provenance=None,
+    provenance: Provenance | None = None,
 ) -> list[Path]:
     """Write a region's files under ``out_dir``; returns their paths."""
     out = Path(out_dir)
@@ -441,7 +447,7 @@ def write_region(
             label = f"{title}: {result.by} = {human(n)}" if n != ALL else f"{title}: all trials"
             paths.append(view.render(dens, out / f"map_{safe_name(n)}.png", label, views=views, provenance=provenance))
             paths.append(view.write_ply(dens, out / f"map_{safe_name(n)}.ply"))
-            if grid is not None:
+            if grid is not None and surface is not None:  # grid is built only from a surface
                 paths.append(
                     rd.render_uv(
                         surface,

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -31,6 +32,11 @@ from sphri.analysis.compare import PairwiseComparison  # noqa: E402
 from sphri.analysis.placement import CoverageCurve  # noqa: E402
 from sphri.surface.density import SurfaceSamples  # noqa: E402
 from sphri.types import Link, SurfaceMap  # noqa: E402
+
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+    from matplotlib.image import AxesImage
 
 #: density (1/m^2) -> % of contact per cm^2
 PERCENT_PER_CM2 = 0.01
@@ -145,7 +151,7 @@ class LinkView:
         """Link-frame axis the camera looks from, e.g. ``+x``."""
         return _direction_name(self.rotation.T @ self._eye(azim_deg, elev_deg)[0])
 
-    def draw(self, ax, density: np.ndarray, azim_deg: float, vmax: float, elev_deg: float = 12.0) -> None:
+    def draw(self, ax: Axes, density: np.ndarray, azim_deg: float, vmax: float, elev_deg: float = 12.0) -> None:
         """Orthographic view from ``azim_deg`` around the long axis (vertical) on a 2-D axis.
 
         Back faces are culled and the rest painted far to near, faces
@@ -168,7 +174,12 @@ class LinkView:
         # without antialiasing, so neighbouring faces meet without seams and need no stroked edges (half the time)
         ax.add_collection(
             PolyCollection(
-                xy, facecolors=colours[keep], edgecolors="none", linewidths=0.0, antialiased=False, rasterized=True
+                xy,  # type: ignore[arg-type]  # the stub wants a Sequence; matplotlib takes a (K, 3, 2) array as is
+                facecolors=colours[keep],
+                edgecolors="none",
+                linewidths=0.0,
+                antialiased=False,
+                rasterized=True,
             )
         )
         span_x = np.abs(self.display[:, :2]).max() * 1.05
@@ -238,7 +249,7 @@ def _vmax(densities: Sequence[np.ndarray]) -> float:
     return v if v > 0 else float(vals.max(initial=0.0)) or 1.0
 
 
-def _colourbar(fig, vmax: float, ax=None, cax=None) -> None:
+def _colourbar(fig: Figure, vmax: float, ax: Axes | np.ndarray | None = None, cax: Axes | None = None) -> None:
     sm = plt.cm.ScalarMappable(cmap=CMAP, norm=plt.Normalize(0, vmax))
     if cax is not None:
         cb = fig.colorbar(sm, cax=cax)
@@ -267,7 +278,9 @@ def uv_grid(surface: SurfaceMap, samples: SurfaceSamples, n_u: int = 120) -> dic
     return {"idx": idx, "w": w, "valid": valid.reshape(n_u, n_v), "shape": (n_u, n_v)}
 
 
-def draw_uv(ax, grid: dict, surface: SurfaceMap, density: np.ndarray, vmax: float, labels: bool = True):
+def draw_uv(
+    ax: Axes, grid: dict, surface: SurfaceMap, density: np.ndarray, vmax: float, labels: bool = True
+) -> AxesImage:
     img = np.einsum("kj,kj->k", np.asarray(density)[grid["idx"]], grid["w"]).reshape(grid["shape"]) * PERCENT_PER_CM2
     img = np.where(grid["valid"], img, np.nan)
     extent = (0.0, surface.metres_per_v * 100, 0.0, surface.metres_per_u * 100)
@@ -318,11 +331,11 @@ def plot_overview(
     """One row per group: ``views`` views (and the (u, v) map with a chart), all on one colour scale
     (the rows are compared) with one colour bar -> ``path`` (+ PDF, SVG)."""
     names = list(densities)
-    with_uv = surface is not None and surface.has_uv and samples is not None
-    cols = views + (1 if with_uv else 0)
+    uv: tuple[dict, SurfaceMap] | None = None  # (grid, surface) of the (u, v) column
+    if surface is not None and surface.has_uv and samples is not None:
+        uv = (grid if grid is not None else uv_grid(surface, samples), surface)
+    cols = views + (1 if uv is not None else 0)
     azims = view.azimuths(views)
-    if with_uv and grid is None:
-        grid = uv_grid(surface, samples)
     vmax = _vmax(list(densities.values()))
     with figures.style():
         fig, axes = figures.new_figure(
@@ -339,9 +352,9 @@ def plot_overview(
                     ax.text(
                         -0.04, 0.5, figures.human(name), transform=ax.transAxes, rotation=90, va="center", ha="right"
                     )
-            if with_uv:
+            if uv is not None:
                 ax = axes[r, cols - 1]
-                draw_uv(ax, grid, surface, d, vmax, labels=False)
+                draw_uv(ax, uv[0], uv[1], d, vmax, labels=False)
                 ax.tick_params(labelsize=figures.MIN_FONT_PT)
                 if r == 0:
                     ax.set_title("unwrapped (cm)")

@@ -102,7 +102,8 @@ def _encode(value: Any, meta: dict[str, Any], key: bytes | None = None) -> bytes
         raise EncodeError(f"array name {META} is reserved")
     doc = json.dumps({**meta, "value": tree}, separators=(",", ":")).encode()
     buf = io.BytesIO()
-    np.savez(buf, **arrays, **{META: np.frombuffer(doc, dtype=np.uint8)})
+    # the stub's allow_pickle: bool keyword takes the **arrays (named a0, a1, ... and META)
+    np.savez(buf, **arrays, **{META: np.frombuffer(doc, dtype=np.uint8)})  # type: ignore[arg-type]
     return seal(buf.getvalue(), key)
 
 

@@ -98,6 +98,7 @@ class _CausalFilter(Configured):
     VERSION = "1"
     HOW = ""
     NAME = ""
+    frames: int  # set from SCHEMA by Configured
 
     def apply(self, windows: WindowedFrames) -> WindowedFrames:
         x = _check(windows, f"filter={self.NAME}")
@@ -146,6 +147,9 @@ class DespeckleFilter(Configured):
 
     VERSION = "1"
     SCHEMA = DespeckleFilterSchema
+    min_area_mm2: float  # these three set from SCHEMA by Configured
+    diagonal: bool
+    active_threshold: float
 
     def apply(self, windows: WindowedFrames) -> WindowedFrames:
         who = "filter=despeckle"

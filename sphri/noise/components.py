@@ -45,6 +45,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from typing import Protocol
 
 import numpy as np
 from numba import njit, prange
@@ -150,6 +151,9 @@ class SaltPepperNoise(Configured):
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     SCHEMA = SaltPepperNoiseSchema
+    p: float  # these three set from SCHEMA by Configured
+    mode: str
+    salt_vs_pepper: float
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Noisy copy of ``frames`` (M, N), same dtype."""
@@ -169,6 +173,7 @@ class GaussianNoise(Configured):
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     SCHEMA = GaussianNoiseSchema
+    sigma: float  # set from SCHEMA by Configured
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Noisy float32 copy of ``frames``."""
@@ -193,6 +198,8 @@ class DeadTaxelsNoise(Configured):
     VERSION = "2"  # 2: applied to the assembled windows, padded slots included
 
     SCHEMA = DeadTaxelsNoiseSchema
+    fraction: float  # these two set from SCHEMA by Configured
+    value: float
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Copy of ``frames`` with the dead taxels' columns set to ``value``."""
@@ -230,6 +237,7 @@ class CrosstalkNoise(Configured):
     VERSION = "3"
 
     SCHEMA = CrosstalkNoiseSchema
+    alpha: float  # set from SCHEMA by Configured
 
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """``clip(x + alpha * sum over neighbours, 0, 1)`` as float32 (deterministic)."""
@@ -254,7 +262,13 @@ class NoNoise(Configured):
         return _like(frames, v)
 
 
-def apply_to_windows(noise, windows: WindowedFrames, trial_key: np.ndarray, seed: int) -> WindowedFrames:
+class NoiseModel(Protocol):
+    """What a ``noise`` component implements (``sphri.stages``: the group's method ``apply``)."""
+
+    def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames: ...
+
+
+def apply_to_windows(noise: NoiseModel, windows: WindowedFrames, trial_key: np.ndarray, seed: int) -> WindowedFrames:
     """``noise`` applied to the windows as the model sees them: every slot, padded slots included.
 
     ``windows.x`` (T, L, N) is read as T * L frames whose ``frame_index`` is

@@ -311,7 +311,7 @@ def _sensitivity_sentence(ref: GroupReport | None, members: list[GroupReport], r
         )
         return f"The skin needs {head}; between {min(vals)} and {max(vals)} taxels across the {len(members)} assumptions tested."
     pitches = {g.keys.get(VARIANT_KEY, g.label): float(g.recommended["pitch_mm"]) for g in members}
-    lo_v, hi_v = min(pitches, key=pitches.get), max(pitches, key=pitches.get)
+    lo_v, hi_v = min(pitches, key=pitches.__getitem__), max(pitches, key=pitches.__getitem__)
     if ref is not None:
         head = (
             f"A taxel pitch of at most {_fmt_pitch(pitches[ref.keys[VARIANT_KEY]])} mm "
@@ -370,7 +370,7 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     recall_s = {g: _seed_matrix(folds, rows, res, seeds, f"recall_{g}", participants) for g in GESTURES}
     recall = {g: _seed_mean(m) for g, m in recall_s.items()}
 
-    by_tol = [
+    tol_env = [
         (
             t,
             *envelope_saturation(
@@ -379,8 +379,8 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
         )
         for t in rule.parsed()
     ]
-    sat, envelope = next((st, env) for t, st, env in by_tol if t.name == rule.primary_tolerance.name)
-    by_tol = [(t, st) for t, st, _ in by_tol]
+    sat, envelope = next((st, env) for t, st, env in tol_env if t.name == rule.primary_tolerance.name)
+    by_tol = [(t, st) for t, st, _ in tol_env]
     st = sat.stats
     # One row per resolution: the lowest seed's job names the point (its confusion matrix, its geometry).
     first_seed = rows.sort_values("seed", key=lambda c: c.map(_natural_key), kind="stable").drop_duplicates("res")
@@ -410,9 +410,9 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     pts = pts.reset_index(drop=True)
 
     gesture_sat = {}
-    for g, m in recall_s.items():
+    for gest, m in recall_s.items():
         if np.isfinite(m).any():
-            gesture_sat[g] = envelope_saturation(
+            gesture_sat[gest] = envelope_saturation(
                 m, rule.primary_tolerance, n_boot=0, alpha=rule.alpha, noise_floor=rule.noise_floor
             )[0]
 
@@ -483,7 +483,7 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     tol = rule.primary_tolerance.describe()
     if rule.primary_tolerance.n_se is not None:
         tol += f" ({sat.tolerance:.3f} at that point)"
-    elif sat.tolerance > float(rule.primary_tolerance.points) + 1e-12:
+    elif sat.tolerance > rule.primary_tolerance.fixed + 1e-12:
         tol = (
             f"{100 * sat.tolerance:.1f} points of accuracy ({sat.tolerance:.3f}: the measured rerun noise, "
             f"above the {rule.primary_tolerance.describe()} asked for)"
@@ -515,10 +515,10 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
                 f"{100 * sat.gap_interval[1]:.1f})."
             )
     else:
-        iv = sat.interval
+        res_iv = sat.interval
         iv_txt = (
-            f"{rule.ci:.0%} interval encoder.res {g.points['res'].iloc[iv[0]]} to {g.points['res'].iloc[iv[1]]}"
-            if iv is not None
+            f"{rule.ci:.0%} interval encoder.res {g.points['res'].iloc[res_iv[0]]} to {g.points['res'].iloc[res_iv[1]]}"
+            if res_iv is not None
             else "no interval: " + (sat.note or "not computed")
         )
         req = (
@@ -542,7 +542,7 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     if len(g.points) == 1:
         facts = ""
         iv = "No interval: one resolution only."
-    elif g.pitch_interval_mm is not None and g.has_pitch:
+    elif g.pitch_interval_mm is not None and sat.interval is not None and g.has_pitch:  # the first implies the second
         lo, hi = g.pitch_interval_mm
         iv = (
             f"{rule.ci:.0%} bootstrap interval over {sat.n_participants} participants: "

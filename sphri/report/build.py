@@ -18,6 +18,7 @@ import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -189,7 +190,7 @@ def write_report(
     return ReportFiles(out_dir, html_path, text_path, figures, confusions, tables, None)
 
 
-def _plain(x):
+def _plain(x: object) -> Any:
     """JSON-safe copy: numpy scalars and arrays to Python, non-finite floats to None."""
     if isinstance(x, dict):
         return {str(k): _plain(v) for k, v in x.items()}

@@ -20,12 +20,17 @@ the runs did (:class:`sphri.figures.Provenance`; ``marks=false`` turns it off).
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sphri import figures
 from sphri.report.analysis import CHANCE, SweepReport
 from sphri.types import GESTURES
+
+if TYPE_CHECKING:
+    from matplotlib.axis import Axis
+    from matplotlib.figure import Figure
 
 #: The reference study's saturation: 18 taxels along the 24 cm arm.
 STUDY_TAXELS_PER_24CM = 18.0
@@ -36,7 +41,7 @@ def _provenance(report: SweepReport, marks: bool | None) -> figures.Provenance:
     return figures.Provenance(synthetic=report.synthetic != "none", ids=f"sweep {report.sweep.sweep_id}", show=marks)
 
 
-def _finish(fig, report: SweepReport, path: Path, marks: bool | None) -> Path:
+def _finish(fig: Figure, report: SweepReport, path: Path, marks: bool | None) -> Path:
     figures.mark(fig, _provenance(report, marks))
     figures.save(fig, path)
     return path
@@ -89,7 +94,7 @@ def _all(report: SweepReport, col: str) -> np.ndarray:
     return v[np.isfinite(v) & (v > 0)]
 
 
-def _nice_log_ticks(axis, values: np.ndarray) -> None:
+def _nice_log_ticks(axis: Axis, values: np.ndarray) -> None:
     """Plain-number ticks (1, 2, 5 x 10^k) spanning ``values`` on a log axis."""
     from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter
 
@@ -121,7 +126,7 @@ def _interp_extrap(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
     return np.where(x > xp[-1], fp[-1] + (x - xp[-1]) * hi_slope, y)
 
 
-def _count_ticks(axis, pitch: np.ndarray, count: np.ndarray, max_ticks: int = 9) -> None:
+def _count_ticks(axis: Axis, pitch: np.ndarray, count: np.ndarray, max_ticks: int = 9) -> None:
     """Ticks at the sweep's taxel counts, thinned so that labels do not overlap on the log pitch axis."""
     from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter, NullLocator
 
@@ -209,10 +214,10 @@ def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> P
             if cmap is not None:
                 lp, n = np.log(cmap[0]), np.log(cmap[1])
 
-                def to_count(p):
+                def to_count(p: np.ndarray) -> np.ndarray:
                     return np.exp(_interp_extrap(np.log(np.maximum(p, 1e-9)), lp, n))
 
-                def to_pitch(c):
+                def to_pitch(c: np.ndarray) -> np.ndarray:
                     return np.exp(_interp_extrap(-np.log(np.maximum(c, 1e-9)), -n, lp))
 
                 bottom = axes[1].secondary_xaxis(-0.32, functions=(to_count, to_pitch))
@@ -301,7 +306,9 @@ def plot_bootstrap(report: SweepReport, path: Path, marks: bool | None = None) -
         union = sorted({int(r) for g in groups for r in g.points["res"]})
         where = {r: k for k, r in enumerate(union)}
         for i, g in enumerate(groups):
-            counts = np.bincount(g.sat.boot_index, minlength=len(g.points)) / len(g.sat.boot_index)
+            boot = g.sat.boot_index
+            assert boot is not None  # groups without one are left out above
+            counts = np.bincount(boot, minlength=len(g.points)) / len(boot)
             pos = np.array([where[int(r)] for r in g.points["res"]]) + (i - (len(groups) - 1) / 2) * width
             ax.bar(pos, counts, width=width, color=colors(report.groups.index(g) % 10), label=g.label)
         step = max(1, int(np.ceil(len(union) / 20)))

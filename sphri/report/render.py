@@ -11,6 +11,7 @@ the MLflow parent run's description.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -52,13 +53,13 @@ def _facts(report: SweepReport) -> list[str]:
     return out
 
 
-def comparison_rows(report: SweepReport) -> list[dict[str, object]]:
+def comparison_rows(report: SweepReport) -> list[dict[str, Any]]:
     """One row per group: the comparison table's values (also written as CSV/JSON)."""
     rows = []
     for g in report.groups:
         rec, best = g.recommended, g.best
         iv = g.pitch_interval_mm
-        row: dict[str, object] = {"group": g.label, **g.keys}
+        row: dict[str, Any] = {"group": g.label, **g.keys}
         row.update(
             {
                 "robot": g.context["robot"],
@@ -95,7 +96,7 @@ def comparison_rows(report: SweepReport) -> list[dict[str, object]]:
     return rows
 
 
-def tolerance_rows(report: SweepReport) -> list[dict[str, object]]:
+def tolerance_rows(report: SweepReport) -> list[dict[str, Any]]:
     """One row per (group, tolerance): the requirement under each tolerance (also written as CSV)."""
     rows = []
     for g in report.groups:
@@ -103,6 +104,7 @@ def tolerance_rows(report: SweepReport) -> list[dict[str, object]]:
             rec = g.points.iloc[t.sat.index]
             iv = t.pitch_interval_mm
             d, dse = t.sat.deficit, t.sat.deficit_se
+            assert d is not None and dse is not None  # the envelope rule (every report group's) sets both
             rows.append(
                 {
                     "group": g.label,
@@ -126,7 +128,7 @@ def tolerance_rows(report: SweepReport) -> list[dict[str, object]]:
     return rows
 
 
-def sensitivity_rows(report: SweepReport) -> list[dict[str, object]]:
+def sensitivity_rows(report: SweepReport) -> list[dict[str, Any]]:
     """One row per (set of other keys, assumption variant) of a sensitivity sweep (also written as CSV)."""
     rows = []
     for sens in report.sensitivity:

@@ -36,6 +36,8 @@ def map_rows(report: SweepReport) -> list[dict[str, object]]:
         for rate, g in zip(m.rates, m.curves):
             rec, iv = g.recommended, g.pitch_interval_mm
             dip = m.dip_index(g)
+            deficit, deficit_se = g.sat.deficit, g.sat.deficit_se
+            assert deficit is not None and deficit_se is not None  # the envelope rule (every report group's) sets both
             for i, p in g.points.iterrows():
                 rows.append(
                     {
@@ -51,8 +53,8 @@ def map_rows(report: SweepReport) -> list[dict[str, object]]:
                         "participants": int(p["n"]),
                         "seeds": int(p["n_seeds"]),
                         "false_on_per_frame": rate * float(p["n_taxels"]),
-                        "deficit": float(g.sat.deficit[i]),
-                        "deficit_se": float(g.sat.deficit_se[i]),
+                        "deficit": float(deficit[i]),
+                        "deficit_se": float(deficit_se[i]),
                         "outside_tolerance": bool(g.envelope.outside[i]),
                         "dip": dip == i,
                         "required": i == g.sat.index,

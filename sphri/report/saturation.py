@@ -59,7 +59,9 @@ best point and the rule.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -271,7 +273,14 @@ def _outcome(sat: Saturation, notes: list[str], single: str, n_boot: int, resamp
 
 
 def _bootstrap(
-    s: np.ndarray, index: int, best_index: int, n_boot: int, ci: float, seed: int, notes: list[str], select
+    s: np.ndarray,
+    index: int,
+    best_index: int,
+    n_boot: int,
+    ci: float,
+    seed: int,
+    notes: list[str],
+    select: Callable[[np.ndarray], np.ndarray],
 ) -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
     """Participant bootstrap of a rule: ``select`` maps (B, P, R) resamples to (B,) selected indices.
 
@@ -319,7 +328,7 @@ def _bootstrap_intervals(
 class _quiet:
     """Silence numpy's 'Mean of empty slice' warnings inside a block."""
 
-    def __enter__(self):
+    def __enter__(self) -> _quiet:
         import warnings
 
         self._w = warnings.catch_warnings()
@@ -327,7 +336,7 @@ class _quiet:
         warnings.simplefilter("ignore", RuntimeWarning)
         return self
 
-    def __exit__(self, *exc):
+    def __exit__(self, *exc: Any) -> None:
         return self._w.__exit__(*exc)
 
 
@@ -361,6 +370,13 @@ class Tolerance:
     points: float | None
     """Fixed tolerance in score units, or None for an SE tolerance."""
 
+    @property
+    def fixed(self) -> float:
+        """``points`` of a fixed tolerance; ValueError for an SE tolerance (which has none)."""
+        if self.points is None:
+            raise ValueError(f"tolerance {self.name!r} is in paired standard errors, not a fixed number")
+        return float(self.points)
+
     @classmethod
     def parse(cls, text: str | float) -> Tolerance:
         t = str(text).strip().lower()
@@ -385,8 +401,8 @@ class Tolerance:
         if self.n_se is not None:
             k = "one" if self.n_se == 1 else f"{self.n_se:g}"
             return f"{k} paired standard error{'' if self.n_se == 1 else 's'}"
-        pts = 100 * self.points
-        return f"{pts:g} point{'' if pts == 1 else 's'} of accuracy ({self.points:g})"
+        pts = 100 * self.fixed
+        return f"{pts:g} point{'' if pts == 1 else 's'} of accuracy ({self.fixed:g})"
 
 
 def _paired_rule(sb: np.ndarray, tol: Tolerance) -> tuple[np.ndarray, ...]:
@@ -401,7 +417,7 @@ def _paired_rule(sb: np.ndarray, tol: Tolerance) -> tuple[np.ndarray, ...]:
     dse = np.where(np.isfinite(dse), dse, 0.0)
     deficit[rows, best] = 0.0
     dse[rows, best] = 0.0
-    allowed = (tol.n_se * dse) if tol.n_se is not None else np.full(deficit.shape, float(tol.points))
+    allowed = (tol.n_se * dse) if tol.n_se is not None else np.full(deficit.shape, tol.fixed)
     eligible = valid & np.isfinite(deficit) & (deficit <= allowed + _EPS)
     eligible[rows, best] |= valid[rows, best]
     selected = np.argmax(eligible, axis=1)
@@ -573,7 +589,7 @@ def _envelope_rule(s: np.ndarray, w: np.ndarray, tol: Tolerance, floor: float, z
     if tol.n_se is not None:
         allowed = tol.n_se * dse
     else:
-        allowed = np.full(deficit.shape, max(float(tol.points), floor))
+        allowed = np.full(deficit.shape, max(tol.fixed, floor))
     outside = valid & np.isfinite(deficit) & (deficit > allowed + z * dse + _EPS)
     r_idx = np.arange(n_r)
     last_out = np.max(np.where(outside, r_idx, -1), axis=1)

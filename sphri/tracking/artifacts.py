@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from sphri.types import CVResult
+
+if TYPE_CHECKING:
+    from sphri.figures import Provenance
 
 
 def write_fold_csv(cv: CVResult, path: Path) -> Path:
@@ -39,8 +44,8 @@ def write_confusion_png(
     cv: CVResult,
     path: Path,
     title: str | None = None,
-    provenance=None,
-    formats: tuple[str, ...] = ("png",),
+    provenance: Provenance | None = None,
+    formats: Sequence[str] = ("png",),
     check: bool = True,
 ) -> Path:
     """Row-normalised confusion matrix summed over folds, one column wide (``sphri.figures``).
@@ -64,8 +69,8 @@ def draw_confusion(
     labels: list[str],
     path: Path,
     title: str,
-    provenance=None,
-    formats: tuple[str, ...] = ("png",),
+    provenance: Provenance | None = None,
+    formats: Sequence[str] = ("png",),
     check: bool = True,
 ) -> Path:
     """Row-normalised confusion matrix of the counts ``total`` (rows: true) -> ``path`` (and ``formats`` beside it)."""

@@ -38,7 +38,8 @@ LIBRARIES = ("numpy", "scipy", "scikit-learn", "torch", "numba")
 def cpu() -> dict[str, str | int]:
     """``cpu_model`` (``/proc/cpuinfo``'s model name, else the platform's), ``cpu_flags`` (the
     :data:`SIMD_FLAGS` it has, space-separated) and ``cpu_count`` (logical CPUs of the machine)."""
-    model, flags = platform.processor() or platform.machine(), []
+    model = platform.processor() or platform.machine()
+    flags: list[str] = []
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             key, _, value = line.partition(":")

@@ -29,6 +29,7 @@ import subprocess
 import tempfile
 import time
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -114,7 +115,6 @@ def dataset_input(cfg: DictConfig, result: RunResult) -> Any:
     from mlflow.data.dataset_source_registry import resolve_dataset_source
     from mlflow.data.meta_dataset import MetaDataset
     from mlflow.entities import DatasetInput, InputTag
-    from omegaconf import OmegaConf
 
     stage = result.stages.get("data")
     digest = (stage.key if stage is not None else result.config_hash)[:36]
@@ -122,8 +122,8 @@ def dataset_input(cfg: DictConfig, result: RunResult) -> Any:
     if root:
         source = resolve_dataset_source(str(Path(str(root)).resolve()))
     else:
-        settings = OmegaConf.to_container(cfg.data, resolve=True)
-        source = CodeDatasetSource({str(k): str(v)[:200] for k, v in settings.items() if not isinstance(v, dict)})
+        settings = node_settings(cfg.data)
+        source = CodeDatasetSource({k: str(v)[:200] for k, v in settings.items() if not isinstance(v, dict)})
     dataset = MetaDataset(source=source, name=result.meta.dataset, digest=digest)
     return DatasetInput(dataset._to_mlflow_entity(), tags=[InputTag("mlflow.data.context", "training")])
 
@@ -167,10 +167,18 @@ def component_name(node: Any, choice: str | None = None) -> str:
     return str(target).rsplit(".", 1)[-1] or "?"
 
 
-def flatten_params(cfg: DictConfig, choices: dict[str, str] | None = None) -> dict[str, str]:
-    """Curated params: ``<group>`` = component, ``<group>.<key>`` = scalar settings."""
+def node_settings(node: Any) -> dict[str, Any]:
+    """A config group's settings as a plain dict (interpolations resolved), keys as str."""
     from omegaconf import OmegaConf
 
+    values = OmegaConf.to_container(node, resolve=True)
+    if not isinstance(values, dict):
+        raise TypeError(f"a config group's settings must be a mapping, got {type(values).__name__}")
+    return {str(k): v for k, v in values.items()}
+
+
+def flatten_params(cfg: DictConfig, choices: dict[str, str] | None = None) -> dict[str, str]:
+    """Curated params: ``<group>`` = component, ``<group>.<key>`` = scalar settings."""
     choices = choices or {}
     params: dict[str, str] = {"seed": str(cfg.seed)}
     if cfg.get("variant") is not None:  # the assumption variant of a sensitivity sweep (conf/sensitivity/)
@@ -178,8 +186,7 @@ def flatten_params(cfg: DictConfig, choices: dict[str, str] | None = None) -> di
     for group in PARAM_GROUPS:
         node = cfg[group]
         params[group] = component_name(node, choices.get(group))
-        values = OmegaConf.to_container(node, resolve=True)
-        for key, value in values.items():
+        for key, value in node_settings(node).items():
             if key in _SKIP_PARAM_KEYS or isinstance(value, dict):
                 continue
             if isinstance(value, list) and len(value) > 12:
@@ -258,7 +265,9 @@ class MlflowTracker:
         """Log metrics and params in MLflow's batches of 100, retrying a locked store."""
         for start in range(0, max(len(metrics), len(params)), 100):
             self._retry(
-                lambda s=start: client.log_batch(run_id, metrics=metrics[s : s + 100], params=params[s : s + 100])
+                partial(
+                    client.log_batch, run_id, metrics=metrics[start : start + 100], params=params[start : start + 100]
+                )
             )
 
     def finish_analysis_run(
@@ -336,7 +345,7 @@ class MlflowTracker:
         self._retry(lambda: client.set_tag(run_id, "sphri.jobs", f"{n_jobs - n_failed}/{n_jobs} finished"))
         elsewhere = {}
         for job, done in sorted((skipped or {}).items()):
-            tags = self._retry(lambda d=done: client.get_run(d)).data.tags
+            tags = self._retry(partial(client.get_run, done)).data.tags
             if tags.get("mlflow.parentRunId") != run_id:
                 elsewhere[job] = done
         if elsewhere:
@@ -346,7 +355,7 @@ class MlflowTracker:
             exp_id = self._retry(lambda: client.get_run(run_id)).info.experiment_id
             query = f"tags.`mlflow.parentRunId` = '{run_id}' and attributes.status = 'RUNNING'"
             for child in self._retry(lambda: client.search_runs([exp_id], query)):
-                self._retry(lambda c=child: client.set_terminated(c.info.run_id, "KILLED"))
+                self._retry(partial(client.set_terminated, child.info.run_id, "KILLED"))
         self._retry(lambda: client.set_terminated(run_id, status))
 
     def find_parent(self, output_dir: str, sweep_hash: str) -> dict[str, str] | None:
@@ -401,7 +410,7 @@ class MlflowTracker:
             ("sphri.last_rerun", stamp),
             ("sphri.last_rerun_dir", str(job_dir)),
         ):
-            self._retry(lambda k=key, v=value: client.set_tag(run_id, k, v))
+            self._retry(partial(client.set_tag, run_id, key, value))
         return n
 
     def logged_models(self, output_dir: str, run_id: str) -> list[str]:

@@ -84,7 +84,7 @@ def job_statuses(sweep_dir: str | Path) -> list[dict[str, Any]]:
 
 
 def write_status(
-    job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None, **details
+    job_dir: Path, job: int, status: str, error: str | None = None, run_id: str | None = None, **details: Any
 ) -> None:
     """``sphri_status.json``: the job's end state (and, for the sweep's table, its swept values, accuracy,
     macro-F1, seconds and whether its evaluation came from the cache)."""

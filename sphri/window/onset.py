@@ -104,6 +104,9 @@ class OnsetWindow(Configured):
     VERSION = "1"
 
     SCHEMA = OnsetWindowSchema
+    frames: int  # these three set from SCHEMA by Configured
+    no_contact: str
+    max_memory_gib: float | None
 
     def plan(self, contacts: Contacts, dataset: GestureDataset) -> WindowPlan:
         """Which global frames fill each trial's window (see module docstring)."""
