@@ -90,12 +90,13 @@ def category(name: str) -> str:
     return "other"
 
 
-def matmul_gflops(seconds: float = 1.5, n: int = 1024) -> float:
-    """float32 GFLOP per CPU second of an n x n matrix product on one thread (the CPU's practical peak)."""
+def matmul_gflops(seconds: float = 1.5, n: int = 1024, dtype: torch.dtype = torch.float32) -> float:
+    """GFLOP per CPU second of an n x n matrix product in ``dtype`` on one thread (the CPU's practical
+    peak for that type: bf16 is several times float32 where the CPU has native bf16, slower where not)."""
     prev = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
-        a, b = torch.randn(n, n), torch.randn(n, n)
+        a, b = torch.randn(n, n, dtype=dtype), torch.randn(n, n, dtype=dtype)
         a @ b
         c0, k = time.process_time(), 0
         while time.process_time() - c0 < seconds:
@@ -264,7 +265,15 @@ def main(argv=None) -> int:
     ap.add_argument("--res", type=int, nargs="+", default=[6, 18, 50])
     ap.add_argument("--fit-res", type=int, nargs="*", default=[18])
     ap.add_argument("--batches", type=int, default=10)
+    ap.add_argument("--peak-only", action="store_true", help="only the one-thread matrix-product peaks (seconds)")
     args = ap.parse_args(argv)
+    if args.peak_only:
+        peak = {"machine": machine(), "torch": torch.__version__, "n": 1024, "gflop_per_cpu_s_1_thread": {}}
+        for name, dtype in (("float32", torch.float32), ("bf16", torch.bfloat16)):
+            peak["gflop_per_cpu_s_1_thread"][name] = round(matmul_gflops(dtype=dtype), 1)
+        print(peak["gflop_per_cpu_s_1_thread"], flush=True)
+        write_json("matmul_peak", peak)
+        return 0
     participants, reps = (6, 5) if args.quick else (18, 20)
     torch.set_num_threads(2)
     out = {
