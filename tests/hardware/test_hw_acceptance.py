@@ -51,6 +51,43 @@ def stream_live(overrides, participant, model_path, out_dir):
     return sim.ledger, first
 
 
+def touch_within_limits(p, ledger) -> list[bool]:
+    """Per streamed trial: does its noise-free touch reach what `skin live` can tell from noise?
+
+    Live marks a touch when a taxel stays on ``persist`` frames running or ``cluster_taxels``
+    8-connected taxels are on in one frame (sphri/hardware/live.py, defaults of SkinLiveSettings);
+    against the data's 2 % salt-and-pepper noise a shorter, smaller touch looks like noise (noise
+    turns 1 % of the 306 taxels on, so a lone taxel on 2 frames running comes by chance about every
+    33 frames). Judged on the
+    encoder's clean output of the trial's frames, not on the stream: stream, transport and detector
+    are what the test checks. False for trials with no contact at all.
+    """
+    import dataclasses
+
+    from sphri.adjacency import taxel_adjacency
+    from sphri.hardware.settings import SkinLiveSettings
+    from sphri.types import TaxelGeometry
+
+    default = {f.name: f.default for f in dataclasses.fields(SkinLiveSettings)}
+    persist, cluster_taxels = default["persist"], default["cluster_taxels"]
+    dataset, contacts = p.get("data"), p.get("contact")
+    link, surface, layout = p.link(), p.get("surface"), p.get("layout")
+    adjacency = taxel_adjacency(TaxelGeometry.from_layout(layout, surface), diagonal=True)
+    reach = []
+    for trial in ledger.trials:
+        row = dataset.trials.iloc[trial["row"]]
+        frames = np.arange(int(row["start"]), int(row["start"]) + int(row["n_frames"]))
+        on = np.asarray(p.components["encoder"].encode(contacts, link, surface, layout, frames).values) >= 0.5
+        run = np.zeros(on.shape[1], dtype=int)
+        longest = 0
+        for f in on:
+            run = np.where(f, run + 1, 0)
+            longest = max(longest, int(run.max()))
+        cluster = adjacency.largest_component(on.astype(np.float64)).max() if on.any() else 0
+        reach.append(longest >= persist or cluster >= cluster_taxels)
+    return reach
+
+
 @pytest.mark.slow
 def test_live_classifies_streamed_synthetic_gestures(out_dir):
     from sphri.export.model_file import save_model
@@ -66,30 +103,47 @@ def test_live_classifies_streamed_synthetic_gestures(out_dir):
     seen_path = save_model(seen, out_dir / "all.sphrimodel")
     ledger, first = stream_live(overrides, "participant_02", seen_path, out_dir)
     n = len(ledger.trials)
-    detected = sum(t is not None for t in first.values())
-    right = sum(t is not None and t["gesture"] == tr["gesture"] for t, tr in zip(first.values(), ledger.trials))
-    assert n == 24 and detected >= 22
-    assert right >= 0.75 * n, f"{right} of {n} streamed trials classified right"
+    # live must find every touch it can tell from noise. Not every trial has one: the synthetic data
+    # (v3) has trials without contact and pokes/taps/pats whose touch is a lone taxel for 1-2 frames
+    # or a few taxels for one frame. Measured with the default settings: participant_02 has 19 such
+    # touches of 24 trials (1 trial without contact, 4 below the limits, one of those caught by a
+    # noise trigger 5 frames before its contact); over all 144 trials live found 120 of the 120
+    # touches within the limits. Every count below is over the trials with such a touch.
+    reach = touch_within_limits(p, ledger)
+    seeable = [k for k in range(n) if reach[k]]
+    missed = [(k, ledger.trials[k]["gesture"]) for k in seeable if first[k] is None]
+    assert n == 24 and len(seeable) >= 18, f"{len(seeable)} of {n} trials have a touch live can tell from noise"
+    assert not missed, f"live missed touches it can tell from noise: {missed}"
+    right = sum(first[k]["gesture"] == ledger.trials[k]["gesture"] for k in seeable)
+    assert right >= 0.75 * len(seeable), f"{right} of {len(seeable)} streamed touches classified right"
 
     # a participant the model never saw: live agrees with the model's offline predictions on its windows
     held = fit_bundle(p, "participant_06", overrides)
     held_path = save_model(held, out_dir / "holdout.sphrimodel")
     ledger, first = stream_live(overrides, "participant_06", held_path, out_dir)
+    reach = touch_within_limits(p, ledger)
+    seeable = [k for k in range(len(ledger.trials)) if reach[k]]
+    missed = [(k, ledger.trials[k]["gesture"]) for k in seeable if first[k] is None]
+    assert len(seeable) >= 18 and not missed, (len(seeable), missed)
     agree = right = right_offline = 0
     aligned = []
-    for t, tr in zip(first.values(), ledger.trials):
+    for k in seeable:
+        t, tr = first[k], ledger.trials[k]
         rows = np.flatnonzero(windows.trial_row == tr["row"])
         offline = held.labels[int(held.estimator.predict(windows.x[rows])[0])]
-        agree += t is not None and t["gesture"] == offline
-        right += t is not None and t["gesture"] == tr["gesture"]
+        agree += t["gesture"] == offline
+        right += t["gesture"] == tr["gesture"]
         right_offline += offline == tr["gesture"]
-        if t is not None and t["start"] == tr["good_onset"]:
+        if t["start"] == tr["good_onset"]:
             aligned.append((t["gesture"], offline))
     # where live finds the onset the offline window starts at, it sees the same noisy frames
-    # (the simulator streams the model's own noise draws): it must name the same gesture
-    assert len(aligned) >= 0.6 * len(ledger.trials), f"live found the offline onset in {len(aligned)} trials"
+    # (the simulator streams the model's own noise draws): it must name the same gesture. Live finds
+    # a touch at the first frame it can tell from noise: a lone taxel moving over the skin, or a few
+    # taxels growing into a cluster, is found 2-6 frames after its contact onset (5 of 18 here;
+    # 1 more found 1 frame early, by noise)
+    assert len(aligned) >= 0.6 * len(seeable), f"live found the offline onset in {len(aligned)} of {len(seeable)}"
     assert all(live_g == off_g for live_g, off_g in aligned), aligned
-    assert agree >= 0.75 * len(ledger.trials), f"live agrees with offline on {agree} of {len(ledger.trials)}"
-    # live names an unseen participant's gestures about as well as the model does offline
-    # (how well that is, at this tiny training set, is the model's business, not live's)
+    assert agree >= 0.75 * len(seeable), f"live agrees with offline on {agree} of {len(seeable)}"
+    # live names an unseen participant's gestures about as well as the model does offline on the same
+    # trials (how well that is, at this tiny training set, is the model's business, not live's)
     assert abs(right - right_offline) <= 2, (right, right_offline)
