@@ -249,7 +249,8 @@ def _fixed_overrides(args: list[str]) -> list[str] | None:
 
 
 def main() -> None:
-    """Console entry point (``sphri`` or ``python -m sphri``)."""
+    """Hydra's entry point: one job or a sweep (``sphri run``/``sphri sweep``, or ``python -m sphri``
+    with overrides)."""
     find_sweeper_plugin()
     # hydra-ray-launcher registers its own `ray` launcher schema; sphri's
     # conf/hydra/launcher/ray.yaml extends it on purpose.
@@ -279,5 +280,19 @@ def main() -> None:
     _hydra_main()
 
 
-if __name__ == "__main__":
+def module_main() -> None:
+    """``python -m sphri [VERB] ...``: a first word that is a verb other than ``run`` goes to
+    :mod:`sphri.command` (as ``sphri VERB ...``); anything else (overrides, ``-m``, Hydra's flags,
+    ``run ...``) to Hydra exactly as before."""
+    from sphri.command import BY_NAME, call
+
+    args = sys.argv[1:]
+    if args and args[0] in BY_NAME and args[0] != "run":
+        sys.exit(call(BY_NAME[args[0]], args[1:]))
+    if args and args[0] == "run":
+        sys.argv = [sys.argv[0], *args[1:]]
     main()
+
+
+if __name__ == "__main__":
+    module_main()

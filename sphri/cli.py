@@ -111,7 +111,7 @@ def help_text() -> str:
     lines = [
         "sphri: design robot tactile skins from interaction data.",
         "",
-        "usage (`python -m sphri` is the same as `sphri run`):",
+        "usage (`python -m sphri ...` is the same as `sphri ...`):",
         "  sphri [run] [group=option ...] [key=value ...]          one job (one MLflow run)",
         "  sphri sweep key=a,b,c [...]   (or sphri -m ...)         a sweep (one MLflow parent run)",
         "",

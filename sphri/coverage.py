@@ -6,7 +6,7 @@
     python -m sphri.coverage +debug=fast data.regions=[torso] by=gesture out=DIR
     python -m sphri.coverage data=vr_gesture data.root=... bandwidth_mm=8 mlflow=false
 
-Arguments are ``key=value``. Keys of :class:`~sphri.analysis.schema.CoverageSchema`
+Arguments are ``key=value`` (or ``--key value``, :mod:`sphri.command.args`). Keys of :class:`~sphri.analysis.schema.CoverageSchema`
 (``by``, ``bandwidth_mm``, ..., also as ``coverage.<key>``) set the
 analysis; ``out=DIR`` (default ``<output_dir>/coverage/<timestamp>``) and
 ``mlflow=true|false`` the run; everything else is a sphri config override
@@ -33,11 +33,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from omegaconf import OmegaConf
-from omegaconf.errors import OmegaConfBaseException
-
 from sphri.analysis.coverage import ALL, CoverageAnalysis, RegionCoverage, write_region
 from sphri.analysis.schema import CoverageSchema
+from sphri.command.args import ArgsError, arg, first_paragraph, help_text, parse, parse_known
 from sphri.config import ConfigError, compose
 from sphri.errors import clean_errors
 
@@ -45,8 +43,14 @@ log = logging.getLogger(__name__)
 
 #: Settings of the analysis (CoverageSchema fields).
 ANALYSIS_KEYS = tuple(f.name for f in dataclasses.fields(CoverageSchema) if f.name != "_target_")
-#: Settings of the run itself.
-RUN_KEYS = ("out", "mlflow")
+
+
+@dataclass
+class CoverageRunArgs:
+    """The run's own arguments (beside the analysis settings, :class:`CoverageSchema`)."""
+
+    out: str = arg("", help="folder of the files (default <output_dir>/coverage/<timestamp>)", metavar="DIR")
+    mlflow: bool = arg(True, help="log one MLflow run tagged sphri.kind=coverage")
 
 
 @dataclass
@@ -60,45 +64,25 @@ class CoverageRun:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def split_args(argv: Sequence[str]) -> tuple[list[str], list[str], dict[str, str]]:
-    """(sphri overrides, analysis dotlist, run options) from ``key=value`` arguments."""
-    overrides, analysis, run = [], [], {}
-    for arg in argv:
-        key, eq, value = arg.partition("=")
-        if not eq:
-            raise ConfigError(f"argument {arg!r} is invalid: expected key=value")
-        bare = key[len("coverage.") :] if key.startswith("coverage.") else key
-        if bare in ANALYSIS_KEYS:
-            analysis.append(f"{bare}={value}")
-        elif bare in RUN_KEYS:
-            run[bare] = value
-        elif key.startswith("coverage."):
-            raise ConfigError(f"{key}: no such coverage setting; settings: {', '.join(ANALYSIS_KEYS + RUN_KEYS)}")
-        else:
-            overrides.append(arg)
-    return overrides, analysis, run
+def split_args(argv: Sequence[str], prog: str = "sphri.coverage") -> tuple[list[str], CoverageSchema, CoverageRunArgs]:
+    """(config overrides, analysis settings, run arguments) from the command line, through
+    :mod:`sphri.command.args` (typed, range-checked; :class:`ArgsError` names the key)."""
+    words = []
+    for a in argv:
+        key = a.partition("=")[0]
+        if key.startswith("coverage."):  # the analysis keys also as coverage.<key>
+            if key.removeprefix("coverage.") not in ANALYSIS_KEYS:
+                raise ArgsError(f"unknown argument {key!r}; coverage settings: {', '.join(ANALYSIS_KEYS)}")
+            a = a.removeprefix("coverage.")
+        words.append(a)
+    settings, rest = parse_known(CoverageSchema, words, prog)
+    run_args, overrides = parse_known(CoverageRunArgs, rest, prog)
+    return overrides, settings, run_args
 
 
-def load_settings(dotlist: Sequence[str] = ()) -> CoverageSchema:
-    """The analysis settings: schema defaults with ``dotlist`` applied and checked."""
-    try:
-        node = OmegaConf.merge(OmegaConf.structured(CoverageSchema), OmegaConf.from_dotlist(list(dotlist)))
-        return OmegaConf.to_object(node)
-    except ConfigError:
-        raise
-    except OmegaConfBaseException as exc:
-        key = getattr(exc, "full_key", None) or "coverage"
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ConfigError(f"coverage.{key}: {first}") from None
-
-
-def _bool(value: str, key: str) -> bool:
-    v = str(value).strip().lower()
-    if v in ("1", "true", "yes", "on"):
-        return True
-    if v in ("0", "false", "no", "off"):
-        return False
-    raise ConfigError(f"{key}={value!r} is invalid: expected true or false")
+def load_settings(args: Sequence[str] = ()) -> CoverageSchema:
+    """The analysis settings: schema defaults with ``key=value`` ``args`` applied and checked."""
+    return parse(CoverageSchema, args, "sphri.coverage")
 
 
 #: Settings of the figures only (not of the analysis).
@@ -249,20 +233,23 @@ def _metric_name(value: str) -> str:
 
 
 @clean_errors("sphri.coverage")
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    usage_prog = prog or "python -m sphri.coverage"
     if any(a in ("-h", "--help") for a in argv):
-        print(__doc__)
-        print("analysis settings:", ", ".join(ANALYSIS_KEYS))
+        print(help_text(CoverageSchema, usage_prog, first_paragraph(__doc__), overrides=True))
+        print("\n" + help_text(CoverageRunArgs, usage_prog).split("\n", 2)[2].replace("arguments", "run arguments", 1))
         return 0
+    try:
+        overrides, settings, run_args = split_args(argv, usage_prog)
+    except ArgsError as exc:
+        print(f"{prog or 'sphri.coverage'}: {exc}", file=sys.stderr)
+        return 2
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     try:
-        overrides, dotlist, opts = split_args(argv)
-        settings = load_settings(dotlist)
-        log_mlflow = _bool(opts.get("mlflow", "true"), "mlflow")
-        res = run(overrides, settings, opts.get("out") or None, log_mlflow)
+        res = run(overrides, settings, run_args.out or None, run_args.mlflow)
     except ConfigError as exc:
-        print(f"sphri.coverage: {exc}", file=sys.stderr)
+        print(f"{prog or 'sphri.coverage'}: {exc}", file=sys.stderr)
         return 2
     if not isinstance(res, CoverageRun):  # the scenario study
         for s in res.sentences:

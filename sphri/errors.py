@@ -17,6 +17,7 @@ import os
 import sys
 import traceback
 from collections.abc import Callable, Sequence
+from typing import Any
 
 #: Command-line flag that shows tracebacks (removed from argv before parsing).
 VERBOSE_FLAG = "--verbose"
@@ -102,10 +103,10 @@ def clean_errors(prog: str) -> Callable:
 
     def wrap(main: Callable[..., int]) -> Callable[..., int]:
         @functools.wraps(main)
-        def run(argv: Sequence[str] | None = None) -> int:
+        def run(argv: Sequence[str] | None = None, *args: Any, **kwargs: Any) -> int:
             argv = take_verbose_flag(list(sys.argv[1:] if argv is None else argv))
             try:
-                return main(argv)
+                return main(argv, *args, **kwargs)
             except KeyboardInterrupt:
                 print(f"{prog}: interrupted", file=sys.stderr)
                 return 130

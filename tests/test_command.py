@@ -147,16 +147,21 @@ def test_help_and_unknown_verbs(capsys):
 
 
 def test_each_verb_answers_help_through_the_dispatcher(capsys):
-    """Every verb's arguments from ``sphri VERB --help`` (the hardware verbs print their own usage)."""
+    """Every verb's arguments from ``sphri VERB --help``, through the one parser (the hardware verbs: each
+    command's settings with their help lines)."""
     for v in VERBS:
         if v.kind in ("hydra", "help"):
             continue
         assert main([v.name, "--help"]) == 0, v.name
         out = capsys.readouterr().out
-        assert out.strip(), v.name
-        if v.kind == "args":
-            assert out.startswith(f"usage: sphri {v.name}"), (v.name, out[:200])
+        assert out.startswith(f"usage: sphri {v.name}"), (v.name, out[:200])
     assert main(["help", "report"]) == 0 and "n_boot=INT" in capsys.readouterr().out
+    assert main(["skin", "--help"]) == 0
+    out = capsys.readouterr().out  # both commands, each setting with its docstring and default
+    assert "usage: sphri skin record port=TEXT out=TEXT" in out and "usage: sphri skin live port=TEXT model=TEXT" in out
+    assert "stride=INT                  Frames between sliding-window predictions" in out
+    assert main(["simulate", "glove", "--help"]) == 0
+    assert "ack_drop_rate=NUMBER" in capsys.readouterr().out
 
 
 def test_cheap_verbs_run_for_real(tmp_path, capsys):
@@ -194,6 +199,14 @@ def test_cheap_verbs_run_for_real(tmp_path, capsys):
         (["derive-reachy2", "src=x", "faces=0"], "sphri derive-reachy2: faces=0 is invalid: must be > 0"),
         (["list", "--groups"], "sphri list: --groups needs a value"),
         (["warmup", "now"], "sphri warmup: unexpected argument 'now'"),
+        (["skin", "live", "port=p", "model=m", "stride=-1"], "sphri skin: stride=-1 is invalid: must be in [0, 10000]"),
+        (["skin", "recrd"], "sphri skin: unknown command 'recrd' (did you mean record?); commands: record, live"),
+        (["skin", "record", "port=p", "robot=reachy"], "sphri skin: unknown argument 'robot'"),
+        (["glove", "replay", "--pulse-ms", "0"], "sphri glove: pulse_ms=0 is invalid: must be in [1, 65535]"),
+        (["simulate", "skin", "corrupt_rate=x"], "sphri simulate: corrupt_rate=x is invalid: must be a number"),
+        (["export", "+debug=fast"], "sphri export: missing out=TEXT (Model file to write"),
+        (["export", "out=m", "mlflow=maybe"], "sphri export: mlflow=maybe is invalid: must be true or false"),
+        (["coverage", "capture=0"], "sphri coverage: capture=0.0 is invalid: must be in (0, 1]"),
     ],
 )
 def test_a_wrong_type_or_a_missing_value_is_one_line_and_exit_2(argv, line, tmp_path, monkeypatch, capsys):
@@ -221,6 +234,28 @@ def test_the_old_module_spellings_still_work(tmp_path):
     verb = _python(["-m", "sphri.command", "list", "noise"], tmp_path)  # the console script without the script
     assert verb.returncode == 0 and verb.stdout == cli.stdout
     assert _python(["-m", "sphri.cli", "lists"], tmp_path).stderr.startswith("sphri: unknown verb 'lists'")
+    skin = _python(["-m", "sphri.hardware.skin", "live", "port=p", "model=m", "--stride", "-1"], tmp_path)
+    assert (
+        skin.returncode == 2
+        and skin.stderr.strip() == "sphri.hardware.skin: stride=-1 is invalid: must be in [0, 10000]"
+    )
+    export = _python(["-m", "sphri.hardware.train_export", "--help"], tmp_path)
+    assert export.returncode == 0 and export.stdout.startswith("usage: python -m sphri.export.train out=TEXT")
+
+
+def test_python_m_sphri_takes_a_verb_like_the_console_script(tmp_path):
+    """``python -m sphri VERB`` is ``sphri VERB``; overrides, ``run``, ``-m`` and Hydra's flags go to Hydra as before."""
+    verb = _python(["-m", "sphri", "list", "noise"], tmp_path)
+    assert verb.returncode == 0 and verb.stdout == _python(["-m", "sphri.cli", "list", "noise"], tmp_path).stdout
+    skin = _python(["-m", "sphri", "skin", "live", "port=p", "model=m", "stride=-1"], tmp_path)
+    assert skin.returncode == 2 and skin.stderr.strip() == "sphri skin: stride=-1 is invalid: must be in [0, 10000]"
+    for argv in (["+debug=fast", "encoder.res=abc"], ["run", "+debug=fast", "encoder.res=abc"]):
+        bad = _python(["-m", "sphri", *argv, f"output_dir={tmp_path / 'o'}"], tmp_path)
+        assert bad.returncode == 2 and bad.stderr.strip().startswith("sphri: invalid config: encoder.res"), bad.stderr
+    cfg = _python(["-m", "sphri", "--cfg", "job", "+debug=fast", "encoder.res=6"], tmp_path)  # Hydra's own flag
+    assert cfg.returncode == 0 and "res: 6" in cfg.stdout, cfg.stderr[-2000:]
+    assert "`python -m sphri ...` is the same as `sphri ...`" in _python(["-m", "sphri", "--help"], tmp_path).stdout
+    assert not (tmp_path / "o").exists()
 
 
 def _console(args: list[str], cwd: Path, timeout: int = 600, **env: str) -> subprocess.CompletedProcess:

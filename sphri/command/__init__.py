@@ -242,8 +242,8 @@ def call(verb: Verb, argv: Sequence[str], prog: str = "", usage_prog: str = "") 
         sys.argv = [sys.argv[0] if sys.argv else "sphri", *argv]
         verb.load(verb.target)()  # sphri.__main__.main: exits non-zero itself on a failure (one line)
         return 0
-    if verb.kind == "main":
-        return int(verb.load(verb.target)(argv) or 0)
+    if verb.kind == "main":  # main(argv, prog): its own subcommands, or settings and config overrides
+        return int(verb.load(verb.target)(argv, prog=prog) or 0)
     from sphri.command.args import first_paragraph, run
     from sphri.errors import clean_errors
 

@@ -7,13 +7,20 @@ field's type is the value's type and its ``help`` the line ``--help`` prints. :f
   field's extra spellings (``flags``, e.g. ``--no-log`` for ``mlflow=false``);
 - bare words, for the ``positional`` fields in order (a list field takes every remaining word);
 - anything else, into the ``rest`` field when there is one (the Hydra overrides of a command that
-  composes a config, e.g. ``data.participants=4`` or ``-m``), else it is an error.
+  composes a config, e.g. ``data.participants=4`` or ``-m``), or returned beside the arguments by
+  :func:`parse_known`, else it is an error.
+
+The dataclass may also be a :class:`sphri.config.Schema` (the hardware commands' and the model
+export's settings): its fields' docstrings are their help, ``"???"`` marks a required key, a
+:func:`sphri.config.setting` range checks the value (naming the key) and lists the choices, and
+``Schema.check`` runs on the instance.
 
 Values are converted to the field's type: ``str``, ``int``, ``float``, ``bool`` (true/false, yes/no,
 on/off, 1/0), ``Path``, a ``Literal``'s choices, ``X | None`` (``none`` for a non-string ``X``), and
 ``list[X]`` (comma-separated, or repeated keys, or words). A field's ``check`` returns what the value
 must be, or None. Each problem is :class:`ArgsError`: one line naming the key and what it allows
-(:func:`run` prints it and returns 2). Standard library only: the TAB completion reads the schemas.
+(:func:`run` prints it and returns 2). Standard library only (:mod:`sphri.config` is imported only
+for a Schema's fields): the TAB completion reads the schemas.
 """
 
 from __future__ import annotations
@@ -89,6 +96,7 @@ class Key:
     flags: dict[str, str | None]
     check: Callable[[Any], str | None] | None
     metavar: str
+    allowed: tuple[str, ...] = ()  # a Schema setting's choices
 
     @property
     def is_list(self) -> bool:
@@ -99,7 +107,9 @@ class Key:
         return _base(self.type) is bool
 
     def choices(self) -> tuple[str, ...]:
-        """The allowed values of a ``Literal`` (or bool) key, else ()."""
+        """The allowed values of a ``Literal`` (or bool) key, or a Schema setting's choices, else ()."""
+        if self.allowed:
+            return self.allowed
         t = _base(_item(self.type) if self.is_list else self.type)
         if typing.get_origin(t) is Literal:
             return tuple(str(c) for c in typing.get_args(t))
@@ -115,10 +125,20 @@ class Key:
 def keys(cls: type) -> list[Key]:
     """The arguments of the command whose dataclass is ``cls``."""
     hints = typing.get_type_hints(cls)
+    fields = [f for f in dataclasses.fields(cls) if not f.name.startswith("_")]  # a Schema's _target_
+    docs: dict[str, str] = {}
+    ranges: dict[str, Any] = {}
+    if any("help" not in f.metadata for f in fields):  # fields not made by arg(): a Schema's
+        from sphri.config import RANGE_META, field_docs
+
+        docs = field_docs(cls)
+        ranges = {f.name: f.metadata[RANGE_META] for f in fields if RANGE_META in f.metadata}
     out = []
-    for f in dataclasses.fields(cls):
+    for f in fields:
         m = f.metadata
-        if f.default is not dataclasses.MISSING:
+        if f.default == "???":  # OmegaConf's MISSING: a Schema's required setting
+            default, required = None, True
+        elif f.default is not dataclasses.MISSING:
             default, required = f.default, False
         elif f.default_factory is not dataclasses.MISSING:
             default, required = f.default_factory(), False
@@ -130,15 +150,27 @@ def keys(cls: type) -> list[Key]:
                 type=hints[f.name],
                 default=default,
                 required=required,
-                help=m.get("help", ""),
+                help=m.get("help", docs.get(f.name, "")),
                 positional=m.get("positional", False),
                 rest=m.get("rest", False),
                 flags=m.get("flags", {}),
-                check=m.get("check"),
+                check=m.get("check", _range_check(f.name, ranges.get(f.name))),
                 metavar=m.get("metavar", ""),
+                allowed=tuple(str(c) for c in getattr(ranges.get(f.name), "choices", None) or ()),
             )
         )
     return out
+
+
+def _range_check(name: str, rng: Any) -> Callable[[Any], str | None] | None:
+    """A Schema setting's range (:class:`sphri.config.Range`) as a key's ``check`` (its ConfigError names the key)."""
+    if rng is None:
+        return None
+
+    def check(value: Any) -> None:
+        rng.check(name, value)
+
+    return check
 
 
 def _is_optional(t: Any) -> bool:
@@ -211,6 +243,8 @@ def _scalar(key: Key, t: Any, text: str, shown: str) -> Any:
 def _convert(key: Key, words: list[str], shown: str) -> Any:
     """The value of ``key`` from its words (one word unless the key is a list)."""
     if key.is_list:
+        if not key.positional:  # Hydra's spelling plugins=[a,b] too
+            words = [w[1:-1] if w.startswith("[") and w.endswith("]") else w for w in words]
         items = [w.strip() for word in words for w in (word.split(",") if not key.positional else [word])]
         items = [w for w in items if w]
         value: Any = [_scalar(key, _item(key.type), w, f"{key.name}={w}") for w in items]
@@ -247,20 +281,22 @@ def _metavar(key: Key) -> str:
     return f"{word},..." if key.is_list else word
 
 
-def usage(cls: type, prog: str) -> str:
-    """``usage: PROG POSITIONAL [key=value ...]`` of a command."""
+def usage(cls: type, prog: str, overrides: bool = False) -> str:
+    """``usage: PROG POSITIONAL [key=value ...]`` of a command (``overrides``: it takes Hydra's too)."""
     ks = keys(cls)
     words = [_usage_word(k) for k in ks if k.positional]
     words += [_usage_word(k) for k in ks if k.required and not k.positional and not k.rest]
     if any(not k.positional and not k.rest and not k.required for k in ks):
         words.append("[key=value ...]")
     words += [f"[{k.metavar or 'overrides'} ...]" for k in ks if k.rest]
+    words += ["[overrides ...]"] if overrides else []
     return " ".join(["usage:", prog, *words])
 
 
-def help_text(cls: type, prog: str, summary: str = "") -> str:
-    """``--help`` of a command: usage, summary, then one line per key (type, default, meaning)."""
-    lines = [usage(cls, prog)]
+def help_text(cls: type, prog: str, summary: str = "", overrides: bool = False) -> str:
+    """``--help`` of a command: usage, summary, then one line per key (type, default, meaning);
+    ``overrides``: it passes the other ``key=value`` arguments to the config (a closing line says so)."""
+    lines = [usage(cls, prog, overrides)]
     if summary:
         lines += ["", textwrap.fill(" ".join(summary.split()), width=100)]
     ks = keys(cls)
@@ -275,7 +311,7 @@ def help_text(cls: type, prog: str, summary: str = "") -> str:
             head = f"  {k.name}={_metavar(k)}"
         if k.required:
             tail = " (required)"
-        elif k.rest or k.default in (None, [], ()):
+        elif k.rest or k.default in (None, "", [], ()):
             tail = ""
         else:
             d = ",".join(map(str, k.default)) if isinstance(k.default, (list, tuple)) else k.default
@@ -291,12 +327,24 @@ def help_text(cls: type, prog: str, summary: str = "") -> str:
                 text, width=100, initial_indent=f"{head:<30}", subsequent_indent=" " * 30, break_on_hyphens=False
             )
         )
+    if overrides:
+        lines += ["  overrides                   any other key=value: a config override (+debug=fast, robot=nao_child)"]
     return "\n".join(lines)
 
 
 def parse(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary: str = "") -> T:
     """The arguments ``argv`` as an instance of ``cls`` (raises :class:`ArgsError`, or
     :class:`HelpRequested` for ``-h``/``--help``)."""
+    return _parse(cls, argv, prog, summary, known=False)[0]
+
+
+def parse_known(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary: str = "") -> tuple[T, list[str]]:
+    """Like :func:`parse`, for a command that composes a config: the arguments that are not keys of
+    ``cls`` (``+debug=fast``, ``data.seed=3``) are returned beside the instance, for Hydra."""
+    return _parse(cls, argv, prog, summary, known=True)
+
+
+def _parse(cls: type[T], argv: Sequence[str], prog: str, summary: str, known: bool) -> tuple[T, list[str]]:
     ks = keys(cls)
     by_name = {k.name: k for k in ks}
     by_flag: dict[str, tuple[Key, str | None]] = {}
@@ -305,6 +353,7 @@ def parse(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary: str =
             for s in k.spellings():
                 by_flag[s] = (k, k.flags.get(s))
     rest_key = next((k for k in ks if k.rest), None)
+    collect = rest_key is not None or known
     positional = [k for k in ks if k.positional]
     words: dict[str, list[str]] = {}
     shown: dict[str, str] = {}
@@ -316,7 +365,7 @@ def parse(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary: str =
 
     args = list(argv)
     if any(a in HELP_FLAGS for a in args):
-        raise HelpRequested(help_text(cls, prog, summary))
+        raise HelpRequested(help_text(cls, prog, summary, known))
     i = 0
     while i < len(args):
         a = args[i]
@@ -339,7 +388,7 @@ def parse(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary: str =
                 put(k, args[i], f"{k.name}={args[i]}")
                 i += 1
                 continue
-            if rest_key is not None:
+            if collect:
                 rest.append(a)
                 continue
             raise ArgsError(_unknown(flag, ks))
@@ -348,18 +397,18 @@ def parse(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary: str =
             put(by_name[key], value, a)
             continue
         if eq and _KEY.fullmatch(key.lstrip("+~")):
-            if rest_key is not None:
+            if collect:
                 rest.append(a)
                 continue
             raise ArgsError(_unknown(key, ks))
-        if a.startswith(("-", "+", "~")) and rest_key is not None:
+        if a.startswith(("-", "+", "~")) and collect:
             rest.append(a)
             continue
         slot = next((k for k in positional if k.is_list or k.name not in words), None)
         if slot is not None:
             put(slot, a, f"{slot.name}={a}")
             continue
-        if rest_key is not None:
+        if collect:
             rest.append(a)
             continue
         raise ArgsError(f"unexpected argument {a!r}: {usage(cls, prog).removeprefix('usage: ')}")
@@ -374,7 +423,7 @@ def parse(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary: str =
             what = f" ({k.help})" if k.help else ""
             raise ArgsError(f"missing {_usage_word(k).strip('[]')}{what}; {usage(cls, prog)}")
     try:
-        return cls(**values)
+        return cls(**values), ([] if rest_key is not None else rest)
     except ArgsError:
         raise
     except (TypeError, ValueError) as exc:  # a __post_init__ check across keys
@@ -418,3 +467,39 @@ def run(
 def first_paragraph(doc: str | None) -> str:
     """The first paragraph of a docstring, joined to one line."""
     return " ".join((doc or "").strip().split("\n\n")[0].split())
+
+
+def read_settings(
+    commands: dict[str, tuple[type, bool]], argv: Sequence[str], prog: str, usage_prog: str = ""
+) -> tuple[str, Any, list[str]] | int:
+    """``PROG [COMMAND] key=value ...`` of a command whose settings are dataclasses (the hardware
+    commands, the model export): ``commands`` maps each command word to its dataclass and whether it
+    takes config overrides (``""``: no command word). Returns (command, settings, overrides), or
+    the exit code after printing the help (0) or one line ``<prog>: <problem>`` on stderr (2)."""
+    argv, usage_prog = list(argv), usage_prog or prog
+    words = [w for w in commands if w]
+
+    def summary(cls: type) -> str:  # "``python -m sphri.hardware.skin record``: save ..." -> "save ..."
+        text = first_paragraph(cls.__doc__)
+        return text.split("``: ", 1)[1] if text.startswith("``") and "``: " in text else text
+
+    if words and (not argv or argv[0] in (*HELP_FLAGS, "help")):
+        texts = [help_text(c, f"{usage_prog} {w}", summary(c), k) for w, (c, k) in commands.items()]
+        print("\n\n".join(texts), file=sys.stdout if argv else sys.stderr)
+        return 0 if argv else 2
+    word = argv.pop(0) if words else ""
+    if word not in commands:
+        close = difflib.get_close_matches(word, words, n=1)
+        hint = f" (did you mean {close[0]}?)" if close else ""
+        print(f"{prog}: unknown command {word!r}{hint}; commands: {', '.join(words)}", file=sys.stderr)
+        return 2
+    cls, known = commands[word]
+    try:
+        settings, overrides = _parse(cls, argv, f"{usage_prog} {word}".strip(), summary(cls), known)
+    except HelpRequested as h:
+        print(h)
+        return 0
+    except ArgsError as exc:
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+    return word, settings, overrides

@@ -24,11 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
+from sphri.command.args import read_settings
 from sphri.config import ConfigError, Schema, require
 from sphri.encode.schema import grid_res
 from sphri.errors import clean_errors
 from sphri.export.model_file import ModelBundle, save_model
-from sphri.keyvalue import parse_cli
 from sphri.types import GESTURES, WindowedFrames
 
 log = logging.getLogger(__name__)
@@ -36,7 +36,8 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class TrainExportSettings(Schema):
-    """Settings of ``train_export`` (everything else is a pipeline override)."""
+    """Fit the configured model on the configured pipeline's windows and save a model file (every
+    ``key=value`` that is not a setting below is a config override, e.g. +debug=fast)."""
 
     out: str = "???"
     """Model file to write, e.g. outputs/models/rf.sphrimodel."""
@@ -189,23 +190,21 @@ def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
 
 
 @clean_errors("sphri.export.train")
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+    """``sphri export out=FILE ... [overrides ...]`` (``python -m sphri.export.train`` by default)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] in ("-h", "--help", "help"):
-        print(__doc__)
-        return 0
+    commands = {"": (TrainExportSettings, True)}
+    got = read_settings(commands, argv, prog or "sphri.export.train", prog or "python -m sphri.export.train")
+    if isinstance(got, int):
+        return got
+    _, settings, overrides = got
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    try:
-        settings, overrides = parse_cli(argv, TrainExportSettings, pipeline=True)
-        from sphri.config import compose
-        from sphri.pipeline import make_pipeline, open_cache
+    from sphri.config import compose
+    from sphri.pipeline import make_pipeline, open_cache
 
-        cfg = compose(overrides)
-        p = make_pipeline(cfg, open_cache(cfg))
-        bundle = fit_bundle(p, settings.holdout, overrides)
-    except ConfigError as exc:
-        print(f"sphri.export.train: invalid setting: {exc}", file=sys.stderr)
-        return 2
+    cfg = compose(overrides)  # an invalid override: one line from @clean_errors, exit 2
+    p = make_pipeline(cfg, open_cache(cfg))
+    bundle = fit_bundle(p, settings.holdout, overrides)
     path = save_model(bundle, settings.out)
     print(
         f"saved {bundle.meta['model']} ({bundle.meta['n_train']} windows, train accuracy "

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from sphri.command.args import read_settings
 from sphri.config import ConfigError
 from sphri.errors import clean_errors
 from sphri.hardware.actuators import ActuatorMap, part_depths
@@ -37,7 +38,7 @@ from sphri.hardware.glove_protocol import (
     GloveDecoder,
     encode_actuate,
 )
-from sphri.hardware.settings import GloveReplaySettings, parse_cli
+from sphri.hardware.settings import GloveReplaySettings
 from sphri.hardware.transport import Link, PortError, is_loopback
 
 log = logging.getLogger(__name__)
@@ -347,36 +348,19 @@ def replay(settings: GloveReplaySettings, overrides: Sequence[str], out: Callabl
     return report
 
 
-USAGE = """usage: python -m sphri.hardware.glove replay [key=value ...] [pipeline overrides ...]
-
-Plays one trial's contacts to a haptic glove over serial.
-settings (defaults in sphri/hardware/settings.py, GloveReplaySettings):
-  port=loop://         device (/dev/rfcomm0, /dev/ttyUSB0) or pyserial URL; loop:// = dry run
-  trial=0 participant=participant_01    which trial (0-based within the participant)
-  realtime=true rate_hz=0 pulse_ms=60 trigger=contact|onset intensity=depth|constant
-  intensity_min=80 intensity_max=255 depth_full_m=0.01 glove_id=1 baud=115200
-  acks=auto|on|off ack_timeout_s=0.25 show=auto|on|off
-pipeline overrides: anything python -m sphri accepts, e.g. +debug=fast robot=nao_child
-"""
-
-
 @clean_errors("sphri.hardware.glove")
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+    """``sphri glove replay key=value ... [overrides ...]`` (``python -m sphri.hardware.glove`` by default);
+    the keys of :class:`GloveReplaySettings`, any other ``key=value`` a config override (+debug=fast)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help", "help"):
-        print(USAGE)
-        return 0 if argv else 2
-    cmd, args = argv[0], argv[1:]
+    commands = {"replay": (GloveReplaySettings, True)}
+    got = read_settings(commands, argv, prog or "sphri.hardware.glove", prog or "python -m sphri.hardware.glove")
+    if isinstance(got, int):
+        return got
+    _, settings, overrides = got
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    if cmd != "replay":
-        print(f"sphri.hardware.glove: unknown command {cmd!r} (commands: replay)\n\n{USAGE}", file=sys.stderr)
-        return 2
     try:
-        settings, overrides = parse_cli(args, GloveReplaySettings, pipeline=True)
         report = replay(settings, overrides)
-    except ConfigError as exc:
-        print(f"sphri.hardware.glove: invalid setting: {exc}", file=sys.stderr)
-        return 2
     except PortError as exc:
         print(f"sphri.hardware.glove: {exc}", file=sys.stderr)
         return 1

@@ -1,4 +1,4 @@
-"""Settings of the hardware commands (their ``key=value`` parser is :mod:`sphri.keyvalue`).
+"""Settings of the hardware commands (their ``key=value`` parser is :mod:`sphri.command.args`).
 
 The hardware commands (``python -m sphri.hardware.glove|skin``) are
 entry points beside the pipeline, not stages. Each has a settings dataclass
@@ -6,9 +6,9 @@ below (a :class:`sphri.config.Schema` like the pipeline's: typed fields with
 defaults, units in the names, ranges as field metadata (:func:`sphri.config.setting`)
 and rules across fields in ``check``, errors naming the key; the simulators and
 ``sphri.export.train`` keep theirs beside their code, on the same base). Command lines are
-Hydra-like ``key=value`` pairs: keys of the settings are taken here, and
-everything else (``+debug=fast``, ``robot=nao_child``, ``data.seed=3``) is
-passed to :func:`sphri.config.compose` for the pipeline part.
+``key=value`` pairs (or ``--key value``): keys of the settings are taken here, and, for the
+commands that compose a config, everything else (``+debug=fast``, ``robot=nao_child``,
+``data.seed=3``) is passed to :func:`sphri.config.compose` for the pipeline part.
 """
 
 from __future__ import annotations
@@ -16,7 +16,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from sphri.config import Schema, require, require_choice, setting
-from sphri.keyvalue import describe, field_names, parse_cli  # noqa: F401  (their home before; kept importable)
 
 
 def _port(value: str) -> None:

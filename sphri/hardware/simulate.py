@@ -21,7 +21,7 @@ import threading
 from collections.abc import Sequence
 from pathlib import Path
 
-from sphri.config import ConfigError
+from sphri.command.args import read_settings
 from sphri.errors import clean_errors
 from sphri.hardware.sim_glove import GloveLedger, GloveSimSettings, GloveSimulator
 from sphri.hardware.sim_skin import (
@@ -33,7 +33,6 @@ from sphri.hardware.sim_skin import (
     skin_simulator,
 )
 from sphri.hardware.transport import PtyEndpoint, SocketEndpoint, make_endpoint, start_in_thread
-from sphri.keyvalue import parse_cli
 
 #: Names importable from here before the split (kept for earlier scripts).
 __all__ = [
@@ -52,40 +51,22 @@ __all__ = [
     "start_in_thread",
 ]
 
-USAGE = """usage: python -m sphri.hardware.simulate skin|glove [key=value ...] [pipeline overrides ...]
-
-skin:  streams frames (skin protocol) of encoded synthetic trials (source=pipeline, with the
-       pipeline overrides, e.g. +debug=fast) or moving blobs (source=pattern grid=18x6)
-       trials=8 participant=... rate_hz=0 realtime=true format=auto|u8|u16|bits gap_s=0.5
-       faults: garbage_rate corrupt_rate drop_rate truncate_rate wrong_count_rate (per frame)
-       unplug_after_s=0 unplug_s=1 wait_start=true hold_s=1
-glove: acknowledges ACTUATE messages; ack_drop_rate=0 ack_delay_s=0 duration_s=0
-both:  port=pty|socket://HOST:PORT link=/tmp/skin.tty seed=0 report=ledger.json
-(defaults and meanings: SkinSimSettings in sphri/hardware/sim_skin.py, GloveSimSettings in sim_glove.py)
-"""
-
 
 @clean_errors("sphri.hardware.simulate")
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+    """``sphri simulate skin|glove key=value ...`` (``python -m sphri.hardware.simulate`` by default)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help", "help"):
-        print(USAGE)
-        return 0 if argv else 2
-    device, args = argv[0], argv[1:]
+    commands = {"skin": (SkinSimSettings, True), "glove": (GloveSimSettings, False)}
+    got = read_settings(commands, argv, prog or "sphri.hardware.simulate", prog or "python -m sphri.hardware.simulate")
+    if isinstance(got, int):
+        return got
+    device, settings, overrides = got
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    if device not in ("skin", "glove"):
-        print(f"sphri.hardware.simulate: unknown device {device!r} (skin or glove)\n\n{USAGE}", file=sys.stderr)
-        return 2
-    try:
-        if device == "skin":
-            settings, overrides = parse_cli(args, SkinSimSettings, pipeline=True)
-            sim: SkinSimulator | GloveSimulator = skin_simulator(settings, overrides)
-        else:
-            settings, _ = parse_cli(args, GloveSimSettings, pipeline=False)
-            sim = GloveSimulator(settings, make_endpoint(settings), verbose=True)
-    except ConfigError as exc:
-        print(f"sphri.hardware.simulate: invalid setting: {exc}", file=sys.stderr)
-        return 2
+    sim: SkinSimulator | GloveSimulator
+    if device == "skin":
+        sim = skin_simulator(settings, overrides)
+    else:
+        sim = GloveSimulator(settings, make_endpoint(settings), verbose=True)
 
     def announce() -> None:
         sim.ready.wait()

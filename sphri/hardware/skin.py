@@ -28,9 +28,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sphri.config import ConfigError
+from sphri.command.args import read_settings
 from sphri.errors import clean_errors
-from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, parse_cli, parse_grid
+from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, parse_grid
 from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, encode_control
 from sphri.hardware.transport import Link, PortLost
 
@@ -571,36 +571,20 @@ def live(
     return summary
 
 
-USAGE = """usage: python -m sphri.hardware.skin record|live [key=value ...]
-
-record: port=... out=rec.npz [taxels=0 grid=HxW frames=0 duration_s=0 idle_s=0 chunk_frames=50
-        sync_interval_s=1 consensus_frames=9 reconnect=false reconnect_timeout_s=30 start_command=true baud=1000000]
-live:   port=... model=file.sphrimodel|runs:/<run_id>/<path> [allow_remote=false plugins=[] stride=0 onset_taxels=0
-        calibrate_frames=30 release_frames=10 out=predictions.jsonl show=all|touches|off
-        frames=0 duration_s=0 idle_s=0 reconnect=false ...]
-(defaults and meanings: sphri/hardware/settings.py, SkinRecordSettings / SkinLiveSettings)
-"""
+#: The commands and their settings (``sphri skin --help`` lists each setting with its meaning).
+COMMANDS = {"record": (SkinRecordSettings, False), "live": (SkinLiveSettings, False)}
 
 
 @clean_errors("sphri.hardware.skin")
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+    """``sphri skin record|live key=value ...`` (``python -m sphri.hardware.skin`` is ``prog`` by default)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help", "help"):
-        print(USAGE)
-        return 0 if argv else 2
-    cmd, args = argv[0], argv[1:]
+    got = read_settings(COMMANDS, argv, prog or "sphri.hardware.skin", prog or "python -m sphri.hardware.skin")
+    if isinstance(got, int):
+        return got
+    cmd, settings, _ = got
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    try:
-        if cmd == "record":
-            summary = record(parse_cli(args, SkinRecordSettings, pipeline=False)[0])
-        elif cmd == "live":
-            summary = live(parse_cli(args, SkinLiveSettings, pipeline=False)[0])
-        else:
-            print(f"sphri.hardware.skin: unknown command {cmd!r} (record or live)\n\n{USAGE}", file=sys.stderr)
-            return 2
-    except ConfigError as exc:
-        print(f"sphri.hardware.skin: invalid setting: {exc}", file=sys.stderr)
-        return 2
+    summary = record(settings) if cmd == "record" else live(settings)
     # port, model-file and recording errors: one line from @clean_errors
     return 1 if summary.get("error") else 0
 

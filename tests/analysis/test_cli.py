@@ -9,37 +9,37 @@ import pytest
 from omegaconf import OmegaConf
 
 from sphri import coverage as cli
-from sphri.config import ConfigError
+from sphri.command.args import ArgsError
 from sphri.types import Robot
 
 
 def test_split_args_routes_each_key():
-    ov, dot, run = cli.split_args(
-        ["+debug=fast", "data.regions=[torso]", "by=gesture", "out=/x", "coverage.bandwidth_mm=8", "mlflow=false"]
+    ov, settings, run = cli.split_args(
+        ["+debug=fast", "data.regions=[torso]", "by=gesture", "out=/x", "coverage.bandwidth_mm=8", "--mlflow", "false"]
     )
     assert ov == ["+debug=fast", "data.regions=[torso]"]
-    assert dot == ["by=gesture", "bandwidth_mm=8"]
-    assert run == {"out": "/x", "mlflow": "false"}
-    with pytest.raises(ConfigError, match="coverage.nope"):
+    assert (settings.by, settings.bandwidth_mm) == ("gesture", 8.0)
+    assert (run.out, run.mlflow) == ("/x", False)
+    with pytest.raises(ArgsError, match="coverage.nope"):
         cli.split_args(["coverage.nope=1"])
-    with pytest.raises(ConfigError, match="key=value"):
-        cli.split_args(["by"])
+    with pytest.raises(ArgsError, match="^mlflow=maybe is invalid: must be true or false$"):
+        cli.split_args(["mlflow=maybe"])
 
 
 @pytest.mark.parametrize(
-    "arg,key",
+    "arg,line",
     [
-        ("bandwidth_mm=abc", "bandwidth_mm"),
-        ("kernel=manhattan", "coverage.kernel"),
-        ("capture=1.5", "coverage.capture"),
-        ("n_permutations=5", "coverage.n_permutations"),
-        ("exact_max=25", "coverage.exact_max"),
+        ("bandwidth_mm=abc", "bandwidth_mm=abc is invalid: must be a number"),
+        ("kernel=manhattan", "kernel='manhattan' is invalid: allowed values: "),
+        ("capture=1.5", "capture=1.5 is invalid: must be in (0, 1]"),
+        ("n_permutations=5", "n_permutations=5 is invalid: must be in [99, "),
+        ("exact_max=25", "exact_max=25 is invalid: must be in [0, 20]"),
     ],
 )
-def test_bad_settings_name_the_key(arg, key):
-    with pytest.raises(ConfigError) as err:
+def test_bad_settings_name_the_key(arg, line):
+    with pytest.raises(ArgsError) as err:
         cli.load_settings([arg])
-    assert key in str(err.value)
+    assert str(err.value).startswith(line), str(err.value)
 
 
 def test_settings_defaults_and_overrides():
@@ -49,8 +49,10 @@ def test_settings_defaults_and_overrides():
 
 def test_main_reports_config_errors(capsys):
     assert cli.main(["kernel=manhattan"]) == 2
-    assert "coverage.kernel" in capsys.readouterr().err
+    assert capsys.readouterr().err.startswith("sphri.coverage: kernel='manhattan' is invalid")
     assert cli.main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert "bandwidth_mm=NUMBER" in out and "mlflow=true|false" in out and "overrides" in out
 
 
 class FakePipeline:

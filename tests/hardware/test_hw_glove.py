@@ -9,11 +9,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from sphri.command.args import ArgsError, parse_known
 from sphri.config import ConfigError
 from sphri.hardware.actuators import ActuatorMap, capsule_actuator, part_depths
 from sphri.hardware.glove import GloveDriver, PlannedMessage, play, schedule, select_trial
 from sphri.hardware.glove_protocol import ACTUATORS, GloveDecoder
-from sphri.hardware.settings import GloveReplaySettings, parse_cli
+from sphri.hardware.settings import GloveReplaySettings
 from sphri.hardware.sim_glove import GloveSimSettings, GloveSimulator
 from sphri.hardware.transport import Link, PortError, make_endpoint, open_port, start_in_thread
 
@@ -193,16 +194,21 @@ def test_missing_port_gives_a_clear_error():
 
 
 def test_replay_settings_parse_and_validate():
-    s, rest = parse_cli(
-        ["port=loop://", "trial=2", "pulse_ms=80", "+debug=fast", "robot=nao_child"], GloveReplaySettings, pipeline=True
+    s, rest = parse_known(
+        GloveReplaySettings, ["port=loop://", "trial=2", "pulse_ms=80", "+debug=fast", "robot=nao_child", "-m"]
     )
-    assert (s.trial, s.pulse_ms) == (2, 80) and rest == ["+debug=fast", "robot=nao_child"]
-    with pytest.raises(ConfigError, match="pulse_ms"):
-        parse_cli(["pulse_ms=0"], GloveReplaySettings, pipeline=True)
-    with pytest.raises(ConfigError, match="trial"):
-        parse_cli(["trial=abc"], GloveReplaySettings, pipeline=True)
-    with pytest.raises(ConfigError, match="acks"):
-        parse_cli(["acks=maybe"], GloveReplaySettings, pipeline=True)
+    assert (s.trial, s.pulse_ms) == (2, 80) and rest == ["+debug=fast", "robot=nao_child", "-m"]
+    assert parse_known(GloveReplaySettings, ["--trigger", "onset", "--realtime", "data.seed=3"])[0].trigger == "onset"
+    with pytest.raises(ArgsError, match=r"^pulse_ms=0 is invalid: must be in \[1, 65535\]$"):
+        parse_known(GloveReplaySettings, ["pulse_ms=0"])
+    with pytest.raises(ArgsError, match="^trial=abc is invalid: must be an integer$"):
+        parse_known(GloveReplaySettings, ["trial=abc"])
+    with pytest.raises(ArgsError, match="^acks='maybe' is invalid"):  # Schema.check
+        parse_known(GloveReplaySettings, ["acks=maybe"])
+    with pytest.raises(
+        ArgsError, match=r"^trigger='onst' is invalid: allowed values: \['contact', 'onset'\]$"
+    ):  # setting(choices=...)
+        parse_known(GloveReplaySettings, ["trigger=onst"])
 
 
 def test_select_trial():

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from skin_sim import check_good_frames_kept, run_record
 
-from sphri.config import ConfigError
+from sphri.command.args import ArgsError, parse
 from sphri.hardware.recording import RecordingError, SkinRecording, load_recording, save_recording
-from sphri.hardware.settings import SkinRecordSettings, parse_cli
+from sphri.hardware.settings import SkinRecordSettings
 
 
 def trailing_lost(ledger) -> int:
@@ -118,16 +118,21 @@ def test_wrong_skin_is_refused_with_a_clear_message(tmp_path):
 
 
 def test_record_settings():
-    s, _ = parse_cli(["port=/dev/ttyACM0", "out=x.npz", "grid=18x6", "taxels=108"], SkinRecordSettings, pipeline=False)
+    s = parse(SkinRecordSettings, ["port=/dev/ttyACM0", "out=x.npz", "grid=18x6", "taxels=108"])
     assert s.grid == "18x6"
-    with pytest.raises(ConfigError, match="grid"):
-        parse_cli(["port=p", "out=x.npz", "grid=18x6", "taxels=100"], SkinRecordSettings, pipeline=False)
-    with pytest.raises(ConfigError, match="grid"):
-        parse_cli(["port=p", "out=x.npz", "grid=eighteen"], SkinRecordSettings, pipeline=False)
-    with pytest.raises(ConfigError, match="robot"):
-        parse_cli(["port=p", "out=x.npz", "robot=reachy"], SkinRecordSettings, pipeline=False)
-    with pytest.raises(ConfigError, match="out"):
-        parse_cli(["port=p"], SkinRecordSettings, pipeline=False)
+    assert parse(SkinRecordSettings, ["--port", "p", "--out=x.npz", "--chunk-frames", "7"]).chunk_frames == 7
+    with pytest.raises(ArgsError, match=r"^grid='18x6' is invalid: H\*W must equal taxels=100$"):
+        parse(SkinRecordSettings, ["port=p", "out=x.npz", "grid=18x6", "taxels=100"])
+    with pytest.raises(ArgsError, match="^grid='eighteen' is invalid"):
+        parse(SkinRecordSettings, ["port=p", "out=x.npz", "grid=eighteen"])
+    with pytest.raises(ArgsError, match="^unknown argument 'robot'"):  # record composes no config
+        parse(SkinRecordSettings, ["port=p", "out=x.npz", "robot=reachy"])
+    with pytest.raises(ArgsError, match="^missing out=TEXT"):  # "???": required
+        parse(SkinRecordSettings, ["port=p"])
+    with pytest.raises(ArgsError, match=r"^baud=1 is invalid: must be in \[300, "):  # setting()'s range
+        parse(SkinRecordSettings, ["port=p", "out=x", "baud=1"])
+    with pytest.raises(ArgsError, match="^baud=1.5 is invalid: must be an integer$"):
+        parse(SkinRecordSettings, ["port=p", "out=x", "baud=1.5"])
 
 
 # ------------------------------------------------------------------ recording format
