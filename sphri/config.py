@@ -106,13 +106,18 @@ def component_node(group: str, name: str, conf_dir: Path | None = None) -> DictC
     typed, ``_target_`` included, without composing the whole config (interpolations to the root,
     such as ``${seed}``, stay unresolved)."""
     register_schemas()
-    raw = OmegaConf.load((conf_dir or CONF_DIR) / group / f"{name}.yaml")
+    path = (conf_dir or CONF_DIR) / group / f"{name}.yaml"
+    raw = OmegaConf.load(path)
+    if not isinstance(raw, DictConfig):
+        raise ConfigError(f"{path}: a component config must be a mapping of settings, got a list")
     defaults = [str(d) for d in raw.pop("defaults", [])]
     entry = next((d for d in defaults if d.startswith("/schema_")), None)
     if entry is None:
         return raw
     schema = ConfigStore.instance().load(entry[1:].removesuffix("@_here_") + ".yaml").node
-    return OmegaConf.merge(schema, raw)
+    merged = OmegaConf.merge(schema, raw)
+    assert isinstance(merged, DictConfig)  # a mapping merged onto a dataclass schema
+    return merged
 
 
 def build(node: DictConfig, **kwargs: Any) -> Any:
@@ -121,7 +126,7 @@ def build(node: DictConfig, **kwargs: Any) -> Any:
 
     drop = chain_fields(OmegaConf.get_type(node)) if isinstance(node, DictConfig) else ()
     if drop:  # the chain's settings (encoder.res) reach the chain through their owner, not the component
-        node = OmegaConf.masked_copy(node, [k for k in node.keys() if k not in drop])
+        node = OmegaConf.masked_copy(node, [str(k) for k in node.keys() if k not in drop])
     return instantiate(node, _convert_="all", **kwargs)
 
 
@@ -414,8 +419,9 @@ def check_choices(overrides: Sequence[str]) -> None:
         if group not in DEFAULT_GROUPS or o.is_delete():
             continue
         options = sorted({p.stem for d in dirs for p in (d / group).glob("*.yaml")})
-        if isinstance(o.value(), Glob):  # glob(...) picks among the options (Hydra needs its loader to expand it)
-            values = o.value().filter(options)
+        given = o.value()
+        if isinstance(given, Glob):  # glob(...) picks among the options (Hydra needs its loader to expand it)
+            values = given.filter(options)
             if not values:
                 raise ConfigError(
                     f"{o.input_line} is invalid: the glob matches no {group} option; options: {', '.join(options)}"
@@ -638,7 +644,7 @@ def check_known_keys(cfg: DictConfig, prefix: str = "") -> None:
             if key not in names and not (
                 prefix == "" and key == "hydra"
             ):  # Hydra's own node (compose with return_hydra_config)
-                full = f"{prefix}{key}"
+                full = f"{prefix}{key!s}"
                 raise ConfigError(
                     f"{full} is not a known key{close_match(str(key), names)}; "
                     f"{(prefix.rstrip('.') or 'the top level')} has: {', '.join(n for n in names if n != '_target_')}"
@@ -648,7 +654,7 @@ def check_known_keys(cfg: DictConfig, prefix: str = "") -> None:
             continue
         node = cfg._get_node(key)
         if isinstance(node, DictConfig) and not node._is_missing() and not node._is_none():
-            check_known_keys(node, f"{prefix}{key}.")
+            check_known_keys(node, f"{prefix}{key!s}.")
 
 
 def field_docs(schema: type) -> dict[str, str]:

@@ -146,6 +146,7 @@ def declared_files(node: Any, exclude: frozenset[Path] = frozenset()) -> list[tu
     if not specs:
         return out
     values = OmegaConf.to_container(node, resolve=True)
+    assert isinstance(values, dict)  # a DictConfig's container
     for name, spec in specs:
         value = values.get(name)
         if value in (None, "", "???"):
@@ -192,6 +193,7 @@ def missing_inputs(node: Any) -> list[tuple[str, Path, str]]:
     if not specs:
         return []
     values = OmegaConf.to_container(node, resolve=False)
+    assert isinstance(values, dict)  # a DictConfig's container
     out = []
     for name, spec in specs:
         value = values.get(name)

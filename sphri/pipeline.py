@@ -659,6 +659,7 @@ def config_hash(cfg: DictConfig) -> str:
     (:mod:`sphri.inputs`), so that a sweep resumed after a component or an input file changed reruns its jobs."""
 
     c = OmegaConf.to_container(cfg, resolve=True)
+    assert isinstance(c, dict)  # a DictConfig's container
     not_result = [g for g in STAGE_GROUPS if g not in RESULT_GROUPS]  # tracking: how a job is recorded
     for k in (*not_result, "cache", "output_dir", "resume", "plugins", "hydra", "debug", "experiment"):
         c.pop(k, None)

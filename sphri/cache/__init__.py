@@ -41,7 +41,7 @@ import io
 import json
 import logging
 import zipfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
@@ -87,8 +87,8 @@ def stable_hash(obj: Any) -> str:
     return hashlib.blake2b(text.encode(), digest_size=10).hexdigest()
 
 
-def stage_key(stage: str, version: str, config: Any, inputs: dict[str, str]) -> str:
-    """Cache key of one stage: its name, component version, config and inputs' keys."""
+def stage_key(stage: str, version: str, config: Any, inputs: Mapping[str, Any]) -> str:
+    """Cache key of one stage: its name, component version, config and inputs (upstream keys, plain values)."""
     return stable_hash({"stage": stage, "version": version, "config": config, "inputs": inputs})
 
 

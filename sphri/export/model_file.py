@@ -174,7 +174,7 @@ def save_model(bundle: ModelBundle, path: str | os.PathLike, key: Any = FROM_ENV
     if g.uv is not None:
         arrays["uv"] = np.asarray(g.uv, dtype=np.float64)
     buf = io.BytesIO()
-    np.savez(buf, **arrays)
+    np.savez(buf, allow_pickle=False, **arrays)  # state_of refused object arrays: nothing to pickle
     payload = buf.getvalue()
     head_bytes = json.dumps(header, default=str).encode()
     blob = seal_model(head_bytes, payload, load_key("model") if key is FROM_ENV else key)
@@ -241,6 +241,15 @@ def _check_header(path: Path, header: dict[str, Any]) -> None:
         v = header.get(name)
         if isinstance(v, bool) or not isinstance(v, typ) or not lo <= v <= hi:
             raise ModelFileError(f"{path}: header field {name} must be a number in [{lo:g}, {hi:g}], got {v!r}")
+    grid = header.get("grid_shape")
+    if grid is not None and not (
+        isinstance(grid, list)
+        and len(grid) == 2
+        and all(isinstance(v, int) and not isinstance(v, bool) and v > 0 for v in grid)
+    ):
+        raise ModelFileError(
+            f"{path}: header field grid_shape must be null or [H, W] (positive integers), got {grid!r}"
+        )
     for name in ("geometry", "estimator"):
         if not isinstance(header.get(name), dict):
             raise ModelFileError(f"{path}: header field {name} must be an object, got {header.get(name)!r}")
@@ -264,7 +273,7 @@ def load_model(path: str | os.PathLike, key: Any = FROM_ENV, plugins: Sequence[s
         geo_head = header["geometry"]
         with np.load(io.BytesIO(payload), allow_pickle=False) as z:
             geometry = TaxelGeometry(
-                grid_shape=tuple(int(v) for v in header["grid_shape"]) if header.get("grid_shape") else None,
+                grid_shape=(header["grid_shape"][0], header["grid_shape"][1]) if header.get("grid_shape") else None,
                 uv=z["uv"] if geo_head.get("has_uv") else None,
                 position_m=z["position_m"],
                 wrap_v=bool(geo_head["wrap_v"]),

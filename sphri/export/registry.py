@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Iterable
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -31,12 +31,16 @@ BUILTIN: dict[str, str] = {
     "rf": "sphri.models.rf:RandomForest",
     "cnn_gru": "sphri.models.cnn_gru:CnnGru",
 }
-_REGISTERED: dict[str, type] = {}
+_REGISTERED: dict[str, type[Any]] = {}
 
 #: What an exportable model class must have (see the module docstring).
 PROTOCOL = ("NAME", "predict_proba", "save_state", "load_state")
 #: Payload arrays the model file itself stores beside a model's own arrays.
 RESERVED_ARRAYS = frozenset({"position_m", "uv"})
+
+
+#: A class (a model class or any other, for :func:`register`'s decorator use).
+_C = TypeVar("_C", bound=type)
 
 
 class NotExportable(TypeError):
@@ -46,7 +50,8 @@ class NotExportable(TypeError):
 def missing(cls: type) -> list[str]:
     """The parts of :data:`PROTOCOL` that ``cls`` lacks (an empty list: it is exportable)."""
     gone = [name for name in PROTOCOL if not hasattr(cls, name)]
-    if "NAME" not in gone and not (isinstance(cls.NAME, str) and cls.NAME.strip()):
+    name = getattr(cls, "NAME", None)
+    if "NAME" not in gone and not (isinstance(name, str) and name.strip()):
         gone.append("NAME (a non-empty string)")
     return gone
 
@@ -56,15 +61,16 @@ def class_path(cls: type) -> str:
     return f"{cls.__module__}:{cls.__qualname__}"
 
 
-def register(cls: type) -> type:
+def register(cls: _C) -> _C:
     """Register an exportable model class under its ``NAME`` (usable as a class decorator). A plugin only
     needs this to load files in a process that imported it without listing its package in ``plugins``."""
     gone = missing(cls)
     if gone:
         raise NotExportable(f"{cls.__qualname__} cannot be registered as a model: it lacks {', '.join(gone)}")
-    if cls.NAME in BUILTIN and class_path(cls) != BUILTIN[cls.NAME]:
-        raise NotExportable(f"model name {cls.NAME!r} of {class_path(cls)} is sphri's own ({BUILTIN[cls.NAME]})")
-    _REGISTERED[cls.NAME] = cls
+    name: str = getattr(cls, "NAME", "")  # a non-empty string: missing() checked it
+    if name in BUILTIN and class_path(cls) != BUILTIN[name]:
+        raise NotExportable(f"model name {name!r} of {class_path(cls)} is sphri's own ({BUILTIN[name]})")
+    _REGISTERED[name] = cls
     return cls
 
 
@@ -109,7 +115,7 @@ def state_of(estimator: Any) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
     return out_head, out_arrays
 
 
-def model_class(head: dict[str, Any], plugins: Iterable[str] = ()) -> type:
+def model_class(head: dict[str, Any], plugins: Iterable[str] = ()) -> type[Any]:
     """The class a model file's ``estimator`` header names. sphri's own by ``kind``; any other only if
     registered in this process or if its top-level package is in ``plugins``. Raises ``ValueError``."""
     kind = head.get("kind")

@@ -334,7 +334,7 @@ def geometry_of(link: Link) -> LinkGeometry:
         hit = _GEOMETRIES.get(key)
         if hit is not None and hit[0]() is link:
             return hit[1]
-        _GEOMETRIES[key] = (weakref.ref(link, lambda _ref, k=key: _forget(k)), geom)
+        _GEOMETRIES[key] = (weakref.ref(link, lambda _ref: _forget(key)), geom)
     return geom
 
 

@@ -83,6 +83,8 @@ class GridEncoder(nn.Module):
     ``wrap_v``, circular along W (v), so any H, W >= 1 works.
     """
 
+    pool: torch.Tensor  # buffer (H*W, embed_size^2), registered in __init__
+
     def __init__(
         self, grid_shape: tuple[int, int], channels: list[int], strides: list[int], wrap_v: bool, embed_size: int
     ):
@@ -128,6 +130,9 @@ class MlpEncoder(nn.Module):
 
 class CnnGruNet(nn.Module):
     """Windows (B, L, N) -> logits (B, n_classes)."""
+
+    x_mean: torch.Tensor  # buffers (scalars), registered in __init__, set by CnnGru.fit
+    x_std: torch.Tensor
 
     def __init__(
         self,

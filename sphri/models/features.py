@@ -226,7 +226,7 @@ def _span_a(active: np.ndarray, c: TaxelCoords) -> np.ndarray:
     """(M,) extent of the active taxels along a, one pitch added (metres)."""
     if c.grid_shape is not None:
         h, w = c.grid_shape
-        occ = active.reshape(-1, h, w).any(axis=2)
+        occ = np.any(active.reshape(-1, h, w), axis=2)
         pos = c.a_m.reshape(h, w).mean(axis=1)
     else:
         occ, pos = active, c.a_m
@@ -243,7 +243,7 @@ def _span_b(active: np.ndarray, c: TaxelCoords) -> np.ndarray:
     """
     if c.grid_shape is not None:
         h, w = c.grid_shape
-        occ = active.reshape(-1, h, w).any(axis=1)
+        occ = np.any(active.reshape(-1, h, w), axis=1)
         pos = c.b_m.reshape(h, w)[0]
     else:
         occ, pos = active, c.b_m

@@ -79,7 +79,9 @@ class RandomForest(ClassifierMixin, BaseEstimator):
 
     def transform(self, x: np.ndarray) -> np.ndarray:
         """(n, L, N) windows -> (n, 32) float64 features (:data:`FEATURE_NAMES`)."""
-        return extract_features(x, self.geometry, self.active_threshold, coords=self._coords())
+        coords = self._coords()  # raises the ValueError above when geometry is None
+        assert self.geometry is not None
+        return extract_features(x, self.geometry, self.active_threshold, coords=coords)
 
     def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> RandomForest:
         """Fit the forest on windows x (n, L, N) and labels y (n,). ``groups`` is unused."""

@@ -277,3 +277,22 @@ def test_a_registered_model_class_loads_without_plugins(tmp_path, make_geometry)
 def test_remote_models_need_an_explicit_opt_in(spec):
     with pytest.raises(ModelFileError, match="allow_remote=true"):
         resolve_model_path(spec)
+
+
+@pytest.mark.parametrize("grid", [[18], [6, 3, 1], ["6", 3], [6.0, 3], [0, 3], [True, 18], {"h": 6}])
+def test_malformed_grid_shape_in_the_header_is_refused(tmp_path, make_geometry, grid):
+    """The header's grid_shape must be null or [H, W] of positive integers: anything else is refused with the
+    file and field named (a resealed file, so the checksum does not catch it)."""
+    from tests.hardware.test_hw_live import small_rf
+
+    geo = make_geometry(6, 3)
+    path = save_model(ModelBundle(small_rf(geo), geo, 20, 90.0), tmp_path / "rf.sphrimodel")
+    blob = path.read_bytes()
+    (n,) = struct.unpack_from("<I", blob, len(MAGIC))
+    h0 = len(MAGIC) + 4
+    header = json.loads(blob[h0 : h0 + n])
+    assert header["grid_shape"] == [6, 3]
+    header["grid_shape"] = grid
+    path.write_bytes(seal_model(json.dumps(header).encode(), blob[h0 + n + 64 :]))
+    with pytest.raises(ModelFileError, match=r"rf\.sphrimodel: header field grid_shape must be null or \[H, W\]"):
+        load_model(path)
