@@ -32,7 +32,7 @@ import sys
 import textwrap
 import types
 import typing
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
@@ -470,7 +470,7 @@ def first_paragraph(doc: str | None) -> str:
 
 
 def read_settings(
-    commands: dict[str, tuple[type, bool]], argv: Sequence[str], prog: str, usage_prog: str = ""
+    commands: Mapping[str, tuple[type, bool]], argv: Sequence[str], prog: str, usage_prog: str = ""
 ) -> tuple[str, Any, list[str]] | int:
     """``PROG [COMMAND] key=value ...`` of a command whose settings are dataclasses (the hardware
     commands, the model export): ``commands`` maps each command word to its dataclass and whether it
@@ -494,6 +494,7 @@ def read_settings(
         print(f"{prog}: unknown command {word!r}{hint}; commands: {', '.join(words)}", file=sys.stderr)
         return 2
     cls, known = commands[word]
+    settings: Any
     try:
         settings, overrides = _parse(cls, argv, f"{usage_prog} {word}".strip(), summary(cls), known)
     except HelpRequested as h:
