@@ -1,8 +1,8 @@
 """How the synthetic participants differ from each other and from trial to trial.
 
 Every spread of the generator is a field of :class:`Spread` (one field per
-``data.*`` key of ``conf/data/synthetic.yaml``, where each value's source is
-written), multiplied by the summary knob ``data.variability``: 1.0 is
+``data.*`` key of ``data=synthetic``; each field's docstring names its
+source, legend in :class:`sphri.data.schema.SyntheticDataSchema`), multiplied by the summary knob ``data.variability``: 1.0 is
 calibrated to real people, 0 makes every participant draw from the same
 population (no between-participant effects, no per-participant preferences,
 no calibrated per-trial spread; only the gestures' own mechanical randomness
@@ -50,43 +50,49 @@ _RANGES = {
 
 @dataclass
 class Spread:
-    """The generator's variability assumptions (see ``conf/data/synthetic.yaml`` for each source).
+    """The generator's variability assumptions, each field's source in its docstring ([VR], [CoST],
+    [assumption], ...: the legend is :class:`sphri.data.schema.SyntheticDataSchema`'s).
 
     Also the base of the ``data=synthetic`` schema, so every field is a
     ``data.*`` key.
     """
 
     variability: float = 1.0
-    """Multiplies every spread below: 1 = calibrated to real people, 0 = interchangeable participants."""
-    # trial length (log scale, natural log of frames)
+    """Multiplies EVERY spread below (participant, participant x gesture, trial, habit preferences, event
+    rates): 1 = calibrated to real people, 0 = interchangeable participants (all draw from one population)
+    with no calibrated trial spread; >1 exaggerates. Tracking noise is not scaled."""
+    # trial length: log(frames) = log(VR median of the gesture) + participant + participant x gesture + trial
     length_participant_sd: float = 0.31
-    """SD of a participant's effect on log trial length; measured variance 0.056-0.103 over seeds 0-2 [VR: 0.079]."""
+    """SD of a participant's effect on log trial length; gives a measured variance of participants' mean log
+    length of 0.056-0.103 over seeds 0-2 [VR: 0.079; the fixed approach/retreat dilute it]."""
     length_interaction_sd: float = 0.10
-    """SD of the participant x gesture effect on log length [VR: interaction variance 0.013]."""
+    """SD of the participant x gesture effect on log length [VR: interaction variance 0.013, minus sampling noise]."""
     length_trial_sd: float = 0.10
-    """Least SD of the trial effect; per gesture, what the VR SD of log length leaves (:meth:`length_trial_sd_for`)."""
+    """Least SD of the trial effect; per gesture it is what is left of the VR study's SD of log length after the
+    two effects above (:meth:`length_trial_sd_for`) [VR: SD of log length within a gesture 0.33-0.48]."""
     length_tail_df: float = 3.0
     """Student-t degrees of freedom of the trial effect (heavy tails) [VR: 99th percentile 403 frames]."""
     long_trial_rate: float = 0.004
-    """Share of trials nobody ended in time (8 s to ``long_trial_max_s`` extra idle) [VR: 0.5 % over 500 frames]."""
+    """Share of trials nobody ended in time (8 s to ``long_trial_max_s`` extra idle) [VR: 0.5 % of arm trials
+    > 500 frames]."""
     long_trial_max_s: float = 70.0
-    """Longest trial (s) [VR: 2,071 frames]."""
+    """Longest trial (s); longer draws are cut here [VR: longest arm trial 2,071 frames, 69 s]."""
     # approach and retreat
     approach_s: float = 0.7
-    """Median duration of the approach and of the retreat (s) [assumption]."""
+    """Median duration of the approach and of the retreat (s) [assumption; the rest of the trial is idle]."""
     speed_participant_sd: float = 0.2
     """Log-SD of a participant's speed [assumption]."""
     speed_interaction_sd: float = 0.3
     """Log-SD of a participant x gesture speed (approach and pressing in) [assumption]."""
     speed_trial_sd: float = 0.2
     """Log-SD of a trial's approach and retreat times [assumption]."""
-    # contact phase
+    # contact phase: mean duration = CoST's; trial log-SD chosen so the total spread matches CoST's SD
     duration_participant_sd: float = 0.35
     """Log-SD of a participant's contact-duration factor [assumption; CoST gives the total SD only]."""
     duration_interaction_sd: float = 0.55
     """Log-SD of a participant x gesture duration factor [assumption]; the trial SD fills up to CoST's SD."""
     depth_participant_sd: float = 0.5
-    """Log-SD of a participant's penetration depth [assumption: nothing stops a virtual hand]."""
+    """Log-SD of how deep a participant's virtual hand goes into the hull [assumption: nothing stops it]."""
     depth_interaction_sd: float = 0.5
     """Log-SD of a participant x gesture depth factor [assumption]."""
     depth_trial_sd: float = 0.25
@@ -96,12 +102,13 @@ class Spread:
     depth_max_m: float = 0.045
     """Deepest penetration (m), about the arm hull's half-width [VR: hull 7.2 x 9.3 cm]."""
     rate_interaction_sd: float = 0.35
-    """Log-SD of a participant x gesture repetition rate (rub frequency, touches per second) [assumption]."""
+    """Log-SD of a participant x gesture repetition rate (rub frequency, taps/pats/strokes per s) [assumption]."""
     extent_interaction_sd: float = 0.4
     """Log-SD of a participant x gesture slide extent (rub amplitude, stroke length) [assumption]."""
     preference_concentration: float = 0.5
-    """Beta concentration of personal habits around :data:`sphri.data.gestures.HABITS` [assumption]."""
-    # where people touch
+    """Beta concentration of personal habits around the population rates (fist or palm hit, finger or palm
+    pat/rub/stroke, fingertip push, ...; :data:`sphri.data.gestures.HABITS`) [assumption]."""
+    # where people touch: a habitual site per participant and region, shifted per gesture
     site_axial_sd: float = 0.15
     """SD of a participant's habitual site along the link (fraction of its length) [assumption]."""
     site_interaction_sd: float = 0.15
@@ -110,24 +117,25 @@ class Spread:
     """SD of the per-gesture shift around the link (radians) [assumption]."""
     site_kappa_max: float = 3.0
     """Largest von Mises concentration of a participant's site around the link [assumption]."""
-    # hands
+    # hands and handedness
     hand_length_male_mm: float = 189.0
-    """Mean adult hand length, men (mm) [Pheasant & Haslegrave, Bodyspace, 3rd ed. 2006]."""
+    """Mean adult hand length, men (mm) [Pheasant & Haslegrave, Bodyspace, 3rd ed. 2006, British adults]."""
     hand_length_female_mm: float = 174.0
     """Mean adult hand length, women (mm) [same source]."""
     hand_length_sd_mm: float = 9.5
-    """SD of hand length within each sex (mm) [same source]."""
+    """SD of hand length within each sex (mm) [same source: 10 and 9 mm]."""
     female_fraction: float = 0.5
     """Share of women among participants [assumption]."""
     hand_model_length_mm: float = 181.5
     """Hand length of the capsule hand model at scale 1 (mm) [assumption: the population mean]."""
     left_handed_fraction: float = 0.106
-    """Share of left-handers (touch with the tracked right hand from the other side) [Papadatou-Pastou et al. 2020]."""
+    """Share of left-handers, who touch with the tracked right hand from the other side [Papadatou-Pastou et al.
+    2020, Psychol. Bull. 146:481-524: 10.6 %]."""
     nondominant_speed: float = 0.9
     """Speed factor of the non-dominant hand [assumption]."""
     # events inside a trial
     brush_rate: float = 0.06
-    """Share of trials with an accidental graze before the gesture [assumption]."""
+    """Share of trials with an accidental graze 0.15-0.5 s before the gesture [assumption]."""
     retouch_rate: float = 0.06
     """Share of trials with a second short touch after the gesture [assumption]."""
     boundary_early_rate: float = 0.02

@@ -40,23 +40,44 @@ class DataSchema(Schema):
 class SyntheticDataSchema(Spread, DataSchema):
     """``data=synthetic``: calibrated synthetic gestures (:class:`sphri.data.synthetic.SyntheticData`).
 
-    The variability fields (``variability``, ``length_*``, ``duration_*``,
-    ``depth_*``, ...) come from :class:`sphri.data.people.Spread`; each one's
-    source is in ``conf/data/synthetic.yaml``.
+    Calibrated to the VR study's trial lengths (centre AND spread, within and
+    between participants), CoST's contact durations and, on a simulated CoST
+    sensor, CoST's contact areas (penetration depths,
+    ``sphri.data.gestures.DEPTH_M``); ``python -m sphri.data.stats`` prints
+    every comparison and flags what falls outside. The variability fields
+    (``variability``, ``length_*``, ``duration_*``, ``depth_*``, ...) come
+    from :class:`sphri.data.people.Spread`. Each field's docstring names its
+    source (``python -m sphri.cli show data=synthetic`` prints them):
+    [VR] = the manifests of the VR gesture dataset (Crowder et al.,
+    dakaraisc/VR-gesture-dataset 6a08504), arm, all 18 participants,
+    measured with ``python -m sphri.data.stats data.root=...``; [CoST] = Jung
+    et al. 2017, J. Multimodal User Interfaces 11, Table 4; [Q2] = Abdlkarim
+    et al. 2024, Behav. Res. Methods 56:1052-1063 (Meta Quest 2 hand tracking
+    against motion capture); [assumption] = no published value, chosen so the
+    generator behaves plausibly; change it and rerun the stats.
     """
 
     _target_: str = "sphri.data.synthetic.SyntheticData"
     seed: int = setting(0, lo=0)
+    """Data seed: participant k uses the random streams (seed, k, region)."""
     participants: int | None = setting(18, lo=1, optional=True)
+    """Participants participant_01..N (the study had 18; null: 18)."""
     repetitions: int | None = setting(20, lo=1, optional=True)
+    """Trials per gesture per participant and region (the study's 20; null: 20)."""
     regions: list[str] = field(default_factory=lambda: ["arm"])
+    """Skin regions of the robot to touch (``robot.regions`` keys)."""
     gestures: list[str] = field(default_factory=lambda: list(GESTURES))
+    """Gestures to generate."""
     root: str | None = None
+    """Unused here (only data=vr_gesture reads a folder): must stay null."""
     frame_rate_hz: float = setting(30.0, lo=1.0, hi=1000.0)
+    """Frames per second of the poses (the study's trial lengths count ~30 Hz frames)."""
     tracking_rate_hz: float = setting(30.0, lo=1.0, hi=1000.0)
-    """Hand-tracking updates per second, jittered 15 % [Q2: Quest hand tracking samples at 30 Hz]."""
+    """Hand-tracking updates per second, jittered 15 %; each frame holds the latest sample [Q2: Quest hand
+    tracking samples at 30 Hz]."""
     jitter_mm: float = setting(3.0, lo=0.0, hi=50.0)
-    """SD per axis of the tracked hand position per tracking sample (mm) [Q2: 1.1 cm fingertip error, mostly bias]."""
+    """SD per axis of the tracked hand position per tracking sample (mm) [Q2: fingertip error 1.1 cm, mostly a
+    smooth bias; the sample-to-sample part is taken as a few mm, assumption]."""
     latency_ms: float = setting(45.0, lo=0.0, hi=500.0)
     """Delay of the tracked hand behind the real one (ms) [Q2: Abdlkarim et al. 2024, 45 ms]."""
     latency_sd_ms: float = setting(8.0, lo=0.0, hi=200.0)
@@ -84,14 +105,23 @@ class VRGestureDataSchema(DataSchema):
 
     _target_: str = "sphri.data.vr_gesture.VRGestureData"
     root: str | None = input_path(None, kind="dir")
+    """The dataset folder (holds arm/, torso/, assets/); required."""
     seed: int = setting(0, lo=0)
+    """Unused for recorded data (kept so that every data component has it)."""
     participants: int | None = setting(None, lo=1, optional=True)
+    """The first N participants by id (null: all 18)."""
     repetitions: int | None = setting(None, lo=1, optional=True)
+    """At most N trials per gesture per participant and region, by ordinal (null: all)."""
     regions: list[str] = field(default_factory=lambda: ["arm"])
+    """Region folders to read; others are never opened."""
     gestures: list[str] = field(default_factory=lambda: list(GESTURES))
+    """Gestures to read (rows filtered in the parquet reader)."""
     min_frames: int = setting(10, lo=1)
+    """Trials shorter than this (frames) are dropped and counted (the data has 1-frame trials)."""
     frame_rate_hz: float | None = setting(None, lo=1.0, hi=1000.0, optional=True)
+    """Frames per second; null: the manifests' frame_rate_hz, else 30 (the study's ~30 Hz tracking)."""
     quat_tolerance: float = setting(1e-3, lo=0.0, lo_open=True, hi=0.5)
+    """A quaternion's norm may differ from 1 by this much before it is re-normalized (and counted)."""
     units: str = setting("m", choices=POSITION_UNITS)
     """Units of the pose files' positions: m (the format's), cm or mm (scaled to metres on load)."""
     duplicates: str = setting("refuse", choices=DUPLICATE_POLICIES)

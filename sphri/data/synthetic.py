@@ -151,8 +151,8 @@ class SyntheticData:
 
     ``participants``/``repetitions``: None = the study's 18 / 20.
     ``regions``: skin regions of the robot to touch. ``root`` must be None
-    (it belongs to ``data=vr_gesture``). Other fields: see
-    ``conf/data/synthetic.yaml``.
+    (it belongs to ``data=vr_gesture``). Other fields, their defaults and
+    sources: :class:`sphri.data.schema.SyntheticDataSchema`.
     """
 
     VERSION = "3"  # 3: penetration depths calibrated to CoST's contact areas (sphri.data.gestures.DEPTH_M)

@@ -45,8 +45,9 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 from tqdm.auto import tqdm
 
+from sphri.config import Configured
 from sphri.evaluate.metrics import fold_metrics
-from sphri.evaluate.schema import BACKENDS
+from sphri.evaluate.schema import FoldsSchema, KFoldSchema, LosoSchema
 from sphri.types import GESTURES, CVResult, FoldRecord, FoldResult, WindowedFrames
 
 log = logging.getLogger(__name__)
@@ -308,33 +309,22 @@ class RayFolds:
             self.connected = False
 
 
-class CrossValidation:
-    """Runs a model over folds; subclasses define :meth:`splits` and ``SCHEME``."""
+class CrossValidation(Configured):
+    """Runs a model over folds; subclasses define :meth:`splits`, ``SCHEME`` and ``SCHEMA``.
+
+    Settings, defaults and range checks are the schema's (:class:`sphri.evaluate.schema.FoldsSchema`:
+    ``workers``, ``threads_per_worker``, ``max_folds``, ``progress``, ``backend``); a bad value raises
+    :class:`sphri.config.ConfigError` naming ``cv.<field>``.
+    """
 
     SCHEME = ""
     VERSION = "1"
-
-    def __init__(
-        self,
-        workers: int = 1,
-        threads_per_worker: int | None = None,
-        max_folds: int | None = None,
-        progress: bool = True,
-        backend: str = "local",
-    ):
-        if backend not in BACKENDS:
-            raise ValueError(f"cv.backend={backend!r} is invalid: must be one of {', '.join(BACKENDS)}")
-        if workers < 1:
-            raise ValueError(f"cv.workers={workers} is invalid: must be >= 1")
-        if threads_per_worker is not None and threads_per_worker < 1:
-            raise ValueError(f"cv.threads_per_worker={threads_per_worker} is invalid: must be >= 1 or None")
-        if max_folds is not None and max_folds < 1:
-            raise ValueError(f"cv.max_folds={max_folds} is invalid: must be >= 1 or None")
-        self.workers = workers
-        self.threads_per_worker = threads_per_worker
-        self.max_folds = max_folds
-        self.progress = progress
-        self.backend = backend
+    SCHEMA: Any = FoldsSchema
+    workers: int
+    threads_per_worker: int | None
+    max_folds: int | None
+    progress: bool
+    backend: str
 
     def splits(self, windows: WindowedFrames, seed: int = 0) -> list[Fold]:
         raise NotImplementedError
@@ -456,11 +446,8 @@ class LeaveOneSubjectOut(CrossValidation):
     """
 
     SCHEME = "loso"
-
-    def __init__(self, min_participants: int | None = None, **common: Any):
-        """``min_participants``: refuse fewer participants with windows (None: run); ``common``: see the base class."""
-        super().__init__(**common)
-        self.min_participants = min_participants
+    SCHEMA = LosoSchema
+    min_participants: int | None
 
     def splits(self, windows: WindowedFrames, seed: int = 0) -> list[Fold]:
         groups = np.asarray(windows.groups)
@@ -494,26 +481,8 @@ class WithinSubjectKFold(CrossValidation):
     """
 
     SCHEME = "kfold"
-
-    def __init__(
-        self,
-        k: int = 5,
-        workers: int = 1,
-        threads_per_worker: int | None = None,
-        max_folds: int | None = None,
-        progress: bool = True,
-        backend: str = "local",
-    ):
-        super().__init__(
-            workers=workers,
-            threads_per_worker=threads_per_worker,
-            max_folds=max_folds,
-            progress=progress,
-            backend=backend,
-        )
-        if k < 2:
-            raise ValueError(f"cv.k={k} is invalid: must be >= 2")
-        self.k = k
+    SCHEMA = KFoldSchema
+    k: int
 
     def assign(self, y: np.ndarray, groups: np.ndarray, seed: int = 0) -> np.ndarray:
         """(n,) int64 fold of each trial: per participant, gestures dealt round-robin."""

@@ -161,8 +161,11 @@ class ParametricRobotSchema(RobotSchema):
 
     _target_: str = "sphri.robots.parametric.ParametricRobot"
     name: str = MISSING
+    """Robot name in logs and run tags."""
     links: dict[str, ParametricLinkSpec] = field(default_factory=dict)
+    """Link name -> its loft (:class:`ParametricLinkSpec`), in the link's own frame."""
     regions: dict[str, str] = field(default_factory=dict)
+    """Skin region -> link name, e.g. {arm: l_arm}."""
 
     def check(self) -> None:
         require(len(self.links) > 0, self.key("links"), {}, "at least one link")
@@ -177,13 +180,14 @@ class MeshRobotSchema(RobotSchema):
 
     _target_: str = "sphri.robots.mesh.MeshRobot"
     name: str = "mesh"
+    """Robot name in logs and run tags."""
     # ``Any`` rather than ``dict[str, str]``: Hydra cannot add keys to a typed
     # dict from the command line (``robot.links={arm: a.obj}``); values are
     # checked in ``__post_init__``.
     links: Any = input_path(None, kind="map", relative_to="root")
-    """Link name -> mesh file (relative paths are relative to ``root``)."""
+    """Link name -> mesh file (obj, stl, ply, dae, ...; relative paths are relative to ``root``)."""
     regions: Any = None
-    """Skin region -> link name."""
+    """Skin region -> link name, e.g. {arm: l_arm}."""
     root: str | None = None
     """Folder that relative paths start from (None: the working directory)."""
     root_required: bool = False
@@ -203,6 +207,7 @@ class UrdfRobotSchema(RobotSchema):
 
     _target_: str = "sphri.robots.urdf.UrdfRobot"
     name: str = "urdf"
+    """Robot name in logs and run tags."""
     path: str | None = input_path(None, references="sphri.robots.urdf:mesh_files")
     """The URDF file; ``package://`` mesh URIs resolve relative to its folder (or ``mesh_root``)."""
     builtin: str | None = setting(None, choices=list(BUILTIN), optional=True)
@@ -210,9 +215,11 @@ class UrdfRobotSchema(RobotSchema):
     links: Any = None
     """URDF links to load (each mesh in that link's own frame); with ``parts``: null loads every link that loads."""
     regions: Any = None
-    """Skin region -> link name (``Any``: see :class:`MeshRobotSchema`); with ``parts``: derived from them."""
+    """Skin region -> link name, e.g. {arm: l_upper_arm} (``Any``: see :class:`MeshRobotSchema`); with ``parts``:
+    null, derived from them."""
     geometry: str = "collision"
-    """Which geometry to read: collision or visual; with ``parts`` also auto (collision meshes, else visual
+    """Which geometry to read: collision or visual (missing mesh files fall back to collision primitives); with
+    ``parts`` also auto (collision meshes, else visual
     meshes, else collision primitives, else visual primitives)."""
     joints: Any = None
     """Joint name -> angle (radians; metres for prismatic joints), others 0; used only by ``merge`` (plain robot)."""
@@ -474,6 +481,7 @@ class KinematicRobotSchema(RobotSchema):
 
     _target_: str = "sphri.robots.kinematic.KinematicRobot"
     name: str = MISSING
+    """Robot name in logs and run tags."""
     links: Any = None
     """Link name -> {parent, xyz, rpy, joints: ["name:axis", ...], shape: a parametric loft}."""
     parts: Any = None

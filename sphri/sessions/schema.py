@@ -22,15 +22,20 @@ class SyntheticSessionsSchema(DataSchema):
 
     _target_: str = "sphri.sessions.synthetic.SyntheticSessions"
     seed: int = setting(0, lo=0)
+    """Participant k's sessions use the random streams (seed, k, scenario, repetition)."""
     participants: int | None = setting(12, lo=1, optional=True)
+    """Participants (the study's 12)."""
     repetitions: int | None = setting(3, lo=1, optional=True)
+    """Repetitions of each scenario (the study's three)."""
     scenarios: list[str] | None = None
+    """Which scenarios of the priors table (null: all five)."""
     priors: str | None = None
     """The YAML table of assumptions (None: sphri/sessions/scenario_priors.yaml)."""
     frame_rate_hz: float = setting(30.0, lo=5.0, hi=1000.0)
+    """Frames per second."""
     variability: float = setting(1.0, lo=0.0, hi=5.0)
-    """Spread of the touches' gesture generator (``data=synthetic``'s ``data.variability``:
-    1 = calibrated to real people, 0 = interchangeable participants)."""
+    """Spread of the touches' gesture generator: hand size, styles, depths (``data=synthetic``'s
+    ``data.variability``: 1 = calibrated to real people, 0 = interchangeable participants)."""
 
     def check(self) -> None:
         if self.scenarios is not None:
@@ -48,10 +53,15 @@ class SessionDataSchema(DataSchema):
 
     _target_: str = "sphri.sessions.format.SessionData"
     root: str | None = None
+    """The sessions folder (holds sessions.json); required."""
     participants: int | None = setting(None, lo=1, optional=True)
+    """The first N participants (null: all)."""
     repetitions: int | None = setting(None, lo=1, optional=True)
+    """Repetitions 1..N (null: all)."""
     scenarios: list[str] | None = None
+    """Which scenarios (null: all)."""
     quat_tolerance: float = setting(1e-3, lo=0.0, lo_open=True, hi=0.5)
+    """A stored quaternion's norm may differ from 1 by this much."""
     duplicates: str = "refuse"
     """Two participant ids with near-identical sessions (a copied folder): refuse, warn (load both) or off."""
 

@@ -19,7 +19,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 from omegaconf import OmegaConf
 
-from sphri.config import CONF_DIR, ConfigError, compose
+from sphri.config import CONF_DIR, ConfigError, component_node, compose
 
 GROUPS = ("data", "contact", "surface", "layout", "encoder", "noise", "filter", "window", "model", "cv", "tracking")
 
@@ -80,8 +80,8 @@ def _fields() -> list[tuple[str | None, str]]:
     """(group option to choose or None, key): every scalar field of the schemas sphri ships."""
     out = [(None, k) for k in _leaves(OmegaConf.to_container(compose([], check=False), resolve=False))]
     for group in GROUPS:
-        for path in sorted((CONF_DIR / group).glob("*.yaml")):
-            doc = yaml.safe_load(path.read_text()) or {}
+        for path in sorted((CONF_DIR / group).glob("*.yaml")):  # the YAML on its schema: every field, written or not
+            doc = OmegaConf.to_container(component_node(group, path.stem), resolve=False)
             out += [(f"{group}={path.stem}", f"{group}.{k}") for k in _leaves(doc)]
     return sorted(set(out), key=str)
 
