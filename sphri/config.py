@@ -1,7 +1,7 @@
 """Configuration: typed schemas, registration, composition and validation.
 
 Schemas live next to their code (``sphri/<stage>/schema.py``), one base per
-group (a :class:`Schema` with ``GROUP``) and a subclass per component; each
+group (a :class:`ComponentSchema` naming its ``group``) and a subclass per component; each
 stage's module calls :func:`store` for its components, which files them as
 ``schema_<group>_<name>``, apart from the choices. YAML files under ``conf/``
 opt into a schema through their defaults list
@@ -239,6 +239,21 @@ class Schema:
     def key(cls, name: str) -> str:
         """The full key of field ``name`` as a user spells it: ``<GROUP>.<name>``."""
         return f"{cls.GROUP}.{name}" if cls.GROUP else name
+
+
+@dataclass
+class ComponentSchema(Schema):
+    """Base of a config group's base schema, which names its group as a class keyword
+    (``class ContactSchema(ComponentSchema, group="contact")`` sets ``GROUP``): range errors name
+    ``<group>.<field>``, :func:`store` files it as ``schema_<group>_base`` and a plugin's YAML may opt
+    into it (``defaults: [/schema_<group>_base@_here_, _self_]``), giving its own ``_target_``."""
+
+    _target_: str = "???"
+
+    def __init_subclass__(cls, group: str = "", **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if group:
+            cls.GROUP = group
 
 
 def chain_fields(schema: Any) -> tuple[str, ...]:

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
 
-from sphri.config import Schema, require, setting, store
+from sphri.config import ComponentSchema, require, setting, store
 from sphri.data.duplicates import DUPLICATE_POLICIES
 from sphri.data.people import Spread
 from sphri.inputs import input_path
@@ -16,12 +15,8 @@ POSITION_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 
 @dataclass
-class DataSchema(Schema):
-    """Base of the data group's schemas: range errors name ``data.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_data_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "data"
-    _target_: str = "???"
+class DataSchema(ComponentSchema, group="data"):
+    """Base of the data group's schemas."""
 
     def check_common(self) -> None:
         """The checks every data component shares (its selection of trials)."""
