@@ -23,7 +23,7 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
@@ -254,6 +254,22 @@ class ComponentSchema(Schema):
         super().__init_subclass__(**kwargs)
         if group:
             cls.GROUP = group
+
+
+S = TypeVar("S", bound=Schema)
+
+
+def load_schema(schema: type[S], *nodes: Any) -> S:
+    """``schema``'s defaults with ``nodes`` (configs or ``OmegaConf.from_dotlist`` lists) merged on, checked;
+    a problem is one :class:`ConfigError` naming ``<GROUP>.<key>``."""
+    try:
+        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), *nodes))  # type: ignore[return-value]
+    except ConfigError:
+        raise
+    except OmegaConfBaseException as exc:
+        key = getattr(exc, "full_key", None)
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ConfigError(f"{schema.key(key) if key else schema.GROUP}: {first}") from None
 
 
 def chain_fields(schema: Any) -> tuple[str, ...]:

@@ -18,6 +18,11 @@ POSITION_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 class DataSchema(ComponentSchema, group="data"):
     """Base of the data group's schemas."""
 
+    def check_root(self, hint: str) -> None:
+        """A data component that reads files needs its folder (``root``); ``hint`` says which one."""
+        root = getattr(self, "root", None)
+        require(isinstance(root, str) and root != "", self.key("root"), root, hint)
+
     def check_common(self) -> None:
         """The checks every data component shares (its selection of trials)."""
         regions = list(self.regions)
@@ -93,11 +98,8 @@ class VRGestureDataSchema(DataSchema):
     """Two participant ids with near-identical trials (a copied folder): refuse, warn (load both) or off."""
 
     def check(self) -> None:
-        require(
-            isinstance(self.root, str) and self.root != "",
-            self.key("root"),
-            self.root,
-            "set the dataset folder (the one holding arm/, torso/ and assets/), e.g. data.root=/data/VR-gesture-dataset",
+        self.check_root(
+            "set the dataset folder (the one holding arm/, torso/ and assets/), e.g. data.root=/data/VR-gesture-dataset"
         )
         self.check_common()
 
