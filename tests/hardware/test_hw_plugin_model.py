@@ -41,13 +41,12 @@ def _overrides(lab: Path, out: Path) -> list[str]:
 
 
 def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, capsys):
+    from skin_sim import live_on_simulator
+
     from sphri.export.train import fit_bundle, training_windows
-    from sphri.hardware.settings import SkinLiveSettings
-    from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pipeline_stream
-    from sphri.hardware.skin import live
+    from sphri.hardware.sim_skin import SkinSimSettings, pipeline_stream
     from sphri.hardware.skin import main as skin_main
     from sphri.hardware.source import open_pipeline
-    from sphri.hardware.transport import make_endpoint, start_in_thread
 
     overrides = _overrides(lab, tmp_path / "out")
     model_path = tmp_path / "proto.sphrimodel"
@@ -100,27 +99,11 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     # live on the skin simulator streaming the same trials: every trial is detected and named
     stream = pipeline_stream(overrides, 4, "participant_01", 0.5, 0)
     sim_settings = SkinSimSettings(port="socket://127.0.0.1:0", realtime=False, hold_s=30.0)
-    sim = SkinSimulator(stream, sim_settings, make_endpoint(sim_settings), say=lambda m: None)
-    th = start_in_thread(sim)
     pred = tmp_path / "pred.jsonl"
     lines: list[str] = []
-    try:
-        summary = live(
-            SkinLiveSettings(
-                port=sim.endpoint.url,
-                model=str(model_path),
-                plugins=["labext"],
-                idle_s=60.0,
-                out=str(pred),
-                stride=10,
-                show="off",
-            ),
-            out=lines.append,
-            until=sim.finished.is_set,
-        )
-    finally:
-        sim.stop.set()
-        th.join(10)
+    summary, sim = live_on_simulator(
+        stream, sim_settings, model_path, lines.append, plugins=["labext"], out=str(pred), stride=10, show="off"
+    )
     assert summary["error"] is None and summary["frames"] == sim.ledger.good == len(stream.values)
     assert lines[0].startswith("model NearestPrototype:")
     rows = [json.loads(r) for r in pred.read_text().splitlines()]
