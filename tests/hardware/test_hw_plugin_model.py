@@ -51,24 +51,16 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     overrides = _overrides(lab, tmp_path / "out")
     model_path = tmp_path / "proto.sphrimodel"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(lab), str(REPO)])}
-    job = subprocess.run(  # a job cross-validates it like any model
-        [sys.executable, "-m", "sphri", *overrides, "tracking.enabled=false"],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        env=env,
-        timeout=600,
-    )
+
+    def python_m(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-m", *args], capture_output=True, text=True, cwd=tmp_path, env=env, timeout=600
+        )
+
+    job = python_m("sphri", *overrides, "tracking.enabled=false")  # a job cross-validates it like any model
     assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
     assert "model       lab_prototype, LOSO over 2 folds" in job.stdout and "accuracy    " in job.stdout
-    export = subprocess.run(
-        [sys.executable, "-m", "sphri.export.train", f"out={model_path}", *overrides],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        env=env,
-        timeout=600,
-    )
+    export = python_m("sphri.export.train", f"out={model_path}", *overrides)
     assert export.returncode == 0, (export.stdout + export.stderr)[-3000:]
     assert "saved NearestPrototype (16 windows" in export.stdout
 
