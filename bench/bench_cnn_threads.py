@@ -31,7 +31,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import machine, write_json  # noqa: E402
-from bench_models import get_windows, load_windows  # noqa: E402
+from bench_models import describe_windows, get_windows, load_windows  # noqa: E402
 
 from sphri.evaluate.cv import LeaveOneSubjectOut  # noqa: E402
 from sphri.models.cnn_gru import CnnGru  # noqa: E402
@@ -103,16 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     out: dict = {
         "command": "python bench/bench_cnn_threads.py " + " ".join(sys.argv[1:] if argv is None else argv),
         "machine": {**machine(), "affinity_cores": len(os.sched_getaffinity(0))},
-        "data": {
-            "source": source,
-            "note": note,
-            "n_trials": int(win.x.shape[0]),
-            "L": int(win.x.shape[1]),
-            "n_taxels": int(win.x.shape[2]),
-            "grid_shape": win.geometry.grid_shape,
-            "participants": int(len(set(win.groups))),
-            "res": None if args.windows else args.res,
-        },
+        "data": describe_windows(win, source, note, args),
         "model": {k: v for k, v in make().get_params().items() if k != "geometry"},
         "folds": args.folds,
         "rows": [],

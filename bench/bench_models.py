@@ -155,6 +155,20 @@ def pipeline_windows(res: int, participants: int, repetitions: int, seed: int) -
     return p.get("filter")  # the model's input: windows, noise, skin-side filter
 
 
+def describe_windows(win, source: str, note: str, args) -> dict:
+    """The ``data`` entry of a bench's JSON: where the windows came from and their shape."""
+    return {
+        "source": source,
+        "note": note,
+        "n_trials": int(win.x.shape[0]),
+        "L": int(win.x.shape[1]),
+        "n_taxels": int(win.x.shape[2]),
+        "grid_shape": win.geometry.grid_shape,
+        "participants": int(len(set(win.groups))),
+        "res": None if args.windows else args.res,
+    }
+
+
 def get_windows(
     source: str, res: int, participants: int, repetitions: int, seed: int
 ) -> tuple[WindowedFrames, str, str]:
@@ -292,17 +306,7 @@ def main(argv: list[str] | None = None) -> int:
             "affinity_cores": len(os.sched_getaffinity(0)),
         },
         "quick": args.quick,
-        "data": {
-            "source": source,
-            "note": note,
-            "n_trials": int(win.x.shape[0]),
-            "L": int(win.x.shape[1]),
-            "n_taxels": int(win.x.shape[2]),
-            "grid_shape": win.geometry.grid_shape,
-            "participants": int(len(set(win.groups))),
-            "res": None if args.windows else args.res,
-            "seconds": round(data_s, 1),
-        },
+        "data": {**describe_windows(win, source, note, args), "seconds": round(data_s, 1)},
         "cv": {"scheme": "loso", "workers": args.workers, "threads_per_worker": args.threads},
         "cnn_gru_run": {
             "device": args.device,

@@ -1,7 +1,7 @@
 """Configuration: typed schemas, registration, composition and validation.
 
 Schemas live next to their code (``sphri/<stage>/schema.py``), one base per
-group (a :class:`Schema` with ``GROUP``) and a subclass per component; each
+group (a :class:`ComponentSchema` naming its ``group``) and a subclass per component; each
 stage's module calls :func:`store` for its components, which files them as
 ``schema_<group>_<name>``, apart from the choices. YAML files under ``conf/``
 opt into a schema through their defaults list
@@ -23,7 +23,7 @@ import re
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any, ClassVar, TypeVar
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
@@ -244,6 +244,37 @@ class Schema:
     def key(cls, name: str) -> str:
         """The full key of field ``name`` as a user spells it: ``<GROUP>.<name>``."""
         return f"{cls.GROUP}.{name}" if cls.GROUP else name
+
+
+@dataclass
+class ComponentSchema(Schema):
+    """Base of a config group's base schema, which names its group as a class keyword
+    (``class ContactSchema(ComponentSchema, group="contact")`` sets ``GROUP``): range errors name
+    ``<group>.<field>``, :func:`store` files it as ``schema_<group>_base`` and a plugin's YAML may opt
+    into it (``defaults: [/schema_<group>_base@_here_, _self_]``), giving its own ``_target_``."""
+
+    _target_: str = "???"
+
+    def __init_subclass__(cls, group: str = "", **kwargs: Any) -> None:
+        super().__init_subclass__(**kwargs)
+        if group:
+            cls.GROUP = group
+
+
+S = TypeVar("S", bound=Schema)
+
+
+def load_schema(schema: type[S], *nodes: Any) -> S:
+    """``schema``'s defaults with ``nodes`` (configs or ``OmegaConf.from_dotlist`` lists) merged on, checked;
+    a problem is one :class:`ConfigError` naming ``<GROUP>.<key>``."""
+    try:
+        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(schema), *nodes))  # type: ignore[return-value]
+    except ConfigError:
+        raise
+    except OmegaConfBaseException as exc:
+        key = getattr(exc, "full_key", None)
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ConfigError(f"{schema.key(key) if key else schema.GROUP}: {first}") from None
 
 
 def chain_fields(schema: Any) -> tuple[str, ...]:

@@ -166,27 +166,18 @@ def log_coverage(cfg, settings: CoverageSchema, cov: CoverageRun, overrides: Seq
     """One MLflow run tagged ``sphri.kind=coverage``: params, per-group metrics, all files."""
     from mlflow.entities import Metric, Param
 
-    from sphri.pipeline import build
-    from sphri.tracking.mlflow_tracker import flatten_params, git_commit
+    from sphri.tracking.mlflow_tracker import flatten_params, log_analysis_run
 
-    tracker = build(cfg.tracking)
-    if not getattr(tracker, "enabled", True):
-        return None
-    client = tracker.client(cfg.output_dir)
-    exp = tracker.experiment_id(cfg.output_dir)
     tags = {
-        "sphri.kind": "coverage",
         "sphri.dataset": str(meta.get("dataset", "")),
         "sphri.synthetic": str(meta.get("synthetic", "")).lower(),
-        "sphri.git_commit": git_commit(),
         "sphri.coverage_dir": str(cov.out_dir.resolve()),
         "mlflow.note.content": "\n\n".join(
             f"[{r}]\n" + "\n".join(res.sentences[n] for n in [ALL] + res.groups) for r, res in cov.regions.items()
         ),
     }
-    run = tracker._retry(lambda: client.create_run(exp, tags=tags, run_name=f"coverage-by-{settings.by}"))
-    run_id = run.info.run_id
-    try:
+
+    def numbers() -> tuple[list[Metric], list[Param]]:
         params = {
             k: v
             for k, v in flatten_params(cfg).items()
@@ -218,12 +209,9 @@ def log_coverage(cfg, settings: CoverageSchema, cov: CoverageRun, overrides: Seq
                         metrics.append(Metric(f"{region}/swd_mm/{name}", float(row.mean_between_swd_mm), now, 0))
         for k, v in cov.seconds.items():
             metrics.append(Metric(f"time/{k}_s", float(v), now, 0))
-        plist = [Param(k, str(v)[:500]) for k, v in params.items()]
-    except Exception:
-        tracker._retry(lambda: client.set_terminated(run_id, "FAILED"))
-        raise
-    tracker.finish_analysis_run(client, run_id, metrics, plist, cov.out_dir)
-    return run_id
+        return metrics, [Param(k, str(v)[:500]) for k, v in params.items()]
+
+    return log_analysis_run(cfg, "coverage", f"coverage-by-{settings.by}", tags, numbers, cov.out_dir)
 
 
 def _metric_name(value: str) -> str:

@@ -13,10 +13,12 @@ environment. Anything else (a bug) keeps its full traceback.
 from __future__ import annotations
 
 import functools
+import json
 import os
 import sys
 import traceback
 from collections.abc import Callable, Sequence
+from pathlib import Path
 from typing import Any
 
 #: Command-line flag that shows tracebacks (removed from argv before parsing).
@@ -122,3 +124,20 @@ def clean_errors(prog: str) -> Callable:
         return run
 
     return wrap
+
+
+def read_json(
+    path: Path, error: type[Exception], not_found: str, missing: type[Exception] = FileNotFoundError, obj: bool = False
+) -> Any:
+    """The parsed JSON of the file ``path``, for every reader of an input file: ``missing(not_found)``
+    when there is no such file, one line ``error("<path>: not valid JSON (...)")`` when it does not
+    parse and, with ``obj``, ``error("<path>: expected a JSON object, got <type>")`` when it is not one."""
+    if not path.is_file():
+        raise missing(not_found)
+    try:
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise error(f"{path}: not valid JSON ({exc})") from None
+    if obj and not isinstance(data, dict):
+        raise error(f"{path}: expected a JSON object, got {type(data).__name__}")
+    return data

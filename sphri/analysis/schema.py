@@ -9,9 +9,8 @@ naming the full key (``coverage.bandwidth_mm``).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
-from sphri.config import Schema, require, setting, store
+from sphri.config import ComponentSchema, require, setting, store
 
 KERNELS = ("geodesic", "euclidean")
 FOOTPRINTS = ("patch", "point")
@@ -19,10 +18,8 @@ ALTERNATIVES = ("greater", "two-sided")
 
 
 @dataclass
-class CoverageSchema(Schema):
+class CoverageSchema(ComponentSchema, group="coverage"):
     """Where on the link people touch, per group, and whether groups differ."""
-
-    GROUP: ClassVar[str] = "coverage"
 
     _target_: str = "sphri.analysis.coverage.CoverageAnalysis"
     by: str = "gesture"

@@ -3,21 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
-from sphri.config import Schema, setting, store
+from sphri.config import ComponentSchema, setting, store
 
 #: Inside definitions a component may ask for (see :mod:`sphri.contact.mesh`).
 INSIDE_CHOICES: tuple[str, ...] = ("auto", "hull", "winding")
 
 
 @dataclass
-class ContactSchema(Schema):
-    """Base of the contact group's schemas: range errors name ``contact.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_contact_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "contact"
-    _target_: str = "???"
+class ContactSchema(ComponentSchema, group="contact"):
+    """Base of the contact group's schemas."""
 
 
 @dataclass

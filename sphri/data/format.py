@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sphri.errors import read_json
 from sphri.types import TRIAL_COLUMNS, HandModel, Link
 
 #: Per-row metadata columns of a participant's parquet file.
@@ -94,14 +95,7 @@ def read_manifest(path: Path) -> dict[str, Any]:
     Gesture labels are checked by the caller (it knows the allowed set).
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"manifest not found: {path}")
-    try:
-        m = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ManifestError(f"{path}: not valid JSON ({exc})") from None
-    if not isinstance(m, dict):
-        raise ManifestError(f"{path}: expected a JSON object, got {type(m).__name__}")
+    m = read_json(path, ManifestError, f"manifest not found: {path}", obj=True)
     missing = [k for k in MANIFEST_KEYS if k not in m]
     if missing:
         raise ManifestError(f"{path}: missing keys {missing}")

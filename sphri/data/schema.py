@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
 
-from sphri.config import Schema, require, setting, store
+from sphri.config import ComponentSchema, require, setting, store
 from sphri.data.duplicates import DUPLICATE_POLICIES
 from sphri.data.people import Spread
 from sphri.inputs import input_path
@@ -16,12 +15,13 @@ POSITION_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 
 
 @dataclass
-class DataSchema(Schema):
-    """Base of the data group's schemas: range errors name ``data.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_data_base@_here_, _self_]``)."""
+class DataSchema(ComponentSchema, group="data"):
+    """Base of the data group's schemas."""
 
-    GROUP: ClassVar[str] = "data"
-    _target_: str = "???"
+    def check_root(self, hint: str) -> None:
+        """A data component that reads files needs its folder (``root``); ``hint`` says which one."""
+        root = getattr(self, "root", None)
+        require(isinstance(root, str) and root != "", self.key("root"), root, hint)
 
     def check_common(self) -> None:
         """The checks every data component shares (its selection of trials)."""
@@ -128,11 +128,8 @@ class VRGestureDataSchema(DataSchema):
     """Two participant ids with near-identical trials (a copied folder): refuse, warn (load both) or off."""
 
     def check(self) -> None:
-        require(
-            isinstance(self.root, str) and self.root != "",
-            self.key("root"),
-            self.root,
-            "set the dataset folder (the one holding arm/, torso/ and assets/), e.g. data.root=/data/VR-gesture-dataset",
+        self.check_root(
+            "set the dataset folder (the one holding arm/, torso/ and assets/), e.g. data.root=/data/VR-gesture-dataset"
         )
         self.check_common()
 

@@ -18,8 +18,9 @@ import dataclasses
 import logging
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 from sphri.command.args import arg, first_paragraph, run
 from sphri.errors import clean_errors
@@ -56,11 +57,17 @@ class SynthesizeArgs:
 def command(args: SynthesizeArgs) -> int:
     """Generate the configured synthetic gesture dataset in memory, exactly as a run does, and write it under
     out=DIR in the VR dataset's layout (it loads with data=vr_gesture data.root=DIR)."""
+    return write_dataset(synthesize, args, "trials")
+
+
+def write_dataset(make: Callable[[str, Sequence[str]], Any], args: SynthesizeArgs, units: str) -> int:
+    """Write a dataset with ``make(out, overrides)`` (a ``synthesize``) and say what it holds: how many
+    ``units`` (its attribute: trials, sessions) and frames, where, and how long it took."""
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     t = time.perf_counter()
-    ds = synthesize(args.out, args.overrides)
+    ds = make(args.out, args.overrides)
     print(
-        f"wrote {len(ds.trials)} trials, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
+        f"wrote {len(getattr(ds, units))} {units}, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
         f"to {Path(args.out).resolve()} in {time.perf_counter() - t:.1f} s"
     )
     return 0

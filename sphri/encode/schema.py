@@ -14,7 +14,7 @@ from typing import Any, ClassVar
 
 from omegaconf import OmegaConf
 
-from sphri.config import ConfigError, Schema, cross_check, setting, store
+from sphri.config import ComponentSchema, ConfigError, cross_check, setting, store
 from sphri.layout.schema import RES_RANGE, check_res
 
 #: ``encoder.res`` when the config says nothing (a plugin encoder without a schema).
@@ -22,11 +22,9 @@ DEFAULT_RES = 18
 
 
 @dataclass
-class EncoderSchema(Schema):
+class EncoderSchema(ComponentSchema, group="encoder"):
     """Base of the encoder group's schemas: the grid resolution, which the chain owns."""
 
-    GROUP: ClassVar[str] = "encoder"
-    _target_: str = "???"
     res: int = setting(DEFAULT_RES, range=RES_RANGE, chain=True)
     """Taxels along the link's long axis (the paper saturates near 18 per 24 cm); the layout is built
     with it, the encoder is not given it."""

@@ -3,21 +3,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
-from sphri.config import Schema, runtime_setting, setting, store
+from sphri.config import ComponentSchema, runtime_setting, setting, store
 
 #: Where folds run: ``local`` (this process, or a loky pool of ``workers``) or ``ray`` (a Ray task each).
 BACKENDS = ("local", "ray")
 
 
 @dataclass
-class CvSchema(Schema):
-    """Base of the cv group's schemas: range errors name ``cv.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_cv_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "cv"
-    _target_: str = "???"
+class CvSchema(ComponentSchema, group="cv"):
+    """Base of the cv group's schemas."""
 
 
 @dataclass

@@ -3,18 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
-from sphri.config import Schema, require, setting, store
+from sphri.config import ComponentSchema, require, setting, store
 
 
 @dataclass
-class FilterSchema(Schema):
-    """Base of the filter group's schemas: range errors name ``filter.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_filter_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "filter"
-    _target_: str = "???"
+class FilterSchema(ComponentSchema, group="filter"):
+    """Base of the filter group's schemas."""
 
 
 @dataclass

@@ -7,7 +7,6 @@ the reference study) or from a dataset's own ``hand_capsule_definition.json``
 
 from __future__ import annotations
 
-import json
 import logging
 import math
 import re
@@ -18,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from sphri.config import ConfigError
+from sphri.errors import read_json
 from sphri.hand.schema import FINGERS, check_capsules
 from sphri.types import HandModel
 
@@ -49,12 +49,7 @@ def load_definition(path: str | Path) -> list[dict[str, Any]]:
     allowed; names must be unique. Errors name the file and the entry.
     """
     path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"hand capsule definition not found: {path}")
-    try:
-        raw = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise HandDefinitionError(f"{path}: not valid JSON ({exc})") from None
+    raw = read_json(path, HandDefinitionError, f"hand capsule definition not found: {path}")
     if not isinstance(raw, list) or not raw:
         raise HandDefinitionError(
             f"{path}: expected a non-empty JSON list of capsule entries, got {type(raw).__name__}"

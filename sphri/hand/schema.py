@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
 
 from omegaconf import MISSING
 
-from sphri.config import Schema, require, require_range, setting, store
+from sphri.config import ComponentSchema, require, require_range, setting, store
 from sphri.inputs import input_path
 
 #: Hand parts a capsule may belong to.
@@ -15,12 +14,8 @@ FINGERS: tuple[str, ...] = ("thumb", "index", "middle", "ring", "pinky", "palm")
 
 
 @dataclass
-class HandSchema(Schema):
-    """Base of the hand group's schemas: range errors name ``hand.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_hand_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "hand"
-    _target_: str = "???"
+class HandSchema(ComponentSchema, group="hand"):
+    """Base of the hand group's schemas."""
 
 
 @dataclass

@@ -95,22 +95,13 @@ class GloveReplaySettings(Schema):
 
 
 @dataclass
-class SkinRecordSettings(Schema):
-    """``python -m sphri.hardware.skin record``: save a skin's frames to a file."""
+class SkinStreamSettings(Schema):
+    """What reading a skin's stream shares (``skin record`` and ``skin live``): the port and when to stop."""
 
     port: str = "???"
     """Device or pyserial URL of the skin."""
-    out: str = "???"
-    """Output recording (.npz), written atomically; also on Ctrl+C, SIGTERM or a lost port. Checked before
-    reading; an existing file is refused (never replaced)."""
     baud: int = setting(1_000_000, lo=300, hi=12_000_000)
     """Bits per second (ignored by USB CDC devices and socket://)."""
-    taxels: int = setting(0, lo=0, hi=4096)
-    """Expected taxel count N (0 = grid's H*W, or without a grid the count most of the first consensus_frames carry)."""
-    grid: str = ""
-    """Grid shape HxW of the layout (rows along the link), e.g. 18x6; empty = not a grid. Sets the taxel count."""
-    consensus_frames: int = setting(9, lo=1, hi=1000)
-    """With neither taxels nor grid: the count carried by consensus_frames // 2 + 1 of the first valid frames."""
     frames: int = setting(0, lo=0)
     """Stop after this many good frames (0 = no limit)."""
     duration_s: float = setting(0.0, lo=0.0)
@@ -123,6 +114,21 @@ class SkinRecordSettings(Schema):
     """Give up reconnecting after this many seconds (0 = never)."""
     start_command: bool = True
     """Send the protocol's START message on (re)connect (skins may ignore it)."""
+
+
+@dataclass
+class SkinRecordSettings(SkinStreamSettings):
+    """``python -m sphri.hardware.skin record``: save a skin's frames to a file."""
+
+    out: str = "???"
+    """Output recording (.npz), written atomically; also on Ctrl+C, SIGTERM or a lost port. Checked before
+    reading; an existing file is refused (never replaced)."""
+    taxels: int = setting(0, lo=0, hi=4096)
+    """Expected taxel count N (0 = grid's H*W, or without a grid the count most of the first consensus_frames carry)."""
+    grid: str = ""
+    """Grid shape HxW of the layout (rows along the link), e.g. 18x6; empty = not a grid. Sets the taxel count."""
+    consensus_frames: int = setting(9, lo=1, hi=1000)
+    """With neither taxels nor grid: the count carried by consensus_frames // 2 + 1 of the first valid frames."""
     chunk_frames: int = setting(50, lo=1, hi=100_000)
     """Every frame is written to ``<out>.partial`` as it is read (a killed recorder loses none); the file
     is fsynced every chunk_frames frames or sync_interval_s seconds, whichever comes first (a power cut)."""
@@ -138,11 +144,9 @@ class SkinRecordSettings(Schema):
 
 
 @dataclass
-class SkinLiveSettings(Schema):
+class SkinLiveSettings(SkinStreamSettings):
     """``python -m sphri.hardware.skin live``: classify touch on a streaming skin."""
 
-    port: str = "???"
-    """Device or pyserial URL of the skin."""
     model: str = "???"
     """Model file (from train_export), or with allow_remote=true an MLflow artifact URI runs:/<run_id>/<path>."""
     tracking_uri: str | None = None
@@ -151,8 +155,6 @@ class SkinLiveSettings(Schema):
     """Fetch a remote model (runs:/, models:/, http://...); off by default: only local files are read."""
     plugins: list[str] = field(default_factory=list)
     """Packages whose model classes a model file may name (e.g. [labext]); sphri's own models need none."""
-    baud: int = setting(1_000_000, lo=300, hi=12_000_000)
-    """Bits per second (ignored by USB CDC devices and socket://)."""
     stride: int = setting(0, lo=0, hi=10_000)
     """Frames between sliding-window predictions (0 = about 15 per second)."""
     onset_taxels: float = setting(0.0, lo=0.0)
@@ -171,18 +173,6 @@ class SkinLiveSettings(Schema):
     """Also write every prediction as a JSON line to this file (empty = no file)."""
     show: str | None = "all"
     """Print: all (sliding windows and touches), touches (one line per touch), off."""
-    frames: int = setting(0, lo=0)
-    """Stop after this many good frames (0 = no limit)."""
-    duration_s: float = setting(0.0, lo=0.0)
-    """Stop after this many seconds (0 = no limit)."""
-    idle_s: float = setting(0.0, lo=0.0)
-    """Stop when no frame arrived for this many seconds (0 = wait forever)."""
-    reconnect: bool = False
-    """Retry a vanished port instead of stopping."""
-    reconnect_timeout_s: float = setting(30.0, lo=0.0)
-    """Give up reconnecting after this many seconds (0 = never)."""
-    start_command: bool = True
-    """Send the protocol's START message on (re)connect."""
 
     def check(self) -> None:
         _port(self.port)

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from scipy.spatial import cKDTree
 
 from sphri.geometry.link import face_areas, face_normals, project_along, sample_surface
 from sphri.surface.charts import chart_of, from_uv, to_uv
-from sphri.types import Link, SurfaceMap
+from sphri.types import Layout, Link, SurfaceMap
 
 
 def long_axis_length_m(surface: SurfaceMap) -> float:
@@ -125,6 +127,35 @@ def nn_spacing(points: np.ndarray) -> np.ndarray:
         return np.zeros(len(points))
     d, _ = cKDTree(points).query(points, k=2)
     return d[:, 1]
+
+
+def scattered_layout(
+    surface: SurfaceMap, kind: str, pts: np.ndarray, nrm: np.ndarray, area: np.ndarray, pitch: float
+) -> Layout:
+    """Taxels at ``pts`` (normals ``nrm``, areas ``area``) that form no grid (file, random, density): their
+    (u, v) where the surface has a chart, ``pitch`` both ways."""
+    return Layout(
+        kind=kind,
+        position_m=pts,
+        normal=nrm,
+        area_m2=area,
+        uv=to_uv(surface, pts) if surface.has_uv else None,
+        grid_shape=None,
+        pitch_u_m=pitch,
+        pitch_v_m=pitch,
+    )
+
+
+def npz_arrays(path: str | Path, setting: str, keys: tuple[str, ...]) -> list[np.ndarray]:
+    """The float64 arrays ``keys`` of the ``.npz`` file ``path`` that the setting ``setting`` names
+    (``layout.path``): a missing file or array is one line naming the setting, the file and the array."""
+    if not Path(path).is_file():
+        raise FileNotFoundError(f"{setting}={str(path)!r}: no such file")
+    with np.load(path) as z:
+        for key in keys:
+            if key not in z:
+                raise ValueError(f"{setting}={str(path)!r}: missing array {key!r} (has {sorted(z.files)})")
+        return [np.asarray(z[key], dtype=np.float64) for key in keys]
 
 
 def voronoi_areas(link: Link, positions: np.ndarray, seed: int, max_dist_m: float | None = None) -> np.ndarray:

@@ -24,9 +24,8 @@ import numpy as np
 
 from sphri.config import Configured
 from sphri.geometry.link import check_link, closest_points, face_normals
-from sphri.layout.common import nn_spacing, voronoi_areas
+from sphri.layout.common import nn_spacing, npz_arrays, scattered_layout, voronoi_areas
 from sphri.layout.schema import FileLayoutSchema
-from sphri.surface.charts import to_uv
 from sphri.types import Layout, Link, SurfaceMap
 
 log = logging.getLogger(__name__)
@@ -107,12 +106,7 @@ def read_layout_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if not p.is_file():
         raise FileNotFoundError(f"layout.path={str(path)!r}: no such file")
     if p.suffix == ".npz":
-        with np.load(p) as z:
-            for key in ("position_m", "normal"):
-                if key not in z:
-                    raise ValueError(f"layout.path={str(path)!r}: missing array {key!r} (has {sorted(z.files)})")
-            pos = np.asarray(z["position_m"], dtype=np.float64)
-            nrm = np.asarray(z["normal"], dtype=np.float64)
+        pos, nrm = npz_arrays(p, "layout.path", ("position_m", "normal"))
         if pos.ndim != 2 or pos.shape[1] != 3 or nrm.shape != pos.shape or len(pos) == 0:
             raise ValueError(f"{path}: position_m and normal must both be (N, 3), got {pos.shape}, {nrm.shape}")
         if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(nrm))):
@@ -157,16 +151,7 @@ def build_file_layout(
     pitch = float(np.mean(spacing)) if len(cp) > 1 else 0.0
     reach = 1.5 * float(np.median(spacing)) if len(cp) > 1 else None
     area = voronoi_areas(link, cp, seed=0, max_dist_m=reach)
-    return Layout(
-        kind="file",
-        position_m=cp,
-        normal=nrm,
-        area_m2=area,
-        uv=to_uv(surface, cp) if surface.has_uv else None,
-        grid_shape=None,
-        pitch_u_m=pitch,
-        pitch_v_m=pitch,
-    )
+    return scattered_layout(surface, "file", cp, nrm, area, pitch)
 
 
 class FileLayout(Configured):

@@ -31,9 +31,8 @@ from scipy.spatial import cKDTree
 
 from sphri.config import Configured
 from sphri.geometry.link import face_areas, face_normals, sample_surface
-from sphri.layout.common import grid_equivalent_count, nn_spacing, voronoi_areas
+from sphri.layout.common import grid_equivalent_count, nn_spacing, npz_arrays, scattered_layout, voronoi_areas
 from sphri.layout.schema import DensityLayoutSchema, RandomLayoutSchema, check_res
-from sphri.surface.charts import to_uv
 from sphri.types import Contacts, Layout, Link, SurfaceMap
 
 log = logging.getLogger(__name__)
@@ -104,16 +103,7 @@ def _irregular_layout(
 ) -> Layout:
     pitch = float(np.mean(nn_spacing(pts))) if len(pts) > 1 else float(np.sqrt(face_areas(link).sum()))
     area = voronoi_areas(link, pts, seed + 1)
-    return Layout(
-        kind=kind,
-        position_m=pts,
-        normal=nrm,
-        area_m2=area,
-        uv=to_uv(surface, pts) if surface.has_uv else None,
-        grid_shape=None,
-        pitch_u_m=pitch,
-        pitch_v_m=pitch,
-    )
+    return scattered_layout(surface, kind, pts, nrm, area, pitch)
 
 
 def build_random(
@@ -134,14 +124,7 @@ def load_density(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     p = Path(path)
     if not str(path):
         raise ValueError("layout.density_path is empty: set it to an .npz with points_m (P,3) and density (P,)")
-    if not p.is_file():
-        raise FileNotFoundError(f"layout.density_path={str(path)!r}: no such file")
-    with np.load(p) as z:
-        for key in ("points_m", "density"):
-            if key not in z:
-                raise ValueError(f"layout.density_path={str(path)!r}: missing array {key!r} (has {sorted(z.files)})")
-        pts = np.asarray(z["points_m"], dtype=np.float64)
-        dens = np.asarray(z["density"], dtype=np.float64)
+    pts, dens = npz_arrays(p, "layout.density_path", ("points_m", "density"))
     if pts.ndim != 2 or pts.shape[1] != 3 or dens.shape != (pts.shape[0],) or len(pts) == 0:
         raise ValueError(f"{path}: points_m must be (P, 3) and density (P,), got {pts.shape} and {dens.shape}")
     if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(dens))) or dens.min() < 0 or dens.max() <= 0:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
-from sphri.config import ConfigError, Range, Schema, require, setting, store
+from sphri.config import ComponentSchema, ConfigError, Range, require, setting, store
 from sphri.inputs import input_path
 
 #: Largest ``encoder.res`` (taxels along the long axis).
@@ -32,12 +32,8 @@ def check_res(res: Any, who: str = "encoder.res") -> int:
 
 
 @dataclass
-class LayoutSchema(Schema):
-    """Base of the layout group's schemas: range errors name ``layout.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_layout_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "layout"
-    _target_: str = "???"
+class LayoutSchema(ComponentSchema, group="layout"):
+    """Base of the layout group's schemas."""
 
 
 @dataclass

@@ -3,18 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import ClassVar
 
-from sphri.config import Schema, require, runtime_setting, setting, store
+from sphri.config import ComponentSchema, require, runtime_setting, setting, store
 
 
 @dataclass
-class ModelSchema(Schema):
-    """Base of the model group's schemas: range errors name ``model.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_model_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "model"
-    _target_: str = "???"
+class ModelSchema(ComponentSchema, group="model"):
+    """Base of the model group's schemas."""
 
 
 @dataclass

@@ -3,18 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
-from sphri.config import Schema, setting, store
+from sphri.config import ComponentSchema, setting, store
 
 
 @dataclass
-class NoiseSchema(Schema):
-    """Base of the noise group's schemas: range errors name ``noise.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_noise_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "noise"
-    _target_: str = "???"
+class NoiseSchema(ComponentSchema, group="noise"):
+    """Base of the noise group's schemas."""
 
 
 @dataclass

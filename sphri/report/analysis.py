@@ -27,7 +27,7 @@ from sphri.report.saturation import (
     envelope_saturation,
     physical_interval,
 )
-from sphri.report.sweep import Sweep
+from sphri.report.sweep import GEOMETRY_PARAMS, Sweep
 from sphri.types import GESTURES
 
 #: Chance accuracy of the 8-gesture task.
@@ -385,19 +385,7 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     # One row per resolution: the lowest seed's job names the point (its confusion matrix, its geometry).
     first_seed = rows.sort_values("seed", key=lambda c: c.map(_natural_key), kind="stable").drop_duplicates("res")
     first_seed = first_seed.set_index("res").loc[res].reset_index()
-    pts = first_seed[
-        [
-            "res",
-            "run_id",
-            "n_taxels",
-            "grid_h",
-            "grid_w",
-            "pitch_u_mm",
-            "pitch_v_mm",
-            "area_per_taxel_cm2",
-            "taxels_per_24cm",
-        ]
-    ].copy()
+    pts = first_seed[["res", "run_id", *GEOMETRY_PARAMS]].copy()
     pts["false_on_rate"] = first_seed["false_on_rate"].to_numpy(float) if "false_on_rate" in first_seed else np.nan
     pu, pv = pts["pitch_u_mm"].to_numpy(float), pts["pitch_v_mm"].to_numpy(float)
     pts["pitch_mm"] = np.where(np.isfinite(pv) & (pv > 0), np.fmax(pu, pv), pu)

@@ -65,8 +65,8 @@ KEY_ORDER = (
 #: The param whose values are replicates of one sweep point, not groups (the run's ``seed``).
 REPLICATE_KEY = "seed"
 
-#: Per-resolution columns read from the jobs' ``resolution.*`` params (floats).
-RESOLUTION_PARAMS = (
+#: The layout's geometry at one resolution (the columns of the report's points table).
+GEOMETRY_PARAMS = (
     "n_taxels",
     "grid_h",
     "grid_w",
@@ -74,9 +74,9 @@ RESOLUTION_PARAMS = (
     "pitch_v_mm",
     "area_per_taxel_cm2",
     "taxels_per_24cm",
-    "link_length_mm",
-    "circumference_mm",
 )
+#: Per-resolution columns read from the jobs' ``resolution.*`` params (floats).
+RESOLUTION_PARAMS = (*GEOMETRY_PARAMS, "link_length_mm", "circumference_mm")
 
 
 class ReportError(ValueError):

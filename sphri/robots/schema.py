@@ -16,13 +16,13 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import Any
 
 from omegaconf import MISSING
 
 from sphri.config import (
+    ComponentSchema,
     ConfigError,
-    Schema,
     close_match,
     cross_check,
     require,
@@ -125,11 +125,8 @@ def check_regions(regions: Mapping[str, str], links: list[str], key: str = "robo
 
 
 @dataclass
-class RobotSchema(Schema):
-    """Base of the robot group's schemas: range errors name ``robot.<field>``."""
-
-    GROUP: ClassVar[str] = "robot"
-    _target_: str = "???"
+class RobotSchema(ComponentSchema, group="robot"):
+    """Base of the robot group's schemas."""
 
 
 @dataclass

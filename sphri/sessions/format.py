@@ -40,6 +40,7 @@ import pandas as pd
 
 from sphri.data.duplicates import describe, find_duplicates, fingerprint
 from sphri.data.format import POSE_SUFFIXES, participant_id, pose_columns
+from sphri.errors import read_json
 from sphri.types import HandModel
 
 log = logging.getLogger(__name__)
@@ -196,15 +197,7 @@ def write_sessions(ds: SessionDataset, out: str | Path) -> list[Path]:
 
 
 def _read_json(path: Path, what: str) -> dict:
-    if not path.is_file():
-        raise SessionFormatError(f"{path}: {what} not found")
-    try:
-        data = json.loads(path.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise SessionFormatError(f"{path}: not valid JSON ({exc})") from None
-    if not isinstance(data, dict):
-        raise SessionFormatError(f"{path}: expected a JSON object, got {type(data).__name__}")
-    return data
+    return read_json(path, SessionFormatError, f"{path}: {what} not found", SessionFormatError, obj=True)
 
 
 def read_header(root: Path) -> dict:

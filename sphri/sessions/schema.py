@@ -12,8 +12,19 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from sphri.config import Schema, cross_check, require, require_choice, setting, store
+from sphri.config import Schema, cross_check, load_schema, require, require_choice, setting, store
 from sphri.data.schema import DataSchema
+
+
+def check_scenarios(key: str, scenarios: list[str] | None) -> None:
+    """A selection of scenarios: null (all) or a non-empty list of unique names."""
+    if scenarios is not None:
+        require(
+            len(scenarios) > 0 and len(set(scenarios)) == len(scenarios),
+            key,
+            scenarios,
+            "a non-empty list of unique scenario names (or null for all)",
+        )
 
 
 @dataclass
@@ -38,13 +49,7 @@ class SyntheticSessionsSchema(DataSchema):
     ``data.variability``: 1 = calibrated to real people, 0 = interchangeable participants)."""
 
     def check(self) -> None:
-        if self.scenarios is not None:
-            require(
-                len(self.scenarios) > 0 and len(set(self.scenarios)) == len(self.scenarios),
-                self.key("scenarios"),
-                self.scenarios,
-                "a non-empty list of unique scenario names (or null for all)",
-            )
+        check_scenarios(self.key("scenarios"), self.scenarios)
 
 
 @dataclass
@@ -68,19 +73,8 @@ class SessionDataSchema(DataSchema):
     def check(self) -> None:
         from sphri.data.duplicates import DUPLICATE_POLICIES
 
-        require(
-            isinstance(self.root, str) and self.root != "",
-            self.key("root"),
-            self.root,
-            "set the sessions folder (the one holding sessions.json)",
-        )
-        if self.scenarios is not None:
-            require(
-                len(self.scenarios) > 0 and len(set(self.scenarios)) == len(self.scenarios),
-                self.key("scenarios"),
-                self.scenarios,
-                "a non-empty list of unique scenario names (or null for all)",
-            )
+        self.check_root("set the sessions folder (the one holding sessions.json)")
+        check_scenarios(self.key("scenarios"), self.scenarios)
         require_choice(self.key("duplicates"), self.duplicates, DUPLICATE_POLICIES)
 
 
@@ -185,23 +179,11 @@ store(group="data", name="sessions_schema", node=SessionDataSchema)
 
 def study_settings(cfg) -> ScenarioStudySchema | None:
     """The composed config's ``experiment.scenario_study`` settings, checked (None when absent)."""
-    from omegaconf import OmegaConf
-    from omegaconf.errors import OmegaConfBaseException
-
-    from sphri.config import ConfigError
-
     exp = cfg.get("experiment") if hasattr(cfg, "get") else None
     node = exp.get("scenario_study") if exp is not None and hasattr(exp, "get") else None
     if node is None:
         return None
-    try:
-        return OmegaConf.to_object(OmegaConf.merge(OmegaConf.structured(ScenarioStudySchema), node))
-    except ConfigError:
-        raise
-    except OmegaConfBaseException as exc:
-        key = getattr(exc, "full_key", None) or ""
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
-        raise ConfigError(f"experiment.scenario_study.{key}: {first}") from None
+    return load_schema(ScenarioStudySchema, node)
 
 
 @cross_check

@@ -715,25 +715,16 @@ def log_study(cfg, res: StudyResult, overrides: Sequence[str], ds) -> str | None
     """One MLflow run tagged ``sphri.kind=scenario_study``: settings, numbers, every file."""
     from mlflow.entities import Metric, Param
 
-    from sphri.pipeline import build
-    from sphri.tracking.mlflow_tracker import git_commit
+    from sphri.tracking.mlflow_tracker import log_analysis_run
 
-    tracker = build(cfg.tracking)
-    if not getattr(tracker, "enabled", True):
-        return None
-    client = tracker.client(cfg.output_dir)
-    exp = tracker.experiment_id(cfg.output_dir)
     tags = {
-        "sphri.kind": "scenario_study",
         "sphri.dataset": ds.name,
         "sphri.synthetic": str(ds.synthetic).lower(),
-        "sphri.git_commit": git_commit(),
         "sphri.study_dir": str(res.out_dir.resolve()),
         "mlflow.note.content": "\n".join(res.sentences),
     }
-    run = tracker._retry(lambda: client.create_run(exp, tags=tags, run_name="scenario_study"))
-    run_id = run.info.run_id
-    try:
+
+    def numbers() -> tuple[list[Metric], list[Param]]:
         now = int(time.time() * 1000)
         params = [Param(f"study.{k}", str(v)) for k, v in dataclasses.asdict(res.settings).items()]
         params.append(Param("overrides", " ".join(overrides)[:500]))
@@ -748,8 +739,6 @@ def log_study(cfg, res: StudyResult, overrides: Sequence[str], ds) -> str | None
             for r in res.comparison.table.itertuples():
                 if r.p_holm == r.p_holm:
                     metrics.append(Metric(f"swd/p_holm/{r.cond_a}-{r.cond_b}", float(r.p_holm), now, 0))
-    except Exception:
-        tracker._retry(lambda: client.set_terminated(run_id, "FAILED"))
-        raise
-    tracker.finish_analysis_run(client, run_id, metrics, params, res.out_dir)
-    return run_id
+        return metrics, params
+
+    return log_analysis_run(cfg, "scenario_study", "scenario_study", tags, numbers, res.out_dir)

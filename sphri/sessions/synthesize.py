@@ -13,15 +13,13 @@ format (:mod:`sphri.sessions.format`). The folder then loads with
 from __future__ import annotations
 
 import dataclasses
-import logging
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Literal
 
 from sphri.command.args import arg, first_paragraph, run
-from sphri.data.synthesize import SynthesizeArgs
+from sphri.data.synthesize import SynthesizeArgs, write_dataset
 from sphri.data.synthesize import command as write_gestures
 from sphri.errors import clean_errors
 from sphri.sessions.format import SessionDataset
@@ -54,14 +52,7 @@ class SynthesizeAnyArgs(SynthesizeArgs):
 def write_sessions(args: SynthesizeArgs) -> int:
     """Generate the scenario sessions (data=synthetic_sessions robot=reachy_full plus the overrides) exactly as
     the scenario study does and write them under out=DIR (they load with data=sessions data.root=DIR)."""
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
-    t = time.perf_counter()
-    ds = synthesize(args.out, args.overrides)
-    print(
-        f"wrote {len(ds.sessions)} sessions, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
-        f"to {Path(args.out).resolve()} in {time.perf_counter() - t:.1f} s"
-    )
-    return 0
+    return write_dataset(synthesize, args, "sessions")
 
 
 def command(args: SynthesizeAnyArgs) -> int:

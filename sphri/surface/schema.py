@@ -10,18 +10,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import ClassVar
 
-from sphri.config import Schema, require, setting, store
+from sphri.config import ComponentSchema, require, setting, store
 
 AXIS_CHOICES = ("auto", "x", "y", "z")
 
 
 @dataclass
-class SurfaceSchema(Schema):
-    """Base of the surface group's schemas: range errors name ``surface.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_surface_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "surface"
-    _target_: str = "???"
+class SurfaceSchema(ComponentSchema, group="surface"):
+    """Base of the surface group's schemas."""
 
 
 @dataclass

@@ -36,6 +36,7 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from sphri import __version__
+from sphri.config import build
 from sphri.encode.schema import grid_res
 from sphri.stages import PARAM_GROUPS  # groups whose component and scalar settings become params
 from sphri.tracking import machine
@@ -195,6 +196,28 @@ def flatten_params(cfg: DictConfig, choices: dict[str, str] | None = None) -> di
     return params
 
 
+def log_analysis_run(
+    cfg: DictConfig,
+    kind: str,
+    run_name: str,
+    tags: dict[str, str],
+    numbers: Callable[[], tuple[list, list]],
+    out_dir: str | os.PathLike,
+) -> str | None:
+    """One MLflow run of an analysis of ``cfg`` (coverage, scenario study), tagged ``sphri.kind=<kind>``,
+    ``tags`` and the git commit, holding ``numbers()`` (metrics, params) and every file of ``out_dir``;
+    its id, or None where ``cfg.tracking`` turns tracking off."""
+    tracker = build(cfg.tracking)
+    if not getattr(tracker, "enabled", True):
+        return None
+    client = tracker.client(cfg.output_dir)
+    exp = tracker.experiment_id(cfg.output_dir)
+    tags = {"sphri.kind": kind, **tags, "sphri.git_commit": git_commit()}
+    run = tracker._retry(lambda: client.create_run(exp, tags=tags, run_name=run_name))
+    tracker.finish_analysis_run(client, run.info.run_id, numbers, out_dir)
+    return run.info.run_id
+
+
 class MlflowTracker:
     """Logs jobs to MLflow; built from the ``tracking`` config group."""
 
@@ -271,10 +294,12 @@ class MlflowTracker:
             )
 
     def finish_analysis_run(
-        self, client: MlflowClient, run_id: str, metrics: list, params: list, out_dir: str | os.PathLike
+        self, client: MlflowClient, run_id: str, numbers: Callable[[], tuple[list, list]], out_dir: str | os.PathLike
     ) -> None:
-        """Log an analysis run's numbers and every file of ``out_dir``, then end it FINISHED (FAILED on error)."""
+        """Log an analysis run's ``numbers()`` (metrics, params) and every file of ``out_dir``, then end it
+        FINISHED (FAILED on error)."""
         try:
+            metrics, params = numbers()
             self.log_batches(client, run_id, metrics, params)
             self._retry(lambda: client.log_artifacts(run_id, str(out_dir)))
             self._retry(lambda: client.set_terminated(run_id, "FINISHED"))

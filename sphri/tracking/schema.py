@@ -3,18 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
-from sphri.config import Schema, require, store
+from sphri.config import ComponentSchema, require, store
 
 
 @dataclass
-class TrackingSchema(Schema):
-    """Base of the tracking group's schemas: range errors name ``tracking.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_tracking_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "tracking"
-    _target_: str = "???"
+class TrackingSchema(ComponentSchema, group="tracking"):
+    """Base of the tracking group's schemas."""
 
 
 @dataclass

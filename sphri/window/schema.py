@@ -3,18 +3,13 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
 
-from sphri.config import Schema, setting, store
+from sphri.config import ComponentSchema, setting, store
 
 
 @dataclass
-class WindowSchema(Schema):
-    """Base of the window group's schemas: range errors name ``window.<field>``; a plugin's YAML may opt
-    into it (``defaults: [/schema_window_base@_here_, _self_]``)."""
-
-    GROUP: ClassVar[str] = "window"
-    _target_: str = "???"
+class WindowSchema(ComponentSchema, group="window"):
+    """Base of the window group's schemas."""
 
 
 @dataclass

@@ -76,20 +76,23 @@ def contacts_from_rows():
     return make_contacts
 
 
+def _real_port(device: str, example: str) -> str:
+    """The port of a real ``device`` from ``SPHRI_<DEVICE>_PORT``; without one the test is skipped."""
+    var = f"SPHRI_{device.upper()}_PORT"
+    port = os.environ.get(var)
+    if not port:
+        pytest.skip(f"no real {device}: set {var}={example} (or a pyserial URL) to run")
+    return port
+
+
 @pytest.fixture
 def skin_port() -> str:
-    port = os.environ.get("SPHRI_SKIN_PORT")
-    if not port:
-        pytest.skip("no real skin: set SPHRI_SKIN_PORT=/dev/ttyACM0 (or a pyserial URL) to run")
-    return port
+    return _real_port("skin", "/dev/ttyACM0")
 
 
 @pytest.fixture
 def glove_port() -> str:
-    port = os.environ.get("SPHRI_GLOVE_PORT")
-    if not port:
-        pytest.skip("no real glove: set SPHRI_GLOVE_PORT=/dev/rfcomm0 (or a pyserial URL) to run")
-    return port
+    return _real_port("glove", "/dev/rfcomm0")
 
 
 def _frames_on_disk(partial) -> int:

@@ -21,27 +21,14 @@ def out_dir(tmp_path_factory):
 
 def stream_live(overrides, participant, model_path, out_dir):
     """Stream ``participant``'s trials from the simulator into `skin live`; (ledger, first touch per trial)."""
-    from sphri.hardware.settings import SkinLiveSettings
-    from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pipeline_stream
-    from sphri.hardware.skin import live
-    from sphri.hardware.transport import make_endpoint, start_in_thread
+    from skin_sim import live_on_simulator
+
+    from sphri.hardware.sim_skin import SkinSimSettings, pipeline_stream
 
     stream = pipeline_stream(overrides, -1, participant, 0.5, 0)
     settings = SkinSimSettings(port="socket://127.0.0.1:0", realtime=False, hold_s=60.0)
-    sim = SkinSimulator(stream, settings, make_endpoint(settings), say=lambda m: None)
-    th = start_in_thread(sim)
     pred = out_dir / f"{participant}.jsonl"
-    try:
-        summary = live(
-            SkinLiveSettings(
-                port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(pred), stride=30, show="off"
-            ),
-            out=lambda m: None,
-            until=sim.finished.is_set,
-        )
-    finally:
-        sim.stop.set()
-        th.join(10)
+    summary, sim = live_on_simulator(stream, settings, model_path, out=str(pred), stride=30, show="off")
     assert summary["error"] is None and summary["frames"] == len(stream.values)
     touches = [r for r in map(json.loads, pred.read_text().splitlines()) if r["kind"] == "touch"]
     first = {}

@@ -6,13 +6,11 @@ import json
 
 import numpy as np
 import pytest
+from skin_sim import live_on_simulator
 
 from sphri.export.model_file import ModelBundle, ModelFileError, inspect_model, load_model, save_model
 from sphri.hardware.live import LiveClassifier, auto_stride
-from sphri.hardware.settings import SkinLiveSettings
-from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pattern_stream
-from sphri.hardware.skin import live
-from sphri.hardware.transport import make_endpoint, start_in_thread
+from sphri.hardware.sim_skin import SkinSimSettings, pattern_stream
 
 
 class Recorder:
@@ -145,19 +143,9 @@ def test_live_against_the_simulator_rate_and_touches(tmp_path, make_geometry):
         port="socket://127.0.0.1:0", source="pattern", frames=frames, seed=2, realtime=True, rate_hz=90.0, hold_s=2.0
     )
     stream = pattern_stream((18, 6), frames, 2)
-    sim = SkinSimulator(stream, sim_settings, make_endpoint(sim_settings), say=lambda m: None)
-    th = start_in_thread(sim)
     out = tmp_path / "pred.jsonl"
     lines: list[str] = []
-    try:
-        summary = live(
-            SkinLiveSettings(port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(out)),
-            out=lines.append,
-            until=sim.finished.is_set,
-        )
-    finally:
-        sim.stop.set()
-        th.join(10)
+    summary, sim = live_on_simulator(stream, sim_settings, model_path, lines.append, out=str(out))
     assert summary["error"] is None and summary["frames"] == frames
     records = [json.loads(ln) for ln in out.read_text().splitlines()]
     touches = [r for r in records if r["kind"] == "touch"]
@@ -188,20 +176,8 @@ def test_live_fills_lost_frames_to_keep_the_timing(tmp_path, make_geometry):
         corrupt_rate=0.03,
     )
     stream = pattern_stream((18, 6), frames, 3)
-    sim = SkinSimulator(stream, sim_settings, make_endpoint(sim_settings), say=lambda m: None)
-    th = start_in_thread(sim)
     out = tmp_path / "pred.jsonl"
-    try:
-        summary = live(
-            SkinLiveSettings(
-                port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(out), stride=50, show="off"
-            ),
-            out=lambda m: None,
-            until=sim.finished.is_set,
-        )
-    finally:
-        sim.stop.set()
-        th.join(10)
+    summary, sim = live_on_simulator(stream, sim_settings, model_path, out=str(out), stride=50, show="off")
     led = sim.ledger
     assert summary["frames"] == led.good and led.dropped + led.corrupt > 10
     assert summary["filled_frames"] == summary["decoder"]["seq_missing"] > 10

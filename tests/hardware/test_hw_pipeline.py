@@ -56,12 +56,11 @@ def test_replay_cli_refuses_bad_settings(out_dir, capsys):
 
 
 def test_train_export_then_live_on_streamed_trials(out_dir):
+    from skin_sim import live_on_simulator
+
     from sphri.export.model_file import load_model
     from sphri.hardware import train_export
-    from sphri.hardware.settings import SkinLiveSettings
-    from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pipeline_stream
-    from sphri.hardware.skin import live
-    from sphri.hardware.transport import make_endpoint, start_in_thread
+    from sphri.hardware.sim_skin import SkinSimSettings, pipeline_stream
 
     overrides = [*SMALL, f"output_dir={out_dir}", "model.n_jobs=1"]
     model_path = out_dir / "rf.sphrimodel"
@@ -72,20 +71,8 @@ def test_train_export_then_live_on_streamed_trials(out_dir):
 
     stream = pipeline_stream(overrides, 4, "participant_01", 0.5, 0)
     sim_settings = SkinSimSettings(port="socket://127.0.0.1:0", realtime=False, hold_s=30.0)
-    sim = SkinSimulator(stream, sim_settings, make_endpoint(sim_settings), say=lambda m: None)
-    th = start_in_thread(sim)
     pred = out_dir / "pred.jsonl"
-    try:
-        summary = live(
-            SkinLiveSettings(
-                port=sim.endpoint.url, model=str(model_path), idle_s=60.0, out=str(pred), stride=10, show="off"
-            ),
-            out=lambda m: None,
-            until=sim.finished.is_set,
-        )
-    finally:
-        sim.stop.set()
-        th.join(10)
+    summary, sim = live_on_simulator(stream, sim_settings, model_path, out=str(pred), stride=10, show="off")
     assert summary["frames"] == sim.ledger.good == len(stream.values)
     touches = [r for r in map(json.loads, pred.read_text().splitlines()) if r["kind"] == "touch"]
     aligned = 0

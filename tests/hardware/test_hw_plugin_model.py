@@ -41,35 +41,26 @@ def _overrides(lab: Path, out: Path) -> list[str]:
 
 
 def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, capsys):
+    from skin_sim import live_on_simulator
+
     from sphri.export.train import fit_bundle, training_windows
-    from sphri.hardware.settings import SkinLiveSettings
-    from sphri.hardware.sim_skin import SkinSimSettings, SkinSimulator, pipeline_stream
-    from sphri.hardware.skin import live
+    from sphri.hardware.sim_skin import SkinSimSettings, pipeline_stream
     from sphri.hardware.skin import main as skin_main
     from sphri.hardware.source import open_pipeline
-    from sphri.hardware.transport import make_endpoint, start_in_thread
 
     overrides = _overrides(lab, tmp_path / "out")
     model_path = tmp_path / "proto.sphrimodel"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(lab), str(REPO)])}
-    job = subprocess.run(  # a job cross-validates it like any model
-        [sys.executable, "-m", "sphri", *overrides, "tracking.enabled=false"],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        env=env,
-        timeout=600,
-    )
+
+    def python_m(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(
+            [sys.executable, "-m", *args], capture_output=True, text=True, cwd=tmp_path, env=env, timeout=600
+        )
+
+    job = python_m("sphri", *overrides, "tracking.enabled=false")  # a job cross-validates it like any model
     assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
     assert "model       lab_prototype, LOSO over 2 folds" in job.stdout and "accuracy    " in job.stdout
-    export = subprocess.run(
-        [sys.executable, "-m", "sphri.export.train", f"out={model_path}", *overrides],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        env=env,
-        timeout=600,
-    )
+    export = python_m("sphri.export.train", f"out={model_path}", *overrides)
     assert export.returncode == 0, (export.stdout + export.stderr)[-3000:]
     assert "saved NearestPrototype (16 windows" in export.stdout
 
@@ -100,27 +91,11 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     # live on the skin simulator streaming the same trials: every trial is detected and named
     stream = pipeline_stream(overrides, 4, "participant_01", 0.5, 0)
     sim_settings = SkinSimSettings(port="socket://127.0.0.1:0", realtime=False, hold_s=30.0)
-    sim = SkinSimulator(stream, sim_settings, make_endpoint(sim_settings), say=lambda m: None)
-    th = start_in_thread(sim)
     pred = tmp_path / "pred.jsonl"
     lines: list[str] = []
-    try:
-        summary = live(
-            SkinLiveSettings(
-                port=sim.endpoint.url,
-                model=str(model_path),
-                plugins=["labext"],
-                idle_s=60.0,
-                out=str(pred),
-                stride=10,
-                show="off",
-            ),
-            out=lines.append,
-            until=sim.finished.is_set,
-        )
-    finally:
-        sim.stop.set()
-        th.join(10)
+    summary, sim = live_on_simulator(
+        stream, sim_settings, model_path, lines.append, plugins=["labext"], out=str(pred), stride=10, show="off"
+    )
     assert summary["error"] is None and summary["frames"] == sim.ledger.good == len(stream.values)
     assert lines[0].startswith("model NearestPrototype:")
     rows = [json.loads(r) for r in pred.read_text().splitlines()]

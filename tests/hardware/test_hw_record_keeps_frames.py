@@ -11,13 +11,11 @@ import os
 import signal
 import stat
 import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
-from skin_sim import check_good_frames_kept, run_record
+from skin_sim import check_good_frames_kept, record_in_child, run_record, wait_for_frames
 
 from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording, load_recording, save_recording
 from sphri.hardware.settings import SkinRecordSettings
@@ -27,7 +25,6 @@ from sphri.hardware.skin import record
 from sphri.hardware.skin_protocol import ValueFormat, quantize
 from sphri.hardware.transport import make_endpoint, start_in_thread
 
-REPO = Path(__file__).resolve().parents[2]
 #: with this seed and wrong_count_rate=0.05 the simulator's FIRST frame carries a wrong taxel count
 #: (the issue's reproducer: ``simulate skin ... grid=18x6 frames=300 seed=34 wrong_count_rate=0.05``)
 GLITCHED_FIRST_SEED = 34
@@ -130,32 +127,11 @@ def test_a_signal_saves_the_recording(tmp_path, sig, frames_on_disk):
     sim = SkinSimulator(stream, settings, make_endpoint(settings), say=lambda m: None)
     th = start_in_thread(sim)
     out = tmp_path / "rec.npz"
-    env = {**os.environ, "PYTHONPATH": f"{REPO}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
     # no fsync before 1000 frames or 60 s: the partial file must hold the frames all the same
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "sphri.hardware.skin",
-            "record",
-            f"port={sim.endpoint.url}",
-            f"out={out}",
-            "grid=18x6",
-            "chunk_frames=1000",
-            "sync_interval_s=60",
-        ],
-        cwd=tmp_path,
-        env=env,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-    )
+    proc = record_in_child(sim, out, tmp_path, "chunk_frames=1000", "sync_interval_s=60", stdout=subprocess.PIPE)
     partial = out.with_name(out.name + ".partial")
     try:
-        deadline = time.monotonic() + 120
-        while (on_disk := frames_on_disk(partial)) < want:
-            assert proc.poll() is None, proc.stderr.read().decode()
-            assert time.monotonic() < deadline, "the recorder wrote no frames"
-            time.sleep(0.02)
+        on_disk = wait_for_frames(proc, partial, want, frames_on_disk)
         assert on_disk < 1000  # frames are on disk before a chunk of chunk_frames is complete
         proc.send_signal(sig)
         stdout, stderr = proc.communicate(timeout=60)

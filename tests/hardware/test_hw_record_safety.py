@@ -5,13 +5,11 @@ from __future__ import annotations
 
 import os
 import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from skin_sim import record_in_child, wait_for_frames
 
 from sphri.hardware.recording import RecordingError, load_recording
 from sphri.hardware.settings import SkinRecordSettings
@@ -20,8 +18,6 @@ from sphri.hardware.skin import main as skin_main
 from sphri.hardware.skin import record
 from sphri.hardware.skin_protocol import ValueFormat, quantize
 from sphri.hardware.transport import make_endpoint, start_in_thread
-
-REPO = Path(__file__).resolve().parents[2]
 
 
 def _simulator(frames: int, **kw):
@@ -71,31 +67,10 @@ def test_killed_mid_recording_keeps_the_frames_read_so_far(tmp_path, frames_on_d
     want = 40
     sim, stream, th = _simulator(20_000, realtime=True, rate_hz=200.0)
     out = tmp_path / "rec.npz"
-    env = {**os.environ, "PYTHONPATH": f"{REPO}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "sphri.hardware.skin",
-            "record",
-            f"port={sim.endpoint.url}",
-            f"out={out}",
-            "grid=18x6",
-            "chunk_frames=5",
-        ],
-        cwd=tmp_path,
-        env=env,
-        stdout=subprocess.DEVNULL,
-        stderr=subprocess.PIPE,
-    )
+    proc = record_in_child(sim, out, tmp_path, "chunk_frames=5")
     partial = out.with_name(out.name + ".partial")
     try:
-        # event-driven: wait until `want` frames are on disk (generous cap only against a hang)
-        deadline = time.monotonic() + 120
-        while frames_on_disk(partial) < want:
-            assert proc.poll() is None, proc.stderr.read().decode()
-            assert time.monotonic() < deadline, "the recorder wrote no frames"
-            time.sleep(0.02)
+        wait_for_frames(proc, partial, want, frames_on_disk)
         proc.send_signal(signal.SIGKILL)
         proc.wait(30)
     finally:
