@@ -20,7 +20,7 @@ the window length L and frame rate, and the gesture labels. Layout::
                bytes (every type in it must be in its own list,
                :data:`sphri.models.rf.TRUSTED_TYPES`, the only list skops is
                given), the CNN-GRU's network as a torch state dict
-               (``torch.load(weights_only=True)``); see :mod:`sphri.models.persist`
+               (``torch.load`` with ``weights_only=True``); see :mod:`sphri.models.persist`
 
 This module knows no model: the header's ``kind`` picks the class in the registry and the class
 reads its own state (``load_state``). A class that is not sphri's own is imported only from a

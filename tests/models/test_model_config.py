@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 from hydra.utils import instantiate
 
@@ -23,7 +25,7 @@ def test_model_yaml_instantiates_with_geometry(name, cls):
     assert cls.VERSION == {"rf": "1", "cnn_gru": "3"}[name] and cls.NAME == name
     # the YAML holds every schema field, and the estimator takes exactly those
     schema = RandomForestSchema if name == "rf" else CnnGruSchema
-    fields = set(schema.__dataclass_fields__) - {"_target_"}
+    fields = {f.name for f in dataclasses.fields(schema)} - {"_target_"}
     assert set(cfg.model) - {"_target_"} == fields
     assert set(est.get_params()) == fields | {"geometry"}
 
