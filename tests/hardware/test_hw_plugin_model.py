@@ -1,5 +1,6 @@
-"""A model from a package outside sphri (tests/plugin_example/labext/prototype.py, one module and one YAML) runs
-in a job, is exported to a model file, loaded back and run live on the skin simulator, with no edit to sphri;
+"""A model, an encoder, a layout and a noise model from a package outside sphri (tests/plugin_example/labext:
+one module and one YAML each; the encoder carries no ``res``) run in a job; the model is exported to a model
+file, loaded back and run live on the skin simulator streaming that chain's readings, with no edit to sphri;
 the file names its class, which sphri imports only from a package the reader lists in ``plugins``."""
 
 from __future__ import annotations
@@ -36,6 +37,9 @@ def _overrides(lab: Path, out: Path) -> list[str]:
         "plugins=[labext]",
         f"hydra.searchpath=[file://{lab / 'conf'}]",
         "model=prototype",
+        "encoder=nearest",
+        "layout=vertices",
+        "noise=dropout",
         f"output_dir={out}",
     ]
 
@@ -94,7 +98,15 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     pred = tmp_path / "pred.jsonl"
     lines: list[str] = []
     summary, sim = live_on_simulator(
-        stream, sim_settings, model_path, lines.append, plugins=["labext"], out=str(pred), stride=10, show="off"
+        stream,
+        sim_settings,
+        model_path,
+        lines.append,
+        plugins=["labext"],
+        out=str(pred),
+        stride=10,
+        show="off",
+        persist=1,  # dropout noise only turns taxels off: one frame on is a touch (no false touch possible)
     )
     assert summary["error"] is None and summary["frames"] == sim.ledger.good == len(stream.values)
     assert lines[0].startswith("model NearestPrototype:")

@@ -1,5 +1,7 @@
 """A lab's own skin components, outside sphri: one module, one YAML each."""
 
+import dataclasses
+
 import numpy as np
 from scipy.spatial import cKDTree
 
@@ -66,3 +68,24 @@ class NearestCentroid:
         f = np.asarray(x, dtype=np.float64).mean(axis=1)
         d = ((f[:, None, :] - self.centroids_[None]) ** 2).sum(axis=2)
         return self.classes_[d.argmin(axis=1)]
+
+
+class DropoutNoise:
+    """Each reading reads 0 with probability ``p``, drawn per (seed, trial, frame slot): the same
+    draw wherever that slot is computed (offline windows, a streamed skin)."""
+
+    VERSION = "1"
+
+    def __init__(self, p: float = 0.02):
+        if not 0.0 <= p < 1.0:
+            raise ValueError(f"noise.p={p!r} is invalid: must be in [0, 1)")
+        self.p = p
+
+    def apply(self, frames, frame_index, trial_key, seed):
+        v = np.asarray(frames.values)
+        out = v.copy()
+        mask = 0xFFFFFFFFFFFFFFFF
+        for i, (slot, key) in enumerate(zip(np.asarray(frame_index), np.asarray(trial_key))):
+            rng = np.random.default_rng([int(seed) & mask, int(key) & mask, int(slot) & mask])
+            out[i, rng.random(v.shape[1]) < self.p] = 0
+        return dataclasses.replace(frames, values=out)
