@@ -449,17 +449,25 @@ def run(
     """Parse ``argv`` into ``cls`` and call ``body`` with it. A bad argument (:class:`ArgsError`, from
     the parser or raised by ``body``) is one line on stderr (``<prog>: <problem>``) and exit code 2;
     ``--help`` prints the help and returns 0."""
+    args = _or_exit_code(prog, lambda: parse(cls, argv, usage_prog or prog, summary))
+    if isinstance(args, int):
+        return args
     try:
-        args = parse(cls, argv, usage_prog or prog, summary)
+        return body(args)
+    except ArgsError as exc:  # found by the command itself (a folder or stage that is not there)
+        print(f"{prog}: {exc}", file=sys.stderr)
+        return 2
+
+
+def _or_exit_code(prog: str, parse_call: Callable[[], T]) -> T | int:
+    """``parse_call()``'s value (never an int), or the exit code after printing the help (0) or one
+    line ``<prog>: <problem>`` on stderr (2)."""
+    try:
+        return parse_call()
     except HelpRequested as h:
         print(h)
         return 0
     except ArgsError as exc:
-        print(f"{prog}: {exc}", file=sys.stderr)
-        return 2
-    try:
-        return body(args)
-    except ArgsError as exc:  # found by the command itself (a folder or stage that is not there)
         print(f"{prog}: {exc}", file=sys.stderr)
         return 2
 
@@ -494,13 +502,10 @@ def read_settings(
         print(f"{prog}: unknown command {word!r}{hint}; commands: {', '.join(words)}", file=sys.stderr)
         return 2
     cls, known = commands[word]
-    settings: Any
-    try:
-        settings, overrides = _parse(cls, argv, f"{usage_prog} {word}".strip(), summary(cls), known)
-    except HelpRequested as h:
-        print(h)
-        return 0
-    except ArgsError as exc:
-        print(f"{prog}: {exc}", file=sys.stderr)
-        return 2
+    parsed: tuple[Any, list[str]] | int = _or_exit_code(
+        prog, lambda: _parse(cls, argv, f"{usage_prog} {word}".strip(), summary(cls), known)
+    )
+    if isinstance(parsed, int):
+        return parsed
+    settings, overrides = parsed
     return word, settings, overrides
