@@ -6,11 +6,11 @@ import json
 
 import numpy as np
 import pytest
-from skin_sim import live_on_simulator
 
 from sphri.export.model_file import ModelBundle, ModelFileError, inspect_model, load_model, save_model
 from sphri.hardware.live import LiveClassifier, auto_stride
 from sphri.hardware.sim_skin import SkinSimSettings, pattern_stream
+from tests.hardware.skin_sim import live_on_simulator  # importable from tests/fuzz too
 
 
 class Recorder:
