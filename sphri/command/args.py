@@ -477,6 +477,15 @@ def first_paragraph(doc: str | None) -> str:
     return " ".join((doc or "").strip().split("\n\n")[0].split())
 
 
+def read_module_settings(
+    commands: Mapping[str, tuple[type, bool]], argv: Sequence[str] | None, module: str, prog: str = ""
+) -> tuple[str, Any, list[str]] | int:
+    """:func:`read_settings` for a module's ``main(argv, prog)``: ``argv`` None is ``sys.argv[1:]``;
+    without ``prog`` (``sphri VERB`` when dispatched) errors name ``module`` and usage ``python -m module``."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    return read_settings(commands, argv, prog or module, prog or f"python -m {module}")
+
+
 def read_settings(
     commands: Mapping[str, tuple[type, bool]], argv: Sequence[str], prog: str, usage_prog: str = ""
 ) -> tuple[str, Any, list[str]] | int:

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from sphri.command.args import read_settings
+from sphri.command.args import read_module_settings
 from sphri.config import ConfigError, Schema, require
 from sphri.encode.schema import grid_res
 from sphri.errors import clean_errors
@@ -192,9 +192,8 @@ def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
 @clean_errors("sphri.export.train")
 def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
     """``sphri export out=FILE ... [overrides ...]`` (``python -m sphri.export.train`` by default)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
     commands = {"": (TrainExportSettings, True)}
-    got = read_settings(commands, argv, prog or "sphri.export.train", prog or "python -m sphri.export.train")
+    got = read_module_settings(commands, argv, "sphri.export.train", prog)
     if isinstance(got, int):
         return got
     _, settings, overrides = got

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sphri.command.args import read_settings
+from sphri.command.args import read_module_settings
 from sphri.config import ConfigError
 from sphri.errors import clean_errors
 from sphri.hardware.actuators import ActuatorMap, part_depths
@@ -352,9 +352,8 @@ def replay(settings: GloveReplaySettings, overrides: Sequence[str], out: Callabl
 def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
     """``sphri glove replay key=value ... [overrides ...]`` (``python -m sphri.hardware.glove`` by default);
     the keys of :class:`GloveReplaySettings`, any other ``key=value`` a config override (+debug=fast)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
     commands = {"replay": (GloveReplaySettings, True)}
-    got = read_settings(commands, argv, prog or "sphri.hardware.glove", prog or "python -m sphri.hardware.glove")
+    got = read_module_settings(commands, argv, "sphri.hardware.glove", prog)
     if isinstance(got, int):
         return got
     _, settings, overrides = got

@@ -21,7 +21,7 @@ import threading
 from collections.abc import Sequence
 from pathlib import Path
 
-from sphri.command.args import read_settings
+from sphri.command.args import read_module_settings
 from sphri.errors import clean_errors
 from sphri.hardware.sim_glove import GloveLedger, GloveSimSettings, GloveSimulator
 from sphri.hardware.sim_skin import (
@@ -55,9 +55,8 @@ __all__ = [
 @clean_errors("sphri.hardware.simulate")
 def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
     """``sphri simulate skin|glove key=value ...`` (``python -m sphri.hardware.simulate`` by default)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
     commands = {"skin": (SkinSimSettings, True), "glove": (GloveSimSettings, False)}
-    got = read_settings(commands, argv, prog or "sphri.hardware.simulate", prog or "python -m sphri.hardware.simulate")
+    got = read_module_settings(commands, argv, "sphri.hardware.simulate", prog)
     if isinstance(got, int):
         return got
     device, settings, overrides = got

@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sphri.command.args import read_settings
+from sphri.command.args import read_module_settings
 from sphri.errors import clean_errors
 from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, parse_grid
 from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, encode_control
@@ -578,8 +578,7 @@ COMMANDS = {"record": (SkinRecordSettings, False), "live": (SkinLiveSettings, Fa
 @clean_errors("sphri.hardware.skin")
 def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
     """``sphri skin record|live key=value ...`` (``python -m sphri.hardware.skin`` is ``prog`` by default)."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    got = read_settings(COMMANDS, argv, prog or "sphri.hardware.skin", prog or "python -m sphri.hardware.skin")
+    got = read_module_settings(COMMANDS, argv, "sphri.hardware.skin", prog)
     if isinstance(got, int):
         return got
     cmd, settings, _ = got
