@@ -8,10 +8,12 @@ this file. ``sphri.config.CONF_DIR`` reads ``conf/`` in a checkout and
 """
 
 import json
+import shutil
 import subprocess
 from pathlib import Path
 
 from setuptools import find_namespace_packages, find_packages, setup
+from setuptools.command.bdist_wheel import bdist_wheel
 from setuptools.command.build_py import build_py
 
 
@@ -43,8 +45,19 @@ class build_py_with_commit(build_py):
             target.write_text(json.dumps({"git_commit": commit, "dirty": bool(dirty)}) + "\n")
 
 
+class bdist_wheel_fresh(bdist_wheel):
+    """Build every wheel from an empty ``build/lib``: setuptools only adds to it (pypa/setuptools#1871), so a
+    module removed or renamed since the last build would still ship (``pip wheel .``, ``pip install .``)."""
+
+    def run(self) -> None:
+        lib = Path(self.get_finalized_command("build").build_lib).resolve()
+        if not self.skip_build and lib.is_dir() and not HERE.is_relative_to(lib):  # never the source tree
+            shutil.rmtree(lib)
+        super().run()
+
+
 setup(
-    cmdclass={"build_py": build_py_with_commit},
+    cmdclass={"build_py": build_py_with_commit, "bdist_wheel": bdist_wheel_fresh},
     # hydra_plugins is a namespace package (no __init__.py, as Hydra's plugin discovery wants):
     # find_packages skips it and with it sphri's sweeper, so it is found as a namespace.
     packages=find_packages(include=["sphri", "sphri.*"])

@@ -4,6 +4,7 @@ and runs a job from any working directory."""
 from __future__ import annotations
 
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -14,17 +15,40 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 
 
+def _checkout_copy(dest: Path) -> Path:
+    """The checkout's files (tracked, and untracked ones git does not ignore: what ``git status`` sees) in ``dest``."""
+    listed = subprocess.run(
+        ["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"],
+        capture_output=True,
+        check=True,
+        cwd=REPO,
+    ).stdout.decode()
+    for name in filter(None, listed.split("\0")):
+        if (REPO / name).is_file():  # a tracked file deleted in the working tree is not listed twice
+            (dest / name).parent.mkdir(parents=True, exist_ok=True)
+            shutil.copy2(REPO / name, dest / name)
+    return dest
+
+
+STALE = "sphri/_stale_probe.py"  # a module that is not in the source: only a stale build/lib has it
+
+
 @pytest.fixture(scope="module")
 def installed(tmp_path_factory) -> Path:
-    """Build the wheel (no network, no build isolation) and install it, without
-    its dependencies (they are this environment's), into an empty folder."""
+    """Build the wheel (no network, no build isolation) as the README does, in a copy of the checkout
+    whose ``build/lib`` holds a stale module from an earlier build, and install it, without its
+    dependencies (they are this environment's), into an empty folder."""
     root = tmp_path_factory.mktemp("wheel")
-    wheels, target = root / "dist", root / "site"
+    wheels, target, source = root / "dist", root / "site", _checkout_copy(root / "src")
+    (source / "build" / "lib" / STALE).parent.mkdir(parents=True)
+    (source / "build" / "lib" / STALE).write_text("GONE = True\n")
+    git_dir = subprocess.run(["git", "rev-parse", "--absolute-git-dir"], capture_output=True, text=True, cwd=REPO)
     build = subprocess.run(
-        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", str(wheels), str(REPO)],
+        [sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", str(wheels), "."],
         capture_output=True,
         text=True,
-        cwd=root,
+        cwd=source,
+        env={**os.environ, "GIT_DIR": git_dir.stdout.strip(), "GIT_WORK_TREE": str(source)},  # setup.py's commit
     )
     assert build.returncode == 0, build.stderr[-3000:]
     (wheel,) = wheels.glob("sphri-*.whl")
@@ -96,6 +120,13 @@ def wheel_sweep(installed, tmp_path_factory) -> Path:
     assert sweep.returncode == 0, (sweep.stdout + sweep.stderr)[-3000:]
     assert "2 of 2 jobs finished" in sweep.stdout, sweep.stdout[-2000:]
     return cwd / "sweep"
+
+
+def test_wheel_leaves_out_a_stale_build_lib(installed):
+    """setuptools only adds to ``build/lib``: without setup.py emptying it first, the module planted
+    there (as a build before its removal or renaming would leave it) ships in the wheel."""
+    assert (installed / "sphri" / "config.py").is_file()
+    assert not (installed / STALE).exists()
 
 
 def test_wheel_ships_the_sweeper(installed):
