@@ -5,6 +5,7 @@
     sphri list                           # every group and its components
     sphri list robot                     # one group, with each file's summary
     sphri show noise=crosstalk           # every setting of a component: value, default, meaning
+    sphri show tracking                  # one group's settings (= group=tracking)
     sphri validate +robot=reachy encoder.res=18
     sphri validate -m encoder.res=0,4    # a sweep: every job is checked
     sphri validate +experiment=resolution_sweep   # its 100 jobs
@@ -266,13 +267,25 @@ def cmd_warmup() -> int:
 
 @dataclasses.dataclass
 class ListArgs:
-    groups: list[str] = arg([], positional=True, metavar="GROUP", help="config groups to list (default: every group)")
+    groups: list[str] = arg(
+        [],
+        positional=True,
+        choices=DEFAULT_GROUPS,
+        metavar="GROUP",
+        help="config groups to list (default: every group)",
+    )
 
 
 @dataclasses.dataclass
 class ShowArgs:
     overrides: list[str] = arg([], rest=True, help="choices and overrides, e.g. encoder=coverage noise.p=0.05")
-    group: list[str] = arg([], help="groups to show (default: those named in the overrides, else every group)")
+    group: list[str] = arg(
+        [],
+        positional=True,
+        choices=STAGE_GROUPS,
+        metavar="GROUP",
+        help="groups to show, as bare words or group=NAME (default: those named in the overrides, else every group)",
+    )
 
 
 @dataclasses.dataclass

@@ -16,6 +16,8 @@ def test_list_robot_shows_builtins(capsys):
     out = capsys.readouterr().out
     for name in ("reachy", "reachy2", "reachy_full", "nao_child", "service_bot", "mesh", "reachy_vr", "urdf"):
         assert f"  {name} " in out
+    assert main(["list", "robt"]) == 2  # a group's name is checked by the parser, with the close match
+    assert "unknown group 'robt' (did you mean robot?)" in capsys.readouterr().err
 
 
 def test_every_component_has_a_sentence_description():
@@ -238,6 +240,37 @@ def test_show_returns_for_every_option_of_every_group_in_100_columns(capsys):
     main(["show", "layout=random"])
     out = capsys.readouterr().out
     assert "layout: RandomLayout" in out and "note: this config does not run as it stands" in out
+
+
+def test_show_takes_a_bare_group_name_as_that_group(capsys):
+    """`sphri show tracking` is `sphri show group=tracking` (Hydra's parser used to reject the bare word:
+    "missing EQUAL"), beside overrides too."""
+    from sphri.command import main as sphri
+
+    assert sphri(["show", "group=tracking"]) == 0
+    by_key = capsys.readouterr().out
+    assert by_key.startswith("tracking: ") and "\nencoder: " not in by_key
+    assert sphri(["show", "tracking"]) == 0
+    assert capsys.readouterr().out == by_key
+    assert sphri(["show", "encoder", "noise", "encoder=coverage"]) == 0
+    out = capsys.readouterr().out
+    assert [line.split(":")[0] for line in out.splitlines() if not line.startswith(" ")] == ["encoder", "noise"]
+    assert out.startswith("encoder: CoverageEncoder")
+
+
+@pytest.mark.parametrize(
+    ("word", "hint"), [("trackng", " (did you mean tracking?)"), ("encodr", " (did you mean encoder?)"), ("xyz", "")]
+)
+def test_show_a_bare_word_that_names_no_group_is_one_line_with_the_close_groups(word, hint, capsys):
+    from sphri.command import main as sphri
+    from sphri.stages import STAGE_GROUPS
+
+    assert sphri(["show", word]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.splitlines() == [
+        f"sphri show: unknown group {word!r}{hint}; group is one of: {', '.join(STAGE_GROUPS)}"
+    ]
 
 
 def test_row_never_hangs_on_a_head_wider_than_the_width():

@@ -61,13 +61,16 @@ def arg(
     flags: dict[str, str | None] | None = None,
     check: Callable[[Any], str | None] | None = None,
     metavar: str = "",
+    choices: Sequence[str] = (),
 ) -> Any:
     """A field of a command's argument dataclass.
 
     ``flags`` maps extra spellings to a fixed value (``{"--no-log": "false"}``) or to None (the
     spelling takes the next word as its value). ``check(value)`` returns what a valid value must
-    be (``"must be >= 0"``) or None. ``rest`` marks a ``list[str]`` field that collects every
-    argument that is not one of the command's keys (for Hydra overrides)."""
+    be (``"must be >= 0"``) or None. ``choices`` are the values a text key (or each item of a list key)
+    may take: checked (an unknown one is named, with the close matches) and offered by the TAB completion.
+    ``rest`` marks a ``list[str]`` field that collects every argument that is not one of the command's
+    keys (for Hydra overrides)."""
     meta = {
         "help": help,
         "positional": positional,
@@ -75,6 +78,7 @@ def arg(
         "flags": dict(flags or {}),
         "check": check,
         "metavar": metavar,
+        "choices": tuple(choices),
     }
     if isinstance(default, (list, tuple)):
         items = list(default)
@@ -96,7 +100,7 @@ class Key:
     flags: dict[str, str | None]
     check: Callable[[Any], str | None] | None
     metavar: str
-    allowed: tuple[str, ...] = ()  # a Schema setting's choices
+    allowed: tuple[str, ...] = ()  # arg(choices=...), or a Schema setting's choices
 
     @property
     def is_list(self) -> bool:
@@ -107,7 +111,7 @@ class Key:
         return _base(self.type) is bool
 
     def choices(self) -> tuple[str, ...]:
-        """The allowed values of a ``Literal`` (or bool) key, or a Schema setting's choices, else ()."""
+        """The allowed values of a ``Literal`` (or bool) key, or its declared choices, else ()."""
         if self.allowed:
             return self.allowed
         t = _base(_item(self.type) if self.is_list else self.type)
@@ -136,6 +140,8 @@ def keys(cls: type) -> list[Key]:
     out = []
     for f in fields:
         m = f.metadata
+        rng = ranges.get(f.name)
+        allowed = tuple(m.get("choices", ())) or tuple(str(c) for c in getattr(rng, "choices", None) or ())
         if f.default == "???":  # OmegaConf's MISSING: a Schema's required setting
             default, required = None, True
         elif f.default is not dataclasses.MISSING:
@@ -154,12 +160,30 @@ def keys(cls: type) -> list[Key]:
                 positional=m.get("positional", False),
                 rest=m.get("rest", False),
                 flags=m.get("flags", {}),
-                check=m.get("check", _range_check(f.name, ranges.get(f.name))),
+                check=m.get("check") or _choice_check(m, f.name) or _range_check(f.name, rng),
                 metavar=m.get("metavar", ""),
-                allowed=tuple(str(c) for c in getattr(ranges.get(f.name), "choices", None) or ()),
+                allowed=allowed,
             )
         )
     return out
+
+
+def _choice_check(meta: Mapping[str, Any], name: str) -> Callable[[Any], str | None] | None:
+    """``arg(choices=...)`` as a key's ``check``: an unknown value (or list item) is named (as the key's metavar,
+    else its name), with its close matches."""
+    choices: tuple[str, ...] = meta.get("choices", ())
+    if not choices:
+        return None
+    name = (meta.get("metavar") or name).lower()
+
+    def check(value: Any) -> None:
+        for item in value if isinstance(value, (list, tuple)) else [value]:
+            if str(item) not in choices:
+                close = difflib.get_close_matches(str(item), choices, n=3)
+                hint = f" (did you mean {' or '.join(close)}?)" if close else ""
+                raise ValueError(f"unknown {name} {item!r}{hint}; {name} is one of: {', '.join(choices)}")
+
+    return check
 
 
 def _range_check(name: str, rng: Any) -> Callable[[Any], str | None] | None:
