@@ -17,7 +17,10 @@ The first word completes to a verb of ``sphri <verb>`` (:data:`sphri.command.VER
 importing anything heavy) as well as to Hydra's overrides (no verb is ``run``); after ``run`` or
 ``sweep`` Hydra answers as before, after a ``key=value`` verb its keys (and their choices) from its
 argument dataclass, plus Hydra's overrides where the verb takes them (``validate``, ``show``,
-``stats``, ...). Every answer but a path's is kept the same way.
+``stats``, ...). The hardware verbs and ``export`` (skin, glove, simulate, export) offer their
+command word, then the keys of its settings schema, from the mapping their ``main`` hands
+:func:`sphri.command.args.read_settings` (:attr:`sphri.command.Verb.schema`). Every answer but a
+path's is kept the same way.
 
 This module is the console script's entry (``sphri``): it must stay light. Anything but a TAB goes
 to the verb dispatcher :func:`sphri.command.main`.
@@ -37,6 +40,7 @@ from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
     from sphri.command import Verb
+    from sphri.command.args import Key
 
 _PACKAGE = Path(__file__).resolve().parent
 _PATH_START = (".", "/", "\\", "~")
@@ -106,47 +110,64 @@ def _hydra_answer(line: str) -> str:
 
 
 def _verb_line(line: str) -> tuple[Verb | None, str]:
-    """(the verb of ``line`` when its first word is complete and names one, else None; the line as Hydra
-    would see it: the verb left out, ``sweep`` as ``-m``)."""
+    """(the verb of ``line`` when its first word is complete and names one, else None; for ``run`` and
+    ``sweep``, the line as Hydra would see it: the verb left out, ``sweep`` as ``-m``)."""
     from sphri.command import BY_NAME
 
     words = line.split(" ")
     if len(words) < 3 or words[1] not in BY_NAME:  # the first word is still being typed, or is an override
         return None, line
     verb = BY_NAME[words[1]]
-    rest = words[2:]
-    if verb.kind == "args":
-        own = {k + "=" for k in _schema_keys(verb)}
-        rest = [w for w in rest if not any(w.startswith(k) for k in own)]
-    return verb, " ".join([words[0], *(["-m"] if verb.name == "sweep" else []), *rest])
+    return verb, " ".join([words[0], *(["-m"] if verb.name == "sweep" else []), *words[2:]])
 
 
-def _schema_keys(verb: Verb) -> list[str]:
+def _is_bare(word: str) -> bool:
+    """A word that is neither ``key=value`` nor a flag nor ``+``/``~`` (a positional argument, a command word)."""
+    return "=" not in word and not word.startswith(("-", "+", "~"))
+
+
+def _takes(verb: Verb, context: list[str]) -> tuple[list[Key], tuple[str, ...], bool]:
+    """What ``verb`` takes after the words ``context`` (those between the verb and the current word): its
+    ``key=value`` keys, what a bare word may be there, and whether it takes Hydra's overrides. An ``args``
+    verb's keys come from its argument dataclass; a ``main`` verb's (skin, glove, simulate, export) from
+    the settings of its command word, in the mapping its ``main`` hands
+    :func:`sphri.command.args.read_settings` (:attr:`Verb.schema`): one source for the parser, ``--help``
+    and TAB."""
     from sphri.command.args import keys
 
-    return [k.name for k in keys(verb.load(verb.schema)) if not k.rest]
+    if verb.kind == "args":
+        ks = keys(verb.load(verb.schema))
+        overrides = any(k.rest for k in ks)
+    else:
+        commands = verb.load(verb.schema)
+        word = "" if "" in commands else (context[:1] or [""])[0]
+        if word not in commands:  # the command word comes first (nothing fits after a wrong one)
+            return [], () if context else tuple(commands), False
+        cls, overrides = commands[word]
+        ks, context = keys(cls), context[1:] if word else context
+    bare = [w for w in context if _is_bare(w)]
+    slots = [k for k in ks if k.positional]
+    slot = slots[len(bare)] if len(bare) < len(slots) else next((k for k in slots[-1:] if k.is_list), None)
+    return [k for k in ks if not k.rest], slot.choices() if slot else (), overrides
 
 
 def _verb_answer(verb: Verb, line: str) -> str:
-    """The words a ``key=value`` verb offers after ``line``: its keys (``key=`` and ``key=choice``), the
-    choices of the positional argument being typed, and where it takes overrides, Hydra's answer."""
-    from sphri.command.args import keys
-
-    ks = keys(verb.load(verb.schema))
-    context = line.rpartition(" ")[0].split(" ")[2:]
-    bare = [w for w in context if w and "=" not in w and not w.startswith(("-", "+", "~"))]
-    positional = [k for k in ks if k.positional]
-    words: list[str] = []
-    if len(bare) < len(positional):
-        words += positional[len(bare)].choices()
+    """The words a ``key=value`` verb offers after ``line``: the choices of the bare word being typed (a
+    positional argument, a command word), its keys (``key=`` and ``key=choice``) and, where it takes
+    overrides, Hydra's answer for the other words."""
+    head, _, current = line.rpartition(" ")
+    prog, _, after = head.partition(" ")  # "sphri", "VERB word ..."
+    context = [w for w in after.split(" ")[1:] if w]
+    ks, bare, overrides = _takes(verb, context)
+    words = [*bare]
     for k in ks:
-        if k.rest:
-            continue
         words.append(f"{k.name}=")
         words += [f"{k.name}={c}" for c in k.choices()]
     text = "\n".join(words) + "\n"
-    if any(k.rest for k in ks):
-        text += _hydra_answer(_verb_line(line)[1])
+    if overrides:  # Hydra sees the words that are not the verb's: no key of it, no command or positional word
+        own = tuple(f"{k.name}=" for k in ks)
+        rest = [w for w in context if not _is_bare(w) and not w.startswith(own)]
+        text += _hydra_answer(" ".join([prog, *rest, "" if current.startswith(own) else current]))
     return text
 
 
@@ -163,10 +184,10 @@ def _compute(line: str) -> str:
         return _hydra_answer(line)
     if verb.kind == "hydra":
         return _hydra_answer(hydra_line)
-    if verb.kind == "args":
-        return _verb_answer(verb, line)
     if verb.kind == "help":
         return "\n".join(v.name for v in VERBS) + "\n"
+    if verb.kind == "args" or verb.schema:
+        return _verb_answer(verb, line)
     return ""  # a verb that parses its own arguments: the shell completes file names
 
 

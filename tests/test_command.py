@@ -13,6 +13,8 @@ import pytest
 
 from sphri.command import BY_NAME, VERBS, find, help_text, main
 from sphri.command.args import ArgsError, HelpRequested, arg, keys, parse
+from sphri.config import setting
+from sphri.hardware.settings import SkinLiveSettings
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -316,3 +318,61 @@ def test_tab_completes_verbs_first_then_what_each_verb_takes(tmp_path):
     )
     again = _python(["-c", probe], REPO, 300, XDG_CACHE_HOME=str(tmp_path))
     assert again.stdout.split() == ["True", "False"], again.stdout + again.stderr
+
+
+def _offered(line: str) -> list[str]:
+    """What TAB offers after ``line`` for a verb that needs no Hydra answer (computed here, no cache)."""
+    from sphri.completion import _compute
+
+    return _compute(line).split()
+
+
+def _key_words(settings: type) -> list[str]:
+    """``key=`` and ``key=choice`` of every key of ``settings``, as the parser reads them."""
+    return [w for k in keys(settings) for w in (f"{k.name}=", *(f"{k.name}={c}" for c in k.choices()))]
+
+
+def test_tab_completes_the_hardware_verbs_from_the_settings_their_parser_reads():
+    """skin, glove, simulate and export read their settings through ``read_settings``: TAB offers the
+    command word first, then the keys of that command's settings dataclass, choices included."""
+    from sphri.hardware import glove, simulate, skin
+    from sphri.hardware.settings import SkinRecordSettings
+
+    assert _offered("sphri skin ") == ["record", "live"]
+    live = _offered("sphri skin live ")
+    assert live == _key_words(SkinLiveSettings) and {"model=", "stride=", "allow_remote=true"} <= set(live)
+    assert _offered("sphri skin record port=/dev/ttyACM0 ") == _key_words(SkinRecordSettings)
+    assert _offered("sphri skin recrod ") == []  # nothing fits after a wrong command word
+    assert _offered("sphri glove ") == list(glove.COMMANDS) == ["replay"]
+    assert _offered("sphri simulate ") == list(simulate.COMMANDS) == ["skin", "glove"]
+    assert _offered("sphri simulate glove ") == _key_words(simulate.COMMANDS["glove"][0])
+    assert {BY_NAME[v].load(BY_NAME[v].schema) is m.COMMANDS for v, m in [("skin", skin), ("glove", glove)]} == {True}
+
+
+@dataclasses.dataclass
+class LiveWithGain(SkinLiveSettings):
+    gain: str = setting("low", choices=("low", "high"))
+    """Amplifier gain of the skin."""
+
+
+def test_a_setting_added_to_a_hardware_schema_is_parsed_helped_and_completed_with_no_other_edit(monkeypatch, capsys):
+    from sphri.hardware import skin
+
+    monkeypatch.setitem(skin.COMMANDS, "live", (LiveWithGain, False))
+    assert {"gain=", "gain=low", "gain=high"} <= set(_offered("sphri skin live "))
+    assert "gain=" not in _offered("sphri skin record ")
+    assert main(["skin", "live", "--help"]) == 0
+    assert "gain=low|high" in capsys.readouterr().out
+    assert main(["skin", "live", "port=loop://", "model=m", "gain=mid"]) == 2
+    assert "gain" in capsys.readouterr().err
+
+
+def test_tab_completes_the_hardware_verbs_that_take_overrides_with_hydras_too(tmp_path):
+    from sphri.export.train import TrainExportSettings
+    from sphri.hardware.settings import GloveReplaySettings
+
+    replay = _tab("sphri glove replay port=loop:// ", tmp_path)
+    assert set(_key_words(GloveReplaySettings)) <= set(replay) and {"trigger=onset", "encoder="} <= set(replay)
+    assert {"encoder=coverage", "encoder=ellipse"} <= set(_tab("sphri glove replay encoder=", tmp_path))
+    export = _tab("sphri export ", tmp_path)
+    assert set(_key_words(TrainExportSettings)) <= set(export) and {"out=", "model=", "encoder="} <= set(export)

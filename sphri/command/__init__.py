@@ -36,8 +36,9 @@ class Verb:
 
     ``kind`` says who parses its arguments: ``hydra`` (run, sweep: Hydra's overrides), ``args``
     (sphri's ``key=value`` parser: ``schema`` is the argument dataclass, ``target`` the function
-    taking an instance of it), or ``main`` (``target`` is a ``main(argv) -> int`` that parses its
-    own arguments)."""
+    taking an instance of it), or ``main`` (``target`` is a ``main(argv, prog) -> int`` that parses its
+    own arguments; where it reads them with :func:`sphri.command.args.read_settings`, ``schema`` is the
+    ``{command word: (settings dataclass, takes overrides)}`` it hands that parser, read by TAB too)."""
 
     name: str
     summary: str
@@ -143,7 +144,7 @@ VERBS: tuple[Verb, ...] = (
         "train a model on the configured data and write a model file for live use",
         "main",
         "sphri.export.train:main",
-        "",
+        "sphri.export.train:COMMANDS",
         "sphri.export.train",
     ),
     Verb(
@@ -151,7 +152,7 @@ VERBS: tuple[Verb, ...] = (
         "record from or classify live a tactile skin on a serial port",
         "main",
         "sphri.hardware.skin:main",
-        "",
+        "sphri.hardware.skin:COMMANDS",
         "sphri.hardware.skin",
     ),
     Verb(
@@ -159,7 +160,7 @@ VERBS: tuple[Verb, ...] = (
         "record from a sensing glove on a serial port",
         "main",
         "sphri.hardware.glove:main",
-        "",
+        "sphri.hardware.glove:COMMANDS",
         "sphri.hardware.glove",
     ),
     Verb(
@@ -167,7 +168,7 @@ VERBS: tuple[Verb, ...] = (
         "a simulated skin or glove on a local link, for live sessions without hardware",
         "main",
         "sphri.hardware.simulate:main",
-        "",
+        "sphri.hardware.simulate:COMMANDS",
         "sphri.hardware.simulate",
     ),
     Verb(

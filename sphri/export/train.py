@@ -189,11 +189,14 @@ def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
     )
 
 
+#: The settings of ``sphri export`` (no command word; other ``key=value`` are config overrides).
+COMMANDS = {"": (TrainExportSettings, True)}
+
+
 @clean_errors("sphri.export.train")
 def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
     """``sphri export out=FILE ... [overrides ...]`` (``python -m sphri.export.train`` by default)."""
-    commands = {"": (TrainExportSettings, True)}
-    got = read_module_settings(commands, argv, "sphri.export.train", prog)
+    got = read_module_settings(COMMANDS, argv, "sphri.export.train", prog)
     if isinstance(got, int):
         return got
     _, settings, overrides = got

@@ -348,12 +348,15 @@ def replay(settings: GloveReplaySettings, overrides: Sequence[str], out: Callabl
     return report
 
 
+#: The commands and their settings (``replay`` also takes config overrides).
+COMMANDS = {"replay": (GloveReplaySettings, True)}
+
+
 @clean_errors("sphri.hardware.glove")
 def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
     """``sphri glove replay key=value ... [overrides ...]`` (``python -m sphri.hardware.glove`` by default);
     the keys of :class:`GloveReplaySettings`, any other ``key=value`` a config override (+debug=fast)."""
-    commands = {"replay": (GloveReplaySettings, True)}
-    got = read_module_settings(commands, argv, "sphri.hardware.glove", prog)
+    got = read_module_settings(COMMANDS, argv, "sphri.hardware.glove", prog)
     if isinstance(got, int):
         return got
     _, settings, overrides = got

@@ -52,11 +52,14 @@ __all__ = [
 ]
 
 
+#: The simulated devices and their settings (``simulate skin`` also takes config overrides).
+COMMANDS = {"skin": (SkinSimSettings, True), "glove": (GloveSimSettings, False)}
+
+
 @clean_errors("sphri.hardware.simulate")
 def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
     """``sphri simulate skin|glove key=value ...`` (``python -m sphri.hardware.simulate`` by default)."""
-    commands = {"skin": (SkinSimSettings, True), "glove": (GloveSimSettings, False)}
-    got = read_module_settings(commands, argv, "sphri.hardware.simulate", prog)
+    got = read_module_settings(COMMANDS, argv, "sphri.hardware.simulate", prog)
     if isinstance(got, int):
         return got
     device, settings, overrides = got
