@@ -121,11 +121,6 @@ def _verb_line(line: str) -> tuple[Verb | None, str]:
     return verb, " ".join([words[0], *(["-m"] if verb.name == "sweep" else []), *words[2:]])
 
 
-def _is_bare(word: str) -> bool:
-    """A word that is neither ``key=value`` nor a flag nor ``+``/``~`` (a positional argument, a command word)."""
-    return "=" not in word and not word.startswith(("-", "+", "~"))
-
-
 def _takes(verb: Verb, context: list[str]) -> tuple[list[Key], tuple[str, ...], bool]:
     """What ``verb`` takes after the words ``context`` (those between the verb and the current word): its
     ``key=value`` keys, what a bare word may be there, and whether it takes Hydra's overrides. An ``args``
@@ -133,6 +128,7 @@ def _takes(verb: Verb, context: list[str]) -> tuple[list[Key], tuple[str, ...], 
     the settings of its command word, in the mapping its ``main`` hands
     :func:`sphri.command.args.read_settings` (:attr:`Verb.schema`): one source for the parser, ``--help``
     and TAB."""
+    from sphri.command import is_override
     from sphri.command.args import keys
 
     if verb.kind == "args":
@@ -140,14 +136,19 @@ def _takes(verb: Verb, context: list[str]) -> tuple[list[Key], tuple[str, ...], 
         overrides = any(k.rest for k in ks)
     else:
         commands = verb.load(verb.schema)
-        word = "" if "" in commands else (context[:1] or [""])[0]
+        word = context[0] if context and "" not in commands else ""
         if word not in commands:  # the command word comes first (nothing fits after a wrong one)
             return [], () if context else tuple(commands), False
         cls, overrides = commands[word]
         ks, context = keys(cls), context[1:] if word else context
-    bare = [w for w in context if _is_bare(w)]
+    bare = [w for w in context if not is_override(w)]  # the positional arguments so far
     slots = [k for k in ks if k.positional]
-    slot = slots[len(bare)] if len(bare) < len(slots) else next((k for k in slots[-1:] if k.is_list), None)
+    if len(bare) < len(slots):
+        slot: Key | None = slots[len(bare)]
+    elif slots and slots[-1].is_list:  # a list takes every further word
+        slot = slots[-1]
+    else:
+        slot = None
     return [k for k in ks if not k.rest], slot.choices() if slot else (), overrides
 
 
@@ -155,6 +156,8 @@ def _verb_answer(verb: Verb, line: str) -> str:
     """The words a ``key=value`` verb offers after ``line``: the choices of the bare word being typed (a
     positional argument, a command word), its keys (``key=`` and ``key=choice``) and, where it takes
     overrides, Hydra's answer for the other words."""
+    from sphri.command import is_override
+
     head, _, current = line.rpartition(" ")
     prog, _, after = head.partition(" ")  # "sphri", "VERB word ..."
     context = [w for w in after.split(" ")[1:] if w]
@@ -166,7 +169,7 @@ def _verb_answer(verb: Verb, line: str) -> str:
     text = "\n".join(words) + "\n"
     if overrides:  # Hydra sees the words that are not the verb's: no key of it, no command or positional word
         own = tuple(f"{k.name}=" for k in ks)
-        rest = [w for w in context if not _is_bare(w) and not w.startswith(own)]
+        rest = [w for w in context if is_override(w) and not w.startswith(own)]
         text += _hydra_answer(" ".join([prog, *rest, "" if current.startswith(own) else current]))
     return text
 

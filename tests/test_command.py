@@ -376,3 +376,12 @@ def test_tab_completes_the_hardware_verbs_that_take_overrides_with_hydras_too(tm
     assert {"encoder=coverage", "encoder=ellipse"} <= set(_tab("sphri glove replay encoder=", tmp_path))
     export = _tab("sphri export ", tmp_path)
     assert set(_key_words(TrainExportSettings)) <= set(export) and {"out=", "model=", "encoder="} <= set(export)
+
+
+def test_tab_offers_the_group_names_where_a_bare_word_is_a_group():
+    """``sphri list``'s groups are declared with ``arg(choices=...)``: TAB offers them for every further word."""
+    from sphri.config import DEFAULT_GROUPS
+
+    for line in ("sphri list ", "sphri list robot "):
+        offered = _offered(line)
+        assert offered[: len(DEFAULT_GROUPS)] == list(DEFAULT_GROUPS) and "groups=encoder" in offered, line
