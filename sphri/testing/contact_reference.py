@@ -66,6 +66,15 @@ def barycentric(p, a, b, c, degenerate):
     return np.where(ok[..., None], out, np.nan)
 
 
+def edge_weights(shape, ix, iy, t):
+    """Barycentric coordinates (``shape``, last axis 3) of the points at ``t`` along the edge from vertex ``ix``
+    to vertex ``iy``."""
+    bw = np.zeros(shape)
+    bw[..., ix] = 1.0 - t
+    bw[..., iy] = t
+    return bw
+
+
 def point_triangle(p, a, b, c, degenerate):
     """Squared distance, closest point and barycentric coordinates of triangle abc to p."""
     bary = barycentric(p, a, b, c, degenerate)
@@ -81,10 +90,7 @@ def point_triangle(p, a, b, c, degenerate):
         better = d2 < best
         best = np.where(better, d2, best)
         point = np.where(better[..., None], x + t[..., None] * (y - x), point)
-        bw = np.zeros(bary.shape)
-        bw[..., ix] = 1.0 - t
-        bw[..., iy] = t
-        bary = np.where(better[..., None], bw, bary)
+        bary = np.where(better[..., None], edge_weights(bary.shape, ix, iy, t), bary)
     return best, point, bary
 
 
@@ -152,10 +158,7 @@ def segment_triangle(p0, p1, a, b, c, degenerate):
         best = np.where(better, d2, best)
         tbest = np.where(better, s, tbest)
         point = np.where(better[..., None], x0 + t[..., None] * (x1 - x0), point)
-        bw = np.zeros(bary.shape)
-        bw[..., ix] = 1.0 - t
-        bw[..., iy] = t
-        bary = np.where(better[..., None], bw, bary)
+        bary = np.where(better[..., None], edge_weights(bary.shape, ix, iy, t), bary)
     return best, tbest, point, bary
 
 
