@@ -1,6 +1,6 @@
 """Coverage analysis of one skin region: maps, placement and condition tests.
 
-:class:`CoverageAnalysis` (settings: :class:`~sphri.analysis.schema.CoverageSchema`)
+:class:`CoverageAnalysis` (settings: :class:`~sphri.analysis.schema.CoverageAnalysisSchema`)
 turns a dataset's contacts on one link into
 
 - a contact density per group of trials (``by``: any trial column) and
@@ -35,8 +35,9 @@ from sphri.analysis.placement import (
     heldout_capture,
     recommendation,
 )
-from sphri.analysis.schema import CoverageSchema
+from sphri.analysis.schema import CoverageAnalysisSchema
 from sphri.analysis.swd import SharedSupportSW
+from sphri.config import Configured
 from sphri.surface.density import SurfaceKernel, SurfaceSamples, sample_link, touched_elements
 from sphri.types import GESTURES, Contacts, GestureDataset, Link, SurfaceMap
 
@@ -124,55 +125,29 @@ def group_order(values: pd.Series, by: str) -> list[str]:
     return sorted(present)
 
 
-class CoverageAnalysis:
+class CoverageAnalysis(Configured):
     """Contact maps, placement and condition tests on one link (see module)."""
 
     VERSION = "1"
 
-    def __init__(
-        self,
-        by: str = "gesture",
-        pair_by: str = "participant",
-        bandwidth_mm: float = 10.0,
-        kernel: str = "geodesic",
-        footprint: str = "patch",
-        spacing_mm: float = 4.0,
-        capture: float = 0.9,
-        n_projections: int = 128,
-        swd_p: float = 1.0,
-        alpha: float = 0.05,
-        alternative: str = "greater",
-        exact_max: int = 12,
-        n_permutations: int = 9999,
-        seed: int = 0,
-        views: int = 4,
-        render: bool = True,
-        heldout: bool = True,
-    ) -> None:
-        CoverageSchema(
-            by=by,
-            pair_by=pair_by,
-            bandwidth_mm=bandwidth_mm,
-            kernel=kernel,
-            footprint=footprint,
-            spacing_mm=spacing_mm,
-            capture=capture,
-            n_projections=n_projections,
-            swd_p=swd_p,
-            alpha=alpha,
-            alternative=alternative,
-            exact_max=exact_max,
-            n_permutations=n_permutations,
-            seed=seed,
-            views=views,
-            render=render,
-            heldout=heldout,
-        )
-        self.by, self.pair_by = by, pair_by
-        self.bandwidth_mm, self.kernel, self.footprint, self.spacing_mm = bandwidth_mm, kernel, footprint, spacing_mm
-        self.capture, self.n_projections, self.swd_p, self.alpha = capture, n_projections, swd_p, alpha
-        self.alternative, self.exact_max, self.n_permutations = alternative, exact_max, n_permutations
-        self.seed, self.views, self.render, self.heldout = seed, views, render, heldout
+    SCHEMA = CoverageAnalysisSchema
+    by: str  # these set from SCHEMA by Configured
+    pair_by: str
+    bandwidth_mm: float
+    kernel: str
+    footprint: str
+    spacing_mm: float
+    capture: float
+    n_projections: int
+    swd_p: float
+    alpha: float
+    alternative: str
+    exact_max: int
+    n_permutations: int
+    seed: int
+    views: int
+    render: bool
+    heldout: bool
 
     # ------------------------------------------------------------------ analysis
     def analyze(

@@ -18,8 +18,9 @@ ALTERNATIVES = ("greater", "two-sided")
 
 
 @dataclass
-class CoverageSchema(ComponentSchema, group="coverage"):
-    """Where on the link people touch, per group, and whether groups differ."""
+class CoverageAnalysisSchema(ComponentSchema, group="coverage"):
+    """Where on the link people touch, per group, and whether groups differ: the settings of
+    :class:`~sphri.analysis.coverage.CoverageAnalysis`."""
 
     _target_: str = "sphri.analysis.coverage.CoverageAnalysis"
     by: str = "gesture"
@@ -54,8 +55,6 @@ class CoverageSchema(ComponentSchema, group="coverage"):
     """Views around the long axis in the PNG renders."""
     render: bool = True
     """Write the figures (PNG, PDF, SVG) and PLY meshes (False: numbers and .npz only)."""
-    marks: bool | None = None
-    """The SYNTHETIC DATA banner on the figures: None = for synthetic data only, true = always, false = never."""
     heldout: bool = True
     """Also score each participant's frames with the placement chosen from the others."""
 
@@ -68,6 +67,15 @@ class CoverageSchema(ComponentSchema, group="coverage"):
             self.spacing_mm,
             f"must be <= coverage.bandwidth_mm={self.bandwidth_mm} (the kernel must span several samples)",
         )
+
+
+@dataclass
+class CoverageSchema(CoverageAnalysisSchema):
+    """Where on the link people touch, per group, and whether groups differ (``python -m sphri.coverage``:
+    the analysis's settings and the figures')."""
+
+    marks: bool | None = None
+    """The SYNTHETIC DATA banner on the figures: None = for synthetic data only, true = always, false = never."""
 
 
 store(group="coverage", name="coverage_schema", node=CoverageSchema)

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sphri.data.reference_stats import VR_FRAME_RATE_HZ
+from sphri.data.reference_stats import REGION_STATISTICS, VR_FRAME_RATE_HZ
 from sphri.types import GESTURES
 
 #: Trials shorter than this (frames) are left out of the statistics.
@@ -169,14 +169,9 @@ def compare(measured: dict[str, dict], reference: dict[str, dict]) -> pd.DataFra
             for q in QUANTILES:
                 k = f"q{int(round(q * 100)):02d}"
                 rows.append(flag_row(f"length {k}", g, mg[k], rg[k], "quantile"))
-        for k in (
-            "between_var",
-            "interaction_var",
-            "within_sd",
-            "participant_median_min",
-            "participant_median_max",
-            "max_frames",
-        ):
+        for k in REGION_STATISTICS:
+            if k == "participants":  # a count, not compared
+                continue
             rows.append(flag_row(k, "all", m[k], ref[k], k))
         for r in rows:
             r.setdefault("region", region)

@@ -67,48 +67,45 @@ VR_MEDIAN_TRIAL_FRAMES: dict[str, dict[str, float]] = {
     region: {g: medians[i] for g, medians in _VR_MEDIANS.items()} for i, region in enumerate(("arm", "torso"))
 }
 
+#: A trial-length spread's statistics (see :mod:`sphri.data.lengths`): per region, then per gesture.
+REGION_STATISTICS = (
+    "participants",
+    "between_var",
+    "interaction_var",
+    "within_sd",
+    "participant_median_min",
+    "participant_median_max",
+    "max_frames",
+)
+GESTURE_STATISTICS = ("n", "sd_log", "q05", "q25", "q50", "q75", "q95")
+
+#: VR manifests: region -> its REGION_STATISTICS.
+_VR_REGIONS: dict[str, tuple[float, ...]] = {
+    "arm": (18, 0.0789, 0.0129, 0.1768, 78.0, 223.0, 2071.0),
+    "torso": (17, 0.0765, 0.012, 0.1954, 65.0, 175.0, 1956.0),
+}
+
+#: VR manifests: gesture -> its GESTURE_STATISTICS on the (arm, torso).
+_VR_GESTURES: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] = {
+    "hit": ((360, 0.334, 66.95, 80.0, 96.0, 117.0, 177.7), (340, 0.341, 62.0, 77.75, 97.0, 120.0, 168.0)),
+    "pat": ((360, 0.396, 82.0, 108.0, 135.0, 176.0, 289.05), (340, 0.393, 72.0, 101.0, 131.5, 166.25, 246.05)),
+    "poke": ((360, 0.335, 69.95, 87.0, 108.5, 135.25, 181.05), (339, 0.344, 67.0, 83.0, 105.0, 131.0, 182.2)),
+    "push": ((360, 0.356, 71.0, 83.0, 101.5, 128.0, 221.15), (340, 0.357, 64.9, 80.75, 97.5, 121.0, 188.25)),
+    "rub": ((360, 0.352, 90.95, 119.0, 143.0, 171.0, 302.1), (339, 0.355, 81.9, 105.5, 140.0, 168.0, 250.0)),
+    "stroke": ((359, 0.481, 83.0, 106.0, 157.0, 201.5, 365.1), (340, 0.44, 71.0, 100.75, 150.5, 195.0, 289.45)),
+    "tap": ((360, 0.39, 74.95, 94.0, 119.5, 161.25, 260.2), (340, 0.377, 68.0, 91.75, 117.0, 145.25, 211.15)),
+    "grab": ((320, 0.333, 76.95, 92.0, 111.0, 127.25, 206.35), (300, 0.381, 66.95, 90.0, 113.0, 137.25, 200.05)),
+}
+
 #: The VR manifests' trial-length spread (``python -m sphri.data.stats`` with the manifests, see
 #: :mod:`sphri.data.lengths` for the definitions): region -> statistics, per gesture ``n``, ``sd_log``
 #: and quantiles q05..q95 (frames). Trials under 10 frames left out. Copied so stats runs without the files.
 VR_LENGTH_SPREAD: dict[str, dict] = {
-    "arm": {
-        "participants": 18,
-        "between_var": 0.0789,
-        "interaction_var": 0.0129,
-        "within_sd": 0.1768,
-        "participant_median_min": 78.0,
-        "participant_median_max": 223.0,
-        "max_frames": 2071.0,
-        "gestures": {
-            "hit": {"n": 360, "sd_log": 0.334, "q05": 66.95, "q25": 80.0, "q50": 96.0, "q75": 117.0, "q95": 177.7},
-            "pat": {"n": 360, "sd_log": 0.396, "q05": 82.0, "q25": 108.0, "q50": 135.0, "q75": 176.0, "q95": 289.05},
-            "poke": {"n": 360, "sd_log": 0.335, "q05": 69.95, "q25": 87.0, "q50": 108.5, "q75": 135.25, "q95": 181.05},
-            "push": {"n": 360, "sd_log": 0.356, "q05": 71.0, "q25": 83.0, "q50": 101.5, "q75": 128.0, "q95": 221.15},
-            "rub": {"n": 360, "sd_log": 0.352, "q05": 90.95, "q25": 119.0, "q50": 143.0, "q75": 171.0, "q95": 302.1},
-            "stroke": {"n": 359, "sd_log": 0.481, "q05": 83.0, "q25": 106.0, "q50": 157.0, "q75": 201.5, "q95": 365.1},
-            "tap": {"n": 360, "sd_log": 0.39, "q05": 74.95, "q25": 94.0, "q50": 119.5, "q75": 161.25, "q95": 260.2},
-            "grab": {"n": 320, "sd_log": 0.333, "q05": 76.95, "q25": 92.0, "q50": 111.0, "q75": 127.25, "q95": 206.35},
-        },
-    },
-    "torso": {
-        "participants": 17,
-        "between_var": 0.0765,
-        "interaction_var": 0.012,
-        "within_sd": 0.1954,
-        "participant_median_min": 65.0,
-        "participant_median_max": 175.0,
-        "max_frames": 1956.0,
-        "gestures": {
-            "hit": {"n": 340, "sd_log": 0.341, "q05": 62.0, "q25": 77.75, "q50": 97.0, "q75": 120.0, "q95": 168.0},
-            "pat": {"n": 340, "sd_log": 0.393, "q05": 72.0, "q25": 101.0, "q50": 131.5, "q75": 166.25, "q95": 246.05},
-            "poke": {"n": 339, "sd_log": 0.344, "q05": 67.0, "q25": 83.0, "q50": 105.0, "q75": 131.0, "q95": 182.2},
-            "push": {"n": 340, "sd_log": 0.357, "q05": 64.9, "q25": 80.75, "q50": 97.5, "q75": 121.0, "q95": 188.25},
-            "rub": {"n": 339, "sd_log": 0.355, "q05": 81.9, "q25": 105.5, "q50": 140.0, "q75": 168.0, "q95": 250.0},
-            "stroke": {"n": 340, "sd_log": 0.44, "q05": 71.0, "q25": 100.75, "q50": 150.5, "q75": 195.0, "q95": 289.45},
-            "tap": {"n": 340, "sd_log": 0.377, "q05": 68.0, "q25": 91.75, "q50": 117.0, "q75": 145.25, "q95": 211.15},
-            "grab": {"n": 300, "sd_log": 0.381, "q05": 66.95, "q25": 90.0, "q50": 113.0, "q75": 137.25, "q95": 200.05},
-        },
-    },
+    region: {
+        **dict(zip(REGION_STATISTICS, stats, strict=True)),
+        "gestures": {g: dict(zip(GESTURE_STATISTICS, rows[i], strict=True)) for g, rows in _VR_GESTURES.items()},
+    }
+    for i, (region, stats) in enumerate(_VR_REGIONS.items())
 }
 
 #: Frame rate that the VR trial lengths are counted in (Hz); see the module docstring.

@@ -93,37 +93,30 @@ def _add_interval(s, x0, x1, n_int, head, nxt, a0, a1, subs, n_subs):  # pragma:
 
 
 @njit(cache=True)
+def _intervals(cap):  # pragma: no cover - numba
+    """Interval scratch for ``cap`` intervals: (next in bucket, start, end, sort buffer)."""
+    return (
+        np.empty(cap, dtype=np.int64),
+        np.empty(cap, dtype=np.float64),
+        np.empty(cap, dtype=np.float64),
+        np.empty(cap, dtype=np.int64),
+    )
+
+
+@njit(cache=True)
 def _raster_frame(
-    lo,
-    hi,
-    cu,
-    cv,
-    qa,
-    qb,
-    qc,
-    h,
-    w,
-    ss,
-    row_offset,
-    wrap,
-    cov,
-    mark,
-    forced,
-    touched,
-    head,
-    nxt,
-    a0,
-    a1,
-    subs,
-    tmp,
+    lo, hi, ellipses, h, w, ss, row_offset, wrap, cov, mark, forced, touched, head, subs, intervals
 ):  # pragma: no cover - numba
     """Accumulate the union of ellipses ``lo..hi-1`` into ``cov``.
 
+    ``ellipses`` is ``(cu, cv, qa, qb, qc)``, ``intervals`` the scratch of :func:`_intervals`.
     Intervals are bucketed per sub-row (``head``/``nxt`` linked lists), then
     each sub-row's few intervals are sorted, merged and spread over the cells.
     Returns the number of touched cells (listed in ``touched``), or -1 when
     the interval scratch (``nxt``/``a0``/``a1``) is too small.
     """
+    cu, cv, qa, qb, qc = ellipses
+    nxt, a0, a1, tmp = intervals
     n_touched = 0
     n_int = 0
     n_subs = 0
@@ -241,6 +234,7 @@ def _raster_all(
 ):  # pragma: no cover - numba
     m_total = start.shape[0] - 1
     n_cells = h * w
+    ellipses = (cu, cv, qa, qb, qc)
     for c in prange(n_chunks):
         m0 = (m_total * c) // n_chunks
         m1 = (m_total * (c + 1)) // n_chunks
@@ -251,10 +245,7 @@ def _raster_all(
         head = np.full(h * ss, -1, dtype=np.int64)
         subs = np.zeros(h * ss, dtype=np.int64)
         cap = 1024
-        nxt = np.empty(cap, dtype=np.int64)
-        a0 = np.empty(cap, dtype=np.float64)
-        a1 = np.empty(cap, dtype=np.float64)
-        tmp = np.empty(cap, dtype=np.int64)
+        intervals = _intervals(cap)
         for m in range(m0, m1):
             lo = start[m]
             hi = start[m + 1]
@@ -262,28 +253,7 @@ def _raster_all(
                 continue
             while True:
                 n_t = _raster_frame(
-                    lo,
-                    hi,
-                    cu,
-                    cv,
-                    qa,
-                    qb,
-                    qc,
-                    h,
-                    w,
-                    ss,
-                    row_offset,
-                    wrap,
-                    cov,
-                    mark,
-                    forced,
-                    touched,
-                    head,
-                    nxt,
-                    a0,
-                    a1,
-                    subs,
-                    tmp,
+                    lo, hi, ellipses, h, w, ss, row_offset, wrap, cov, mark, forced, touched, head, subs, intervals
                 )
                 if n_t >= 0:
                     break
@@ -293,10 +263,7 @@ def _raster_all(
                     mark[cell] = 0
                     forced[cell] = 0
                 cap *= 4
-                nxt = np.empty(cap, dtype=np.int64)
-                a0 = np.empty(cap, dtype=np.float64)
-                a1 = np.empty(cap, dtype=np.float64)
-                tmp = np.empty(cap, dtype=np.int64)
+                intervals = _intervals(cap)
             for t in range(n_t):
                 cell = touched[t]
                 val = cov[cell]

@@ -48,7 +48,15 @@ from sphri.types import Frames
 
 #: Format version written in ``meta["format"]``.
 FORMAT = "sphri-skin-recording/1"
-_FIELDS = ("values", "host_time_s", "device_time_us", "seq", "segment", "grid_shape", "meta")
+#: The per-frame timing arrays beside ``values`` (module docstring) and their dtypes: the recording's
+#: attributes, its .npz fields and the partial file's record fields.
+_TIMING: dict[str, type[np.generic]] = {
+    "host_time_s": np.float64,
+    "device_time_us": np.int64,
+    "seq": np.int64,
+    "segment": np.int64,
+}
+_FIELDS = ("values", *_TIMING, "grid_shape", "meta")
 #: First bytes of a partial recording (then uint32 LE header length, JSON header, fixed-size frame records).
 PARTIAL_MAGIC = b"SPHRISKINPART1\n"
 
@@ -74,8 +82,8 @@ class SkinRecording:
         if self.values.ndim != 2:
             raise RecordingError(f"values must be (F, N), got shape {self.values.shape}")
         f, n = self.values.shape
-        for name in ("host_time_s", "device_time_us", "seq", "segment"):
-            arr = np.asarray(getattr(self, name), dtype=np.float64 if name == "host_time_s" else np.int64)
+        for name, dtype in _TIMING.items():
+            arr = np.asarray(getattr(self, name), dtype=dtype)
             if arr.shape != (f,):
                 raise RecordingError(f"{name} must be ({f},) like values' frames, got shape {arr.shape}")
             setattr(self, name, arr)
@@ -134,10 +142,7 @@ def save_recording(rec: SkinRecording, path: str | os.PathLike, replace: bool = 
             np.savez_compressed(
                 fh,
                 values=rec.values,
-                host_time_s=rec.host_time_s,
-                device_time_us=rec.device_time_us,
-                seq=rec.seq,
-                segment=rec.segment,
+                **{name: getattr(rec, name) for name in _TIMING},
                 grid_shape=grid,
                 meta=np.asarray(json.dumps(meta, default=str)),
             )
@@ -197,15 +202,8 @@ def check_output_path(path: str | os.PathLike) -> Path:
 
 
 def _record_dtype(n_taxels: int) -> np.dtype:
-    return np.dtype(
-        [
-            ("values", "<f4", (n_taxels,)),
-            ("host_time_s", "<f8"),
-            ("device_time_us", "<i8"),
-            ("seq", "<i8"),
-            ("segment", "<i8"),
-        ]
-    )
+    timing = [(name, np.dtype(dtype).newbyteorder("<")) for name, dtype in _TIMING.items()]
+    return np.dtype([("values", "<f4", (n_taxels,)), *timing])
 
 
 class PartialWriter:
@@ -337,10 +335,7 @@ def _load_partial(path: Path, blob: bytes) -> SkinRecording:
     grid_shape = (int(grid[0]), int(grid[1])) if grid and int(grid[0]) * int(grid[1]) == n_tax else None
     return SkinRecording(
         rec["values"],
-        rec["host_time_s"],
-        rec["device_time_us"],
-        rec["seq"],
-        rec["segment"],
+        *(rec[name] for name in _TIMING),
         grid_shape,
         {**head, "partial": True, "torn_bytes": len(body) - k * dtype.itemsize},
     )
@@ -401,10 +396,7 @@ def load_recording(path: str | os.PathLike) -> SkinRecording:
     try:
         return SkinRecording(
             values=values,
-            host_time_s=data["host_time_s"],
-            device_time_us=data["device_time_us"],
-            seq=data["seq"],
-            segment=data["segment"],
+            **{name: data[name] for name in _TIMING},
             grid_shape=grid_shape,
             meta=meta,
         )

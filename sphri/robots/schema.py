@@ -107,10 +107,22 @@ def loft_spec(spec: Any, key: str) -> dict[str, Any]:
     return out
 
 
+def _is_mapping(value: Any) -> bool:
+    """A dict, an OmegaConf DictConfig or anything else with ``items()``."""
+    return isinstance(value, Mapping) or hasattr(value, "items")
+
+
+def _mapping_items(value: Any, key: str, expected: str) -> list[tuple[Any, Any]]:
+    """The items of the optional mapping setting ``value`` (None: none), or :class:`ConfigError` naming ``key``."""
+    if value is None:
+        return []
+    require(_is_mapping(value), key, value, expected)
+    return list(value.items())
+
+
 def check_str_map(value: Any, key: str, what: str) -> dict[str, str]:
     """``value`` as a plain ``{str: str}`` dict, or :class:`ConfigError` naming ``key``."""
-    ok = value is not None and (isinstance(value, Mapping) or hasattr(value, "items"))
-    require(ok, key, value, f"a mapping {what}, e.g. {key}={{arm: l_arm}}")
+    require(value is not None and _is_mapping(value), key, value, f"a mapping {what}, e.g. {key}={{arm: l_arm}}")
     out = dict(value.items())
     for k, v in out.items():
         require(isinstance(k, str) and isinstance(v, str) and v != "", f"{key}.{k}", v, "a non-empty string")
@@ -273,16 +285,9 @@ class UrdfRobotSchema(RobotSchema):
 
 def check_joints(joints: Any) -> dict[str, float]:
     """``robot.joints`` as ``{name: float}`` (None -> {})."""
-    if joints is None:
-        return {}
-    require(
-        isinstance(joints, Mapping) or hasattr(joints, "items"),
-        "robot.joints",
-        joints,
-        "a mapping joint name -> value (radians), e.g. robot.joints={r_elbow: 1.57}",
-    )
     out = {}
-    for k, v in joints.items():
+    hint = "a mapping joint name -> value (radians), e.g. robot.joints={r_elbow: 1.57}"
+    for k, v in _mapping_items(joints, "robot.joints", hint):
         require(
             isinstance(v, (int, float)) and not isinstance(v, bool),
             f"robot.joints.{k}",
@@ -295,16 +300,9 @@ def check_joints(joints: Any) -> dict[str, float]:
 
 def check_merge(merge: Any, links: list[str]) -> dict[str, list[str]]:
     """``robot.merge`` as ``{link: [descendant links]}`` (None -> {})."""
-    if merge is None:
-        return {}
-    require(
-        isinstance(merge, Mapping) or hasattr(merge, "items"),
-        "robot.merge",
-        merge,
-        "a mapping link -> [descendant links], e.g. robot.merge={l_upper_arm: [l_forearm]}",
-    )
     out = {}
-    for link, extra in merge.items():
+    hint = "a mapping link -> [descendant links], e.g. robot.merge={l_upper_arm: [l_forearm]}"
+    for link, extra in _mapping_items(merge, "robot.merge", hint):
         require(link in links, f"robot.merge.{link}", link, f"must be one of robot.links {links}")
         extra = [extra] if isinstance(extra, str) else list(extra)
         require(link not in extra, f"robot.merge.{link}", extra, "must not list the link itself")
@@ -385,7 +383,7 @@ def tree_order(specs: Mapping[str, dict]) -> list[str]:
 def check_part_specs(parts: Any, links: Mapping[str, Any]) -> list[dict[str, Any]]:
     """``robot.parts`` as checked plain dicts (name, link, side, z_min, z_max, min_cos), in order; every part on
     one of ``links`` (:class:`sphri.robots.kinematic.BodyPart` holds them)."""
-    if parts is None or not (isinstance(parts, Mapping) or hasattr(parts, "items")) or len(parts) == 0:
+    if parts is None or not _is_mapping(parts) or len(parts) == 0:
         raise ConfigError(f"robot.parts={parts!r} is invalid: a mapping body part -> {{link: ..., side: ...}}")
     out = []
     for name, spec in parts.items():
@@ -426,12 +424,8 @@ def check_part_specs(parts: Any, links: Mapping[str, Any]) -> list[dict[str, Any
 
 def check_groups(groups: Any, parts: list[str]) -> dict[str, list[str]]:
     """``robot.groups`` as ``{group: [body parts]}`` (None -> {}); every member one of ``parts``."""
-    if groups is None:
-        return {}
-    if not (isinstance(groups, Mapping) or hasattr(groups, "items")):
-        raise ConfigError(f"robot.groups={groups!r} is invalid: a mapping group -> [body parts]")
     out = {}
-    for g, members in groups.items():
+    for g, members in _mapping_items(groups, "robot.groups", "a mapping group -> [body parts]"):
         members = [str(m) for m in ([members] if isinstance(members, str) else list(members))]
         bad = [m for m in members if m not in parts]
         if bad or not members:

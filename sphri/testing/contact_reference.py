@@ -45,6 +45,15 @@ def point_segment(p, a, b):
     return _dot(d, d), t
 
 
+def solve_gram(g00, g01, g11, r0, r1, ok):
+    """(x, y) solving the 2x2 symmetric system ``[[g00, g01], [g01, g11]] (x, y) = (r0, r1)`` by Cramer's rule
+    where ``ok(det)`` holds (broadcast; garbage elsewhere, never a division by zero), and that mask."""
+    det = g00 * g11 - g01 * g01
+    good = ok(det)
+    safe = np.where(good, det, 1.0)
+    return (g11 * r0 - g01 * r1) / safe, (g00 * r1 - g01 * r0) / safe, good
+
+
 def barycentric(p, a, b, c, degenerate):
     """Barycentric coordinates (..., 3) of p's projection on the plane of abc (NaN if degenerate)."""
     e0 = b - a
@@ -52,13 +61,18 @@ def barycentric(p, a, b, c, degenerate):
     w = p - a
     g00, g01, g11 = _dot(e0, e0), _dot(e0, e1), _dot(e1, e1)
     r0, r1 = _dot(w, e0), _dot(w, e1)
-    det = g00 * g11 - g01 * g01
-    ok = (~degenerate) & (det > 0)
-    safe = np.where(ok, det, 1.0)
-    v = (g11 * r0 - g01 * r1) / safe
-    s = (g00 * r1 - g01 * r0) / safe
+    v, s, ok = solve_gram(g00, g01, g11, r0, r1, lambda det: (~degenerate) & (det > 0))
     out = np.stack([1.0 - v - s, v, s], axis=-1)
     return np.where(ok[..., None], out, np.nan)
+
+
+def edge_weights(shape, ix, iy, t):
+    """Barycentric coordinates (``shape``, last axis 3) of the points at ``t`` along the edge from vertex ``ix``
+    to vertex ``iy``."""
+    bw = np.zeros(shape)
+    bw[..., ix] = 1.0 - t
+    bw[..., iy] = t
+    return bw
 
 
 def point_triangle(p, a, b, c, degenerate):
@@ -76,10 +90,7 @@ def point_triangle(p, a, b, c, degenerate):
         better = d2 < best
         best = np.where(better, d2, best)
         point = np.where(better[..., None], x + t[..., None] * (y - x), point)
-        bw = np.zeros(bary.shape)
-        bw[..., ix] = 1.0 - t
-        bw[..., iy] = t
-        bary = np.where(better[..., None], bw, bary)
+        bary = np.where(better[..., None], edge_weights(bary.shape, ix, iy, t), bary)
     return best, point, bary
 
 
@@ -90,11 +101,8 @@ def segment_segment(p0, p1, q0, q1):
     w = p0 - q0
     a, b, c = _dot(u, u), _dot(u, v), _dot(v, v)
     d, e = _dot(u, w), _dot(v, w)
-    det = a * c - b * b
-    ok = det > 1e-14 * np.maximum(a * c, 1e-300)
-    safe = np.where(ok, det, 1.0)
-    s = (b * e - c * d) / safe
-    t = (a * e - b * d) / safe
+    # the critical point of |w + s u - t v|^2: [[a, -b], [-b, c]] (s, t) = (-d, e)
+    s, t, ok = solve_gram(a, -b, c, -d, e, lambda det: det > 1e-14 * np.maximum(a * c, 1e-300))
     interior = ok & (s >= 0) & (s <= 1) & (t >= 0) & (t <= 1)
     diff = w + s[..., None] * u - t[..., None] * v
     best = np.where(interior, _dot(diff, diff), np.inf)
@@ -150,10 +158,7 @@ def segment_triangle(p0, p1, a, b, c, degenerate):
         best = np.where(better, d2, best)
         tbest = np.where(better, s, tbest)
         point = np.where(better[..., None], x0 + t[..., None] * (x1 - x0), point)
-        bw = np.zeros(bary.shape)
-        bw[..., ix] = 1.0 - t
-        bw[..., iy] = t
-        bary = np.where(better[..., None], bw, bary)
+        bary = np.where(better[..., None], edge_weights(bary.shape, ix, iy, t), bary)
     return best, tbest, point, bary
 
 

@@ -36,10 +36,11 @@ from typing import TYPE_CHECKING, Any, TypeVar
 import numpy as np
 
 from sphri import __version__
-from sphri.config import build
+from sphri.config import Configured, build
 from sphri.encode.schema import grid_res
 from sphri.stages import PARAM_GROUPS  # groups whose component and scalar settings become params
 from sphri.tracking import machine
+from sphri.tracking.schema import MlflowTrackingConfig
 
 if TYPE_CHECKING:
     from mlflow.tracking import MlflowClient
@@ -218,30 +219,21 @@ def log_analysis_run(
     return run.info.run_id
 
 
-class MlflowTracker:
+class MlflowTracker(Configured):
     """Logs jobs to MLflow; built from the ``tracking`` config group."""
 
     VERSION = "1"
+    SCHEMA = MlflowTrackingConfig
+    enabled: bool  # these eight set from SCHEMA by Configured
+    uri: str | None
+    experiment: str
+    artifacts: bool
+    confusion_png: bool
+    retries: int
+    log_model: bool | None
+    register_model: str | None
 
-    def __init__(
-        self,
-        enabled: bool = True,
-        uri: str | None = None,
-        experiment: str = "sphri",
-        artifacts: bool = True,
-        retries: int = 8,
-        log_model: bool | None = None,
-        register_model: str | None = None,
-        confusion_png: bool = True,
-    ) -> None:
-        self.enabled = enabled
-        self.uri = uri
-        self.experiment = experiment
-        self.artifacts = artifacts
-        self.confusion_png = confusion_png
-        self.retries = retries
-        self.log_model = log_model
-        self.register_model = register_model
+    def configured(self) -> None:
         self._client: MlflowClient | None = None
 
     # -- setup -------------------------------------------------------------

@@ -71,6 +71,14 @@ class Tally:
     def cases(self) -> int:
         return sum(self.verdicts.values())
 
+    def named(self, kind: str, exc: BaseException) -> str:
+        """:func:`named_or_raise` of ``exc``, counting a ``traceback`` of ``kind`` before re-raising it."""
+        try:
+            return named_or_raise(exc)
+        except Exception:
+            self.add(kind, "traceback")
+            raise
+
     def write(self) -> None:
         out = os.environ.get("SPHRI_FUZZ_COUNTS")
         if not out:

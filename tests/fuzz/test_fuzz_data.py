@@ -22,7 +22,7 @@ import pyarrow as pa
 import pyarrow.compute as pc
 import pyarrow.parquet as pq
 import pytest
-from fuzz_support import NAMED, SILENT, UNCHANGED, WARNED, Tally, WarningCatcher, fuzz_settings, named_or_raise
+from fuzz_support import NAMED, SILENT, UNCHANGED, WARNED, WarningCatcher, fuzz_settings, named_or_raise
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -61,13 +61,6 @@ def template(tmp_path_factory):
     ref = load(root, hand)
     assert ref.repairs == {}
     return root, hand, ref
-
-
-@pytest.fixture(scope="module")
-def tally():
-    t = Tally("data")
-    yield t
-    t.write()
 
 
 def load(root: Path, hand):

@@ -10,21 +10,13 @@ on); no exception may escape; the decoder's byte accounting must balance.
 from __future__ import annotations
 
 import numpy as np
-import pytest
-from fuzz_support import LOST, SILENT, UNCHANGED, WARNED, Tally, fuzz_settings
+from fuzz_support import LOST, SILENT, UNCHANGED, WARNED, fuzz_settings
 from hypothesis import given
 from hypothesis import strategies as st
 
 from sphri.hardware.skin_protocol import SYNC, SkinDecoder, ValueFormat, encode_frame, quantize
 
 N = 12  # taxels
-
-
-@pytest.fixture(scope="module")
-def tally():
-    t = Tally("serial")
-    yield t
-    t.write()
 
 
 def _frame(seq: int, fmt: ValueFormat, rng: np.random.Generator, n: int = N) -> tuple[bytes, np.ndarray]:

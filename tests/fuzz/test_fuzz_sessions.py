@@ -17,17 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from fuzz_support import (
-    SILENT,
-    UNCHANGED,
-    WARNED,
-    Tally,
-    WarningCatcher,
-    fuzz_settings,
-    mutate_bytes,
-    mutate_json,
-    named_or_raise,
-)
+from fuzz_support import SILENT, UNCHANGED, WARNED, WarningCatcher, fuzz_settings, mutate_bytes, mutate_json
 from hydra.utils import instantiate
 from hypothesis import given
 from hypothesis import strategies as st
@@ -47,13 +37,6 @@ def template(tmp_path_factory):
     write_sessions(ds, root)
     ref = SessionData(root=str(root)).load(hand, robot)
     return root, hand, robot, ref
-
-
-@pytest.fixture(scope="module")
-def tally():
-    t = Tally("sessions")
-    yield t
-    t.write()
 
 
 def _same(a, b) -> bool:
@@ -120,12 +103,7 @@ def test_corrupted_session_files(template, tally, kind, data):
             try:
                 ds = SessionData(root=str(root)).load(hand, robot)
             except Exception as exc:  # noqa: BLE001 - judged: named, or re-raised as a traceback
-                try:
-                    v = named_or_raise(exc)
-                except Exception:
-                    tally.add(kind, "traceback")
-                    raise
-                tally.add(kind, v)
+                tally.add(kind, tally.named(kind, exc))
                 return
         v = WARNED if warned.records else (UNCHANGED if _same(ds, ref) else SILENT)
         tally.add(kind, v)

@@ -38,34 +38,24 @@ def test_bad_values_fail_at_composition():
 
 
 @pytest.mark.parametrize(
-    "kwargs,key",
+    "schema,kwargs,key",
     [
-        ({"n_estimators": 0}, "model.n_estimators"),
-        ({"max_depth": 0}, "model.max_depth"),
-        ({"max_features": "all"}, "model.max_features"),
-        ({"class_weight": "heavy"}, "model.class_weight"),
-        ({"n_jobs": 0}, "model.n_jobs"),
-        ({"active_threshold": 0.0}, "model.active_threshold"),
+        (RandomForestSchema, {"n_estimators": 0}, "model.n_estimators"),
+        (RandomForestSchema, {"max_depth": 0}, "model.max_depth"),
+        (RandomForestSchema, {"max_features": "all"}, "model.max_features"),
+        (RandomForestSchema, {"class_weight": "heavy"}, "model.class_weight"),
+        (RandomForestSchema, {"n_jobs": 0}, "model.n_jobs"),
+        (RandomForestSchema, {"active_threshold": 0.0}, "model.active_threshold"),
+        (CnnGruSchema, {"lr": 0.0}, "model.lr"),
+        (CnnGruSchema, {"val_fraction": 1.0}, "model.val_fraction"),
+        (CnnGruSchema, {"strides": [1, 1]}, "model.strides"),
+        (CnnGruSchema, {"channels": []}, "model.channels"),
+        (CnnGruSchema, {"device": "tpu"}, "model.device"),
+        (CnnGruSchema, {"precision": "fp8"}, "model.precision"),
+        (CnnGruSchema, {"hidden": 0}, "model.hidden"),
+        (CnnGruSchema, {"patience": 0}, "model.patience"),
     ],
 )
-def test_rf_schema_ranges(kwargs, key):
+def test_schema_ranges(schema, kwargs, key):
     with pytest.raises(ConfigError, match=key):
-        RandomForestSchema(**kwargs)
-
-
-@pytest.mark.parametrize(
-    "kwargs,key",
-    [
-        ({"lr": 0.0}, "model.lr"),
-        ({"val_fraction": 1.0}, "model.val_fraction"),
-        ({"strides": [1, 1]}, "model.strides"),
-        ({"channels": []}, "model.channels"),
-        ({"device": "tpu"}, "model.device"),
-        ({"precision": "fp8"}, "model.precision"),
-        ({"hidden": 0}, "model.hidden"),
-        ({"patience": 0}, "model.patience"),
-    ],
-)
-def test_cnn_schema_ranges(kwargs, key):
-    with pytest.raises(ConfigError, match=key):
-        CnnGruSchema(**kwargs)
+        schema(**kwargs)
