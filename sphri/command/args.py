@@ -501,13 +501,32 @@ def first_paragraph(doc: str | None) -> str:
     return " ".join((doc or "").strip().split("\n\n")[0].split())
 
 
-def read_module_settings(
-    commands: Mapping[str, tuple[type, bool]], argv: Sequence[str] | None, module: str, prog: str = ""
-) -> tuple[str, Any, list[str]] | int:
-    """:func:`read_settings` for a module's ``main(argv, prog)``: ``argv`` None is ``sys.argv[1:]``;
-    without ``prog`` (``sphri VERB`` when dispatched) errors name ``module`` and usage ``python -m module``."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    return read_settings(commands, argv, prog or module, prog or f"python -m {module}")
+def settings_main(
+    module: str, commands: Mapping[str, tuple[type, bool]]
+) -> Callable[[Callable[[str, Any, list[str]], int]], Callable[..., int]]:
+    """Make ``run(command, settings, overrides) -> int`` a module's ``main(argv=None, prog="")`` (the
+    hardware commands, the model export): ``--verbose`` and one-line errors
+    (:func:`sphri.errors.clean_errors`), the settings read by :func:`read_settings` from ``argv``
+    (None: ``sys.argv[1:]``), help or a bad argument answered with its exit code, INFO logging on.
+    Without ``prog`` (``sphri VERB`` when dispatched) errors name ``module`` and usage says
+    ``python -m module``."""
+    import logging
+
+    from sphri.errors import clean_errors
+
+    def wrap(run: Callable[[str, Any, list[str]], int]) -> Callable[..., int]:
+        @clean_errors(module)
+        def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+            got = read_settings(commands, list(argv or ()), prog or module, prog or f"python -m {module}")
+            if isinstance(got, int):
+                return got
+            logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+            return run(*got)
+
+        main.__doc__, main.__qualname__ = run.__doc__, run.__qualname__
+        return main
+
+    return wrap
 
 
 def read_settings(

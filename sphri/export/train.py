@@ -24,10 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from sphri.command.args import read_module_settings
+from sphri.command.args import settings_main
 from sphri.config import ConfigError, Schema, require
 from sphri.encode.schema import grid_res
-from sphri.errors import clean_errors
 from sphri.export.model_file import ModelBundle, save_model
 from sphri.types import GESTURES, WindowedFrames
 
@@ -193,14 +192,9 @@ def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
 COMMANDS = {"": (TrainExportSettings, True)}
 
 
-@clean_errors("sphri.export.train")
-def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+@settings_main("sphri.export.train", COMMANDS)
+def main(_cmd: str, settings: TrainExportSettings, overrides: list[str]) -> int:
     """``sphri export out=FILE ... [overrides ...]`` (``python -m sphri.export.train`` by default)."""
-    got = read_module_settings(COMMANDS, argv, "sphri.export.train", prog)
-    if isinstance(got, int):
-        return got
-    _, settings, overrides = got
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     from sphri.config import compose
     from sphri.pipeline import make_pipeline, open_cache
 

@@ -25,9 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sphri.command.args import read_module_settings
+from sphri.command.args import settings_main
 from sphri.config import ConfigError
-from sphri.errors import clean_errors
 from sphri.hardware.actuators import ActuatorMap, part_depths
 from sphri.hardware.glove_protocol import (
     ACTUATORS,
@@ -352,15 +351,10 @@ def replay(settings: GloveReplaySettings, overrides: Sequence[str], out: Callabl
 COMMANDS = {"replay": (GloveReplaySettings, True)}
 
 
-@clean_errors("sphri.hardware.glove")
-def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+@settings_main("sphri.hardware.glove", COMMANDS)
+def main(_cmd: str, settings: GloveReplaySettings, overrides: list[str]) -> int:
     """``sphri glove replay key=value ... [overrides ...]`` (``python -m sphri.hardware.glove`` by default);
     the keys of :class:`GloveReplaySettings`, any other ``key=value`` a config override (+debug=fast)."""
-    got = read_module_settings(COMMANDS, argv, "sphri.hardware.glove", prog)
-    if isinstance(got, int):
-        return got
-    _, settings, overrides = got
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     try:
         report = replay(settings, overrides)
     except PortError as exc:

@@ -15,14 +15,11 @@ replug, like a udev name). ``port=socket://HOST:PORT`` listens there (port 0 = a
 from __future__ import annotations
 
 import json
-import logging
 import sys
 import threading
-from collections.abc import Sequence
 from pathlib import Path
 
-from sphri.command.args import read_module_settings
-from sphri.errors import clean_errors
+from sphri.command.args import settings_main
 from sphri.hardware.sim_glove import GloveLedger, GloveSimSettings, GloveSimulator
 from sphri.hardware.sim_skin import (
     SkinLedger,
@@ -56,14 +53,9 @@ __all__ = [
 COMMANDS = {"skin": (SkinSimSettings, True), "glove": (GloveSimSettings, False)}
 
 
-@clean_errors("sphri.hardware.simulate")
-def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+@settings_main("sphri.hardware.simulate", COMMANDS)
+def main(device: str, settings: SkinSimSettings | GloveSimSettings, overrides: list[str]) -> int:
     """``sphri simulate skin|glove key=value ...`` (``python -m sphri.hardware.simulate`` by default)."""
-    got = read_module_settings(COMMANDS, argv, "sphri.hardware.simulate", prog)
-    if isinstance(got, int):
-        return got
-    device, settings, overrides = got
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     sim: SkinSimulator | GloveSimulator
     if device == "skin":
         sim = skin_simulator(settings, overrides)

@@ -23,13 +23,12 @@ import sys
 import threading
 import time
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 
 import numpy as np
 
-from sphri.command.args import read_module_settings
-from sphri.errors import clean_errors
+from sphri.command.args import settings_main
 from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, parse_grid
 from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, encode_control
 from sphri.hardware.transport import Link, PortLost
@@ -575,14 +574,9 @@ def live(
 COMMANDS = {"record": (SkinRecordSettings, False), "live": (SkinLiveSettings, False)}
 
 
-@clean_errors("sphri.hardware.skin")
-def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+@settings_main("sphri.hardware.skin", COMMANDS)
+def main(cmd: str, settings: SkinRecordSettings | SkinLiveSettings, _overrides: list[str]) -> int:
     """``sphri skin record|live key=value ...`` (``python -m sphri.hardware.skin`` is ``prog`` by default)."""
-    got = read_module_settings(COMMANDS, argv, "sphri.hardware.skin", prog)
-    if isinstance(got, int):
-        return got
-    cmd, settings, _ = got
-    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     summary = record(settings) if cmd == "record" else live(settings)
     # port, model-file and recording errors: one line from @clean_errors
     return 1 if summary.get("error") else 0
