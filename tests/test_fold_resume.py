@@ -95,7 +95,8 @@ def _kill_after_first_fold(out: Path, *extra: str) -> int:
     return len(list(folds.glob("*.entry")))
 
 
-@pytest.mark.parametrize("workers", [1, 2])
+# serial folds in `make test-all` only: the loky workers' kill (the harder case) runs in `make test`
+@pytest.mark.parametrize("workers", [pytest.param(1, marks=pytest.mark.slow), 2])
 def test_a_killed_cnn_gru_job_recomputes_only_its_missing_folds(reference, tmp_path: Path, workers: int):
     ref_out, ref_key, ref_cv = reference
     out = tmp_path / "out"

@@ -187,6 +187,8 @@ def test_wheel_console_script_completes_from_its_configs(installed, tmp_path):
     assert groups.returncode == 0 and "  reachy2 " in groups.stdout, groups.stderr[-3000:]
 
 
+@pytest.mark.slow  # `make test-all`: the study's code and data are tested from the checkout (tests/sessions) and
+# its packaged data from the wheel (test_wheel_builds_the_packaged_reachy2_from_its_own_data) in `make test`
 def test_wheel_runs_the_scenario_study_at_debug_size(installed, tmp_path):
     study = _sphri(
         installed,
@@ -202,6 +204,7 @@ def test_wheel_runs_the_scenario_study_at_debug_size(installed, tmp_path):
     assert (tmp_path / "study" / "report.html").is_file()
 
 
+@pytest.mark.slow  # `make test-all`: export and live from the checkout in `make test` (tests/hardware/test_hw_plugin_model.py)
 def test_wheel_exports_a_model_and_runs_skin_live_on_the_simulator(installed, tmp_path):
     small = ["+debug=fast", "data.participants=1", "data.repetitions=1"]
     export = _sphri(installed, tmp_path, "sphri.hardware.train_export", "out=m.sphrimodel", *small, "model.n_jobs=1")

@@ -206,7 +206,15 @@ def test_a_cnn_gru_job_records_device_precision_cpu_and_torch(tmp_path):
     from sphri.tracking.machine import cpu
 
     job = _sphri(
-        ["+debug=fast", "model=cnn_gru", "encoder.res=3", "model.max_epochs=1", f"output_dir={tmp_path}"], cwd=tmp_path
+        [
+            "+debug=fast",
+            "model=cnn_gru",
+            "encoder.res=3",
+            "model.max_epochs=1",
+            "cv.max_folds=1",
+            f"output_dir={tmp_path}",
+        ],
+        cwd=tmp_path,
     )
     assert job.returncode == 0, job.stderr[-2000:]
     client = MlflowClient(tracking_uri=f"sqlite:///{tmp_path / 'mlflow.db'}")
@@ -236,6 +244,9 @@ def test_a_job_logged_to_a_real_mlflow_server_reads_back_over_rest(tmp_path):
         port = s.getsockname()[1]
     uri = f"http://127.0.0.1:{port}"
     mlflow_bin = Path(sys.executable).with_name("mlflow")
+    from sphri.tracking.store import ensure_store
+
+    ensure_store(f"sqlite:///{tmp_path / 'server.db'}")  # a migrated store, as sphri makes its own: no migration wait
     server = subprocess.Popen(
         [
             str(mlflow_bin),

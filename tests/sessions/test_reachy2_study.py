@@ -5,10 +5,12 @@ from __future__ import annotations
 import json
 
 import pandas as pd
+import pytest
 
 from sphri.coverage import main
 
 
+@pytest.mark.slow  # `make test-all`; the packaged tree is checked in `make test` (tests/robots/test_urdf_tree.py)
 def test_packaged_reachy2_runs_a_small_scenario_study(tmp_path, monkeypatch):
     monkeypatch.setenv("SPHRI_SHARED", str(tmp_path / "no_shared"))  # nothing may come from ../shared
     out, runs = tmp_path / "out", tmp_path / "runs"
