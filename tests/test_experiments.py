@@ -4,6 +4,7 @@ through the whole chain in debug mode."""
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import pytest
@@ -44,9 +45,18 @@ def all_jobs(params: dict[str, list[str]]) -> list[list[str]]:
     return jobs
 
 
-def covering_jobs(params: dict[str, list[str]]) -> list[list[str]]:
-    """A few jobs in which every value of every key appears (long numeric ranges: their ends)."""
-    picks = {k: (v if len(v) <= 6 else [v[0], v[-1]]) for k, v in params.items()}
+def _numeric(values: list[str]) -> bool:
+    try:
+        [float(v) for v in values]
+    except ValueError:
+        return False
+    return True
+
+
+def covering_jobs(params: dict[str, list[str]], numeric_ends: bool = False) -> list[list[str]]:
+    """A few jobs in which every value of every key appears (long numeric ranges: their ends;
+    ``numeric_ends``: the ends of every numeric range, a component or other word every value)."""
+    picks = {k: (v if len(v) <= 6 and not (numeric_ends and _numeric(v)) else [v[0], v[-1]]) for k, v in params.items()}
     first = {k: v[0] for k, v in picks.items()}
     jobs, seen = [], set()
     for key, values in picks.items():
@@ -83,7 +93,9 @@ def test_experiment_smoke_runs_in_debug_mode(name: str, tmp_path: Path):
     params = sweep_params(name)
     cache = StageCache(tmp_path)
     ran = []
-    for job in covering_jobs(params):
+    # `make test`: every component, and numbers at their range's ends (the same code path between);
+    # SPHRI_DEEP_TESTS=1 (`make test-all`): every value of a range of up to 6 values too
+    for job in covering_jobs(params, numeric_ends=not os.environ.get("SPHRI_DEEP_TESTS")):
         extra = ["encoder.res=3"] if name == "resolution_sweep" and job[0] != "model=rf" else []
         if extra:  # the CNN-GRU at res 50 is not a smoke test; the model is, at a small grid
             job = [o for o in job if not o.startswith("encoder.res=")]

@@ -82,18 +82,6 @@ def test_cache_disabled_computes_everything(tmp_path: Path):
     assert not any(tmp_path.iterdir())
 
 
-def test_command_line_run_twice_says_from_cache(tmp_path: Path):
-    env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    args = [sys.executable, "-m", "sphri", "+robot=reachy", "encoder.res=5", "+debug=fast", f"output_dir={tmp_path}"]
-    first = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
-    assert first.returncode == 0, first.stderr[-3000:]
-    assert "accuracy" in first.stdout and "SYNTHETIC" in first.stdout
-    second = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
-    assert second.returncode == 0, second.stderr[-3000:]
-    log = second.stdout + second.stderr
-    assert "from cache" in log and "computing" not in log
-
-
 def test_wrong_value_fails_before_any_stage(tmp_path: Path):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
     args = [sys.executable, "-m", "sphri", "encoder.res=0", f"output_dir={tmp_path}"]

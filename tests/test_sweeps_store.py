@@ -198,8 +198,12 @@ def test_a_signal_whose_exception_was_replaced_still_ends_the_sweep_killed():
 
 
 def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
-    """The same sweep again, into its own sweep dir and then into a new timestamped one: both skip the
-    finished jobs and reopen the one parent run."""
+    """The same sweep again (with other runtime settings), into its own sweep dir and then into a new
+    timestamped one: both skip the finished jobs and reopen the one parent run; a sweep with one more
+    point starts only that job, and its new parent names the runs that finished the others; a single
+    job with other runtime settings takes every stage from the cache."""
+    import re
+
     out = tmp_path / "out"
     fixed = [
         "-m",
@@ -211,10 +215,17 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     ]
     first = _sphri(fixed, cwd=tmp_path)
     assert first.returncode == 0, first.stderr[-3000:]
-    again = _sphri(fixed, cwd=tmp_path)
+    again = _sphri([*fixed, "cv.workers=2", "cv.progress=false"], cwd=tmp_path)  # runtime settings: the same jobs
     assert again.returncode == 0, again.stderr[-3000:]
-    assert "2 of 2 jobs finished (2 skipped" in again.stdout
+    assert "2 of 2 jobs finished (2 skipped" in again.stdout, again.stdout[-3000:]
     assert len(_runs(out, "sweep")) == 1 and len(_runs(out, "job")) == 2
+    # the sweep's console: one line per job with the sweep's progress, then one table of every job
+    assert re.search(
+        r"\[sweep 2/2 done: 0 failed, 0 skipped; .* ETA .*\] job #1 \(.*encoder.res=3.*\) accuracy 0\.\d{3}",
+        first.stdout,
+    ), first.stdout[-3000:]
+    assert re.search(r"#1\s+encoder.res=3\s+FINISHED\s+0\.\d{3}\s+0\.\d{3}\s+\d+ s\s+no", first.stdout)
+    assert re.search(r"#0\s+encoder.res=2\s+SKIPPED", again.stdout) and "=====" not in first.stdout  # no per-job boxes
     # the default sweep dir is timestamped: another directory, the same parent (overrides in another order)
     other = _sphri(["-m", "hydra/launcher=serial", f"output_dir={out}", "encoder.res=2,3", "debug=fast"], cwd=tmp_path)
     assert other.returncode == 0, other.stderr[-3000:]
@@ -243,6 +254,26 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     assert "3 of 3 jobs finished (2 skipped" in more.stdout
     assert [j for j in ("0", "1", "2") if (out / "sweeps" / "t" / j / ".hydra").exists()] == ["2"]
     assert len(_runs(out, "job")) == 3
+    # another sweep, another parent: it names the runs that finished its skipped jobs
+    done = {r.data.params["encoder.res"]: r.info.run_id for r in _runs(out, "job")}
+    newest = max(_runs(out, "sweep"), key=lambda r: r.info.start_time)
+    assert newest.data.tags["sphri.skipped_jobs"] == f"job 0: run {done['2']}, job 1: run {done['3']}"
+    # a single job with other runtime settings: every stage comes from the cache
+    single = _sphri(
+        [
+            "+debug=fast",
+            "encoder.res=2",
+            "cv.progress=false",
+            "model.n_jobs=1",
+            "contact.chunk_frames=777",
+            f"output_dir={out}",
+        ],
+        cwd=tmp_path,
+    )
+    assert single.returncode == 0, (single.stdout + single.stderr)[-3000:]
+    log = single.stdout + single.stderr
+    assert "stage evaluate  from cache" in log, log[-3000:]
+    assert "computing (key" not in log and "computed in" not in log, log[-3000:]
 
 
 def test_the_sweepers_fast_composition_gives_hydras_configs():
