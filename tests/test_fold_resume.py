@@ -29,7 +29,7 @@ ARGS = [
     "+debug=fast",
     "model=cnn_gru",
     "encoder.res=4",
-    "model.max_epochs=20",
+    "model.max_epochs=10",
     "cv.threads_per_worker=1",
     "tracking.enabled=false",
 ]

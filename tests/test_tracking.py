@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from sphri.config import build, compose
 from sphri.pipeline import RunResult, StageRecord
@@ -229,6 +230,7 @@ def test_a_cnn_gru_job_records_device_precision_cpu_and_torch(tmp_path):
     assert tags["sphri.machine.gpu"] == (torch.cuda.get_device_name(0) if device == "cuda" else "none")
 
 
+@pytest.mark.slow  # `make test-all` (about 40 s, most of it the server starting): `make test` logs to SQLite stores
 def test_a_job_logged_to_a_real_mlflow_server_reads_back_over_rest(tmp_path):
     """`mlflow server` on loopback, a job with tracking.uri=http://...: the run read back over MLflow's REST
     API has MLflow's own tags (user, commit), its dataset input and its logged model, and its artifacts
