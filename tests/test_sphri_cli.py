@@ -355,6 +355,9 @@ def test_warmup_reports_what_it_compiled_and_fails_in_one_line(monkeypatch: pyte
     monkeypatch.setattr(subprocess, "run", fake)
     assert main(["warmup"]) == 0
     assert "+debug=fast" in calls[0] and "tracking.enabled=false" in calls[0]
+    # the components the debug chain does not use, in one serial sweep; then the study's analysis kernels
+    assert "-m" in calls[1] and "hydra/launcher=serial" in calls[1] and set(cli.WARMUP_SWEEP) <= set(calls[1])
+    assert "warm_analysis_kernels()" in calls[2][-1]
     assert "compiled 8 numba kernels in 31.6 s" in capsys.readouterr().out
 
     monkeypatch.setattr(
@@ -365,3 +368,10 @@ def test_warmup_reports_what_it_compiled_and_fails_in_one_line(monkeypatch: pyte
     assert cli.main(["warmup"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("sphri: warmup failed") and "ValueError: boom" in err[0]
+
+
+def test_the_analysis_kernels_warm_on_tiny_inputs():
+    """What `sphri warmup` runs last, for real: every scenario-study kernel is called and returns."""
+    from sphri.cli import warm_analysis_kernels
+
+    warm_analysis_kernels()
