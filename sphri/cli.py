@@ -235,6 +235,7 @@ def warm_analysis_kernels() -> None:
     """Call the scenario study's numba kernels (sliced Wasserstein, placement, winding number) once on
     tiny inputs of the dtypes the study passes, so that they compile into numba's cache."""
     import numpy as np
+    import trimesh
 
     from sphri.analysis.placement import _min_rank_per_frame
     from sphri.analysis.swd import SharedSupportSW, sliced_wasserstein, wasserstein_1d
@@ -247,24 +248,8 @@ def warm_analysis_kernels() -> None:
     SharedSupportSW(a, n_projections=4).distances(w, w[::-1])
     SharedSupportSW(a, n_projections=4, p=2.0).distances(w, w[::-1])
     _min_rank_per_frame(np.arange(5, dtype=np.int64), np.array([0, 3, 1], dtype=np.int64), np.array([0, 2, 3]))
-    box = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [1, 1, 1], [0, 1, 1]], float)
-    faces = np.array(
-        [
-            [0, 2, 1],
-            [0, 3, 2],
-            [4, 5, 6],
-            [4, 6, 7],
-            [0, 1, 5],
-            [0, 5, 4],
-            [1, 2, 6],
-            [1, 6, 5],
-            [2, 3, 7],
-            [2, 7, 6],
-            [3, 0, 4],
-            [3, 4, 7],
-        ]
-    )
-    winding_number(box, faces, np.array([[0.5, 0.5, 0.5], [2.0, 2.0, 2.0]]))
+    box = trimesh.creation.box()  # a closed, outward-wound unit cube
+    winding_number(box.vertices, box.faces, np.array([[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]))
 
 
 def cmd_warmup() -> int:
