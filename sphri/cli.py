@@ -264,19 +264,14 @@ def cmd_warmup() -> int:
     print("compiling sphri's numba kernels into numba's cache (once per machine and sphri version)...", flush=True)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="sphri-warmup-") as tmp:
-        chain = ["+debug=fast", "tracking.enabled=false", f"output_dir={tmp}"]
-        runs = [
-            [*chain, f"hydra.run.dir={tmp}/run"],
-            ["-m", *chain, "hydra/launcher=serial", *WARMUP_SWEEP, f"hydra.sweep.dir={tmp}/sweep"],
-            None,  # the analysis kernels, in a process of their own like the others
+        sphri, chain = [sys.executable, "-m", "sphri"], ["+debug=fast", "tracking.enabled=false", f"output_dir={tmp}"]
+        commands = [  # each in a process of its own, like a job (Hydra's -m comes before the overrides)
+            [*sphri, *chain, f"hydra.run.dir={tmp}/run"],
+            [*sphri, "-m", *chain, "hydra/launcher=serial", *WARMUP_SWEEP, f"hydra.sweep.dir={tmp}/sweep"],
+            [sys.executable, "-c", "from sphri.cli import warm_analysis_kernels; warm_analysis_kernels()"],
         ]
         out = []
-        for args in runs:
-            cmd = (
-                [sys.executable, "-m", "sphri", *args]
-                if args is not None
-                else [sys.executable, "-c", "from sphri.cli import warm_analysis_kernels; warm_analysis_kernels()"]
-            )
+        for cmd in commands:
             run = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
             out.append(run.stdout + run.stderr)
             if run.returncode != 0:
