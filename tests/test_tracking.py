@@ -77,6 +77,36 @@ def test_failure_is_recorded(tmp_path: Path):
     assert run.info.run_name == "reachy-arm-res18-RandomForest (failed)"  # named after the job, not "failed"
 
 
+def test_two_jobs_logging_the_same_dataset_at_once_both_finish(tmp_path: Path, monkeypatch):
+    """Two parallel jobs of a sweep into a new store log the same dataset input: both look it up, find
+    nothing, and insert it; the second insert fails on the datasets' unique key (seen in CI). Replayed
+    here exactly: job 1 logs the dataset, then job 2's lookup is made to miss it once (as it did while
+    job 1 had not committed yet), so its insert hits the real IntegrityError; the retry finds the row."""
+    from mlflow.store.tracking.dbmodels.models import SqlDataset
+    from mlflow.tracking import MlflowClient
+    from sqlalchemy.orm import Query
+
+    cfg = compose([f"output_dir={tmp_path}", "tracking.artifacts=false"])
+    tracker = build(cfg.tracking)
+    first = tracker.log_job(cfg, fake_result(), tmp_path / "job0")
+    real_all, missed = Query.all, []
+
+    def lookup_misses_once(query):
+        if not missed and query.column_descriptions[0]["entity"] is SqlDataset:
+            missed.append(True)
+            return []
+        return real_all(query)
+
+    monkeypatch.setattr(Query, "all", lookup_misses_once)
+    second = tracker.log_job(cfg, fake_result(), tmp_path / "job1")
+    assert missed, "the replay did not reach MLflow's dataset lookup"
+    client = MlflowClient(default_uri(tmp_path))
+    for run_id in (first, second):
+        run = client.get_run(run_id)
+        assert run.info.status == "FINISHED"
+        assert [d.dataset.name for d in run.inputs.dataset_inputs] == [fake_result().meta.dataset]
+
+
 def test_params_are_flat_scalars():
     params = flatten_params(compose([]), {"robot": "reachy"})
     assert params["robot"] == "reachy"

@@ -219,6 +219,12 @@ def log_analysis_run(
     return run.info.run_id
 
 
+def _lost_race(exc: Exception) -> bool:
+    """Whether a store write failed only because a parallel job wrote first (worth a retry)."""
+    text = str(exc).lower()
+    return "locked" in text or "unique constraint failed: datasets." in text
+
+
 class MlflowTracker(Configured):
     """Logs jobs to MLflow; built from the ``tracking`` config group."""
 
@@ -300,12 +306,14 @@ class MlflowTracker(Configured):
             raise
 
     def _retry(self, fn: Callable[[], T]) -> T:
-        """Retry a write that hit a locked SQLite database (parallel jobs)."""
+        """Retry a write that lost a race with another job writing the same store: a locked SQLite
+        database, or a dataset row another job inserted between MLflow's lookup and its insert
+        (two parallel jobs logging the same dataset input into a new store: the retry finds the row)."""
         for attempt in range(self.retries + 1):
             try:
                 return fn()
-            except Exception as exc:  # sqlalchemy OperationalError is wrapped by MLflow
-                if "locked" not in str(exc).lower() or attempt == self.retries:
+            except Exception as exc:  # sqlalchemy's OperationalError/IntegrityError, wrapped by MLflow
+                if not _lost_race(exc) or attempt == self.retries:
                     raise
                 time.sleep(0.2 * (2**attempt) * (0.5 + random.random()))
         raise AssertionError("unreachable")
