@@ -23,8 +23,8 @@ run: install          ## the main job on the built-in defaults
 	$(BIN)/python -m sphri +robot=reachy encoder.res=18 $(ARGS)
 
 lint: install         ## ruff (lint + format check) and mypy on the typed modules (pyproject.toml)
-	$(BIN)/ruff check sphri tests bench
-	$(BIN)/ruff format --check sphri tests bench
+	$(BIN)/ruff check sphri hydra_plugins tests bench
+	$(BIN)/ruff format --check sphri hydra_plugins tests bench
 	$(BIN)/mypy
 
 # Tests run on every core (pytest-xdist); a test module stays on one worker, so its

@@ -197,6 +197,39 @@ def test_a_signal_whose_exception_was_replaced_still_ends_the_sweep_killed():
         KILLED.clear()
 
 
+def test_a_signal_during_an_import_waits_until_the_import_finished(tmp_path: Path, monkeypatch):
+    """A SIGTERM landing while an extension module initialised (manifold3d, inside ``import trimesh``)
+    aborted the sweep with SIGABRT (seen in CI). Here a module's body sends itself SIGTERM and goes on
+    working: the import must finish, then the sweep's exception comes, once, outside the import."""
+    from hydra_plugins.sphri_sweeper.sphri_sweeper import _raise_killed
+    from sphri.tracking.parent import KILLED, SweepKilled
+
+    (tmp_path / "signalled_in_import.py").write_text(
+        "import os, signal, time\n"
+        "os.kill(os.getpid(), signal.SIGTERM)\n"
+        "time.sleep(0.3)  # the signal is handled here, inside the import\n"
+        "DONE = True\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    KILLED.clear()
+    previous = signal.signal(signal.SIGTERM, _raise_killed)
+    imported = False
+    try:
+        with pytest.raises(SweepKilled) as killed:
+            import signalled_in_import  # noqa: F401
+
+            imported = signalled_in_import.DONE
+            deadline = time.time() + 5
+            while time.time() < deadline:
+                time.sleep(0.01)
+        assert imported, "the exception was raised inside the import"
+        assert killed.value.signum == signal.SIGTERM and KILLED == [signal.SIGTERM]
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+        KILLED.clear()
+        sys.modules.pop("signalled_in_import", None)
+
+
 def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     """The same sweep again (with other runtime settings), into its own sweep dir and then into a new
     timestamped one: both skip the finished jobs and reopen the one parent run; a sweep with one more

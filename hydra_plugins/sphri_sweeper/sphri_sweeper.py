@@ -27,8 +27,10 @@ import logging
 import os
 import signal
 import sys
+import threading
+from collections.abc import Sequence
 from pathlib import Path
-from typing import Any, List, Sequence
+from typing import Any
 
 from hydra._internal.core_plugins.basic_sweeper import BasicSweeper
 from hydra.core.override_parser.overrides_parser import OverridesParser
@@ -43,9 +45,39 @@ VALIDATE_ONLY = "SPHRI_VALIDATE_ONLY"
 MAX_LISTED = 12
 
 
+#: Seconds between a deferred signal's retries (see :func:`_raise_killed`).
+RETRY_S = 0.05
+
+
+def _importing(frame: Any) -> bool:
+    """Whether ``frame`` runs inside an import (a module's body, an extension module's init)."""
+    while frame is not None:
+        if frame.f_code.co_filename.startswith("<frozen importlib"):
+            return True
+        frame = frame.f_back
+    return False
+
+
+def _resend(signum: int) -> None:
+    if signal.getsignal(signum) is _raise_killed:  # the sweep has not ended meanwhile
+        os.kill(os.getpid(), signum)
+
+
 def _raise_killed(signum: int, frame: Any) -> None:
-    KILLED.append(signum)  # sticky: the next job refuses to start should this exception be swallowed
-    raise SweepKilled(signum)
+    """SIGTERM/SIGINT during a sweep: raise :class:`SweepKilled` in the main thread.
+
+    Not inside an import: an exception raised while an extension module initialises can abort the
+    process (seen in CI: a SIGTERM landing in ``import trimesh``, inside manifold3d's init, ended the
+    sweep with SIGABRT instead of 128 + 15 and left its parent run RUNNING). There the signal is
+    recorded and sent again every ``RETRY_S`` seconds until it lands outside any import."""
+    if signum not in KILLED:
+        KILLED.append(signum)  # sticky: the next job refuses to start should this exception be swallowed
+    if _importing(frame):
+        retry = threading.Timer(RETRY_S, _resend, (signum,))
+        retry.daemon = True
+        retry.start()
+        return
+    raise SweepKilled(KILLED[0])
 
 
 def killed_by(exc: BaseException) -> int | None:
@@ -176,8 +208,14 @@ class SphriSweeper(BasicSweeper):
 
         def compose(job: list[str]) -> Any:
             parsed = parser.parse_overrides(job)
-            plain = [o for o in parsed if o.type == OverrideType.CHANGE and o.package is None
-                     and not o.is_sweep_override() and not is_group(o.key_or_group)]
+            plain = [
+                o
+                for o in parsed
+                if o.type == OverrideType.CHANGE
+                and o.package is None
+                and not o.is_sweep_override()
+                and not is_group(o.key_or_group)
+            ]
             rest = tuple(o.input_line for o in parsed if o not in plain)
             if rest not in bases:
                 bases[rest] = loader.load_sweep_config(self.config, list(rest))
@@ -200,8 +238,11 @@ class SphriSweeper(BasicSweeper):
         from sphri.tracking.parent import progress_line, write_status
 
         assert self.config is not None
-        if (not self.config.get("resume") or not self.config.tracking.enabled
-                or OmegaConf.to_container(self.config.hydra.sweep, resolve=False).get("subdir") != "${hydra.job.num}"):
+        if (
+            not self.config.get("resume")
+            or not self.config.tracking.enabled
+            or OmegaConf.to_container(self.config.hydra.sweep, resolve=False).get("subdir") != "${hydra.job.num}"
+        ):
             return {}
         tracker = build(self.config.tracking)
         sweep_dir = Path(self.config.hydra.sweep.dir)
@@ -218,21 +259,30 @@ class SphriSweeper(BasicSweeper):
                 swept = [o for o in job if not o.lstrip("+~").startswith("hydra")]
                 out[i] = (done, swept)
                 write_status(sweep_dir / str(i), i, "SKIPPED", None, done, overrides=swept)
-                print(progress_line(sweep_dir, i, f"({' '.join(swept)}) skipped: MLflow run {done} already "
-                                                  "finished with this config"), flush=True)
+                print(
+                    progress_line(
+                        sweep_dir,
+                        i,
+                        f"({' '.join(swept)}) skipped: MLflow run {done} already finished with this config",
+                    ),
+                    flush=True,
+                )
         return out
 
     def validate_batch_is_legal(self, batch: Sequence[Sequence[str]]) -> None:
         """Already done for every job before the sweep started (:meth:`invalid_points`)."""
 
-    def sweep(self, arguments: List[str]) -> Any:
+    def sweep(self, arguments: list[str]) -> Any:
         from sphri.tracking.parent import close_parent, open_parent, start_sweep_file
 
         assert self.config is not None
         overrides, jobs = self.job_overrides(arguments)
         if not jobs:  # e.g. range(5,5): nothing to run is a mistake, not a finished sweep
-            print(f"sphri: invalid sweep: {' '.join(_empty_sweeps(arguments)) or ' '.join(arguments)} sweeps no "
-                  "value; no job was started", file=sys.stderr)
+            print(
+                f"sphri: invalid sweep: {' '.join(_empty_sweeps(arguments)) or ' '.join(arguments)} sweeps no "
+                "value; no job was started",
+                file=sys.stderr,
+            )
             sys.exit(2)
         bad = self.invalid_points(jobs)
         if bad:
@@ -272,11 +322,15 @@ class SphriSweeper(BasicSweeper):
                 signal.signal(sig, handler)
             status, failed = close_parent(self.config, interrupted)
         if interrupted == "KILLED":
-            print("sphri: sweep killed; its MLflow parent run is marked KILLED (re-run the same command to resume)",
-                  file=sys.stderr)
+            print(
+                "sphri: sweep killed; its MLflow parent run is marked KILLED (re-run the same command to resume)",
+                file=sys.stderr,
+            )
             sys.exit(code)
         if failed:
-            print(f"sphri: sweep FAILED: {len(failed)} job(s) failed: "
-                  + ", ".join(f"#{s['job']}" for s in failed), file=sys.stderr)
+            print(
+                f"sphri: sweep FAILED: {len(failed)} job(s) failed: " + ", ".join(f"#{s['job']}" for s in failed),
+                file=sys.stderr,
+            )
             sys.exit(1)
         return returns
