@@ -20,6 +20,33 @@ def test_clean_figure_has_no_problems_and_saves_three_formats(tmp_path):
     assert "SYNTHETIC DATA" in (tmp_path / "curve.svg").read_text()  # text stays text in SVG
 
 
+def test_the_checked_png_is_the_picture_matplotlib_saves(tmp_path):
+    """save() draws a figure once for its layout check and its PNG; the check asks every axis for its
+    ticks, which marks the figure stale. The PNG must be the picture savefig writes (constrained
+    layout, a colour bar, tick labels, the banner), not a second draw's."""
+    import numpy as np
+    from PIL import Image
+
+    def build():
+        fig, axes = figures.new_figure("two", 2.6, ncols=2)
+        with figures.style():
+            image = axes[0].imshow(np.arange(48.0).reshape(6, 8), aspect="auto")
+            fig.colorbar(image, ax=axes[0], label="frames per cm$^2$")
+            axes[1].plot(np.linspace(0, 30, 20), np.linspace(0.2, 0.9, 20))
+            axes[1].set_xlabel("taxel pitch (mm)")
+            figures.mark(fig, figures.Provenance(synthetic=True, ids="sweep abc"))
+        return fig
+
+    figures.save(build(), tmp_path / "checked.png", formats=["png"])
+    with figures.style():
+        dpi = figures.pyplot().rcParams["savefig.dpi"]
+        build().savefig(tmp_path / "matplotlib.png", dpi=dpi)
+    checked, reference = (
+        np.asarray(Image.open(tmp_path / f"{n}.png").convert("RGBA")) for n in ("checked", "matplotlib")
+    )
+    assert checked.shape == reference.shape and np.array_equal(checked, reference)
+
+
 def test_only_formats_restricts_what_save_writes(tmp_path):
     with figures.only_formats(["png"]):
         fig, ax = figures.new_figure("one", 2.0)
@@ -74,7 +101,7 @@ def test_confusion_matrix_fits_one_column_without_layout_problems(tmp_path, monk
     folds = [FoldResult(str(i), 40, 0.5, 0.5, rng.integers(0, 9, (8, 8)), np.full(8, 0.5)) for i in range(3)]
     cv = CVResult("loso", "rf", folds)
     seen = []
-    monkeypatch.setattr(figures, "layout_problems", lambda fig, *a: seen.append(_real_problems(fig)) or seen[-1])
+    monkeypatch.setattr(figures, "layout_problems", lambda fig, *a, **k: seen.append(_real_problems(fig)) or seen[-1])
     out = artifacts.write_confusion_png(
         cv,
         tmp_path / "confusion.png",
