@@ -24,29 +24,24 @@ def _env() -> dict[str, str]:
 
 
 @pytest.fixture(scope="module")
-def logged(tmp_path_factory) -> tuple[Path, str]:
-    """(output_dir, run id) of a debug job that logged and registered its model as `gestures`."""
+def logged(tmp_path_factory) -> tuple[Path, str, list[str]]:
+    """(output_dir, run id, the three runs' stdout) of a debug job recorded first without its model, then
+    run again with ``tracking.log_model=true tracking.register_model=gestures`` (the model is logged into
+    the recorded run and registered as `gestures`), then a third time with ``tracking.log_model=true``."""
     tmp = tmp_path_factory.mktemp("model_run")
     out = tmp / "out"
-    job = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "sphri",
-            *DATA,
-            f"output_dir={out}",
-            "tracking.log_model=true",
-            "tracking.register_model=gestures",
-        ],
-        capture_output=True,
-        text=True,
-        cwd=tmp,
-        env=_env(),
-        timeout=600,
-    )
-    assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
-    status = json.loads(next(out.glob("runs/*/*/sphri_status.json")).read_text())
-    return out, status["mlflow_run_id"]
+    args = [sys.executable, "-m", "sphri", *DATA, f"output_dir={out}"]
+    runs = []
+    for flags in (
+        ["tracking.log_model=false"],
+        ["tracking.log_model=true", "tracking.register_model=gestures"],
+        ["tracking.log_model=true"],
+    ):
+        job = subprocess.run([*args, *flags], capture_output=True, text=True, cwd=tmp, env=_env(), timeout=600)
+        assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
+        runs.append(job.stdout)
+    status = json.loads(min(out.glob("runs/*/*/sphri_status.json")).read_text())  # the first run's
+    return out, status["mlflow_run_id"], runs
 
 
 def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windows(logged, tmp_path):
@@ -54,7 +49,7 @@ def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windo
     from sphri.hardware.train_export import training_windows
     from sphri.tracking.mlflow_tracker import default_uri
 
-    out, run_id = logged
+    out, run_id, _ = logged
     windows = training_windows(open_pipeline([*DATA, f"output_dir={out}"]))
     np.save(tmp_path / "x.npy", windows.x[:6].astype(np.float32))
     code = (
@@ -85,7 +80,7 @@ def test_registered_model_resolves_for_skin_live_only_when_remote_is_allowed(log
     from sphri.hardware.model_file import ModelFileError, load_model, resolve_model_path
     from sphri.tracking.mlflow_tracker import default_uri
 
-    out, _ = logged
+    out, _, _ = logged
     uri = default_uri(out)
     path = resolve_model_path("models:/gestures/1", uri, allow_remote=True)
     assert path.suffix == ".sphrimodel" and load_model(path).window_length == 50
@@ -108,7 +103,7 @@ def test_the_run_lists_its_model_and_the_model_names_installable_requirements(lo
     from sphri import __version__
     from sphri.tracking.mlflow_tracker import MlflowTracker, default_uri
 
-    out, run_id = logged
+    out, run_id, _ = logged
     client = MlflowClient(default_uri(out))
     run = client.get_run(run_id)
     (output,) = run.outputs.model_outputs  # MLflow's logged model, linked to the run
@@ -118,18 +113,10 @@ def test_the_run_lists_its_model_and_the_model_names_installable_requirements(lo
     assert any(r.startswith("torch==") for r in reqs) and not any("+" in r for r in reqs)  # no local labels
 
 
-def test_log_model_on_an_already_recorded_config_logs_it_or_says_where_it_is(tmp_path):
+def test_log_model_on_an_already_recorded_config_logs_it_or_says_where_it_is(logged):
     """A config first recorded without its model, run again with tracking.log_model=true, gets its model
     logged into the recorded run; a third run says the model is already there (never silently nothing)."""
-    out = tmp_path / "out"
-    args = [sys.executable, "-m", "sphri", *DATA, f"output_dir={out}"]
-    runs = []
-    for flag in ("false", "true", "true"):
-        job = subprocess.run(
-            [*args, f"tracking.log_model={flag}"], capture_output=True, text=True, cwd=tmp_path, env=_env(), timeout=600
-        )
-        assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
-        runs.append(job.stdout)
+    runs = logged[2]
     assert "model " not in runs[0].split("model       rf")[-1]
     assert "already recorded" in runs[1] and "model       logged runs:/" in runs[1]
     assert "model       model already logged in that run: models:/" in runs[2]
