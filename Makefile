@@ -31,7 +31,7 @@ lint: install         ## ruff (lint + format check) and mypy on the typed module
 # module fixtures are built once. `make test WORKERS=0` runs them in one process.
 WORKERS ?= auto
 test: lint            ## lint, then the test suite without slow tests
-	$(BIN)/python -m pytest -m "not slow" -q -n $(WORKERS) --dist loadscope $(ARGS)
+	$(BIN)/python -m pytest -m "not slow" -q -n $(WORKERS) --dist loadscope --no-loadscope-reorder $(ARGS)
 
 # The cluster launchers (Ray, SLURM) are tested by test-all only: installed once,
 # again only when pyproject.toml (or the base install) changed.
@@ -41,7 +41,7 @@ $(CLUSTER_STAMP): pyproject.toml $(STAMP)
 	@touch $(CLUSTER_STAMP)
 
 test-all: install $(CLUSTER_STAMP)  ## every test, slow ones, cluster launchers and deep property tests included
-	SPHRI_DEEP_TESTS=1 $(BIN)/python -m pytest -q -n $(WORKERS) --dist loadscope $(ARGS)
+	SPHRI_DEEP_TESTS=1 $(BIN)/python -m pytest -q -n $(WORKERS) --dist loadscope --no-loadscope-reorder $(ARGS)
 
 bench: install        ## benchmarks -> outputs/bench/*.json, summary.md, plots
 	$(BIN)/python bench/run_all.py $(ARGS)

@@ -371,3 +371,11 @@ def test_the_geometry_floor_sits_below_the_surfaces_and_the_stages():
         AssertionError, match=r"sphri\.geometry\.samples \(layer geometry floor\) imports sphri\.surface"
     ):
         check_layers(bad, table)
+
+
+def test_the_suites_heavy_first_order_names_real_test_modules():
+    """tests/conftest.py runs its HEAVY_FIRST modules first; a renamed module would silently drop out."""
+    from tests.conftest import HEAVY_FIRST
+
+    missing = [m for m in HEAVY_FIRST if not (PACKAGE.parent / m).is_file()]
+    assert not missing and len(set(HEAVY_FIRST)) == len(HEAVY_FIRST), missing
