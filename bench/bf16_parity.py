@@ -15,8 +15,9 @@ writes ``outputs/bench/bf16_parity.json`` and a Markdown table on stdout:
   seeds (what changing only the initialisation moves the result by);
 - the machine each run recorded (``sphri.machine.*`` tags, torch) and the fit time per fold.
 
-The verdict is printed as measured: "within the seed spread" when the paired mean difference
-and both ends of its interval lie inside +/- the largest float32 seed difference. Usage:
+The verdict is printed as measured: "within the seed spread" when both ends of the paired
+difference's interval lie inside +/- the largest float32 seed difference; with one seed in both
+precisions there is no spread and no verdict. Usage:
 ``python bench/bf16_parity.py OUTPUT_DIR [--res 18]``.
 """
 
@@ -111,7 +112,8 @@ def compare(found: dict[str, dict[int, dict[str, Any]]]) -> dict[str, Any]:
         lo, hi = bootstrap_ci(diff)
         f32 = per["float32"]["seed_means"]
         seed_gap = max((abs(a - b) for a, b in itertools.combinations(f32, 2)), default=float("nan"))
-        within = bool(max(abs(lo), abs(hi)) <= seed_gap) if np.isfinite(seed_gap) else False
+        # one seed has no spread to compare with: no verdict (None), not "outside"
+        within = bool(max(abs(lo), abs(hi)) <= seed_gap) if np.isfinite(seed_gap) else None
         out["metrics"][name] = {
             **per,
             "n_pairs": len(pairs),
@@ -154,6 +156,9 @@ def main(argv: list[str] | None = None) -> int:
     path = write_json("bf16_parity", result)
     print(table(result))
     for name, m in result["metrics"].items():
+        if m["within_seed_spread"] is None:
+            print(f"{name}: no verdict: one seed in both precisions has no seed spread to compare with")
+            continue
         verdict = "within" if m["within_seed_spread"] else "NOT within"
         print(f"{name}: bf16 is {verdict} the float32 seed spread ({len(result['seeds'])} seeds)")
     print(f"written: {path}")

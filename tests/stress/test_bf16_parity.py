@@ -69,6 +69,12 @@ def test_a_shift_larger_than_the_seed_gap_is_not_within(tmp_path: Path):
     assert not compare(collect(tmp_path, 18))["metrics"]["accuracy"]["within_seed_spread"]
 
 
+def test_one_seed_gives_the_paired_difference_but_no_verdict(tmp_path: Path):
+    _store(tmp_path, {("float32", 0): [0.60, 0.50, 0.70], ("bf16", 0): [0.50, 0.40, 0.60]})
+    acc = compare(collect(tmp_path, 18))["metrics"]["accuracy"]
+    assert acc["paired_mean_diff"] == pytest.approx(-0.1) and acc["within_seed_spread"] is None
+
+
 def test_no_seed_in_both_precisions_is_one_line(tmp_path: Path):
     _store(tmp_path, {("float32", 0): [0.6, 0.5]})
     with pytest.raises(SystemExit, match="no seed has a finished job in both precisions"):
