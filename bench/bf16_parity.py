@@ -62,7 +62,7 @@ def collect(output_dir: Path, res: int) -> dict[str, dict[int, dict[str, Any]]]:
         )
         for run in runs:
             params = run.data.params
-            if not str(params.get("model", "")).lower().startswith(("cnn", "cnngru")):
+            if not str(params.get("model", "")).lower().startswith("cnn"):
                 continue
             precision, seed = params.get("run.precision"), params.get("model.seed")
             if precision not in found or seed is None:
@@ -78,15 +78,9 @@ def collect(output_dir: Path, res: int) -> dict[str, dict[int, dict[str, Any]]]:
     return found
 
 
-def bootstrap_ci(diff: np.ndarray, n: int = 10_000, seed: int = 0) -> tuple[float, float]:
-    """95 % percentile interval of the mean of ``diff`` over ``n`` resamples."""
-    rng = np.random.default_rng(seed)
-    means = diff[rng.integers(0, len(diff), size=(n, len(diff)))].mean(axis=1)
-    lo, hi = np.percentile(means, [2.5, 97.5])
-    return float(lo), float(hi)
-
-
 def compare(found: dict[str, dict[int, dict[str, Any]]]) -> dict[str, Any]:
+    from sphri.evaluate.metrics import bootstrap_ci
+
     seeds = sorted(set(found["float32"]) & set(found["bf16"]))
     if not seeds:
         raise SystemExit(
@@ -109,7 +103,7 @@ def compare(found: dict[str, dict[int, dict[str, Any]]]) -> dict[str, Any]:
             for f in sorted(set(found["bf16"][s][name]) & set(found["float32"][s][name]))
         ]
         diff = np.asarray(pairs)
-        lo, hi = bootstrap_ci(diff)
+        lo, hi = bootstrap_ci(diff, n_boot=10_000, seed=0)
         f32 = per["float32"]["seed_means"]
         seed_gap = max((abs(a - b) for a, b in itertools.combinations(f32, 2)), default=float("nan"))
         # one seed has no spread to compare with: no verdict (None), not "outside"
