@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from sphri.report.analysis import RuleSettings, SweepReport, analyze
+from sphri.report.compute import compute_rows
 from sphri.report.figures import plot_bootstrap, plot_curves, plot_recall, plot_tornado
 from sphri.report.render import comparison_rows, render_html, render_text, sensitivity_rows, tolerance_rows
 from sphri.report.reqmap import map_rows, plot_map
@@ -173,6 +174,8 @@ def write_report(
     if report.maps:
         tables["requirement_map"] = out_dir / "requirement_map.csv"
         pd.DataFrame(map_rows(report)).to_csv(tables["requirement_map"], index=False, float_format="%.6g")
+    tables["compute"] = out_dir / "compute.csv"
+    pd.DataFrame(compute_rows(report.sweep)).to_csv(tables["compute"], index=False, float_format="%.6g")
     pts = []
     for g in report.groups:
         p = g.points.copy()
@@ -245,6 +248,7 @@ def _json(report: SweepReport) -> dict:
                 for s in report.sensitivity
             ],
             "requirement_map": map_rows(report),
+            "compute": compute_rows(report.sweep),
             "notes": report.notes,
             "failed": report.sweep.failed,
         }

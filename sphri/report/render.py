@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from sphri.report.analysis import SweepReport, _fmt_pitch, gestures_by_need, noise_text, recognised
+from sphri.report.compute import compute_lines, compute_rows
 from sphri.templating import render_page
 from sphri.types import GESTURES
 
@@ -210,6 +211,7 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
         tolerances=tolerance_rows(report),
         comparison=list(zip(report.groups, comparison_rows(report))),
         gestures=gesture_cells(report) if "recall" in figures else [],
+        compute=compute_rows(s),
         notes=notes,
     )
 
@@ -269,6 +271,9 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
             lines.append("  gestures never recognised above chance: " + ", ".join(never))
         for w in g.warnings:
             lines.append("  WARNING: " + w)
+    lines.append("")
+    lines.append("[compute: where and how long each curve ran]")
+    lines += compute_lines(compute_rows(report.sweep))
     notes = list(report.notes) + [
         f"FAILED job {f['run_id']} ({f['group']}, encoder.res={f['res']}): {f['error']}" for f in report.sweep.failed
     ]

@@ -94,8 +94,11 @@ class Sweep:
     parent_tags: dict[str, str]
     runs: pd.DataFrame
     """One row per finished job: run_id, res, group, ``key.<k>`` per group key, context
-    (robot, region, link, dataset, synthetic, cv_scheme, model) and the
-    ``RESOLUTION_PARAMS`` (mm, cm^2, counts)."""
+    (robot, region, link, dataset, synthetic, cv_scheme, model), the
+    ``RESOLUTION_PARAMS`` (mm, cm^2, counts), and where and how long it ran: ``wall_s`` (this run's
+    start to end), ``earlier_attempts_s`` (the runs of the same config that were interrupted or
+    failed before it finished), ``evaluated_here``, ``cpu_model``, ``cpu_count``, ``gpu``, ``torch``,
+    ``device``, ``precision`` (the model's, as resolved on that machine; "" when not recorded)."""
     folds: pd.DataFrame
     """One row per (job, participant): run_id, participant, n_test, accuracy,
     macro_f1, recall_<gesture> (NaN where unknown)."""
@@ -193,11 +196,23 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
 
     finished = [r for r in runs if r.info.status == "FINISHED"]
     failed_runs = [r for r in runs if r.info.status == "FAILED"]
+    finished_hashes = {_config_hash(r) for r in finished}
     other = [r for r in runs if r.info.status not in ("FINISHED", "FAILED")]
+    resumed = [r for r in other if _config_hash(r) in finished_hashes]
+    other = [r for r in other if _config_hash(r) not in finished_hashes]
+    if resumed:
+        notes.append(
+            f"{len(resumed)} interrupted attempt(s) of jobs that finished later (resumed): "
+            "their time is counted in the compute table"
+        )
     if other:
         notes.append(
             f"{len(other)} job(s) not finished ({', '.join(sorted({r.info.status for r in other}))}): left out"
         )
+    earlier_s: dict[str, float] = {}  # config hash -> wall seconds of its runs that did not finish
+    for r in runs:
+        if r.info.status != "FINISHED" and _config_hash(r) in finished_hashes:
+            earlier_s[_config_hash(r)] = earlier_s.get(_config_hash(r), 0.0) + _duration_s(r)
     if not finished:
         raise ReportError(f"sweep {sweep_id}: none of its {len(runs)} jobs finished; nothing to report")
 
@@ -227,6 +242,7 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
             "the latest is used"
         )
     table = table.reset_index(drop=True)
+    table["earlier_attempts_s"] = [earlier_s.get(h, 0.0) for h in table["config_hash"]]
 
     folds = pd.concat(
         [_fold_rows(client, r) for r in finished if r.info.run_id in set(table["run_id"])], ignore_index=True
@@ -273,6 +289,17 @@ def _children(client: Any, experiment_id: str, parent_id: str) -> list[Any]:
             return runs
 
 
+def _config_hash(run: Any) -> str:
+    return str(run.data.tags.get("sphri.config_hash", run.info.run_id))
+
+
+def _duration_s(run: Any) -> float:
+    """Wall seconds from the run's start to its end (0 for a run with no end recorded: still running,
+    or its process was killed before MLflow heard of it)."""
+    start, end = run.info.start_time, run.info.end_time
+    return max(0.0, (end - start) / 1000.0) if start and end else 0.0
+
+
 def _float(value: Any) -> float:
     try:
         return float(value)
@@ -303,6 +330,15 @@ def _run_row(run: Any) -> dict[str, Any]:
         "layout_kind": p.get("resolution.layout_kind", p.get("layout", "?")),
         "n_participants": _float(p.get("meta.n_participants")),
         "job_dir": t.get("sphri.job_dir", ""),
+        # where and how long (the report's compute table, sphri.report.compute)
+        "wall_s": _duration_s(run),
+        "evaluated_here": t.get("sphri.evaluated", "in this run") == "in this run",
+        "cpu_model": t.get("sphri.machine.cpu_model", "unknown CPU"),
+        "cpu_count": t.get("sphri.machine.cpu_count", "?"),
+        "gpu": t.get("sphri.machine.gpu", "unknown"),
+        "torch": t.get("sphri.lib.torch", ""),
+        "device": p.get("run.device", ""),
+        "precision": p.get("run.precision", ""),
     }
     for k in RESOLUTION_PARAMS:
         row[k] = _float(p.get(f"resolution.{k}"))
