@@ -1,9 +1,9 @@
 """Where and how long each curve of a sweep was computed: the report's compute table.
 
-Per curve (group): its jobs' wall time summed (this run of each job, start to end, plus the
-runs of the same config that were interrupted or failed before it finished, so a sweep resumed
-across sessions counts every attempt), the slowest job, and the machines and model runtime the
-jobs recorded in MLflow (``sphri.machine.*`` tags, ``run.device`` / ``run.precision`` params,
+Per curve (group): its jobs' wall time summed (each finished job's ``time/<stage>_s`` metrics:
+the stages it computed in its finishing run; folds a resumed job loaded from the stage cache and
+interrupted attempts are not counted, so a resumed curve took longer than this), the slowest job,
+and the machines and model runtime the jobs recorded in MLflow (``sphri.machine.*`` tags, ``run.device`` / ``run.precision`` params,
 torch version). Jobs whose evaluation came from the stage cache computed nothing here; they are
 counted apart, so a curve computed elsewhere does not look free.
 
@@ -24,8 +24,6 @@ COLUMNS = (
     "group",
     "jobs",
     "jobs_from_cache",
-    "wall_h",
-    "earlier_attempts_h",
     "total_h",
     "slowest_res",
     "slowest_h",
@@ -43,7 +41,7 @@ def compute_rows(sweep: Sweep) -> list[dict[str, Any]]:
     """One row per group (:data:`COLUMNS`): jobs, hours, the slowest job, machines, model runtime."""
     rows = []
     for label, jobs in sweep.groups():
-        total_s = jobs["wall_s"].to_numpy(float) + jobs["earlier_attempts_s"].to_numpy(float)
+        total_s = jobs["wall_s"].to_numpy(float)
         slow = int(np.argmax(total_s)) if len(jobs) else 0
         machines = [f"{m} ({n} CPUs), GPU {g}" for m, n, g in zip(jobs["cpu_model"], jobs["cpu_count"], jobs["gpu"])]
         here = jobs[jobs["evaluated_here"].astype(bool)]
@@ -53,8 +51,6 @@ def compute_rows(sweep: Sweep) -> list[dict[str, Any]]:
                 "group": label,
                 "jobs": len(jobs),
                 "jobs_from_cache": int((~jobs["evaluated_here"].astype(bool)).sum()),
-                "wall_h": float(jobs["wall_s"].sum()) / 3600.0,
-                "earlier_attempts_h": float(jobs["earlier_attempts_s"].sum()) / 3600.0,
                 "total_h": float(total_s.sum()) / 3600.0,
                 "slowest_res": int(jobs["res"].iloc[slow]),
                 "slowest_h": float(total_s[slow]) / 3600.0,
@@ -74,12 +70,9 @@ def compute_lines(rows: list[dict[str, Any]]) -> list[str]:
     """The compute table as text lines (the summary's ``[compute]`` section)."""
     out = []
     for r in rows:
-        earlier = (
-            f", {_hours(r['earlier_attempts_h'])} of it in interrupted attempts" if r["earlier_attempts_h"] > 0 else ""
-        )
         cached = f", {r['jobs_from_cache']} evaluated from the cache" if r["jobs_from_cache"] else ""
         out.append(
-            f"  {r['group']}: {r['jobs']} jobs{cached}, {_hours(r['total_h'])} wall summed over jobs{earlier}; "
+            f"  {r['group']}: {r['jobs']} jobs{cached}, {_hours(r['total_h'])} wall summed over jobs' stages; "
             f"slowest res {r['slowest_res']} ({_hours(r['slowest_h'])}); on {r['machines']}; "
             f"model on {r['model_runtime']}" + (f"; torch {r['torch']}" if r["torch"] != "not recorded" else "")
         )

@@ -95,9 +95,8 @@ class Sweep:
     runs: pd.DataFrame
     """One row per finished job: run_id, res, group, ``key.<k>`` per group key, context
     (robot, region, link, dataset, synthetic, cv_scheme, model), the
-    ``RESOLUTION_PARAMS`` (mm, cm^2, counts), and where and how long it ran: ``wall_s`` (this run's
-    start to end), ``earlier_attempts_s`` (the runs of the same config that were interrupted or
-    failed before it finished), ``evaluated_here``, ``cpu_model``, ``cpu_count``, ``gpu``, ``torch``,
+    ``RESOLUTION_PARAMS`` (mm, cm^2, counts), and where and how long it ran: ``wall_s`` (the sum of its
+    ``time/<stage>_s`` metrics), ``evaluated_here``, ``cpu_model``, ``cpu_count``, ``gpu``, ``torch``,
     ``device``, ``precision`` (the model's, as resolved on that machine; "" when not recorded)."""
     folds: pd.DataFrame
     """One row per (job, participant): run_id, participant, n_test, accuracy,
@@ -203,16 +202,12 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
     if resumed:
         notes.append(
             f"{len(resumed)} interrupted attempt(s) of jobs that finished later (resumed): "
-            "their time is counted in the compute table"
+            "the compute table counts only the finished runs' stage times"
         )
     if other:
         notes.append(
             f"{len(other)} job(s) not finished ({', '.join(sorted({r.info.status for r in other}))}): left out"
         )
-    earlier_s: dict[str, float] = {}  # config hash -> wall seconds of its runs that did not finish
-    for r in runs:
-        if r.info.status != "FINISHED" and _config_hash(r) in finished_hashes:
-            earlier_s[_config_hash(r)] = earlier_s.get(_config_hash(r), 0.0) + _duration_s(r)
     if not finished:
         raise ReportError(f"sweep {sweep_id}: none of its {len(runs)} jobs finished; nothing to report")
 
@@ -242,7 +237,6 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
             "the latest is used"
         )
     table = table.reset_index(drop=True)
-    table["earlier_attempts_s"] = [earlier_s.get(h, 0.0) for h in table["config_hash"]]
 
     folds = pd.concat(
         [_fold_rows(client, r) for r in finished if r.info.run_id in set(table["run_id"])], ignore_index=True
@@ -293,11 +287,11 @@ def _config_hash(run: Any) -> str:
     return str(run.data.tags.get("sphri.config_hash", run.info.run_id))
 
 
-def _duration_s(run: Any) -> float:
-    """Wall seconds from the run's start to its end (0 for a run with no end recorded: still running,
-    or its process was killed before MLflow heard of it)."""
-    start, end = run.info.start_time, run.info.end_time
-    return max(0.0, (end - start) / 1000.0) if start and end else 0.0
+def _stage_seconds(metrics: dict[str, float]) -> float:
+    """Wall seconds of the job's stages in this run: the sum of its ``time/<stage>_s`` metrics. (A job's
+    MLflow run is opened when the job logs its result, so the run's own start-to-end time is not the job's.)
+    Folds a resumed job loaded from the stage cache are not counted."""
+    return float(sum(v for k, v in metrics.items() if k.startswith("time/") and k.endswith("_s") and np.isfinite(v)))
 
 
 def _float(value: Any) -> float:
@@ -331,7 +325,7 @@ def _run_row(run: Any) -> dict[str, Any]:
         "n_participants": _float(p.get("meta.n_participants")),
         "job_dir": t.get("sphri.job_dir", ""),
         # where and how long (the report's compute table, sphri.report.compute)
-        "wall_s": _duration_s(run),
+        "wall_s": _stage_seconds(dict(m)),
         "evaluated_here": t.get("sphri.evaluated", "in this run") == "in this run",
         "cpu_model": t.get("sphri.machine.cpu_model", "unknown CPU"),
         "cpu_count": t.get("sphri.machine.cpu_count", "?"),
