@@ -24,6 +24,7 @@ import numpy as np
 import pandas as pd
 
 from sphri.report.analysis import RuleSettings, SweepReport, analyze
+from sphri.report.compute import COLUMNS as COMPUTE_COLUMNS
 from sphri.report.compute import compute_rows
 from sphri.report.figures import plot_bootstrap, plot_curves, plot_recall, plot_tornado
 from sphri.report.render import comparison_rows, render_html, render_text, sensitivity_rows, tolerance_rows
@@ -175,7 +176,9 @@ def write_report(
         tables["requirement_map"] = out_dir / "requirement_map.csv"
         pd.DataFrame(map_rows(report)).to_csv(tables["requirement_map"], index=False, float_format="%.6g")
     tables["compute"] = out_dir / "compute.csv"
-    pd.DataFrame(compute_rows(report.sweep)).to_csv(tables["compute"], index=False, float_format="%.6g")
+    pd.DataFrame(compute_rows(report.sweep), columns=COMPUTE_COLUMNS).to_csv(
+        tables["compute"], index=False, float_format="%.6g"
+    )
     pts = []
     for g in report.groups:
         p = g.points.copy()

@@ -41,7 +41,7 @@ def compute_rows(sweep: Sweep) -> list[dict[str, Any]]:
     """One row per group (:data:`COLUMNS`): jobs, hours, the slowest job, machines, model runtime."""
     rows = []
     for label, jobs in sweep.groups():
-        total_s = jobs["wall_s"].to_numpy(float)
+        total_s = jobs["stage_s"].to_numpy(float)
         slow = int(np.argmax(total_s)) if len(jobs) else 0
         machines = [f"{m} ({n} CPUs), GPU {g}" for m, n, g in zip(jobs["cpu_model"], jobs["cpu_count"], jobs["gpu"])]
         here = jobs[jobs["evaluated_here"].astype(bool)]

@@ -95,7 +95,7 @@ class Sweep:
     runs: pd.DataFrame
     """One row per finished job: run_id, res, group, ``key.<k>`` per group key, context
     (robot, region, link, dataset, synthetic, cv_scheme, model), the
-    ``RESOLUTION_PARAMS`` (mm, cm^2, counts), and where and how long it ran: ``wall_s`` (the sum of its
+    ``RESOLUTION_PARAMS`` (mm, cm^2, counts), and where and how long it ran: ``stage_s`` (wall seconds, the sum of its
     ``time/<stage>_s`` metrics), ``evaluated_here``, ``cpu_model``, ``cpu_count``, ``gpu``, ``torch``,
     ``device``, ``precision`` (the model's, as resolved on that machine; "" when not recorded)."""
     folds: pd.DataFrame
@@ -312,7 +312,7 @@ def _run_row(run: Any) -> dict[str, Any]:
     row: dict[str, Any] = {
         "run_id": run.info.run_id,
         "start_time": int(run.info.start_time or 0),
-        "config_hash": t.get("sphri.config_hash", run.info.run_id),
+        "config_hash": _config_hash(run),
         "res": res,
         "model": p.get("model", "?"),
         "robot": p.get("meta.robot", p.get("robot", "?")),
@@ -325,7 +325,7 @@ def _run_row(run: Any) -> dict[str, Any]:
         "n_participants": _float(p.get("meta.n_participants")),
         "job_dir": t.get("sphri.job_dir", ""),
         # where and how long (the report's compute table, sphri.report.compute)
-        "wall_s": _stage_seconds(dict(m)),
+        "stage_s": _stage_seconds(dict(m)),
         "evaluated_here": t.get("sphri.evaluated", "in this run") == "in this run",
         "cpu_model": t.get("sphri.machine.cpu_model", "unknown CPU"),
         "cpu_count": t.get("sphri.machine.cpu_count", "?"),
