@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
+import forked_cli
 import pytest
 from hypothesis import settings
 
@@ -22,25 +21,29 @@ SHARED = Path(os.environ.get("SPHRI_SHARED", REPO.parent / "shared"))
 
 #: The test modules that take longest, run first (longest first). With the Makefile's ``--dist loadscope
 #: --no-loadscope-reorder`` the two workers then finish together: xdist's own order (most tests first)
-#: left these for last, and one worker ran the last of them alone. On the durations of a fresh clone's
-#: CI run (2-core AMD EPYC, 2026-11-26) a simulated schedule gives 601 s for xdist's order and 586 s for
-#: this one. Order only: no test depends on it; a module missing here runs after these, in collection order.
+#: left these for last, and one worker ran the last of them alone. Ordered by the module times of a
+#: ``--durations=0`` run of the suite (2-core AMD EPYC, 2026-11-26, after the CLI tests moved to
+#: ``forked_cli``). Order only: no test depends on it; a module missing here runs after these, in
+#: collection order.
 HEAVY_FIRST = (
     "tests/test_sweeps_store.py",
-    "tests/test_packaging.py",
-    "tests/test_tracking_model.py",
-    "tests/test_tracking.py",
     "tests/test_experiments.py",
+    "tests/test_packaging.py",
+    "tests/report/test_report.py",
+    "tests/models/test_cnn_gru.py",
+    "tests/test_tracking.py",
     "tests/test_sphri_cli.py",
     "tests/sessions/test_study.py",
-    "tests/test_runtime_settings.py",
-    "tests/models/test_cnn_gru.py",
-    "tests/report/test_report.py",
+    "tests/report/test_report_figures.py",
     "tests/test_fold_resume.py",
-    "tests/analysis/test_coverage.py",
     "tests/test_command.py",
-    "tests/test_sensitivity.py",
+    "tests/test_tracking_model.py",
+    "tests/test_config.py",
     "tests/test_requirement_map.py",
+    "tests/analysis/test_coverage.py",
+    "tests/stress/test_finite_sweep.py",
+    "tests/test_runtime_settings.py",
+    "tests/test_sensitivity.py",
 )
 
 
@@ -50,8 +53,9 @@ def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item
 
 
 def _python(args: list[str], cwd: Path, env: dict[str, str] | None = None, timeout: int = 600):
-    """``python <args>`` in ``cwd``, its output captured as text."""
-    return subprocess.run([sys.executable, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    """``python <args>`` in ``cwd``, its output captured as text (``-m`` modules in a process forked from
+    a server that imported sphri's dependencies once: ``forked_cli``)."""
+    return forked_cli.run(args, cwd, env, timeout)
 
 
 @pytest.fixture(scope="session")

@@ -5,10 +5,10 @@ from __future__ import annotations
 import dataclasses
 import os
 import subprocess
-import sys
 from pathlib import Path
 from typing import Literal
 
+import forked_cli
 import pytest
 
 from sphri.command import BY_NAME, VERBS, find, help_text, main
@@ -26,9 +26,7 @@ def _env(**extra: str) -> dict[str, str]:
 
 
 def _python(args: list[str], cwd: Path, timeout: int = 300, **env: str) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, *args], capture_output=True, text=True, cwd=cwd, env=_env(**env), timeout=timeout
-    )
+    return forked_cli.run(args, cwd, _env(**env), timeout)  # `-c` code: a fresh interpreter
 
 
 # --------------------------------------------------------------------------- the parser, on a schema of every type

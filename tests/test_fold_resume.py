@@ -19,6 +19,7 @@ import sys
 import time
 from pathlib import Path
 
+import forked_cli
 import numpy as np
 import pytest
 
@@ -45,7 +46,7 @@ def _env() -> dict[str, str]:
 
 
 def _run(out: Path, *extra: str) -> str:
-    proc = subprocess.run(_cmd(out, *extra), cwd=out.parent, env=_env(), capture_output=True, text=True, timeout=600)
+    proc = forked_cli.run(_cmd(out, *extra)[1:], out.parent, _env(), 600)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return proc.stdout + proc.stderr
 

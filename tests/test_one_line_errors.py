@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import sqlite3
 import subprocess
-import sys
 from pathlib import Path
 
+import forked_cli
 import pytest
 
 
 def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", *args], cwd=cwd, capture_output=True, text=True, timeout=300)
+    return forked_cli.run(["-m", *args], cwd, None, 300)
 
 
 def _one_line(proc: subprocess.CompletedProcess, code: int, *words: str) -> str:

@@ -6,9 +6,9 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
+import forked_cli
 import pytest
 import yaml
 from hydra.core.config_store import ConfigStore
@@ -101,9 +101,7 @@ def test_a_result_setting_changes_the_hash_and_its_stages(tmp_path, override, st
 
 def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
-    return subprocess.run(
-        [sys.executable, "-m", "sphri", *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=900
-    )
+    return forked_cli.run(["-m", "sphri", *args], cwd, env, 900)
 
 
 def _job_runs(out: Path) -> list:

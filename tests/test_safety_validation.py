@@ -5,9 +5,9 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 from pathlib import Path
 
+import forked_cli
 import numpy as np
 import pandas as pd
 import pytest
@@ -158,9 +158,7 @@ def _run(args: list[str], tmp_path: Path, env_extra: dict | None = None) -> subp
     env = {**os.environ, "PYTHONPATH": str(REPO), **(env_extra or {})}
     env.pop("HYDRA_FULL_ERROR", None)
     env.update(env_extra or {})
-    return subprocess.run(
-        [sys.executable, "-m", *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300
-    )
+    return forked_cli.run(["-m", *args], tmp_path, env, 300)
 
 
 def test_main_entry_point_prints_one_line_for_a_mesh_error_and_the_traceback_on_request(tmp_path):

@@ -6,6 +6,7 @@ import os
 import subprocess
 from pathlib import Path
 
+import forked_cli
 import pytest
 
 from sphri.cli import components, main
@@ -67,8 +68,6 @@ def test_unknown_group():
 
 def test_validate_checks_every_job_of_a_sweep_and_runs_none(tmp_path):
     import os
-    import subprocess
-    import sys
 
     env = {
         **os.environ,
@@ -76,14 +75,7 @@ def test_validate_checks_every_job_of_a_sweep_and_runs_none(tmp_path):
     }
 
     def validate(*args):
-        return subprocess.run(
-            [sys.executable, "-m", "sphri.cli", "validate", *args],
-            capture_output=True,
-            text=True,
-            cwd=tmp_path,
-            env=env,
-            timeout=300,
-        )
+        return forked_cli.run(["-m", "sphri.cli", "validate", *args], tmp_path, env, 300)
 
     bad = validate("-m", "+debug=fast", "encoder.res=0,4,abc")
     assert bad.returncode == 2
@@ -297,13 +289,9 @@ def test_row_never_hangs_on_a_head_wider_than_the_width():
 
 def _run(args: list[str], cwd: Path, module: str = "sphri") -> subprocess.CompletedProcess:
     import os
-    import subprocess
-    import sys
 
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}  # as a user runs it: not verbose
-    return subprocess.run(
-        [sys.executable, "-m", module, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=600
-    )
+    return forked_cli.run(["-m", module, *args], cwd, env, 600)
 
 
 def test_an_unknown_key_or_a_wrong_type_is_one_line_with_or_without_plus(tmp_path):

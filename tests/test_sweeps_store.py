@@ -11,6 +11,7 @@ import sys
 import time
 from pathlib import Path
 
+import forked_cli
 import pytest
 
 from sphri.tracking.mlflow_tracker import PARENT_FILE, default_uri
@@ -23,9 +24,7 @@ def _env() -> dict[str, str]:
 
 
 def _sphri(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
-    return subprocess.run(
-        [sys.executable, "-m", "sphri", *args], cwd=cwd, env=_env(), capture_output=True, text=True, timeout=timeout
-    )
+    return forked_cli.run(["-m", "sphri", *args], cwd, _env(), timeout)
 
 
 def _runs(out: Path, kind: str | None = None) -> list:
@@ -39,10 +38,10 @@ def _runs(out: Path, kind: str | None = None) -> list:
 
 # ------------------------------------------------------------------ the store
 def test_four_concurrent_first_runs_share_one_new_store(tmp_path: Path):
-    """Four first runs at once into one new output_dir: all finish, four runs in the store (about 60 s on 2 cores)."""
+    """Four first runs at once into one new output_dir (four processes, forked together so they reach the
+    new store together): all finish, four runs in the store."""
     out = tmp_path / "race"
     args = [
-        sys.executable,
         "-m",
         "sphri",
         "+debug=fast",
@@ -52,15 +51,9 @@ def test_four_concurrent_first_runs_share_one_new_store(tmp_path: Path):
         f"output_dir={out}",
     ]
     # four different experiments (seeds): the same one four times would be recorded once
-    procs = [
-        subprocess.Popen(
-            [*args, f"seed={i}"], cwd=tmp_path, env=_env(), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
-        )
-        for i in range(4)
-    ]
-    logs = [p.communicate(timeout=600)[0] for p in procs]
-    for p, log in zip(procs, logs):
-        assert p.returncode == 0, log[-3000:]
+    started = [forked_cli.start([*args, f"seed={i}"], tmp_path, _env()) for i in range(4)]  # four processes at once
+    for done in [s.wait(600) for s in started]:
+        assert done.returncode == 0, (done.stdout + done.stderr)[-3000:]
     jobs = _runs(out, "job")
     assert len(jobs) == 4 and all(r.info.status == "FINISHED" for r in jobs)
     from sphri.tracking.store import problems

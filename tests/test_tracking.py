@@ -7,6 +7,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import forked_cli
 import numpy as np
 import pytest
 
@@ -116,9 +117,7 @@ def test_params_are_flat_scalars():
 
 def _sphri(args: list[str], cwd: Path, timeout: int = 600) -> subprocess.CompletedProcess:
     env = {**os.environ, "PYTHONUNBUFFERED": "1", "HYDRA_FULL_ERROR": "1"}
-    return subprocess.run(
-        [sys.executable, "-m", "sphri", *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
-    )
+    return forked_cli.run(["-m", "sphri", *args], cwd, env, timeout)
 
 
 def test_parallel_multirun_makes_one_parent_with_four_children(tmp_path: Path):

@@ -10,6 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import forked_cli
 import numpy as np
 import pytest
 
@@ -30,14 +31,14 @@ def logged(tmp_path_factory) -> tuple[Path, str, list[str]]:
     the recorded run and registered as `gestures`), then a third time with ``tracking.log_model=true``."""
     tmp = tmp_path_factory.mktemp("model_run")
     out = tmp / "out"
-    args = [sys.executable, "-m", "sphri", *DATA, f"output_dir={out}"]
+    args = ["-m", "sphri", *DATA, f"output_dir={out}"]
     runs = []
     for flags in (
         ["tracking.log_model=false"],
         ["tracking.log_model=true", "tracking.register_model=gestures"],
         ["tracking.log_model=true"],
     ):
-        job = subprocess.run([*args, *flags], capture_output=True, text=True, cwd=tmp, env=_env(), timeout=600)
+        job = forked_cli.run([*args, *flags], tmp, _env(), 600)
         assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
         runs.append(job.stdout)
     status = json.loads(min(out.glob("runs/*/*/sphri_status.json")).read_text())  # the first run's
