@@ -133,10 +133,31 @@ class Started:
             self._tmp.cleanup()
 
 
-def start(args: list[str], cwd: Path | str, env: dict[str, str] | None = None) -> Started:
+class _FreshStarted:
+    """``start`` under ``SPHRI_TEST_SUBPROCESS=1``: a fresh interpreter, with ``Started``'s ``wait``."""
+
+    def __init__(self, args: list[str], cwd: Path | str, env: dict[str, str] | None) -> None:
+        self.args = [sys.executable, *args]
+        self._proc = subprocess.Popen(
+            self.args, cwd=cwd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+        )
+
+    def wait(self, timeout: float = 600) -> subprocess.CompletedProcess:
+        try:
+            out, err = self._proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self._proc.kill()
+            self._proc.communicate()
+            raise
+        return subprocess.CompletedProcess(self.args, self._proc.returncode, out, err)
+
+
+def start(args: list[str], cwd: Path | str, env: dict[str, str] | None = None) -> Started | _FreshStarted:
     """``python <args>`` (``-m <module> ...``) forked and left running: several at once run concurrently."""
     if len(args) < 2 or args[0] != "-m":
         raise ValueError(f"forked_cli.start runs `-m <module>` only, not {args[:2]}")
+    if os.environ.get("SPHRI_TEST_SUBPROCESS") == "1":
+        return _FreshStarted(args, cwd, env)
     return Started(args, cwd, env)
 
 

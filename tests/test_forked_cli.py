@@ -49,3 +49,15 @@ def test_a_run_past_its_timeout_is_killed_and_raises(tmp_path: Path):
     env = {**os.environ, "PYTHONPATH": str(tmp_path)}
     with pytest.raises(subprocess.TimeoutExpired):
         forked_cli.run(["-m", "sleepy"], tmp_path, env, timeout=1)
+
+
+def test_started_runs_wait_concurrently_and_the_escape_hatch_gives_fresh_interpreters(tmp_path: Path, monkeypatch):
+    (tmp_path / "who.py").write_text(
+        "import sys\nprint(sys.argv[1], 'preloaded' if 'mlflow' in sys.modules else 'fresh')\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(tmp_path)}
+    started = [forked_cli.start(["-m", "who", str(i)], tmp_path, env) for i in range(3)]
+    assert [s.wait(60).stdout for s in started] == [f"{i} preloaded\n" for i in range(3)]
+    monkeypatch.setenv("SPHRI_TEST_SUBPROCESS", "1")
+    assert forked_cli.run(["-m", "who", "a"], tmp_path, env).stdout == "a fresh\n"
+    assert forked_cli.start(["-m", "who", "b"], tmp_path, env).wait(60).stdout == "b fresh\n"
