@@ -169,8 +169,8 @@ def run(
 ) -> subprocess.CompletedProcess:
     """``python <args>`` (``args`` starting ``-m <module>``) in ``cwd``, output captured as text, as
     ``subprocess.run([sys.executable, *args], capture_output=True, text=True)`` returns it."""
-    if len(args) < 2 or args[0] != "-m" or os.environ.get("SPHRI_TEST_SUBPROCESS") == "1":
+    if len(args) < 2 or args[0] != "-m":  # `-c` code and scripts: a fresh interpreter
         return subprocess.run(
             [sys.executable, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
         )
-    return Started(args, cwd, env).wait(timeout)
+    return start(args, cwd, env).wait(timeout)
