@@ -41,6 +41,7 @@ HEAVY_FIRST = (
     "tests/test_config.py",
     "tests/test_requirement_map.py",
     "tests/analysis/test_coverage.py",
+    "tests/stress/test_cnn_gru_curve_device.py",
     "tests/stress/test_finite_sweep.py",
     "tests/test_runtime_settings.py",
     "tests/test_sensitivity.py",
