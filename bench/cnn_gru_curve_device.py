@@ -27,7 +27,11 @@ No saturation point is computed on a curve mixed from two machines: the report
     python bench/cnn_gru_curve_device.py compare CPU_OUTPUT_DIR --device-json outputs/bench/cnn_gru_curve_h100.json \\
         --figure docs/figures/resolution_rf_cnn_gru_cpu_h100.png
 
-The windows' content keys of two machines are compared too; equal keys mean bit-identical inputs.
+``stages`` prints the content key of every stage up to the windows at one resolution, and a key of
+the readings alone (:func:`readings_key`): run on two machines, it shows where their computations part
+and whether the model's inputs are bit-identical.
+
+    python bench/cnn_gru_curve_device.py stages 18 model=rf --cache-dir /tmp/sphri_cache
 """
 
 from __future__ import annotations
@@ -47,6 +51,39 @@ from _common import OUT, machine, write_json  # noqa: E402
 SWEEP = ["+experiment=resolution_sweep", "model=cnn_gru"]
 
 
+def readings_key(windows: Any) -> str:
+    """A hash of what the model is trained and tested on (a :class:`sphri.types.WindowedFrames`' readings,
+    labels and participants), without the taxels' geometry: two machines whose readings keys agree fed
+    the model bit-identical inputs even where a last-bit difference in the fitted surface changes the
+    content key."""
+    import hashlib
+
+    h = hashlib.blake2b(digest_size=10)
+    for a in (windows.x, windows.y, windows.groups):
+        a = np.ascontiguousarray(a.astype(str) if a.dtype.kind == "O" else a)  # objects: their text, not pointers
+        h.update(f"{a.dtype.str}:{a.shape}".encode())
+        h.update(a.data if a.size else b"")
+    return h.hexdigest()
+
+
+def stages(res: int, overrides: list[str], cache_dir: str) -> dict[str, str]:
+    """The content key of every stage up to the noisy windows at ``res``, and the readings key: run on two
+    machines, the first stage whose keys differ is where their computations part."""
+    from sphri import pipeline
+    from sphri.config import compose
+
+    cfg = compose([*SWEEP, f"encoder.res={res}", *overrides, "tracking.enabled=false", f"cache.dir={cache_dir}"])
+    p = pipeline.make_pipeline(cfg, pipeline.open_cache(cfg))
+    keys = {}
+    for st in [s.name for s in p.stages if s.name != "evaluate"]:
+        try:
+            keys[st] = pipeline.content_key(st, p.get(st))
+        except TypeError as exc:  # a value the codec cannot key
+            keys[st] = f"not keyed ({exc})"
+    keys["readings"] = readings_key(p.get("noise"))
+    return keys
+
+
 def run(resolutions: list[int], overrides: list[str], out: Path, budget_s: float, cache_dir: str) -> dict[str, Any]:
     """Evaluate each resolution in turn, rewriting ``out`` after each; returns its content."""
     from sphri import pipeline
@@ -64,7 +101,8 @@ def run(resolutions: list[int], overrides: list[str], out: Path, budget_s: float
         cfg = compose(args)
         p = pipeline.make_pipeline(cfg, pipeline.open_cache(cfg))
         t = time.time()
-        windows_key = pipeline.content_key("noise", p.get("noise"))
+        windows = p.get("noise")
+        windows_key = pipeline.content_key("noise", windows)
         data_s = time.time() - t
         t = time.time()
         cv, _meta = p.get("evaluate")
@@ -73,6 +111,7 @@ def run(resolutions: list[int], overrides: list[str], out: Path, budget_s: float
         doc["results"][str(res)] = {
             "overrides": args,
             "windows_content_key": windows_key,
+            "readings_key": readings_key(windows),
             "data_to_windows_s": round(data_s, 1),
             "evaluate_wall_s": round(wall, 1),
             "summary": cv.summary(),
@@ -221,6 +260,10 @@ def main(argv: list[str] | None = None) -> int:
     r.add_argument("--out", type=Path, default=OUT / "cnn_gru_curve_device.json")
     r.add_argument("--budget-s", type=float, default=float("inf"))
     r.add_argument("--cache-dir", default="outputs/cache")
+    k = sub.add_parser("stages", help="print every stage's content key and the readings key at one resolution")
+    k.add_argument("res", type=int)
+    k.add_argument("overrides", nargs="*", help="more config overrides (model=rf where torch is missing ...)")
+    k.add_argument("--cache-dir", default="outputs/cache")
     c = sub.add_parser("compare", help="compare with the CPU sweep's MLflow store")
     c.add_argument("cpu_output_dir", type=Path)
     c.add_argument("--device-json", type=Path, default=OUT / "cnn_gru_curve_device.json")
@@ -232,6 +275,10 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError:
             ap.error(f"resolutions={a.resolutions!r}: give comma-separated integers, e.g. 40,50,18")
         run(resolutions, a.overrides, a.out, a.budget_s, a.cache_dir)
+        return 0
+    if a.cmd == "stages":
+        for name, key in stages(a.res, a.overrides, a.cache_dir).items():
+            print(f"{name:10s} {key}")
         return 0
     result = compare(a.cpu_output_dir, a.device_json, a.figure)
     path = write_json("cnn_gru_curve_device_compare", result)

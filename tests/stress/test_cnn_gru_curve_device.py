@@ -14,7 +14,7 @@ import pytest
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 sys.path.insert(0, str(BENCH))
 
-from cnn_gru_curve_device import compare, main, run  # noqa: E402
+from cnn_gru_curve_device import compare, main, readings_key, run  # noqa: E402
 
 TINY = ["+debug=fast", "cv.max_folds=1", "cv.progress=false"]
 
@@ -36,6 +36,27 @@ def test_run_writes_each_resolution_keeps_them_past_its_budget_and_keys_the_wind
     # the same config from another (empty) cache: the same windows, so the same key, and the same fold
     other = run([2], TINY, tmp_path / "other.json", float("inf"), str(tmp_path / "cache2"))["results"]["2"]
     assert other["windows_content_key"] == entry["windows_content_key"] and other["folds"] == entry["folds"]
+    assert re.fullmatch(r"[0-9a-f]{20}", entry["readings_key"]) and other["readings_key"] == entry["readings_key"]
+
+
+def test_readings_key_hashes_text_not_object_identity_and_sees_one_changed_reading():
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    x = np.zeros((3, 2, 4), np.float32)
+    y = np.array([0, 1, 2])
+
+    def groups() -> np.ndarray:  # the same names as new string objects (a loaded dataset's, another process's)
+        return np.array(["".join(["participant_", str(i)]) for i in (1, 1, 2)], dtype=object)
+
+    a, b = groups(), groups()
+    assert a[0] is not b[0]
+    key = readings_key(SimpleNamespace(x=x, y=y, groups=a))
+    assert readings_key(SimpleNamespace(x=x.copy(), y=y.copy(), groups=b)) == key
+    x2 = x.copy()
+    x2[2, 1, 3] = 1.0
+    assert readings_key(SimpleNamespace(x=x2, y=y, groups=a)) != key
 
 
 def _store(out: Path, jobs: dict[tuple[str, int], dict[str, float]]) -> None:
