@@ -90,9 +90,15 @@ def run(resolutions: list[int], overrides: list[str], out: Path, budget_s: float
     from sphri.config import compose
 
     t0 = time.time()
-    doc: dict[str, Any] = json.loads(out.read_text()) if out.is_file() else {}
+    try:
+        doc: dict[str, Any] = json.loads(out.read_text()) if out.is_file() else {}
+    except ValueError as exc:
+        raise SystemExit(
+            f"cnn_gru_curve_device: {out} is not this script's JSON ({exc}); move it or give --out"
+        ) from None
     doc.setdefault("results", {})
-    doc["machine"] = machine()
+    here = machine()
+    doc["machine"] = here  # the last run's; each result keeps its own
     for res in resolutions:
         if time.time() - t0 > budget_s:
             print(f"budget {budget_s:.0f} s reached: res {res} and after not started", flush=True)
@@ -116,9 +122,12 @@ def run(resolutions: list[int], overrides: list[str], out: Path, budget_s: float
             "evaluate_wall_s": round(wall, 1),
             "summary": cv.summary(),
             "folds": folds,
+            "machine": here,
         }
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(doc, indent=1) + "\n")
+        tmp = out.with_name(out.name + ".partial")
+        tmp.write_text(json.dumps(doc, indent=1) + "\n")
+        tmp.replace(out)  # whole or not at all: what earlier resolutions wrote is never half-overwritten
         s = cv.summary()
         print(
             f"res {res}: accuracy {s['accuracy_mean']:.3f} macro-F1 {s['macro_f1_mean']:.3f} "

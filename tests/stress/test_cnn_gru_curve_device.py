@@ -28,7 +28,8 @@ def test_run_writes_each_resolution_keeps_them_past_its_budget_and_keys_the_wind
     assert len(entry["folds"]) == 1 and 0.0 <= entry["summary"]["accuracy_mean"] <= 1.0
     assert "encoder.res=2" in entry["overrides"] and "tracking.enabled=false" in entry["overrides"]
     assert re.fullmatch(r"[0-9a-f]{20}", entry["windows_content_key"]), entry["windows_content_key"]
-    assert saved["machine"]["cpu_count"] >= 1
+    assert saved["machine"]["cpu_count"] >= 1 and entry["machine"] == saved["machine"]
+    assert not (tmp_path / "curve.json.partial").exists()
     # a budget already spent starts nothing and loses nothing already written
     run([3], TINY, out, budget_s=-1.0, cache_dir=str(tmp_path / "cache"))
     again = json.loads(out.read_text())
@@ -124,3 +125,8 @@ def test_missing_inputs_are_one_line(tmp_path: Path):
         compare(tmp_path / "nowhere", dev, None)
     with pytest.raises(SystemExit):
         main(["run", "40,fifty"])
+    broken = tmp_path / "broken.json"
+    broken.write_text('{"results": {"8": ')  # a file cut short by hand: refused, and left as it was
+    with pytest.raises(SystemExit, match=r"broken\.json is not this script's JSON"):
+        run([2], TINY, broken, float("inf"), str(tmp_path / "cache"))
+    assert broken.read_text() == '{"results": {"8": '
