@@ -14,7 +14,7 @@ import pytest
 BENCH = Path(__file__).resolve().parents[2] / "bench"
 sys.path.insert(0, str(BENCH))
 
-from cnn_gru_curve_device import compare, main, readings_key, run  # noqa: E402
+from cnn_gru_curve_device import compare, main, readings_key, run, stages  # noqa: E402
 
 TINY = ["+debug=fast", "cv.max_folds=1", "cv.progress=false"]
 
@@ -38,6 +38,11 @@ def test_run_writes_each_resolution_keeps_them_past_its_budget_and_keys_the_wind
     other = run([2], TINY, tmp_path / "other.json", float("inf"), str(tmp_path / "cache2"))["results"]["2"]
     assert other["windows_content_key"] == entry["windows_content_key"] and other["folds"] == entry["folds"]
     assert re.fullmatch(r"[0-9a-f]{20}", entry["readings_key"]) and other["readings_key"] == entry["readings_key"]
+    # `stages` (from the run's cache) names every stage up to the windows, with the run's keys at its end
+    keys = stages(2, TINY, str(tmp_path / "cache"))
+    assert {"data", "contact", "surface", "layout", "encode", "noise", "readings"} <= set(keys)
+    assert "evaluate" not in keys
+    assert keys["noise"] == entry["windows_content_key"] and keys["readings"] == entry["readings_key"]
 
 
 def test_readings_key_hashes_text_not_object_identity_and_sees_one_changed_reading():
