@@ -46,24 +46,24 @@ from typing import Any
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import OUT, machine, write_json  # noqa: E402
+from _common import OUT, figure, machine, write_json  # noqa: E402
 
 SWEEP = ["+experiment=resolution_sweep", "model=cnn_gru"]
 
 
 def readings_key(windows: Any) -> str:
-    """A hash of what the model is trained and tested on (a :class:`sphri.types.WindowedFrames`' readings,
-    labels and participants), without the taxels' geometry: two machines whose readings keys agree fed
-    the model bit-identical inputs even where a last-bit difference in the fitted surface changes the
-    content key."""
-    import hashlib
+    """The content key (:func:`sphri.pipeline.content_key`) of what the model is trained and tested on (a
+    :class:`sphri.types.WindowedFrames`' readings, labels and participants), without the taxels' geometry:
+    two machines whose readings keys agree fed the model bit-identical inputs even where a last-bit
+    difference in the fitted surface changes the windows' own content key."""
+    from sphri.pipeline import content_key
 
-    h = hashlib.blake2b(digest_size=10)
-    for a in (windows.x, windows.y, windows.groups):
-        a = np.ascontiguousarray(a.astype(str) if a.dtype.kind == "O" else a)  # objects: their text, not pointers
-        h.update(f"{a.dtype.str}:{a.shape}".encode())
-        h.update(a.data if a.size else b"")
-    return h.hexdigest()
+    return content_key("readings", {"x": windows.x, "y": windows.y, "groups": windows.groups})
+
+
+def _overrides(res: int, overrides: list[str], cache_dir: str) -> list[str]:
+    """The README sweep's CNN-GRU job at ``res``, without MLflow, in ``cache_dir``."""
+    return [*SWEEP, f"encoder.res={res}", *overrides, "tracking.enabled=false", f"cache.dir={cache_dir}"]
 
 
 def stages(res: int, overrides: list[str], cache_dir: str) -> dict[str, str]:
@@ -72,7 +72,7 @@ def stages(res: int, overrides: list[str], cache_dir: str) -> dict[str, str]:
     from sphri import pipeline
     from sphri.config import compose
 
-    cfg = compose([*SWEEP, f"encoder.res={res}", *overrides, "tracking.enabled=false", f"cache.dir={cache_dir}"])
+    cfg = compose(_overrides(res, overrides, cache_dir))
     p = pipeline.make_pipeline(cfg, pipeline.open_cache(cfg))
     keys = {}
     for st in [s.name for s in p.stages if s.name != "evaluate"]:
@@ -103,7 +103,7 @@ def run(resolutions: list[int], overrides: list[str], out: Path, budget_s: float
         if time.time() - t0 > budget_s:
             print(f"budget {budget_s:.0f} s reached: res {res} and after not started", flush=True)
             break
-        args = [*SWEEP, f"encoder.res={res}", *overrides, "tracking.enabled=false", f"cache.dir={cache_dir}"]
+        args = _overrides(res, overrides, cache_dir)
         cfg = compose(args)
         p = pipeline.make_pipeline(cfg, pipeline.open_cache(cfg))
         t = time.time()
@@ -211,35 +211,27 @@ def compare(cpu_dir: Path, device_json: Path, figure: Path | None) -> dict[str, 
 
 
 def _figure(cpu: dict[str, dict[int, dict[str, float]]], device: dict[int, dict[str, float]], path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     def curve(points: dict[int, dict[str, float]]) -> tuple[list[int], list[float]]:
         res = sorted(points)
         return res, [float(np.mean(list(points[r].values()))) for r in res]
 
-    fig, ax = plt.subplots(figsize=(7.0, 4.0), dpi=110)
-    if cpu.get("rf"):
-        ax.plot(*curve(cpu["rf"]), "o-", color="tab:blue", label="RF (CPU)")
-    if cpu.get("cnn_gru"):
-        ax.plot(*curve(cpu["cnn_gru"]), "s-", color="tab:orange", label="CNN-GRU (CPU, bf16)")
-    ax.plot(*curve(device), "D", mfc="none", color="tab:red", label="CNN-GRU (accelerator, bf16)")
-    ax.axhline(0.125, color="grey", lw=0.8, ls=":", label="chance")
-    ax.set_xscale("log")
-    ticks = [1, 2, 3, 4, 6, 8, 12, 18, 27, 40, 50]
-    ax.set_xticks(ticks, [str(t) for t in ticks])
-    ax.minorticks_off()
-    ax.set_xlabel("encoder.res (taxel grid resolution)")
-    ax.set_ylabel("mean accuracy over participants (LOSO)")
-    ax.set_title("SYNTHETIC data: RF and CNN-GRU against resolution", fontsize=10)
-    ax.legend(fontsize=8, loc="lower right")
-    ax.grid(alpha=0.3)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    with figure(path, 1, (7.0, 4.0)) as (_fig, ax):
+        if cpu.get("rf"):
+            ax.plot(*curve(cpu["rf"]), "o-", color="tab:blue", label="RF (CPU)")
+        if cpu.get("cnn_gru"):
+            ax.plot(*curve(cpu["cnn_gru"]), "s-", color="tab:orange", label="CNN-GRU (CPU, bf16)")
+        ax.plot(*curve(device), "D", mfc="none", color="tab:red", label="CNN-GRU (accelerator, bf16)")
+        ax.axhline(0.125, color="grey", lw=0.8, ls=":", label="chance")
+        ax.set_xscale("log")
+        ticks = [1, 2, 3, 4, 6, 8, 12, 18, 27, 40, 50]
+        ax.set_xticks(ticks, [str(t) for t in ticks])
+        ax.minorticks_off()
+        ax.set_xlabel("encoder.res (taxel grid resolution)")
+        ax.set_ylabel("mean accuracy over participants (LOSO)")
+        ax.set_title("SYNTHETIC data: RF and CNN-GRU against resolution", fontsize=10)
+        ax.legend(fontsize=8, loc="lower right")
+        ax.grid(alpha=0.3)
 
 
 def _markdown(c: dict[str, Any]) -> str:
