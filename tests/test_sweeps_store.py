@@ -13,6 +13,7 @@ from pathlib import Path
 
 import forked_cli
 import pytest
+from sweeper_jobs import sweeper
 
 from sphri.tracking.mlflow_tracker import PARENT_FILE, default_uri
 
@@ -306,38 +307,20 @@ def test_the_sweepers_fast_composition_gives_hydras_configs():
     """The sweeper composes each distinct set of group choices once and sets plain values on a copy
     (100 jobs checked in seconds, not a minute): every job's config equals Hydra's own
     load_sweep_config, over group sweeps, value sweeps and an experiment's sweeper params."""
-    from hydra import initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
-    from hydra.types import HydraContext, RunMode
     from omegaconf import OmegaConf, open_dict
 
-    from hydra_plugins.sphri_sweeper.sphri_sweeper import SphriSweeper
-    from sphri.config import CONF_DIR, register_schemas
-
-    register_schemas()
-    GlobalHydra.instance().clear()
     args = ["experiment=requirement_sensitivity_quick", "encoder=ellipse,coverage", "model.n_estimators=7,9"]
-    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-        loader = GlobalHydra.instance().config_loader()
-        base = loader.load_configuration("config", overrides=args[:1], run_mode=RunMode.MULTIRUN)
-        # Hydra's plugin scan may import basic_sweeper anew, so the class's __init__ (a super() call) is not
-        # used here: the attributes it sets are set directly
-        sweeper = SphriSweeper.__new__(SphriSweeper)
-        sweeper.max_batch_size, sweeper.params = None, OmegaConf.to_container(base.hydra.sweeper.params)
-        sweeper.hydra_context = HydraContext(config_loader=loader, callbacks=None)
-        sweeper.config = base
-        _, jobs = sweeper.job_overrides(args)
+    with sweeper(args) as (found, loader, jobs):
         jobs = jobs[::3]  # every third of the 36: both encoders, both forest sizes, every variant
-        compose = sweeper.job_composer()
+        compose = found.job_composer()
         for job in jobs:
-            fast, hydras = compose(list(job)), loader.load_sweep_config(base, list(job))
+            fast, hydras = compose(list(job)), loader.load_sweep_config(found.config, list(job))
             for c in (fast, hydras):
                 with open_dict(c):
                     c.pop("hydra")
             assert OmegaConf.to_container(fast) == OmegaConf.to_container(hydras), job
         with pytest.raises(Exception) as err:  # a typed node refuses an unknown key as Hydra does
             compose(["model.lr=0.1"])
-    GlobalHydra.instance().clear()
     from sphri.config import _explain
 
     assert _explain(err.value).startswith("model.lr is not a known key")
