@@ -82,8 +82,9 @@ def test_resolution_sweep_is_the_studys_grid():
 @pytest.mark.parametrize("name", EXPERIMENTS)
 def test_every_job_of_every_experiment_validates(name: str):
     """Every job as ``python -m sphri -m +experiment=NAME`` checks it before starting any: the sweeper's own
-    expansion, composition (proven equal to Hydra's in test_sweeps_store) and validation. Sweeps of more
-    than 30 jobs (long numeric ranges): the jobs holding the ends of each range with every other value."""
+    expansion, composition (checked equal to Hydra's on an experiment's sweep in test_sweeps_store) and
+    validation. Sweeps of more than 30 jobs (long numeric ranges): the jobs holding the ends of each range
+    with every other value."""
     params = sweep_params(name)
     with sweeper([f"experiment={name}"]) as (found, _, jobs):
         assert len(jobs) == len(all_jobs(params))
