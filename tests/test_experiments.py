@@ -11,6 +11,7 @@ import pytest
 from hydra import compose as hydra_compose
 from hydra import initialize_config_dir
 from hydra.core.override_parser.overrides_parser import OverridesParser
+from omegaconf import OmegaConf, open_dict
 from sweeper_jobs import sweeper
 
 from sphri import pipeline
@@ -82,17 +83,23 @@ def test_resolution_sweep_is_the_studys_grid():
 @pytest.mark.parametrize("name", EXPERIMENTS)
 def test_every_job_of_every_experiment_validates(name: str):
     """Every job as ``python -m sphri -m +experiment=NAME`` checks it before starting any: the sweeper's own
-    expansion, composition (checked equal to Hydra's on an experiment's sweep in test_sweeps_store) and
-    validation. Sweeps of more than 30 jobs (long numeric ranges): the jobs holding the ends of each range
-    with every other value."""
+    expansion, composition (checked here equal to Hydra's on the last job, and on a whole sweep in
+    test_sweeps_store) and validation. Sweeps of more than 30 jobs (long numeric ranges): the jobs holding
+    the ends of each range with every other value."""
     params = sweep_params(name)
-    with sweeper([f"experiment={name}"]) as (found, _, jobs):
+    with sweeper([f"experiment={name}"]) as (found, loader, jobs):
         assert len(jobs) == len(all_jobs(params))
         if len(jobs) > 30:
             wanted = [set(job) for job in covering_jobs(params)]
             jobs = [job for job in jobs if any(w <= set(job) for w in wanted)]
             assert len(jobs) == len(wanted)
         assert found.invalid_points(jobs) == []  # (job number, overrides, the one-line error) of each failure
+        # the config the sweeper composed for the last job (kept for its run) is Hydra's own for that job
+        fast, hydras = found._configs[len(jobs) - 1], loader.load_sweep_config(found.config, list(jobs[-1]))
+        for c in (fast, hydras):
+            with open_dict(c):
+                c.pop("hydra")
+        assert OmegaConf.to_container(fast) == OmegaConf.to_container(hydras), jobs[-1]
 
 
 @pytest.mark.parametrize("name", EXPERIMENTS)
