@@ -36,3 +36,18 @@ def sweeper(args: Sequence[str]) -> Iterator[tuple[Any, Any, list[list[str]]]]:
             yield found, loader, jobs
     finally:
         GlobalHydra.instance().clear()
+
+
+def hydras_own(found: Any, loader: Any, job: Sequence[str]) -> Any:
+    """Hydra's own config for ``job`` of the sweep (``load_sweep_config``), as a plain container without
+    its ``hydra`` node: what the sweeper's fast composer must give (compare with :func:`plain_task`)."""
+    return plain_task(loader.load_sweep_config(found.config, list(job)))
+
+
+def plain_task(cfg: Any) -> Any:
+    """``cfg`` as a plain container without its ``hydra`` node (the job's own settings)."""
+    from omegaconf import OmegaConf
+
+    task = OmegaConf.to_container(cfg)
+    task.pop("hydra", None)
+    return task

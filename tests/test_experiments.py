@@ -11,8 +11,7 @@ import pytest
 from hydra import compose as hydra_compose
 from hydra import initialize_config_dir
 from hydra.core.override_parser.overrides_parser import OverridesParser
-from omegaconf import OmegaConf, open_dict
-from sweeper_jobs import sweeper
+from sweeper_jobs import hydras_own, plain_task, sweeper
 
 from sphri import pipeline
 from sphri.cache import StageCache
@@ -28,7 +27,11 @@ def sweep_params(name: str) -> dict[str, list[str]]:
     register_schemas()
     with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
         cfg = hydra_compose("config", overrides=[f"experiment={name}"], return_hydra_config=True)
-    params = dict(cfg.hydra.sweeper.params or {})
+    return swept_values(name, dict(cfg.hydra.sweeper.params or {}))
+
+
+def swept_values(name: str, params: dict[str, str]) -> dict[str, list[str]]:
+    """``hydra.sweeper.params`` of experiment ``name`` -> each swept key's values."""
     assert params, f"conf/experiment/{name}.yaml sweeps nothing (hydra.sweeper.params is empty)"
     parsed = OverridesParser.create().parse_overrides([f"{k}={v}" for k, v in params.items()])
     return {
@@ -86,8 +89,8 @@ def test_every_job_of_every_experiment_validates(name: str):
     expansion, composition (checked here equal to Hydra's on the last job, and on a whole sweep in
     test_sweeps_store) and validation. Sweeps of more than 30 jobs (long numeric ranges): the jobs holding
     the ends of each range with every other value."""
-    params = sweep_params(name)
     with sweeper([f"experiment={name}"]) as (found, loader, jobs):
+        params = swept_values(name, found.params or {})
         assert len(jobs) == len(all_jobs(params))
         if len(jobs) > 30:
             wanted = [set(job) for job in covering_jobs(params)]
@@ -95,11 +98,7 @@ def test_every_job_of_every_experiment_validates(name: str):
             assert len(jobs) == len(wanted)
         assert found.invalid_points(jobs) == []  # (job number, overrides, the one-line error) of each failure
         # the config the sweeper composed for the last job (kept for its run) is Hydra's own for that job
-        fast, hydras = found._configs[len(jobs) - 1], loader.load_sweep_config(found.config, list(jobs[-1]))
-        for c in (fast, hydras):
-            with open_dict(c):
-                c.pop("hydra")
-        assert OmegaConf.to_container(fast) == OmegaConf.to_container(hydras), jobs[-1]
+        assert plain_task(found._configs[len(jobs) - 1]) == hydras_own(found, loader, jobs[-1]), jobs[-1]
 
 
 @pytest.mark.parametrize("name", EXPERIMENTS)
