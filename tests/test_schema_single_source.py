@@ -90,6 +90,29 @@ def test_field_docs_include_inherited_fields():
     assert set(field_docs(HexLayoutSchema)) >= {"aspect", "seed"}
 
 
+def test_field_docs_of_a_class_defined_anew_are_read_anew(tmp_path, monkeypatch):
+    """field_docs reads each class's source once per process; a module reloaded after its file changed
+    defines new classes, and their docstrings (not the first class's) are what it gives."""
+    import sys
+
+    def write(doc: str) -> None:
+        body = f'from dataclasses import dataclass\n\n@dataclass\nclass S:\n    x: int = 1\n    """{doc}"""\n'
+        (tmp_path / "docs_anew_mod.py").write_text(body)
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    write("first meaning")
+    mod = importlib.import_module("docs_anew_mod")
+    assert field_docs(mod.S) == {"x": "first meaning"}
+    write("second meaning")
+    importlib.invalidate_caches()
+    import linecache
+
+    linecache.checkcache(str(tmp_path / "docs_anew_mod.py"))
+    mod = importlib.reload(mod)
+    assert field_docs(mod.S) == {"x": "second meaning"}
+    sys.modules.pop("docs_anew_mod", None)
+
+
 def test_cli_show_prints_values_defaults_and_meaning(capsys):
     assert cli_main(["show", "noise=crosstalk", "noise.alpha=0.3"]) == 0
     out = capsys.readouterr().out
