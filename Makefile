@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.sphri-installed
 ARGS   ?=
 
-.PHONY: install run lint test test-all bench sweep report ui clean
+.PHONY: install run lint test test-all bench profile-tests sweep report ui clean
 
 # Installs only when pyproject.toml changed since the last install (quick otherwise).
 # torch is pinned to the CPU build first: an unpinned torch pulls gigabytes of CUDA.
@@ -45,6 +45,10 @@ test-all: install $(CLUSTER_STAMP)  ## every test, slow ones, cluster launchers 
 
 bench: install        ## benchmarks -> outputs/bench/*.json, summary.md, plots
 	$(BIN)/python bench/run_all.py $(ARGS)
+
+profile-tests: install  ## the suite under py-spy: its CPU time by kind of work, process, test -> outputs/bench/suite_profile.md
+	$(BIN)/python -m pip install -q "py-spy>=0.4"
+	$(BIN)/python bench/profile_suite.py $(ARGS)
 
 sweep: install        ## the resolution sweep (Random Forest, 50 resolutions)
 	$(BIN)/python -m sphri -m +experiment=resolution_sweep model=rf hydra.sweep.dir=outputs/sweeps/resolution_rf $(ARGS)
