@@ -35,25 +35,25 @@ LINES = [
 ]
 
 
-def test_samples_go_to_their_kind_process_and_test():
-    result = profile(LINES, rate_hz=10.0)
-    assert result["samples"] == 100 and result["cpu_s"] == 10.0
-    kinds = {r["name"]: r["cpu_s"] for r in result["kinds"]}
-    assert kinds == {
-        "CNN-GRU training and prediction": 3.0,
-        "Hydra composition": 2.0,
-        "imports": 4.0,
-        "other": 1.0,
-    }
-    procs = {r["name"]: r["samples"] for r in result["processes"]}
-    assert procs == {
+#: Samples of LINES per kind of work, process and test.
+EXPECTED = {
+    "kinds": {"CNN-GRU training and prediction": 30, "Hydra composition": 20, "imports": 40, "other": 10},
+    "processes": {
         "pytest worker (tests in process)": 50,
         "forked CLI child (tests/forked_cli.py)": 25,
         "loky worker (parallel sweep or folds)": 15,
         "python -m sphri +debug=fast output_dir=TMP port=N": 10,
-    }
-    tests = {r["name"]: r["samples"] for r in result["tests"]}
-    assert tests == {"test_cnn_gru.py::test_small_study": 50, "(not in a test's own process)": 50}
+    },
+    "tests": {"test_cnn_gru.py::test_small_study": 50, "(not in a test's own process)": 50},
+}
+
+
+def test_samples_go_to_their_kind_process_and_test():
+    result = profile(LINES, rate_hz=10.0)
+    assert result["samples"] == 100 and result["cpu_s"] == 10.0
+    for table, expected in EXPECTED.items():
+        assert {r["name"]: r["samples"] for r in result[table]} == expected, table
+        assert all(r["cpu_s"] == r["samples"] / 10.0 for r in result[table])
     assert abs(sum(r["share"] for r in result["kinds"]) - 1.0) < 1e-12
 
 
