@@ -81,8 +81,9 @@ def parse(lines: Iterable[str]) -> Iterable[tuple[list[str], int]]:
 
 def kind_of(frames: list[str]) -> str:
     """The kind of work of one stack (:data:`KINDS`, else ``other``)."""
+    code = [f for f in frames if not f.startswith("process ")]  # a command line may name anything
     for name, marks in KINDS:
-        if any(mark in frame for frame in frames for mark in marks):
+        if any(mark in frame for frame in code for mark in marks):
             return name
     return OTHER
 
@@ -91,15 +92,17 @@ def process_of(frames: list[str]) -> str:
     """The process kind of one stack: pytest worker, forked CLI child, loky worker, or the command line
     of the innermost process py-spy named (numbers of three or more digits written N, so that runs
     with other temporary folders and ports fall together)."""
-    text = ";".join(frames)
-    if "popen_loky_posix" in text or "_process_worker (joblib" in text:
-        return "loky worker (parallel sweep or folds)"
-    if "forked_cli.py" in text:
-        return "forked CLI child (tests/forked_cli.py)"
-    if "xdist/remote.py" in text:
-        return "pytest worker (tests in process)"
     named = [m.group(1) for f in frames if (m := _PROCESS.match(f))]
-    command = named[-1] if named else "?"
+    command = named[-1] if named else "?"  # the innermost process's command line
+    code = ";".join(
+        f for f in frames if not f.startswith("process ")
+    )  # its frames (an outer command may name anything)
+    if "popen_loky_posix" in command or "_process_worker (joblib" in code:
+        return "loky worker (parallel sweep or folds)"
+    if "_child (forked_cli.py" in code:
+        return "forked CLI child (tests/forked_cli.py)"
+    if "(xdist/remote.py" in code:
+        return "pytest worker (tests in process)"
     command = re.sub(r"/tmp/pytest-of-\w+/\S*", "TMP", command)
     return re.sub(r"\d{3,}", "N", command)[:100]
 

@@ -12,7 +12,8 @@ sys.path.insert(0, str(BENCH))
 
 from profile_suite import markdown, profile  # noqa: E402
 
-PYTEST = 'process 10:"python -m pytest -n 2";process 11:"python -u -c import sys'
+# the command line names a test file whose name holds forked_cli.py: frames, not command lines, classify
+PYTEST = 'process 10:"python -m pytest -n 2 tests/test_forked_cli.py";process 11:"python -u -c import sys'
 WORKER = f'{PYTEST};exec(eval(sys.stdin.readline())))";<module> (xdist/remote.py:400)'
 TEST = "pytest_pyfunc_call (_pytest/python.py:160);test_small_study (tests/models/test_cnn_gru.py:306)"
 FORKSERVER = f'{PYTEST};process 12:"python -B -c from multiprocessing.forkserver import main'
