@@ -79,54 +79,53 @@ def parse(lines: Iterable[str]) -> Iterable[tuple[list[str], int]]:
         yield stack.split(";"), int(count)
 
 
-def kind_of(frames: list[str]) -> str:
-    """The kind of work of one stack (:data:`KINDS`, else ``other``)."""
-    code = [f for f in frames if not f.startswith("process ")]  # a command line may name anything
+def kind_of(code: list[str]) -> str:
+    """The kind of work of one stack's code frames (:data:`KINDS`, else ``other``)."""
     for name, marks in KINDS:
         if any(mark in frame for frame in code for mark in marks):
             return name
     return OTHER
 
 
-def process_of(frames: list[str]) -> str:
-    """The process kind of one stack: pytest worker, forked CLI child, loky worker, or the command line
-    of the innermost process py-spy named (numbers of three or more digits written N, so that runs
-    with other temporary folders and ports fall together)."""
-    named = [m.group(1) for f in frames if (m := _PROCESS.match(f))]
-    command = named[-1] if named else "?"  # the innermost process's command line
-    code = ";".join(
-        f for f in frames if not f.startswith("process ")
-    )  # its frames (an outer command may name anything)
-    if "popen_loky_posix" in command or "_process_worker (joblib" in code:
+def process_of(command: str, code: list[str]) -> str:
+    """The process kind of a stack, from its innermost process's ``command`` line and its ``code`` frames:
+    pytest worker, forked CLI child, loky worker, or that command line (numbers of three or more digits
+    written N, so that runs with other temporary folders and ports fall together)."""
+    frames = ";".join(code)
+    if "popen_loky_posix" in command:
         return "loky worker (parallel sweep or folds)"
-    if "_child (forked_cli.py" in code:
+    if "_child (forked_cli.py" in frames:
         return "forked CLI child (tests/forked_cli.py)"
-    if "(xdist/remote.py" in code:
+    if "(xdist/remote.py" in frames:
         return "pytest worker (tests in process)"
     command = re.sub(r"/tmp/pytest-of-\w+/\S*", "TMP", command)
     return re.sub(r"\d{3,}", "N", command)[:100]
 
 
-def test_of(frames: list[str]) -> str:
-    """``file::function`` of the outermost test or conftest frame, else ``(not in a test)``."""
-    for frame in frames:
+def test_of(code: list[str]) -> str:
+    """``file::function`` of the outermost test or conftest frame, else ``(not in a test's own process)``."""
+    for frame in code:
         if m := _TEST_FRAME.match(frame):
             return f"{Path(m.group(2)).name}::{m.group(1)}"
     return "(not in a test's own process)"
 
 
 def profile(lines: Iterable[str], rate_hz: float) -> dict:
-    """Samples and CPU seconds (samples / rate) per kind, per process kind and per test."""
+    """Samples and CPU seconds (samples / rate) per kind, per process kind and per test. py-spy names each
+    process of a stack as a pseudo-frame (``process N:"command line"``); only the innermost one's command
+    line says what a stack is, and only the code frames are matched (an outer command may name anything,
+    a test file ``test_forked_cli.py`` for one)."""
     kinds: collections.Counter[str] = collections.Counter()
     procs: collections.Counter[str] = collections.Counter()
     tests: collections.Counter[str] = collections.Counter()
     total = 0
     for frames, n in parse(lines):
-        frames = [_LINE_NO.sub(")", f) for f in frames]
+        commands = [m.group(1) for f in frames if (m := _PROCESS.match(f))]
+        code = [_LINE_NO.sub(")", f) for f in frames if not f.startswith("process ")]
         total += n
-        kinds[kind_of(frames)] += n
-        procs[process_of(frames)] += n
-        tests[test_of(frames)] += n
+        kinds[kind_of(code)] += n
+        procs[process_of(commands[-1] if commands else "?", code)] += n
+        tests[test_of(code)] += n
 
     def table(counter: collections.Counter[str], top: int) -> list[dict]:
         return [
