@@ -2,6 +2,8 @@
 
 import dataclasses
 import importlib
+import linecache
+import sys
 
 import pytest
 import yaml
@@ -90,27 +92,25 @@ def test_field_docs_include_inherited_fields():
     assert set(field_docs(HexLayoutSchema)) >= {"aspect", "seed"}
 
 
-def test_field_docs_of_a_class_defined_anew_are_read_anew(tmp_path, monkeypatch):
+def test_field_docs_of_a_class_defined_anew_are_read_anew(tmp_path, monkeypatch, request):
     """field_docs reads each class's source once per process; a module reloaded after its file changed
     defines new classes, and their docstrings (not the first class's) are what it gives."""
-    import sys
+    source = tmp_path / "docs_anew_mod.py"
 
     def write(doc: str) -> None:
-        body = f'from dataclasses import dataclass\n\n@dataclass\nclass S:\n    x: int = 1\n    """{doc}"""\n'
-        (tmp_path / "docs_anew_mod.py").write_text(body)
+        source.write_text(
+            f'from dataclasses import dataclass\n\n@dataclass\nclass S:\n    x: int = 1\n    """{doc}"""\n'
+        )
 
     monkeypatch.syspath_prepend(str(tmp_path))
     write("first meaning")
     mod = importlib.import_module("docs_anew_mod")
+    request.addfinalizer(lambda: sys.modules.pop("docs_anew_mod", None))  # passed or not
     assert field_docs(mod.S) == {"x": "first meaning"}
     write("second meaning")
-    importlib.invalidate_caches()
-    import linecache
-
-    linecache.checkcache(str(tmp_path / "docs_anew_mod.py"))
+    linecache.checkcache(str(source))
     mod = importlib.reload(mod)
     assert field_docs(mod.S) == {"x": "second meaning"}
-    sys.modules.pop("docs_anew_mod", None)
 
 
 def test_cli_show_prints_values_defaults_and_meaning(capsys):
