@@ -212,15 +212,19 @@ class StreamDecoder:
         A buffered partial frame (one starting with the sync bytes) counts
         as truncated; other buffered bytes as skipped.
         """
-        if self._buf:
-            if self._buf.startswith(self.SYNC):
-                self._count("truncated", self._base, "stream reset with a partial frame buffered")
-            self.stats.skipped_bytes += len(self._buf)
-            self._base += len(self._buf)
-            self._buf.clear()
+        self._discard_buffered("stream reset with a partial frame buffered")
         self._resolve_before(None)
         self.stats.resets += 1
         self._reset_sequence()
+
+    def close(self) -> None:
+        """The reader stops for good (a recording ended, the port is closed): the bytes still buffered
+        will never complete a frame, so they are counted as skipped (a buffered partial frame, one
+        starting with the sync bytes, also as truncated) and pending classifications are settled.
+        Afterwards ``bytes_in == good_bytes + skipped_bytes``. Use :meth:`finish` instead where the
+        stream itself ended and frames decodable from the buffer should still be returned."""
+        self._discard_buffered("the reader stopped with a partial frame buffered")
+        self._resolve_before(None)
 
     def flush(self) -> None:
         """Settle pending problem classifications; keeps buffered bytes (more may come)."""
@@ -242,6 +246,14 @@ class StreamDecoder:
     # -- internals ------------------------------------------------------------------
     def _reset_sequence(self) -> None:
         pass
+
+    def _discard_buffered(self, reason: str) -> None:
+        if self._buf:
+            if self._buf.startswith(self.SYNC):
+                self._count("truncated", self._base, reason)
+            self.stats.skipped_bytes += len(self._buf)
+            self._base += len(self._buf)
+            self._buf.clear()
 
     def _skip(self, n: int) -> None:
         self.stats.skipped_bytes += n

@@ -210,7 +210,7 @@ class GloveDriver:
             data = self.link.read()
             if data:
                 self._handle(self.decoder.feed(data))
-        self.decoder.flush()
+        self.decoder.close()  # the session ends: bytes left buffered are counted in the report
         for seq in list(self._outstanding):
             self._missing(seq)
         self.report.echo_mismatch += len(self._echo)

@@ -114,7 +114,7 @@ class SkinReader:
 
     def __exit__(self, *exc: object) -> None:
         self.link.close()
-        self.decoder.flush()
+        self.decoder.close()  # bytes left buffered at the stop are counted, not silently dropped
 
     @property
     def stats(self):
@@ -236,6 +236,13 @@ class SkinReader:
                     finishing = now
                 elif now - finishing >= FINISH_QUIET_S:
                     self.stop_reason = "the source finished"
+                    # the stream ended: a frame that was waiting behind a cut-short one is still decoded
+                    for f in self.decoder.finish():
+                        for rf in self._admit(ReceivedFrame(f, time.time(), time.perf_counter(), self.segment)):
+                            count += 1
+                            yield rf
+                            if max_frames and count >= max_frames:
+                                return
                     return
             if stop is not None and stop():
                 self.stop_reason = "stopped"

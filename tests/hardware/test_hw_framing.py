@@ -20,6 +20,7 @@ from sphri.hardware.skin_protocol import (
     CMD_START,
     CMD_STOP,
     HEADER_LEN,
+    SYNC,
     SkinDecoder,
     ValueFormat,
     encode_control,
@@ -219,6 +220,26 @@ def test_finish_counts_a_frame_the_stream_ended_in():
     assert [x.seq for x in out] == [0]
     assert dec.stats.truncated == 2 and dec.buffered == 0
     check_invariant(dec)
+
+
+def test_close_counts_every_buffered_byte():
+    """A reader that stops keeps no byte unaccounted: a partial frame is truncated and skipped,
+    a lone first sync byte (a broken frame's last byte can be one) is skipped."""
+    frames = _frames(2)
+    dec = SkinDecoder()
+    assert len(dec.feed(frames[0] + frames[1][:15])) == 1 and dec.buffered == 15
+    dec.close()
+    assert dec.stats.truncated == 1 and dec.stats.skipped_bytes == 15 and dec.buffered == 0
+    check_invariant(dec)
+    dec = SkinDecoder()
+    broken = bytearray(frames[1])
+    broken[5] ^= 0xFF  # bad header CRC
+    broken[-1] = SYNC[0]  # the frame's last byte looks like the start of the next one
+    assert len(dec.feed(frames[0] + bytes(broken))) == 1 and dec.buffered == 1
+    dec.close()
+    assert dec.stats.bad_header == 1 and dec.stats.truncated == 0 and dec.buffered == 0
+    assert dec.stats.skipped_bytes == len(broken) == dec.stats.bytes_in - dec.stats.good_bytes
+    assert dec.stats.resets == 0
 
 
 def test_header_rejects_a_corrupted_count_at_once():

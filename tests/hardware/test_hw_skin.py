@@ -11,6 +11,8 @@ from skin_sim import check_good_frames_kept, run_record
 from sphri.command.args import ArgsError, parse
 from sphri.hardware.recording import RecordingError, SkinRecording, load_recording, save_recording
 from sphri.hardware.settings import SkinRecordSettings
+from sphri.hardware.skin import SkinReader
+from sphri.hardware.skin_protocol import SYNC, ValueFormat, encode_frame
 
 
 def trailing_lost(ledger) -> int:
@@ -38,6 +40,33 @@ def test_record_keeps_every_good_frame_with_5_percent_corrupt(tmp_path, port):
     assert 0 <= ledger.bytes_sent - dec["bytes_in"] < frame_bytes
     assert rec.grid_shape == (18, 6) and rec.meta["decoder"] == dec
     assert any("skipped" in ln and f"bad_checksum={ledger.corrupt_body}" in ln for ln in lines)
+
+
+def test_a_finished_source_gives_the_frame_behind_a_cut_one_and_every_byte_is_counted():
+    """The stream ends with a frame cut short (claiming more bytes than ever come), one good frame
+    behind it and a lone sync byte: the good frame is still read, the rest counted."""
+    good = [encode_frame(i, 1000 * i, np.full(20, 0.5)) for i in range(3)]
+    cut = encode_frame(1, 1000, np.zeros(20), ValueFormat.U16)[:15]  # claims 55 bytes, 36 follow
+    data = good[0] + cut + good[2] + SYNC[:1]
+    with SkinReader("loop://", taxels=20, start_command=False) as reader:
+        reader.link.write(data)
+        got = list(reader.frames(until=lambda: True, idle_s=10.0))
+        assert reader.stop_reason == "the source finished"
+    assert [rf.frame.seq for rf in got] == [0, 2]
+    st = reader.stats
+    assert st.truncated == 1 and st.bad_checksum == 0 and st.bad_header == 0
+    assert st.bytes_in == len(data) == st.good_bytes + st.skipped_bytes
+
+
+def test_a_stopped_reader_counts_the_bytes_it_held():
+    data = b"".join(encode_frame(i, 1000 * i, np.full(20, 0.5)) for i in range(2))
+    with SkinReader("loop://", taxels=20, start_command=False) as reader:
+        reader.link.write(data[:-10])
+        got = list(reader.frames(max_frames=1, idle_s=10.0))
+    assert [rf.frame.seq for rf in got] == [0]
+    st = reader.stats
+    assert st.truncated == 1 and st.skipped_bytes == len(data) // 2 - 10
+    assert st.bytes_in == len(data) - 10 == st.good_bytes + st.skipped_bytes
 
 
 def test_record_survives_every_kind_of_fault(tmp_path):
