@@ -140,6 +140,26 @@ def test_skin_no_good_frame_lost_among_garbage(seed, garbage, cuts):
     check_invariant(dec)
 
 
+@settings(max_examples=50, deadline=None)
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    garbage=st.lists(st.binary(max_size=20), min_size=6, max_size=6),
+    stop=st.integers(0, 400),
+    cuts=st.lists(st.integers(0, 400), max_size=8),
+)
+def test_every_byte_is_accounted_for_wherever_the_reader_stops(seed, garbage, stop, cuts):
+    """Frames and garbage, the reader stopped at any byte: after close() nothing is buffered and every
+    byte read is in a good frame or skipped."""
+    rng = np.random.default_rng(seed)
+    frames = [encode_frame(i, 1000 * i, rng.random(20), ValueFormat.U8) for i in range(6)]
+    data = b"".join(g + f for g, f in zip(garbage, frames))[:stop]
+    dec = SkinDecoder(expected_taxels=20)
+    feed_chunks(dec, data, cuts)
+    dec.close()
+    s = dec.stats
+    assert dec.buffered == 0 and s.bytes_in == len(data) == s.good_bytes + s.skipped_bytes
+
+
 def _frames(n_frames: int, n: int = 20, fmt=ValueFormat.U8, seed: int = 0) -> list[bytes]:
     rng = np.random.default_rng(seed)
     return [encode_frame(i, 1000 * i, rng.random(n), fmt) for i in range(n_frames)]
