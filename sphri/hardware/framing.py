@@ -248,6 +248,7 @@ class StreamDecoder:
         pass
 
     def _discard_buffered(self, reason: str) -> None:
+        """Count the buffered bytes as skipped (a partial frame also as truncated, for ``reason``); empty the buffer."""
         if self._buf:
             if self._buf.startswith(self.SYNC):
                 self._count("truncated", self._base, reason)
