@@ -212,10 +212,22 @@ class SkinReader:
                 self.decoder.reset_stream()
                 self.segment += 1
                 last = now
+            frames: list = []
+            ended = False
             if data:
                 finishing = None
+                frames = self.decoder.feed(data)
+            elif until is not None and until():
+                # the source said it finished: stop once the port stayed empty for FINISH_QUIET_S
+                # (a pty's kernel buffer can hold written bytes back for a while on a loaded machine)
+                if finishing is None:
+                    finishing = now
+                elif now - finishing >= FINISH_QUIET_S:
+                    # the stream ended: a frame that was waiting behind a cut-short one is still decoded
+                    frames, ended = self.decoder.finish(), True
+            if frames:
                 wall, perf = time.time(), time.perf_counter()
-                for f in self.decoder.feed(data):
+                for f in frames:
                     last = now
                     for rf in self._admit(ReceivedFrame(f, wall, perf, self.segment)):
                         count += 1
@@ -223,27 +235,16 @@ class SkinReader:
                         if max_frames and count >= max_frames:
                             self.stop_reason = f"{count} frames"
                             return
+            if data:
                 st = self.decoder.stats
                 if st.frames == 0 and st.wrong_count >= WRONG_COUNT_LIMIT:
                     raise StreamMismatch(
                         f"{self.link.port}: {st.wrong_count} frames with the wrong taxel count and none with "
                         f"the expected {self.decoder.expected_taxels}; is this the skin the model/layout was made for?"
                     )
-            elif until is not None and until():
-                # the source said it finished: stop once the port stayed empty for FINISH_QUIET_S
-                # (a pty's kernel buffer can hold written bytes back for a while on a loaded machine)
-                if finishing is None:
-                    finishing = now
-                elif now - finishing >= FINISH_QUIET_S:
-                    self.stop_reason = "the source finished"
-                    # the stream ended: a frame that was waiting behind a cut-short one is still decoded
-                    for f in self.decoder.finish():
-                        for rf in self._admit(ReceivedFrame(f, time.time(), time.perf_counter(), self.segment)):
-                            count += 1
-                            yield rf
-                            if max_frames and count >= max_frames:
-                                return
-                    return
+            if ended:
+                self.stop_reason = "the source finished"
+                return
             if stop is not None and stop():
                 self.stop_reason = "stopped"
                 return
