@@ -474,19 +474,16 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config", check: b
     Raises :class:`ConfigError` with the offending key on any problem. ``check=False`` skips
     :func:`validate` (ranges, cross-component rules, mandatory values): ``cli show`` uses it to
     print the settings of a config that does not run as it stands.
-    """
-    from hydra import compose as hydra_compose
-    from hydra import initialize_config_dir
-    from hydra.core.global_hydra import GlobalHydra
 
+    Hydra composes each distinct set of group choices (and other structural overrides) once per
+    process; plain value overrides (``encoder.res=18``) are then set on a copy as Hydra sets them
+    (:func:`_set_values`): see :class:`_ComposeMemo`.
+    """
     register_schemas()
     overrides = normalize_overrides(overrides)
     check_choices(overrides)
-    if GlobalHydra.instance().is_initialized():
-        GlobalHydra.instance().clear()
     try:
-        with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
-            cfg = hydra_compose(config_name=config_name, overrides=list(overrides), return_hydra_config=False)
+        cfg = _MEMO.compose(config_name, overrides)
     except ConfigError:
         raise
     except Exception as exc:  # hydra raises several types; all are config problems
@@ -495,6 +492,137 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config", check: b
     if check:
         validate(cfg)
     return cfg
+
+
+def compose_with_hydra(config_name: str, overrides: Sequence[str]) -> DictConfig:
+    """Hydra's own composition of ``overrides`` (no memo, no sphri checks; Hydra's exceptions)."""
+    from hydra import compose as hydra_compose
+    from hydra import initialize_config_dir
+    from hydra.core.global_hydra import GlobalHydra
+
+    if GlobalHydra.instance().is_initialized():
+        GlobalHydra.instance().clear()
+    with initialize_config_dir(config_dir=str(CONF_DIR), version_base="1.3"):
+        return hydra_compose(config_name=config_name, overrides=list(overrides), return_hydra_config=False)
+
+
+class _ComposeMemo:
+    """Hydra's compositions by structural overrides, per process: composing costs about 0.5 s, most
+    of a warm in-process job (a ``+debug=fast`` job runs in about 1.9 s on a 2-core EPYC), and the
+    callers that compose many configs (tests, ``sphri validate``, the scenario study, notebooks)
+    mostly change plain values.
+
+    An override is *plain* when Hydra would apply it after the defaults list as a config override
+    (a ``key=value`` change of a key that is not a config group, not ``hydra.*``, not a sweep, not a
+    dict value); every other override (group choices, ``+``/``++`` additions, ``~`` deletions) is
+    *structural* and part of the memo's key, with the config files' paths, sizes and modification
+    times, the ConfigStore's nodes and, for a relative search path, the working directory. A plain
+    value is set on a deep copy as Hydra's ``_apply_overrides_to_config`` sets it (``OmegaConf.update``
+    with ``merge=True`` on the struct config), and a refusal is raised as Hydra raises it, so the
+    one-line errors are Hydra's. ``tests/test_compose_memo.py`` compares both paths, configs and errors.
+    Hand-written because Hydra has no cache of its own across compositions; this sits outside Hydra
+    (its compose API only), not a patch of it.
+    """
+
+    def __init__(self, size: int = 32) -> None:
+        self.size = size
+        self.bases: dict[tuple, DictConfig] = {}
+
+    def compose(self, config_name: str, overrides: list[str]) -> DictConfig:
+        import copy
+
+        split = None if any("pkg://" in o for o in overrides) else self.split(overrides)
+        if split is None:  # not parsed here, or files not fingerprinted here: Hydra composes it
+            return compose_with_hydra(config_name, overrides)
+        structural, plain = split
+        key = (config_name, tuple(structural), self.sources(overrides))
+        base = self.bases.pop(key, None)
+        if base is None:
+            base = compose_with_hydra(config_name, structural)
+        self.bases[key] = base  # most recently used last
+        while len(self.bases) > self.size:
+            self.bases.pop(next(iter(self.bases)))
+        cfg = copy.deepcopy(base)
+        _set_values(cfg, plain)
+        return cfg
+
+    @staticmethod
+    def split(overrides: list[str]) -> tuple[list[str], list[Any]] | None:
+        """``(structural override strings, plain parsed overrides)``, or None where Hydra's parser refuses one."""
+        from hydra.core.override_parser.overrides_parser import OverridesParser
+        from hydra.core.override_parser.types import OverrideType
+
+        try:
+            parsed = OverridesParser.create().parse_overrides(list(overrides))
+        except Exception:  # noqa: BLE001 - Hydra's composition says what is malformed
+            return None
+        dirs = _search_dirs(overrides)
+        structural: list[str] = []
+        plain: list[Any] = []
+        for o in parsed:
+            key = o.key_or_group
+            if (
+                o.type == OverrideType.CHANGE
+                and o.package is None
+                and not o.is_sweep_override()
+                and not key.startswith("hydra")
+                and "/" not in key
+                and not isinstance(o.value(), dict)
+                and not _is_group(key, dirs)
+            ):
+                plain.append(o)
+            else:
+                structural.append(str(o.input_line))
+        return structural, plain
+
+    @staticmethod
+    def sources(overrides: Sequence[str]) -> tuple:
+        """What else a composition reads: each config file (path, size, mtime), the ConfigStore's nodes."""
+        dirs = _search_dirs(overrides)
+        files = tuple(
+            (str(p), st.st_size, st.st_mtime_ns) for d in dirs for p in sorted(d.rglob("*.yaml")) for st in [p.stat()]
+        )
+        cwd = os.getcwd() if any(not d.is_absolute() for d in dirs) else ""
+        return files, _store_nodes(ConfigStore.instance().repo), cwd
+
+
+def _is_group(key: str, dirs: Sequence[Path]) -> bool:
+    """``key`` names a config group (a folder of a search dir, or a group of the ConfigStore)."""
+    return isinstance(ConfigStore.instance().repo.get(key), dict) or any((d / key).is_dir() for d in dirs)
+
+
+def _store_nodes(repo: dict, prefix: str = "") -> tuple:
+    """``(path, id of its node)`` of every ConfigStore entry: a node stored again is a new object."""
+    out: list = []
+    for name, value in repo.items():
+        if isinstance(value, dict):
+            out += _store_nodes(value, f"{prefix}{name}/")
+        else:
+            out.append((prefix + name, id(value)))
+    return tuple(out)
+
+
+def _set_values(cfg: DictConfig, overrides: Sequence[Any]) -> None:
+    """Set plain value overrides as Hydra's ``ConfigLoaderImpl._apply_overrides_to_config`` does (its
+    change branch, the same exceptions and messages, so :func:`_explain` says the same line)."""
+    from hydra.errors import ConfigCompositionException
+    from omegaconf.errors import ConfigAttributeError, ConfigKeyError
+
+    for o in overrides:
+        try:
+            try:
+                OmegaConf.update(cfg, o.key_or_group, o.value(), merge=True)
+            except (ConfigAttributeError, ConfigKeyError) as ex:
+                raise ConfigCompositionException(
+                    f"Could not override '{o.key_or_group}'.\nTo append to your config use +{o.input_line}"
+                ) from ex
+        except OmegaConfBaseException as ex:
+            raise ConfigCompositionException(f"Error merging override {o.input_line}").with_traceback(
+                ex.__traceback__
+            ) from ex
+
+
+_MEMO = _ComposeMemo()
 
 
 def _check_bool_overrides(cfg: DictConfig, overrides: Sequence[str]) -> None:
