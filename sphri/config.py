@@ -539,6 +539,8 @@ class _ComposeMemo:
         base = self.bases.pop(key, None)
         if base is None:
             base = compose_with_hydra(config_name, structural)
+            # a process's first composition stores Hydra's own nodes in the ConfigStore: key it as it is now
+            key = (config_name, tuple(structural), self.sources(overrides))
         self.bases[key] = base  # most recently used last
         while len(self.bases) > self.size:
             self.bases.pop(next(iter(self.bases)))

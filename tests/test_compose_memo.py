@@ -4,6 +4,9 @@ edited config file or a node stored again must be seen."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
+
 import pytest
 from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf, open_dict
@@ -93,3 +96,20 @@ def test_a_node_stored_again_is_seen():
         assert compose([], config_name="memo_probe", check=False).seed == 12
     finally:
         store.repo.pop("memo_probe.yaml", None)
+
+
+def test_a_new_process_composes_a_structure_once():
+    """Hydra stores its own nodes in the ConfigStore at a process's first composition: the memo's key is
+    taken after it, so the second configuration of the same structure is not composed again."""
+    code = (
+        "import sphri.config as c\n"
+        "calls = []\n"
+        "hydra = c.compose_with_hydra\n"
+        "c.compose_with_hydra = lambda *a: calls.append(a) or hydra(*a)\n"
+        "assert c.compose(['+debug=fast', 'seed=1']).seed == 1\n"
+        "assert c.compose(['+debug=fast', 'seed=2']).seed == 2\n"
+        "print(len(calls))\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["1"]
