@@ -21,7 +21,7 @@ import importlib
 import math
 import os
 import re
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, ClassVar, TypeVar
@@ -477,7 +477,7 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config", check: b
 
     Hydra composes each distinct set of group choices (and other structural overrides) once per
     process; plain value overrides (``encoder.res=18``) are then set on a copy as Hydra sets them
-    (:func:`_set_values`): see :class:`_ComposeMemo`.
+    (:func:`set_values`): see :class:`_ComposeMemo`.
     """
     register_schemas()
     overrides = normalize_overrides(overrides)
@@ -513,14 +513,11 @@ class _ComposeMemo:
     mostly change plain values. The config files fingerprinted are every YAML under the search path's
     folders (sphri's conf/ and each ``hydra.searchpath`` folder), so a search path is a config folder.
 
-    An override is *plain* when Hydra would apply it after the defaults list as a config override
-    (a ``key=value`` change of a key that is not a config group, not ``hydra.*``, not a sweep, not a
-    dict value); every other override (group choices, ``+``/``++`` additions, ``~`` deletions) is
-    *structural* and part of the memo's key, with the config files' paths, sizes and modification
-    times, the ConfigStore's nodes and, for a relative search path, the working directory. A plain
-    value is set on a deep copy as Hydra's ``_apply_overrides_to_config`` sets it (``OmegaConf.update``
-    with ``merge=True`` on the struct config), and a refusal is raised as Hydra raises it, so the
-    one-line errors are Hydra's. ``tests/test_compose_memo.py`` compares both paths, configs and errors.
+    The overrides are split by :func:`split_overrides`; the structural ones are part of the memo's key,
+    with the config files' paths, sizes and modification times, the ConfigStore's nodes and, for a
+    relative search path, the working directory. The plain ones are set on a deep copy by
+    :func:`set_values`, so the one-line errors are Hydra's. ``tests/test_compose_memo.py`` compares
+    both paths, configs and errors.
     Hand-written because Hydra has no cache of its own across compositions; this sits outside Hydra
     (its compose API only), not a patch of it.
     """
@@ -546,37 +543,14 @@ class _ComposeMemo:
         while len(self.bases) > self.size:
             self.bases.pop(next(iter(self.bases)))
         cfg = copy.deepcopy(base)
-        _set_values(cfg, plain)
+        set_values(cfg, plain)
         return cfg
 
     @staticmethod
     def split(overrides: list[str]) -> tuple[list[str], list[Any]] | None:
-        """``(structural override strings, plain parsed overrides)``, or None where Hydra's parser refuses one."""
-        from hydra.core.override_parser.overrides_parser import OverridesParser
-        from hydra.core.override_parser.types import OverrideType
-
-        try:
-            parsed = OverridesParser.create().parse_overrides(list(overrides))
-        except Exception:  # noqa: BLE001 - Hydra's composition says what is malformed
-            return None
+        """:func:`split_overrides` with the groups of sphri's search path."""
         dirs = _search_dirs(overrides)
-        structural: list[str] = []
-        plain: list[Any] = []
-        for o in parsed:
-            key = o.key_or_group
-            if (
-                o.type == OverrideType.CHANGE
-                and o.package is None
-                and not o.is_sweep_override()
-                and not key.startswith("hydra")
-                and "/" not in key
-                and not isinstance(o.value(), dict)
-                and not _is_group(key, dirs)
-            ):
-                plain.append(o)
-            else:
-                structural.append(str(o.input_line))
-        return structural, plain
+        return split_overrides(overrides, lambda key: _is_group(key, dirs))
 
     @staticmethod
     def sources(overrides: Sequence[str]) -> tuple:
@@ -587,6 +561,40 @@ class _ComposeMemo:
         )
         cwd = os.getcwd() if any(not d.is_absolute() for d in dirs) else ""
         return files, _store_nodes(ConfigStore.instance().repo), cwd
+
+
+def split_overrides(overrides: Sequence[str], is_group: Callable[[str], bool]) -> tuple[list[str], list[Any]] | None:
+    """``(structural override strings, plain parsed overrides)``, or None where Hydra's parser refuses one.
+
+    *Plain*: what Hydra applies after the defaults list as a config override, a ``key=value`` change of
+    a key that is not a config group (``is_group``), not ``hydra.*``, not a sweep, not a dict value, no
+    ``@package``; set them with :func:`set_values`. Everything else is *structural* (Hydra composes it).
+    :func:`compose` and the sweeper's job composer (``hydra_plugins/sphri_sweeper``) split with it.
+    """
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import OverrideType
+
+    try:
+        parsed = OverridesParser.create().parse_overrides(list(overrides))
+    except Exception:  # noqa: BLE001 - Hydra's composition says what is malformed
+        return None
+    structural: list[str] = []
+    plain: list[Any] = []
+    for o in parsed:
+        key = o.key_or_group
+        if (
+            o.type == OverrideType.CHANGE
+            and o.package is None
+            and not o.is_sweep_override()
+            and not key.startswith("hydra")
+            and "/" not in key
+            and not isinstance(o.value(), dict)
+            and not is_group(key)
+        ):
+            plain.append(o)
+        else:
+            structural.append(str(o.input_line))
+    return structural, plain
 
 
 def _is_group(key: str, dirs: Sequence[Path]) -> bool:
@@ -605,7 +613,7 @@ def _store_nodes(repo: dict, prefix: str = "") -> tuple:
     return tuple(out)
 
 
-def _set_values(cfg: DictConfig, overrides: Sequence[Any]) -> None:
+def set_values(cfg: DictConfig, overrides: Sequence[Any]) -> None:
     """Set plain value overrides as Hydra's ``ConfigLoaderImpl._apply_overrides_to_config`` does (its
     change branch, the same exceptions and messages, so :func:`_explain` says the same line)."""
     from hydra.errors import ConfigCompositionException

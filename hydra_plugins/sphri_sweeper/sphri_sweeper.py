@@ -183,18 +183,16 @@ class SphriSweeper(BasicSweeper):
         differ in plain values (``encoder.res=18``), so each distinct set of the other overrides
         (group choices such as ``sensitivity=noise0``, additions ``+key=``, deletions ``~key``) is
         composed once by Hydra, and a job's plain value overrides are then set on a copy of that
-        config with OmegaConf (a typed node refuses an unknown key or a wrong type as Hydra does:
-        the same one-line errors). ``tests/test_sweeps_store.py`` checks that both give the same
-        configs on the experiments' sweeps."""
+        config as Hydra sets them: the split and the setting are :func:`sphri.config.split_overrides`
+        and :func:`sphri.config.set_values`, which :func:`sphri.config.compose` uses too (the same
+        one-line errors). ``tests/test_sweeps_store.py`` checks that both give the same configs on
+        the experiments' sweeps."""
         import copy
 
-        from hydra.core.override_parser.overrides_parser import OverridesParser
-        from hydra.core.override_parser.types import OverrideType
-        from omegaconf import OmegaConf
+        from sphri.config import set_values, split_overrides
 
         assert self.hydra_context is not None and self.config is not None
         loader = self.hydra_context.config_loader
-        parser = OverridesParser.create(config_loader=loader)
         groups: dict[str, bool] = {}
         bases: dict[tuple[str, ...], Any] = {}
 
@@ -207,21 +205,15 @@ class SphriSweeper(BasicSweeper):
             return groups[key]
 
         def compose(job: list[str]) -> Any:
-            parsed = parser.parse_overrides(job)
-            plain = [
-                o
-                for o in parsed
-                if o.type == OverrideType.CHANGE
-                and o.package is None
-                and not o.is_sweep_override()
-                and not is_group(o.key_or_group)
-            ]
-            rest = tuple(o.input_line for o in parsed if o not in plain)
+            split = split_overrides(job, is_group)
+            if split is None:  # Hydra's parser refuses an override: Hydra's composition says which
+                return loader.load_sweep_config(self.config, list(job))
+            structural, plain = split
+            rest = tuple(structural)
             if rest not in bases:
                 bases[rest] = loader.load_sweep_config(self.config, list(rest))
             cfg = copy.deepcopy(bases[rest])
-            for o in plain:
-                OmegaConf.update(cfg, o.key_or_group, o.value(), merge=False)
+            set_values(cfg, plain)
             return cfg
 
         return compose
