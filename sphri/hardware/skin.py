@@ -217,6 +217,12 @@ class SkinReader:
             if data:
                 finishing = None
                 frames = self.decoder.feed(data)
+                st = self.decoder.stats
+                if st.frames == 0 and st.wrong_count >= WRONG_COUNT_LIMIT:  # so no frame to hand on either
+                    raise StreamMismatch(
+                        f"{self.link.port}: {st.wrong_count} frames with the wrong taxel count and none with "
+                        f"the expected {self.decoder.expected_taxels}; is this the skin the model/layout was made for?"
+                    )
             elif until is not None and until():
                 # the source said it finished: stop once the port stayed empty for FINISH_QUIET_S
                 # (a pty's kernel buffer can hold written bytes back for a while on a loaded machine)
@@ -235,13 +241,6 @@ class SkinReader:
                         if max_frames and count >= max_frames:
                             self.stop_reason = f"{count} frames"
                             return
-            if data:
-                st = self.decoder.stats
-                if st.frames == 0 and st.wrong_count >= WRONG_COUNT_LIMIT:
-                    raise StreamMismatch(
-                        f"{self.link.port}: {st.wrong_count} frames with the wrong taxel count and none with "
-                        f"the expected {self.decoder.expected_taxels}; is this the skin the model/layout was made for?"
-                    )
             if ended:
                 self.stop_reason = "the source finished"
                 return
