@@ -289,8 +289,9 @@ def test_the_console_script_imports_only_the_standard_library():
 
 
 def _tab(line: str, cache: Path) -> list[str]:
-    probe = "import sys; sys.argv = ['sphri', '-sc', 'query=bash']; from sphri.completion import main; main()"
-    run = _python(["-c", probe], REPO, 300, COMP_LINE=line, XDG_CACHE_HOME=str(cache))
+    """What the console script's TAB query (``sphri -sc query=bash`` with ``COMP_LINE``) prints, its words
+    (in a forked process: whether a cached answer imports anything heavy is checked in a fresh one below)."""
+    run = _python(["-m", "sphri.completion", "-sc", "query=bash"], REPO, 300, COMP_LINE=line, XDG_CACHE_HOME=str(cache))
     assert run.returncode == 0, run.stderr[-2000:]
     return run.stdout.split()
 
