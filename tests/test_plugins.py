@@ -6,9 +6,9 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
+import forked_cli
 import pytest
 
 REPO = Path(__file__).resolve().parents[1]
@@ -24,8 +24,10 @@ def lab(tmp_path) -> Path:
 
 
 def _run(lab: Path, *args: str, cwd: Path) -> subprocess.CompletedProcess:
+    """``python -m ...`` with the lab's package on ``PYTHONPATH`` (forked: the lab's module is imported in
+    the child, from the lab's folder, as in a fresh interpreter)."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(lab), str(REPO)])}
-    return subprocess.run([sys.executable, *args], capture_output=True, text=True, cwd=cwd, env=env, timeout=600)
+    return forked_cli.run(list(args), cwd, env, 600)
 
 
 def test_user_components_run_end_to_end(lab, tmp_path):
