@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import os
 import subprocess
-import sys
 import time
 from pathlib import Path
 
+import forked_cli
 import numpy as np
 
 from sphri.cache import StageCache
@@ -63,8 +63,7 @@ def test_python_m_sphri_cache_runs_the_command(tmp_path):
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
 
     def cache(*args: str) -> subprocess.CompletedProcess:
-        cmd = [sys.executable, "-m", "sphri.cache", *args]
-        return subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=120)
+        return forked_cli.run(["-m", "sphri.cache", *args], tmp_path, env, 120)
 
     run = cache("info", f"dir={root}")
     assert run.returncode == 0, run.stderr

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 from pathlib import Path
 
+import forked_cli
 import numpy as np
 
 from sphri import pipeline
@@ -84,8 +83,7 @@ def test_cache_disabled_computes_everything(tmp_path: Path):
 
 def test_wrong_value_fails_before_any_stage(tmp_path: Path):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    args = [sys.executable, "-m", "sphri", "encoder.res=0", f"output_dir={tmp_path}"]
-    proc = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    proc = forked_cli.run(["-m", "sphri", "encoder.res=0", f"output_dir={tmp_path}"], tmp_path, env, 300)
     assert proc.returncode == 2
     assert "encoder.res" in proc.stderr
     assert "computing" not in proc.stdout + proc.stderr

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 
+import forked_cli
 import pytest
 
 from sphri.config import ConfigError, compose, require_range
@@ -33,14 +32,7 @@ def test_every_range_refuses_non_finite_values():
 def test_non_finite_hand_scale_is_one_line_and_exit_2_from_the_command_line(tmp_path):
     """Reproducer (issue 29), as a user types it: ``python -m sphri +debug=fast hand.scale=inf``."""
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    run = subprocess.run(
-        [sys.executable, "-m", "sphri", "+debug=fast", "hand.scale=inf"],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    run = forked_cli.run(["-m", "sphri", "+debug=fast", "hand.scale=inf"], tmp_path, env, 600)
     assert run.returncode == 2, run.stderr
     assert run.stderr.strip().splitlines() == [
         "sphri: invalid config: hand.scale=inf is invalid: must be a finite number in (0, inf)"

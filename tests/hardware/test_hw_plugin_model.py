@@ -12,6 +12,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import forked_cli
 import numpy as np
 import pytest
 
@@ -56,10 +57,8 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     model_path = tmp_path / "proto.sphrimodel"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(lab), str(REPO)])}
 
-    def python_m(*args: str) -> subprocess.CompletedProcess:
-        return subprocess.run(
-            [sys.executable, "-m", *args], capture_output=True, text=True, cwd=tmp_path, env=env, timeout=600
-        )
+    def python_m(*args: str) -> subprocess.CompletedProcess:  # forked: the lab's module imported in the child
+        return forked_cli.run(["-m", *args], tmp_path, env, 600)
 
     job = python_m("sphri", *overrides, "tracking.enabled=false")  # a job cross-validates it like any model
     assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
