@@ -23,6 +23,14 @@ CONF_PACKAGES = ["sphri.conf"] + sorted(
     for d in (HERE / "conf").rglob("*")
     if d.is_dir() and any(d.glob("*.yaml"))
 )
+# Data-only folders of robot descriptions shipped with sphri (sphri/robots/data/<robot>/..., URDF, PLY
+# meshes, licence): listed as packages, as sphri.templates is, so setuptools ships them without its
+# "Package would be ignored" warning for folders Python could import.
+ROBOT_DATA_PACKAGES = sorted(
+    ".".join(d.relative_to(HERE).parts)
+    for d in (HERE / "sphri" / "robots" / "data").rglob("*")
+    if d.is_dir() and d.name != "__pycache__" and any(f.is_file() for f in d.iterdir())
+)
 
 
 
@@ -63,11 +71,13 @@ setup(
     packages=find_packages(include=["sphri", "sphri.*"])
     + find_namespace_packages(include=["hydra_plugins.*"])
     + ["sphri.templates"]  # the reports' Jinja2 templates (data only, read by sphri.templating)
+    + ROBOT_DATA_PACKAGES
     + CONF_PACKAGES,
     package_dir={"sphri.conf": "conf"},
     # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml),
-    # plus the robot descriptions shipped with sphri (sphri/robots/data/reachy2: URDF, PLY meshes, licence)
-    package_data={"sphri": ["**/*.yaml", "*.mplstyle", "robots/data/*/*", "robots/data/*/meshes/*"],
+    # plus every file of the robot descriptions shipped with sphri
+    package_data={"sphri": ["**/*.yaml", "*.mplstyle"],
                   "sphri.templates": ["*.html.j2"],
+                  **{name: ["*"] for name in ROBOT_DATA_PACKAGES},
                   **{name: ["*.yaml"] for name in CONF_PACKAGES}},
 )

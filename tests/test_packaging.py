@@ -4,6 +4,7 @@ and runs a job from any working directory."""
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import subprocess
 import sys
@@ -51,8 +52,18 @@ def installed(tmp_path_factory) -> Path:
         env={**os.environ, "GIT_DIR": git_dir.stdout.strip(), "GIT_WORK_TREE": str(source)},  # setup.py's commit
     )
     assert build.returncode == 0, build.stderr[-3000:]
+    ignored = re.findall(r"Package '([^']+)' is absent from the `packages` configuration", build.stdout + build.stderr)
+    assert not ignored, f"setuptools warns that these folders would not be packages: {ignored}"
     (wheel,) = wheels.glob("sphri-*.whl")
     names = zipfile.ZipFile(wheel).namelist()
+    robot_data = {
+        p.relative_to(REPO).as_posix()
+        for p in (REPO / "sphri" / "robots" / "data").rglob("*")
+        if p.is_file() and "__pycache__" not in p.parts
+    }
+    assert robot_data and robot_data <= set(names), (
+        f"robot descriptions missing from the wheel: {sorted(robot_data - set(names))[:5]}"
+    )
     shipped = {n for n in names if n.startswith("sphri/conf/") and n.endswith(".yaml")}
     in_repo = {"sphri/conf/" + p.relative_to(REPO / "conf").as_posix() for p in (REPO / "conf").rglob("*.yaml")}
     assert shipped == in_repo, f"configs missing from the wheel: {sorted(in_repo - shipped)[:5]}"
