@@ -12,7 +12,7 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from setuptools import find_namespace_packages, find_packages, setup
+from setuptools import find_namespace_packages, setup
 from setuptools.command.bdist_wheel import bdist_wheel
 from setuptools.command.build_py import build_py
 
@@ -22,14 +22,6 @@ CONF_PACKAGES = ["sphri.conf"] + sorted(
     "sphri.conf." + ".".join(d.relative_to(HERE / "conf").parts)
     for d in (HERE / "conf").rglob("*")
     if d.is_dir() and any(d.glob("*.yaml"))
-)
-# Data-only folders of robot descriptions shipped with sphri (sphri/robots/data/<robot>/..., URDF, PLY
-# meshes, licence): listed as packages, as sphri.templates is, so setuptools ships them without its
-# "Package would be ignored" warning for folders Python could import.
-ROBOT_DATA_PACKAGES = sorted(
-    ".".join(d.relative_to(HERE).parts)
-    for d in (HERE / "sphri" / "robots" / "data").rglob("*")
-    if d.is_dir() and d.name != "__pycache__" and any(f.is_file() for f in d.iterdir())
 )
 
 
@@ -66,18 +58,17 @@ class bdist_wheel_fresh(bdist_wheel):
 
 setup(
     cmdclass={"build_py": build_py_with_commit, "bdist_wheel": bdist_wheel_fresh},
-    # hydra_plugins is a namespace package (no __init__.py, as Hydra's plugin discovery wants):
-    # find_packages skips it and with it sphri's sweeper, so it is found as a namespace.
-    packages=find_packages(include=["sphri", "sphri.*"])
+    # Found as namespaces, so that folders without __init__.py are packages too: hydra_plugins (as Hydra's
+    # plugin discovery wants; find_packages would skip it and with it sphri's sweeper) and sphri's data-only
+    # folders (the reports' Jinja2 templates, the robot descriptions in sphri/robots/data/<robot>/), which
+    # setuptools would otherwise ship with a "Package would be ignored" warning.
+    packages=find_namespace_packages(include=["sphri", "sphri.*"], exclude=["*.__pycache__"])
     + find_namespace_packages(include=["hydra_plugins.*"])
-    + ["sphri.templates"]  # the reports' Jinja2 templates (data only, read by sphri.templating)
-    + ROBOT_DATA_PACKAGES
     + CONF_PACKAGES,
     package_dir={"sphri.conf": "conf"},
     # configs, plus data tables that live beside their code (e.g. sphri/sessions/scenario_priors.yaml),
-    # plus every file of the robot descriptions shipped with sphri
-    package_data={"sphri": ["**/*.yaml", "*.mplstyle"],
+    # plus the robot descriptions shipped with sphri (sphri/robots/data/reachy2: URDF, PLY meshes, licence)
+    package_data={"sphri": ["**/*.yaml", "*.mplstyle", "robots/data/*/*", "robots/data/*/meshes/*"],
                   "sphri.templates": ["*.html.j2"],
-                  **{name: ["*"] for name in ROBOT_DATA_PACKAGES},
                   **{name: ["*.yaml"] for name in CONF_PACKAGES}},
 )
