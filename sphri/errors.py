@@ -28,6 +28,7 @@ VERBOSE_FLAG = "--verbose"
 #: (module, class, kind shown to the user), most specific first.
 EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.config", "ConfigError", "invalid config"),
+    ("sphri.types", "UnknownRegion", "invalid config"),
     ("sphri.data.vr_gesture", "DatasetError", "data error"),
     ("sphri.data.format", "ManifestError", "data error"),
     ("sphri.sessions.format", "SessionFormatError", "data error"),

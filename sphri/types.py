@@ -130,6 +130,15 @@ class Link:
     """What validation found and repaired on load, one sentence each."""
 
 
+class UnknownRegion(KeyError):
+    """A skin region the robot does not have (e.g. ``data.regions=[arm]`` on a robot whose regions are
+    its URDF links): an input error, shown as one line (:mod:`sphri.errors`). A ``KeyError`` whose text
+    is the message itself, not its ``repr``."""
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+
 @dataclass(frozen=True)
 class Robot:
     """A morphology: named links and the skin regions an experiment may use."""
@@ -141,7 +150,10 @@ class Robot:
 
     def link_for(self, region: str) -> Link:
         if region not in self.regions:
-            raise KeyError(f"robot {self.name!r} has no skin region {region!r}; regions: {sorted(self.regions)}")
+            raise UnknownRegion(
+                f"robot {self.name!r} has no skin region {region!r} (data.regions must name regions of the robot); "
+                f"regions: {sorted(self.regions)}"
+            )
         return self.links[self.regions[region]]
 
 

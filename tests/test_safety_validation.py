@@ -203,6 +203,18 @@ def test_main_entry_point_data_error_is_one_line(tmp_path):
     ]
 
 
+def test_a_region_the_robot_lacks_is_one_line_naming_it_and_the_robots_regions(tmp_path):
+    """A whole-body robot's regions are its body parts and links, known once it is built (``robot=reachy2``
+    from its URDF, ``robot=reachy_full``), so the default ``data.regions=[arm]`` passes composition and is
+    refused at the data stage: one line naming the region and the robot's regions, exit 2 (it was a
+    KeyError's traceback)."""
+    res = _run(["sphri", "robot=reachy_full", "+debug=fast", f"output_dir={tmp_path / 'out'}"], tmp_path)
+    assert res.returncode == 2 and "Traceback" not in res.stderr, res.stderr[-2000:]
+    (line,) = [ln for ln in res.stderr.splitlines() if ln.startswith("sphri:")]
+    assert line.startswith("sphri: invalid config: robot 'reachy_full' has no skin region 'arm' (data.regions"), line
+    assert "regions: ['base', 'forearm_l'" in line, line  # the message itself, not a KeyError's quoted repr
+
+
 @pytest.mark.parametrize(
     "module, argv, kind",
     [
@@ -220,6 +232,7 @@ def test_main_entry_point_data_error_is_one_line(tmp_path):
             "model file error",
         ),
         ("sphri.cli", ["validate", "+seeed=3"], "invalid config"),
+        ("sphri.coverage", ["robot=reachy_full", "+debug=fast", "mlflow=false", "out=cov"], "invalid config"),
     ],
 )
 def test_every_entry_point_prints_one_line(module, argv, kind, capsys, tmp_path, monkeypatch):

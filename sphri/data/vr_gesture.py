@@ -260,7 +260,7 @@ class VRGestureData:
         """Read the selected trials into a :class:`GestureDataset` (poses float32, link frames)."""
         if robot is not None:
             for region in self.regions:
-                robot.link_for(region)  # KeyError naming the robot's regions
+                robot.link_for(region)  # UnknownRegion naming the robot's regions
         pids = find_participants(self.root, self.regions)
         if not pids:
             raise DatasetError(f"{self.root}: no participant_XX folders under {self.regions}")
