@@ -47,7 +47,13 @@ log = logging.getLogger("sphri")
 
 
 def limit_threads(n: int) -> None:
-    """Cap BLAS/OpenMP/numba/torch threads and sphri's own (parallel sweep jobs share the cores)."""
+    """Cap BLAS/OpenMP/numba/torch threads and sphri's own (parallel sweep jobs share the cores).
+
+    numba and torch are capped here only where they are imported already; otherwise each sizes its
+    pool from the variables set here when the job first imports it (``NUMBA_NUM_THREADS``,
+    ``OMP_NUM_THREADS``), so a job that never uses torch (a Random Forest's) does not import it
+    (about 2 CPU s and 300 MB per sweep worker).
+    """
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "SPHRI_THREADS"):
         os.environ[var] = str(n)
     try:
@@ -56,11 +62,12 @@ def limit_threads(n: int) -> None:
         threadpool_limits(n)
     except ImportError:  # pragma: no cover - threadpoolctl ships with scikit-learn
         pass
-    import numba
-    import torch
-
-    numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))  # the env var is read only at import
-    torch.set_num_threads(n)
+    numba = sys.modules.get("numba")
+    if numba is not None:  # its pool was sized at import: cap it (within that size)
+        numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(n)
 
 
 def quiet_console() -> None:
