@@ -520,9 +520,15 @@ class _ComposeMemo:
     both paths, configs and errors.
     Hand-written because Hydra has no cache of its own across compositions; this sits outside Hydra
     (its compose API only), not a patch of it.
+
+    ``size``: the compositions kept, least recently used dropped first. A composed config holds about
+    0.28 MB (tracemalloc, the default config), so 128 keep at most about 36 MB; 128 rather than 32
+    because one process that checks every component (``sphri show``, the tests of every YAML, every
+    schema's defaults and every experiment's jobs) composes 114 distinct ones: run serially, those
+    four test modules took 127.8 s with 32 and 104.2 s with 128 (2-core AMD EPYC, AVX-512).
     """
 
-    def __init__(self, size: int = 32) -> None:
+    def __init__(self, size: int = 128) -> None:
         self.size = size
         self.bases: dict[tuple, DictConfig] = {}
 

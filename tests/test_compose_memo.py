@@ -113,3 +113,14 @@ def test_a_new_process_composes_a_structure_once():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == ["1"]
+
+
+def test_the_memo_keeps_its_size_dropping_the_least_recently_used():
+    from sphri.config import _ComposeMemo, register_schemas
+
+    register_schemas()
+    memo = _ComposeMemo(size=2)
+    for overrides in (["encoder=coverage"], ["model=cnn_gru"], ["encoder=coverage"], ["noise=none"]):
+        memo.compose("config", overrides)
+    kept = [key[1] for key in memo.bases]
+    assert kept == [("encoder=coverage",), ("noise=none",)], kept  # model=cnn_gru: least recently used
