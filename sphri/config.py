@@ -726,12 +726,14 @@ def _explain(exc: BaseException) -> str:
     return " ".join(lines[:20]) if lines else type(exc).__name__
 
 
-def check_output_dir(output_dir: str) -> None:
+def check_output_dir(output_dir: str, key: str = "output_dir") -> None:
     """``output_dir`` can hold runs, the cache and the MLflow store: not empty (``cache.dir`` would be
     ``/cache``), not an existing file or below one, every name within the file system's limit. Nothing is
-    created here."""
+    created here. ``key``: the setting the errors name (``out`` of ``sphri coverage``)."""
     if not output_dir.strip():
-        raise ConfigError("output_dir='' is invalid: give a folder (default: outputs)")
+        raise ConfigError(
+            f"{key}='' is invalid: give a folder" + (" (default: outputs)" if key == "output_dir" else "")
+        )
     path = Path(output_dir).expanduser()
     try:
         limit = os.pathconf(next((p for p in (path, *path.parents) if p.exists()), Path(".")), "PC_NAME_MAX")
@@ -740,15 +742,15 @@ def check_output_dir(output_dir: str) -> None:
     long = [part for part in path.parts if len(part.encode()) > limit]
     if long:
         raise ConfigError(
-            f"output_dir is invalid: the name {long[0][:40]}... is {len(long[0].encode())} bytes long, "
+            f"{key} is invalid: the name {long[0][:40]}... is {len(long[0].encode())} bytes long, "
             f"more than this file system's {limit}"
         )
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():
-                raise ConfigError(f"output_dir={output_dir} is invalid: {p} is a file, not a folder")
+                raise ConfigError(f"{key}={output_dir} is invalid: {p} is a file, not a folder")
             if not os.access(p, os.W_OK | os.X_OK):
-                raise ConfigError(f"output_dir={output_dir} is invalid: {p} is read-only; give a writable folder")
+                raise ConfigError(f"{key}={output_dir} is invalid: {p} is read-only; give a writable folder")
             break
 
 

@@ -247,3 +247,28 @@ def test_every_entry_point_prints_one_line(module, argv, kind, capsys, tmp_path,
     lines = [ln for ln in err.splitlines() if ln.startswith(("sphri", "Traceback"))]
     assert len(lines) == 1 and "Traceback" not in err, err
     assert kind in lines[0] or module == "sphri.cli", lines
+
+
+@pytest.mark.parametrize("study", [[], ["+experiment=scenario_study"]], ids=["coverage", "scenario_study"])
+@pytest.mark.parametrize("out", ["taken", "taken/below"])
+def test_coverage_out_on_a_file_is_one_line_before_any_computing(study, out, capsys, tmp_path, monkeypatch):
+    """``sphri coverage out=PATH`` where PATH (or a folder above it) is a file: one line naming ``out`` and
+    the file, exit 2, before the analysis (or the whole-body study) computes anything; it was an
+    ``[Errno 17] File exists`` file error after composing."""
+    import sphri.pipeline
+    import sphri.sessions.study
+    from sphri.coverage import main
+
+    def refuse(*_a, **_k):
+        raise AssertionError("computing started")
+
+    monkeypatch.setattr(sphri.pipeline, "make_pipeline", refuse)
+    monkeypatch.setattr(sphri.sessions.study, "run_study", refuse)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "taken").write_text("a file\n")
+    code = main([*study, "+debug=fast", "mlflow=false", f"out={tmp_path / out}"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    (line,) = [ln for ln in err.splitlines() if ln.startswith("sphri")]
+    assert f"out={tmp_path / out} is invalid: {tmp_path / 'taken'} is a file, not a folder" in line, line
+    assert (tmp_path / "taken").read_text() == "a file\n"
