@@ -726,10 +726,12 @@ def _explain(exc: BaseException) -> str:
     return " ".join(lines[:20]) if lines else type(exc).__name__
 
 
-def check_output_dir(output_dir: str, key: str = "output_dir") -> None:
+def check_output_dir(output_dir: str, key: str = "output_dir", shown: str | None = None) -> None:
     """``output_dir`` can hold runs, the cache and the MLflow store: not empty (``cache.dir`` would be
     ``/cache``), not an existing file or below one, every name within the file system's limit. Nothing is
-    created here. ``key``: the setting the errors name (``out`` of ``sphri coverage``)."""
+    created here. ``key``: the setting the errors name (``out`` of ``sphri coverage``), ``shown`` the value
+    they quote (default ``output_dir``)."""
+    shown = output_dir if shown is None else shown
     if not output_dir.strip():
         raise ConfigError(
             f"{key}='' is invalid: give a folder" + (" (default: outputs)" if key == "output_dir" else "")
@@ -748,10 +750,21 @@ def check_output_dir(output_dir: str, key: str = "output_dir") -> None:
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():
-                raise ConfigError(f"{key}={output_dir} is invalid: {p} is a file, not a folder")
+                raise ConfigError(f"{key}={shown} is invalid: {p} is a file, not a folder")
             if not os.access(p, os.W_OK | os.X_OK):
-                raise ConfigError(f"{key}={output_dir} is invalid: {p} is read-only; give a writable folder")
+                raise ConfigError(f"{key}={shown} is invalid: {p} is read-only; give a writable folder")
             break
+
+
+def check_output_file(path: str, key: str = "out") -> None:
+    """A file to be written at ``path`` (``sphri export out=FILE``): not empty, not an existing folder, its
+    folder one :func:`check_output_dir` accepts. Checked before any computing: the write comes last."""
+    if not path.strip():
+        raise ConfigError(f"{key}='' is invalid: give a file name")
+    p = Path(path).expanduser()
+    if p.is_dir():
+        raise ConfigError(f"{key}={path} is invalid: {p} is a folder; give a file name (e.g. {p / 'model.sphrimodel'})")
+    check_output_dir(str(p.parent), key=key, shown=path)
 
 
 def validate(cfg: DictConfig) -> None:

@@ -272,3 +272,40 @@ def test_coverage_out_on_a_file_is_one_line_before_any_computing(study, out, cap
     (line,) = [ln for ln in err.splitlines() if ln.startswith("sphri")]
     assert f"out={tmp_path / out} is invalid: {tmp_path / 'taken'} is a file, not a folder" in line, line
     assert (tmp_path / "taken").read_text() == "a file\n"
+
+
+@pytest.mark.parametrize(
+    "module, argv, named",
+    [
+        ("sphri.data.synthesize", ["out=taken"], "taken is a file, not a folder"),
+        ("sphri.data.synthesize", ["out=taken/ds"], "taken is a file, not a folder"),
+        ("sphri.sessions.synthesize", ["out=taken/sessions"], "taken is a file, not a folder"),
+        ("sphri.export.train", ["out=folder"], "folder is a folder; give a file name (e.g. folder/model.sphrimodel)"),
+        ("sphri.export.train", ["out=taken/m.sphrimodel"], "taken is a file, not a folder"),
+    ],
+)
+def test_an_output_path_in_the_way_is_one_line_before_any_computing(module, argv, named, capsys, tmp_path, monkeypatch):
+    """``sphri synthesize`` / ``sphri export`` with ``out=`` on a file (or a folder where a file is written):
+    one line naming ``out``, exit 2, before generating or training; they failed after the work was done
+    (``[Errno 20] Not a directory``, ``[Errno 21] Is a directory``), the trained model lost."""
+    import importlib
+
+    import sphri.data.synthetic
+    import sphri.pipeline
+    import sphri.sessions.synthetic
+
+    def refuse(*_a, **_k):
+        raise AssertionError("computing started")
+
+    monkeypatch.setattr(sphri.pipeline, "make_pipeline", refuse)
+    monkeypatch.setattr(sphri.data.synthetic.SyntheticData, "load", refuse)
+    monkeypatch.setattr(sphri.sessions.synthetic.SyntheticSessions, "load", refuse)
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "taken").write_text("a file\n")
+    (tmp_path / "folder").mkdir()
+    code = importlib.import_module(module).main([*argv, "+debug=fast"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    (line,) = [ln for ln in err.splitlines() if ln.startswith("sphri")]
+    assert f"invalid config: {argv[0]} is invalid: {named}" in line, line
+    assert (tmp_path / "taken").read_text() == "a file\n" and not list((tmp_path / "folder").iterdir())

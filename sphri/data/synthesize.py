@@ -32,10 +32,11 @@ def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> GestureDataset
     from hydra.utils import instantiate
     from omegaconf import OmegaConf
 
-    from sphri.config import compose
+    from sphri.config import check_output_dir, compose
     from sphri.data.writer import write_dataset
 
     cfg = compose(list(overrides))
+    check_output_dir(str(out), key="out")  # before generating: a file in the way is one line
     hand = instantiate(cfg.hand).build()
     robot = instantiate(cfg.robot).build()
     dataset = instantiate(cfg.data).load(hand=hand, robot=robot)

@@ -195,10 +195,11 @@ COMMANDS = {"": (TrainExportSettings, True)}
 @settings_main("sphri.export.train", COMMANDS)
 def main(_cmd: str, settings: TrainExportSettings, overrides: list[str]) -> int:
     """``sphri export out=FILE ... [overrides ...]`` (``python -m sphri.export.train`` by default)."""
-    from sphri.config import compose
+    from sphri.config import check_output_file, compose
     from sphri.pipeline import make_pipeline, open_cache
 
     cfg = compose(overrides)  # an invalid override: one line from @clean_errors, exit 2
+    check_output_file(settings.out)  # before training: a folder or a file in the way is one line, not lost work
     p = make_pipeline(cfg, open_cache(cfg))
     bundle = fit_bundle(p, settings.holdout, overrides)
     path = save_model(bundle, settings.out)

@@ -29,10 +29,11 @@ def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> SessionDataset
     """Generate the configured sessions and write them under ``out``; returns them."""
     from hydra.utils import instantiate
 
-    from sphri.config import compose
+    from sphri.config import check_output_dir, compose
     from sphri.sessions.format import write_sessions
 
     cfg = compose(["data=synthetic_sessions", "robot=reachy_full", *overrides])
+    check_output_dir(str(out), key="out")  # before generating: a file in the way is one line
     hand = instantiate(cfg.hand).build()
     robot = instantiate(cfg.robot).build()
     ds = instantiate(cfg.data).load(hand=hand, robot=robot)
