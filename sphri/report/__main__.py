@@ -89,6 +89,13 @@ def command(args: ReportArgs) -> int:
     """Write SOURCE/report/ (report.html, figures, summary.txt, CSV/JSON tables), log it to the sweep's
     MLflow parent run and print the summary; exit 2 with a message when the sweep cannot be reported on."""
     logging.basicConfig(level=logging.WARNING)
+    if args.out:
+        from sphri.config import ConfigError, check_output_dir
+
+        try:  # before reading the sweep: a file in the way is one line, exit 2
+            check_output_dir(args.out, key="out")
+        except ConfigError as exc:
+            raise ArgsError(str(exc)) from None
     try:
         _, files, text = make_report(
             args.source,

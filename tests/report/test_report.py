@@ -428,3 +428,21 @@ def test_html_escapes_group_names_taken_from_the_sweep(store, tmp_path):
     # the label survives as text in the comparison, per-gesture and per-resolution tables
     assert sum(hostile in cell for table in parser.tables for row in table for cell in row) >= 2
     assert page.count("&lt;script&gt;alert(") >= 4
+
+
+@pytest.mark.parametrize("out", ["taken", "taken/report"])
+def test_cli_out_on_a_file_is_one_line_before_reading_the_sweep(tmp_path, capsys, monkeypatch, out):
+    """``sphri report DIR out=PATH`` where PATH (or a folder above it) is a file: one line naming ``out``,
+    exit 2, before the sweep is read (it was ``file error: [Errno 17] File exists`` after the report's work)."""
+    import sphri.report.__main__ as report_main
+
+    def refuse(*_a, **_k):
+        raise AssertionError("the sweep was read")
+
+    monkeypatch.setattr(report_main, "make_report", refuse)
+    (tmp_path / "taken").write_text("a file\n")
+    assert report_main.main([str(tmp_path), f"out={tmp_path / out}"]) == 2
+    (line,) = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert line.startswith("sphri") and line.endswith(
+        f": out={tmp_path / out} is invalid: {tmp_path / 'taken'} is a file, not a folder"
+    ), line
