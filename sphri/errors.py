@@ -102,22 +102,25 @@ def report(prog: str, exc: BaseException) -> int | None:
 
 
 def clean_errors(prog: str) -> Callable:
-    """Decorate an entry point ``main(argv=None) -> int``: ``--verbose`` handling and one-line errors."""
+    """Decorate an entry point ``main(argv=None) -> int``: ``--verbose`` handling and one-line errors,
+    prefixed ``prog``, or the ``prog=`` the entry point is called with (``sphri export`` when
+    :func:`sphri.command.call` dispatches the verb), as its usage errors are."""
 
     def wrap(main: Callable[..., int]) -> Callable[..., int]:
         @functools.wraps(main)
         def run(argv: Sequence[str] | None = None, *args: Any, **kwargs: Any) -> int:
             argv = take_verbose_flag(list(sys.argv[1:] if argv is None else argv))
+            name = kwargs.get("prog") or prog
             try:
                 return main(argv, *args, **kwargs)
             except KeyboardInterrupt:
-                print(f"{prog}: interrupted", file=sys.stderr)
+                print(f"{name}: interrupted", file=sys.stderr)
                 return 130
             except BrokenPipeError:  # the reader went away (`| head`): stop quietly, as Python's docs advise
                 os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
                 return 1
             except Exception as exc:
-                code = report(prog, exc)
+                code = report(name, exc)
                 if code is None:
                     raise
                 return code

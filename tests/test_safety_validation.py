@@ -309,3 +309,26 @@ def test_an_output_path_in_the_way_is_one_line_before_any_computing(module, argv
     (line,) = [ln for ln in err.splitlines() if ln.startswith("sphri")]
     assert f"invalid config: {argv[0]} is invalid: {named}" in line, line
     assert (tmp_path / "taken").read_text() == "a file\n" and not list((tmp_path / "folder").iterdir())
+
+
+@pytest.mark.parametrize(
+    "verb, argv, code, line",
+    [
+        ("export", ["out=folder", "+debug=fast"], 2, "sphri export: invalid config: out=folder is invalid: "),
+        ("skin", ["record", "port=loop://", "out=taken/rec.npz"], 1, "sphri skin: recording error: out=taken/rec.npz"),
+    ],
+)
+def test_a_verbs_runtime_error_names_the_verb_as_its_usage_errors_do(
+    verb, argv, code, line, tmp_path, capsys, monkeypatch
+):
+    """``sphri export``/``sphri skin`` (dispatched by ``sphri.command.call``): an error past the argument
+    check was prefixed with the module (``sphri.export.train:``, ``sphri.hardware.skin:``) while a bad
+    argument of the same command said ``sphri export:``."""
+    from sphri.command import BY_NAME, call
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "taken").write_text("a file\n")
+    assert call(BY_NAME[verb], argv) == code
+    (got,) = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("sphri")]
+    assert got.startswith(line), got
