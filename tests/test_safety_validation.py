@@ -332,3 +332,15 @@ def test_a_verbs_runtime_error_names_the_verb_as_its_usage_errors_do(
     assert call(BY_NAME[verb], argv) == code
     (got,) = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("sphri")]
     assert got.startswith(line), got
+
+
+def test_a_layout_file_that_does_not_read_is_one_line_naming_it(tmp_path):
+    """``layout=file layout.path=F`` where F is not an iCub calibration text (no ``[calibration]`` rows):
+    the job printed a ValueError's traceback from the layout stage; now ``layout file error: F: ...``, exit 1."""
+    bad = tmp_path / "taxels.csv"
+    bad.write_text("x,y,z\n0,0,0\n")
+    args = ["sphri", "+debug=fast", "layout=file", "encoder=coverage", f"layout.path={bad}"]
+    res = _run([*args, f"output_dir={tmp_path / 'out'}", "tracking.enabled=false"], tmp_path)
+    assert res.returncode == 1 and "Traceback" not in res.stderr, res.stderr[-2000:]
+    (line,) = [ln for ln in res.stderr.splitlines() if ln.startswith("sphri:")]
+    assert line == f"sphri: layout file error: {bad}: no '[calibration]' rows (x y z nx ny nz) found", line

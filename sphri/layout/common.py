@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -146,16 +147,28 @@ def scattered_layout(
     )
 
 
+class LayoutFileError(ValueError):
+    """A layout or density file (``layout.path``, ``layout.density_path``) that does not read as one: the
+    message names the file (and the line or array); one line ``layout file error: ...`` at the command line."""
+
+
 def npz_arrays(path: str | Path, setting: str, keys: tuple[str, ...]) -> list[np.ndarray]:
     """The float64 arrays ``keys`` of the ``.npz`` file ``path`` that the setting ``setting`` names
     (``layout.path``): a missing file or array is one line naming the setting, the file and the array."""
     if not Path(path).is_file():
         raise FileNotFoundError(f"{setting}={str(path)!r}: no such file")
-    with np.load(path) as z:
-        for key in keys:
-            if key not in z:
-                raise ValueError(f"{setting}={str(path)!r}: missing array {key!r} (has {sorted(z.files)})")
-        return [np.asarray(z[key], dtype=np.float64) for key in keys]
+    if not zipfile.is_zipfile(path):
+        raise LayoutFileError(f"{setting}={str(path)!r}: not an .npz file (numpy's zip of arrays)")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            for key in keys:
+                if key not in z:
+                    raise LayoutFileError(f"{setting}={str(path)!r}: missing array {key!r} (has {sorted(z.files)})")
+            return [np.asarray(z[key], dtype=np.float64) for key in keys]
+    except LayoutFileError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, TypeError) as exc:  # not an npz, or not numbers
+        raise LayoutFileError(f"{setting}={str(path)!r}: not a readable .npz of numbers ({exc})") from None
 
 
 def voronoi_areas(link: Link, positions: np.ndarray, seed: int, max_dist_m: float | None = None) -> np.ndarray:

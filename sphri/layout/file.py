@@ -24,7 +24,7 @@ import numpy as np
 
 from sphri.config import Configured
 from sphri.geometry.link import check_link, closest_points, face_normals
-from sphri.layout.common import nn_spacing, npz_arrays, scattered_layout, voronoi_areas
+from sphri.layout.common import LayoutFileError, nn_spacing, npz_arrays, scattered_layout, voronoi_areas
 from sphri.layout.schema import FileLayoutSchema
 from sphri.types import Layout, Link, SurfaceMap
 
@@ -40,7 +40,11 @@ def read_icub_positions(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     path = Path(path)
     rows: list[list[float]] = []
     in_cal = False
-    for lineno, line in enumerate(path.read_text().splitlines(), start=1):
+    try:
+        text = path.read_text()
+    except UnicodeDecodeError:
+        raise LayoutFileError(f"{path}: not a text file (an iCub calibration .txt, or an .npz)") from None
+    for lineno, line in enumerate(text.splitlines(), start=1):
         s = line.strip()
         if not s or s.startswith(("#", "//")):
             continue
@@ -51,17 +55,17 @@ def read_icub_positions(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
             continue
         parts = s.split()
         if len(parts) != 6:
-            raise ValueError(f"{path}:{lineno}: expected 6 numbers 'x y z nx ny nz', got {len(parts)}: {s[:60]!r}")
+            raise LayoutFileError(f"{path}:{lineno}: expected 6 numbers 'x y z nx ny nz', got {len(parts)}: {s[:60]!r}")
         try:
             rows.append([float(x) for x in parts])
         except ValueError as exc:
-            raise ValueError(f"{path}:{lineno}: not a number in {s[:60]!r}") from exc
+            raise LayoutFileError(f"{path}:{lineno}: not a number in {s[:60]!r}") from exc
     if not rows:
-        raise ValueError(f"{path}: no '[calibration]' rows (x y z nx ny nz) found")
+        raise LayoutFileError(f"{path}: no '[calibration]' rows (x y z nx ny nz) found")
     a = np.asarray(rows, dtype=np.float64)
     present = np.any(a != 0.0, axis=1)
     if not present.any():
-        raise ValueError(f"{path}: every calibration row is zero (no taxels)")
+        raise LayoutFileError(f"{path}: every calibration row is zero (no taxels)")
     return a[present, :3], a[present, 3:]
 
 
@@ -108,9 +112,9 @@ def read_layout_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     if p.suffix == ".npz":
         pos, nrm = npz_arrays(p, "layout.path", ("position_m", "normal"))
         if pos.ndim != 2 or pos.shape[1] != 3 or nrm.shape != pos.shape or len(pos) == 0:
-            raise ValueError(f"{path}: position_m and normal must both be (N, 3), got {pos.shape}, {nrm.shape}")
+            raise LayoutFileError(f"{path}: position_m and normal must both be (N, 3), got {pos.shape}, {nrm.shape}")
         if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(nrm))):
-            raise ValueError(f"{path}: position_m / normal contain NaN or inf")
+            raise LayoutFileError(f"{path}: position_m / normal contain NaN or inf")
         return pos, nrm
     return read_icub_positions(p)
 

@@ -31,7 +31,14 @@ from scipy.spatial import cKDTree
 
 from sphri.config import Configured
 from sphri.geometry.link import face_areas, face_normals, sample_surface
-from sphri.layout.common import grid_equivalent_count, nn_spacing, npz_arrays, scattered_layout, voronoi_areas
+from sphri.layout.common import (
+    LayoutFileError,
+    grid_equivalent_count,
+    nn_spacing,
+    npz_arrays,
+    scattered_layout,
+    voronoi_areas,
+)
 from sphri.layout.schema import DensityLayoutSchema, RandomLayoutSchema, check_res
 from sphri.types import Contacts, Layout, Link, SurfaceMap
 
@@ -126,9 +133,9 @@ def load_density(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         raise ValueError("layout.density_path is empty: set it to an .npz with points_m (P,3) and density (P,)")
     pts, dens = npz_arrays(p, "layout.density_path", ("points_m", "density"))
     if pts.ndim != 2 or pts.shape[1] != 3 or dens.shape != (pts.shape[0],) or len(pts) == 0:
-        raise ValueError(f"{path}: points_m must be (P, 3) and density (P,), got {pts.shape} and {dens.shape}")
+        raise LayoutFileError(f"{path}: points_m must be (P, 3) and density (P,), got {pts.shape} and {dens.shape}")
     if not (np.all(np.isfinite(pts)) and np.all(np.isfinite(dens))) or dens.min() < 0 or dens.max() <= 0:
-        raise ValueError(f"{path}: density must be finite, >= 0 and not all zero; points_m finite")
+        raise LayoutFileError(f"{path}: density must be finite, >= 0 and not all zero; points_m finite")
     return pts, dens
 
 

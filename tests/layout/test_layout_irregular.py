@@ -199,3 +199,29 @@ def test_icub_forearm_on_its_link(shared_dir, caplog):
     with caplog.at_level(logging.WARNING):
         FileLayout(path=str(path)).build(link, sm, 18)
     assert "check layout.transform" in caplog.text
+
+
+@pytest.mark.parametrize("name", ["text.txt", "binary.txt", "junk.npz", "strings.npz", "no_normal.npz", "shape.npz"])
+def test_a_layout_file_that_does_not_read_is_a_layout_file_error_naming_it(tmp_path, name):
+    """Every way a layout file can fail to read raises LayoutFileError (one line ``layout file error`` at the
+    command line) naming the file; a binary .txt, a non-zip .npz and non-numeric arrays were tracebacks."""
+    from sphri.errors import kind_of
+    from sphri.layout.common import LayoutFileError
+    from sphri.layout.file import read_layout_file
+
+    path = tmp_path / name
+    if name == "text.txt":
+        path.write_text("x y z\n1 2 3\n")
+    elif name == "binary.txt":
+        path.write_bytes(bytes(range(128, 256)) * 3)
+    elif name == "junk.npz":
+        path.write_text("junk\n")
+    elif name == "strings.npz":
+        np.savez(path, position_m=np.array([["a", "b", "c"]]), normal=np.zeros((1, 3)))
+    elif name == "no_normal.npz":
+        np.savez(path, position_m=np.zeros((2, 3)))
+    else:
+        np.savez(path, position_m=np.zeros((2, 2)), normal=np.zeros((2, 2)))
+    with pytest.raises(LayoutFileError, match=name) as info:
+        read_layout_file(path)
+    assert kind_of(info.value) == "layout file error"
