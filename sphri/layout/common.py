@@ -161,14 +161,14 @@ def npz_arrays(path: str | Path, setting: str, keys: tuple[str, ...]) -> list[np
         raise LayoutFileError(f"{setting}={str(path)!r}: not an .npz file (numpy's zip of arrays)")
     try:
         with np.load(path, allow_pickle=False) as z:
-            for key in keys:
-                if key not in z:
-                    raise LayoutFileError(f"{setting}={str(path)!r}: missing array {key!r} (has {sorted(z.files)})")
-            return [np.asarray(z[key], dtype=np.float64) for key in keys]
-    except LayoutFileError:
-        raise
+            has = sorted(z.files)
+            arrays = {key: np.asarray(z[key], dtype=np.float64) for key in keys if key in has}
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, TypeError) as exc:  # not an npz, or not numbers
         raise LayoutFileError(f"{setting}={str(path)!r}: not a readable .npz of numbers ({exc})") from None
+    missing = [key for key in keys if key not in arrays]
+    if missing:
+        raise LayoutFileError(f"{setting}={str(path)!r}: missing array {missing[0]!r} (has {has})")
+    return [arrays[key] for key in keys]
 
 
 def voronoi_areas(link: Link, positions: np.ndarray, seed: int, max_dist_m: float | None = None) -> np.ndarray:
