@@ -29,10 +29,14 @@ CONF_PACKAGES = ["sphri.conf"] + sorted(
 class build_py_with_commit(build_py):
     """Also write ``sphri/_build_info.json`` (the git commit the wheel was built from) into the build:
     an installed wheel has no checkout to ask, and MLflow runs record this commit
-    (``sphri.tracking.mlflow_tracker.git_commit``)."""
+    (``sphri.tracking.mlflow_tracker.git_commit``). Not in an editable install (``pip install -e``, as
+    ``make install`` does): its build folder holds no package to write into (setuptools printed the
+    FileNotFoundError's traceback as a warning), and the checkout answers the commit itself."""
 
     def run(self) -> None:
         super().run()
+        if getattr(self, "editable_mode", False):
+            return
         try:
             commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, timeout=10,
                                     cwd=HERE).stdout.strip()

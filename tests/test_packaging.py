@@ -310,3 +310,26 @@ def test_wheel_builds_the_packaged_reachy2_from_its_own_data(installed, tmp_path
     )
     assert probe.returncode == 0, probe.stderr[-3000:]
     assert probe.stdout.split() == ["18", "78", "414"]
+
+
+def test_editable_install_builds_without_a_setuptools_warning(tmp_path):
+    """``make install`` is ``pip install -e``: setuptools builds an editable wheel (PEP 660), running
+    setup.py's build_py in a build folder that holds no package. Writing the commit there raised, and
+    setuptools printed that FileNotFoundError's traceback as a "Customization incompatible with editable
+    install" warning to every new user. Built here with setuptools' own PEP 660 hook, no network."""
+    source = _checkout_copy(tmp_path / "src")
+    git_dir = subprocess.run(["git", "rev-parse", "--absolute-git-dir"], capture_output=True, text=True, cwd=REPO)
+    hook = "import sys; from setuptools import build_meta; print(build_meta.build_editable(sys.argv[1]))"
+    build = subprocess.run(
+        [sys.executable, "-c", hook, str(tmp_path / "dist")],
+        capture_output=True,
+        text=True,
+        cwd=source,
+        env={**os.environ, "GIT_DIR": git_dir.stdout.strip(), "GIT_WORK_TREE": str(source)},
+        timeout=600,
+    )
+    assert build.returncode == 0, build.stderr[-3000:]
+    wheel = tmp_path / "dist" / build.stdout.strip().splitlines()[-1]
+    assert wheel.is_file() and "editable" in wheel.name
+    output = build.stdout + build.stderr
+    assert "Traceback" not in output and "Customization incompatible" not in output, output[-3000:]
