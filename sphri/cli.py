@@ -252,35 +252,54 @@ def warm_analysis_kernels() -> None:
     winding_number(box.vertices, box.faces, np.array([[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]))
 
 
+def warmup_lanes(tmp: str) -> list[list[list[str]]]:
+    """The commands of :func:`cmd_warmup`, in two lanes that run side by side (each lane's commands one
+    after the other, each in a process of its own, like a job): the ``+debug=fast`` chain then the
+    study's analysis kernels, and a serial sweep over the components that chain does not use
+    (:data:`WARMUP_SWEEP`); tracking off, everything written under ``tmp``."""
+    sphri, chain = [sys.executable, "-m", "sphri"], ["+debug=fast", "tracking.enabled=false", f"output_dir={tmp}"]
+    return [
+        [
+            [*sphri, *chain, f"hydra.run.dir={tmp}/run"],
+            [sys.executable, "-c", "from sphri.cli import warm_analysis_kernels; warm_analysis_kernels()"],
+        ],
+        [[*sphri, "-m", *chain, "hydra/launcher=serial", *WARMUP_SWEEP, f"hydra.sweep.dir={tmp}/sweep"]],
+    ]
+
+
 def cmd_warmup() -> int:
-    """Compile every numba kernel into numba's on-disk cache, so later jobs load them: the
-    ``+debug=fast`` chain once, a serial sweep over the components that chain does not use
-    (:data:`WARMUP_SWEEP`), tracking off, in a temporary folder, then the scenario study's analysis
-    kernels (:func:`warm_analysis_kernels`). Says what it compiled."""
+    """Compile every numba kernel into numba's on-disk cache, so later jobs load them: the commands of
+    :func:`warmup_lanes`, its two lanes side by side (numba's compiler runs on one core; numba writes its
+    cache files whole, so two processes may store the same kernel). Says what it compiled; a failed
+    command is one line (the first that failed), exit 1."""
     import subprocess
     import tempfile
     import time
+    from concurrent.futures import ThreadPoolExecutor
 
     print("compiling sphri's numba kernels into numba's cache (once per machine and sphri version)...", flush=True)
     t0 = time.perf_counter()
+
+    def run_lane(lane: list[list[str]], cwd: str) -> list[subprocess.CompletedProcess]:
+        done = []
+        for cmd in lane:
+            done.append(subprocess.run(cmd, cwd=cwd, capture_output=True, text=True))
+            if done[-1].returncode != 0:
+                break
+        return done
+
     with tempfile.TemporaryDirectory(prefix="sphri-warmup-") as tmp:
-        sphri, chain = [sys.executable, "-m", "sphri"], ["+debug=fast", "tracking.enabled=false", f"output_dir={tmp}"]
-        commands = [  # each in a process of its own, like a job (Hydra's -m comes before the overrides)
-            [*sphri, *chain, f"hydra.run.dir={tmp}/run"],
-            [*sphri, "-m", *chain, "hydra/launcher=serial", *WARMUP_SWEEP, f"hydra.sweep.dir={tmp}/sweep"],
-            [sys.executable, "-c", "from sphri.cli import warm_analysis_kernels; warm_analysis_kernels()"],
-        ]
-        out = []
-        for cmd in commands:
-            run = subprocess.run(cmd, cwd=tmp, capture_output=True, text=True)
-            out.append(run.stdout + run.stderr)
-            if run.returncode != 0:
-                seconds = time.perf_counter() - t0
-                tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
-                print(f"sphri: warmup failed after {seconds:.0f} s: {tail[0]}", file=sys.stderr)
-                return 1
+        lanes = warmup_lanes(tmp)
+        with ThreadPoolExecutor(len(lanes)) as pool:
+            runs = [run for lane_runs in pool.map(run_lane, lanes, [tmp] * len(lanes)) for run in lane_runs]
     seconds = time.perf_counter() - t0
-    compiled = [line.split("compiled ", 1)[1] for line in out[0].splitlines() if "numba kernels in" in line]
+    for run in runs:
+        if run.returncode != 0:
+            tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
+            print(f"sphri: warmup failed after {seconds:.0f} s: {tail[0]}", file=sys.stderr)
+            return 1
+    chain_output = runs[0].stdout + runs[0].stderr
+    compiled = [line.split("compiled ", 1)[1] for line in chain_output.splitlines() if "numba kernels in" in line]
     print(
         f"done in {seconds:.1f} s: "
         + (f"compiled {compiled[-1]}" if compiled else "the chain's kernels were already in the cache")

@@ -347,11 +347,17 @@ def test_warmup_reports_what_it_compiled_and_fails_in_one_line(monkeypatch: pyte
 
     monkeypatch.setattr(subprocess, "run", fake)
     assert main(["warmup"]) == 0
-    assert "+debug=fast" in calls[0] and "tracking.enabled=false" in calls[0]
-    # the components the debug chain does not use, in one serial sweep; then the study's analysis kernels
-    assert "-m" in calls[1] and "hydra/launcher=serial" in calls[1] and set(cli.WARMUP_SWEEP) <= set(calls[1])
-    assert "warm_analysis_kernels()" in calls[2][-1]
+    assert len(calls) == 3  # two lanes side by side: the order between them is not fixed
+    (chain,) = [c for c in calls if "+debug=fast" in c and "-m" not in c[3:]]
+    assert "tracking.enabled=false" in chain
+    # the components the debug chain does not use, in one serial sweep; and the study's analysis kernels
+    (sweep,) = [c for c in calls if "-m" in c[3:]]
+    assert "hydra/launcher=serial" in sweep and set(cli.WARMUP_SWEEP) <= set(sweep)
+    assert [c for c in calls if "warm_analysis_kernels()" in c[-1]]
     assert "compiled 8 numba kernels in 31.6 s" in capsys.readouterr().out
+    # the chain comes before the analysis kernels in its lane; the sweep has a lane of its own
+    lanes = cli.warmup_lanes("/tmp/x")
+    assert [len(lane) for lane in lanes] == [2, 1] and "warm_analysis_kernels()" in lanes[0][1][-1]
 
     monkeypatch.setattr(
         subprocess,
@@ -361,6 +367,27 @@ def test_warmup_reports_what_it_compiled_and_fails_in_one_line(monkeypatch: pyte
     assert cli.main(["warmup"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("sphri: warmup failed") and "ValueError: boom" in err[0]
+
+
+def test_warmup_runs_its_two_lanes_side_by_side(monkeypatch: pytest.MonkeyPatch):
+    """The first command of each lane waits (10 s at most) until the other lane's first command has
+    started: run one after the other, the barrier breaks and warmup fails."""
+    import subprocess
+    import threading
+
+    from sphri import cli
+
+    barrier = threading.Barrier(2, timeout=10)
+    firsts = tuple(lane[0][-1].split("=")[0] + "=" for lane in cli.warmup_lanes("TMP"))
+    assert firsts == ("hydra.run.dir=", "hydra.sweep.dir=")
+
+    def fake(cmd, **kwargs):
+        if cmd[-1].startswith(firsts):
+            barrier.wait()
+        return subprocess.CompletedProcess(cmd, 0, stdout="", stderr="")
+
+    monkeypatch.setattr(subprocess, "run", fake)
+    assert cli.main(["warmup"]) == 0
 
 
 def test_the_analysis_kernels_warm_on_tiny_inputs():
