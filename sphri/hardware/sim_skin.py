@@ -53,7 +53,8 @@ class SkinSimSettings(DeviceSettings):
     rate_hz: float = setting(0.0, lo=0.0, hi=10_000.0)
     """Frames per second (0 = the dataset's frame rate, 90 for patterns)."""
     realtime: bool = True
-    """Pace frames at rate_hz; false streams as fast as the link takes them."""
+    """Pace frames at rate_hz; false streams as fast as the link takes them, each frame stamped with
+    the time it has at rate_hz (the same bytes for the same seed)."""
     format: str = setting("auto", choices=("auto", "u8", "u16", "bits"))
     """Value format u8, u16, bits, or auto (bits for binary encoders, u8 otherwise)."""
     gap_s: float = setting(0.5, lo=0.0, hi=60.0)
@@ -323,7 +324,10 @@ class SkinSimulator:
                 seq = 0  # the device restarts
                 t0 += time.monotonic() - pause_start  # resume the schedule where it was
                 continue
-            t_us = int((time.monotonic() - stream_t0) * 1e6)
+            # paced: the clock's time; as fast as the link goes: the time the frame has at rate_hz, so
+            # that a seed gives the same bytes in every run (a clock-dependent timestamp changed which
+            # bytes of a broken frame happened to look like a sync, and with it the decoder's counts)
+            t_us = int((time.monotonic() - stream_t0) * 1e6) if s.realtime else round(i * period * 1e6)
             frame = encode_frame(seq, t_us, values[i], self.fmt)
             if s.garbage_rate and rng.random() < s.garbage_rate:
                 junk = rng.integers(0, 256, size=int(rng.integers(1, 33)), dtype=np.uint8).tobytes()
