@@ -271,7 +271,7 @@ def cmd_warmup() -> int:
     """Compile every numba kernel into numba's on-disk cache, so later jobs load them: the commands of
     :func:`warmup_lanes`, its two lanes side by side (numba's compiler runs on one core; numba writes its
     cache files whole, so two processes may store the same kernel). Says what it compiled; a failed
-    command is one line (the first that failed), exit 1."""
+    command is one line (the first failure in the lanes' order), exit 1."""
     import subprocess
     import tempfile
     import time
