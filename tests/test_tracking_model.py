@@ -25,14 +25,14 @@ def _env() -> dict[str, str]:
 
 
 @pytest.fixture(scope="module")
-def logged(tmp_path_factory) -> tuple[Path, str, list[str]]:
-    """(output_dir, run id, the three runs' stdout) of a debug job recorded first without its model, then
+def logged(tmp_path_factory) -> tuple[Path, str, list[str], list[str]]:
+    """(output_dir, run id, the three runs' stdout, their stderr) of a debug job recorded first without its model, then
     run again with ``tracking.log_model=true tracking.register_model=gestures`` (the model is logged into
     the recorded run and registered as `gestures`), then a third time with ``tracking.log_model=true``."""
     tmp = tmp_path_factory.mktemp("model_run")
     out = tmp / "out"
     args = ["-m", "sphri", *DATA, f"output_dir={out}"]
-    runs = []
+    runs, errs = [], []
     for flags in (
         ["tracking.log_model=false"],
         ["tracking.log_model=true", "tracking.register_model=gestures"],
@@ -41,8 +41,9 @@ def logged(tmp_path_factory) -> tuple[Path, str, list[str]]:
         job = forked_cli.run([*args, *flags], tmp, _env(), 600)
         assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
         runs.append(job.stdout)
+        errs.append(job.stderr)
     status = json.loads(min(out.glob("runs/*/*/sphri_status.json")).read_text())  # the first run's
-    return out, status["mlflow_run_id"], runs
+    return out, status["mlflow_run_id"], runs, errs
 
 
 def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windows(logged, tmp_path):
@@ -50,7 +51,7 @@ def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windo
     from sphri.hardware.train_export import training_windows
     from sphri.tracking.mlflow_tracker import default_uri
 
-    out, run_id, _ = logged
+    out, run_id, _, _ = logged
     windows = training_windows(open_pipeline([*DATA, f"output_dir={out}"]))
     np.save(tmp_path / "x.npy", windows.x[:6].astype(np.float32))
     code = (
@@ -81,7 +82,7 @@ def test_registered_model_resolves_for_skin_live_only_when_remote_is_allowed(log
     from sphri.hardware.model_file import ModelFileError, load_model, resolve_model_path
     from sphri.tracking.mlflow_tracker import default_uri
 
-    out, _, _ = logged
+    out, _, _, _ = logged
     uri = default_uri(out)
     path = resolve_model_path("models:/gestures/1", uri, allow_remote=True)
     assert path.suffix == ".sphrimodel" and load_model(path).window_length == 50
@@ -104,7 +105,7 @@ def test_the_run_lists_its_model_and_the_model_names_installable_requirements(lo
     from sphri import __version__
     from sphri.tracking.mlflow_tracker import MlflowTracker, default_uri
 
-    out, run_id, _ = logged
+    out, run_id, _, _ = logged
     client = MlflowClient(default_uri(out))
     run = client.get_run(run_id)
     (output,) = run.outputs.model_outputs  # MLflow's logged model, linked to the run
@@ -121,3 +122,12 @@ def test_log_model_on_an_already_recorded_config_logs_it_or_says_where_it_is(log
     assert "model " not in runs[0].split("model       rf")[-1]
     assert "already recorded" in runs[1] and "model       logged runs:/" in runs[1]
     assert "model       model already logged in that run: models:/" in runs[2]
+
+
+def test_logging_a_model_shows_no_download_bar(logged):
+    """MLflow reads the logged model back to check its input example and drew a "Downloading artifacts"
+    progress bar on the job's console for that (nothing is downloaded); the job turns MLflow's artifact
+    bars off, unless MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR is set."""
+    runs, errs = logged[2], logged[3]
+    assert "model       logged runs:/" in runs[1]  # the second run logged its model
+    assert "Downloading artifacts" not in runs[1] + errs[1], errs[1][-2000:]
