@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import logging
-import os
 import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -114,12 +113,11 @@ def log_pyfunc_model(
     from mlflow.models import infer_signature
 
     from sphri.export import pyfunc_model
+    from sphri.tracking.mlflow_tracker import no_artifact_bars
 
     example = np.asarray(example, dtype=np.float32)
     labels = np.asarray(bundle.labels)[np.argmax(bundle.predict_proba(example), axis=1)]
-    # MLflow reads the logged model back to check the input example and drew a "Downloading artifacts"
-    # bar on the job's console for it; off as in the reports (sphri.report.sweep), unless the user set it
-    os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
+    no_artifact_bars()  # MLflow reads the logged model back to check the input example
     mlflow.set_tracking_uri(tracking_uri)
     with tempfile.TemporaryDirectory(prefix="sphri-model-") as tmp:
         path = save_model(bundle, Path(tmp) / "model.sphrimodel")

@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import json
 import logging
-import os
 import re
 import tempfile
 from dataclasses import dataclass, field
@@ -38,7 +37,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sphri.tracking.mlflow_tracker import PARENT_FILE, default_uri
+from sphri.tracking.mlflow_tracker import PARENT_FILE, default_uri, no_artifact_bars
 from sphri.types import GESTURES
 
 log = logging.getLogger(__name__)
@@ -159,7 +158,7 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
     """Read the sweep named by ``source`` (sweep dir or parent run id) from MLflow."""
     from mlflow.tracking import MlflowClient
 
-    os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")  # one bar per job is noise here
+    no_artifact_bars()
     parent_id, uri, sweep_dir = resolve_source(source, uri, output_dir)
     if uri.startswith("sqlite:///") and not Path(uri[len("sqlite:///") :]).exists():
         raise ReportError(f"tracking store {uri} does not exist (wrong --output-dir or --uri?)")

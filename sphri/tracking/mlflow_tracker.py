@@ -65,6 +65,14 @@ def default_uri(output_dir: str | os.PathLike) -> str:
     return f"sqlite:///{Path(output_dir).resolve() / 'mlflow.db'}"
 
 
+def no_artifact_bars() -> None:
+    """Turn MLflow's artifact progress bars off in this process, unless the user set
+    ``MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR``: where sphri only reads back small artifacts it wrote (a
+    report reading every job's files, a job whose model MLflow reads back to check its input example),
+    a "Downloading artifacts" bar per read is noise on the console."""
+    os.environ.setdefault("MLFLOW_ENABLE_ARTIFACTS_PROGRESS_BAR", "false")
+
+
 def git_commit() -> str:
     """The commit sphri runs from: the checkout's HEAD (``+dirty`` with uncommitted changes to tracked
     files), else the commit an installed wheel was built from (``sphri/_build_info.json``, written by
