@@ -10,10 +10,12 @@ the samples of busy threads are its CPU time. Each sample is then given to:
 * a **process kind**: a pytest worker itself, a forked CLI child (``tests/forked_cli.py``), a loky
   worker, any other process (named by its command line);
 * the **test** whose call stack it is in (the outermost frame of a ``test_*.py`` or ``conftest.py``;
-  work in another process is not traced back to its test).
+  work in another process is not traced back to its test);
+* an **origin** within its kind and process: the innermost sphri or test frame that leads into the
+  kind's work (which sphri call composes, which test imports), and for an import the module imported.
 
 Writes ``outputs/bench/suite_profile.json`` and ``suite_profile.md`` (``--out`` another folder) (CPU model and flags, rate,
-samples, wall time, and the three tables). ``--stacks FILE`` analyses a collapsed-stack file that
+samples, wall time, and the four tables). ``--stacks FILE`` analyses a collapsed-stack file that
 py-spy wrote before (``--format raw``) instead of running the suite; ``--wall S`` then gives the
 run's wall time. Needs py-spy (``pip install py-spy``) only to run the suite.
 
@@ -66,6 +68,7 @@ OTHER = "other"
 
 _PROCESS = re.compile(r'^process \d+:"(.*?)"?$')
 _LINE_NO = re.compile(r":\d+\)$")
+_OWN_FRAME = re.compile(r"\((?:sphri/|(?:[\w/]+/)?(?:test_\w+|conftest)\.py)")
 _TEST_FRAME = re.compile(r"^(\w+) \(((?:[\w/]+/)?(?:test_\w+|conftest)\.py)(?::\d+)?\)$")
 
 
@@ -110,6 +113,17 @@ def test_of(code: list[str]) -> str:
     return "(not in a test's own process)"
 
 
+def origin_of(kind: str, code: list[str]) -> str:
+    """Where a sample of ``kind`` comes from: the innermost sphri or test frame before the first frame that
+    made it that kind (``?`` where none), and for an import ``-> <module> (the file imported)``."""
+    marks = dict(KINDS).get(kind, ())
+    at = next((i for i, f in enumerate(code) if any(m in f for m in marks)), len(code))
+    caller = next((f for f in reversed(code[:at]) if _OWN_FRAME.search(f)), "?")
+    if kind == "imports":
+        return f"{caller} -> {next((f for f in code[at:] if f.startswith('<module> (')), '?')}"
+    return caller
+
+
 def profile(lines: Iterable[str], rate_hz: float) -> dict:
     """Samples and CPU seconds (samples / rate) per kind, per process kind and per test. py-spy names each
     process of a stack as a pseudo-frame (``process N:"command line"``); only the innermost one's command
@@ -118,14 +132,17 @@ def profile(lines: Iterable[str], rate_hz: float) -> dict:
     kinds: collections.Counter[str] = collections.Counter()
     procs: collections.Counter[str] = collections.Counter()
     tests: collections.Counter[str] = collections.Counter()
+    origins: collections.Counter[str] = collections.Counter()
     total = 0
     for frames, n in parse(lines):
         commands = [m.group(1) for f in frames if (m := _PROCESS.match(f))]
         code = [_LINE_NO.sub(")", f) for f in frames if not f.startswith("process ")]
         total += n
-        kinds[kind_of(code)] += n
-        procs[process_of(commands[-1] if commands else "?", code)] += n
+        kind, process = kind_of(code), process_of(commands[-1] if commands else "?", code)
+        kinds[kind] += n
+        procs[process] += n
         tests[test_of(code)] += n
+        origins[f"{kind} · {process} · {origin_of(kind, code)}"] += n
 
     def table(counter: collections.Counter[str], top: int) -> list[dict]:
         return [
@@ -140,6 +157,7 @@ def profile(lines: Iterable[str], rate_hz: float) -> dict:
         "kinds": table(kinds, len(kinds)),
         "processes": table(procs, 15),
         "tests": table(tests, 25),
+        "origins": table(origins, 50),
     }
 
 
@@ -157,6 +175,7 @@ def markdown(result: dict) -> str:
         ("kinds", "Kind of work (each sample in the first kind that matches, in this order)"),
         ("processes", "Process"),
         ("tests", "Test (work in its own process)"),
+        ("origins", "Origin (kind · process · the innermost sphri or test frame leading into it; an import's module)"),
     ):
         lines += [f"## {title}", "", "| | CPU s | share |", "|---|---:|---:|"]
         lines += [f"| {r['name']} | {r['cpu_s']:.0f} | {100 * r['share']:.1f} % |" for r in result[key]]

@@ -58,6 +58,26 @@ def test_samples_go_to_their_kind_process_and_test():
     assert abs(sum(r["share"] for r in result["kinds"]) - 1.0) < 1e-12
 
 
+def test_each_sample_has_an_origin_within_its_kind_and_process():
+    """The innermost sphri or test frame before the kind's own first frame; an import also names the module
+    it imports (the first ``<module>`` frame after the import machinery), ``?`` where a stack has none."""
+    mlflow = (
+        f"{WORKER};{TEST};MlflowTracker.client (sphri/tracking/mlflow_tracker.py:263);"
+        "_find_and_load (<frozen importlib._bootstrap>:1);<module> (mlflow/__init__.py:44);"
+        "_find_and_load (<frozen importlib._bootstrap>:1);<module> (fastapi/__init__.py:7) 5"
+    )
+    origins = {r["name"]: r["samples"] for r in profile([*LINES, mlflow], rate_hz=10.0)["origins"]}
+    worker, forked = "pytest worker (tests in process)", "forked CLI child (tests/forked_cli.py)"
+    assert origins == {
+        f"CNN-GRU training and prediction · {worker} · run (sphri/pipeline.py)": 30,
+        f"Hydra composition · {worker} · compose (sphri/config.py)": 20,
+        f"imports · {forked} · <module> (sphri/__main__.py) -> ?": 25,
+        "imports · loky worker (parallel sweep or folds) · ? -> ?": 15,
+        "other · python -m sphri +debug=fast output_dir=TMP port=N · main (sphri/__main__.py)": 10,
+        f"imports · {worker} · MlflowTracker.client (sphri/tracking/mlflow_tracker.py) -> <module> (mlflow/__init__.py)": 5,
+    }
+
+
 def test_the_script_writes_its_tables_from_a_stacks_file(tmp_path):
     """``--stacks``: no suite run; JSON and Markdown in ``--out`` with the machine; a missing file is
     one line and exit 2."""
