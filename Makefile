@@ -46,7 +46,7 @@ test-all: install $(CLUSTER_STAMP)  ## every test, slow ones, cluster launchers 
 bench: install        ## benchmarks -> outputs/bench/*.json, summary.md, plots
 	$(BIN)/python bench/run_all.py $(ARGS)
 
-profile-tests: install  ## the suite under py-spy: its CPU time by kind of work, process, test -> outputs/bench/suite_profile.md
+profile-tests: install  ## the suite under py-spy: its CPU time by kind of work, process, test, origin -> outputs/bench/suite_profile.md
 	$(BIN)/python -m pip install -q "py-spy>=0.4"
 	$(BIN)/python bench/profile_suite.py $(ARGS)
 
