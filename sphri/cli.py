@@ -280,18 +280,19 @@ def cmd_warmup() -> int:
     print("compiling sphri's numba kernels into numba's cache (once per machine and sphri version)...", flush=True)
     t0 = time.perf_counter()
 
-    def run_lane(lane: list[list[str]], cwd: str) -> list[subprocess.CompletedProcess]:
-        done = []
-        for cmd in lane:
-            done.append(subprocess.run(cmd, cwd=cwd, capture_output=True, text=True))
-            if done[-1].returncode != 0:
-                break
-        return done
-
     with tempfile.TemporaryDirectory(prefix="sphri-warmup-") as tmp:
+
+        def run_lane(lane: list[list[str]]) -> list[subprocess.CompletedProcess]:
+            done = []
+            for cmd in lane:
+                done.append(subprocess.run(cmd, cwd=tmp, capture_output=True, text=True))
+                if done[-1].returncode != 0:
+                    break
+            return done
+
         lanes = warmup_lanes(tmp)
         with ThreadPoolExecutor(len(lanes)) as pool:
-            runs = [run for lane_runs in pool.map(run_lane, lanes, [tmp] * len(lanes)) for run in lane_runs]
+            runs = [run for lane_runs in pool.map(run_lane, lanes) for run in lane_runs]
     seconds = time.perf_counter() - t0
     for run in runs:
         if run.returncode != 0:
