@@ -46,6 +46,7 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.export.model_file", "ModelFileError", "model file error"),
     ("sphri.hardware.recording", "RecordingError", "recording error"),
     ("sphri.report.sweep", "ReportError", "report error"),
+    ("sphri.finite", "NonFiniteError", "numerical error"),
     ("builtins", "OSError", "file error"),
 )
 

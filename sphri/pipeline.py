@@ -37,6 +37,7 @@ from omegaconf import DictConfig, OmegaConf
 from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import ConfigError, build, result_config
 from sphri.encode.schema import grid_res
+from sphri.finite import require_finite
 from sphri.inputs import input_fingerprints, memo_at
 from sphri.stages import (
     PER_FIT_GROUPS,
@@ -388,9 +389,12 @@ def _layout(p: Pipeline) -> Any:
 
 def _encode(p: Pipeline) -> Any:
     plan: WindowPlan = p.get("plan")
-    return p.components["encoder"].encode(
+    frames = p.components["encoder"].encode(
         p.get("contact"), p.link(), p.get("surface"), p.get("layout"), plan.selected_frames()
     )
+    # a degenerate chart (a zero scale, a collapsed layout) can divide by zero in a float encoder
+    require_finite(frames.values, f"encoder={type(p.components['encoder']).__name__} frames")
+    return frames
 
 
 def _noise(p: Pipeline) -> Any:

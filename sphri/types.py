@@ -364,6 +364,9 @@ class FoldResult:
     """(G, G) int64 counts, rows true gesture, columns predicted."""
     recall: np.ndarray
     """(G,) float64 per-gesture recall (NaN where the gesture is absent)."""
+    runtime: dict[str, str] = field(default_factory=dict)
+    """How the fold's model ran, where the model says (its ``runtime_`` after ``fit``): ``device``,
+    ``precision`` and ``precision_reason`` of the CNN-GRU; empty for a model that does not say."""
 
 
 @dataclass

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import forked_cli
 import numpy as np
+import pytest
 
 from sphri import pipeline
 from sphri.cache import StageCache
@@ -111,3 +112,35 @@ def test_config_hash_follows_component_versions(monkeypatch):
     assert pipeline.config_hash(cfg) != before
     # tracking is not part of a job's result
     assert "tracking" not in pipeline.component_versions(cfg)
+
+
+def test_non_finite_encoder_frames_stop_at_the_stage_boundary():
+    """A float encoder over a degenerate chart can divide by zero: the encode stage names it, one line,
+    before noise, filter or a model ever see the frames."""
+    from types import SimpleNamespace
+
+    from sphri.errors import kind_of
+    from sphri.finite import NonFiniteError
+    from sphri.pipeline import COMPUTE
+
+    class ZeroScaleEncoder:
+        def encode(self, contacts, link, surface, layout, frame_index):
+            values = np.zeros((len(frame_index), 4), dtype=np.float32)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                values[1] = values[1] / 0.0  # 0/0: NaN
+            return SimpleNamespace(values=values)
+
+    plan = SimpleNamespace(selected_frames=lambda: np.arange(3))
+    p = SimpleNamespace(
+        get=lambda name: plan if name == "plan" else None,
+        link=lambda: None,
+        components={"encoder": ZeroScaleEncoder()},
+    )
+    with pytest.raises(NonFiniteError) as err:
+        COMPUTE["encode"].compute(p)
+    assert str(err.value) == (
+        "encoder=ZeroScaleEncoder frames: 4 of 12 values are not finite (4 NaN, 0 infinite; shape (3, 4))"
+    )
+    assert kind_of(err.value) == "numerical error"
+    ok = SimpleNamespace(encode=lambda *a: SimpleNamespace(values=np.ones((3, 4), dtype=np.uint8)))
+    assert COMPUTE["encode"].compute(SimpleNamespace(**{**vars(p), "components": {"encoder": ok}})).values.sum() == 12

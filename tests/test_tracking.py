@@ -232,7 +232,7 @@ def test_a_cnn_gru_job_records_device_precision_cpu_and_torch(tmp_path):
     import torch
     from mlflow.tracking import MlflowClient
 
-    from sphri.models.cnn_gru import resolve_precision
+    from sphri.models.cnn_gru import choose_precision
     from sphri.tracking.machine import cpu
 
     job = _sphri(
@@ -252,7 +252,10 @@ def test_a_cnn_gru_job_records_device_precision_cpu_and_torch(tmp_path):
     params, tags = run.data.params, run.data.tags
     device = "cuda" if torch.cuda.is_available() else "cpu"
     assert params["model.device"] == "auto" and params["run.device"] == device
-    assert params["run.precision"] == resolve_precision("auto", torch.device(device))
+    # the precision the folds trained with, and why (auto on this grid: bf16 only where known safe)
+    grid = tuple(int(v) for v in params["resolution.grid_shape"].strip("()").split(","))
+    precision, why = choose_precision("auto", torch.device(device), grid, [2, 2, 1])
+    assert (params["run.precision"], params["run.precision_reason"]) == (precision, why)
     here = cpu()
     assert tags["sphri.machine.cpu_model"] == here["cpu_model"] and tags["sphri.machine.cpu_flags"] == here["cpu_flags"]
     assert tags["sphri.lib.torch"] == metadata.version("torch") and tags["sphri.lib.python"]

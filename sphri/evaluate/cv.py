@@ -48,6 +48,7 @@ from tqdm.auto import tqdm
 from sphri.config import Configured
 from sphri.evaluate.metrics import fold_metrics
 from sphri.evaluate.schema import FoldsSchema, KFoldSchema, LosoSchema
+from sphri.finite import require_finite
 from sphri.types import GESTURES, CVResult, FoldRecord, FoldResult, WindowedFrames
 
 log = logging.getLogger(__name__)
@@ -171,7 +172,12 @@ def run_fold(
             if torch is not None and prev is not None:
                 torch.set_num_threads(prev)
     timing = {"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0}
+    # a NaN label would be cast to an arbitrary class: no fold is recorded from non-finite predictions
+    require_finite(pred, f"{model_name(est)} predictions of fold {fold.name}")
+    runtime = getattr(est, "runtime_", None)
     res = fold_metrics(fold.name, y[fold.test], pred)
+    if isinstance(runtime, dict):
+        res.runtime = {str(k): str(v) for k, v in runtime.items()}
     if resume is not None:
         resume.save(FoldRecord(result=res, wall_s=float(timing["wall_s"]), cpu_s=float(timing["cpu_s"])))
     return res, timing

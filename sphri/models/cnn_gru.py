@@ -16,8 +16,25 @@ the training split only. Deterministic for a seed on a given CPU.
 
 ``precision="bf16"`` runs the network under bfloat16 autocast (about 1.8x
 faster on CPUs with native bf16, AVX512-BF16 or AMX; slow on CPUs without
-it); ``"auto"`` (default) picks bf16 only where it is native, else float32,
-and ``precision_`` records the choice after ``fit``.
+it). ``"auto"`` (default) picks bf16 only where it is native *and* the
+network has no degenerate stride-2 convolution (:func:`bf16_hazard`), else
+float32. oneDNN 3.12 (torch 2.13.0's CPU build) computes wrong or NaN weight
+gradients for a bf16 stride-2 convolution over an input 1 wide with zero
+padding inside the convolution (AVX512-BF16 and AMX kernels), and wrong
+outputs on AMX for stride 2 over inputs at most 2 wide; float32 and stride 1
+are clean. So the padding along v is always explicit (zeros, or circular when
+v wraps) and the convolution pads along u only, which removed the defect in
+100 of 100 calls on an AMX CPU; a grid whose stride-2 convolutions see a side
+of at most 2 taxels trains in float32 under ``auto`` (such grids are tiny:
+float32 costs nothing there).
+
+Training stops on the first non-finite loss or gradient. Under ``auto`` with
+bf16 chosen, the model is retrained from the start in float32 and the reason
+is kept (``runtime_``, recorded on the MLflow run as ``run.precision_reason``);
+with a precision the user chose it is a :class:`sphri.finite.NonFiniteError`
+naming the epoch, the precision and the grid. ``predict_proba`` refuses
+non-finite probabilities. ``runtime_`` records the device, the precision and
+why after ``fit``.
 """
 
 from __future__ import annotations
@@ -35,6 +52,7 @@ import torch.nn.functional as F
 from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.utils.validation import check_is_fitted
 
+from sphri.finite import NonFiniteError, require_finite
 from sphri.models.features import check_windows
 from sphri.types import TaxelGeometry
 
@@ -79,8 +97,9 @@ class CircularPadV(torch.autograd.Function):
 class GridEncoder(nn.Module):
     """(B, 1, H, W) frames -> (B, channels[-1] * embed_size^2) embeddings.
 
-    3x3 convolutions with ReLU; padding 1 with zeros along H (u) and, when
-    ``wrap_v``, circular along W (v), so any H, W >= 1 works.
+    3x3 convolutions with ReLU; padding 1 with zeros along H (u) inside the convolution, and along W (v)
+    explicit before it: circular when ``wrap_v``, zeros otherwise (never inside the convolution: see the
+    module doc), so any H, W >= 1 works.
     """
 
     pool: torch.Tensor  # buffer (H*W, embed_size^2), registered in __init__
@@ -93,9 +112,8 @@ class GridEncoder(nn.Module):
         h, w = grid_shape
         self.convs = nn.ModuleList()
         for c, s in zip(channels, strides):
-            # zero padding along u inside the conv; along v circular (forward) or zero
-            pad = (1, 0) if wrap_v else (1, 1)
-            self.convs.append(nn.Conv2d(cin, c, kernel_size=3, stride=s, padding=pad))
+            # zero padding along u inside the conv; along v explicit in forward (circular or zeros)
+            self.convs.append(nn.Conv2d(cin, c, kernel_size=3, stride=s, padding=(1, 0)))
             h, w = (h - 1) // s + 1, (w - 1) // s + 1
             cin = c
         self.wrap_v = wrap_v
@@ -107,6 +125,8 @@ class GridEncoder(nn.Module):
         for conv in self.convs:
             if self.wrap_v:  # circular pad of 1 along v (backward: the pad columns folded back)
                 x = CircularPadV.apply(x)
+            else:  # zeros along v outside the convolution (oneDNN's bf16 defect: module doc)
+                x = F.pad(x, (1, 1))
             x = F.relu(conv(x))
         return (x.flatten(2) @ self.pool).flatten(1)
 
@@ -260,11 +280,58 @@ def native_bf16(device: torch.device) -> bool:
     return False
 
 
-def resolve_precision(precision: str, device: torch.device) -> str:
-    """``"auto"`` -> ``"bf16"`` where :func:`native_bf16`, else ``"float32"``; others unchanged."""
-    if precision == "auto":
-        return "bf16" if native_bf16(device) else "float32"
-    return precision
+def conv_inputs(grid_shape: tuple[int, int], strides: list[int] | tuple[int, ...]) -> list[tuple[int, int, int]]:
+    """(H, W, stride) of the input each convolution of a :class:`GridEncoder` sees, before padding."""
+    h, w = grid_shape
+    out = []
+    for s in strides:
+        out.append((h, w, int(s)))
+        h, w = (h - 1) // int(s) + 1, (w - 1) // int(s) + 1
+    return out
+
+
+def bf16_hazard(grid_shape: tuple[int, int] | None, strides: list[int] | tuple[int, ...]) -> str | None:
+    """Why bf16 is not known to be safe for this network on a CPU, or None.
+
+    A stride-2 (or larger) convolution over an input with a side of at most 2 taxels is the shape
+    class in which oneDNN's bf16 kernels were measured wrong (module doc). Non-grid layouts (the MLP)
+    have no convolution."""
+    if grid_shape is None:
+        return None
+    for i, (h, w, s) in enumerate(conv_inputs(grid_shape, strides), 1):
+        if s >= 2 and min(h, w) <= 2:
+            return f"convolution {i} has stride {s} over a {h} x {w} input (a side of at most 2 taxels)"
+    return None
+
+
+def choose_precision(
+    precision: str,
+    device: torch.device,
+    grid_shape: tuple[int, int] | None = None,
+    strides: list[int] | tuple[int, ...] = (),
+) -> tuple[str, str]:
+    """(precision, why) for a network of ``grid_shape`` and ``strides`` on ``device``.
+
+    ``"auto"`` is bf16 only where :func:`native_bf16` and, on a CPU, no :func:`bf16_hazard`; an explicit
+    ``"float32"`` or ``"bf16"`` is kept as the user's choice."""
+    if precision != "auto":
+        return precision, "chosen (model.precision)"
+    if not native_bf16(device):
+        return "float32", f"auto: {device.type} without native bf16"
+    hazard = bf16_hazard(grid_shape, strides) if device.type == "cpu" else None
+    if hazard is not None:
+        return "float32", f"auto: {hazard}, where oneDNN's bf16 kernels are not known to be right"
+    return "bf16", f"auto: native bf16 on {device.type}"
+
+
+def resolve_precision(
+    precision: str,
+    device: torch.device,
+    grid_shape: tuple[int, int] | None = None,
+    strides: list[int] | tuple[int, ...] = (),
+) -> str:
+    """The precision of :func:`choose_precision` (without the reason)."""
+    return choose_precision(precision, device, grid_shape, strides)[0]
 
 
 def validation_split(
@@ -314,7 +381,7 @@ class CnnGru(ClassifierMixin, BaseEstimator):
     """
 
     NAME = "cnn_gru"
-    VERSION = "3"  # 3: no early stopping on fewer than min_val_participants held-out participants
+    VERSION = "4"
 
     def __init__(
         self,
@@ -421,24 +488,44 @@ class CnnGru(ClassifierMixin, BaseEstimator):
             n_classes,
         )
 
-    def _autocast(self, dev: torch.device) -> torch.autocast:
-        """bf16 autocast of the network's forward when the resolved precision is bf16."""
-        use = getattr(self, "precision_", None) or resolve_precision(self.precision, dev)
+    def _autocast(self, dev: torch.device, precision: str | None = None) -> torch.autocast:
+        """bf16 autocast of the network's forward when the precision (default: the fitted one) is bf16."""
+        use = precision or getattr(self, "precision_", None) or self._choose(dev)[0]
         return torch.autocast(device_type=dev.type, dtype=torch.bfloat16, enabled=use == "bf16")
+
+    def _choose(self, dev: torch.device) -> tuple[str, str]:
+        """(precision, why) for this model's network on ``dev`` (:func:`choose_precision`)."""
+        g = self.geometry
+        grid = (int(g.grid_shape[0]), int(g.grid_shape[1])) if g is not None and g.grid_shape is not None else None
+        return choose_precision(self.precision, dev, grid, [int(s) for s in self.strides])
+
+    def _where(self, precision: str) -> str:
+        """The network's shape and precision, for an error message."""
+        g = self.geometry
+        if g is None or g.grid_shape is None:
+            return f"precision {precision}, MLP over the taxels"
+        h, w = g.grid_shape
+        return f"precision {precision}, grid {h} x {w}, {'v wraps' if g.wrap_v else 'no wrap'}"
 
     def _batches(self, n: int, gen: torch.Generator | None) -> list[torch.Tensor]:
         order = torch.randperm(n, generator=gen) if gen is not None else torch.arange(n)
         return list(torch.split(order, int(self.batch_size)))
 
     def _loss_acc(
-        self, net: CnnGruNet, x: torch.Tensor, y: torch.Tensor, dev: torch.device, table: torch.Tensor | None = None
+        self,
+        net: CnnGruNet,
+        x: torch.Tensor,
+        y: torch.Tensor,
+        dev: torch.device,
+        table: torch.Tensor | None = None,
+        precision: str | None = None,
     ) -> tuple[float, float]:
         """Mean loss and accuracy; ``x`` windows, or frame ids (n, L) into ``table``."""
         net.eval()
         total, correct = 0.0, 0
         with torch.no_grad():
             for b in torch.split(torch.arange(x.shape[0]), 256):
-                with self._autocast(dev):
+                with self._autocast(dev, precision):
                     logits = self._logits(net, x[b], dev, table)
                 yb = y[b].to(dev)
                 total += float(F.cross_entropy(logits, yb, reduction="sum"))
@@ -453,13 +540,19 @@ class CnnGru(ClassifierMixin, BaseEstimator):
 
     def runtime(self) -> dict[str, str]:
         """The device and precision this model trains with on this machine (``device`` and ``precision``
-        resolved from ``auto``), recorded in MLflow as ``run.device`` / ``run.precision``."""
+        resolved from ``auto`` for its geometry) and why, recorded in MLflow as ``run.device``,
+        ``run.precision`` and ``run.precision_reason``. After ``fit``, ``runtime_`` is what it trained with."""
         dev = resolve_device(self.device)
-        return {"device": str(dev), "precision": resolve_precision(self.precision, dev)}
+        precision, why = self._choose(dev)
+        return {"device": str(dev), "precision": precision, "precision_reason": why}
 
     # -- estimator API -----------------------------------------------------
     def fit(self, x: np.ndarray, y: np.ndarray, groups: np.ndarray | None = None) -> CnnGru:
-        """Train on windows x (n, L, N) float32 and labels y (n,) int64."""
+        """Train on windows x (n, L, N) float32 and labels y (n,) int64.
+
+        A non-finite loss or gradient stops training: under ``precision="auto"`` with bf16 chosen the
+        model is retrained in float32 (``runtime_["precision_reason"]`` says so); otherwise
+        :class:`~sphri.finite.NonFiniteError` names the epoch, the step, the precision and the grid."""
         self._check_params()
         x = check_windows(x)
         y = np.asarray(y)
@@ -467,10 +560,36 @@ class CnnGru(ClassifierMixin, BaseEstimator):
             raise ValueError(f"y must be (n_trials,) = ({x.shape[0]},), got shape {y.shape}")
         self._layout(x.shape[2])  # the geometry fits x (a ValueError naming both otherwise)
         dev = resolve_device(self.device)
-        self.precision_ = resolve_precision(self.precision, dev)
+        precision, why = self._choose(dev)
         self.classes_, y_idx = np.unique(y, return_inverse=True)
         tr, va = validation_split(y_idx, groups, self.early_stopping_fraction(groups), self.seed)
+        try:
+            net, history, best_epoch = self._train(x, y_idx, tr, va, dev, precision)
+        except NonFiniteError as exc:
+            if not (self.precision == "auto" and precision == "bf16"):
+                raise
+            log.warning("CNN-GRU: %s; retraining in float32", exc)
+            why = f"auto: bf16 chosen, then {exc}; retrained in float32"
+            precision = "float32"
+            net, history, best_epoch = self._train(x, y_idx, tr, va, dev, precision)
+        self.precision_ = precision
+        self.runtime_ = {"device": str(dev), "precision": precision, "precision_reason": why}
+        self.net_ = net
+        self.history_ = history
+        self.best_epoch_ = best_epoch
+        self.n_train_, self.n_val_ = int(tr.size), int(va.size)
+        return self
 
+    def _train(
+        self,
+        x: np.ndarray,
+        y_idx: np.ndarray,
+        tr: np.ndarray,
+        va: np.ndarray,
+        dev: torch.device,
+        precision: str,
+    ) -> tuple[CnnGruNet, list[dict[str, float]], int]:
+        """(network at its best epoch, per-epoch history, best epoch) of one training run from the seed."""
         with _torch_state(int(self.threads), dev), torch.random.fork_rng(devices=[]):
             torch.manual_seed(self.seed)
             gen = torch.Generator().manual_seed(self.seed)
@@ -491,7 +610,8 @@ class CnnGru(ClassifierMixin, BaseEstimator):
             else:
                 table = None
                 xt = torch.from_numpy(np.ascontiguousarray(x))
-            opt = torch.optim.AdamW(net.parameters(), lr=self.lr, weight_decay=self.weight_decay)
+            params = [p for p in net.parameters() if p.requires_grad]
+            opt = torch.optim.AdamW(params, lr=self.lr, weight_decay=self.weight_decay)
             steps_per_epoch = math.ceil(tr.size / int(self.batch_size))
             total_steps = steps_per_epoch * int(self.max_epochs)
             sched = None
@@ -515,20 +635,31 @@ class CnnGru(ClassifierMixin, BaseEstimator):
             for epoch in range(1, int(self.max_epochs) + 1):
                 net.train()
                 run_loss = 0.0
-                for b in self._batches(x_tr.shape[0], gen):
+                for step, b in enumerate(self._batches(x_tr.shape[0], gen), 1):
                     yb = y_tr[b].to(dev)
-                    with self._autocast(dev):
+                    with self._autocast(dev, precision):
                         logits = self._logits(net, x_tr[b], dev, table)
                     loss = F.cross_entropy(logits, yb)
                     opt.zero_grad(set_to_none=True)
                     loss.backward()
+                    loss_value = loss.detach().item()
+                    grad_norm = float(torch.nn.utils.get_total_norm([p.grad for p in params if p.grad is not None]))
+                    if not (math.isfinite(loss_value) and math.isfinite(grad_norm)):
+                        raise NonFiniteError(
+                            f"CNN-GRU training: non-finite {'loss' if not math.isfinite(loss_value) else 'gradient'} "
+                            f"at epoch {epoch}, step {step} ({self._where(precision)})"
+                        )
                     opt.step()
                     if sched is not None:
                         sched.step()
-                    run_loss += loss.detach().item() * b.numel()
+                    run_loss += loss_value * b.numel()
                 train_loss = run_loss / max(1, x_tr.shape[0])
                 if has_val:
-                    val_loss, val_acc = self._loss_acc(net, x_va, y_va, dev, table)
+                    val_loss, val_acc = self._loss_acc(net, x_va, y_va, dev, table, precision)
+                    if not math.isfinite(val_loss):
+                        raise NonFiniteError(
+                            f"CNN-GRU training: non-finite validation loss at epoch {epoch} ({self._where(precision)})"
+                        )
                 else:
                     val_loss, val_acc = float("nan"), float("nan")
                 history.append(
@@ -545,14 +676,11 @@ class CnnGru(ClassifierMixin, BaseEstimator):
             if best_state is not None:
                 net.load_state_dict(best_state)
         net.eval()
-        self.net_ = net
-        self.history_ = history
-        self.best_epoch_ = best_epoch
-        self.n_train_, self.n_val_ = int(tr.size), int(va.size)
-        return self
+        return net, history, best_epoch
 
     def predict_proba(self, x: np.ndarray) -> np.ndarray:
-        """(n, n_classes) softmax probabilities, columns in ``classes_`` order."""
+        """(n, n_classes) softmax probabilities, columns in ``classes_`` order; a
+        :class:`~sphri.finite.NonFiniteError` rather than a NaN row (whose argmax would be class 0)."""
         check_is_fitted(self, "net_")
         x = check_windows(x)
         self._layout(x.shape[2])
@@ -567,7 +695,9 @@ class CnnGru(ClassifierMixin, BaseEstimator):
                 out.append(torch.softmax(logits, dim=1).cpu().double().numpy())
         if not out:
             return np.zeros((0, len(self.classes_)))
-        return np.concatenate(out)
+        return require_finite(
+            np.concatenate(out), f"CNN-GRU probabilities ({self._where(getattr(self, 'precision_', 'float32'))})"
+        )
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """(n,) predicted labels (values of ``classes_``)."""

@@ -7,6 +7,7 @@ from sklearn.base import BaseEstimator, ClassifierMixin
 from sklearn.ensemble import RandomForestClassifier
 from sklearn.utils.validation import check_is_fitted
 
+from sphri.finite import require_finite
 from sphri.models.features import FEATURE_NAMES, TaxelCoords, extract_features, taxel_coords
 from sphri.models.schema import RandomForestSchema as _S  # the defaults, stated once (sklearn reads the signature)
 from sphri.types import TaxelGeometry
@@ -115,7 +116,8 @@ class RandomForest(ClassifierMixin, BaseEstimator):
             raise ValueError(
                 f"features must be (n_trials, {len(FEATURE_NAMES)}) from RandomForest.transform, got shape {feats.shape}"
             )
-        return feats
+        # scikit-learn's forest takes NaN as a missing value without a word: here it is a defect
+        return require_finite(feats, "Random Forest features")
 
     @property
     def feature_importances_(self) -> np.ndarray:
@@ -126,7 +128,8 @@ class RandomForest(ClassifierMixin, BaseEstimator):
     def predict_proba(self, x: np.ndarray) -> np.ndarray:
         """(n, n_classes) class probabilities, columns in ``classes_`` order."""
         check_is_fitted(self, "forest_")
-        return self.forest_.predict_proba(self.transform(x))
+        feats = self._check_features(self.transform(x))
+        return require_finite(self.forest_.predict_proba(feats), "Random Forest probabilities")
 
     def predict(self, x: np.ndarray) -> np.ndarray:
         """(n,) predicted labels."""

@@ -63,7 +63,7 @@ class CnnGruSchema(ModelSchema):
     """Early stopping needs at least this many held-out participants: with fewer (a small study: 6
     participants leave 5 to train on, of which 15 % is one person) it would stop on one person's
     validation loss, which kept an almost untrained model (macro-F1 0.111, below chance, at 6
-    participants x 10 repetitions, res 18; 0.324 training all 20 epochs: issue 31). Then the model
+    participants x 10 repetitions, res 18; 0.324 training all 20 epochs). Then the model
     trains all ``max_epochs`` epochs without a validation split and a warning says so. The paper's 18
     participants give 3 (17 x 0.15, rounded): unchanged. 1: split whatever the size."""
     hidden: int = setting(128, lo=1)
@@ -78,7 +78,10 @@ class CnnGruSchema(ModelSchema):
     """"auto" (CUDA when torch sees a GPU, else the CPU; the device used is recorded in MLflow,
     ``run.device``), "cpu", "cuda" or "cuda:K"."""
     precision: str = setting("auto", choices=["auto", "float32", "bf16"])
-    """"float32", "bf16" (bfloat16 autocast, ~1.8x faster where native) or "auto" (bf16 where native)."""
+    """"float32", "bf16" (bfloat16 autocast, ~1.8x faster where native) or "auto": bf16 where native and
+    no stride-2 convolution sees a side of at most 2 taxels (oneDNN's bf16 kernels are wrong there), else
+    float32; a non-finite loss under auto's bf16 retrains in float32. The choice and why are recorded on
+    the MLflow run (``run.precision``, ``run.precision_reason``)."""
     seed: int = setting(0, lo=0)
     """Seeds weights, batch order and the validation split."""
     threads: int = setting(0, runtime=True, lo=0)

@@ -47,7 +47,7 @@ if TYPE_CHECKING:
     from omegaconf import DictConfig
 
     from sphri.pipeline import RunResult
-    from sphri.types import RunMeta
+    from sphri.types import CVResult, RunMeta
 
 log = logging.getLogger(__name__)
 T = TypeVar("T")
@@ -167,6 +167,24 @@ def model_runtime(cfg: DictConfig) -> dict[str, str]:
         log.warning("could not tell the model's device (%s: %s)", type(exc).__name__, exc)
         return {"run.device": f"unknown ({type(exc).__name__})"}
     return {f"run.{k}": str(v) for k, v in runtime.items()}
+
+
+def fold_runtime(cv: CVResult) -> dict[str, str]:
+    """``run.<key>`` params from what the folds' models recorded after ``fit`` (the CNN-GRU's device,
+    precision and why): one value where every fold agrees, else each value with its folds."""
+    out: dict[str, str] = {}
+    keys = sorted({k for f in cv.folds for k in f.runtime})
+    for key in keys:
+        by_value: dict[str, list[str]] = {}
+        for f in cv.folds:
+            if key in f.runtime:
+                by_value.setdefault(f.runtime[key], []).append(f.fold)
+        if len(by_value) == 1:
+            out[f"run.{key}"] = next(iter(by_value))
+        else:
+            out[f"run.{key}"] = "; ".join(f"{v} (folds {', '.join(folds)})" for v, folds in by_value.items())
+        out[f"run.{key}"] = out[f"run.{key}"][:500]
+    return out
 
 
 def component_name(node: Any, choice: str | None = None) -> str:
@@ -510,6 +528,7 @@ class MlflowTracker(Configured):
         params = flatten_params(cfg, choices)
         if evaluated_here:  # where the model ran (a cached evaluation's device is not known here)
             params.update(model_runtime(cfg))
+        params.update(fold_runtime(result.cv))  # what each fold's model trained with, kept with the folds
         for k, v in meta.resolution.items():
             params[f"resolution.{k}"] = f"{v:.6g}" if isinstance(v, float) else str(v)
         for k in (

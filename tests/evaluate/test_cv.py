@@ -305,3 +305,69 @@ def test_workers_save_their_own_folds():
             assert kept[f.fold].result.accuracy == f.accuracy
             np.testing.assert_array_equal(kept[f.fold].result.confusion, f.confusion)
         assert FoldCache(StageCache(tmp), "j" * 20).load(two.folds[0].fold) is None  # another evaluation's key
+
+
+class NanAfterFold(SpyModel):
+    """Predicts NaN labels (a float model gone non-finite) on the held-out fold named ``bad``."""
+
+    bad = "participant_03"
+
+    def predict(self, x):
+        pred = super().predict(x).astype(np.float64)
+        held_out = set(np.unique(self.fit_groups_)) if self.fit_groups_ is not None else set()
+        if self.bad not in held_out:
+            pred[:] = np.nan
+        return pred
+
+
+def test_no_fold_is_recorded_from_non_finite_predictions(spy):
+    """A NaN label cast to int64 would be an arbitrary class: the fold stops with one line and neither it
+    nor any later fold is kept."""
+    from sphri.errors import kind_of
+    from sphri.finite import NonFiniteError
+
+    win = spy_windows()
+    store = DictStore()
+    with pytest.raises(NonFiniteError) as err:
+        LeaveOneSubjectOut().run(lambda: NanAfterFold(geometry=win.geometry), win, seed=0, resume=store)
+    assert str(err.value).startswith("NanAfterFold predictions of fold participant_03: 24 of 24 values are not finite")
+    assert kind_of(err.value) == "numerical error"
+    assert sorted(store.records) == ["participant_01", "participant_02"]
+
+
+def test_forest_refuses_non_finite_features():
+    """scikit-learn's forest would take a NaN feature as a missing value and score on."""
+    from sphri.finite import NonFiniteError
+
+    win = blob_windows(participants=2, repetitions=1, res=4, seed=0)
+    rf = RandomForest(n_estimators=5, geometry=win.geometry)
+    feats = rf.transform(win.x)
+    feats[3, 7] = np.nan
+    with pytest.raises(NonFiniteError, match=r"Random Forest features: 1 of \d+ values are not finite \(1 NaN"):
+        rf.fit_features(feats, win.y)
+    rf.fit_features(rf.transform(win.x), win.y)
+    with pytest.raises(NonFiniteError, match="Random Forest features"):
+        rf.predict_features(feats)
+
+
+def test_fold_results_carry_what_the_model_trained_with():
+    """The CNN-GRU's runtime_ (device, precision, why) rides with each fold, so the run records the
+    precision each fold really used (a fallback included), not what a fresh model would pick."""
+    from sphri.models.cnn_gru import CnnGru
+    from sphri.tracking.mlflow_tracker import fold_runtime
+
+    win = blob_windows(participants=3, repetitions=1, res=4, seed=0)
+    make = lambda: CnnGru(  # noqa: E731
+        geometry=win.geometry, precision="float32", max_epochs=1, hidden=4, channels=[2, 2, 2], threads=1
+    )
+    cv = LeaveOneSubjectOut(max_folds=2).run(make, win, seed=0)
+    assert [f.runtime for f in cv.folds] == [
+        {"device": "cpu", "precision": "float32", "precision_reason": "chosen (model.precision)"}
+    ] * 2
+    assert fold_runtime(cv) == {
+        "run.device": "cpu",
+        "run.precision": "float32",
+        "run.precision_reason": "chosen (model.precision)",
+    }
+    cv.folds[1].runtime = {**cv.folds[1].runtime, "precision": "bf16"}
+    assert fold_runtime(cv)["run.precision"] == f"float32 (folds {cv.folds[0].fold}); bf16 (folds {cv.folds[1].fold})"

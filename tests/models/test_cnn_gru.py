@@ -1,4 +1,5 @@
-"""model=cnn_gru: any grid size, circular padding, determinism, training-only splits."""
+"""model=cnn_gru: any grid size under each precision, circular padding, determinism, training-only splits,
+and never a silent NaN (training and probabilities)."""
 
 from __future__ import annotations
 
@@ -8,11 +9,32 @@ import torch
 import torch.nn.functional as F
 from sklearn.base import clone
 
-from sphri.models.cnn_gru import CnnGru, GridEncoder, native_bf16, resolve_precision, validation_split
+from sphri.finite import NonFiniteError
+from sphri.models.cnn_gru import (
+    CnnGru,
+    GridEncoder,
+    bf16_hazard,
+    choose_precision,
+    native_bf16,
+    resolve_precision,
+    validation_split,
+)
 from sphri.testing.toy_windows import blob_windows
 from sphri.types import TaxelGeometry
 
 TINY = dict(max_epochs=2, batch_size=8, hidden=8, channels=[4, 4, 4], threads=1)
+
+#: The precisions a CPU may train with: float32 everywhere, bf16 where the CPU computes it natively.
+PRECISIONS = [
+    "float32",
+    pytest.param(
+        "bf16",
+        marks=pytest.mark.skipif(
+            not native_bf16(torch.device("cpu")),
+            reason="bf16 runs need a CPU with native bf16 (AVX512-BF16 or AMX); this CPU has neither",
+        ),
+    ),
+]
 
 
 def geometry(shape: tuple[int, int] | None, n: int, wrap: bool) -> TaxelGeometry:
@@ -34,17 +56,141 @@ def toy_xy(n_taxels: int, n: int = 24, length: int = 6, seed: int = 0):
     return x, y
 
 
-@pytest.mark.parametrize("shape", [(1, 1), (1, 5), (3, 1), (2, 2), (7, 8), None])
+@pytest.mark.parametrize("precision", PRECISIONS)
+@pytest.mark.parametrize("shape", [(1, 1), (1, 5), (3, 1), (2, 2), (7, 8), (18, 1), None])
 @pytest.mark.parametrize("wrap", [False, True])
-def test_any_grid_size_and_non_grid(shape, wrap):
+def test_any_grid_size_and_non_grid(shape, wrap, precision):
+    """Every grid trains to finite probabilities. Under bf16, a grid whose stride-2 convolutions see a
+    side of at most 2 taxels (oneDNN's bf16 defect class) is asked for with ``auto``, which must pick
+    float32 there; the others run in bf16 as asked."""
     n_tax = 6 if shape is None else shape[0] * shape[1]
     x, y = toy_xy(n_tax)
-    m = CnnGru(geometry=geometry(shape, n_tax, wrap), **TINY).fit(x, y)
+    hazard = bf16_hazard(shape, [2, 2, 1])
+    ask = "auto" if precision == "bf16" and hazard is not None else precision
+    m = CnnGru(geometry=geometry(shape, n_tax, wrap), precision=ask, **TINY).fit(x, y)
+    assert m.precision_ == ("float32" if hazard is not None else precision)
     p = m.predict_proba(x)
-    assert p.shape == (24, 4)
+    assert p.shape == (24, 4) and np.all(np.isfinite(p))
     np.testing.assert_allclose(p.sum(axis=1), 1.0, rtol=1e-5)
     np.testing.assert_array_equal(m.classes_, np.arange(4))
     assert len(m.history_) >= 1 and m.best_epoch_ >= 1
+    assert all(np.isfinite(h["train_loss"]) for h in m.history_)
+
+
+def test_zero_padding_along_v_is_explicit_and_equals_the_convolutions_own():
+    """Without wrap the v padding is zeros outside the convolution (oneDNN's bf16 kernels are wrong with
+    it inside): the same embeddings as a convolution padding (1, 1) itself."""
+    torch.manual_seed(3)
+    enc = GridEncoder((5, 1), [3, 4, 5], [2, 2, 1], wrap_v=False, embed_size=1)
+    assert all(conv.padding == (1, 0) for conv in enc.convs)
+    frames = torch.rand(4, 1, 5, 1)
+    feats = frames
+    for conv in enc.convs:
+        feats = torch.relu(F.conv2d(feats, conv.weight, conv.bias, stride=conv.stride, padding=(1, 1)))
+    torch.testing.assert_close(enc(frames), feats.mean(dim=(2, 3)), rtol=1e-5, atol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "shape,hazard",
+    [
+        ((1, 1), True),
+        ((18, 1), True),
+        ((3, 4), True),
+        ((4, 4), True),
+        ((5, 5), False),
+        ((18, 19), False),
+        (None, False),
+    ],
+)
+def test_auto_avoids_bf16_where_a_stride_2_convolution_sees_a_side_of_two(shape, hazard):
+    assert (bf16_hazard(shape, [2, 2, 1]) is not None) == hazard
+    assert bf16_hazard(shape, [1, 1, 1]) is None  # stride 1 was measured clean
+    cpu = torch.device("cpu")
+    precision, why = choose_precision("auto", cpu, shape, [2, 2, 1])
+    if not native_bf16(cpu):
+        assert (precision, why) == ("float32", "auto: cpu without native bf16")
+    else:
+        assert precision == ("float32" if hazard else "bf16")
+        assert ("at most 2 taxels" in why) == hazard
+    assert choose_precision("bf16", cpu, shape, [2, 2, 1]) == ("bf16", "chosen (model.precision)")
+
+
+def nan_under(condition):
+    """A forward hook that turns the encoder's output into NaN while ``condition()`` holds."""
+
+    def hook(module, inputs, output):
+        return output * float("nan") if condition() else output
+
+    return hook
+
+
+def poison(model: CnnGru, install) -> CnnGru:
+    """``model`` whose every new network gets ``install(net)`` (a hook) before training."""
+    real = model._network
+
+    def network(*a):
+        net = real(*a)
+        install(net)
+        return net
+
+    model._network = network
+    return model
+
+
+def test_a_non_finite_loss_stops_training_with_one_line():
+    x, y = toy_xy(12)
+    m = CnnGru(geometry=geometry((3, 4), 12, True), precision="float32", **TINY)
+    poison(m, lambda net: net.encoder.register_forward_hook(nan_under(lambda: True)))
+    with pytest.raises(NonFiniteError) as err:
+        m.fit(x, y)
+    msg = str(err.value)
+    assert "\n" not in msg
+    assert msg == "CNN-GRU training: non-finite loss at epoch 1, step 1 (precision float32, grid 3 x 4, v wraps)"
+    assert not hasattr(m, "net_")  # nothing fitted is left behind to predict with
+
+
+def test_a_non_finite_gradient_with_a_finite_loss_stops_training():
+    """The defect's own shape: the loss is finite, a weight gradient is not."""
+    x, y = toy_xy(6)
+    m = CnnGru(geometry=geometry((3, 2), 6, False), precision="float32", **TINY)
+    poison(m, lambda net: net.encoder.convs[0].weight.register_hook(lambda g: g * float("nan")))
+    with pytest.raises(NonFiniteError, match=r"non-finite gradient at epoch 1, step 1 \(precision float32, grid 3 x 2"):
+        m.fit(x, y)
+
+
+def test_auto_bf16_that_goes_non_finite_retrains_in_float32_and_says_so(monkeypatch):
+    from sphri.models import cnn_gru
+
+    monkeypatch.setattr(cnn_gru, "native_bf16", lambda device: True)  # any CPU: autocast runs without it
+    x, y = toy_xy(36)
+    g = geometry((6, 6), 36, True)
+    m = CnnGru(geometry=g, **TINY)
+    assert m.runtime()["precision"] == "bf16"
+
+    def install(net):
+        net.encoder.register_forward_hook(nan_under(lambda: torch.is_autocast_enabled("cpu")))
+
+    poison(m, install).fit(x, y)
+    assert m.precision_ == "float32"
+    assert m.runtime_["precision"] == "float32"
+    reason = m.runtime_["precision_reason"]
+    assert reason.startswith("auto: bf16 chosen, then CNN-GRU training: non-finite loss at epoch 1")
+    assert reason.endswith("retrained in float32")
+    assert np.all(np.isfinite(m.predict_proba(x)))
+    explicit = poison(CnnGru(geometry=g, precision="bf16", **TINY), install)
+    with pytest.raises(NonFiniteError, match="precision bf16, grid 6 x 6"):  # the user's own choice: no fallback
+        explicit.fit(x, y)
+
+
+def test_non_finite_probabilities_are_refused_not_argmaxed():
+    x, y = toy_xy(12)
+    m = CnnGru(geometry=geometry((3, 4), 12, True), precision="float32", **TINY).fit(x, y)
+    with torch.no_grad():
+        m.net_.head.bias[1] = float("nan")
+    with pytest.raises(NonFiniteError, match=r"CNN-GRU probabilities \(precision float32, grid 3 x 4, v wraps\)"):
+        m.predict_proba(x)
+    with pytest.raises(NonFiniteError):
+        m.predict(x)  # argmax over a NaN row would have said class 0
 
 
 def test_no_geometry_uses_the_mlp():
@@ -92,10 +238,11 @@ def test_deterministic_for_a_seed():
 
 @pytest.mark.parametrize("precision", ["float32", "bf16", "auto"])
 def test_each_precision_runs_and_is_deterministic(precision):
-    x, y = toy_xy(12, seed=1)
-    a = CnnGru(geometry=geometry((3, 4), 12, True), precision=precision, **TINY).fit(x, y)
-    expected = resolve_precision(precision, torch.device("cpu"))
-    assert a.precision_ == expected
+    x, y = toy_xy(30, seed=1)
+    g = geometry((5, 6), 30, True)
+    a = CnnGru(geometry=g, precision=precision, **TINY).fit(x, y)
+    expected = resolve_precision(precision, torch.device("cpu"), (5, 6), [2, 2, 1])
+    assert a.precision_ == expected == a.runtime_["precision"]
     assert expected == (
         "bf16" if precision == "bf16" or (precision == "auto" and native_bf16(torch.device("cpu"))) else "float32"
     )
@@ -149,14 +296,18 @@ def test_device_auto_is_cuda_when_available_else_cpu(monkeypatch):
     assert cnn_gru.resolve_device("auto").type == want
     assert CnnGru().runtime() == {
         "device": str(cnn_gru.resolve_device("auto")),
-        "precision": resolve_precision("auto", torch.device(want)),
+        **dict(zip(("precision", "precision_reason"), choose_precision("auto", torch.device(want)))),
     }
     x, y = toy_xy(4)
     m = CnnGru(geometry=geometry((2, 2), 4, False), **TINY).fit(x, y)
     assert next(m.net_.parameters()).device.type == want
     monkeypatch.setattr(torch.cuda, "is_available", lambda: False)  # a machine without a GPU
     assert cnn_gru.resolve_device("auto") == torch.device("cpu")
-    assert CnnGru(precision="float32").runtime() == {"device": "cpu", "precision": "float32"}
+    assert CnnGru(precision="float32").runtime() == {
+        "device": "cpu",
+        "precision": "float32",
+        "precision_reason": "chosen (model.precision)",
+    }
 
 
 def test_bad_parameters_are_named():

@@ -22,7 +22,7 @@ def test_model_yaml_instantiates_with_geometry(name, cls):
     assert isinstance(est, cls)
     assert est.seed == 7  # the model follows the run's seed
     assert est.geometry is geom
-    assert cls.VERSION == {"rf": "1", "cnn_gru": "3"}[name] and cls.NAME == name
+    assert cls.VERSION == {"rf": "1", "cnn_gru": "4"}[name] and cls.NAME == name
     # the YAML holds every schema field, and the estimator takes exactly those
     schema = RandomForestSchema if name == "rf" else CnnGruSchema
     fields = {f.name for f in dataclasses.fields(schema)} - {"_target_"}
