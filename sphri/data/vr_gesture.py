@@ -59,9 +59,11 @@ from sphri.data.duplicates import DUPLICATE_POLICIES, describe, find_duplicates,
 from sphri.data.format import (
     GENERATOR_KEY,
     GENERATOR_VALUE,
+    INTEGER_COLUMNS,
     META_COLUMNS,
     PARTICIPANT_RE,
     POSE_SUFFIXES,
+    STRING_COLUMNS,
     ManifestError,
     make_trials_frame,
     manifest_path,
@@ -402,12 +404,12 @@ class VRGestureData:
         for col in want:
             typ = schema.field(col).type
             numeric = pa.types.is_integer(typ) or pa.types.is_floating(typ)
-            if col in ("trial_id", "gesture_label"):
+            if col in STRING_COLUMNS:
                 if not (pa.types.is_string(typ) or pa.types.is_large_string(typ) or pa.types.is_dictionary(typ)):
                     raise DatasetError(f"{ppath}: column {col} has type {typ}, expected strings")
             elif not numeric:
                 raise DatasetError(f"{ppath}: column {col} has type {typ}, expected numbers")
-            elif col in ("trial_ordinal", "frame", "frame_index_in_trial") and not pa.types.is_integer(typ):
+            elif col in INTEGER_COLUMNS and not pa.types.is_integer(typ):
                 raise DatasetError(f"{ppath}: column {col} has type {typ}, expected integers")
         return want
 

@@ -18,6 +18,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from sphri.data.format import (
+    FORMAT_VERSION,
     GENERATOR_KEY,
     GENERATOR_VALUE,
     manifest_path,
@@ -101,6 +102,7 @@ def _write_participant(
     manifest: dict[str, Any] = {
         "participant_id": pid,
         "body_region": region,
+        "format_version": FORMAT_VERSION,
         "reference_mesh": link_name,
         "num_trials": int(len(group)),
         "num_frames_total": int(counts.sum()),

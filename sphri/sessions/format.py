@@ -14,7 +14,8 @@ VR gesture dataset's layout (:mod:`sphri.data.format`)::
 Parquet columns: ``repetition`` (int), ``frame`` (int, 0-based within the
 session), then for each hand ``h`` and capsule ``c`` ``h/c_pos_x ...
 h/c_rot_w`` (metres, unit quaternion xyzw, world frame) and for each link
-``link/<name>_pos_x ... _rot_w`` (the link frame's pose in the world).
+``link/<name>_pos_x ... _rot_w`` (the link frame's pose in the world). Columns and fields are
+listed once in :mod:`sphri.data.recording_schema` (``docs/RECORDING_FORMAT.md``).
 
 :func:`write_sessions` writes it, :class:`SessionData` (``data=sessions``)
 reads it back and validates every file; each defect raises
@@ -38,6 +39,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sphri.data import recording_schema as schema
 from sphri.data.duplicates import describe, find_duplicates, fingerprint
 from sphri.data.format import POSE_SUFFIXES, participant_id, pose_columns
 from sphri.errors import read_json
@@ -45,9 +47,9 @@ from sphri.types import HandModel
 
 log = logging.getLogger(__name__)
 
-FORMAT = "sphri-sessions"
-FORMAT_VERSION = 1
-HANDS: tuple[str, ...] = ("left", "right")
+FORMAT = schema.SESSION_FORMAT
+FORMAT_VERSION = schema.SESSION_FORMAT_VERSION
+HANDS: tuple[str, ...] = schema.HANDS
 #: Columns of :attr:`SessionDataset.sessions`, in order.
 SESSION_COLUMNS: tuple[str, ...] = (
     "participant",
@@ -58,16 +60,10 @@ SESSION_COLUMNS: tuple[str, ...] = (
     "start",
     "n_frames",
 )
-MANIFEST_SESSION_KEYS: tuple[str, ...] = (
-    "scenario",
-    "repetition",
-    "order",
-    "start_position",
-    "frame_rate_hz",
-    "n_frames",
-    "file",
-)
-HEADER_KEYS: tuple[str, ...] = ("format", "version", "name", "synthetic", "robot", "links", "hands", "hand")
+MANIFEST_SESSION_KEYS: tuple[str, ...] = schema.required(schema.SESSION_MANIFEST)
+HEADER_KEYS: tuple[str, ...] = schema.required(schema.SESSION_HEADER)
+#: The per-row columns before the pose columns, in order.
+ROW_COLUMNS: tuple[str, ...] = schema.names(schema.SESSION_COLUMNS)
 
 
 #: Sessions are in metres: a median hand or link position farther than this from the origin is refused.
@@ -475,11 +471,11 @@ class SessionData:
             schema = pq.read_schema(path)
         except (pa.ArrowInvalid, OSError) as exc:
             raise SessionFormatError(f"{path}: not a readable parquet file ({exc})") from None
-        need = ["repetition", "frame"] + hcols + lcols
+        need = list(ROW_COLUMNS) + hcols + lcols
         missing = [col for col in need if col not in schema.names]
         if missing:
             raise SessionFormatError(f"{path}: missing column(s) {missing[:5]}" + (" ..." if len(missing) > 5 else ""))
-        for col in need[2:]:
+        for col in need[len(ROW_COLUMNS) :]:
             if not pa.types.is_floating(schema.field(col).type):
                 raise SessionFormatError(f"{path}: column {col!r} has type {schema.field(col).type}, expected float")
         try:
