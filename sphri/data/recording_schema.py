@@ -99,7 +99,6 @@ GESTURE_MANIFEST: tuple[Field, ...] = (
     Field("reference_mesh", "string", False, "name of the robot link whose frame the poses are in"),
     Field("generator", "string", False, "`sphri.synthetic` for generated data (the loader labels it synthetic)"),
     Field("generator_config", "object", False, "the generator's settings (synthetic data)"),
-    Field("source", "object", False, "what `sphri import` read: log kind, file, hand, rate, frame counts"),
 )
 GESTURE_TRIAL: tuple[Field, ...] = (
     Field("trial_ordinal", "integer", True, "positive, unique within the participant"),
@@ -111,6 +110,7 @@ GESTURE_TRIAL: tuple[Field, ...] = (
     Field("reference_pose_max_jitter_m", "number", False, "how far the compliant robot link moved (m)"),
     Field("reference_pose_max_jitter_deg", "number", False, "how far the robot link turned (degrees)"),
     Field("used_per_frame_fallback", "boolean", False, "the study's per-frame reference-pose fallback was used"),
+    Field("source", "object", False, "what `sphri import` read: log kind, file, hand, resampling (frame counts)"),
 )
 GESTURE_VERSIONS: tuple[Version, ...] = (
     Version(
@@ -198,6 +198,8 @@ OVR_BONES: dict[str, str] = {
     },
 }
 HANDS: tuple[str, ...] = ("left", "right")
+#: The kinds of log ``sphri import`` reads, with their column specs below.
+LOG_KINDS: tuple[str, ...] = ("openxr", "ovr", "capsules")
 
 OPENXR_LOG: tuple[Column, ...] = (
     Column("time", "float", "float64", "s", "-", "timestamp of the frame; rows of one frame share it"),

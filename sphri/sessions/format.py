@@ -77,6 +77,17 @@ class SessionFormatError(ValueError):
 
 
 @dataclass
+class _Participant:
+    """One participant's sessions as :meth:`SessionData.load_participant` reads them."""
+
+    records: list[dict]
+    hands: list[np.ndarray]
+    link_poses: list[np.ndarray]
+    prints: list
+    rates: set[float]
+
+
+@dataclass
 class SessionDataset:
     """Sessions of free interaction with a whole robot, all frames concatenated (world frame).
 
@@ -341,72 +352,20 @@ class SessionData:
             raise SessionFormatError(f"{root}: no participant folder with a manifest.json")
         if self.participants is not None:
             pids = pids[: int(self.participants)]
-        hcols, lcols = hand_columns(shand), link_columns(links)
-        c, nl = len(shand.names), len(links)
-        records, hands, lposes, rates = [], [], [], set()
+        records: list[dict] = []
+        hands: list[np.ndarray] = []
+        lposes: list[np.ndarray] = []
         prints: list = []
+        rates: set[float] = set()
         start = 0
         for pid in pids:
-            mpath = root / pid / "manifest.json"
-            entries = read_manifest(mpath)
-            named = {str(e["file"]) for e in entries}
-            unnamed = sorted(p.name for p in (root / pid).glob("*.parquet") if p.name not in named)
-            if unnamed:  # an entry lost from the manifest: its recording would be dropped without a word
-                log.warning(
-                    "%s: %d session file(s) in %s are not named by the manifest and are not read: %s",
-                    mpath,
-                    len(unnamed),
-                    root / pid,
-                    ", ".join(unnamed[:5]),
-                )
-            if self.scenarios is not None:
-                entries = [e for e in entries if e["scenario"] in self.scenarios]
-            if self.repetitions is not None:
-                entries = [e for e in entries if e["repetition"] <= int(self.repetitions)]
-            tables: dict[str, pd.DataFrame] = {}
-            for e in entries:
-                ppath = root / pid / str(e["file"])
-                inside = (root / pid).resolve()
-                if inside not in ppath.resolve().parents:
-                    raise SessionFormatError(
-                        f"{mpath}: field file={e['file']!r} of scenario {e['scenario']!r} "
-                        f"repetition {e['repetition']} resolves outside {root / pid} (a link?)"
-                    )
-                if e["file"] not in tables:
-                    tables[e["file"]] = self._read_table(ppath, hcols, lcols)
-                tab = tables[e["file"]]
-                rows = tab[tab["repetition"].to_numpy() == e["repetition"]]
-                if len(rows) != e["n_frames"]:
-                    raise SessionFormatError(
-                        f"{ppath}: repetition {e['repetition']} has {len(rows)} rows but "
-                        f"{mpath} field n_frames says {e['n_frames']}"
-                    )
-                fr = rows["frame"].to_numpy()
-                if not np.array_equal(fr, np.arange(len(fr))):
-                    raise SessionFormatError(
-                        f"{ppath}: column 'frame' of repetition {e['repetition']} must run 0..{len(fr) - 1}"
-                    )
-                h = rows[hcols].to_numpy(np.float32).reshape(len(rows), 2, c, 7)
-                lk = rows[lcols].to_numpy(np.float32).reshape(len(rows), nl, 7)
-                self._check_values(ppath, e, h, lk, hcols, lcols)
-                self._check_units(ppath, e, h, lk)
-                hands.append(h)
-                lposes.append(lk)
-                if self.duplicates != "off":
-                    prints.append((pid, (str(e["scenario"]), len(h)), fingerprint(h)))
-                rates.add(float(e["frame_rate_hz"]))
-                records.append(
-                    dict(
-                        participant=pid,
-                        scenario=str(e["scenario"]),
-                        repetition=int(e["repetition"]),
-                        order=int(e["order"]),
-                        start_position=str(e["start_position"]),
-                        start=start,
-                        n_frames=int(e["n_frames"]),
-                    )
-                )
-                start += int(e["n_frames"])
+            part = self.load_participant(root, pid, shand, links, start)
+            records += part.records
+            hands += part.hands
+            lposes += part.link_poses
+            prints += part.prints
+            rates |= part.rates
+            start += sum(r["n_frames"] for r in part.records)
         for pair in find_duplicates(prints):
             if self.duplicates == "refuse":
                 raise SessionFormatError(
@@ -447,6 +406,80 @@ class SessionData:
             robot=str(header["robot"]),
             truth=truth,
         )
+
+    def load_participant(
+        self, root: Path, pid: str, shand: HandModel, links: Sequence[str], start: int = 0
+    ) -> _Participant:
+        """One participant's selected sessions, every file validated (:class:`SessionFormatError` naming the file
+        and field); frames are numbered from ``start``."""
+        hcols, lcols = hand_columns(shand), link_columns(links)
+        c, nl = len(shand.names), len(links)
+        records: list[dict] = []
+        hands: list[np.ndarray] = []
+        lposes: list[np.ndarray] = []
+        prints: list = []
+        rates: set[float] = set()
+        mpath = root / pid / "manifest.json"
+        entries = read_manifest(mpath)
+        named = {str(e["file"]) for e in entries}
+        unnamed = sorted(p.name for p in (root / pid).glob("*.parquet") if p.name not in named)
+        if unnamed:  # an entry lost from the manifest: its recording would be dropped without a word
+            log.warning(
+                "%s: %d session file(s) in %s are not named by the manifest and are not read: %s",
+                mpath,
+                len(unnamed),
+                root / pid,
+                ", ".join(unnamed[:5]),
+            )
+        if self.scenarios is not None:
+            entries = [e for e in entries if e["scenario"] in self.scenarios]
+        if self.repetitions is not None:
+            entries = [e for e in entries if e["repetition"] <= int(self.repetitions)]
+        tables: dict[str, pd.DataFrame] = {}
+        for e in entries:
+            ppath = root / pid / str(e["file"])
+            inside = (root / pid).resolve()
+            if inside not in ppath.resolve().parents:
+                raise SessionFormatError(
+                    f"{mpath}: field file={e['file']!r} of scenario {e['scenario']!r} "
+                    f"repetition {e['repetition']} resolves outside {root / pid} (a link?)"
+                )
+            if e["file"] not in tables:
+                tables[e["file"]] = self._read_table(ppath, hcols, lcols)
+            tab = tables[e["file"]]
+            rows = tab[tab["repetition"].to_numpy() == e["repetition"]]
+            if len(rows) != e["n_frames"]:
+                raise SessionFormatError(
+                    f"{ppath}: repetition {e['repetition']} has {len(rows)} rows but "
+                    f"{mpath} field n_frames says {e['n_frames']}"
+                )
+            fr = rows["frame"].to_numpy()
+            if not np.array_equal(fr, np.arange(len(fr))):
+                raise SessionFormatError(
+                    f"{ppath}: column 'frame' of repetition {e['repetition']} must run 0..{len(fr) - 1}"
+                )
+            h = rows[hcols].to_numpy(np.float32).reshape(len(rows), 2, c, 7)
+            lk = rows[lcols].to_numpy(np.float32).reshape(len(rows), nl, 7)
+            self._check_values(ppath, e, h, lk, hcols, lcols)
+            self._check_units(ppath, e, h, lk)
+            hands.append(h)
+            lposes.append(lk)
+            if self.duplicates != "off":
+                prints.append((pid, (str(e["scenario"]), len(h)), fingerprint(h)))
+            rates.add(float(e["frame_rate_hz"]))
+            records.append(
+                dict(
+                    participant=pid,
+                    scenario=str(e["scenario"]),
+                    repetition=int(e["repetition"]),
+                    order=int(e["order"]),
+                    start_position=str(e["start_position"]),
+                    start=start,
+                    n_frames=int(e["n_frames"]),
+                )
+            )
+            start += int(e["n_frames"])
+        return _Participant(records, hands, lposes, prints, rates)
 
     @staticmethod
     def _check_units(path: Path, e: dict, h: np.ndarray, lk: np.ndarray) -> None:
