@@ -104,15 +104,16 @@ def _read_jsonl(path: Path, names: Sequence[str], optional: Sequence[str]) -> tu
     return raw, linenos
 
 
-def _number(v: object) -> float | None:
-    """The value as a float, or None when it is not a number (a JSON null or a CSV empty field is NaN)."""
+def _number(v: object, text: bool) -> float | None:
+    """The value as a float, or None when it is not a number (a JSON null or a CSV empty field is NaN); a
+    string is read as a number only where the file is ``text`` (CSV), not in JSON."""
     if v is None or v == "":
         return math.nan
     if isinstance(v, bool):
         return None
     if isinstance(v, (int, float)):
         return float(v)
-    if isinstance(v, str):
+    if isinstance(v, str) and text:
         try:
             return float(v)
         except ValueError:
@@ -144,7 +145,7 @@ def read_log(path: str | Path, columns: Sequence[Column], optional: Sequence[str
                 raise LogError(f"{path}: line {lines[i]}: field {n}={values[i]!r} must be a name")
             out[n] = np.asarray([str(v) for v in values], dtype=object)
             continue
-        nums = [_number(v) for v in values]
+        nums = [_number(v, reader is _read_csv) for v in values]
         bad = [i for i, v in enumerate(nums) if v is None]
         if bad:
             i = bad[0]
