@@ -22,6 +22,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 #: Version of the gesture-trial format that sphri writes (manifest key ``format_version``).
 GESTURE_FORMAT_VERSION = 2
@@ -116,13 +117,13 @@ GESTURE_VERSIONS: tuple[Version, ...] = (
     Version(
         1,
         "the reference study's release (dakaraisc/VR-gesture-dataset): parquet columns and manifest as above, "
-        "without `format_version`, `frame_rate_hz`, `generator`, `generator_config`, `reference_mesh`, `source`",
+        "without `format_version`, `frame_rate_hz`, `generator`, `generator_config` and the trials' `source`",
     ),
     Version(
         2,
-        "manifests may carry `format_version`, `frame_rate_hz` (else 30 Hz), `reference_mesh`, "
-        "`generator`/`generator_config` (synthetic data) and `source` (imported logs); "
-        "`assets/hand_capsule_definition.json` holds the hand the poses were made for",
+        "manifests may carry `format_version`, `frame_rate_hz` (else 30 Hz) and `generator`/`generator_config` "
+        "(synthetic data), trial entries `source` (imported logs); `assets/hand_capsule_definition.json` holds the "
+        "hand model the poses were made for",
     ),
 )
 
@@ -274,12 +275,19 @@ def _fields(fields: Sequence[Field]) -> list[str]:
     )
 
 
-def _hand_rows() -> list[tuple]:
+def documented_capsules() -> list[dict[str, Any]]:
+    """The documented hand model's capsules (``conf/hand/quest_capsules.yaml``, the study's 19), as mappings."""
     from omegaconf import OmegaConf
 
     from sphri.config import CONF_DIR
 
-    caps = OmegaConf.to_container(OmegaConf.load(Path(CONF_DIR) / "hand" / "quest_capsules.yaml"))["capsules"]
+    node = OmegaConf.to_container(OmegaConf.load(Path(CONF_DIR) / "hand" / "quest_capsules.yaml"))
+    assert isinstance(node, dict)
+    return list(node["capsules"])
+
+
+def _hand_rows() -> list[tuple]:
+    caps = documented_capsules()
     rows = []
     for c in caps:
         bones = OPENXR_CAPSULES.get(c["name"], ())

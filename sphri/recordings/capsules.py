@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from sphri.data.recording_schema import OPENXR_CAPSULES, OPENXR_JOINTS
+from sphri.data.recording_schema import OPENXR_CAPSULES, OPENXR_JOINTS, documented_capsules
 from sphri.hand.capsules import finger_of
 from sphri.hand.kinematics import capsule_segments, quat_to_matrix
 from sphri.types import HandModel
@@ -51,13 +51,9 @@ PALM = ("wrist1", "wrist2", "wrist3", "wrist4")
 
 def documented_hand(scale: float = 1.0) -> HandModel:
     """The documented hand model (``conf/hand/quest_capsules.yaml``, the study's 19 capsules) times ``scale``."""
-    from omegaconf import OmegaConf
-
-    from sphri.config import CONF_DIR
     from sphri.hand.capsules import HandCapsules
 
-    caps = OmegaConf.to_container(OmegaConf.load(Path(CONF_DIR) / "hand" / "quest_capsules.yaml"))["capsules"]
-    return HandCapsules(capsules=caps, scale=scale).build()
+    return HandCapsules(capsules=documented_capsules(), scale=scale).build()
 
 
 def _align(rot: np.ndarray, axis: np.ndarray, d: np.ndarray) -> np.ndarray:
@@ -173,8 +169,8 @@ def openxr_joints(poses: np.ndarray, hand: HandModel) -> np.ndarray:
     forward = d[:, index["wrist2"]]
     out[:, jidx["palm"], :3] = centre[:, [index[c] for c in PALM]].mean(axis=1)
     out[:, jidx["wrist"], :3] = out[:, meta, :3].mean(axis=1) - 0.03 * forward
-    for j in ("palm", "wrist"):
-        out[:, jidx[j], 3:] = jq[:, index["wrist2"]]
+    for name in ("palm", "wrist"):
+        out[:, jidx[name], 3:] = jq[:, index["wrist2"]]
     return out
 
 

@@ -92,7 +92,7 @@ def to_frames(
     miss = ~present[:, need]
     if miss.any():
         f = int(np.flatnonzero(miss.any(axis=1))[0])
-        names = [required[j] for j in np.flatnonzero(miss[f])]
+        names = [required[int(j)] for j in np.flatnonzero(miss[f])]
         raise LogError(
             f"{path}: line {lines[first[f]]}: the frame at time={times[f]:.9g} misses {key}(s) {names[:6]}"
             f"{' ...' if len(names) > 6 else ''} ({int(miss.any(axis=1).sum())} of {len(times)} frame(s) miss one)"
