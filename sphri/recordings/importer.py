@@ -61,16 +61,18 @@ class Imported:
     files: list[Path]
 
 
+def _known(path: Path, df: pd.DataFrame, column: str, values: pd.Series, known: object, what: str) -> None:
+    """Refuse the first row whose ``values`` (of ``column``) are not in ``known``: ``what`` it should be."""
+    unknown = ~values.isin(known)
+    if unknown.any():
+        i = int(np.flatnonzero(unknown.to_numpy())[0])
+        raise LogError(f"{path}: line {df['line'].iat[i]}: field {column}={df[column].iat[i]!r} is not {what}")
+
+
 def _openxr(path: Path, df: pd.DataFrame) -> Frames:
     names = {n: n for n in OPENXR_JOINTS} | {str(i): n for i, n in enumerate(OPENXR_JOINTS)}
     joint = df["joint"].str.strip().str.lower()
-    unknown = ~joint.isin(names)
-    if unknown.any():
-        i = int(np.flatnonzero(unknown.to_numpy())[0])
-        raise LogError(
-            f"{path}: line {df['line'].iat[i]}: field joint={df['joint'].iat[i]!r} is not an XR_EXT_hand_tracking "
-            f"joint (names like index_tip, or ids 0..25)"
-        )
+    _known(path, df, "joint", joint, names, "an XR_EXT_hand_tracking joint (names like index_tip, or ids 0..25)")
     df = df.assign(joint=joint.map(names))
     used = sorted({j for bone in OPENXR_CAPSULES.values() for j in bone}, key=OPENXR_JOINTS.index)
     frames = to_frames(path, df, "joint", OPENXR_JOINTS, POSITION, used)
@@ -98,13 +100,7 @@ def _openxr(path: Path, df: pd.DataFrame) -> Frames:
 
 def _ovr_names(path: Path, df: pd.DataFrame) -> pd.DataFrame:
     bone = df["bone_id"].str.strip()
-    unknown = ~bone.isin(OVR_BONES)
-    if unknown.any():
-        i = int(np.flatnonzero(unknown.to_numpy())[0])
-        raise LogError(
-            f"{path}: line {df['line'].iat[i]}: field bone_id={df['bone_id'].iat[i]!r} is not a capsule bone of "
-            f"the hand model ({', '.join(OVR_BONES)})"
-        )
+    _known(path, df, "bone_id", bone, OVR_BONES, f"a capsule bone of the hand model ({', '.join(OVR_BONES)})")
     names = bone.map(OVR_BONES).to_numpy(object)
     wrist = bone.to_numpy() == "Hand_WristRoot"
     slots = np.unique(df["capsule_index"].to_numpy()[wrist])
@@ -140,13 +136,7 @@ def _ovr_names(path: Path, df: pd.DataFrame) -> pd.DataFrame:
 
 
 def _segments(path: Path, df: pd.DataFrame) -> Frames:
-    unknown = ~df["capsule"].isin(CAPSULES)
-    if unknown.any():
-        i = int(np.flatnonzero(unknown.to_numpy())[0])
-        raise LogError(
-            f"{path}: line {df['line'].iat[i]}: field capsule={df['capsule'].iat[i]!r} is not a capsule of the hand "
-            f"model ({', '.join(CAPSULES)})"
-        )
+    _known(path, df, "capsule", df["capsule"], CAPSULES, f"a capsule of the hand model ({', '.join(CAPSULES)})")
     frames = to_frames(path, df, "capsule", CAPSULES, SEGMENT, CAPSULES)
     v = frames.values
     bad = (np.linalg.norm(v[..., 3:6] - v[..., :3], axis=-1) < MIN_BONE_M) | (v[..., 6] <= 0)
