@@ -6,7 +6,8 @@ checked by the loaders' own validation (:mod:`sphri.data.format`, :mod:`sphri.da
 :mod:`sphri.sessions.format`), one participant at a time, so a problem in one file does not hide
 those of the others; a file's parquet columns are all checked before its rows. What the loader
 would repair on load (a NaN pose held, a quaternion normalized, a short trial dropped) is counted
-in the summary, not a problem.
+in the summary, not a problem; two participants holding near-identical recordings (a copied folder),
+which the loaders refuse, are one.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from sphri.data.duplicates import describe, find_duplicates, fingerprint
 from sphri.data.format import GENERATOR_KEY, PARTICIPANT_RE, ManifestError, manifest_path, parquet_path
 from sphri.data.vr_gesture import DatasetError, VRGestureData, check_position_scale, column_problems
 from sphri.hand.capsules import HandCapsules, HandDefinitionError
@@ -45,6 +47,15 @@ def _gesture_folders(root: Path) -> list[tuple[str, str]]:
     )
 
 
+def _duplicates(root: Path, prints: list, what: str) -> list[str]:
+    """A line for each two participants holding near-identical recordings, which the loaders refuse."""
+    return [
+        f"{root}: {describe(pair, what)}: a copied participant folder? (the loader refuses it; data.duplicates=warn "
+        "loads both)"
+        for pair in find_duplicates(prints)
+    ]
+
+
 def check_gestures(root: Path) -> Check:
     out = Check("gesture trials")
     definition = root / "assets" / "hand_capsule_definition.json"
@@ -56,6 +67,7 @@ def check_gestures(root: Path) -> Check:
     repairs: Counter[str] = Counter()
     trials = frames = 0
     rates, generators, versions = set(), set(), set()
+    prints: list = []
     folders = _gesture_folders(root)
     for region, pid in folders:
         mpath, ppath = manifest_path(root, region, pid), parquet_path(root, region, pid)
@@ -75,6 +87,7 @@ def check_gestures(root: Path) -> Check:
             continue
         trials += len(ts)
         frames += sum(len(p) for p in poses)
+        prints += [(pid, (region, t["gesture_label"], len(p)), fingerprint(p)) for t, p in zip(ts, poses)]
         rates.add(float(manifest.get("frame_rate_hz", 30.0)))
         generators.add(manifest.get(GENERATOR_KEY))
         versions.add(int(manifest.get("format_version", 1)))
@@ -82,6 +95,7 @@ def check_gestures(root: Path) -> Check:
         out.problems.append(f"{root}: manifests disagree on frame_rate_hz: {sorted(rates)}; one rate per dataset")
     if len(generators) > 1:
         out.problems.append(f"{root}: mixes sphri-generated and recorded manifests ('{GENERATOR_KEY}' key)")
+    out.problems += _duplicates(root, prints, "trials")
     regions = sorted({r for r, _ in folders})
     fixes = f"; the loader would repair: {dict(repairs)}" if repairs else ""
     out.summary = (
@@ -99,12 +113,13 @@ def check_sessions(root: Path) -> Check:
     except FILE_ERRORS as exc:
         out.problems.append(str(exc))
         return out
-    loader = SessionData(root=str(root), duplicates="off")
+    loader = SessionData(root=str(root))
     pids = sorted(p.name for p in root.iterdir() if p.is_dir() and (p / "manifest.json").is_file())
     if not pids:
         out.problems.append(f"{root}: no participant folder with a manifest.json")
     sessions = frames = 0
     rates: set[float] = set()
+    prints: list = []
     for pid in pids:
         try:
             part = loader.load_participant(root, pid, header["hand_model"], list(header["links"]))
@@ -114,8 +129,10 @@ def check_sessions(root: Path) -> Check:
         sessions += len(part.records)
         frames += sum(r["n_frames"] for r in part.records)
         rates |= part.rates
+        prints += part.prints
     if len(rates) > 1:
         out.problems.append(f"{root}: manifests mix frame rates {sorted(rates)}; one rate per dataset")
+    out.problems += _duplicates(root, prints, "sessions")
     out.summary = (
         f"{root}: sessions, {header['format']} version {header['version']}: {len(pids)} participant(s), "
         f"{sessions} sessions, {frames} frames at {', '.join(f'{r:g}' for r in sorted(rates))} Hz, "

@@ -15,21 +15,20 @@ import pytest
 from sphri.command import main
 
 
+@pytest.fixture(scope="module")
+def two(hand, robot):
+    """Two participants' 8 gestures on the arm from sphri's synthetic generator."""
+    from sphri.data.synthetic import SyntheticData
+
+    return SyntheticData(seed=11, participants=2, repetitions=1, regions=["arm"]).load(hand=hand, robot=robot)
+
+
 @pytest.fixture()
-def gestures(synthetic, robot, tmp_path) -> Path:
-    """The synthetic participant written twice (participant_01 and participant_02, its poses shifted 1 cm)."""
+def gestures(two, robot, tmp_path) -> Path:
     from sphri.data.writer import write_dataset
 
     root = tmp_path / "gestures"
-    write_dataset(synthetic, robot, root)
-    src, dst = root / "arm" / "participant_01", root / "arm" / "participant_02"
-    dst.mkdir()
-    m = json.loads((src / "participant_01_manifest.json").read_text())
-    m["participant_id"] = "participant_02"
-    (dst / "participant_02_manifest.json").write_text(json.dumps(m))
-    t = pq.read_table(src / "participant_01.parquet")
-    t = t.set_column(t.schema.get_field_index("wrist1_pos_x"), "wrist1_pos_x", pa.compute.add(t["wrist1_pos_x"], 0.01))
-    pq.write_table(t, dst / "participant_02.parquet")
+    write_dataset(two, robot, root)
     return root
 
 
@@ -39,12 +38,12 @@ def check(root: Path, capsys) -> tuple[int, list[str], str]:
     return code, cap.out.strip().splitlines(), cap.err
 
 
-def test_a_good_gesture_folder_is_summarized(gestures, synthetic, capsys):
+def test_a_good_gesture_folder_is_summarized(gestures, two, capsys):
     code, out, _ = check(gestures, capsys)
     assert code == 0, out
     assert out == [
         f"{gestures}: gesture trials, format version(s) [2]: 1 region(s) ['arm'], 2 participant(s), "
-        f"{2 * len(synthetic.trials)} trials, {2 * synthetic.n_frames} frames at 30 Hz, 19 capsules"
+        f"{len(two.trials)} trials, {two.n_frames} frames at 30 Hz, 19 capsules"
     ]
 
 
@@ -152,3 +151,17 @@ def test_a_folder_of_neither_kind(tmp_path, capsys):
     assert code == 2 and out == [
         f"{tmp_path / 'x' / 'sessions.json'}: missing field(s) ['name', 'synthetic', 'robot', 'links', 'hands', 'hand']"
     ]
+
+
+def test_a_copied_participant_is_a_problem_as_the_loader_refuses_it(gestures, capsys):
+    src, dst = gestures / "arm" / "participant_01", gestures / "arm" / "participant_03"
+    dst.mkdir()
+    shutil.copy(src / "participant_01.parquet", dst / "participant_03.parquet")
+    m = json.loads((src / "participant_01_manifest.json").read_text())
+    m["participant_id"] = "participant_03"
+    (dst / "participant_03_manifest.json").write_text(json.dumps(m))
+    code, out, _ = check(gestures, capsys)
+    assert code == 2
+    assert len(out) == 1 and out[0].startswith(
+        f"{gestures}: participant_01 and participant_03 hold near-identical recordings (8 of 8 trials match"
+    ), out
