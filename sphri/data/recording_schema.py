@@ -199,6 +199,8 @@ OVR_BONES: dict[str, str] = {
     },
 }
 HANDS: tuple[str, ...] = ("left", "right")
+#: A log's interval between frames longer than this many median intervals is a tracking gap.
+GAP_FACTOR = 1.5
 #: The kinds of log ``sphri import`` reads, with their column specs below.
 LOG_KINDS: tuple[str, ...] = ("openxr", "ovr", "capsules")
 
@@ -395,6 +397,27 @@ def markdown() -> str:
         "to `rate_hz`. Positions must be metres in the link's frame. CSV files have a header row; `.jsonl` files",
         "hold one object per row with the same keys (OpenXR: `position` [x, y, z] and `orientation`",
         "[x, y, z, w] instead of px..qw). A frame is the rows sharing one `time`.",
+        "",
+        "Each frame of the output lies at `k / rate_hz` after the log's first time; positions are interpolated",
+        "linearly, orientations by slerp. The import says how many source frames it read and their median rate,",
+        f"the tracking gaps (intervals over {GAP_FACTOR:g} median intervals) and the output frames interpolated",
+        "across them, and how many source frames fewer downsampling made; the trial's manifest entry keeps these",
+        "counts under `source`. The dataset keeps one hand model, `assets/hand_capsule_definition.json`: the first",
+        "import writes it (`openxr`: the model below times `hand_size`; `ovr`, `capsules`: the log's median",
+        "capsule sizes); later imports place their capsules with it and say how far the log's sizes differ. Load",
+        "the result with `sphri data=vr_gesture data.root=DIR data.regions=[REGION]",
+        "hand.definition_path=DIR/assets/hand_capsule_definition.json`.",
+        "",
+        "Refused, one line naming the file, line and field, exit 2: an empty or truncated file, a missing column,",
+        "a value of the wrong type, a NaN or infinite value, time going back, a joint or capsule twice at one time",
+        "(a duplicate frame), a frame missing a joint or capsule that a capsule needs, an unknown joint, bone or",
+        "capsule, an unknown hand, mixed hands or another hand than `hand=`, positions that cannot be metres (a",
+        "hand spanning 100 or 1000 times a hand: cm, mm), a zero quaternion, two joints of a bone at one place.",
+        "",
+        "`sphri.recordings.capsules.export_openxr(poses, hand, time_s, path)` writes capsule poses as an `openxr`",
+        "log, placing each joint where consecutive capsules' bones meet; importing it gives back the capsule",
+        "segments (within 2 µm for the synthetic hand's kinematics; the synthetic dataset's 0.3 mm per-capsule",
+        "tracking noise does not fit 26 joints, and its contacts come back with distances within 1 mm).",
         "",
         "**`openxr`**: one row per joint and frame, the 26 joints of `XR_EXT_hand_tracking`. A finger capsule is",
         "the bone between two consecutive joints: centred on it, along it, the hand model's size times",

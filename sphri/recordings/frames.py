@@ -14,14 +14,11 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation, Slerp
 
-from sphri.data.recording_schema import HANDS
+from sphri.data.recording_schema import GAP_FACTOR, HANDS
 from sphri.data.schema import POSITION_UNITS
 from sphri.data.vr_gesture import HAND_SCALE_RANGE, hand_model_size_m
 from sphri.recordings.logs import LogError
 from sphri.types import HandModel
-
-#: A source interval longer than this many median intervals is a tracking gap.
-GAP_FACTOR = 1.5
 
 
 @dataclass

@@ -57,6 +57,21 @@ def test_openxr_round_trip_gives_the_same_capsule_segments(rig_poses, hand, open
     assert m["trials"][0]["source"]["kind"] == "openxr" and m["trials"][0]["source"]["frames"] == 40
 
 
+def test_joint_ids_read_as_their_names(openxr_log, tmp_path):
+    from sphri.data.recording_schema import OPENXR_JOINTS
+
+    lines = _lines(openxr_log)
+    for i in range(1, len(lines)):
+        cells = lines[i].split(",")
+        cells[2] = str(OPENXR_JOINTS.index(cells[2]))
+        lines[i] = ",".join(cells)
+    ids = tmp_path / "ids.csv"
+    ids.write_text("\n".join(lines) + "\n")
+    assert run_import("openxr", openxr_log, tmp_path / "a") == 0
+    assert run_import("openxr", ids, tmp_path / "b") == 0
+    np.testing.assert_array_equal(load(tmp_path / "a").poses, load(tmp_path / "b").poses)
+
+
 def test_hand_size_scales_the_documented_capsules(openxr_log, hand, tmp_path):
     out = tmp_path / "ds"
     assert run_import("openxr", openxr_log, out, "hand_size=1.2") == 0
@@ -184,6 +199,8 @@ def _mutate(kind):
             _set(lines, 10, 3, "nan")
         elif kind == "joint":
             _set(lines, 12, 2, "index_knuckle")
+        elif kind == "joint_id":
+            _set(lines, 13, 2, "26")
         elif kind == "missing":
             del lines[_frame_line(2, 25) - 1]
         elif kind == "mm":
@@ -228,6 +245,7 @@ REFUSALS = [
     ("time_back", f"line {_frame_line(5)}: field time=0 goes back (line {_frame_line(5) - 1} has 0.133333333)"),
     ("nan", "line 10: field px is 'nan': NaN or infinite values are not poses"),
     ("joint", "line 12: field joint='index_knuckle' is not an XR_EXT_hand_tracking joint"),
+    ("joint_id", "line 13: field joint='26' is not an XR_EXT_hand_tracking joint (names like index_tip, or ids 0..25)"),
     ("missing", f"line {_frame_line(2)}: the frame at time=0.0666666667 misses joint(s) ['little_tip']"),
     ("mm", "fields px, py, pz: the hand spans"),
     ("hand", "line 7: field hand='both' is not a hand: left or right"),
