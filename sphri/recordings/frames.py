@@ -20,6 +20,9 @@ from sphri.data.vr_gesture import HAND_SCALE_RANGE, hand_model_size_m
 from sphri.recordings.logs import LogError
 from sphri.types import HandModel
 
+#: Plausible median time between a log's frames (s): 10 kHz to 0.5 Hz.
+MIN_STEP_S, MAX_STEP_S = 1e-4, 2.0
+
 
 @dataclass
 class Frames:
@@ -79,6 +82,13 @@ def to_frames(
             f"{lines[same[0]]}: duplicate frame ({int(dup.sum())} duplicated row(s))"
         )
     times, first, frame = np.unique(t, return_index=True, return_inverse=True)
+    if len(times) > 1:
+        step = float(np.median(np.diff(times)))
+        if not MIN_STEP_S <= step <= MAX_STEP_S:
+            raise LogError(
+                f"{path}: line {lines[first[1]]}: field time: frames lie {step:.4g} apart (median), where seconds "
+                f"give {MIN_STEP_S:g} to {MAX_STEP_S:g}: wrong time unit (milliseconds? nanoseconds?); give seconds"
+            )
     index = {n: k for k, n in enumerate(ids)}
     k = np.array([index[v] for v in df[key]], dtype=np.int64)
     arr = np.full((len(times), len(ids), len(values)), np.nan)

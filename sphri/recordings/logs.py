@@ -28,17 +28,19 @@ def _spec(columns: Sequence[Column]) -> dict[str, str]:
     return {n.strip(): c.dtype for c in columns for n in c.name.split(",")}
 
 
-def _lines(path: Path) -> list[str]:
+def _lines(path: Path) -> tuple[list[str], bool]:
+    """The file's lines (a byte-order mark dropped) and whether its last line ends with a newline."""
     try:
-        text = path.read_text()
+        text = path.read_text(encoding="utf-8-sig")
     except UnicodeDecodeError as exc:
         raise LogError(f"{path}: not a text file ({exc})") from None
     if not text.strip():
         raise LogError(f"{path}: empty file (no rows)")
     lines = text.split("\n")
-    if text.endswith("\n"):
+    ends = text.endswith("\n")
+    if ends:
         lines.pop()
-    return lines
+    return lines, ends
 
 
 def _truncated(path: Path, lineno: int, n_lines: int, text_ends_line: bool, what: str) -> LogError:
@@ -48,8 +50,7 @@ def _truncated(path: Path, lineno: int, n_lines: int, text_ends_line: bool, what
 
 
 def _read_csv(path: Path, names: Sequence[str], optional: Sequence[str]) -> tuple[dict[str, list], list[int]]:
-    lines = _lines(path)
-    ends = path.read_bytes().endswith(b"\n")
+    lines, ends = _lines(path)
     header = [h.strip() for h in next(csv.reader([lines[0]]))]
     missing = [n for n in names if n not in header and n not in optional]
     if missing:
@@ -71,8 +72,7 @@ def _read_csv(path: Path, names: Sequence[str], optional: Sequence[str]) -> tupl
 
 
 def _read_jsonl(path: Path, names: Sequence[str], optional: Sequence[str]) -> tuple[dict[str, list], list[int]]:
-    lines = _lines(path)
-    ends = path.read_bytes().endswith(b"\n")
+    lines, ends = _lines(path)
     raw: dict[str, list] = {n: [] for n in names}
     linenos: list[int] = []
     for i, line in enumerate(lines, 1):

@@ -70,6 +70,9 @@ def test_joint_ids_read_as_their_names(openxr_log, tmp_path):
     assert run_import("openxr", openxr_log, tmp_path / "a") == 0
     assert run_import("openxr", ids, tmp_path / "b") == 0
     np.testing.assert_array_equal(load(tmp_path / "a").poses, load(tmp_path / "b").poses)
+    bom = tmp_path / "bom.csv"  # as spreadsheet programs save CSV
+    bom.write_text("\ufeff" + openxr_log.read_text())
+    assert run_import("openxr", bom, tmp_path / "c") == 0
 
 
 def test_hand_size_scales_the_documented_capsules(openxr_log, hand, tmp_path):
@@ -199,6 +202,11 @@ def _mutate(kind):
             _set(lines, 10, 3, "nan")
         elif kind == "joint":
             _set(lines, 12, 2, "index_knuckle")
+        elif kind == "ms":
+            for i in range(1, len(lines)):
+                cells = lines[i].split(",")
+                cells[0] = repr(float(cells[0]) * 1000)
+                lines[i] = ",".join(cells)
         elif kind == "joint_id":
             _set(lines, 13, 2, "26")
         elif kind == "missing":
@@ -245,6 +253,7 @@ REFUSALS = [
     ("time_back", f"line {_frame_line(5)}: field time=0 goes back (line {_frame_line(5) - 1} has 0.133333333)"),
     ("nan", "line 10: field px is 'nan': NaN or infinite values are not poses"),
     ("joint", "line 12: field joint='index_knuckle' is not an XR_EXT_hand_tracking joint"),
+    ("ms", f"line {_frame_line(1)}: field time: frames lie 33.33 apart (median), where seconds give 0.0001 to 2"),
     ("joint_id", "line 13: field joint='26' is not an XR_EXT_hand_tracking joint (names like index_tip, or ids 0..25)"),
     ("missing", f"line {_frame_line(2)}: the frame at time=0.0666666667 misses joint(s) ['little_tip']"),
     ("mm", "fields px, py, pz: the hand spans"),
