@@ -178,9 +178,10 @@ def import_log(
     hand: str = "right",
     hand_size: float = 1.0,
 ) -> Imported:
-    """Check ``log`` (a ``kind`` of :data:`sphri.data.recording_schema.LOG_KINDS`), resample it to ``rate_hz`` and add it as one trial of
-    ``gesture`` by participant number ``participant`` on ``link`` to the dataset ``out`` (see the module
-    docstring). Every problem of the log is one :class:`LogError` line naming the file, line and field."""
+    """Check ``log`` (a ``kind`` of :data:`sphri.data.recording_schema.LOG_KINDS`), resample it to ``rate_hz``
+    (Hz) and add it as one trial of ``gesture`` by participant number ``participant`` on ``link`` to the
+    dataset ``out`` (see the module docstring); ``hand_size`` scales the documented hand (``openxr``). Every
+    problem of the log is one :class:`LogError` line naming the file, line and field."""
     path, root = Path(log), Path(out)
     spec = {"openxr": OPENXR_LOG, "ovr": OVR_CAPSULE_LOG, "capsules": CAPSULE_LOG}[kind]
     df = read_log(path, spec, optional=("hand",) if kind == "capsules" else ())
@@ -192,7 +193,7 @@ def import_log(
         used = sorted({OPENXR_JOINTS.index(j) for bone in OPENXR_CAPSULES.values() for j in bone})
         check_metres(path, frames, "px, py, pz", frames.values[:, used, :3], model)
         frames, report = resample(frames, rate_hz, quat=slice(3, 7))
-        use = existing or model
+        use = existing if existing is not None else model
         note = (
             _size_note("the dataset's hand model", model, existing)
             if existing is not None
@@ -205,7 +206,7 @@ def import_log(
         logged = hand_from_segments(CAPSULES, v[..., :3], v[..., 3:6], v[..., 6])
         check_metres(path, frames, "the capsule ends", v[..., :6].reshape(len(v), -1, 3), documented_hand())
         frames, report = resample(frames, rate_hz)
-        use = existing or logged
+        use = existing if existing is not None else logged
         spread = np.abs(np.linalg.norm(v[..., 3:6] - v[..., :3], axis=-1) - logged.segment_length_m).max() * 1000
         note = (
             _size_note("the dataset's hand model", logged, existing)
