@@ -5,7 +5,8 @@ in sphri: an invalid config, a bad data file, a broken mesh, an unwritable
 cache, a serial port that vanished, a model or recording file that does not
 decode, a file the system refuses. Every entry point prints it as one line
 ``<prog>: <kind>: <message>`` (the message names the key, file or port) and
-exits with 2 (config) or 1 (anything else). The traceback is shown only with
+exits with 2 (:data:`EXIT_2`: a config, or a log ``sphri import`` refuses) or 1
+(anything else). The traceback is shown only with
 ``--verbose`` on the command line or ``HYDRA_FULL_ERROR=1`` in the
 environment. Anything else (a bug) keeps its full traceback.
 """
@@ -45,10 +46,15 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.hardware.skin", "StreamMismatch", "port error"),
     ("sphri.export.model_file", "ModelFileError", "model file error"),
     ("sphri.hardware.recording", "RecordingError", "recording error"),
+    ("sphri.recordings.logs", "LogError", "log error"),
     ("sphri.report.sweep", "ReportError", "report error"),
     ("sphri.finite", "NonFiniteError", "numerical error"),
     ("builtins", "OSError", "file error"),
 )
+
+
+#: Kinds that exit with 2 (the input was refused as given); the others exit with 1.
+EXIT_2: tuple[str, ...] = ("invalid config", "log error")
 
 
 def expected_errors() -> list[tuple[type[BaseException], str]]:
@@ -100,7 +106,7 @@ def report(prog: str, exc: BaseException) -> int | None:
     if verbose_requested():
         traceback.print_exception(exc)
     print(one_line(prog, exc, kind), file=sys.stderr)
-    return 2 if kind == "invalid config" else 1
+    return 2 if kind in EXIT_2 else 1
 
 
 def clean_errors(prog: str) -> Callable:

@@ -140,6 +140,20 @@ VERBS: tuple[Verb, ...] = (
         "sphri.data.stats",
     ),
     Verb(
+        "check-data",
+        "check a recording folder (gesture trials or sessions) against the recording format",
+        "args",
+        "sphri.recordings.command:check_command",
+        "sphri.recordings.command:CheckDataArgs",
+    ),
+    Verb(
+        "import",
+        "convert a hand-tracking log (OpenXR joints, OVR or generic capsules) into a gesture trial",
+        "args",
+        "sphri.recordings.command:import_command",
+        "sphri.recordings.command:ImportArgs",
+    ),
+    Verb(
         "export",
         "train a model on the configured data and write a model file for live use",
         "main",

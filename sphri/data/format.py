@@ -9,7 +9,8 @@ Layout (``dakaraisc/VR-gesture-dataset``)::
 
 Parquet columns: :data:`META_COLUMNS` then, for every capsule ``c`` of the
 hand, ``c_pos_x/y/z`` (metres, link frame) and ``c_rot_x/y/z/w`` (unit
-quaternion, same frame). A manifest written by sphri carries
+quaternion, same frame); every column and manifest field is listed in
+:mod:`sphri.data.recording_schema` (``docs/RECORDING_FORMAT.md``). A manifest written by sphri carries
 ``"generator": "sphri.synthetic"`` (:data:`GENERATOR_KEY`), which makes the
 loader label the dataset synthetic.
 """
@@ -25,18 +26,24 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sphri.data import recording_schema as schema
 from sphri.errors import read_json
 from sphri.types import TRIAL_COLUMNS, HandModel, Link
 
-#: Per-row metadata columns of a participant's parquet file.
-META_COLUMNS: tuple[str, ...] = ("trial_id", "trial_ordinal", "gesture_label", "frame", "frame_index_in_trial")
+#: Per-row metadata columns of a participant's parquet file (:data:`recording_schema.GESTURE_META`).
+META_COLUMNS: tuple[str, ...] = schema.names(schema.GESTURE_META)
+#: Metadata columns holding text, and those holding integers.
+STRING_COLUMNS: tuple[str, ...] = schema.of_dtype(schema.GESTURE_META, "string")
+INTEGER_COLUMNS: tuple[str, ...] = schema.of_dtype(schema.GESTURE_META, "integer")
 
 #: Suffixes of a capsule's seven pose columns, in ``GestureDataset.poses`` order.
-POSE_SUFFIXES: tuple[str, ...] = ("pos_x", "pos_y", "pos_z", "rot_x", "rot_y", "rot_z", "rot_w")
+POSE_SUFFIXES: tuple[str, ...] = schema.POSE_SUFFIXES
 
 #: Keys every manifest must have, and every manifest trial entry.
-MANIFEST_KEYS: tuple[str, ...] = ("participant_id", "body_region", "num_trials", "num_frames_total", "trials")
-MANIFEST_TRIAL_KEYS: tuple[str, ...] = ("trial_ordinal", "trial_id", "gesture_label", "frame_count")
+MANIFEST_KEYS: tuple[str, ...] = schema.required(schema.GESTURE_MANIFEST)
+MANIFEST_TRIAL_KEYS: tuple[str, ...] = schema.required(schema.GESTURE_TRIAL)
+#: The format version sphri writes into manifests (``format_version``; absent = 1).
+FORMAT_VERSION = schema.GESTURE_FORMAT_VERSION
 
 #: Manifest key (and its value) that marks a dataset written by sphri's generator.
 GENERATOR_KEY = "generator"
@@ -129,6 +136,12 @@ def read_manifest(path: Path) -> dict[str, Any]:
                 f"{path}: trial {o}: trial_id={t['trial_id']!r} disagrees with ordinal and gesture "
                 f"(expected {trial_id(o, g)!r})"
             )
+    version = m.get("format_version", 1)
+    if isinstance(version, bool) or not isinstance(version, int) or not 1 <= version <= FORMAT_VERSION:
+        raise ManifestError(
+            f"{path}: format_version={version!r}: this sphri reads versions 1..{FORMAT_VERSION} "
+            "(docs/RECORDING_FORMAT.md)"
+        )
     if "frame_rate_hz" in m:
         rate = m["frame_rate_hz"]
         if isinstance(rate, bool) or not isinstance(rate, (int, float)) or not (1.0 <= rate <= 1000.0):

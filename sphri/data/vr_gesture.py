@@ -59,9 +59,11 @@ from sphri.data.duplicates import DUPLICATE_POLICIES, describe, find_duplicates,
 from sphri.data.format import (
     GENERATOR_KEY,
     GENERATOR_VALUE,
+    INTEGER_COLUMNS,
     META_COLUMNS,
     PARTICIPANT_RE,
     POSE_SUFFIXES,
+    STRING_COLUMNS,
     ManifestError,
     make_trials_frame,
     manifest_path,
@@ -159,6 +161,39 @@ def check_position_scale(
                 f"{where}: {who}'s hand stays {dist:.3g} m (median) from link {link.name!r}, which reaches "
                 f"{reach:.3g} m from its origin (limit {limit:.3g} m): wrong units (data.units={units}) or frame?"
             )
+
+
+def column_problems(ppath: Path, schema: pa.Schema, hand: HandModel) -> list[str]:
+    """Every column problem of a participant's parquet file (its arrow ``schema``), one line each: the
+    missing columns (with the close names that may be misnamed ones), then each column of the wrong type
+    (:mod:`sphri.data.recording_schema`: text, integer or float)."""
+    have = list(schema.names)
+    want = list(META_COLUMNS) + pose_columns(hand.names)
+    missing = [c for c in want if c not in have]
+    problems = []
+    if missing:
+        extra = [c for c in have if c not in want]
+        hints = []
+        for m in missing[:10]:
+            close = difflib.get_close_matches(m, extra, n=1, cutoff=0.75)
+            if close:
+                hints.append(f"{close[0]!r} for {m!r}")
+        hint = f"; misnamed? found {', '.join(hints)}" if hints else ""
+        more = f" (and {len(missing) - 10} more)" if len(missing) > 10 else ""
+        problems.append(f"{ppath}: missing column(s) {missing[:10]}{more}{hint}")
+    for col in want:
+        if col not in have:
+            continue
+        typ = schema.field(col).type
+        numeric = pa.types.is_integer(typ) or pa.types.is_floating(typ)
+        if col in STRING_COLUMNS:
+            if not (pa.types.is_string(typ) or pa.types.is_large_string(typ) or pa.types.is_dictionary(typ)):
+                problems.append(f"{ppath}: column {col} has type {typ}, expected strings")
+        elif not numeric:
+            problems.append(f"{ppath}: column {col} has type {typ}, expected numbers")
+        elif col in INTEGER_COLUMNS and not pa.types.is_integer(typ):
+            problems.append(f"{ppath}: column {col} has type {typ}, expected integers")
+    return problems
 
 
 class _Notes:
@@ -279,7 +314,7 @@ class VRGestureData:
                 if not (self.root / region / pid).is_dir():
                     log.info("%s has no %s folder; skipped", pid, region)
                     continue
-                manifest, trials, poses = self._load_one(pid, region, hand, repairs)
+                manifest, trials, poses = self.load_participant(pid, region, hand, repairs)
                 check_position_scale(
                     str(parquet_path(self.root, region, pid)), pid, poses, hand, robot, region, self.units, trials
                 )
@@ -386,34 +421,16 @@ class VRGestureData:
         return out
 
     def _check_columns(self, ppath: Path, schema: pa.Schema, hand: HandModel) -> list[str]:
-        have = list(schema.names)
-        want = list(META_COLUMNS) + pose_columns(hand.names)
-        missing = [c for c in want if c not in have]
-        if missing:
-            extra = [c for c in have if c not in want]
-            hints = []
-            for m in missing[:10]:
-                close = difflib.get_close_matches(m, extra, n=1, cutoff=0.75)
-                if close:
-                    hints.append(f"{close[0]!r} for {m!r}")
-            hint = f"; misnamed? found {', '.join(hints)}" if hints else ""
-            more = f" (and {len(missing) - 10} more)" if len(missing) > 10 else ""
-            raise DatasetError(f"{ppath}: missing column(s) {missing[:10]}{more}{hint}")
-        for col in want:
-            typ = schema.field(col).type
-            numeric = pa.types.is_integer(typ) or pa.types.is_floating(typ)
-            if col in ("trial_id", "gesture_label"):
-                if not (pa.types.is_string(typ) or pa.types.is_large_string(typ) or pa.types.is_dictionary(typ)):
-                    raise DatasetError(f"{ppath}: column {col} has type {typ}, expected strings")
-            elif not numeric:
-                raise DatasetError(f"{ppath}: column {col} has type {typ}, expected numbers")
-            elif col in ("trial_ordinal", "frame", "frame_index_in_trial") and not pa.types.is_integer(typ):
-                raise DatasetError(f"{ppath}: column {col} has type {typ}, expected integers")
-        return want
+        problems = column_problems(ppath, schema, hand)
+        if problems:
+            raise DatasetError(problems[0])
+        return list(META_COLUMNS) + pose_columns(hand.names)
 
-    def _load_one(
+    def load_participant(
         self, pid: str, region: str, hand: HandModel, repairs: Counter
     ) -> tuple[dict, list[dict], list[np.ndarray]]:
+        """One participant's manifest, selected trials and their poses (metres), every file checked; repairs are
+        counted in ``repairs``."""
         mpath = manifest_path(self.root, region, pid)
         ppath = parquet_path(self.root, region, pid)
         manifest = read_manifest(mpath)

@@ -18,11 +18,15 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from sphri.data.format import (
+    FORMAT_VERSION,
     GENERATOR_KEY,
     GENERATOR_VALUE,
+    ManifestError,
     manifest_path,
     parquet_path,
     pose_columns,
+    read_manifest,
+    trial_id,
     write_hand_definition,
     write_obj,
 )
@@ -101,6 +105,7 @@ def _write_participant(
     manifest: dict[str, Any] = {
         "participant_id": pid,
         "body_region": region,
+        "format_version": FORMAT_VERSION,
         "reference_mesh": link_name,
         "num_trials": int(len(group)),
         "num_frames_total": int(counts.sum()),
@@ -127,3 +132,84 @@ def _write_participant(
     mpath = manifest_path(out, region, pid)
     mpath.write_text(json.dumps(manifest, indent=2) + "\n")
     return [ppath, mpath]
+
+
+def append_trial(
+    root: str | Path,
+    region: str,
+    pid: str,
+    gesture: str,
+    poses: np.ndarray,
+    hand_names: tuple[str, ...],
+    frame_rate_hz: float,
+    source: dict[str, Any] | None = None,
+) -> tuple[int, list[Path]]:
+    """Add one trial of ``poses`` (F, C, 7), metres and quaternions xyzw in the link frame, to participant
+    ``pid`` in ``region`` of the gesture-trial dataset ``root`` (its files made when absent). The trial takes
+    the next ordinal and frame numbers; ``source`` goes into its manifest entry. A participant recorded at
+    another ``frame_rate_hz``, or with other capsules, is refused (:class:`ManifestError`). Returns the
+    trial's ordinal and the files written."""
+    root = Path(root)
+    mpath, ppath = manifest_path(root, region, pid), parquet_path(root, region, pid)
+    poses = np.asarray(poses, dtype=np.float32)
+    cols = pose_columns(hand_names)
+    if mpath.is_file():
+        manifest = read_manifest(mpath)
+        rate = manifest.get("frame_rate_hz")
+        if rate is not None and float(rate) != float(frame_rate_hz):
+            raise ManifestError(
+                f"{mpath}: frame_rate_hz={rate} but this trial is at {frame_rate_hz:g} Hz: one rate per dataset"
+            )
+        old = pq.read_table(ppath)
+        missing = [c for c in cols if c not in old.column_names]
+        if missing:
+            raise ManifestError(f"{ppath}: has no column(s) {missing[:5]}: its hand has other capsules")
+    else:
+        manifest = {
+            "participant_id": pid,
+            "body_region": region,
+            "format_version": FORMAT_VERSION,
+            "num_trials": 0,
+            "num_frames_total": 0,
+            "trials": [],
+        }
+        old = None
+    trials = manifest["trials"]
+    ordinal = max((int(t["trial_ordinal"]) for t in trials), default=0) + 1
+    first = max((int(t.get("end_frame", 0)) for t in trials), default=0) + 1
+    n = len(poses)
+    tid = trial_id(ordinal, gesture)
+    arrays: dict[str, pa.Array] = {
+        "trial_id": pa.array([tid] * n, pa.string()),
+        "trial_ordinal": pa.array(np.full(n, ordinal), pa.int64()),
+        "gesture_label": pa.array([gesture] * n, pa.string()),
+        "frame": pa.array(first + np.arange(n), pa.int64()),
+        "frame_index_in_trial": pa.array(np.arange(n), pa.int64()),
+    }
+    flat = poses.reshape(n, -1)
+    for j, c in enumerate(cols):
+        arrays[c] = pa.array(flat[:, j], pa.float32())
+    table = pa.table(arrays)
+    if old is not None:
+        table = pa.concat_tables([old.select(table.column_names).cast(table.schema), table])
+    entry: dict[str, Any] = {
+        "trial_ordinal": ordinal,
+        "trial_id": tid,
+        "gesture_label": gesture,
+        "frame_count": n,
+        "start_frame": int(first),
+        "end_frame": int(first + n - 1),
+    }
+    if source:
+        entry["source"] = source
+    trials.append(entry)
+    manifest.update(
+        format_version=FORMAT_VERSION,
+        num_trials=len(trials),
+        num_frames_total=int(sum(int(t["frame_count"]) for t in trials)),
+        frame_rate_hz=float(frame_rate_hz),
+    )
+    ppath.parent.mkdir(parents=True, exist_ok=True)
+    pq.write_table(table, ppath, row_group_size=ROW_GROUP_ROWS, compression="zstd", write_page_checksum=True)
+    mpath.write_text(json.dumps(manifest, indent=2) + "\n")
+    return ordinal, [ppath, mpath]

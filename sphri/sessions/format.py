@@ -14,7 +14,8 @@ VR gesture dataset's layout (:mod:`sphri.data.format`)::
 Parquet columns: ``repetition`` (int), ``frame`` (int, 0-based within the
 session), then for each hand ``h`` and capsule ``c`` ``h/c_pos_x ...
 h/c_rot_w`` (metres, unit quaternion xyzw, world frame) and for each link
-``link/<name>_pos_x ... _rot_w`` (the link frame's pose in the world).
+``link/<name>_pos_x ... _rot_w`` (the link frame's pose in the world). Columns and fields are
+listed once in :mod:`sphri.data.recording_schema` (``docs/RECORDING_FORMAT.md``).
 
 :func:`write_sessions` writes it, :class:`SessionData` (``data=sessions``)
 reads it back and validates every file; each defect raises
@@ -38,6 +39,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sphri.data import recording_schema as schema
 from sphri.data.duplicates import describe, find_duplicates, fingerprint
 from sphri.data.format import POSE_SUFFIXES, participant_id, pose_columns
 from sphri.errors import read_json
@@ -45,9 +47,9 @@ from sphri.types import HandModel
 
 log = logging.getLogger(__name__)
 
-FORMAT = "sphri-sessions"
-FORMAT_VERSION = 1
-HANDS: tuple[str, ...] = ("left", "right")
+FORMAT = schema.SESSION_FORMAT
+FORMAT_VERSION = schema.SESSION_FORMAT_VERSION
+HANDS: tuple[str, ...] = schema.HANDS
 #: Columns of :attr:`SessionDataset.sessions`, in order.
 SESSION_COLUMNS: tuple[str, ...] = (
     "participant",
@@ -58,16 +60,10 @@ SESSION_COLUMNS: tuple[str, ...] = (
     "start",
     "n_frames",
 )
-MANIFEST_SESSION_KEYS: tuple[str, ...] = (
-    "scenario",
-    "repetition",
-    "order",
-    "start_position",
-    "frame_rate_hz",
-    "n_frames",
-    "file",
-)
-HEADER_KEYS: tuple[str, ...] = ("format", "version", "name", "synthetic", "robot", "links", "hands", "hand")
+MANIFEST_SESSION_KEYS: tuple[str, ...] = schema.required(schema.SESSION_MANIFEST)
+HEADER_KEYS: tuple[str, ...] = schema.required(schema.SESSION_HEADER)
+#: The per-row columns before the pose columns, in order.
+ROW_COLUMNS: tuple[str, ...] = schema.names(schema.SESSION_COLUMNS)
 
 
 #: Sessions are in metres: a median hand or link position farther than this from the origin is refused.
@@ -78,6 +74,17 @@ MIN_RATE_HZ, MAX_RATE_HZ = 1.0, 1000.0
 
 class SessionFormatError(ValueError):
     """A session file is malformed; the message names the file and the field."""
+
+
+@dataclass
+class _Participant:
+    """One participant's sessions as :meth:`SessionData.load_participant` reads them."""
+
+    records: list[dict]
+    hands: list[np.ndarray]
+    link_poses: list[np.ndarray]
+    prints: list
+    rates: set[float]
 
 
 @dataclass
@@ -345,72 +352,20 @@ class SessionData:
             raise SessionFormatError(f"{root}: no participant folder with a manifest.json")
         if self.participants is not None:
             pids = pids[: int(self.participants)]
-        hcols, lcols = hand_columns(shand), link_columns(links)
-        c, nl = len(shand.names), len(links)
-        records, hands, lposes, rates = [], [], [], set()
+        records: list[dict] = []
+        hands: list[np.ndarray] = []
+        lposes: list[np.ndarray] = []
         prints: list = []
+        rates: set[float] = set()
         start = 0
         for pid in pids:
-            mpath = root / pid / "manifest.json"
-            entries = read_manifest(mpath)
-            named = {str(e["file"]) for e in entries}
-            unnamed = sorted(p.name for p in (root / pid).glob("*.parquet") if p.name not in named)
-            if unnamed:  # an entry lost from the manifest: its recording would be dropped without a word
-                log.warning(
-                    "%s: %d session file(s) in %s are not named by the manifest and are not read: %s",
-                    mpath,
-                    len(unnamed),
-                    root / pid,
-                    ", ".join(unnamed[:5]),
-                )
-            if self.scenarios is not None:
-                entries = [e for e in entries if e["scenario"] in self.scenarios]
-            if self.repetitions is not None:
-                entries = [e for e in entries if e["repetition"] <= int(self.repetitions)]
-            tables: dict[str, pd.DataFrame] = {}
-            for e in entries:
-                ppath = root / pid / str(e["file"])
-                inside = (root / pid).resolve()
-                if inside not in ppath.resolve().parents:
-                    raise SessionFormatError(
-                        f"{mpath}: field file={e['file']!r} of scenario {e['scenario']!r} "
-                        f"repetition {e['repetition']} resolves outside {root / pid} (a link?)"
-                    )
-                if e["file"] not in tables:
-                    tables[e["file"]] = self._read_table(ppath, hcols, lcols)
-                tab = tables[e["file"]]
-                rows = tab[tab["repetition"].to_numpy() == e["repetition"]]
-                if len(rows) != e["n_frames"]:
-                    raise SessionFormatError(
-                        f"{ppath}: repetition {e['repetition']} has {len(rows)} rows but "
-                        f"{mpath} field n_frames says {e['n_frames']}"
-                    )
-                fr = rows["frame"].to_numpy()
-                if not np.array_equal(fr, np.arange(len(fr))):
-                    raise SessionFormatError(
-                        f"{ppath}: column 'frame' of repetition {e['repetition']} must run 0..{len(fr) - 1}"
-                    )
-                h = rows[hcols].to_numpy(np.float32).reshape(len(rows), 2, c, 7)
-                lk = rows[lcols].to_numpy(np.float32).reshape(len(rows), nl, 7)
-                self._check_values(ppath, e, h, lk, hcols, lcols)
-                self._check_units(ppath, e, h, lk)
-                hands.append(h)
-                lposes.append(lk)
-                if self.duplicates != "off":
-                    prints.append((pid, (str(e["scenario"]), len(h)), fingerprint(h)))
-                rates.add(float(e["frame_rate_hz"]))
-                records.append(
-                    dict(
-                        participant=pid,
-                        scenario=str(e["scenario"]),
-                        repetition=int(e["repetition"]),
-                        order=int(e["order"]),
-                        start_position=str(e["start_position"]),
-                        start=start,
-                        n_frames=int(e["n_frames"]),
-                    )
-                )
-                start += int(e["n_frames"])
+            part = self.load_participant(root, pid, shand, links, start)
+            records += part.records
+            hands += part.hands
+            lposes += part.link_poses
+            prints += part.prints
+            rates |= part.rates
+            start += sum(r["n_frames"] for r in part.records)
         for pair in find_duplicates(prints):
             if self.duplicates == "refuse":
                 raise SessionFormatError(
@@ -452,6 +407,80 @@ class SessionData:
             truth=truth,
         )
 
+    def load_participant(
+        self, root: Path, pid: str, shand: HandModel, links: Sequence[str], start: int = 0
+    ) -> _Participant:
+        """One participant's selected sessions, every file validated (:class:`SessionFormatError` naming the file
+        and field); frames are numbered from ``start``."""
+        hcols, lcols = hand_columns(shand), link_columns(links)
+        c, nl = len(shand.names), len(links)
+        records: list[dict] = []
+        hands: list[np.ndarray] = []
+        lposes: list[np.ndarray] = []
+        prints: list = []
+        rates: set[float] = set()
+        mpath = root / pid / "manifest.json"
+        entries = read_manifest(mpath)
+        named = {str(e["file"]) for e in entries}
+        unnamed = sorted(p.name for p in (root / pid).glob("*.parquet") if p.name not in named)
+        if unnamed:  # an entry lost from the manifest: its recording would be dropped without a word
+            log.warning(
+                "%s: %d session file(s) in %s are not named by the manifest and are not read: %s",
+                mpath,
+                len(unnamed),
+                root / pid,
+                ", ".join(unnamed[:5]),
+            )
+        if self.scenarios is not None:
+            entries = [e for e in entries if e["scenario"] in self.scenarios]
+        if self.repetitions is not None:
+            entries = [e for e in entries if e["repetition"] <= int(self.repetitions)]
+        tables: dict[str, pd.DataFrame] = {}
+        for e in entries:
+            ppath = root / pid / str(e["file"])
+            inside = (root / pid).resolve()
+            if inside not in ppath.resolve().parents:
+                raise SessionFormatError(
+                    f"{mpath}: field file={e['file']!r} of scenario {e['scenario']!r} "
+                    f"repetition {e['repetition']} resolves outside {root / pid} (a link?)"
+                )
+            if e["file"] not in tables:
+                tables[e["file"]] = self._read_table(ppath, hcols, lcols)
+            tab = tables[e["file"]]
+            rows = tab[tab["repetition"].to_numpy() == e["repetition"]]
+            if len(rows) != e["n_frames"]:
+                raise SessionFormatError(
+                    f"{ppath}: repetition {e['repetition']} has {len(rows)} rows but "
+                    f"{mpath} field n_frames says {e['n_frames']}"
+                )
+            fr = rows["frame"].to_numpy()
+            if not np.array_equal(fr, np.arange(len(fr))):
+                raise SessionFormatError(
+                    f"{ppath}: column 'frame' of repetition {e['repetition']} must run 0..{len(fr) - 1}"
+                )
+            h = rows[hcols].to_numpy(np.float32).reshape(len(rows), 2, c, 7)
+            lk = rows[lcols].to_numpy(np.float32).reshape(len(rows), nl, 7)
+            self._check_values(ppath, e, h, lk, hcols, lcols)
+            self._check_units(ppath, e, h, lk)
+            hands.append(h)
+            lposes.append(lk)
+            if self.duplicates != "off":
+                prints.append((pid, (str(e["scenario"]), len(h)), fingerprint(h)))
+            rates.add(float(e["frame_rate_hz"]))
+            records.append(
+                dict(
+                    participant=pid,
+                    scenario=str(e["scenario"]),
+                    repetition=int(e["repetition"]),
+                    order=int(e["order"]),
+                    start_position=str(e["start_position"]),
+                    start=start,
+                    n_frames=int(e["n_frames"]),
+                )
+            )
+            start += int(e["n_frames"])
+        return _Participant(records, hands, lposes, prints, rates)
+
     @staticmethod
     def _check_units(path: Path, e: dict, h: np.ndarray, lk: np.ndarray) -> None:
         """Positions are metres: a session whose median hand or link position lies more than
@@ -475,11 +504,11 @@ class SessionData:
             schema = pq.read_schema(path)
         except (pa.ArrowInvalid, OSError) as exc:
             raise SessionFormatError(f"{path}: not a readable parquet file ({exc})") from None
-        need = ["repetition", "frame"] + hcols + lcols
+        need = list(ROW_COLUMNS) + hcols + lcols
         missing = [col for col in need if col not in schema.names]
         if missing:
             raise SessionFormatError(f"{path}: missing column(s) {missing[:5]}" + (" ..." if len(missing) > 5 else ""))
-        for col in need[2:]:
+        for col in need[len(ROW_COLUMNS) :]:
             if not pa.types.is_floating(schema.field(col).type):
                 raise SessionFormatError(f"{path}: column {col!r} has type {schema.field(col).type}, expected float")
         try:
