@@ -57,7 +57,7 @@ def study(tmp_path_factory):
 
 def test_sessions_and_contacts_come_from_the_stage_cache(tmp_path):
     from sphri.cache import StageCache
-    from sphri.sessions.study import load_sessions_and_contacts
+    from sphri.sessions.labelling import load_sessions_and_contacts
 
     cfg = compose(["+experiment=scenario_study", "data.participants=1", "data.repetitions=1", f"cache.dir={tmp_path}"])
     cache = StageCache(tmp_path)
