@@ -103,7 +103,9 @@ def test_the_study_coders_codes_replace_the_labels_and_kappa_is_cohens(tmp_path)
 def test_the_study_coder_can_be_named_and_must_have_coded_every_episode(tmp_path):
     coded, ds = _study()
     path = _write(tmp_path / "codes.csv", _rows("ben", BEN) + _rows("ana", ANA))
-    with pytest.raises(CodesError, match=r"'ben', whose codes the study uses, has no row for 1 of the 6 .*participant_02/S3/r1/e3"):
+    with pytest.raises(
+        CodesError, match=r"'ben', whose codes the study uses, has no row for 1 of the 6 .*participant_02/S3/r1/e3"
+    ):
         read_codes(path, coded, ds)  # ben's row comes first: ben is the study's coder by default
     assert read_codes(path, coded, ds, coder="ana").apply(coded)["gesture"].tolist() == ANA
     with pytest.raises(CodesError, match=r"coder='cleo': no row .* coded by them; coders: ben, ana"):
