@@ -22,7 +22,7 @@ Two tables, read by everything that needs to know the chain's shape:
 Adding a component to an existing group needs no change here (one module,
 one YAML). A new stage is a row here plus its compute, declared once beside
 the table (:data:`sphri.pipeline.COMPUTE`; the study's in
-:mod:`sphri.sessions.study`).
+:mod:`sphri.sessions.labelling`).
 """
 
 from __future__ import annotations

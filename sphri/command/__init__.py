@@ -85,6 +85,13 @@ VERBS: tuple[Verb, ...] = (
         "",
         "sphri.coverage",
     ),
+    Verb(
+        "code",
+        "a sheet to code the scenario study's episodes by hand: replays (HTML) and codes.csv to fill",
+        "args",
+        "sphri.sessions.coding_sheet:command",
+        "sphri.sessions.coding_sheet:CodeArgs",
+    ),
     Verb("list", "the components of each config group", "args", "sphri.cli:list_command", "sphri.cli:ListArgs"),
     Verb(
         "show",

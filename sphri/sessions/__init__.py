@@ -10,5 +10,10 @@
   link at its per-frame pose, with bounding-sphere culling.
 - :mod:`sphri.sessions.episodes`: episode segmentation (>= 2 s without contact ends one).
 - :mod:`sphri.sessions.gestures`: a gesture model trained in the same job labels episodes.
+- :mod:`sphri.sessions.labelling`: the study's coded episodes and their labels, one computation for
+  the study and the coding sheet.
+- :mod:`sphri.sessions.coding_sheet` (``sphri code``) with :mod:`sphri.sessions.replay`: a page of
+  episode replays and a CSV for people to code gestures by hand; :mod:`sphri.sessions.codes` reads
+  the filled CSV back into the study (``codes=PATH``) with Cohen's kappa between coders.
 - :mod:`sphri.sessions.study`: whole-body maps, SWD tests, ranking, placement, report.
 """

@@ -137,6 +137,11 @@ class ScenarioStudySchema(Schema):
     figures' time, so only when asked)."""
     view_faces: int = setting(20000, lo=100, hi=1_000_000)
     """Faces of the robot mesh drawn in the 3-D views (fewer: faster figures, coarser shading)."""
+    codes: str | None = None
+    """Gestures coded by hand (``sphri code``'s ``codes.csv``, filled): used instead of the gesture model's labels
+    for the gesture histogram, counts and ``by=gesture`` maps; several coders get Cohen's kappa (null: the model's)."""
+    coder: str | None = None
+    """Whose codes in ``codes`` the study uses when several people coded (null: the coder of the first row)."""
 
     def check(self) -> None:
         require(
@@ -153,6 +158,9 @@ class ScenarioStudySchema(Schema):
             self.key("figure_formats"),
             self.figure_formats,
             "one or more of png, pdf, svg",
+        )
+        require(
+            self.coder is None or bool(self.codes), self.key("coder"), self.coder, "needs codes=PATH (a codes file)"
         )
         require(
             (self.pitch_mm > 0) == (self.budget_taxels > 0),

@@ -5,14 +5,16 @@ Data flow (each step a module of :mod:`sphri.sessions`)::
     sessions (data=synthetic_sessions | sessions)       SessionDataset: both hands + link poses, world
       -> body_contacts (contact=exact, culled)            BodyContacts: rows in the touched link's frame
       -> segment_episodes (>= episode_gap_s apart)        episodes; the first coded one per session
-      -> train_gesture_model + label_episodes             gesture probabilities per coded episode
+      -> train_gesture_model + label_episodes             gesture probabilities per coded episode (sphri.sessions.labelling)
+      -> read_codes (codes=PATH)                          or the gestures people coded (sphri.sessions.codes), with kappa
       -> body_surface + touched_pairs                     (frame, element) pairs on the whole surface
       -> CoverageAnalysis(by=scenario, pair_by=participant)   densities, SWD tests (Holm), coverage curves
       -> rank_parts + placement_table                     body parts per cm^2, greedy placement, held-out check
       -> skin_design (sphri.sessions.skin)                patches within parts, budget curve, patch placement, export
       -> files, HTML report, MLflow run (sphri.kind=scenario_study)
 
-Sessions and contacts are the stages of :data:`sphri.stages.SESSION_STAGES`, wired by
+Sessions and contacts are the stages of :data:`sphri.stages.SESSION_STAGES` (computed in
+:mod:`sphri.sessions.labelling`), wired by
 :func:`sphri.pipeline.make_pipeline` like every chain (keys: data, hand, robot and
 contact configs, component versions and input-file fingerprints), so re-running with
 other study settings recomputes neither; the gesture chains of the same job share
@@ -64,40 +66,8 @@ class StudyResult:
     """The skin design (:class:`sphri.sessions.skin.SkinDesign`): patches, budget curve, patch placement."""
     truth: Any = None
     """The generator's draws per session (synthetic sessions), else None."""
-
-
-def _sessions_config(p) -> dict[str, Any]:
-    """The sessions' key config: the data settings and the text of the priors table they are drawn from."""
-    from sphri.cache import stable_hash
-    from sphri.config import result_config
-
-    config: dict[str, Any] = {"data": result_config(p.cfg.data)}
-    priors = getattr(p.components["data"], "priors", None)
-    if priors and Path(priors).is_file():  # an edited table of assumptions regenerates the sessions
-        config["priors_table"] = stable_hash(Path(priors).read_text())
-    return config
-
-
-def _sessions(p) -> Any:
-    return p.components["data"].load(p.get("hand"), p.get("robot") if p.uses("robot") else None)
-
-
-def _body_contact(p) -> Any:
-    from sphri.sessions.contact import body_contacts
-
-    return body_contacts(p.get("sessions"), p.get("robot"), p.components["contact"])
-
-
-def session_compute() -> dict[str, Any]:
-    """The compute of every stage of :data:`sphri.stages.SESSION_STAGES` (hand and robot: the chain's own)."""
-    from sphri.pipeline import COMPUTE, StageCompute
-
-    return {
-        "hand": COMPUTE["hand"],
-        "robot": COMPUTE["robot"],
-        "sessions": StageCompute(_sessions, config=_sessions_config),
-        "body_contact": StageCompute(_body_contact),
-    }
+    codes: Any = None
+    """Gestures coded by hand (:class:`sphri.sessions.codes.HumanCodes`, ``codes=PATH``), else None."""
 
 
 #: The ``gesture`` of a session without a coded, labelled episode (``by=gesture`` maps it apart, never as a gesture).
@@ -110,38 +80,16 @@ def session_gestures(n_sessions: int, labelled: pd.DataFrame) -> list[str]:
     return [str(gest.get(i) or UNLABELLED) for i in range(n_sessions)]
 
 
-def robot_overrides(overrides: Sequence[str]) -> list[str]:
-    """The study's robot overrides for the gesture model's own job: the same robot (the experiment's default
-    ``robot=reachy_full`` unless ``robot=...`` is given), with its ``robot.*`` settings."""
-    keyed = [(o.lstrip("+~").split("=", 1)[0], o) for o in overrides]
-    mine = [o for k, o in keyed if k == "robot" or k.startswith("robot.")]
-    if not any(k == "robot" for k, _ in keyed):
-        mine.insert(0, "robot=reachy_full")
-    return mine
-
-
-def load_sessions_and_contacts(cfg, cache, memo=None):
-    """(hand, robot, sessions, body contacts, seconds) of a composed study config, through the stage cache."""
-    from sphri.pipeline import make_pipeline
-    from sphri.stages import SESSION_STAGES
-
-    p = make_pipeline(cfg, cache, stages=SESSION_STAGES, compute=session_compute(), memo=memo)
-    hand, robot = p.get("hand"), p.get("robot")
-    t0 = time.perf_counter()
-    ds = p.get("sessions")
-    t1 = time.perf_counter()
-    bc = p.get("body_contact")
-    return hand, robot, ds, bc, {"sessions": t1 - t0, "contact": time.perf_counter() - t1}
-
-
 def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflow: bool = True) -> StudyResult:
     """Run the study for the composed ``overrides`` (they must select ``+experiment=scenario_study``)."""
     from sphri.analysis.coverage import CoverageAnalysis
     from sphri.config import ConfigError, compose
     from sphri.pipeline import Memo, open_cache
     from sphri.sessions.body import body_surface, touched_pairs
-    from sphri.sessions.episodes import part_of_rows, segment_episodes
-    from sphri.sessions.gestures import gesture_histogram, label_episodes, train_gesture_model
+    from sphri.sessions.codes import read_codes
+    from sphri.sessions.gestures import gesture_histogram
+    from sphri.sessions.labelling import label as label_gestures
+    from sphri.sessions.labelling import segment
     from sphri.sessions.placement import frame_part_matrix, placement_table, rank_parts, sentence
     from sphri.sessions.schema import study_settings
     from sphri.types import GestureDataset
@@ -155,70 +103,24 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     out_dir.mkdir(parents=True, exist_ok=True)
     cache = open_cache(cfg)
     seconds: dict[str, float] = {}
-    notes: list[str] = []
     t_all = time.perf_counter()
 
     memo = Memo()  # the sessions' chain and the gesture chains share the hand and robot
-    hand, robot, ds, bc, sec = load_sessions_and_contacts(cfg, cache, memo)
+    hand, robot, ds, bc, _row_part, episodes, coded, notes, sec = segment(cfg, st, cache, memo)
     seconds.update(sec)
     label = "SYNTHETIC" if ds.synthetic else "recorded"
     scenarios = sorted(pd.unique(ds.sessions["scenario"]))
-    t = time.perf_counter()
-    row_part = part_of_rows(bc, robot)
-    episodes = segment_episodes(ds, bc, row_part, st.episode_gap_s, st.min_episode_frames)
-    coded = episodes[episodes["coded"]].reset_index(drop=True)
-    n_none = len(ds.sessions) - coded["session"].nunique()
-    if n_none:
-        notes.append(
-            f"{n_none} of {len(ds.sessions)} sessions have no coded episode (no contact of >= "
-            f"{st.min_episode_frames} frames)"
-        )
-    seconds["episodes"] = time.perf_counter() - t
+    codes = (
+        read_codes(st.codes, coded, ds, st.coder) if st.codes else None
+    )  # before the model: a bad file stops at once
 
     # gesture model, trained in this job on the gesture dataset, labels the coded episodes
     t = time.perf_counter()
-    n_part = int(ds.sessions["participant"].nunique())
-    train_ov = [
-        o
-        for o in overrides
-        if o.lstrip("+").split("=")[0]
-        in (
-            "debug",
-            "cache.dir",
-            "output_dir",
-            "cache.enabled",
-            "seed",
-            "model",
-            "noise",
-            "encoder",
-            "layout",
-            "surface",
-            "window",
-            "contact",
-            "hand",
-        )
-    ]
-    train_ov += robot_overrides(overrides)
-    train_ov += [
-        "data=synthetic",
-        f"data.participants={max(n_part, 2)}",
-        f"data.repetitions={st.gesture_repetitions}",
-        f"encoder.res={st.gesture_res}",
-        "tracking.enabled=false",
-    ]
-    gm = train_gesture_model(train_ov, list(st.gesture_regions), cache, memo)
-    labelled = label_episodes(coded, ds, gm, cache, memo)
-    outside = labelled[~labelled["in_training"]]
-    if len(outside):
-        parts = outside["dominant_part"].value_counts()
-        msg = (
-            f"{len(outside)} of {len(labelled)} coded episodes lie on body parts the gesture model never saw "
-            f"(trained on {gm.region}): "
-            + ", ".join(f"{p} ({n})" for p, n in parts.items())
-            + "; their labels are extrapolated"
-        )
-        log.warning(msg)
-        notes.append("WARNING: " + msg)
+    gm, labelled, more = label_gestures(coded, ds, overrides, st, cache, memo)
+    notes += more
+    if codes is not None:  # a person's codes replace the model's labels; the model's stay as the suggestion
+        labelled = codes.apply(labelled)
+        notes += codes.notes(labelled)
     hist = gesture_histogram(labelled, scenarios)
     seconds["gestures"] = time.perf_counter() - t
 
@@ -380,6 +282,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         gm.accuracy_mean,
         design=design,
         truth=ds.truth,
+        codes=codes,
     )
     t = time.perf_counter()
     with figures.only_formats(st.figure_formats):
@@ -514,6 +417,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
             "down_cos": res.settings.reach_down_cos,
         },
         "budget": budget,
+        "human_codes": res.codes.summary(res.coded) if res.codes is not None else None,
         "skin_design": _design_summary(res.design),
         "sentences": res.sentences,
         "notes": res.notes,
@@ -583,7 +487,9 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     figs["gestures"] = plot_gesture_histogram(
         res.histogram,
         out / "gesture_histogram.png",
-        f"Gestures of the coded episodes per scenario (model LOSO accuracy {100 * gm.accuracy_mean:.0f} %)",
+        f"Gestures of the coded episodes per scenario, coded by {res.codes.coder}"
+        if res.codes is not None
+        else f"Gestures of the coded episodes per scenario (model LOSO accuracy {100 * gm.accuracy_mean:.0f} %)",
         provenance=prov,
     )
     if res.design is not None:

@@ -53,7 +53,8 @@ def test_sessions_without_a_label_are_never_counted_as_a_gesture():
     import pandas as pd
 
     from sphri.analysis.coverage import group_order
-    from sphri.sessions.study import UNLABELLED, robot_overrides, session_gestures
+    from sphri.sessions.labelling import robot_overrides
+    from sphri.sessions.study import UNLABELLED, session_gestures
 
     labelled = pd.DataFrame({"session": [0, 2, 3], "gesture": ["pat", "", "hit"]})
     g = session_gestures(5, labelled)

@@ -57,7 +57,7 @@ def study(tmp_path_factory):
 
 def test_sessions_and_contacts_come_from_the_stage_cache(tmp_path):
     from sphri.cache import StageCache
-    from sphri.sessions.study import load_sessions_and_contacts
+    from sphri.sessions.labelling import load_sessions_and_contacts
 
     cfg = compose(["+experiment=scenario_study", "data.participants=1", "data.repetitions=1", f"cache.dir={tmp_path}"])
     cache = StageCache(tmp_path)
@@ -225,12 +225,23 @@ def test_report_escapes_scenario_names_and_notes(tmp_path):
             "loso_accuracy_std": 0.1,
             "n_trials": 12,
         },
+        "human_codes": {  # codes=PATH: whose codes, and the coders' agreement (kappa None: undefined)
+            "file": "codes.csv",
+            "coder": hostile,
+            "n_episodes": 5,
+            "agreement": [
+                {"coder_a": hostile, "coder_b": "ben", "n_episodes": 5, "agreement": 0.8, "kappa": None},
+                {"coder_a": hostile, "coder_b": "model", "n_episodes": 5, "agreement": 0.4, "kappa": 0.2512},
+            ],
+        },
     }
     page = write_report(res, figs, summary, "40 cm^2", hostile, tmp_path / "report.html").read_text()
     assert "<script" not in page.lower()
-    assert page.count("&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;") == 10
+    assert page.count("&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;") == 13
     # the tables keep their rows: the ranking is the pooled one (two parts), numbers formatted, NaN as a dash
-    assert page.count("<table>") == 3 and "0.812" in page and "&ndash;" in page
+    assert page.count("<table>") == 4 and "0.812" in page and "&ndash;" in page
+    assert "Coded by hand" in page and "<td>0.25</td>" in page and "<td>none</td>" in page
+    assert "the model&#39;s suggestions" in page
     assert 'class="warn"' in page and "Do scenarios differ?" not in page
 
 
