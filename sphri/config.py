@@ -835,9 +835,10 @@ def validate(cfg: DictConfig) -> None:
 def check_inputs(cfg: DictConfig) -> None:
     """Every file and folder a component is configured to read exists: ``cli validate``, each job
     and each job of a sweep call it after :func:`validate`, before any stage starts, so a wrong path
-    fails like a wrong value and leaves no half-run (or FAILED MLflow run) behind. Not part of
+    fails like a wrong value and leaves no half-run (or FAILED MLflow run) behind; then what a schema checks
+    in those files (:func:`sphri.inputs.check_contents`: a URDF robot's link names). Not part of
     :func:`validate`, which checks a config on its own (a config may name files made later)."""
-    from sphri.inputs import missing_inputs
+    from sphri.inputs import check_contents, missing_inputs
 
     for group in STAGE_GROUPS:
         missing = missing_inputs(cfg.get(group))
@@ -846,6 +847,7 @@ def check_inputs(cfg: DictConfig) -> None:
             more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
             where = "" if path.parent.is_dir() else f"; its folder {path.parent} does not exist either"
             raise ConfigError(f"{group}.{field}={str(path)!r} is invalid: no such {kind}{where}{more}")
+        check_contents(cfg.get(group))
 
 
 def close_match(word: str, choices: Iterable[str]) -> str:
