@@ -19,7 +19,6 @@ have, is one line, exit 2.
 
 from __future__ import annotations
 
-import logging
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,10 +27,8 @@ from typing import Any, Literal
 from sphri.command.args import arg, settings_main
 from sphri.config import CONF_DIR, ConfigError, check_output_file, component_node, plain
 
-log = logging.getLogger(__name__)
 
-
-def _positive(value: float) -> str | None:
+def _spacing(value: float) -> str | None:
     return None if 1.0 <= value <= 50.0 else "must be in [1, 50] mm"
 
 
@@ -54,7 +51,7 @@ class RobotCheckSettings:
         "auto", help="collision meshes, else visual meshes, else primitives (auto); or one kind only"
     )
     units: Literal["auto", "m", "mm"] = arg("m", help="mesh units after the URDF's own scale")
-    spacing_mm: float = arg(8.0, check=_positive, help="element size of the area sampling (mm)")
+    spacing_mm: float = arg(8.0, check=_spacing, help="element size of the area sampling (mm)")
     out: str = arg("robot_parts.png", help="the picture of the parts on the robot (PNG)")
 
 
