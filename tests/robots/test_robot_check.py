@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import logging
 import re
 
 import pytest
@@ -43,10 +44,12 @@ def _areas(text: str) -> dict[str, float]:
     return {m[1]: float(m[2].replace(",", "")) for m in re.finditer(r"^  (\w+) +([\d,]+) cm\^2", text, re.M)}
 
 
-def test_check_prints_parts_areas_skipped_links_and_draws_them(small, tmp_path, capsys):
+def test_check_prints_parts_areas_skipped_links_and_draws_them(small, tmp_path, capsys, caplog):
     urdf, parts = small
     png = tmp_path / "parts.png"
-    assert sphri_main(["robot", "check", str(urdf), f"parts={parts}", f"out={png}", "spacing_mm=5"]) == 0
+    with caplog.at_level(logging.WARNING, logger="sphri.figures"):
+        assert sphri_main(["robot", "check", str(urdf), f"parts={parts}", f"out={png}", "spacing_mm=5"]) == 0
+    assert not [r for r in caplog.records if r.name == "sphri.figures"], "the picture has no layout problem"
     out = capsys.readouterr().out
     areas = _areas(out)
     # boxes: the base 0.4 x 0.2 x 0.1 m (2,800 cm^2); the arm 0.1 x 0.1 x 0.3 m (1,400 cm^2), its top 10 cm a part
