@@ -301,6 +301,38 @@ def runtime_fields(schema: Any) -> tuple[str, ...]:
     return tuple(f.name for f in dataclasses.fields(schema) if f.metadata.get(RUNTIME_META))
 
 
+#: Root keys of a config that say how a job is run or recorded, not what it computes: left out of the
+#: config hash (:func:`sphri.pipeline.config_hash`) and never a reason to tell two jobs' results apart.
+NOT_RESULT_KEYS: tuple[str, ...] = ("cache", "output_dir", "resume", "plugins", "hydra", "debug", "experiment")
+
+
+def runtime_keys() -> frozenset[str]:
+    """``<group>.<field>`` of every runtime setting (:func:`runtime_setting`) of the registered schemas:
+    the MLflow params two jobs may differ in while computing the same result (``cv.progress``, ``model.n_jobs``)."""
+    register_schemas()
+    out: set[str] = set()
+    for name, entry in ConfigStore.instance().repo.items():
+        if not (isinstance(name, str) and name.startswith("schema_")) or not hasattr(entry, "node"):
+            continue
+        schema = OmegaConf.get_type(entry.node)
+        group = getattr(schema, "GROUP", None)
+        if isinstance(group, str):
+            out.update(f"{group}.{f}" for f in runtime_fields(schema))
+    return frozenset(out)
+
+
+def result_neutral(param: str, runtime: frozenset[str] | None = None) -> bool:
+    """True for a job param (``<group>.<key>``, a root key, ``run.<key>``) that cannot change a job's result:
+    a runtime setting (``runtime``: :func:`runtime_keys`, computed when not given), a group that only records
+    the job (``tracking``), a root key of :data:`NOT_RESULT_KEYS`, or where the job ran (``run.device``)."""
+    head = param.split(".", 1)[0]
+    if head in NOT_RESULT_KEYS or head == "run":
+        return True
+    if head in _stages.STAGE_GROUPS and head not in _stages.RESULT_GROUPS:
+        return True
+    return param in (runtime_keys() if runtime is None else runtime)
+
+
 def result_config(node: Any) -> Any:
     """``plain(node)`` without the fields its schema declares with :func:`runtime_setting`: what a
     stage key and the config hash are made of, so that runtime settings never change either."""
@@ -803,9 +835,10 @@ def validate(cfg: DictConfig) -> None:
 def check_inputs(cfg: DictConfig) -> None:
     """Every file and folder a component is configured to read exists: ``cli validate``, each job
     and each job of a sweep call it after :func:`validate`, before any stage starts, so a wrong path
-    fails like a wrong value and leaves no half-run (or FAILED MLflow run) behind. Not part of
+    fails like a wrong value and leaves no half-run (or FAILED MLflow run) behind; then what a schema checks
+    in those files (:func:`sphri.inputs.check_contents`: a URDF robot's link names). Not part of
     :func:`validate`, which checks a config on its own (a config may name files made later)."""
-    from sphri.inputs import missing_inputs
+    from sphri.inputs import check_contents, missing_inputs
 
     for group in STAGE_GROUPS:
         missing = missing_inputs(cfg.get(group))
@@ -814,6 +847,7 @@ def check_inputs(cfg: DictConfig) -> None:
             more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
             where = "" if path.parent.is_dir() else f"; its folder {path.parent} does not exist either"
             raise ConfigError(f"{group}.{field}={str(path)!r} is invalid: no such {kind}{where}{more}")
+        check_contents(cfg.get(group))
 
 
 def close_match(word: str, choices: Iterable[str]) -> str:

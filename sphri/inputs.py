@@ -179,6 +179,18 @@ def declared_files(node: Any, exclude: frozenset[Path] = frozenset()) -> list[tu
     return out
 
 
+def check_contents(node: Any) -> None:
+    """Run the content check of the component configured by ``node``: its schema's ``INPUT_CHECK``
+    (``"module:function"``, called with the node's resolved settings as a dict; e.g. a URDF robot's link
+    names against the file), which raises an error naming the key. Nothing when the schema has none."""
+    if not isinstance(node, DictConfig):
+        return
+    spec = getattr(OmegaConf.get_type(node), "INPUT_CHECK", "")
+    if spec:
+        module, _, name = spec.partition(":")
+        getattr(importlib.import_module(module), name)(OmegaConf.to_container(node, resolve=True))
+
+
 def missing_inputs(node: Any) -> list[tuple[str, Path, str]]:
     """``(field, path, expected)`` for each declared input of ``node`` that is not there: a ``file``
     field that names no file, a ``dir`` field that names no folder, a ``map`` entry that names no file

@@ -35,7 +35,7 @@ from hydra.utils import get_class, instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from sphri.cache import StageCache, stable_hash, stage_key
-from sphri.config import ConfigError, build, result_config
+from sphri.config import NOT_RESULT_KEYS, ConfigError, build, result_config
 from sphri.encode.schema import grid_res
 from sphri.finite import require_finite
 from sphri.inputs import input_fingerprints, memo_at
@@ -665,7 +665,7 @@ def config_hash(cfg: DictConfig) -> str:
     c = OmegaConf.to_container(cfg, resolve=True)
     assert isinstance(c, dict)  # a DictConfig's container
     not_result = [g for g in STAGE_GROUPS if g not in RESULT_GROUPS]  # tracking: how a job is recorded
-    for k in (*not_result, "cache", "output_dir", "resume", "plugins", "hydra", "debug", "experiment"):
+    for k in (*not_result, *NOT_RESULT_KEYS):
         c.pop(k, None)
     for group in STAGE_GROUPS:  # runtime settings (threads, workers, progress, chunks) are not the experiment
         if group in c and isinstance(cfg.get(group), DictConfig):

@@ -151,17 +151,33 @@ class LinkView:
         """Link-frame axis the camera looks from, e.g. ``+x``."""
         return _direction_name(self.rotation.T @ self._eye(azim_deg, elev_deg)[0])
 
-    def draw(self, ax: Axes, density: np.ndarray, azim_deg: float, vmax: float, elev_deg: float = 12.0) -> None:
+    def face_labels(self, labels: np.ndarray) -> np.ndarray:
+        """(F,) the label of the sample that weighs most at each display face (e.g. its body part)."""
+        best = np.argmax(self.face_w, axis=1)
+        return np.asarray(labels)[self.face_idx[np.arange(len(best)), best]]
+
+    def draw(
+        self,
+        ax: Axes,
+        density: np.ndarray | None,
+        azim_deg: float,
+        vmax: float,
+        elev_deg: float = 12.0,
+        colours: np.ndarray | None = None,
+    ) -> None:
         """Orthographic view from ``azim_deg`` around the long axis (vertical) on a 2-D axis.
 
         Back faces are culled and the rest painted far to near, faces
-        coloured by density and lightly shaded by their angle to the viewer.
+        coloured by density (or ``colours``, (F, 4) RGBA per display face) and lightly shaded by their angle
+        to the viewer.
         """
         from matplotlib.collections import PolyCollection
 
-        vals = self.face_values(density) * PERCENT_PER_CM2
-        cmap = plt.get_cmap(CMAP)
-        colours = cmap(np.clip(vals / vmax, 0.0, 1.0) if vmax > 0 else np.zeros_like(vals))
+        if colours is None:
+            vals = self.face_values(np.asarray(density)) * PERCENT_PER_CM2
+            cmap = plt.get_cmap(CMAP)
+            colours = cmap(np.clip(vals / vmax, 0.0, 1.0) if vmax > 0 else np.zeros_like(vals))
+        colours = np.array(colours, dtype=np.float64)
         eye, right, up = self._eye(azim_deg, elev_deg)
         facing = (self.face_normal @ self.rotation.T) @ eye
         colours[:, :3] *= (0.72 + 0.28 * np.clip(facing, 0.0, 1.0))[:, None]

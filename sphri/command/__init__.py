@@ -193,6 +193,14 @@ VERBS: tuple[Verb, ...] = (
         "sphri.hardware.simulate",
     ),
     Verb(
+        "robot",
+        "check a robot description: its body parts and their areas, skipped links, a picture of the parts",
+        "main",
+        "sphri.sessions.robot_check:main",
+        "sphri.sessions.robot_check:COMMANDS",
+        "sphri.sessions.robot_check",
+    ),
+    Verb(
         "derive-reachy2",
         "regenerate the packaged Reachy 2 from Pollen Robotics' description",
         "args",

@@ -9,11 +9,12 @@
     sphri report DIR out=DIR2 mlflow=false              # elsewhere, not logged to MLflow
     sphri report DIR marks=false                        # figures without the SYNTHETIC banner and ids
     sphri report DIR formats=png                        # PNG figures only (default png,pdf,svg)
+    sphri report DIR group_by=model                     # one curve per model (none: one curve)
 
 ``python -m sphri.report`` is the same command. Arguments are ``key=value`` as in every sphri
 command (:class:`ReportArgs`: ``uri``, ``output_dir``, ``out``, ``tolerances``, ``tolerance``,
 ``n_boot``, ``ci``, ``seed``, ``marks=auto|true|false``, ``formats=png,pdf,svg``,
-``mlflow=true|false``); the ``--key value`` spellings (``--n-boot 100``, ``--no-log``) are accepted too.
+``mlflow=true|false``, ``group_by``); the ``--key value`` spellings (``--n-boot 100``, ``--no-log``) are accepted too.
 
 Writes ``DIR/report/`` (report.html, figures as PNG + PDF + SVG, summary.txt, CSV/JSON
 tables), logs it to the sweep's MLflow parent run and prints the summary.
@@ -75,6 +76,11 @@ class ReportArgs:
     formats: list[str] = arg(
         ["png", "pdf", "svg"], check=_formats, help="figure file formats, png included (the HTML page shows the PNGs)"
     )
+    group_by: list[str] = arg(
+        [],
+        help="the params whose values make the curves (group_by=model, group_by=robot,model; none: one curve); "
+        "default: the params the sweep varies that can change a result",
+    )
 
     @property
     def rule(self) -> RuleSettings:
@@ -106,6 +112,7 @@ def command(args: ReportArgs) -> int:
             log_to_mlflow=args.mlflow,
             marks={"auto": None, "true": True, "false": False}[args.marks],
             formats=check_formats(args.formats),
+            group_by=args.group_by or None,
         )
     except (ReportError, ValueError) as exc:  # no sweep there, or one that cannot be reported on: exit 2
         raise ArgsError(str(exc)) from None

@@ -310,16 +310,18 @@ def make_report(
     log_to_mlflow: bool = True,
     marks: bool | None = None,
     formats: Sequence[str] = FIGURE_FORMATS,
+    group_by: Sequence[str] | None = None,
 ) -> tuple[SweepReport, ReportFiles, str]:
     """Report on the sweep ``source`` (its directory or parent run id); returns (report, files, text).
 
     ``formats``: the figures' file formats (PNG, PDF and SVG by default; PNG alone for a quick look).
+    ``group_by``: the params whose values make the curves (``["none"]``: one curve; default: what the sweep varies).
 
     ``out_dir`` defaults to ``<sweep_dir>/report``; it is required when the
     sweep directory is unknown (a run id from another machine).
     """
     formats = check_formats(formats)
-    sweep = load_sweep(source, uri=uri, output_dir=output_dir)
+    sweep = load_sweep(source, uri=uri, output_dir=output_dir, group_by=group_by)
     if out_dir is None:
         if sweep.sweep_dir is None:
             raise ReportError(

@@ -8,14 +8,16 @@ skipped jobs point at an earlier finished run). Per-participant scores come
 from each job's ``per_participant.csv`` artifact, else from its
 ``participant/<id>/accuracy`` metrics.
 
-Jobs are grouped by the parameters that vary across the sweep other than the
-resolution (``encoder.res`` and the derived ``resolution.*``/``meta.*``
-params): e.g. ``model`` in a model comparison, ``robot`` in a morphology
-sweep, ``layout`` or ``noise``. ``variant`` (the assumption variant of
-``+experiment=requirement_sensitivity``, one per ``conf/sensitivity/*.yaml``)
-comes first, and a parameter that the keys before it already fix (the
-``encoder`` of ``variant=coverage``, the ``noise.p`` of ``variant=noise0``)
-is not a key of its own.
+Jobs are grouped into curves by :mod:`sphri.report.grouping`: the params that
+vary across the sweep's own jobs and can change a result, other than the
+resolution (e.g. ``model`` in a model comparison, ``robot`` in a morphology
+sweep, ``layout`` or ``noise``), or the keys ``group_by`` names. ``variant``
+(the assumption variant of ``+experiment=requirement_sensitivity``, one per
+``conf/sensitivity/*.yaml``) comes first, and a parameter that the keys before
+it already fix (the ``encoder`` of ``variant=coverage``, the ``noise.p`` of
+``variant=noise0``) is not a key of its own. A job the sweep skipped because
+an earlier job outside it had finished the same config joins the curve of its
+point and is named in the report's notes.
 
 ``seed`` is not a group key: jobs that differ only in their seed (and in
 settings the seed alone fixes, such as ``model.seed``) are replicates of the
@@ -30,6 +32,7 @@ import json
 import logging
 import re
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -37,6 +40,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sphri.report.grouping import REPLICATE_KEY, chosen_keys, group_keys, group_label
 from sphri.tracking.mlflow_tracker import PARENT_FILE, default_uri, no_artifact_bars
 from sphri.types import GESTURES
 
@@ -44,25 +48,6 @@ log = logging.getLogger(__name__)
 
 STATUS_FILE = "sphri_status.json"
 _RUN_ID = re.compile(r"^[0-9a-f]{32}$")
-
-#: Group keys shown first, in this order, when they vary.
-KEY_ORDER = (
-    "variant",
-    "robot",
-    "data",
-    "surface",
-    "layout",
-    "encoder",
-    "noise",
-    "filter",
-    "window",
-    "contact",
-    "model",
-    "cv",
-)
-
-#: The param whose values are replicates of one sweep point, not groups (the run's ``seed``).
-REPLICATE_KEY = "seed"
 
 #: The layout's geometry at one resolution (the columns of the report's points table).
 GEOMETRY_PARAMS = (
@@ -92,7 +77,8 @@ class Sweep:
     sweep_dir: Path | None
     parent_tags: dict[str, str]
     runs: pd.DataFrame
-    """One row per finished job: run_id, res, group, ``key.<k>`` per group key, context
+    """One row per finished job: run_id, res, group, ``key.<k>`` per group key, ``joined`` (a run of an
+    earlier job outside the sweep, found through a job's status file, not a child of the parent), context
     (robot, region, link, dataset, synthetic, cv_scheme, model), the
     ``RESOLUTION_PARAMS`` (mm, cm^2, counts), and where and how long it ran: ``stage_s`` (wall seconds, the sum of its
     ``time/<stage>_s`` metrics), ``evaluated_here``, ``cpu_model``, ``cpu_count``, ``gpu``, ``torch``,
@@ -154,8 +140,15 @@ def resolve_source(
     )
 
 
-def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Path = "outputs") -> Sweep:
-    """Read the sweep named by ``source`` (sweep dir or parent run id) from MLflow."""
+def load_sweep(
+    source: str | Path,
+    uri: str | None = None,
+    output_dir: str | Path = "outputs",
+    group_by: Sequence[str] | None = None,
+) -> Sweep:
+    """Read the sweep named by ``source`` (sweep dir or parent run id) from MLflow; ``group_by``: the params
+    whose values make the curves (``["none"]``: one curve), else those the sweep varies
+    (:mod:`sphri.report.grouping`)."""
     from mlflow.tracking import MlflowClient
 
     no_artifact_bars()
@@ -174,6 +167,7 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
     sweep_id = ptags.get("sphri.sweep_id", parent_id[:8])
 
     runs = _children(client, parent.info.experiment_id, parent_id)
+    own = {r.info.run_id for r in runs}
     notes: list[str] = []
     if sweep_dir is not None:
         known = {r.info.run_id for r in runs}
@@ -220,7 +214,10 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
         )
 
     params = {r.info.run_id: dict(r.data.params) for r in finished}
-    keys = group_keys([params[rid] for rid in table["run_id"]])
+    table["joined"] = ~table["run_id"].isin(own)
+    # the sweep's own jobs say what it varies; a joined run has the config of the point it stands for
+    basis = [params[rid] for rid in table.loc[~table["joined"], "run_id"]] or [params[rid] for rid in table["run_id"]]
+    keys = chosen_keys(group_by, [params[rid] for rid in table["run_id"]]) if group_by else group_keys(basis)
     for k in keys:  # "key.robot" (the component choice) beside "robot" (the robot's name)
         table[f"key.{k}"] = [params[rid].get(k, "") for rid in table["run_id"]]
     table["group"] = [
@@ -247,6 +244,14 @@ def load_sweep(source: str | Path, uri: str | None = None, output_dir: str | Pat
     if table.empty:
         raise ReportError(
             f"sweep {sweep_id}: no finished job has per-participant scores (per_participant.csv or participant/<id>/accuracy)"
+        )
+
+    joined = table[table["joined"]]
+    if len(joined):
+        points = ", ".join(f"res {r.res} ({r.group}: run {r.run_id[:8]})" for r in joined.itertuples())
+        notes.append(
+            f"{len(joined)} point(s) joined from earlier jobs outside this sweep (the same config: the sweep "
+            f"skipped them): {points}"
         )
 
     failed = []
@@ -357,62 +362,6 @@ def false_on_rate(params: dict[str, str]) -> float:
         return p
     svp = _float(params.get("noise.salt_vs_pepper", "0.5"))
     return p * svp
-
-
-def group_keys(params: list[dict[str, str]]) -> list[str]:
-    """Params that vary across jobs, other than the resolution: the grouping of a sweep.
-
-    Component choices (``robot``, ``model``, ...) come first; a setting
-    (``model.n_estimators``) is kept only when the chosen components do not
-    already determine it.
-    """
-    if not params:
-        return []
-    candidates = sorted(
-        {
-            k
-            for p in params
-            for k in p
-            if k not in ("encoder.res", REPLICATE_KEY) and not k.startswith(("resolution.", "meta."))
-        }
-    )
-    varying = [k for k in candidates if len({p.get(k, "") for p in params}) > 1]
-    seeds = {p.get(REPLICATE_KEY, "") for p in params}
-    if len(seeds) > 1:  # settings the seed alone fixes (model.seed: ${seed}) vary with the replicates, not by group
-        by_seed: dict[str, set[str]] = {}
-        for k in list(varying):
-            by_seed.clear()
-            for p in params:
-                by_seed.setdefault(p.get(REPLICATE_KEY, ""), set()).add(p.get(k, ""))
-            if all(len(v) == 1 for v in by_seed.values()):
-                varying.remove(k)
-    top = [k for k in varying if "." not in k]
-    top.sort(key=lambda k: (KEY_ORDER.index(k) if k in KEY_ORDER else len(KEY_ORDER), k))
-    keys: list[str] = []
-
-    def determined(k: str) -> bool:
-        """True when the keys kept so far fix ``k`` (e.g. ``variant=coverage`` fixes ``encoder``)."""
-        if not keys:
-            return False
-        by_group: dict[tuple[str, ...], set[str]] = {}
-        for p in params:
-            by_group.setdefault(tuple(p.get(g, "") for g in keys), set()).add(p.get(k, ""))
-        return all(len(v) == 1 for v in by_group.values())
-
-    for k in top + [k for k in varying if "." in k]:
-        if not determined(k):
-            keys.append(k)
-    return keys
-
-
-def group_label(values: dict[str, str], model: str) -> str:
-    """Readable name of a group: ``rf``, or ``robot=nao_child, model=rf``."""
-    if not values or not any(values.values()):
-        return model
-    if len(values) == 1:
-        ((k, v),) = values.items()
-        return v if "." not in k else f"{k}={v}"
-    return ", ".join(f"{k}={v}" for k, v in values.items())
 
 
 def _fold_rows(client: Any, run: Any) -> pd.DataFrame:

@@ -16,7 +16,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 from omegaconf import MISSING
 
@@ -129,6 +129,46 @@ def check_str_map(value: Any, key: str, what: str) -> dict[str, str]:
     return out
 
 
+def unknown_links(key: str, bad: Any, known: Any, where: Path | str) -> ConfigError:
+    """One line for link names ``bad`` that ``where`` (a URDF) does not have: each with its closest link name
+    (``did you mean``), and how many links it has."""
+    known = sorted(str(k) for k in known)
+    named = "; ".join(f"{str(b)!r}{close_match(str(b), known)}" for b in bad)
+    return ConfigError(
+        f"{key}: {named} {'is not a link' if len(list(bad)) == 1 else 'are not links'} of {where} "
+        f"({len(known)} links; `sphri robot check {where}` without parts lists them)"
+    )
+
+
+def check_link_names(
+    known: Any,
+    where: Path | str,
+    links: Any = None,
+    exclude: Any = None,
+    merge: Any = None,
+    parts: Any = None,
+) -> None:
+    """Every link a URDF robot's settings name (``links``, ``exclude``, ``merge``, each part's ``link``) is one of
+    ``known``, the links of the URDF ``where``; else :func:`unknown_links` for the first setting that names others."""
+    known = {str(k) for k in known}
+    checks: list[tuple[str, list[str]]] = [
+        ("robot.links", [str(x) for x in links or []]),
+        ("robot.exclude", [str(x) for x in exclude or []]),
+    ]
+    for target, extra in _mapping_items(merge, "robot.merge", "a mapping link -> [descendant links]"):
+        checks.append(
+            (f"robot.merge.{target}", [str(target)] + [str(x) for x in ([extra] if isinstance(extra, str) else extra)])
+        )
+    if _is_mapping(parts):
+        checks += [
+            (f"robot.parts.{name}.link", [str(_opt(spec, "link"))]) for name, spec in parts.items() if _is_mapping(spec)
+        ]
+    for key, names in checks:
+        bad = [n for n in dict.fromkeys(names) if n not in known]
+        if bad:
+            raise unknown_links(key, bad, known, where)
+
+
 def check_regions(regions: Mapping[str, str], links: list[str], key: str = "robot.regions") -> None:
     """Every region must name one of ``links``; at least one region."""
     require(len(regions) > 0, key, dict(regions), "at least one skin region, e.g. {arm: <link name>}")
@@ -213,6 +253,9 @@ class MeshRobotSchema(RobotSchema):
 @dataclass
 class UrdfRobotSchema(RobotSchema):
     """A robot from a URDF file: chosen links as a plain robot, or with ``parts`` a whole kinematic robot."""
+
+    INPUT_CHECK: ClassVar[str] = "sphri.robots.urdf:check_names"
+    """Every link name of the config is a link of the URDF (:func:`sphri.inputs.check_contents`)."""
 
     _target_: str = "sphri.robots.urdf.UrdfRobot"
     name: str = "urdf"

@@ -25,8 +25,25 @@ import numpy as np
 import trimesh
 
 from sphri.config import ConfigError, require_choice
-from sphri.robots.schema import BUILTIN, GEOMETRIES, UNITS, check_joints, check_merge, check_regions, check_str_map
-from sphri.robots.urdf_tree import CYLINDER_SECTIONS, SPHERE_SUBDIVISIONS, MeshResolver, UrdfWholeBody, parse_urdf
+from sphri.robots.schema import (
+    BUILTIN,
+    GEOMETRIES,
+    UNITS,
+    check_joints,
+    check_link_names,
+    check_merge,
+    check_regions,
+    check_str_map,
+    unknown_links,
+)
+from sphri.robots.urdf_tree import (
+    CYLINDER_SECTIONS,
+    SPHERE_SUBDIVISIONS,
+    MeshResolver,
+    UrdfWholeBody,
+    load_parts_spec,
+    parse_urdf,
+)
 from sphri.robots.validate import MeshError, make_link, read_mesh
 from sphri.types import Robot
 
@@ -50,6 +67,25 @@ def mesh_files(urdf_path: Path) -> list[Path]:
         if found is not None and found not in out:
             out.append(found)
     return out
+
+
+def check_names(settings: Mapping[str, Any]) -> None:
+    """The links a ``robot=urdf`` config names (``links``, ``exclude``, ``merge``, the parts' ``link``) are links
+    of its URDF: ``sphri validate`` and every job check them before any stage runs, one line with the closest
+    link name (:func:`sphri.robots.schema.check_link_names`). Reads the URDF strictly and the parts file."""
+    builtin = settings.get("builtin")
+    path = settings.get("path") or (BUILTIN[builtin] if builtin in BUILTIN else None)
+    if path in (None, ""):
+        return
+    model = parse_urdf(path)
+    spec = load_parts_spec(settings["parts"]) if settings.get("parts") is not None else {}
+
+    def given(key: str) -> Any:
+        return settings.get(key) if settings.get(key) is not None else spec.get(key)
+
+    check_link_names(
+        model.links, model.path, settings.get("links"), given("exclude"), given("merge"), spec.get("parts")
+    )
 
 
 def primitive_mesh(geometry: Any) -> trimesh.Trimesh | None:
@@ -190,7 +226,7 @@ class UrdfRobot:
         wanted = set(self.links) | {c for extra in self.merge.values() for c in extra}
         unknown = sorted(wanted - known)
         if unknown:
-            raise ConfigError(f"robot.links: {unknown} not in {path}; its links: {sorted(known)}")
+            raise unknown_links("robot.links", unknown, known, path)
         if self.joints:
             actuated = set(urdf.actuated_joint_names)
             bad = sorted(set(self.joints) - actuated)

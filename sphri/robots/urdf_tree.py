@@ -52,7 +52,7 @@ import yaml
 
 from sphri.config import ConfigError, require_choice
 from sphri.robots.kinematic import JointStep, JointTree, WholeBodyRobot, axis_rotation, check_parts, rpy_matrix
-from sphri.robots.schema import check_groups
+from sphri.robots.schema import check_groups, check_link_names
 from sphri.robots.validate import MeshError, make_link, read_mesh
 from sphri.types import Link
 
@@ -466,7 +466,8 @@ def load_parts_spec(parts: Any) -> dict[str, Any]:
 
 
 class UrdfWholeBody:
-    """A whole robot from a URDF (see the module docstring); ``build()`` -> :class:`WholeBodyRobot`."""
+    """A whole robot from a URDF (see the module docstring); ``build()`` -> :class:`WholeBodyRobot`.
+    ``parts=None``: each link with a surface is a body part of its own (``sphri robot check`` without a parts file)."""
 
     VERSION = "1"
 
@@ -508,15 +509,7 @@ class UrdfWholeBody:
         skipped = list(model.skipped)
         gone = {n for n, r in skipped if r.startswith("not connected")}  # (a repeated name's first link stays)
         connected = [n for n in model.links if n not in gone]
-        for key, names in (
-            ("robot.exclude", self.exclude),
-            ("robot.merge", list(self.merge) + [c for v in self.merge.values() for c in v]),
-            ("robot.rest", []),
-            ("robot.links", self.links or []),
-        ):
-            bad = sorted(set(names) - set(model.links))
-            if bad:
-                raise ConfigError(f"{key}: {bad} not links of {model.path}; its links: {sorted(model.links)}")
+        check_link_names(model.links, model.path, self.links, self.exclude, self.merge, self.parts_spec)
         merged_into = {c: t for t, cs in self.merge.items() for c in cs}
         for child, target in merged_into.items():
             try:
@@ -571,7 +564,13 @@ class UrdfWholeBody:
         if bad_rest:
             raise ConfigError(f"robot.rest: {bad_rest} are not movable joints of {model.path}; they are: {actuated}")
         tree = self._tree(model, surface)
-        part_list = check_parts(self.parts_spec, {n: None for n in tree.links})
+        why = dict(skipped)
+        for name, spec in self.parts_spec.items() if hasattr(self.parts_spec, "items") else ():
+            link = spec.get("link") if hasattr(spec, "get") else None
+            if link in why and link not in geom:
+                raise ConfigError(f"robot.parts.{name}.link={link!r} has no surface in {model.path}: {why[link]}")
+        spec = self.parts_spec if self.parts_spec is not None else {n: {"link": n} for n in tree.links}
+        part_list = check_parts(spec, {n: None for n in tree.links})
         groups = check_groups(self.groups_spec, [p.name for p in part_list])
         links = {}
         for n in tree.links:

@@ -131,25 +131,38 @@ def reachable_elements(
     return out
 
 
-def body_surface(
-    robot,
-    links: tuple[str, ...],
-    spacing_mm: float,
-    bandwidth_mm: float,
-    seed: int = 0,
-    floor_height_m: float | None = FLOOR_HEIGHT_M,
-    down_cos: float = DOWN_COS,
-) -> BodySurface:
-    """The whole surface (see the module docstring); ``floor_height_m=None`` skips the reachability test."""
+@dataclass
+class RestSurface:
+    """Every link's samples, their body parts, and the robot's mesh at the rest pose (no kernel, no reachability)."""
+
+    links: tuple[str, ...]
+    local: list[SurfaceSamples]
+    """Per link: its samples in the link frame."""
+    offset: np.ndarray
+    """(L + 1,) first element of each link in the joined samples."""
+    samples: SurfaceSamples
+    """All elements at the rest pose (world frame)."""
+    part: np.ndarray
+    """(P,) object: body part of each element (its link's name where no part holds it)."""
+    link_of: np.ndarray
+    """(P,) int64 link index of each element."""
+    mesh: Link
+    """Every link's mesh at the rest pose, joined."""
+    parts: list[str]
+    """The body parts (the robot's order), then the links with elements no part holds."""
+
+
+def rest_surface(robot, links: tuple[str, ...], spacing_mm: float, seed: int = 0) -> RestSurface:
+    """Sample each of ``links`` (``spacing_mm`` elements, link frame), label the samples with their body parts
+    and place them and the meshes at the rest pose."""
     rest = robot.rest_poses()
     order = list(robot.tree.links)
-    local, kernels, pts, nrm, face, area, part, link_of = [], [], [], [], [], [], [], []
+    local, pts, nrm, face, area, part, link_of = [], [], [], [], [], [], []
     verts, faces, nv = [], [], 0
     for li, name in enumerate(links):
         link = robot.links[name]
         s = sample_link(link, spacing_mm, seed + li)
         local.append(s)
-        kernels.append(SurfaceKernel(s, bandwidth_mm, "geodesic"))
         m = rest[order.index(name)]
         pts.append(s.points_m @ m[:3, :3].T + m[:3, 3])
         nrm.append(s.normal @ m[:3, :3].T)
@@ -172,34 +185,46 @@ def body_surface(
         area_all,
         float(np.sqrt(total / offset[-1])),
     )
-    kernel = object.__new__(SurfaceKernel)
-    kernel.samples = joined
-    kernel.bandwidth_m = float(bandwidth_mm) * 1e-3
-    kernel.kernel = "geodesic"
-    kernel.stretch = float(np.mean([k.stretch for k in kernels]))
-    kernel.matrix = sparse.block_diag([k.matrix for k in kernels], format="csr")
     part_all = np.concatenate(part)
     names = [p.name for p in robot.parts]
     names += sorted(set(part_all) - set(names))
     mesh = Link(name=robot.name, vertices=np.concatenate(verts), faces=np.concatenate(faces), watertight=False)
-    link_all = np.concatenate(link_of)
-    reach = None
-    if floor_height_m is not None:
-        reach = reachable_elements(
-            robot, tuple(links), joined.points_m, joined.normal, link_all, floor_height_m, down_cos
-        )
-    return BodySurface(
+    return RestSurface(
         tuple(links),
         local,
         offset,
         joined,
-        kernel,
         part_all,
-        link_all,
+        np.concatenate(link_of),
         mesh,
         [p for p in names if (part_all == p).any()],
-        reach,
     )
+
+
+def body_surface(
+    robot,
+    links: tuple[str, ...],
+    spacing_mm: float,
+    bandwidth_mm: float,
+    seed: int = 0,
+    floor_height_m: float | None = FLOOR_HEIGHT_M,
+    down_cos: float = DOWN_COS,
+) -> BodySurface:
+    """The whole surface (see the module docstring); ``floor_height_m=None`` skips the reachability test."""
+    r = rest_surface(robot, links, spacing_mm, seed)
+    kernels = [SurfaceKernel(s, bandwidth_mm, "geodesic") for s in r.local]
+    kernel = object.__new__(SurfaceKernel)
+    kernel.samples = r.samples
+    kernel.bandwidth_m = float(bandwidth_mm) * 1e-3
+    kernel.kernel = "geodesic"
+    kernel.stretch = float(np.mean([k.stretch for k in kernels]))
+    kernel.matrix = sparse.block_diag([k.matrix for k in kernels], format="csr")
+    reach = None
+    if floor_height_m is not None:
+        reach = reachable_elements(
+            robot, tuple(links), r.samples.points_m, r.samples.normal, r.link_of, floor_height_m, down_cos
+        )
+    return BodySurface(r.links, r.local, r.offset, r.samples, kernel, r.part, r.link_of, r.mesh, r.parts, reach)
 
 
 def touched_pairs(body: BodySurface, bc: BodyContacts, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

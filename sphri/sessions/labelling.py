@@ -79,9 +79,10 @@ def session_compute() -> dict[str, Any]:
 
 def robot_overrides(overrides: Sequence[str]) -> list[str]:
     """The study's robot overrides for the gesture model's own job: the same robot (the experiment's default
-    ``robot=reachy_full`` unless ``robot=...`` is given), with its ``robot.*`` settings."""
+    ``robot=reachy_full`` unless ``robot=...`` is given), with its ``robot.*`` settings, and where configs are
+    found (``hydra.searchpath``: a robot config of one's own) and which packages they may name (``plugins``)."""
     keyed = [(o.lstrip("+~").split("=", 1)[0], o) for o in overrides]
-    mine = [o for k, o in keyed if k == "robot" or k.startswith("robot.")]
+    mine = [o for k, o in keyed if k in ("robot", "hydra.searchpath", "plugins") or k.startswith("robot.")]
     if not any(k == "robot" for k, _ in keyed):
         mine.insert(0, "robot=reachy_full")
     return mine

@@ -255,3 +255,36 @@ def plot_effects(
             cax.xaxis.set_label_position("top")
         ax.set_xlabel(f"Holm-corrected p (* <= {alpha:g})")
         return _finish(fig, title, path, provenance)
+
+
+def part_colours(n: int) -> np.ndarray:
+    """(n, 4) RGBA: distinct colours for ``n`` body parts (tab20, then tab20b, then around again)."""
+    table = np.vstack([plt.get_cmap("tab20")(np.arange(20)), plt.get_cmap("tab20b")(np.arange(20))])
+    return table[np.arange(n) % len(table)]
+
+
+def plot_parts(
+    view: LinkView,
+    face_part: np.ndarray,
+    areas_cm2: dict[str, float],
+    path: str | Path,
+    title: str,
+) -> Path:
+    """The robot from the front, left, back, right and top, each face in its body part's colour; the legend
+    names each part with its area (cm^2)."""
+    from matplotlib.patches import Patch
+
+    names = list(areas_cm2)
+    colour = dict(zip(names, part_colours(len(names))))
+    grey = np.array([0.75, 0.75, 0.75, 1.0])
+    faces = np.array([colour.get(p, grey) for p in face_part])
+    with figures.style():
+        ncol = 4 if len(names) > 12 else 3
+        rows = int(np.ceil(len(names) / ncol))
+        fig, axes = figures.new_figure("two", figures.fit_page(2.2 + 0.17 * rows), ncols=len(VIEWS), squeeze=False)
+        for c, (vt, az, el) in enumerate(VIEWS):
+            view.draw(axes[0, c], None, az, 1.0, elev_deg=el, colours=faces)
+            axes[0, c].set_title(vt)
+        handles = [Patch(color=colour[p], label=f"{p} ({areas_cm2[p]:,.0f} cm$^2$)") for p in names]
+        fig.legend(handles=handles, loc="outside lower center", ncol=ncol)
+        return _finish(fig, title, path, None)

@@ -70,8 +70,15 @@ class PriorsError(ValueError):
     """The scenario priors table is malformed; names the file and key."""
 
 
-def load_priors(path: str | Path, part_names: Sequence[str]) -> dict[str, Any]:
-    """Read and check the priors table against the robot's body parts."""
+#: The joints a scenario with ``robot_motion: arm`` moves, per side (``l``/``r``): the sorting trajectory.
+ARM_JOINTS = ("shoulder_pitch", "elbow_pitch")
+
+
+def load_priors(
+    path: str | Path, part_names: Sequence[str], joint_names: Sequence[str] | None = None
+) -> dict[str, Any]:
+    """Read and check the priors table against the robot's body parts (and, given ``joint_names``, the joints
+    a ``robot_motion: arm`` scenario moves)."""
     path = Path(path)
     if not path.is_file():
         raise PriorsError(f"data.priors={str(path)!r}: no such file")
@@ -99,6 +106,12 @@ def load_priors(path: str | Path, part_names: Sequence[str]) -> dict[str, Any]:
             raise PriorsError(f"{key}.start_positions: unknown {bad}; allowed: {list(DIRECTIONS)}")
         if s["robot_motion"] not in MOTIONS:
             raise PriorsError(f"{key}.robot_motion={s['robot_motion']!r}: allowed values: {list(MOTIONS)}")
+        arm = [f"{side}_{j}" for side in "lr" for j in ARM_JOINTS]
+        if s["robot_motion"] == "arm" and joint_names is not None and not set(arm) <= set(joint_names):
+            raise PriorsError(
+                f"{key}.robot_motion=arm moves the joints {arm}; the robot has {sorted(joint_names)} "
+                "(robot_motion: none or base, or name the arm joints so)"
+            )
         for k in ("approach_s", "duration_scale"):
             v = s[k]
             if not (isinstance(v, list) and len(v) == 2 and 0 < v[0] <= v[1]):
@@ -248,7 +261,7 @@ class SyntheticSessions:
                 f"data=synthetic_sessions needs a whole robot with a kinematic tree (robot=reachy_full); "
                 f"robot {robot.name!r} has none"
             )
-        table = load_priors(self.priors, [p.name for p in robot.parts])
+        table = load_priors(self.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
         names = list(table["scenarios"])
         if self.scenarios is not None:
             bad = [s for s in self.scenarios if s not in names]

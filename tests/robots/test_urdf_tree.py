@@ -280,9 +280,15 @@ def test_bad_descriptions_are_one_line_errors_naming_the_file(lab, tmp_path, stu
     bad.write_text(LAB_URDF.replace('xyz="0 0 0.5"', 'xyz="0 zero 0.5"'))
     with pytest.raises(RobotFileError, match=r"bad.urdf: joint 'lift' origin xyz='0 zero 0.5' is not 3 numbers"):
         UrdfWholeBody(bad, parts, mesh_root=root).build()
-    with pytest.raises(ConfigError, match=r"robot.parts.arm.link='nope' is invalid"):
+    with pytest.raises(ConfigError, match=r"robot.parts.arm.link: 'nope' is not a link of .*lab.urdf"):
         UrdfWholeBody(urdf, {"arm": {"link": "nope"}}, mesh_root=root).build()
-    with pytest.raises(ConfigError, match=r"robot.exclude: \['nope'\] not links of"):
+    with pytest.raises(ConfigError, match=r"robot.parts.arm.link: 'slidr' \(did you mean slider\?\) is not a link"):
+        UrdfWholeBody(urdf, {"arm": {"link": "slidr"}}, mesh_root=root).build()
+    with pytest.raises(
+        ConfigError, match=r"robot.parts.cam.link='dummy' has no surface in .*: a frame without geometry"
+    ):
+        UrdfWholeBody(urdf, {"cam": {"link": "dummy"}}, mesh_root=root).build()
+    with pytest.raises(ConfigError, match=r"robot.exclude: 'nope' is not a link of"):
         UrdfWholeBody(urdf, parts, mesh_root=root, exclude=["nope"]).build()
     ypath = tmp_path / "broken.yaml"
     ypath.write_text("parts: [unclosed\n")

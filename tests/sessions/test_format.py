@@ -96,6 +96,12 @@ def test_bad_priors_are_named(small, tmp_path):
     bad.write_text(text.replace("gestures: {tap: 6", "gestures: {tickle: 6"))
     with pytest.raises(PriorsError, match=r"scenarios.S1_attention.gestures.tickle: unknown gesture"):
         SyntheticSessions(participants=1, repetitions=1, priors=str(bad)).load(hand, robot)
+    from sphri.sessions.synthetic import DEFAULT_PRIORS, load_priors
+
+    parts = [p.name for p in robot.parts]
+    with pytest.raises(PriorsError, match=r"scenarios\.\w+\.robot_motion=arm moves the joints \['l_shoulder_pitch'"):
+        load_priors(DEFAULT_PRIORS, parts, ["neck", "l_shoulder"])
+    assert load_priors(DEFAULT_PRIORS, parts, list(robot.tree.joint_names))["scenarios"]
 
 
 def test_synthetic_sessions_follow_the_study_design(small):

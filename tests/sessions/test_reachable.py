@@ -67,3 +67,6 @@ def test_sessions_without_a_label_are_never_counted_as_a_gesture():
         "robot.path=/x.urdf",
         "+robot.parts=/p.yaml",
     ]
+    # a robot config of one's own: the gesture job finds it where the study did
+    own = ["hydra.searchpath=[file:///my/conf]", "robot=mybot", "plugins=[mylab]", "seed=2"]
+    assert robot_overrides(own) == own[:3]
