@@ -146,3 +146,20 @@ def test_a_broken_link_fails_the_strict_build(tmp_path):
     assert done.returncode != 0
     assert "'other.md', but the target is not found" in done.stderr
     assert "'#nowhere', but there is no such anchor" in done.stderr
+
+
+def readme_links(text: str) -> list[str]:
+    """The relative link targets of a Markdown text (``[text](target)``, images too), anchors dropped."""
+    import re
+
+    targets = re.findall(r"\]\(([^)\s]+)\)", text)
+    return [t.split("#", 1)[0] for t in targets if not re.match(r"[a-z]+://", t) and not t.startswith("#")]
+
+
+def test_every_link_of_the_readme_names_a_file():
+    """README.md is not part of the site, so mkdocs does not check it: its links into docs/ are checked here."""
+    assert readme_links("[a](docs/x.md#y) ![b](docs/f.png) [c](https://e.org) [d](#top)") == ["docs/x.md", "docs/f.png"]
+    links = readme_links((ROOT / "README.md").read_text())
+    assert "docs/index.md" in links
+    missing = [t for t in links if not (ROOT / t).exists()]
+    assert not missing, f"README.md links to files that do not exist: {missing}"
