@@ -166,8 +166,9 @@ def component_schema(group: str, name: str, conf_dir: Path | None = None) -> tup
 
     node = component_node(group, name, conf_dir)
     schema = OmegaConf.get_type(node) if isinstance(node, DictConfig) else None
-    values = OmegaConf.to_container(node, resolve=False) if isinstance(node, DictConfig) else {}
-    assert isinstance(values, dict)
+    raw = OmegaConf.to_container(node, resolve=False) if isinstance(node, DictConfig) else {}
+    assert isinstance(raw, dict)
+    values = {str(k): v for k, v in raw.items()}
     if not (isinstance(schema, type) and dataclasses.is_dataclass(schema)):
         return None, values
     return schema, values
