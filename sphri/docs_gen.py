@@ -216,7 +216,37 @@ def config_reference(groups: Iterable[str] | None = None, conf_dir: Path | None 
             if target:
                 lines += [f"Class: `{target}`; schema: `{schema.__module__}.{schema.__qualname__}`.", ""]
             lines += [settings_table(setting_rows(schema, values), prefix=f"{group}."), ""]
+    if conf_dir is None:
+        lines += _preset_sections(conf)
     return "\n".join(lines).rstrip() + "\n"
+
+
+#: Config groups that are presets over the stage groups, not components: (group, title, how they are used).
+PRESET_GROUPS = (
+    ("experiment", "Experiments", "Picked with `+experiment=NAME` (most are sweeps: `sphri sweep +experiment=NAME`)"),
+    (
+        "sensitivity",
+        "Sensitivity variants",
+        "Each changes one assumption from the reference; `+experiment=requirement_sensitivity` sweeps them",
+    ),
+    ("debug", "Debug presets", "Picked with `+debug=NAME`: small sizes for a seconds-long run"),
+)
+
+
+def _preset_sections(conf: Path) -> list[str]:
+    """One section per preset group of :data:`PRESET_GROUPS`: each file with its first sentence."""
+    from sphri.cli import _describe
+
+    lines: list[str] = []
+    for group, title, how in PRESET_GROUPS:
+        folder = conf / group
+        files = sorted(folder.glob("*.yaml")) if folder.is_dir() else []
+        if not files:
+            continue
+        lines += [f"## {title}", "", f"{how}.", "", "| name | what it is |", "| --- | --- |"]
+        lines += [f"| `{p.stem}` | {markdown_text(_describe(p))} |" for p in files]
+        lines.append("")
+    return lines
 
 
 def argument_table(cls: type) -> str:

@@ -80,6 +80,7 @@ def test_the_real_config_reference_lists_the_packaged_components():
     page = config_reference(groups=["encoder", "noise"])
     assert "### encoder=ellipse" in page and "### noise=salt_pepper" in page
     assert "| `encoder.res` |" in page
+    assert "## Experiments" in page and "| `resolution_sweep` | The reference study's curve" in page
 
 
 @dataclasses.dataclass
