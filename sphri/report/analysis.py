@@ -319,10 +319,16 @@ def _sensitivity_sentence(ref: GroupReport | None, members: list[GroupReport], r
     else:
         head = "No reference variant in this sweep (conf/sensitivity/reference.yaml)"
     finest = [g.keys.get(VARIANT_KEY, g.label) for g in members if g.sat.at_finest]
+    used = [g.sat.tolerance for g in members]
+    within = (
+        points_text(used[0])
+        if max(used) - min(used) < 1e-12
+        else f"{100 * min(used):.1f} to {100 * max(used):.1f} points of accuracy, the tolerance each one's data certify"
+    )
     tail = (
         f"; between {_fmt_pitch(pitches[lo_v])} mm ({lo_v}) and {_fmt_pitch(pitches[hi_v])} mm ({hi_v}) across the "
-        f"{len(members)} assumptions tested (accuracy within {rule.primary_tolerance.describe()} of each one's "
-        "best, paired over participants)."
+        f"{len(members)} assumptions tested (accuracy within {within} of each one's best at every finer pitch, "
+        f"{1 - rule.alpha:.0%} confidence, paired over participants)."
     )
     if finest:
         tail += (
