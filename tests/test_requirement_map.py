@@ -92,7 +92,7 @@ def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
         ["n_boot=200", "mlflow=false"],
     )
     assert "[requirement map: filter=none]" in rep.stdout and "[requirement map: filter=persistence]" in rep.stdout
-    assert "[filters]" in rep.stdout and "best pair" in rep.stdout
+    assert "[filters]" in rep.stdout and "<- best pair:" in rep.stdout and "best accuracy (pitch)" in rep.stdout
     assert "cost of persistence on clean data (false-on 0)" in rep.stdout
     assert "measured between the sweep's seeds" in rep.stdout and "smallest certifiable tolerance" in rep.stdout
     # the figure machinery's layout check logs any clipped or overlapping text as a warning naming the file

@@ -178,26 +178,34 @@ def clean_cost(none: GroupReport, other: GroupReport) -> tuple[np.ndarray, np.nd
 
 
 def filter_text(report: SweepReport) -> list[str]:
-    """Per false-on rate, the best (pitch, filter) pair and each filter's required pitch with its accuracy; each
-    filter's cost on clean data."""
+    """Per false-on rate and filter: the required pitch, the accuracy there and the tolerance certified, the best
+    accuracy and its pitch, the best (pitch, filter) pair marked; then each filter's cost on clean data."""
     lines: list[str] = []
     for label, maps in filter_sets(report):
         lines.append("")
         lines.append("[filters" + (f": {label}" if label else "") + "]")
         names = sorted(maps, key=lambda f: (f != "none", f))
+        width = max(len("filter"), *(len(f) for f in names))
+        lines.append(
+            f"  {'false-on':>8}  {'filter':<{width}}  {'required pitch':>14}  {'accuracy':>8}  {'within':>6}  "
+            f"{'best accuracy (pitch)':>22}"
+        )
         for rate in _rates(maps):
             curves = {f: maps[f].curves[maps[f].rates.index(rate)] for f in names}
             bf, bi = _best_pair(curves)
-            bp = curves[bf].points.iloc[bi]
-            parts = []
             for f in names:
                 g = curves[f]
-                rec = g.recommended
-                parts.append(f"{f} {rec['pitch_mm']:.1f} mm ({rec['accuracy_mean']:.3f}, within {g.sat.tolerance:.3f})")
-            lines.append(
-                f"  false-on {100 * rate:g} %: best pair {bp['pitch_mm']:.1f} mm + {bf} (accuracy "
-                f"{bp['accuracy_mean']:.3f}, the highest mean); required pitch per filter: " + ", ".join(parts)
-            )
+                rec, best = g.recommended, g.best
+                mark = f"   <- best pair: {g.points['pitch_mm'].iloc[bi]:.1f} mm + {f}" if f == bf else ""
+                lines.append(
+                    f"  {100 * rate:>7g}%  {f:<{width}}  {rec['pitch_mm']:>11.1f} mm  {rec['accuracy_mean']:>8.3f}  "
+                    f"{g.sat.tolerance:>6.3f}  {best['accuracy_mean']:>11.3f} ({best['pitch_mm']:>5.1f} mm){mark}"
+                )
+        lines.append(
+            "  (required pitch: the rule's requirement per filter; within: the tolerance it certifies; best pair: "
+            "the highest mean accuracy over every filter and pitch at that rate, not a certified choice; every "
+            "pair's accuracy: filter_pairs.csv)"
+        )
         if "none" in maps and 0.0 in _rates(maps):
             clean = {f: maps[f].curves[maps[f].rates.index(0.0)] for f in names}
             for f in names:
@@ -212,7 +220,6 @@ def filter_text(report: SweepReport) -> list[str]:
                     f"  cost of {f} on clean data (false-on 0): {np.nanmean(cost):+.3f} mean over resolutions, "
                     f"largest {cost[j]:+.3f} +/- {se[j]:.3f} at res {res} (accuracy without minus with, paired)"
                 )
-        lines.append("  accuracy of every (pitch, filter) pair: filter_pairs.csv")
     return lines
 
 
