@@ -265,6 +265,9 @@ log = logging.getLogger(__name__)
 
 SCHEDULES: tuple[str, ...] = ("constant", "onecycle")
 
+#: Warnings already given in this process (the folds of a job share one).
+_WARNED: set[str] = set()
+
 #: Allowed values of ``precision``.
 PRECISIONS: tuple[str, ...] = ("auto", "float32", "bf16")
 
@@ -450,14 +453,14 @@ class CnnGru(ClassifierMixin, BaseEstimator):
         n = np.unique(np.asarray(groups)).size
         k = min(n - 1, max(1, int(round(self.val_fraction * n)))) if n >= 2 else 0
         if k < int(self.min_val_participants):
-            log.warning(
-                "CNN-GRU: early stopping would hold out %d of %d training participants (fewer than "
-                "model.min_val_participants=%d): training all %d epochs without a validation split",
-                k,
-                n,
-                int(self.min_val_participants),
-                int(self.max_epochs),
+            message = (
+                f"CNN-GRU: early stopping would hold out {k} of {n} training participants (fewer than "
+                f"model.min_val_participants={int(self.min_val_participants)}): training all "
+                f"{int(self.max_epochs)} epochs without a validation split"
             )
+            if message not in _WARNED:  # once per process, not once per fold
+                _WARNED.add(message)
+                log.warning(message)
             return 0.0
         return float(self.val_fraction)
 

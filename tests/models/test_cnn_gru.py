@@ -427,11 +427,16 @@ def test_thread_count_changes_predictions_only_by_rounding():
         np.testing.assert_allclose(a.predict_proba(x), b.predict_proba(x), rtol=1e-4, atol=1e-5)
 
 
-def test_a_small_study_trains_every_epoch_instead_of_stopping_on_one_persons_loss(caplog):
+def test_a_small_study_trains_every_epoch_instead_of_stopping_on_one_persons_loss(caplog, monkeypatch):
     """5 training participants x 15 % is one held-out person: early stopping on that one loss kept an
-    almost untrained model on the built-in chain (issue 31). Below model.min_val_participants held-out
-    participants the model trains all epochs without a split, and says so; 17 keep the paper's split."""
+    almost untrained model on the built-in chain. Below model.min_val_participants held-out participants
+    the model trains all epochs without a split, and says so once per process (not once per fold); 17
+    keep the paper's split."""
     import logging
+
+    from sphri.models import cnn_gru
+
+    monkeypatch.setattr(cnn_gru, "_WARNED", set())  # warnings given by earlier tests in this process
 
     rng = np.random.default_rng(3)
     x = (rng.random((50, 5, 6)) < 0.3).astype(np.float32)
@@ -442,8 +447,10 @@ def test_a_small_study_trains_every_epoch_instead_of_stopping_on_one_persons_los
     )
     with caplog.at_level(logging.WARNING, logger="sphri.models.cnn_gru"):
         m = CnnGru(**settings).fit(x, y, groups=groups)
+        CnnGru(**settings).fit(x, y, groups=groups)  # the next fold of the same job: no second warning
     assert m.n_val_ == 0 and len(m.history_) == 6  # every epoch, no split
     assert "min_val_participants=3" in caplog.text and "1 of 5" in caplog.text
+    assert caplog.text.count("early stopping would hold out") == 1
     old = CnnGru(**settings, min_val_participants=1).fit(x, y, groups=groups)  # the earlier behaviour, when asked
     assert old.n_val_ == 10
     assert (
