@@ -43,10 +43,12 @@ def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> SessionDataset
 
 @dataclasses.dataclass
 class SynthesizeAnyArgs(SynthesizeArgs):
-    what: Literal["gestures", "sessions"] = arg(
+    what: Literal["gestures", "sessions", "openxr"] = arg(
         "gestures",
         help="gestures: a gesture dataset (loads with data=vr_gesture data.root=DIR); sessions: the scenario "
-        "sessions (data=synthetic_sessions; loads with data=sessions data.root=DIR)",
+        "sessions (data=synthetic_sessions; loads with data=sessions data.root=DIR); openxr: example OpenXR "
+        "logs for sphri import, one per trial of a small synthetic study (3 participants x 8 gestures x 1 "
+        "repetition unless overridden) with manifest.csv and README.txt, into a new or empty folder",
     )
 
 
@@ -58,9 +60,13 @@ def write_sessions(args: SynthesizeArgs) -> int:
 
 def command(args: SynthesizeAnyArgs) -> int:
     """Write synthetic data to out=DIR, generated exactly as a run generates it: a gesture dataset (the
-    default) or, with what=sessions, the scenario sessions."""
+    default), with what=sessions the scenario sessions, with what=openxr one OpenXR log per trial."""
     if args.what == "sessions":
         return write_sessions(args)
+    if args.what == "openxr":
+        from sphri.recordings.examples import write_example_logs
+
+        return write_dataset(write_example_logs, args, "logs")
     return write_gestures(args)
 
 
