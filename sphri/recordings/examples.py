@@ -99,6 +99,8 @@ def write_example_logs(out: str | Path, overrides: Sequence[str] = ()) -> Exampl
         w.writerow(MANIFEST_COLUMNS)
         w.writerows(rows)
     settings = OmegaConf.to_container(cfg.data, resolve=True)
-    text = _readme(sphri.__version__, int(cfg.data.seed), dict(settings), robot.name, rows, ds.frame_rate_hz)
+    if not isinstance(settings, dict):  # a config group node is a mapping
+        raise TypeError(f"data config is a {type(settings).__name__}, not a mapping")
+    text = _readme(sphri.__version__, int(cfg.data.seed), settings, robot.name, rows, ds.frame_rate_hz)
     (out / "README.txt").write_text(text)
     return ExampleLogs(f"{ds.name}, OpenXR logs", files, ds.n_frames, ds.frame_rate_hz)
