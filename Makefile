@@ -5,7 +5,7 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.sphri-installed
 ARGS   ?=
 
-.PHONY: install run lint test test-all bench profile-tests sweep report ui clean
+.PHONY: install run lint test test-all docs docs-serve bench profile-tests sweep report ui clean
 
 # Installs only when pyproject.toml changed since the last install (quick otherwise).
 # torch is pinned to the CPU build first: an unpinned torch pulls gigabytes of CUDA.
@@ -33,6 +33,13 @@ WORKERS ?= auto
 test: lint            ## lint, then the test suite without slow tests
 	$(BIN)/python -m pytest -m "not slow" -q -n $(WORKERS) --dist loadscope --no-loadscope-reorder $(ARGS)
 
+# The documentation site (mkdocs.yml, docs/): `make test` builds it too (tests/test_docs.py, --strict).
+docs: install         ## the documentation site -> site/ (strict: a broken link or reference fails)
+	$(BIN)/mkdocs build --strict -d site
+
+docs-serve: install   ## the documentation site on http://127.0.0.1:8000, rebuilt on every edit
+	$(BIN)/mkdocs serve -a 127.0.0.1:8000
+
 # The cluster launchers (Ray, SLURM) are tested by test-all only: installed once,
 # again only when pyproject.toml (or the base install) changed.
 CLUSTER_STAMP := $(VENV)/.sphri-cluster-installed
@@ -58,4 +65,4 @@ ui: install           ## MLflow UI on http://127.0.0.1:5000
 	$(BIN)/mlflow ui --backend-store-uri sqlite:///$(CURDIR)/outputs/mlflow.db --host 127.0.0.1 --port 5000
 
 clean:                ## remove outputs (runs, cache, MLflow store) and test caches
-	rm -rf outputs .pytest_cache .hypothesis
+	rm -rf outputs site .pytest_cache .hypothesis
