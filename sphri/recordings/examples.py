@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from sphri.config import ConfigError
+from sphri.data.recording_schema import OPENXR_CAPSULES
 
 #: The example's size unless the overrides say otherwise (later overrides win).
 SMALL = ("data=synthetic", "data.participants=3", "data.repetitions=1", "data.regions=[arm]")
@@ -84,6 +85,12 @@ def write_example_logs(out: str | Path, overrides: Sequence[str] = ()) -> Exampl
     _check_empty(out)
     cfg = compose([*SMALL, *overrides])
     hand = instantiate(cfg.hand).build()
+    missing = [n for n in OPENXR_CAPSULES if n not in hand.names]
+    if missing:
+        raise ConfigError(
+            f"hand is invalid for what=openxr: it lacks the capsules {', '.join(missing)}; an OpenXR log carries "
+            f"the {len(OPENXR_CAPSULES)} capsules of the documented hand (hand=quest_capsules)"
+        )
     robot = instantiate(cfg.robot).build()
     ds = instantiate(cfg.data).load(hand=hand, robot=robot)
     out.mkdir(parents=True, exist_ok=True)

@@ -37,3 +37,25 @@ def test_example_logs_refuse_a_folder_that_is_not_empty(tmp_path, capsys):
     assert (tmp_path / "logs" / "mine.csv").read_text() == "time\n"
     (tmp_path / "logs" / "mine.csv").unlink()  # an empty folder is taken
     assert main(["synthesize", "what=openxr", f"out={tmp_path / 'logs'}", "data.participants=1"]) == 0
+
+
+def test_example_logs_refuse_a_hand_without_the_openxr_capsules(tmp_path, hand, capsys):
+    from dataclasses import replace
+
+    from sphri.data.format import write_hand_definition
+
+    keep = [i for i, n in enumerate(hand.names) if not n.startswith("thumb")]
+    fields = ("radius_m", "height_m", "axis", "center_offset_m")
+    small = replace(
+        hand,
+        names=tuple(hand.names[i] for i in keep),
+        fingers=tuple(hand.fingers[i] for i in keep),
+        **{f: getattr(hand, f)[keep] for f in fields},
+    )
+    write_hand_definition(small, tmp_path / "hand.json")
+    argv = ["synthesize", "what=openxr", f"out={tmp_path / 'logs'}", f"hand.definition_path={tmp_path / 'hand.json'}"]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("sphri synthesize: invalid config: hand is invalid for what=openxr: it lacks the capsules ")
+    assert "thumb1, thumb2, thumb3;" in err and "\n" not in err
+    assert not (tmp_path / "logs").exists()
