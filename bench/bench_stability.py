@@ -1,8 +1,10 @@
 """Data-size stability: how many participants and repetitions a resolution sweep needs.
 
 The question: is the saturation point of a Random Forest resolution sweep
-(the report's rule: the coarsest resolution whose paired deficit from the
-best is within 1 point of accuracy, :func:`sphri.report.saturation.paired_saturation`)
+(the report's rule: the coarsest resolution certified, with 95 % confidence,
+to keep every finer one within 1 point of accuracy of the best, or within the
+smallest tolerance the data can certify when that is larger,
+:func:`sphri.report.saturation.certified_saturation`)
 a property of the skin, or
 of how little data the sweep had? The benchmark runs the sweep once on the
 largest synthetic dataset of the grid and then, for every cell (P
@@ -174,7 +176,7 @@ def prepare(size: dict, memory: MemoryProbe, cache_dir: str) -> dict:
 
 def run_grid(size: dict, prep: dict) -> dict:
     from sphri.report.analysis import RuleSettings
-    from sphri.report.saturation import paired_saturation
+    from sphri.report.saturation import certified_saturation
 
     data = prep["data"]
     first = prep["per_res"][0]["windows"]
@@ -206,7 +208,7 @@ def run_grid(size: dict, prep: dict) -> dict:
                     scores[:, j] = s
                     cpu += c
                     wall += w
-                sat = paired_saturation(scores, RuleSettings().primary, n_boot=size["n_boot"], seed=0)
+                sat, _ = certified_saturation(scores, RuleSettings().primary, n_boot=size["n_boot"], seed=0)
                 lo, hi = sat.interval if sat.interval is not None else (sat.index, sat.index)
                 cells.append(
                     {

@@ -349,6 +349,8 @@ class WindowedFrames:
     """(N_trials,) int64 row of each window's trial in ``GestureDataset.trials``."""
     n_dropped: int
     """Trials dropped by the window's no-contact rule."""
+    frame_rate_hz: float = float("nan")
+    """Rate of the frames along L (Hz; the dataset's); NaN where unknown (hand-built windows)."""
 
 
 @dataclass

@@ -34,6 +34,9 @@ def test_full_map_sweeps_six_false_on_rates_sixteen_resolutions_three_seeds():
     assert [float(p) for p in params["noise.p"]] == [0.0, 0.002, 0.005, 0.01, 0.02, 0.05]
     assert params["encoder.res"] == swept("requirement_sensitivity")["encoder.res"], "the sensitivity study's grid"
     assert len(params["encoder.res"]) == 16 and params["seed"] == ["0", "1", "2"]
+    assert params["filter"] == ["none", "despeckle", "persistence"]
+    assert swept("requirement_map_quick")["filter"] == ["none", "despeckle", "persistence"]
+    assert compose(["+experiment=requirement_map", "filter=persistence"]).filter.ms == 50.0
     cfg = compose(["+experiment=requirement_map", "noise.p=0.005"])
     assert cfg.model._target_.endswith("RandomForest")
     # replace mode with salt_vs_pepper=1: p is exactly the false-on rate, and nothing touched is turned off
@@ -74,30 +77,48 @@ def test_seeds_are_replicates_not_groups():
 
 
 def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
-    # the quick preset at two of its three false-on rates (12 jobs, not 18): a map has a row per rate
+    # the quick preset at two of its false-on rates, two resolutions and two filters (16 jobs): a map per filter
+    # with a row per rate, and the filter table
+    res = [2, 12]
     sweep, rep = sweep_then_report(
-        ["+experiment=requirement_map_quick", "noise.p=0,0.05", "tracking.confusion_png=false"],
-        12,
+        [
+            "+experiment=requirement_map_quick",
+            "noise.p=0,0.05",
+            "encoder.res=2,12",
+            "filter=none,persistence",
+            "tracking.confusion_png=false",
+        ],
+        16,
         ["n_boot=200", "mlflow=false"],
     )
-    assert "grouped by noise.p" in rep.stdout and "[requirement map]" in rep.stdout
-    assert "measured between the sweep's seeds" in rep.stdout and "tolerance used" in rep.stdout
+    assert "[requirement map: filter=none]" in rep.stdout and "[requirement map: filter=persistence]" in rep.stdout
+    assert "[filters]" in rep.stdout and "<- best pair:" in rep.stdout and "best accuracy (pitch)" in rep.stdout
+    assert "cost of persistence on clean data (false-on 0)" in rep.stdout
+    assert "measured between the sweep's seeds" in rep.stdout and "smallest certifiable tolerance" in rep.stdout
     # the figure machinery's layout check logs any clipped or overlapping text as a warning naming the file
     assert "requirement_map.png:" not in rep.stderr, rep.stderr[-3000:]
     d = sweep / "report"
     table = pd.read_csv(d / "requirement_map.csv")
     assert MAP_COLUMNS <= set(table.columns)
     rates = [0.0, 0.05]
-    res = sorted(int(r) for r in swept("requirement_map_quick")["encoder.res"])
-    assert sorted(table["false_on_rate"].unique()) == pytest.approx(rates) and len(table) == len(rates) * len(res)
+    assert sorted(table["false_on_rate"].unique()) == pytest.approx(rates) and len(table) == 2 * len(rates) * len(res)
     assert (table["seeds"] == 2).all() and (table["participants"] == 3).all()
     assert table["false_on_per_frame"].to_numpy() == pytest.approx(table["false_on_rate"] * table["n_taxels"])
-    for _rate, rows in table.groupby("false_on_rate"):
+    pairs = pd.read_csv(d / "filter_pairs.csv")
+    assert len(pairs) == len(rates) * 2 * len(res) and set(pairs["filter"]) == {"none", "persistence"}
+    assert pairs.groupby("false_on_rate")["best_pair"].sum().eq(1).all()
+    assert pairs.groupby(["false_on_rate", "filter"])["required"].sum().eq(1).all()
+    for _rate, rows in pairs.groupby("false_on_rate"):
+        best = rows[rows["best_pair"]].iloc[0]
+        assert best["accuracy_mean"] == pytest.approx(rows["accuracy_mean"].max())
+    for _key, rows in table.groupby(["map", "false_on_rate"]):
         assert rows["required_pitch_mm"].nunique() == 1 and rows["required"].sum() == 1
         req = rows[rows["required"]].iloc[0]
         assert req["pitch_mm"] == pytest.approx(req["required_pitch_mm"])
         assert req["required_pitch_lo_mm"] <= req["required_pitch_mm"] <= req["required_pitch_hi_mm"]
-        # every resolution finer than the required one is inside the tolerance (the envelope rule)
-        assert not rows[rows["res"] > req["res"]]["outside_tolerance"].any()
+        # every resolution from the required one on is certified within the tolerance, never one below T*
+        finer = rows[rows["res"] >= req["res"]]
+        assert not finer["outside_tolerance"].any() and (finer["bound"] <= req["tolerance"] + 1e-12).all()
+        assert req["tolerance"] >= max(0.01, req["tolerance_certifiable"]) - 1e-12
     for fmt in ("png", "pdf", "svg"):
         assert (d / f"requirement_map.{fmt}").stat().st_size > 1000

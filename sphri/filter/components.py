@@ -13,6 +13,11 @@ other (they hold noise).
   salt-and-pepper blips vanish for k >= 2 (a false on survives only when
   the same taxel is corrupted to on in k frames in a row: probability
   ``(p * salt_vs_pepper)^k`` per taxel and frame).
+- ``persistence`` (``ms``): ``debounce`` with its duration in milliseconds,
+  converted with the windows' frame rate (``windows.frame_rate_hz``, the
+  dataset's): k = ceil(ms x rate / 1000) frames, at least 1. The same
+  reduction as ``debounce`` (the minimum of the last k readings), so one
+  setting means the same time on datasets recorded at different rates.
 - ``median`` (``frames`` = k, odd): the median of the last k readings; a
   binary reading stays binary.
 - ``none``: unchanged.
@@ -54,7 +59,13 @@ import numpy as np
 
 from sphri.adjacency import taxel_adjacency
 from sphri.config import Configured
-from sphri.filter.schema import DebounceFilterSchema, DespeckleFilterSchema, MedianFilterSchema, NoFilterSchema
+from sphri.filter.schema import (
+    DebounceFilterSchema,
+    DespeckleFilterSchema,
+    MedianFilterSchema,
+    NoFilterSchema,
+    PersistenceFilterSchema,
+)
 from sphri.types import WindowedFrames
 
 
@@ -109,6 +120,31 @@ class DebounceFilter(_CausalFilter):
     """``filter=debounce``: on only after ``frames`` consecutive frames on (minimum of the last k)."""
 
     HOW, SCHEMA, NAME = "min", DebounceFilterSchema, "debounce"
+
+
+def persistence_frames(ms: float, frame_rate_hz: float) -> int:
+    """Frames k a taxel must be on to have been on for ``ms`` milliseconds at ``frame_rate_hz``: ceil(ms x rate
+    / 1000), at least 1 (a product within 1e-9 of an integer counts as that integer). ValueError for an unknown
+    (NaN) or non-positive rate."""
+    if not (np.isfinite(frame_rate_hz) and frame_rate_hz > 0):
+        raise ValueError(
+            f"filter=persistence: the windows' frame rate is {frame_rate_hz!r}; it needs the dataset's frame rate "
+            "(windows built by the window stage carry it) to turn milliseconds into frames"
+        )
+    return max(1, int(np.ceil(ms * frame_rate_hz / 1000.0 - 1e-9)))
+
+
+class PersistenceFilter(Configured):
+    """``filter=persistence``: on only after ``ms`` milliseconds on (``debounce`` with k from the frame rate)."""
+
+    VERSION = "1"
+    SCHEMA = PersistenceFilterSchema
+    ms: float  # set from SCHEMA by Configured
+
+    def apply(self, windows: WindowedFrames) -> WindowedFrames:
+        x = _check(windows, "filter=persistence")
+        k = persistence_frames(self.ms, float(windows.frame_rate_hz))
+        return dataclasses.replace(windows, x=causal_reduce(x, k, "min"))
 
 
 class MedianFilter(_CausalFilter):

@@ -29,6 +29,17 @@ class DebounceFilterSchema(FilterSchema):
 
 
 @dataclass
+class PersistenceFilterSchema(FilterSchema):
+    """Persistence: a taxel reads on only after it has been on for ``ms`` milliseconds of consecutive frames
+    (``debounce`` with its time in ms: k = ceil(ms x frame rate / 1000) frames at the dataset's frame rate)."""
+
+    _target_: str = "sphri.filter.components.PersistenceFilter"
+    ms: float = setting(50.0, lo=0.0, hi=10000.0)
+    """How long (ms) a taxel must read on before it is reported on; at 30 Hz, 50 ms is 2 frames and 100 ms is 3
+    (0 = no filter). The onset of a touch is delayed by the same k - 1 frames."""
+
+
+@dataclass
 class MedianFilterSchema(FilterSchema):
     """Causal running median of each taxel's last ``frames`` readings."""
 
@@ -67,4 +78,5 @@ class DespeckleFilterSchema(FilterSchema):
 store(group="filter", name="none_schema", node=NoFilterSchema)
 store(group="filter", name="debounce_schema", node=DebounceFilterSchema)
 store(group="filter", name="median_schema", node=MedianFilterSchema)
+store(group="filter", name="persistence_schema", node=PersistenceFilterSchema)
 store(group="filter", name="despeckle_schema", node=DespeckleFilterSchema)

@@ -4,30 +4,26 @@
 MLflow runs and writes ``SWEEP_DIR/report/``: a self-contained
 ``report.html`` (figures embedded), the PNG figures, ``summary.txt``,
 ``saturation.csv``/``saturation.json``/``points.csv``; it logs them to the
-sweep's parent run. The saturation rule and its bootstrap are pure
-functions in :mod:`sphri.report.saturation` (the report uses
-:func:`envelope_saturation`); a sweep over the false-on rate also gets
+sweep's parent run. The requirement rule and its bootstrap are pure
+functions in :mod:`sphri.report.saturation` (:func:`certified_saturation`); a sweep over the false-on rate also gets
 ``requirement_map.csv`` and its figure (:mod:`sphri.report.reqmap`).
 """
 
 from sphri.report.analysis import RuleSettings, SweepReport, analyze
 from sphri.report.build import ReportFiles, make_report
 from sphri.report.saturation import (
-    Envelope,
+    Certificate,
     RerunNoise,
     Saturation,
     Tolerance,
+    certified_saturation,
     curve_stats,
-    envelope_saturation,
-    paired_saturation,
     physical_interval,
-    saturation,
-    saturation_index,
 )
 from sphri.report.sweep import ReportError, Sweep, load_sweep
 
 __all__ = [
-    "Envelope",
+    "Certificate",
     "RerunNoise",
     "ReportError",
     "ReportFiles",
@@ -38,11 +34,8 @@ __all__ = [
     "analyze",
     "Tolerance",
     "curve_stats",
-    "envelope_saturation",
+    "certified_saturation",
     "load_sweep",
     "make_report",
-    "paired_saturation",
     "physical_interval",
-    "saturation",
-    "saturation_index",
 ]

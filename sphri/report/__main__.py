@@ -5,7 +5,7 @@
     sphri report outputs/sweeps/resolution_rf          # a sweep directory
     sphri report 3f2a...c9 output_dir=outputs          # a parent run id (store outputs/mlflow.db)
     sphri report DIR tolerance=0.02 n_boot=5000         # the sentence uses a 2-point tolerance
-    sphri report DIR tolerances=se,2se,0.01,0.02        # the tolerances shown side by side
+    sphri report DIR tolerances=0.01,0.02,0.05          # the tolerances shown side by side
     sphri report DIR out=DIR2 mlflow=false              # elsewhere, not logged to MLflow
     sphri report DIR marks=false                        # figures without the SYNTHETIC banner and ids
     sphri report DIR formats=png                        # PNG figures only (default png,pdf,svg)
@@ -56,15 +56,15 @@ class ReportArgs:
     output_dir: str = arg("outputs", help="the runs' output_dir, for the default store")
     out: str | None = arg(None, help="where to write the report (default: <sweep dir>/report)")
     tolerances: list[str] = arg(
-        ["se", "0.01", "0.02"],
+        ["0.01", "0.02", "0.03"],
         check=_tolerances,
-        help="tolerances of the paired rule shown side by side: se (one paired standard error), 2se, "
-        "or accuracy units (0.01 = 1 point)",
+        help="tolerances shown side by side, in accuracy units (0.01 = 1 point); each is raised to the smallest "
+        "tolerance the study can certify when that is larger",
     )
     tolerance: str = arg(
         "0.01",
         check=lambda t: _tolerances([t]),
-        help="the tolerance the requirement sentence uses (added to tolerances)",
+        help="the tolerance the requirement sentence asks for (added to tolerances)",
     )
     n_boot: int = arg(2000, check=lambda n: None if n >= 0 else "must be >= 0", help="participant bootstrap resamples")
     ci: float = arg(0.95, check=lambda c: None if 0 < c < 1 else "must be in (0, 1)", help="interval coverage")

@@ -2,10 +2,10 @@
 
 For each group of jobs (see :mod:`sphri.report.sweep`) the per-participant
 scores form (P, R) matrices (participants x resolutions, coarse to fine by
-``encoder.res``); :func:`sphri.report.saturation.saturation` finds the
-saturation point of the accuracy curve with a participant-bootstrap
-interval, and of each gesture's recall curve (which gestures need fine
-skin). The requirement sentence states the saturation point in physical
+``encoder.res``); :func:`sphri.report.saturation.certified_saturation` finds the
+coarsest resolution certified to keep accuracy within a tolerance of the
+best (with a bootstrap interval), and the same for each gesture's recall
+curve (which gestures need fine skin). The requirement sentence states the saturation point in physical
 units: the larger of the two pitches (along and around the link, mm) and
 the area per taxel (cm^2).
 """
@@ -19,13 +19,14 @@ import numpy as np
 import pandas as pd
 
 from sphri.report.saturation import (
-    ENVELOPE_ALPHA,
-    Envelope,
+    CERTIFY_ALPHA,
+    Certificate,
     Saturation,
     Tolerance,
+    certified_saturation,
     curve_stats,
-    envelope_saturation,
     physical_interval,
+    points_text,
 )
 from sphri.report.sweep import GEOMETRY_PARAMS, Sweep
 from sphri.types import GESTURES
@@ -36,21 +37,20 @@ CHANCE = 1.0 / len(GESTURES)
 
 @dataclass(frozen=True)
 class RuleSettings:
-    """How the saturation point is chosen: the paired rule (:func:`sphri.report.saturation.paired_saturation`)
-    under several tolerances, one of which (``primary``) the requirement sentence uses."""
+    """How the requirement is chosen (:func:`sphri.report.saturation.certified_saturation`) under several
+    tolerances, one of which (``primary``) the requirement sentence uses."""
 
-    tolerances: tuple[str, ...] = ("se", "0.01", "0.02")
-    """Tolerances shown side by side: ``se`` (one paired standard error), ``2se``, or accuracy units (0.01 = 1 point)."""
+    tolerances: tuple[str, ...] = ("0.01", "0.02", "0.03")
+    """Tolerances shown side by side, in accuracy units (0.01 = 1 point)."""
     primary: str = "0.01"
-    """The tolerance the requirement sentence uses (one of ``tolerances``)."""
+    """The tolerance the requirement sentence asks for (one of ``tolerances``; raised to the smallest
+    certifiable tolerance when that is larger)."""
     n_boot: int = 2000
-    """Participant bootstrap resamples."""
+    """Bootstrap resamples (participants and seeds)."""
     ci: float = 0.95
     seed: int = 0
-    noise_floor: bool = True
-    """Raise a fixed tolerance to the measured rerun noise of one run's curve when it is smaller."""
-    alpha: float = ENVELOPE_ALPHA
-    """Family-wise error rate of the rule's "this finer point is outside the tolerance" decisions."""
+    alpha: float = CERTIFY_ALPHA
+    """The probability allowed that the requirement's promise is broken."""
 
     def __post_init__(self) -> None:
         names = [t.name for t in self.parsed()]
@@ -64,7 +64,7 @@ class RuleSettings:
     def parsed(self) -> list[Tolerance]:
         """The tolerances, parsed, in the order given."""
         if not self.tolerances:
-            raise ValueError("tolerances is empty: give at least one (e.g. se,0.01,0.02)")
+            raise ValueError("tolerances is empty: give at least one (e.g. 0.01,0.02,0.03)")
         return [Tolerance.parse(t) for t in self.tolerances]
 
     @property
@@ -75,20 +75,14 @@ class RuleSettings:
         """The rule in a few sentences."""
         others = [t.describe() for t in self.parsed() if t.name != self.primary_tolerance.name]
         text = (
-            "Each resolution is compared with the best one participant by participant. With several seeds the "
-            "best resolution is cross-fitted: chosen on the other seeds and measured on each seed in turn (no "
-            "winner's curse); with one seed it is chosen and measured on the same runs. A participant's deficit "
-            "is their accuracy at the best resolution minus theirs at this one; the paired deficit is its mean "
-            "over participants, with its paired standard error. A resolution is outside the tolerance when its "
-            "paired deficit exceeds the tolerance by more than its noise margin (z paired standard errors, "
-            f"one-sided, family-wise {self.alpha:g} over the resolutions). The requirement is the coarsest "
-            "resolution from which every finer swept resolution is inside the tolerance (an envelope, not a "
-            f"first crossing). The requirement sentence uses a tolerance of {self.primary_tolerance.describe()}"
-            + (
-                ", raised to the measured rerun noise of one run's mean accuracy when that is larger"
-                if self.noise_floor
-                else ""
-            )
+            "The requirement is the coarsest resolution from which every finer swept resolution is within the "
+            f"tolerance of the best, with {1 - self.alpha:.0%} confidence. Each participant's accuracy is "
+            "averaged over the seeds; for every pair of resolutions the paired difference over participants "
+            "(which carries each person's own response to resolution) gets a one-sided upper confidence bound "
+            "(Student's t, Bonferroni over the resolutions). A resolution's bound is its largest against any "
+            "resolution, so the best need not be picked from the same noisy data. The smallest tolerance the "
+            "study can certify is the finest resolution's bound; a tolerance asked for below it is raised to "
+            f"it. The requirement sentence asks for {self.primary_tolerance.describe()}"
             + ("; the tolerance table also shows " + ", ".join(others) if others else "")
             + "."
         )
@@ -96,8 +90,8 @@ class RuleSettings:
             return text + " No bootstrap interval was requested."
         return (
             f"{text} Each {self.ci:.0%} interval is the {100 * (1 - self.ci) / 2:g}/{100 * (1 + self.ci) / 2:g} "
-            f"percentiles of the point chosen on {self.n_boot} bootstrap resamples of the participants and, with "
-            "several seeds, of the seeds (each resample redoes the cross-fitting, the best resolution and the rule)."
+            f"percentiles of the resolution chosen on {self.n_boot} bootstrap resamples of the participants and, "
+            "with several seeds, of the seeds (each resample redoes the bounds and the rule at the tolerance used)."
         )
 
 
@@ -134,8 +128,9 @@ class GroupReport:
     pitch_interval_mm: tuple[float, float] | None
     area_interval_cm2: tuple[float, float] | None
     gesture_sat: dict[str, Saturation]
-    envelope: Envelope
-    """The rule's rerun noise, tolerance floor, noise margin and cross-fitting (primary tolerance)."""
+    certificate: Certificate
+    """What the rule certified under the primary tolerance: the smallest certifiable tolerance, the one used, the
+    rerun noise."""
     seeds: list[str]
     """The replicate seeds of this curve (one entry when the sweep has no replicates)."""
     accuracy_seeds: np.ndarray
@@ -198,10 +193,12 @@ class RequirementMap:
     """The other group keys these curves share ("" when only the noise varies)."""
     rates: list[float]
     curves: list[GroupReport]
+    keys: dict[str, str] = field(default_factory=dict)
+    """The other group keys themselves (``{"filter": "persistence"}``)."""
 
     def dip_index(self, g: GroupReport) -> int | None:
         """The deepest resolution outside the tolerance that is finer than one inside it, or None."""
-        env = g.envelope
+        env = g.certificate
         inside = ~env.outside & np.isfinite(g.sat.stats.mean)
         if not inside.any():
             return None
@@ -228,7 +225,9 @@ def requirement_maps(groups: list[GroupReport]) -> list[RequirementMap]:
             continue  # one rate, or two curves share a rate (another noise setting varies): not a map
         members.sort(key=lambda t: t[0])
         out.append(
-            RequirementMap(", ".join(f"{k}={v}" for k, v in other), [r for r, _ in members], [g for _, g in members])
+            RequirementMap(
+                ", ".join(f"{k}={v}" for k, v in other), [r for r, _ in members], [g for _, g in members], dict(other)
+            )
         )
     return out
 
@@ -320,10 +319,16 @@ def _sensitivity_sentence(ref: GroupReport | None, members: list[GroupReport], r
     else:
         head = "No reference variant in this sweep (conf/sensitivity/reference.yaml)"
     finest = [g.keys.get(VARIANT_KEY, g.label) for g in members if g.sat.at_finest]
+    used = [g.sat.tolerance for g in members]
+    within = (
+        points_text(used[0])
+        if max(used) - min(used) < 1e-12
+        else f"{100 * min(used):.1f} to {100 * max(used):.1f} points of accuracy, the tolerance each one's data certify"
+    )
     tail = (
         f"; between {_fmt_pitch(pitches[lo_v])} mm ({lo_v}) and {_fmt_pitch(pitches[hi_v])} mm ({hi_v}) across the "
-        f"{len(members)} assumptions tested (accuracy within {rule.primary_tolerance.describe()} of each one's "
-        "best, paired over participants)."
+        f"{len(members)} assumptions tested (accuracy within {within} of each one's best at every finer pitch, "
+        f"{1 - rule.alpha:.0%} confidence, paired over participants)."
     )
     if finest:
         tail += (
@@ -371,15 +376,10 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     recall = {g: _seed_mean(m) for g, m in recall_s.items()}
 
     tol_env = [
-        (
-            t,
-            *envelope_saturation(
-                acc_s, t, n_boot=rule.n_boot, ci=rule.ci, seed=rule.seed, alpha=rule.alpha, noise_floor=rule.noise_floor
-            ),
-        )
+        (t, *certified_saturation(acc_s, t, n_boot=rule.n_boot, ci=rule.ci, seed=rule.seed, alpha=rule.alpha))
         for t in rule.parsed()
     ]
-    sat, envelope = next((st, env) for t, st, env in tol_env if t.name == rule.primary_tolerance.name)
+    sat, certificate = next((st, env) for t, st, env in tol_env if t.name == rule.primary_tolerance.name)
     by_tol = [(t, st) for t, st, _ in tol_env]
     st = sat.stats
     # One row per resolution: the lowest seed's job names the point (its confusion matrix, its geometry).
@@ -400,9 +400,7 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     gesture_sat = {}
     for gest, m in recall_s.items():
         if np.isfinite(m).any():
-            gesture_sat[gest] = envelope_saturation(
-                m, rule.primary_tolerance, n_boot=0, alpha=rule.alpha, noise_floor=rule.noise_floor
-            )[0]
+            gesture_sat[gest] = certified_saturation(m, rule.primary_tolerance, n_boot=0, alpha=rule.alpha)[0]
 
     first = rows.iloc[0]
     context = {k: first[k] for k in ("robot", "region", "link", "dataset", "synthetic", "cv_scheme", "model")}
@@ -421,7 +419,7 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
         pitch_iv,
         area_iv,
         gesture_sat,
-        envelope,
+        certificate,
         seeds,
         acc_s,
         context,
@@ -448,18 +446,9 @@ def _natural_key(s: str) -> list[Any]:
 
 
 def noise_text(g: GroupReport) -> str:
-    """The rerun noise and the tolerance the rule used, in words."""
-    env = g.envelope
-    seeds = f"{len(g.seeds)} seed{'s' if len(g.seeds) != 1 else ''}"
-    tol = f"tolerance used {g.sat.tolerance:.3f}"
-    if env.tolerance_floor > 0 and env.tolerance_floor >= g.sat.tolerance - 1e-12:
-        tol += f" (the {env.tolerance_requested} asked for, raised to the rerun noise)"
-    elif env.tolerance_floor > 0:
-        tol += f" (above the rerun noise {env.tolerance_floor:.3f})"
-    return (
-        f"{env.noise.describe()}; {seeds}; {tol}; noise margin {env.z:.2f} paired standard errors "
-        f"(family-wise {env.alpha:g})" + ("" if env.crossfit else "; best point not cross-fitted (one seed)")
-    )
+    """The rerun noise and the tolerance the rule certified, in words."""
+    cert = g.certificate
+    return f"{cert.noise.describe()}; {cert.describe()}"
 
 
 def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[str]]:
@@ -468,13 +457,12 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     where = f"{c['robot']} {c['region']}, link {c['link']}; {c['model']}, {str(c['cv_scheme']).upper()}"
     if c["synthetic"]:
         where += ", SYNTHETIC data"
-    tol = rule.primary_tolerance.describe()
-    if rule.primary_tolerance.n_se is not None:
-        tol += f" ({sat.tolerance:.3f} at that point)"
-    elif sat.tolerance > rule.primary_tolerance.fixed + 1e-12:
-        tol = (
-            f"{100 * sat.tolerance:.1f} points of accuracy ({sat.tolerance:.3f}: the measured rerun noise, "
-            f"above the {rule.primary_tolerance.describe()} asked for)"
+    cert = g.certificate
+    tol = points_text(sat.tolerance)
+    if cert.raised:
+        tol += (
+            f" (the smallest this study certifies with {cert.n_participants} participants and {cert.n_seeds} "
+            f"seed{'s' if cert.n_seeds != 1 else ''}; the {rule.primary_tolerance.describe()} asked for cannot be)"
         )
     if len(g.points) == 1:
         where_pt = (
@@ -492,16 +480,9 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
         area_txt = f"{area:.2f} cm^2 per taxel" if np.isfinite(area) and area > 0 else "area per taxel unknown"
         req = (
             f"A taxel pitch of at most {_fmt_pitch(rec['pitch_mm'])} mm ({_pitch_interval_words(g.pitch_interval_mm, sat, rule)}; "
-            f"{area_txt}) keeps accuracy within {tol} of the best, paired over participants, on this link ({where})."
+            f"{area_txt}) keeps accuracy within {tol} of the best at every finer swept pitch, with "
+            f"{1 - cert.alpha:.0%} confidence, paired over participants, on this link ({where})."
         )
-        gap = getattr(sat, "gap", float("nan"))
-        if np.isfinite(gap) and gap > sat.tolerance and sat.gap_interval is not None:
-            # the rule allows a noise margin: say so where the measured gap exceeds the tolerance itself
-            req += (
-                f" Within the tolerance by the rule's noise margin: the gap to the best measured there is "
-                f"{100 * gap:.1f} points ({rule.ci:.0%} CI {100 * sat.gap_interval[0]:.1f} to "
-                f"{100 * sat.gap_interval[1]:.1f})."
-            )
     else:
         res_iv = sat.interval
         iv_txt = (
@@ -511,8 +492,8 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
         )
         req = (
             f"At least {int(rec['n_taxels']) if np.isfinite(rec['n_taxels']) else rec['res']} taxels "
-            f"(encoder.res={rec['res']}; {iv_txt}) keep accuracy within {tol} of the best, paired over "
-            f"participants, on this link ({where})."
+            f"(encoder.res={rec['res']}; {iv_txt}) keep accuracy within {tol} of the best at every finer "
+            f"swept resolution, with {1 - cert.alpha:.0%} confidence, paired over participants, on this link ({where})."
         )
     facts = (
         f"Saturation at encoder.res={rec['res']} ({_taxels(rec['n_taxels'])}): accuracy "
@@ -547,12 +528,7 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     else:
         iv = "No bootstrap interval: " + (sat.note or "not computed") + "."
     warn = []
-    if g.envelope.finest_outside:
-        warn.append(
-            "even the finest resolution swept is outside the tolerance of the best: accuracy falls at the fine "
-            "end, so no swept resolution keeps every finer one within tolerance"
-        )
-    elif sat.at_finest:
+    if sat.at_finest:
         warn.append(
             "the finest resolution swept was chosen: accuracy may still rise; extend the sweep to a finer pitch"
         )
@@ -561,7 +537,7 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
             "the coarsest resolution swept is already within tolerance of the best: a coarser skin may do, "
             "or this model does not use spatial detail"
         )
-    note = "; ".join(n for n in sat.note.split("; ") if n and "falls at the fine end" not in n)
+    note = "; ".join(n for n in sat.note.split("; ") if n and "cannot be certified" not in n)
     if note and sat.interval is not None:
         warn.append(note)
     if np.nanmax(sat.stats.mean) < CHANCE + 0.05:

@@ -28,7 +28,7 @@ from sphri.report.compute import COLUMNS as COMPUTE_COLUMNS
 from sphri.report.compute import compute_rows
 from sphri.report.figures import plot_bootstrap, plot_curves, plot_recall, plot_tornado
 from sphri.report.render import comparison_rows, render_html, render_text, sensitivity_rows, tolerance_rows
-from sphri.report.reqmap import map_rows, plot_map
+from sphri.report.reqmap import filter_rows, map_rows, plot_map
 from sphri.report.sweep import ReportError, Sweep, load_sweep
 
 log = logging.getLogger(__name__)
@@ -175,6 +175,11 @@ def write_report(
     if report.maps:
         tables["requirement_map"] = out_dir / "requirement_map.csv"
         pd.DataFrame(map_rows(report)).to_csv(tables["requirement_map"], index=False, float_format="%.6g")
+    (out_dir / "filter_pairs.csv").unlink(missing_ok=True)
+    pairs = filter_rows(report)
+    if pairs:
+        tables["filter_pairs"] = out_dir / "filter_pairs.csv"
+        pd.DataFrame(pairs).to_csv(tables["filter_pairs"], index=False, float_format="%.6g")
     tables["compute"] = out_dir / "compute.csv"
     pd.DataFrame(compute_rows(report.sweep), columns=COMPUTE_COLUMNS).to_csv(
         tables["compute"], index=False, float_format="%.6g"
@@ -251,6 +256,7 @@ def _json(report: SweepReport) -> dict:
                 for s in report.sensitivity
             ],
             "requirement_map": map_rows(report),
+            "filter_pairs": filter_rows(report),
             "compute": compute_rows(report.sweep),
             "notes": report.notes,
             "failed": report.sweep.failed,

@@ -17,6 +17,7 @@ import numpy as np
 
 from sphri.report.analysis import SweepReport, _fmt_pitch, gestures_by_need, noise_text, recognised
 from sphri.report.compute import compute_lines, compute_rows
+from sphri.report.saturation import points_text
 from sphri.templating import render_page
 from sphri.types import GESTURES
 
@@ -77,12 +78,12 @@ def comparison_rows(report: SweepReport) -> list[dict[str, Any]]:
                 "accuracy": rec["accuracy_mean"],
                 "accuracy_std": rec["accuracy_std"],
                 "tolerance": g.sat.tolerance,
-                "tolerance_requested": g.envelope.tolerance_requested,
-                "rerun_noise_per_participant": g.envelope.noise.per_participant,
-                "rerun_noise_curve": g.envelope.noise.curve,
-                "rerun_noise_source": g.envelope.noise.source,
+                "tolerance_requested": g.certificate.tolerance_requested,
+                "tolerance_certifiable": g.certificate.certifiable,
+                "rerun_noise_per_participant": g.certificate.noise.per_participant,
+                "rerun_noise_curve": g.certificate.noise.curve,
+                "rerun_noise_source": g.certificate.noise.source,
                 "seeds": len(g.seeds),
-                "crossfit": g.envelope.crossfit,
                 "best_res": int(best["res"]),
                 "best_pitch_mm": best["pitch_mm"],
                 "best_accuracy": best["accuracy_mean"],
@@ -105,7 +106,6 @@ def tolerance_rows(report: SweepReport) -> list[dict[str, Any]]:
             rec = g.points.iloc[t.sat.index]
             iv = t.pitch_interval_mm
             d, dse = t.sat.deficit, t.sat.deficit_se
-            assert d is not None and dse is not None  # the envelope rule (every report group's) sets both
             rows.append(
                 {
                     "group": g.label,
@@ -260,6 +260,11 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
             where = f"{_fmt_pitch(rec['pitch_mm'])} mm ({iv})" if g.has_pitch else f"res {int(rec['res'])}"
             lines.append(
                 f"  tolerance {t.tolerance.describe()}: {where}, encoder.res {int(rec['res'])}"
+                + (
+                    f" (certified within {points_text(t.sat.tolerance)}, the smallest this study can)"
+                    if t.sat.tolerance > t.tolerance.fixed + 1e-12
+                    else ""
+                )
                 + ("   <- used in the sentence" if t.primary else "")
             )
         need = gestures_by_need(g)

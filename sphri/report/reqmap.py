@@ -18,6 +18,14 @@ resolution outside the tolerance of the best that is finer than a resolution
 inside it (the first-crossing rule would have stopped before it); the
 deepest one per rate is flagged, so the table shows the false-on count per
 frame at which each rate's trough sits.
+
+When the sweep also varies the skin-side ``filter`` (the maps differ only in
+it), :func:`filter_rows` is ``filter_pairs.csv`` (one row per false-on rate,
+filter and resolution: the accuracy of each (pitch, filter) pair) and
+:func:`filter_text` the summary: per rate, the pair with the highest mean
+accuracy and each filter's required pitch; and what each filter costs on
+clean data (false-on rate 0): the mean accuracy without it minus with it, at
+each resolution, paired over participants.
 """
 
 from __future__ import annotations
@@ -26,7 +34,10 @@ from pathlib import Path
 
 import numpy as np
 
-from sphri.report.analysis import SweepReport, noise_text
+from sphri.report.analysis import GroupReport, RequirementMap, SweepReport, noise_text
+
+#: The group key of the skin-side filter.
+FILTER_KEY = "filter"
 
 
 def map_rows(report: SweepReport) -> list[dict[str, object]]:
@@ -37,7 +48,6 @@ def map_rows(report: SweepReport) -> list[dict[str, object]]:
             rec, iv = g.recommended, g.pitch_interval_mm
             dip = m.dip_index(g)
             deficit, deficit_se = g.sat.deficit, g.sat.deficit_se
-            assert deficit is not None and deficit_se is not None  # the envelope rule (every report group's) sets both
             for i, p in g.points.iterrows():
                 rows.append(
                     {
@@ -55,7 +65,8 @@ def map_rows(report: SweepReport) -> list[dict[str, object]]:
                         "false_on_per_frame": rate * float(p["n_taxels"]),
                         "deficit": float(deficit[i]),
                         "deficit_se": float(deficit_se[i]),
-                        "outside_tolerance": bool(g.envelope.outside[i]),
+                        "bound": float(g.sat.bound[i]),
+                        "outside_tolerance": bool(g.certificate.outside[i]),
                         "dip": dip == i,
                         "required": i == g.sat.index,
                         "required_res": int(rec["res"]),
@@ -63,13 +74,13 @@ def map_rows(report: SweepReport) -> list[dict[str, object]]:
                         "required_pitch_lo_mm": iv[0] if iv else float("nan"),
                         "required_pitch_hi_mm": iv[1] if iv else float("nan"),
                         "required_at_finest": bool(g.sat.at_finest),
-                        "finest_outside": bool(g.envelope.finest_outside),
                         "best_res": int(g.best["res"]),
                         "best_accuracy": g.best["accuracy_mean"],
                         "tolerance": g.sat.tolerance,
-                        "rerun_noise_per_participant": g.envelope.noise.per_participant,
-                        "rerun_noise_curve": g.envelope.noise.curve,
-                        "rerun_noise_source": g.envelope.noise.source,
+                        "tolerance_certifiable": g.certificate.certifiable,
+                        "rerun_noise_per_participant": g.certificate.noise.per_participant,
+                        "rerun_noise_curve": g.certificate.noise.curve,
+                        "rerun_noise_source": g.certificate.noise.source,
                         "synthetic": bool(g.context["synthetic"]),
                     }
                 )
@@ -95,10 +106,120 @@ def map_text(report: SweepReport) -> list[str]:
                 )
             lines.append(
                 f"  false-on {100 * rate:g} %: pitch at most {rec['pitch_mm']:.1f} mm ({ivt}), res "
-                f"{int(rec['res'])}, tolerance {g.sat.tolerance:.3f}, best {g.best['accuracy_mean']:.3f} at "
+                f"{int(rec['res'])}, certified within {g.sat.tolerance:.3f} (smallest certifiable "
+                f"{g.certificate.certifiable:.3f}), best {g.best['accuracy_mean']:.3f} at "
                 f"res {int(g.best['res'])}" + (" [finest point]" if g.sat.at_finest else "") + dtxt
             )
         lines.append("  " + noise_text(m.curves[0]) + f" (false-on {100 * m.rates[0]:g} %; each rate in the CSV)")
+    return lines + filter_text(report)
+
+
+def filter_sets(report: SweepReport) -> list[tuple[str, dict[str, RequirementMap]]]:
+    """Maps that differ only in the ``filter`` key: (label of the other keys, filter -> map), two filters or more."""
+    parts: dict[tuple[tuple[str, str], ...], dict[str, RequirementMap]] = {}
+    for m in report.maps:
+        if FILTER_KEY not in m.keys:
+            continue
+        other = tuple((k, v) for k, v in m.keys.items() if k != FILTER_KEY)
+        parts.setdefault(other, {})[m.keys[FILTER_KEY]] = m
+    return [(", ".join(f"{k}={v}" for k, v in o), maps) for o, maps in parts.items() if len(maps) >= 2]
+
+
+def _rates(maps: dict[str, RequirementMap]) -> list[float]:
+    """False-on rates every filter's map has."""
+    common = set.intersection(*(set(m.rates) for m in maps.values()))
+    return sorted(common)
+
+
+def filter_rows(report: SweepReport) -> list[dict[str, object]]:
+    """``filter_pairs.csv``: one row per (other keys, false-on rate, filter, resolution)."""
+    rows: list[dict[str, object]] = []
+    for label, maps in filter_sets(report):
+        for rate in _rates(maps):
+            curves = {f: m.curves[m.rates.index(rate)] for f, m in maps.items()}
+            best_f, best_i = _best_pair(curves)
+            for f, g in curves.items():
+                for i, p in g.points.iterrows():
+                    rows.append(
+                        {
+                            "others": label,
+                            "false_on_rate": rate,
+                            "filter": f,
+                            "res": int(p["res"]),
+                            "pitch_mm": p["pitch_mm"],
+                            "accuracy_mean": p["accuracy_mean"],
+                            "accuracy_se": p["accuracy_se"],
+                            "required": i == g.sat.index,
+                            "certified_tolerance": g.sat.tolerance,
+                            "best_pair": (f, i) == (best_f, best_i),
+                        }
+                    )
+    return rows
+
+
+def _best_pair(curves: dict[str, GroupReport]) -> tuple[str, int]:
+    """(filter, resolution index) of the highest mean accuracy among every filter's points at one rate."""
+    return max(
+        ((f, i) for f, g in curves.items() for i in range(len(g.points))),
+        key=lambda t: (np.nan_to_num(curves[t[0]].points["accuracy_mean"].iloc[t[1]], nan=-np.inf), t[0] == "none"),
+    )
+
+
+def clean_cost(none: GroupReport, other: GroupReport) -> tuple[np.ndarray, np.ndarray]:
+    """Per resolution of two clean-data curves (GroupReports over the same resolutions and participants): the
+    paired mean over participants of accuracy without the filter minus with it, and its standard error."""
+    from sphri.report.saturation import curve_stats
+
+    a, b = np.asarray(none.accuracy), np.asarray(other.accuracy)
+    if a.shape != b.shape:
+        return np.full(a.shape[1], np.nan), np.full(a.shape[1], np.nan)
+    st = curve_stats(a - b)
+    return st.mean, st.se
+
+
+def filter_text(report: SweepReport) -> list[str]:
+    """Per false-on rate and filter: the required pitch, the accuracy there and the tolerance certified, the best
+    accuracy and its pitch, the best (pitch, filter) pair marked; then each filter's cost on clean data."""
+    lines: list[str] = []
+    for label, maps in filter_sets(report):
+        lines.append("")
+        lines.append("[filters" + (f": {label}" if label else "") + "]")
+        names = sorted(maps, key=lambda f: (f != "none", f))
+        width = max(len("filter"), *(len(f) for f in names))
+        lines.append(
+            f"  {'false-on':>8}  {'filter':<{width}}  {'required pitch':>14}  {'accuracy':>8}  {'within':>6}  "
+            f"{'best accuracy (pitch)':>22}"
+        )
+        for rate in _rates(maps):
+            curves = {f: maps[f].curves[maps[f].rates.index(rate)] for f in names}
+            bf, bi = _best_pair(curves)
+            for f in names:
+                g = curves[f]
+                rec, best = g.recommended, g.best
+                mark = f"   <- best pair: {g.points['pitch_mm'].iloc[bi]:.1f} mm + {f}" if f == bf else ""
+                lines.append(
+                    f"  {100 * rate:>7g}%  {f:<{width}}  {rec['pitch_mm']:>11.1f} mm  {rec['accuracy_mean']:>8.3f}  "
+                    f"{g.sat.tolerance:>6.3f}  {best['accuracy_mean']:>11.3f} ({best['pitch_mm']:>5.1f} mm){mark}"
+                )
+        lines.append(
+            "  (required pitch: the rule's requirement per filter; within: the tolerance it certifies; best pair: "
+            "the highest mean accuracy over every filter and pitch at that rate, not a certified choice; every "
+            "pair's accuracy: filter_pairs.csv)"
+        )
+        if "none" in maps and 0.0 in _rates(maps):
+            clean = {f: maps[f].curves[maps[f].rates.index(0.0)] for f in names}
+            for f in names:
+                if f == "none":
+                    continue
+                cost, se = clean_cost(clean["none"], clean[f])
+                if not np.isfinite(cost).any():
+                    continue
+                j = int(np.nanargmax(cost))
+                res = int(clean[f].points["res"].iloc[j])
+                lines.append(
+                    f"  cost of {f} on clean data (false-on 0): {np.nanmean(cost):+.3f} mean over resolutions, "
+                    f"largest {cost[j]:+.3f} +/- {se[j]:.3f} at res {res} (accuracy without minus with, paired)"
+                )
     return lines
 
 

@@ -1,65 +1,47 @@
-"""The saturation rule and its bootstrap over participants (pure functions).
+"""The requirement rule: the coarsest pitch certified to keep accuracy within T of the best (pure functions).
 
-Input everywhere is a score matrix ``scores`` of shape (P, R): one row per
-participant (a LOSO fold), one column per sweep point, the columns ordered
-**coarse to fine** (fewest taxels first). Entries are accuracies (or any
-score in which higher is better); NaN marks a missing value (a failed job,
-a fold without that gesture, ...).
+Input is a score array of shape (S, P, R) or (P, R): seeds x participants x
+sweep points, the points ordered **coarse to fine** (fewest taxels first).
+Entries are accuracies (or any score in which higher is better); NaN marks a
+missing value (a failed job, a fold without that gesture, ...).
 
-The rule (a one-standard-error rule, as in Breiman et al.'s CART pruning):
+The claim the rule makes, and proves at confidence ``1 - alpha``: *from the
+chosen pitch on, every finer swept pitch is within T of the best swept pitch*.
 
-1. For each sweep point r, the curve is the mean of the finite scores over
-   participants, ``mean[r]``, with standard error
-   ``se[r] = std(ddof=1) / sqrt(n[r])`` (n[r] finite scores; undefined, and
-   taken as 0, when n[r] < 2). Points with no finite score are ineligible.
-2. The best point b is the one with the highest mean (the coarsest among
-   ties). The tolerance is ``n_se * se[b]`` (one standard error of the best
-   by default), or a fixed ``tolerance`` in score units when given.
-3. The saturation point is the **coarsest** point whose mean is within the
-   tolerance of the best: the first r with ``mean[r] >= mean[b] - tolerance``.
+1. **Participants are the unit.** Each participant's scores are averaged over
+   the seeds first; the seeds only make each participant's score less noisy.
+2. **Paired deficits against every candidate best.** For each pair of points
+   (j, r), each participant's difference ``x[p, j] - x[p, r]`` (participants
+   missing either score are left out of that pair) has a mean and a standard
+   error over participants: a participant x resolution effect (one person
+   gains more from fine skin than another) is in that spread, and so in the
+   bound. The one-sided upper confidence bound of the pair is
+   ``mean + t * se`` with Student's t at ``n - 1`` degrees of freedom.
+3. **The best is not chosen, so its selection costs nothing.** A point's
+   bound is the largest of its bounds against *every* point j:
+   ``bound[r] = max_j (mean_jr + t * se_jr)``. Whichever point truly is best,
+   the bound against it is among them, so no winner's curse enters (a best
+   chosen as the highest observed mean is too high on the data that chose it).
+4. **Multiplicity.** The true best's comparisons with the other R - 1 points
+   must hold together: ``t`` is taken at ``1 - alpha / (R - 1)``
+   (Bonferroni). With probability at least ``1 - alpha`` then, for every
+   point r at once, the true gap of r to the true best is at most
+   ``bound[r]``; that holds for any T, including one chosen from the data.
+5. **Envelope.** A point is *certified at T* when it and every finer point
+   have ``bound <= T``. The requirement is the coarsest certified point.
+6. **The smallest certifiable T.** ``T* = bound[finest]`` is the smallest T at
+   which any pitch is certified (the bounds' suffix maximum only grows toward
+   the coarse end). A T asked for below ``T*`` cannot be certified with these
+   participants and seeds: the rule uses ``max(T, T*)`` and says so, never a
+   smaller T.
 
-Consequences: a flat curve saturates at the coarsest point; a curve that
-still rises by more than the tolerance at its finest point saturates at the
-finest point (the sweep did not reach saturation; :attr:`Saturation.at_finest`
-says so).
-
-Participants without any finite score are dropped first.
-
-The interval is a participant bootstrap: draw P participants with
-replacement (whole rows, so each participant's scores stay paired across
-resolutions), recompute the curve, its standard errors and the rule, and
-record the selected point; the interval is the (1 - ci)/2 and (1 + ci)/2
-percentiles (``inverted_cdf``, so both ends are sweep points) of the
-selected point over ``n_boot`` resamples. :func:`physical_interval` turns it
-into a pitch (or any per-point quantity). With fewer than two participants
-there is no standard error and no bootstrap: the interval is ``None`` and
-:attr:`Saturation.note` says why.
-
-The **paired rule** (:func:`paired_saturation`, what the report uses)
-compares each resolution with the best one participant by participant:
-
-1. The best point b is the one with the highest mean (coarsest among ties).
-2. For each point r, each participant's deficit is ``s[p, b] - s[p, r]``
-   (their accuracy at the best point minus theirs at r; participants
-   missing either score are left out of that pair); the paired deficit is
-   its mean over participants, with the paired standard error
-   ``std(ddof=1) / sqrt(n)`` (0 at b itself).
-3. The saturation point is the coarsest r whose paired deficit is within a
-   :class:`Tolerance`: a fixed number of accuracy points (``0.01``: one
-   point), or ``k`` paired standard errors of that point's own deficit
-   (``se``: one).
-
-Between-participant differences (one person is better at every resolution)
-cancel in the pairs, so the rule sees only how each person's accuracy changes
-with resolution. A fixed tolerance in points ignores a gain smaller than it,
-however consistent; the SE tolerance ignores gains that are not consistent
-across participants. The bootstrap redraws participants and redoes both the
-best point and the rule.
+The interval is a bootstrap: participants with replacement (whole rows over
+seeds and points) and, with two or more seeds, seeds with replacement; each
+resample redoes the bounds and the envelope at the T the full data used.
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -67,6 +49,9 @@ import numpy as np
 
 #: Slack for float comparisons of means (scores are in [0, 1]).
 _EPS = 1e-12
+
+#: The rule's error rate: the probability that the true gap of a certified point to the true best exceeds T.
+CERTIFY_ALPHA = 0.05
 
 
 @dataclass(frozen=True)
@@ -85,43 +70,82 @@ class CurveStats:
 
 @dataclass(frozen=True)
 class Saturation:
-    """Outcome of the saturation rule on one curve (indices into the R points)."""
+    """Outcome of the rule on one curve (indices into the R points)."""
 
     index: int
-    """Selected (saturation) point, index into the coarse-to-fine order."""
+    """Selected point (the requirement), index into the coarse-to-fine order."""
     best_index: int
-    """Point with the highest mean."""
+    """Point with the highest mean (reported; the rule does not rely on it)."""
     tolerance: float
-    """Allowed shortfall from the best mean (score units, e.g. accuracy)."""
+    """The tolerance certified (score units): the one asked for, or the smallest certifiable when larger."""
     stats: CurveStats
     n_participants: int
-    """Participants (rows) with at least one finite score."""
+    """Participants with at least one finite score."""
     interval: tuple[int, int] | None
     """(low, high) percentile indices of the bootstrap, or None (see ``note``)."""
     ci: float
     n_boot: int
-    """Bootstrap resamples drawn (0 when no interval)."""
+    """Bootstrap resamples kept (0 when no interval)."""
     boot_index: np.ndarray | None
     """(n_boot,) int64 selected index per resample, or None."""
     gap: float
-    """Mean paired shortfall of the selected point from the best (score units; >= 0 up to noise)."""
+    """Mean paired shortfall of the selected point from the best-mean point (score units)."""
     gap_interval: tuple[float, float] | None
-    """Bootstrap percentile interval of ``gap`` (paired over participants), or None."""
+    """Bootstrap percentile interval of ``gap``, or None."""
     note: str
     """Why something is missing or degenerate ("" when all is well)."""
-    rule: str = "unpaired"
-    """"unpaired" (:func:`saturation`) or "paired" (:func:`paired_saturation`)."""
-    deficit: np.ndarray | None = None
-    """Paired rule: (R,) mean paired deficit from the best point (score units; 0 at the best)."""
-    deficit_se: np.ndarray | None = None
-    """Paired rule: (R,) paired standard error of ``deficit`` (0 at the best, and where n < 2)."""
+    deficit: np.ndarray
+    """(R,) mean paired deficit from the best-mean point (0 there)."""
+    deficit_se: np.ndarray
+    """(R,) paired standard error of ``deficit``."""
+    bound: np.ndarray
+    """(R,) upper confidence bound of each point's gap to the best (any candidate best; inf when unknown)."""
     tolerance_name: str = ""
-    """Paired rule: the :class:`Tolerance` used, as written (``se``, ``2se``, ``0.01``)."""
+    """The tolerance asked for, as written (``0.01``)."""
+    rule: str = "certified"
 
     @property
     def at_finest(self) -> bool:
         """True when the rule picked the finest point: the sweep may not have saturated."""
         return self.index == self.stats.mean.shape[0] - 1 and self.stats.mean.shape[0] > 1
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """What the rule certified on one curve (see :func:`certified_saturation`)."""
+
+    noise: RerunNoise
+    tolerance_requested: float
+    """T asked for (score units)."""
+    certifiable: float
+    """T*: the smallest tolerance at which any swept pitch is certified (the finest point's bound)."""
+    tolerance_used: float
+    """``max(tolerance_requested, certifiable)``: the T the requirement is stated with."""
+    alpha: float
+    t: float
+    """Student's t quantile of the bounds (one-sided, ``alpha`` shared over R - 1 points; at the fewest pairs)."""
+    n_seeds: int
+    n_participants: int
+    outside: np.ndarray
+    """(R,) bool: points whose bound exceeds the tolerance used (not certified within it)."""
+
+    @property
+    def raised(self) -> bool:
+        """True when the T asked for could not be certified and the larger T* is used."""
+        return self.certifiable > self.tolerance_requested + _EPS
+
+    def describe(self) -> str:
+        """The certificate in words (for the summary and the page)."""
+        head = (
+            f"smallest certifiable tolerance {points_text(self.certifiable)} with {self.n_participants} "
+            f"participants and {self.n_seeds} seed{'s' if self.n_seeds != 1 else ''}"
+        )
+        if self.raised:
+            head += f"; the {points_text(self.tolerance_requested)} asked for cannot be certified, so it is used"
+        return head + (
+            f"; {1 - self.alpha:.0%} confidence, one-sided bounds on paired deficits against every point, "
+            f"Bonferroni over the points (t = {self.t:.2f})"
+        )
 
 
 def curve_stats(scores: np.ndarray) -> CurveStats:
@@ -158,81 +182,6 @@ def _batch_stats(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.
     return mean, std, se, n.astype(np.int64)
 
 
-def _rule(
-    mean: np.ndarray, se: np.ndarray, n_se: float, tolerance: float | None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Vectorized rule on (B, R) curves -> (selected, best, tolerance) each (B,); -1 where no finite point."""
-    valid = np.isfinite(mean)
-    any_valid = valid.any(axis=1)
-    masked = np.where(valid, mean, -np.inf)
-    best = np.argmax(masked, axis=1)  # first maximum = coarsest among ties
-    rows = np.arange(mean.shape[0])
-    best_mean = masked[rows, best]
-    if tolerance is None:
-        best_se = se[rows, best]
-        tol = n_se * np.where(np.isfinite(best_se), best_se, 0.0)
-    else:
-        tol = np.full(mean.shape[0], float(tolerance))
-    eligible = valid & (masked >= (best_mean - tol - _EPS)[:, None])
-    selected = np.argmax(eligible, axis=1)  # first True = coarsest
-    selected = np.where(any_valid, selected, -1)
-    best = np.where(any_valid, best, -1)
-    return selected, best, tol
-
-
-def saturation_index(scores: np.ndarray, n_se: float = 1.0, tolerance: float | None = None) -> int:
-    """Index of the saturation point of ``scores`` (P, R), columns coarse to fine (see module doc)."""
-    return saturation(scores, n_se=n_se, tolerance=tolerance, n_boot=0).index
-
-
-def saturation(
-    scores: np.ndarray,
-    n_se: float = 1.0,
-    tolerance: float | None = None,
-    n_boot: int = 2000,
-    ci: float = 0.95,
-    seed: int = 0,
-) -> Saturation:
-    """Apply the saturation rule to ``scores`` (P, R) and bootstrap it over participants.
-
-    ``n_se``: the tolerance in standard errors of the best point's mean
-    (used when ``tolerance`` is None). ``tolerance``: a fixed allowed
-    shortfall in score units instead. ``n_boot``: bootstrap resamples (0 =
-    no interval). ``ci``: interval coverage. ``seed``: the resampling seed
-    (same seed, same interval). Raises ValueError for a malformed matrix or
-    when no point has a finite score.
-    """
-    if not np.isfinite(n_se) or n_se < 0:
-        raise ValueError(f"n_se={n_se!r} is invalid: must be a finite number >= 0")
-    if tolerance is not None and (not np.isfinite(tolerance) or tolerance < 0):
-        raise ValueError(f"tolerance={tolerance!r} is invalid: must be a finite number >= 0 (score units)")
-    s, stats, mean, se = _scored(scores, ci, n_boot)
-    sel, best, tol = _rule(mean, se, n_se, tolerance)
-    index, best_index = int(sel[0]), int(best[0])
-    gap_vals = s[:, best_index] - s[:, index]
-    gap = (
-        float(np.nanmean(gap_vals))
-        if np.isfinite(gap_vals).any()
-        else float(stats.mean[best_index] - stats.mean[index])
-    )
-
-    notes = []
-    n_missing = int((~np.isfinite(s)).sum())
-    if n_missing:
-        notes.append(f"{n_missing} of {s.size} participant x point scores are missing (NaN) and were skipped")
-    single = "only one participant: no standard error and no bootstrap interval; the rule's tolerance is " + (
-        "the fixed tolerance" if tolerance is not None else "0, so the saturation point is the best point"
-    )
-
-    def select(sb: np.ndarray) -> np.ndarray:
-        return _rule(*_batch_stats(sb)[0:3:2], n_se, tolerance)[0]
-
-    sat = Saturation(index, best_index, float(tol[0]), stats, s.shape[0], None, ci, 0, None, gap, None, "")
-    return _outcome(
-        sat, notes, single, n_boot, lambda: _bootstrap(s, index, best_index, n_boot, ci, seed, notes, select)
-    )
-
-
 def _check_bootstrap(ci: float, n_boot: int) -> None:
     if not 0.0 < ci < 1.0:
         raise ValueError(f"ci={ci!r} is invalid: must be in (0, 1)")
@@ -240,29 +189,167 @@ def _check_bootstrap(ci: float, n_boot: int) -> None:
         raise ValueError(f"n_boot={n_boot!r} is invalid: must be >= 0")
 
 
-def _scored(scores: np.ndarray, ci: float, n_boot: int) -> tuple[np.ndarray, CurveStats, np.ndarray, np.ndarray]:
-    """Check ``ci`` and ``n_boot``; (the (P, R) matrix without participants who have no finite score, its
-    curve, and the curve's mean and standard error as (1, R) batches). Raises ValueError when no score is finite."""
+def _t_quantile(q: float, df: np.ndarray) -> np.ndarray:
+    """Student's t quantile ``q`` at ``df`` degrees of freedom (NaN where df < 1)."""
+    from scipy.stats import t as student
+
+    df = np.asarray(df, dtype=np.float64)
+    out = np.full(df.shape, np.nan)
+    ok = df >= 1
+    out[ok] = student.ppf(q, df[ok])
+    return out
+
+
+def _bounds(x: np.ndarray, alpha: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bounds on B resamples of per-participant (seed-averaged) scores ``x`` (B, P, R).
+
+    Returns bound (B, R) (max over j of the pair's upper bound; inf where a pair lacks two participants),
+    best (B,) (highest mean, -1 when none), deficit and deficit_se (B, R) against that best.
+    """
+    n_b, _, n_r = x.shape
+    mean, _, _, _ = _batch_stats(x)
+    valid = np.isfinite(mean)
+    m = np.maximum(valid.sum(axis=1) - 1, 1)  # (B,) comparisons the true best makes
+    d = x[:, :, :, None] - x[:, :, None, :]  # (B, P, j, r)
+    dm, _, dse, dn = _batch_stats(d.reshape(n_b, x.shape[1], n_r * n_r))
+    dm, dse, dn = (a.reshape(n_b, n_r, n_r) for a in (dm, dse, dn))
+    q = np.broadcast_to((1.0 - alpha / m)[:, None, None], dn.shape)
+    from scipy.stats import t as student
+
+    tq = np.full(dn.shape, np.nan)
+    ok = dn >= 2
+    tq[ok] = student.ppf(q[ok], dn[ok] - 1)
+    ucb = np.where(ok, dm + tq * dse, np.inf)
+    pair_valid = valid[:, :, None] & valid[:, None, :]
+    ucb = np.where(pair_valid, ucb, -np.inf)
+    eye = np.eye(n_r, dtype=bool)[None]
+    ucb = np.where(eye & pair_valid, 0.0, ucb)
+    bound = np.where(valid, ucb.max(axis=1), np.nan)  # (B, r): max over candidate bests j
+    best = np.where(valid.any(axis=1), np.argmax(np.where(valid, mean, -np.inf), axis=1), -1)
+    rows = np.arange(n_b)
+    bi = np.maximum(best, 0)
+    deficit = dm[rows, bi, :]
+    deficit_se = np.where(np.isfinite(dse[rows, bi, :]), dse[rows, bi, :], 0.0)
+    return bound, best, deficit, deficit_se
+
+
+def _envelope(bound: np.ndarray, tol: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(selected (B,), certifiable T* (B,)) from bounds (B, R) (NaN = invalid point) at tolerances ``tol`` (B,).
+
+    ``tol`` NaN: use T* itself. The selection is the coarsest valid point from which every finer valid point
+    has ``bound <= max(tol, T*)``; -1 where no point is valid.
+    """
+    valid = np.isfinite(bound) | np.isposinf(bound)
+    b = np.where(valid, bound, -np.inf)
+    suffix = np.maximum.accumulate(b[:, ::-1], axis=1)[:, ::-1]  # max over this and every finer point
+    any_valid = valid.any(axis=1)
+    finest = bound.shape[1] - 1 - np.argmax(valid[:, ::-1], axis=1)
+    t_star = np.where(any_valid, b[np.arange(b.shape[0]), finest], np.nan)
+    used = np.fmax(tol, t_star)
+    ok = valid & (suffix <= used[:, None] + _EPS)
+    selected = np.where(ok.any(axis=1) & np.isfinite(used), np.argmax(ok, axis=1), finest)  # no bound: finest
+    return np.where(any_valid, selected, -1), t_star
+
+
+def certified_saturation(
+    scores: np.ndarray,
+    tolerance: Tolerance | str | float = "0.01",
+    n_boot: int = 2000,
+    ci: float = 0.95,
+    seed: int = 0,
+    alpha: float = CERTIFY_ALPHA,
+) -> tuple[Saturation, Certificate]:
+    """The rule (see the module doc) on ``scores`` (S, P, R) or (P, R), points coarse to fine.
+
+    ``tolerance``: T asked for (``0.01`` = one point); the rule uses ``max(T, T*)``. ``n_boot``: bootstrap
+    resamples for the interval (0 = none). ``alpha``: the probability allowed that a certified point's true
+    gap to the true best exceeds the tolerance used. Raises ValueError for a malformed array or when no
+    point has a finite score.
+    """
+    tol = tolerance if isinstance(tolerance, Tolerance) else Tolerance.parse(tolerance)
     _check_bootstrap(ci, n_boot)
-    s = _as_matrix(scores)
-    s = s[np.isfinite(s).any(axis=1)]  # participants with no score at all carry no information
-    if s.shape[0] == 0:
-        raise ValueError("no finite score at any sweep point: nothing to find a saturation point on")
-    mean, std, se, n = _batch_stats(s[None])
-    return s, CurveStats(mean[0], std[0], se[0], n[0]), mean, se
+    if not 0.0 < alpha < 1.0:
+        raise ValueError(f"alpha={alpha!r} is invalid: must be in (0, 1)")
+    s = _as_seeds(scores)
+    s = s[:, np.isfinite(s).any(axis=(0, 2))]  # participants with no score at all carry no information
+    if s.shape[1] == 0:
+        raise ValueError("no finite score at any sweep point: nothing to find a requirement on")
+    n_seeds, n_part, n_pts = s.shape
+    noise = rerun_noise(s)
+    x = _wmean(s, np.ones(1), axis=0)  # (P, R): each participant's mean over the seeds
+    bound, best, deficit, dse = _bounds(x[None], alpha)
+    sel, t_star = _envelope(bound, np.array([tol.fixed]))
+    index, best_index, t_star_v = int(sel[0]), int(best[0]), float(t_star[0])
+    used = max(tol.fixed, t_star_v)
+    mean, std, se, n = _batch_stats(x[None])
+    stats = CurveStats(mean[0], std[0], se[0], n[0])
+    n_valid = int(np.isfinite(stats.mean).sum())
+    t_q = float(_t_quantile(1.0 - alpha / max(n_valid - 1, 1), np.array([n_part - 1]))[0])
+    outside = np.isfinite(stats.mean) & ~(bound[0] <= used + _EPS)
+    cert = Certificate(noise, tol.fixed, t_star_v, used, float(alpha), t_q, n_seeds, n_part, outside)
+    notes = []
+    n_missing = int((~np.isfinite(s)).sum())
+    if n_missing:
+        notes.append(f"{n_missing} of {s.size} seed x participant x point scores are missing (NaN) and were skipped")
+    if not np.isfinite(t_star_v):
+        notes.append(
+            "fewer than two participants at the finest point: no bound, nothing certified; the finest point is returned"
+        )
+    elif cert.raised:
+        notes.append(
+            f"the {points_text(tol.fixed)} asked for cannot be certified with {n_part} participants and "
+            f"{n_seeds} seed{'s' if n_seeds != 1 else ''}: the smallest certifiable is {points_text(t_star_v)}"
+        )
+    sat = Saturation(
+        index,
+        best_index,
+        used,
+        stats,
+        n_part,
+        None,
+        ci,
+        0,
+        None,
+        float(deficit[0, index]),
+        None,
+        "",
+        deficit=deficit[0],
+        deficit_se=dse[0],
+        bound=bound[0],
+        tolerance_name=tol.name,
+    )
+    if n_part < 2 or n_boot == 0 or not np.isfinite(used):
+        why = (
+            "only one participant: no bound and no bootstrap interval"
+            if n_part < 2
+            else (
+                "no bootstrap requested (n_boot=0): no interval" if n_boot == 0 else "no finite tolerance: no interval"
+            )
+        )
+        notes.insert(0, why)
+        return replace(sat, note="; ".join(notes)), cert
 
-
-def _outcome(sat: Saturation, notes: list[str], single: str, n_boot: int, resample, note_first: bool = False):
-    """``sat`` (a rule's outcome without an interval) with its notes, and with the interval of its bootstrap
-    ``resample()`` -> (interval, selections kept, gap interval) when there are two participants or more and
-    ``n_boot`` > 0; otherwise a note why there is none (``single``: the note for one participant), last or with
-    ``note_first`` first."""
-    if sat.n_participants < 2 or n_boot == 0:
-        why = single if sat.n_participants < 2 else "no bootstrap requested (n_boot=0): no interval"
-        notes.insert(0 if note_first else len(notes), why)
-        return replace(sat, note="; ".join(notes))
-    interval, picked, gap_interval = resample()
-    return replace(
+    rng = np.random.default_rng(seed)
+    boot_sel = np.empty(n_boot, dtype=np.int64)
+    boot_gap = np.empty(n_boot, dtype=np.float64)
+    chunk = max(1, int(4e6 // max(n_part * n_pts * n_pts, 1)))
+    for start in range(0, n_boot, chunk):
+        b = min(chunk, n_boot - start)
+        pidx = rng.integers(0, n_part, size=(b, n_part))
+        sb = np.moveaxis(s[:, pidx], 0, 1)  # (b, S, P, R)
+        if n_seeds >= 2:
+            draws = rng.integers(0, n_seeds, size=(b, n_seeds))
+            wb = np.stack([np.bincount(d, minlength=n_seeds) for d in draws]).astype(float)
+        else:
+            wb = np.ones((b, 1))
+        xb = _wmean(sb, wb[:, :, None, None], axis=1)  # (b, P, R)
+        bound_b, best_b, _, _ = _bounds(xb, alpha)
+        sel_b, _ = _envelope(bound_b, np.full(b, used))
+        boot_sel[start : start + b] = sel_b
+        with np.errstate(invalid="ignore"), _quiet():
+            boot_gap[start : start + b] = np.nanmean(xb[:, :, best_index] - xb[:, :, index], axis=1)
+    interval, picked, gap_interval = _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
+    sat = replace(
         sat,
         interval=interval,
         n_boot=int(picked.size),
@@ -270,38 +357,13 @@ def _outcome(sat: Saturation, notes: list[str], single: str, n_boot: int, resamp
         gap_interval=gap_interval,
         note="; ".join(notes),
     )
+    return sat, cert
 
 
-def _bootstrap(
-    s: np.ndarray,
-    index: int,
-    best_index: int,
-    n_boot: int,
-    ci: float,
-    seed: int,
-    notes: list[str],
-    select: Callable[[np.ndarray], np.ndarray],
-) -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
-    """Participant bootstrap of a rule: ``select`` maps (B, P, R) resamples to (B,) selected indices.
-
-    Returns the percentile interval of the selected index, the selected
-    indices of the usable resamples, and the interval of the paired gap
-    between ``best_index`` and ``index``; appends notes about the resamples
-    and the participant count to ``notes``.
-    """
-    n_part = s.shape[0]
-    rng = np.random.default_rng(seed)
-    boot_sel = np.empty(n_boot, dtype=np.int64)
-    boot_gap = np.empty(n_boot, dtype=np.float64)
-    chunk = max(1, int(2e6 // max(s.size, 1)))  # (chunk, P, R) a few times in memory: ~16 MB each
-    for start in range(0, n_boot, chunk):
-        b = min(chunk, n_boot - start)
-        sb = s[rng.integers(0, n_part, size=(b, n_part))]  # (b, P, R): whole participants, paired across points
-        boot_sel[start : start + b] = select(sb)
-        with np.errstate(invalid="ignore"), _quiet():
-            boot_gap[start : start + b] = np.nanmean(sb[:, :, best_index] - sb[:, :, index], axis=1)
-    interval, picked, gap_interval = _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
-    return interval, picked, gap_interval
+def certify_index(scores: np.ndarray, tolerance: float, alpha: float = CERTIFY_ALPHA) -> tuple[int, float]:
+    """(selected index, tolerance used) of the rule on ``scores`` without a bootstrap: the simulations' fast path."""
+    sat, cert = certified_saturation(scores, tolerance, n_boot=0, alpha=alpha)
+    return sat.index, cert.tolerance_used
 
 
 def _bootstrap_intervals(
@@ -358,118 +420,41 @@ def physical_interval(values: np.ndarray, sat: Saturation) -> tuple[float, float
 
 @dataclass(frozen=True)
 class Tolerance:
-    """How far below the best a resolution may be, paired over participants.
-
-    Written ``se`` (one paired standard error of the point's deficit), ``2se``
-    (k of them), or a number in score units (``0.01`` = one point of accuracy).
-    """
+    """How far below the best a resolution may be: a number in score units (``0.01`` = one point of accuracy)."""
 
     name: str
-    n_se: float | None
-    """k in "k paired standard errors", or None for a fixed tolerance."""
-    points: float | None
-    """Fixed tolerance in score units, or None for an SE tolerance."""
+    points: float
+    """The tolerance in score units."""
 
     @property
     def fixed(self) -> float:
-        """``points`` of a fixed tolerance; ValueError for an SE tolerance (which has none)."""
-        if self.points is None:
-            raise ValueError(f"tolerance {self.name!r} is in paired standard errors, not a fixed number")
         return float(self.points)
 
     @classmethod
     def parse(cls, text: str | float) -> Tolerance:
         t = str(text).strip().lower()
+        if t.endswith("se"):
+            raise ValueError(
+                f"tolerance {text!r} is invalid: the rule certifies a tolerance in accuracy units (0.01 = 1 point); "
+                "a tolerance in standard errors is not a promise about accuracy"
+            )
         try:
-            if t.endswith("se"):
-                k = float(t[:-2]) if t[:-2] else 1.0
-                if not np.isfinite(k) or k < 0:
-                    raise ValueError
-                return cls(t, k, None)
             v = float(t)
         except ValueError:
-            raise ValueError(
-                f"tolerance {text!r} is invalid: write se, 2se (paired standard errors) or a number "
-                "in accuracy units such as 0.01"
-            ) from None
+            raise ValueError(f"tolerance {text!r} is invalid: write a number in accuracy units such as 0.01") from None
         if not np.isfinite(v) or not 0 <= v < 1:
-            raise ValueError(f"tolerance {text!r} is invalid: a fixed tolerance must be in [0, 1) accuracy units")
-        return cls(f"{v:g}", None, v)
+            raise ValueError(f"tolerance {text!r} is invalid: a tolerance must be in [0, 1) accuracy units")
+        return cls(f"{v:g}", v)
 
     def describe(self) -> str:
-        """E.g. "one paired standard error", "1 point of accuracy (0.01)"."""
-        if self.n_se is not None:
-            k = "one" if self.n_se == 1 else f"{self.n_se:g}"
-            return f"{k} paired standard error{'' if self.n_se == 1 else 's'}"
-        pts = 100 * self.fixed
-        return f"{pts:g} point{'' if pts == 1 else 's'} of accuracy ({self.fixed:g})"
+        """E.g. "1 point of accuracy (0.01)"."""
+        return points_text(self.fixed)
 
 
-def _paired_rule(sb: np.ndarray, tol: Tolerance) -> tuple[np.ndarray, ...]:
-    """Paired rule on (B, P, R) resamples -> selected, best (B,), deficit, deficit_se (B, R), tolerance at selected (B,)."""
-    mean, _, _, _ = _batch_stats(sb)
-    valid = np.isfinite(mean)
-    any_valid = valid.any(axis=1)
-    best = np.argmax(np.where(valid, mean, -np.inf), axis=1)
-    rows = np.arange(sb.shape[0])
-    d = sb[rows, :, best][:, :, None] - sb  # (B, P, R): each participant's deficit from their best-point score
-    deficit, _, dse, _ = _batch_stats(d)
-    dse = np.where(np.isfinite(dse), dse, 0.0)
-    deficit[rows, best] = 0.0
-    dse[rows, best] = 0.0
-    allowed = (tol.n_se * dse) if tol.n_se is not None else np.full(deficit.shape, tol.fixed)
-    eligible = valid & np.isfinite(deficit) & (deficit <= allowed + _EPS)
-    eligible[rows, best] |= valid[rows, best]
-    selected = np.argmax(eligible, axis=1)
-    selected = np.where(any_valid, selected, -1)
-    best = np.where(any_valid, best, -1)
-    return selected, best, deficit, dse, allowed[rows, np.maximum(selected, 0)]
-
-
-def paired_saturation(
-    scores: np.ndarray,
-    tolerance: Tolerance | str | float = "0.01",
-    n_boot: int = 2000,
-    ci: float = 0.95,
-    seed: int = 0,
-) -> Saturation:
-    """The paired rule (see module doc) on ``scores`` (P, R), columns coarse to fine, with a
-    participant bootstrap (resample participants, redo the best point and the rule).
-
-    ``Saturation.tolerance`` is the allowed deficit at the selected point
-    (score units); ``deficit``/``deficit_se`` hold the paired curve.
-    """
-    tol = tolerance if isinstance(tolerance, Tolerance) else Tolerance.parse(tolerance)
-    s, stats, _, _ = _scored(scores, ci, n_boot)
-    sel, best, deficit, dse, allowed = _paired_rule(s[None], tol)
-    index, best_index = int(sel[0]), int(best[0])
-    base = dict(rule="paired", deficit=deficit[0], deficit_se=dse[0], tolerance_name=tol.name)
-    gap = float(deficit[0, index])
-    notes = []
-    n_missing = int((~np.isfinite(s)).sum())
-    if n_missing:
-        notes.append(
-            f"{n_missing} of {s.size} participant x point scores are missing (NaN) and were left out of their pairs"
-        )
-    single = "only one participant: no paired standard error and no bootstrap interval" + (
-        "; the SE tolerance is 0, so the saturation point is the best point" if tol.n_se is not None else ""
-    )
-    sat = Saturation(index, best_index, float(allowed[0]), stats, s.shape[0], None, ci, 0, None, gap, None, "", **base)
-
-    def select(sb: np.ndarray) -> np.ndarray:
-        return _paired_rule(sb, tol)[0]
-
-    return _outcome(
-        sat, notes, single, n_boot, lambda: _bootstrap(s, index, best_index, n_boot, ci, seed, notes, select)
-    )
-
-
-# ---------------------------------------------------------------------------------------------------------------
-# The envelope rule with cross-fitting over seeds (what the report uses)
-# ---------------------------------------------------------------------------------------------------------------
-
-#: Family-wise error rate of the envelope rule's "a finer point is outside the tolerance" decisions.
-ENVELOPE_ALPHA = 0.05
+def points_text(t: float) -> str:
+    """A tolerance in words: "1 point of accuracy (0.01)", "2.7 points of accuracy (0.027)"."""
+    pts = round(100 * t, 1)
+    return f"{pts:g} point{'' if pts == 1 else 's'} of accuracy ({t:.3g})"
 
 
 @dataclass(frozen=True)
@@ -545,196 +530,3 @@ def _wmean(x: np.ndarray, w: np.ndarray, axis: int) -> np.ndarray:
     den = np.where(ok, w, 0.0).sum(axis=axis)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(den > 0, num / np.where(den > 0, den, 1.0), np.nan)
-
-
-def _envelope_rule(s: np.ndarray, w: np.ndarray, tol: Tolerance, floor: float, z: float) -> tuple[np.ndarray, ...]:
-    """The envelope rule on B resamples.
-
-    ``s`` (B, S, P, R) scores, ``w`` (B, S) seed weights (how often each seed was drawn; 0 = left out).
-    Returns selected (B,), best (B,), deficit (B, R), deficit_se (B, R), allowed (B, R), crossfit (B,) bool.
-    """
-    n_b, n_s, n_p, n_r = s.shape
-    rows = np.arange(n_b)
-    part_mean = _wmean(s, np.ones(1), axis=2)  # (B, S, R): each seed's curve, mean over participants
-    all_curve = _wmean(part_mean, w[:, :, None], axis=1)  # (B, R)
-    valid = np.isfinite(all_curve)
-    best_all = np.argmax(np.where(valid, all_curve, -np.inf), axis=1)  # first maximum = coarsest among ties
-    d_sum = np.zeros((n_b, n_p, n_r))
-    d_w = np.zeros((n_b, n_p, n_r))
-    crossfit = np.zeros(n_b, dtype=bool)
-    for k in range(n_s):  # fold k: choose the best point on the other seeds, measure it on seed k
-        w_train = w.copy()
-        w_train[:, k] = 0.0
-        train = _wmean(part_mean, w_train[:, :, None], axis=1)  # (B, R)
-        ok_fold = (w[:, k] > 0) & np.isfinite(train).any(axis=1)
-        crossfit |= ok_fold
-        b_k = np.argmax(np.where(np.isfinite(train), train, -np.inf), axis=1)
-        sk = s[:, k]  # (B, P, R)
-        d = sk[rows, :, b_k][:, :, None] - sk  # (B, P, R)
-        wk = np.where(ok_fold, w[:, k], 0.0)[:, None, None] * np.isfinite(d)
-        d_sum += np.where(wk > 0, d, 0.0) * wk
-        d_w += wk
-    # Resamples without two distinct seeds: the best point is chosen and measured on the same data.
-    if not crossfit.all():
-        nb = ~crossfit
-        sb = s[nb]
-        d = sb[np.arange(sb.shape[0]), :, :, best_all[nb]][:, :, :, None] - sb  # (b, S, P, R)
-        d_mean = _wmean(d, w[nb][:, :, None, None], axis=1)  # (b, P, R)
-        d_sum[nb] = np.where(np.isfinite(d_mean), d_mean, 0.0)
-        d_w[nb] = np.isfinite(d_mean).astype(float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        per_part = np.where(d_w > 0, d_sum / np.where(d_w > 0, d_w, 1.0), np.nan)  # (B, P, R)
-    deficit, _, dse, _ = _batch_stats(per_part)
-    dse = np.where(np.isfinite(dse), dse, 0.0)
-    if tol.n_se is not None:
-        allowed = tol.n_se * dse
-    else:
-        allowed = np.full(deficit.shape, max(tol.fixed, floor))
-    outside = valid & np.isfinite(deficit) & (deficit > allowed + z * dse + _EPS)
-    r_idx = np.arange(n_r)
-    last_out = np.max(np.where(outside, r_idx, -1), axis=1)
-    # The requirement: the first valid point after the last point outside the tolerance.
-    after = valid & (r_idx[None, :] > last_out[:, None])
-    selected = np.where(after.any(axis=1), np.argmax(after, axis=1), -2)  # -2: even the finest point is out
-    finest_valid = n_r - 1 - np.argmax(valid[:, ::-1], axis=1)
-    selected = np.where(selected == -2, finest_valid, selected)
-    any_valid = valid.any(axis=1)
-    return (
-        np.where(any_valid, selected, -1),
-        np.where(any_valid, best_all, -1),
-        deficit,
-        dse,
-        allowed,
-        crossfit,
-        last_out,
-    )
-
-
-def _family_z(n_points: int, alpha: float) -> float:
-    """One-sided normal quantile for ``alpha`` shared (Bonferroni) among the ``n_points - 1`` comparisons."""
-    from statistics import NormalDist
-
-    if alpha <= 0:
-        return float("inf")
-    if alpha >= 1:
-        return 0.0
-    m = max(n_points - 1, 1)
-    return float(NormalDist().inv_cdf(1.0 - alpha / m))
-
-
-@dataclass(frozen=True)
-class Envelope:
-    """The envelope rule's extra outcome (see :func:`envelope_saturation`)."""
-
-    noise: RerunNoise
-    tolerance_requested: str
-    """The tolerance asked for, as written (``0.01``, ``se``)."""
-    tolerance_floor: float
-    """The tolerance floor (the rerun noise of one run's curve; 0 when the floor is off or for SE tolerances)."""
-    z: float
-    """Noise margin in standard errors of a point's deficit (one-sided, ``alpha`` shared over the points)."""
-    alpha: float
-    n_seeds: int
-    crossfit: bool
-    """True when the best point was chosen and measured on different seeds."""
-    finest_outside: bool
-    """True when even the finest point is outside the tolerance (the curve falls at the fine end)."""
-    outside: np.ndarray
-    """(R,) bool: the points outside the tolerance on the full data."""
-
-
-def envelope_saturation(
-    scores: np.ndarray,
-    tolerance: Tolerance | str | float = "0.01",
-    n_boot: int = 2000,
-    ci: float = 0.95,
-    seed: int = 0,
-    alpha: float = ENVELOPE_ALPHA,
-    noise_floor: bool = True,
-) -> tuple[Saturation, Envelope]:
-    """The envelope rule on ``scores`` (P, R) or (S, P, R): seeds x participants x points, coarse to fine.
-
-    1. **Best point, cross-fitted over seeds.** For each seed k, the best point is the one with the highest
-       mean over the *other* seeds; each participant's deficit at a point is their score on seed k at that
-       best point minus theirs on seed k at the point. The deficits are averaged over the folds, then over
-       participants (``deficit``), with their standard error over participants (``deficit_se``). Choosing
-       and measuring the best point on different replicates removes the winner's curse (the best of many
-       noisy points is too high on the data that chose it). With one seed there is nothing to cross-fit:
-       the best is chosen and measured on the same data, and the note says so.
-    2. **Tolerance.** A fixed tolerance (``0.01`` = one point of accuracy) is raised to the rerun noise of
-       one run's curve (:func:`rerun_noise`) when it is smaller (``noise_floor``); an SE tolerance (``se``,
-       ``2se``) is ``k`` standard errors of each point's deficit.
-    3. **Envelope.** A point is *outside* the tolerance when its deficit exceeds it by more than ``z``
-       standard errors (one-sided, family-wise ``alpha`` shared among the points, Bonferroni). The
-       requirement is the coarsest point from which every finer point is inside: the first point after the
-       last point outside. Should the finest point itself be outside, the finest point is returned and
-       :attr:`Envelope.finest_outside` says so.
-
-    The interval is a two-level bootstrap: participants with replacement (whole rows over all seeds and
-    points) and, with two or more seeds, seeds with replacement; each resample redoes the cross-fitting,
-    the best point and the rule (the rerun noise and the tolerance stay those of the full data).
-    """
-    tol = tolerance if isinstance(tolerance, Tolerance) else Tolerance.parse(tolerance)
-    _check_bootstrap(ci, n_boot)
-    if not 0.0 <= alpha < 1.0:
-        raise ValueError(f"alpha={alpha!r} is invalid: must be in [0, 1)")
-    s = _as_seeds(scores)
-    s = s[:, np.isfinite(s).any(axis=(0, 2))]  # participants with no score at all carry no information
-    if s.shape[1] == 0:
-        raise ValueError("no finite score at any sweep point: nothing to find a saturation point on")
-    n_seeds, n_part, n_pts = s.shape
-    noise = rerun_noise(s)
-    floor = noise.curve if (noise_floor and tol.n_se is None and np.isfinite(noise.curve)) else 0.0
-    z = _family_z(n_pts, alpha) if n_part >= 2 else 0.0
-    w1 = np.ones((1, n_seeds))
-    sel, best, deficit, dse, allowed, crossfit, last_out = _envelope_rule(s[None], w1, tol, floor, z)
-    index, best_index = int(sel[0]), int(best[0])
-    seed_avg = _wmean(s, np.ones(1), axis=0)  # (P, R) each participant's mean over seeds
-    mean, std, se, n = _batch_stats(seed_avg[None])
-    stats = CurveStats(mean[0], std[0], se[0], n[0])
-    outside = np.isfinite(deficit[0]) & (deficit[0] > allowed[0] + z * dse[0] + _EPS) & np.isfinite(mean[0])
-    finest_outside = bool(last_out[0] == n_pts - 1)
-    env = Envelope(
-        noise, tol.name, float(floor), float(z), float(alpha), n_seeds, bool(crossfit[0]), finest_outside, outside
-    )
-    base = dict(rule="envelope", deficit=deficit[0], deficit_se=dse[0], tolerance_name=tol.name)
-    gap = float(deficit[0, index])
-    notes = []
-    n_missing = int((~np.isfinite(s)).sum())
-    if n_missing:
-        notes.append(f"{n_missing} of {s.size} seed x participant x point scores are missing (NaN) and were skipped")
-    if n_seeds < 2:
-        notes.append(
-            "one seed: the best point is chosen and measured on the same runs (no cross-fitting over "
-            "seeds, so the best is biased high and the requirement errs fine)"
-        )
-    if finest_outside:
-        notes.append(
-            "even the finest point swept is outside the tolerance of the best: the curve falls at the fine "
-            "end, so no swept resolution keeps every finer one within tolerance"
-        )
-
-    def resample() -> tuple[tuple[int, int], np.ndarray, tuple[float, float] | None]:
-        rng = np.random.default_rng(seed)
-        boot_sel = np.empty(n_boot, dtype=np.int64)
-        boot_gap = np.empty(n_boot, dtype=np.float64)
-        chunk = max(1, int(1e6 // max(s.size, 1)))
-        for start in range(0, n_boot, chunk):
-            b = min(chunk, n_boot - start)
-            pidx = rng.integers(0, n_part, size=(b, n_part))
-            sb = np.moveaxis(s[:, pidx], 0, 1)  # (b, S, P, R)
-            if n_seeds >= 2:
-                draws = rng.integers(0, n_seeds, size=(b, n_seeds))
-                wb = np.stack([np.bincount(d, minlength=n_seeds) for d in draws]).astype(float)
-            else:
-                wb = np.ones((b, 1))
-            sel_b, _, def_b, _, _, _, _ = _envelope_rule(sb, wb, tol, floor, z)
-            boot_sel[start : start + b] = sel_b
-            boot_gap[start : start + b] = def_b[np.arange(b), index]
-        return _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
-
-    single = "only one participant: no standard error and no bootstrap interval"
-    sat = Saturation(
-        index, best_index, float(allowed[0, index]), stats, n_part, None, ci, 0, None, gap, None, "", **base
-    )
-    return _outcome(sat, notes, single, n_boot, resample, note_first=True), env

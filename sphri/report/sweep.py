@@ -22,8 +22,8 @@ point and is named in the report's notes.
 ``seed`` is not a group key: jobs that differ only in their seed (and in
 settings the seed alone fixes, such as ``model.seed``) are replicates of the
 same sweep point, kept in the ``seed`` column of :attr:`Sweep.runs`; the
-report measures the rerun noise between them and cross-fits the best point
-over them (:func:`sphri.report.saturation.envelope_saturation`).
+report measures the rerun noise between them and averages each participant's
+score over them (:func:`sphri.report.saturation.certified_saturation`).
 """
 
 from __future__ import annotations

@@ -166,4 +166,5 @@ class OnsetWindow(Configured):
             geometry=TaxelGeometry.from_layout(layout, surface),
             trial_row=rows,
             n_dropped=int((~plan.kept).sum()),
+            frame_rate_hz=float(dataset.frame_rate_hz),
         )

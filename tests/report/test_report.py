@@ -14,7 +14,7 @@ from markupsafe import escape  # the page's autoescape (' as &#39;)
 
 from sphri.report import RuleSettings, load_sweep, make_report
 from sphri.report.__main__ import main
-from sphri.report.saturation import envelope_saturation
+from sphri.report.saturation import certified_saturation, points_text
 from sphri.report.sweep import ReportError, group_keys
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -82,8 +82,7 @@ def test_saturation_numbers_match_the_logged_scores(built):
     truth, report, files, text = built
     rf = next(g for g in report.groups if g.label == "rf")
     # recompute from the generated per-participant accuracies, without MLflow in between
-    # (the envelope rule; before it, the first-crossing paired rule chose one point coarser here)
-    expected, env = envelope_saturation(truth.accuracy["rf"], "0.01", n_boot=RULE.n_boot, seed=RULE.seed)
+    expected, cert = certified_saturation(truth.accuracy["rf"], "0.01", n_boot=RULE.n_boot, seed=RULE.seed)
     assert rf.sat.index == expected.index and rf.sat.interval == expected.interval
     assert rf.accuracy == pytest.approx(truth.accuracy["rf"], abs=1e-6)
     res = truth.res[expected.index]
@@ -94,13 +93,16 @@ def test_saturation_numbers_match_the_logged_scores(built):
     # the sentence never states the point alone: the interval is in it, and the tolerance it uses
     assert (
         f"A taxel pitch of at most {pitch:.1f} mm (95% interval {min(pitches):.1f} to {max(pitches):.1f} mm; "
-        f"{r['area_per_taxel_cm2']:.2f} cm^2 per taxel) keeps accuracy within {100 * expected.tolerance:.1f} points "
-        f"of accuracy ({expected.tolerance:.3f}: the measured rerun noise, above the 1 point of accuracy (0.01) "
-        "asked for) of the best, paired over participants, on this link"
+        f"{r['area_per_taxel_cm2']:.2f} cm^2 per taxel) keeps accuracy within {points_text(cert.tolerance_used)}"
     ) in rf.requirement
+    assert "of the best at every finer swept pitch, with 95% confidence, paired over participants" in rf.requirement
+    # the sentence never states a tolerance smaller than the one the study certifies
+    assert expected.tolerance == cert.tolerance_used == max(0.01, cert.certifiable)
+    assert cert.raised == ("the 1 point of accuracy (0.01) asked for cannot be" in rf.requirement)
     # one seed: the rerun noise is estimated from the jitter between neighbouring resolutions, and stated
-    assert env.noise.source == "neighbours" and expected.tolerance == pytest.approx(env.noise.curve)
-    assert f"rerun noise {env.noise.per_participant:.3f} per participant" in text
+    assert cert.noise.source == "neighbours"
+    assert f"rerun noise {cert.noise.per_participant:.3f} per participant" in text
+    assert f"smallest certifiable tolerance {points_text(cert.certifiable)}" in text
     assert rf.pitch_interval_mm == pytest.approx(sorted(pitches), rel=1e-5)  # params keep 6 digits
     assert f"{min(pitches):.1f} to {max(pitches):.1f} mm pitch" in rf.interval_text
     # mean +/- std over participants, as the study's figure
@@ -316,24 +318,24 @@ def test_real_sweep_end_to_end(sweep_then_report):
 def test_tolerance_table_in_html_csv_and_text(built):
     truth, report, files, text = built
     tol = pd.read_csv(files.tables["tolerances"])
-    assert sorted(tol["tolerance"].astype(str).unique()) == ["0.01", "0.02", "se"]
+    assert sorted(tol["tolerance"].astype(str).unique()) == ["0.01", "0.02", "0.03"]
     assert len(tol) == 3 * len(report.groups)
     assert tol.groupby("group")["used_in_sentence"].sum().eq(1).all(), "one tolerance per curve is the sentence's"
     assert set(tol[tol["used_in_sentence"]]["tolerance"].astype(str)) == {"0.01"}
     for g in report.groups:
         for t in g.by_tolerance:
-            expected, _ = envelope_saturation(g.accuracy, t.tolerance, n_boot=RULE.n_boot, seed=RULE.seed)
+            expected, _ = certified_saturation(g.accuracy, t.tolerance, n_boot=RULE.n_boot, seed=RULE.seed)
             assert t.sat.index == expected.index and t.sat.interval == expected.interval
             row = tol[(tol["group"] == g.label) & (tol["tolerance"].astype(str) == t.tolerance.name)].iloc[0]
             assert row["saturation_res"] == truth.res[expected.index]
     # a looser tolerance never asks for a finer skin
     rf = next(g for g in report.groups if g.label == "rf")
     idx = {t.tolerance.name: t.sat.index for t in rf.by_tolerance}
-    assert idx["0.02"] <= idx["0.01"]
+    assert idx["0.03"] <= idx["0.02"] <= idx["0.01"]
     page = files.html.read_text()
-    assert "Requirement under several tolerances" in page and "one paired standard error" in page
-    assert "The requirement sentence uses a tolerance of 1 point of accuracy (0.01)" in page
-    assert "tolerance one paired standard error:" in text and "<- used in the sentence" in text
+    assert "Requirement under several tolerances" in page and "3 points of accuracy (0.03)" in page
+    assert "The requirement sentence asks for 1 point of accuracy (0.01)" in page
+    assert "tolerance 3 points of accuracy (0.03):" in text and "<- used in the sentence" in text
     assert not report.sensitivity and "tornado" not in files.figures, "no variants, no sensitivity section"
 
 
@@ -342,13 +344,13 @@ def test_cli_tolerance_options(two_model_sweep, tmp_path, capsys, spelling):
     """The report's options in argparse flags and in ``key=value`` words, like every sphri command."""
     out = tmp_path / "r"
     if spelling == "flags":
-        args = ["--n-boot", "50", "--no-log", "--out", str(out), "--tolerances", "se,2se", "--tolerance", "0.03"]
+        args = ["--n-boot", "50", "--no-log", "--out", str(out), "--tolerances", "0.05,0.04", "--tolerance", "0.03"]
         args += ["--formats", "png"]
     else:
-        args = ["n_boot=50", "mlflow=false", f"out={out}", "formats=png", "tolerances=se,2se", "tolerance=0.03"]
+        args = ["n_boot=50", "mlflow=false", f"out={out}", "formats=png", "tolerances=0.05,0.04", "tolerance=0.03"]
     assert main([str(two_model_sweep.sweep_dir), *args]) == 0
     tol = pd.read_csv(out / "tolerances.csv")
-    assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "2se", "se"]
+    assert sorted(tol["tolerance"].astype(str).unique()) == ["0.03", "0.04", "0.05"]
     assert "within 3 points of accuracy (0.03) of the best" in capsys.readouterr().out
     assert main([str(two_model_sweep.sweep_dir), "--tolerances", "lots"]) == 2
 
