@@ -278,6 +278,48 @@ def test_wheel_exports_a_model_and_runs_skin_live_on_the_simulator(installed, tm
     assert "predictions" in live.stdout and (tmp_path / "pred.jsonl").stat().st_size > 0
 
 
+TUTORIAL = REPO / "docs" / "tutorials" / "from-vr-logs.md"
+
+
+def bash_blocks(markdown: str) -> list[str]:
+    """The bodies of a page's ```bash blocks, in order (other fences, ``` or ```text, are not commands)."""
+    return re.findall(r"^```bash\n(.*?)^```[ \t]*$", markdown, flags=re.M | re.S)
+
+
+def test_bash_blocks_are_the_fenced_bash_commands_only():
+    page = "# t\n\n```bash\nsphri a\n```\n\n```\nsphri not-run\n```\n\ntext\n```bash\nx \\\n  y\n```\n"
+    assert bash_blocks(page) == ["sphri a\n", "x \\\n  y\n"]
+    assert bash_blocks("no commands here\n```\nsphri b\n```\n") == []
+
+
+def test_wheel_runs_the_vr_logs_tutorial_as_written(installed, tmp_path):
+    """docs/tutorials/from-vr-logs.md's ```bash blocks, one bash script (-e, pipefail) in an empty folder, with the
+    wheel's ``sphri`` first on the PATH and only the wheel on the Python path: every step exits 0 and leaves
+    what the page says it does."""
+    blocks = bash_blocks(TUTORIAL.read_text())
+    assert len(blocks) >= 9, f"{TUTORIAL} has {len(blocks)} ```bash blocks: the tutorial's commands are missing"
+    commands = [line.split()[0] for b in blocks for line in b.splitlines() if line.strip()]
+    assert "python" not in commands, "the tutorial spells every command `sphri VERB`"
+    env = _env(installed)
+    env["PATH"] = f"{installed / 'bin'}{os.pathsep}{env.get('PATH', '')}"
+    script = 'set -euo pipefail\n[ "$(command -v sphri)" = "$SPHRI_WHEEL_BIN/sphri" ]\n' + "\n".join(blocks)
+    env["SPHRI_WHEEL_BIN"] = str(installed / "bin")
+    done = subprocess.run(["bash", "-c", script], capture_output=True, text=True, cwd=tmp_path, env=env, timeout=600)
+    out = done.stdout + done.stderr
+    assert done.returncode == 0, out[-4000:]
+    root = tmp_path / "vr-skin"
+    manifest = (root / "logs" / "manifest.csv").read_text().splitlines()
+    assert (root / "logs" / "README.txt").read_text().startswith("SYNTHETIC") and len(manifest) == 1 + 24
+    assert re.search(r"^mydata: gesture trials, .* 3 participant\(s\), 24 trials, ", done.stdout, re.M), out[-4000:]
+    assert re.search(r"A taxel pitch of at most \d+(\.\d+)? mm", done.stdout), done.stdout[-4000:]
+    assert (root / "sweep" / "report" / "report.html").is_file()
+    assert (root / "coverage" / "recommendation.txt").is_file() and (root / "robot_parts.png").is_file()
+    assert (root / "coding" / "coding_sheet.html").stat().st_size > 0
+    codes = (root / "coding" / "codes.csv").read_text().splitlines()
+    assert len(codes) > 1 and codes[0].endswith(",gesture,coder"), codes[:2]
+    assert (root / "arm.sphrimodel").stat().st_size > 0
+
+
 def test_wheel_knows_the_commit_it_was_built_from(installed, tmp_path):
     """No checkout beside an installed wheel: MLflow runs record the commit setup.py wrote into it."""
     probe = subprocess.run(

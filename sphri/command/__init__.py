@@ -132,10 +132,10 @@ VERBS: tuple[Verb, ...] = (
     ),
     Verb(
         "synthesize",
-        "write a synthetic gesture dataset (or the scenario sessions) to disk",
+        "write a synthetic gesture dataset, the scenario sessions or example OpenXR logs to disk",
         "args",
-        "sphri.sessions.synthesize:command",
-        "sphri.sessions.synthesize:SynthesizeAnyArgs",
+        "sphri.recordings.synthesize:command",
+        "sphri.recordings.synthesize:SynthesizeAnyArgs",
         "sphri.data.synthesize",
     ),
     Verb(

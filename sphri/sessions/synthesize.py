@@ -12,15 +12,12 @@ format (:mod:`sphri.sessions.format`). The folder then loads with
 
 from __future__ import annotations
 
-import dataclasses
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Literal
 
-from sphri.command.args import arg, first_paragraph, run
+from sphri.command.args import first_paragraph, run
 from sphri.data.synthesize import SynthesizeArgs, write_dataset
-from sphri.data.synthesize import command as write_gestures
 from sphri.errors import clean_errors
 from sphri.sessions.format import SessionDataset
 
@@ -41,27 +38,10 @@ def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> SessionDataset
     return ds
 
 
-@dataclasses.dataclass
-class SynthesizeAnyArgs(SynthesizeArgs):
-    what: Literal["gestures", "sessions"] = arg(
-        "gestures",
-        help="gestures: a gesture dataset (loads with data=vr_gesture data.root=DIR); sessions: the scenario "
-        "sessions (data=synthetic_sessions; loads with data=sessions data.root=DIR)",
-    )
-
-
 def write_sessions(args: SynthesizeArgs) -> int:
     """Generate the scenario sessions (data=synthetic_sessions robot=reachy_full plus the overrides) exactly as
     the scenario study does and write them under out=DIR (they load with data=sessions data.root=DIR)."""
     return write_dataset(synthesize, args, "sessions")
-
-
-def command(args: SynthesizeAnyArgs) -> int:
-    """Write synthetic data to out=DIR, generated exactly as a run generates it: a gesture dataset (the
-    default) or, with what=sessions, the scenario sessions."""
-    if args.what == "sessions":
-        return write_sessions(args)
-    return write_gestures(args)
 
 
 @clean_errors("sphri.sessions.synthesize")
