@@ -7,10 +7,11 @@ numpy array goes into ``arrays`` (stored in an ``.npz`` read with
 against its contract: a dataclass is rebuilt only when its class is one of
 the data types sphri stores (:func:`data_types`: the dataclasses of
 :mod:`sphri.types`, the stage contracts and :data:`EXTRA_TYPES`; a name an
-entry holds is looked up in that list, never imported) and the stored fields are exactly the class's fields, fields
-annotated as arrays, strings or numbers hold one, and a class that defines
-``check_decoded()`` (e.g. :class:`sphri.types.CVResult`: confusion matrices
-of the labels' size, accuracies that match them) accepts the values.
+entry holds is looked up in that list, never imported) and the stored
+fields are exactly the class's fields, fields annotated as arrays, strings
+or numbers hold one, and a class that defines ``check_decoded()`` (e.g.
+:class:`sphri.types.CVResult`: confusion matrices of the labels' size,
+accuracies that match them) accepts the values.
 Anything else raises :class:`DecodeError` (the cache logs it and recomputes).
 
 One generic encoder/decoder for every dataclass of arrays, scalars, strings,

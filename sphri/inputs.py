@@ -73,8 +73,9 @@ def _memo_digest(key: bytes, entries: bytes) -> str:
 class FingerprintMemo:
     """Content hashes of files, remembered by (size, mtime, inode, ctime); persisted at ``path`` if given.
 
-    ``key``: the cache key (bytes, :attr:`sphri.cache.StageCache.key`) or None. With a key the file is ``{"entries": ..., "hmac": ...}`` and read only when the HMAC
-    verifies: whoever can write to the cache folder cannot make a replaced file keep its old digest."""
+    ``key``: the cache key (bytes, :attr:`sphri.cache.StageCache.key`) or None. With a key the file is
+    ``{"entries": ..., "hmac": ...}`` and read only when the HMAC verifies: whoever can write to the cache
+    folder cannot make a replaced file keep its old digest."""
 
     def __init__(self, path: str | os.PathLike | None = None, key: bytes | None = None):
         self.path = Path(path) if path is not None else None
