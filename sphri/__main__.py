@@ -84,7 +84,7 @@ def run_job(cfg: DictConfig) -> dict | None:
     from sphri import pipeline
     from sphri.tracking.mlflow_tracker import summary_text
     from sphri.tracking.parent import read_parent, stop_if_killed, write_status
-    from sphri.tracking.store import BrokenStore
+    from sphri.tracking.store import StoreError
 
     stop_if_killed()  # a serial sweep signalled during an earlier job starts no more jobs
     hc = HydraConfig.get()
@@ -135,7 +135,7 @@ def run_job(cfg: DictConfig) -> dict | None:
                 tracker = pipeline.build(cfg.tracking)
             except Exception:  # the tracking config itself is broken
                 tracker = None
-        broken = isinstance(exc, BrokenStore)
+        broken = isinstance(exc, StoreError)  # broken, busy or not a store: no run can be recorded in it
         # An invalid config is not a run: it makes no MLflow run (only the job's status file says so).
         recorded = tracker is not None and tracker.enabled and not broken and not isinstance(exc, ConfigError)
         run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if recorded else None

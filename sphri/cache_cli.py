@@ -12,7 +12,9 @@
 ``outputs/cache``; ``older_than_days``) plus stage names (:class:`CacheArgs`). Entries are removed under their lock,
 so a job computing the same entry is not disturbed; orphan lock and
 temporary files go with them. Runs, reports and ``mlflow.db`` are never
-touched (``make clean`` removes everything).
+touched (``make clean`` removes everything). Links inside the cache (a stage
+folder, an entry, an index folder) are never followed, so nothing outside it
+is removed.
 """
 
 from __future__ import annotations
@@ -54,12 +56,24 @@ class CacheArgs:
 def _entries(root: Path, stages: list[str]) -> dict[str, list[Path]]:
     if not root.is_dir():
         raise CacheCliError(f"dir={root}: no cache folder there")
-    present = sorted(p.name for p in root.iterdir() if p.is_dir())
+    # links are never followed: a stage folder or an entry that is a link leads out of the cache
+    present = sorted(p.name for p in root.iterdir() if _real_dir(p))
+    links = [s for s in stages if (root / s).is_symlink()]
+    if links:
+        raise CacheCliError(f"{root / links[0]} is a link; links in the cache are never followed")
     unknown = [s for s in stages if s not in present]
     if unknown:
         raise CacheCliError(f"no stage {unknown} in {root}; stages there: {', '.join(present) or 'none'}")
-    # only files are entries: a folder someone named *.entry is neither counted nor removed
-    return {s: sorted(p for p in (root / s).glob(f"*{SUFFIX}") if p.is_file()) for s in (stages or present)}
+    # only regular files are entries: a folder someone named *.entry is neither counted nor removed
+    return {s: sorted(p for p in (root / s).glob(f"*{SUFFIX}") if _real_file(p)) for s in (stages or present)}
+
+
+def _real_dir(p: Path) -> bool:
+    return p.is_dir() and not p.is_symlink()
+
+
+def _real_file(p: Path) -> bool:
+    return p.is_file() and not p.is_symlink()
 
 
 def _human(n: float) -> str:
@@ -97,13 +111,18 @@ def clear(root: Path, stages: list[str], older_than_days: float | None = None) -
             if cutoff is not None and max(st.st_mtime, st.st_atime) > cutoff:
                 continue
             lock = path.with_suffix(".lock")
+            if lock.is_symlink():  # a lock file is opened for writing: never through a link
+                lock.unlink()
             with FileLock(lock):  # the entry's own lock: a job writing it finishes first
                 path.unlink(missing_ok=True)
             lock.unlink(missing_ok=True)
             n, freed = n + 1, freed + st.st_size
         if cutoff is None:
-            for junk in [*(root / stage).glob(".*.tmp"), *(root / stage).glob("by-path/*.json")]:
-                junk.unlink(missing_ok=True)
+            by_path = root / stage / "by-path"
+            index = sorted(by_path.glob("*.json")) if _real_dir(by_path) else []
+            for junk in [*(root / stage).glob(".*.tmp"), *index]:
+                if _real_file(junk):
+                    junk.unlink(missing_ok=True)
     return n, freed
 
 

@@ -4,11 +4,14 @@
 tuples/lists/dicts of them) into ``(tree, arrays)``: ``tree`` is JSON, every
 numpy array goes into ``arrays`` (stored in an ``.npz`` read with
 ``allow_pickle=False``). :func:`decode` rebuilds the value and checks it
-against its contract: a dataclass is rebuilt only when its class lives in
-``sphri.`` and the stored fields are exactly the class's fields, fields
-annotated as arrays, strings or numbers hold one, and a class that defines
-``check_decoded()`` (e.g. :class:`sphri.types.CVResult`: confusion matrices
-of the labels' size, accuracies that match them) accepts the values.
+against its contract: a dataclass is rebuilt only when its class is one of
+the data types sphri stores (:func:`data_types`: the dataclasses of
+:mod:`sphri.types`, the stage contracts and :data:`EXTRA_TYPES`; a name an
+entry holds is looked up in that list, never imported) and the stored
+fields are exactly the class's fields, fields annotated as arrays, strings
+or numbers hold one, and a class that defines ``check_decoded()`` (e.g.
+:class:`sphri.types.CVResult`: confusion matrices of the labels' size,
+accuracies that match them) accepts the values.
 Anything else raises :class:`DecodeError` (the cache logs it and recomputes).
 
 One generic encoder/decoder for every dataclass of arrays, scalars, strings,
@@ -22,6 +25,7 @@ and the safe ones (json, npz, parquet) do not know dataclasses.
 from __future__ import annotations
 
 import dataclasses
+import functools
 import importlib
 import math
 import types
@@ -31,8 +35,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-#: Modules whose dataclasses may be rebuilt from an entry.
-TRUSTED_PREFIX = "sphri."
+#: Data types of stage values outside :mod:`sphri.types` and the stage contracts (the scenario study's
+#: stages), by ``module:qualname``: the only names besides those that :func:`decode` resolves.
+EXTRA_TYPES = ("sphri.sessions.format:SessionDataset", "sphri.sessions.contact:BodyContacts")
 
 
 class EncodeError(TypeError):
@@ -102,17 +107,41 @@ def encode(value: Any, arrays: dict[str, np.ndarray] | None = None) -> tuple[Any
     return enc(value), arrays
 
 
+def _name(cls: type) -> str:
+    return f"{cls.__module__}:{cls.__qualname__}"
+
+
+@functools.cache
+def data_types() -> dict[str, type]:
+    """``{"module:qualname": class}`` of the dataclasses an entry may hold (besides :data:`EXTRA_TYPES`):
+    those defined in :mod:`sphri.types` and every stage's contract."""
+    import sphri.types
+    from sphri.stages import STAGE_BY_NAME
+
+    found: dict[str, type] = {}
+
+    def add(c: Any) -> None:
+        if isinstance(c, tuple):
+            for x in c:
+                add(x)
+        elif isinstance(c, type) and dataclasses.is_dataclass(c):
+            found[_name(c)] = c
+
+    add(tuple(v for v in vars(sphri.types).values() if isinstance(v, type) and v.__module__ == "sphri.types"))
+    for stage in STAGE_BY_NAME.values():
+        add(stage.contract)
+    return found
+
+
 def _resolve_class(name: str) -> type:
-    module, _, qual = name.partition(":")
-    if not module.startswith(TRUSTED_PREFIX) or not qual or "<" in qual:
-        raise DecodeError(f"class {name!r} is not a sphri dataclass")
-    try:
-        obj: Any = importlib.import_module(module)
-        for part in qual.split("."):
-            obj = getattr(obj, part)
-    except (ImportError, AttributeError) as exc:
-        raise DecodeError(f"class {name!r} not found ({exc})") from None
-    if not (isinstance(obj, type) and dataclasses.is_dataclass(obj)):
+    found = data_types().get(name)
+    if found is not None:
+        return found
+    if name not in EXTRA_TYPES:
+        raise DecodeError(f"class {name!r} is not a data type sphri stores")
+    module, _, qual = name.partition(":")  # a name of the list above, not of the entry
+    obj = getattr(importlib.import_module(module), qual)
+    if not (isinstance(obj, type) and dataclasses.is_dataclass(obj)):  # pragma: no cover - the list is ours
         raise DecodeError(f"{name!r} is not a dataclass")
     return obj
 
@@ -209,6 +238,8 @@ def decode(tree: Any, arrays: Any) -> Any:
         raise
     except (KeyError, TypeError, ValueError, OverflowError, RecursionError) as exc:
         raise DecodeError(f"malformed entry ({type(exc).__name__}: {exc})") from None
+    except SystemExit as exc:  # a value's own code asking to exit is a bad entry, not the end of the run
+        raise DecodeError(f"decoding raised SystemExit({exc.code!r})") from None
 
 
 def _hashable(k: Any) -> Any:

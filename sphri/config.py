@@ -758,11 +758,15 @@ def _explain(exc: BaseException) -> str:
     return " ".join(lines[:20]) if lines else type(exc).__name__
 
 
-def check_output_dir(output_dir: str, key: str = "output_dir", shown: str | None = None) -> None:
+def check_output_dir(
+    output_dir: str, key: str = "output_dir", shown: str | None = None, overwrite: bool | None = None
+) -> None:
     """``output_dir`` can hold runs, the cache and the MLflow store: not empty (``cache.dir`` would be
     ``/cache``), not an existing file or below one, every name within the file system's limit. Nothing is
     created here. ``key``: the setting the errors name (``out`` of ``sphri coverage``), ``shown`` the value
-    they quote (default ``output_dir``)."""
+    they quote (default ``output_dir``). ``overwrite``: for a folder written whole (a dataset), False
+    refuses a folder that exists and is not empty (new files are never mixed with old ones), True lets
+    the writer replace it (:func:`sphri.fsutil.replace_dir`); None (a folder that accumulates) neither."""
     shown = output_dir if shown is None else shown
     if not output_dir.strip():
         raise ConfigError(
@@ -786,16 +790,47 @@ def check_output_dir(output_dir: str, key: str = "output_dir", shown: str | None
             if not os.access(p, os.W_OK | os.X_OK):
                 raise ConfigError(f"{key}={shown} is invalid: {p} is read-only; give a writable folder")
             break
+    if overwrite is False and path.is_dir() and any(path.iterdir()):
+        raise ConfigError(
+            f"{key}={shown} is invalid: {path} exists and is not empty (never mixed with new files); "
+            "give a new folder, or overwrite=true to replace it whole"
+        )
 
 
-def check_output_file(path: str, key: str = "out") -> None:
+#: What ``output_dir`` holds besides runs, by name: never part of an analysis' ``out`` folder.
+MANAGED = {"mlflow.db": "the MLflow store", "mlartifacts": "the MLflow artifacts"}
+
+
+def check_out_apart(out: str, cfg: DictConfig, key: str = "out") -> None:
+    """``out`` (an analysis' folder, every file of which is logged as its MLflow artifacts) must neither be,
+    hold nor lie inside ``output_dir``'s MLflow store, artifacts or stage cache (``cache.dir``)."""
+    target = Path(out).expanduser().resolve()
+    base = Path(str(cfg.output_dir)).expanduser().resolve()
+    managed = [(base / name, what) for name, what in MANAGED.items()]
+    cache = cfg.get("cache")
+    if cache is not None and cache.get("dir"):
+        managed.append((Path(str(cache.dir)).expanduser().resolve(), "the stage cache (cache.dir)"))
+    for path, what in managed:
+        if path == target or target in path.parents:
+            raise ConfigError(
+                f"{key}={out} is invalid: it holds {path} ({what}), whose files would be logged as this "
+                "run's artifacts; give a folder of its own"
+            )
+        if path in target.parents:
+            raise ConfigError(f"{key}={out} is invalid: it lies inside {path} ({what}); give a folder of its own")
+
+
+def check_output_file(path: str, key: str = "out", overwrite: bool | None = None) -> None:
     """A file to be written at ``path`` (``sphri export out=FILE``): not empty, not an existing folder, its
-    folder one :func:`check_output_dir` accepts. Checked before any computing: the write comes last."""
+    folder one :func:`check_output_dir` accepts. Checked before any computing: the write comes last.
+    ``overwrite=False``: an existing file is refused (``overwrite=true`` replaces it)."""
     if not path.strip():
         raise ConfigError(f"{key}='' is invalid: give a file name")
     p = Path(path).expanduser()
     if p.is_dir():
         raise ConfigError(f"{key}={path} is invalid: {p} is a folder; give a file name (e.g. {p / 'model.sphrimodel'})")
+    if overwrite is False and (p.exists() or p.is_symlink()):
+        raise ConfigError(f"{key}={path} is invalid: {p} exists; give another name, or overwrite=true to replace it")
     check_output_dir(str(p.parent), key=key, shown=path)
 
 

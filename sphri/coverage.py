@@ -36,7 +36,7 @@ from typing import Any
 from sphri.analysis.coverage import ALL, CoverageAnalysis, RegionCoverage, write_region
 from sphri.analysis.schema import CoverageSchema
 from sphri.command.args import ArgsError, arg, first_paragraph, help_text, parse, parse_known
-from sphri.config import ConfigError, check_output_dir, compose
+from sphri.config import ConfigError, check_out_apart, check_output_dir, compose
 from sphri.errors import clean_errors
 
 log = logging.getLogger(__name__)
@@ -111,6 +111,7 @@ def run(
 
     if out:
         check_output_dir(str(out), key="out")  # before any computing: a file there is one line, not a traceback
+        check_out_apart(str(out), base)  # every file of out is logged: never the store, artifacts or cache
     if study_settings(base) is not None:  # +experiment=scenario_study: the whole-body study
         from sphri.sessions.study import run_study
 

@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shutil
 import tempfile
 import threading
+from collections.abc import Iterator
 from pathlib import Path
 
 _lock = threading.Lock()
@@ -58,3 +60,31 @@ def write_atomic(path: str | os.PathLike, data: bytes, fsync: bool = False) -> P
             os.unlink(tmp)
         raise
     return path
+
+
+@contextlib.contextmanager
+def replace_dir(target: str | os.PathLike) -> Iterator[Path]:
+    """A new folder beside ``target`` to write a whole folder into; when the block ends it takes
+    ``target``'s place (an existing ``target`` is moved aside, then removed): a reader sees the old
+    folder or the new one, never a mix. On any failure the new folder is removed and ``target`` is
+    untouched. The folder gets the umask's mode (not mkdtemp's 0700)."""
+    target = Path(target)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".tmp", dir=target.parent))
+    aside: Path | None = None
+    try:
+        os.chmod(tmp, umask_mode(0o777))
+        yield tmp
+        if target.is_symlink() or target.exists():
+            aside = Path(tempfile.mkdtemp(prefix=f".{target.name}.", suffix=".old", dir=target.parent))
+            os.replace(target, aside / "old")  # the name alone moves; a link is moved, never followed
+        os.replace(tmp, target)
+    except BaseException:
+        if aside is not None and os.path.lexists(aside / "old") and not os.path.lexists(target):
+            os.replace(aside / "old", target)  # put the old folder back
+        shutil.rmtree(tmp, ignore_errors=True)
+        if aside is not None:
+            shutil.rmtree(aside, ignore_errors=True)
+        raise
+    if aside is not None:
+        shutil.rmtree(aside, ignore_errors=True)

@@ -13,7 +13,9 @@ field::
 each group's structured-config type) and fingerprints every file: a blake2b
 hash of its bytes, rehashed only when its size, modification time, inode or
 change time differ from the :class:`FingerprintMemo` (a small JSON file in the
-cache folder). The pipeline puts the fingerprints into the stage keys
+cache folder; with a cache key, ``SPHRI_CACHE_KEY``, it is signed as the cache
+entries are, and a memo whose HMAC does not verify is ignored: every file is
+hashed again). The pipeline puts the fingerprints into the stage keys
 (:mod:`sphri.pipeline`) and the config hash, so a file replaced at the same
 path recomputes the stages that read it and everything below.
 """
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import hashlib
+import hmac
 import importlib
 import json
 import logging
@@ -59,11 +62,24 @@ def input_path(
     return dataclasses.field(default=default, metadata=meta)
 
 
-class FingerprintMemo:
-    """Content hashes of files, remembered by (size, mtime, inode, ctime); persisted at ``path`` if given."""
+_MEMO_PURPOSE = b"sphri fingerprint memo\n"
 
-    def __init__(self, path: str | os.PathLike | None = None):
+
+def _memo_digest(key: bytes, entries: bytes) -> str:
+    """HMAC-SHA256 (hex) of a memo's entries with the cache key."""
+    return hmac.new(key, _MEMO_PURPOSE + entries, hashlib.sha256).hexdigest()
+
+
+class FingerprintMemo:
+    """Content hashes of files, remembered by (size, mtime, inode, ctime); persisted at ``path`` if given.
+
+    ``key``: the cache key (bytes, :attr:`sphri.cache.StageCache.key`) or None. With a key the file is
+    ``{"entries": ..., "hmac": ...}`` and read only when the HMAC verifies: whoever can write to the cache
+    folder cannot make a replaced file keep its old digest."""
+
+    def __init__(self, path: str | os.PathLike | None = None, key: bytes | None = None):
         self.path = Path(path) if path is not None else None
+        self.key = key
         self.entries: dict[str, list] = self._load()
         self.dirty = False
         self.hashed: list[str] = []
@@ -73,9 +89,19 @@ class FingerprintMemo:
             return {}
         try:
             data = json.loads(self.path.read_text())
-            return data if isinstance(data, dict) else {}
         except (OSError, ValueError, RecursionError):  # unreadable or crafted: hashed again
             return {}
+        if not isinstance(data, dict):
+            return {}
+        signed = isinstance(data.get("entries"), dict) and isinstance(data.get("hmac"), str)
+        if self.key is None:
+            entries = data["entries"] if signed else data
+            return entries if isinstance(entries, dict) else {}
+        body = json.dumps(data.get("entries"), sort_keys=True).encode() if signed else b""
+        if not (signed and hmac.compare_digest(str(data["hmac"]), _memo_digest(self.key, body))):
+            log.warning("fingerprint memo %s is not signed with the cache key; ignored (files hashed again)", self.path)
+            return {}
+        return data["entries"]
 
     def digest(self, path: Path) -> str:
         """``blake2b:<hex>`` of the file's bytes, ``missing`` when it does not exist."""
@@ -109,7 +135,11 @@ class FingerprintMemo:
             return
         try:
             merged = {**self._load(), **self.entries}
-            write_atomic(self.path, json.dumps(merged).encode())  # the umask's mode, as the cache entries
+            doc: Any = merged
+            if self.key is not None:
+                body = json.dumps(merged, sort_keys=True).encode()
+                doc = {"entries": merged, "hmac": _memo_digest(self.key, body)}
+            write_atomic(self.path, json.dumps(doc).encode())  # the umask's mode, as the cache entries
             self.dirty = False
         except OSError as exc:  # a read-only cache folder: fingerprints are recomputed next time
             log.debug("cannot write the fingerprint memo %s: %s", self.path, exc)
@@ -234,32 +264,33 @@ def fingerprints(node: Any, memo: FingerprintMemo, exclude: frozenset[Path] = fr
     return {str(p): memo.digest(p) for _, p in declared_files(node, exclude)}
 
 
-_MEMOS: dict[str, FingerprintMemo] = {}
+_MEMOS: dict[tuple[str, bytes | None], FingerprintMemo] = {}
 
 
-def memo_at(cache_dir: str | os.PathLike | None) -> FingerprintMemo:
-    """The fingerprint memo kept in ``cache_dir`` (None: in memory only), one per process."""
+def memo_at(cache_dir: str | os.PathLike | None, key: bytes | None) -> FingerprintMemo:
+    """The fingerprint memo kept in ``cache_dir`` (None: in memory only), one per process and ``key``
+    (the cache's HMAC key, or None)."""
     if cache_dir is None:
         return FingerprintMemo(None)
     path = str(Path(cache_dir).absolute() / MEMO_NAME)
-    memo = _MEMOS.get(path)
+    memo = _MEMOS.get((path, key))
     if memo is None:
-        memo = _MEMOS[path] = FingerprintMemo(path)
+        memo = _MEMOS[(path, key)] = FingerprintMemo(path, key)
     return memo
 
 
-def memo_for(cfg: DictConfig) -> FingerprintMemo:
+def memo_for(cfg: DictConfig, key: bytes | None) -> FingerprintMemo:
     """The fingerprint memo of ``cfg``'s cache folder (in memory only when the cache is disabled)."""
     cache = cfg.get("cache")
     enabled = cache is not None and bool(cache.get("enabled", True))
-    return memo_at(str(cache.dir) if enabled else None)
+    return memo_at(str(cache.dir) if enabled else None, key)
 
 
-def input_fingerprints(cfg: DictConfig, memo: FingerprintMemo | None = None) -> dict[str, dict[str, str]]:
-    """``{group: {path: digest}}`` for every stage group whose component reads files."""
+def input_fingerprints(cfg: DictConfig, memo: FingerprintMemo) -> dict[str, dict[str, str]]:
+    """``{group: {path: digest}}`` for every stage group whose component reads files (hashed through
+    ``memo``: :func:`memo_for`)."""
     from sphri.stages import RESULT_GROUPS
 
-    memo = memo_for(cfg) if memo is None else memo
     exclude = frozenset(Path(str(d)).absolute() for d in (cfg.get("output_dir"), cfg.get("cache", {}).get("dir")) if d)
     out = {}
     for group in RESULT_GROUPS:  # tracking records a job, it computes nothing

@@ -38,7 +38,8 @@ from sphri.cache import StageCache, stable_hash, stage_key
 from sphri.config import NOT_RESULT_KEYS, ConfigError, build, result_config
 from sphri.encode.schema import grid_res
 from sphri.finite import require_finite
-from sphri.inputs import input_fingerprints, memo_at
+from sphri.inputs import input_fingerprints, memo_at, memo_for
+from sphri.integrity import load_key
 from sphri.stages import (
     PER_FIT_GROUPS,
     RESULT_GROUPS,
@@ -514,7 +515,7 @@ def make_pipeline(
     groups = list(dict.fromkeys(g for s in stages for g in s.groups if g not in PER_FIT_GROUPS))
     p = Pipeline(cfg, cache, components={g: build(cfg[g]) for g in groups}, versions=component_versions(cfg))
     p.link_name, p.memo, p.stages, p.compute = link, memo, stages, compute
-    fingerprints = input_fingerprints(cfg, memo_at(cache.root if cache.enabled else None))
+    fingerprints = input_fingerprints(cfg, memo_at(cache.root if cache.enabled else None, cache.key))
     for stage in stages:
         if stage.name in inputs:
             p.give(stage.name, inputs[stage.name])
@@ -671,7 +672,8 @@ def config_hash(cfg: DictConfig) -> str:
         if group in c and isinstance(cfg.get(group), DictConfig):
             c[group] = result_config(cfg[group])
     c["_component_versions"] = component_versions(cfg)
-    fingerprints = input_fingerprints(cfg)
+    enabled = cfg.get("cache") is not None and bool(cfg.cache.get("enabled", True))
+    fingerprints = input_fingerprints(cfg, memo_for(cfg, load_key("cache") if enabled else None))
     if fingerprints:  # the contents of the files the components read (absent: no files, hash unchanged)
         c["_input_files"] = fingerprints
     return stable_hash(c)

@@ -90,7 +90,7 @@ def test_replaced_parquet_recomputes_data_and_log_names_it(tmp_path: Path, caplo
     parquet = sorted(ds.glob("arm/participant_02/*.parquet"))
     assert parquet, "the synthesized dataset has a parquet file per participant"
     before = {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()}
-    synthesize(ds, [*small, "data.seed=5"])  # other trials written over the same paths
+    synthesize(ds, [*small, "data.seed=5"], overwrite=True)  # other trials written over the same paths
     assert parquet[0].read_bytes() != before[parquet[0]]
     caplog.set_level(logging.INFO, logger="sphri")
     changed, cfg2 = make(tmp_path, *data)

@@ -227,3 +227,73 @@ def test_the_fingerprint_memo_follows_the_umask(tmp_path):
     finally:
         os.umask(old)
     assert stat.S_IMODE((tmp_path / "cache" / "fingerprints.json").stat().st_mode) == 0o664
+
+
+def test_an_entry_naming_a_module_to_import_is_discarded_not_an_exit(tmp_path, monkeypatch, caplog):
+    """An entry with a valid plain digest naming ``sphri.cache.__main__:X`` as its dataclass: importing
+    that module runs the cache command (``sys.exit(main())``). Only sphri's data types are rebuilt;
+    the name is refused, the module never imported, and the entry discarded and recomputed."""
+    import sys
+
+    monkeypatch.delitem(sys.modules, "sphri.cache.__main__", raising=False)
+    monkeypatch.setattr(sys, "argv", ["sphri-cache", "--no-such-option"])  # the command would exit 2
+    meta = {"stage": "evaluate", "key": "k1", "files": {}, "value": {"__dc__": "sphri.cache.__main__:X", "f": {}}}
+    cache = StageCache(tmp_path, key=None)
+    path = cache.path("evaluate", "k1")
+    path.parent.mkdir(parents=True)
+    path.write_bytes(seal(_npz({"__meta__": np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)})))
+    caplog.set_level(logging.WARNING, logger="sphri")
+    try:
+        calls, (cv, _) = _computes(cache)
+    except SystemExit as exc:  # pragma: no cover - the failure this test shows
+        pytest.fail(f"reading a cache entry exited ({exc.code!r})")
+    assert calls == [1] and cv.folds[0].accuracy == 0.3
+    assert "sphri.cache.__main__" not in sys.modules
+    assert "not a data type sphri stores" in caplog.text and str(path) in caplog.text
+
+
+def test_a_value_raising_system_exit_while_decoding_is_a_decode_error(monkeypatch):
+    from sphri.codec import DecodeError, decode, encode
+
+    def leave(self):
+        raise SystemExit(3)
+
+    tree, arrays = encode(_evaluation())
+    monkeypatch.setattr(CVResult, "check_decoded", leave)
+    with pytest.raises(DecodeError, match=r"SystemExit\(3\)"):
+        decode(tree, arrays)
+
+
+def test_an_unsigned_fingerprint_memo_cannot_keep_a_replaced_file_from_recomputing(tmp_path, monkeypatch, caplog):
+    """With a cache key, whoever can write ``fingerprints.json`` but has no key gives a replaced mesh its
+    old digest (the new size, times and inode next to the old hash): the stage keys stay those of the
+    signed entries, and the old surface would be served. The memo is signed with the key; one that
+    does not verify is ignored with a warning and every file hashed again."""
+    from sphri import inputs
+    from tests.test_cache_content import make, sources, write_arm
+
+    monkeypatch.setenv("SPHRI_CACHE_KEY", "team secret")
+    mesh = tmp_path / "arm.obj"
+    write_arm(mesh)
+    robot = ["robot=mesh", f"robot.links={{l_arm: {mesh}}}", "robot.regions={arm: l_arm}", "robot.units=m"]
+    first, _ = make(tmp_path, *robot)
+    assert sources(first, "surface") == {"surface": "computed"}
+    assert sources(make(tmp_path, *robot)[0], "surface") == {"surface": "cache"}
+    memo_path = tmp_path / "cache" / inputs.MEMO_NAME
+    doc = json.loads(memo_path.read_text())
+    entries = doc.get("entries", doc)
+    old = entries[str(mesh)][4]
+    write_arm(mesh, scale=1.1)  # another mesh at the same path
+    st = mesh.stat()
+    entries[str(mesh)] = [st.st_size, st.st_mtime_ns, st.st_ino, st.st_ctime_ns, old]
+    caplog.set_level(logging.WARNING, logger="sphri")
+    for forged in (entries, {"entries": entries, "hmac": doc.get("hmac", "0" * 64)}):  # unsigned; signature kept
+        memo_path.write_text(json.dumps(forged))
+        monkeypatch.setattr(inputs, "_MEMOS", {})  # a new process
+        again, _ = make(tmp_path, *robot)
+        assert again.nodes["surface"].key != first.nodes["surface"].key, "the replaced mesh must not be served"
+        assert "not signed with the cache key" in caplog.text and str(memo_path) in caplog.text
+        caplog.clear()
+    monkeypatch.setattr(inputs, "_MEMOS", {})
+    memo = inputs.FingerprintMemo(memo_path, b"team secret")  # the memo the run signed is used: no rehash
+    assert memo.digest(mesh) != old and memo.hashed == []

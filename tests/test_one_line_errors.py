@@ -75,8 +75,11 @@ def test_store_repair_on_a_revision_mlflow_does_not_know(tmp_path: Path):
 
     client = MlflowClient(tracking_uri=f"sqlite:///{db}")
     client.create_run(client.create_experiment("e"))  # a run to keep: repair migrates instead of replacing
-    with sqlite3.connect(db) as con:
-        con.execute("UPDATE alembic_version SET version_num = 'deadbeef'")
+    client._tracking_client.store.engine.dispose()  # this process closes the store: repair refuses one held open
+    con = sqlite3.connect(db)
+    con.execute("UPDATE alembic_version SET version_num = 'deadbeef'")
+    con.commit()
+    con.close()
     proc = _run(["sphri.tracking.store", "repair", str(db)], tmp_path)
     line = [ln for ln in proc.stderr.strip().splitlines() if ln.startswith("sphri:")]
     assert proc.returncode == 1 and "Traceback" not in proc.stderr, (made.stderr + proc.stderr)[-2000:]

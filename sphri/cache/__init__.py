@@ -21,8 +21,8 @@ Nothing in an entry can execute code when it is read.
 - Writes go to a temporary file in the same folder, then ``os.replace``:
   a reader never sees a half-written entry.
 - An entry that fails its checksum or key, is not an npz, or does not decode
-  into the stage's contract (another type, other fields, a class outside
-  sphri, values inconsistent with each other, e.g. a 3x3 confusion matrix
+  into the stage's contract (another type, other fields, a class not among
+  the data types sphri stores, values inconsistent with each other, e.g. a 3x3 confusion matrix
   for 8 gestures), or whose decoding fails in any other way (a 200,000-deep
   JSON document, an out-of-range number) is logged with its file, removed
   and recomputed, never used and never raised.

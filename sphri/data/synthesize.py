@@ -27,21 +27,24 @@ from sphri.errors import clean_errors
 from sphri.types import GestureDataset
 
 
-def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> GestureDataset:
-    """Generate the configured dataset and write it under ``out``; returns it."""
+def synthesize(out: str | Path, overrides: Sequence[str] = (), overwrite: bool = False) -> GestureDataset:
+    """Generate the configured dataset and write it under ``out``; returns it. An existing, non-empty
+    ``out`` is refused unless ``overwrite``, and then replaced whole (:func:`sphri.fsutil.replace_dir`)."""
     from hydra.utils import instantiate
     from omegaconf import OmegaConf
 
     from sphri.config import check_output_dir, compose
     from sphri.data.writer import write_dataset
+    from sphri.fsutil import replace_dir
 
     cfg = compose(list(overrides))
-    check_output_dir(str(out), key="out")  # before generating: a file in the way is one line
+    check_output_dir(str(out), key="out", overwrite=overwrite)  # before generating: one line, nothing mixed
     hand = instantiate(cfg.hand).build()
     robot = instantiate(cfg.robot).build()
     dataset = instantiate(cfg.data).load(hand=hand, robot=robot)
     meta = {"data": OmegaConf.to_container(cfg.data, resolve=True), "robot": robot.name}
-    write_dataset(dataset, robot, out, meta=meta)
+    with replace_dir(out) as fresh:
+        write_dataset(dataset, robot, fresh, meta=meta)
     return dataset
 
 
@@ -53,6 +56,7 @@ def _nonempty(value: str) -> str | None:
 class SynthesizeArgs:
     out: str = arg(metavar="DIR", check=_nonempty, help="the folder to write")
     overrides: list[str] = arg([], rest=True, help="config overrides, e.g. data.participants=4 data.repetitions=1")
+    overwrite: bool = arg(False, help="replace an existing, non-empty out folder whole (refused otherwise)")
 
 
 def command(args: SynthesizeArgs) -> int:
@@ -61,12 +65,14 @@ def command(args: SynthesizeArgs) -> int:
     return write_dataset(synthesize, args, "trials")
 
 
-def write_dataset(make: Callable[[str, Sequence[str]], Any], args: SynthesizeArgs, units: str) -> int:
-    """Write a dataset with ``make(out, overrides)`` (a ``synthesize``) and say what it holds: how many
-    ``units`` (its attribute: trials, sessions) and frames, where, and how long it took."""
+def write_dataset(make: Callable[..., Any], args: SynthesizeArgs, units: str) -> int:
+    """Write a dataset with ``make(out, overrides, overwrite=...)`` (a ``synthesize``: it refuses an
+    existing folder with :func:`sphri.config.check_output_dir` and writes through
+    :func:`sphri.fsutil.replace_dir`) and say what it holds: how many ``units`` (its attribute: trials,
+    sessions) and frames, where, and how long it took."""
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     t = time.perf_counter()
-    ds = make(args.out, args.overrides)
+    ds = make(args.out, args.overrides, overwrite=args.overwrite)
     print(
         f"wrote {len(getattr(ds, units))} {units}, {ds.n_frames} frames ({ds.name}, {ds.frame_rate_hz:g} Hz) "
         f"to {Path(args.out).resolve()} in {time.perf_counter() - t:.1f} s"

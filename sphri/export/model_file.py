@@ -29,7 +29,9 @@ package listed in ``plugins`` (``skin live plugins=[labext]``).
 The digests cover the header too: an edited label order or window length is
 a checksum mismatch. With ``SPHRI_MODEL_KEY`` (or ``SPHRI_MODEL_KEY_FILE``)
 set, :func:`save_model` signs the file and :func:`load_model` refuses a
-file not signed with that key. Nothing in a model file is unpickled, so a
+file not signed with that key. A signed file read without a key configured
+is refused too (its signature cannot be checked), unless the reader says so
+(``allow_unverified=True``; ``skin live allow_unverified=true``). Nothing in a model file is unpickled, so a
 crafted file cannot run code: the old pickle format (``SPHRIMODEL1``), the
 previous format (``SPHRIMODEL2``, whose checksum left the header out),
 any type outside a model's trusted list and any model class from a package
@@ -255,11 +257,14 @@ def _check_header(path: Path, header: dict[str, Any]) -> None:
             raise ModelFileError(f"{path}: header field {name} must be an object, got {header.get(name)!r}")
 
 
-def load_model(path: str | os.PathLike, key: Any = FROM_ENV, plugins: Sequence[str] = ()) -> ModelBundle:
+def load_model(
+    path: str | os.PathLike, key: Any = FROM_ENV, plugins: Sequence[str] = (), allow_unverified: bool = False
+) -> ModelBundle:
     """Read a model file written by :func:`save_model` (checks its digests over header and payload, its
     header fields, types and shapes; no pickle). ``key``: the model key (bytes), None, or the environment's
     (default); with a key, a file not signed with it is refused. ``plugins``: packages whose model classes
-    the file may name (:func:`sphri.export.registry.model_class`); sphri's own models need none."""
+    the file may name (:func:`sphri.export.registry.model_class`); sphri's own models need none.
+    ``allow_unverified``: load a signed file although no key is configured (its signature unchecked)."""
     path = Path(path)
     header, head_bytes, digest, keyed, payload = _split(path)
     if plain_digest(MAGIC, head_bytes, payload) != digest:
@@ -268,6 +273,11 @@ def load_model(path: str | os.PathLike, key: Any = FROM_ENV, plugins: Sequence[s
     if not keyed_ok(key, keyed, MAGIC, head_bytes, payload):
         why = "it was written without the key" if keyed == NO_KEY else "its HMAC does not match the key"
         raise ModelFileError(f"{path}: not signed with the configured model key (SPHRI_MODEL_KEY): {why}; refused")
+    if key is None and keyed != NO_KEY and not allow_unverified:
+        raise ModelFileError(
+            f"{path}: signed with a model key, but no key is configured to check it (SPHRI_MODEL_KEY or "
+            "SPHRI_MODEL_KEY_FILE); set the key, or allow_unverified=true to load it unchecked; refused"
+        )
     _check_header(path, header)
     try:
         geo_head = header["geometry"]

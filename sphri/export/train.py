@@ -44,6 +44,8 @@ class TrainExportSettings(Schema):
     """Participant left out of training (to try the model live on their trials)."""
     mlflow: bool = False
     """Also log the file as an artifact (model/<name>) of a new MLflow run."""
+    overwrite: bool = False
+    """Replace an existing file at out (refused otherwise); the file is replaced whole, atomically."""
 
     def check(self) -> None:
         require(self.out not in ("", "???"), "out", self.out, "an output path, e.g. out=model.sphrimodel")
@@ -201,10 +203,12 @@ def main(_cmd: str, settings: TrainExportSettings, overrides: list[str]) -> int:
     from sphri.pipeline import make_pipeline, open_cache
 
     cfg = compose(overrides)  # an invalid override: one line from @clean_errors, exit 2
-    check_output_file(settings.out)  # before training: a folder or a file in the way is one line, not lost work
+    # before training: a folder or a file in the way is one line, not lost work (or a replaced model)
+    check_output_file(settings.out, overwrite=settings.overwrite)
     p = make_pipeline(cfg, open_cache(cfg))
     bundle = fit_bundle(p, settings.holdout, overrides)
-    path = save_model(bundle, settings.out)
+    check_output_file(settings.out, overwrite=settings.overwrite)  # a file that appeared while training
+    path = save_model(bundle, settings.out)  # through a temporary file beside it and a rename: whole
     print(
         f"saved {bundle.meta['model']} ({bundle.meta['n_train']} windows, train accuracy "
         f"{bundle.meta['train_accuracy']:.3f}; {bundle.n_taxels} taxels, L={bundle.window_length}) to {path}"

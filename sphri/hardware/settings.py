@@ -153,6 +153,8 @@ class SkinLiveSettings(SkinStreamSettings):
     """MLflow tracking URI for runs:/ models (None = sqlite:///outputs/mlflow.db, the pipeline's default)."""
     allow_remote: bool = False
     """Fetch a remote model (runs:/, models:/, http://...); off by default: only local files are read."""
+    allow_unverified: bool = False
+    """Load a model file signed with a key although no key (SPHRI_MODEL_KEY) is configured to check it."""
     plugins: list[str] = field(default_factory=list)
     """Packages whose model classes a model file may name (e.g. [labext]); sphri's own models need none."""
     stride: int = setting(0, lo=0, hi=10_000)

@@ -466,6 +466,7 @@ def live(
             settings.model, settings.tracking_uri or default_tracking_uri(), allow_remote=settings.allow_remote
         ),
         plugins=settings.plugins,
+        allow_unverified=settings.allow_unverified,
     )
     stride = settings.stride or auto_stride(bundle.frame_rate_hz)
     clf = LiveClassifier(

@@ -41,12 +41,6 @@ class ExampleLogs:
     frame_rate_hz: float
 
 
-def _check_empty(out: Path) -> None:
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        what = "a file" if not out.is_dir() else "a folder that is not empty"
-        raise ConfigError(f"out={out} is invalid: it is {what}; give a new or empty folder")
-
-
 def _readme(version: str, seed: int, settings: dict, robot: str, rows: list[tuple], rate_hz: float) -> str:
     shown = [f"  {k}={v}" for k, v in sorted(settings.items()) if k != "_target_"]
     links = ", ".join(sorted({str(row[3]) for row in rows}))
@@ -70,19 +64,19 @@ def _readme(version: str, seed: int, settings: dict, robot: str, rows: list[tupl
     )
 
 
-def write_example_logs(out: str | Path, overrides: Sequence[str] = ()) -> ExampleLogs:
+def write_example_logs(out: str | Path, overrides: Sequence[str] = (), overwrite: bool = False) -> ExampleLogs:
     """Generate the synthetic study (:data:`SMALL` plus ``overrides``) and write one OpenXR log per trial,
-    ``manifest.csv`` and ``README.txt`` into ``out``, which must be new or empty."""
+    ``manifest.csv`` and ``README.txt`` into ``out``, which must be new or empty unless ``overwrite`` (then
+    it is replaced whole, :func:`sphri.fsutil.replace_dir`)."""
     from hydra.utils import instantiate
     from omegaconf import OmegaConf
 
     import sphri
     from sphri.config import check_output_dir, compose
-    from sphri.recordings.capsules import export_openxr
+    from sphri.fsutil import replace_dir
 
     out = Path(out)
-    check_output_dir(str(out), key="out")
-    _check_empty(out)
+    check_output_dir(str(out), key="out", overwrite=overwrite)  # before generating: nothing mixed
     cfg = compose([*SMALL, *overrides])
     hand = instantiate(cfg.hand).build()
     missing = [n for n in OPENXR_CAPSULES if n not in hand.names]
@@ -93,7 +87,20 @@ def write_example_logs(out: str | Path, overrides: Sequence[str] = ()) -> Exampl
         )
     robot = instantiate(cfg.robot).build()
     ds = instantiate(cfg.data).load(hand=hand, robot=robot)
-    out.mkdir(parents=True, exist_ok=True)
+    with replace_dir(out) as fresh:
+        rows, files = _write_logs(ds, Path(fresh))
+        settings = OmegaConf.to_container(cfg.data, resolve=True)
+        if not isinstance(settings, dict):  # a config group node is a mapping
+            raise TypeError(f"data config is a {type(settings).__name__}, not a mapping")
+        text = _readme(sphri.__version__, int(cfg.data.seed), settings, robot.name, rows, ds.frame_rate_hz)
+        (Path(fresh) / "README.txt").write_text(text)
+    return ExampleLogs(f"{ds.name}, OpenXR logs", [out / f.name for f in files], ds.n_frames, ds.frame_rate_hz)
+
+
+def _write_logs(ds, out: Path) -> tuple[list[tuple], list[Path]]:
+    """One OpenXR log per trial of ``ds`` and ``manifest.csv`` in ``out``: (manifest rows, log files)."""
+    from sphri.recordings.capsules import export_openxr
+
     rows, files = [], []
     for r in ds.trials.sort_values(["participant", "region", "trial_ordinal"]).itertuples():
         number = int(str(r.participant).rsplit("_", 1)[-1])
@@ -105,9 +112,4 @@ def write_example_logs(out: str | Path, overrides: Sequence[str] = ()) -> Exampl
         w = csv.writer(fh, lineterminator="\n")
         w.writerow(MANIFEST_COLUMNS)
         w.writerows(rows)
-    settings = OmegaConf.to_container(cfg.data, resolve=True)
-    if not isinstance(settings, dict):  # a config group node is a mapping
-        raise TypeError(f"data config is a {type(settings).__name__}, not a mapping")
-    text = _readme(sphri.__version__, int(cfg.data.seed), settings, robot.name, rows, ds.frame_rate_hz)
-    (out / "README.txt").write_text(text)
-    return ExampleLogs(f"{ds.name}, OpenXR logs", files, ds.n_frames, ds.frame_rate_hz)
+    return rows, files

@@ -3,10 +3,11 @@
 Each requested link becomes one mesh in that link's own frame: the link's
 ``collision`` (or ``visual``) elements, each placed by its ``<origin>``, mesh
 files scaled by their ``scale``. Mesh URIs (``package://pkg/dir/file``,
-``file://``, relative) resolve against the URDF's folder: every tail of the
-URI's path is tried under that folder and its parent, then the file name is
-looked up anywhere below the folder (case-insensitively, e.g. ``.STL`` vs
-``.stl``); a note records such matches. A link whose mesh file cannot be
+``file://``, relative) resolve inside the robot's folder (the URDF's folder,
+or ``mesh_root``): every tail of the URI's path is tried under that folder,
+then the file name is looked up anywhere below it (case-insensitively, e.g.
+``.STL`` vs ``.stl``); a note records such matches. A mesh path that leaves
+the folder (``..``, an absolute path, a link) is refused, named. A link whose mesh file cannot be
 found falls back to its collision primitives (box, cylinder, sphere) with a
 warning (without primitives: the elements found, with a warning; none: an
 error naming the files tried). Joint values (``joints``) matter only for ``merge``, which adds
@@ -59,7 +60,7 @@ def mesh_files(urdf_path: Path) -> list[Path]:
     """
     import xml.etree.ElementTree as ET
 
-    resolver = MeshResolver(Path(urdf_path).parent)
+    resolver = MeshResolver(Path(urdf_path).parent, urdf_path)
     out = []
     for el in ET.parse(urdf_path).getroot().iter("mesh"):
         name = el.get("filename")
@@ -178,6 +179,7 @@ class UrdfRobot:
                 units=str(units),
             )
             return
+        self.mesh_root = None if mesh_root in (None, "") else Path(str(mesh_root)).expanduser()
         if links is None:
             raise ConfigError("robot.links is missing: URDF link names to load (or robot.parts for a whole-body robot)")
         self.links = [str(x) for x in links]
@@ -236,7 +238,10 @@ class UrdfRobot:
                 log.info("robot %s: joints are unused without robot.merge (each link is in its own frame)", self.name)
             else:
                 urdf.update_cfg({k: v for k, v in self.joints.items()})
-        resolver = MeshResolver(path.parent)
+        root_dir = self.mesh_root if self.mesh_root is not None else path.parent
+        if not root_dir.is_dir():
+            raise FileNotFoundError(f"robot.mesh_root: folder not found: {root_dir} (meshes of {path})")
+        resolver = MeshResolver(root_dir, path)
         links = {}
         for name in self.links:
             notes: list[str] = []

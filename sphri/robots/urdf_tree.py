@@ -17,7 +17,8 @@ through :class:`UrdfWholeBody`:
    (``package://pkg/...``, ``file://$(find pkg)/...``, relative paths) resolve
    against ``mesh_root`` (default: the URDF's folder) with
    :class:`MeshResolver` (tails of the path, then the file
-   name anywhere below the root).
+   name anywhere below the root); a mesh path that leaves that folder is
+   refused, named.
 3. Links without any loadable geometry (dummy, camera and tip frames; meshes
    of absent ROS packages) are *skipped*; so are ``exclude``-d links and links
    not connected to the root. A ``merge``-d link's geometry joins an ancestor
@@ -294,18 +295,37 @@ SPHERE_SUBDIVISIONS = 2
 
 
 class MeshResolver:
-    """Finds the files behind a URDF's mesh URIs (``package://pkg/dir/file``, ``file://``, relative) under
-    ``urdf_dir``: every tail of the URI's path under the folder and its parent, then the file name anywhere below
-    the folder (case-insensitively, e.g. ``.STL`` vs ``.stl``); the note names such a match."""
+    """Finds the files behind a URDF's mesh URIs (``package://pkg/dir/file``, ``file://``, relative) inside
+    the robot's folder ``urdf_dir`` (the URDF's folder, or ``robot.mesh_root``): every tail of the URI's path
+    under that folder, then the file name anywhere below it (case-insensitively, e.g. ``.STL`` vs ``.stl``);
+    the note names such a match. Nothing outside the folder is ever used: a URI with ``..``, an absolute
+    path or a link that leads out of it is a :class:`RobotFileError` naming the URI, the folder and
+    ``source`` (the URDF)."""
 
-    def __init__(self, urdf_dir: Path):
+    def __init__(self, urdf_dir: Path, source: Path | str | None = None):
         self.dir = urdf_dir
+        self.source = source
+
+    @cached_property
+    def _root(self) -> Path:
+        return Path(self.dir).resolve()
+
+    def _inside(self, p: Path) -> bool:
+        real = p.resolve()
+        return real == self._root or self._root in real.parents
+
+    def _refuse(self, uri: str, where: str) -> RobotFileError:
+        src = f"{self.source}: " if self.source is not None else ""
+        return RobotFileError(
+            f"{src}mesh {uri!r} {where}, outside the robot's folder {self.dir}; meshes must lie inside it "
+            "(or inside robot.mesh_root)"
+        )
 
     @cached_property
     def _by_name(self) -> dict[str, list[Path]]:
         index: dict[str, list[Path]] = {}
         for p in sorted(self.dir.rglob("*")):
-            if p.is_file():
+            if p.is_file() and self._inside(p):
                 index.setdefault(p.name.lower(), []).append(p)
         return index
 
@@ -317,20 +337,19 @@ class MeshResolver:
                 rel = rel[len(prefix) :]
                 break
         direct = Path(rel)
-        if direct.is_absolute():
-            if direct.is_file():
-                return direct, [direct], ""
-            parts = direct.parts[1:]
-        else:
-            parts = direct.parts
+        if ".." in direct.parts:
+            raise self._refuse(uri, "climbs out with '..'")
+        if direct.is_absolute() and direct.is_file() and self._inside(direct):
+            return direct, [direct], ""
+        parts = direct.parts[1:] if direct.is_absolute() else direct.parts
         tried = []
         for k in range(len(parts)):
-            tail = Path(*parts[k:])
-            for base in (self.dir, self.dir.parent):
-                cand = base / tail
-                tried.append(cand)
-                if cand.is_file():
-                    return cand, tried, "" if k == 0 and base == self.dir else f"{uri} -> {cand}"
+            cand = self.dir / Path(*parts[k:])
+            tried.append(cand)
+            if cand.is_file():
+                if not self._inside(cand):
+                    raise self._refuse(uri, f"resolves through a link to {cand.resolve()}")
+                return cand, tried, "" if k == 0 else f"{uri} -> {cand}"
         if parts:
             hits = self._by_name.get(parts[-1].lower(), [])
             if hits:
@@ -344,6 +363,8 @@ class MeshResolver:
 
                 best = max(hits, key=shared)
                 return best, tried, f"{uri} -> {best} (matched by file name)"
+        if direct.is_absolute() and direct.is_file() and not self._inside(direct):
+            raise self._refuse(uri, f"names {direct}")
         return None, tried, ""
 
 
@@ -505,7 +526,7 @@ class UrdfWholeBody:
         root_dir = self.mesh_root if self.mesh_root is not None else model.path.parent
         if not root_dir.is_dir():
             raise FileNotFoundError(f"robot.mesh_root: folder not found: {root_dir} (meshes of {model.path})")
-        resolver = MeshResolver(root_dir)
+        resolver = MeshResolver(root_dir, model.path)
         skipped = list(model.skipped)
         gone = {n for n, r in skipped if r.startswith("not connected")}  # (a repeated name's first link stays)
         connected = [n for n in model.links if n not in gone]

@@ -22,19 +22,22 @@ from sphri.errors import clean_errors
 from sphri.sessions.format import SessionDataset
 
 
-def synthesize(out: str | Path, overrides: Sequence[str] = ()) -> SessionDataset:
-    """Generate the configured sessions and write them under ``out``; returns them."""
+def synthesize(out: str | Path, overrides: Sequence[str] = (), overwrite: bool = False) -> SessionDataset:
+    """Generate the configured sessions and write them under ``out``; returns them. An existing, non-empty
+    ``out`` is refused unless ``overwrite``, and then replaced whole (:func:`sphri.fsutil.replace_dir`)."""
     from hydra.utils import instantiate
 
     from sphri.config import check_output_dir, compose
+    from sphri.fsutil import replace_dir
     from sphri.sessions.format import write_sessions
 
     cfg = compose(["data=synthetic_sessions", "robot=reachy_full", *overrides])
-    check_output_dir(str(out), key="out")  # before generating: a file in the way is one line
+    check_output_dir(str(out), key="out", overwrite=overwrite)  # before generating: one line, nothing mixed
     hand = instantiate(cfg.hand).build()
     robot = instantiate(cfg.robot).build()
     ds = instantiate(cfg.data).load(hand=hand, robot=robot)
-    write_sessions(ds, out)
+    with replace_dir(out) as fresh:
+        write_sessions(ds, fresh)
     return ds
 
 

@@ -18,8 +18,16 @@ start as a copy of it, and MLflow adds its Default experiment on first open,
 as it does for a fresh store. Any problem with that copy falls back to
 migrating from scratch.
 
-``sphri store repair PATH/mlflow.db`` (or ``python -m sphri.tracking.store repair ...``) repairs one: a store
-without runs is moved aside (``mlflow.db.broken-<time>``) and created anew;
+A store another process holds locked is not broken: readers wait for the
+lock up to :data:`BUSY_TIMEOUT_S` seconds, then raise :class:`StoreBusy`
+naming the processes that have the file open (read from ``/proc/*/fd`` where
+the OS offers it). A file that is not an MLflow store (not SQLite, or
+without MLflow's ``alembic_version``, ``experiments`` and ``runs`` tables) is
+:class:`NotAStore`: never offered for repair, never touched.
+
+``sphri store repair PATH/mlflow.db`` (or ``python -m sphri.tracking.store repair ...``) repairs one,
+refusing a store another process has open or locked, and anything that is not
+an MLflow store: a store without runs is moved aside (``mlflow.db.broken-<time>``) and created anew;
 otherwise a backup is taken (``mlflow.db.bak-<time>``), each leftover
 ``_alembic_tmp_X`` is dropped (or renamed to ``X`` when ``X`` is missing) and
 the schema upgraded to MLflow's head.
@@ -42,10 +50,66 @@ from typing import Literal
 from sphri.command.args import arg
 
 TMP_PREFIX = "_alembic_tmp_"
+#: Seconds a reader waits for another process's lock on the store before calling it busy.
+BUSY_TIMEOUT_S = 60.0
+#: Tables every MLflow store holds (besides ``alembic_version``); a leftover ``_alembic_tmp_`` copy counts.
+MLFLOW_TABLES = ("experiments", "runs")
 
 
-class BrokenStore(RuntimeError):
+class StoreError(RuntimeError):
+    """An MLflow SQLite store that cannot be used now: broken, busy or not a store."""
+
+
+class BrokenStore(StoreError):
     """An MLflow SQLite store an interrupted schema migration left broken."""
+
+
+class StoreBusy(StoreError):
+    """Another process holds the store's lock for longer than the wait: not broken, busy."""
+
+
+class NotAStore(StoreError):
+    """A file where the MLflow store should be that is not one (not SQLite, or not MLflow's schema)."""
+
+
+def holders(db: Path) -> list[str]:
+    """``pid N (command)`` of every other process with ``db`` (or its journal) open, from ``/proc/*/fd``;
+    empty where the OS does not tell."""
+    names = {str(Path(db).resolve()), str(Path(db).resolve()) + "-journal", str(Path(db).resolve()) + "-wal"}
+    out = []
+    for proc in Path("/proc").glob("[0-9]*"):
+        if proc.name == str(os.getpid()):
+            continue
+        try:
+            fds = list((proc / "fd").iterdir())
+        except OSError:  # gone, or another user's
+            continue
+        hit = False
+        for fd in fds:
+            with contextlib.suppress(OSError):
+                if os.readlink(fd) in names:
+                    hit = True
+                    break
+        if hit:
+            try:
+                cmd = " ".join((proc / "cmdline").read_bytes().decode(errors="replace").replace("\0", " ").split())
+            except OSError:
+                cmd = "?"
+            out.append(f"pid {proc.name} ({cmd[:80]})")
+    return out
+
+
+def _busy(db: Path, waited: float) -> StoreBusy:
+    who = holders(db)
+    by = f" (open in {', '.join(who)})" if who else ""
+    return StoreBusy(
+        f"MLflow store {db} is busy: another process{by} held its lock for more than {waited:g} s; it is not "
+        "broken. Nothing was computed; run again when that process is done, or give another output_dir"
+    )
+
+
+def _is_lock(exc: sqlite3.Error) -> bool:
+    return isinstance(exc, sqlite3.OperationalError) and ("locked" in str(exc) or "busy" in str(exc))
 
 
 def sqlite_path(uri: str) -> Path | None:
@@ -65,16 +129,24 @@ def store_lock(db: Path) -> Iterator[None]:
         yield
 
 
-def _tables(db: Path) -> list[str]:
-    with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True)) as con:
-        return [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")]
+def _tables(db: Path, timeout: float = BUSY_TIMEOUT_S) -> list[str]:
+    """The store's tables; waits up to ``timeout`` s for another process's lock, then :class:`StoreBusy`."""
+    try:
+        with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=timeout)) as con:
+            return [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")]
+    except sqlite3.Error as exc:
+        if _is_lock(exc):
+            raise _busy(db, timeout) from None
+        raise
 
 
 def _revision(db: Path) -> str | None:
-    with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True)) as con:
+    with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=BUSY_TIMEOUT_S)) as con:
         try:
             row = con.execute("SELECT version_num FROM alembic_version").fetchone()
-        except sqlite3.OperationalError:
+        except sqlite3.OperationalError as exc:
+            if _is_lock(exc):
+                raise _busy(db, BUSY_TIMEOUT_S) from None
             return None
     return row[0] if row else None
 
@@ -106,16 +178,24 @@ def head_revision(memo_dir: Path | None = None) -> str:
     return head
 
 
-def problems(db: Path) -> list[str]:
-    """What is wrong with an existing store file (empty: nothing, or no store yet)."""
+def problems(db: Path, timeout: float | None = None) -> list[str]:
+    """What is wrong with an existing store file (empty: nothing, or no store yet). Raises
+    :class:`StoreBusy` when another process holds its lock longer than ``timeout`` s
+    (:data:`BUSY_TIMEOUT_S`), :class:`NotAStore` for a file that is not an MLflow store."""
     if not db.exists() or db.stat().st_size == 0:
         return []
+    if not db.is_file():
+        raise NotAStore(f"{db} is not an MLflow store (not a file)")
     try:
-        tables = _tables(db)
+        tables = _tables(db, BUSY_TIMEOUT_S if timeout is None else timeout)
     except sqlite3.DatabaseError as exc:
-        return [f"not a readable SQLite database ({exc})"]
+        raise NotAStore(f"{db} is not an MLflow store (not a SQLite database: {exc})") from None
     if not tables:
         return []
+    plain = {t[len(TMP_PREFIX) :] if t.startswith(TMP_PREFIX) else t for t in tables}
+    lacking = [t for t in ("alembic_version", *MLFLOW_TABLES) if t not in plain]
+    if lacking:
+        raise NotAStore(f"{db} is not an MLflow store (a SQLite database without the table(s) {', '.join(lacking)})")
     out = [f"leftover table {t} of an interrupted schema migration" for t in tables if t.startswith(TMP_PREFIX)]
     rev, head = _revision(db), head_revision(db.parent)
     if rev != head:
@@ -186,7 +266,10 @@ def ensure_store(uri: str) -> None:
             "Make it writable, or give another tracking.uri or output_dir"
         )
     with store_lock(db):
-        found = problems(db)
+        try:
+            found = problems(db)
+        except NotAStore as exc:
+            raise NotAStore(f"{exc}; nothing was computed. Give another tracking.uri or output_dir") from None
         if found:
             raise BrokenStore(
                 f"MLflow store {db} is broken: {'; '.join(found)}. Nothing was computed into it. "
@@ -203,25 +286,42 @@ def _n_runs(db: Path) -> int:
     with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True)) as con:
         try:
             return int(con.execute("SELECT count(*) FROM runs").fetchone()[0])
-        except sqlite3.OperationalError:
+        except sqlite3.OperationalError as exc:
+            if _is_lock(exc):
+                raise _busy(db, 0) from None
             try:
                 return int(con.execute(f"SELECT count(*) FROM {TMP_PREFIX}runs").fetchone()[0])
             except sqlite3.OperationalError:
                 return 0
 
 
-def repair(db: Path) -> str:
-    """Repair a broken store (see the module docstring); returns what was done."""
+def _check_free(db: Path, timeout: float) -> None:
+    """Raise :class:`StoreBusy` when another process has ``db`` open or holds a lock on it past ``timeout``."""
+    who = holders(db)
+    if who:
+        raise StoreBusy(f"{db} is open in {', '.join(who)}; not repaired while another process holds it")
+    try:
+        with contextlib.closing(sqlite3.connect(db, timeout=timeout, isolation_level=None)) as con:
+            con.execute("BEGIN EXCLUSIVE")
+            con.execute("ROLLBACK")
+    except sqlite3.Error as exc:
+        if _is_lock(exc):
+            raise StoreBusy(f"{db} is locked by another process; not repaired while it holds it") from None
+        raise
+
+
+def repair(db: Path, timeout: float = 5.0) -> str:
+    """Repair a broken store (see the module docstring); returns what was done. Refuses (:class:`StoreBusy`,
+    :class:`NotAStore`) a store another process holds (waiting up to ``timeout`` s for a lock) and any file
+    that is not an MLflow store: such a file is never moved or replaced."""
     db = Path(db).absolute()
     stamp = time.strftime("%Y%m%d-%H%M%S")
     with store_lock(db):
-        found = problems(db)
+        found = problems(db, timeout)  # NotAStore: never touched
         if not found:
             return f"{db}: nothing to repair"
-        try:
-            n_runs = _n_runs(db)
-        except sqlite3.DatabaseError:
-            n_runs = 0
+        _check_free(db, timeout)
+        n_runs = _n_runs(db)
         if n_runs == 0:
             aside = db.with_name(f"{db.name}.broken-{stamp}")
             db.rename(aside)
@@ -270,13 +370,13 @@ class StoreArgs:
 def command(args: StoreArgs) -> int:
     """Check an MLflow SQLite store for what an interrupted migration leaves, or repair it (a backup is
     kept; a store without runs is moved aside and created anew)."""
-    if args.action == "check":
-        found = problems(args.db)
-        print(f"{args.db}: " + ("; ".join(found) + f" (repair: {repair_command(args.db)})" if found else "ok"))
-        return 1 if found else 0
     try:
+        if args.action == "check":
+            found = problems(args.db)
+            print(f"{args.db}: " + ("; ".join(found) + f" (repair: {repair_command(args.db)})" if found else "ok"))
+            return 1 if found else 0
         print(repair(args.db))
-    except BrokenStore as exc:
+    except StoreError as exc:
         print(f"sphri: {exc}", file=sys.stderr)
         return 1
     return 0

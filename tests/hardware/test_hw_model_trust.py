@@ -115,8 +115,25 @@ def test_a_keyed_model_file_refuses_files_without_the_key(rf_file, monkeypatch):
     with pytest.raises(ModelFileError, match="does not match the key"):
         load_model(forged)
     monkeypatch.delenv("SPHRI_MODEL_KEY")
-    assert load_model(signed).labels == GESTURES  # without a key configured, signed files still load
-    assert load_model(forged).labels == GESTURES[::-1]  # ... and only the plain digest is checked
+    assert load_model(path).labels == GESTURES  # without a key, a file saved without one loads
+
+
+def test_a_signed_model_file_without_a_key_configured_is_refused_unless_allowed(rf_file, monkeypatch):
+    """A file signed with a key, read where no key is set: its signature cannot be checked, so it is
+    refused, naming the setting that loads it anyway (a forged header signed with another key likewise)."""
+    path, model, geo = rf_file
+    signed = save_model(ModelBundle(model, geo, 20, 90.0), path.with_name("signed.sphrimodel"), key=b"lab key")
+    header, rest = _parts(signed.read_bytes())
+    header["labels"] = header["labels"][::-1]
+    forged = signed.with_name("forged.sphrimodel")
+    forged.write_bytes(seal_model(json.dumps(header).encode(), rest[64:], key=b"another key"))
+    monkeypatch.delenv("SPHRI_MODEL_KEY", raising=False)
+    monkeypatch.delenv("SPHRI_MODEL_KEY_FILE", raising=False)
+    for p in (signed, forged):
+        with pytest.raises(ModelFileError, match=rf"{p.name}: signed with a model key, but no key .*allow_unverified"):
+            load_model(p)
+    assert load_model(signed, allow_unverified=True).labels == GESTURES
+    assert load_model(forged, allow_unverified=True).labels == GESTURES[::-1]  # unchecked, as asked
 
 
 def test_a_previous_format_file_is_refused_with_the_command_to_export_it_again(rf_file):

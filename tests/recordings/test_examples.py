@@ -30,13 +30,15 @@ def test_example_logs_refuse_a_folder_that_is_not_empty(tmp_path, capsys):
     (tmp_path / "logs" / "mine.csv").write_text("time\n")
     assert main(["synthesize", "what=openxr", f"out={tmp_path / 'logs'}"]) == 2
     err = capsys.readouterr().err.strip()
-    assert err == (
-        f"sphri synthesize: invalid config: out={tmp_path / 'logs'} is invalid: it is a folder that is not empty; "
-        "give a new or empty folder"
-    )
+    assert err.startswith(f"sphri synthesize: invalid config: out={tmp_path / 'logs'} is invalid: ")
+    assert "not empty" in err and "overwrite=true" in err and "\n" not in err
     assert (tmp_path / "logs" / "mine.csv").read_text() == "time\n"
     (tmp_path / "logs" / "mine.csv").unlink()  # an empty folder is taken
     assert main(["synthesize", "what=openxr", f"out={tmp_path / 'logs'}", "data.participants=1"]) == 0
+    (tmp_path / "logs" / "mine.csv").write_text("time\n")
+    assert main(["synthesize", "what=openxr", f"out={tmp_path / 'logs'}", "data.participants=1", "overwrite=true"]) == 0
+    assert not (tmp_path / "logs" / "mine.csv").exists()  # replaced whole, never mixed
+    assert (tmp_path / "logs" / "manifest.csv").exists()
 
 
 def test_example_logs_refuse_a_hand_without_the_openxr_capsules(tmp_path, hand, capsys):

@@ -1,0 +1,148 @@
+"""Outputs that never mix with or silently replace what is there, and commands that never reach outside
+their folders: ``sphri synthesize``/``sphri export`` on an existing target, ``sphri cache clear`` through
+a link, ``sphri coverage out=`` holding the MLflow store."""
+
+from __future__ import annotations
+
+import importlib
+import os
+
+import pytest
+
+SMALL = ["+debug=fast", "data.participants=2", "data.repetitions=1", "data.regions=[arm]"]
+
+
+def _line(err: str) -> str:
+    (line,) = [ln for ln in err.splitlines() if ln.startswith("sphri")]
+    return line
+
+
+@pytest.mark.parametrize("module", ["sphri.data.synthesize", "sphri.sessions.synthesize"])
+def test_synthesize_into_an_existing_folder_is_refused_before_generating(module, tmp_path, capsys, monkeypatch):
+    """``sphri synthesize out=EXISTING`` wrote the new dataset's files among the old ones (the mix then
+    loads without a word): refused in one line naming ``out`` and ``overwrite=true``, nothing generated."""
+    import sphri.data.synthetic
+    import sphri.sessions.synthetic
+
+    def refuse(*_a, **_k):
+        raise AssertionError("generating started")
+
+    monkeypatch.setattr(sphri.data.synthetic.SyntheticData, "load", refuse)
+    monkeypatch.setattr(sphri.sessions.synthetic.SyntheticSessions, "load", refuse)
+    out = tmp_path / "ds"
+    out.mkdir()
+    (out / "kept.txt").write_text("an earlier dataset\n")
+    code = importlib.import_module(module).main([f"out={out}", "+debug=fast"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    line = _line(err)
+    assert f"out={out} is invalid: {out} exists and is not empty" in line and "overwrite=true" in line, line
+    assert [p.name for p in out.iterdir()] == ["kept.txt"]
+
+
+def test_synthesize_with_overwrite_replaces_the_folder_whole(tmp_path, capsys):
+    from sphri.data import synthesize
+
+    out = tmp_path / "ds"
+    out.mkdir()
+    (out / "kept.txt").write_text("an earlier dataset\n")
+    (out / "arm").mkdir()
+    (out / "arm" / "participant_09").mkdir()  # a participant the new dataset does not have
+    assert synthesize.main([f"out={out}", "overwrite=true", *SMALL]) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert "kept.txt" not in names and "assets" in names, names
+    assert sorted(p.name for p in (out / "arm").iterdir()) == ["participant_01", "participant_02"]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")], "no temporary folder left beside out"
+
+
+def test_replace_dir_leaves_the_target_untouched_when_writing_fails(tmp_path):
+    from sphri.fsutil import replace_dir
+
+    target = tmp_path / "t"
+    target.mkdir()
+    (target / "old").write_text("old")
+    with pytest.raises(RuntimeError), replace_dir(target) as fresh:
+        (fresh / "new").write_text("new")
+        raise RuntimeError("writing failed")
+    assert [p.name for p in target.iterdir()] == ["old"] and sorted(os.listdir(tmp_path)) == ["t"]
+    outside = tmp_path / "outside"
+    outside.mkdir()
+    (outside / "precious").write_text("x")
+    target.rename(tmp_path / "t0")
+    target.symlink_to(outside)  # a link at out: replaced as a name, never followed
+    with replace_dir(target) as fresh:
+        (fresh / "new").write_text("new")
+    assert not target.is_symlink() and [p.name for p in target.iterdir()] == ["new"]
+    assert (outside / "precious").read_text() == "x"
+
+
+def test_export_onto_an_existing_model_file_is_refused_before_training(tmp_path, capsys, monkeypatch):
+    """``sphri export out=EXISTING.sphrimodel`` replaced the file: refused in one line before training,
+    unless ``overwrite=true``."""
+    import sphri.pipeline
+    from sphri.export import train
+
+    class Trained(Exception):
+        pass
+
+    def refuse(*_a, **_k):
+        raise Trained
+
+    monkeypatch.setattr(sphri.pipeline, "make_pipeline", refuse)
+    model = tmp_path / "rf.sphrimodel"
+    model.write_bytes(b"an earlier model")
+    code = train.main([f"out={model}", "+debug=fast"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    line = _line(err)
+    assert f"out={model} is invalid: {model} exists; give another name, or overwrite=true" in line, line
+    assert model.read_bytes() == b"an earlier model"
+    with pytest.raises(Trained):  # overwrite=true: past the check, training starts
+        train.main([f"out={model}", "overwrite=true", "+debug=fast"])
+
+
+def test_cache_clear_never_follows_a_link_out_of_the_cache(tmp_path, capsys):
+    """A stage folder (or its by-path index) that is a link to another folder: ``sphri cache clear``
+    deleted the files there. Links are left alone; only the cache's own entries go."""
+    from sphri.cache.__init__ import SUFFIX
+    from sphri.cache_cli import main
+
+    root = tmp_path / "cache"
+    (root / "evaluate" / "by-path").mkdir(parents=True)
+    (root / "evaluate" / f"k{SUFFIX}").write_bytes(b"entry")
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    precious = [elsewhere / f"results{SUFFIX}", elsewhere / "notes.json"]
+    for p in precious:
+        p.write_text("not the cache's\n")
+    (root / "data").symlink_to(elsewhere)
+    (root / "contact").mkdir()
+    (root / "contact" / "by-path").symlink_to(elsewhere)
+    (root / "contact" / f"e{SUFFIX}").symlink_to(elsewhere / f"results{SUFFIX}")
+    assert main(["clear", f"dir={root}"]) == 0
+    assert all(p.read_text() == "not the cache's\n" for p in precious)
+    assert not (root / "evaluate" / f"k{SUFFIX}").exists()
+    assert main(["clear", "data", f"dir={root}"]) == 2
+    assert "is a link; links in the cache are never followed" in capsys.readouterr().err
+    assert all(p.exists() for p in precious)
+
+
+@pytest.mark.parametrize("where", ["output_dir", "above", "inside"])
+def test_coverage_out_holding_the_mlflow_store_is_refused(where, tmp_path, capsys, monkeypatch):
+    """``sphri coverage out=O output_dir=O`` logged every file of ``out`` as the run's artifacts, the
+    MLflow artifacts folder included (hundreds of MB, then ``[Errno 36] File name too long``): refused
+    before computing, naming the folder."""
+    import sphri.pipeline
+    from sphri.coverage import main
+
+    def refuse(*_a, **_k):
+        raise AssertionError("computing started")
+
+    monkeypatch.setattr(sphri.pipeline, "make_pipeline", refuse)
+    base = tmp_path / "o"
+    out = {"output_dir": base, "above": tmp_path, "inside": base / "mlartifacts" / "cov"}[where]
+    code = main(["+debug=fast", f"output_dir={base}", f"out={out}"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    line = _line(err)
+    assert f"out={out} is invalid: " in line and str(base / "m") in line, line
