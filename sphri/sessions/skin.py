@@ -64,12 +64,13 @@ class Patches:
         return self.table["area_cm2"].to_numpy(float) * 1e-4
 
 
-def make_patches(body: BodySurface, patch_cm2: float, seed: int = 0) -> Patches:
-    """Split each body part's reachable elements (per link) into patches of about ``patch_cm2``."""
+def make_patches(body: BodySurface, patch_cm2: float, seed: int = 0, mountable: np.ndarray | None = None) -> Patches:
+    """Split each body part's reachable elements (per link; only where ``mountable``, (P,) bool, when given) into
+    patches of about ``patch_cm2``."""
     if not patch_cm2 > 0:
         raise ValueError(f"patch_cm2={patch_cm2} is invalid: must be > 0")
     of = np.full(body.samples.n, -1, dtype=np.int64)
-    reach = body.reachable
+    reach = body.reachable if mountable is None else body.reachable & np.asarray(mountable, dtype=bool)
     area_cm2 = body.samples.area_m2 * 1e4
     rows = []
     # normals weigh as much as half a patch's width: the two faces of a thin part fall into different patches
@@ -133,13 +134,21 @@ def _kmeans(x: np.ndarray, k: int, iterations: int = 10) -> np.ndarray:
 
 
 def frame_patch_matrix(
-    frames: np.ndarray, elements: np.ndarray, of_element: np.ndarray, n_patches: int
+    frames: np.ndarray,
+    elements: np.ndarray,
+    of_element: np.ndarray,
+    n_patches: int,
+    counted: np.ndarray | None = None,
 ) -> tuple[np.ndarray, sparse.csr_matrix]:
-    """(unique frames (U,), (U, n_patches) CSR of ones) from (frame, element) pairs; pairs out of reach dropped."""
+    """(unique frames (U,), (U, n_patches) CSR of ones) from (frame, element) pairs. The frames are those touching
+    an element where ``counted`` ((P,) bool; default: elements in a patch), so a frame touching only surface no
+    patch holds (a joint shell) is a row of zeros: captured by no skin."""
     p = of_element[elements]
-    keep = p >= 0
-    uf, inv = np.unique(frames[keep], return_inverse=True)
-    m = sparse.csr_matrix((np.ones(int(keep.sum()), dtype=np.float64), (inv, p[keep])), shape=(uf.size, n_patches))
+    c = p >= 0 if counted is None else np.asarray(counted, dtype=bool)[elements] | (p >= 0)
+    uf, inv = np.unique(frames[c], return_inverse=True)
+    keep = p[c] >= 0
+    inv, p = inv[keep], p[c][keep]
+    m = sparse.csr_matrix((np.ones(inv.size, dtype=np.float64), (inv, p)), shape=(uf.size, n_patches))
     m.data[:] = 1.0  # duplicates summed by the constructor
     m.sum_duplicates()
     m.data[:] = 1.0
@@ -467,10 +476,12 @@ def skin_design(
     budget_m2: float,
     heldout_splits: int = 10,
     seed: int = 0,
+    mountable: np.ndarray | None = None,
 ) -> SkinDesign:
-    """Patches, budget curves and the patch-level placement from the study's (frame, element) pairs."""
-    patches = make_patches(body, patch_cm2, seed)
-    uf, m = frame_patch_matrix(frames, elements, patches.of_element, len(patches.table))
+    """Patches (on the ``mountable`` elements when given), budget curves and the patch-level placement from the
+    study's (frame, element) pairs; a frame counts when it touches reachable surface."""
+    patches = make_patches(body, patch_cm2, seed, mountable)
+    uf, m = frame_patch_matrix(frames, elements, patches.of_element, len(patches.table), body.reachable)
     f_scen = sessions["scenario"].to_numpy()[frame_session[uf]]
     f_unit = sessions["participant"].to_numpy()[frame_session[uf]]
     curves = budget_curves(
