@@ -359,6 +359,63 @@ def _face_patches(
     return of_element[body.offset[li] + nb[np.arange(len(cen)), pick]]
 
 
+#: Two pieces of a patch closer than this (m) on the surface touch: shells of a multi-shell mesh that meet are one.
+TOUCH_M = 1e-3
+
+
+def connected_pieces(vertices: np.ndarray, faces: np.ndarray, touch_m: float = TOUCH_M) -> list[np.ndarray]:
+    """Face indices of each connected piece of a triangle surface, largest area first. Faces connect through a
+    shared vertex once vertices within ``touch_m`` are merged, and two pieces connect where a vertex of one lies
+    within ``touch_m`` of the other's surface (shells that touch without sharing vertices)."""
+    import trimesh
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    if len(f) == 0:
+        return []
+    used = np.unique(f)
+    # vertices within touch_m are one vertex
+    pairs = cKDTree(v[used]).query_pairs(touch_m, output_type="ndarray")
+    nv = used.size
+    g = sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(nv, nv)) if len(pairs) else None
+    canon = connected_components(g, directed=False)[1] if g is not None else np.arange(nv)
+    vid = np.full(len(v), -1, dtype=np.int64)
+    vid[used] = canon
+    ff = vid[f]
+    nc = int(ff.max()) + 1
+    # faces sharing a (merged) vertex: components of the face-vertex incidence graph
+    rows = np.repeat(np.arange(len(ff)), 3)
+    inc = sparse.coo_matrix((np.ones(rows.size), (rows, ff.ravel())), shape=(len(ff), nc)).tocsr()
+    lab = connected_components(sparse.bmat([[None, inc], [inc.T, None]]), directed=False)[1]
+    lab = lab[: len(ff)]
+    pieces = [np.flatnonzero(lab == k) for k in np.unique(lab)]
+    if len(pieces) > 1:  # pieces whose surfaces touch
+        boxes = [
+            (v[f[p]].reshape(-1, 3).min(axis=0) - touch_m, v[f[p]].reshape(-1, 3).max(axis=0) + touch_m) for p in pieces
+        ]
+        join = []
+        for i in range(len(pieces)):
+            vi = v[np.unique(f[pieces[i]])]
+            for j in range(len(pieces)):
+                if i == j or np.any(boxes[i][0] > boxes[j][1]) or np.any(boxes[j][0] > boxes[i][1]):
+                    continue
+                mj = trimesh.Trimesh(v, f[pieces[j]], process=False)
+                if (mj.nearest.on_surface(vi)[1] <= touch_m).any():
+                    join.append((i, j))
+        if join:
+            j = np.asarray(join)
+            k = len(pieces)
+            comp = connected_components(
+                sparse.coo_matrix((np.ones(len(j)), (j[:, 0], j[:, 1])), shape=(k, k)), directed=False
+            )[1]
+            pieces = [np.concatenate([pieces[i] for i in range(k) if comp[i] == c]) for c in np.unique(comp)]
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    return sorted(pieces, key=lambda p: -float(area[p].sum()))
+
+
 def export_patches(
     body: BodySurface,
     robot,
@@ -369,8 +426,12 @@ def export_patches(
     pitch_mm: float,
     out_dir: Path,
     fmt: str = "ply",
+    min_piece_cm2: float = 0.0,
 ) -> list[Path]:
-    """Write ``out_dir/<link>__<patch>.<fmt>`` per chosen patch (link frame) and ``manifest.json`` / ``.csv``."""
+    """Write ``out_dir/<link>__<piece>.<fmt>`` per connected piece of each chosen patch (link frame) and
+    ``manifest.json`` / ``.csv``. A patch whose faces form several pieces (:func:`connected_pieces`) is exported
+    as its pieces of at least ``min_piece_cm2``, named ``<patch>_1``, ``<patch>_2`` (largest first); smaller
+    pieces are dropped and counted. The contact shares of a piece are those of the patch it was cut from."""
     import trimesh
     from trimesh.remesh import subdivide_to_size
 
@@ -380,6 +441,7 @@ def export_patches(
     chosen = set(order.tolist())
     rank = {int(p): i for i, p in enumerate(order)}
     rows, files = [], []
+    dropped, dropped_cm2 = 0, 0.0
     for li, link_name in enumerate(body.links):
         mine = [int(p) for p in np.flatnonzero(patches.table["link"].to_numpy() == link_name) if int(p) in chosen]
         if not mine:
@@ -389,42 +451,56 @@ def export_patches(
         v, f = subdivide_to_size(np.asarray(link.vertices, float), np.asarray(link.faces), max_edge, max_iter=12)
         fp = _face_patches(body, li, v, f, patches.of_element)
         for p in mine:
-            sel = f[fp == p]
             row = patches.table.iloc[p]
-            mesh = trimesh.Trimesh(v, sel, process=False) if len(sel) else None
-            name = ""
-            if mesh is not None:
+            sel = f[fp == p]
+            meshes = []
+            for piece in connected_pieces(v, sel):
+                mesh = trimesh.Trimesh(v, sel[piece], process=False)
                 mesh.remove_unreferenced_vertices()
-                name = f"{_safe(link_name)}__{_safe(row['patch'])}.{fmt}"
+                if mesh.area * 1e4 < min_piece_cm2:
+                    dropped += 1
+                    dropped_cm2 += float(mesh.area * 1e4)
+                else:
+                    meshes.append(mesh)
+            for k, mesh in enumerate(meshes):
+                piece_name = f"{row['patch']}_{k + 1}" if len(meshes) > 1 else str(row["patch"])
+                name = f"{_safe(link_name)}__{_safe(piece_name)}.{fmt}"
                 mesh.export(out_dir / name)
                 files.append(out_dir / name)
-            area_cm2 = float(mesh.area * 1e4) if mesh is not None else 0.0
-            rows.append(
-                dict(
-                    link=link_name,
-                    part=row["part"],
-                    patch=row["patch"],
-                    file=name,
-                    order=rank[p] + 1,
-                    area_cm2=area_cm2,
-                    sampled_area_cm2=float(row["area_cm2"]),
-                    taxels=int(np.floor(area_cm2 * 100.0 / pitch_mm**2 + 1e-9)),
-                    share_captured_alone=float(alone[p]),
-                    share_added=float(new_counts[rank[p]] / n_frames),
-                    n_faces=int(len(sel)),
+                area_cm2 = float(mesh.area * 1e4)
+                rows.append(
+                    dict(
+                        link=link_name,
+                        part=row["part"],
+                        patch=row["patch"],
+                        piece=piece_name,
+                        file=name,
+                        order=rank[p] + 1,
+                        area_cm2=area_cm2,
+                        sampled_area_cm2=float(row["area_cm2"]),
+                        taxels=int(np.floor(area_cm2 * 100.0 / pitch_mm**2 + 1e-9)),
+                        share_captured_alone=float(alone[p]),
+                        share_added=float(new_counts[rank[p]] / n_frames),
+                        n_faces=int(len(mesh.faces)),
+                    )
                 )
-            )
-    man = pd.DataFrame(rows).sort_values("order").reset_index(drop=True)
+    man = pd.DataFrame(rows)
     if len(man):
-        man["cumulative_share"] = man["share_added"].cumsum()
+        man = man.sort_values(["order", "piece"]).reset_index(drop=True)
+        first = ~man["patch"].duplicated()  # a patch's share counts once however many pieces it has
+        man["cumulative_share"] = (man["share_added"] * first).cumsum()
     man.to_csv(out_dir / "manifest.csv", index=False, float_format="%.6g")
+    first = ~man["patch"].duplicated() if len(man) else None
     meta = {
         "frame": "each link's own frame (the robot description's link frame), metres",
         "pitch_mm": pitch_mm,
         "n_contact_frames": int(m.shape[0]),
         "area_cm2": float(man["area_cm2"].sum()) if len(man) else 0.0,
-        "captured": float(man["share_added"].sum()) if len(man) else 0.0,
+        "captured": float(man["share_added"][first].sum()) if len(man) else 0.0,
         "taxels": int(man["taxels"].sum()) if len(man) else 0,
+        "min_piece_cm2": min_piece_cm2,
+        "dropped_pieces": dropped,
+        "dropped_area_cm2": dropped_cm2,
         "robot": robot.name,
         "patches": json.loads(man.to_json(orient="records")),
     }
@@ -492,7 +568,9 @@ def skin_design(
     return SkinDesign(patches, uf, m, curves, placement, order, new, float(pitch_mm), float(budget_m2))
 
 
-def write_design(design: SkinDesign, body: BodySurface, robot, out: Path, fmt: str = "ply") -> list[Path]:
+def write_design(
+    design: SkinDesign, body: BodySurface, robot, out: Path, fmt: str = "ply", min_piece_cm2: float = 0.0
+) -> list[Path]:
     """``budget_curve.csv``, ``patches.csv``, ``patch_placement.csv`` and the ``skin_export/`` folder."""
     files = [out / "budget_curve.csv", out / "patches.csv", out / "patch_placement.csv"]
     design.curves.to_csv(files[0], index=False, float_format="%.6g")
@@ -511,5 +589,6 @@ def write_design(design: SkinDesign, body: BodySurface, robot, out: Path, fmt: s
         design.pitch_mm,
         out / "skin_export",
         fmt,
+        min_piece_cm2,
     )
     return files

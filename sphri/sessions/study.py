@@ -451,6 +451,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         },
         "human_codes": res.codes.summary(res.coded) if res.codes is not None else None,
         "skin_design": _design_summary(res.design),
+        "skin_export": _export_summary(out / "skin_export" / "manifest.json"),
         "sentences": res.sentences,
         "notes": res.notes,
         "seconds": res.seconds,
@@ -564,7 +565,14 @@ def _design_and_gesture_files(res: StudyResult, body, robot, out: Path) -> list[
 
     files = []
     if res.design is not None:
-        files += write_design(res.design, body, robot, out, res.settings.export_format)
+        files += write_design(res.design, body, robot, out, res.settings.export_format, res.settings.min_patch_cm2)
+        meta = json.loads((out / "skin_export" / "manifest.json").read_text())
+        if meta["dropped_pieces"]:
+            res.notes.append(
+                f"skin export: {meta['dropped_pieces']} piece(s) of chosen patches below min_patch_cm2="
+                f"{res.settings.min_patch_cm2:g} dropped ({meta['dropped_area_cm2']:.1f} cm^2); "
+                f"{len(meta['patches'])} connected pieces exported"
+            )
     scen = sorted(pd.unique(res.sessions["scenario"]))
     gesture_counts(res.coded, scen, seed=res.settings.seed).to_csv(
         out / "gesture_counts.csv", index=False, float_format="%.4g"
@@ -596,6 +604,13 @@ def _design_summary(design) -> dict | None:
             hit = c[c["captured"] >= 0.9]
             out[f"area_cm2_for_90pct_{kind}"] = float(hit["area_cm2"].iat[0]) if len(hit) else None
     return out
+
+
+def _export_summary(path: Path) -> dict | None:
+    """The patch export's totals (``skin_export/manifest.json``), without the per-piece rows."""
+    if not path.is_file():
+        return None
+    return {k: v for k, v in json.loads(path.read_text()).items() if k != "patches"}
 
 
 def _effects(comp) -> pd.DataFrame:
