@@ -10,18 +10,24 @@ Budget curve. A contact frame is *captured* when it touches a chosen patch.
 cm^2 (within an area budget, or without one for the curve; patches that
 capture nothing new come last, smallest first). The curve is the captured
 share against the cumulative area (cm^2) and against taxels at a pitch
-(area / pitch^2), in-sample (chosen and scored on the same frames: it ends at
-1 when every patch is taken) and held-out: participants are split in half at
+(area / pitch^2), in-sample (chosen and scored on the same frames: with
+every patch taken it ends at the share of frames touching mountable surface)
+and held-out: participants are split in half at
 random ``heldout_splits`` times; each half's order scores the other half's
 frames, and the curve is the mean (and SD) over the 2 x ``heldout_splits``
 scorings, per scenario and pooled.
 
 Export. The pooled design under the study's budget, per link: each chosen
-patch as a PLY mesh in the link's frame (the link's mesh subdivided to edges
+patch as PLY meshes in the link's frame (the link's mesh subdivided to edges
 of at most the element spacing, each face given the patch of its nearest
-element), with a manifest (JSON and CSV): link, part, patch id, mesh area
-(cm^2), taxels at the pitch, the share of contact frames the patch touches
-alone and the share it adds in the greedy order.
+element), one per connected piece of the patch on the surface
+(:func:`connected_pieces`: shells that touch are one piece; pieces below the
+study's ``min_patch_cm2`` are dropped and counted), with its taxels at the
+pitch (:func:`place_taxels`: positions and normals), and a manifest (JSON and
+CSV): link, part, patch id, piece, mesh area (cm^2), taxels at the pitch, the
+share of contact frames the patch touches alone and the share it adds in the
+greedy order; the JSON also holds each piece's outline, its link's rest pose
+and the links merged into that link.
 """
 
 from __future__ import annotations
@@ -416,6 +422,49 @@ def connected_pieces(vertices: np.ndarray, faces: np.ndarray, touch_m: float = T
     return sorted(pieces, key=lambda p: -float(area[p].sum()))
 
 
+def place_taxels(mesh, pitch_mm: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 3) taxel positions on a patch's surface (its frame, metres), no two closer than ``pitch_mm``, and their
+    (T, 3) outward unit normals (of the faces they lie on): a dense random sample of the surface thinned greedily
+    (Poisson-disk-like even spacing)."""
+    import trimesh
+
+    pitch_m = float(pitch_mm) * 1e-3
+    n = max(1, int(np.ceil(mesh.area / pitch_m**2)))
+    pts, face = trimesh.sample.sample_surface(mesh, 30 * n, seed=seed)
+    keep = _thin(pts, pitch_m)
+    nrm = np.asarray(mesh.face_normals)[face[keep]]
+    return pts[keep], nrm
+
+
+def _thin(points: np.ndarray, radius: float) -> np.ndarray:
+    """Indices of a subset of ``points`` (in their order) with no two closer than ``radius``; each point left out
+    lies within ``radius`` of one kept."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(points)
+    free = np.ones(len(points), dtype=bool)
+    keep = []
+    for i in range(len(points)):
+        if free[i]:
+            keep.append(i)
+            free[tree.query_ball_point(points[i], radius * (1 - 1e-9))] = False
+    return np.asarray(keep, dtype=np.int64)
+
+
+def patch_outline(mesh) -> list[np.ndarray]:
+    """The boundary loops of a patch (each (n, 3), metres): edges held by one face, chained; none for a closed
+    surface."""
+    if len(mesh.faces) == 0:
+        return []
+    try:
+        return [np.asarray(x) for x in mesh.outline().discrete]
+    except (ValueError, IndexError):  # a boundary that does not chain into loops: its edges as segments
+        from trimesh.grouping import group_rows
+
+        e = mesh.edges_sorted
+        return [mesh.vertices[e[i]] for i in group_rows(e, require_count=1)]
+
+
 def export_patches(
     body: BodySurface,
     robot,
@@ -431,7 +480,11 @@ def export_patches(
     """Write ``out_dir/<link>__<piece>.<fmt>`` per connected piece of each chosen patch (link frame) and
     ``manifest.json`` / ``.csv``. A patch whose faces form several pieces (:func:`connected_pieces`) is exported
     as its pieces of at least ``min_piece_cm2``, named ``<patch>_1``, ``<patch>_2`` (largest first); smaller
-    pieces are dropped and counted. The contact shares of a piece are those of the patch it was cut from."""
+    pieces are dropped and counted. The contact shares of a piece are those of the patch it was cut from.
+
+    Per piece also ``<link>__<piece>_taxels.csv``: taxels at ``pitch_mm`` (:func:`place_taxels`: positions and
+    outward normals, link frame, metres), and in ``manifest.json`` its outline (:func:`patch_outline`), the link's
+    pose at the rest pose it was cut at (4 x 4, world frame) and the links merged into that link."""
     import trimesh
     from trimesh.remesh import subdivide_to_size
 
@@ -440,8 +493,10 @@ def export_patches(
     alone = np.asarray(m.sum(axis=0)).ravel() / n_frames
     chosen = set(order.tolist())
     rank = {int(p): i for i, p in enumerate(order)}
-    rows, files = [], []
+    rows, files, extra = [], [], {}
     dropped, dropped_cm2 = 0, 0.0
+    rest = robot.rest_poses() if hasattr(robot, "rest_poses") else None
+    tree_links = list(robot.tree.links) if getattr(robot, "tree", None) is not None else []
     for li, link_name in enumerate(body.links):
         mine = [int(p) for p in np.flatnonzero(patches.table["link"].to_numpy() == link_name) if int(p) in chosen]
         if not mine:
@@ -450,6 +505,8 @@ def export_patches(
         max_edge = max(float(body.samples.spacing_m), 1e-3)
         v, f = subdivide_to_size(np.asarray(link.vertices, float), np.asarray(link.faces), max_edge, max_iter=12)
         fp = _face_patches(body, li, v, f, patches.of_element)
+        pose = rest[tree_links.index(link_name)] if rest is not None and link_name in tree_links else np.eye(4)
+        merged = [c for c, r in getattr(robot, "skipped", ()) if str(r).startswith(f"merged into {link_name!r}")]
         for p in mine:
             row = patches.table.iloc[p]
             sel = f[fp == p]
@@ -468,6 +525,17 @@ def export_patches(
                 mesh.export(out_dir / name)
                 files.append(out_dir / name)
                 area_cm2 = float(mesh.area * 1e4)
+                pts, nrm = place_taxels(mesh, pitch_mm, seed=p)
+                tax_name = f"{_safe(link_name)}__{_safe(piece_name)}_taxels.csv"
+                pd.DataFrame(np.hstack([pts, nrm]), columns=["x_m", "y_m", "z_m", "nx", "ny", "nz"]).to_csv(
+                    out_dir / tax_name, index=False, float_format="%.6g"
+                )
+                files.append(out_dir / tax_name)
+                extra[piece_name] = {
+                    "outline_m": [np.round(loop, 6).tolist() for loop in patch_outline(mesh)],
+                    "link_pose_rest": np.round(pose, 9).tolist(),
+                    "merged_links": merged,
+                }
                 rows.append(
                     dict(
                         link=link_name,
@@ -479,6 +547,8 @@ def export_patches(
                         area_cm2=area_cm2,
                         sampled_area_cm2=float(row["area_cm2"]),
                         taxels=int(np.floor(area_cm2 * 100.0 / pitch_mm**2 + 1e-9)),
+                        taxels_placed=int(len(pts)),
+                        taxel_file=tax_name,
                         share_captured_alone=float(alone[p]),
                         share_added=float(new_counts[rank[p]] / n_frames),
                         n_faces=int(len(mesh.faces)),
@@ -498,11 +568,15 @@ def export_patches(
         "area_cm2": float(man["area_cm2"].sum()) if len(man) else 0.0,
         "captured": float(man["share_added"][first].sum()) if len(man) else 0.0,
         "taxels": int(man["taxels"].sum()) if len(man) else 0,
+        "taxels_placed": int(man["taxels_placed"].sum()) if len(man) else 0,
         "min_piece_cm2": min_piece_cm2,
         "dropped_pieces": dropped,
         "dropped_area_cm2": dropped_cm2,
         "robot": robot.name,
-        "patches": json.loads(man.to_json(orient="records")),
+        "taxel_placement": "taxels no closer than pitch_mm on each piece's surface (x_m, y_m, z_m, nx, ny, nz "
+        "in the link's frame); outline_m: the piece's boundary loops; link_pose_rest: the link's pose (world frame) "
+        "at the rest pose the patches were cut at; merged_links: links joined into the link at that pose",
+        "patches": [{**r, **extra[r["piece"]]} for r in json.loads(man.to_json(orient="records"))],
     }
     (out_dir / "manifest.json").write_text(json.dumps(meta, indent=1))
     return files + [out_dir / "manifest.csv", out_dir / "manifest.json"]

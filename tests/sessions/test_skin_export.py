@@ -18,6 +18,8 @@ URDF = """<robot name="shells">
   <link name="base"><collision><origin xyz="0 0 0.5"/><geometry><box size="0.3 0.3 0.3"/></geometry></collision></link>
   <link name="pair"><collision><geometry><mesh filename="pair.stl"/></geometry></collision></link>
   <link name="ball"><collision><geometry><sphere radius="0.05"/></geometry></collision></link>
+  <link name="lid"><collision><geometry><box size="0.1 0.1 0.02"/></geometry></collision></link>
+  <joint name="l" type="fixed"><parent link="base"/><child link="lid"/><origin xyz="0 0 0.66"/></joint>
   <joint name="p" type="fixed"><parent link="base"/><child link="pair"/><origin xyz="0.5 0 0.5"/></joint>
   <joint name="b" type="revolute"><parent link="base"/><child link="ball"/><origin xyz="0 0.3 0.5"/>
     <axis xyz="0 1 0"/></joint>
@@ -53,7 +55,7 @@ def export(tmp_path_factory):
     pair.export(root / "pair.stl")
     (root / "shells.urdf").write_text(URDF)
     parts = {"pair": {"link": "pair"}, "ball": {"link": "ball", "mountable": False}, "base": {"link": "base"}}
-    robot = UrdfWholeBody(root / "shells.urdf", parts).build()
+    robot = UrdfWholeBody(root / "shells.urdf", parts, merge={"base": ["lid"]}).build()
     body = body_surface(robot, robot.tree.links, spacing_mm=8.0, bandwidth_mm=15.0, floor_height_m=0.0)
     mountable = body.part != "ball"
     # a patch as large as the whole part: the pair link's patch spans both cubes and the small one
@@ -81,3 +83,38 @@ def test_every_exported_patch_is_one_connected_piece_on_a_mountable_part(export)
     # the 1 cm cube (6 cm^2) is dropped and counted; the contact share counts once per patch
     assert meta["dropped_pieces"] == 1 and meta["dropped_area_cm2"] == pytest.approx(6.0, rel=0.05)
     assert meta["captured"] == pytest.approx(1.0)
+
+
+def test_taxels_lie_on_their_patch_at_the_pitch_with_outline_pose_and_merged_links(export):
+    from scipy.spatial import cKDTree
+
+    body, patches, out = export
+    meta = json.loads((out / "manifest.json").read_text())
+    assert meta["pitch_mm"] == 10.0 and meta["taxels_placed"] > 0
+    for r in meta["patches"]:
+        mesh = trimesh.load(out / r["file"], process=False)
+        t = pd.read_csv(out / r["taxel_file"])
+        pts, nrm = t[["x_m", "y_m", "z_m"]].to_numpy(), t[["nx", "ny", "nz"]].to_numpy()
+        assert len(pts) == r["taxels_placed"] > 0
+        # on the patch's surface (< 0.5 mm), no two closer than the pitch, and as many as the pitch allows
+        _, dist, face = trimesh.proximity.closest_point(mesh, pts)
+        assert dist.max() < 0.5e-3, r["piece"]
+        if len(pts) > 1:
+            assert cKDTree(pts).query(pts, k=2)[0][:, 1].min() >= 10e-3 * (1 - 1e-6)
+        assert 0.5 * r["area_cm2"] <= len(pts) <= 1.2 * r["area_cm2"] + 1  # about one per cm^2 at 10 mm
+        # unit normals, those of the faces they lie on, pointing out of the link's solid (its centre for a cube)
+        assert np.allclose(np.linalg.norm(nrm, axis=1), 1.0, atol=1e-6)
+        assert (np.einsum("ij,ij->i", nrm, mesh.face_normals[face]) > 0.99).mean() > 0.95
+        closed = mesh.copy()
+        closed.merge_vertices()
+        # a closed piece (a whole cube) has no outline; an open one its boundary loops, on the piece's edges
+        assert (len(r["outline_m"]) == 0) == closed.is_watertight, r["piece"]
+        for loop in r["outline_m"]:
+            assert len(loop) >= 3 and trimesh.proximity.closest_point(mesh, np.asarray(loop))[1].max() < 1e-6
+        assert np.asarray(r["link_pose_rest"]).shape == (4, 4)
+        assert r["merged_links"] == (["lid"] if r["link"] == "base" else [])
+    assert any(r["outline_m"] for r in meta["patches"])
+    base = next(r for r in meta["patches"] if r["link"] == "base")
+    np.testing.assert_allclose(np.asarray(base["link_pose_rest"])[:3, 3], [0, 0, 0], atol=1e-9)
+    pair = next(r for r in meta["patches"] if r["link"] == "pair")
+    np.testing.assert_allclose(np.asarray(pair["link_pose_rest"])[:3, 3], [0.5, 0, 0.5], atol=1e-9)
