@@ -198,10 +198,8 @@ def plot_placement(
             if e:
                 bar.set_hatch("//")
                 bar.set_edgecolor("white")
-        a.set_xlabel("contact frames per cm$^2$ of reachable surface (pooled)")
-        a.set_title(
-            "mountable body parts, ranked and chosen by frames per cm$^2$ (red: the pooled placement)", loc="left"
-        )
+        a.set_xlabel("contact frames per cm$^2$ (pooled; ranks and places)")
+        a.set_title("mountable parts first (red: placed)", loc="left")
         y = np.arange(len(table))
         b.barh(y - 0.2, 100 * table["captured"], height=0.4, label="in sample", color="#4c72b0")
         b.barh(y + 0.2, 100 * table["heldout_captured"], height=0.4, label="held-out participants", color="#55a868")
