@@ -177,7 +177,7 @@ def plot_placement(
     out = ranking["excluded"].fillna("").astype(str) if "excluded" in ranking else pd.Series("", index=ranking.index)
     short = {"rotating": "joint", "narrower": "rod", "smaller": "small"}
     labels = [
-        figures.human(p) + (f" [not mountable: {short.get(e.split()[0], e)}]" if e else "")
+        figures.human(p) + (f" ({short.get(e.split()[0], 'not mountable')})" if e else "")
         for p, e in zip(ranking["part"], out)
     ]
     with figures.style():
@@ -199,7 +199,7 @@ def plot_placement(
                 bar.set_hatch("//")
                 bar.set_edgecolor("white")
         a.set_xlabel("contact frames per cm$^2$ (pooled; ranks and places)")
-        a.set_title("mountable parts first (red: placed)", loc="left")
+        a.set_title("red: placed; hatched: not mountable", loc="left")
         y = np.arange(len(table))
         b.barh(y - 0.2, 100 * table["captured"], height=0.4, label="in sample", color="#4c72b0")
         b.barh(y + 0.2, 100 * table["heldout_captured"], height=0.4, label="held-out participants", color="#55a868")
