@@ -82,6 +82,9 @@ class BodyPart:
     min_cos: float = 0.0
     """With ``side``: keep points whose unit normal's component along the side exceeds this
     (0: any point facing that way; 0.5: within 60 degrees of it, e.g. a top face)."""
+    mountable: bool = True
+    """False for a surface no skin can be fixed to: a joint's rotating shell (the scenario study leaves it out of
+    the ranking, the placement and the skin design)."""
 
     def contains(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
         """(P,) bool for (P, 3) link-frame points with outward normals."""

@@ -424,7 +424,7 @@ def tree_order(specs: Mapping[str, dict]) -> list[str]:
 
 
 def check_part_specs(parts: Any, links: Mapping[str, Any]) -> list[dict[str, Any]]:
-    """``robot.parts`` as checked plain dicts (name, link, side, z_min, z_max, min_cos), in order; every part on
+    """``robot.parts`` as checked plain dicts (name, link, side, z_min, z_max, min_cos, mountable), in order; every part on
     one of ``links`` (:class:`sphri.robots.kinematic.BodyPart` holds them)."""
     if parts is None or not _is_mapping(parts) or len(parts) == 0:
         raise ConfigError(f"robot.parts={parts!r} is invalid: a mapping body part -> {{link: ..., side: ...}}")
@@ -447,11 +447,13 @@ def check_part_specs(parts: Any, links: Mapping[str, Any]) -> list[dict[str, Any
         min_cos = float(_opt(spec, "min_cos", 0.0) or 0.0)
         if not 0.0 <= min_cos < 1.0 or (min_cos > 0 and side is None):
             raise ConfigError(f"{key}.min_cos={min_cos} is invalid: in [0, 1), and only with a side")
-        unknown = sorted(
-            set(spec.keys() if hasattr(spec, "keys") else []) - {"link", "side", "z_min", "z_max", "min_cos"}
-        )
+        mountable = _opt(spec, "mountable", True)
+        if not isinstance(mountable, bool):
+            raise ConfigError(f"{key}.mountable={mountable!r} is invalid: true or false")
+        allowed = {"link", "side", "z_min", "z_max", "min_cos", "mountable"}
+        unknown = sorted(set(spec.keys() if hasattr(spec, "keys") else []) - allowed)
         if unknown:
-            raise ConfigError(f"{key}: unknown key(s) {unknown}; allowed: link, side, z_min, z_max, min_cos")
+            raise ConfigError(f"{key}: unknown key(s) {unknown}; allowed: link, side, z_min, z_max, min_cos, mountable")
         out.append(
             {
                 "name": str(name),
@@ -460,6 +462,7 @@ def check_part_specs(parts: Any, links: Mapping[str, Any]) -> list[dict[str, Any
                 "z_min": None if z_min is None else float(z_min),
                 "z_max": None if z_max is None else float(z_max),
                 "min_cos": min_cos,
+                "mountable": mountable,
             }
         )
     return out
@@ -519,7 +522,7 @@ class KinematicRobotSchema(RobotSchema):
     links: Any = None
     """Link name -> {parent, xyz, rpy, joints: ["name:axis", ...], shape: a parametric loft}."""
     parts: Any = None
-    """Body part -> {link, side (+x, -x, ...), z_min, z_max}: named pieces of the links' surfaces."""
+    """Body part -> {link, side (+x, -x, ...), z_min, z_max, mountable}: named pieces of the links' surfaces."""
     groups: Any = None
     """Group -> [body parts] (e.g. upper_torso: [torso_front_upper, torso_back_upper])."""
     rest: Any = None

@@ -1,10 +1,16 @@
 """Body parts ranked by contact per unit area, and the greedy whole-body placement under a budget.
 
 Units are contact *frames* (a frame counts once for a part however many
-capsules touch it). :func:`rank_parts`: per part, its area, the frames that
-touch it, their share and frames per cm^2. :func:`greedy_parts`: repeatedly
-add the part with the most not-yet-captured frames per cm^2 that still fits
-the area budget; a frame is captured when it touches any chosen part.
+capsules touch it). Only *mountable* parts are ranked and placed
+(:func:`mountable_parts`): not a joint's rotating shell (``mountable: false``
+in the robot's parts), not a rod narrower than ``min_diameter_mm``, not smaller
+than ``min_patch_cm2`` of reachable area. :func:`rank_parts`: per part, its
+area, the frames that touch it, their share and frames per cm^2 of reachable
+surface; mountable parts first. :func:`greedy_parts`: repeatedly add the
+mountable part with the most not-yet-captured frames per cm^2 that still fits
+the area budget; a frame is captured when it touches any chosen part. Both use
+one criterion (contact frames per cm^2 of a mountable part's reachable
+surface), so the greedy's first part is the ranking's first.
 :func:`placement_table` does it pooled and per scenario, with a
 leave-one-participant-out check (choose on the others, score the one left out).
 """
@@ -25,7 +31,72 @@ def frame_part_matrix(
     return uf, m
 
 
-def rank_parts(m: np.ndarray, parts: list[str], area_m2: np.ndarray) -> pd.DataFrame:
+#: Slices along a part's longest principal axis in which its width is measured (m).
+WIDTH_SLICE_M = 0.01
+
+
+def part_width_mm(points_m: np.ndarray, slice_m: float = WIDTH_SLICE_M) -> float:
+    """A body part's width (mm) from its surface points (one link's frame, metres): the median, over slices
+    ``slice_m`` thick along the points' longest principal axis (weighted by the points in each), of the larger
+    extent of the slice's cross-section (its principal extent across that axis). A rod of diameter d measures
+    about d; a plate, its width; a ball of diameter D, sqrt(3)/2 D (the chord halfway up a hemisphere)."""
+    x = np.asarray(points_m, dtype=np.float64)
+    if len(x) < 3:
+        return 0.0
+    x = x - x.mean(axis=0)
+    y = x @ np.linalg.svd(x, full_matrices=False)[2].T
+    b = np.floor((y[:, 0] - y[:, 0].min()) / slice_m).astype(np.int64)
+    widths, weights = [], []
+    for k in np.unique(b):
+        c = y[b == k, 1:]
+        if len(c) < 3:
+            continue
+        c = c - c.mean(axis=0)
+        axis = np.linalg.svd(c, full_matrices=False)[2][0]
+        widths.append(float(np.ptp(c @ axis)))
+        weights.append(len(c))
+    if not widths:
+        return 0.0
+    w, n = np.asarray(widths), np.asarray(weights)
+    o = np.argsort(w)
+    cum = np.cumsum(n[o])
+    return float(w[o][np.searchsorted(cum, cum[-1] / 2)] * 1e3)
+
+
+def mountable_parts(
+    body, robot, reach_area_m2: dict[str, float], min_diameter_mm: float, min_patch_cm2: float
+) -> pd.DataFrame:
+    """Per body part of ``body``: ``part``, ``reachable_cm2``, ``width_mm`` (:func:`part_width_mm` of all its
+    elements), ``mountable`` and ``reason`` (why not: 'out of reach', 'rotating joint', 'narrower than ...',
+    'smaller than ...'; '' when mountable)."""
+    marked = {p.name for p in getattr(robot, "parts", ()) if not getattr(p, "mountable", True)}
+    rows = []
+    for p in body.parts:
+        sel = np.flatnonzero(body.part == p)
+        link = np.bincount(body.link_of[sel]).argmax()
+        own = sel[body.link_of[sel] == link] - body.offset[link]  # a part lies on one link (merged links are one)
+        width = part_width_mm(body.local[link].points_m[own])
+        area = float(reach_area_m2.get(p, 0.0)) * 1e4
+        if area <= 0:
+            reason = "out of reach"
+        elif p in marked:
+            reason = "rotating joint (mountable: false in the robot's parts)"
+        elif width < min_diameter_mm:
+            reason = f"narrower than min_diameter_mm={min_diameter_mm:g} ({width:.0f} mm)"
+        elif area < min_patch_cm2:
+            reason = f"smaller than min_patch_cm2={min_patch_cm2:g} ({area:.1f} cm^2 reachable)"
+        else:
+            reason = ""
+        rows.append(dict(part=p, reachable_cm2=area, width_mm=width, mountable=reason == "", reason=reason))
+    return pd.DataFrame(rows, columns=["part", "reachable_cm2", "width_mm", "mountable", "reason"])
+
+
+def rank_parts(
+    m: np.ndarray, parts: list[str], area_m2: np.ndarray, excluded: dict[str, str] | None = None
+) -> pd.DataFrame:
+    """Per part: area, contact frames, their share and frames per cm^2; mountable parts first by frames per cm^2
+    (the greedy's criterion), then the ``excluded`` ones (part -> reason, in column ``excluded``)."""
+    excluded = excluded or {}
     n = max(m.shape[0], 1)
     frames = m.sum(axis=0)
     df = pd.DataFrame(
@@ -35,14 +106,18 @@ def rank_parts(m: np.ndarray, parts: list[str], area_m2: np.ndarray) -> pd.DataF
             "contact_frames": frames,
             "frame_share": frames / n,
             "frames_per_cm2": frames / (area_m2 * 1e4),
+            "excluded": [excluded.get(p, "") for p in parts],
         }
     )
-    return df.sort_values(["frames_per_cm2", "part"], ascending=[False, True]).reset_index(drop=True)
+    df["_out"] = df["excluded"] != ""
+    df = df.sort_values(["_out", "frames_per_cm2", "part"], ascending=[True, False, True])
+    return df.drop(columns="_out").reset_index(drop=True)
 
 
-def greedy_parts(m: np.ndarray, area_m2: np.ndarray, budget_m2: float) -> list[int]:
-    """Part indices in the order chosen (see module)."""
-    chosen: list[int] = []
+def greedy_parts(m: np.ndarray, area_m2: np.ndarray, budget_m2: float, allowed: np.ndarray | None = None) -> list[int]:
+    """Part indices in the order chosen (see module); only parts where ``allowed`` (default: all)."""
+    chosen: list[int] = [j for j in range(m.shape[1]) if allowed is not None and not allowed[j]]
+    blocked = len(chosen)
     covered = np.zeros(m.shape[0], dtype=bool)
     left = float(budget_m2)
     while True:
@@ -51,10 +126,11 @@ def greedy_parts(m: np.ndarray, area_m2: np.ndarray, budget_m2: float) -> list[i
         ratio[chosen] = -1.0
         j = int(np.argmax(ratio))
         if ratio[j] <= 0:
-            return chosen
+            break
         chosen.append(j)
         covered |= m[:, j]
         left -= float(area_m2[j])
+    return chosen[blocked:]
 
 
 def captured(m: np.ndarray, chosen: list[int]) -> float:
@@ -71,20 +147,22 @@ def placement_table(
     parts: list[str],
     area_m2: np.ndarray,
     budget_m2: float,
+    allowed: np.ndarray | None = None,
 ) -> pd.DataFrame:
-    """One row per group (``all`` first): chosen parts, area, in-sample and held-out capture."""
+    """One row per group (``all`` first): chosen parts (among ``allowed``), area, in-sample and held-out capture;
+    ``area_share``: of the reachable surface of all ``parts``."""
     total = float(area_m2.sum())
     rows = []
     for g in ["all"] + list(groups):
         sel = np.ones(m.shape[0], bool) if g == "all" else frame_group == g
         mg, ug = m[sel], frame_unit[sel]
-        chosen = greedy_parts(mg, area_m2, budget_m2)
+        chosen = greedy_parts(mg, area_m2, budget_m2, allowed)
         held = []
         for u in pd.unique(ug):
             tr = ug != u
             if not tr.any():
                 continue
-            c = greedy_parts(mg[tr], area_m2, budget_m2)
+            c = greedy_parts(mg[tr], area_m2, budget_m2, allowed)
             held.append((captured(mg[~tr], c), int((~tr).sum())))
         hv = np.array([h for h, _ in held]) if held else np.zeros(0)
         rows.append(

@@ -171,8 +171,15 @@ def plot_placement(
     title: str,
     provenance: figures.Provenance | None = None,
 ) -> Path:
-    """Left: parts ranked by contact frames per cm^2 (pooled), chosen ones dark. Right: capture per group."""
+    """Left: parts ranked by contact frames per cm^2 of mountable surface (pooled; the greedy's criterion), chosen
+    ones red, parts not mountable hatched at the bottom with the reason. Right: capture per group."""
     chosen = set(str(table.loc[table["group"] == "all", "parts"].iat[0]).split(";"))
+    out = ranking["excluded"].fillna("").astype(str) if "excluded" in ranking else pd.Series("", index=ranking.index)
+    short = {"rotating": "joint", "narrower": "rod", "smaller": "small"}
+    labels = [
+        figures.human(p) + (f" ({short.get(e.split()[0], 'not mountable')})" if e else "")
+        for p, e in zip(ranking["part"], out)
+    ]
     with figures.style():
         fig, (a, b) = figures.new_figure(
             "two",
@@ -181,13 +188,18 @@ def plot_placement(
             gridspec_kw={"width_ratios": [1.3, 1]},
         )
         r = ranking.iloc[::-1]
-        a.barh(
-            [figures.human(p) for p in r["part"]],
+        ex = out.iloc[::-1].to_numpy() != ""
+        bars = a.barh(
+            labels[::-1],
             r["frames_per_cm2"],
             color=["#c44e52" if p in chosen else "#bbbbbb" for p in r["part"]],
         )
-        a.set_xlabel("contact frames per cm$^2$ (pooled)")
-        a.set_title("body parts (red: the pooled placement)", loc="left")
+        for bar, e in zip(bars, ex):
+            if e:
+                bar.set_hatch("//")
+                bar.set_edgecolor("white")
+        a.set_xlabel("contact frames per cm$^2$ (pooled; ranks and places)")
+        a.set_title("red: placed; hatched: not mountable", loc="left")
         y = np.arange(len(table))
         b.barh(y - 0.2, 100 * table["captured"], height=0.4, label="in sample", color="#4c72b0")
         b.barh(y + 0.2, 100 * table["heldout_captured"], height=0.4, label="held-out participants", color="#55a868")

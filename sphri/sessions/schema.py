@@ -115,6 +115,14 @@ class ScenarioStudySchema(Schema):
     budgets count the reachable surface only (``body_part_area.csv``)."""
     reach_down_cos: float = setting(0.5, lo=0.0, hi=1.0)
     """... 0.5: within 60 degrees of straight down."""
+    min_diameter_mm: float = setting(30.0, lo=0.0, hi=1000.0)
+    """Mountable surface: a body part narrower than this (mm) is a rod no skin is wrapped around. A part's width is
+    the median, over 10 mm slices along its longest principal axis, of the larger extent of the slice's cross-section
+    (Reachy 2's antennas: about 25 mm; its next narrowest parts, the pedestal bars: about 64 mm). Parts marked
+    ``mountable: false`` in the robot's parts (a joint's rotating shell) are left out as well."""
+    min_patch_cm2: float = setting(20.0, lo=0.0, hi=10_000.0)
+    """Mountable surface: a body part with less reachable area than this (cm^2) is left out; the skin export drops
+    connected pieces of a patch smaller than this."""
     budget_cm2: float = setting(2000.0, lo=0.0, lo_open=True)
     """Placement budget: skin area (cm^2) ..."""
     pitch_mm: float = setting(0.0, lo=0.0)

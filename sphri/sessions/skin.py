@@ -10,18 +10,24 @@ Budget curve. A contact frame is *captured* when it touches a chosen patch.
 cm^2 (within an area budget, or without one for the curve; patches that
 capture nothing new come last, smallest first). The curve is the captured
 share against the cumulative area (cm^2) and against taxels at a pitch
-(area / pitch^2), in-sample (chosen and scored on the same frames: it ends at
-1 when every patch is taken) and held-out: participants are split in half at
+(area / pitch^2), in-sample (chosen and scored on the same frames: with
+every patch taken it ends at the share of frames touching mountable surface)
+and held-out: participants are split in half at
 random ``heldout_splits`` times; each half's order scores the other half's
 frames, and the curve is the mean (and SD) over the 2 x ``heldout_splits``
 scorings, per scenario and pooled.
 
 Export. The pooled design under the study's budget, per link: each chosen
-patch as a PLY mesh in the link's frame (the link's mesh subdivided to edges
+patch as PLY meshes in the link's frame (the link's mesh subdivided to edges
 of at most the element spacing, each face given the patch of its nearest
-element), with a manifest (JSON and CSV): link, part, patch id, mesh area
-(cm^2), taxels at the pitch, the share of contact frames the patch touches
-alone and the share it adds in the greedy order.
+element), one per connected piece of the patch on the surface
+(:func:`connected_pieces`: shells that touch are one piece; pieces below the
+study's ``min_patch_cm2`` are dropped and counted), with its taxels at the
+pitch (:func:`place_taxels`: positions and normals), and a manifest (JSON and
+CSV): link, part, patch id, piece, mesh area (cm^2), taxels at the pitch, the
+share of contact frames the patch touches alone and the share it adds in the
+greedy order; the JSON also holds each piece's outline, its link's rest pose
+and the links merged into that link.
 """
 
 from __future__ import annotations
@@ -64,12 +70,13 @@ class Patches:
         return self.table["area_cm2"].to_numpy(float) * 1e-4
 
 
-def make_patches(body: BodySurface, patch_cm2: float, seed: int = 0) -> Patches:
-    """Split each body part's reachable elements (per link) into patches of about ``patch_cm2``."""
+def make_patches(body: BodySurface, patch_cm2: float, seed: int = 0, mountable: np.ndarray | None = None) -> Patches:
+    """Split each body part's reachable elements (per link; only where ``mountable``, (P,) bool, when given) into
+    patches of about ``patch_cm2``."""
     if not patch_cm2 > 0:
         raise ValueError(f"patch_cm2={patch_cm2} is invalid: must be > 0")
     of = np.full(body.samples.n, -1, dtype=np.int64)
-    reach = body.reachable
+    reach = body.reachable if mountable is None else body.reachable & np.asarray(mountable, dtype=bool)
     area_cm2 = body.samples.area_m2 * 1e4
     rows = []
     # normals weigh as much as half a patch's width: the two faces of a thin part fall into different patches
@@ -133,13 +140,21 @@ def _kmeans(x: np.ndarray, k: int, iterations: int = 10) -> np.ndarray:
 
 
 def frame_patch_matrix(
-    frames: np.ndarray, elements: np.ndarray, of_element: np.ndarray, n_patches: int
+    frames: np.ndarray,
+    elements: np.ndarray,
+    of_element: np.ndarray,
+    n_patches: int,
+    counted: np.ndarray | None = None,
 ) -> tuple[np.ndarray, sparse.csr_matrix]:
-    """(unique frames (U,), (U, n_patches) CSR of ones) from (frame, element) pairs; pairs out of reach dropped."""
+    """(unique frames (U,), (U, n_patches) CSR of ones) from (frame, element) pairs. The frames are those touching
+    an element where ``counted`` ((P,) bool; default: elements in a patch), so a frame touching only surface no
+    patch holds (a joint shell) is a row of zeros: captured by no skin."""
     p = of_element[elements]
-    keep = p >= 0
-    uf, inv = np.unique(frames[keep], return_inverse=True)
-    m = sparse.csr_matrix((np.ones(int(keep.sum()), dtype=np.float64), (inv, p[keep])), shape=(uf.size, n_patches))
+    c = p >= 0 if counted is None else np.asarray(counted, dtype=bool)[elements] | (p >= 0)
+    uf, inv = np.unique(frames[c], return_inverse=True)
+    keep = p[c] >= 0
+    inv, p = inv[keep], p[c][keep]
+    m = sparse.csr_matrix((np.ones(inv.size, dtype=np.float64), (inv, p)), shape=(uf.size, n_patches))
     m.data[:] = 1.0  # duplicates summed by the constructor
     m.sum_duplicates()
     m.data[:] = 1.0
@@ -350,6 +365,106 @@ def _face_patches(
     return of_element[body.offset[li] + nb[np.arange(len(cen)), pick]]
 
 
+#: Two pieces of a patch closer than this (m) on the surface touch: shells of a multi-shell mesh that meet are one.
+TOUCH_M = 1e-3
+
+
+def connected_pieces(vertices: np.ndarray, faces: np.ndarray, touch_m: float = TOUCH_M) -> list[np.ndarray]:
+    """Face indices of each connected piece of a triangle surface, largest area first. Faces connect through a
+    shared vertex once vertices within ``touch_m`` are merged, and two pieces connect where a vertex of one lies
+    within ``touch_m`` of the other's surface (shells that touch without sharing vertices)."""
+    import trimesh
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
+    v = np.asarray(vertices, dtype=np.float64)
+    f = np.asarray(faces, dtype=np.int64)
+    if len(f) == 0:
+        return []
+    used = np.unique(f)
+    # vertices within touch_m are one vertex
+    pairs = cKDTree(v[used]).query_pairs(touch_m, output_type="ndarray")
+    nv = used.size
+    g = sparse.coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])), shape=(nv, nv)) if len(pairs) else None
+    canon = connected_components(g, directed=False)[1] if g is not None else np.arange(nv)
+    vid = np.full(len(v), -1, dtype=np.int64)
+    vid[used] = canon
+    ff = vid[f]
+    nc = int(ff.max()) + 1
+    # faces sharing a (merged) vertex: components of the face-vertex incidence graph
+    rows = np.repeat(np.arange(len(ff)), 3)
+    inc = sparse.coo_matrix((np.ones(rows.size), (rows, ff.ravel())), shape=(len(ff), nc)).tocsr()
+    lab = connected_components(sparse.bmat([[None, inc], [inc.T, None]]), directed=False)[1]
+    lab = lab[: len(ff)]
+    pieces = [np.flatnonzero(lab == k) for k in np.unique(lab)]
+    if len(pieces) > 1:  # pieces whose surfaces touch
+        boxes = [
+            (v[f[p]].reshape(-1, 3).min(axis=0) - touch_m, v[f[p]].reshape(-1, 3).max(axis=0) + touch_m) for p in pieces
+        ]
+        join = []
+        for i in range(len(pieces)):
+            vi = v[np.unique(f[pieces[i]])]
+            for j in range(len(pieces)):
+                if i == j or np.any(boxes[i][0] > boxes[j][1]) or np.any(boxes[j][0] > boxes[i][1]):
+                    continue
+                mj = trimesh.Trimesh(v, f[pieces[j]], process=False)
+                if (mj.nearest.on_surface(vi)[1] <= touch_m).any():
+                    join.append((i, j))
+        if join:
+            j = np.asarray(join)
+            k = len(pieces)
+            comp = connected_components(
+                sparse.coo_matrix((np.ones(len(j)), (j[:, 0], j[:, 1])), shape=(k, k)), directed=False
+            )[1]
+            pieces = [np.concatenate([pieces[i] for i in range(k) if comp[i] == c]) for c in np.unique(comp)]
+    tri = v[f]
+    area = 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    return sorted(pieces, key=lambda p: -float(area[p].sum()))
+
+
+def place_taxels(mesh, pitch_mm: float, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """(T, 3) taxel positions on a patch's surface (its frame, metres), no two closer than ``pitch_mm``, and their
+    (T, 3) outward unit normals (of the faces they lie on): a dense random sample of the surface thinned greedily
+    (Poisson-disk-like even spacing)."""
+    import trimesh
+
+    pitch_m = float(pitch_mm) * 1e-3
+    n = max(1, int(np.ceil(mesh.area / pitch_m**2)))
+    pts, face = trimesh.sample.sample_surface(mesh, 30 * n, seed=seed)
+    keep = _thin(pts, pitch_m)
+    nrm = np.asarray(mesh.face_normals)[face[keep]]
+    return pts[keep], nrm
+
+
+def _thin(points: np.ndarray, radius: float) -> np.ndarray:
+    """Indices of a subset of ``points`` (in their order) with no two closer than ``radius``; each point left out
+    lies within ``radius`` of one kept."""
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(points)
+    free = np.ones(len(points), dtype=bool)
+    keep = []
+    for i in range(len(points)):
+        if free[i]:
+            keep.append(i)
+            free[tree.query_ball_point(points[i], radius * (1 - 1e-9))] = False
+    return np.asarray(keep, dtype=np.int64)
+
+
+def patch_outline(mesh) -> list[np.ndarray]:
+    """The boundary loops of a patch (each (n, 3), metres): edges held by one face, chained; none for a closed
+    surface."""
+    if len(mesh.faces) == 0:
+        return []
+    try:
+        return [np.asarray(x) for x in mesh.outline().discrete]
+    except (ValueError, IndexError):  # a boundary that does not chain into loops: its edges as segments
+        from trimesh.grouping import group_rows
+
+        e = mesh.edges_sorted
+        return [mesh.vertices[e[i]] for i in group_rows(e, require_count=1)]
+
+
 def export_patches(
     body: BodySurface,
     robot,
@@ -360,8 +475,16 @@ def export_patches(
     pitch_mm: float,
     out_dir: Path,
     fmt: str = "ply",
+    min_piece_cm2: float = 0.0,
 ) -> list[Path]:
-    """Write ``out_dir/<link>__<patch>.<fmt>`` per chosen patch (link frame) and ``manifest.json`` / ``.csv``."""
+    """Write ``out_dir/<link>__<piece>.<fmt>`` per connected piece of each chosen patch (link frame) and
+    ``manifest.json`` / ``.csv``. A patch whose faces form several pieces (:func:`connected_pieces`) is exported
+    as its pieces of at least ``min_piece_cm2``, named ``<patch>_1``, ``<patch>_2`` (largest first); smaller
+    pieces are dropped and counted. The contact shares of a piece are those of the patch it was cut from.
+
+    Per piece also ``<link>__<piece>_taxels.csv``: taxels at ``pitch_mm`` (:func:`place_taxels`: positions and
+    outward normals, link frame, metres), and in ``manifest.json`` its outline (:func:`patch_outline`), the link's
+    pose at the rest pose it was cut at (4 x 4, world frame) and the links merged into that link."""
     import trimesh
     from trimesh.remesh import subdivide_to_size
 
@@ -370,7 +493,10 @@ def export_patches(
     alone = np.asarray(m.sum(axis=0)).ravel() / n_frames
     chosen = set(order.tolist())
     rank = {int(p): i for i, p in enumerate(order)}
-    rows, files = [], []
+    rows, files, extra = [], [], {}
+    dropped, dropped_cm2 = 0, 0.0
+    rest = robot.rest_poses() if hasattr(robot, "rest_poses") else None
+    tree_links = list(robot.tree.links) if getattr(robot, "tree", None) is not None else []
     for li, link_name in enumerate(body.links):
         mine = [int(p) for p in np.flatnonzero(patches.table["link"].to_numpy() == link_name) if int(p) in chosen]
         if not mine:
@@ -379,45 +505,78 @@ def export_patches(
         max_edge = max(float(body.samples.spacing_m), 1e-3)
         v, f = subdivide_to_size(np.asarray(link.vertices, float), np.asarray(link.faces), max_edge, max_iter=12)
         fp = _face_patches(body, li, v, f, patches.of_element)
+        pose = rest[tree_links.index(link_name)] if rest is not None and link_name in tree_links else np.eye(4)
+        merged = [c for c, r in getattr(robot, "skipped", ()) if str(r).startswith(f"merged into {link_name!r}")]
         for p in mine:
-            sel = f[fp == p]
             row = patches.table.iloc[p]
-            mesh = trimesh.Trimesh(v, sel, process=False) if len(sel) else None
-            name = ""
-            if mesh is not None:
+            sel = f[fp == p]
+            meshes = []
+            for piece in connected_pieces(v, sel):
+                mesh = trimesh.Trimesh(v, sel[piece], process=False)
                 mesh.remove_unreferenced_vertices()
-                name = f"{_safe(link_name)}__{_safe(row['patch'])}.{fmt}"
+                if mesh.area * 1e4 < min_piece_cm2:
+                    dropped += 1
+                    dropped_cm2 += float(mesh.area * 1e4)
+                else:
+                    meshes.append(mesh)
+            for k, mesh in enumerate(meshes):
+                piece_name = f"{row['patch']}_{k + 1}" if len(meshes) > 1 else str(row["patch"])
+                name = f"{_safe(link_name)}__{_safe(piece_name)}.{fmt}"
                 mesh.export(out_dir / name)
                 files.append(out_dir / name)
-            area_cm2 = float(mesh.area * 1e4) if mesh is not None else 0.0
-            rows.append(
-                dict(
-                    link=link_name,
-                    part=row["part"],
-                    patch=row["patch"],
-                    file=name,
-                    order=rank[p] + 1,
-                    area_cm2=area_cm2,
-                    sampled_area_cm2=float(row["area_cm2"]),
-                    taxels=int(np.floor(area_cm2 * 100.0 / pitch_mm**2 + 1e-9)),
-                    share_captured_alone=float(alone[p]),
-                    share_added=float(new_counts[rank[p]] / n_frames),
-                    n_faces=int(len(sel)),
+                area_cm2 = float(mesh.area * 1e4)
+                pts, nrm = place_taxels(mesh, pitch_mm, seed=p)
+                tax_name = f"{_safe(link_name)}__{_safe(piece_name)}_taxels.csv"
+                pd.DataFrame(np.hstack([pts, nrm]), columns=["x_m", "y_m", "z_m", "nx", "ny", "nz"]).to_csv(
+                    out_dir / tax_name, index=False, float_format="%.6g"
                 )
-            )
-    man = pd.DataFrame(rows).sort_values("order").reset_index(drop=True)
+                files.append(out_dir / tax_name)
+                extra[piece_name] = {
+                    "outline_m": [np.round(loop, 6).tolist() for loop in patch_outline(mesh)],
+                    "link_pose_rest": np.round(pose, 9).tolist(),
+                    "merged_links": merged,
+                }
+                rows.append(
+                    dict(
+                        link=link_name,
+                        part=row["part"],
+                        patch=row["patch"],
+                        piece=piece_name,
+                        file=name,
+                        order=rank[p] + 1,
+                        area_cm2=area_cm2,
+                        sampled_area_cm2=float(row["area_cm2"]),
+                        taxels=int(np.floor(area_cm2 * 100.0 / pitch_mm**2 + 1e-9)),
+                        taxels_placed=int(len(pts)),
+                        taxel_file=tax_name,
+                        share_captured_alone=float(alone[p]),
+                        share_added=float(new_counts[rank[p]] / n_frames),
+                        n_faces=int(len(mesh.faces)),
+                    )
+                )
+    man = pd.DataFrame(rows)
     if len(man):
-        man["cumulative_share"] = man["share_added"].cumsum()
+        man = man.sort_values(["order", "piece"]).reset_index(drop=True)
+        first = ~man["patch"].duplicated()  # a patch's share counts once however many pieces it has
+        man["cumulative_share"] = (man["share_added"] * first).cumsum()
     man.to_csv(out_dir / "manifest.csv", index=False, float_format="%.6g")
+    first = ~man["patch"].duplicated() if len(man) else None
     meta = {
         "frame": "each link's own frame (the robot description's link frame), metres",
         "pitch_mm": pitch_mm,
         "n_contact_frames": int(m.shape[0]),
         "area_cm2": float(man["area_cm2"].sum()) if len(man) else 0.0,
-        "captured": float(man["share_added"].sum()) if len(man) else 0.0,
+        "captured": float(man["share_added"][first].sum()) if len(man) else 0.0,
         "taxels": int(man["taxels"].sum()) if len(man) else 0,
+        "taxels_placed": int(man["taxels_placed"].sum()) if len(man) else 0,
+        "min_piece_cm2": min_piece_cm2,
+        "dropped_pieces": dropped,
+        "dropped_area_cm2": dropped_cm2,
         "robot": robot.name,
-        "patches": json.loads(man.to_json(orient="records")),
+        "taxel_placement": "taxels no closer than pitch_mm on each piece's surface (x_m, y_m, z_m, nx, ny, nz "
+        "in the link's frame); outline_m: the piece's boundary loops; link_pose_rest: the link's pose (world frame) "
+        "at the rest pose the patches were cut at; merged_links: links joined into the link at that pose",
+        "patches": [{**r, **extra[r["piece"]]} for r in json.loads(man.to_json(orient="records"))],
     }
     (out_dir / "manifest.json").write_text(json.dumps(meta, indent=1))
     return files + [out_dir / "manifest.csv", out_dir / "manifest.json"]
@@ -467,10 +626,12 @@ def skin_design(
     budget_m2: float,
     heldout_splits: int = 10,
     seed: int = 0,
+    mountable: np.ndarray | None = None,
 ) -> SkinDesign:
-    """Patches, budget curves and the patch-level placement from the study's (frame, element) pairs."""
-    patches = make_patches(body, patch_cm2, seed)
-    uf, m = frame_patch_matrix(frames, elements, patches.of_element, len(patches.table))
+    """Patches (on the ``mountable`` elements when given), budget curves and the patch-level placement from the
+    study's (frame, element) pairs; a frame counts when it touches reachable surface."""
+    patches = make_patches(body, patch_cm2, seed, mountable)
+    uf, m = frame_patch_matrix(frames, elements, patches.of_element, len(patches.table), body.reachable)
     f_scen = sessions["scenario"].to_numpy()[frame_session[uf]]
     f_unit = sessions["participant"].to_numpy()[frame_session[uf]]
     curves = budget_curves(
@@ -481,7 +642,9 @@ def skin_design(
     return SkinDesign(patches, uf, m, curves, placement, order, new, float(pitch_mm), float(budget_m2))
 
 
-def write_design(design: SkinDesign, body: BodySurface, robot, out: Path, fmt: str = "ply") -> list[Path]:
+def write_design(
+    design: SkinDesign, body: BodySurface, robot, out: Path, fmt: str = "ply", min_piece_cm2: float = 0.0
+) -> list[Path]:
     """``budget_curve.csv``, ``patches.csv``, ``patch_placement.csv`` and the ``skin_export/`` folder."""
     files = [out / "budget_curve.csv", out / "patches.csv", out / "patch_placement.csv"]
     design.curves.to_csv(files[0], index=False, float_format="%.6g")
@@ -500,5 +663,6 @@ def write_design(design: SkinDesign, body: BodySurface, robot, out: Path, fmt: s
         design.pitch_mm,
         out / "skin_export",
         fmt,
+        min_piece_cm2,
     )
     return files

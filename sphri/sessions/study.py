@@ -66,6 +66,9 @@ class StudyResult:
     """The skin design (:class:`sphri.sessions.skin.SkinDesign`): patches, budget curve, patch placement."""
     truth: Any = None
     """The generator's draws per session (synthetic sessions), else None."""
+    mountable: Any = None
+    """Per body part: reachable area, width, whether a skin can be mounted and why not
+    (:func:`sphri.sessions.placement.mountable_parts`)."""
     codes: Any = None
     """Gestures coded by hand (:class:`sphri.sessions.codes.HumanCodes`, ``codes=PATH``), else None."""
 
@@ -90,7 +93,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     from sphri.sessions.gestures import gesture_histogram
     from sphri.sessions.labelling import label as label_gestures
     from sphri.sessions.labelling import segment
-    from sphri.sessions.placement import frame_part_matrix, placement_table, rank_parts, sentence
+    from sphri.sessions.placement import frame_part_matrix, mountable_parts, placement_table, rank_parts, sentence
     from sphri.sessions.schema import study_settings
     from sphri.types import GestureDataset
 
@@ -198,11 +201,16 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     # areas, densities per cm^2 and budgets count only what a skin can cover (sphri.sessions.body.reachable_elements)
     reach_area = body.part_area_m2(reachable=True)
     parts = [p for p in body.parts if reach_area[p] > 0]
-    unreachable = [p for p in body.parts if reach_area[p] <= 0]
-    if unreachable:
+    # only mountable parts are ranked first and placed: no rotating joint, no rod, nothing below min_patch_cm2
+    mount = mountable_parts(body, robot, reach_area, st.min_diameter_mm, st.min_patch_cm2)
+    reasons = dict(zip(mount["part"], mount["reason"]))
+    if (mount["reason"] != "").any():
         notes.append(
-            f"body parts a hand cannot reach (no reachable area), left out of ranking and placement: {unreachable}"
+            "body parts left out of ranking, placement and skin design (not mountable): "
+            + "; ".join(f"{r.part}: {r.reason}" for r in mount.itertuples() if r.reason)
         )
+    excluded = {p: reasons[p] for p in parts if reasons[p]}
+    allowed = np.array([p not in excluded for p in parts])
     part_index = {p: i for i, p in enumerate(parts)}
     pidx = np.array([part_index.get(p, 0) for p in body.part], dtype=np.int64)
     sel = body.reachable[elements]
@@ -210,11 +218,11 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     area = np.array([reach_area[p] for p in parts])
     f_scen = ds.sessions["scenario"].to_numpy()[fsi[uf]]
     f_unit = ds.sessions["participant"].to_numpy()[fsi[uf]]
-    ranking = rank_parts(mat, parts, area)
+    ranking = rank_parts(mat, parts, area, excluded)
     ranking.insert(0, "scenario", "all")
     per = [ranking]
     for s in scenarios:
-        r = rank_parts(mat[f_scen == s], parts, area)
+        r = rank_parts(mat[f_scen == s], parts, area, excluded)
         r.insert(0, "scenario", s)
         per.append(r)
     group_rows = []
@@ -232,10 +240,15 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
                 contact_frames=n,
                 frame_share=n / max(len(uf), 1),
                 frames_per_cm2=n / (a * 1e4),
+                excluded=(
+                    "holds parts not mountable: " + ", ".join(p for p in members if p in excluded)
+                    if any(p in excluded for p in members)
+                    else ""
+                ),
             )
         )
     ranking_all = pd.concat(per + [pd.DataFrame(group_rows)], ignore_index=True)
-    placement = placement_table(mat, f_scen, f_unit, scenarios, parts, area, st.budget_m2)
+    placement = placement_table(mat, f_scen, f_unit, scenarios, parts, area, st.budget_m2, allowed)
     sentences = [sentence(r, robot.groups) for _, r in placement.iterrows()]
     budget = (
         f"{st.budget_taxels} taxels at {st.pitch_mm:g} mm pitch ({st.budget_m2 * 1e4:.0f} cm^2)"
@@ -260,6 +273,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         st.budget_m2,
         st.heldout_splits,
         st.seed,
+        mountable=np.isin(body.part, mount.loc[mount["mountable"], "part"].to_numpy()),
     )
     seconds["skin_design"] = time.perf_counter() - t
 
@@ -283,6 +297,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         design=design,
         truth=ds.truth,
         codes=codes,
+        mountable=mount,
     )
     t = time.perf_counter()
     with figures.only_formats(st.figure_formats):
@@ -363,6 +378,9 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     res.histogram.to_csv(out / "gesture_histogram.csv", index=False, float_format="%.4g")
     res.ranking.to_csv(out / "body_part_ranking.csv", index=False, float_format="%.5g")
     res.placement.to_csv(out / "placement.csv", index=False, float_format="%.4g")
+    if res.mountable is not None:
+        res.mountable.to_csv(out / "mountable_parts.csv", index=False, float_format="%.4g")
+        files.append(out / "mountable_parts.csv")
     areas = body.area_table()
     areas.to_csv(out / "body_part_area.csv", index=False, float_format="%.1f")
     files.append(out / "body_part_area.csv")
@@ -417,8 +435,23 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
             "down_cos": res.settings.reach_down_cos,
         },
         "budget": budget,
+        "mountable": {
+            "criterion": "contact frames per cm^2 of a mountable part's reachable surface (ranking and greedy)",
+            "min_diameter_mm": res.settings.min_diameter_mm,
+            "min_patch_cm2": res.settings.min_patch_cm2,
+            "excluded": (
+                [
+                    {"part": r.part, "reason": r.reason, "width_mm": round(float(r.width_mm), 1)}
+                    for r in res.mountable.itertuples()
+                    if r.reason
+                ]
+                if res.mountable is not None
+                else []
+            ),
+        },
         "human_codes": res.codes.summary(res.coded) if res.codes is not None else None,
         "skin_design": _design_summary(res.design),
+        "skin_export": _export_summary(out / "skin_export" / "manifest.json"),
         "sentences": res.sentences,
         "notes": res.notes,
         "seconds": res.seconds,
@@ -532,7 +565,14 @@ def _design_and_gesture_files(res: StudyResult, body, robot, out: Path) -> list[
 
     files = []
     if res.design is not None:
-        files += write_design(res.design, body, robot, out, res.settings.export_format)
+        files += write_design(res.design, body, robot, out, res.settings.export_format, res.settings.min_patch_cm2)
+        meta = json.loads((out / "skin_export" / "manifest.json").read_text())
+        if meta["dropped_pieces"]:
+            res.notes.append(
+                f"skin export: {meta['dropped_pieces']} piece(s) of chosen patches below min_patch_cm2="
+                f"{res.settings.min_patch_cm2:g} dropped ({meta['dropped_area_cm2']:.1f} cm^2); "
+                f"{len(meta['patches'])} connected pieces exported"
+            )
     scen = sorted(pd.unique(res.sessions["scenario"]))
     gesture_counts(res.coded, scen, seed=res.settings.seed).to_csv(
         out / "gesture_counts.csv", index=False, float_format="%.4g"
@@ -564,6 +604,13 @@ def _design_summary(design) -> dict | None:
             hit = c[c["captured"] >= 0.9]
             out[f"area_cm2_for_90pct_{kind}"] = float(hit["area_cm2"].iat[0]) if len(hit) else None
     return out
+
+
+def _export_summary(path: Path) -> dict | None:
+    """The patch export's totals (``skin_export/manifest.json``), without the per-piece rows."""
+    if not path.is_file():
+        return None
+    return {k: v for k, v in json.loads(path.read_text()).items() if k != "patches"}
 
 
 def _effects(comp) -> pd.DataFrame:
