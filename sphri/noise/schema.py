@@ -73,7 +73,7 @@ class ThresholdNoiseSchema(NoiseSchema):
     """White read noise per taxel and frame, standard deviation in mm^2 of equivalent covered area
     (assumption: no measured value for a given skin; set it from the skin's datasheet or a bench test)."""
     threshold_mm2: float = setting(10.0, lo=0.0, hi=1e6)
-    """Covered area (mm^2) at which a taxel reads on (assumption: 10 mm^2, about a tenth of a fingertip pad)."""
+    """Covered area (mm^2) at which a taxel reads on (assumption: 10 mm^2, about 6 % of the built-in hand's 1.7 cm^2 fingertip patch)."""
     crosstalk: float = setting(0.0, lo=0.0, hi=1.0)
     """Fraction (0-1) of each taxel's signal that appears on each neighbour (the neighbours of
     ``noise=crosstalk``), before the read noise (assumption; 0 = none)."""

@@ -105,7 +105,7 @@ def map_text(report: SweepReport) -> list[str]:
                     f"false-on taxels per frame, accuracy {p['accuracy_mean']:.3f})"
                 )
             lines.append(
-                f"  false-on {100 * rate:g} %: pitch at most {rec['pitch_mm']:.1f} mm ({ivt}), res "
+                f"  false-on {100 * rate:.3g} %: pitch at most {rec['pitch_mm']:.1f} mm ({ivt}), res "
                 f"{int(rec['res'])}, certified within {g.sat.tolerance:.3f} (smallest certifiable "
                 f"{g.certificate.certifiable:.3f}), best {g.best['accuracy_mean']:.3f} at "
                 f"res {int(g.best['res'])}" + (" [finest point]" if g.sat.at_finest else "") + dtxt
@@ -372,6 +372,6 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
         ax2.set_xlabel("false-on taxels per frame (rate x taxels;\nsymlog: the clean row at 0)")
         ax2.set_ylabel("mean accuracy")
         ax2.grid(True, which="major", alpha=0.3)
-        ax2.legend(title="false-on rate", loc="upper left", bbox_to_anchor=(0.0, -0.22), ncol=3)
+        ax2.legend(title="false-on rate", loc="upper left", bbox_to_anchor=(0.0, -0.22), ncol=2)
         ax2.set_title("accuracy and false-on count (v: dip)", loc="left")
         return _finish(fig, report, path, marks)
