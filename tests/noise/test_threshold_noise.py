@@ -111,3 +111,32 @@ def test_readings_outside_coverage_fractions_or_without_areas_are_refused():
     bare = SkinFrames(values=bare.values, grid_shape=bare.grid_shape, geometry=None)
     with pytest.raises(ValueError, match="area"):
         ThresholdNoise().apply(bare, fi, tk, 0)
+
+
+def test_in_the_chain_the_drift_runs_at_the_windows_frame_rate():
+    import dataclasses
+
+    from sphri.noise.components import apply_to_windows
+    from sphri.types import WindowedFrames
+
+    t, length, n = 40, 50, 12
+    f = frames(np.zeros((1, n)), 20.0)
+    win = WindowedFrames(
+        x=np.zeros((t, length, n), dtype=np.float32),
+        y=np.arange(t) % 8,
+        groups=np.array(["a", "b"] * (t // 2)),
+        geometry=f.geometry,
+        trial_row=np.arange(t, dtype=np.int64),
+        n_dropped=0,
+    )
+    noise = ThresholdNoise(sigma_mm2=0.0, threshold_mm2=0.0, drift_sigma_mm2=3.0, drift_tau_ms=100.0)
+    slow = apply_to_windows(noise, dataclasses.replace(win, frame_rate_hz=200.0), np.arange(t), 0).x
+    fast = apply_to_windows(noise, dataclasses.replace(win, frame_rate_hz=10.0), np.arange(t), 0).x
+    # frames 5 ms apart stay on or off together far more often than frames 100 ms apart: P(same sign) of two
+    # normals correlated rho is 1/2 + arcsin(rho) / pi
+    agree = [float((x[:, 1:] == x[:, :-1]).mean()) for x in (slow, fast)]
+    rho = [np.exp(-5.0 / 100.0), np.exp(-100.0 / 100.0)]
+    for a, r in zip(agree, rho):
+        assert a == pytest.approx(0.5 + np.arcsin(r) / np.pi, abs=0.03)
+    with pytest.raises(ValueError, match="frame rate"):
+        apply_to_windows(noise, win, np.arange(t), 0)  # no frame rate known
