@@ -330,7 +330,7 @@ def duration_comparison(stats: pd.DataFrame) -> pd.DataFrame:
 #: How the CoST rows' bands are made, printed under the tables.
 COST_BAND_TEXT = (
     f"CoST bands: the {COST_BAND_LEVEL:.0%} sampling interval of CoST's own number as a ratio, from its reported mean, "
-    f"SD and {COST_PARTICIPANTS} participants ({COST_SOURCE}): mean 1 +/- t * (SD / mean) / sqrt(n), SD the "
+    f"SD and participant count n = {COST_PARTICIPANTS} ({COST_SOURCE}): mean 1 +/- t * (SD / mean) / sqrt(n), SD the "
     "chi-square interval (sphri.data.lengths.cost_band); CoST's sampling error only, not the simulation's"
 )
 
@@ -363,6 +363,17 @@ def spatial_comparison(sensor: pd.DataFrame) -> pd.DataFrame:
             row["region"] = region
             rows.append(row)
     return pd.DataFrame(rows, columns=COMPARISON_COLUMNS)
+
+
+def outside_area_lines(table: pd.DataFrame) -> list[str]:
+    """One plain line per region naming the gestures whose CoST-sensor area mean is outside its band, with
+    ratio and band (a :func:`spatial_comparison` table); none when every gesture is inside."""
+    area = table[(table["statistic"] == SPATIAL_STATISTICS[0][0]) & (table["flag"] != "ok")]
+    return [
+        f"{region}: contact area outside its CoST band: "
+        + ", ".join(f"{r['gesture']} {r['ratio']:.2f}x (band {r['band']})" for _, r in rows.iterrows())
+        for region, rows in area.groupby("region", sort=False)
+    ]
 
 
 def spatial_checks(table: pd.DataFrame) -> list[tuple[str, bool, str]]:
@@ -476,6 +487,8 @@ def command(args: StatsArgs) -> int:
         )
     )
     print(COST_BAND_TEXT)
+    for line in outside_area_lines(spatial):
+        print(line)
     table = pd.concat([table, spatial], ignore_index=True)
     if json_out:
         Path(json_out).parent.mkdir(parents=True, exist_ok=True)

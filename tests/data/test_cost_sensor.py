@@ -10,7 +10,7 @@ from sphri.data.cost_sensor import SENSOR_COLUMNS, best_window, describe_sensor,
 from sphri.data.format import make_trials_frame
 from sphri.data.lengths import COMPARISON_COLUMNS
 from sphri.data.reference_stats import COST_AREA_FRACTION, COST_DURATION_MS
-from sphri.data.stats import SPATIAL_STATISTICS, spatial_checks, spatial_comparison
+from sphri.data.stats import SPATIAL_STATISTICS, outside_area_lines, spatial_checks, spatial_comparison
 from sphri.surface.cylinder import CylinderSurface
 from sphri.testing.synthetic_contacts import make_contacts
 from sphri.types import GestureDataset
@@ -106,6 +106,10 @@ def test_known_patches_give_known_fractions_and_durations(hand, robot):
     assert np.isclose(area.loc["poke", "ratio"], (1 / 64) / COST_AREA_FRACTION["poke"][0])
     assert (area["flag"] == "OUTSIDE").all()  # far below CoST
     assert area.loc["poke", "band"] == "0.63-1.37x" and area.loc["grab", "band"] == "0.89-1.11x"  # cost_band
+    assert outside_area_lines(table) == [
+        f"arm: contact area outside its CoST band: poke {area.loc['poke', 'ratio']:.2f}x (band 0.63-1.37x), "
+        f"grab {area.loc['grab', 'ratio']:.2f}x (band 0.89-1.11x)"
+    ]
     dur = table[table["statistic"] == "CoST sensor dur mean ms"].set_index("gesture")
     assert (
         np.isclose(dur.loc["poke", "value"], 1000 * 10 / 30)
