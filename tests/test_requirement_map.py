@@ -127,7 +127,7 @@ def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
     tol = table[table["map"] == table["map"].iloc[0]].groupby("false_on_rate")["tolerance"].first().round(3)
     title = f"T = {tol.min():.3f}" + ("" if tol.nunique() == 1 else f"-{tol.max():.3f} by row")
     assert f"certified within {title}" in svg
-    assert "deficit to the row" in svg and "symlog: the clean row at 0" in svg and "contour" not in svg
+    assert "deficit to the row" in svg and "(symlog)" in svg and "clean row at 0" in svg and "contour" not in svg
 
 
 def test_threshold_quick_map_reads_the_false_on_rate_from_the_noise_and_reports_a_map(sweep_then_report):

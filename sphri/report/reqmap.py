@@ -198,7 +198,7 @@ def filter_text(report: SweepReport) -> list[str]:
                 rec, best = g.recommended, g.best
                 mark = f"   <- best pair: {g.points['pitch_mm'].iloc[bi]:.1f} mm + {f}" if f == bf else ""
                 lines.append(
-                    f"  {100 * rate:>7g}%  {f:<{width}}  {rec['pitch_mm']:>11.1f} mm  {rec['accuracy_mean']:>8.3f}  "
+                    f"  {100 * rate:>7.3g}%  {f:<{width}}  {rec['pitch_mm']:>11.1f} mm  {rec['accuracy_mean']:>8.3f}  "
                     f"{g.sat.tolerance:>6.3f}  {best['accuracy_mean']:>11.3f} ({best['pitch_mm']:>5.1f} mm){mark}"
                 )
         lines.append(
@@ -301,7 +301,7 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
     m = report.maps[0]
     plt = figures.pyplot()
     with figures.style():
-        fig, (ax, ax2) = figures.new_figure("two", 3.4, ncols=2, width_ratios=[1.25, 1.0])
+        fig, (ax, ax2) = figures.new_figure("two", 3.8, ncols=2, width_ratios=[1.25, 1.0])
         deficit, pitch, res = deficit_grid(m)
         order = np.argsort(pitch)
         xe = _edges(pitch[order])
@@ -352,7 +352,7 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
         ax.set_ylim(ye[0], ye[-1])
         ax.set_xlabel("taxel pitch (mm; finer to the right)")
         ax.set_ylabel("false-on rate per taxel and frame\n(one row per rate)")
-        ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.22), ncol=2, framealpha=0.8)
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, framealpha=0.8)
         ax.set_title(f"required pitch, certified within {_tolerance_text(m)}", loc="left")
 
         colors = plt.get_cmap("plasma")
@@ -369,9 +369,9 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
             if dip is not None:
                 ax2.plot([x[dip]], [acc[dip]], "v", ms=8, color=color, mec="black")
         _symlog_from_zero(ax2.xaxis, np.asarray(positive, dtype=float))
-        ax2.set_xlabel("false-on taxels per frame (rate x taxels;\nsymlog: the clean row at 0)")
+        ax2.set_xlabel("false-on taxels per frame (symlog)")
         ax2.set_ylabel("mean accuracy")
         ax2.grid(True, which="major", alpha=0.3)
-        ax2.legend(title="false-on rate", loc="upper left", bbox_to_anchor=(0.0, -0.22), ncol=2)
-        ax2.set_title("accuracy and false-on count (v: dip)", loc="left")
+        ax2.legend(title="false-on rate", loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, framealpha=0.8)
+        ax2.set_title("accuracy by false-on count\n(clean row at 0; v: dip)", loc="left")
         return _finish(fig, report, path, marks)
