@@ -122,3 +122,27 @@ def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
         assert req["tolerance"] >= max(0.01, req["tolerance_certifiable"]) - 1e-12
     for fmt in ("png", "pdf", "svg"):
         assert (d / f"requirement_map.{fmt}").stat().st_size > 1000
+    # the figure: the certified tolerance in the title, one discrete row per rate, the clean row on a symlog axis
+    svg = (d / "requirement_map.svg").read_text()
+    tol = table[table["map"] == table["map"].iloc[0]].groupby("false_on_rate")["tolerance"].first().round(3)
+    title = f"T = {tol.min():.3f}" + ("" if tol.nunique() == 1 else f"-{tol.max():.3f} by row")
+    assert f"certified within {title}" in svg
+    assert "deficit to the row" in svg and "(symlog)" in svg and "clean row at 0" in svg and "contour" not in svg
+
+
+def test_threshold_quick_map_reads_the_false_on_rate_from_the_noise_and_reports_a_map(sweep_then_report):
+    # noise=threshold at debug size: sigma 0 and 5 mm^2 against a 10 mm^2 threshold (false-on 0 and
+    # P(N(0, 5^2) > 10) = 2.275 %), two resolutions, two seeds (8 jobs)
+    quick = compose(["+experiment=requirement_map_threshold_quick"])
+    assert quick.noise._target_.endswith("ThresholdNoise") and quick.encoder._target_.endswith("CoverageEncoder")
+    assert len(swept("requirement_map_threshold_quick")["noise.sigma_mm2"]) >= 2
+    sweep, rep = sweep_then_report(
+        ["+experiment=requirement_map_threshold_quick", "noise.sigma_mm2=0,5", "encoder.res=2,12"],
+        8,
+        ["n_boot=200", "mlflow=false"],
+    )
+    assert "[requirement map]" in rep.stdout
+    assert "requirement_map.png:" not in rep.stderr, rep.stderr[-3000:]
+    table = pd.read_csv(sweep / "report" / "requirement_map.csv")
+    assert sorted(table["false_on_rate"].unique()) == pytest.approx([0.0, 0.022750131948179195], abs=1e-6)
+    assert len(table) == 4 and (table["seeds"] == 2).all()

@@ -20,7 +20,9 @@ data: ``r = log(frames) - mean log(frames) of the gesture``;
 
 :func:`compare` puts a dataset's numbers beside a reference (the real
 manifests, or the copy in :data:`sphri.data.reference_stats.VR_LENGTH_SPREAD`)
-and flags each row whose ratio falls outside its band (:data:`BANDS`).
+and flags each row whose ratio falls outside its band (:data:`BANDS`; the bands
+of the CoST statistics are sampling intervals of CoST's own numbers, :func:`cost_band`,
+cited as :data:`sphri.data.reference_stats.COST_SOURCE`).
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sphri.data.reference_stats import REGION_STATISTICS, VR_FRAME_RATE_HZ
+from sphri.data.reference_stats import COST_PARTICIPANTS, REGION_STATISTICS, VR_FRAME_RATE_HZ
 from sphri.types import GESTURES
 
 #: Trials shorter than this (frames) are left out of the statistics.
@@ -51,13 +53,38 @@ BANDS: dict[str, tuple[float, float]] = {
     "participant_median_min": (0.7, 1.4),
     "participant_median_max": (0.7, 1.4),
     "max_frames": (0.33, 3.0),
-    "duration_mean": (0.65, 1.35),
-    "duration_sd": (0.5, 2.0),
-    # CoST's contact-area fraction on the simulated 8 x 8 sensor (sphri.data.cost_sensor): the mean gets the
-    # duration mean's band, the SD over trials the duration SD's
-    "area_mean": (0.65, 1.35),
-    "area_sd": (0.5, 2.0),
 }
+
+#: Confidence level of the CoST sampling bands (:func:`cost_band`).
+COST_BAND_LEVEL = 0.95
+
+
+def cost_band(what: str, mean: float, sd: float, n: int = COST_PARTICIPANTS) -> tuple[float, float]:
+    """Accepted ratio (dataset / CoST) for a CoST Table 4 statistic: the sampling interval of CoST's own number,
+    from its reported mean, SD and sample size (source: :data:`sphri.data.reference_stats.COST_SOURCE`).
+
+    ``what="mean"``: ``1 +/- t(0.975, n-1) * (sd / mean) / sqrt(n)`` (the t interval of a mean, as a ratio);
+    ``what="sd"``: ``sqrt((n-1) / chi2(0.975, n-1))`` .. ``sqrt((n-1) / chi2(0.025, n-1))`` (the chi-square
+    interval of an SD). ``n`` is the 31 participants, not CoST's 558 captures per gesture: one person's
+    captures are not independent, so the participant count is the sample size the interval can claim (with
+    558 independent captures every band would be about 4 times narrower). The interval covers CoST's sampling
+    error only; the simulated data's own sampling error and any real difference between CoST's mannequin arm
+    and a robot's skin are not in it.
+    """
+    from scipy.stats import chi2, t
+
+    if n < 2 or not (np.isfinite(mean) and np.isfinite(sd)) or mean <= 0 or sd < 0:
+        raise ValueError(f"cost_band: needs n >= 2, a positive mean and an SD >= 0, got {n}, {mean}, {sd}")
+    a = 1.0 - COST_BAND_LEVEL
+    if what == "mean":
+        half = float(t.ppf(1.0 - a / 2, n - 1)) * (sd / mean) / np.sqrt(n)
+        return max(1.0 - half, 0.0), 1.0 + half
+    if what == "sd":
+        return (
+            float(np.sqrt((n - 1) / chi2.ppf(1.0 - a / 2, n - 1))),
+            float(np.sqrt((n - 1) / chi2.ppf(a / 2, n - 1))),
+        )
+    raise ValueError(f"cost_band: what={what!r} must be 'mean' or 'sd'")
 
 
 def length_table(trials: pd.DataFrame, frame_rate_hz: float) -> pd.DataFrame:
@@ -139,8 +166,11 @@ def manifest_lengths(root: str | Path, regions: Sequence[str] = ("arm",)) -> pd.
 COMPARISON_COLUMNS = ["region", "statistic", "gesture", "value", "reference", "ratio", "band", "flag"]
 
 
-def flag_row(statistic: str, gesture: str, value: float, ref: float, band: str) -> dict:
-    lo, hi = BANDS[band]
+def flag_row(
+    statistic: str, gesture: str, value: float, ref: float, band: str, bounds: tuple[float, float] | None = None
+) -> dict:
+    """One comparison row: ``value / ref`` flagged ``ok`` inside ``bounds`` (else :data:`BANDS` ``[band]``)."""
+    lo, hi = bounds if bounds is not None else BANDS[band]
     ratio = value / ref if ref else float("nan")
     ok = bool(np.isfinite(ratio) and lo <= ratio <= hi)
     return {
@@ -149,7 +179,7 @@ def flag_row(statistic: str, gesture: str, value: float, ref: float, band: str) 
         "value": value,
         "reference": ref,
         "ratio": ratio,
-        "band": f"{lo:g}-{hi:g}x",
+        "band": f"{lo:.2f}-{hi:.2f}x",
         "flag": "ok" if ok else "OUTSIDE",
     }
 

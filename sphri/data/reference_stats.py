@@ -44,6 +44,14 @@ _COST_TABLE_4: dict[str, tuple[float, float, float, float]] = {
     "tap": (564.0, 486.0, 0.12, 0.07),
 }
 
+#: CoST's participants: the sample size behind each Table 4 mean and SD (each gave 3 variants x 6 repetitions
+#: of every gesture, :data:`COST_CAPTURES_PER_GESTURE` captures, not independent of each other).
+COST_PARTICIPANTS = 31
+COST_CAPTURES_PER_GESTURE = COST_PARTICIPANTS * 3 * 6
+
+#: How the CoST numbers are cited in code and output.
+COST_SOURCE = "CoST: Jung et al. 2017, J. Multimodal User Interfaces 11, Table 4 (31 participants)"
+
 #: CoST Table 4: gesture -> (mean, SD) contact duration in milliseconds.
 COST_DURATION_MS: dict[str, tuple[float, float]] = {g: (r[0], r[1]) for g, r in _COST_TABLE_4.items()}
 

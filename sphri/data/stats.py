@@ -70,7 +70,9 @@ from sphri.command.args import arg, first_paragraph, run
 from sphri.data.cost_sensor import CELL_THRESHOLD, describe_sensor, sensor_trials
 from sphri.data.lengths import (
     COMPARISON_COLUMNS,
+    COST_BAND_LEVEL,
     compare,
+    cost_band,
     flag_row,
     format_comparison,
     length_spread,
@@ -82,7 +84,9 @@ from sphri.data.reference_stats import (
     COST_AREA_FRACTION,
     COST_CELLS,
     COST_DURATION_MS,
+    COST_PARTICIPANTS,
     COST_SENSOR_AREA_M2,
+    COST_SOURCE,
     DURATION_TOLERANCE,
     TRIAL_LENGTH_TOLERANCE,
     VR_FRAME_RATE_HZ,
@@ -295,7 +299,7 @@ def format_summary(summary: pd.DataFrame, dataset_name: str = "", frame_rate_hz:
         )
     lines.append(
         "references: trial length = VR gesture dataset manifests (median, ~30 Hz frames); "
-        "duration and area = CoST (Jung et al. 2017, Table 4); see sphri/data/reference_stats.py"
+        f"duration and area = {COST_SOURCE}; see sphri/data/reference_stats.py"
     )
     return "\n".join(lines)
 
@@ -308,11 +312,11 @@ def duration_comparison(stats: pd.DataFrame) -> pd.DataFrame:
     for (region, gesture), g in touched.groupby(["region", "gesture"], sort=False):
         d = g["duration_s"].to_numpy() * 1000.0
         mean, sd = COST_DURATION_MS[str(gesture)]
-        for name, value, ref, band in (
-            ("duration mean ms", float(d.mean()), mean, "duration_mean"),
-            ("duration sd ms", float(d.std(ddof=1)) if len(d) > 1 else float("nan"), sd, "duration_sd"),
+        for name, value, ref, what in (
+            ("duration mean ms", float(d.mean()), mean, "mean"),
+            ("duration sd ms", float(d.std(ddof=1)) if len(d) > 1 else float("nan"), sd, "sd"),
         ):
-            row = flag_row(name, str(gesture), value, ref, band)
+            row = flag_row(name, str(gesture), value, ref, what, cost_band(what, mean, sd))
             row["region"] = region
             rows.append(row)
     out = pd.DataFrame(rows, columns=COMPARISON_COLUMNS)
@@ -323,34 +327,53 @@ def duration_comparison(stats: pd.DataFrame) -> pd.DataFrame:
     return out.reset_index(drop=True)
 
 
-#: Statistics of :func:`spatial_comparison`, in print order: (name, sensor column, mean or sd, band).
+#: How the CoST rows' bands are made, printed under the tables.
+COST_BAND_TEXT = (
+    f"CoST bands: the {COST_BAND_LEVEL:.0%} sampling interval of CoST's own number as a ratio, from its reported mean, "
+    f"SD and participant count n = {COST_PARTICIPANTS} ({COST_SOURCE}): mean 1 +/- t * (SD / mean) / sqrt(n), SD the "
+    "chi-square interval (sphri.data.lengths.cost_band); CoST's sampling error only, not the simulation's"
+)
+
+
+#: Statistics of :func:`spatial_comparison`, in print order: (name, sensor column, mean or sd).
 SPATIAL_STATISTICS = (
-    ("CoST sensor area mean", "area_fraction", "mean", "area_mean"),
-    ("CoST sensor area sd", "area_fraction", "sd", "area_sd"),
-    ("CoST sensor dur mean ms", "duration_s", "mean", "duration_mean"),
-    ("CoST sensor dur sd ms", "duration_s", "sd", "duration_sd"),
+    ("CoST sensor area mean", "area_fraction", "mean"),
+    ("CoST sensor area sd", "area_fraction", "sd"),
+    ("CoST sensor dur mean ms", "duration_s", "mean"),
+    ("CoST sensor dur sd ms", "duration_s", "sd"),
 )
 
 
 def spatial_comparison(sensor: pd.DataFrame) -> pd.DataFrame:
     """Per (region, gesture) of a :func:`sphri.data.cost_sensor.sensor_trials` table: mean and SD over the trials
     the sensor saw of the contact-area fraction and of the contact duration (ms), against CoST's Table 4, each
-    flagged in its band (:data:`sphri.data.lengths.BANDS`: ``area_mean``, ``area_sd``, ``duration_mean``,
-    ``duration_sd``). Columns :data:`sphri.data.lengths.COMPARISON_COLUMNS`; rows grouped by statistic, gestures
+    flagged in its band (:func:`sphri.data.lengths.cost_band`: the sampling interval of CoST's number from its
+    reported mean, SD and 31 participants). Columns :data:`sphri.data.lengths.COMPARISON_COLUMNS`; rows grouped by statistic, gestures
     in :data:`sphri.types.GESTURES` order."""
     rows = []
     seen = sensor[sensor["sensor_contact"]]
     order = {g: i for i, g in enumerate(GESTURES)}
     groups = sorted(seen.groupby(["region", "gesture"], sort=False), key=lambda kv: (kv[0][0], order.get(kv[0][1], 99)))
-    for name, column, what, band in SPATIAL_STATISTICS:
+    for name, column, what in SPATIAL_STATISTICS:
         for (region, gesture), g in groups:
             x = g[column].to_numpy(np.float64) * (1000.0 if column == "duration_s" else 1.0)
             ref = (COST_AREA_FRACTION if column == "area_fraction" else COST_DURATION_MS)[str(gesture)]
             value = float(x.mean()) if what == "mean" else (float(x.std(ddof=1)) if len(x) > 1 else float("nan"))
-            row = flag_row(name, str(gesture), value, ref[0] if what == "mean" else ref[1], band)
+            row = flag_row(name, str(gesture), value, ref[0] if what == "mean" else ref[1], what, cost_band(what, *ref))
             row["region"] = region
             rows.append(row)
     return pd.DataFrame(rows, columns=COMPARISON_COLUMNS)
+
+
+def outside_area_lines(table: pd.DataFrame) -> list[str]:
+    """One plain line per region naming the gestures whose CoST-sensor area mean is outside its band, with
+    ratio and band (a :func:`spatial_comparison` table); none when every gesture is inside."""
+    area = table[(table["statistic"] == SPATIAL_STATISTICS[0][0]) & (table["flag"] != "ok")]
+    return [
+        f"{region}: contact area outside its CoST band: "
+        + ", ".join(f"{r['gesture']} {r['ratio']:.2f}x (band {r['band']})" for _, r in rows.iterrows())
+        for region, rows in area.groupby("region", sort=False)
+    ]
 
 
 def spatial_checks(table: pd.DataFrame) -> list[tuple[str, bool, str]]:
@@ -452,17 +475,20 @@ def command(args: StatsArgs) -> int:
     lengths = length_spread(length_table(dataset.trials, dataset.frame_rate_hz))
     table = pd.concat([compare(lengths, ref), duration_comparison(stats)], ignore_index=True)
     print()
-    print(format_comparison(table, f"distributions against {source} and CoST (Jung et al. 2017, Table 4):"))
+    print(format_comparison(table, f"distributions against {source} and {COST_SOURCE}:"))
     print()
     print("\n".join(sensor_lines))
     print(
         format_comparison(
             spatial,
             f"the simulated CoST sensor ({COST_CELLS} x {COST_CELLS}, 160 x 160 mm) against "
-            "CoST (Jung et al. 2017, Table 4): contact-area fraction (cells on / 64) and "
+            f"{COST_SOURCE}: contact-area fraction (cells on / 64) and "
             "contact duration; trials the sensor saw:",
         )
     )
+    print(COST_BAND_TEXT)
+    for line in outside_area_lines(spatial):
+        print(line)
     table = pd.concat([table, spatial], ignore_index=True)
     if json_out:
         Path(json_out).parent.mkdir(parents=True, exist_ok=True)

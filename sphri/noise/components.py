@@ -38,6 +38,20 @@ What each kind stands for, with N taxels per frame:
   edge (v wraps when the chart does), elsewhere the taxels within 1.5 x the
   median spacing (needs the frames' geometry). It spreads touches and
   adds nothing to an untouched frame (0 false taxels, at any N).
+- ``threshold``: a thresholded analogue skin, fed the coverage fraction of
+  each taxel (``encoder=coverage``). The signal is the covered area in mm^2
+  (fraction x the taxel's area, ``geometry.area_m2``), plus ``crosstalk`` x
+  each neighbour's signal (the neighbours of ``crosstalk``), plus white read
+  noise N(0, sigma_mm2^2) per taxel and frame, plus a baseline drift: a
+  stationary AR(1) per taxel and trial, standard deviation
+  ``drift_sigma_mm2``, correlation exp(-dt / drift_tau_ms) between frames dt
+  apart (the window's frame rate). The reading is 1 where the sum exceeds
+  ``threshold_mm2``, else 0 (float32). Per frame an untouched taxel reads on
+  with probability ``Q(threshold / sqrt(sigma^2 + drift_sigma^2))``
+  (:func:`threshold_false_on_rate`), the same at every taxel size; a touched
+  taxel with covered area a reads off with probability
+  ``1 - Q((threshold - a) / sqrt(...))`` (:func:`threshold_false_off_rate`),
+  so small taxels, with less covered area per contact, read off more often.
 - ``none``: unchanged.
 """
 
@@ -60,6 +74,7 @@ from sphri.noise.schema import (
     GaussianNoiseSchema,
     NoNoiseSchema,
     SaltPepperNoiseSchema,
+    ThresholdNoiseSchema,
 )
 from sphri.types import Frames, WindowedFrames
 
@@ -68,6 +83,8 @@ log = logging.getLogger(__name__)
 #: Stream ids: different noise kinds draw independent numbers for the same key.
 STREAM_SALT_PEPPER = 1
 STREAM_GAUSSIAN = 2
+STREAM_THRESHOLD_READ = 3
+STREAM_THRESHOLD_DRIFT = 4
 
 
 def _check(frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int, who: str):
@@ -249,6 +266,138 @@ class CrosstalkNoise(Configured):
         return _like(frames, out)
 
 
+@njit(cache=True, parallel=True)
+def _normals(m_out, fi, tk, seed, stream, scale):  # pragma: no cover - numba
+    """m_out[i, j] += scale * N(0, 1) drawn from (seed, stream, trial, frame, taxel)."""
+    m, n = m_out.shape
+    for i in prange(m):
+        key = frame_key(seed, stream, tk[i], fi[i])
+        for j in range(n):
+            u1 = uniform(key, 2 * j)
+            u2 = uniform(key, 2 * j + 1)
+            m_out[i, j] += scale * np.sqrt(-2.0 * np.log(1.0 - u1)) * np.cos(2.0 * np.pi * u2)
+
+
+@njit(cache=True, parallel=True)
+def _drift(m_out, order, starts, fi, tk, seed, stream, sigma, rho):  # pragma: no cover - numba
+    """Adds a stationary AR(1) (sd ``sigma``, lag-one correlation ``rho`` per frame) per trial and taxel.
+
+    ``order`` sorts the rows by (trial, frame); ``starts`` bounds each trial's block. The recursion runs over
+    every frame 0 .. the block's last, so a frame's drift does not depend on which other frames are present.
+    """
+    n = m_out.shape[1]
+    innov = np.sqrt(1.0 - rho * rho)
+    for b in prange(starts.shape[0] - 1):
+        lo, hi = starts[b], starts[b + 1]
+        trial = tk[order[lo]]
+        for j in range(n):
+            d = 0.0
+            f = 0
+            for r in range(lo, hi):
+                row = order[r]
+                target = np.int64(fi[row])
+                while f <= target:
+                    key = frame_key(seed, stream, trial, np.uint64(f))
+                    u1 = uniform(key, 2 * j)
+                    u2 = uniform(key, 2 * j + 1)
+                    e = np.sqrt(-2.0 * np.log(1.0 - u1)) * np.cos(2.0 * np.pi * u2)
+                    d = sigma * e if f == 0 else rho * d + innov * sigma * e
+                    f += 1
+                m_out[row, j] += d
+
+
+def _normal_sf(z: float) -> float:
+    from scipy.special import ndtr
+
+    return float(ndtr(-z))
+
+
+def threshold_false_on_rate(sigma_mm2: float, threshold_mm2: float, drift_sigma_mm2: float = 0.0) -> float:
+    """Probability per frame that an untouched taxel reads on under ``noise=threshold``:
+    ``P(N(0, sigma^2 + drift_sigma^2) > threshold)`` (0 without noise)."""
+    s = float(np.hypot(sigma_mm2, drift_sigma_mm2))
+    if s == 0.0:
+        return 0.0
+    return _normal_sf(threshold_mm2 / s)
+
+
+def threshold_false_off_rate(
+    covered_mm2: float, sigma_mm2: float, threshold_mm2: float, drift_sigma_mm2: float = 0.0
+) -> float:
+    """Probability per frame that a taxel with ``covered_mm2`` of contact reads off under ``noise=threshold``
+    (no crosstalk): ``P(covered + N(0, sigma^2 + drift_sigma^2) <= threshold)``."""
+    s = float(np.hypot(sigma_mm2, drift_sigma_mm2))
+    if s == 0.0:
+        return float(covered_mm2 <= threshold_mm2)
+    return 1.0 - _normal_sf((threshold_mm2 - covered_mm2) / s)
+
+
+class ThresholdNoise(Configured):
+    """``noise=threshold``: a thresholded analogue skin: covered area (mm^2, from ``encoder=coverage``'s
+    fractions and each taxel's area) + crosstalk + white read noise + an AR(1) baseline drift, read on above
+    ``threshold_mm2`` (see the module and :func:`threshold_false_on_rate`)."""
+
+    VERSION = "1"
+
+    SCHEMA = ThresholdNoiseSchema
+    sigma_mm2: float  # these five set from SCHEMA by Configured
+    threshold_mm2: float
+    crosstalk: float
+    drift_sigma_mm2: float
+    drift_tau_ms: float
+
+    #: :func:`apply_to_windows` passes the windows' frame rate (the drift's time step).
+    USES_FRAME_RATE = True
+
+    def apply(
+        self,
+        frames: Frames,
+        frame_index: np.ndarray,
+        trial_key: np.ndarray,
+        seed: int,
+        frame_rate_hz: float | None = None,
+    ) -> Frames:
+        """Binary float32 readings (M, N) from coverage fractions ``frames`` in [0, 1]."""
+        v, fi, tk, seed = _check(frames, frame_index, trial_key, seed, "noise=threshold")
+        geom = getattr(frames, "geometry", None)
+        area = None if geom is None else geom.area_m2
+        if area is None:
+            raise ValueError(
+                "noise=threshold needs each taxel's area: pass the encoder's SkinFrames whose geometry has area_m2"
+            )
+        area_mm2 = np.asarray(area, dtype=np.float64) * 1e6
+        if area_mm2.shape != (v.shape[1],):
+            raise ValueError(
+                f"noise=threshold: geometry.area_m2 has shape {area_mm2.shape}, frames have {v.shape[1]} taxels"
+            )
+        x = np.asarray(v, dtype=np.float64)
+        if x.size and (x.min() < 0.0 or x.max() > 1.0):
+            raise ValueError("noise=threshold reads coverage fractions in [0, 1] (encoder=coverage)")
+        signal = x * area_mm2
+        if self.crosstalk > 0 and v.size:
+            nb = neighbour_lists(frames)
+            padded = np.concatenate([signal, np.zeros((signal.shape[0], 1))], axis=1)
+            leak = np.zeros_like(signal)
+            for c in range(nb.shape[1]):
+                leak += padded[:, nb[:, c]]  # -1 (no neighbour) reads the zero column
+            signal = signal + self.crosstalk * leak
+        if v.size and self.sigma_mm2 > 0:
+            _normals(signal, fi, tk, np.uint64(seed), STREAM_THRESHOLD_READ, float(self.sigma_mm2))
+        if v.size and self.drift_sigma_mm2 > 0:
+            if frame_rate_hz is None or not np.isfinite(frame_rate_hz) or frame_rate_hz <= 0:
+                raise ValueError("noise=threshold with drift_sigma_mm2 > 0 needs the frame rate (frame_rate_hz)")
+            rho = float(np.exp(-1000.0 / (float(frame_rate_hz) * self.drift_tau_ms)))
+            order = np.lexsort((fi, tk)).astype(np.int64)
+            key_sorted = tk[order]
+            cut = np.flatnonzero(key_sorted[1:] != key_sorted[:-1]) + 1
+            starts = np.concatenate([[0], cut, [len(order)]]).astype(np.int64)
+            _drift(
+                signal, order, starts, fi, tk, np.uint64(seed), STREAM_THRESHOLD_DRIFT, float(self.drift_sigma_mm2), rho
+            )
+        out = (signal > self.threshold_mm2).astype(np.float32)
+        return _like(frames, out)
+
+
 class NoNoise(Configured):
     """``noise=none``: readings unchanged (the same array, never mutated downstream)."""
 
@@ -287,6 +436,10 @@ def apply_to_windows(noise: NoiseModel, windows: WindowedFrames, trial_key: np.n
     geom = windows.geometry
     frames = SkinFrames(values=x.reshape(t * length, n), grid_shape=geom.grid_shape, geometry=geom)
     slot = np.tile(np.arange(length, dtype=np.int64), t)
-    out = noise.apply(frames, slot, np.repeat(tk.astype(np.int64), length), seed)
+    keys = np.repeat(tk.astype(np.int64), length)
+    if getattr(noise, "USES_FRAME_RATE", False):
+        out = noise.apply(frames, slot, keys, seed, frame_rate_hz=float(windows.frame_rate_hz))  # type: ignore[call-arg]
+    else:
+        out = noise.apply(frames, slot, keys, seed)
     y = np.asarray(out.values, dtype=np.float32).reshape(t, length, n)
     return dataclasses.replace(windows, x=y)

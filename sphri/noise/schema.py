@@ -60,6 +60,31 @@ class CrosstalkNoiseSchema(NoiseSchema):
 
 
 @dataclass
+class ThresholdNoiseSchema(NoiseSchema):
+    """A thresholded analogue skin (``encoder=coverage``): each taxel's signal is its covered area in mm^2
+    (coverage fraction x taxel area), plus crosstalk from its neighbours, white read noise and a drifting
+    baseline (AR(1) per taxel), read "on" when it exceeds ``threshold_mm2``. An untouched taxel reads on with
+    probability ``P(N(0, sigma_mm2^2 + drift_sigma_mm2^2) > threshold_mm2)`` per frame, at every taxel size; a
+    touched taxel with covered area a reads off with probability ``P(N(0, ...) < threshold_mm2 - a)``: small
+    taxels, with a small covered area per contact, read off more often at the same noise."""
+
+    _target_: str = "sphri.noise.components.ThresholdNoise"
+    sigma_mm2: float = setting(2.0, lo=0.0, hi=1e6)
+    """White read noise per taxel and frame, standard deviation in mm^2 of equivalent covered area
+    (assumption: no measured value for a given skin; set it from the skin's datasheet or a bench test)."""
+    threshold_mm2: float = setting(10.0, lo=0.0, hi=1e6)
+    """Covered area (mm^2) at which a taxel reads on (assumption: 10 mm^2, about 6 % of the built-in hand's 1.7 cm^2 fingertip patch)."""
+    crosstalk: float = setting(0.0, lo=0.0, hi=1.0)
+    """Fraction (0-1) of each taxel's signal that appears on each neighbour (the neighbours of
+    ``noise=crosstalk``), before the read noise (assumption; 0 = none)."""
+    drift_sigma_mm2: float = setting(0.0, lo=0.0, hi=1e6)
+    """Standard deviation (mm^2) of the baseline drift, a stationary AR(1) per taxel and trial (0 = none)."""
+    drift_tau_ms: float = setting(500.0, lo=1e-3, hi=1e7)
+    """Time constant of the baseline drift (ms): successive frames dt apart correlate by exp(-dt / tau)
+    (assumption)."""
+
+
+@dataclass
 class NoNoiseSchema(NoiseSchema):
     """No noise: readings pass through unchanged."""
 
@@ -70,4 +95,5 @@ store(group="noise", name="salt_pepper_schema", node=SaltPepperNoiseSchema)
 store(group="noise", name="gaussian_schema", node=GaussianNoiseSchema)
 store(group="noise", name="dead_taxels_schema", node=DeadTaxelsNoiseSchema)
 store(group="noise", name="crosstalk_schema", node=CrosstalkNoiseSchema)
+store(group="noise", name="threshold_schema", node=ThresholdNoiseSchema)
 store(group="noise", name="none_schema", node=NoNoiseSchema)

@@ -105,7 +105,7 @@ def map_text(report: SweepReport) -> list[str]:
                     f"false-on taxels per frame, accuracy {p['accuracy_mean']:.3f})"
                 )
             lines.append(
-                f"  false-on {100 * rate:g} %: pitch at most {rec['pitch_mm']:.1f} mm ({ivt}), res "
+                f"  false-on {100 * rate:.3g} %: pitch at most {rec['pitch_mm']:.1f} mm ({ivt}), res "
                 f"{int(rec['res'])}, certified within {g.sat.tolerance:.3f} (smallest certifiable "
                 f"{g.certificate.certifiable:.3f}), best {g.best['accuracy_mean']:.3f} at "
                 f"res {int(g.best['res'])}" + (" [finest point]" if g.sat.at_finest else "") + dtxt
@@ -198,7 +198,7 @@ def filter_text(report: SweepReport) -> list[str]:
                 rec, best = g.recommended, g.best
                 mark = f"   <- best pair: {g.points['pitch_mm'].iloc[bi]:.1f} mm + {f}" if f == bf else ""
                 lines.append(
-                    f"  {100 * rate:>7g}%  {f:<{width}}  {rec['pitch_mm']:>11.1f} mm  {rec['accuracy_mean']:>8.3f}  "
+                    f"  {100 * rate:>7.3g}%  {f:<{width}}  {rec['pitch_mm']:>11.1f} mm  {rec['accuracy_mean']:>8.3f}  "
                     f"{g.sat.tolerance:>6.3f}  {best['accuracy_mean']:>11.3f} ({best['pitch_mm']:>5.1f} mm){mark}"
                 )
         lines.append(
@@ -223,9 +223,76 @@ def filter_text(report: SweepReport) -> list[str]:
     return lines
 
 
+#: Largest deficit (points of accuracy) with its own colour step in the map; deeper cells share the last colour.
+DEFICIT_STEPS = 20
+
+
+def deficit_grid(m: RequirementMap) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """(deficit, pitch_mm, res) of a map: ``deficit[k, j]`` is rate k's best mean accuracy minus its mean accuracy
+    at resolution ``res[j]``, in points of accuracy (NaN where not swept), ``pitch_mm[j]`` that resolution's pitch;
+    resolutions sorted coarse to fine."""
+    res = sorted({int(r) for g in m.curves for r in g.points["res"]})
+    acc = np.full((len(m.rates), len(res)), np.nan)
+    pitch = np.full(len(res), np.nan)
+    for k, g in enumerate(m.curves):
+        for _, p in g.points.iterrows():
+            j = res.index(int(p["res"]))
+            acc[k, j] = p["accuracy_mean"]
+            pitch[j] = p["pitch_mm"]
+    best = np.nanmax(np.where(np.isfinite(acc), acc, -np.inf), axis=1, keepdims=True)
+    return 100.0 * (best - acc), pitch, res
+
+
+def _edges(x: np.ndarray) -> np.ndarray:
+    """Cell edges around increasing positive ``x`` on a log axis (geometric midpoints, half a step past the ends)."""
+    lx = np.log(x)
+    if len(x) == 1:
+        return np.exp(lx[0] + np.array([-0.25, 0.25]))
+    mid = (lx[1:] + lx[:-1]) / 2
+    return np.exp(np.concatenate([[2 * lx[0] - mid[0]], mid, [2 * lx[-1] - mid[-1]]]))
+
+
+def _symlog_from_zero(axis, positive: np.ndarray) -> None:
+    """A symlog axis whose linear part runs from 0 to the decade below the smallest positive value (one decade
+    wide), ticked at 0 and 1, 2, 5 x 10^k: the zero values are drawn, and the positive ones on a log scale."""
+    from matplotlib.ticker import FixedLocator, FuncFormatter, NullFormatter, NullLocator
+
+    lo = float(positive.min()) if positive.size else 1.0
+    hi = float(positive.max()) if positive.size else 1.0
+    lin = 10.0 ** np.floor(np.log10(lo))
+    ax = axis.axes
+    ax.set_xscale("symlog", linthresh=lin, linscale=1.0)
+    ax.set_xlim(-0.15 * lin, hi * 1.5)
+    ticks = [0.0] + [
+        m * 10.0**k
+        for k in range(int(np.log10(lin)), int(np.ceil(np.log10(hi))) + 1)
+        for m in (1, 2, 5)
+        if lin <= m * 10.0**k <= hi * 1.5
+    ]
+    if len(ticks) > 7:
+        ticks = [0.0] + [t for t in ticks[1:] if round(t / 10.0 ** np.floor(np.log10(t))) == 1]
+    axis.set_major_locator(FixedLocator(ticks))
+    axis.set_major_formatter(FuncFormatter(lambda x, _: f"{x:.3g}"))
+    axis.set_minor_locator(NullLocator())
+    axis.set_minor_formatter(NullFormatter())
+
+
+def _tolerance_text(m: RequirementMap) -> str:
+    tol = sorted({round(float(g.sat.tolerance), 3) for g in m.curves})
+    return f"T = {tol[0]:.3f}" if len(tol) == 1 else f"T = {tol[0]:.3f}-{tol[-1]:.3f} by row"
+
+
 def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path | None:
-    """Accuracy contours over pitch x false-on rate with the required pitch per rate (and its interval), and
-    accuracy against false-on taxels per frame -> ``path`` (+ PDF, SVG); None without a map."""
+    """The map's figure -> ``path`` (+ PDF, SVG); None without a map.
+
+    Left: one discrete row per false-on rate (no interpolation between rates), each cell the deficit to that
+    rate's best accuracy in points, one colour step per point up to :data:`DEFICIT_STEPS`; the required pitch
+    per rate with its interval, every dip marked (v), the certified tolerance T in the title. Right: accuracy
+    against false-on taxels per frame on a symlog axis, so the clean row (rate 0, no false-on taxel) is drawn at
+    0; every dip marked.
+    """
+    from matplotlib.colors import BoundaryNorm
+
     from sphri import figures
     from sphri.report.figures import _finish, _nice_log_ticks
 
@@ -234,25 +301,23 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
     m = report.maps[0]
     plt = figures.pyplot()
     with figures.style():
-        fig, (ax, ax2) = figures.new_figure("two", 3.2, ncols=2, width_ratios=[1.25, 1.0])
-        res = sorted({int(r) for g in m.curves for r in g.points["res"]})
-        z = np.full((len(m.rates), len(res)), np.nan)
-        pitch = np.full(len(res), np.nan)
-        for k, g in enumerate(m.curves):
-            for _, p in g.points.iterrows():
-                j = res.index(int(p["res"]))
-                z[k, j] = p["accuracy_mean"]
-                pitch[j] = p["pitch_mm"]
+        fig, (ax, ax2) = figures.new_figure("two", 3.8, ncols=2, width_ratios=[1.25, 1.0])
+        deficit, pitch, res = deficit_grid(m)
+        order = np.argsort(pitch)
+        xe = _edges(pitch[order])
         y = np.arange(len(m.rates), dtype=float)
-        finite = np.isfinite(z)
-        levels = np.linspace(np.nanmin(z), np.nanmax(z), 9) if np.nanmax(z) > np.nanmin(z) else 3
-        cs = ax.contourf(pitch, y, np.where(finite, z, np.nanmin(z)), levels=levels, cmap="viridis")
-        fig.colorbar(cs, ax=ax, label="mean accuracy", format="%.2f")
+        ye = np.arange(len(m.rates) + 1, dtype=float) - 0.5
+        top = int(min(DEFICIT_STEPS, max(1, np.ceil(np.nanmax(deficit)) if np.isfinite(deficit).any() else 1)))
+        bounds = np.arange(0, top + 1, dtype=float)
+        cmap = plt.get_cmap("viridis_r", top + (1 if np.nanmax(deficit) > top else 0))
+        norm = BoundaryNorm(bounds, cmap.N, extend="max" if np.nanmax(deficit) > top else "neither")
+        mesh = ax.pcolormesh(xe, ye, np.ma.masked_invalid(deficit[:, order]), cmap=cmap, norm=norm, shading="flat")
+        ticks = bounds if top <= 10 else bounds[:: int(np.ceil(top / 10))]
+        fig.colorbar(mesh, ax=ax, label="deficit to the row's best\n(points of accuracy)", ticks=ticks, format="%.0f")
         req = np.array([float(g.recommended["pitch_mm"]) for g in m.curves])
         lo = np.array([g.pitch_interval_mm[0] if g.pitch_interval_mm else np.nan for g in m.curves])
         hi = np.array([g.pitch_interval_mm[1] if g.pitch_interval_mm else np.nan for g in m.curves])
         xerr = np.vstack([np.where(np.isfinite(lo), req - lo, 0.0), np.where(np.isfinite(hi), hi - req, 0.0)])
-        ax.plot(req, y, "-", color="white", lw=1.5, clip_on=False, zorder=4)
         ax.errorbar(
             req,
             y,
@@ -267,33 +332,46 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
             zorder=5,
             label=f"required pitch ({report.rule.ci:.0%} interval)",
         )
+        dips = [(k, m.dip_index(g)) for k, g in enumerate(m.curves)]
+        dips = [(k, d) for k, d in dips if d is not None]
+        if dips:
+            ax.plot(
+                [float(m.curves[k].points["pitch_mm"].iloc[d]) for k, d in dips],
+                [y[k] for k, _ in dips],
+                "v",
+                ms=7,
+                color="red",
+                mec="black",
+                zorder=6,
+                label="dip",
+            )
         ax.set_xscale("log")
+        ax.set_xlim(xe[-1], xe[0])  # coarse on the left, finer to the right
         _nice_log_ticks(ax.xaxis, pitch[np.isfinite(pitch)])
-        ax.invert_xaxis()
-        ax.set_yticks(y, [f"{100 * r:g} %" for r in m.rates])
+        ax.set_yticks(y, [f"{100 * r:.3g} %" for r in m.rates])
+        ax.set_ylim(ye[0], ye[-1])
         ax.set_xlabel("taxel pitch (mm; finer to the right)")
-        ax.set_ylabel("false-on rate per taxel and frame\n(rows evenly spaced)")
-        ax.legend(loc="lower left", framealpha=0.8)
-        ax.set_title("accuracy and the required pitch", loc="left")
+        ax.set_ylabel("false-on rate per taxel and frame\n(one row per rate)")
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, framealpha=0.8)
+        ax.set_title(f"required pitch, certified within {_tolerance_text(m)}", loc="left")
 
         colors = plt.get_cmap("plasma")
-        drawn = False
+        positive = []
         for k, (rate, g) in enumerate(zip(m.rates, m.curves)):
-            if rate <= 0:
-                continue
             x = rate * g.points["n_taxels"].to_numpy(float)
             acc = g.points["accuracy_mean"].to_numpy(float)
-            color = colors(k / max(len(m.rates), 1))
-            ax2.plot(x, acc, "o-", ms=3, color=color, label=f"{100 * rate:g} %")
+            color = "black" if rate <= 0 else colors(k / max(len(m.rates), 1))
+            ax2.plot(
+                x, acc, "s" if rate <= 0 else "o-", ms=4 if rate <= 0 else 3, color=color, label=f"{100 * rate:.3g} %"
+            )
+            positive.extend(x[x > 0])
             dip = m.dip_index(g)
             if dip is not None:
                 ax2.plot([x[dip]], [acc[dip]], "v", ms=8, color=color, mec="black")
-            drawn = True
-        ax2.set_xscale("log")
-        ax2.set_xlabel("false-on taxels per frame (rate x taxels)")
+        _symlog_from_zero(ax2.xaxis, np.asarray(positive, dtype=float))
+        ax2.set_xlabel("false-on taxels per frame (symlog)")
         ax2.set_ylabel("mean accuracy")
-        ax2.grid(True, which="both", alpha=0.3)
-        if drawn:
-            ax2.legend(title="false-on rate", loc="lower right", ncol=2)
-        ax2.set_title("accuracy and false-on count (v: dip)", loc="left")
+        ax2.grid(True, which="major", alpha=0.3)
+        ax2.legend(title="false-on rate", loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, framealpha=0.8)
+        ax2.set_title("accuracy by false-on count\n(clean row at 0; v: dip)", loc="left")
         return _finish(fig, report, path, marks)

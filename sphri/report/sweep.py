@@ -351,10 +351,22 @@ def false_on_rate(params: dict[str, str]) -> float:
 
     ``noise=salt_pepper``: ``p * salt_vs_pepper`` in replace mode (a corrupted reading becomes 1 with
     probability salt_vs_pepper), ``p`` in flip mode (an untouched taxel reads 0, so every flip turns it on);
+    ``noise=threshold``: ``P(N(0, sigma_mm2^2 + drift_sigma_mm2^2) > threshold_mm2)``
+    (:func:`sphri.noise.components.threshold_false_on_rate`, the schema's defaults for unswept settings);
     ``noise=none``: 0; any other noise: NaN (not a false-on rate per frame).
     """
     if params.get("noise") in ("none", "NoNoise"):
         return 0.0
+    if params.get("noise") in ("threshold", "ThresholdNoise"):
+        from sphri.noise.components import threshold_false_on_rate
+        from sphri.noise.schema import ThresholdNoiseSchema
+
+        d = ThresholdNoiseSchema()
+        return threshold_false_on_rate(
+            _float(params.get("noise.sigma_mm2", str(d.sigma_mm2))),
+            _float(params.get("noise.threshold_mm2", str(d.threshold_mm2))),
+            _float(params.get("noise.drift_sigma_mm2", str(d.drift_sigma_mm2))),
+        )
     if "noise.p" not in params:
         return float("nan")
     p = _float(params.get("noise.p"))

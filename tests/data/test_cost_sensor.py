@@ -10,7 +10,7 @@ from sphri.data.cost_sensor import SENSOR_COLUMNS, best_window, describe_sensor,
 from sphri.data.format import make_trials_frame
 from sphri.data.lengths import COMPARISON_COLUMNS
 from sphri.data.reference_stats import COST_AREA_FRACTION, COST_DURATION_MS
-from sphri.data.stats import SPATIAL_STATISTICS, spatial_checks, spatial_comparison
+from sphri.data.stats import SPATIAL_STATISTICS, outside_area_lines, spatial_checks, spatial_comparison
 from sphri.surface.cylinder import CylinderSurface
 from sphri.testing.synthetic_contacts import make_contacts
 from sphri.types import GestureDataset
@@ -104,7 +104,12 @@ def test_known_patches_give_known_fractions_and_durations(hand, robot):
         and area.loc["grab", "reference"] == COST_AREA_FRACTION["grab"][0]
     )
     assert np.isclose(area.loc["poke", "ratio"], (1 / 64) / COST_AREA_FRACTION["poke"][0])
-    assert (area["flag"] == "OUTSIDE").all() and (area["band"] == "0.65-1.35x").all()  # far below CoST
+    assert (area["flag"] == "OUTSIDE").all()  # far below CoST
+    assert area.loc["poke", "band"] == "0.63-1.37x" and area.loc["grab", "band"] == "0.89-1.11x"  # cost_band
+    assert outside_area_lines(table) == [
+        f"arm: contact area outside its CoST band: poke {area.loc['poke', 'ratio']:.2f}x (band 0.63-1.37x), "
+        f"grab {area.loc['grab', 'ratio']:.2f}x (band 0.89-1.11x)"
+    ]
     dur = table[table["statistic"] == "CoST sensor dur mean ms"].set_index("gesture")
     assert (
         np.isclose(dur.loc["poke", "value"], 1000 * 10 / 30)
@@ -137,3 +142,43 @@ def test_spatial_check_needs_six_of_eight_gestures_in_band(n_in, passes):
     table = spatial_comparison(pd.DataFrame(rows))
     ((name, ok, detail),) = spatial_checks(table)
     assert name == "arm CoST sensor area" and ok is passes and detail.startswith(f"{n_in}/8 gestures in band")
+
+
+def test_cost_bands_are_the_sampling_intervals_of_costs_reported_numbers():
+    from scipy.stats import chi2, t
+
+    from sphri.data.lengths import cost_band
+    from sphri.data.reference_stats import COST_PARTICIPANTS, COST_SOURCE
+
+    assert COST_PARTICIPANTS == 31 and "Table 4" in COST_SOURCE and "Jung" in COST_SOURCE
+    # grab's area: 0.59 (SD 0.17) over 31 participants -> 1 +/- t(0.975, 30) * (0.17 / 0.59) / sqrt(31)
+    half = 2.0422724563 * (0.17 / 0.59) / 31**0.5
+    assert cost_band("mean", *COST_AREA_FRACTION["grab"]) == pytest.approx((1 - half, 1 + half))
+    assert half == pytest.approx(t.ppf(0.975, 30) * 0.17 / 0.59 / np.sqrt(31))
+    # hit's duration: 337 (SD 403) -> about +/- 44 %
+    assert cost_band("mean", *COST_DURATION_MS["hit"]) == pytest.approx((0.5610, 1.4390), abs=1e-3)
+    # an SD: the chi-square interval with 30 degrees of freedom, whatever the SD's value
+    assert cost_band("sd", *COST_AREA_FRACTION["poke"]) == pytest.approx(
+        (np.sqrt(30 / chi2.ppf(0.975, 30)), np.sqrt(30 / chi2.ppf(0.025, 30)))
+    )
+    assert cost_band("sd", 1.0, 1.0) == pytest.approx((0.7991, 1.3367), abs=1e-3)
+    # more participants, narrower band
+    assert np.subtract(*cost_band("mean", 1.0, 1.0, n=558)[::-1]) < np.subtract(*cost_band("mean", 1.0, 1.0)[::-1])
+    with pytest.raises(ValueError, match="mean"):
+        cost_band("median", 1.0, 1.0)
+    # the table's rows carry them: a ratio just inside poke's area band is ok, just outside is OUTSIDE
+    lo, hi = cost_band("mean", *COST_AREA_FRACTION["poke"])
+    for ratio, flag in ((hi - 0.01, "ok"), (hi + 0.01, "OUTSIDE"), (lo + 0.01, "ok"), (lo - 0.01, "OUTSIDE")):
+        row = {
+            "participant": "p",
+            "region": "arm",
+            "gesture": "poke",
+            "sensor_contact": True,
+            "sensor_frames": 5,
+            "area_fraction": COST_AREA_FRACTION["poke"][0] * ratio,
+            "duration_s": 1.0,
+            "window_row": 0,
+            "window_col": 0,
+        }
+        table = spatial_comparison(pd.DataFrame([row, row]))
+        assert table.loc[table["statistic"] == "CoST sensor area mean", "flag"].item() == flag
