@@ -180,7 +180,7 @@ def test_cheap_verbs_run_for_real(tmp_path, capsys):
     db = tmp_path / "mlflow.db"
     db.write_text("not a database")
     assert main(["store", "check", str(db)]) == 1
-    assert "not a readable SQLite database" in capsys.readouterr().out
+    assert "is not an MLflow store (not a SQLite database" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize(
