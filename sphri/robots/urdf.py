@@ -264,7 +264,13 @@ class UrdfRobot:
             if len(parts) > 1:
                 notes.append(f"{len(parts)} geometry elements concatenated (they may overlap)")
             links[name] = make_link(
-                name, mesh.vertices, mesh.faces, units=self.units, source=f"{path.name} {self.geometry}", notes=notes
+                name,
+                mesh.vertices,
+                mesh.faces,
+                units=self.units,
+                source=f"{path.name} {self.geometry}",
+                notes=notes,
+                plausible=True,
             )
         return Robot(name=self.name, links=links, regions=dict(self.regions))
 
