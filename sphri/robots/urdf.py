@@ -129,7 +129,7 @@ class UrdfRobot:
     ``path``: the URDF; ``links``: link names to load; ``regions``: skin
     region -> link; ``geometry``: ``collision`` or ``visual``; ``joints``:
     joint name -> value (radians / metres, others 0), used by ``merge``
-    (link -> descendant links added to it); ``units``: auto, m or mm (after
+    (link -> descendant links added to it); ``units``: auto, m, cm or mm (after
     the URDF's own mesh scale).
     """
 
