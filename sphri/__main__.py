@@ -39,6 +39,7 @@ from sphri.config import (
     compose,
     normalize_overrides,
     register_schemas,
+    resolved_setting,
     validate,
 )
 from sphri.errors import report, take_verbose_flag, verbose_requested
@@ -249,11 +250,29 @@ def _fixed_overrides(args: list[str]) -> list[str] | None:
 
     if any(a.startswith("-") and a not in ("-m", "--multirun") for a in args):
         return None
-    try:
-        parsed = OverridesParser.create().parse_overrides([a for a in args if not a.startswith("-")])
-    except Exception:
-        return None
+    parser = OverridesParser.create()
+    parsed = []
+    for arg in (a for a in args if not a.startswith("-")):
+        try:
+            parsed += parser.parse_overrides([arg])
+        except Exception as exc:  # Hydra's lexer and parser: a caret under the position, over several lines
+            raise ConfigError(override_parse_error(arg, exc)) from None
     return [o.input_line for o in parsed if not o.is_sweep_override()]
+
+
+def override_parse_error(arg: str, exc: BaseException) -> str:
+    """One line for an override Hydra's grammar refuses, naming it (and a non-ASCII character in it)."""
+    odd = next((c for c in arg if not c.isascii()), None)
+    if odd is not None:
+        key, sep, _ = arg.partition("=")
+        hint = (
+            "keys are ASCII names"
+            if sep == "" or odd in key
+            else f"quote a value holding one, e.g. {key}='{arg.partition('=')[2]}'"
+        )
+        return f"override {arg!r} does not parse: non-ASCII character {odd!r} at position {arg.index(odd)}; {hint}"
+    first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+    return f"override {arg!r} does not parse ({first}); see https://hydra.cc/docs/advanced/override_grammar/basic"
 
 
 def main() -> None:
@@ -281,7 +300,9 @@ def main() -> None:
         if fixed is not None:
             # an unknown key or a value of the wrong type: sphri's one line, before Hydra's own message
             cfg = compose(fixed, check=False)
-            check_output_dir(str(cfg.output_dir))  # Hydra makes the run folder inside it before any check of ours
+            check_output_dir(
+                resolved_setting(cfg, "output_dir")
+            )  # Hydra makes the run folder inside it before any check of ours
     except ConfigError as exc:
         print(f"sphri: invalid config: {exc}", file=sys.stderr)
         sys.exit(2)

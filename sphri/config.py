@@ -697,6 +697,20 @@ def _check_bool_overrides(cfg: DictConfig, overrides: Sequence[str]) -> None:
             raise ConfigError(f"{key.strip()}={text} is invalid: must be true or false")
 
 
+def registered_targets(group: str) -> list[str]:
+    """The ``_target_`` classes of sphri's components registered in ``group`` (their schemas in Hydra's
+    ConfigStore), sorted."""
+    register_schemas()
+    prefix = schema_name(group, "")
+    out = set()
+    for name, entry in ConfigStore.instance().repo.items():
+        node = getattr(entry, "node", None) if name.startswith(prefix) else None
+        target = node.get("_target_") if isinstance(node, DictConfig) else None
+        if isinstance(target, str) and target.startswith("sphri."):
+            out.add(target)
+    return sorted(out)
+
+
 def check_target(group: str, target: Any, plugins: Sequence[str] = ()) -> None:
     """``group._target_`` names a class of ``sphri`` or of a listed plugin package implementing the stage.
 
@@ -708,6 +722,14 @@ def check_target(group: str, target: Any, plugins: Sequence[str] = ()) -> None:
         raise ConfigError(f"{group}._target_={target!r} is invalid: must name a class")
     package = target.split(".", 1)[0]
     if package == "sphri":
+        known = registered_targets(group)
+        if known and target not in known:
+            close = difflib.get_close_matches(target, known, n=1, cutoff=0.6)
+            raise ConfigError(
+                f"{group}._target_={target!r} is invalid: not a registered {group} component"
+                + (f"; did you mean {close[0]!r}?" if close else "")
+                + f" (registered: {', '.join(known)}; pick one with {group}=NAME)"
+            )
         return
     if package not in plugins:
         raise ConfigError(
@@ -758,12 +780,39 @@ def _explain(exc: BaseException) -> str:
     return " ".join(lines[:20]) if lines else type(exc).__name__
 
 
+def resolved_setting(cfg: DictConfig, key: str) -> str:
+    """``cfg.<key>`` resolved, as text; a :class:`ConfigError` naming the key and its value as written
+    when an interpolation in it does not resolve (``${oc.env:NOPE}``: no such environment variable)."""
+    try:
+        return str(OmegaConf.select(cfg, key, throw_on_missing=True))
+    except OmegaConfBaseException as exc:
+        raw = OmegaConf.to_container(cfg, resolve=False).get(key)  # type: ignore[union-attr]
+        why = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        why = why.replace("KeyError raised while resolving interpolation: ", "").strip('"')
+        raise ConfigError(f"{key}={raw} is invalid: {why}") from None
+
+
+def _probe_folder(parent: Path, key: str, shown: str) -> None:
+    """Make and remove an empty folder in ``parent``: some file systems (``/proc``, ``/sys``) refuse new
+    folders although their permissions allow them."""
+    import tempfile
+
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".sphri-probe-", dir=parent))
+    except OSError as exc:
+        raise ConfigError(
+            f"{key}={shown} is invalid: no folder can be made in {parent} ({exc.strerror or exc}); "
+            "give a writable folder"
+        ) from None
+
+
 def check_output_dir(
     output_dir: str, key: str = "output_dir", shown: str | None = None, overwrite: bool | None = None
 ) -> None:
     """``output_dir`` can hold runs, the cache and the MLflow store: not empty (``cache.dir`` would be
-    ``/cache``), not an existing file or below one, every name within the file system's limit. Nothing is
-    created here. ``key``: the setting the errors name (``out`` of ``sphri coverage``), ``shown`` the value
+    ``/cache``), not an existing file or below one, every name within the file system's limit, and a folder
+    not there yet one its nearest existing parent lets be made (probed with an empty folder, removed at
+    once; nothing else is created here). ``key``: the setting the errors name (``out`` of ``sphri coverage``), ``shown`` the value
     they quote (default ``output_dir``). ``overwrite``: for a folder written whole (a dataset), False
     refuses a folder that exists and is not empty (new files are never mixed with old ones), True lets
     the writer replace it (:func:`sphri.fsutil.replace_dir`); None (a folder that accumulates) neither."""
@@ -789,6 +838,8 @@ def check_output_dir(
                 raise ConfigError(f"{key}={shown} is invalid: {p} is a file, not a folder")
             if not os.access(p, os.W_OK | os.X_OK):
                 raise ConfigError(f"{key}={shown} is invalid: {p} is read-only; give a writable folder")
+            if p != path:
+                _probe_folder(p, key, shown)
             break
     if overwrite is False and path.is_dir() and any(path.iterdir()):
         raise ConfigError(
@@ -859,7 +910,7 @@ def validate(cfg: DictConfig) -> None:
     check_known_keys(cfg)
     if not 0 <= cfg.seed < 2**63:  # seeds reach numba kernels as 64-bit integers
         raise ConfigError(f"seed={cfg.seed} is invalid: must be in [0, 2**63)")
-    check_output_dir(str(cfg.output_dir))
+    check_output_dir(resolved_setting(cfg, "output_dir"))
     variant = cfg.get("variant")
     if variant is not None and not re.fullmatch(r"[A-Za-z0-9_.-]+", str(variant)):
         raise ConfigError(f"variant={variant!r} is invalid: a name of letters, digits, '_', '.' or '-'")

@@ -143,13 +143,15 @@ def read_json(
 ) -> Any:
     """The parsed JSON of the file ``path``, for every reader of an input file: ``missing(not_found)``
     when there is no such file, one line ``error("<path>: not valid JSON (...)")`` when it does not
-    parse and, with ``obj``, ``error("<path>: expected a JSON object, got <type>")`` when it is not one."""
+    parse or is nested too deeply to read (a RecursionError) and, with ``obj``, ``error("<path>: expected a JSON object, got <type>")`` when it is not one."""
     if not path.is_file():
         raise missing(not_found)
     try:
         data = json.loads(path.read_text())
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise error(f"{path}: not valid JSON ({exc})") from None
+    except RecursionError:
+        raise error(f"{path}: not a usable JSON file (nested too deeply for the reader)") from None
     if obj and not isinstance(data, dict):
         raise error(f"{path}: expected a JSON object, got {type(data).__name__}")
     return data

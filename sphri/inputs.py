@@ -29,6 +29,7 @@ import importlib
 import json
 import logging
 import os
+import stat
 from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any
@@ -112,6 +113,10 @@ class FingerprintMemo:
             return "missing"
         except OSError as exc:
             return f"unreadable:{exc.errno}"
+        kind = special_kind(st.st_mode)
+        if kind is not None:  # never opened: a FIFO or a device would block or never end
+            _warn_skipped([_describe_special(path) or f"{path} is {kind}"])
+            return f"special:{kind}"
         sig = [st.st_size, st.st_mtime_ns, st.st_ino, st.st_ctime_ns]
         old = self.entries.get(key)
         if isinstance(old, list) and len(old) == 5 and old[:4] == sig:
@@ -145,14 +150,63 @@ class FingerprintMemo:
             log.debug("cannot write the fingerprint memo %s: %s", self.path, exc)
 
 
+def special_kind(mode: int) -> str | None:
+    """What a file of mode ``mode`` is when it is not a regular file or a folder (a FIFO, a device, a
+    socket: reading one may block forever or never end), else None."""
+    for test, name in (
+        (stat.S_ISFIFO, "a FIFO (named pipe)"),
+        (stat.S_ISCHR, "a character device"),
+        (stat.S_ISBLK, "a block device"),
+        (stat.S_ISSOCK, "a socket"),
+    ):
+        if test(mode):
+            return name
+    return None
+
+
+def _describe_special(path: Path) -> str | None:
+    """``'<path> is a FIFO (named pipe)'`` (or ``is a link to ...``) for a path that is not a regular
+    file or folder; None otherwise (a missing or unreadable path included: the reader names those)."""
+    try:
+        kind = special_kind(path.stat().st_mode)
+    except OSError:
+        return None
+    if kind is None:
+        return None
+    if path.is_symlink():
+        return f"{path} is a link to {kind} ({os.path.realpath(path)})"
+    return f"{path} is {kind}"
+
+
+def _warn_skipped(skipped: list[str]) -> None:
+    if skipped:
+        log.warning(
+            "skipped %d input file(s) that are not regular files (reading them could block forever): %s",
+            len(skipped),
+            "; ".join(skipped),
+        )
+
+
 def _files_below(root: Path, exclude: frozenset[Path] = frozenset()) -> list[Path]:
-    """Regular files below ``root`` (sorted; hidden names and the ``exclude`` folders skipped)."""
+    """Regular files below ``root`` (sorted; hidden names and the ``exclude`` folders skipped).
+
+    FIFOs, devices and sockets, and links to them, are skipped with a warning naming them."""
     out = []
+    skipped: list[str] = []
     for dirpath, dirnames, filenames in os.walk(root):
         dirnames[:] = sorted(
             d for d in dirnames if not d.startswith(".") and Path(dirpath, d).absolute() not in exclude
         )
-        out += [Path(dirpath) / f for f in sorted(filenames) if not f.startswith(".")]
+        for f in sorted(filenames):
+            if f.startswith("."):
+                continue
+            p = Path(dirpath) / f
+            special = _describe_special(p)
+            if special is None:
+                out.append(p)
+            else:
+                skipped.append(special)
+    _warn_skipped(skipped)
     return out
 
 

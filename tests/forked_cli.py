@@ -174,3 +174,12 @@ def run(
             [sys.executable, *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout
         )
     return start(args, cwd, env).wait(timeout)
+
+
+def one_line(proc: subprocess.CompletedProcess, code: int, *words: str) -> str:
+    """The one stderr line of a refused command: exit ``code``, no traceback, holding every word."""
+    err = proc.stderr.strip().splitlines()
+    assert proc.returncode == code, proc.stdout[-2000:] + proc.stderr[-2000:]
+    assert "Traceback" not in proc.stderr and len(err) == 1, proc.stderr[-2000:]
+    assert all(w in err[0] for w in words), err[0]
+    return err[0]

@@ -15,12 +15,7 @@ def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
     return forked_cli.run(["-m", *args], cwd, None, 300)
 
 
-def _one_line(proc: subprocess.CompletedProcess, code: int, *words: str) -> str:
-    err = proc.stderr.strip().splitlines()
-    assert proc.returncode == code, proc.stdout[-2000:] + proc.stderr[-2000:]
-    assert "Traceback" not in proc.stderr and len(err) == 1, proc.stderr[-2000:]
-    assert all(w in err[0] for w in words), err[0]
-    return err[0]
+_one_line = forked_cli.one_line
 
 
 @pytest.mark.parametrize(

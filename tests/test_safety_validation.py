@@ -219,7 +219,7 @@ def test_a_region_the_robot_lacks_is_one_line_naming_it_and_the_robots_regions(t
     "module, argv, kind",
     [
         ("sphri.data.stats", ["data=vr_gesture", "data.root=/nonexistent/ds"], "data error"),
-        ("sphri.data.synthesize", ["out=/proc/sphri-ds", "data.participants=2", "+debug=fast"], "file error"),
+        ("sphri.data.synthesize", ["out=/proc/sphri-ds", "data.participants=2", "+debug=fast"], "invalid config"),
         ("sphri.coverage", ["data=vr_gesture", "data.root=/nonexistent/ds", "mlflow=false"], "data error"),
         (
             "sphri.hardware.train_export",

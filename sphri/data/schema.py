@@ -8,7 +8,13 @@ from sphri.config import ComponentSchema, require, setting, store
 from sphri.data.duplicates import DUPLICATE_POLICIES
 from sphri.data.people import Spread
 from sphri.inputs import input_path
+from sphri.limits import over_limit
 from sphri.types import GESTURES
+
+#: Capsules of the study's hand model and bytes of one capsule pose (xyz + quaternion, float32): the
+#: poses of one frame, for the estimate of a synthetic dataset's size.
+HAND_CAPSULES = 19
+POSE_BYTES = 7 * 4
 
 #: Position units a recorded dataset may declare (``data.units``), and metres per unit.
 POSITION_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
@@ -97,6 +103,25 @@ class SyntheticDataSchema(Spread, DataSchema):
             self.root is None, self.key("root"), self.root, "only data=vr_gesture reads a folder; leave it null here"
         )
         self.validate("data")
+        self.check_size()
+
+    def check_size(self) -> None:
+        """Refuse a dataset whose poses alone would not fit in memory (estimated from the study's median
+        trial lengths), before it is generated."""
+        from sphri.data.reference_stats import VR_MEDIAN_TRIAL_FRAMES
+
+        participants = self.participants or 18
+        repetitions = self.repetitions or 20
+        per_rep = sum(
+            VR_MEDIAN_TRIAL_FRAMES.get(r, VR_MEDIAN_TRIAL_FRAMES["arm"])[g] for r in self.regions for g in self.gestures
+        )
+        frames = float(participants) * repetitions * per_rep
+        why = over_limit(
+            f"the poses of {participants} participants x {repetitions} repetitions (about {frames:.3g} frames of "
+            f"{HAND_CAPSULES} capsules, before contacts and windows)",
+            frames * HAND_CAPSULES * POSE_BYTES,
+        )
+        require(why is None, self.key("participants"), self.participants, why or "")
 
 
 @dataclass

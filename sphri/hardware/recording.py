@@ -325,8 +325,8 @@ def _load_partial(path: Path, blob: bytes) -> SkinRecording:
     try:
         head = json.loads(blob[h0 : h0 + n])
         dtype = _record_dtype(int(head["n_taxels"]))
-    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError) as exc:
-        raise RecordingError(f"{path}: partial recording header unreadable ({exc})") from None
+    except (json.JSONDecodeError, UnicodeDecodeError, KeyError, TypeError, ValueError, RecursionError) as exc:
+        raise RecordingError(f"{path}: partial recording header unreadable ({type(exc).__name__}: {exc})") from None
     body = blob[h0 + n :]
     k = len(body) // dtype.itemsize  # a torn last record is dropped
     rec = np.frombuffer(body[: k * dtype.itemsize], dtype=dtype)
@@ -382,8 +382,8 @@ def load_recording(path: str | os.PathLike) -> SkinRecording:
         raise RecordingError(f"{path}: unreadable ({exc})") from None
     try:
         meta = json.loads(str(data["meta"]))
-    except json.JSONDecodeError as exc:
-        raise RecordingError(f"{path}: field meta is not JSON ({exc})") from None
+    except (json.JSONDecodeError, RecursionError) as exc:
+        raise RecordingError(f"{path}: field meta is not JSON ({type(exc).__name__}: {exc})") from None
     if meta.get("format") != FORMAT:
         raise RecordingError(f"{path}: format {meta.get('format')!r}, this sphri reads {FORMAT!r}")
     values = data["values"]

@@ -139,6 +139,16 @@ class SkinRecordSettings(SkinStreamSettings):
         _port(self.port)
         require(self.out not in ("", "???"), "out", self.out, "an output path, e.g. out=recording.npz")
         grid = parse_grid(self.grid)
+        if grid is not None:
+            from sphri.hardware.skin_protocol import MAX_TAXELS
+
+            n = grid[0] * grid[1]
+            require(
+                n <= MAX_TAXELS,
+                "grid",
+                self.grid,
+                f"H*W={n} taxels, more than the {MAX_TAXELS} a skin frame can carry (the taxels= limit)",
+            )
         if grid is not None and self.taxels:
             require(grid[0] * grid[1] == self.taxels, "grid", self.grid, f"H*W must equal taxels={self.taxels}")
 

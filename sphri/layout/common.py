@@ -8,9 +8,25 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial import cKDTree
 
+from sphri.config import ConfigError
 from sphri.geometry.link import face_areas, face_normals, project_along, sample_surface
+from sphri.limits import over_limit
 from sphri.surface.charts import chart_of, from_uv, to_uv
 from sphri.types import Layout, Link, SurfaceMap
+
+#: Peak memory of the layout stage and the stages after it per taxel (bytes): a 2 M-taxel grid peaked
+#: at 14.6 GB in the layout stage alone.
+BYTES_PER_TAXEL = 7300
+
+
+def check_taxel_count(h: int, w: int, res: int, aspect: float) -> None:
+    """Refuse an H x W grid whose taxels would not fit in memory, before anything is built; the message
+    names ``encoder.res`` and ``layout.aspect``, the estimate and the limit (:mod:`sphri.limits`)."""
+    why = over_limit(
+        f"a layout of {h} x {w} = {h * w} taxels (about {BYTES_PER_TAXEL} bytes each)", h * w * float(BYTES_PER_TAXEL)
+    )
+    if why is not None:
+        raise ConfigError(f"encoder.res={res} with layout.aspect={aspect:g} is invalid: {why}")
 
 
 def long_axis_length_m(surface: SurfaceMap) -> float:
@@ -34,6 +50,7 @@ def grid_dims(surface: SurfaceMap, res: int, aspect: float = 1.0, hex_rows: bool
     pitch = long_axis_length_m(surface) / res
     h = max(1, int(round(surface.metres_per_u / pitch)))
     w = max(1, int(round(surface.metres_per_v / (pitch * aspect))))
+    check_taxel_count(h, w, res, aspect)
     if not hex_rows:
         return h, w
     stretch = np.sqrt(2.0 / np.sqrt(3.0))  # in-row spacing / p, keeping the area per taxel

@@ -119,6 +119,10 @@ def read_layout_file(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return read_icub_positions(p)
 
 
+#: Taxels closer than this on the link (median nearest neighbour, metres) are a file in other units.
+MIN_PITCH_M = 0.5e-3
+
+
 def build_file_layout(
     link: Link,
     surface: SurfaceMap,
@@ -153,6 +157,15 @@ def build_file_layout(
     nrm = np.where(n_norm > 0.5, nrm / np.maximum(n_norm, 1e-300), fn)
     spacing = nn_spacing(cp)
     pitch = float(np.mean(spacing)) if len(cp) > 1 else 0.0
+    if len(cp) > 1 and float(np.median(spacing)) < MIN_PITCH_M:
+        span = float(np.ptp(pos, axis=0).max())
+        size = float(np.ptp(link.vertices, axis=0).max())
+        raise LayoutFileError(
+            f"{path}: the taxels lie {float(np.median(spacing)) * 1e3:.3g} mm apart on link {link.name!r} (median "
+            f"nearest neighbour, less than {MIN_PITCH_M * 1e3:g} mm) with layout.scale={scale:g}: the file's taxels "
+            f"span {span:.3g} m against the link's {size:.3g} m; set layout.scale to the file's units "
+            f"(0.001 for mm, 0.01 for cm), or check layout.transform"
+        )
     reach = 1.5 * float(np.median(spacing)) if len(cp) > 1 else None
     area = voronoi_areas(link, cp, seed=0, max_dist_m=reach)
     return scattered_layout(surface, "file", cp, nrm, area, pitch)

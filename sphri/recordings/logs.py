@@ -82,6 +82,8 @@ def _read_jsonl(path: Path, names: Sequence[str], optional: Sequence[str]) -> tu
             rec = json.loads(line)
         except json.JSONDecodeError as exc:
             raise _truncated(path, i, len(lines), ends, f"not valid JSON ({exc.msg})") from None
+        except RecursionError:
+            raise LogError(f"{path}: line {i}: nested too deeply for the JSON reader") from None
         if not isinstance(rec, dict):
             raise LogError(f"{path}: line {i}: expected a JSON object, got {type(rec).__name__}")
         for key, parts in (("position", ("px", "py", "pz")), ("orientation", ("qx", "qy", "qz", "qw"))):

@@ -30,6 +30,7 @@ from typing import Literal
 
 from sphri.command.args import ArgsError, arg, first_paragraph, run
 from sphri.errors import clean_errors
+from sphri.limits import over_limit
 from sphri.report.analysis import RuleSettings
 from sphri.report.build import check_formats, make_report
 from sphri.report.saturation import Tolerance
@@ -39,6 +40,16 @@ from sphri.report.sweep import ReportError
 def _tolerances(values: list[str]) -> None:
     for t in values:
         Tolerance.parse(t)  # a ValueError names the tolerance and the rule
+
+
+#: Bytes the bootstrap keeps per resample (the selected resolution and its gap, ``sphri.report.saturation``).
+BOOT_BYTES = 16
+
+
+def _n_boot(n: int) -> str | None:
+    if n < 0:
+        return "must be >= 0"
+    return over_limit(f"the bootstrap's {n} resamples ({BOOT_BYTES} bytes each, per tolerance)", float(n) * BOOT_BYTES)
 
 
 def _formats(values: list[str]) -> None:
@@ -66,7 +77,7 @@ class ReportArgs:
         check=lambda t: _tolerances([t]),
         help="the tolerance the requirement sentence asks for (added to tolerances)",
     )
-    n_boot: int = arg(2000, check=lambda n: None if n >= 0 else "must be >= 0", help="participant bootstrap resamples")
+    n_boot: int = arg(2000, check=_n_boot, help="participant bootstrap resamples")
     ci: float = arg(0.95, check=lambda c: None if 0 < c < 1 else "must be in (0, 1)", help="interval coverage")
     seed: int = arg(0, help="bootstrap seed")
     mlflow: bool = arg(True, flags={"--no-log": "false"}, help="log the report to the sweep's MLflow parent run")

@@ -125,7 +125,7 @@ def resolve_source(
         try:
             info = json.loads(parent_file.read_text())
             run_id = str(info["run_id"])
-        except (ValueError, KeyError) as exc:
+        except (ValueError, KeyError, RecursionError) as exc:
             raise ReportError(
                 f"{parent_file}: unreadable ({type(exc).__name__}: {exc}); expected {{run_id, sweep_id, uri}}"
             ) from None
@@ -174,7 +174,7 @@ def load_sweep(
         for status in sorted(sweep_dir.glob(f"*/{STATUS_FILE}")):
             try:
                 rid = json.loads(status.read_text()).get("mlflow_run_id")
-            except ValueError:
+            except (ValueError, RecursionError, AttributeError):
                 notes.append(f"{status}: unreadable job status file, ignored")
                 continue
             if rid and rid not in known:

@@ -25,7 +25,7 @@ class MeshRobot:
     ``links``: link name -> file (relative paths start at ``root``, or the
     working directory when ``root`` is None); ``regions``: skin region ->
     link name; ``root_required``: refuse a null ``root`` (``robot=reachy_vr``
-    takes ``root`` from ``data.root``); ``units``: auto, m or mm.
+    takes ``root`` from ``data.root``); ``units``: auto, m, cm or mm.
     """
 
     VERSION = "1"

@@ -36,7 +36,7 @@ from sphri.inputs import input_path
 #: Long-axis names of parametric links.
 AXES: tuple[str, ...] = ("x", "y", "z")
 #: Mesh units a robot may declare (``auto``: mm when a link is larger than 5 m).
-UNITS: tuple[str, ...] = ("auto", "m", "mm")
+UNITS: tuple[str, ...] = ("auto", "m", "cm", "mm")
 #: Which URDF geometry to read.
 GEOMETRIES: tuple[str, ...] = ("collision", "visual")
 #: Robot descriptions shipped with sphri (``robot.builtin``): name -> URDF file.
@@ -242,7 +242,7 @@ class MeshRobotSchema(RobotSchema):
     root_required: bool = False
     """Refuse to build when ``root`` is None (robots whose meshes come with a dataset)."""
     units: str = setting("auto", choices=UNITS)
-    """Mesh units: auto (mm when the main connected part of a link is larger than 5 m), m or mm."""
+    """Mesh units: auto (mm when the main connected part of a link is larger than 5 m), m, cm or mm."""
 
     def check(self) -> None:
         links = check_str_map(self.links, self.key("links"), "link name -> mesh file")
@@ -278,7 +278,7 @@ class UrdfRobotSchema(RobotSchema):
     merge: Any = None
     """Link -> descendant links whose geometry joins it, placed at ``joints`` (plain) or the rest pose (``parts``)."""
     units: str = setting("auto", choices=UNITS)
-    """Mesh units after the URDF's own scale: auto, m or mm."""
+    """Mesh units after the URDF's own scale: auto, m, cm or mm."""
     parts: Any = input_path(None)
     """Whole-body robot: body part -> {link, side, z_min, z_max, min_cos}, or a YAML file holding
     ``parts`` (and ``groups``, ``rest``, ``exclude``, ``merge``); see :mod:`sphri.robots.urdf_tree`."""

@@ -129,7 +129,7 @@ class UrdfRobot:
     ``path``: the URDF; ``links``: link names to load; ``regions``: skin
     region -> link; ``geometry``: ``collision`` or ``visual``; ``joints``:
     joint name -> value (radians / metres, others 0), used by ``merge``
-    (link -> descendant links added to it); ``units``: auto, m or mm (after
+    (link -> descendant links added to it); ``units``: auto, m, cm or mm (after
     the URDF's own mesh scale).
     """
 
@@ -264,7 +264,13 @@ class UrdfRobot:
             if len(parts) > 1:
                 notes.append(f"{len(parts)} geometry elements concatenated (they may overlap)")
             links[name] = make_link(
-                name, mesh.vertices, mesh.faces, units=self.units, source=f"{path.name} {self.geometry}", notes=notes
+                name,
+                mesh.vertices,
+                mesh.faces,
+                units=self.units,
+                source=f"{path.name} {self.geometry}",
+                notes=notes,
+                plausible=True,
             )
         return Robot(name=self.name, links=links, regions=dict(self.regions))
 

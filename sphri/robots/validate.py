@@ -40,6 +40,17 @@ MAJOR_COMPONENT_FRACTION = 0.25
 #: extent from its convex hull is treated as a (slightly inexact) convex hull.
 CONVEX_TOL = 0.01
 
+#: Largest extent (metres, after the units) of a plausible robot link read from a file: outside, the
+#: units are wrong and the mesh is refused naming ``robot.units``.
+PLAUSIBLE_EXTENT_M = (0.02, 3.0)
+#: Under ``units=auto`` a link read as millimetres but smaller than this (metres) may as well be in
+#: centimetres: refused as ambiguous.
+AMBIGUOUS_MM_BELOW_M = 0.05
+#: Metres per unit of the declared mesh units.
+UNIT_SCALE = {"mm": 1e-3, "cm": 1e-2}
+#: An open mesh whose boundary edges are more than this share of its edges is much damaged: warned.
+DAMAGED_BOUNDARY_SHARE = 0.05
+
 
 class MeshError(ValueError):
     """A link mesh cannot be used; the message names its source."""
@@ -121,6 +132,7 @@ def make_link(
     units: str = "auto",
     source: str = "",
     notes: Sequence[str] = (),
+    plausible: bool = False,
 ) -> Link:
     """Validate and repair a triangle mesh into a :class:`Link`.
 
@@ -131,7 +143,9 @@ def make_link(
     components disagree, or when the main part reads as metres but other parts
     stretch the mesh past the threshold), ``m`` or ``mm``. ``source`` (a path or a
     description) names the mesh in errors and notes; ``notes`` are prepended
-    to what validation adds. Raises :class:`MeshError` for unusable input.
+    to what validation adds. ``plausible``: refuse a link whose largest extent after the units lies
+    outside :data:`PLAUSIBLE_EXTENT_M` (a robot link read from a file). Raises :class:`MeshError` for
+    unusable input.
     """
     require_choice("robot.units", units, UNITS)
     where = f"link {name!r}" + (f" ({source})" if source else "")
@@ -158,9 +172,9 @@ def make_link(
 
     # units
     extent = float((v.max(axis=0) - v.min(axis=0)).max())
-    if units == "mm":
-        v = v * 1e-3
-        note("scaled by 0.001 (units=mm)")
+    if units in UNIT_SCALE:
+        v = v * UNIT_SCALE[units]
+        note(f"scaled by {UNIT_SCALE[units]:g} (units={units})")
     elif units == "auto" and extent > MM_EXTENT_THRESHOLD_M:
         parts = component_extents(v, f)
         main_faces, main_extent = parts[0]
@@ -172,6 +186,12 @@ def make_link(
                 f"(threshold {MM_EXTENT_THRESHOLD_M:g}); set robot.units=m or robot.units=mm"
             )
         if main_extent > MM_EXTENT_THRESHOLD_M:
+            if main_extent * 1e-3 < AMBIGUOUS_MM_BELOW_M:
+                raise MeshError(
+                    f"{where}: units are ambiguous: its main part is {main_extent:.3g} across, "
+                    f"{main_extent * 1e-3 * 100:.3g} cm as millimetres (a small link) or {main_extent:.3g} cm as "
+                    f"centimetres; set robot.units=mm or robot.units=cm"
+                )
             v = v * 1e-3
             note(
                 f"largest extent {main_extent:g} of its main part > {MM_EXTENT_THRESHOLD_M:g} m: taken as millimetres "
@@ -190,6 +210,12 @@ def make_link(
     extent = float((v.max(axis=0) - v.min(axis=0)).max())
     if extent <= 0:
         raise MeshError(f"{where}: all vertices coincide")
+    lo, hi = PLAUSIBLE_EXTENT_M
+    if plausible and not lo <= extent <= hi:
+        raise MeshError(
+            f"{where}: its largest extent is {extent:.3g} m with robot.units={units}, outside a robot link's "
+            f"{lo * 100:g} cm to {hi:g} m: set robot.units to the file's units (m, cm or mm)"
+        )
 
     # duplicate vertices (exact after rounding to 1e-9 of the extent), then unreferenced ones
     key = np.round(v / (extent * 1e-9)).astype(np.int64)
@@ -252,8 +278,17 @@ def make_link(
             note(f"closed mesh: re-oriented {changed} faces outward (consistent winding, positive volume)")
     else:
         nb, nm = edge_defects(f)
-        what = f"{nb} boundary edges" + (f", {nm} edges shared by more than two faces" if nm else "")
-        note(f"not closed ({what}); kept as is (watertight=False)")
+        n_edges = len(np.unique(_edges_sorted(f), axis=0))
+        share = nb / max(n_edges, 1)
+        what = f"{nb} of {n_edges} edges ({share:.1%}) are boundary edges (holes)" + (
+            f", {nm} shared by more than two faces" if nm else ""
+        )
+        damaged = share > DAMAGED_BOUNDARY_SHARE or nm > 0
+        note(
+            f"not closed: {what}; kept as is (watertight=False)"
+            + ("; the mesh looks damaged (faces missing?)" if damaged else ""),
+            logging.WARNING if damaged else logging.INFO,
+        )
         normals, area = triangle_normals_areas(v, f)
         convex, inner = _on_convex_hull(v, f, tol=extent * CONVEX_TOL)
         if convex:
@@ -292,7 +327,7 @@ def load_mesh_file(path, name: str, units: str = "auto", key: str = "") -> Link:
     if not path.is_file():
         raise FileNotFoundError(f"{label}mesh file not found: {path}")
     loaded = read_mesh(path, label)
-    return make_link(name, loaded.vertices, loaded.faces, units=units, source=str(path))
+    return make_link(name, loaded.vertices, loaded.faces, units=units, source=str(path), plausible=True)
 
 
 def read_mesh(path, label: str = "") -> trimesh.Trimesh:

@@ -106,7 +106,7 @@ def progress_line(sweep_dir: str | Path, job: int, what: str) -> str:
     """One line for the sweep's console when a job ends: this job, then done / failed / skipped of all, ETA."""
     try:
         info = json.loads((Path(sweep_dir) / SWEEP_FILE).read_text())
-    except (OSError, ValueError):
+    except (OSError, ValueError, RecursionError):
         return f"[sweep] job #{job} {what}"
     statuses = job_statuses(sweep_dir)
     n, done = int(info["n_jobs"]), len(statuses)

@@ -19,11 +19,11 @@ Both estimate their arrays' size before allocating them and raise
 from __future__ import annotations
 
 import logging
-import os
 
 import numpy as np
 
 from sphri.config import Configured
+from sphri.limits import available_memory_bytes
 from sphri.types import Contacts, Frames, GestureDataset, Layout, SurfaceMap, TaxelGeometry, WindowedFrames, WindowPlan
 from sphri.window.schema import OnsetWindowSchema
 
@@ -34,21 +34,6 @@ GIB = float(1 << 30)
 
 class WindowMemoryError(ValueError):
     """The windows would not fit in memory; the message gives the estimate and the setting."""
-
-
-def available_memory_bytes() -> float | None:
-    """``MemAvailable`` of /proc/meminfo (bytes), else free physical pages; None when unknown."""
-    try:
-        with open("/proc/meminfo") as fh:
-            for line in fh:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024.0
-    except OSError:
-        pass
-    try:
-        return float(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
-    except (ValueError, OSError, AttributeError):
-        return None
 
 
 def check_memory(

@@ -9,7 +9,7 @@ import pytest
 import trimesh
 
 from sphri.config import ConfigError
-from sphri.layout.common import grid_equivalent_count, nn_spacing
+from sphri.layout.common import LayoutFileError, grid_equivalent_count, nn_spacing
 from sphri.layout.file import FileLayout, dedupe, read_icub_positions, transform_matrix
 from sphri.layout.poisson import DensityLayout, RandomLayout
 from sphri.layout.units import describe
@@ -195,8 +195,9 @@ def test_icub_forearm_on_its_link(shared_dir, caplog):
     assert (np.einsum("ij,ij->i", lay.normal, out) > 0).mean() > 0.9
     d = describe(lay, sm)
     assert 4.0 < d["pitch_u_mm"] < 9.0  # SOURCE.txt: ~6.5 mm median spacing
-    # without the transform the taxels miss the link, and the layout says so
-    with caplog.at_level(logging.WARNING):
+    # without the transform the taxels miss the link and crowd onto its nearest part: the layout says so,
+    # then refuses taxels that close
+    with caplog.at_level(logging.WARNING), pytest.raises(LayoutFileError, match="layout.transform"):
         FileLayout(path=str(path)).build(link, sm, 18)
     assert "check layout.transform" in caplog.text
 

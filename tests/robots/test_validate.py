@@ -88,7 +88,7 @@ def test_open_boundary_kept():
     link = make_link("box", v, f[2:])
     assert not link.watertight and len(link.faces) == 10
     assert edge_defects(link.faces) == (4, 0)
-    assert any("not closed (4 boundary edges)" in x for x in link.notes)
+    assert any("not closed: 4 of 17 edges (23.5%) are boundary edges (holes)" in x for x in link.notes)
 
 
 def test_open_convex_hull_faces_turned_away():
