@@ -2,8 +2,8 @@
 
 sphri's kernels (contact, rasterization, noise, hand kinematics, density)
 are compiled by numba on their first call on a machine and then stored in
-numba's on-disk cache (``cache=True``), so only the first run pays: about
-18 s on 2 cores for a ``+debug=fast`` job (``bench/bench_startup.py``
+numba's on-disk cache (``cache=True``), so only the first run pays: 18 s
+on 2 shared AMD EPYC cores (2026-11) for a ``+debug=fast`` job (``bench/bench_startup.py``
 measures it). A run that compiles says so when the first kernel starts,
 instead of looking stuck, and reports the total compile time at the end.
 
@@ -45,8 +45,8 @@ class CompileAnnouncer(event.Listener):
             if self._depth == 0:
                 if self.kernels == 0:
                     log.info(
-                        "compiling sphri's numba kernels (first run with this code on this machine: "
-                        "about 20 s once; later runs load them from numba's cache)"
+                        "compiling sphri's numba kernels (first run with this code on this machine; "
+                        "later runs load them from numba's cache; `sphri warmup` compiles them all at once)"
                     )
                 self._t0 = time.perf_counter()
             self._depth += 1

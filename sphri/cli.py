@@ -118,7 +118,7 @@ def help_text() -> str:
         "",
         "common commands (`sphri help` lists every verb):",
         "  sphri +robot=reachy encoder.res=18                      the paper's resolution",
-        "  sphri +debug=fast                                       a seconds-long smoke run",
+        "  sphri +debug=fast                                       a smoke run at debug size",
         "  sphri sweep +experiment=resolution_sweep model=rf       the 50-resolution curve",
         "  sphri report SWEEP_DIR                                  the sweep's report",
         "  sphri coverage data.regions=[arm,torso] out=DIR         where people touch",
@@ -277,21 +277,25 @@ def cmd_warmup() -> int:
     import time
     from concurrent.futures import ThreadPoolExecutor
 
+    from sphri.progress import bar
+
     print("compiling sphri's numba kernels into numba's cache (once per machine and sphri version)...", flush=True)
     t0 = time.perf_counter()
 
     with tempfile.TemporaryDirectory(prefix="sphri-warmup-") as tmp:
+        lanes = warmup_lanes(tmp)
+        shown = bar(sum(len(lane) for lane in lanes), "warmup", unit="command")
 
         def run_lane(lane: list[list[str]]) -> list[subprocess.CompletedProcess]:
             done = []
             for cmd in lane:
                 done.append(subprocess.run(cmd, cwd=tmp, capture_output=True, text=True))
+                shown.update(1)
                 if done[-1].returncode != 0:
                     break
             return done
 
-        lanes = warmup_lanes(tmp)
-        with ThreadPoolExecutor(len(lanes)) as pool:
+        with shown, ThreadPoolExecutor(len(lanes)) as pool:
             runs = [run for lane_runs in pool.map(run_lane, lanes) for run in lane_runs]
     seconds = time.perf_counter() - t0
     for run in runs:

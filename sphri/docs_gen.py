@@ -229,7 +229,7 @@ PRESET_GROUPS = (
         "Sensitivity variants",
         "Each changes one assumption from the reference; `+experiment=requirement_sensitivity` sweeps them",
     ),
-    ("debug", "Debug presets", "Picked with `+debug=NAME`: small sizes for a seconds-long run"),
+    ("debug", "Debug presets", "Picked with `+debug=NAME`: small sizes for a quick run"),
 )
 
 

@@ -110,9 +110,96 @@ def test_the_run_lists_its_model_and_the_model_names_installable_requirements(lo
     run = client.get_run(run_id)
     (output,) = run.outputs.model_outputs  # MLflow's logged model, linked to the run
     assert MlflowTracker().logged_models(str(out), run_id) == [f"models:/{output.model_id}"]
-    reqs = next(out.glob("mlartifacts/**/requirements.txt")).read_text().split()
-    assert f"sphri=={__version__}" in reqs  # the model's code imports sphri
-    assert any(r.startswith("torch==") for r in reqs) and not any("+" in r for r in reqs)  # no local labels
+    model = next(out.glob("mlartifacts/**/requirements.txt")).parent
+    reqs = (model / "requirements.txt").read_text().split()
+    assert not any(r.startswith("sphri") for r in reqs)  # no index serves sphri: its code travels with the model
+    code = model / "code" / "sphri"
+    assert (code / "__init__.py").read_text().count(f'__version__ = "{__version__}"') == 1
+    assert (code / "conf" / "config.yaml").is_file()  # the config tree sphri.config reads on import
+    assert not list(code.rglob("__pycache__"))
+    assert "scikit-learn==" in " ".join(reqs) and not any("+" in r for r in reqs)  # no local labels
+    assert not any("torch" in r for r in reqs)  # a Random Forest's model needs no torch
+
+
+def test_a_torch_model_names_torch_from_its_cpu_index_and_a_forest_does_not():
+    from sphri.export.train import TORCH_CPU_INDEX, requirements
+    from sphri.models.cnn_gru import CnnGru
+    from sphri.models.rf import RandomForest
+
+    forest = requirements(RandomForest.__new__(RandomForest))
+    net = requirements(CnnGru.__new__(CnnGru))
+    assert not any("torch" in r for r in forest)
+    assert net[0] == f"--extra-index-url {TORCH_CPU_INDEX}"  # PyPI's Linux torch pulls the CUDA libraries
+    assert any(r.startswith("torch==") and "+" not in r for r in net)
+    assert [r for r in net if "torch" not in r] == forest
+
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return int(s.getsockname()[1])
+
+
+@pytest.mark.slow
+def test_the_forest_model_serves_from_a_fresh_environment_built_from_its_requirements(logged, tmp_path):
+    """The steps docs/how-to/mlflow.md gives: a new venv (no system site-packages, no sphri), `pip install -r`
+    the model's requirements.txt from the package index, `mlflow.pyfunc.load_model` and `mlflow models serve
+    --env-manager local` answer with gesture names. About 80 s of the test is pip (2 shared AMD EPYC cores,
+    2026-12-01)."""
+    import time
+    import urllib.request
+
+    out = logged[0]
+    model = next(out.glob("mlartifacts/**/requirements.txt")).parent
+    venv = tmp_path / "venv"
+    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "VIRTUAL_ENV")}
+    env["PATH"] = os.pathsep.join([str(venv / "bin"), env.get("PATH", "")])
+    py = str(venv / "bin" / "python")
+    assert subprocess.run([py, "-c", "import sphri"], env=env, cwd=tmp_path, capture_output=True).returncode == 1
+    pip = subprocess.run(
+        [py, "-m", "pip", "install", "-q", "-r", str(model / "requirements.txt")],
+        env=env, cwd=tmp_path, capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    assert pip.returncode == 0, pip.stderr[-3000:]
+    code = (
+        "import json, sys, mlflow, numpy as np\n"
+        f"model = mlflow.pyfunc.load_model({str(model)!r})\n"
+        f"x = np.asarray(json.load(open({str(model / 'input_example.json')!r})), dtype=np.float32)\n"
+        "assert x.ndim == 3, x.shape\n"
+        "print(json.dumps({'labels': model.predict(np.concatenate([x, x])).tolist(),"
+        " 'torch': 'torch' in sys.modules}))\n"
+    )
+    proc = subprocess.run([py, "-c", code], env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    got = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert len(got["labels"]) == 2 and set(got["labels"]) <= set(GESTURES) and got["torch"] is False
+
+    port = _free_port()
+    server = subprocess.Popen(
+        ["mlflow", "models", "serve", "-m", str(model), "--env-manager", "local", "-h", "127.0.0.1", "-p", str(port)],
+        env=env, cwd=tmp_path, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+    )  # fmt: skip
+    try:
+        body = (model / "serving_input_example.json").read_bytes()
+        request = urllib.request.Request(
+            f"http://127.0.0.1:{port}/invocations", data=body, headers={"Content-Type": "application/json"}
+        )
+        deadline, answer = time.monotonic() + 120, None
+        while answer is None and time.monotonic() < deadline and server.poll() is None:
+            try:
+                with urllib.request.urlopen(request, timeout=10) as r:
+                    answer = json.loads(r.read())
+            except OSError:
+                time.sleep(1)
+    finally:
+        server.terminate()
+        log = server.communicate(timeout=60)[0]
+    assert answer is not None, log[-3000:]
+    (label,) = answer["predictions"]
+    assert label in GESTURES
 
 
 def test_log_model_on_an_already_recorded_config_logs_it_or_says_where_it_is(logged):

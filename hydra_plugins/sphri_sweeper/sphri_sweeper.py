@@ -158,22 +158,25 @@ class SphriSweeper(BasicSweeper):
         """``(job number, overrides, error)`` of every job whose config does not compose or validate."""
         from sphri.config import ConfigError, _explain, check_inputs, validate
         from sphri.pipeline import chain_region
+        from sphri.progress import bar
 
         assert self.hydra_context is not None and self.config is not None
         bad = []
         self._configs = {}
         compose_job = self.job_composer()
-        for i, job in enumerate(jobs):
-            try:
-                cfg = compose_job(list(job))
-                self._configs[i] = cfg
-                validate(cfg)
-                chain_region(cfg)
-                check_inputs(cfg)
-            except ConfigError as exc:
-                bad.append((i, list(job), str(exc)))
-            except Exception as exc:  # Hydra's composition and type errors (the cause says which value)
-                bad.append((i, list(job), _explain(exc)))  # the key's own error, found in the chain
+        with bar(len(jobs), "checking the sweep's jobs", unit="job") as shown:
+            for i, job in enumerate(jobs):
+                try:
+                    cfg = compose_job(list(job))
+                    self._configs[i] = cfg
+                    validate(cfg)
+                    chain_region(cfg)
+                    check_inputs(cfg)
+                except ConfigError as exc:
+                    bad.append((i, list(job), str(exc)))
+                except Exception as exc:  # Hydra's composition and type errors (the cause says which value)
+                    bad.append((i, list(job), _explain(exc)))  # the key's own error, found in the chain
+                shown.update(1)
         return bad
 
     def job_composer(self) -> Any:

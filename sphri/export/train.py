@@ -21,6 +21,7 @@ import sys
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -123,31 +124,66 @@ def log_pyfunc_model(
     mlflow.set_tracking_uri(tracking_uri)
     with tempfile.TemporaryDirectory(prefix="sphri-model-") as tmp:
         path = save_model(bundle, Path(tmp) / "model.sphrimodel")
+        code = _sphri_code(Path(tmp) / "code")
         with mlflow.start_run(run_id=run_id):
             mlflow.pyfunc.log_model(
                 name="model",
                 python_model=pyfunc_model.__file__,
                 artifacts={pyfunc_model.ARTIFACT: str(path)},
+                code_paths=[str(code)],  # sphri itself travels with the model: no index serves it
                 signature=infer_signature(example, labels),
                 input_example=example,
                 registered_model_name=registered_name,
                 model_config={"plugins": [str(x) for x in plugins]},
-                pip_requirements=_requirements(),  # stated, not inferred: inference loads the model in a subprocess
+                pip_requirements=requirements(bundle.estimator),  # stated, not inferred (see requirements)
             )
     return f"runs:/{run_id}/model"
 
 
-def _requirements() -> list[str]:
-    """What loading the pyfunc model needs: sphri itself (its model code imports it; install it from
-    its wheel or repository) and the libraries its model files are read with, pinned to the versions
-    that wrote them. Local version labels (``torch==2.13.0+cpu``) are dropped: no index serves them,
-    and the same release installs from PyPI."""
+#: The libraries loading a sphri model file imports (sphri's config reads hydra's; the Random Forest's
+#: file is read with skops), besides torch for a model built on it.
+LOAD_LIBRARIES = ("mlflow", "numpy", "scipy", "scikit-learn", "skops", "hydra-core", "omegaconf")
+#: The index of torch's CPU-only builds: PyPI's Linux torch wheels pull the CUDA libraries.
+TORCH_CPU_INDEX = "https://download.pytorch.org/whl/cpu"
+
+
+def _sphri_code(dest: Path) -> Path:
+    """A copy of the installed ``sphri`` package (no byte code) under ``dest``, for MLflow's ``code_paths``:
+    the logged model carries the code that reads it, so serving it needs no sphri install."""
+    import shutil
+
+    import sphri
+    from sphri.config import CONF_DIR
+
+    src = Path(sphri.__file__).resolve().parent
+    skip = shutil.ignore_patterns("__pycache__", "*.pyc")
+    shutil.copytree(src, dest / "sphri", ignore=skip)
+    if not (dest / "sphri" / "conf").is_dir():  # a checkout's config tree, where a wheel keeps it
+        shutil.copytree(CONF_DIR, dest / "sphri" / "conf", ignore=skip)
+    return dest / "sphri"
+
+
+def uses_torch(estimator: Any) -> bool:
+    """Whether ``estimator``'s class (or a base class) is defined in a module that imports torch."""
+    for cls in type(estimator).__mro__:
+        mod = sys.modules.get(cls.__module__)
+        for value in vars(mod).values() if mod is not None else ():
+            if getattr(value, "__name__", "").split(".")[0] == "torch" and type(value).__name__ == "module":
+                return True
+    return False
+
+
+def requirements(estimator: Any) -> list[str]:
+    """What loading the pyfunc model of ``estimator`` needs from an index, pinned to the releases that
+    wrote it: :data:`LOAD_LIBRARIES`, and torch only for a model built on torch, from its CPU index
+    (``--extra-index-url``; PyPI's own Linux torch pulls CUDA). sphri is not among them: it travels with
+    the model (``code_paths``). Local version labels (``torch==2.13.0+cpu``) are dropped: the CPU index
+    serves ``2.13.0+cpu`` for ``torch==2.13.0`` on Linux and the plain release elsewhere."""
     from importlib.metadata import PackageNotFoundError, version
 
-    from sphri import __version__
-
-    out = [f"sphri=={__version__}"]
-    for dist in ("mlflow", "numpy", "scikit-learn", "skops", "torch"):
+    libs = [*LOAD_LIBRARIES, "torch"] if uses_torch(estimator) else list(LOAD_LIBRARIES)
+    out = [f"--extra-index-url {TORCH_CPU_INDEX}"] if "torch" in libs else []
+    for dist in libs:
         try:
             out.append(f"{dist}=={version(dist).split('+', 1)[0]}")
         except PackageNotFoundError:

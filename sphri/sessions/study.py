@@ -36,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from sphri import figures
+from sphri.progress import bar
 from sphri.sessions.schema import ScenarioStudySchema
 
 log = logging.getLogger(__name__)
@@ -107,10 +108,12 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     cache = open_cache(cfg)
     seconds: dict[str, float] = {}
     t_all = time.perf_counter()
+    shown = bar(6, "scenario study", unit="step")  # sessions, gestures, maps, placement, skin, files
 
     memo = Memo()  # the sessions' chain and the gesture chains share the hand and robot
     hand, robot, ds, bc, _row_part, episodes, coded, notes, sec = segment(cfg, st, cache, memo)
     seconds.update(sec)
+    shown.update(1)
     label = "SYNTHETIC" if ds.synthetic else "recorded"
     scenarios = sorted(pd.unique(ds.sessions["scenario"]))
     codes = (
@@ -126,6 +129,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         notes += codes.notes(labelled)
     hist = gesture_histogram(labelled, scenarios)
     seconds["gestures"] = time.perf_counter() - t
+    shown.update(1)
 
     # whole-body maps, tests and coverage curves (by scenario, paired by participant)
     t = time.perf_counter()
@@ -195,6 +199,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
                 f"significance; at least {need} participants are needed"
             )
     seconds["maps_and_tests"] = time.perf_counter() - t
+    shown.update(1)
 
     # body parts ranked, placement under the budget (pooled and per scenario, held-out participants)
     t = time.perf_counter()
@@ -256,6 +261,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         else f"{st.budget_cm2:g} cm^2"
     )
     seconds["placement"] = time.perf_counter() - t
+    shown.update(1)
 
     # the skin design: patches within parts, greedy by captured contact per cm^2, budget curve, export
     t = time.perf_counter()
@@ -276,6 +282,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         mountable=np.isin(body.part, mount.loc[mount["mountable"], "part"].to_numpy()),
     )
     seconds["skin_design"] = time.perf_counter() - t
+    shown.update(1)
 
     result = StudyResult(
         out_dir,
@@ -303,7 +310,9 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     with figures.only_formats(st.figure_formats):
         result.files = write_outputs(result, cfg, robot, body, ds, gm, budget, label)
     seconds["files"] = time.perf_counter() - t
+    shown.update(1)
     seconds["total"] = time.perf_counter() - t_all
+    shown.close()
     (out_dir / "timing.json").write_text(json.dumps(seconds, indent=1))
     for s_ in sentences:
         log.info("%s (%s)", s_, label)
