@@ -235,6 +235,8 @@ def pose7(m: np.ndarray) -> np.ndarray:
 
 #: Rounds of :func:`settle_hands` (each moves every offending hand once, by its deepest excess).
 SETTLE_ROUNDS = 24
+#: Smallest cosine between a surface normal and the approach that :func:`settle_hands` divides an excess by.
+SETTLE_MIN_COS = 0.25
 #: Clearance (m) a hand moved off a link it must not touch keeps from it.
 SETTLE_CLEARANCE_M = 1e-3
 
@@ -246,6 +248,7 @@ def settle_hands(
     hand: HandModel,
     own_link: tuple[int, int],
     compliance_m: float,
+    away: np.ndarray,
     rounds: int = SETTLE_ROUNDS,
 ) -> tuple[np.ndarray, int]:
     """Hands that stop at the skin: ``hand_poses`` (F, 2, C, 7) world, ``link_poses`` (F, L, 4, 4) world.
@@ -253,8 +256,10 @@ def settle_hands(
     Per frame and hand, the contact rows with every link (:func:`sphri.sessions.contact.body_contacts`, exact
     capsule vs mesh) give a depth (m) and the surface's outward normal; the allowed depth is ``compliance_m`` on
     the hand's own link (``own_link[h]``, index into ``robot.tree.links``; -1: none) and none elsewhere. The
-    whole hand is moved along the world normal of its row with the largest excess by that excess (plus
-    :data:`SETTLE_CLEARANCE_M` off other links); ``rounds`` times at most. Returns the poses and the number
+    whole hand is moved back along its approach (``away[h]``, unit vector towards the participant) until its
+    row with the largest excess would leave the surface along that row's outward normal (excess over the
+    cosine between normal and approach, at least :data:`SETTLE_MIN_COS`; :data:`SETTLE_CLEARANCE_M` off
+    other links); ``rounds`` times at most. Returns the poses and the number
     of (frame, hand) pairs moved."""
     from sphri.contact.exact import ExactContact
     from sphri.sessions.contact import body_contacts
@@ -290,10 +295,11 @@ def settle_hands(
             break
         f, h, e = bc.frame[bad], bc.hand[bad].astype(np.int64), excess[bad]
         nrm = np.einsum("kij,kj->ki", rot[f, bc.link[bad]], bc.normal[bad])
+        e = e / np.maximum(np.abs((nrm * away[h]).sum(axis=1)), SETTLE_MIN_COS)
         unit = f * 2 + h
         order = np.lexsort((-e, unit))
         first = order[np.r_[True, unit[order][1:] != unit[order][:-1]]]
-        out[f[first], h[first], :, :3] += ((e[first] + 1e-4)[:, None] * nrm[first])[:, None, :]
+        out[f[first], h[first], :, :3] += ((e[first] + 1e-4)[:, None] * away[h[first]])[:, None, :]
         moved[f[first], h[first]] = True
     return out, int(moved.sum())
 
@@ -486,7 +492,10 @@ class SyntheticSessions:
         lk = np.concatenate([poses_app, np.repeat(final[None], n_touch + n_tail, axis=0)])
         own = [li[next(x for x in robot.parts if x.name == p).link] for p in parts]
         own_link = (own[1] if two else -1, own[0])
-        out, moved = settle_hands(out, lk, robot, rig.hand, own_link, self.compliance_mm * 1e-3)
+        away = np.stack([idle[h] - out[n_app, h, :, :3].mean(axis=0) for h in (0, 1)])
+        norm = np.linalg.norm(away, axis=1, keepdims=True)
+        away = np.where(norm > 1e-9, away / np.maximum(norm, 1e-9), d[None, :])
+        out, moved = settle_hands(out, lk, robot, rig.hand, own_link, self.compliance_mm * 1e-3, away)
         info = dict(
             start_position=position,
             gesture=gesture,
