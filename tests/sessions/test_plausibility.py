@@ -104,3 +104,16 @@ def test_timing_band(scale, fill, inside):
     assert p["gestures"]["push"]["inside"] is inside
     assert p["timing_ok"] is inside
     assert p["on_drawn_part_share"] == 1.0
+
+
+def test_duration_scale_is_optional_and_checked(small, tmp_path):
+    _, _, robot, _ = small
+    parts = [p.name for p in robot.parts]
+    table = syn.load_priors(syn.DEFAULT_PRIORS, parts)
+    assert all(s["duration_scale"] == [1.0, 1.0] for s in table["scenarios"].values())
+    raw = yaml.safe_load(syn.DEFAULT_PRIORS.read_text())
+    raw["scenarios"]["S1_attention"]["duration_scale"] = [1.5, 1.0]
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump(raw))
+    with pytest.raises(syn.PriorsError, match=r"S1_attention\.duration_scale=\[1\.5, 1\.0\] is invalid"):
+        syn.load_priors(bad, parts)
