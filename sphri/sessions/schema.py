@@ -47,6 +47,9 @@ class SyntheticSessionsSchema(DataSchema):
     variability: float = setting(1.0, lo=0.0, hi=5.0)
     """Spread of the touches' gesture generator: hand size, styles, depths (``data=synthetic``'s
     ``data.variability``: 1 = calibrated to real people, 0 = interchangeable participants)."""
+    compliance_mm: float = setting(5.0, lo=0.0, hi=30.0)
+    """Skin compliance (mm): the deepest a synthetic hand's capsule may press into the touched link; it stays
+    clear of every other link."""
 
     def check(self) -> None:
         check_scenarios(self.key("scenarios"), self.scenarios)

@@ -70,6 +70,9 @@ class StudyResult:
     mountable: Any = None
     """Per body part: reachable area, width, whether a skin can be mounted and why not
     (:func:`sphri.sessions.placement.mountable_parts`)."""
+    plausibility: dict | None = None
+    """Synthetic sessions' hands against the robot and the arm study
+    (:func:`sphri.sessions.plausibility.plausibility`), else None."""
     codes: Any = None
     """Gestures coded by hand (:class:`sphri.sessions.codes.HumanCodes`, ``codes=PATH``), else None."""
 
@@ -305,6 +308,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         truth=ds.truth,
         codes=codes,
         mountable=mount,
+        plausibility=_plausibility(cfg, ds, bc, robot, notes),
     )
     t = time.perf_counter()
     with figures.only_formats(st.figure_formats):
@@ -459,6 +463,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
             ),
         },
         "human_codes": res.codes.summary(res.coded) if res.codes is not None else None,
+        "plausibility": res.plausibility,
         "skin_design": _design_summary(res.design),
         "skin_export": _export_summary(out / "skin_export" / "manifest.json"),
         "sentences": res.sentences,
@@ -591,6 +596,20 @@ def _design_and_gesture_files(res: StudyResult, body, robot, out: Path) -> list[
         confusion_against_generator(res.coded, res.truth).to_csv(out / "gesture_confusion.csv", float_format="%.4g")
         files.append(out / "gesture_confusion.csv")
     return files
+
+
+def _plausibility(cfg, ds, bc, robot, notes: list[str]) -> dict | None:
+    """The ``plausibility`` block of generated sessions (with the generator's draws), else None; a failed check
+    adds a note."""
+    if not ds.synthetic or ds.truth is None or "touch_frames" not in ds.truth:
+        return None
+    from sphri.sessions.plausibility import plausibility
+
+    block = plausibility(ds, bc, robot, float(cfg.data.get("compliance_mm", 5.0)))
+    failed = [k[:-3] for k in ("penetration_ok", "on_drawn_part_ok", "timing_ok") if not block[k]]
+    if failed:
+        notes.append(f"synthetic hands fail the plausibility checks {failed} (summary.json: plausibility)")
+    return block
 
 
 def _design_summary(design) -> dict | None:

@@ -18,7 +18,7 @@ A session, in the world frame (the robot's base starts at the origin facing +x):
    retreat) on the drawn body part's surface, in that link's frame, placed
    in the world by the link's pose (the robot stops when the touch begins,
    as in the study), time-scaled by ``duration_scale``;
-3. the hands stay off the robot for ``tail_s`` (>= 2 s ends the episode).
+4. the hands stay off the robot for ``tail_s`` (>= 2 s ends the episode).
 
 The other hand hangs at the participant's side unless the session is two-handed
 (then it touches the mirrored body part with the same gesture). Both hands use
@@ -62,8 +62,9 @@ SCENARIO_KEYS = (
     "parts",
     "gestures",
     "two_hands",
-    "duration_scale",
 )
+#: Optional per-scenario keys of the priors table (absent: the default given).
+OPTIONAL_KEYS = {"duration_scale": [1.0, 1.0]}
 
 
 class PriorsError(ValueError):
@@ -112,6 +113,8 @@ def load_priors(
                 f"{key}.robot_motion=arm moves the joints {arm}; the robot has {sorted(joint_names)} "
                 "(robot_motion: none or base, or name the arm joints so)"
             )
+        for k, default in OPTIONAL_KEYS.items():
+            s.setdefault(k, list(default))
         for k in ("approach_s", "duration_scale"):
             v = s[k]
             if not (isinstance(v, list) and len(v) == 2 and 0 < v[0] <= v[1]):
@@ -230,10 +233,81 @@ def pose7(m: np.ndarray) -> np.ndarray:
     return np.concatenate([m[..., :3, 3], matrix_to_quat(m[..., :3, :3])], axis=-1)
 
 
+#: Rounds of :func:`settle_hands` (each moves every offending hand once, by its deepest excess).
+SETTLE_ROUNDS = 24
+#: Smallest cosine between a surface normal and the approach that :func:`settle_hands` divides an excess by.
+SETTLE_MIN_COS = 0.25
+#: Clearance (m) a hand moved off a link it must not touch keeps from it.
+SETTLE_CLEARANCE_M = 1e-3
+
+
+def settle_hands(
+    hand_poses: np.ndarray,
+    link_poses: np.ndarray,
+    robot: Robot,
+    hand: HandModel,
+    own_link: tuple[int, int],
+    compliance_m: float,
+    away: np.ndarray,
+    rounds: int = SETTLE_ROUNDS,
+) -> tuple[np.ndarray, int]:
+    """Hands that stop at the skin: ``hand_poses`` (F, 2, C, 7) world, ``link_poses`` (F, L, 4, 4) world.
+
+    Per frame and hand, the contact rows with every link (:func:`sphri.sessions.contact.body_contacts`, exact
+    capsule vs mesh) give a depth (m) and the surface's outward normal; the allowed depth is ``compliance_m`` on
+    the hand's own link (``own_link[h]``, index into ``robot.tree.links``; -1: none) and none elsewhere. The
+    whole hand is moved back along its approach (``away[h]``, unit vector towards the participant) until its
+    row with the largest excess would leave the surface along that row's outward normal (excess over the
+    cosine between normal and approach, at least :data:`SETTLE_MIN_COS`; :data:`SETTLE_CLEARANCE_M` off
+    other links); ``rounds`` times at most. Returns the poses and the number
+    of (frame, hand) pairs moved."""
+    from sphri.contact.exact import ExactContact
+    from sphri.sessions.contact import body_contacts
+
+    out = np.array(hand_poses, dtype=np.float64)
+    n = len(out)
+    links = tuple(robot.tree.links)
+    rot = link_poses[..., :3, :3]
+    lk7 = pose7(link_poses)
+    contact = ExactContact()
+    own = np.asarray(own_link)
+    moved = np.zeros((n, 2), dtype=bool)
+    for _ in range(rounds):
+        ds = SessionDataset(
+            name="settle",
+            synthetic=True,
+            hand=hand,
+            sessions=make_sessions_frame(
+                [dict(participant="P01", scenario="-", repetition=1, order=0, start_position="-", start=0, n_frames=n)]
+            ),
+            hand_poses=out.astype(np.float32),
+            links=links,
+            link_poses=lk7.astype(np.float32),
+            frame_rate_hz=30.0,
+        )
+        bc = body_contacts(ds, robot, contact)
+        if bc.n_contacts == 0:
+            break
+        mine = bc.link == own[bc.hand]
+        excess = bc.depth_m - np.where(mine, compliance_m, -SETTLE_CLEARANCE_M)
+        bad = excess > 0
+        if not bad.any():
+            break
+        f, h, e = bc.frame[bad], bc.hand[bad].astype(np.int64), excess[bad]
+        nrm = np.einsum("kij,kj->ki", rot[f, bc.link[bad]], bc.normal[bad])
+        e = e / np.maximum(np.abs((nrm * away[h]).sum(axis=1)), SETTLE_MIN_COS)
+        unit = f * 2 + h
+        order = np.lexsort((-e, unit))
+        first = order[np.r_[True, unit[order][1:] != unit[order][:-1]]]
+        out[f[first], h[first], :, :3] += ((e[first] + 1e-4)[:, None] * away[h[first]])[:, None, :]
+        moved[f[first], h[first]] = True
+    return out, int(moved.sum())
+
+
 class SyntheticSessions:
     """``data=synthetic_sessions`` (see module). ``load(hand, robot)`` -> :class:`SessionDataset`."""
 
-    VERSION = "2"
+    VERSION = "3"
 
     def __init__(
         self,
@@ -244,6 +318,7 @@ class SyntheticSessions:
         priors: str | None = None,
         frame_rate_hz: float = 30.0,
         variability: float = 1.0,
+        compliance_mm: float = 5.0,
         **_: Any,
     ):
         self.seed = int(seed)
@@ -254,6 +329,7 @@ class SyntheticSessions:
         self.frame_rate_hz = float(frame_rate_hz)
         self.variability = float(variability)
         self.spread = Spread(variability=self.variability)
+        self.compliance_mm = float(compliance_mm)
 
     def load(self, hand: HandModel, robot: Robot) -> SessionDataset:
         if getattr(robot, "tree", None) is None:
@@ -414,6 +490,12 @@ class SyntheticSessions:
             out[n_app : n_app + n_touch, h] = tr
             out[n_app + n_touch :, h] = tr[-1]
         lk = np.concatenate([poses_app, np.repeat(final[None], n_touch + n_tail, axis=0)])
+        own = [li[next(x for x in robot.parts if x.name == p).link] for p in parts]
+        own_link = (own[1] if two else -1, own[0])
+        away = np.stack([idle[h] - out[n_app, h, :, :3].mean(axis=0) for h in (0, 1)])
+        norm = np.linalg.norm(away, axis=1, keepdims=True)
+        away = np.where(norm > 1e-9, away / np.maximum(norm, 1e-9), d[None, :])
+        out, moved = settle_hands(out, lk, robot, rig.hand, own_link, self.compliance_mm * 1e-3, away)
         info = dict(
             start_position=position,
             gesture=gesture,
@@ -424,5 +506,6 @@ class SyntheticSessions:
             duration_scale=scale,
             touch_start_frame=n_app,
             touch_frames=n_touch,
+            settled_frames=moved,
         )
         return out.astype(np.float32), pose7(lk).astype(np.float32), info
