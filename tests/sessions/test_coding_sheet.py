@@ -64,7 +64,7 @@ def _array(b64: str, dtype: str) -> np.ndarray:
 def test_the_sheet_lists_the_studys_coded_episodes_with_empty_codes(sheet):
     _, _, ds, _, _, _, coded, _, _ = _study_episodes(sheet)
     t = sheet.table
-    assert list(t.columns) == list(SHEET_COLUMNS) and len(t) == len(coded) >= 8
+    assert list(t.columns) == list(SHEET_COLUMNS) and len(t) == len(coded) >= 6
     first = ds.sessions["start"].to_numpy()[coded["session"].to_numpy()]
     assert t["start_frame"].tolist() == (coded["start_frame"] - first).tolist()  # frames within the session
     assert t["end_frame"].tolist() == (coded["end_frame"] - first).tolist()
@@ -180,7 +180,8 @@ def test_filled_codes_drive_the_study_and_two_coders_get_kappa(sheet, tmp_path, 
     coded = pd.read_csv(out / "coded_episodes.csv", keep_default_na=False)
     assert coded["gesture"].tolist() == ana and coded["suggestion"].tolist() == t["suggestion"].tolist()
     maps = np.load(out / "density_maps.npz", allow_pickle=True)
-    assert set(maps["scenarios"]) == set(ana)  # the by-gesture maps are the coded gestures
+    # the by-gesture maps are the coded gestures (and "unlabelled" for sessions the study codes no episode of)
+    assert set(ana) <= set(maps["scenarios"]) <= set(ana) | {"unlabelled"}
     summary = json.loads((out / "summary.json").read_text())["human_codes"]
     pair = summary["agreement"][0]
     assert (pair["coder_a"], pair["coder_b"], pair["n_episodes"]) == ("ana", "ben", n)
