@@ -65,7 +65,12 @@ def test_stats_prints_the_table_for_a_written_dataset(tmp_path, capsys):
     assert "simulated CoST sensor on arm (l_arm): 8 x 8 window of a 12 x 11 grid, pitch 20.1 mm" in text
     area = {r["gesture"]: r for r in spread["rows"] if r["statistic"] == "CoST sensor area mean"}
     assert set(area) <= {"hit", "pat", "poke", "push", "rub", "stroke", "tap", "grab"} and len(area) >= 6
-    assert all(r["band"] == "0.65-1.35x" and 1 / 64 <= r["value"] <= 1.0 for r in area.values())
+    from sphri.data.lengths import cost_band
+    from sphri.data.reference_stats import COST_AREA_FRACTION
+
+    for g, r in area.items():  # each gesture's band is the sampling interval of CoST's own mean and SD
+        lo, hi = cost_band("mean", *COST_AREA_FRACTION[g])
+        assert r["band"] == f"{lo:.2f}-{hi:.2f}x" and 1 / 64 <= r["value"] <= 1.0, (g, r)
     assert area["grab"]["value"] > area["poke"]["value"] and area["grab"]["reference"] == 0.59
     lines = [ln for ln in text.splitlines() if "CoST sensor area mean" in ln]
     assert len(lines) == len(area) and all(ln.split()[-1] in ("ok", "OUTSIDE") for ln in lines)
