@@ -526,9 +526,10 @@ class MlflowTracker(Configured):
         run_id = self._start_job(cfg, job_dir, parent, run_name or self._run_name(cfg, meta, choices), tags)
         client = self.client(cfg.output_dir)
         params = flatten_params(cfg, choices)
-        if evaluated_here:  # where the model ran (a cached evaluation's device is not known here)
-            params.update(model_runtime(cfg))
-        params.update(fold_runtime(result.cv))  # what each fold's model trained with, kept with the folds
+        # what each fold's model trained with, kept with the folds; a model whose folds say nothing is asked
+        # where it would run (only when evaluated here: a cached evaluation's device is not known here)
+        runtime = fold_runtime(result.cv)
+        params.update(runtime if runtime or not evaluated_here else model_runtime(cfg))
         for k, v in meta.resolution.items():
             params[f"resolution.{k}"] = f"{v:.6g}" if isinstance(v, float) else str(v)
         for k in (
