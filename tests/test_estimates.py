@@ -20,7 +20,11 @@ PAGES = [
 FACTS = {
     ("docs/explanation/method.md", "45 ms latency"),  # the hand tracking's delay the generator models
     ("docs/explanation/what-sphri-answers.md", ">= 2 s without contact"),  # the episode gap setting
+    ("docs/RELIABILITY.md", "not granted within 5 s"),  # the repair's lock timeout, a setting
 }
+#: Reference pages: their times are protocol and format facts (a 60 ms pulse), so only estimates count there.
+REFERENCE_PAGES = [REPO / "docs" / name for name in ("PROTOCOLS.md", "RELIABILITY.md", "RECORDING_FORMAT.md")]
+BENCHMARKS = REPO / "docs" / "BENCHMARKS.md"
 DURATION = re.compile(
     r"(?<![\w.])\d+(?:[.,]\d+)?(?:\s*(?:-|to)\s*\d+(?:\.\d+)?)?\s*(?:s|sec|seconds|min|minutes|h|hours|ms|µs)\b"
     r"(?!\^)|\b(?:seconds|minutes|hours)-long\b|\ba few (?:seconds|minutes)\b",
@@ -32,7 +36,8 @@ ESTIMATE = re.compile(
     r"(?:s|sec|seconds|min|minutes|h|hours)\b|\b(?:seconds|minutes|hours)-long\b|\ba few (?:seconds|minutes)\b",
     re.I,
 )
-MACHINE = re.compile(r"\b(?:EPYC|Xeon|Ryzen|Core i\d|Apple M\d|H100|H200|A100)\b")
+#: A machine named, or said plainly not to have been recorded (an old measurement keeps its date).
+MACHINE = re.compile(r"\b(?:EPYC|Xeon|Ryzen|Core i\d|Apple M\d|H100|H200|A100)\b|CPU model not recorded")
 DATE = re.compile(r"\b20\d\d-\d\d(?:-\d\d)?\b")
 
 
@@ -67,6 +72,39 @@ def test_every_time_on_a_newcomers_page_names_its_machine_and_date():
                 text = text.replace(phrase, "")
         bad += [f"{name}: {para[:160]!r}" for para in unnamed(text)]
     assert not bad, "a time without the machine and date it was measured on:\n" + "\n".join(bad)
+
+
+def _without_facts(page: Path) -> str:
+    name, text = str(page.relative_to(REPO)), page.read_text()
+    for page_name, phrase in FACTS:
+        if page_name == name:
+            assert phrase in text, f"{name}: {phrase!r} is gone: drop it from FACTS"
+            text = text.replace(phrase, "")
+    return text
+
+
+def test_reference_pages_give_no_bare_estimate():
+    bad = [
+        f"{page.relative_to(REPO)}: {para[:160]!r}"
+        for page in REFERENCE_PAGES
+        for para in unnamed(_without_facts(page), ESTIMATE)
+    ]
+    assert not bad, "an estimate without the machine and date it was measured on:\n" + "\n".join(bad)
+
+
+def benchmark_sections_unnamed(text: str) -> list[str]:
+    """The sections (a heading and its text, down to the next heading) of the benchmarks page that give a time
+    without naming the machine and the date anywhere in the section: a section states its machine once."""
+    sections = re.split(r"\n(?=#{1,4} )", text)
+    return [s.splitlines()[0] for s in sections if unnamed(re.sub(r"\n\s*\n", "\n", s))]
+
+
+def test_every_benchmark_section_names_its_machine_and_date():
+    assert benchmark_sections_unnamed("## A\n\ntook 84 s\n\n## B\n\n2-core AMD EPYC, 2026-11-26\n\ntook 3 s") == [
+        "## A"
+    ]
+    bad = benchmark_sections_unnamed(_without_facts(BENCHMARKS))
+    assert not bad, "a benchmark section with a time and no machine and date:\n" + "\n".join(bad)
 
 
 def _messages(tree: ast.AST):
