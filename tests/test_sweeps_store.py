@@ -117,7 +117,7 @@ def test_store_left_broken_by_a_migration_is_refused_before_computing(tmp_path: 
     proc = _sphri(["+debug=fast", "encoder.res=2", f"output_dir={out}"], cwd=tmp_path)
     assert proc.returncode == 1
     assert "_alembic_tmp_latest_metrics" in proc.stderr
-    assert f"python -m sphri.tracking.store repair {db}" in proc.stderr
+    assert f"sphri store repair {db}" in proc.stderr
     assert "computing" not in proc.stdout + proc.stderr, "nothing is computed into a broken store"
     assert not (out / "cache").exists()
     assert store_main(["repair", str(db)]) == 0

@@ -204,7 +204,7 @@ def problems(db: Path, timeout: float | None = None) -> list[str]:
 
 
 def repair_command(db: Path) -> str:
-    return f"python -m sphri.tracking.store repair {db}"
+    return f"sphri store repair {db}"
 
 
 def _open(db: Path) -> None:
