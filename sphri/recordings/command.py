@@ -24,6 +24,18 @@ def _participant(v: int) -> str | None:
     return None if 1 <= v <= 9999 else "must be in 1..9999 (participant_XX)"
 
 
+def _link_pose(v: str) -> str | None:
+    if not v:
+        return None
+    from sphri.recordings.frames import parse_link_pose
+
+    try:
+        parse_link_pose(v)
+    except ValueError as e:
+        return str(e)
+    return None
+
+
 def _link(v: str) -> str | None:
     ok = re.fullmatch(r"[A-Za-z0-9_-]+", v) and v != "assets"
     return None if ok else "must be a region name (letters, digits, _ and -; not assets), e.g. arm"
@@ -40,6 +52,12 @@ class ImportArgs:
     rate_hz: float = arg(30.0, check=_rate, help="the frame rate to resample to (Hz)")
     hand: str = arg("right", choices=HANDS, help="the hand the log must hold")
     hand_size: float = arg(1.0, check=_positive, help="openxr: factor on the documented hand model's capsule sizes")
+    link_pose: str = arg(
+        "",
+        check=_link_pose,
+        help="the link's pose in the log's frame, x,y,z,qx,qy,qz,qw (metres, unit quaternion) for a log recorded "
+        "in the room's or a tracker's frame; empty: the log is in the link's frame",
+    )
 
 
 @dataclasses.dataclass
@@ -64,6 +82,7 @@ def import_command(args: ImportArgs) -> int:
         args.rate_hz,
         args.hand,
         args.hand_size,
+        args.link_pose,
     )
     tid = f"{done.ordinal:04d}_{done.gesture}"
     print(f"imported {args.log} ({args.kind}, {args.hand} hand) as trial {tid} of {done.participant} on {done.region}")

@@ -8,7 +8,7 @@ it did (frames interpolated across tracking gaps, frames fewer by downsampling).
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
@@ -176,3 +176,37 @@ def describe(report: dict) -> str:
         f"interpolated across {report['gaps']} tracking gap(s), {report['dropped_frames']} source frame(s) "
         "dropped by downsampling"
     )
+
+
+def parse_link_pose(text: str) -> tuple[Rotation, np.ndarray]:
+    """``"x,y,z,qx,qy,qz,qw"``: the robot link's pose in the log's frame (metres; a unit quaternion, Hamilton,
+    (x, y, z, w)) -> its rotation and translation. Raises ``ValueError`` with what is wrong."""
+    parts = [s.strip() for s in text.split(",")]
+    if len(parts) != 7:
+        raise ValueError(f"must be 7 numbers x,y,z,qx,qy,qz,qw (metres, a unit quaternion), got {len(parts)}")
+    try:
+        v = np.array([float(s) for s in parts])
+    except ValueError:
+        raise ValueError("must be 7 numbers x,y,z,qx,qy,qz,qw (metres, a unit quaternion)") from None
+    if not np.isfinite(v).all():
+        raise ValueError("must be 7 finite numbers")
+    norm = float(np.linalg.norm(v[3:]))
+    if abs(norm - 1.0) > 1e-3:
+        raise ValueError(f"its quaternion (qx, qy, qz, qw) has norm {norm:.4g}, not 1")
+    return Rotation.from_quat(v[3:]), v[:3]
+
+
+def to_link_frame(frames: Frames, link_pose: str, points: tuple[slice, ...], quat: slice | None = None) -> Frames:
+    """``frames`` with positions and orientations logged in another frame (the room's, a tracker's) taken into
+    the robot link's frame, where the link's pose in the log's frame is ``link_pose`` (:func:`parse_link_pose`):
+    ``p_link = R^T (p - t)`` for each point column block in ``points``, ``q_link = q_R^-1 q`` for ``quat``.
+    The link is taken as still for the whole log."""
+    rot, trans = parse_link_pose(link_pose)
+    inv = rot.inv()
+    v = frames.values.copy()
+    f, k = v.shape[:2]
+    for block in points:
+        v[..., block] = inv.apply((v[..., block] - trans).reshape(-1, 3)).reshape(f, k, 3)
+    if quat is not None:
+        v[..., quat] = (inv * Rotation.from_quat(v[..., quat].reshape(-1, 4))).as_quat().reshape(f, k, 4)
+    return replace(frames, values=v)

@@ -36,7 +36,7 @@ from sphri.data.recording_schema import (
 )
 from sphri.data.writer import append_trial
 from sphri.recordings.capsules import MIN_BONE_M, documented_hand, hand_from_segments, openxr_poses, segment_poses
-from sphri.recordings.frames import Frames, check_hand, check_metres, resample, to_frames
+from sphri.recordings.frames import Frames, check_hand, check_metres, resample, to_frames, to_link_frame
 from sphri.recordings.logs import LogError, read_log
 from sphri.types import HandModel
 
@@ -177,11 +177,15 @@ def import_log(
     rate_hz: float = 30.0,
     hand: str = "right",
     hand_size: float = 1.0,
+    link_pose: str = "",
 ) -> Imported:
     """Check ``log`` (a ``kind`` of :data:`sphri.data.recording_schema.LOG_KINDS`), resample it to ``rate_hz``
     (Hz) and add it as one trial of ``gesture`` by participant number ``participant`` on ``link`` to the
-    dataset ``out`` (see the module docstring); ``hand_size`` scales the documented hand (``openxr``). Every
-    problem of the log is one :class:`LogError` line naming the file, line and field."""
+    dataset ``out`` (see the module docstring); ``hand_size`` scales the documented hand (``openxr``).
+    ``link_pose`` (``"x,y,z,qx,qy,qz,qw"``, the link's pose in the log's frame) takes a log recorded in the
+    room's or a tracker's frame into the link's (:func:`sphri.recordings.frames.to_link_frame`); empty: the
+    log is in the link's frame. Every problem of the log is one :class:`LogError` line naming the file, line
+    and field."""
     path, root = Path(log), Path(out)
     spec = {"openxr": OPENXR_LOG, "ovr": OVR_CAPSULE_LOG, "capsules": CAPSULE_LOG}[kind]
     df = read_log(path, spec, optional=("hand",) if kind == "capsules" else ())
@@ -192,6 +196,8 @@ def import_log(
         model = documented_hand(hand_size)
         used = sorted({OPENXR_JOINTS.index(j) for bone in OPENXR_CAPSULES.values() for j in bone})
         check_metres(path, frames, "px, py, pz", frames.values[:, used, :3], model)
+        if link_pose:
+            frames = to_link_frame(frames, link_pose, (slice(0, 3),), quat=slice(3, 7))
         frames, report = resample(frames, rate_hz, quat=slice(3, 7))
         use = existing if existing is not None else model
         note = (
@@ -205,6 +211,8 @@ def import_log(
         v = frames.values
         logged = hand_from_segments(CAPSULES, v[..., :3], v[..., 3:6], v[..., 6])
         check_metres(path, frames, "the capsule ends", v[..., :6].reshape(len(v), -1, 3), documented_hand())
+        if link_pose:
+            frames = to_link_frame(frames, link_pose, (slice(0, 3), slice(3, 6)))
         frames, report = resample(frames, rate_hz)
         use = existing if existing is not None else logged
         spread = np.abs(np.linalg.norm(v[..., 3:6] - v[..., :3], axis=-1) - logged.segment_length_m).max() * 1000
@@ -221,5 +229,7 @@ def import_log(
         write_hand_definition(use, root / DEFINITION)
         files.append(root / DEFINITION)
     source = {"kind": kind, "file": path.name, "hand": hand, **report}
+    if link_pose:
+        source["link_pose"] = link_pose
     ordinal, written = append_trial(root, link, pid, gesture, poses, CAPSULES, rate_hz, source)
     return Imported(root, link, pid, ordinal, gesture, report, note, files + written)

@@ -6,7 +6,9 @@ import json
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 import pytest
+from scipy.spatial.transform import Rotation
 
 from sphri.command import main
 from sphri.data.format import read_manifest
@@ -140,6 +142,46 @@ def test_ovr_and_capsule_logs_keep_their_segments_and_sizes(rig_poses, hand, tmp
     out = tmp_path / "caps"
     assert run_import("capsules", log, out) == 0
     assert np.abs(segments(load(out).poses, hand) - segments(rig_poses, hand)).max() < 2e-6
+
+
+#: A link standing 1.2 m in front of the tracking origin, 0.9 m up, turned 70 degrees about z and tilted 20
+#: degrees about x: the room a headset logs in, not the link's frame.
+LINK_IN_ROOM = (np.array([1.2, -0.3, 0.9]), Rotation.from_euler("zx", [70, 20], degrees=True))
+
+
+def _link_pose_arg() -> str:
+    t, r = LINK_IN_ROOM
+    return "link_pose=" + ",".join(f"{x:.17g}" for x in [*t, *r.as_quat()])
+
+
+def test_a_log_in_the_rooms_frame_comes_into_the_links_with_link_pose(rig_poses, hand, openxr_log, tmp_path):
+    t, r = LINK_IN_ROOM
+    df = pd.read_csv(openxr_log)
+    df[["px", "py", "pz"]] = r.apply(df[["px", "py", "pz"]].to_numpy()) + t
+    df[["qx", "qy", "qz", "qw"]] = (r * Rotation.from_quat(df[["qx", "qy", "qz", "qw"]].to_numpy())).as_quat()
+    room = tmp_path / "room.csv"
+    df.to_csv(room, index=False)
+    assert run_import("openxr", room, tmp_path / "ds", _link_pose_arg()) == 0
+    ds = load(tmp_path / "ds")
+    assert np.abs(segments(ds.poses, ds.hand) - segments(rig_poses, hand)).max() < 5e-6
+    m = read_manifest(tmp_path / "ds" / "arm" / "participant_01" / "participant_01_manifest.json")
+    assert m["trials"][0]["source"]["link_pose"] == _link_pose_arg().split("=", 1)[1]
+    # without it the trial lies where the room put it: metres away from the link
+    assert run_import("openxr", room, tmp_path / "raw") == 0
+    raw = load(tmp_path / "raw")
+    assert np.abs(segments(raw.poses, raw.hand) - segments(rig_poses, hand)).max() > 0.5
+    # a capsule-segment log takes both ends into the link's frame
+    p0, p1 = capsule_segments(rig_poses, hand)
+    rows = ["time,capsule,p0_x,p0_y,p0_z,p1_x,p1_y,p1_z,radius"]
+    for f in range(len(rig_poses)):
+        for c, n in enumerate(hand.names):
+            a, b = r.apply(p0[f, c]) + t, r.apply(p1[f, c]) + t
+            rows.append(",".join(map(str, [f / 30.0, n, *a, *b, float(hand.radius_m[c])])))
+    caps = tmp_path / "caps.csv"
+    caps.write_text("\n".join(rows) + "\n")
+    assert run_import("capsules", caps, tmp_path / "caps", _link_pose_arg()) == 0
+    got = load(tmp_path / "caps")
+    assert np.abs(segments(got.poses, got.hand) - segments(rig_poses, hand)).max() < 5e-6
 
 
 def test_synthetic_dataset_exported_and_imported_gives_the_same_contacts(synthetic, hand, robot, tmp_path):
@@ -349,6 +391,9 @@ def test_a_participant_keeps_one_rate(openxr_log, tmp_path, capsys):
         (["rate_hz=0"], "sphri import: rate_hz=0 is invalid: must be in [1, 1000] Hz"),
         (["link=../x"], "sphri import: link=../x is invalid: must be a region name"),
         (["hand=middle"], "sphri import: unknown hand 'middle'; hand is one of: left, right"),
+        (["link_pose=1,2,3"], "sphri import: link_pose=1,2,3 is invalid: must be 7 numbers x,y,z,qx,qy,qz,qw"),
+        (["link_pose=0,0,0,0,0,0,2"], "sphri import: link_pose=0,0,0,0,0,0,2 is invalid: its quaternion"),
+        (["link_pose=0,0,0,0,0,0,nan"], "sphri import: link_pose=0,0,0,0,0,0,nan is invalid: must be 7 finite"),
     ],
 )
 def test_bad_arguments(argv, line, openxr_log, tmp_path, capsys):
