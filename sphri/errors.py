@@ -48,6 +48,7 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.hardware.recording", "RecordingError", "recording error"),
     ("sphri.recordings.logs", "LogError", "log error"),
     ("sphri.report.sweep", "ReportError", "report error"),
+    ("sphri.tracking.store", "StoreError", "store error"),
     ("sphri.finite", "NonFiniteError", "numerical error"),
     ("builtins", "OSError", "file error"),
 )

@@ -120,3 +120,32 @@ def test_a_store_whose_creation_fills_the_disk_is_removed_with_one_line(cache, t
     monkeypatch.setenv("XDG_CACHE_HOME", str(cache))
     ensure_store(f"sqlite:///{db}")  # the next run makes a whole store there
     assert problems(db) == [] and "Default" in _experiments(db)
+
+
+@pytest.mark.parametrize("text", [b"0", b"notes\n", b"SQLite"])
+def test_a_short_file_that_is_not_sqlite_is_never_made_a_store(cache, tmp_path, text):
+    """SQLite reads a file shorter than its header as an empty database: a job, ``check`` and ``repair``
+    took a one-byte text file at ``mlflow.db`` for a new store and wrote a store over it."""
+    from sphri.tracking.store import NotAStore, repair
+
+    db = tmp_path / "o" / "mlflow.db"
+    db.parent.mkdir()
+    db.write_bytes(text)
+    for step in (lambda: ensure_store(f"sqlite:///{db}"), lambda: problems(db), lambda: repair(db)):
+        with pytest.raises(NotAStore, match="not a SQLite database"):
+            step()
+    assert db.read_bytes() == text
+
+
+def test_a_truncated_store_is_refused_and_kept(cache, tmp_path):
+    """A store cut short (a full disk, a copy interrupted) read as a store: a job computed, then failed
+    to log; it is refused before computing, named as truncated, and left as it is."""
+    from sphri.tracking.store import BrokenStore
+
+    whole = template_path().read_bytes()
+    db = tmp_path / "o" / "mlflow.db"
+    db.parent.mkdir()
+    db.write_bytes(whole[: len(whole) // 2])
+    with pytest.raises(BrokenStore, match=r"is truncated \(\d+ bytes, its header says \d+ pages"):
+        ensure_store(f"sqlite:///{db}")
+    assert db.read_bytes() == whole[: len(whole) // 2]

@@ -65,6 +65,8 @@ log = logging.getLogger(__name__)
 TMP_PREFIX = "_alembic_tmp_"
 #: Seconds a reader waits for another process's lock on the store before calling it busy.
 BUSY_TIMEOUT_S = 60.0
+#: The first bytes of every SQLite database file.
+SQLITE_HEADER = b"SQLite format 3\x00"
 #: Tables every MLflow store holds (besides ``alembic_version``); a leftover ``_alembic_tmp_`` copy counts.
 MLFLOW_TABLES = ("experiments", "runs")
 
@@ -203,6 +205,16 @@ def problems(db: Path, timeout: float | None = None) -> list[str]:
         return []
     if not db.is_file():
         raise NotAStore(f"{db} is not an MLflow store (not a file)")
+    with open(db, "rb") as f:  # SQLite reads a short file of anything as an empty database, and would write over it
+        first = f.read(100)
+    if first[: len(SQLITE_HEADER)] != SQLITE_HEADER:
+        raise NotAStore(f"{db} is not an MLflow store (not a SQLite database: it starts with {first[:16]!r})")
+    cut = _truncated(first, db.stat().st_size)
+    if cut:
+        raise BrokenStore(
+            f"MLflow store {db} is truncated ({cut}: a full disk or a copy cut short?); nothing was computed into "
+            "it and it is left as it is. Restore it from a backup, or give another output_dir"
+        )
     try:
         tables = _tables(db, BUSY_TIMEOUT_S if timeout is None else timeout)
     except sqlite3.DatabaseError as exc:
@@ -218,6 +230,18 @@ def problems(db: Path, timeout: float | None = None) -> list[str]:
     if rev != head:
         out.append(f"schema revision {rev} is not MLflow's {head} (a migration did not finish)")
     return out
+
+
+def _truncated(head: bytes, size: int) -> str | None:
+    """What says a SQLite file is shorter than its header (its first 100 bytes) declares, or None."""
+    if len(head) < 100:
+        return f"{size} bytes, shorter than a SQLite header"
+    page = int.from_bytes(head[16:18], "big")
+    page = 65536 if page == 1 else page
+    pages = int.from_bytes(head[28:32], "big")
+    if head[24:28] == head[92:96] and pages > 0 and size < page * pages:  # the page count is valid
+        return f"{size} bytes, its header says {pages} pages of {page} bytes ({page * pages} bytes)"
+    return None
 
 
 def repair_command(db: Path) -> str:
