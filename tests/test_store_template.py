@@ -5,8 +5,10 @@ from __future__ import annotations
 
 import errno
 import logging
+import os
 import shutil
 import sqlite3
+import stat
 from pathlib import Path
 
 import pytest
@@ -149,3 +151,16 @@ def test_a_truncated_store_is_refused_and_kept(cache, tmp_path):
     with pytest.raises(BrokenStore, match=r"is truncated \(\d+ bytes, its header says \d+ pages"):
         ensure_store(f"sqlite:///{db}")
     assert db.read_bytes() == whole[: len(whole) // 2]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs os.mkfifo")
+def test_a_fifo_at_the_store_path_is_refused_never_replaced(cache, tmp_path):
+    """A FIFO (size 0) at ``mlflow.db`` read as "no store yet" and was replaced by a new store."""
+    from sphri.tracking.store import NotAStore
+
+    db = tmp_path / "o" / "mlflow.db"
+    db.parent.mkdir()
+    os.mkfifo(db)
+    with pytest.raises(NotAStore, match="not a file"):
+        ensure_store(f"sqlite:///{db}")
+    assert stat.S_ISFIFO(db.lstat().st_mode)

@@ -201,10 +201,12 @@ def problems(db: Path, timeout: float | None = None) -> list[str]:
     """What is wrong with an existing store file (empty: nothing, or no store yet). Raises
     :class:`StoreBusy` when another process holds its lock longer than ``timeout`` s
     (:data:`BUSY_TIMEOUT_S`), :class:`NotAStore` for a file that is not an MLflow store."""
-    if not db.exists() or db.stat().st_size == 0:
+    if not db.exists() and not db.is_symlink():
         return []
-    if not db.is_file():
+    if not db.is_file():  # a FIFO, a folder, a dangling link: never replaced by a store
         raise NotAStore(f"{db} is not an MLflow store (not a file)")
+    if db.stat().st_size == 0:
+        return []
     with open(db, "rb") as f:  # SQLite reads a short file of anything as an empty database, and would write over it
         first = f.read(100)
     if first[: len(SQLITE_HEADER)] != SQLITE_HEADER:
