@@ -36,6 +36,7 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.sessions.synthetic", "PriorsError", "data error"),
     ("sphri.evaluate.cv", "CVError", "data error"),
     ("sphri.window.onset", "WindowMemoryError", "memory error"),
+    ("sphri.contact.stage", "ContactMemoryError", "memory error"),
     ("sphri.hand.capsules", "HandDefinitionError", "hand error"),
     ("sphri.robots.urdf_tree", "RobotFileError", "robot file error"),
     ("sphri.robots.validate", "MeshError", "mesh error"),
