@@ -832,6 +832,10 @@ def check_output_dir(
             f"{key} is invalid: the name {long[0][:40]}... is {len(long[0].encode())} bytes long, "
             f"more than this file system's {limit}"
         )
+    if path.is_symlink() and not path.exists():  # a folder made there would land wherever the link points
+        raise ConfigError(
+            f"{key}={shown} is invalid: {path} is a link to {os.readlink(path)}, which does not exist; give a folder"
+        )
     for p in (path, *path.parents):
         if p.exists():
             if not p.is_dir():

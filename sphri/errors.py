@@ -36,6 +36,7 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.sessions.synthetic", "PriorsError", "data error"),
     ("sphri.evaluate.cv", "CVError", "data error"),
     ("sphri.window.onset", "WindowMemoryError", "memory error"),
+    ("sphri.contact.stage", "ContactMemoryError", "memory error"),
     ("sphri.hand.capsules", "HandDefinitionError", "hand error"),
     ("sphri.robots.urdf_tree", "RobotFileError", "robot file error"),
     ("sphri.robots.validate", "MeshError", "mesh error"),
@@ -48,6 +49,7 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.hardware.recording", "RecordingError", "recording error"),
     ("sphri.recordings.logs", "LogError", "log error"),
     ("sphri.report.sweep", "ReportError", "report error"),
+    ("sphri.tracking.store", "StoreError", "store error"),
     ("sphri.finite", "NonFiniteError", "numerical error"),
     ("builtins", "OSError", "file error"),
 )

@@ -2,7 +2,8 @@
 
 Settings that size a job's arrays (``data.participants``, a layout's taxel count, ``report n_boot``)
 are checked against one limit before anything is allocated, where the inputs are known (most at
-composition, so ``sphri validate`` refuses them too). The limit is the environment variable
+composition, so ``sphri validate`` refuses them too); the contact stage checks each link's mesh faces
+and its query chunk when the robot is loaded (:func:`sphri.contact.stage.check_contact_memory`). The limit is the environment variable
 ``SPHRI_MAX_MEMORY_GIB`` (GiB) when set, else the memory available on this machine (``MemAvailable``).
 A refusal gives the estimate, the limit and the setting to lower, and names ``SPHRI_MAX_MEMORY_GIB``
 as the way to raise the limit.

@@ -67,3 +67,34 @@ def test_a_fifo_named_as_an_input_file_is_never_opened(tmp_path: Path):
         worker.join(30)
         pytest.fail("the fingerprint opened a FIFO and blocked")
     assert result == ["special:a FIFO (named pipe)"]
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs os.mkfifo")
+def test_a_fifo_in_place_of_a_cache_entry_is_discarded_never_opened(tmp_path: Path, caplog):
+    """A FIFO where a stage's cache entry lies blocked the job for ever (opening it waits for a writer)."""
+    import signal
+
+    from sphri.cache import StageCache
+
+    class Blocked(BaseException):
+        pass
+
+    def blocked(signum, frame):
+        raise Blocked
+
+    cache = StageCache(tmp_path / "cache", key=None)
+    entry = cache.path("evaluate", "k1")
+    entry.parent.mkdir(parents=True)
+    os.mkfifo(entry)
+    previous = signal.signal(signal.SIGALRM, blocked)
+    signal.alarm(20)
+    try:
+        value = cache.get_or_compute("evaluate", "k1", lambda: {"x": 2})
+    except Blocked:
+        pytest.fail("reading a FIFO cache entry blocked")
+    finally:
+        signal.alarm(0)
+        signal.signal(signal.SIGALRM, previous)
+    assert value == {"x": 2}
+    assert "not a regular file" in caplog.text and str(entry) in caplog.text
+    assert entry.is_file(), "the computed entry took the FIFO's place"

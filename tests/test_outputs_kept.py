@@ -146,3 +146,14 @@ def test_coverage_out_holding_the_mlflow_store_is_refused(where, tmp_path, capsy
     assert code == 2 and "Traceback" not in err, err
     line = _line(err)
     assert f"out={out} is invalid: " in line and str(base / "m") in line, line
+
+
+def test_an_out_that_is_a_dangling_link_is_refused(tmp_path):
+    """A folder written at a link to nowhere lands wherever the link points (or fails after computing)."""
+    from sphri.config import ConfigError, check_output_dir
+
+    out = tmp_path / "out"
+    out.symlink_to(tmp_path / "elsewhere" / "data")
+    with pytest.raises(ConfigError, match=r"out=.* is a link to .*elsewhere/data, which does not exist"):
+        check_output_dir(str(out), key="out", overwrite=False)
+    assert not (tmp_path / "elsewhere").exists()

@@ -268,7 +268,7 @@ class SphriSweeper(BasicSweeper):
         """Already done for every job before the sweep started (:meth:`invalid_points`)."""
 
     def sweep(self, arguments: list[str]) -> Any:
-        from sphri.tracking.parent import close_parent, open_parent, start_sweep_file
+        from sphri.tracking.parent import SweepDirInUse, claim_sweep_dir
 
         assert self.config is not None
         overrides, jobs = self.job_overrides(arguments)
@@ -293,7 +293,22 @@ class SphriSweeper(BasicSweeper):
             if len(jobs) > MAX_LISTED:
                 print(f"  ... and {len(jobs) - MAX_LISTED} more")
             sys.exit(0)
-        start_sweep_file(self.config.hydra.sweep.dir, len(jobs))
+        try:  # one sweep per folder: not one running now, nor another's jobs left there
+            claim = claim_sweep_dir(self.config.hydra.sweep.dir, jobs, self.config.output_dir)
+        except SweepDirInUse as exc:
+            print(f"sphri: {exc}", file=sys.stderr)
+            sys.exit(1)
+        try:
+            return self._sweep_claimed(arguments, overrides, jobs)
+        finally:
+            claim.release()
+
+    def _sweep_claimed(self, arguments: list[str], overrides: list[str], jobs: list[list[str]]) -> Any:
+        """The sweep, once its folder is claimed: parent run, jobs, summary."""
+        from sphri.tracking.parent import close_parent, open_parent, start_sweep_file
+
+        assert self.config is not None
+        start_sweep_file(self.config.hydra.sweep.dir, len(jobs), jobs, self.config.output_dir)
         KILLED.clear()
         # handlers first: a signal while the parent run opens still ends it KILLED, not RUNNING
         previous = {sig: signal.signal(sig, _raise_killed) for sig in (signal.SIGTERM, signal.SIGINT)}

@@ -40,6 +40,7 @@ import hashlib
 import io
 import json
 import logging
+import stat
 import zipfile
 from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass, field
@@ -158,6 +159,9 @@ def read_entry(path: Path, contract: Any = None, key: Any = FROM_ENV) -> tuple[d
     value is not of ``contract``.
     """
     path = Path(path)
+    mode = path.stat().st_mode  # OSError when missing: a miss
+    if not stat.S_ISREG(mode):  # a FIFO blocks its reader until a writer comes, a device never ends
+        raise CorruptEntry(f"{path}: not a regular file (mode {stat.filemode(mode)}); never read")
     try:
         meta, value = _decode(path.read_bytes(), path, _key(key))
     except (CorruptEntry, DecodeError, OSError):
@@ -201,9 +205,15 @@ class StageCache:
         """(True, value) for a valid entry; (False, None) if absent, corrupt or not of ``contract``."""
         path = self.path(stage, key)
         try:
+            mode = path.stat().st_mode
+            if not stat.S_ISREG(mode):  # a FIFO blocks its reader until a writer comes, a device never ends
+                raise OSError(f"not a regular file (mode {stat.filemode(mode)}); never read")
             blob = path.read_bytes()
         except FileNotFoundError:
             return False, None
+        except OSError as exc:  # a FIFO, a device, a link loop, an unreadable file: recomputed
+            log.warning("cache: discarding unreadable entry for stage %s (%s: %s); recomputing", stage, path, exc)
+            return False, None  # the new entry's rename takes its place
         try:
             meta, value = _decode(blob, path, self.key)
             if meta.get("stage") != stage or meta.get("key") != key:

@@ -3,7 +3,9 @@
 :class:`ContactStage` is the shared body of ``contact=exact`` and
 ``contact=spheres``. For each skin region present in ``dataset.trials`` it
 takes ``robot.link_for(region)`` (links no trial uses are never touched),
-prepares the link's acceleration data once (:func:`sphri.contact.prepare_mesh`,
+checks that the prepared mesh and one chunk's queries fit the memory limit
+(:func:`check_contact_memory`, estimated from the link's faces and the chunk
+before anything is built), prepares the link's acceleration data once (:func:`sphri.contact.prepare_mesh`,
 cached by the mesh's bytes), then walks that region's frames in chunks of
 ``chunk_frames``:
 
@@ -22,7 +24,9 @@ threads change nothing).
 
 from __future__ import annotations
 
+import logging
 import sys
+import time
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -33,8 +37,38 @@ from sphri.types import Contacts, GestureDataset, Robot
 if TYPE_CHECKING:  # the numba kernels load where contacts are computed, not when a cached run reads VERSION
     from sphri.contact.query import ContactQuery, SearchRecord
 
+log = logging.getLogger(__name__)
+
 #: Show a progress bar when a region has at least this many frames (and stderr is a terminal).
 PROGRESS_MIN_FRAMES = 50_000
+#: Say when a link's mesh preparation starts and ends from this many faces (it takes a while).
+ANNOUNCE_MIN_FACES = 100_000
+#: Peak bytes per mesh face of preparing a link for the queries (:func:`sphri.contact.prepare_mesh`,
+#: ``inside=auto``): 76.6 MB on a 20480-face icosphere (tracemalloc, 2026-12-01; one size measured).
+BYTES_PER_FACE = 3750
+#: Bytes per capsule query of a chunk: the search record (73) and the capsule's segment ends (48).
+BYTES_PER_QUERY = 121
+
+
+class ContactMemoryError(ValueError):
+    """The contact queries of a link would not fit in memory; the message gives the estimate and the settings."""
+
+
+def check_contact_memory(link: str, n_faces: int, n_frames: int, chunk_frames: int, n_capsules: int) -> None:
+    """Refuse a link whose prepared mesh and query chunk would pass the memory limit (:mod:`sphri.limits`),
+    before anything is built: the estimate is ``faces x BYTES_PER_FACE + chunk rows x BYTES_PER_QUERY``."""
+    from sphri.limits import over_limit
+
+    rows = min(n_frames, chunk_frames) * n_capsules
+    why = over_limit(
+        f"the contact queries on link {link!r} ({n_faces} mesh faces, about {BYTES_PER_FACE} bytes each, and "
+        f"chunks of {min(n_frames, chunk_frames)} frames x {n_capsules} capsules)",
+        float(n_faces) * BYTES_PER_FACE + float(rows) * BYTES_PER_QUERY,
+    )
+    if why is not None:
+        raise ContactMemoryError(
+            f"contact: {why} (what to lower: the link's faces, with a simplified mesh, or contact.chunk_frames)"
+        )
 
 
 def empty_contacts(n_frames: int) -> Contacts:
@@ -175,7 +209,20 @@ class ContactStage:
             if frames.size == 0 or c == 0:
                 continue
             link = robot.link_for(region)
+            n_faces = int(len(link.faces))
+            check_contact_memory(link.name, n_faces, int(frames.size), int(self.chunk_frames), c)
+            loud = n_faces >= ANNOUNCE_MIN_FACES
+            if loud:
+                log.info(
+                    "contact: preparing link %r (%d faces) for the queries of %d frames",
+                    link.name,
+                    n_faces,
+                    frames.size,
+                )
+            started = time.perf_counter()
             mesh = prepare_mesh(link.vertices, link.faces, inside="none" if self.spheres else self.inside)
+            if loud:
+                log.info("contact: link %r prepared in %.1f s", link.name, time.perf_counter() - started)
             bar = _progress(frames.size, f"contact {region} ({link.name})")
             try:
                 for s in range(0, frames.size, self.chunk_frames):

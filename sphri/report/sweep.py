@@ -4,7 +4,10 @@ A sweep is found from its directory (``<sweep_dir>/mlflow_parent_run.json``
 names the parent run and the tracking URI) or from the parent's run id and a
 tracking URI. Its jobs are the parent's children (tag ``mlflow.parentRunId``)
 plus any run named by a job's ``sphri_status.json`` (a resumed sweep's
-skipped jobs point at an earlier finished run). Per-participant scores come
+skipped jobs point at an earlier finished run). A folder holding the jobs of
+another sweep (a status file naming a run of another parent that the sweep
+did not skip for, or two finished runs with other settings in one job folder)
+is refused: the report reads one sweep. Per-participant scores come
 from each job's ``per_participant.csv`` artifact, else from its
 ``participant/<id>/accuracy`` metrics.
 
@@ -169,13 +172,28 @@ def load_sweep(
     runs = _children(client, parent.info.experiment_id, parent_id)
     own = {r.info.run_id for r in runs}
     notes: list[str] = []
+    _one_sweep_per_job_dir(runs, sweep_dir, parent_id)
     if sweep_dir is not None:
         known = {r.info.run_id for r in runs}
         for status in sorted(sweep_dir.glob(f"*/{STATUS_FILE}")):
             try:
-                rid = json.loads(status.read_text()).get("mlflow_run_id")
+                info = json.loads(status.read_text())
+                rid = info.get("mlflow_run_id")
             except (ValueError, RecursionError, AttributeError):
                 notes.append(f"{status}: unreadable job status file, ignored")
+                continue
+            if rid and rid not in known and info.get("status") != "SKIPPED":
+                # not a job of this parent, and not one the sweep skipped for an earlier run: another sweep's
+                theirs = _parent_of(client, rid)
+                if Path(str(source)).is_dir():
+                    raise ReportError(
+                        f"{sweep_dir} holds the jobs of more than one sweep: {status} names run {rid}"
+                        f"{f' of the sweep with parent run {theirs}' if theirs else ''}, not a job of this folder's "
+                        f"sweep (parent run {parent_id}); the report reads one sweep only: give the parent run id "
+                        f"of the sweep to report (`python -m sphri.report {parent_id}`"
+                        f"{f' or {theirs}' if theirs else ''})"
+                    )
+                notes.append(f"{status}: run {rid} belongs to another sweep (parent run {theirs or 'none'}), left out")
                 continue
             if rid and rid not in known:
                 try:
@@ -274,6 +292,48 @@ def load_sweep(
     if n_superseded:
         notes.append(f"{n_superseded} failed job run(s) were superseded by a finished run of the same point")
     return Sweep(parent_id, uri, sweep_id, sweep_dir, ptags, table, folds, keys, failed, notes)
+
+
+def _parent_of(client: Any, run_id: str) -> str | None:
+    try:
+        return client.get_run(run_id).data.tags.get("mlflow.parentRunId")
+    except Exception:  # gone from the store
+        return None
+
+
+def _job_settings(run: Any) -> dict[str, str]:
+    """The params of a job run that say what it computed (not how it ran, nor what it measured)."""
+    from sphri.config import result_neutral, runtime_keys
+
+    runtime = runtime_keys()
+    return {
+        k: v
+        for k, v in run.data.params.items()
+        if not k.startswith(("meta.", "resolution.")) and not result_neutral(k, runtime)
+    }
+
+
+def _one_sweep_per_job_dir(runs: Sequence[Any], sweep_dir: Path | None, parent_id: str) -> None:
+    """Raise :class:`ReportError` when two finished jobs of the parent ran in one job folder with other
+    settings: two sweeps shared the folder and its parent run, and the report cannot tell which is which."""
+    seen: dict[str, tuple[Any, dict[str, str]]] = {}
+    for r in runs:
+        job_dir = r.data.tags.get("sphri.job_dir")
+        if not job_dir or r.info.status != "FINISHED":
+            continue
+        settings = _job_settings(r)
+        if job_dir not in seen:
+            seen[job_dir] = (r, settings)
+            continue
+        first, before = seen[job_dir]
+        differ = sorted(k for k in set(before) | set(settings) if before.get(k) != settings.get(k))
+        if differ:
+            shown = ", ".join(f"{k}={before.get(k)} vs {settings.get(k)}" for k in differ[:3])
+            raise ReportError(
+                f"{sweep_dir or 'the sweep'} was used by more than one sweep under parent run {parent_id}: job folder "
+                f"{job_dir} holds runs {first.info.run_id} and {r.info.run_id} with other settings ({shown}); "
+                "the report reads one sweep only and cannot tell them apart"
+            )
 
 
 def _children(client: Any, experiment_id: str, parent_id: str) -> list[Any]:

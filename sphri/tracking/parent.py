@@ -10,6 +10,17 @@ SIGTERM. Jobs find the parent through ``<sweep_dir>/mlflow_parent_run.json``;
 each job writes ``<job_dir>/sphri_status.json`` so the end of the sweep can
 count failures.
 
+A sweep folder holds one sweep. :func:`claim_sweep_dir` takes an exclusive
+lock on ``<sweep_dir>/sphri_sweep.lock`` (``fcntl.flock``, released by the
+OS when the process ends, however it ends) for the whole sweep and writes
+its holder into it (pid, command, start time): a second sweep into the same
+folder while the first runs is :class:`SweepDirInUse`, naming the folder and
+the holder. ``sphri_sweep.json`` records the sweep's jobs (each job's
+overrides without its runtime settings, and the output folder): a later
+sweep into the folder must have the same jobs (a rerun, a resumed sweep,
+other runtime settings); a sweep with other jobs would overwrite the first
+one's job folders and reopen its parent run, and is refused.
+
 A re-run of the same sweep finds its earlier parent: in the same sweep
 directory through the parent file, in another one (Hydra's default
 timestamped ``hydra.sweep.dir``) through the tag ``sphri.sweep_hash``, a hash
@@ -18,9 +29,14 @@ of the sweep's overrides (swept values and fixed ones, ``hydra.*`` excepted).
 
 from __future__ import annotations
 
+import contextlib
+import datetime
+import fcntl
 import json
 import logging
+import os
 import signal
+import sys
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -33,7 +49,9 @@ from sphri.tracking.mlflow_tracker import PARENT_FILE
 log = logging.getLogger(__name__)
 STATUS_FILE = "sphri_status.json"
 SWEEP_FILE = "sphri_sweep.json"
-"""Written into a sweep directory by the sweeper before any job starts: the job count and start time."""
+"""Written into a sweep directory by the sweeper before any job starts: the job count, start time and jobs."""
+LOCK_FILE = "sphri_sweep.lock"
+"""Locked (``flock``) by the process running the sweep for as long as it runs; holds the holder's line."""
 
 KILLED: list[int] = []
 """Signals received by this process's sweep (set by the sweeper's SIGTERM handler)."""
@@ -95,11 +113,164 @@ def write_status(
     tmp.replace(job_dir / "sphri_status.json")  # a parallel job's progress line never reads half a file
 
 
-def start_sweep_file(sweep_dir: str | Path, n_jobs: int) -> None:
-    """Record the job count and start time (the progress lines' denominator and ETA)."""
+class SweepDirInUse(RuntimeError):
+    """A sweep folder another sweep holds (running now) or holds the jobs of (another sweep's folder)."""
+
+
+def _identity_key(override: str) -> str:
+    return override.lstrip("+~").partition("=")[0]
+
+
+def job_identity(overrides: Sequence[str], neutral: frozenset[str]) -> list[str]:
+    """What identifies a sweep's job in its folder: its overrides, sorted, without ``hydra.*`` and the
+    settings in ``neutral`` (runtime settings, the tracking group: they cannot change its result)."""
+    out = []
+    for o in overrides:
+        key = _identity_key(o)
+        if (
+            key.startswith("hydra")
+            or key in neutral
+            or key.split(".", 1)[0] in ("tracking", "cache", "resume", "output_dir")
+        ):
+            continue
+        out.append(o)
+    return sorted(out)
+
+
+def _neutral_keys() -> frozenset[str]:
+    from sphri.config import runtime_keys
+
+    return runtime_keys()
+
+
+class SweepClaim:
+    """The sweep folder's lock, held by this process until :meth:`release` (or the process's end)."""
+
+    def __init__(self, sweep_dir: Path, fd: int) -> None:
+        self.sweep_dir = sweep_dir
+        self.fd: int | None = fd
+
+    def release(self) -> None:
+        if self.fd is None:
+            return
+        with contextlib.suppress(OSError):
+            os.ftruncate(self.fd, 0)
+        os.close(self.fd)  # closing the descriptor releases the flock
+        self.fd = None
+
+
+def _holder_line() -> str:
+    cmd = " ".join(sys.argv) or "?"
+    since = datetime.datetime.now(datetime.UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+    return f"pid {os.getpid()} ({cmd[:200]}), since {since}"
+
+
+def _lock_sweep_dir(sweep_dir: Path) -> SweepClaim:
+    """Take the folder's lock without waiting, or raise :class:`SweepDirInUse` naming its holder."""
+    lock = sweep_dir / LOCK_FILE
+    try:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)  # never truncated before it is held
+    except OSError as exc:
+        raise SweepDirInUse(f"hydra.sweep.dir={sweep_dir}: its lock file {lock} cannot be opened ({exc})") from None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        try:
+            held = os.pread(fd, 4096, 0).decode(errors="replace").strip()
+        finally:
+            os.close(fd)
+        if not held:  # taken a moment ago, its holder not written yet: ask the OS
+            from sphri.tracking.store import holders
+
+            held = ", ".join(holders(lock)) or "a process the OS does not name"
+        raise SweepDirInUse(
+            f"hydra.sweep.dir={sweep_dir} is in use by another sweep ({held}); no job was started. "
+            "Wait for it to end, or give another hydra.sweep.dir"
+        ) from None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, (_holder_line() + "\n").encode(), 0)
+    return SweepClaim(sweep_dir, fd)
+
+
+def _recorded_jobs(sweep_dir: Path) -> tuple[dict[int, list[str]] | None, int | None, str | None]:
+    """``(job number -> identity, job count, output folder)`` an earlier sweep recorded in the folder;
+    ``(None, None, None)`` when it recorded nothing. Made by an older sphri (no jobs in its sweep file),
+    the jobs that wrote a status file are read from it, and the count and folder are unknown (None)."""
+    try:
+        info = json.loads((sweep_dir / SWEEP_FILE).read_text())
+    except (OSError, ValueError, RecursionError):
+        info = None
+    if isinstance(info, dict) and isinstance(info.get("jobs"), list):
+        jobs = [[str(o) for o in j] for j in info["jobs"] if isinstance(j, list)]
+        return dict(enumerate(jobs)), len(jobs), info.get("output_dir")
+    statuses = job_statuses(sweep_dir)
+    if not statuses:
+        return None, None, None
+    neutral = _neutral_keys()
+    return (
+        {int(s.get("job", 0)): job_identity([str(o) for o in s.get("overrides") or []], neutral) for s in statuses},
+        None,
+        None,
+    )
+
+
+def claim_sweep_dir(sweep_dir: str | Path, jobs: Sequence[Sequence[str]], output_dir: str | Path) -> SweepClaim:
+    """Lock the sweep folder for this sweep (see the module docstring) and check it holds no other sweep:
+    :class:`SweepDirInUse` names the folder and the holder, or the job the two sweeps disagree on."""
+    path = Path(sweep_dir)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise SweepDirInUse(f"hydra.sweep.dir={path} cannot be made ({exc.strerror or exc})") from None
+    claim = _lock_sweep_dir(path)
+    try:
+        neutral = _neutral_keys()
+        mine = [job_identity(j, neutral) for j in jobs]
+        theirs, n_theirs, their_out = _recorded_jobs(path)
+        out = str(Path(output_dir).resolve())
+        if theirs is not None:
+            k = next((i for i in sorted(theirs) if i >= len(mine) or theirs[i] != mine[i]), None)
+            if k is not None and k < len(mine):
+                differs = (
+                    f"its job #{k} ran {' '.join(theirs[k]) or 'the defaults'}, this sweep's job #{k} is "
+                    f"{' '.join(mine[k]) or 'the defaults'}"
+                )
+            elif k is not None or (n_theirs is not None and n_theirs != len(mine)):
+                differs = f"{n_theirs if n_theirs is not None else max(theirs) + 1} jobs, this sweep {len(mine)}"
+            else:
+                differs = ""
+            if differs:
+                raise SweepDirInUse(
+                    f"hydra.sweep.dir={path} holds another sweep ({differs}); its job folders would be overwritten "
+                    "and its report would count both. No job was started; give another hydra.sweep.dir"
+                )
+        if their_out is not None and their_out != out:
+            raise SweepDirInUse(
+                f"hydra.sweep.dir={path} holds a sweep recorded in output_dir={their_out}, not {out}; its job "
+                "folders would be overwritten. No job was started; give another hydra.sweep.dir"
+            )
+    except BaseException:
+        claim.release()
+        raise
+    return claim
+
+
+def start_sweep_file(
+    sweep_dir: str | Path, n_jobs: int, jobs: Sequence[Sequence[str]] | None = None, output_dir: str | None = None
+) -> None:
+    """Record the job count and start time (the progress lines' denominator and ETA), and the sweep's jobs
+    (:func:`job_identity`) and output folder, which a later sweep into the folder must share."""
     path = Path(sweep_dir)
     path.mkdir(parents=True, exist_ok=True)
-    (path / SWEEP_FILE).write_text(json.dumps({"n_jobs": int(n_jobs), "started": time.time()}))
+    info: dict[str, Any] = {"n_jobs": int(n_jobs), "started": time.time()}
+    if jobs is not None:
+        neutral = _neutral_keys()
+        info["jobs"] = [job_identity(j, neutral) for j in jobs]
+    if output_dir is not None:
+        info["output_dir"] = str(Path(output_dir).resolve())
+    tmp = path / f"{SWEEP_FILE}.tmp"
+    tmp.write_text(json.dumps(info))
+    tmp.replace(path / SWEEP_FILE)
 
 
 def progress_line(sweep_dir: str | Path, job: int, what: str) -> str:

@@ -15,8 +15,15 @@ Migrating a new store takes 2 to 3 s. The first new store on a machine also
 leaves a migrated, empty copy (no experiment) per MLflow version in the user's
 cache (``$XDG_CACHE_HOME/sphri``, else ``~/.cache/sphri``); later new stores
 start as a copy of it, and MLflow adds its Default experiment on first open,
-as it does for a fresh store. Any problem with that copy falls back to
-migrating from scratch.
+as it does for a fresh store. The copy's SHA-256 is recorded beside it when it
+is made (``<template>.sha256``) and checked before each use, and the copy made
+from it is checked again: a template changed since (a damaged file, another
+program's write) or without its checksum is made anew, with a warning. Any
+other problem with that copy falls back to migrating from scratch.
+
+A store whose creation fails midway (a full disk, an interrupted migration)
+is removed before the error is raised (:class:`StoreNotCreated`, one line):
+no half-made store is left for the next run to take for a store.
 
 A store another process holds locked is not broken: readers wait for the
 lock up to :data:`BUSY_TIMEOUT_S` seconds, then raise :class:`StoreBusy`
@@ -37,21 +44,29 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import errno
+import hashlib
 import json
+import logging
 import os
 import shutil
 import sqlite3
 import sys
 import time
+import uuid
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Literal
 
 from sphri.command.args import arg
 
+log = logging.getLogger(__name__)
+
 TMP_PREFIX = "_alembic_tmp_"
 #: Seconds a reader waits for another process's lock on the store before calling it busy.
 BUSY_TIMEOUT_S = 60.0
+#: The first bytes of every SQLite database file.
+SQLITE_HEADER = b"SQLite format 3\x00"
 #: Tables every MLflow store holds (besides ``alembic_version``); a leftover ``_alembic_tmp_`` copy counts.
 MLFLOW_TABLES = ("experiments", "runs")
 
@@ -70,6 +85,10 @@ class StoreBusy(StoreError):
 
 class NotAStore(StoreError):
     """A file where the MLflow store should be that is not one (not SQLite, or not MLflow's schema)."""
+
+
+class StoreNotCreated(StoreError):
+    """A new store whose creation failed (a full disk...); the half-made file was removed."""
 
 
 def holders(db: Path) -> list[str]:
@@ -182,10 +201,22 @@ def problems(db: Path, timeout: float | None = None) -> list[str]:
     """What is wrong with an existing store file (empty: nothing, or no store yet). Raises
     :class:`StoreBusy` when another process holds its lock longer than ``timeout`` s
     (:data:`BUSY_TIMEOUT_S`), :class:`NotAStore` for a file that is not an MLflow store."""
-    if not db.exists() or db.stat().st_size == 0:
+    if not db.exists() and not db.is_symlink():
         return []
-    if not db.is_file():
+    if not db.is_file():  # a FIFO, a folder, a dangling link: never replaced by a store
         raise NotAStore(f"{db} is not an MLflow store (not a file)")
+    if db.stat().st_size == 0:
+        return []
+    with open(db, "rb") as f:  # SQLite reads a short file of anything as an empty database, and would write over it
+        first = f.read(100)
+    if first[: len(SQLITE_HEADER)] != SQLITE_HEADER:
+        raise NotAStore(f"{db} is not an MLflow store (not a SQLite database: it starts with {first[:16]!r})")
+    cut = _truncated(first, db.stat().st_size)
+    if cut:
+        raise BrokenStore(
+            f"MLflow store {db} is truncated ({cut}: a full disk or a copy cut short?); nothing was computed into "
+            "it and it is left as it is. Restore it from a backup, or give another output_dir"
+        )
     try:
         tables = _tables(db, BUSY_TIMEOUT_S if timeout is None else timeout)
     except sqlite3.DatabaseError as exc:
@@ -201,6 +232,18 @@ def problems(db: Path, timeout: float | None = None) -> list[str]:
     if rev != head:
         out.append(f"schema revision {rev} is not MLflow's {head} (a migration did not finish)")
     return out
+
+
+def _truncated(head: bytes, size: int) -> str | None:
+    """What says a SQLite file is shorter than its header (its first 100 bytes) declares, or None."""
+    if len(head) < 100:
+        return f"{size} bytes, shorter than a SQLite header"
+    page = int.from_bytes(head[16:18], "big")
+    page = 65536 if page == 1 else page
+    pages = int.from_bytes(head[28:32], "big")
+    if head[24:28] == head[92:96] and pages > 0 and size < page * pages:  # the page count is valid
+        return f"{size} bytes, its header says {pages} pages of {page} bytes ({page * pages} bytes)"
+    return None
 
 
 def repair_command(db: Path) -> str:
@@ -222,13 +265,67 @@ def template_path() -> Path:
     return root / f"mlflow-{mlflow.__version__}-empty.db"
 
 
-def _empty_store_template() -> Path:
-    """The migrated, empty store of this MLflow version, made once (under its lock) when missing."""
+def _sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def checksum_path(tpl: Path) -> Path:
+    """Where the template's SHA-256 is recorded (a JSON file beside it)."""
+    return tpl.with_name(tpl.name + ".sha256")
+
+
+def _recorded_sha256(tpl: Path) -> str | None:
+    try:
+        info = json.loads(checksum_path(tpl).read_text())
+    except (OSError, ValueError, RecursionError):
+        return None
+    value = info.get("sha256") if isinstance(info, dict) else None
+    return value if isinstance(value, str) else None
+
+
+def _verified_template(tpl: Path) -> str | None:
+    """The template's SHA-256 when it matches the recorded one; None (with a warning naming what is wrong)
+    when it is missing, unrecorded, changed or not a store at MLflow's head revision."""
+    if not tpl.exists():
+        return None
+    recorded = _recorded_sha256(tpl)
+    actual = _sha256(tpl)
+    if recorded is None:
+        log.warning("MLflow store template %s has no recorded checksum (%s); made anew", tpl, checksum_path(tpl))
+        return None
+    if actual != recorded:
+        log.warning(
+            "MLflow store template %s changed since it was made (SHA-256 %s..., recorded %s...); made anew",
+            tpl,
+            actual[:12],
+            recorded[:12],
+        )
+        return None
+    try:
+        if problems(tpl) or _revision(tpl) is None:
+            return None
+    except StoreError:
+        return None
+    return actual
+
+
+def _empty_store_template() -> tuple[Path, str]:
+    """The migrated, empty store of this MLflow version and its SHA-256, made once (under its lock) when
+    missing, and again when it no longer matches its recorded checksum."""
     tpl = template_path()
     with store_lock(tpl):
-        if tpl.exists() and not problems(tpl) and _revision(tpl) is not None:
-            return tpl
-        tmp = tpl.with_name(f"{tpl.stem}.{os.getpid()}.tmp.db")
+        digest = _verified_template(tpl)
+        if digest is not None:
+            return tpl, digest
+        # a name of its own each time: MLflow keeps the store of a URI it opened (a second template made
+        # in this process at the same path would be given the first one's, which is gone)
+        tmp = tpl.with_name(f"{tpl.stem}.{os.getpid()}.{uuid.uuid4().hex[:12]}.tmp.db")
+        sums = checksum_path(tpl)
+        sums_tmp = sums.with_name(f"{sums.name}.{os.getpid()}.tmp")
         try:
             tmp.unlink(missing_ok=True)
             _open(tmp)
@@ -236,22 +333,51 @@ def _empty_store_template() -> Path:
                 con.execute("DELETE FROM experiment_tags WHERE experiment_id = 0")
                 con.execute("DELETE FROM experiments WHERE experiment_id = 0")
                 con.commit()
+            digest = _sha256(tmp)
+            import mlflow
+
+            sums_tmp.write_text(json.dumps({"sha256": digest, "mlflow": mlflow.__version__}))
+            checksum_path(tpl).unlink(missing_ok=True)  # never a new template beside an old checksum
             tmp.replace(tpl)
+            sums_tmp.replace(sums)
         finally:
             tmp.unlink(missing_ok=True)
-    return tpl
+            sums_tmp.unlink(missing_ok=True)
+    return tpl, digest
 
 
 def _copy_template(db: Path) -> None:
-    """Start the new store ``db`` as a copy of :func:`_empty_store_template` (an atomic replace: ``db`` is
-    whole or untouched); on any problem leave it to MLflow's own migration."""
+    """Start the new store ``db`` as a copy of :func:`_empty_store_template`, checked against the template's
+    SHA-256 (an atomic replace: ``db`` is whole or untouched); on any problem but a full disk leave it to
+    MLflow's own migration."""
     tmp = db.with_name(f"{db.name}.{os.getpid()}.tmp")
     try:
-        shutil.copyfile(_empty_store_template(), tmp)
+        tpl, digest = _empty_store_template()
+        shutil.copyfile(tpl, tmp)
+        if _sha256(tmp) != digest:
+            raise OSError(f"the copy of {tpl} does not match its checksum")
         tmp.replace(db)
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)
+        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+            raise  # a full disk: migrating from scratch cannot succeed either
     except Exception:  # an unwritable cache, a changed MLflow schema...: migrate from scratch instead
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
+
+
+def _remove_half_made(db: Path, existed: bool) -> None:
+    """Undo a store creation that failed: remove the new file and its journal (an empty file that was
+    there is left empty)."""
+    for side in (db.with_name(db.name + "-journal"), db.with_name(db.name + "-wal"), db.with_name(db.name + "-shm")):
+        with contextlib.suppress(OSError):
+            side.unlink(missing_ok=True)
+    with contextlib.suppress(OSError):
+        if existed:
+            os.truncate(db, 0)
+        else:
+            db.unlink(missing_ok=True)
 
 
 def ensure_store(uri: str) -> None:
@@ -277,9 +403,20 @@ def ensure_store(uri: str) -> None:
             )
         if db.exists() and db.stat().st_size > 0 and _revision(db) is not None:
             return  # an existing store at MLflow's head revision (problems() checked it): nothing to create
-        if os.environ.get("SPHRI_STORE_TEMPLATE", "1") != "0":
-            _copy_template(db)
-        _open(db)  # migrates a new store (or only adds the Default experiment to the template's copy)
+        existed = db.exists()  # an empty file (problems() found nothing in it) or none
+        try:
+            if os.environ.get("SPHRI_STORE_TEMPLATE", "1") != "0":
+                _copy_template(db)
+            _open(db)  # migrates a new store (or only adds the Default experiment to the template's copy)
+        except BaseException as exc:
+            _remove_half_made(db, existed)
+            if not isinstance(exc, Exception):
+                raise
+            reason = " ".join(str(exc).split())[:300] or type(exc).__name__
+            raise StoreNotCreated(
+                f"MLflow store {db} could not be created ({type(exc).__name__}: {reason}); the half-made store was "
+                "removed and nothing was computed. Free space there, or give another output_dir"
+            ) from None
 
 
 def _n_runs(db: Path) -> int:

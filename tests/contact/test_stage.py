@@ -224,3 +224,35 @@ def test_schema_range_checks_name_the_key(schema, field, value, key):
     node = OmegaConf.merge(OmegaConf.structured(schema), {field: value})
     with pytest.raises(ConfigError, match=key):
         OmegaConf.to_object(node)
+
+
+def test_a_link_past_the_memory_limit_is_refused_before_its_mesh_is_prepared(monkeypatch):
+    """A 1.8 M-face mesh ran the contact stage for minutes with no estimate; the faces and the chunk say
+    what preparing and querying the link takes before anything is built."""
+    from sphri.contact import stage
+    from sphri.errors import kind_of
+
+    def never(*args, **kwargs):
+        raise AssertionError("the mesh was prepared before the estimate")
+
+    monkeypatch.setattr(stage, "prepare_mesh", never)
+    monkeypatch.setenv("SPHRI_MAX_MEMORY_GIB", "0.0001")
+    robot, ds = _robot(), _dataset()
+    faces = len(robot.link_for("arm").faces)
+    with pytest.raises(stage.ContactMemoryError) as refused:
+        ExactContact().compute(ds, robot)
+    msg = str(refused.value)
+    assert f"link 'l_arm' ({faces} mesh faces" in msg and "SPHRI_MAX_MEMORY_GIB=0.0001" in msg, msg
+    assert "contact.chunk_frames" in msg and kind_of(refused.value) == "memory error"
+    monkeypatch.setenv("SPHRI_MAX_MEMORY_GIB", "1")
+    monkeypatch.undo()
+    assert ExactContact().compute(ds, robot).n_frames == ds.n_frames  # under the limit: computed
+
+
+def test_a_large_link_says_when_its_preparation_starts_and_ends(monkeypatch, caplog):
+    from sphri.contact import stage
+
+    monkeypatch.setattr(stage, "ANNOUNCE_MIN_FACES", 1)
+    caplog.set_level("INFO", logger="sphri.contact.stage")
+    ExactContact().compute(_dataset(), _robot())
+    assert "contact: preparing link 'l_arm'" in caplog.text and "contact: link 'l_arm' prepared in" in caplog.text
