@@ -75,6 +75,9 @@ class StudyResult:
     (:func:`sphri.sessions.plausibility.plausibility`), else None."""
     codes: Any = None
     """Gestures coded by hand (:class:`sphri.sessions.codes.HumanCodes`, ``codes=PATH``), else None."""
+    sensitivity: Any = None
+    """The priors sensitivity run (:func:`sphri.sessions.sensitivity.priors_sensitivity`): (per-draw table,
+    summary) on generated sessions with ``sensitivity_draws`` > 0, else None."""
 
 
 #: The ``gesture`` of a session without a coded, labelled episode (``by=gesture`` maps it apart, never as a gesture).
@@ -263,6 +266,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         if st.budget_taxels
         else f"{st.budget_cm2:g} cm^2"
     )
+    sensitivity = _sensitivity(cfg, st, ds, robot, mat, fsi[uf], parts, area, allowed)
     seconds["placement"] = time.perf_counter() - t
     shown.update(1)
 
@@ -309,6 +313,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         codes=codes,
         mountable=mount,
         plausibility=_plausibility(cfg, ds, bc, robot, notes),
+        sensitivity=sensitivity,
     )
     t = time.perf_counter()
     with figures.only_formats(st.figure_formats):
@@ -464,6 +469,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         },
         "human_codes": res.codes.summary(res.coded) if res.codes is not None else None,
         "plausibility": res.plausibility,
+        "priors_sensitivity": res.sensitivity[1] if res.sensitivity is not None else None,
         "skin_design": _design_summary(res.design),
         "skin_export": _export_summary(out / "skin_export" / "manifest.json"),
         "sentences": res.sentences,
@@ -481,6 +487,9 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
             "gesture_agreement": float((c["gesture"].to_numpy()[ok] == truth_g[ok]).mean()) if ok.any() else None,
             "dominant_part_agreement": float((c["dominant_part"].to_numpy() == truth_p).mean()),
         }
+    if res.sensitivity is not None:
+        res.sensitivity[0].to_csv(out / "priors_sensitivity.csv", index=False, float_format="%.4g")
+        files.append(out / "priors_sensitivity.csv")
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     files.append(out / "summary.json")
     if not res.settings.render:
@@ -610,6 +619,22 @@ def _plausibility(cfg, ds, bc, robot, notes: list[str]) -> dict | None:
     if failed:
         notes.append(f"synthetic hands fail the plausibility checks {failed} (summary.json: plausibility)")
     return block
+
+
+def _sensitivity(cfg, st, ds, robot, mat, frame_session, parts, area, allowed):
+    """The priors sensitivity run on generated sessions drawn from a priors table (``data=synthetic_sessions``),
+    else None (recorded sessions, or ``sensitivity_draws=0``)."""
+    priors = cfg.data.get("priors", False) if hasattr(cfg.data, "get") else False
+    if st.sensitivity_draws == 0 or ds.truth is None or priors is False or "part" not in ds.truth:
+        return None
+    from sphri.sessions.sensitivity import priors_sensitivity
+    from sphri.sessions.synthetic import DEFAULT_PRIORS, load_priors
+
+    table = load_priors(priors or DEFAULT_PRIORS, [p.name for p in robot.parts])
+    truth = ds.truth.reset_index(drop=True).assign(start_position=ds.sessions["start_position"].to_numpy())
+    return priors_sensitivity(
+        table, truth, frame_session, mat, parts, area, allowed, st.sensitivity_draws, st.seed, st.sensitivity_top_k
+    )
 
 
 def _design_summary(design) -> dict | None:
