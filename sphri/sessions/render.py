@@ -43,25 +43,65 @@ def body_view(body: BodySurface, faces: int = 20000) -> LinkView:
     return LinkView(body.mesh, body.samples, target_faces=faces)
 
 
+#: Surface without contact (density under NONE_SHARE of the colour scale's top) is drawn in this grey, apart from
+#: the colour scale, whose lowest colour (CMAP_FLOOR along CMAP) is a visible yellow.
+NO_CONTACT = (0.80, 0.80, 0.80, 1.0)
+NONE_SHARE = 1e-3
+CMAP_FLOOR = 0.15
+
+
+def contact_colours(view: LinkView, density: np.ndarray, vmax: float) -> np.ndarray:
+    """(F, 4) RGBA per display face: the colour scale from 0 to ``vmax`` (% per cm^2) starting at CMAP_FLOOR, and
+    :data:`NO_CONTACT` grey where the density is under NONE_SHARE x ``vmax`` (no contact)."""
+    vals = view.face_values(np.asarray(density)) * PERCENT_PER_CM2
+    out = plt.get_cmap(CMAP)(CMAP_FLOOR + (1.0 - CMAP_FLOOR) * np.clip(vals / vmax, 0.0, 1.0))
+    out[vals < NONE_SHARE * vmax] = NO_CONTACT
+    return out
+
+
+def _crop(ax, view: LinkView, azim_deg: float, elev_deg: float) -> None:
+    """Limit a view's axes to the robot's projected extent (3 % margin), so that it fills its panel."""
+    _, right, up = view._eye(azim_deg, elev_deg)
+    x, y = view.display @ right, view.display @ up
+    m = 0.03 * max(float(np.ptp(x)), float(np.ptp(y)))
+    ax.set_xlim(float(x.min()) - m, float(x.max()) + m)
+    ax.set_ylim(float(y.min()) - m, float(y.max()) + m)
+
+
+def _contact_bar(fig, vmax: float, ax) -> None:
+    """The colour bar of :func:`contact_colours`, saying what grey means."""
+    from matplotlib.colors import ListedColormap
+
+    cmap = ListedColormap(plt.get_cmap(CMAP)(np.linspace(CMAP_FLOOR, 1.0, 256)))
+    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, vmax))
+    cb = fig.colorbar(sm, ax=ax, shrink=0.8, pad=0.02)
+    cb.set_label("contact, % per cm$^2$\ngrey: no contact")
+
+
 def plot_views(
     view: LinkView,
     densities: dict[str, np.ndarray],
     path: str | Path,
     title: str,
     provenance: figures.Provenance | None = None,
+    vmax: float | None = None,
 ) -> Path:
-    """Rows: maps; columns: front, left, back, right, top; one colour scale and bar. Rows shrink so that the
-    figure fits a page (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
+    """Rows: maps; columns: front, left, back, right, top, each cropped to the robot; one colour scale and bar
+    (``vmax``, % per cm^2: the top of the scale, e.g. shared by every scenario's figure; default from these
+    maps); surface without contact grey (:func:`contact_colours`). Rows shrink so that the figure fits a page
+    (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
     names = list(densities)
-    vmax = _vmax(list(densities.values()))
+    vmax = vmax if vmax is not None and vmax > 0 else _vmax(list(densities.values()))
     with figures.style():
         fig, axes = figures.new_figure(
             "two", figures.fit_page(1.6 * len(names) + 0.7), nrows=len(names), ncols=len(VIEWS), squeeze=False
         )
         for r, n in enumerate(names):
+            colours = contact_colours(view, densities[n], vmax)
             for c, (vt, az, el) in enumerate(VIEWS):
                 ax = axes[r, c]
-                view.draw(ax, densities[n], az, vmax, elev_deg=el)
+                view.draw(ax, None, az, vmax, elev_deg=el, colours=colours.copy())
+                _crop(ax, view, az, el)
                 if r == 0:
                     ax.set_title(vt)
             axes[r, 0].text(
@@ -73,7 +113,7 @@ def plot_views(
                 ha="right",
                 va="center",
             )
-        _colourbar(fig, vmax, ax=axes)
+        _contact_bar(fig, vmax, axes)
         return _finish(fig, title, path, provenance)
 
 

@@ -359,7 +359,7 @@ def _mask_npz(body, robot, density: np.ndarray, chosen: set[str], out_dir: Path)
 
 def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label: str) -> list[Path]:
     from sphri.analysis.coverage import ALL, safe_name
-    from sphri.analysis.render import plot_swd_heatmap
+    from sphri.analysis.render import _vmax, plot_swd_heatmap
 
     out = res.out_dir
     files: list[Path] = []
@@ -515,9 +515,12 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         f"Contact density per {cov.by}, one colour scale",
         provenance=prov,
     )
+    top = _vmax([*dens.values(), cov.densities[ALL]])  # every scenario's own figure on the maps' one scale
     for s in scen:
         files.append(
-            plot_views(view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{human(s)}", provenance=prov)
+            plot_views(
+                view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{human(s)}", provenance=prov, vmax=top
+            )
         )
     figs["atlas"] = plot_atlas(
         body,

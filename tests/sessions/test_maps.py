@@ -1,0 +1,59 @@
+"""Whole-body maps a designer reads at a glance: no contact drawn apart from the colour scale, one scale shared by
+every scenario's figure, views cropped to the robot."""
+
+from __future__ import annotations
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pytest
+
+from sphri.sessions import render
+from sphri.sessions.body import body_surface
+
+
+@pytest.fixture(scope="module")
+def view(small):
+    _, _, robot, ds = small
+    body = body_surface(robot, ds.links, 20.0, 30.0, 0)
+    return render.body_view(body, 3000), body
+
+
+def test_no_contact_is_grey_and_the_least_contact_is_coloured(view):
+    v, body = view
+    d = np.zeros(body.samples.n)
+    d[body.part == body.parts[0]] = 1.0
+    c = render.contact_colours(v, d, vmax=float(d.max() * render.PERCENT_PER_CM2))
+    vals = v.face_values(d)
+    none = vals < render.NONE_SHARE * vals.max()
+    assert none.any() and (~none).any()
+    assert np.allclose(c[none], render.NO_CONTACT)
+    low = render.contact_colours(v, d * 1e-2, vmax=float(d.max() * render.PERCENT_PER_CM2))
+    some = vals >= 0.5 * vals.max()
+    grey = np.array(render.NO_CONTACT)
+    # a density of 1 % of the scale's top is coloured (the scale starts at a visible yellow), not grey
+    assert (np.abs(low[some] - grey).max(axis=1) > 0.1).all()
+    assert not np.allclose(low[some, 0], low[some, 2])
+
+
+def test_each_scenarios_figure_uses_the_scale_it_is_given(view, tmp_path, monkeypatch):
+    v, body = view
+    seen = []
+    monkeypatch.setattr(render, "_contact_bar", lambda fig, vmax, ax: seen.append(vmax))
+    d = np.linspace(0.0, 1.0, body.samples.n)
+    render.plot_views(v, {"S1": d}, tmp_path / "a.png", "S1", vmax=0.5)
+    render.plot_views(v, {"S1": d}, tmp_path / "b.png", "S1")
+    assert seen[0] == 0.5 and seen[1] == pytest.approx(render._vmax([d]))
+
+
+def test_views_are_cropped_to_the_robot(view):
+    v, _ = view
+    for _name, az, el in render.VIEWS:
+        fig, ax = plt.subplots()
+        v.draw(ax, None, az, 1.0, elev_deg=el, colours=np.ones((len(v.faces), 4)))
+        render._crop(ax, v, az, el)
+        _, right, up = v._eye(az, el)
+        x, y = v.display @ right, v.display @ up
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        assert x0 <= x.min() and x1 >= x.max() and y0 <= y.min() and y1 >= y.max()
+        assert (x1 - x0) <= 1.07 * max(np.ptp(x), np.ptp(y)) and (y1 - y0) <= 1.07 * max(np.ptp(x), np.ptp(y))
+        plt.close(fig)
