@@ -179,28 +179,53 @@ def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: st
     return path
 
 
+def drawn_shares(coded: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
+    """Per scenario and gesture: the share of the coded episodes whose session the generator drew with that
+    gesture (``scenario``, ``gesture``, ``share``), for the histogram's drawn bars."""
+    g = truth.reset_index(drop=True)["gesture"].to_numpy()[coded["session"].to_numpy()]
+    rows = []
+    for s, idx in coded.groupby("scenario").indices.items():
+        for gest in GESTURES:
+            rows.append(dict(scenario=s, gesture=gest, share=float((g[idx] == gest).mean())))
+    return pd.DataFrame(rows, columns=["scenario", "gesture", "share"])
+
+
 def plot_gesture_histogram(
-    hist: pd.DataFrame, path: str | Path, title: str, provenance: figures.Provenance | None = None
+    hist: pd.DataFrame,
+    path: str | Path,
+    title: str,
+    provenance: figures.Provenance | None = None,
+    drawn: pd.DataFrame | None = None,
 ) -> Path:
+    """Per scenario, the share of coded episodes per gesture: expected (sum of probabilities, with its SD) and the
+    argmax share; beside them, given ``drawn`` (:func:`drawn_shares`), the share the generator drew. The y-axis
+    ends a little above the highest bar."""
     scen = list(pd.unique(hist["scenario"]))
     x = np.arange(len(GESTURES))
+    w = 0.4 if drawn is not None else 0.8
+    off = -0.2 if drawn is not None else 0.0
+    top = 0.0
     with figures.style():
         fig, axes = figures.new_figure("two", 2.6, ncols=len(scen), sharey=True, squeeze=False)
         for i, s in enumerate(scen):
             ax = axes[0, i]
             h = hist[hist["scenario"] == s].set_index("gesture").loc[list(GESTURES)]
             n = max(int(h["n_episodes"].iloc[0]), 1)
-            ax.bar(x, h["expected"] / n, color="#4c72b0", alpha=0.8, label="expected (sum of probabilities)")
-            ax.errorbar(
-                x, h["expected"] / n, yerr=h["expected_sd"] / n, fmt="none", ecolor="black", capsize=1.5, lw=0.6
-            )
-            ax.plot(x, h["count"] / n, "o", color="#dd8452", ms=2.5, label="argmax count")
+            e, sd, c = h["expected"] / n, h["expected_sd"] / n, h["count"] / n
+            ax.bar(x + off, e, width=w, color="#4c72b0", alpha=0.8, label="coded: expected (sum of probabilities)")
+            ax.errorbar(x + off, e, yerr=sd, fmt="none", ecolor="black", capsize=1.5, lw=0.6)
+            ax.plot(x + off, c, "o", color="#dd8452", ms=2.5, label="coded: argmax share")
+            top = max(top, float((e + sd).max()), float(c.max()))
+            if drawn is not None:
+                d = drawn[drawn["scenario"] == s].set_index("gesture").reindex(list(GESTURES))["share"].fillna(0.0)
+                ax.bar(x + 0.2, d, width=w, color="#8c8c8c", alpha=0.8, label="drawn by the generator")
+                top = max(top, float(d.max()))
             ax.set_xticks(x, [figures.human(g) for g in GESTURES], rotation=90)
             ax.set_title(f"{figures.human(s)}\n({int(h['n_episodes'].iloc[0])} episodes)")
-            ax.set_ylim(0, 1)
+        axes[0, 0].set_ylim(0, min(1.0, 1.1 * top) if top > 0 else 1.0)
         axes[0, 0].set_ylabel("share of coded episodes")
         handles, labels = axes[0, 0].get_legend_handles_labels()
-        fig.legend(handles, labels, loc="outside lower center", ncol=2)
+        fig.legend(handles, labels, loc="outside lower center", ncol=3 if drawn is not None else 2)
         return _finish(fig, title, path, provenance)
 
 

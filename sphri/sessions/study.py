@@ -497,6 +497,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     from sphri.figures import Provenance, human
     from sphri.sessions.render import (
         body_view,
+        drawn_shares,
         plot_atlas,
         plot_effects,
         plot_gesture_histogram,
@@ -550,6 +551,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         if res.codes is not None
         else f"Gestures of the coded episodes per scenario (model LOSO accuracy {100 * gm.accuracy_mean:.0f} %)",
         provenance=prov,
+        drawn=drawn_shares(res.coded, ds.truth) if ds.truth is not None and len(res.coded) else None,
     )
     if res.design is not None:
         from sphri.sessions.skin_render import plot_budget_curve, plot_skin

@@ -57,3 +57,33 @@ def test_views_are_cropped_to_the_robot(view):
         assert x0 <= x.min() and x1 >= x.max() and y0 <= y.min() and y1 >= y.max()
         assert (x1 - x0) <= 1.07 * max(np.ptp(x), np.ptp(y)) and (y1 - y0) <= 1.07 * max(np.ptp(x), np.ptp(y))
         plt.close(fig)
+
+
+def test_gesture_histogram_sets_drawn_beside_coded_on_an_axis_that_fits(tmp_path, monkeypatch):
+    import pandas as pd
+
+    from sphri.types import GESTURES
+
+    figs = []
+    monkeypatch.setattr(render, "_finish", lambda fig, title, path, provenance: figs.append(fig) or path)
+    hist = pd.DataFrame(
+        [
+            dict(scenario=s, gesture=g, n_episodes=10, expected=3.0 if g == "poke" else 1.0, expected_sd=0.5, count=4)
+            for s in ("S1_attention", "S2_path_redirection")
+            for g in GESTURES
+        ]
+    )
+    coded = pd.DataFrame({"session": [0, 1, 2, 3], "scenario": ["S1_attention"] * 2 + ["S2_path_redirection"] * 2})
+    truth = pd.DataFrame({"gesture": ["push", "push", "tap", "grab"]})
+    drawn = render.drawn_shares(coded, truth)
+    assert drawn.groupby("scenario")["share"].sum().tolist() == [1.0, 1.0]
+    render.plot_gesture_histogram(hist, tmp_path / "g.png", "Gestures", drawn=drawn)
+    ax = figs[-1].axes[0]
+    assert ax.get_ylim()[1] == 1.0  # the drawn push share (1.0) is the highest bar; shares end at 1
+    labels = [t.get_text() for t in figs[-1].legends[0].get_texts()]
+    assert sorted(labels) == ["coded: argmax share", "coded: expected (sum of probabilities)", "drawn by the generator"]
+    heights = sorted(round(p.get_height(), 3) for p in ax.patches)
+    assert heights.count(1.0) == 1 and heights.count(0.3) == 1
+    render.plot_gesture_histogram(hist[hist["scenario"] == "S1_attention"], tmp_path / "h.png", "Gestures")
+    assert figs[-1].axes[0].get_ylim()[1] == pytest.approx(1.1 * 0.4)  # bars under 0.45: the axis ends near them
+    plt.close("all")
