@@ -125,7 +125,8 @@ def plot_atlas(
     title: str,
     provenance: figures.Provenance | None = None,
 ) -> Path:
-    """One unrolled chart per body part: angle around the link's long axis vs position along it (cm)."""
+    """One unrolled chart per body part: angle around the link's long axis vs position along it (cm); the title
+    gives the part's reachable area (the area the ranking and the placement count), as the figure's title says."""
     parts = body.parts
     cols = 5
     rows = int(np.ceil(len(parts) / cols))
@@ -152,7 +153,8 @@ def plot_atlas(
             ax.scatter(
                 ang, along, c=vals[idx], cmap=CMAP, vmin=0, vmax=vmax, s=2, marker="s", linewidths=0, rasterized=True
             )
-            ax.set_title(f"{figures.human(p)}\n({body.samples.area_m2[idx].sum() * 1e4:.0f} cm$^2$)")
+            reach = float((body.samples.area_m2[idx] * body.reachable[idx]).sum()) * 1e4
+            ax.set_title(f"{figures.human(p)}\n({reach:.0f} cm$^2$)")
             ax.set_xlim(-180, 180)
             ax.set_xticks([-180, 0, 180])
             if k % cols == 0:
@@ -162,7 +164,7 @@ def plot_atlas(
         for k in range(len(parts), rows * cols):
             axes[k // cols, k % cols].set_axis_off()
         _colourbar(fig, vmax, ax=axes)
-        return _finish(fig, title, path, provenance)
+        return _finish(fig, f"{title} (cm$^2$: reachable area)", path, provenance)
 
 
 def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: str | Path) -> Path:

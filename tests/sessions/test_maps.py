@@ -87,3 +87,22 @@ def test_gesture_histogram_sets_drawn_beside_coded_on_an_axis_that_fits(tmp_path
     render.plot_gesture_histogram(hist[hist["scenario"] == "S1_attention"], tmp_path / "h.png", "Gestures")
     assert figs[-1].axes[0].get_ylim()[1] == pytest.approx(1.1 * 0.4)  # bars under 0.45: the axis ends near them
     plt.close("all")
+
+
+def test_atlas_titles_give_the_reachable_area_the_ranking_counts(small, view, tmp_path, monkeypatch):
+    _, _, robot, _ = small
+    _, body = view
+    figs = []
+    said = []
+    monkeypatch.setattr(
+        render, "_finish", lambda fig, title, path, provenance: figs.append(fig) or said.append(title) or path
+    )
+    render.plot_atlas(body, robot, np.zeros(body.samples.n), tmp_path / "a.png", "Atlas")
+    reach = body.part_area_m2(reachable=True)
+    titles = [ax.get_title() for ax in figs[-1].axes if ax.get_title()]
+    assert len(titles) == len(body.parts)
+    for p, title in zip(body.parts, titles):
+        assert title.endswith(f"({reach[p] * 1e4:.0f} cm$^2$)"), (p, title)
+    assert said[-1].endswith("(cm$^2$: reachable area)")
+    assert any(reach[p] < body.part_area_m2()[p] * 0.99 for p in body.parts)  # some area is out of reach
+    plt.close("all")
