@@ -105,19 +105,15 @@ def _to_link(poses: np.ndarray, link_pose: np.ndarray) -> np.ndarray:
     return out
 
 
-def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, gm: GestureModel, cache, memo=None) -> pd.DataFrame:
-    """Class probabilities (columns ``p_<gesture>``), ``gesture``, ``confidence``, ``in_training`` per episode.
+def episode_windows(episodes: pd.DataFrame, ds: SessionDataset, cfg, cache, memo=None):
+    """Per dominant link of ``episodes``: (link name, the episodes' index labels per window, the windows).
 
-    Each link's episodes are a dataset handed to the gesture model's chain (its config, seed included),
-    which computes their windows as it computed the training windows: one wiring, one cache.
-    """
+    Each link's episodes (the dominant hand's poses, 0.5 s either side, moved into the link's frame) are a
+    dataset handed to the chain of ``cfg`` (a gesture chain's config) on that link: contact, surface, layout,
+    plan, encode, noise and filter computed and cached as in a job. Links whose episodes give no window are
+    left out."""
     from sphri.pipeline import make_pipeline
 
-    cfg = gm.config
-    classes = [GESTURES[int(c)] for c in gm.model.classes_]
-    out = episodes.copy()
-    for g in GESTURES:
-        out[f"p_{g}"] = np.nan
     pad = int(round(0.5 * ds.frame_rate_hz))
     li = {n: i for i, n in enumerate(ds.links)}
     for link_name, eps in episodes.groupby("dominant_link", sort=True):
@@ -147,13 +143,26 @@ def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, gm: GestureModel,
             poses=np.concatenate(chunks).astype(np.float32),
             frame_rate_hz=ds.frame_rate_hz,
         )
-        # the chain's windows: contact, surface, layout, plan, encode, noise, filter as in training
         windows = make_pipeline(cfg, cache, inputs={"data": gd}, link=str(link_name), memo=memo).get("filter")
         if windows.x.shape[0] == 0:
             continue
+        yield str(link_name), eps.index.to_numpy()[windows.trial_row], windows
+
+
+def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, gm: GestureModel, cache, memo=None) -> pd.DataFrame:
+    """Class probabilities (columns ``p_<gesture>``), ``gesture``, ``confidence``, ``in_training`` per episode.
+
+    Each link's episodes are a dataset handed to the gesture model's chain (its config, seed included),
+    which computes their windows as it computed the training windows (:func:`episode_windows`): one wiring,
+    one cache.
+    """
+    classes = [GESTURES[int(c)] for c in gm.model.classes_]
+    out = episodes.copy()
+    for g in GESTURES:
+        out[f"p_{g}"] = np.nan
+    for _link, idx, windows in episode_windows(episodes, ds, gm.config, cache, memo):
         gm.model.geometry = windows.geometry
         proba = gm.model.predict_proba(windows.x)
-        idx = eps.index.to_numpy()[windows.trial_row]
         for j, g in enumerate(classes):
             out.loc[idx, f"p_{g}"] = proba[:, j]
     pcols = [f"p_{g}" for g in GESTURES]

@@ -43,25 +43,65 @@ def body_view(body: BodySurface, faces: int = 20000) -> LinkView:
     return LinkView(body.mesh, body.samples, target_faces=faces)
 
 
+#: Surface without contact (density under NONE_SHARE of the colour scale's top) is drawn in this grey, apart from
+#: the colour scale, whose lowest colour (CMAP_FLOOR along CMAP) is a visible yellow.
+NO_CONTACT = (0.80, 0.80, 0.80, 1.0)
+NONE_SHARE = 1e-3
+CMAP_FLOOR = 0.15
+
+
+def contact_colours(view: LinkView, density: np.ndarray, vmax: float) -> np.ndarray:
+    """(F, 4) RGBA per display face: the colour scale from 0 to ``vmax`` (% per cm^2) starting at CMAP_FLOOR, and
+    :data:`NO_CONTACT` grey where the density is under NONE_SHARE x ``vmax`` (no contact)."""
+    vals = view.face_values(np.asarray(density)) * PERCENT_PER_CM2
+    out = plt.get_cmap(CMAP)(CMAP_FLOOR + (1.0 - CMAP_FLOOR) * np.clip(vals / vmax, 0.0, 1.0))
+    out[vals < NONE_SHARE * vmax] = NO_CONTACT
+    return out
+
+
+def _crop(ax, view: LinkView, azim_deg: float, elev_deg: float) -> None:
+    """Limit a view's axes to the robot's projected extent (3 % margin), so that it fills its panel."""
+    _, right, up = view._eye(azim_deg, elev_deg)
+    x, y = view.display @ right, view.display @ up
+    m = 0.03 * max(float(np.ptp(x)), float(np.ptp(y)))
+    ax.set_xlim(float(x.min()) - m, float(x.max()) + m)
+    ax.set_ylim(float(y.min()) - m, float(y.max()) + m)
+
+
+def _contact_bar(fig, vmax: float, ax) -> None:
+    """The colour bar of :func:`contact_colours`, saying what grey means."""
+    from matplotlib.colors import ListedColormap
+
+    cmap = ListedColormap(plt.get_cmap(CMAP)(np.linspace(CMAP_FLOOR, 1.0, 256)))
+    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, vmax))
+    cb = fig.colorbar(sm, ax=ax, shrink=0.8, pad=0.02)
+    cb.set_label("contact, % per cm$^2$\ngrey: no contact")
+
+
 def plot_views(
     view: LinkView,
     densities: dict[str, np.ndarray],
     path: str | Path,
     title: str,
     provenance: figures.Provenance | None = None,
+    vmax: float | None = None,
 ) -> Path:
-    """Rows: maps; columns: front, left, back, right, top; one colour scale and bar. Rows shrink so that the
-    figure fits a page (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
+    """Rows: maps; columns: front, left, back, right, top, each cropped to the robot; one colour scale and bar
+    (``vmax``, % per cm^2: the top of the scale, e.g. shared by every scenario's figure; default from these
+    maps); surface without contact grey (:func:`contact_colours`). Rows shrink so that the figure fits a page
+    (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
     names = list(densities)
-    vmax = _vmax(list(densities.values()))
+    vmax = vmax if vmax is not None and vmax > 0 else _vmax(list(densities.values()))
     with figures.style():
         fig, axes = figures.new_figure(
             "two", figures.fit_page(1.6 * len(names) + 0.7), nrows=len(names), ncols=len(VIEWS), squeeze=False
         )
         for r, n in enumerate(names):
+            colours = contact_colours(view, densities[n], vmax)
             for c, (vt, az, el) in enumerate(VIEWS):
                 ax = axes[r, c]
-                view.draw(ax, densities[n], az, vmax, elev_deg=el)
+                view.draw(ax, None, az, vmax, elev_deg=el, colours=colours.copy())
+                _crop(ax, view, az, el)
                 if r == 0:
                     ax.set_title(vt)
             axes[r, 0].text(
@@ -73,7 +113,7 @@ def plot_views(
                 ha="right",
                 va="center",
             )
-        _colourbar(fig, vmax, ax=axes)
+        _contact_bar(fig, vmax, axes)
         return _finish(fig, title, path, provenance)
 
 
@@ -85,7 +125,8 @@ def plot_atlas(
     title: str,
     provenance: figures.Provenance | None = None,
 ) -> Path:
-    """One unrolled chart per body part: angle around the link's long axis vs position along it (cm)."""
+    """One unrolled chart per body part: angle around the link's long axis vs position along it (cm); the title
+    gives the part's reachable area (the area the ranking and the placement count), as the figure's title says."""
     parts = body.parts
     cols = 5
     rows = int(np.ceil(len(parts) / cols))
@@ -112,7 +153,8 @@ def plot_atlas(
             ax.scatter(
                 ang, along, c=vals[idx], cmap=CMAP, vmin=0, vmax=vmax, s=2, marker="s", linewidths=0, rasterized=True
             )
-            ax.set_title(f"{figures.human(p)}\n({body.samples.area_m2[idx].sum() * 1e4:.0f} cm$^2$)")
+            reach = float((body.samples.area_m2[idx] * body.reachable[idx]).sum()) * 1e4
+            ax.set_title(f"{figures.human(p)}\n({reach:.0f} cm$^2$)")
             ax.set_xlim(-180, 180)
             ax.set_xticks([-180, 0, 180])
             if k % cols == 0:
@@ -122,7 +164,7 @@ def plot_atlas(
         for k in range(len(parts), rows * cols):
             axes[k // cols, k % cols].set_axis_off()
         _colourbar(fig, vmax, ax=axes)
-        return _finish(fig, title, path, provenance)
+        return _finish(fig, f"{title} (cm$^2$: reachable area)", path, provenance)
 
 
 def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: str | Path) -> Path:
@@ -139,28 +181,53 @@ def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: st
     return path
 
 
+def drawn_shares(coded: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
+    """Per scenario and gesture: the share of the coded episodes whose session the generator drew with that
+    gesture (``scenario``, ``gesture``, ``share``), for the histogram's drawn bars."""
+    g = truth.reset_index(drop=True)["gesture"].to_numpy()[coded["session"].to_numpy()]
+    rows = []
+    for s, idx in coded.groupby("scenario").indices.items():
+        for gest in GESTURES:
+            rows.append(dict(scenario=s, gesture=gest, share=float((g[idx] == gest).mean())))
+    return pd.DataFrame(rows, columns=["scenario", "gesture", "share"])
+
+
 def plot_gesture_histogram(
-    hist: pd.DataFrame, path: str | Path, title: str, provenance: figures.Provenance | None = None
+    hist: pd.DataFrame,
+    path: str | Path,
+    title: str,
+    provenance: figures.Provenance | None = None,
+    drawn: pd.DataFrame | None = None,
 ) -> Path:
+    """Per scenario, the share of coded episodes per gesture: expected (sum of probabilities, with its SD) and the
+    argmax share; beside them, given ``drawn`` (:func:`drawn_shares`), the share the generator drew. The y-axis
+    ends a little above the highest bar."""
     scen = list(pd.unique(hist["scenario"]))
     x = np.arange(len(GESTURES))
+    w = 0.4 if drawn is not None else 0.8
+    off = -0.2 if drawn is not None else 0.0
+    top = 0.0
     with figures.style():
         fig, axes = figures.new_figure("two", 2.6, ncols=len(scen), sharey=True, squeeze=False)
         for i, s in enumerate(scen):
             ax = axes[0, i]
             h = hist[hist["scenario"] == s].set_index("gesture").loc[list(GESTURES)]
             n = max(int(h["n_episodes"].iloc[0]), 1)
-            ax.bar(x, h["expected"] / n, color="#4c72b0", alpha=0.8, label="expected (sum of probabilities)")
-            ax.errorbar(
-                x, h["expected"] / n, yerr=h["expected_sd"] / n, fmt="none", ecolor="black", capsize=1.5, lw=0.6
-            )
-            ax.plot(x, h["count"] / n, "o", color="#dd8452", ms=2.5, label="argmax count")
+            e, sd, c = h["expected"] / n, h["expected_sd"] / n, h["count"] / n
+            ax.bar(x + off, e, width=w, color="#4c72b0", alpha=0.8, label="coded: expected (sum of probabilities)")
+            ax.errorbar(x + off, e, yerr=sd, fmt="none", ecolor="black", capsize=1.5, lw=0.6)
+            ax.plot(x + off, c, "o", color="#dd8452", ms=2.5, label="coded: argmax share")
+            top = max(top, float((e + sd).max()), float(c.max()))
+            if drawn is not None:
+                d = drawn[drawn["scenario"] == s].set_index("gesture").reindex(list(GESTURES))["share"].fillna(0.0)
+                ax.bar(x + 0.2, d, width=w, color="#8c8c8c", alpha=0.8, label="drawn by the generator")
+                top = max(top, float(d.max()))
             ax.set_xticks(x, [figures.human(g) for g in GESTURES], rotation=90)
             ax.set_title(f"{figures.human(s)}\n({int(h['n_episodes'].iloc[0])} episodes)")
-            ax.set_ylim(0, 1)
+        axes[0, 0].set_ylim(0, min(1.0, 1.1 * top) if top > 0 else 1.0)
         axes[0, 0].set_ylabel("share of coded episodes")
         handles, labels = axes[0, 0].get_legend_handles_labels()
-        fig.legend(handles, labels, loc="outside lower center", ncol=2)
+        fig.legend(handles, labels, loc="outside lower center", ncol=3 if drawn is not None else 2)
         return _finish(fig, title, path, provenance)
 
 

@@ -148,6 +148,13 @@ class ScenarioStudySchema(Schema):
     figures' time, so only when asked)."""
     view_faces: int = setting(20000, lo=100, hi=1_000_000)
     """Faces of the robot mesh drawn in the 3-D views (fewer: faster figures, coarser shading)."""
+    sensitivity_draws: int = setting(200, lo=0, hi=100_000)
+    """Priors sensitivity (generated sessions only; 0: off): draws of perturbed priors (each weight of a scenario's
+    parts and gestures, and the odds of two_hands, times a log-uniform factor in the priors table's ``perturb``
+    range), the sessions reweighted by importance; Kendall's tau and the top-k overlap of the mountable parts'
+    ranking against the unperturbed one (``priors_sensitivity.csv``, ``summary.json``)."""
+    sensitivity_top_k: int = setting(5, lo=1, hi=1000)
+    """... the k of the top-k overlap."""
     codes: str | None = None
     """Gestures coded by hand (``sphri code``'s ``codes.csv``, filled): used instead of the gesture model's labels
     for the gesture histogram, counts and ``by=gesture`` maps; several coders get Cohen's kappa (null: the model's)."""

@@ -75,6 +75,9 @@ class StudyResult:
     (:func:`sphri.sessions.plausibility.plausibility`), else None."""
     codes: Any = None
     """Gestures coded by hand (:class:`sphri.sessions.codes.HumanCodes`, ``codes=PATH``), else None."""
+    sensitivity: Any = None
+    """The priors sensitivity run (:func:`sphri.sessions.sensitivity.priors_sensitivity`): (per-draw table,
+    summary) on generated sessions with ``sensitivity_draws`` > 0, else None."""
 
 
 #: The ``gesture`` of a session without a coded, labelled episode (``by=gesture`` maps it apart, never as a gesture).
@@ -263,6 +266,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         if st.budget_taxels
         else f"{st.budget_cm2:g} cm^2"
     )
+    sensitivity = _sensitivity(cfg, st, ds, robot, mat, fsi[uf], parts, area, allowed)
     seconds["placement"] = time.perf_counter() - t
     shown.update(1)
 
@@ -309,6 +313,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         codes=codes,
         mountable=mount,
         plausibility=_plausibility(cfg, ds, bc, robot, notes),
+        sensitivity=sensitivity,
     )
     t = time.perf_counter()
     with figures.only_formats(st.figure_formats):
@@ -354,7 +359,7 @@ def _mask_npz(body, robot, density: np.ndarray, chosen: set[str], out_dir: Path)
 
 def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label: str) -> list[Path]:
     from sphri.analysis.coverage import ALL, safe_name
-    from sphri.analysis.render import plot_swd_heatmap
+    from sphri.analysis.render import _vmax, plot_swd_heatmap
 
     out = res.out_dir
     files: list[Path] = []
@@ -464,6 +469,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         },
         "human_codes": res.codes.summary(res.coded) if res.codes is not None else None,
         "plausibility": res.plausibility,
+        "priors_sensitivity": res.sensitivity[1] if res.sensitivity is not None else None,
         "skin_design": _design_summary(res.design),
         "skin_export": _export_summary(out / "skin_export" / "manifest.json"),
         "sentences": res.sentences,
@@ -481,6 +487,9 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
             "gesture_agreement": float((c["gesture"].to_numpy()[ok] == truth_g[ok]).mean()) if ok.any() else None,
             "dominant_part_agreement": float((c["dominant_part"].to_numpy() == truth_p).mean()),
         }
+    if res.sensitivity is not None:
+        res.sensitivity[0].to_csv(out / "priors_sensitivity.csv", index=False, float_format="%.4g")
+        files.append(out / "priors_sensitivity.csv")
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     files.append(out / "summary.json")
     if not res.settings.render:
@@ -488,6 +497,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     from sphri.figures import Provenance, human
     from sphri.sessions.render import (
         body_view,
+        drawn_shares,
         plot_atlas,
         plot_effects,
         plot_gesture_histogram,
@@ -506,9 +516,12 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         f"Contact density per {cov.by}, one colour scale",
         provenance=prov,
     )
+    top = _vmax([*dens.values(), cov.densities[ALL]])  # every scenario's own figure on the maps' one scale
     for s in scen:
         files.append(
-            plot_views(view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{human(s)}", provenance=prov)
+            plot_views(
+                view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{human(s)}", provenance=prov, vmax=top
+            )
         )
     figs["atlas"] = plot_atlas(
         body,
@@ -538,6 +551,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         if res.codes is not None
         else f"Gestures of the coded episodes per scenario (model LOSO accuracy {100 * gm.accuracy_mean:.0f} %)",
         provenance=prov,
+        drawn=drawn_shares(res.coded, ds.truth) if ds.truth is not None and len(res.coded) else None,
     )
     if res.design is not None:
         from sphri.sessions.skin_render import plot_budget_curve, plot_skin
@@ -610,6 +624,22 @@ def _plausibility(cfg, ds, bc, robot, notes: list[str]) -> dict | None:
     if failed:
         notes.append(f"synthetic hands fail the plausibility checks {failed} (summary.json: plausibility)")
     return block
+
+
+def _sensitivity(cfg, st, ds, robot, mat, frame_session, parts, area, allowed):
+    """The priors sensitivity run on generated sessions drawn from a priors table (``data=synthetic_sessions``),
+    else None (recorded sessions, or ``sensitivity_draws=0``)."""
+    priors = cfg.data.get("priors", False) if hasattr(cfg.data, "get") else False
+    if st.sensitivity_draws == 0 or ds.truth is None or priors is False or "part" not in ds.truth:
+        return None
+    from sphri.sessions.sensitivity import priors_sensitivity
+    from sphri.sessions.synthetic import DEFAULT_PRIORS, load_priors
+
+    table = load_priors(priors or DEFAULT_PRIORS, [p.name for p in robot.parts])
+    truth = ds.truth.reset_index(drop=True).assign(start_position=ds.sessions["start_position"].to_numpy())
+    return priors_sensitivity(
+        table, truth, frame_session, mat, parts, area, allowed, st.sensitivity_draws, st.seed, st.sensitivity_top_k
+    )
 
 
 def _design_summary(design) -> dict | None:

@@ -95,10 +95,12 @@ def load_priors(
     if table["tail_s"] < 2.0:
         log.warning("%s: tail_s=%s < 2 s: episodes of consecutive sessions' ends may not close", path, table["tail_s"])
     parts = set(part_names)
+    given: dict[str, list[str]] = {}
     for name, s in table["scenarios"].items():
         key = f"{path}: scenarios.{name}"
         if not isinstance(s, dict):
             raise PriorsError(f"{key} must be a mapping")
+        given[name] = [k for k in s if k != "prompt"]
         missing = [k for k in SCENARIO_KEYS if k not in s]
         if missing:
             raise PriorsError(f"{key} is missing {missing}")
@@ -141,7 +143,65 @@ def load_priors(
         for k in ("parts", "gestures"):
             if sum(float(w) for w in s[k].values()) <= 0:
                 raise PriorsError(f"{key}.{k}: weights must not all be 0")
+    table["provenance"] = check_provenance(path, table, given)
     return table
+
+
+#: The fields of a scenario a provenance entry may name (``prompt`` needs none, the others one each).
+PROVENANCE_FIELDS = ("prompt", *SCENARIO_KEYS, *OPTIONAL_KEYS)
+
+
+def check_provenance(path: Path, table: dict[str, Any], given: dict[str, list[str]]) -> dict[str, dict[str, Any]]:
+    """Every setting of the priors table (``tail_s``, ``base_speed_m_s`` and each scenario's keys in ``given``)
+    with its provenance entry: ``{dotted key: entry}``. An entry names a ``source`` of the table's ``sources``,
+    says ``assumption: true``, or both; ``perturb: [lo, hi]`` (0 < lo <= 1 <= hi) is the sensitivity run's
+    factor range. Keys are ``tail_s``, ``scenarios.NAME.FIELD`` or ``scenarios.*.FIELD`` (an exact key wins)."""
+    sources = table.get("sources") or {}
+    prov = table.get("provenance")
+    if not isinstance(sources, dict):
+        raise PriorsError(f"{path}: sources must be a mapping of key -> citation")
+    if not isinstance(prov, dict):
+        raise PriorsError(
+            f"{path}: needs a mapping 'provenance' saying where each setting comes from "
+            "(a source of 'sources', or assumption: true)"
+        )
+    for k, e in prov.items():
+        where = f"{path}: provenance.{k}"
+        bits = str(k).split(".")
+        ok = bits in (["tail_s"], ["base_speed_m_s"]) or (
+            len(bits) == 3
+            and bits[0] == "scenarios"
+            and (bits[1] == "*" or bits[1] in table["scenarios"])
+            and bits[2] in PROVENANCE_FIELDS
+        )
+        if not ok:
+            raise PriorsError(
+                f"{where}: names no setting (tail_s, base_speed_m_s, scenarios.<name or *>.<field>; "
+                f"fields: {list(PROVENANCE_FIELDS)})"
+            )
+        if not isinstance(e, dict):
+            raise PriorsError(f"{where} must be a mapping (source:, assumption:, note:, perturb:)")
+        if "source" in e and e["source"] not in sources:
+            raise PriorsError(f"{where}.source={e['source']!r} is not a key of sources {sorted(sources)}")
+        if "assumption" in e and not isinstance(e["assumption"], bool):
+            raise PriorsError(f"{where}.assumption={e['assumption']!r} is invalid: true or false")
+        if "perturb" in e:
+            r = e["perturb"]
+            if not (isinstance(r, list) and len(r) == 2 and all(isinstance(x, (int, float)) for x in r)) or not (
+                0 < r[0] <= 1 <= r[1]
+            ):
+                raise PriorsError(f"{where}.perturb={r!r} is invalid: [lo, hi] with 0 < lo <= 1 <= hi")
+    out: dict[str, dict[str, Any]] = {}
+    wanted = ["tail_s", "base_speed_m_s"] + [f"scenarios.{n}.{f}" for n, fs in given.items() for f in fs]
+    for k in wanted:
+        wild = f"scenarios.*.{k.split('.')[2]}" if k.startswith("scenarios.") else k
+        e = prov.get(k, prov.get(wild))
+        if not e or not (e.get("source") or e.get("assumption") is True):
+            raise PriorsError(
+                f"{path}: {k} has neither a source nor assumption: true (provenance.{k} or provenance.{wild})"
+            )
+        out[k] = e
+    return out
 
 
 def _draw(rng: np.random.Generator, weights: dict[str, float]) -> str:

@@ -309,3 +309,21 @@ def test_gesture_counts_with_intervals_and_confusion_against_the_generator(study
     summary = json.loads((study / "summary.json").read_text())
     labelled = (coded["gesture"] != "").sum()
     assert diag / labelled == pytest.approx(summary["against_generator"]["gesture_agreement"])
+
+
+def test_priors_sensitivity_of_the_part_ranking_at_debug_size(study):
+    """The study reports how stable its part ranking is under the priors' stated ranges (priors_sensitivity)."""
+    summary = json.loads((study / "summary.json").read_text())
+    block = summary["priors_sensitivity"]
+    draws = pd.read_csv(study / "priors_sensitivity.csv")
+    assert block["draws"] == len(draws) == summary["settings"]["sensitivity_draws"] == 200
+    assert block["ranges"]["parts"] == [0.5, 2.0] and block["ranges"]["gestures"] == [0.5, 2.0]
+    assert block["tau_median"] == pytest.approx(draws["tau"].median())
+    assert -1.0 <= block["tau_p5"] <= block["tau_median"] <= 1.0
+    assert 0.0 <= block["top_k_overlap_p5"] <= block["top_k_overlap_median"] <= 1.0
+    ranked = pd.read_csv(study / "body_part_ranking.csv", keep_default_na=False)
+    ranked = ranked[
+        (ranked["scenario"] == "all") & (ranked["excluded"] == "") & ~ranked["part"].str.startswith("group:")
+    ]
+    first = ranked["part"].tolist()
+    assert block["unperturbed_top"] == first[: block["top_k"]]

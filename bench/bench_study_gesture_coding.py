@@ -1,0 +1,156 @@
+"""How well the scenario study's coded episodes can be labelled with gestures, per gesture, against the generator.
+
+For each skin (the study's default for coding: ``gesture_res`` 12 with the chain's noise, 2 % salt-and-pepper;
+and skins that can carry more: more taxels, no noise), the coded episodes of the full built-in study
+(``robot=reachy2``, 12 participants x 5 scenarios x 3 repetitions, sessions and contacts from the stage cache
+in ``--cache``) are turned into windows by the gesture chain on each episode's dominant link
+(:func:`sphri.sessions.gestures.episode_windows`), and a Random Forest (the chain's ``model=rf``, its 32
+features) is trained on the episodes of the other participants and scores the ones left out
+(leave-one-participant-out over every part touched). The scenario is not a feature. Agreement with the
+generator's drawn gesture, overall and per gesture (recall), and the number of episodes.
+
+    python bench/bench_study_gesture_coding.py --cache DIR          # full study (sessions from DIR's cache)
+    python bench/bench_study_gesture_coding.py --cache DIR --quick  # +debug=fast
+
+Writes ``outputs/bench/study_gesture_coding.json`` (``_quick`` with --quick).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from _common import machine, write_json  # noqa: E402
+
+#: name -> (the study's overrides of the skin, what it is)
+SKINS = {
+    "default": ([], "the study's default for coding: gesture_res 12, noise 2 % salt-and-pepper (the chain's)"),
+    "res24": (["experiment.scenario_study.gesture_res=24"], "24 taxels along the link, noise as default"),
+    "res12_no_noise": (["noise=none"], "gesture_res 12, no noise"),
+    "res24_no_noise": (["experiment.scenario_study.gesture_res=24", "noise=none"], "24 taxels, no noise"),
+}
+
+
+def lopo_agreement(feats: np.ndarray, y: np.ndarray, groups: np.ndarray, seed: int) -> np.ndarray:
+    """Leave-one-participant-out predictions of a Random Forest (sphri's model=rf settings) on features."""
+    from sphri.models.rf import RandomForest
+
+    pred = np.empty(len(y), dtype=y.dtype)
+    for g in np.unique(groups):
+        test = groups == g
+        model = RandomForest(seed=seed).fit_features(feats[~test], y[~test])
+        pred[test] = model.predict_features(feats[test])
+    return pred
+
+
+def episode_features(overrides: list[str], cache, memo):
+    """(features, drawn gestures, participants, coded episodes) of a study config's coded episodes, windows from
+    the gesture chain on each episode's dominant link."""
+    from sphri.config import compose
+    from sphri.pipeline import model_factory
+    from sphri.sessions.gestures import episode_windows
+    from sphri.sessions.labelling import segment, training_overrides
+    from sphri.sessions.schema import study_settings
+
+    cfg = compose(overrides)
+    st = study_settings(cfg)
+    _, _, ds, _, _, _, coded, _, _ = segment(cfg, st, cache, memo)
+    n_part = int(ds.sessions["participant"].nunique())
+    chain = compose([*training_overrides(overrides, st, n_part), f"data.regions=[{st.gesture_regions[0]}]"])
+    feats, index = [], []
+    for _link, idx, windows in episode_windows(coded, ds, chain, cache, memo):
+        model = model_factory(chain)(geometry=windows.geometry)
+        feats.append(model.transform(windows.x))
+        index.append(idx)
+    idx = np.concatenate(index)
+    sess = coded.loc[idx, "session"].to_numpy()
+    y = ds.truth.reset_index(drop=True)["gesture"].to_numpy()[sess].astype(str)
+    groups = coded.loc[idx, "participant"].to_numpy().astype(str)
+    return np.concatenate(feats), y, groups, coded
+
+
+def measure(base: list[str], extra: list[str], train: list[str] | None = None) -> dict:
+    from sphri.config import compose
+    from sphri.models.rf import RandomForest
+    from sphri.pipeline import Memo, open_cache
+    from sphri.types import GESTURES
+
+    overrides = [*base, *extra]
+    cfg = compose(overrides)
+    cache, memo = open_cache(cfg), Memo()
+    t0 = time.perf_counter()
+    x, y, groups, coded = episode_features(overrides, cache, memo)
+    if train is None:
+        pred = lopo_agreement(x, y, groups, int(cfg.seed))
+        n_train = None
+    else:  # trained on the episodes of other generated participants (another data.seed), scored on the study's
+        xt, yt, _, coded_t = episode_features([*overrides, *train], cache, memo)
+        pred = RandomForest(seed=int(cfg.seed)).fit_features(xt, yt).predict_features(x)
+        n_train = len(yt)
+    per = {
+        g: {"n": int((y == g).sum()), "recall": float((pred[y == g] == g).mean())} for g in GESTURES if (y == g).any()
+    }
+    return {
+        "overrides": extra,
+        "training": "leave-one-participant-out on the study's episodes" if train is None else train,
+        "training_episodes": n_train,
+        "episodes": len(coded),
+        "windows": len(y),
+        "agreement": float((pred == y).mean()),
+        "balanced_agreement": float(np.mean([v["recall"] for v in per.values()])),
+        "per_gesture": per,
+        "seconds": time.perf_counter() - t0,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--cache", required=True, help="stage cache with the study's sessions and contacts")
+    ap.add_argument("--quick", action="store_true", help="+debug=fast")
+    ap.add_argument("--skins", nargs="*", default=list(SKINS), choices=list(SKINS))
+    ap.add_argument(
+        "--train-participants",
+        type=int,
+        default=0,
+        help="train instead on the episodes of this many other generated participants (data.seed=1)",
+    )
+    args = ap.parse_args()
+    base = ["+experiment=scenario_study", "robot=reachy2", f"cache.dir={args.cache}", "tracking.enabled=false"]
+    if args.quick:
+        base.append("+debug=fast")
+    out = {
+        "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        "machine": machine(),
+        "method": (
+            "coded episodes of the built-in study (robot=reachy2) as windows of the gesture chain on their dominant "
+            "link; Random Forest (model=rf, 32 features) trained on the other participants' episodes, "
+            "leave-one-participant-out, every part touched; no scenario feature; agreement with the generator's "
+            "drawn gesture"
+        ),
+        "command": "python bench/bench_study_gesture_coding.py --cache DIR"
+        + (" --quick" if args.quick else "")
+        + (f" --train-participants {args.train_participants}" if args.train_participants else ""),
+        "skins": {},
+    }
+    for name in args.skins:
+        extra, what = SKINS[name]
+        train = [f"data.participants={args.train_participants}", "data.seed=1"] if args.train_participants else None
+        r = measure(base, extra, train)
+        r["skin"] = what
+        out["skins"][name] = r
+        print(f"{name}: agreement {100 * r['agreement']:.1f} % over {r['windows']} episodes ({r['seconds']:.0f} s)")
+        print("   " + ", ".join(f"{g} {100 * v['recall']:.0f} % (n {v['n']})" for g, v in r["per_gesture"].items()))
+    out["loadavg_after"] = list(__import__("os").getloadavg())
+    name = "study_gesture_coding" + (f"_train{args.train_participants}" if args.train_participants else "")
+    print(write_json(name + ("_quick" if args.quick else ""), out))
+
+
+if __name__ == "__main__":
+    main()
