@@ -75,8 +75,8 @@ def limit_threads(n: int) -> None:
 def passive_openmp() -> None:
     """OpenMP threads that wait for work sleep instead of spinning (``OMP_WAIT_POLICY=PASSIVE``), unless the
     environment sets a policy. On cores other processes share, two spinning torch threads cost the CNN-GRU
-    2.4-2.9x the CPU per training step at res 18, with the same numbers (2-core AMD EPYC;
-    docs/BENCHMARKS.md). The OpenMP runtime reads the variable when torch loads, so this runs before any
+    2.4x the CPU per training step at res 18 (2.2-3.0x over 3 rounds), with the same numbers (2-core AMD
+    EPYC; docs/BENCHMARKS.md). The OpenMP runtime reads the variable when torch loads, so this runs before any
     job imports torch; fold processes inherit it."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
