@@ -72,6 +72,15 @@ def limit_threads(n: int) -> None:
         torch.set_num_threads(n)
 
 
+def passive_openmp() -> None:
+    """OpenMP threads that wait for work sleep instead of spinning (``OMP_WAIT_POLICY=PASSIVE``), unless the
+    environment sets a policy. On cores other processes share, two spinning torch threads cost the CNN-GRU
+    2.4x the CPU per training step at res 18 (2.2-3.0x over 3 rounds), with the same numbers (2-core AMD
+    EPYC; docs/BENCHMARKS.md). The OpenMP runtime reads the variable when torch loads, so this runs before any
+    job imports torch; fold processes inherit it."""
+    os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
+
+
 def quiet_console() -> None:
     """Raise the root logger's console handlers to WARNING: a sweep's job logs its stages to its log
     file only (``hydra.verbose=true`` or ``--verbose`` keeps them on the console)."""
@@ -278,6 +287,7 @@ def override_parse_error(arg: str, exc: BaseException) -> str:
 def main() -> None:
     """Hydra's entry point: one job or a sweep (``sphri run``/``sphri sweep``, or ``python -m sphri``
     with overrides)."""
+    passive_openmp()
     find_sweeper_plugin()
     # hydra-ray-launcher registers its own `ray` launcher schema; sphri's
     # conf/hydra/launcher/ray.yaml extends it on purpose.

@@ -351,8 +351,9 @@ def test_forest_refuses_non_finite_features():
 
 
 def test_fold_results_carry_what_the_model_trained_with():
-    """The CNN-GRU's runtime_ (device, precision, why) rides with each fold, so the run records the
+    """The CNN-GRU's runtime_ (device, precision, why, allocator) rides with each fold, so the run records the
     precision each fold really used (a fallback included), not what a fresh model would pick."""
+    from sphri.models.allocator import keep_freed_memory
     from sphri.models.cnn_gru import CnnGru
     from sphri.tracking.mlflow_tracker import fold_runtime
 
@@ -361,13 +362,20 @@ def test_fold_results_carry_what_the_model_trained_with():
         geometry=win.geometry, precision="float32", max_epochs=1, hidden=4, channels=[2, 2, 2], threads=1
     )
     cv = LeaveOneSubjectOut(max_folds=2).run(make, win, seed=0)
+    allocator = keep_freed_memory()  # this process's allocator setting, as the folds' fits recorded it
     assert [f.runtime for f in cv.folds] == [
-        {"device": "cpu", "precision": "float32", "precision_reason": "chosen (model.precision)"}
+        {
+            "device": "cpu",
+            "precision": "float32",
+            "precision_reason": "chosen (model.precision)",
+            "allocator": allocator,
+        }
     ] * 2
     assert fold_runtime(cv) == {
         "run.device": "cpu",
         "run.precision": "float32",
         "run.precision_reason": "chosen (model.precision)",
+        "run.allocator": allocator,
     }
     cv.folds[1].runtime = {**cv.folds[1].runtime, "precision": "bf16"}
     assert fold_runtime(cv)["run.precision"] == f"float32 (folds {cv.folds[0].fold}); bf16 (folds {cv.folds[1].fold})"
