@@ -26,7 +26,10 @@ cost), so a crash, a kill or a full disk keeps what was read
 before a byte is read (:func:`check_output_path`: an existing file is never
 replaced); at the end the frames are saved to ``out`` and the partial file
 removed, or, when that fails, to a fallback file in the working directory
-(:func:`save_with_fallback`). Files are created with the mode the umask
+(:func:`save_with_fallback`). The saved recording is built from the partial
+file's records (:meth:`PartialWriter.records`, a read-only memory map) and
+written field by field in chunks of ``SAVE_CHUNK_BYTES``, so the recorder's
+memory does not grow with the recording's length. Files are created with the mode the umask
 gives (:func:`sphri.fsutil.umask_mode`), not 0600.
 """
 
@@ -37,6 +40,7 @@ import os
 import struct
 import tempfile
 import time
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -59,6 +63,8 @@ _TIMING: dict[str, type[np.generic]] = {
 _FIELDS = ("values", *_TIMING, "grid_shape", "meta")
 #: First bytes of a partial recording (then uint32 LE header length, JSON header, fixed-size frame records).
 PARTIAL_MAGIC = b"SPHRISKINPART1\n"
+#: Bytes of a field copied at a time when a recording is saved (the saver's buffer).
+SAVE_CHUNK_BYTES = 1 << 20
 
 
 class RecordingError(ValueError):
@@ -123,29 +129,57 @@ class SkinRecording:
         return np.ascontiguousarray(np.moveaxis(w, -1, 1))
 
 
-def save_recording(rec: SkinRecording, path: str | os.PathLike, replace: bool = True) -> Path:
+def _write_npy(fh, parts: list[np.ndarray]) -> None:
+    """One .npy array made of ``parts`` joined along their first axis, written ``SAVE_CHUNK_BYTES`` at a time
+    (a part may be a memory map: it is never copied whole)."""
+    first = parts[0]
+    shape = (sum(len(p) for p in parts), *first.shape[1:]) if first.ndim else first.shape
+    np.lib.format.write_array_header_1_0(
+        fh, {"descr": np.lib.format.dtype_to_descr(first.dtype), "fortran_order": False, "shape": shape}
+    )
+    for part in parts:
+        part = np.asarray(part, dtype=first.dtype)
+        if part.ndim == 0:
+            fh.write(part.tobytes())
+            continue
+        row = part.itemsize * int(np.prod(part.shape[1:]))
+        step = max(1, SAVE_CHUNK_BYTES // max(1, row))
+        for i in range(0, len(part), step):
+            fh.write(np.ascontiguousarray(part[i : i + step]).tobytes())
+
+
+def save_recording(
+    rec: SkinRecording, path: str | os.PathLike, replace: bool = True, tail: SkinRecording | None = None
+) -> Path:
     """Write ``rec`` to ``path`` (.npz) atomically (temp file + rename).
 
     ``replace=False`` (what ``skin record`` uses) never replaces an existing
     file: the name is reserved with an exclusive create first, and a file
-    already there raises :class:`RecordingError`.
+    already there raises :class:`RecordingError`. ``tail``: frames saved
+    after ``rec``'s in the same recording (same taxel count; ``rec``'s grid
+    and meta), e.g. frames that never reached the partial file. Each field
+    is written in chunks (:func:`_write_npy`), so ``rec`` may be a memory map
+    of any length.
     """
     path = Path(path)
+    if tail is not None and tail.n_frames and tail.n_taxels != rec.n_taxels:
+        raise RecordingError(f"{path}: tail has {tail.n_taxels} taxels, the recording {rec.n_taxels}")
     path.parent.mkdir(parents=True, exist_ok=True)
     meta = {"format": FORMAT, **rec.meta}
     grid = np.asarray(rec.grid_shape if rec.grid_shape is not None else (), dtype=np.int64)
+    parts = [rec] if tail is None or tail.n_frames == 0 else [rec, tail]
+    fields = {name: [getattr(p, name) for p in parts] for name in ("values", *_TIMING)}
+    fields["grid_shape"] = [grid]
+    fields["meta"] = [np.asarray(json.dumps(meta, default=str))]
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     reserved = False
     try:
         os.fchmod(fd, umask_mode())
         with os.fdopen(fd, "wb") as fh:
-            np.savez_compressed(
-                fh,
-                values=rec.values,
-                **{name: getattr(rec, name) for name in _TIMING},
-                grid_shape=grid,
-                meta=np.asarray(json.dumps(meta, default=str)),
-            )
+            with zipfile.ZipFile(fh, mode="w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
+                for name, arrays in fields.items():
+                    with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
+                        _write_npy(member, arrays)
         if not replace:
             try:
                 os.close(os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
@@ -217,6 +251,8 @@ class PartialWriter:
     is appended, so a killed process leaves every frame it appended, and a
     file cut anywhere loads up to its last whole frame. ``n_written``: frames
     in the file; ``n_synced``: frames fsynced (safe from a power cut too).
+    :meth:`records` maps the frames in the file back (through the open file,
+    so a partial file whose folder was removed still gives them).
     """
 
     def __init__(
@@ -232,12 +268,13 @@ class PartialWriter:
         self.meta = dict(meta or {})
         self.path = self._free_name()
         try:
-            fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o666)  # less the umask
-            self._fh = os.fdopen(fd, "wb", buffering=0)
+            fd = os.open(self.path, os.O_CREAT | os.O_EXCL | os.O_RDWR, 0o666)  # less the umask
+            self._fh = os.fdopen(fd, "r+b", buffering=0)
         except OSError as exc:
             raise RecordingError(f"out={self.out}: cannot write in {self.out.parent} ({exc.strerror or exc})") from None
         self._dtype: np.dtype | None = None
         self._row: np.ndarray | None = None
+        self._data_start: int | None = None  # offset of the first frame record, once the header is written
         self.n_written = 0
         self.n_synced = 0
         self._last_sync = time.monotonic()
@@ -261,6 +298,7 @@ class PartialWriter:
                 self._row = np.zeros(1, dtype=self._dtype)
                 head = json.dumps({"format": FORMAT, "n_taxels": n, **self.meta}, default=str).encode()
                 self._write_all(PARTIAL_MAGIC + struct.pack("<I", len(head)) + head)
+                self._data_start = len(PARTIAL_MAGIC) + 4 + len(head)
             row = self._row
             row["values"][0] = values
             row["host_time_s"][0] = host_time_s
@@ -304,6 +342,26 @@ class PartialWriter:
                 f"writing {self.path} failed after {self.n_synced} frames ({exc.strerror or exc})"
             ) from None
 
+    @property
+    def n_taxels(self) -> int:
+        """Taxels per frame record (0 before the first frame)."""
+        return 0 if self._dtype is None else int(self._dtype["values"].shape[0])
+
+    def records(self) -> np.ndarray:
+        """The whole frame records in the file (structured: ``values`` and the timing fields), a read-only
+        memory map through the open file (a torn last record is left out); empty before the header is
+        written. Call before :meth:`close`; a failure to map raises :class:`RecordingError`."""
+        if self._dtype is None or self._data_start is None:
+            return np.zeros(0, dtype=self._dtype or _record_dtype(0))
+        try:
+            size = os.fstat(self._fh.fileno()).st_size
+            k = max(0, size - self._data_start) // self._dtype.itemsize
+            if k == 0:
+                return np.zeros(0, dtype=self._dtype)
+            return np.memmap(self._fh, dtype=self._dtype, mode="r", offset=self._data_start, shape=(k,))
+        except (OSError, ValueError) as exc:
+            raise RecordingError(f"reading back {self.path} failed ({exc})") from None
+
     def close(self) -> None:
         if not self._fh.closed:
             self._fh.close()
@@ -341,20 +399,24 @@ def _load_partial(path: Path, blob: bytes) -> SkinRecording:
     )
 
 
-def save_with_fallback(rec: SkinRecording, path: str | os.PathLike, say=print) -> tuple[Path, BaseException | None]:
-    """Save to ``path``; on any failure save to a fallback file in the working directory.
+def save_with_fallback(
+    rec: SkinRecording, path: str | os.PathLike, say=print, tail: SkinRecording | None = None
+) -> tuple[Path, BaseException | None]:
+    """Save to ``path`` (``tail`` as in :func:`save_recording`); on any failure save to a fallback file
+    in the working directory.
 
     Returns (where it was saved, the error that made the first try fail or
     None). Raises only if the fallback fails too (then the partial file is
     all there is).
     """
     try:
-        return save_recording(rec, path, replace=False), None
+        return save_recording(rec, path, replace=False, tail=tail), None
     except Exception as exc:  # any failure at the end must not lose the frames
         stamp = time.strftime("%Y%m%d-%H%M%S")
         fallback = free_name(Path.cwd() / f"{Path(path).stem or 'recording'}-recovered-{stamp}-{os.getpid()}.npz")
-        saved = save_recording(rec, fallback, replace=False)
-        say(f"could not write {path} ({type(exc).__name__}: {exc}); saved the {rec.n_frames} frames to {saved} instead")
+        saved = save_recording(rec, fallback, replace=False, tail=tail)
+        n = rec.n_frames + (tail.n_frames if tail is not None else 0)
+        say(f"could not write {path} ({type(exc).__name__}: {exc}); saved the {n} frames to {saved} instead")
         return saved, exc
 
 

@@ -319,9 +319,14 @@ def record(
     every frame is written to it as it is read and fsynced every
     ``chunk_frames`` frames or ``sync_interval_s`` seconds
     (:class:`~sphri.hardware.recording.PartialWriter`). SIGTERM and SIGINT
-    stop the recording and save it like any other stop. At the end the
-    recording goes to ``out`` (or a fallback file in the working directory)
-    and the partial file is removed.
+    stop the recording and save it like any other stop. No frame is kept in
+    memory: at the end the recording is built from the partial file (a
+    memory map, :meth:`~sphri.hardware.recording.PartialWriter.records`) and
+    goes to ``out`` (or a fallback file in the working directory), and the
+    partial file is removed. When a write fails (a full disk) the recorder
+    stops after the frames already read (the rest of that read, the held
+    ones), keeps those in memory and saves them after the file's; the
+    summary's ``not_written`` counts them.
     """
     from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording, save_with_fallback
 
@@ -347,25 +352,42 @@ def record(
         start_command=settings.start_command,
         consensus_frames=settings.consensus_frames,
     )
-    got: list[ReceivedFrame] = []  # one append per frame: a signal never leaves the fields unequal
+    n_read = 0
+    # frames read but not in the partial file: after a failed write (a full disk) the frames already read
+    # (the rest of that read, the held ones) are kept here, a bounded few, and saved after the file's
+    unwritten: list[ReceivedFrame] = []
+    write_error: RecordingError | None = None
     error: BaseException | None = None
     out(
         f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames written to {partial.path} as they arrive)"
     )
 
     def keep(rf: ReceivedFrame) -> None:
-        got.append(rf)
-        partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
+        nonlocal n_read, write_error
+        n_read += 1
+        if write_error is not None:
+            unwritten.append(rf)
+            return
+        before = partial.n_written
+        try:
+            partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
+        except RecordingError as exc:
+            write_error = exc
+            if partial.n_written == before:  # not in the file (a failed fsync comes after the frame's write)
+                unwritten.append(rf)
+
+    def stop() -> bool:  # checked after each read: its frames are all kept first
+        return signals() or write_error is not None
 
     signals = _StopSignals()
     with signals:
         try:
             try:
                 with reader:
-                    for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until, stop=signals):
+                    for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until, stop=stop):
                         keep(rf)
-                        if len(got) % 500 == 0:
-                            out(f"  {len(got)} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
+                        if n_read % 500 == 0:
+                            out(f"  {n_read} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
             except KeyboardInterrupt:
                 reader.stop_reason = "interrupted"
             except (PortLost, StreamMismatch) as exc:
@@ -374,22 +396,24 @@ def record(
             if error is None or isinstance(error, PortLost):  # frames held for the count consensus
                 for rf in reader.release_held():
                     keep(rf)
-            partial.flush()
-        except RecordingError as exc:  # writing the partial file failed (a full disk): keep what was read
-            error = exc
-            reader.stop_reason = str(exc)
+            if write_error is None:
+                partial.flush()
+        except RecordingError as exc:  # the last fsync failed (a full disk): the frames stay in the file
+            write_error = exc
         except KeyboardInterrupt:  # a second signal while releasing the held frames
             reader.stop_reason = "interrupted"
-        finally:
+        except BaseException:
             partial.close()
+            raise
+        if write_error is not None:  # writing the partial file failed: keep what was read
+            error = write_error
+            reader.stop_reason = str(write_error)
         if signals.received:
             reader.stop_reason = f"{signals.received} received"
-        n = reader.decoder.expected_taxels or taxels
-        if got:
-            arr = np.stack([rf.frame.values for rf in got])
-        else:
-            arr = np.zeros((0, n), dtype=np.float32)
-        if grid is not None and arr.shape[1] != grid[0] * grid[1]:  # only with no frame read
+        n = partial.n_taxels or (
+            int(unwritten[0].frame.values.shape[0]) if unwritten else reader.decoder.expected_taxels or taxels
+        )
+        if grid is not None and n != grid[0] * grid[1]:  # only with no frame read
             grid = None
         stats = reader.stats.as_dict()
         meta = {
@@ -400,41 +424,64 @@ def record(
             "decoder": stats,
             "protocol": "sphri-skin/1",
         }
-        rec = SkinRecording(
-            arr,
-            np.asarray([rf.host_time_s for rf in got]),
-            np.asarray([rf.frame.device_time_us for rf in got]),
-            np.asarray([rf.frame.seq for rf in got]),
-            np.asarray([rf.segment for rf in got]),
-            grid,
-            meta,
+        tail = SkinRecording(
+            np.asarray([rf.frame.values for rf in unwritten], dtype=np.float32).reshape(len(unwritten), n),
+            np.asarray([rf.host_time_s for rf in unwritten]),
+            np.asarray([rf.frame.device_time_us for rf in unwritten]),
+            np.asarray([rf.frame.seq for rf in unwritten]),
+            np.asarray([rf.segment for rf in unwritten]),
+            None,
         )
+        n_frames = partial.n_written + tail.n_frames
         try:
-            path, save_error = save_with_fallback(rec, settings.out, say=out)
+            # the frames in the partial file, mapped from it: memory does not grow with the recording
+            records = partial.records()
+            rec = SkinRecording(
+                records["values"] if len(records) else np.zeros((0, n), dtype=np.float32),
+                records["host_time_s"],
+                records["device_time_us"],
+                records["seq"],
+                records["segment"],
+                grid,
+                meta,
+            )
+            n_frames = rec.n_frames + tail.n_frames
+            path, save_error = save_with_fallback(rec, settings.out, say=out, tail=tail)
         except Exception as exc:  # the fallback failed too: the partial file holds what was written
             out(
-                f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {partial.n_written} of "
-                f'{rec.n_frames} frames are in {partial.path} (python -c "from sphri.hardware.recording import '
+                f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {n_frames - tail.n_frames} "
+                f'of {n_frames} frames are in {partial.path} (python -c "from sphri.hardware.recording import '
                 f"load_recording; load_recording('{partial.path}')\" reads it)"
             )
             return {
-                "frames": rec.n_frames,
+                "frames": n_frames,
+                "not_written": tail.n_frames,
                 "path": str(partial.path),
                 "decoder": stats,
                 "error": str(exc),
                 "reconnects": reader.link.reconnects,
             }
+        finally:
+            partial.close()
+        rate = rec.rate_hz
+        del rec, records  # the memory map of the partial file, before it is removed
         partial.remove()
     out(
-        f"saved {rec.n_frames} frames x {rec.n_taxels} taxels to {path} ({reader.stop_reason}); "
-        f"rate {rec.rate_hz:.1f} Hz; reconnects {reader.link.reconnects}"
+        f"saved {n_frames} frames x {n} taxels to {path} ({reader.stop_reason}); "
+        f"rate {rate:.1f} Hz; reconnects {reader.link.reconnects}"
     )
     out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}")
+    if tail.n_frames:
+        out(
+            f"{tail.n_frames} frame(s) read but not written to {partial.path} (the write failed); "
+            f"saved from memory with the other {n_frames - tail.n_frames}"
+        )
     if error is not None:
         out(f"stopped early: {error}")
     error = error or save_error
     return {
-        "frames": rec.n_frames,
+        "frames": n_frames,
+        "not_written": tail.n_frames,
         "path": str(path),
         "decoder": stats,
         "error": str(error) if error else None,
