@@ -12,7 +12,7 @@
 
 ``python -m sphri.cli VERB ...`` is the same command (an alias). ``validate`` composes the config
 exactly as ``sphri run`` would, runs every schema's checks, and prints the chosen components; it exits
-2 with a message naming the key on any problem. Arguments are read by :mod:`sphri.command.args`.
+2 with a message naming the key on any problem. Arguments are read by :mod:`sphri.args`.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import yaml
 
-from sphri.command.args import arg
+from sphri.args import arg
 from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, check_inputs, compose, validate
 from sphri.stages import PARAM_GROUPS, STAGE_GROUPS
 

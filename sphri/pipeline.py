@@ -34,12 +34,12 @@ import numpy as np
 from hydra.utils import get_class, instantiate
 from omegaconf import DictConfig, OmegaConf
 
-from sphri.cache import StageCache, stable_hash, stage_key
+from sphri.cache import StageCache, stage_key
 from sphri.config import NOT_RESULT_KEYS, ConfigError, build, result_config
 from sphri.encode.schema import grid_res
 from sphri.finite import require_finite
 from sphri.inputs import input_fingerprints, memo_at, memo_for
-from sphri.integrity import load_key
+from sphri.integrity import load_key, stable_hash
 from sphri.stages import (
     PER_FIT_GROUPS,
     RESULT_GROUPS,

@@ -11,8 +11,8 @@ from typing import Literal
 import forked_cli
 import pytest
 
+from sphri.args import ArgsError, HelpRequested, arg, keys, parse
 from sphri.command import BY_NAME, VERBS, find, help_text, main
-from sphri.command.args import ArgsError, HelpRequested, arg, keys, parse
 from sphri.config import setting
 from sphri.hardware.settings import SkinLiveSettings
 
@@ -281,7 +281,7 @@ def test_the_console_script_imports_only_the_standard_library():
     """The first word of every TAB reads the verb table: ``sphri.completion`` and ``sphri.command`` (with its
     parser) must not pull in Hydra, numpy or yaml."""
     probe = (
-        "import sys; import sphri.completion, sphri.command, sphri.command.args; "
+        "import sys; import sphri.completion, sphri.command, sphri.args; "
         "print(sorted({m.split('.')[0] for m in sys.modules} & {'hydra', 'omegaconf', 'numpy', 'yaml', 'torch'}))"
     )
     out = _python(["-c", probe], REPO)

@@ -12,8 +12,8 @@ from pathlib import Path
 import yaml
 from hydra.core.config_store import ConfigStore
 
+from sphri.args import arg
 from sphri.command import VERBS, Verb
-from sphri.command.args import arg
 from sphri.config import ComponentSchema, setting
 from sphri.docs_gen import cli_reference, config_reference, range_words, setting_rows
 

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 from omegaconf import OmegaConf
 
-from sphri.cache import stable_hash
 from sphri.config import ConfigError, build, compose, result_config
 from sphri.encode.schema import DEFAULT_RES, check_res, grid_res
+from sphri.integrity import stable_hash
 
 SPHRI = Path(__file__).resolve().parents[1] / "sphri"
 

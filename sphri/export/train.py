@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from sphri.command.args import settings_main
+from sphri.args import settings_main
 from sphri.config import ConfigError, Schema, require
 from sphri.encode.schema import grid_res
 from sphri.export.model_file import ModelBundle, save_model

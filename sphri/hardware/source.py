@@ -83,8 +83,8 @@ def encode_trials(pipeline, rows: Sequence[int], gap_s: float = 0.5) -> EncodedT
     :func:`outside_keys`; ``gap_s`` seconds of untouched frames (zeros through the same noise model)
     are made for each trial, to stream before it.
     """
-    from sphri.encode.common import SkinFrames
     from sphri.pipeline import trial_keys
+    from sphri.types import SkinFrames
 
     dataset = pipeline.get("data")
     contacts = pipeline.get("contact")

@@ -66,7 +66,6 @@ from numba import njit, prange
 
 from sphri.adjacency import grid_adjacency, taxel_adjacency
 from sphri.config import Configured
-from sphri.encode.common import SkinFrames
 from sphri.noise.hashing import frame_key, uniform, uniform24
 from sphri.noise.schema import (
     CrosstalkNoiseSchema,
@@ -76,7 +75,7 @@ from sphri.noise.schema import (
     SaltPepperNoiseSchema,
     ThresholdNoiseSchema,
 )
-from sphri.types import Frames, WindowedFrames
+from sphri.types import Frames, SkinFrames, WindowedFrames
 
 log = logging.getLogger(__name__)
 

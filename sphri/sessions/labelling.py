@@ -45,8 +45,8 @@ TRAINING_KEYS = (
 
 def _sessions_config(p) -> dict[str, Any]:
     """The sessions' key config: the data settings and the text of the priors table they are drawn from."""
-    from sphri.cache import stable_hash
     from sphri.config import result_config
+    from sphri.integrity import stable_hash
 
     config: dict[str, Any] = {"data": result_config(p.cfg.data)}
     priors = getattr(p.components["data"], "priors", None)

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sphri.config import ConfigError
-from sphri.encode.common import SkinFrames, select_rows
+from sphri.encode.common import select_rows
 from sphri.encode.ellipse import EllipseEncoder
 from sphri.encode.raster import patch_ellipses, rasterize
 from sphri.layout.common import row_offsets
@@ -19,6 +19,7 @@ from sphri.layout.poisson import RandomLayout
 from sphri.surface.charts import from_uv, to_uv
 from sphri.testing.raster_reference import iou, reference_raster
 from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
+from sphri.types import SkinFrames
 
 #: Hypothesis examples per property (SPHRI_DEEP_TESTS=1 for a deep run).
 EXAMPLES = 500 if os.environ.get("SPHRI_DEEP_TESTS") else 50

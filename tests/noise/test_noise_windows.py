@@ -10,7 +10,6 @@ import pytest
 from sphri import pipeline
 from sphri.cache import StageCache
 from sphri.config import compose
-from sphri.encode.common import SkinFrames
 from sphri.noise.components import (
     CrosstalkNoise,
     DeadTaxelsNoise,
@@ -19,7 +18,7 @@ from sphri.noise.components import (
     SaltPepperNoise,
     apply_to_windows,
 )
-from sphri.types import TaxelGeometry, WindowedFrames
+from sphri.types import SkinFrames, TaxelGeometry, WindowedFrames
 
 #: Every noise kind, with settings under which it can change an all-zero frame when it is able to.
 KINDS = {

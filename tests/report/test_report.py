@@ -266,7 +266,7 @@ def test_cli_prints_the_summary_and_fails_clearly(two_model_sweep, tmp_path, cap
     assert "mlflow_parent_run.json" in capsys.readouterr().err
     assert main(["not-a-run"]) == 2
     assert "neither a sweep directory" in capsys.readouterr().err
-    assert main([str(tmp_path), "--ci", "2"]) == 2  # one line naming the key (sphri.command.args)
+    assert main([str(tmp_path), "--ci", "2"]) == 2  # one line naming the key (sphri.args)
 
 
 def test_group_keys_keep_only_settings_not_fixed_by_components():

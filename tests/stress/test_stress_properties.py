@@ -133,7 +133,7 @@ def test_every_noise_kind_keeps_readings_in_range(values, grid, seed):
     if grid:
         frames = Frames(values=values, grid_shape=(1, n))
     else:
-        from sphri.encode.common import SkinFrames
+        from sphri.types import SkinFrames
 
         frames = SkinFrames(values=values, grid_shape=None, geometry=geometry)
     for noise in (
