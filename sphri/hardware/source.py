@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sphri.types import GESTURES, TaxelGeometry
+from sphri.types import TaxelGeometry
 
 
 def open_pipeline(overrides: Sequence[str]):
@@ -169,7 +169,3 @@ def pick_rows(trials, count: int, participant: str | None, seed: int) -> np.ndar
             )
     rows = np.random.default_rng(seed).permutation(rows)
     return rows if count < 0 else rows[:count]
-
-
-def gesture_name(label: int) -> str:
-    return GESTURES[int(label)] if 0 <= int(label) < len(GESTURES) else f"class {int(label)}"
