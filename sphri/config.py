@@ -136,7 +136,7 @@ def plain(node: Any) -> Any:
     return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
 
 
-#: Field metadata key of a setting that cannot change a result (see :func:`runtime_setting`).
+#: Field metadata key of a setting that cannot change a result (``setting(..., runtime=True)``).
 RUNTIME_META = "sphri_runtime"
 
 
@@ -204,7 +204,11 @@ def setting(
 ) -> Any:
     """A schema field with its range as metadata: :class:`Schema` checks it at composition, naming
     the key as ``<GROUP>.<field>`` (the prefix derived from the schema's group, never typed).
-    ``optional``: None passes. ``runtime``: see :func:`runtime_setting`. ``chain``: the chain reads
+    ``optional``: None passes. ``runtime``: a setting that cannot change a job's result (how many
+    threads or worker processes, progress display, chunk sizes); it is left out of the config hash and
+    of every stage key (:func:`result_config`), so changing it never recomputes a stage or reruns a
+    finished job (numbers may still differ at float rounding where a thread count changes the order of
+    a reduction: ``docs/RELIABILITY.md`` says where). ``chain``: the chain reads
     the value through its owner's accessor and the component is not given it. ``range``: a
     :class:`Range` object shared with a check outside the schema (instead of ``lo``/``hi``/...)."""
     meta = dict(metadata or {})
@@ -285,17 +289,8 @@ def chain_fields(schema: Any) -> tuple[str, ...]:
     return tuple(f.name for f in dataclasses.fields(schema) if f.metadata.get(CHAIN_META))
 
 
-def runtime_setting(default: Any) -> Any:
-    """A schema field that cannot change a job's result: how many threads or worker processes,
-    progress display, chunk sizes. Such fields are left out of the config hash and of every stage
-    key (:func:`result_config`), so changing one never recomputes a stage or reruns a finished job.
-    Numbers may still differ at float rounding where a thread count changes the order of a
-    reduction (``docs/RELIABILITY.md`` says where)."""
-    return field(default=default, metadata={RUNTIME_META: True})
-
-
 def runtime_fields(schema: Any) -> tuple[str, ...]:
-    """Names of the fields of the schema dataclass ``schema`` declared with :func:`runtime_setting`."""
+    """Names of the fields of the schema dataclass ``schema`` declared with ``setting(..., runtime=True)``."""
     if not (isinstance(schema, type) and dataclasses.is_dataclass(schema)):
         return ()
     return tuple(f.name for f in dataclasses.fields(schema) if f.metadata.get(RUNTIME_META))
@@ -307,7 +302,7 @@ NOT_RESULT_KEYS: tuple[str, ...] = ("cache", "output_dir", "resume", "plugins", 
 
 
 def runtime_keys() -> frozenset[str]:
-    """``<group>.<field>`` of every runtime setting (:func:`runtime_setting`) of the registered schemas:
+    """``<group>.<field>`` of every runtime setting (``setting(..., runtime=True)``) of the registered schemas:
     the MLflow params two jobs may differ in while computing the same result (``cv.progress``, ``model.n_jobs``)."""
     register_schemas()
     out: set[str] = set()
@@ -334,7 +329,7 @@ def result_neutral(param: str, runtime: frozenset[str] | None = None) -> bool:
 
 
 def result_config(node: Any) -> Any:
-    """``plain(node)`` without the fields its schema declares with :func:`runtime_setting`: what a
+    """``plain(node)`` without the fields its schema declares with ``setting(..., runtime=True)``: what a
     stage key and the config hash are made of, so that runtime settings never change either."""
     out = plain(node)
     if isinstance(node, DictConfig) and isinstance(out, dict):

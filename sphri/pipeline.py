@@ -659,7 +659,7 @@ def component_versions(cfg: DictConfig) -> dict[str, str]:
 
 def config_hash(cfg: DictConfig) -> str:
     """Hash of what defines a job's result: its config (everything but tracking/cache/hydra and the
-    runtime settings, :func:`sphri.config.runtime_setting`), the
+    runtime settings, ``sphri.config.setting(..., runtime=True)``), the
     ``VERSION`` of every component and the content fingerprints of the files the components read
     (:mod:`sphri.inputs`), so that a sweep resumed after a component or an input file changed reruns its jobs."""
 

@@ -1,5 +1,5 @@
 """One notion of "same experiment": settings that cannot change a result (threads, workers,
-progress, chunk sizes; declared with ``sphri.config.runtime_setting``) change neither the
+progress, chunk sizes; declared with ``sphri.config.setting(..., runtime=True)``) change neither the
 config hash nor any stage key, so changing them never recomputes or reruns anything."""
 
 from __future__ import annotations
