@@ -52,9 +52,8 @@ def limit_threads(n: int) -> None:
 
     numba and torch are capped here only where they are imported already; otherwise each sizes its
     pool from the variables set here when the job first imports it (``NUMBA_NUM_THREADS``,
-    ``OMP_NUM_THREADS``), so a job that never uses torch (a Random Forest's) does not import it: a
-    4-job Random Forest sweep with 2 workers, 15.2 -> 11.8 CPU s and 577 -> 401 MiB for its largest
-    process (2-core AMD EPYC, AVX-512; docs/BENCHMARKS.md).
+    ``OMP_NUM_THREADS``), so a job that never uses torch (a Random Forest's) does not import it (what
+    that saves a sweep: docs/BENCHMARKS.md).
     """
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "SPHRI_THREADS"):
         os.environ[var] = str(n)

@@ -1,8 +1,8 @@
 """Fast shell completion: Hydra's answers, kept per command-line context.
 
 Hydra answers a TAB (``sphri -sc query=bash``, with the line in ``COMP_LINE``)
-by importing sphri, registering every schema and composing the config: about
-1.4 s per TAB on 2 cores. The answer depends only on the words before the
+by importing sphri, registering every schema and composing the config, for
+every TAB (how long: docs/BENCHMARKS.md, ``startup.json``). The answer depends only on the words before the
 cursor, the part of the current word up to its last ``.``, ``=`` or ``/`` (the
 *stem*; bash's ``compgen`` filters the rest), sphri's version and its config
 and schema files. This module keeps Hydra's answer for each such context in

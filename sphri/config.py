@@ -534,9 +534,8 @@ def compose_with_hydra(config_name: str, overrides: Sequence[str]) -> DictConfig
 
 
 class _ComposeMemo:
-    """Hydra's compositions by structural overrides, per process: composing costs about 0.6 s, most
-    of a warm in-process job (a ``+debug=fast`` job runs in about 1.9 s on a 2-core EPYC), and the
-    callers that compose many configs (tests, ``sphri validate``, the scenario study, notebooks)
+    """Hydra's compositions by structural overrides, per process: composing is most of a warm
+    in-process job (docs/BENCHMARKS.md), and the callers that compose many configs (tests, ``sphri validate``, the scenario study, notebooks)
     mostly change plain values. The config files fingerprinted are every YAML under the search path's
     folders (sphri's conf/ and each ``hydra.searchpath`` folder), so a search path is a config folder.
 
@@ -551,8 +550,8 @@ class _ComposeMemo:
     ``size``: the compositions kept, least recently used dropped first. A composed config holds about
     0.28 MB (tracemalloc, the default config), so 128 keep at most about 36 MB; 128 rather than 32
     because one process that checks every component (``sphri show``, the tests of every YAML, every
-    schema's defaults and every experiment's jobs) composes 114 distinct ones: run serially, those
-    four test modules took 127.8 s with 32 and 104.2 s with 128 (2-core AMD EPYC, AVX-512).
+    schema's defaults and every experiment's jobs) composes 114 distinct ones (the time it saves:
+    docs/BENCHMARKS.md).
     """
 
     def __init__(self, size: int = 128) -> None:
@@ -984,7 +983,7 @@ def _own_field_docs(cls: type) -> tuple[tuple[str, str], ...]:
     """``(field, docstring)`` pairs written in ``cls``'s own body (not its bases'), read from its source.
 
     Cached per class object: ``show`` and the verbs' help read the same bases' docstrings for every
-    group, and finding a class's source parses its whole module (about 40 ms a schema, 2-core EPYC).
+    group, and finding a class's source parses its whole module (docs/BENCHMARKS.md says how long).
     A class defined anew (a reloaded module) is another object, read again."""
     import ast
     import inspect

@@ -40,7 +40,7 @@ from sphri.config import Configured, build
 from sphri.encode.schema import grid_res
 from sphri.stages import PARAM_GROUPS  # groups whose component and scalar settings become params
 from sphri.tracking import machine
-from sphri.tracking.schema import MlflowTrackingConfig
+from sphri.tracking.schema import MlflowTrackingSchema
 
 if TYPE_CHECKING:
     from mlflow.tracking import MlflowClient
@@ -255,7 +255,7 @@ class MlflowTracker(Configured):
     """Logs jobs to MLflow; built from the ``tracking`` config group."""
 
     VERSION = "1"
-    SCHEMA = MlflowTrackingConfig
+    SCHEMA = MlflowTrackingSchema
     enabled: bool  # these eight set from SCHEMA by Configured
     uri: str | None
     experiment: str
