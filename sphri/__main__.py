@@ -3,8 +3,8 @@
 Examples::
 
     python -m sphri                                  # built-in defaults (robot=reachy)
-    python -m sphri +robot=reachy encoder.res=18     # the paper's resolution
-    python -m sphri -m +robot=reachy encoder.res=4,8,18
+    python -m sphri +robot=reachy layout.res=18     # the paper's resolution
+    python -m sphri -m +robot=reachy layout.res=4,8,18
     python -m sphri +debug=fast                      # seconds-long smoke run
 
 Each job validates its config before any stage runs, runs the pipeline

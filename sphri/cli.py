@@ -6,8 +6,8 @@
     sphri list robot                     # one group, with each file's summary
     sphri show noise=crosstalk           # every setting of a component: value, default, meaning
     sphri show tracking                  # one group's settings (= group=tracking)
-    sphri validate +robot=reachy encoder.res=18
-    sphri validate -m encoder.res=0,4    # a sweep: every job is checked
+    sphri validate +robot=reachy layout.res=18
+    sphri validate -m layout.res=0,4    # a sweep: every job is checked
     sphri validate +experiment=resolution_sweep   # its 100 jobs
 
 ``python -m sphri.cli VERB ...`` is the same command (an alias). ``validate`` composes the config
@@ -117,7 +117,7 @@ def help_text() -> str:
         "  sphri sweep key=a,b,c [...]   (or sphri -m ...)         a sweep (one MLflow parent run)",
         "",
         "common commands (`sphri help` lists every verb):",
-        "  sphri +robot=reachy encoder.res=18                      the paper's resolution",
+        "  sphri +robot=reachy layout.res=18                      the paper's resolution",
         "  sphri +debug=fast                                       a smoke run at debug size",
         "  sphri sweep +experiment=resolution_sweep model=rf       the 50-resolution curve",
         "  sphri report SWEEP_DIR                                  the sweep's report",

@@ -21,6 +21,7 @@ import importlib
 import math
 import os
 import re
+import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -125,9 +126,6 @@ def build(node: DictConfig, **kwargs: Any) -> Any:
     """Instantiate a component from its config node (plain Python containers)."""
     from hydra.utils import instantiate
 
-    drop = chain_fields(OmegaConf.get_type(node)) if isinstance(node, DictConfig) else ()
-    if drop:  # the chain's settings (encoder.res) reach the chain through their owner, not the component
-        node = OmegaConf.masked_copy(node, [str(k) for k in node.keys() if k not in drop])
     return instantiate(node, _convert_="all", **kwargs)
 
 
@@ -142,10 +140,6 @@ RUNTIME_META = "sphri_runtime"
 
 #: Field metadata key of a setting's range (a :class:`Range`), checked by :class:`Schema`.
 RANGE_META = "sphri_range"
-
-#: Field metadata key of a setting the chain reads through its owner's accessor and that is not
-#: passed to the component (``encoder.res``: :func:`sphri.encode.schema.grid_res`).
-CHAIN_META = "sphri_chain"
 
 
 @dataclass(frozen=True)
@@ -198,7 +192,6 @@ def setting(
     integer: bool = False,
     optional: bool = False,
     runtime: bool = False,
-    chain: bool = False,
     range: Range | None = None,
     metadata: dict | None = None,
 ) -> Any:
@@ -208,8 +201,7 @@ def setting(
     threads or worker processes, progress display, chunk sizes); it is left out of the config hash and
     of every stage key (:func:`result_config`), so changing it never recomputes a stage or reruns a
     finished job (numbers may still differ at float rounding where a thread count changes the order of
-    a reduction: ``docs/RELIABILITY.md`` says where). ``chain``: the chain reads
-    the value through its owner's accessor and the component is not given it. ``range``: a
+    a reduction: ``docs/RELIABILITY.md`` says where). ``range``: a
     :class:`Range` object shared with a check outside the schema (instead of ``lo``/``hi``/...)."""
     meta = dict(metadata or {})
     if range is not None:
@@ -220,8 +212,6 @@ def setting(
         )
     if runtime:
         meta[RUNTIME_META] = True
-    if chain:
-        meta[CHAIN_META] = True
     if default_factory is not dataclasses.MISSING:
         return field(default_factory=default_factory, metadata=meta)
     return field(default=default, metadata=meta)
@@ -280,13 +270,6 @@ def load_schema(schema: type[S], *nodes: Any) -> S:
         key = getattr(exc, "full_key", None)
         first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
         raise ConfigError(f"{schema.key(key) if key else schema.GROUP}: {first}") from None
-
-
-def chain_fields(schema: Any) -> tuple[str, ...]:
-    """Fields of ``schema`` declared with ``setting(..., chain=True)``: not passed to the component."""
-    if not (isinstance(schema, type) and dataclasses.is_dataclass(schema)):
-        return ()
-    return tuple(f.name for f in dataclasses.fields(schema) if f.metadata.get(CHAIN_META))
 
 
 def runtime_fields(schema: Any) -> tuple[str, ...]:
@@ -431,14 +414,34 @@ def register_schemas() -> None:
 
 _PLUS_GROUP = re.compile(r"^\+(?P<group>[A-Za-z_][\w/]*)=(?P<value>.*)$")
 
+#: Keys read under their owner's name for one release (deprecated spelling -> the key): ``encoder.res=18``
+#: is ``layout.res=18``, in a single run, a sweep (``-m encoder.res=2,4``) and a sweeper's params.
+RENAMED_KEYS = {"encoder.res": "layout.res"}
+_RENAMED = re.compile(r"^(?P<pre>[+~]*)(?P<key>" + "|".join(re.escape(k) for k in RENAMED_KEYS) + r")(?P<rest>=.*)?$")
+_renamed_said: set[str] = set()
+
+
+def _renamed(override: str) -> str:
+    """``override`` with a deprecated key (:data:`RENAMED_KEYS`) spelled as its owner's; the first use of
+    each such key in a process prints one line on stderr."""
+    m = _RENAMED.match(override)
+    if m is None:
+        return override
+    old, new = m.group("key"), RENAMED_KEYS[m.group("key")]
+    if old not in _renamed_said:
+        _renamed_said.add(old)
+        print(f"sphri: {old} is deprecated, write {new} ({old} is read as {new} for one release)", file=sys.stderr)
+    return f"{m.group('pre')}{new}{m.group('rest') or ''}"
+
 
 def normalize_overrides(overrides: Sequence[str]) -> list[str]:
-    """Accept ``+robot=reachy`` as well as ``robot=reachy``.
+    """Accept ``+robot=reachy`` as well as ``robot=reachy``, and a deprecated key as its owner's.
 
     ``robot`` (like every stage group and ``debug``) is in the primary
     defaults list so that plain ``python -m sphri`` runs on the built-in
     robot. Hydra refuses to *append* a group that is already there, so
     ``+group=value`` for such a group is rewritten to ``group=value``;
+    ``encoder.res=18`` is ``layout.res=18`` (:data:`RENAMED_KEYS`);
     anything else passes through untouched.
     """
     out = []
@@ -447,7 +450,7 @@ def normalize_overrides(overrides: Sequence[str]) -> list[str]:
         if m and m.group("group") in DEFAULT_GROUPS:
             out.append(f"{m.group('group')}={m.group('value')}")
         else:
-            out.append(o)
+            out.append(_renamed(o))
     return out
 
 
@@ -503,7 +506,7 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config", check: b
     print the settings of a config that does not run as it stands.
 
     Hydra composes each distinct set of group choices (and other structural overrides) once per
-    process; plain value overrides (``encoder.res=18``) are then set on a copy as Hydra sets them
+    process; plain value overrides (``layout.res=18``) are then set on a copy as Hydra sets them
     (:func:`set_values`): see :class:`_ComposeMemo`.
     """
     register_schemas()
@@ -1006,9 +1009,8 @@ def _own_field_docs(cls: type) -> tuple[tuple[str, str], ...]:
 
 
 def _component_fields(schema: type) -> list[str]:
-    """The settings a component takes: its schema's fields but ``_target_`` and the chain's own (:func:`chain_fields`)."""
-    chain = chain_fields(schema)
-    return [f.name for f in dataclasses.fields(schema) if f.name != "_target_" and f.name not in chain]
+    """The settings a component takes: its schema's fields but ``_target_``."""
+    return [f.name for f in dataclasses.fields(schema) if f.name != "_target_"]
 
 
 class Configured:
@@ -1025,8 +1027,7 @@ class Configured:
 
     def __init__(self, **settings: Any) -> None:
         names = _component_fields(self.SCHEMA)
-        # the chain's settings (encoder.res) are accepted and checked by the schema, not kept
-        unknown = sorted(set(settings) - set(names) - set(chain_fields(self.SCHEMA)))
+        unknown = sorted(set(settings) - set(names))
         if unknown:
             raise TypeError(f"{type(self).__name__}: unknown setting(s) {unknown}; its settings: {names}")
         values = self.SCHEMA(**settings)

@@ -187,7 +187,7 @@ def config_reference(groups: Iterable[str] | None = None, conf_dir: Path | None 
         "Every setting of every component, generated from the schemas `sphri show` reads (the type, the",
         "range a value is checked against when a config is composed, the component's default and the",
         "meaning written under the field). Pick a component with `group=name` and set a value with",
-        "`group.key=value`: `sphri encoder=coverage encoder.res=24`. `sphri show group=name` prints the",
+        "`group.key=value`: `sphri encoder=coverage layout.res=24`. `sphri show group=name` prints the",
         "same table for a composed config, with the values it holds.",
         "",
         "A *runtime* setting (threads, progress display) never changes a job's result: it is left out",

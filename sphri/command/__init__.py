@@ -3,7 +3,7 @@
 ::
 
     sphri +debug=fast                    # no verb: run one job (Hydra overrides, exactly as before)
-    sphri sweep encoder.res=2,4          # = sphri -m encoder.res=2,4
+    sphri sweep layout.res=2,4          # = sphri -m layout.res=2,4
     sphri report outputs/sweeps/resolution_rf
     sphri list robot
     sphri help                           # every verb with one line; `sphri VERB --help` its arguments
@@ -63,7 +63,7 @@ VERBS: tuple[Verb, ...] = (
     ),
     Verb(
         "sweep",
-        "run a sweep, one job per point (`sphri sweep encoder.res=2,4` is `sphri -m encoder.res=2,4`)",
+        "run a sweep, one job per point (`sphri sweep layout.res=2,4` is `sphri -m layout.res=2,4`)",
         "hydra",
         "sphri.__main__:main",
         "",

@@ -111,7 +111,7 @@ def training_overrides(overrides: Sequence[str], st, n_participants: int) -> lis
         "data=synthetic",
         f"data.participants={max(n_participants, 2)}",
         f"data.repetitions={st.gesture_repetitions}",
-        f"encoder.res={st.gesture_res}",
+        f"layout.res={st.gesture_res}",
         "tracking.enabled=false",
     ]
     return out

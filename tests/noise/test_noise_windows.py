@@ -111,7 +111,7 @@ def test_window_noise_checks_its_arguments():
         apply_to_windows(NoNoise(), bad, np.arange(6), 0)
 
 
-PURE = ["+debug=fast", "tracking.enabled=false", "noise.p=1", "noise.mode=replace", "encoder.res=6"]
+PURE = ["+debug=fast", "tracking.enabled=false", "noise.p=1", "noise.mode=replace", "layout.res=6"]
 
 
 def test_pure_noise_leaves_nothing_to_learn(tmp_path: Path):
