@@ -112,9 +112,9 @@ def main(argv=None) -> dict:
         chunk = frames if res <= 50 else CHUNK
         entry = {"grid_shape": list(layout.grid_shape), "pitch_u_mm": units["pitch_u_mm"], "n_taxels": layout.n_taxels}
         for name, enc in (
-            ("ellipse", EllipseEncoder(res=res)),
-            ("coverage_grid", CoverageEncoder(res=res)),
-            ("proximity", ProximityEncoder(res=res)),
+            ("ellipse", EllipseEncoder()),
+            ("coverage_grid", CoverageEncoder()),
+            ("proximity", ProximityEncoder()),
         ):
             secs, cpu, nnz = timed_encode(enc, contacts, link, surface, layout, fi, chunk)
             entry[f"{name}_s"] = secs
@@ -132,9 +132,9 @@ def main(argv=None) -> dict:
         t_ref = time.perf_counter() - t_ref
         ref_c = reference_raster(start, *ell, layout.grid_shape, off, surface.wrap_v, ss, False)
         t_fast = time.perf_counter()
-        fast_b = EllipseEncoder(res=res).encode(contacts, link, surface, layout, err_fi).values
+        fast_b = EllipseEncoder().encode(contacts, link, surface, layout, err_fi).values
         t_fast = time.perf_counter() - t_fast
-        fast_c = EllipseEncoder(res=res, binary=False).encode(contacts, link, surface, layout, err_fi).values
+        fast_c = EllipseEncoder(binary=False).encode(contacts, link, surface, layout, err_fi).values
         entry["reference_subsamples"] = ss
         entry["ellipse_iou_vs_supersampled"] = iou(fast_b, ref_b)
         entry["ellipse_coverage_mae_vs_supersampled"] = float(np.abs(fast_c - ref_c).mean())
@@ -142,7 +142,7 @@ def main(argv=None) -> dict:
         ratios[f"res_{res}_ellipse_speedup_vs_reference"] = t_ref / max(t_fast, 1e-9)
         # coverage on a non-grid layout with the same taxel count
         rnd = RandomLayout().build(link, surface, res)
-        secs, cpu, _ = timed_encode(CoverageEncoder(res=res), contacts, link, surface, rnd, fi, chunk)
+        secs, cpu, _ = timed_encode(CoverageEncoder(), contacts, link, surface, rnd, fi, chunk)
         entry["coverage_random_s"] = secs
         entry["coverage_random_cpu_s"] = cpu
         fast = encode_3d_coverage(contacts, surface, rnd, err_fi, 32, "bench").values

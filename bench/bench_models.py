@@ -147,7 +147,7 @@ def pipeline_windows(res: int, participants: int, repetitions: int, seed: int) -
             "data.regions=[arm]",
             f"data.participants={participants}",
             f"data.repetitions={repetitions}",
-            f"encoder.res={res}",
+            f"layout.res={res}",
             f"seed={seed}",
         ]
     )

@@ -189,7 +189,7 @@ def compose_cfg(participants: int, repetitions: int, res: int) -> Any:
             "data.regions=[arm]",
             f"data.participants={participants}",
             f"data.repetitions={repetitions}",
-            f"encoder.res={res}",
+            f"layout.res={res}",
             "cv.progress=false",
         ]
     )
@@ -418,7 +418,7 @@ def plot(default: dict, sweep: dict, path: Path) -> None:
                     x, [p["wall_s"] for p in sweep["uncached"]], color="r", marker="_", s=400, label="no cache"
                 )
             axes[2].set_xticks(x, res)
-            axes[2].set_xlabel("encoder.res (sweep point, in run order)")
+            axes[2].set_xlabel("layout.res (sweep point, in run order)")
             axes[2].set_ylabel("wall seconds")
             axes[2].set_title(f"RF sweep, {sweep['participants']} participants: cold vs warm cache")
             axes[2].legend(fontsize=7)

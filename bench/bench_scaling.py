@@ -156,7 +156,7 @@ def taxels_scaling(p, resolutions, repeat: int) -> dict:
     rows = []
     for res in resolutions:
         lay, t_layout = timed(lambda: GridLayout().build(link, surface, res))
-        frames, t_enc = timed(lambda: EllipseEncoder(res=res).encode(contacts, link, surface, lay, fi))
+        frames, t_enc = timed(lambda: EllipseEncoder().encode(contacts, link, surface, lay, fi))
         clean, t_win = timed(lambda: window.assemble(frames, plan, data, lay, surface))  # noqa: F821 (bound on the line above)
         windows, t_noise = timed(lambda: apply_to_windows(SaltPepperNoise(), clean, tk, 0))  # noqa: F821
         _, t_feat = timed(lambda: extract_features(windows.x, windows.geometry))  # noqa: F821

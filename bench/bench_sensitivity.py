@@ -42,7 +42,7 @@ EXPERIMENT = ROOT / "conf" / "experiment" / "requirement_sensitivity.yaml"
 def study_grid() -> tuple[list[str], str]:
     """(variants, resolution list) of the full study, as its YAML sweeps them."""
     params = yaml.safe_load(EXPERIMENT.read_text())["hydra"]["sweeper"]["params"]
-    return str(params["sensitivity"]).split(","), str(params["encoder.res"])
+    return str(params["sensitivity"]).split(","), str(params["layout.res"])
 
 
 def run_variant(work: Path, experiment: str, variant: str | None, tag: str, timeout_s: float) -> dict[str, Any]:

@@ -103,7 +103,7 @@ def main() -> int:
             timed(["-m", "sphri.cli", "validate", "+experiment=resolution_sweep"], d, env)[0]
             for _ in range(args.repeat)
         )
-        sweep = ["-m", "sphri", "-m", "+debug=fast", "encoder.res=2,3", "hydra/launcher=serial"]
+        sweep = ["-m", "sphri", "-m", "+debug=fast", "layout.res=2,3", "hydra/launcher=serial"]
         timed([*sweep, "hydra.sweep.dir=s0"], d, env)
         out["skipped_sweep_s"] = min(
             timed([*sweep, f"hydra.sweep.dir=s{i + 1}"], d, env)[0] for i in range(args.repeat)

@@ -62,7 +62,7 @@ def sweep_cmd(size: dict, work: Path) -> list[str]:
         "-m",
         "+experiment=resolution_sweep",
         "model=rf",
-        f"encoder.res={size['resolutions']}",
+        f"layout.res={size['resolutions']}",
         f"output_dir={work}",
         f"hydra.sweep.dir={work}/sweep",
         *size["overrides"],
@@ -99,7 +99,7 @@ def job_runs(sweep_dir: Path) -> list[dict[str, Any]]:
         m, t = run.data.metrics, run.data.tags
         out.append(
             {
-                "res": int(run.data.params["encoder.res"]),
+                "res": int(run.data.params["layout.res"]),
                 "status": run.info.status,
                 "accuracy_mean": m.get("accuracy_mean"),
                 "stage_s": {s: float(m.get(f"time/{s}_s", 0.0)) for s in STAGES},
@@ -132,7 +132,7 @@ def single_job_baseline(size: dict, work: Path, res: int) -> dict[str, Any]:
 
         TRANSFORM_PER_TRIAL = False
 
-    cfg = compose([f"encoder.res={res}", f"output_dir={work}", *size["overrides"]])
+    cfg = compose([f"layout.res={res}", f"output_dir={work}", *size["overrides"]])
     p = make_pipeline(cfg, StageCache(root=cfg.cache.dir, enabled=True))
     t0 = time.perf_counter()
     windows = p.get("filter")  # the model's input: windows, noise, skin-side filter

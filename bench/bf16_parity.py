@@ -2,7 +2,7 @@
 
 Reads the finished CNN-GRU jobs of one resolution from an output folder's MLflow store, made by
 
-    python -m sphri -m model=cnn_gru encoder.res=18 model.seed=0,1,2 \\
+    python -m sphri -m model=cnn_gru layout.res=18 model.seed=0,1,2 \\
         model.precision=float32,bf16 cv.workers=2
 
 (18 LOSO folds x 3 seeds x 2 precisions; resumable: a rerun recomputes only missing folds), and
@@ -57,7 +57,7 @@ def collect(output_dir: Path, res: int) -> dict[str, dict[int, dict[str, Any]]]:
     for exp in client.search_experiments():
         runs = client.search_runs(
             [exp.experiment_id],
-            f"attributes.status = 'FINISHED' and tags.`sphri.kind` = 'job' and params.`encoder.res` = '{res}'",
+            f"attributes.status = 'FINISHED' and tags.`sphri.kind` = 'job' and params.`layout.res` = '{res}'",
             order_by=["attributes.start_time ASC"],
         )
         for run in runs:
@@ -143,7 +143,7 @@ def table(result: dict[str, Any]) -> str:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("output_dir", type=Path, help="the sweep's output_dir (holds mlflow.db)")
-    parser.add_argument("--res", type=int, default=18, help="encoder.res of the jobs to compare (default 18)")
+    parser.add_argument("--res", type=int, default=18, help="layout.res of the jobs to compare (default 18)")
     args = parser.parse_args(argv)
     result = compare(collect(args.output_dir, args.res))
     result["res"] = args.res

@@ -63,7 +63,7 @@ def readings_key(windows: Any) -> str:
 
 def _overrides(res: int, overrides: list[str], cache_dir: str) -> list[str]:
     """The README sweep's CNN-GRU job at ``res``, without MLflow, in ``cache_dir``."""
-    return [*SWEEP, f"encoder.res={res}", *overrides, "tracking.enabled=false", f"cache.dir={cache_dir}"]
+    return [*SWEEP, f"layout.res={res}", *overrides, "tracking.enabled=false", f"cache.dir={cache_dir}"]
 
 
 def stages(res: int, overrides: list[str], cache_dir: str) -> dict[str, str]:
@@ -156,7 +156,7 @@ def cpu_sweep(output_dir: Path) -> dict[str, dict[int, dict[str, float]]]:
             order_by=["attributes.start_time ASC"],
         )
         for r in runs:
-            model, res = r.data.params.get("model"), r.data.params.get("encoder.res")
+            model, res = r.data.params.get("model"), r.data.params.get("layout.res", r.data.params.get("encoder.res"))
             if model is None or res is None:
                 continue
             scores = {
@@ -227,7 +227,7 @@ def _figure(cpu: dict[str, dict[int, dict[str, float]]], device: dict[int, dict[
         ticks = [1, 2, 3, 4, 6, 8, 12, 18, 27, 40, 50]
         ax.set_xticks(ticks, [str(t) for t in ticks])
         ax.minorticks_off()
-        ax.set_xlabel("encoder.res (taxel grid resolution)")
+        ax.set_xlabel("layout.res (taxel grid resolution)")
         ax.set_ylabel("mean accuracy over participants (LOSO)")
         ax.set_title("SYNTHETIC data: RF and CNN-GRU against resolution", fontsize=10)
         ax.legend(fontsize=8, loc="lower right")

@@ -37,7 +37,11 @@ def load(sweeps: list[Path], output_dir: Path) -> tuple[pd.DataFrame, dict]:
         if st.get("status") not in ("FINISHED", "SKIPPED") or not st.get("mlflow_run_id"):
             continue
         ov = dict(o.lstrip("+").split("=", 1) for o in st["overrides"])
-        key = (ov.get("model", "rf"), ov.get("noise", "salt_pepper"), int(ov.get("encoder.res", 18)))
+        key = (
+            ov.get("model", "rf"),
+            ov.get("noise", "salt_pepper"),
+            int(ov.get("layout.res", ov.get("encoder.res", 18))),
+        )
         if key in jobs:
             raise SystemExit(
                 f"cnn_gru_noise_check: two jobs for model={key[0]} noise={key[1]} res={key[2]}: "

@@ -5,7 +5,7 @@
 Reads every job's ``sphri_status.json`` in the sweep directories (its overrides
 and MLflow run id) and the job's per-participant scores
 (``<output_dir>/mlartifacts/<run_id>/artifacts/per_participant.csv``). Jobs
-are grouped by their overrides without ``seed`` and ``encoder.res`` (one
+are grouped by their overrides without ``seed`` and ``layout.res`` (one
 curve per group, e.g. per ``sensitivity`` variant). Per curve and resolution
 it prints and writes (``seed_curves.csv`` in the first sweep directory):
 
@@ -43,7 +43,8 @@ def load_jobs(sweeps: Path | list[Path], output_dir: Path) -> pd.DataFrame:
         if st.get("status") not in ("FINISHED", "SKIPPED") or not st.get("mlflow_run_id"):
             continue  # SKIPPED: resumed, the finished MLflow run of the same config holds the scores
         ov = dict(o.lstrip("+").split("=", 1) for o in st["overrides"])
-        res = int(ov.pop("encoder.res"))
+        res = int(ov.pop("layout.res", None) or ov.pop("encoder.res"))  # encoder.res: sweeps of earlier releases
+        ov.pop("encoder.res", None)
         seed = int(ov.pop("seed", 0))
         ov.pop("experiment", None)
         group = ",".join(f"{k}={v}" for k, v in sorted(ov.items())) or "all"

@@ -3,8 +3,8 @@
 Examples::
 
     python -m sphri                                  # built-in defaults (robot=reachy)
-    python -m sphri +robot=reachy encoder.res=18     # the paper's resolution
-    python -m sphri -m +robot=reachy encoder.res=4,8,18
+    python -m sphri +robot=reachy layout.res=18     # the paper's resolution
+    python -m sphri -m +robot=reachy layout.res=4,8,18
     python -m sphri +debug=fast                      # seconds-long smoke run
 
 Each job validates its config before any stage runs, runs the pipeline
@@ -23,7 +23,9 @@ import sys
 import time
 import traceback
 import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -52,9 +54,8 @@ def limit_threads(n: int) -> None:
 
     numba and torch are capped here only where they are imported already; otherwise each sizes its
     pool from the variables set here when the job first imports it (``NUMBA_NUM_THREADS``,
-    ``OMP_NUM_THREADS``), so a job that never uses torch (a Random Forest's) does not import it: a
-    4-job Random Forest sweep with 2 workers, 15.2 -> 11.8 CPU s and 577 -> 401 MiB for its largest
-    process (2-core AMD EPYC, AVX-512; docs/BENCHMARKS.md).
+    ``OMP_NUM_THREADS``), so a job that never uses torch (a Random Forest's) does not import it (what
+    that saves a sweep: docs/BENCHMARKS.md).
     """
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "SPHRI_THREADS"):
         os.environ[var] = str(n)
@@ -89,20 +90,48 @@ def quiet_console() -> None:
             handler.setLevel(logging.WARNING)
 
 
-def run_job(cfg: DictConfig) -> dict | None:
-    """One job: validate, run the pipeline, track, summarize."""
-    from sphri import pipeline
-    from sphri.tracking.mlflow_tracker import summary_text
-    from sphri.tracking.parent import read_parent, stop_if_killed, write_status
-    from sphri.tracking.store import StoreError
+@dataclass
+class _Job:
+    """Where a job runs and how it reports: its folder, its place in a sweep, the overrides swept."""
 
-    stop_if_killed()  # a serial sweep signalled during an earlier job starts no more jobs
+    dir: Path
+    choices: dict[str, str]
+    multirun: bool
+    num: int
+    parent: dict | None
+    swept: list[str]
+    sweep_dir: str
+    log_file: Path
+    t_start: float = field(default_factory=time.perf_counter)
+
+    def say(self, what: str) -> None:
+        """The sweep's console: one line per finished job."""
+        from sphri.tracking.parent import progress_line
+
+        print(progress_line(self.sweep_dir, self.num, what), flush=True)
+
+    @property
+    def label(self) -> str:
+        return f"({' '.join(self.swept)})"
+
+
+def _job(cfg: DictConfig) -> _Job:
+    """This job as Hydra runs it; a sweep's job shares the cores and the console (thread caps, one
+    progress display, a quiet console: its log file keeps everything)."""
+    from sphri.tracking.parent import read_parent
+
     hc = HydraConfig.get()
-    job_dir = Path(hc.runtime.output_dir)
-    choices = {k: v for k, v in hc.runtime.choices.items() if v is not None and not k.startswith("hydra")}
     multirun = hc.mode == RunMode.MULTIRUN
-    job_num = int(hc.job.num) if multirun else 0
-    parent = read_parent(hc.sweep.dir) if multirun else None
+    job = _Job(
+        dir=Path(hc.runtime.output_dir),
+        choices={k: v for k, v in hc.runtime.choices.items() if v is not None and not k.startswith("hydra")},
+        multirun=multirun,
+        num=int(hc.job.num) if multirun else 0,
+        parent=read_parent(hc.sweep.dir) if multirun else None,
+        swept=[o for o in (hc.overrides.task if multirun else []) if not o.lstrip("+~").startswith("hydra")],
+        sweep_dir=str(hc.sweep.dir),
+        log_file=Path(hc.runtime.output_dir) / f"{hc.job.name}.log",
+    )
     if multirun:
         cores = os.cpu_count() or 1
         n_jobs = int(hc.launcher.get("n_jobs", 1) or 1)
@@ -111,107 +140,151 @@ def run_job(cfg: DictConfig) -> dict | None:
             limit_threads(max(1, cores // n_jobs))
         if "progress" in cfg.get("cv", {}):  # one progress display for the sweep, not a bar per job (runtime setting)
             OmegaConf.update(cfg, "cv.progress", False, force_add=False)
-    swept = [o for o in (hc.overrides.task if multirun else []) if not o.lstrip("+~").startswith("hydra")]
-    t_start = time.perf_counter()
-    if multirun and not (hc.verbose or verbose_requested()):
-        quiet_console()  # the sweep's console shows one line per job; the job's log file keeps everything
-    log_file = job_dir / f"{hc.job.name}.log"
+        if not (hc.verbose or verbose_requested()):
+            quiet_console()
+    return job
 
-    def say(what: str) -> None:  # the sweep's console: one line per finished job
-        from sphri.tracking.parent import progress_line
 
-        print(progress_line(hc.sweep.dir, job_num, what), flush=True)
+def _open_tracker(cfg: DictConfig) -> Any:
+    """Check the config and its inputs, then open the tracker (its store created or refused before computing)."""
+    from sphri import pipeline
 
-    tracker = None
-    try:
-        validate(cfg)
-        pipeline.chain_region(cfg)
-        check_inputs(cfg)
-        tracker = pipeline.build(cfg.tracking)
-        if tracker.enabled:
-            tracker.client(cfg.output_dir)  # create the store (under a lock) or refuse a broken one, before computing
-        if multirun and cfg.resume and tracker.enabled:
-            done = tracker.find_finished(cfg.output_dir, pipeline.config_hash(cfg))
-            if done:
-                log.info("job %d skipped: MLflow run %s already finished with this config", job_num, done)
-                write_status(job_dir, job_num, "SKIPPED", None, done, overrides=swept)
-                say(f"({' '.join(swept)}) skipped: MLflow run {done} already finished with this config")
-                return {"run_id": done, "skipped": True}
-        result = pipeline.run(cfg)
-    except Exception as exc:
-        error = f"{type(exc).__name__}: {exc}"
-        if tracker is None:
-            try:
-                tracker = pipeline.build(cfg.tracking)
-            except Exception:  # the tracking config itself is broken
-                tracker = None
-        broken = isinstance(exc, StoreError)  # broken, busy or not a store: no run can be recorded in it
-        # An invalid config is not a run: it makes no MLflow run (only the job's status file says so).
-        recorded = tracker is not None and tracker.enabled and not broken and not isinstance(exc, ConfigError)
-        run_id = tracker.log_failure(cfg, exc, job_dir, parent, choices) if recorded else None
-        write_status(job_dir, job_num, "FAILED", error, run_id, overrides=swept)
-        if multirun:  # one line on the console; the traceback in the job's log file
-            log.error("job %d FAILED: %s", job_num, error)
-            log.info("traceback of job %d:\n%s", job_num, traceback.format_exc())
-            say(f"({' '.join(swept)}) FAILED: {' '.join(error.split())[:300]}; log: {log_file}")
-            return None
-        if broken:
-            log.error("%s", exc)
-            print(f"sphri: {exc}", file=sys.stderr)
-            sys.exit(1)
-        code = report("sphri", exc)  # one line for expected errors; traceback with --verbose / HYDRA_FULL_ERROR=1
-        if code is not None:
-            sys.exit(code)
-        raise
+    validate(cfg)
+    pipeline.chain_region(cfg)
+    check_inputs(cfg)
+    tracker = pipeline.build(cfg.tracking)
+    if tracker.enabled:
+        tracker.client(cfg.output_dir)  # create the store (under a lock) or refuse a broken one
+    return tracker
 
-    run_id, reruns = None, 0
-    if tracker.enabled and not multirun:
+
+def _finished_already(cfg: DictConfig, job: _Job, tracker: Any) -> dict | None:
+    """A sweep's job whose config a finished MLflow run holds (``resume``): recorded SKIPPED, not run."""
+    from sphri import pipeline
+    from sphri.tracking.parent import write_status
+
+    if not (job.multirun and cfg.resume and tracker.enabled):
+        return None
+    done = tracker.find_finished(cfg.output_dir, pipeline.config_hash(cfg))
+    if not done:
+        return None
+    log.info("job %d skipped: MLflow run %s already finished with this config", job.num, done)
+    write_status(job.dir, job.num, "SKIPPED", None, done, overrides=job.swept)
+    job.say(f"{job.label} skipped: MLflow run {done} already finished with this config")
+    return {"run_id": done, "skipped": True}
+
+
+def _failed(cfg: DictConfig, job: _Job, tracker: Any, exc: Exception) -> None:
+    """Record a job that raised ``exc`` (called while it is handled): its MLflow run when one can be
+    recorded, its status file; a sweep goes on (one console line), a single job exits with one line or
+    re-raises an unexpected error."""
+    from sphri import pipeline
+    from sphri.tracking.parent import write_status
+    from sphri.tracking.store import StoreError
+
+    error = f"{type(exc).__name__}: {exc}"
+    if tracker is None:
+        try:
+            tracker = pipeline.build(cfg.tracking)
+        except Exception:  # the tracking config itself is broken
+            tracker = None
+    broken = isinstance(exc, StoreError)  # broken, busy or not a store: no run can be recorded in it
+    # An invalid config is not a run: it makes no MLflow run (only the job's status file says so).
+    recorded = tracker is not None and tracker.enabled and not broken and not isinstance(exc, ConfigError)
+    run_id = tracker.log_failure(cfg, exc, job.dir, job.parent, job.choices) if recorded else None
+    write_status(job.dir, job.num, "FAILED", error, run_id, overrides=job.swept)
+    if job.multirun:  # one line on the console; the traceback in the job's log file
+        log.error("job %d FAILED: %s", job.num, error)
+        log.info("traceback of job %d:\n%s", job.num, traceback.format_exc())
+        job.say(f"{job.label} FAILED: {' '.join(error.split())[:300]}; log: {job.log_file}")
+        return
+    if broken:
+        log.error("%s", exc)
+        print(f"sphri: {exc}", file=sys.stderr)
+        sys.exit(1)
+    code = report("sphri", exc)  # one line for expected errors; traceback with --verbose / HYDRA_FULL_ERROR=1
+    if code is not None:
+        sys.exit(code)
+    raise exc
+
+
+def _log(cfg: DictConfig, job: _Job, tracker: Any, result: Any) -> tuple[str | None, int, str]:
+    """``(run id, reruns, model note)``: the job's MLflow run (a single job that repeats a finished one is
+    tagged as a rerun of it) and its model where asked."""
+    run_id, reruns, model_note = None, 0, ""
+    if tracker.enabled and not job.multirun:
         # the same experiment again (same config hash, runtime settings aside): recorded once, on its first run
         run_id = tracker.find_finished(cfg.output_dir, result.config_hash)
-        reruns = tracker.mark_rerun(cfg.output_dir, run_id, job_dir) if run_id else 0
-    model_note = ""
+        reruns = tracker.mark_rerun(cfg.output_dir, run_id, job.dir) if run_id else 0
     if tracker.enabled and run_id is None:
-        run_id = tracker.log_job(cfg, result, job_dir, parent, choices=choices)
+        run_id = tracker.log_job(cfg, result, job.dir, job.parent, choices=job.choices)
         # log_model None (the default): a single job logs its model, a sweep's jobs do not
-        if tracker.log_model or (tracker.log_model is None and not multirun):
+        if tracker.log_model or (tracker.log_model is None and not job.multirun):
             model_note = _log_model(cfg, tracker, run_id)
     elif tracker.enabled and tracker.log_model:  # asked for explicitly (true)
         # already recorded: log the model into that run unless it holds one (never silently nothing)
         held = tracker.logged_models(cfg.output_dir, run_id)
         model_note = f"model already logged in that run: {held[0]}" if held else _log_model(cfg, tracker, run_id)
+    return run_id, reruns, model_note
+
+
+def _print(cfg: DictConfig, job: _Job, tracker: Any, result: Any, logged: tuple[str | None, int, str]) -> dict:
+    """Write the job's status and summary.txt; print its line (a sweep's job) or its summary box."""
+    from sphri.tracking.mlflow_tracker import summary_text, ui_hint
+    from sphri.tracking.parent import write_status
+
+    run_id, reruns, model_note = logged
     summary = result.summary()
     from_cache = result.stages["evaluate"].source == "cache" if "evaluate" in result.stages else False
     write_status(
-        job_dir,
-        job_num,
+        job.dir,
+        job.num,
         "FINISHED",
         None,
         run_id,
-        overrides=swept,
+        overrides=job.swept,
         accuracy=summary.get("accuracy_mean"),
         macro_f1=summary.get("macro_f1_mean"),
-        seconds=time.perf_counter() - t_start,
+        seconds=time.perf_counter() - job.t_start,
         from_cache=from_cache,
     )
     text = summary_text(result)
-    (job_dir / "summary.txt").write_text(text + "\n")
-    if multirun:  # the job's summary box is in its summary.txt; the sweep prints one line per job and a table
-        say(
-            f"({' '.join(swept)}) accuracy {summary.get('accuracy_mean', float('nan')):.3f}"
+    (job.dir / "summary.txt").write_text(text + "\n")
+    if job.multirun:  # the job's summary box is in its summary.txt; the sweep prints one line per job and a table
+        job.say(
+            f"{job.label} accuracy {summary.get('accuracy_mean', float('nan')):.3f}"
             + (" (from cache)" if from_cache else "")
-            + f"; {job_dir / 'summary.txt'}"
+            + f"; {job.dir / 'summary.txt'}"
         )
         return {"run_id": run_id, **summary}
-    from sphri.tracking.mlflow_tracker import ui_hint
-
     uri = tracker.resolve_uri(cfg.output_dir) if run_id else ""
     where = f"MLflow run {run_id} in {uri} (see it with `{ui_hint(uri)}`)" if run_id else "MLflow tracking disabled"
     if reruns:
         where = f"already recorded: {where}; tagged sphri.reruns={reruns}, no new run"
     if model_note:
         where += f"\nmodel       {model_note}"
-    print("\n" + "=" * 78 + "\n" + text + f"\ntracking    {where}\njob dir     {job_dir}\n" + "=" * 78)
+    print("\n" + "=" * 78 + "\n" + text + f"\ntracking    {where}\njob dir     {job.dir}\n" + "=" * 78)
     return {"run_id": run_id, **summary}
+
+
+def run_job(cfg: DictConfig) -> dict | None:
+    """One job: check the config, run the chain, log it, print its summary (a sweep's job: one line)."""
+    from sphri import pipeline
+    from sphri.tracking.parent import stop_if_killed
+
+    stop_if_killed()  # a serial sweep signalled during an earlier job starts no more jobs
+    job = _job(cfg)
+    tracker = None
+    try:
+        tracker = _open_tracker(cfg)
+        skipped = _finished_already(cfg, job, tracker)
+        if skipped is not None:
+            return skipped
+        result = pipeline.run(cfg)
+    except Exception as exc:
+        _failed(cfg, job, tracker, exc)
+        return None
+    return _print(cfg, job, tracker, result, _log(cfg, job, tracker, result))
 
 
 def _log_model(cfg: DictConfig, tracker, run_id: str) -> str:

@@ -2,9 +2,8 @@
 
 sphri's kernels (contact, rasterization, noise, hand kinematics, density)
 are compiled by numba on their first call on a machine and then stored in
-numba's on-disk cache (``cache=True``), so only the first run pays: 18 s
-on 2 shared AMD EPYC cores (2026-11) for a ``+debug=fast`` job (``bench/bench_startup.py``
-measures it). A run that compiles says so when the first kernel starts,
+numba's on-disk cache (``cache=True``), so only the first run pays
+(``bench/bench_startup.py`` measures it; docs/BENCHMARKS.md). A run that compiles says so when the first kernel starts,
 instead of looking stuck, and reports the total compile time at the end.
 
 Uses numba's own event API (``numba:compile`` fires only on a real compile,

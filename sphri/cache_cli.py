@@ -25,8 +25,8 @@ import time
 from pathlib import Path
 from typing import Literal
 
+from sphri.args import ArgsError, arg, run
 from sphri.cache import SUFFIX
-from sphri.command.args import ArgsError, arg, run
 
 
 class CacheCliError(ArgsError):

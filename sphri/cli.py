@@ -6,13 +6,13 @@
     sphri list robot                     # one group, with each file's summary
     sphri show noise=crosstalk           # every setting of a component: value, default, meaning
     sphri show tracking                  # one group's settings (= group=tracking)
-    sphri validate +robot=reachy encoder.res=18
-    sphri validate -m encoder.res=0,4    # a sweep: every job is checked
+    sphri validate +robot=reachy layout.res=18
+    sphri validate -m layout.res=0,4    # a sweep: every job is checked
     sphri validate +experiment=resolution_sweep   # its 100 jobs
 
 ``python -m sphri.cli VERB ...`` is the same command (an alias). ``validate`` composes the config
 exactly as ``sphri run`` would, runs every schema's checks, and prints the chosen components; it exits
-2 with a message naming the key on any problem. Arguments are read by :mod:`sphri.command.args`.
+2 with a message naming the key on any problem. Arguments are read by :mod:`sphri.args`.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from pathlib import Path
 
 import yaml
 
-from sphri.command.args import arg
+from sphri.args import arg
 from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, check_inputs, compose, validate
 from sphri.stages import PARAM_GROUPS, STAGE_GROUPS
 
@@ -117,7 +117,7 @@ def help_text() -> str:
         "  sphri sweep key=a,b,c [...]   (or sphri -m ...)         a sweep (one MLflow parent run)",
         "",
         "common commands (`sphri help` lists every verb):",
-        "  sphri +robot=reachy encoder.res=18                      the paper's resolution",
+        "  sphri +robot=reachy layout.res=18                      the paper's resolution",
         "  sphri +debug=fast                                       a smoke run at debug size",
         "  sphri sweep +experiment=resolution_sweep model=rf       the 50-resolution curve",
         "  sphri report SWEEP_DIR                                  the sweep's report",

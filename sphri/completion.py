@@ -1,8 +1,8 @@
 """Fast shell completion: Hydra's answers, kept per command-line context.
 
 Hydra answers a TAB (``sphri -sc query=bash``, with the line in ``COMP_LINE``)
-by importing sphri, registering every schema and composing the config: about
-1.4 s per TAB on 2 cores. The answer depends only on the words before the
+by importing sphri, registering every schema and composing the config, for
+every TAB (how long: docs/BENCHMARKS.md, ``startup.json``). The answer depends only on the words before the
 cursor, the part of the current word up to its last ``.``, ``=`` or ``/`` (the
 *stem*; bash's ``compgen`` filters the rest), sphri's version and its config
 and schema files. This module keeps Hydra's answer for each such context in
@@ -19,7 +19,7 @@ importing anything heavy) as well as to Hydra's overrides (no verb is ``run``); 
 argument dataclass, plus Hydra's overrides where the verb takes them (``validate``, ``show``,
 ``stats``, ...). The hardware verbs and ``export`` (skin, glove, simulate, export) offer their
 command word, then the keys of its settings schema, from the mapping their ``main`` hands
-:func:`sphri.command.args.read_settings` (:attr:`sphri.command.Verb.schema`). Every answer but a
+:func:`sphri.args.read_settings` (:attr:`sphri.command.Verb.schema`). Every answer but a
 path's is kept the same way.
 
 This module is the console script's entry (``sphri``): it must stay light. Anything but a TAB goes
@@ -39,8 +39,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 if TYPE_CHECKING:
+    from sphri.args import Key
     from sphri.command import Verb
-    from sphri.command.args import Key
 
 _PACKAGE = Path(__file__).resolve().parent
 _PATH_START = (".", "/", "\\", "~")
@@ -126,10 +126,10 @@ def _takes(verb: Verb, context: list[str]) -> tuple[list[Key], tuple[str, ...], 
     ``key=value`` keys, what a bare word may be there, and whether it takes Hydra's overrides. An ``args``
     verb's keys come from its argument dataclass; a ``main`` verb's (skin, glove, simulate, export) from
     the settings of its command word, in the mapping its ``main`` hands
-    :func:`sphri.command.args.read_settings` (:attr:`Verb.schema`): one source for the parser, ``--help``
+    :func:`sphri.args.read_settings` (:attr:`Verb.schema`): one source for the parser, ``--help``
     and TAB."""
+    from sphri.args import keys
     from sphri.command import is_override
-    from sphri.command.args import keys
 
     if verb.kind == "args":
         ks = keys(verb.load(verb.schema))

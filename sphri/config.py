@@ -21,6 +21,7 @@ import importlib
 import math
 import os
 import re
+import sys
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -125,9 +126,6 @@ def build(node: DictConfig, **kwargs: Any) -> Any:
     """Instantiate a component from its config node (plain Python containers)."""
     from hydra.utils import instantiate
 
-    drop = chain_fields(OmegaConf.get_type(node)) if isinstance(node, DictConfig) else ()
-    if drop:  # the chain's settings (encoder.res) reach the chain through their owner, not the component
-        node = OmegaConf.masked_copy(node, [str(k) for k in node.keys() if k not in drop])
     return instantiate(node, _convert_="all", **kwargs)
 
 
@@ -136,16 +134,12 @@ def plain(node: Any) -> Any:
     return OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else node
 
 
-#: Field metadata key of a setting that cannot change a result (see :func:`runtime_setting`).
+#: Field metadata key of a setting that cannot change a result (``setting(..., runtime=True)``).
 RUNTIME_META = "sphri_runtime"
 
 
 #: Field metadata key of a setting's range (a :class:`Range`), checked by :class:`Schema`.
 RANGE_META = "sphri_range"
-
-#: Field metadata key of a setting the chain reads through its owner's accessor and that is not
-#: passed to the component (``encoder.res``: :func:`sphri.encode.schema.grid_res`).
-CHAIN_META = "sphri_chain"
 
 
 @dataclass(frozen=True)
@@ -198,14 +192,16 @@ def setting(
     integer: bool = False,
     optional: bool = False,
     runtime: bool = False,
-    chain: bool = False,
     range: Range | None = None,
     metadata: dict | None = None,
 ) -> Any:
     """A schema field with its range as metadata: :class:`Schema` checks it at composition, naming
     the key as ``<GROUP>.<field>`` (the prefix derived from the schema's group, never typed).
-    ``optional``: None passes. ``runtime``: see :func:`runtime_setting`. ``chain``: the chain reads
-    the value through its owner's accessor and the component is not given it. ``range``: a
+    ``optional``: None passes. ``runtime``: a setting that cannot change a job's result (how many
+    threads or worker processes, progress display, chunk sizes); it is left out of the config hash and
+    of every stage key (:func:`result_config`), so changing it never recomputes a stage or reruns a
+    finished job (numbers may still differ at float rounding where a thread count changes the order of
+    a reduction: ``docs/RELIABILITY.md`` says where). ``range``: a
     :class:`Range` object shared with a check outside the schema (instead of ``lo``/``hi``/...)."""
     meta = dict(metadata or {})
     if range is not None:
@@ -216,8 +212,6 @@ def setting(
         )
     if runtime:
         meta[RUNTIME_META] = True
-    if chain:
-        meta[CHAIN_META] = True
     if default_factory is not dataclasses.MISSING:
         return field(default_factory=default_factory, metadata=meta)
     return field(default=default, metadata=meta)
@@ -278,24 +272,8 @@ def load_schema(schema: type[S], *nodes: Any) -> S:
         raise ConfigError(f"{schema.key(key) if key else schema.GROUP}: {first}") from None
 
 
-def chain_fields(schema: Any) -> tuple[str, ...]:
-    """Fields of ``schema`` declared with ``setting(..., chain=True)``: not passed to the component."""
-    if not (isinstance(schema, type) and dataclasses.is_dataclass(schema)):
-        return ()
-    return tuple(f.name for f in dataclasses.fields(schema) if f.metadata.get(CHAIN_META))
-
-
-def runtime_setting(default: Any) -> Any:
-    """A schema field that cannot change a job's result: how many threads or worker processes,
-    progress display, chunk sizes. Such fields are left out of the config hash and of every stage
-    key (:func:`result_config`), so changing one never recomputes a stage or reruns a finished job.
-    Numbers may still differ at float rounding where a thread count changes the order of a
-    reduction (``docs/RELIABILITY.md`` says where)."""
-    return field(default=default, metadata={RUNTIME_META: True})
-
-
 def runtime_fields(schema: Any) -> tuple[str, ...]:
-    """Names of the fields of the schema dataclass ``schema`` declared with :func:`runtime_setting`."""
+    """Names of the fields of the schema dataclass ``schema`` declared with ``setting(..., runtime=True)``."""
     if not (isinstance(schema, type) and dataclasses.is_dataclass(schema)):
         return ()
     return tuple(f.name for f in dataclasses.fields(schema) if f.metadata.get(RUNTIME_META))
@@ -307,7 +285,7 @@ NOT_RESULT_KEYS: tuple[str, ...] = ("cache", "output_dir", "resume", "plugins", 
 
 
 def runtime_keys() -> frozenset[str]:
-    """``<group>.<field>`` of every runtime setting (:func:`runtime_setting`) of the registered schemas:
+    """``<group>.<field>`` of every runtime setting (``setting(..., runtime=True)``) of the registered schemas:
     the MLflow params two jobs may differ in while computing the same result (``cv.progress``, ``model.n_jobs``)."""
     register_schemas()
     out: set[str] = set()
@@ -334,7 +312,7 @@ def result_neutral(param: str, runtime: frozenset[str] | None = None) -> bool:
 
 
 def result_config(node: Any) -> Any:
-    """``plain(node)`` without the fields its schema declares with :func:`runtime_setting`: what a
+    """``plain(node)`` without the fields its schema declares with ``setting(..., runtime=True)``: what a
     stage key and the config hash are made of, so that runtime settings never change either."""
     out = plain(node)
     if isinstance(node, DictConfig) and isinstance(out, dict):
@@ -436,14 +414,34 @@ def register_schemas() -> None:
 
 _PLUS_GROUP = re.compile(r"^\+(?P<group>[A-Za-z_][\w/]*)=(?P<value>.*)$")
 
+#: Keys read under their owner's name for one release (deprecated spelling -> the key): ``encoder.res=18``
+#: is ``layout.res=18``, in a single run, a sweep (``-m encoder.res=2,4``) and a sweeper's params.
+RENAMED_KEYS = {"encoder.res": "layout.res"}
+_RENAMED = re.compile(r"^(?P<pre>[+~]*)(?P<key>" + "|".join(re.escape(k) for k in RENAMED_KEYS) + r")(?P<rest>=.*)?$")
+_renamed_said: set[str] = set()
+
+
+def _renamed(override: str) -> str:
+    """``override`` with a deprecated key (:data:`RENAMED_KEYS`) spelled as its owner's; the first use of
+    each such key in a process prints one line on stderr."""
+    m = _RENAMED.match(override)
+    if m is None:
+        return override
+    old, new = m.group("key"), RENAMED_KEYS[m.group("key")]
+    if old not in _renamed_said:
+        _renamed_said.add(old)
+        print(f"sphri: {old} is deprecated, write {new} ({old} is read as {new} for one release)", file=sys.stderr)
+    return f"{m.group('pre')}{new}{m.group('rest') or ''}"
+
 
 def normalize_overrides(overrides: Sequence[str]) -> list[str]:
-    """Accept ``+robot=reachy`` as well as ``robot=reachy``.
+    """Accept ``+robot=reachy`` as well as ``robot=reachy``, and a deprecated key as its owner's.
 
     ``robot`` (like every stage group and ``debug``) is in the primary
     defaults list so that plain ``python -m sphri`` runs on the built-in
     robot. Hydra refuses to *append* a group that is already there, so
     ``+group=value`` for such a group is rewritten to ``group=value``;
+    ``encoder.res=18`` is ``layout.res=18`` (:data:`RENAMED_KEYS`);
     anything else passes through untouched.
     """
     out = []
@@ -452,7 +450,7 @@ def normalize_overrides(overrides: Sequence[str]) -> list[str]:
         if m and m.group("group") in DEFAULT_GROUPS:
             out.append(f"{m.group('group')}={m.group('value')}")
         else:
-            out.append(o)
+            out.append(_renamed(o))
     return out
 
 
@@ -508,7 +506,7 @@ def compose(overrides: Sequence[str] = (), config_name: str = "config", check: b
     print the settings of a config that does not run as it stands.
 
     Hydra composes each distinct set of group choices (and other structural overrides) once per
-    process; plain value overrides (``encoder.res=18``) are then set on a copy as Hydra sets them
+    process; plain value overrides (``layout.res=18``) are then set on a copy as Hydra sets them
     (:func:`set_values`): see :class:`_ComposeMemo`.
     """
     register_schemas()
@@ -539,9 +537,8 @@ def compose_with_hydra(config_name: str, overrides: Sequence[str]) -> DictConfig
 
 
 class _ComposeMemo:
-    """Hydra's compositions by structural overrides, per process: composing costs about 0.6 s, most
-    of a warm in-process job (a ``+debug=fast`` job runs in about 1.9 s on a 2-core EPYC), and the
-    callers that compose many configs (tests, ``sphri validate``, the scenario study, notebooks)
+    """Hydra's compositions by structural overrides, per process: composing is most of a warm
+    in-process job (docs/BENCHMARKS.md), and the callers that compose many configs (tests, ``sphri validate``, the scenario study, notebooks)
     mostly change plain values. The config files fingerprinted are every YAML under the search path's
     folders (sphri's conf/ and each ``hydra.searchpath`` folder), so a search path is a config folder.
 
@@ -556,8 +553,8 @@ class _ComposeMemo:
     ``size``: the compositions kept, least recently used dropped first. A composed config holds about
     0.28 MB (tracemalloc, the default config), so 128 keep at most about 36 MB; 128 rather than 32
     because one process that checks every component (``sphri show``, the tests of every YAML, every
-    schema's defaults and every experiment's jobs) composes 114 distinct ones: run serially, those
-    four test modules took 127.8 s with 32 and 104.2 s with 128 (2-core AMD EPYC, AVX-512).
+    schema's defaults and every experiment's jobs) composes 114 distinct ones (the time it saves:
+    docs/BENCHMARKS.md).
     """
 
     def __init__(self, size: int = 128) -> None:
@@ -993,7 +990,7 @@ def _own_field_docs(cls: type) -> tuple[tuple[str, str], ...]:
     """``(field, docstring)`` pairs written in ``cls``'s own body (not its bases'), read from its source.
 
     Cached per class object: ``show`` and the verbs' help read the same bases' docstrings for every
-    group, and finding a class's source parses its whole module (about 40 ms a schema, 2-core EPYC).
+    group, and finding a class's source parses its whole module (docs/BENCHMARKS.md says how long).
     A class defined anew (a reloaded module) is another object, read again."""
     import ast
     import inspect
@@ -1016,9 +1013,8 @@ def _own_field_docs(cls: type) -> tuple[tuple[str, str], ...]:
 
 
 def _component_fields(schema: type) -> list[str]:
-    """The settings a component takes: its schema's fields but ``_target_`` and the chain's own (:func:`chain_fields`)."""
-    chain = chain_fields(schema)
-    return [f.name for f in dataclasses.fields(schema) if f.name != "_target_" and f.name not in chain]
+    """The settings a component takes: its schema's fields but ``_target_``."""
+    return [f.name for f in dataclasses.fields(schema) if f.name != "_target_"]
 
 
 class Configured:
@@ -1035,8 +1031,7 @@ class Configured:
 
     def __init__(self, **settings: Any) -> None:
         names = _component_fields(self.SCHEMA)
-        # the chain's settings (encoder.res) are accepted and checked by the schema, not kept
-        unknown = sorted(set(settings) - set(names) - set(chain_fields(self.SCHEMA)))
+        unknown = sorted(set(settings) - set(names))
         if unknown:
             raise TypeError(f"{type(self).__name__}: unknown setting(s) {unknown}; its settings: {names}")
         values = self.SCHEMA(**settings)

@@ -6,7 +6,7 @@
     python -m sphri.coverage +debug=fast data.regions=[torso] by=gesture out=DIR
     python -m sphri.coverage data=vr_gesture data.root=... bandwidth_mm=8 mlflow=false
 
-Arguments are ``key=value`` (or ``--key value``, :mod:`sphri.command.args`). Keys of :class:`~sphri.analysis.schema.CoverageSchema`
+Arguments are ``key=value`` (or ``--key value``, :mod:`sphri.args`). Keys of :class:`~sphri.analysis.schema.CoverageSchema`
 (``by``, ``bandwidth_mm``, ..., also as ``coverage.<key>``) set the
 analysis; ``out=DIR`` (default ``<output_dir>/coverage/<timestamp>``) and
 ``mlflow=true|false`` the run; everything else is a sphri config override
@@ -35,7 +35,7 @@ from typing import Any
 
 from sphri.analysis.coverage import ALL, CoverageAnalysis, RegionCoverage, write_region
 from sphri.analysis.schema import CoverageSchema
-from sphri.command.args import ArgsError, arg, first_paragraph, help_text, parse, parse_known
+from sphri.args import ArgsError, arg, first_paragraph, help_text, parse, parse_known
 from sphri.config import ConfigError, check_out_apart, check_output_dir, compose
 from sphri.errors import clean_errors
 
@@ -66,7 +66,7 @@ class CoverageRun:
 
 def split_args(argv: Sequence[str], prog: str = "sphri.coverage") -> tuple[list[str], CoverageSchema, CoverageRunArgs]:
     """(config overrides, analysis settings, run arguments) from the command line, through
-    :mod:`sphri.command.args` (typed, range-checked; :class:`ArgsError` names the key)."""
+    :mod:`sphri.args` (typed, range-checked; :class:`ArgsError` names the key)."""
     words = []
     for a in argv:
         key = a.partition("=")[0]

@@ -11,7 +11,7 @@ The pages are read from what the commands themselves read, so they cannot drift 
   from :func:`sphri.config.setting`'s metadata, its meaning from the docstring under the field), one
   section per config group, one table per component;
 - the CLI reference from the verb table :data:`sphri.command.VERBS` and each verb's argument dataclass
-  or settings schemas, read by :func:`sphri.command.args.keys` as ``sphri VERB --help`` reads them.
+  or settings schemas, read by :func:`sphri.args.keys` as ``sphri VERB --help`` reads them.
 
 ``mkdocs build`` runs it through ``docs/hooks.py``: the pages are added to the site at build time and
 never written into ``docs/``.
@@ -187,7 +187,7 @@ def config_reference(groups: Iterable[str] | None = None, conf_dir: Path | None 
         "Every setting of every component, generated from the schemas `sphri show` reads (the type, the",
         "range a value is checked against when a config is composed, the component's default and the",
         "meaning written under the field). Pick a component with `group=name` and set a value with",
-        "`group.key=value`: `sphri encoder=coverage encoder.res=24`. `sphri show group=name` prints the",
+        "`group.key=value`: `sphri encoder=coverage layout.res=24`. `sphri show group=name` prints the",
         "same table for a composed config, with the values it holds.",
         "",
         "A *runtime* setting (threads, progress display) never changes a job's result: it is left out",
@@ -251,7 +251,7 @@ def _preset_sections(conf: Path) -> list[str]:
 
 def argument_table(cls: type) -> str:
     """A Markdown table of the arguments of a verb's dataclass, as ``sphri VERB --help`` reads them."""
-    from sphri.command.args import _metavar, keys
+    from sphri.args import _metavar, keys
 
     ks = keys(cls)
     if not ks:
@@ -290,8 +290,8 @@ def _help_output(verb: Any) -> str:
 
 def cli_reference(verbs: Sequence[Any] | None = None) -> str:
     """The CLI reference page: every verb of :data:`sphri.command.VERBS` with its arguments."""
+    from sphri.args import first_paragraph
     from sphri.command import VERBS
-    from sphri.command.args import first_paragraph
 
     lines = [
         "# CLI reference",

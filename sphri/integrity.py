@@ -26,14 +26,22 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import json
 import os
 import struct
+from typing import Any
 
 DIGEST_SIZE = 32
 #: The keyed digest of a file written without a key.
 NO_KEY = bytes(DIGEST_SIZE)
 #: Environment variables holding each purpose's key (or a file with it: the same name + ``_FILE``).
 KEY_ENV = {"cache": "SPHRI_CACHE_KEY", "model": "SPHRI_MODEL_KEY"}
+
+
+def stable_hash(obj: Any) -> str:
+    """Hex digest (20 chars) of a JSON-able object, independent of dict order (cache keys, sweep hashes)."""
+    text = json.dumps(obj, sort_keys=True, default=str, separators=(",", ":"))
+    return hashlib.blake2b(text.encode(), digest_size=10).hexdigest()
 
 
 def plain_digest(*parts: bytes) -> bytes:

@@ -5,7 +5,7 @@ Every stage's cache key is known *before* anything runs (it hashes the
 stage's config subtree, the keys of its inputs and the component's
 ``VERSION``), so evaluation is lazy: the runner asks for the final result
 and only computes, or loads, what a missing entry needs. Running the same
-command twice loads one small entry; changing ``encoder.res`` recomputes the
+command twice loads one small entry; changing ``layout.res`` recomputes the
 layout, encoder and below, never data or contact.
 
 The stages, their inputs and which are kept on disk are the table in
@@ -34,12 +34,12 @@ import numpy as np
 from hydra.utils import get_class, instantiate
 from omegaconf import DictConfig, OmegaConf
 
-from sphri.cache import StageCache, stable_hash, stage_key
+from sphri.cache import StageCache, stage_key
 from sphri.config import NOT_RESULT_KEYS, ConfigError, build, result_config
-from sphri.encode.schema import grid_res
 from sphri.finite import require_finite
 from sphri.inputs import input_fingerprints, memo_at, memo_for
-from sphri.integrity import load_key
+from sphri.integrity import load_key, stable_hash
+from sphri.layout.schema import layout_res
 from sphri.stages import (
     PER_FIT_GROUPS,
     RESULT_GROUPS,
@@ -138,7 +138,7 @@ class Pipeline:
     @property
     def res(self) -> int:
         """The grid resolution the layout is built at."""
-        return grid_res(self.cfg)
+        return layout_res(self.cfg)
 
     @property
     def seed(self) -> int:
@@ -443,7 +443,7 @@ COMPUTE: dict[str, StageCompute] = {
     "data": StageCompute(_data),
     "contact": StageCompute(lambda p: p.components["contact"].compute(p.get("data"), p.get("robot"))),
     "surface": StageCompute(lambda p: p.components["surface"].fit(p.link()), extra=lambda p: p.link_key()),
-    "layout": StageCompute(_layout, config=lambda p: {"layout": result_config(p.cfg.layout), "res": p.res}),
+    "layout": StageCompute(_layout),
     "plan": StageCompute(lambda p: p.components["window"].plan(p.get("contact"), p.get("data"))),
     "encode": StageCompute(_encode),
     # assembling the windows is the window component's: its version enters the key
@@ -659,7 +659,7 @@ def component_versions(cfg: DictConfig) -> dict[str, str]:
 
 def config_hash(cfg: DictConfig) -> str:
     """Hash of what defines a job's result: its config (everything but tracking/cache/hydra and the
-    runtime settings, :func:`sphri.config.runtime_setting`), the
+    runtime settings, ``sphri.config.setting(..., runtime=True)``), the
     ``VERSION`` of every component and the content fingerprints of the files the components read
     (:mod:`sphri.inputs`), so that a sweep resumed after a component or an input file changed reruns its jobs."""
 

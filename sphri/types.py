@@ -333,6 +333,18 @@ class TaxelGeometry:
 
 
 @dataclass
+class SkinFrames(Frames):
+    """Frames plus the geometry of their N taxels (``None`` when unknown): what an encoder returns.
+
+    The taxels' :class:`TaxelGeometry` (grid wrap, 3-D positions, areas) lets later stages such as
+    ``noise=crosstalk`` find neighbours without the layout; a subclass, so every consumer of
+    :class:`Frames` accepts it.
+    """
+
+    geometry: TaxelGeometry | None = None
+
+
+@dataclass
 class WindowedFrames:
     """Per-trial windows aligned to contact onset: the models' input."""
 

@@ -86,7 +86,7 @@ def failing_mesh_sweep(tmp_path: Path) -> list[str]:
     return [
         "-m",
         "+debug=fast",
-        "encoder.res=2",
+        "layout.res=2",
         "robot=mesh",
         "robot.links={l_arm: arm.obj}",
         "robot.regions={arm: l_arm}",

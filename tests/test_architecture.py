@@ -224,22 +224,51 @@ def check_no_file_cycles(graph: Mapping[str, Mapping[str, str]]) -> None:
     )
 
 
-def layer_table(text: str | None = None) -> list[tuple[str, list[str]]]:
-    """``[(layer, [module or package names])]``, highest layer first, from the table under ``## Layers`` of
-    docs/ARCHITECTURE.md (the one place the layer order is written)."""
+def _layer_tables(text: str | None = None) -> dict[str, list[list[str]]]:
+    """``{first header cell: [row cells]}`` of every table under ``## Layers`` of docs/ARCHITECTURE.md."""
     text = ARCHITECTURE.read_text() if text is None else text
     assert "\n## Layers\n" in text, "docs/ARCHITECTURE.md has no '## Layers' section (the layer table)"
     section = text.split("\n## Layers\n", 1)[1].split("\n## ", 1)[0]
-    rows = []
+    tables: dict[str, list[list[str]]] = {}
+    rows: list[list[str]] | None = None
     for line in section.splitlines():
-        cells = [c.strip() for c in line.strip().strip("|").split("|")] if line.lstrip().startswith("|") else []
-        if len(cells) < 2 or set(cells[0]) <= set("-: ") or cells[0] == "layer":
+        if not line.lstrip().startswith("|"):
+            rows = None  # a table ends at its first line that is not a row
             continue
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if rows is None:
+            rows = tables.setdefault(cells[0], [])
+        elif not set(cells[0]) <= set("-: "):
+            rows.append(cells)
+    return tables
+
+
+def layer_table(text: str | None = None) -> list[tuple[str, list[str]]]:
+    """``[(layer, [module or package names])]``, highest layer first, from the table under ``## Layers`` of
+    docs/ARCHITECTURE.md whose first column is ``layer`` (the one place the layer order is written)."""
+    out = []
+    for cells in _layer_tables(text).get("layer", []):
+        assert len(cells) >= 2, f"docs/ARCHITECTURE.md, layer table: row {cells} has no modules column"
         names = re.findall(r"`(sphri(?:\.[A-Za-z_][A-Za-z0-9_]*)*)`", cells[1])
         assert names, f"docs/ARCHITECTURE.md, layer table: row {cells[0]!r} names no module (`sphri.x`)"
-        rows.append((cells[0].strip("*"), names))
-    assert rows, "docs/ARCHITECTURE.md: no layer table under '## Layers'"
-    return rows
+        out.append((cells[0].strip("*"), names))
+    assert out, "docs/ARCHITECTURE.md: no layer table under '## Layers'"
+    return out
+
+
+def layer_bans(text: str | None = None) -> list[tuple[str, list[str]]]:
+    """``[(module or package, [layers it may not import])]`` from the table under ``## Layers`` whose first
+    column is ``module`` (the rules beside the order)."""
+    layers = {name for name, _ in layer_table(text)}
+    out = []
+    for cells in _layer_tables(text).get("module", []):
+        module = re.fullmatch(r"`(sphri(?:\.[A-Za-z_][A-Za-z0-9_]*)*)`", cells[0])
+        banned = [w.strip() for w in cells[1].split(",")] if len(cells) > 1 else []
+        assert module and banned, f"docs/ARCHITECTURE.md, layer rules: row {cells} needs `sphri.x` | layers"
+        unknown = sorted(set(banned) - layers)
+        assert not unknown, f"docs/ARCHITECTURE.md, layer rules: row {cells[0]} names no layer {unknown}"
+        out.append((module.group(1), banned))
+    return out
 
 
 def _covers(name: str, module: str) -> bool:
@@ -324,8 +353,71 @@ def test_the_two_loops_of_issue_30_stay_broken():
     assert "sphri.cache_cli" in graph["sphri.cache.__main__"] and "sphri.cache_cli" not in graph["sphri.cache"]
 
 
+def check_bans(
+    graph: Mapping[str, Mapping[str, str]],
+    table: Sequence[tuple[str, list[str]]],
+    bans: Sequence[tuple[str, list[str]]],
+) -> None:
+    """AssertionError naming every import of a module of a layer its rule in the layer rules table bans."""
+    bad = []
+    for name, banned in bans:
+        for src, deps in sorted(graph.items()):
+            if not _covers(name, src):
+                continue
+            for dst, where in sorted(deps.items()):
+                high = layer_of(dst, table)
+                if high is not None and high[1] in banned:
+                    bad.append(f"{src} imports {dst} (layer {high[1]}) at {where}: {name} imports no {high[1]} module")
+    assert not bad, "imports the layer rules of docs/ARCHITECTURE.md ban:\n  " + "\n  ".join(bad)
+
+
 def test_imports_follow_the_layers():
     check_layers(module_graph(), layer_table())
+
+
+def test_imports_follow_the_layer_rules():
+    check_bans(module_graph(), layer_table(), layer_bans())
+
+
+def test_the_layer_rules_of_the_core_are_written_and_hold():
+    """No stage imports the command layer, tracking imports nothing of the runner (the chain, the commands),
+    hardware imports no stage module: each is a rule of the table, and a planted import of each is named."""
+    table, bans = layer_table(), dict(layer_bans())
+    rank = {layer: r for r, (layer, _) in enumerate(reversed(table))}
+    assert rank["commands"] > rank["stages"] and rank["commands"] > rank["geometry"]
+    assert rank["chain"] > rank["tracking"] and {"chain", "commands"} <= set(bans["sphri.tracking"])
+    assert "stages" in bans["sphri.hardware"]
+    graph = module_graph()
+    assert layer_of("sphri.args", table)[1] == "foundation" and layer_of("sphri.command", table)[1] == "commands"
+    for src, dst, rule in [
+        ("sphri.data.stats", "sphri.command", check_layers),
+        ("sphri.robots.reachy2_derivative", "sphri.command", check_layers),
+        ("sphri.tracking.parent", "sphri.pipeline", check_layers),
+        ("sphri.tracking.mlflow_tracker", "sphri.__main__", check_layers),
+        ("sphri.hardware.source", "sphri.encode.common", None),
+    ]:
+        bad = {m: dict(deps) for m, deps in graph.items()}
+        bad[src][dst] = f"{src.replace('.', '/')}.py:1"
+        with pytest.raises(AssertionError, match=re.escape(f"{src} ") + r".*imports " + re.escape(dst)):
+            if rule is None:
+                check_bans(bad, table, list(bans.items()))
+            else:
+                rule(bad, table)
+
+
+def test_skin_frames_live_with_the_types_and_keep_their_encode_names():
+    import sphri.encode
+    import sphri.encode.common
+    import sphri.types
+
+    assert sphri.types.SkinFrames.__module__ == "sphri.types"
+    assert sphri.encode.SkinFrames is sphri.encode.common.SkinFrames is sphri.types.SkinFrames
+
+
+def test_layer_rules_table_rejects_an_unknown_layer():
+    text = ARCHITECTURE.read_text().replace("| `sphri.hardware` | stages |", "| `sphri.hardware` | stagez |")
+    with pytest.raises(AssertionError, match=r"names no layer \['stagez'\]"):
+        layer_bans(text)
 
 
 def test_layer_check_names_both_modules_of_a_violation():

@@ -9,8 +9,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from sphri.cache import MAGIC, CorruptEntry, StageCache, read_entry, stable_hash, stage_key, write_entry
+from sphri.cache import MAGIC, CorruptEntry, StageCache, read_entry, stage_key, write_entry
 from sphri.codec import DecodeError
+from sphri.integrity import stable_hash
 
 
 def test_keys_are_stable_and_order_independent():

@@ -50,7 +50,7 @@ def test_replaced_mesh_recomputes_robot_stages_and_log_names_it(tmp_path: Path, 
         f"robot.links={{l_arm: {mesh}}}",
         "robot.regions={arm: l_arm}",
         "robot.units=m",
-        "encoder.res=3",
+        "layout.res=3",
     ]
     first, cfg = make(tmp_path, *robot)
     assert set(sources(first, "contact", "surface").values()) == {"computed"}
@@ -170,7 +170,7 @@ def _npz(arrays: dict) -> bytes:
 @pytest.mark.parametrize("kind", ["pickle", "npz_object_array", "foreign_class"])
 def test_crafted_entry_executes_nothing_and_is_recomputed(tmp_path: Path, kind: str, caplog):
     marker = tmp_path / "PWNED"
-    p, _ = make(tmp_path, "encoder.res=3")
+    p, _ = make(tmp_path, "layout.res=3")
     key = p.nodes["data"].key
     if kind == "pickle":
         payload = pickle.dumps(_Payload(str(marker)))
@@ -200,9 +200,9 @@ def test_crafted_entry_executes_nothing_and_is_recomputed(tmp_path: Path, kind: 
 
 def test_entry_of_the_wrong_contract_is_recomputed_not_a_crash(tmp_path: Path, caplog):
     """A valid entry holding another stage's object (here contacts where data is expected)."""
-    p, _ = make(tmp_path, "encoder.res=3")
+    p, _ = make(tmp_path, "layout.res=3")
     contacts = p.get("contact")
-    other, _ = make(tmp_path, "encoder.res=3", "data.seed=9")
+    other, _ = make(tmp_path, "layout.res=3", "data.seed=9")
     key = other.nodes["data"].key
     other.cache.write("data", key, contacts)
     dataset = other.get("data")
@@ -213,7 +213,7 @@ def test_entry_of_the_wrong_contract_is_recomputed_not_a_crash(tmp_path: Path, c
 def test_contracts_round_trip_through_arrays_and_json(tmp_path: Path):
     from sphri.codec import decode, encode
 
-    p, _ = make(tmp_path, "encoder.res=3")
+    p, _ = make(tmp_path, "layout.res=3")
     values = {s: p.get(s) for s in ("data", "contact", "surface", "layout", "plan")}
     values["evaluate"] = p.get("evaluate")
     for stage, value in values.items():

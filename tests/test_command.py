@@ -11,8 +11,8 @@ from typing import Literal
 import forked_cli
 import pytest
 
+from sphri.args import ArgsError, HelpRequested, arg, keys, parse
 from sphri.command import BY_NAME, VERBS, find, help_text, main
-from sphri.command.args import ArgsError, HelpRequested, arg, keys, parse
 from sphri.config import setting
 from sphri.hardware.settings import SkinLiveSettings
 
@@ -170,7 +170,7 @@ def test_cheap_verbs_run_for_real(tmp_path, capsys):
     assert main(["show", "noise=crosstalk", "noise.alpha=0.3"]) == 0
     assert "[changed; default 0.1]" in capsys.readouterr().out
     assert main(["show", "--group", "nosuch"]) == 2
-    assert main(["validate", "+robot=reachy", "encoder.res=18"]) == 0
+    assert main(["validate", "+robot=reachy", "layout.res=18"]) == 0
     assert "config OK" in capsys.readouterr().out
     assert main(["validate", "noise.p=1.5"]) == 2
     assert "noise.p" in capsys.readouterr().err
@@ -249,10 +249,10 @@ def test_python_m_sphri_takes_a_verb_like_the_console_script(tmp_path):
     assert verb.returncode == 0 and verb.stdout == _python(["-m", "sphri.cli", "list", "noise"], tmp_path).stdout
     skin = _python(["-m", "sphri", "skin", "live", "port=p", "model=m", "stride=-1"], tmp_path)
     assert skin.returncode == 2 and skin.stderr.strip() == "sphri skin: stride=-1 is invalid: must be in [0, 10000]"
-    for argv in (["+debug=fast", "encoder.res=abc"], ["run", "+debug=fast", "encoder.res=abc"]):
+    for argv in (["+debug=fast", "layout.res=abc"], ["run", "+debug=fast", "layout.res=abc"]):
         bad = _python(["-m", "sphri", *argv, f"output_dir={tmp_path / 'o'}"], tmp_path)
-        assert bad.returncode == 2 and bad.stderr.strip().startswith("sphri: invalid config: encoder.res"), bad.stderr
-    cfg = _python(["-m", "sphri", "--cfg", "job", "+debug=fast", "encoder.res=6"], tmp_path)  # Hydra's own flag
+        assert bad.returncode == 2 and bad.stderr.strip().startswith("sphri: invalid config: layout.res"), bad.stderr
+    cfg = _python(["-m", "sphri", "--cfg", "job", "+debug=fast", "layout.res=6"], tmp_path)  # Hydra's own flag
     assert cfg.returncode == 0 and "res: 6" in cfg.stdout, cfg.stderr[-2000:]
     assert "`python -m sphri ...` is the same as `sphri ...`" in _python(["-m", "sphri", "--help"], tmp_path).stdout
     assert not (tmp_path / "o").exists()
@@ -268,10 +268,10 @@ def test_console_script_runs_a_job_with_or_without_the_run_verb(tmp_path):
     job = _console(["run", "+debug=fast", "tracking.enabled=false", f"output_dir={tmp_path / 'out'}"], tmp_path)
     assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
     assert "accuracy" in job.stdout
-    bad = _console(["+debug=fast", "encoder.res=abc", f"output_dir={tmp_path / 'o2'}"], tmp_path)
-    assert bad.returncode == 2 and bad.stderr.strip().startswith("sphri: invalid config: encoder.res"), bad.stderr
-    sweep = _console(["sweep", "+debug=fast", "encoder.res=0,4", f"output_dir={tmp_path / 'o3'}"], tmp_path)
-    assert sweep.returncode == 2 and "encoder.res=0" in sweep.stderr, sweep.stderr[-2000:]  # swept: -m was added
+    bad = _console(["+debug=fast", "layout.res=abc", f"output_dir={tmp_path / 'o2'}"], tmp_path)
+    assert bad.returncode == 2 and bad.stderr.strip().startswith("sphri: invalid config: layout.res"), bad.stderr
+    sweep = _console(["sweep", "+debug=fast", "layout.res=0,4", f"output_dir={tmp_path / 'o3'}"], tmp_path)
+    assert sweep.returncode == 2 and "layout.res=0" in sweep.stderr, sweep.stderr[-2000:]  # swept: -m was added
     assert not (tmp_path / "o3" / "mlflow.db").exists()
     verbs = _console(["help"], tmp_path)
     assert verbs.returncode == 0 and "  validate " in verbs.stdout
@@ -281,7 +281,7 @@ def test_the_console_script_imports_only_the_standard_library():
     """The first word of every TAB reads the verb table: ``sphri.completion`` and ``sphri.command`` (with its
     parser) must not pull in Hydra, numpy or yaml."""
     probe = (
-        "import sys; import sphri.completion, sphri.command, sphri.command.args; "
+        "import sys; import sphri.completion, sphri.command, sphri.args; "
         "print(sorted({m.split('.')[0] for m in sys.modules} & {'hydra', 'omegaconf', 'numpy', 'yaml', 'torch'}))"
     )
     out = _python(["-c", probe], REPO)

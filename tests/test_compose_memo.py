@@ -16,11 +16,11 @@ from sphri.config import ConfigError, _explain, compose, compose_with_hydra, nor
 SAME = [
     [],
     ["+debug=fast"],
-    ["+debug=fast", "encoder.res=7", "seed=3"],
-    ["model=cnn_gru", "model.channels=[8,8]", "encoder.res=6"],
+    ["+debug=fast", "layout.res=7", "seed=3"],
+    ["model=cnn_gru", "model.channels=[8,8]", "layout.res=6"],
     ["+debug=fast", "data.participants=5"],  # a value the debug preset sets: the override wins, as in Hydra
     ["data.participants=5", "+debug=fast"],  # ... in either order
-    ["encoder=coverage", "encoder.res=2"],
+    ["encoder=coverage", "layout.res=2"],
     ["output_dir=/tmp/a b", "tracking.enabled=false"],
     ["seed=${oc.env:HOME}"],  # an interpolation stays one
     ["experiment=requirement_sensitivity_quick", "sensitivity=noise0", "model.n_estimators=9"],
@@ -38,8 +38,8 @@ def test_a_memo_composition_is_hydras(overrides):
 
 
 BAD = [
-    ["encoder.res=abc"],
-    ["+debug=fast", "encoder.res=1.5"],
+    ["layout.res=abc"],
+    ["+debug=fast", "layout.res=1.5"],
     ["model.lr=0.1"],
     ["nokey=1"],
     ["encoder.rez=4"],
@@ -82,9 +82,9 @@ def test_an_edited_config_file_is_read_again(tmp_path):
     mine = tmp_path / "encoder" / "mine.yaml"
     mine.write_text("defaults:\n  - /schema_encoder_ellipse@_here_\n  - _self_\nsubsamples: 3\n")
     search = f"hydra.searchpath=[file://{tmp_path}]"
-    assert compose([search, "encoder=mine", "encoder.res=5"]).encoder.subsamples == 3
+    assert compose([search, "encoder=mine", "layout.res=5"]).encoder.subsamples == 3
     mine.write_text("defaults:\n  - /schema_encoder_ellipse@_here_\n  - _self_\nsubsamples: 4\n")
-    assert compose([search, "encoder=mine", "encoder.res=5"]).encoder.subsamples == 4
+    assert compose([search, "encoder=mine", "layout.res=5"]).encoder.subsamples == 4
 
 
 def test_a_node_stored_again_is_seen():

@@ -79,23 +79,23 @@ def test_grid_encoder_on_an_irregular_layout_fails_at_composition(overrides, nam
 
 
 def test_plus_and_plain_group_overrides_are_equivalent():
-    assert normalize_overrides(["+robot=reachy", "encoder.res=18", "+foo=1"]) == [
+    assert normalize_overrides(["+robot=reachy", "layout.res=18", "+foo=1"]) == [
         "robot=reachy",
-        "encoder.res=18",
+        "layout.res=18",
         "+foo=1",
     ]
-    a = compose(["+robot=reachy", "encoder.res=18"])
-    b = compose(["robot=reachy", "encoder.res=18"])
+    a = compose(["+robot=reachy", "layout.res=18"])
+    b = compose(["robot=reachy", "layout.res=18"])
     assert a == b
-    assert a.encoder.res == 18
+    assert a.layout.res == 18
 
 
 @pytest.mark.parametrize(
     "override,key",
     [
-        ("encoder.res=0", "encoder.res"),
-        ("encoder.res=-3", "encoder.res"),
-        ("encoder.res=abc", "encoder.res"),
+        ("layout.res=0", "layout.res"),
+        ("layout.res=-3", "layout.res"),
+        ("layout.res=abc", "layout.res"),
         ("noise.p=1.5", "noise.p"),
         ("window.frames=0", "window.frames"),
         ("encoder.no_such_key=1", "no_such_key"),

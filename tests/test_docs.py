@@ -12,8 +12,8 @@ from pathlib import Path
 import yaml
 from hydra.core.config_store import ConfigStore
 
+from sphri.args import arg
 from sphri.command import VERBS, Verb
-from sphri.command.args import arg
 from sphri.config import ComponentSchema, setting
 from sphri.docs_gen import cli_reference, config_reference, range_words, setting_rows
 
@@ -77,9 +77,9 @@ def test_range_words():
 
 
 def test_the_real_config_reference_lists_the_packaged_components():
-    page = config_reference(groups=["encoder", "noise"])
+    page = config_reference(groups=["encoder", "layout", "noise"])
     assert "### encoder=ellipse" in page and "### noise=salt_pepper" in page
-    assert "| `encoder.res` |" in page
+    assert "| `layout.res` |" in page
     assert "## Experiments" in page and "| `resolution_sweep` | The reference study's curve" in page
 
 
@@ -129,7 +129,7 @@ def test_the_docs_site_builds_strictly(tmp_path):
     done = _mkdocs(ROOT / "mkdocs.yml", tmp_path / "site")
     assert done.returncode == 0, done.stdout + done.stderr
     config_page = (tmp_path / "site" / "reference" / "config" / "index.html").read_text()
-    assert "encoder.res" in config_page
+    assert "layout.res" in config_page
     assert "check-data" in (tmp_path / "site" / "reference" / "cli" / "index.html").read_text()
     assert "make_pipeline" in (tmp_path / "site" / "reference" / "api" / "index.html").read_text()
 

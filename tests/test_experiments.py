@@ -79,7 +79,7 @@ def test_there_are_the_documented_experiments():
 
 def test_resolution_sweep_is_the_studys_grid():
     params = sweep_params("resolution_sweep")
-    assert params["encoder.res"] == [str(r) for r in range(1, 51)]
+    assert params["layout.res"] == [str(r) for r in range(1, 51)]
     assert params["model"] == ["rf", "cnn_gru"]
 
 
@@ -109,9 +109,9 @@ def test_experiment_smoke_runs_in_debug_mode(name: str, tmp_path: Path):
     # `make test`: every component, and numbers at their range's ends (the same code path between);
     # SPHRI_DEEP_TESTS=1 (`make test-all`): every value of a range of up to 6 values too
     for job in covering_jobs(params, numeric_ends=not os.environ.get("SPHRI_DEEP_TESTS")):
-        extra = ["encoder.res=3"] if name == "resolution_sweep" and job[0] != "model=rf" else []
+        extra = ["layout.res=3"] if name == "resolution_sweep" and job[0] != "model=rf" else []
         if extra:  # the CNN-GRU at res 50 is not a smoke test; the model is, at a small grid
-            job = [o for o in job if not o.startswith("encoder.res=")]
+            job = [o for o in job if not o.startswith("layout.res=")]
         cfg = compose([f"+experiment={name}", *FAST, f"cache.dir={tmp_path}", *job, *extra])
         result = pipeline.run(cfg, cache)
         assert len(result.cv.folds) == 3, (name, job)

@@ -29,7 +29,7 @@ from sphri.types import CVResult, RunMeta
 ARGS = [
     "+debug=fast",
     "model=cnn_gru",
-    "encoder.res=4",
+    "layout.res=4",
     "model.max_epochs=10",
     "cv.threads_per_worker=1",
     "tracking.enabled=false",

@@ -45,12 +45,12 @@ def test_glob_sweep_expands_to_components_only(tmp_path: Path):
 
 
 def test_an_empty_sweep_is_refused_without_a_parent_run(tmp_path: Path):
-    """`encoder.res=range(5,5)` exited 0 with an empty MLflow parent run."""
+    """`layout.res=range(5,5)` exited 0 with an empty MLflow parent run."""
     out = tmp_path / "o"
     proc = _run(
-        ["sphri", "-m", "+debug=fast", "encoder.res=range(5,5)", f"output_dir={out}", "hydra/launcher=serial"], tmp_path
+        ["sphri", "-m", "+debug=fast", "layout.res=range(5,5)", f"output_dir={out}", "hydra/launcher=serial"], tmp_path
     )
-    _one_line(proc, 2, "encoder.res=range(5,5)", "no job was started")
+    _one_line(proc, 2, "layout.res=range(5,5)", "no job was started")
     assert not (out / "mlflow.db").exists()
 
 

@@ -139,7 +139,7 @@ def wheel_sweep(installed, tmp_path_factory) -> Path:
     default (joblib) launcher: the sweeper, the launcher and the job are what a second point would
     test again."""
     cwd = tmp_path_factory.mktemp("wheel_sweep")
-    sweep = _sphri(installed, cwd, "sphri", "-m", "+debug=fast", "encoder.res=2", "hydra.sweep.dir=sweep")
+    sweep = _sphri(installed, cwd, "sphri", "-m", "+debug=fast", "layout.res=2", "hydra.sweep.dir=sweep")
     assert sweep.returncode == 0, (sweep.stdout + sweep.stderr)[-3000:]
     assert "1 of 1 jobs finished" in sweep.stdout and "accuracy" in sweep.stdout, sweep.stdout[-2000:]
     assert (cwd / "outputs" / "cache").is_dir()
@@ -164,9 +164,9 @@ def test_wheel_sweep_then_its_report(installed, wheel_sweep):
 
 
 def test_wheel_validates_a_sweep_as_a_checkout_does(installed, tmp_path):
-    check = _sphri(installed, tmp_path, "sphri.cli", "validate", "-m", "encoder.res=0,4,18")
+    check = _sphri(installed, tmp_path, "sphri.cli", "validate", "-m", "layout.res=0,4,18")
     assert check.returncode == 2, (check.stdout + check.stderr)[-3000:]
-    assert "1 of 3 points fail validation" in check.stderr and "encoder.res=0" in check.stderr
+    assert "1 of 3 points fail validation" in check.stderr and "layout.res=0" in check.stderr
     assert "Traceback" not in check.stderr
 
 

@@ -26,7 +26,7 @@ def sources(result: pipeline.RunResult) -> dict[str, str]:
 
 
 def test_debug_chain_runs_end_to_end(tmp_path: Path):
-    result = run(StageCache(tmp_path), "encoder.res=6")
+    result = run(StageCache(tmp_path), "layout.res=6")
     assert set(sources(result).values()) == {"computed"}
     assert len(result.cv.folds) == 3, "LOSO over the 3 debug participants"
     s = result.summary()
@@ -40,15 +40,15 @@ def test_debug_chain_runs_end_to_end(tmp_path: Path):
 
 def test_resolution_change_reuses_data_and_contact(tmp_path: Path):
     cache = StageCache(tmp_path)
-    r4 = run(cache, "encoder.res=4")
+    r4 = run(cache, "layout.res=4")
     assert sources(r4)["contact"] == "computed"
-    r8 = run(cache, "encoder.res=8")
+    r8 = run(cache, "layout.res=8")
     s8 = sources(r8)
     assert s8["data"] == "cache" and s8["contact"] == "cache" and s8["plan"] == "cache"
     assert s8["layout"] == "computed" and s8["encode"] == "computed" and s8["evaluate"] == "computed"
     assert r8.meta.resolution["n_taxels"] > r4.meta.resolution["n_taxels"]
     # the same command again recomputes nothing and does not even load contact
-    again = sources(run(cache, "encoder.res=8"))
+    again = sources(run(cache, "layout.res=8"))
     assert again["evaluate"] == "cache"
     assert "computed" not in again.values()
     assert again["contact"] == "skipped" and again["data"] == "skipped"
@@ -56,8 +56,8 @@ def test_resolution_change_reuses_data_and_contact(tmp_path: Path):
 
 def test_contact_change_recomputes_contact_and_below(tmp_path: Path):
     cache = StageCache(tmp_path)
-    run(cache, "encoder.res=4")
-    changed = sources(run(cache, "encoder.res=4", "contact=spheres"))
+    run(cache, "layout.res=4")
+    changed = sources(run(cache, "layout.res=4", "contact=spheres"))
     assert changed["data"] == "cache"
     for stage in ("contact", "plan", "encode", "noise", "evaluate"):
         assert changed[stage] == "computed", stage
@@ -66,7 +66,7 @@ def test_contact_change_recomputes_contact_and_below(tmp_path: Path):
 
 def test_density_layout_from_contacts_is_keyed_on_them(tmp_path: Path):
     cache = StageCache(tmp_path)
-    dens = ["layout=density", "encoder=coverage", "encoder.res=4"]
+    dens = ["layout=density", "encoder=coverage", "layout.res=4"]
     first = run(cache, *dens)
     assert first.meta.resolution["layout_kind"] == "density"
     # the run's seed draws the density layout's candidate points (conf/layout/density.yaml: seed: ${seed})
@@ -76,7 +76,7 @@ def test_density_layout_from_contacts_is_keyed_on_them(tmp_path: Path):
 
 
 def test_cache_disabled_computes_everything(tmp_path: Path):
-    cfg = compose([*FAST, f"cache.dir={tmp_path}", "cache.enabled=false", "encoder.res=3"])
+    cfg = compose([*FAST, f"cache.dir={tmp_path}", "cache.enabled=false", "layout.res=3"])
     result = pipeline.run(cfg)
     assert set(sources(result).values()) == {"computed"}
     assert not any(tmp_path.iterdir())
@@ -84,9 +84,9 @@ def test_cache_disabled_computes_everything(tmp_path: Path):
 
 def test_wrong_value_fails_before_any_stage(tmp_path: Path):
     env = {**os.environ, "PYTHONUNBUFFERED": "1"}
-    proc = forked_cli.run(["-m", "sphri", "encoder.res=0", f"output_dir={tmp_path}"], tmp_path, env, 300)
+    proc = forked_cli.run(["-m", "sphri", "layout.res=0", f"output_dir={tmp_path}"], tmp_path, env, 300)
     assert proc.returncode == 2
-    assert "encoder.res" in proc.stderr
+    assert "layout.res" in proc.stderr
     assert "computing" not in proc.stdout + proc.stderr
     assert not (tmp_path / "cache").exists()
 
@@ -94,10 +94,10 @@ def test_wrong_value_fails_before_any_stage(tmp_path: Path):
 def test_synthetic_data_is_keyed_on_the_robot(tmp_path: Path):
     """Synthetic gestures are placed on the robot: another robot is other data."""
     cache = StageCache(tmp_path)
-    nao = run(cache, "robot=nao_child", "encoder.res=3")
-    reachy = sources(run(cache, "robot=reachy", "encoder.res=3"))
+    nao = run(cache, "robot=nao_child", "layout.res=3")
+    reachy = sources(run(cache, "robot=reachy", "layout.res=3"))
     assert reachy["data"] == "computed"
-    assert nao.stages["data"].key != run(cache, "robot=reachy", "encoder.res=3").stages["data"].key
+    assert nao.stages["data"].key != run(cache, "robot=reachy", "layout.res=3").stages["data"].key
 
 
 def test_config_hash_follows_component_versions(monkeypatch):

@@ -92,7 +92,7 @@ def test_a_memo_shares_stages_between_pipelines(cache):
     memo = Memo()
     first = make_pipeline(compose(SMALL), cache, memo=memo)
     robot = first.get("robot")
-    second = make_pipeline(compose([*SMALL, "encoder.res=5"]), cache, memo=memo)
+    second = make_pipeline(compose([*SMALL, "layout.res=5"]), cache, memo=memo)
     assert second.get("robot") is robot and second.records["robot"].source == "memory"
 
 

@@ -53,7 +53,7 @@ def _stderr_on_a_terminal(args: list[str], cwd: Path) -> tuple[int, str]:
 
 
 def test_checking_a_sweeps_jobs_shows_its_progress_on_a_terminal(tmp_path):
-    args = ["-m", "sphri.cli", "validate", "-m", "+debug=fast", "encoder.res=2,4,8"]
+    args = ["-m", "sphri.cli", "validate", "-m", "+debug=fast", "layout.res=2,4,8"]
     rc, shown = _stderr_on_a_terminal(args, tmp_path)
     assert rc == 0, shown[-2000:]
     assert "checking the sweep's jobs" in shown and re.search(r"\d/3 \[", shown), shown[-2000:]

@@ -32,8 +32,8 @@ def swept(name: str) -> dict[str, list[str]]:
 def test_full_map_sweeps_six_false_on_rates_sixteen_resolutions_three_seeds():
     params = swept("requirement_map")
     assert [float(p) for p in params["noise.p"]] == [0.0, 0.002, 0.005, 0.01, 0.02, 0.05]
-    assert params["encoder.res"] == swept("requirement_sensitivity")["encoder.res"], "the sensitivity study's grid"
-    assert len(params["encoder.res"]) == 16 and params["seed"] == ["0", "1", "2"]
+    assert params["layout.res"] == swept("requirement_sensitivity")["layout.res"], "the sensitivity study's grid"
+    assert len(params["layout.res"]) == 16 and params["seed"] == ["0", "1", "2"]
     assert params["filter"] == ["none", "despeckle", "persistence"]
     assert swept("requirement_map_quick")["filter"] == ["none", "despeckle", "persistence"]
     assert compose(["+experiment=requirement_map", "filter=persistence"]).filter.ms == 50.0
@@ -44,7 +44,7 @@ def test_full_map_sweeps_six_false_on_rates_sixteen_resolutions_three_seeds():
     quick = compose(["+experiment=requirement_map_quick"])
     assert quick.data.participants == 3 and quick.data.repetitions == 2 and quick.model.n_estimators == 30
     q = swept("requirement_map_quick")
-    assert len(q["noise.p"]) >= 2 and len(q["encoder.res"]) >= 2 and len(q["seed"]) == 2
+    assert len(q["noise.p"]) >= 2 and len(q["layout.res"]) >= 2 and len(q["seed"]) == 2
 
 
 def test_false_on_rate_is_range_checked_and_read_back_from_the_noise_params():
@@ -68,7 +68,7 @@ def test_false_on_rate_is_range_checked_and_read_back_from_the_noise_params():
 
 def test_seeds_are_replicates_not_groups():
     jobs = [
-        {"seed": str(s), "model.seed": str(s), "noise.p": p, "encoder.res": str(r)}
+        {"seed": str(s), "model.seed": str(s), "noise.p": p, "layout.res": str(r)}
         for s in (0, 1, 2)
         for p in ("0", "0.01")
         for r in (2, 6)
@@ -84,7 +84,7 @@ def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
         [
             "+experiment=requirement_map_quick",
             "noise.p=0,0.05",
-            "encoder.res=2,12",
+            "layout.res=2,12",
             "filter=none,persistence",
             "tracking.confusion_png=false",
         ],
@@ -137,7 +137,7 @@ def test_threshold_quick_map_reads_the_false_on_rate_from_the_noise_and_reports_
     assert quick.noise._target_.endswith("ThresholdNoise") and quick.encoder._target_.endswith("CoverageEncoder")
     assert len(swept("requirement_map_threshold_quick")["noise.sigma_mm2"]) >= 2
     sweep, rep = sweep_then_report(
-        ["+experiment=requirement_map_threshold_quick", "noise.sigma_mm2=0,5", "encoder.res=2,12"],
+        ["+experiment=requirement_map_threshold_quick", "noise.sigma_mm2=0,5", "layout.res=2,12"],
         8,
         ["n_boot=200", "mlflow=false"],
     )

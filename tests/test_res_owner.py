@@ -1,88 +1,118 @@
-"""``encoder.res`` has one owner (issue 30, point 2): the encoder group's base schema declares it and its
-check, the chain reads it through ``sphri.encode.schema.grid_res``, no encoder is given it, and what
-earlier sweeps recorded (the ``encoder.res`` param, the config hash) still matches."""
+"""``layout.res`` has one owner: the layout group's base schema declares it and its check, every layout is
+given it, the chain reads it through ``sphri.layout.schema.layout_res``; ``encoder.res`` is read as
+``layout.res`` for one release, saying so once per process, in a run, a sweep and a sweeper's params."""
 
+import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
 from omegaconf import OmegaConf
 
-from sphri.cache import stable_hash
-from sphri.config import ConfigError, build, compose, result_config
-from sphri.encode.schema import DEFAULT_RES, check_res, grid_res
+import sphri.config
+from sphri.config import ConfigError, build, compose, normalize_overrides
+from sphri.layout.schema import DEFAULT_RES, check_res, layout_res
 
-SPHRI = Path(__file__).resolve().parents[1] / "sphri"
+ROOT = Path(__file__).resolve().parents[1]
+SPHRI = ROOT / "sphri"
 
 
-def test_only_the_owner_reads_cfg_encoder_res():
+def test_only_the_owner_reads_cfg_layout_res():
     readers = [
         f"{p.relative_to(SPHRI.parent)}:{i}"
         for p in sorted(SPHRI.rglob("*.py"))
         for i, line in enumerate(p.read_text().splitlines(), 1)
-        if re.search(r"cfg\.encoder\.res\b", line)
+        if re.search(r"cfg\.(layout|encoder)\.res\b", line)
     ]
-    assert readers and all(r.startswith("sphri/encode/schema.py:") for r in readers), readers
+    assert not readers, readers  # layout_res reads the node it is given
 
 
-@pytest.mark.parametrize("encoder", ["ellipse", "coverage", "proximity"])
-def test_every_encoder_gets_res_from_the_owner_and_is_not_given_it(encoder):
-    cfg = compose([f"encoder={encoder}", "encoder.res=7", "layout=grid" if encoder == "ellipse" else "layout=random"])
-    assert grid_res(cfg) == 7 and cfg.encoder.res == 7
-    component = build(cfg.encoder)
-    assert not hasattr(component, "res") and "res=" not in repr(component)
+@pytest.mark.parametrize("layout", ["grid", "hex", "random", "file"])
+def test_every_layout_has_res_and_no_encoder_does(layout):
+    cfg = compose([f"layout={layout}", "layout.res=7", "encoder=coverage"], check=False)
+    assert layout_res(cfg) == 7 and cfg.layout.res == 7 and "res" not in cfg.encoder
+    if layout != "file":  # a file layout needs its file to be built
+        assert build(cfg.layout).res == 7
+    for encoder in ("ellipse", "coverage", "proximity"):
+        assert "res" not in compose([f"encoder={encoder}"], check=False).encoder
 
 
-def test_the_one_check_names_encoder_res_and_who_read_it():
-    with pytest.raises(ConfigError, match=r"^encoder\.res=0 is invalid: must be an integer in \[1, 1000\]$"):
-        compose(["encoder.res=0"])
-    with pytest.raises(
-        ConfigError, match=r"encoder\.res=2\.5 is invalid: must be an integer.*\(read by layout\.grid\)"
-    ):
+def test_the_one_check_names_layout_res_and_who_read_it():
+    with pytest.raises(ConfigError, match=r"^layout\.res=0 is invalid: must be an integer in \[1, 1000\]$"):
+        compose(["layout.res=0"])
+    with pytest.raises(ConfigError, match=r"layout\.res=2\.5 is invalid: must be an integer.*\(read by layout\.grid\)"):
         check_res(2.5, "layout.grid")
     assert check_res(18.0) == 18
 
 
-def test_a_plugin_encoder_without_a_schema_gets_the_default_resolution():
+def test_a_plugin_layout_without_a_schema_gets_the_default_resolution():
     cfg = compose([])
     OmegaConf.set_struct(cfg, False)
-    cfg.encoder = OmegaConf.create({"_target_": "labext.skin.NearestTaxelEncoder"})
-    assert grid_res(cfg) == DEFAULT_RES
+    cfg.layout = OmegaConf.create({"_target_": "labext.skin.VertexLayout"})
+    assert layout_res(cfg) == DEFAULT_RES
 
 
-#: What main 7fe8a41 (before encoder.res had its owner) made of these configs: the stable hash of the
-#: encoder's and the layout's result config, which the config hash of a job (MLflow's ``sphri.config_hash``,
-#: how a resumed sweep finds its finished runs) is made of, and the ``encoder.res`` param the report reads.
-BEFORE = {
-    "encoder.res=4": ("8a8e7bcbef6909747ff7", "9b4a56fd39f2ca209be0"),
-    "": ("ac278eca12b2fa579b4c", "9b4a56fd39f2ca209be0"),
-}
+@pytest.fixture
+def fresh_alias(monkeypatch):
+    """A process that has not yet said the deprecation line."""
+    monkeypatch.setattr(sphri.config, "_renamed_said", set())
 
 
-@pytest.mark.parametrize("override", sorted(BEFORE))
-def test_earlier_sweeps_still_resume(override):
-    cfg = compose([override] if override else [])
-    encoder, layout = BEFORE[override]
-    assert stable_hash(result_config(cfg.encoder)) == encoder
-    assert stable_hash(result_config(cfg.layout)) == layout
+def test_encoder_res_is_layout_res_and_says_so_once(fresh_alias, capsys):
+    from sphri.pipeline import config_hash, make_pipeline, open_cache
+
+    assert normalize_overrides(["+robot=reachy", "encoder.res=18", "-m"]) == ["robot=reachy", "layout.res=18", "-m"]
+    assert normalize_overrides(["encoder.res=1,2", "++encoder.res=3", "~encoder.res", "encoder.resx=1"]) == [
+        "layout.res=1,2",
+        "++layout.res=3",
+        "~layout.res",
+        "encoder.resx=1",
+    ]
+    err = capsys.readouterr().err.splitlines()
+    assert err == [
+        "sphri: encoder.res is deprecated, write layout.res (encoder.res is read as layout.res for one release)"
+    ]
+    old, new = compose(["+robot=reachy", "encoder.res=18"]), compose(["+robot=reachy", "layout.res=18"])
+    assert capsys.readouterr().err == ""  # once per process
+    assert old == new and config_hash(old) == config_hash(new)
+    keys = [make_pipeline(c, open_cache(c)).key(stage) for c in (old, new) for stage in ("layout", "encode")]
+    assert keys[:2] == keys[2:]
+    assert make_pipeline(compose(["+robot=reachy", "layout.res=17"]), open_cache(old)).key("layout") != keys[0]
 
 
-def test_an_old_run_record_is_found_by_its_param_and_hash(tmp_path):
-    """A FINISHED job recorded as earlier sweeps recorded it (param ``encoder.res``, tag
-    ``sphri.config_hash``) is found by the resume lookup of today's config, and its param read back."""
-    from sphri.pipeline import config_hash
-    from sphri.tracking.mlflow_tracker import MlflowTracker, flatten_params
+def test_the_command_line_says_the_deprecation_once():
+    """``python -m sphri ... encoder.res=...`` (here ``sphri validate``, which composes like a run) prints the
+    line once and runs the job of ``layout.res``."""
+    code = (
+        "import sys; from sphri.cli import main; sys.exit(main(['validate', '-m', '+debug=fast', 'encoder.res=2,3']))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stderr.count("encoder.res is deprecated, write layout.res") == 1, out.stderr[-2000:]
+    assert "layout.res=2" in out.stdout + out.stderr and "layout.res=3" in out.stdout + out.stderr
 
-    cfg = compose(["+debug=fast", "encoder.res=4"])
-    params = flatten_params(cfg)
-    assert params["encoder.res"] == "4"
-    tracker = MlflowTracker(experiment="resume-test")
-    client = tracker.client(str(tmp_path))
-    run = client.create_run(tracker.experiment_id(str(tmp_path)))
-    client.log_param(run.info.run_id, "encoder.res", "4")
-    client.set_tag(run.info.run_id, "sphri.config_hash", config_hash(cfg))
-    client.set_tag(run.info.run_id, "sphri.kind", "job")
-    client.set_terminated(run.info.run_id, "FINISHED")
-    assert tracker.find_finished(str(tmp_path), config_hash(cfg)) == run.info.run_id
-    assert tracker.find_finished(str(tmp_path), config_hash(compose(["+debug=fast", "encoder.res=5"]))) is None
-    assert client.get_run(run.info.run_id).data.params["encoder.res"] == "4"
+
+def test_a_sweep_of_the_old_key_sweeps_the_layout(tmp_path):
+    """``-m encoder.res=1,2``: two jobs, at ``layout.res`` 1 and 2 (the sweeper reads the rewritten overrides),
+    and the line once."""
+    import forked_cli
+
+    out = tmp_path / "out"
+    args = ["-m", "sphri", "-m", "+debug=fast", "encoder.res=1,2", f"output_dir={out}", "hydra/launcher=serial"]
+    proc = forked_cli.run(args, tmp_path, {**os.environ, "PYTHONUNBUFFERED": "1"}, 600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stderr.count("encoder.res is deprecated") == 1, proc.stderr[-3000:]
+    assert "2 of 2 jobs finished" in proc.stdout, proc.stdout[-3000:]
+    overrides = sorted(p.read_text() for p in (out / "multirun").glob("*/*/*/.hydra/overrides.yaml"))
+    assert len(overrides) == 2 and "layout.res=1" in overrides[0] and "layout.res=2" in overrides[1], overrides
+
+
+def test_a_report_reads_the_resolution_under_either_name():
+    from sphri.report.grouping import res_param, varying_params
+
+    assert res_param({"layout.res": "4"}) == "4" and res_param({"encoder.res": "5"}) == "5"
+    assert res_param({}, "?") == "?"
+    runs = [{"encoder.res": "4", "model": "rf"}, {"layout.res": "6", "model": "rf"}]
+    assert varying_params(runs) == []

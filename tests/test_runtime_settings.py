@@ -1,5 +1,5 @@
 """One notion of "same experiment": settings that cannot change a result (threads, workers,
-progress, chunk sizes; declared with ``sphri.config.runtime_setting``) change neither the
+progress, chunk sizes; declared with ``sphri.config.setting(..., runtime=True)``) change neither the
 config hash nor any stage key, so changing them never recomputes or reruns anything."""
 
 from __future__ import annotations
@@ -87,7 +87,7 @@ def test_a_runtime_setting_changes_neither_the_hash_nor_a_stage_key(tmp_path, gr
 @pytest.mark.parametrize(
     "override,stages",
     [
-        ("encoder.res=5", {"layout", "encode", "noise", "filter", "evaluate"}),
+        ("layout.res=5", {"layout", "encode", "noise", "filter", "evaluate"}),
         ("model.n_estimators=7", {"evaluate"}),
         ("contact.margin_m=0.001", {"contact", "plan", "encode", "noise", "filter", "evaluate"}),
     ],
@@ -116,7 +116,7 @@ def _job_runs(out: Path) -> list:
 
 def test_a_rerun_that_changes_nothing_is_recorded_once(tmp_path):
     out = tmp_path / "out"
-    args = ["+debug=fast", "encoder.res=3", f"output_dir={out}"]
+    args = ["+debug=fast", "layout.res=3", f"output_dir={out}"]
     first = _run(args, tmp_path)
     assert first.returncode == 0, (first.stdout + first.stderr)[-3000:]
     assert "accuracy" in first.stdout and "SYNTHETIC" in first.stdout

@@ -25,7 +25,7 @@ REPO = Path(__file__).resolve().parent.parent
         ("+model.n_estimator=5", r"model\.n_estimator is not a known key \(did you mean n_estimators\?\)"),
         ("+seeed=3", r"seeed is not a known key \(did you mean seed\?\)"),
         ("+cache.dirr=x", r"cache\.dirr is not a known key \(did you mean dir\?\)"),
-        ("+encoder.ress=4", r"encoder\.ress is not a known key \(did you mean res\?\)"),
+        ("+layout.ress=4", r"layout\.ress is not a known key \(did you mean res\?\)"),
     ],
 )
 def test_unknown_keys_are_refused_at_composition(override, match):

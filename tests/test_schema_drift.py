@@ -12,7 +12,7 @@ from hydra.core.config_store import ConfigStore
 from hydra.utils import get_class
 from omegaconf import OmegaConf
 
-from sphri.config import CONF_DIR, Configured, chain_fields, compose, register_schemas
+from sphri.config import CONF_DIR, Configured, compose, register_schemas
 
 #: Constructor parameters that are not settings: what the chain hands a component besides its config.
 NOT_SETTINGS = {"geometry"}
@@ -66,7 +66,7 @@ def test_component_defaults_are_the_schema_defaults(group: str, name: str):
     assert not drift, f"{group}={name}: composed values differ from the schema without the YAML saying so: {drift}"
     assert OmegaConf.get_type(cfg[group]) is schema
     cls = get_class(default["_target_"])
-    settings = {f.name for f in dataclasses.fields(schema)} - {"_target_", *chain_fields(schema)}
+    settings = {f.name for f in dataclasses.fields(schema)} - {"_target_"}
     if isinstance(cls, type) and issubclass(cls, Configured):
         assert issubclass(schema, cls.SCHEMA), f"{cls.__name__}.SCHEMA is {cls.SCHEMA.__name__}, the YAML's {schema}"
         return

@@ -119,3 +119,18 @@ def test_cli_show_prints_values_defaults_and_meaning(capsys):
     assert out.startswith("noise: CrosstalkNoise")
     assert "0.3" in out and "[changed; default 0.1]" in out and "neighbour" in out
     assert cli_main(["show", "--group", "nosuch"]) == 2
+
+
+def test_every_schema_class_is_named_schema():
+    """A config group's schemas are ``*Schema`` dataclasses, as the style of the package names them."""
+    from sphri.config import Schema
+
+    found = {}
+    for m in SCHEMA_MODULES:
+        mod = importlib.import_module(m)
+        for name, obj in vars(mod).items():
+            if isinstance(obj, type) and issubclass(obj, Schema) and obj.__module__ == m and obj.__name__ == name:
+                found[f"{m}.{name}"] = obj
+    assert "sphri.tracking.schema.MlflowTrackingSchema" in found
+    odd = sorted(k for k in found if not k.endswith("Schema"))
+    assert not odd, f"schema classes not named *Schema: {odd}"

@@ -34,9 +34,9 @@ def test_every_variant_names_itself_and_changes_one_assumption():
 
 def test_the_full_study_sweeps_every_variant_over_a_coarse_grid():
     params = swept("requirement_sensitivity")
-    assert set(params) == {"sensitivity", "encoder.res"}
+    assert set(params) == {"sensitivity", "layout.res"}
     assert set(params["sensitivity"]) <= set(VARIANTS) and "reference" in params["sensitivity"]
-    res = [int(r) for r in params["encoder.res"]]
+    res = [int(r) for r in params["layout.res"]]
     assert res[0] == 1 and res[-1] == 50 and 12 <= len(res) <= 20 and res == sorted(set(res))
     cfg = compose(["+experiment=requirement_sensitivity", "sensitivity=noise5"])
     assert cfg.model._target_.endswith("RandomForest") and cfg.noise.p == 0.05

@@ -55,7 +55,7 @@ def test_help_lists_groups_not_schemas_or_the_config(capsys):
 
 
 def test_validate_ok_and_error(capsys):
-    assert main(["validate", "+robot=reachy", "encoder.res=18"]) == 0
+    assert main(["validate", "+robot=reachy", "layout.res=18"]) == 0
     out = capsys.readouterr().out
     assert "config OK" in out and "res=18" in out
     assert main(["validate", "noise.p=1.5"]) == 2
@@ -77,20 +77,20 @@ def test_validate_checks_every_job_of_a_sweep_and_runs_none(tmp_path):
     def validate(*args):
         return forked_cli.run(["-m", "sphri.cli", "validate", *args], tmp_path, env, 300)
 
-    bad = validate("-m", "+debug=fast", "encoder.res=0,4,abc")
+    bad = validate("-m", "+debug=fast", "layout.res=0,4,abc")
     assert bad.returncode == 2
     assert (
         "2 of 3 points fail validation" in bad.stderr
-        and "encoder.res=0" in bad.stderr
-        and "encoder.res=abc" in bad.stderr
+        and "layout.res=0" in bad.stderr
+        and "layout.res=abc" in bad.stderr
     )
-    ok = validate("+debug=fast", "encoder.res=range(2,5)")  # sweep syntax without -m
+    ok = validate("+debug=fast", "layout.res=range(2,5)")  # sweep syntax without -m
     assert ok.returncode == 0 and "all 3 jobs compose and validate" in ok.stdout
     # an experiment's own sweep, through the sweeper, narrowed on the command line to its end resolutions
     # (every job of every experiment composes in tests/test_experiments.py, in-process and faster)
-    exp = validate("+experiment=resolution_sweep", "encoder.res=1,50")
+    exp = validate("+experiment=resolution_sweep", "layout.res=1,50")
     assert exp.returncode == 0 and "all 4 jobs compose and validate" in exp.stdout
-    assert "model=cnn_gru encoder.res=50 experiment=resolution_sweep" in exp.stdout
+    assert "model=cnn_gru layout.res=50 experiment=resolution_sweep" in exp.stdout
     assert list(tmp_path.iterdir()) == []  # nothing ran, nothing was written
 
 
@@ -300,7 +300,7 @@ def test_an_unknown_key_or_a_wrong_type_is_one_line_with_or_without_plus(tmp_pat
         (["model.lr=0.1"], "model.lr is not a known key"),
         (["+model.lr=0.1"], "model.lr is not a known key"),
         (["model.n_estimator=5"], "(did you mean n_estimators?)"),
-        (["encoder.res=abc"], "encoder.res is invalid"),
+        (["layout.res=abc"], "layout.res is invalid"),
     ):
         proc = _run([*args, "+debug=fast", f"output_dir={tmp_path}"], tmp_path)
         assert proc.returncode == 2, (args, proc.stderr)

@@ -46,7 +46,7 @@ def test_four_concurrent_first_runs_share_one_new_store(tmp_path: Path):
         "-m",
         "sphri",
         "+debug=fast",
-        "encoder.res=2",
+        "layout.res=2",
         "data.participants=2",
         "data.repetitions=1",
         f"output_dir={out}",
@@ -114,7 +114,7 @@ def test_store_left_broken_by_a_migration_is_refused_before_computing(tmp_path: 
     MlflowClient(f"sqlite:///{db}").search_experiments()  # a valid new store...
     with sqlite3.connect(db) as con:  # ...that a second process's migration left half done
         con.execute("CREATE TABLE _alembic_tmp_latest_metrics (x INTEGER)")
-    proc = _sphri(["+debug=fast", "encoder.res=2", f"output_dir={out}"], cwd=tmp_path)
+    proc = _sphri(["+debug=fast", "layout.res=2", f"output_dir={out}"], cwd=tmp_path)
     assert proc.returncode == 1
     assert "_alembic_tmp_latest_metrics" in proc.stderr
     assert f"sphri store repair {db}" in proc.stderr
@@ -129,11 +129,11 @@ def test_store_left_broken_by_a_migration_is_refused_before_computing(tmp_path: 
 def test_sweep_with_an_invalid_point_starts_no_job(tmp_path: Path, values: str):
     out = tmp_path / "out"
     proc = _sphri(
-        ["-m", "+debug=fast", f"encoder.res={values}", f"output_dir={out}", "hydra/launcher=serial"], cwd=tmp_path
+        ["-m", "+debug=fast", f"layout.res={values}", f"output_dir={out}", "hydra/launcher=serial"], cwd=tmp_path
     )
     assert proc.returncode == 2, proc.stderr[-3000:]
     bad = "abc" if "abc" in values else "0"
-    assert f"encoder.res={bad}" in proc.stderr and "no job was started" in proc.stderr
+    assert f"layout.res={bad}" in proc.stderr and "no job was started" in proc.stderr
     assert "computing" not in proc.stdout + proc.stderr
     assert not (out / "mlflow.db").exists() or _runs(out) == [], "no parent run is opened (none left RUNNING)"
 
@@ -149,7 +149,7 @@ def test_killed_sweep_ends_its_parent_killed(tmp_path: Path, sig: int):
             "sphri",
             "-m",
             "+debug=fast",
-            "encoder.res=range(2,20)",
+            "layout.res=range(2,20)",
             f"output_dir={out}",
             "hydra/launcher=serial",
             f"hydra.sweep.dir={sweep_dir}",
@@ -235,7 +235,7 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     fixed = [
         "-m",
         "+debug=fast",
-        "encoder.res=2,3",
+        "layout.res=2,3",
         f"output_dir={out}",
         "hydra/launcher=serial",
         f"hydra.sweep.dir={out}/sweeps/s",
@@ -248,13 +248,13 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     assert len(_runs(out, "sweep")) == 1 and len(_runs(out, "job")) == 2
     # the sweep's console: one line per job with the sweep's progress, then one table of every job
     assert re.search(
-        r"\[sweep 2/2 done: 0 failed, 0 skipped; .* ETA .*\] job #1 \(.*encoder.res=3.*\) accuracy 0\.\d{3}",
+        r"\[sweep 2/2 done: 0 failed, 0 skipped; .* ETA .*\] job #1 \(.*layout.res=3.*\) accuracy 0\.\d{3}",
         first.stdout,
     ), first.stdout[-3000:]
-    assert re.search(r"#1\s+encoder.res=3\s+FINISHED\s+0\.\d{3}\s+0\.\d{3}\s+\d+ s\s+no", first.stdout)
-    assert re.search(r"#0\s+encoder.res=2\s+SKIPPED", again.stdout) and "=====" not in first.stdout  # no per-job boxes
+    assert re.search(r"#1\s+layout.res=3\s+FINISHED\s+0\.\d{3}\s+0\.\d{3}\s+\d+ s\s+no", first.stdout)
+    assert re.search(r"#0\s+layout.res=2\s+SKIPPED", again.stdout) and "=====" not in first.stdout  # no per-job boxes
     # the default sweep dir is timestamped: another directory, the same parent (overrides in another order)
-    other = _sphri(["-m", "hydra/launcher=serial", f"output_dir={out}", "encoder.res=2,3", "debug=fast"], cwd=tmp_path)
+    other = _sphri(["-m", "hydra/launcher=serial", f"output_dir={out}", "layout.res=2,3", "debug=fast"], cwd=tmp_path)
     assert other.returncode == 0, other.stderr[-3000:]
     assert "2 of 2 jobs finished (2 skipped" in other.stdout
     assert len(list((out / "multirun").glob("*/*"))) == 1 and (out / "sweeps" / "s").is_dir(), "two sweep directories"
@@ -270,7 +270,7 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
         [
             "-m",
             "+debug=fast",
-            "encoder.res=2,3,4",
+            "layout.res=2,3,4",
             f"output_dir={out}",
             "hydra/launcher=serial",
             f"hydra.sweep.dir={out}/sweeps/t",
@@ -282,14 +282,14 @@ def test_rerun_of_a_sweep_skips_finished_jobs_into_its_parent(tmp_path: Path):
     assert [j for j in ("0", "1", "2") if (out / "sweeps" / "t" / j / ".hydra").exists()] == ["2"]
     assert len(_runs(out, "job")) == 3
     # another sweep, another parent: it names the runs that finished its skipped jobs
-    done = {r.data.params["encoder.res"]: r.info.run_id for r in _runs(out, "job")}
+    done = {r.data.params["layout.res"]: r.info.run_id for r in _runs(out, "job")}
     newest = max(_runs(out, "sweep"), key=lambda r: r.info.start_time)
     assert newest.data.tags["sphri.skipped_jobs"] == f"job 0: run {done['2']}, job 1: run {done['3']}"
     # a single job with other runtime settings: every stage comes from the cache
     single = _sphri(
         [
             "+debug=fast",
-            "encoder.res=2",
+            "layout.res=2",
             "cv.progress=false",
             "model.n_jobs=1",
             "contact.chunk_frames=777",

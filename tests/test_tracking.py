@@ -50,7 +50,7 @@ def test_log_job_writes_params_tags_metrics_artifacts(tmp_path: Path):
     assert run.info.status == "FINISHED"
     assert run.data.tags["sphri.synthetic"] == "true"
     assert run.data.tags["sphri.config_hash"] == "abc123"
-    assert run.data.params["encoder.res"] == "18"
+    assert run.data.params["layout.res"] == "18"
     assert run.data.params["robot"] not in ("", "?")  # the class name when no Hydra choice is known
     assert "resolution.pitch_u_mm" in run.data.params
     assert len(run.data.params) < 120, "params are curated, not the whole config"
@@ -129,7 +129,7 @@ def test_parallel_multirun_makes_one_parent_with_four_children(tmp_path: Path):
             "-m",
             "+robot=reachy",
             "+debug=fast",
-            "encoder.res=1,2,3,4",
+            "layout.res=1,2,3,4",
             f"output_dir={out}",
             "hydra/launcher=local",
             "hydra.launcher.n_jobs=2",
@@ -147,11 +147,11 @@ def test_parallel_multirun_makes_one_parent_with_four_children(tmp_path: Path):
     assert len(children) == 4
     assert all(c.data.tags["mlflow.parentRunId"] == parents[0].info.run_id for c in children)
     assert all(c.info.status == "FINISHED" for c in children)
-    assert sorted(c.data.params["encoder.res"] for c in children) == ["1", "2", "3", "4"]
+    assert sorted(c.data.params["layout.res"] for c in children) == ["1", "2", "3", "4"]
     assert "4 of 4 jobs finished" in proc.stdout
     # the parent carries the sweep's params (swept values as given, shared settings) and source tags
     parent = parents[0].data
-    assert parent.params["encoder.res"] == "1,2,3,4" and parent.params["model"] and parent.params["seed"]
+    assert parent.params["layout.res"] == "1,2,3,4" and parent.params["model"] and parent.params["seed"]
     assert parent.tags["mlflow.user"] and parent.tags["mlflow.source.git.commit"] and parent.tags["sphri.version"]
 
 
@@ -239,7 +239,7 @@ def test_a_cnn_gru_job_records_device_precision_cpu_and_torch(tmp_path):
         [
             "+debug=fast",
             "model=cnn_gru",
-            "encoder.res=3",
+            "layout.res=3",
             "model.max_epochs=1",
             "cv.max_folds=1",
             f"output_dir={tmp_path}",
@@ -316,7 +316,7 @@ def test_a_job_logged_to_a_real_mlflow_server_reads_back_over_rest(tmp_path):
                 "-m",
                 "sphri",
                 "+debug=fast",
-                "encoder.res=4",
+                "layout.res=4",
                 f"tracking.uri={uri}",
                 "tracking.log_model=true",
                 f"output_dir={tmp_path / 'out'}",

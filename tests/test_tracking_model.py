@@ -17,7 +17,7 @@ import pytest
 from sphri.types import GESTURES
 
 REPO = Path(__file__).resolve().parents[1]
-DATA = ["+debug=fast", "encoder.res=4"]
+DATA = ["+debug=fast", "layout.res=4"]
 
 
 def _env() -> dict[str, str]:

@@ -56,7 +56,7 @@ def test_a_skin_grid_larger_than_a_frame_holds_is_one_line(tmp_path: Path):
 def test_a_layout_past_the_limit_is_refused_before_it_is_built(tmp_path: Path):
     """A 2 M-taxel layout was refused only after a 150 s layout stage and a 14.6 GB peak; the taxel count
     is known from the grid's size before any taxel is placed."""
-    args = ["sphri", "+debug=fast", "encoder.res=300", "cache.enabled=false", f"output_dir={tmp_path / 'o'}"]
+    args = ["sphri", "+debug=fast", "layout.res=300", "cache.enabled=false", f"output_dir={tmp_path / 'o'}"]
     proc = _run(args, tmp_path, limit_gib="0.25")
-    _one_line(proc, 2, "invalid config", "encoder.res=300 with layout.aspect=1", "taxels", "SPHRI_MAX_MEMORY_GIB=0.25")
+    _one_line(proc, 2, "invalid config", "layout.res=300 with layout.aspect=1", "taxels", "SPHRI_MAX_MEMORY_GIB=0.25")
     assert "stage layout    computed" not in proc.stdout + proc.stderr

@@ -149,7 +149,9 @@ class SphriSweeper(BasicSweeper):
     def job_overrides(self, arguments: Sequence[str]) -> tuple[list[str], list[list[str]]]:
         """``(the sweep's overrides, every job's overrides)``, as the basic sweeper expands them."""
         assert self.hydra_context is not None
-        params_conf = [*self._parse_config(), *arguments]
+        from sphri.config import normalize_overrides
+
+        params_conf = normalize_overrides([*self._parse_config(), *arguments])  # encoder.res is layout.res
         parser = OverridesParser.create(config_loader=self.hydra_context.config_loader)
         batches = self.split_arguments(parser.parse_overrides(params_conf), self.max_batch_size)
         return params_conf, [list(job) for batch in batches for job in batch]
@@ -183,7 +185,7 @@ class SphriSweeper(BasicSweeper):
         """``compose(job overrides) -> the job's config``, as Hydra's ``load_sweep_config`` composes it.
 
         Composing is the cost of checking a sweep (about 0.3 s a job). The jobs of a sweep mostly
-        differ in plain values (``encoder.res=18``), so each distinct set of the other overrides
+        differ in plain values (``layout.res=18``), so each distinct set of the other overrides
         (group choices such as ``sensitivity=noise0``, additions ``+key=``, deletions ``~key``) is
         composed once by Hydra, and a job's plain value overrides are then set on a copy of that
         config as Hydra sets them: the split and the setting are :func:`sphri.config.split_overrides`

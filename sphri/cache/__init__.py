@@ -36,7 +36,6 @@ Nothing in an entry can execute code when it is read.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import io
 import json
 import logging
@@ -51,7 +50,7 @@ import numpy as np
 
 from sphri.codec import DecodeError, EncodeError, check_contract, decode, encode
 from sphri.fsutil import write_atomic
-from sphri.integrity import DIGEST_SIZE, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest
+from sphri.integrity import DIGEST_SIZE, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest, stable_hash
 
 log = logging.getLogger(__name__)
 
@@ -80,12 +79,6 @@ def _key(key: Any) -> bytes | None:
 def seal(payload: bytes, key: bytes | None = None) -> bytes:
     """An entry's bytes around ``payload``: magic, plain digest, keyed digest (zeros without a key)."""
     return MAGIC + plain_digest(MAGIC, payload) + keyed_digest(key, MAGIC, payload) + payload
-
-
-def stable_hash(obj: Any) -> str:
-    """Hex digest (20 chars) of a JSON-able object, independent of dict order."""
-    text = json.dumps(obj, sort_keys=True, default=str, separators=(",", ":"))
-    return hashlib.blake2b(text.encode(), digest_size=10).hexdigest()
 
 
 def stage_key(stage: str, version: str, config: Any, inputs: Mapping[str, Any]) -> str:

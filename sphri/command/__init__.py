@@ -3,13 +3,13 @@
 ::
 
     sphri +debug=fast                    # no verb: run one job (Hydra overrides, exactly as before)
-    sphri sweep encoder.res=2,4          # = sphri -m encoder.res=2,4
+    sphri sweep layout.res=2,4          # = sphri -m layout.res=2,4
     sphri report outputs/sweeps/resolution_rf
     sphri list robot
     sphri help                           # every verb with one line; `sphri VERB --help` its arguments
 
 ``run`` and ``sweep`` hand their arguments to Hydra; every other verb reads ``key=value`` arguments
-through one parser (:mod:`sphri.command.args`), typed by a dataclass beside the verb's code, which
+through one parser (:mod:`sphri.args`), typed by a dataclass beside the verb's code, which
 also takes the ``--key value`` spellings. Each verb's module keeps its ``python -m sphri.<module>``
 spelling as an alias (:attr:`Verb.module`). A first word that is not a verb but looks like an
 override (``key=value``, ``+group=x``, ``~key``, ``-m``, ``--cfg``) is the ``run`` verb; any other
@@ -37,7 +37,7 @@ class Verb:
     ``kind`` says who parses its arguments: ``hydra`` (run, sweep: Hydra's overrides), ``args``
     (sphri's ``key=value`` parser: ``schema`` is the argument dataclass, ``target`` the function
     taking an instance of it), or ``main`` (``target`` is a ``main(argv, prog) -> int`` that parses its
-    own arguments; where it reads them with :func:`sphri.command.args.read_settings`, ``schema`` is the
+    own arguments; where it reads them with :func:`sphri.args.read_settings`, ``schema`` is the
     ``{command word: (settings dataclass, takes overrides)}`` it hands that parser, read by TAB too)."""
 
     name: str
@@ -63,7 +63,7 @@ VERBS: tuple[Verb, ...] = (
     ),
     Verb(
         "sweep",
-        "run a sweep, one job per point (`sphri sweep encoder.res=2,4` is `sphri -m encoder.res=2,4`)",
+        "run a sweep, one job per point (`sphri sweep layout.res=2,4` is `sphri -m layout.res=2,4`)",
         "hydra",
         "sphri.__main__:main",
         "",
@@ -274,7 +274,7 @@ def call(verb: Verb, argv: Sequence[str], prog: str = "", usage_prog: str = "") 
         return 0
     if verb.kind == "main":  # main(argv, prog): its own subcommands, or settings and config overrides
         return int(verb.load(verb.target)(argv, prog=prog) or 0)
-    from sphri.command.args import first_paragraph, run
+    from sphri.args import first_paragraph, run
     from sphri.errors import clean_errors
 
     schema = verb.load(verb.schema)

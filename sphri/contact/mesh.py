@@ -125,10 +125,6 @@ class MeshAccel:
     the first one the search tests, so that its bound is tight from the start."""
     notes: tuple[str, ...] = field(default=())
 
-    @property
-    def has_hull(self) -> bool:
-        return self.hull.shape[0] > 0
-
     @cached_property
     def kernel_arrays(self) -> tuple:
         """The arrays the compiled kernels take, in their order (see ``_kernels``)."""
@@ -147,24 +143,6 @@ class MeshAccel:
             self.grid_dim,
             self.grid_seed,
         )
-
-    @property
-    def tri_a(self) -> np.ndarray:
-        """(F, 3) first vertex of each triangle (local frame)."""
-        return self.tri[:, 0:3]
-
-    @property
-    def tri_geo_normal(self) -> np.ndarray:
-        """(F, 3) unit normal by the right-hand rule of the stored winding."""
-        return self.tri[:, 9:12]
-
-    @property
-    def box_lo(self) -> np.ndarray:
-        return self.box[:3]
-
-    @property
-    def box_hi(self) -> np.ndarray:
-        return self.box[3:]
 
 
 def _as_mesh_arrays(vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -15,10 +15,9 @@ have a near-identical trial in the other. What happens then is
 
 Cost: the fingerprints come from poses already in memory (3 x
 :data:`SAMPLES` numbers per trial); trials are compared only within a
-bucket of equal label and length (0.56 s for the 2,880 trials of the
-built-in study). Margin: there the closest trials of two different
-participants with equal label and length are 26.8 mm RMS apart, 11.7 mm with
-``data.variability=0 data.jitter_mm=0`` (measured 2026-11-26).
+bucket of equal label and length. The time it takes on the built-in study
+and the margin between two participants' closest trials there are in
+docs/BENCHMARKS.md ("Costs and margins the code's choices rest on").
 """
 
 from __future__ import annotations

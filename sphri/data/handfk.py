@@ -67,20 +67,6 @@ def _chain_bases() -> np.ndarray:
 _BASES = _chain_bases()
 
 
-def rot_y(a: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotations about y by angles ``a`` (...) radians."""
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, z, s], -1), np.stack([z, o, z], -1), np.stack([-s, z, c], -1)], -2)
-
-
-def rot_z(a: np.ndarray) -> np.ndarray:
-    """(..., 3, 3) rotations about z by angles ``a`` (...) radians."""
-    c, s = np.cos(a), np.sin(a)
-    z, o = np.zeros_like(a), np.ones_like(a)
-    return np.stack([np.stack([c, -s, z], -1), np.stack([s, c, z], -1), np.stack([z, z, o], -1)], -2)
-
-
 def rotvec_to_matrix(w: np.ndarray) -> np.ndarray:
     """(..., 3, 3) rotation matrices of rotation vectors ``w`` (..., 3) radians (Rodrigues)."""
     w = np.asarray(w, dtype=np.float64)

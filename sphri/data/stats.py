@@ -66,7 +66,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sphri.command.args import arg, first_paragraph, run
+from sphri.args import arg, first_paragraph, run
 from sphri.data.cost_sensor import CELL_THRESHOLD, describe_sensor, sensor_trials
 from sphri.data.lengths import (
     COMPARISON_COLUMNS,

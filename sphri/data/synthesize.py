@@ -22,7 +22,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from sphri.command.args import arg, first_paragraph, run
+from sphri.args import arg, first_paragraph, run
 from sphri.errors import clean_errors
 from sphri.types import GestureDataset
 

@@ -155,7 +155,7 @@ class SyntheticData:
     sources: :class:`sphri.data.schema.SyntheticDataSchema`.
     """
 
-    VERSION = "3"  # 3: penetration depths calibrated to CoST's contact areas (sphri.data.gestures.DEPTH_M)
+    VERSION = "3"
 
     def __init__(
         self,

@@ -4,7 +4,8 @@ Components (``encoder=...``, ``encode(contacts, link, surface, layout,
 frame_index) -> Frames``): ``ellipse`` (the paper's chart raster,
 :mod:`sphri.encode.ellipse`), ``coverage`` (:mod:`sphri.encode.coverage`) and
 ``proximity`` (:mod:`sphri.encode.proximity`). Outputs are
-:class:`~sphri.encode.common.SkinFrames` (Frames + taxel geometry).
+:class:`~sphri.types.SkinFrames` (Frames + taxel geometry; ``sphri.encode.SkinFrames`` names it
+for one release).
 """
 
 from sphri._lazy import lazy_exports
@@ -13,6 +14,6 @@ from sphri._lazy import lazy_exports
 __getattr__, __all__ = lazy_exports(
     "sphri.encode",
     {
-        "SkinFrames": "sphri.encode.common",
+        "SkinFrames": "sphri.types",
     },
 )

@@ -1,25 +1,15 @@
-"""Shared by the encoders: the output type, contact row selection, checks.
+"""Shared by the encoders: wrapping values as the output type, contact row selection, checks.
 
-:class:`SkinFrames` is a :class:`~sphri.types.Frames` that also carries the
-taxels' :class:`~sphri.types.TaxelGeometry` (grid wrap, 3-D positions), so
-that later stages such as ``noise=crosstalk`` can find neighbours without the
-layout. It is a subclass, so every consumer of ``Frames`` accepts it.
+The output type, :class:`~sphri.types.SkinFrames` (Frames plus the taxel geometry), lives with the
+other data types; ``sphri.encode.SkinFrames`` and ``sphri.encode.common.SkinFrames`` name the same
+class for one release.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
-from sphri.types import Contacts, Frames, Layout, SurfaceMap, TaxelGeometry
-
-
-@dataclass
-class SkinFrames(Frames):
-    """Frames plus the geometry of their N taxels (``None`` when unknown)."""
-
-    geometry: TaxelGeometry | None = None
+from sphri.types import Contacts, Layout, SkinFrames, SurfaceMap, TaxelGeometry
 
 
 def make_frames(values: np.ndarray, layout: Layout, surface: SurfaceMap) -> SkinFrames:

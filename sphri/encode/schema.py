@@ -1,43 +1,23 @@
 """Config schemas of the encoder group (``conf/encoder/*.yaml``).
 
-:class:`EncoderSchema` owns the grid resolution ``encoder.res`` (taxels along the
-link's long axis) with its range (:data:`sphri.layout.schema.RES_RANGE`, which the
-layouts handed the value check too): the user spells it ``encoder.res``, the chain
-reads it through :func:`grid_res` (the layout is built with it), and no encoder
-keeps it (``setting(chain=True)``).
+The resolution the encoders read through the layout is ``layout.res``
+(:class:`sphri.layout.schema.LayoutSchema`); ``encoder.res`` is read as ``layout.res`` for one release
+(:func:`sphri.config.normalize_overrides`).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import ClassVar
 
 from omegaconf import OmegaConf
 
 from sphri.config import ComponentSchema, ConfigError, cross_check, setting, store
-from sphri.layout.schema import RES_RANGE, check_res
-
-#: ``encoder.res`` when the config says nothing (a plugin encoder without a schema).
-DEFAULT_RES = 18
 
 
 @dataclass
 class EncoderSchema(ComponentSchema, group="encoder"):
-    """Base of the encoder group's schemas: the grid resolution, which the chain owns."""
-
-    res: int = setting(DEFAULT_RES, range=RES_RANGE, chain=True)
-    """Taxels along the link's long axis (the paper saturates near 18 per 24 cm); the layout is built
-    with it, the encoder is not given it."""
-
-
-def grid_res(cfg: Any, check: bool = True) -> Any:
-    """The grid resolution of a composed config: ``encoder.res``, or :data:`DEFAULT_RES` for a plugin
-    encoder that declares no schema. The one reader of ``cfg.encoder.res``. ``check=False`` returns
-    the value as configured, unchecked (naming a run that failed, perhaps on that very value)."""
-    node = cfg.get("encoder") if hasattr(cfg, "get") else None
-    if node is None or "res" not in node:
-        return DEFAULT_RES
-    return check_res(cfg.encoder.res) if check else cfg.encoder.res
+    """Base of the encoder group's schemas."""
 
 
 @dataclass

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from sphri.config import ComponentSchema, runtime_setting, setting, store
+from sphri.config import ComponentSchema, setting, store
 
 #: Where folds run: ``local`` (this process, or a loky pool of ``workers``) or ``ray`` (a Ray task each).
 BACKENDS = ("local", "ray")
@@ -26,7 +26,7 @@ class FoldsSchema(CvSchema):
     """Threads each fold may use (None: available cores // workers)."""
     max_folds: int | None = setting(None, lo=1, optional=True)
     """Evaluate only the first k folds (debugging; None: all)."""
-    progress: bool = runtime_setting(True)
+    progress: bool = setting(True, runtime=True)
     """Progress bar over folds (shown only on a terminal)."""
     backend: str = setting("local", runtime=True, choices=BACKENDS)
     """Where folds run: ``local`` (this process, or ``workers`` loky processes) or ``ray`` (a Ray task per

@@ -2,7 +2,7 @@
 
 ::
 
-    python -m sphri.export.train out=outputs/models/rf.sphrimodel +robot=reachy encoder.res=18
+    python -m sphri.export.train out=outputs/models/rf.sphrimodel +robot=reachy layout.res=18
     python -m sphri.export.train out=m.sphrimodel holdout=participant_03 +debug=fast mlflow=true
     python -m sphri.hardware.train_export ...   # the same command under its earlier name
 
@@ -25,10 +25,10 @@ from typing import Any
 
 import numpy as np
 
-from sphri.command.args import settings_main
+from sphri.args import settings_main
 from sphri.config import ConfigError, Schema, require
-from sphri.encode.schema import grid_res
 from sphri.export.model_file import ModelBundle, save_model
+from sphri.layout.schema import layout_res
 from sphri.types import GESTURES, WindowedFrames
 
 log = logging.getLogger(__name__)
@@ -88,7 +88,7 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
         "dataset": dataset.name,
         "region": list(cfg.data.regions)[0],
         "encoder": str(cfg.encoder._target_).rsplit(".", 1)[-1],
-        "encoder_res": grid_res(cfg),
+        "encoder_res": layout_res(cfg),
     }
     log.info("trained %s on %d windows (train accuracy %.3f)", meta["model"], meta["n_train"], acc)
     return ModelBundle(model, windows.geometry, int(windows.x.shape[1]), float(dataset.frame_rate_hz), GESTURES, meta)

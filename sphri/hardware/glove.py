@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from sphri.command.args import settings_main
+from sphri.args import settings_main
 from sphri.config import ConfigError
 from sphri.hardware.actuators import ActuatorMap, part_depths
 from sphri.hardware.glove_protocol import (

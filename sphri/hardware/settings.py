@@ -1,4 +1,4 @@
-"""Settings of the hardware commands (their ``key=value`` parser is :mod:`sphri.command.args`).
+"""Settings of the hardware commands (their ``key=value`` parser is :mod:`sphri.args`).
 
 The hardware commands (``python -m sphri.hardware.glove|skin``) are
 entry points beside the pipeline, not stages. Each has a settings dataclass

@@ -19,7 +19,7 @@ import sys
 import threading
 from pathlib import Path
 
-from sphri.command.args import settings_main
+from sphri.args import settings_main
 from sphri.hardware.sim_glove import GloveLedger, GloveSimSettings, GloveSimulator
 from sphri.hardware.sim_skin import (
     SkinLedger,

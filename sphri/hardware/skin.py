@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sphri.command.args import settings_main
+from sphri.args import settings_main
 from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, parse_grid
 from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, encode_control
 from sphri.hardware.transport import Link, PortLost

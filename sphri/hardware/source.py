@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sphri.types import GESTURES, TaxelGeometry
+from sphri.types import TaxelGeometry
 
 
 def open_pipeline(overrides: Sequence[str]):
@@ -83,8 +83,8 @@ def encode_trials(pipeline, rows: Sequence[int], gap_s: float = 0.5) -> EncodedT
     :func:`outside_keys`; ``gap_s`` seconds of untouched frames (zeros through the same noise model)
     are made for each trial, to stream before it.
     """
-    from sphri.encode.common import SkinFrames
     from sphri.pipeline import trial_keys
+    from sphri.types import SkinFrames
 
     dataset = pipeline.get("data")
     contacts = pipeline.get("contact")
@@ -169,7 +169,3 @@ def pick_rows(trials, count: int, participant: str | None, seed: int) -> np.ndar
             )
     rows = np.random.default_rng(seed).permutation(rows)
     return rows if count < 0 else rows[:count]
-
-
-def gesture_name(label: int) -> str:
-    return GESTURES[int(label)] if 0 <= int(label) < len(GESTURES) else f"class {int(label)}"

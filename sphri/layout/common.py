@@ -21,12 +21,12 @@ BYTES_PER_TAXEL = 7300
 
 def check_taxel_count(h: int, w: int, res: int, aspect: float) -> None:
     """Refuse an H x W grid whose taxels would not fit in memory, before anything is built; the message
-    names ``encoder.res`` and ``layout.aspect``, the estimate and the limit (:mod:`sphri.limits`)."""
+    names ``layout.res`` and ``layout.aspect``, the estimate and the limit (:mod:`sphri.limits`)."""
     why = over_limit(
         f"a layout of {h} x {w} = {h * w} taxels (about {BYTES_PER_TAXEL} bytes each)", h * w * float(BYTES_PER_TAXEL)
     )
     if why is not None:
-        raise ConfigError(f"encoder.res={res} with layout.aspect={aspect:g} is invalid: {why}")
+        raise ConfigError(f"layout.res={res} with layout.aspect={aspect:g} is invalid: {why}")
 
 
 def long_axis_length_m(surface: SurfaceMap) -> float:

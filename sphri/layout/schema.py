@@ -1,8 +1,8 @@
 """Config schemas of the layout group (``conf/layout/*.yaml``).
 
-Every layout is built with ``res`` (taxels along the link's long axis), owned by
-the encoder group (:func:`sphri.encode.schema.grid_res`) and handed to
-``layout.build`` by the pipeline; ``file`` layouts ignore it.
+Every layout is built with ``res`` (taxels along the link's long axis), ``layout.res``, declared once
+on :class:`LayoutSchema` and handed to ``layout.build`` by the pipeline (:func:`layout_res`); ``file``
+layouts ignore it.
 """
 
 from __future__ import annotations
@@ -13,27 +13,44 @@ from typing import Any, ClassVar
 from sphri.config import ComponentSchema, ConfigError, Range, require, setting, store
 from sphri.inputs import input_path
 
-#: Largest ``encoder.res`` (taxels along the long axis).
+#: Largest ``layout.res`` (taxels along the long axis).
 MAX_RES = 1000
 
-#: The range of ``encoder.res``, declared on :attr:`sphri.encode.schema.EncoderSchema.res` (which the
-#: user sets) and checked here too, where a layout is handed the value (``build(link, surface, res)``).
+#: ``layout.res`` when the config says nothing (a plugin layout without a schema).
+DEFAULT_RES = 18
+
+#: The range of ``layout.res``, declared on :attr:`LayoutSchema.res` and checked again where a layout is
+#: handed the value (``build(link, surface, res)``).
 RES_RANGE = Range(lo=1, hi=MAX_RES, integer=True)
 
 
-def check_res(res: Any, who: str = "encoder.res") -> int:
+def check_res(res: Any, who: str = "layout.res") -> int:
     """The one check of the resolution (:data:`RES_RANGE`); a component handed the value (``who``,
-    e.g. ``layout.grid``) names itself. Raises :class:`~sphri.config.ConfigError` naming ``encoder.res``."""
+    e.g. ``layout.grid``) names itself. Raises :class:`~sphri.config.ConfigError` naming ``layout.res``."""
     try:
-        RES_RANGE.check("encoder.res", res)
+        RES_RANGE.check("layout.res", res)
     except ConfigError as exc:
-        raise ConfigError(f"{exc} (read by {who})" if who != "encoder.res" else str(exc)) from None
+        raise ConfigError(f"{exc} (read by {who})" if who != "layout.res" else str(exc)) from None
     return int(res)
+
+
+def layout_res(cfg: Any, check: bool = True) -> Any:
+    """The resolution of a composed config: ``layout.res``, or :data:`DEFAULT_RES` for a plugin layout
+    that declares no schema. ``check=False`` returns the value as configured, unchecked (naming a run
+    that failed, perhaps on that very value)."""
+    node = cfg.get("layout") if hasattr(cfg, "get") else None
+    if node is None or "res" not in node:
+        return DEFAULT_RES
+    return check_res(node.res) if check else node.res
 
 
 @dataclass
 class LayoutSchema(ComponentSchema, group="layout"):
-    """Base of the layout group's schemas."""
+    """Base of the layout group's schemas: the resolution every layout is built at."""
+
+    res: int = setting(DEFAULT_RES, range=RES_RANGE)
+    """Taxels along the link's long axis (the paper saturates near 18 per 24 cm); a grid has this many
+    rows, a random or density layout as many taxels as that grid, a file layout ignores it."""
 
 
 @dataclass

@@ -66,10 +66,9 @@ def skops_io() -> Any:
     """``skops.io``, imported without torch. Importing it lists scikit-learn's estimators (its default
     trusted types), which walks every scikit-learn package, among them the array-API adapter for torch,
     which imports torch: a Random Forest's model file then imported torch to be written or read. That one
-    package (it holds no estimator) is skipped while skops is imported, unless torch is loaded already.
-    Measured (a fresh process loading a Random Forest model file, 2-core AMD EPYC with AVX-512,
-    2026-11-28, three runs each): 6.0, 3.8, 3.3 s and 493 MiB peak memory with torch; 2.5, 2.1, 2.1 s and
-    315 MiB without. skops' list of trusted scikit-learn types is the same either way (a test)."""
+    package (it holds no estimator) is skipped while skops is imported, unless torch is loaded already
+    (what it saves a fresh process loading a model file: docs/BENCHMARKS.md). skops' list of trusted
+    scikit-learn types is the same either way (a test)."""
     if "skops.io" in sys.modules or "torch" in sys.modules:
         import skops.io
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from sphri.config import ComponentSchema, require, runtime_setting, setting, store
+from sphri.config import ComponentSchema, require, setting, store
 
 
 @dataclass
@@ -27,7 +27,7 @@ class RandomForestSchema(ModelSchema):
     """Features tried per split: "sqrt", "log2" (of 32)."""
     class_weight: str | None = setting(None, choices=[None, "balanced", "balanced_subsample"])
     """None, "balanced" or "balanced_subsample"."""
-    n_jobs: int = runtime_setting(-1)
+    n_jobs: int = setting(-1, runtime=True)
     """Threads for the forest (-1: all the cores the CV leaves it)."""
     seed: int = setting(0, lo=0)
     """Random state of the forest."""

@@ -66,7 +66,6 @@ from numba import njit, prange
 
 from sphri.adjacency import grid_adjacency, taxel_adjacency
 from sphri.config import Configured
-from sphri.encode.common import SkinFrames
 from sphri.noise.hashing import frame_key, uniform, uniform24
 from sphri.noise.schema import (
     CrosstalkNoiseSchema,
@@ -76,7 +75,7 @@ from sphri.noise.schema import (
     SaltPepperNoiseSchema,
     ThresholdNoiseSchema,
 )
-from sphri.types import Frames, WindowedFrames
+from sphri.types import Frames, SkinFrames, WindowedFrames
 
 log = logging.getLogger(__name__)
 
@@ -165,7 +164,7 @@ class SaltPepperNoise(Configured):
     per taxel and frame (see the module: ``p * salt_vs_pepper * N`` false taxels per untouched frame
     in replace mode, ``p * N`` in flip mode)."""
 
-    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
+    VERSION = "2"
 
     SCHEMA = SaltPepperNoiseSchema
     p: float  # these three set from SCHEMA by Configured
@@ -187,7 +186,7 @@ class GaussianNoise(Configured):
     """``noise=gaussian``: analogue read noise, additive N(0, sigma^2) with ``sigma`` in reading units
     (1 = full scale), clipped to [0, 1], float32."""
 
-    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
+    VERSION = "2"
 
     SCHEMA = GaussianNoiseSchema
     sigma: float  # set from SCHEMA by Configured
@@ -212,7 +211,7 @@ class DeadTaxelsNoise(Configured):
     """``noise=dead_taxels``: broken taxels: a fixed ``fraction`` of the N taxels (the same in every
     trial) always reads ``value`` (0 = silent, 1 = stuck on)."""
 
-    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
+    VERSION = "2"
 
     SCHEMA = DeadTaxelsNoiseSchema
     fraction: float  # these two set from SCHEMA by Configured
@@ -249,8 +248,6 @@ class CrosstalkNoise(Configured):
     """``noise=crosstalk``: neighbour coupling: ``alpha`` (a fraction) of each reading appears on
     each neighbouring taxel (float32); adds nothing to an untouched frame."""
 
-    # 2: applied to the assembled windows, padded slots included;
-    # 3: neighbours from sphri.adjacency (non-grid layouts: radius rule, no longer k nearest)
     VERSION = "3"
 
     SCHEMA = CrosstalkNoiseSchema
@@ -401,7 +398,7 @@ class ThresholdNoise(Configured):
 class NoNoise(Configured):
     """``noise=none``: readings unchanged (the same array, never mutated downstream)."""
 
-    VERSION = "2"  # 2: applied to the assembled windows, padded slots included
+    VERSION = "2"
 
     SCHEMA = NoNoiseSchema
 

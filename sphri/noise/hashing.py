@@ -7,7 +7,7 @@ depends on which other frames are present or in what order they come.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 _GOLDEN = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
@@ -41,18 +41,6 @@ def frame_key(seed, stream, trial, frame):  # pragma: no cover - numba
 def uniform(key, n):  # pragma: no cover - numba
     """Uniform float in [0, 1) for element ``n`` under ``key``."""
     return float(mix64(key + np.uint64(n + 1) * _GOLDEN) >> _S11) * _INV53
-
-
-@njit(cache=True, parallel=True)
-def uniforms(seed, stream, trial_key, frame_index, n):  # pragma: no cover - numba
-    """(M, n) float64 uniforms in [0, 1), one row per (trial, frame)."""
-    m = frame_index.shape[0]
-    out = np.empty((m, n), dtype=np.float64)
-    for i in prange(m):
-        key = frame_key(seed, stream, trial_key[i], frame_index[i])
-        for j in range(n):
-            out[i, j] = uniform(key, j)
-    return out
 
 
 @njit(cache=True, inline="always")

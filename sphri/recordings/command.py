@@ -7,7 +7,7 @@ import logging
 import re
 import sys
 
-from sphri.command.args import arg
+from sphri.args import arg
 from sphri.data.recording_schema import HANDS, LOG_KINDS
 from sphri.types import GESTURES
 

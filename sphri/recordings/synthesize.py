@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 from typing import Literal
 
-from sphri.command.args import arg
+from sphri.args import arg
 from sphri.data.synthesize import SynthesizeArgs, write_dataset
 from sphri.data.synthesize import command as write_gestures
 

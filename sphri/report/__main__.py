@@ -28,7 +28,7 @@ import logging
 import sys
 from typing import Literal
 
-from sphri.command.args import ArgsError, arg, first_paragraph, run
+from sphri.args import ArgsError, arg, first_paragraph, run
 from sphri.errors import clean_errors
 from sphri.limits import over_limit
 from sphri.report.analysis import RuleSettings

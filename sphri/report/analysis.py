@@ -2,7 +2,7 @@
 
 For each group of jobs (see :mod:`sphri.report.sweep`) the per-participant
 scores form (P, R) matrices (participants x resolutions, coarse to fine by
-``encoder.res``); :func:`sphri.report.saturation.certified_saturation` finds the
+``layout.res``); :func:`sphri.report.saturation.certified_saturation` finds the
 coarsest resolution certified to keep accuracy within a tolerance of the
 best (with a bootstrap interval), and the same for each gesture's recall
 curve (which gestures need fine skin). The requirement sentence states the saturation point in physical
@@ -471,9 +471,9 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
             else _taxels(rec["n_taxels"])
         )
         req = (
-            f"One resolution only (encoder.res={rec['res']}, {where_pt}) on this link ({where}): accuracy "
+            f"One resolution only (layout.res={rec['res']}, {where_pt}) on this link ({where}): accuracy "
             f"{rec['accuracy_mean']:.3f} +/- {rec['accuracy_std']:.3f}; no saturation point without a sweep "
-            "over encoder.res."
+            "over layout.res."
         )
     elif g.has_pitch and np.isfinite(rec["pitch_mm"]):
         area = rec["area_per_taxel_cm2"]
@@ -486,19 +486,19 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
     else:
         res_iv = sat.interval
         iv_txt = (
-            f"{rule.ci:.0%} interval encoder.res {g.points['res'].iloc[res_iv[0]]} to {g.points['res'].iloc[res_iv[1]]}"
+            f"{rule.ci:.0%} interval layout.res {g.points['res'].iloc[res_iv[0]]} to {g.points['res'].iloc[res_iv[1]]}"
             if res_iv is not None
             else "no interval: " + (sat.note or "not computed")
         )
         req = (
             f"At least {int(rec['n_taxels']) if np.isfinite(rec['n_taxels']) else rec['res']} taxels "
-            f"(encoder.res={rec['res']}; {iv_txt}) keep accuracy within {tol} of the best at every finer "
+            f"(layout.res={rec['res']}; {iv_txt}) keep accuracy within {tol} of the best at every finer "
             f"swept resolution, with {1 - cert.alpha:.0%} confidence, paired over participants, on this link ({where})."
         )
     facts = (
-        f"Saturation at encoder.res={rec['res']} ({_taxels(rec['n_taxels'])}): accuracy "
+        f"Saturation at layout.res={rec['res']} ({_taxels(rec['n_taxels'])}): accuracy "
         f"{rec['accuracy_mean']:.3f} +/- {rec['accuracy_std']:.3f} vs best {best['accuracy_mean']:.3f} "
-        f"+/- {best['accuracy_std']:.3f} at encoder.res={best['res']}"
+        f"+/- {best['accuracy_std']:.3f} at layout.res={best['res']}"
     )
     if g.has_pitch:
         facts += f" ({_fmt_pitch(best['pitch_mm'])} mm)"
@@ -519,10 +519,10 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
         )
         if g.area_interval_cm2 is not None:
             iv += f" ({g.area_interval_cm2[0]:.2f} to {g.area_interval_cm2[1]:.2f} cm^2 per taxel)"
-        iv += f"; encoder.res {g.points['res'].iloc[sat.interval[0]]} to {g.points['res'].iloc[sat.interval[1]]}."
+        iv += f"; layout.res {g.points['res'].iloc[sat.interval[0]]} to {g.points['res'].iloc[sat.interval[1]]}."
     elif sat.interval is not None and len(g.points) > 1:
         iv = (
-            f"{rule.ci:.0%} bootstrap interval over {sat.n_participants} participants: encoder.res "
+            f"{rule.ci:.0%} bootstrap interval over {sat.n_participants} participants: layout.res "
             f"{g.points['res'].iloc[sat.interval[0]]} to {g.points['res'].iloc[sat.interval[1]]}."
         )
     else:

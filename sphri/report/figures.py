@@ -313,7 +313,7 @@ def plot_bootstrap(report: SweepReport, path: Path, marks: bool | None = None) -
             ax.bar(pos, counts, width=width, color=colors(report.groups.index(g) % 10), label=g.label)
         step = max(1, int(np.ceil(len(union) / 20)))
         ax.set_xticks(np.arange(len(union))[::step], [str(r) for r in union][::step])
-        ax.set_xlabel("taxels along the link (encoder.res)")
+        ax.set_xlabel("taxels along the link (layout.res)")
         ax.set_ylabel("share of resamples")
         ax.legend(loc="upper left")
         ax.grid(True, axis="y", alpha=0.3)

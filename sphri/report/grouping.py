@@ -2,8 +2,8 @@
 
 A curve is the jobs that agree on every group key. The keys are the params
 that vary across the sweep's own jobs (its parent's children) other than the
-resolution (``encoder.res`` and the derived ``resolution.*``/``meta.*``
-params) and the seed (replicates of one point), leaving out the params that
+resolution (``layout.res``, or ``encoder.res``, the name runs of earlier releases logged it under,
+and the derived ``resolution.*``/``meta.*`` params) and the seed (replicates of one point), leaving out the params that
 cannot change a result (:func:`sphri.config.result_neutral`: runtime settings
 such as ``cv.progress``, ``plugins``, where the job ran): e.g. ``model`` in a
 model comparison, ``robot`` in a morphology sweep. A job the sweep skipped
@@ -38,6 +38,15 @@ KEY_ORDER = (
 #: The param whose values are replicates of one sweep point, not groups (the run's ``seed``).
 REPLICATE_KEY = "seed"
 
+#: The resolution's param, then the name runs of earlier releases logged it under (read for one release).
+RES_PARAMS = ("layout.res", "encoder.res")
+
+
+def res_param(params: dict[str, str], default: str | None = None) -> str | None:
+    """A job's resolution as logged: :data:`RES_PARAMS`, the first one present, else ``default``."""
+    return next((params[k] for k in RES_PARAMS if k in params), default)
+
+
 #: ``group_by`` value for one curve over every job.
 NO_GROUPS = "none"
 
@@ -48,7 +57,7 @@ def _candidates(params: Sequence[dict[str, str]]) -> list[str]:
             k
             for p in params
             for k in p
-            if k not in ("encoder.res", REPLICATE_KEY) and not k.startswith(("resolution.", "meta."))
+            if k not in (*RES_PARAMS, REPLICATE_KEY) and not k.startswith(("resolution.", "meta."))
         }
     )
 

@@ -192,7 +192,7 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
         map_text = "\n".join(_map_text(report)).strip()
     sens_rows = sensitivity_rows(report)
     notes = list(report.notes) + [
-        f"FAILED job {f['run_id']} ({f['group']}, encoder.res={f['res']}): {f['error']}" for f in s.failed
+        f"FAILED job {f['run_id']} ({f['group']}, layout.res={f['res']}): {f['error']}" for f in s.failed
     ]
     noise = [noise_text(g) for g in report.groups]
     return render_page(
@@ -259,7 +259,7 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
             )
             where = f"{_fmt_pitch(rec['pitch_mm'])} mm ({iv})" if g.has_pitch else f"res {int(rec['res'])}"
             lines.append(
-                f"  tolerance {t.tolerance.describe()}: {where}, encoder.res {int(rec['res'])}"
+                f"  tolerance {t.tolerance.describe()}: {where}, layout.res {int(rec['res'])}"
                 + (
                     f" (certified within {points_text(t.sat.tolerance)}, the smallest this study can)"
                     if t.sat.tolerance > t.tolerance.fixed + 1e-12
@@ -280,7 +280,7 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
     lines.append("[compute: where and how long each curve ran]")
     lines += compute_lines(compute_rows(report.sweep))
     notes = list(report.notes) + [
-        f"FAILED job {f['run_id']} ({f['group']}, encoder.res={f['res']}): {f['error']}" for f in report.sweep.failed
+        f"FAILED job {f['run_id']} ({f['group']}, layout.res={f['res']}): {f['error']}" for f in report.sweep.failed
     ]
     if notes:
         lines.append("")

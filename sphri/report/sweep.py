@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sphri.report.grouping import REPLICATE_KEY, chosen_keys, group_keys, group_label
+from sphri.report.grouping import REPLICATE_KEY, chosen_keys, group_keys, group_label, res_param
 from sphri.tracking.mlflow_tracker import PARENT_FILE, default_uri, no_artifact_bars
 from sphri.types import GESTURES
 
@@ -278,13 +278,13 @@ def load_sweep(
     for r in failed_runs:
         p = dict(r.data.params)
         label = group_label({k: p.get(k, "") for k in keys}, p.get("model", "?"))
-        if (label, p.get("encoder.res", "?")) in done:
+        if (label, res_param(p, "?")) in done:
             n_superseded += 1  # failed once, finished on a resumed run
             continue
         failed.append(
             {
                 "run_id": r.info.run_id,
-                "res": p.get("encoder.res", "?"),
+                "res": res_param(p, "?"),
                 "group": label,
                 "error": r.data.tags.get("sphri.error", "no error recorded"),
             }
@@ -368,11 +368,9 @@ def _float(value: Any) -> float:
 def _run_row(run: Any) -> dict[str, Any]:
     p, t, m = run.data.params, run.data.tags, run.data.metrics
     try:
-        res = int(p["encoder.res"])
-    except (KeyError, ValueError):
-        raise ReportError(
-            f"job run {run.info.run_id} has no integer param encoder.res (got {p.get('encoder.res')!r})"
-        ) from None
+        res = int(res_param(p))  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        raise ReportError(f"job run {run.info.run_id} has no integer param layout.res (got {res_param(p)!r})") from None
     row: dict[str, Any] = {
         "run_id": run.info.run_id,
         "start_time": int(run.info.start_time or 0),

@@ -37,7 +37,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from sphri.command.args import arg
+from sphri.args import arg
 
 #: Default face budget per mesh.
 FACE_BUDGET = 4000
@@ -234,7 +234,7 @@ def command(args: DeriveArgs) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sphri.robots.reachy2_derivative``: the ``sphri derive-reachy2`` verb."""
-    from sphri.command.args import first_paragraph, run
+    from sphri.args import first_paragraph, run
 
     argv = list(sys.argv[1:] if argv is None else argv)
     prog = "python -m sphri.robots.reachy2_derivative"

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from sphri.command.args import ArgsError, arg
+from sphri.args import ArgsError, arg
 from sphri.sessions.codes import SHEET_COLUMNS, episode_ids, session_frames
 from sphri.types import GESTURES
 

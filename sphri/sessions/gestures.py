@@ -24,8 +24,8 @@ import pandas as pd
 
 from sphri.data.format import make_trials_frame
 from sphri.data.handfk import matrix_to_quat
-from sphri.encode.schema import grid_res
 from sphri.hand.kinematics import quat_to_matrix
+from sphri.layout.schema import layout_res
 from sphri.sessions.format import SessionDataset
 from sphri.types import GESTURES, GestureDataset
 
@@ -92,7 +92,7 @@ def train_gesture_model(overrides: list[str], regions: list[str], cache, memo=No
         model.fit(windows.x, windows.y, windows.groups)
         n = int(windows.x.shape[0])
     acc = np.array([accs[r] for r in regions])
-    return GestureModel(model, list(regions), grid_res(cfg), float(acc.mean()), float(acc.std()), n, cfg, accs)
+    return GestureModel(model, list(regions), layout_res(cfg), float(acc.mean()), float(acc.std()), n, cfg, accs)
 
 
 def _to_link(poses: np.ndarray, link_pose: np.ndarray) -> np.ndarray:

@@ -45,8 +45,8 @@ TRAINING_KEYS = (
 
 def _sessions_config(p) -> dict[str, Any]:
     """The sessions' key config: the data settings and the text of the priors table they are drawn from."""
-    from sphri.cache import stable_hash
     from sphri.config import result_config
+    from sphri.integrity import stable_hash
 
     config: dict[str, Any] = {"data": result_config(p.cfg.data)}
     priors = getattr(p.components["data"], "priors", None)
@@ -111,7 +111,7 @@ def training_overrides(overrides: Sequence[str], st, n_participants: int) -> lis
         "data=synthetic",
         f"data.participants={max(n_participants, 2)}",
         f"data.repetitions={st.gesture_repetitions}",
-        f"encoder.res={st.gesture_res}",
+        f"layout.res={st.gesture_res}",
         "tracking.enabled=false",
     ]
     return out

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from sphri.command.args import arg, settings_main
+from sphri.args import arg, settings_main
 from sphri.config import CONF_DIR, ConfigError, check_output_file, component_node, plain
 
 

@@ -109,7 +109,7 @@ class ScenarioStudySchema(Schema):
     )
     """Body parts the gesture model is trained on (synthetic gesture study, data=synthetic; one chain each)."""
     gesture_res: int = setting(12, lo=1, hi=100)
-    """Skin resolution (encoder.res) of the gesture model."""
+    """Skin resolution (layout.res) of the gesture model."""
     gesture_repetitions: int = setting(10, lo=1)
     """Training trials per gesture and participant (participants: data.participants)."""
     reach_floor_height_m: float = setting(0.3, lo=0.0, hi=3.0)

@@ -16,7 +16,7 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sphri.command.args import first_paragraph, run
+from sphri.args import first_paragraph, run
 from sphri.data.synthesize import SynthesizeArgs, write_dataset
 from sphri.errors import clean_errors
 from sphri.sessions.format import SessionDataset

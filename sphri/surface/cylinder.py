@@ -178,7 +178,7 @@ def _params(c: np.ndarray, a: np.ndarray, r: float, t0: float, t1: float, seam) 
 class CylinderSurface(Configured):
     """``surface=cylinder``: the paper's fitted cylinder, (u, v) = (h, a)."""
 
-    VERSION = "2"  # 2: principal axes are the second moment about the centroid (one formula, sphri.surface.meshutil)
+    VERSION = "2"
 
     SCHEMA = CylinderSurfaceSchema
 

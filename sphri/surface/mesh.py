@@ -38,7 +38,7 @@ def fit_mesh(link: Link, n_samples: int = 20000, seed: int = 0) -> SurfaceMap:
 class MeshSurface(Configured):
     """``surface=mesh``: taxels on the 3-D surface, no (u, v)."""
 
-    VERSION = "2"  # 2: principal axes are the second moment about the centroid (one formula, sphri.surface.meshutil)
+    VERSION = "2"
 
     SCHEMA = MeshSurfaceSchema
 

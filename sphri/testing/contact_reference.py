@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sphri.contact.mesh import DEGENERATE_REL, prepare_mesh
+from sphri.contact.mesh import DEGENERATE_REL
 
 
 def _dot(a, b):
@@ -388,8 +388,3 @@ def compare(fast, ref, radius, tol_m: float = 1e-9) -> dict[str, int | float]:
         "distance_over_tol": int((err > tol_m).sum()),
         "max_distance_error_m": float(err.max()) if err.size else 0.0,
     }
-
-
-def prepared_mode(vertices, faces) -> str:
-    """The inside mode that ``inside="auto"`` resolves to for this mesh."""
-    return prepare_mesh(vertices, faces).inside_mode

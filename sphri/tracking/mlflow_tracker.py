@@ -37,10 +37,10 @@ import numpy as np
 
 from sphri import __version__
 from sphri.config import Configured, build
-from sphri.encode.schema import grid_res
+from sphri.layout.schema import layout_res
 from sphri.stages import PARAM_GROUPS  # groups whose component and scalar settings become params
 from sphri.tracking import machine
-from sphri.tracking.schema import MlflowTrackingConfig
+from sphri.tracking.schema import MlflowTrackingSchema
 
 if TYPE_CHECKING:
     from mlflow.tracking import MlflowClient
@@ -139,7 +139,7 @@ def dataset_input(cfg: DictConfig, result: RunResult) -> Any:
 
 
 def sweep_params(overrides: list[str]) -> dict[str, str]:
-    """A sweep's parent-run params: each override's key and value as given (``encoder.res`` -> ``2,4``;
+    """A sweep's parent-run params: each override's key and value as given (``layout.res`` -> ``2,4``;
     a group choice ``+experiment=resolution_sweep`` -> ``experiment``), flags such as ``-m`` left out."""
     out = {}
     for item in overrides:
@@ -255,7 +255,7 @@ class MlflowTracker(Configured):
     """Logs jobs to MLflow; built from the ``tracking`` config group."""
 
     VERSION = "1"
-    SCHEMA = MlflowTrackingConfig
+    SCHEMA = MlflowTrackingSchema
     enabled: bool  # these eight set from SCHEMA by Configured
     uri: str | None
     experiment: str
@@ -602,14 +602,14 @@ class MlflowTracker(Configured):
             robot = str(cfg.robot.get("name") or component_name(cfg.robot, (choices or {}).get("robot")))
             regions = list(cfg.data.get("regions") or [])
             model = component_name(cfg.model, (choices or {}).get("model"))
-            return f"{robot}-{regions[0] if regions else 'all'}-res{grid_res(cfg, check=False)}-{model} (failed)"
+            return f"{robot}-{regions[0] if regions else 'all'}-res{layout_res(cfg, check=False)}-{model} (failed)"
         except Exception:  # a config too broken to name: still a recognisable failed run
             return "job (failed)"
 
     @staticmethod
     def _run_name(cfg: DictConfig, meta: RunMeta, choices: dict[str, str] | None) -> str:
         model = component_name(cfg.model, (choices or {}).get("model"))
-        return f"{meta.robot}-{meta.region}-res{grid_res(cfg)}-{model}"
+        return f"{meta.robot}-{meta.region}-res{layout_res(cfg)}-{model}"
 
     def _log_artifacts(self, client: MlflowClient, run_id: str, cfg: DictConfig, result: RunResult) -> None:
         from omegaconf import OmegaConf
@@ -632,7 +632,7 @@ class MlflowTracker(Configured):
                     formats=("png",),
                     check=False,
                     title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
-                    provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {grid_res(cfg)}"),
+                    provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {layout_res(cfg)}"),
                 )
             (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
             (tmp_path / "meta.json").write_text(json.dumps(dataclasses.asdict(result.meta), indent=2, default=str))

@@ -85,7 +85,7 @@ def read_parent(sweep_dir: str | Path) -> dict[str, Any] | None:
 
 def sweep_hash(overrides: Sequence[str]) -> str:
     """What identifies a sweep command: its overrides (``hydra.*`` excepted), in any order."""
-    from sphri.cache import stable_hash
+    from sphri.integrity import stable_hash
 
     return stable_hash(sorted(o for o in overrides if not o.lstrip("+~").startswith("hydra")))
 
@@ -320,7 +320,7 @@ def results_table(statuses: Sequence[dict[str, Any]]) -> str:
 
 def open_parent(config: DictConfig, overrides: Sequence[str]) -> dict[str, Any] | None:
     """Reopen this sweep's earlier parent run, or create one; writes the sweep dir's parent file."""
-    from sphri.pipeline import build
+    from sphri.config import build
 
     sweep_dir = Path(config.hydra.sweep.dir)
     sweep_dir.mkdir(parents=True, exist_ok=True)
@@ -364,7 +364,7 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
     status = interrupted or ("FAILED" if failed else "FINISHED")
     parent = read_parent(sweep_dir)
     if parent and config.tracking.enabled:
-        from sphri.pipeline import build
+        from sphri.config import build
 
         try:
             skipped = {

@@ -13,7 +13,9 @@ class TrackingSchema(ComponentSchema, group="tracking"):
 
 
 @dataclass
-class MlflowTrackingConfig(TrackingSchema):
+class MlflowTrackingSchema(TrackingSchema):
+    """MLflow tracking: one run per job (params, metrics, artifacts), a parent run per sweep."""
+
     _target_: str = "sphri.tracking.mlflow_tracker.MlflowTracker"
     enabled: bool = True
     """Log each job to MLflow (false: run without tracking)."""
@@ -26,7 +28,7 @@ class MlflowTrackingConfig(TrackingSchema):
     """Log the composed config, per-participant CSV, confusion counts (CSV) and summary files."""
     confusion_png: bool = True
     """With ``artifacts``: also draw the confusion matrix as a PNG, for browsing runs in the MLflow UI
-    (0.3 s a job on 2 shared AMD EPYC cores, 2026-11-25; the sweep report redraws its matrices from the counts either way)."""
+    (its cost a job: docs/BENCHMARKS.md; the sweep report redraws its matrices from the counts either way)."""
     retries: int = 8
     """Retries of a tracking write that hits a locked SQLite database."""
     log_model: bool | None = None
@@ -66,4 +68,7 @@ class MlflowTrackingConfig(TrackingSchema):
             )
 
 
-store(group="tracking", name="mlflow_schema", node=MlflowTrackingConfig)
+store(group="tracking", name="mlflow_schema", node=MlflowTrackingSchema)
+
+#: Another name of :class:`MlflowTrackingSchema`, deprecated: removed in the next release.
+MlflowTrackingConfig = MlflowTrackingSchema

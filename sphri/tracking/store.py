@@ -58,7 +58,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Literal
 
-from sphri.command.args import arg
+from sphri.args import arg
 
 log = logging.getLogger(__name__)
 
@@ -521,7 +521,7 @@ def command(args: StoreArgs) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """``python -m sphri.tracking.store``: the ``sphri store`` verb."""
-    from sphri.command.args import first_paragraph, run
+    from sphri.args import first_paragraph, run
 
     argv = list(sys.argv[1:] if argv is None else argv)
     summary = first_paragraph(command.__doc__)

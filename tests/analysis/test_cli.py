@@ -9,7 +9,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from sphri import coverage as cli
-from sphri.command.args import ArgsError
+from sphri.args import ArgsError
 from sphri.types import Robot
 
 

@@ -39,8 +39,8 @@ def plate():
 def test_grid_coverage_is_the_ellipse_fraction(cyl_link, cyl_map, grids):
     c = synthetic_contacts(cyl_link, 200, seed=2)
     fi = np.arange(200)
-    cov = CoverageEncoder(res=18).encode(c, cyl_link, cyl_map, grids[18], fi)
-    frac = EllipseEncoder(res=18, binary=False).encode(c, cyl_link, cyl_map, grids[18], fi)
+    cov = CoverageEncoder().encode(c, cyl_link, cyl_map, grids[18], fi)
+    frac = EllipseEncoder(binary=False).encode(c, cyl_link, cyl_map, grids[18], fi)
     assert cov.values.dtype == np.float32 and cov.grid_shape == grids[18].grid_shape
     np.testing.assert_array_equal(cov.values, frac.values)
     assert cov.values.min() >= 0 and cov.values.max() <= 1 and np.isfinite(cov.values).all()
@@ -111,14 +111,14 @@ def test_proximity_range_depth_and_side(plate):
 
 def test_proximity_any_layout(cyl_link, cyl_map, grids):
     c = synthetic_contacts(cyl_link, 100, seed=5)
-    g = ProximityEncoder(res=18).encode(c, cyl_link, cyl_map, grids[18], np.arange(100))
+    g = ProximityEncoder().encode(c, cyl_link, cyl_map, grids[18], np.arange(100))
     assert g.grid_shape == grids[18].grid_shape and g.values.any()
     msm = MeshSurface().fit(cyl_link)
     lay = RandomLayout().build(cyl_link, msm, 18)
-    r = ProximityEncoder(res=18).encode(c, cyl_link, msm, lay, np.arange(100))
+    r = ProximityEncoder().encode(c, cyl_link, msm, lay, np.arange(100))
     assert r.values.shape == (100, lay.n_taxels) and r.geometry.uv is None
     # a farther range senses at least as much
-    far = ProximityEncoder(res=18, sensing_distance_m=0.02).encode(c, cyl_link, msm, lay, np.arange(100))
+    far = ProximityEncoder(sensing_distance_m=0.02).encode(c, cyl_link, msm, lay, np.arange(100))
     assert (far.values >= r.values).all() and far.values.sum() > r.values.sum()
 
 
@@ -142,7 +142,7 @@ def test_proximity_matches_brute_force(cyl_link, cyl_map):
     c = synthetic_contacts(cyl_link, 60, seed=6)
     sd, ds = 0.006, 0.01
     got = (
-        ProximityEncoder(res=18, sensing_distance_m=sd, intensity="depth", depth_scale_m=ds)
+        ProximityEncoder(sensing_distance_m=sd, intensity="depth", depth_scale_m=ds)
         .encode(c, cyl_link, cyl_map, lay, np.arange(60))
         .values
     )

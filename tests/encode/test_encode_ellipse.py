@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sphri.config import ConfigError
-from sphri.encode.common import SkinFrames, select_rows
+from sphri.encode.common import select_rows
 from sphri.encode.ellipse import EllipseEncoder
 from sphri.encode.raster import patch_ellipses, rasterize
 from sphri.layout.common import row_offsets
@@ -19,6 +19,7 @@ from sphri.layout.poisson import RandomLayout
 from sphri.surface.charts import from_uv, to_uv
 from sphri.testing.raster_reference import iou, reference_raster
 from sphri.testing.synthetic_contacts import make_contacts, synthetic_contacts
+from sphri.types import SkinFrames
 
 #: Hypothesis examples per property (SPHRI_DEEP_TESTS=1 for a deep run).
 EXAMPLES = 500 if os.environ.get("SPHRI_DEEP_TESTS") else 50
@@ -48,14 +49,14 @@ def test_agrees_with_supersampled_reference(cyl_link, cyl_map, grids, res):
     pts, nrm = on_surface(cyl_map, np.column_stack([rng.uniform(0.1, 0.9, k), rng.random(k)]))
     c = make_contacts(np.arange(k), pts, nrm, radius, n_frames=k)
     fi = np.arange(k)
-    fast = EllipseEncoder(res=res).encode(c, cyl_link, cyl_map, lay, fi).values
+    fast = EllipseEncoder().encode(c, cyl_link, cyl_map, lay, fi).values
     ref = reference_for(c, cyl_map, lay, fi)
     per_frame = np.array([iou(fast[i], ref[i]) for i in range(k)])
     # taxels whose covered fraction is within sampling error of the threshold can differ,
     # so single small patches may lose one taxel; over all patches the rasters agree
     assert iou(fast, ref) >= 0.99
     assert per_frame.mean() >= 0.98 and (per_frame >= 0.95).mean() >= 0.95
-    cov = EllipseEncoder(res=res, binary=False).encode(c, cyl_link, cyl_map, lay, fi).values
+    cov = EllipseEncoder(binary=False).encode(c, cyl_link, cyl_map, lay, fi).values
     ref_cov = reference_for(c, cyl_map, lay, fi, binary=False)
     assert np.abs(cov - ref_cov).mean() < 2e-3 and np.abs(cov - ref_cov).max() < 0.15
 
@@ -64,7 +65,7 @@ def test_realistic_frames_agree_with_reference(cyl_link, cyl_map, grids):
     c = synthetic_contacts(cyl_link, 100, seed=4)
     fi = np.arange(100)
     for res in (18, 50):
-        fast = EllipseEncoder(res=res).encode(c, cyl_link, cyl_map, grids[res], fi).values
+        fast = EllipseEncoder().encode(c, cyl_link, cyl_map, grids[res], fi).values
         ref = reference_for(c, cyl_map, grids[res], fi, ss=16)
         assert iou(fast, ref) > 0.97
 
@@ -74,7 +75,7 @@ def test_patch_on_the_seam_activates_both_sides(cyl_link, cyl_map, grids):
     h, w = lay.grid_shape
     pts, nrm = on_surface(cyl_map, [[0.5, 0.0], [0.5, 1 - 1e-9]])
     c = make_contacts([0, 1], pts, nrm, [0.012, 0.012], n_frames=2)
-    g = EllipseEncoder(res=18).encode(c, cyl_link, cyl_map, lay, np.arange(2)).as_grid()
+    g = EllipseEncoder().encode(c, cyl_link, cyl_map, lay, np.arange(2)).as_grid()
     for f in range(2):
         assert g[f, :, 0].any() and g[f, :, w - 1].any()
         assert not g[f, :, w // 2].any()
@@ -89,7 +90,7 @@ def test_tiny_patch_activates_its_taxel(cyl_link, cyl_map, grids, res):
     uv = np.column_stack([rng.uniform(0.02, 0.98, 20), rng.random(20)])
     pts, nrm = on_surface(cyl_map, uv)
     c = make_contacts(np.arange(20), pts, nrm, np.full(20, 1e-5), n_frames=20)
-    v = EllipseEncoder(res=res).encode(c, cyl_link, cyl_map, lay, np.arange(20)).values
+    v = EllipseEncoder().encode(c, cyl_link, cyl_map, lay, np.arange(20)).values
     assert (v.sum(axis=1) == 1).all()
     cell = (
         np.minimum((to_uv(cyl_map, pts)[:, 0] * h).astype(int), h - 1) * w
@@ -97,7 +98,7 @@ def test_tiny_patch_activates_its_taxel(cyl_link, cyl_map, grids, res):
     )
     assert (v[np.arange(20), cell] == 1).all()
     # coverage mode: a tiny but non-zero fraction (its exact area), nothing else
-    cov = EllipseEncoder(res=res, binary=False).encode(c, cyl_link, cyl_map, lay, np.arange(20)).values
+    cov = EllipseEncoder(binary=False).encode(c, cyl_link, cyl_map, lay, np.arange(20)).values
     area_frac = np.pi * 1e-10 / (lay.pitch_u_m * lay.pitch_v_m)
     np.testing.assert_allclose(cov.sum(axis=1), area_frac, rtol=1e-3)
     assert (cov[np.arange(20), cell] > 0).all() and (np.count_nonzero(cov, axis=1) <= 2).all()
@@ -107,15 +108,15 @@ def test_huge_patch_and_res_one(cyl_link, cyl_map, grids):
     pts, nrm = on_surface(cyl_map, [[0.5, 0.3]])
     c = make_contacts([0], pts, nrm, [1.0], n_frames=1, capsule_radius_m=1.0)
     for res in (1, 18, 200):
-        v = EllipseEncoder(res=res).encode(c, cyl_link, cyl_map, grids[res], np.array([0])).values
+        v = EllipseEncoder().encode(c, cyl_link, cyl_map, grids[res], np.array([0])).values
         assert v.all(), res
-    one = EllipseEncoder(res=1).encode(c, cyl_link, cyl_map, grids[1], np.array([0]))
+    one = EllipseEncoder().encode(c, cyl_link, cyl_map, grids[1], np.array([0]))
     assert one.values.shape == (1, 1) and one.grid_shape == (1, 1)
 
 
 def test_frame_index_order_duplicates_and_empty_frames(cyl_link, cyl_map, grids):
     c = synthetic_contacts(cyl_link, 200, seed=1)
-    enc = EllipseEncoder(res=18)
+    enc = EllipseEncoder()
     full = enc.encode(c, cyl_link, cyl_map, grids[18], np.arange(200)).values
     fi = np.array([150, 3, 3, 199, 0])
     part = enc.encode(c, cyl_link, cyl_map, grids[18], fi)
@@ -134,7 +135,7 @@ def test_hex_grid(cyl_link, cyl_map):
     k = 60
     pts, nrm = on_surface(cyl_map, np.column_stack([rng.uniform(0.1, 0.9, k), rng.random(k)]))
     c = make_contacts(np.arange(k), pts, nrm, rng.uniform(0.01, 0.03, k), n_frames=k)
-    fast = EllipseEncoder(res=18).encode(c, cyl_link, cyl_map, lay, np.arange(k)).values
+    fast = EllipseEncoder().encode(c, cyl_link, cyl_map, lay, np.arange(k)).values
     ref = reference_for(c, cyl_map, lay, np.arange(k))
     assert iou(fast, ref) > 0.97
 
@@ -143,16 +144,18 @@ def test_clear_errors(cyl_link, cyl_map, grids):
     c = synthetic_contacts(cyl_link, 10, seed=0)
     rnd = RandomLayout().build(cyl_link, cyl_map, 6)
     with pytest.raises(ValueError, match="encoder=ellipse needs a grid layout.*'random'"):
-        EllipseEncoder(res=6).encode(c, cyl_link, cyl_map, rnd, np.arange(10))
+        EllipseEncoder().encode(c, cyl_link, cyl_map, rnd, np.arange(10))
     with pytest.raises(ValueError, match=r"frame_index values must lie in \[0, 10\)"):
         EllipseEncoder().encode(c, cyl_link, cyl_map, grids[18], np.array([10]))
     c.frame = c.frame[::-1].copy()
     with pytest.raises(ValueError, match="sorted"):
         EllipseEncoder().encode(c, cyl_link, cyl_map, grids[18], np.arange(10))
-    with pytest.raises(ConfigError, match="encoder.res"):
-        EllipseEncoder(res=0)
-    with pytest.raises(ConfigError, match="encoder.res"):
-        EllipseEncoder(res=1001)
+    with pytest.raises(ConfigError, match="layout.res"):
+        HexLayout(res=0)
+    with pytest.raises(ConfigError, match="layout.res"):
+        RandomLayout(res=1001)
+    with pytest.raises(TypeError, match=r"unknown setting\(s\) \['res'\]"):
+        EllipseEncoder(res=18)  # the resolution is the layout's
     with pytest.raises(ConfigError, match="encoder.threshold"):
         EllipseEncoder(threshold=0.0)
 

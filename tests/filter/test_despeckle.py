@@ -216,7 +216,7 @@ def test_config_composes_and_the_pipeline_windows_carry_taxel_areas(tmp_path: Pa
     assert exp.variant == "despeckle200" and exp.model._target_.endswith("RandomForest")
     assert compose(["+experiment=despeckle_compare", "sensitivity=reference"]).filter._target_.endswith("NoFilter")
     cfg = compose(
-        ["+debug=fast", "tracking.enabled=false", f"cache.dir={tmp_path}", "encoder.res=30", "filter=despeckle"]
+        ["+debug=fast", "tracking.enabled=false", f"cache.dir={tmp_path}", "layout.res=30", "filter=despeckle"]
     )
     p = pipeline.make_pipeline(cfg, StageCache(tmp_path))
     noisy, filtered, layout = p.get("noise"), p.get("filter"), p.get("layout")

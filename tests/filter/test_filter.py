@@ -127,7 +127,7 @@ def test_filter_configs_compose_and_check_ranges():
 
 def test_filter_change_recomputes_only_filter_and_evaluation(tmp_path: Path):
     cache = StageCache(tmp_path)
-    base = ["+debug=fast", "tracking.enabled=false", f"cache.dir={tmp_path}", "encoder.res=4"]
+    base = ["+debug=fast", "tracking.enabled=false", f"cache.dir={tmp_path}", "layout.res=4"]
     first = pipeline.run(compose(base), cache)
     second = pipeline.run(compose([*base, "filter=debounce"]), cache)
     src = {n: r.source for n, r in second.stages.items()}

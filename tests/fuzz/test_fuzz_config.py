@@ -122,7 +122,7 @@ def test_wrong_values_for_every_schema_field(tally, field, value):
     assert v != NAMED
 
 
-@pytest.mark.parametrize("override", ["encoder.res=abc", "noise.p={a: 1}", "window.frames=1e308"])
+@pytest.mark.parametrize("override", ["layout.res=abc", "noise.p={a: 1}", "window.frames=1e308"])
 def test_the_command_line_prints_one_line_not_a_traceback(override, tmp_path):
     """The CLI's own path (Hydra app + sphri's handler), in a subprocess: one line, exit 2, no traceback."""
     r = subprocess.run(

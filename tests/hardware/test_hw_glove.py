@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from sphri.command.args import ArgsError, parse_known
+from sphri.args import ArgsError, parse_known
 from sphri.config import ConfigError
 from sphri.hardware.actuators import ActuatorMap, capsule_actuator, part_depths
 from sphri.hardware.glove import GloveDriver, PlannedMessage, play, schedule, select_trial

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from skin_sim import check_good_frames_kept, run_record
 
-from sphri.command.args import ArgsError, parse
+from sphri.args import ArgsError, parse
 from sphri.hardware.recording import RecordingError, SkinRecording, load_recording, save_recording
 from sphri.hardware.settings import SkinRecordSettings
 from sphri.hardware.skin import SkinReader

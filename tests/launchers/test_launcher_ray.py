@@ -17,7 +17,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.filterwarnings(SCHEMA_MATCH_WARNING)
 def test_ray_sweep_one_parent_three_children(ray_plugin, run_sphri, sweep_runs, tmp_path: Path):
     out = tmp_path / "outputs"
     proc = run_sphri(
-        ["-m", "hydra/launcher=ray", "+robot=reachy", "+debug=fast", "encoder.res=2,3,4", f"output_dir={out}"],
+        ["-m", "hydra/launcher=ray", "+robot=reachy", "+debug=fast", "layout.res=2,3,4", f"output_dir={out}"],
         cwd=tmp_path,
     )
     assert proc.returncode == 0, proc.stderr[-4000:]
@@ -31,7 +31,7 @@ def test_ray_sweep_one_parent_three_children(ray_plugin, run_sphri, sweep_runs, 
     assert len(runs.children) == 3
     assert all(c.data.tags["mlflow.parentRunId"] == parent.info.run_id for c in runs.children)
     assert all(c.info.status == "FINISHED" for c in runs.children)
-    assert sorted(c.data.params["encoder.res"] for c in runs.children) == ["2", "3", "4"]
+    assert sorted(c.data.params["layout.res"] for c in runs.children) == ["2", "3", "4"]
 
     statuses = [json.loads(p.read_text()) for p in sorted(out.glob("multirun/*/*/[0-9]*/sphri_status.json"))]
     assert [s["job"] for s in statuses] == [0, 1, 2] and all(s["status"] == "FINISHED" for s in statuses)

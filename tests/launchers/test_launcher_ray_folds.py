@@ -18,7 +18,7 @@ SWEEP = [
     "+robot=reachy",
     "+debug=fast",
     "model=rf",
-    "encoder.res=2,3",
+    "layout.res=2,3",
     "tracking.experiment=sphri",
     "tracking.log_model=null",  # the default (+debug=fast turns it off): a sweep's jobs log no model
 ]
@@ -32,7 +32,7 @@ RAY = [
 
 
 def _fold_accuracies(out: Path, sweep_runs) -> dict[str, list[float]]:
-    """encoder.res -> the job's fold accuracies in fold order; checks no job logged a model."""
+    """layout.res -> the job's fold accuracies in fold order; checks no job logged a model."""
     from mlflow.tracking import MlflowClient
 
     from sphri.tracking.mlflow_tracker import MlflowTracker, default_uri
@@ -43,7 +43,7 @@ def _fold_accuracies(out: Path, sweep_runs) -> dict[str, list[float]]:
     found = {}
     for child in runs.children:
         history = sorted(client.get_metric_history(child.info.run_id, "fold_accuracy"), key=lambda m: m.step)
-        found[child.data.params["encoder.res"]] = [m.value for m in history]
+        found[child.data.params["layout.res"]] = [m.value for m in history]
         assert MlflowTracker().logged_models(str(out), child.info.run_id) == []  # no refit per job
     return found
 

@@ -29,7 +29,7 @@ def test_slurm_sweep_through_fake_sbatch(submitit_plugin, run_sphri, sweep_runs,
             "-m",
             "hydra/launcher=slurm",
             "+debug=fast",
-            "encoder.res=2,3",
+            "layout.res=2,3",
             f"output_dir={out}",
             "hydra.launcher.partition=fake",
             "hydra.launcher.cpus_per_task=1",
@@ -66,4 +66,4 @@ def test_slurm_sweep_through_fake_sbatch(submitit_plugin, run_sphri, sweep_runs,
     assert len(runs.children) == 2
     assert all(c.data.tags["mlflow.parentRunId"] == runs.parents[0].info.run_id for c in runs.children)
     assert all(c.info.status == "FINISHED" for c in runs.children)
-    assert sorted(c.data.params["encoder.res"] for c in runs.children) == ["2", "3"]
+    assert sorted(c.data.params["layout.res"] for c in runs.children) == ["2", "3"]

@@ -18,7 +18,7 @@ from sphri.surface.meshutil import closest_points, face_areas, link_from_trimesh
 
 @pytest.mark.shared
 def test_paper_resolution_on_the_reachy_arm(arm_link, arm_map):
-    """encoder.res=18 on the 24.1 cm arm is the paper's 18 taxels per 24 cm: ~13.4 mm pitch."""
+    """layout.res=18 on the 24.1 cm arm is the paper's 18 taxels per 24 cm: ~13.4 mm pitch."""
     lay = GridLayout().build(arm_link, arm_map, 18)
     d = describe(lay, arm_map)
     assert lay.grid_shape[0] == 18

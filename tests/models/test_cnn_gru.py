@@ -478,7 +478,7 @@ def test_cnn_gru_beats_chance_on_a_small_study(tmp_path):
     threshold was chance + 0.05 = 0.175 until the float32 seeds were measured: seed 1 fell under it).
     Smaller sizes do not separate the two (same AVX2 machine, float32, seed 0 / 1 / 2): the first 2 folds
     gave 0.259 / 0.133 / 0.266 (the earlier behaviour, seed 0: 0.076), and 2 folds of 10 epochs instead
-    of 20 gave 0.061 / 0.099 / 0.128. Rerun: ``python -m sphri model=cnn_gru encoder.res=6
+    of 20 gave 0.061 / 0.099 / 0.128. Rerun: ``python -m sphri model=cnn_gru layout.res=6
     data.participants=6 data.repetitions=10 cv.max_folds=3 seed=S`` (``model.min_val_participants=1``
     for the earlier behaviour, ``cv.max_folds=2 model.max_epochs=10`` for the smaller sizes).
     """
@@ -489,7 +489,7 @@ def test_cnn_gru_beats_chance_on_a_small_study(tmp_path):
     cfg = compose(
         [
             "model=cnn_gru",
-            "encoder.res=6",
+            "layout.res=6",
             "data.participants=6",
             "data.repetitions=10",
             "cv.max_folds=3",

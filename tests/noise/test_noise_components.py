@@ -10,7 +10,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from sphri.config import ConfigError
-from sphri.encode.common import SkinFrames
 from sphri.noise.components import (
     CrosstalkNoise,
     DeadTaxelsNoise,
@@ -19,7 +18,7 @@ from sphri.noise.components import (
     SaltPepperNoise,
     dead_taxel_index,
 )
-from sphri.types import Frames, TaxelGeometry
+from sphri.types import Frames, SkinFrames, TaxelGeometry
 
 #: Hypothesis examples per property (SPHRI_DEEP_TESTS=1 for a deep run).
 EXAMPLES = 500 if os.environ.get("SPHRI_DEEP_TESTS") else 50

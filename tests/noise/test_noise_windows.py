@@ -10,7 +10,6 @@ import pytest
 from sphri import pipeline
 from sphri.cache import StageCache
 from sphri.config import compose
-from sphri.encode.common import SkinFrames
 from sphri.noise.components import (
     CrosstalkNoise,
     DeadTaxelsNoise,
@@ -19,7 +18,7 @@ from sphri.noise.components import (
     SaltPepperNoise,
     apply_to_windows,
 )
-from sphri.types import TaxelGeometry, WindowedFrames
+from sphri.types import SkinFrames, TaxelGeometry, WindowedFrames
 
 #: Every noise kind, with settings under which it can change an all-zero frame when it is able to.
 KINDS = {
@@ -112,7 +111,7 @@ def test_window_noise_checks_its_arguments():
         apply_to_windows(NoNoise(), bad, np.arange(6), 0)
 
 
-PURE = ["+debug=fast", "tracking.enabled=false", "noise.p=1", "noise.mode=replace", "encoder.res=6"]
+PURE = ["+debug=fast", "tracking.enabled=false", "noise.p=1", "noise.mode=replace", "layout.res=6"]
 
 
 def test_pure_noise_leaves_nothing_to_learn(tmp_path: Path):

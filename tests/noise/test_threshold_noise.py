@@ -6,9 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from sphri.encode.common import SkinFrames
 from sphri.noise.components import ThresholdNoise, threshold_false_off_rate, threshold_false_on_rate
-from sphri.types import TaxelGeometry
+from sphri.types import SkinFrames, TaxelGeometry
 
 
 def frames(values, area_mm2, h=None, w=None):

@@ -156,7 +156,7 @@ def make_sweep(
     # cost about 0.3 s for each of the fake jobs.
     tracker = MlflowTracker(artifacts=artifacts, confusion_png=confusion_png)
     sweep_id = sweep_dir.name
-    parent_id = tracker.start_parent(str(out), str(sweep_dir), sweep_id, ["encoder.res=" + ",".join(map(str, res))])
+    parent_id = tracker.start_parent(str(out), str(sweep_dir), sweep_id, ["layout.res=" + ",".join(map(str, res))])
     (sweep_dir / PARENT_FILE).write_text(
         json.dumps({"run_id": parent_id, "sweep_id": sweep_id, "uri": default_uri(out)})
     )

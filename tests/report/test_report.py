@@ -172,7 +172,7 @@ def test_files_text_and_mlflow_parent(built):
     parent = client.get_run(truth.parent_id)
     assert parent.data.tags["mlflow.note.content"].startswith("sphri skin resolution report")
     assert parent.data.tags["sphri.synthetic"] == "true"
-    assert parent.data.tags["sphri.sweep_note"].startswith("sweep: encoder.res=")
+    assert parent.data.tags["sphri.sweep_note"].startswith("sweep: layout.res=")
     assert "A taxel pitch of at most" in parent.data.tags["sphri.report.requirement"]
     logged = {a.path for a in client.list_artifacts(truth.parent_id, "report")}
     assert {"report/report.html", "report/accuracy_vs_resolution.png", "report/summary.txt"} <= logged
@@ -232,7 +232,7 @@ def test_resumed_sweep_finds_jobs_through_status_files(store, tmp_path, two_mode
     tracker = MlflowTracker()
     new_dir = tmp_path / "resumed"
     new_dir.mkdir()
-    pid = tracker.start_parent(str(two_model_sweep.output_dir), str(new_dir), "resumed", ["encoder.res=1,2"])
+    pid = tracker.start_parent(str(two_model_sweep.output_dir), str(new_dir), "resumed", ["layout.res=1,2"])
     (new_dir / PARENT_FILE).write_text(json.dumps({"run_id": pid, "sweep_id": "resumed", "uri": two_model_sweep.uri}))
     old = load_sweep(two_model_sweep.sweep_dir).runs
     for i, rid in enumerate(old[old["group"] == "rf"]["run_id"][:3]):
@@ -266,20 +266,20 @@ def test_cli_prints_the_summary_and_fails_clearly(two_model_sweep, tmp_path, cap
     assert "mlflow_parent_run.json" in capsys.readouterr().err
     assert main(["not-a-run"]) == 2
     assert "neither a sweep directory" in capsys.readouterr().err
-    assert main([str(tmp_path), "--ci", "2"]) == 2  # one line naming the key (sphri.command.args)
+    assert main([str(tmp_path), "--ci", "2"]) == 2  # one line naming the key (sphri.args)
 
 
 def test_group_keys_keep_only_settings_not_fixed_by_components():
     params = [
-        {"model": "rf", "model.n_estimators": "100", "robot": "reachy", "encoder.res": "1", "resolution.n_taxels": "1"},
-        {"model": "cnn_gru", "model.hidden": "32", "robot": "reachy", "encoder.res": "2", "resolution.n_taxels": "4"},
-        {"model": "rf", "model.n_estimators": "300", "robot": "reachy", "encoder.res": "1", "resolution.n_taxels": "1"},
+        {"model": "rf", "model.n_estimators": "100", "robot": "reachy", "layout.res": "1", "resolution.n_taxels": "1"},
+        {"model": "cnn_gru", "model.hidden": "32", "robot": "reachy", "layout.res": "2", "resolution.n_taxels": "4"},
+        {"model": "rf", "model.n_estimators": "300", "robot": "reachy", "layout.res": "1", "resolution.n_taxels": "1"},
     ]
     assert group_keys(params) == ["model", "model.n_estimators"]
     assert group_keys(params[:2]) == ["model"]
     # assumption variants: what a variant fixes (its encoder, its noise.p) is not a key of its own
     variants = [
-        {"variant": v, "encoder": e, "noise.p": p, "model": "rf", "encoder.res": str(r)}
+        {"variant": v, "encoder": e, "noise.p": p, "model": "rf", "layout.res": str(r)}
         for v, e, p in (
             ("reference", "ellipse", "0.02"),
             ("coverage", "coverage", "0.02"),
@@ -299,7 +299,7 @@ def test_one_resolution_per_group_is_a_comparison_without_saturation(store, tmp_
     report, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False, formats=PNG_ONLY)
     assert len(report.groups) == 2
     for g in report.groups:
-        assert g.requirement.startswith("One resolution only (encoder.res=18")
+        assert g.requirement.startswith("One resolution only (layout.res=18")
         assert "A taxel pitch of at most" not in g.requirement
     assert "bootstrap" not in files.figures
     assert len(pd.read_csv(files.tables["comparison"])) == 2
@@ -308,7 +308,7 @@ def test_one_resolution_per_group_is_a_comparison_without_saturation(store, tmp_
 @pytest.mark.slow
 def test_real_sweep_end_to_end(sweep_then_report):
     """A real (tiny) multirun of the pipeline, then ``python -m sphri.report`` on its directory."""
-    sweep, rep = sweep_then_report(["+debug=fast", "encoder.res=1,3,6"], 3, ["--n-boot", "200"], timeout=900)
+    sweep, rep = sweep_then_report(["+debug=fast", "layout.res=1,3,6"], 3, ["--n-boot", "200"], timeout=900)
     assert "A taxel pitch of at most" in rep.stdout and "SYNTHETIC" in rep.stdout
     parser = _Page()
     parser.feed((sweep / "report" / "report.html").read_text())

@@ -17,7 +17,7 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def _jobs(**extra: str) -> list[dict[str, str]]:
-    return [{"model": "rf", "encoder.res": str(r), "seed": "0", "cv.workers": "1", **extra} for r in (4, 8, 18)]
+    return [{"model": "rf", "layout.res": str(r), "seed": "0", "cv.workers": "1", **extra} for r in (4, 8, 18)]
 
 
 def test_result_neutral_params_never_split_a_curve():
@@ -53,10 +53,10 @@ def test_the_tour_single_job_then_sweep_then_report_is_one_curve(tmp_path: Path)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
     out, sweep = tmp_path / "outputs", tmp_path / "outputs" / "sweep"
     small = ["+debug=fast", f"output_dir={out}"]
-    single = forked_cli.run(["-m", "sphri", "+robot=reachy", "encoder.res=18", *small], tmp_path, env)
+    single = forked_cli.run(["-m", "sphri", "+robot=reachy", "layout.res=18", *small], tmp_path, env)
     assert single.returncode == 0, single.stderr[-3000:]
     multi = forked_cli.run(
-        ["-m", "sphri", "-m", "+robot=reachy", "encoder.res=4,8,18", *small, f"hydra.sweep.dir={sweep}"],
+        ["-m", "sphri", "-m", "+robot=reachy", "layout.res=4,8,18", *small, f"hydra.sweep.dir={sweep}"],
         tmp_path,
         env,
     )

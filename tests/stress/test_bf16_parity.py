@@ -26,13 +26,13 @@ def _store(out: Path, accuracy: dict[tuple[str, int], list[float]]) -> None:
     now = int(time.time() * 1000)
     for (precision, seed), folds in accuracy.items():
         run = client.create_run(exp, tags={"sphri.kind": "job", "sphri.machine.cpu_model": "test CPU"})
-        params = {"model": "cnn_gru", "encoder.res": "18", "run.precision": precision, "model.seed": str(seed)}
+        params = {"model": "cnn_gru", "layout.res": "18", "run.precision": precision, "model.seed": str(seed)}
         metrics = [Metric("fold_accuracy", a, now, i) for i, a in enumerate(folds)]
         metrics += [Metric("fold_macro_f1", a - 0.1, now, i) for i, a in enumerate(folds)]
         client.log_batch(run.info.run_id, metrics=metrics, params=[Param(k, v) for k, v in params.items()])
         client.set_terminated(run.info.run_id, "FINISHED")
     other = client.create_run(exp, tags={"sphri.kind": "job"})  # an RF job at the same resolution: left out
-    client.log_batch(other.info.run_id, params=[Param("model", "rf"), Param("encoder.res", "18")])
+    client.log_batch(other.info.run_id, params=[Param("model", "rf"), Param("layout.res", "18")])
     client.set_terminated(other.info.run_id, "FINISHED")
 
 

@@ -26,7 +26,7 @@ def test_run_writes_each_resolution_keeps_them_past_its_budget_and_keys_the_wind
     assert saved == json.loads(json.dumps(doc))
     entry = saved["results"]["2"]
     assert len(entry["folds"]) == 1 and 0.0 <= entry["summary"]["accuracy_mean"] <= 1.0
-    assert "encoder.res=2" in entry["overrides"] and "tracking.enabled=false" in entry["overrides"]
+    assert "layout.res=2" in entry["overrides"] and "tracking.enabled=false" in entry["overrides"]
     assert re.fullmatch(r"[0-9a-f]{20}", entry["windows_content_key"]), entry["windows_content_key"]
     assert saved["machine"]["cpu_count"] >= 1 and entry["machine"] == saved["machine"]
     assert not (tmp_path / "curve.json.partial").exists()
@@ -78,7 +78,7 @@ def _store(out: Path, jobs: dict[tuple[str, int], dict[str, float]]) -> None:
     for (model, res), people in jobs.items():
         r = client.create_run(exp, tags={"sphri.kind": "job"})
         metrics = [Metric(f"participant/{p}/accuracy", a, now, 0) for p, a in people.items()]
-        params = [Param("model", model), Param("encoder.res", str(res))]
+        params = [Param("model", model), Param("layout.res", str(res))]
         client.log_batch(r.info.run_id, metrics=metrics, params=params)
         client.set_terminated(r.info.run_id, "FINISHED")
     parent = client.create_run(exp, tags={"sphri.kind": "sweep"})  # no model or res: left out

@@ -56,15 +56,15 @@ def test_points_and_paired_differences(tmp_path: Path):
             a,
             out,
             j,
-            ["model=cnn_gru", f"encoder.res={res}", f"noise={noise}", "cv.max_folds=3"],
+            ["model=cnn_gru", f"layout.res={res}", f"noise={noise}", "cv.max_folds=3"],
             ["p1", "p2", "p3"],
             acc,
         )
     write_job(
-        b, out, 0, ["model=cnn_gru", "encoder.res=50", "noise=salt_pepper", "cv.max_folds=2"], ["p1", "p2"], [0.9, 0.2]
+        b, out, 0, ["model=cnn_gru", "layout.res=50", "noise=salt_pepper", "cv.max_folds=2"], ["p1", "p2"], [0.9, 0.2]
     )
     write_job(
-        b, out, 1, ["model=cnn_gru", "encoder.res=50", "noise=none"], ["p1", "p2"], [0.1, 0.1], status="FAILED"
+        b, out, 1, ["model=cnn_gru", "layout.res=50", "noise=none"], ["p1", "p2"], [0.1, 0.1], status="FAILED"
     )  # a failed job is left out
     df, jobs = load([a, b], out)
     s = summarize(df, jobs)
@@ -90,6 +90,6 @@ def test_two_jobs_of_one_point_are_refused(tmp_path: Path):
     out = tmp_path / "outputs"
     a, b = tmp_path / "a", tmp_path / "b"
     for sweep in (a, b):
-        write_job(sweep, out, 0, ["model=rf", "encoder.res=8", "noise=none"], ["p1"], [0.5])
+        write_job(sweep, out, 0, ["model=rf", "layout.res=8", "noise=none"], ["p1"], [0.5])
     with pytest.raises(SystemExit, match="two jobs for model=rf noise=none res=8"):
         load([a, b], out)

@@ -138,7 +138,7 @@ def test_resolution_1_and_200_through_the_chain(res, degenerate, caplog):
             assert h == res
         else:  # the hex lattice keeps the grid's taxel count (within a row or column's rounding)
             assert abs(lay.n_taxels - grid.n_taxels) <= max(h, w, 0.02 * grid.n_taxels)
-        for enc in (EllipseEncoder(res=res), CoverageEncoder(res=res), ProximityEncoder(res=res)):
+        for enc in (EllipseEncoder(), CoverageEncoder(), ProximityEncoder()):
             frames = enc.encode(contacts, link, surface, lay, fi)
             assert frames.values.shape == (len(fi), lay.n_taxels)
             for noise in (SaltPepperNoise(), CrosstalkNoise()):
@@ -150,7 +150,7 @@ def test_resolution_1_and_200_through_the_chain(res, degenerate, caplog):
             assert np.all(np.isfinite(feats)), type(enc).__name__
     # res 1: a single ring of taxels around the arm; the ellipse lights its centre cell at least
     if res == 1:
-        lit = EllipseEncoder(res=1).encode(contacts, link, surface, GridLayout().build(link, surface, 1), fi).values
+        lit = EllipseEncoder().encode(contacts, link, surface, GridLayout().build(link, surface, 1), fi).values
         has_contact = np.isin(fi, contacts.frame)
         assert (lit[has_contact].sum(axis=1) >= 1).all() and not lit[~has_contact].any()
 
@@ -164,7 +164,7 @@ def test_random_layout_at_resolution_200(degenerate, caplog):
     lay = RandomLayout().build(link, surface, 200)
     assert lay.n_taxels == GridLayout().build(link, surface, 200).n_taxels
     fi = OnsetWindow(frames=6).plan(contacts, ds).selected_frames()
-    for enc in (CoverageEncoder(res=200), ProximityEncoder(res=200)):
+    for enc in (CoverageEncoder(), ProximityEncoder()):
         v = enc.encode(contacts, link, surface, lay, fi).values
         assert np.all(np.isfinite(v)) and v.max() <= 1 and v.any()
 
@@ -197,7 +197,7 @@ def test_trials_without_contact_drop_cleanly_and_cv_says_why(caplog):
     assert not plan.kept.any() and (plan.onset == -1).all()
     fi = plan.selected_frames()
     assert fi.shape == (0,)
-    frames = EllipseEncoder(res=18).encode(contacts, arm, surface, lay, fi)
+    frames = EllipseEncoder().encode(contacts, arm, surface, lay, fi)
     assert frames.values.shape == (0, lay.n_taxels)
     noisy = SaltPepperNoise().apply(frames, fi, np.zeros(0, dtype=np.int64), 0)
     windows = window.assemble(noisy, plan, ds, lay, surface)
@@ -217,7 +217,7 @@ def test_trials_without_contact_kept_as_zero_windows(caplog):
     assert plan.kept.all()
     fi = plan.selected_frames()
     tk = trial_keys(ds)[ds.frame_trial_index()[fi]]
-    frames = CoverageEncoder(res=6).encode(contacts, arm, surface, lay, fi)
+    frames = CoverageEncoder().encode(contacts, arm, surface, lay, fi)
     assert frames.values.shape == (len(fi), lay.n_taxels) and not frames.values.any()
     windows = window.assemble(NoNoise().apply(frames, fi, tk, 0), plan, ds, lay, surface)
     assert windows.x.shape[0] == len(ds.trials) and not windows.x.any()
@@ -243,7 +243,7 @@ def test_float32_contact_arrays_encode_like_float64(degenerate):
             for k in ("distance_m", "point_m", "segment_point_m", "normal", "patch_radius_m", "depth_m")
         },
     )
-    for enc in (EllipseEncoder(res=18, binary=False), ProximityEncoder(res=18, intensity="depth")):
+    for enc in (EllipseEncoder(binary=False), ProximityEncoder(intensity="depth")):
         a = enc.encode(contacts, link, surface, lay, fi).values
         b = enc.encode(c32, link, surface, lay, fi).values
         assert np.all(np.isfinite(b))

@@ -40,11 +40,11 @@ GRID_LAYOUTS = ("grid", "hex")
 
 def encoders(res: int) -> dict:
     return {
-        "ellipse": EllipseEncoder(res=res),
-        "ellipse_fraction": EllipseEncoder(res=res, binary=False),
-        "coverage": CoverageEncoder(res=res),
-        "proximity": ProximityEncoder(res=res),
-        "proximity_depth": ProximityEncoder(res=res, intensity="depth"),
+        "ellipse": EllipseEncoder(),
+        "ellipse_fraction": EllipseEncoder(binary=False),
+        "coverage": CoverageEncoder(),
+        "proximity": ProximityEncoder(),
+        "proximity_depth": ProximityEncoder(intensity="depth"),
     }
 
 

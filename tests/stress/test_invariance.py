@@ -122,12 +122,12 @@ def test_chain_far_from_the_origin_reads_the_same_skin():
         shaky[c.frame[(c.distance_m < tol) | (c.depth_m < tol)]] = True
     steady = ~shaky[fi]
     assert steady.sum() > 0.7 * len(fi)
-    a = CoverageEncoder(res=18).encode(near_c, arm, near_s, near_l, fi).values[steady]
-    b = CoverageEncoder(res=18).encode(far_c, far_link, far_s, far_l, fi).values[steady]
+    a = CoverageEncoder().encode(near_c, arm, near_s, near_l, fi).values[steady]
+    b = CoverageEncoder().encode(far_c, far_link, far_s, far_l, fi).values[steady]
     # sub-millimetre shifts of 13 mm taxels: small coverage changes, no new or lost patches
     assert np.abs(a - b).max() < 0.05 and np.abs(a - b).mean() < 1e-3
-    ba = EllipseEncoder(res=18).encode(near_c, arm, near_s, near_l, fi).values[steady]
-    bb = EllipseEncoder(res=18).encode(far_c, far_link, far_s, far_l, fi).values[steady]
+    ba = EllipseEncoder().encode(near_c, arm, near_s, near_l, fi).values[steady]
+    bb = EllipseEncoder().encode(far_c, far_link, far_s, far_l, fi).values[steady]
     assert (ba != bb).mean() < 1e-3
 
 
@@ -205,11 +205,11 @@ def test_rotating_the_angular_origin_rolls_the_readings(seed, res, shift, hexgri
         uv = to_uv(base, c.point_m)
         # a patch centre exactly on a column boundary may fall on either side after rotation
         assume(np.abs(uv[:, 1] * w - np.round(uv[:, 1] * w)).min() > 1e-9 or c is contacts)
-        a = EllipseEncoder(res=res, binary=False).encode(c, arm, base, lay, fi).values.reshape(n_frames, h, w)
-        b = EllipseEncoder(res=res, binary=False).encode(c, arm, rotated, lay_r, fi).values.reshape(n_frames, h, w)
+        a = EllipseEncoder(binary=False).encode(c, arm, base, lay, fi).values.reshape(n_frames, h, w)
+        b = EllipseEncoder(binary=False).encode(c, arm, rotated, lay_r, fi).values.reshape(n_frames, h, w)
         np.testing.assert_allclose(b, np.roll(a, -k, axis=2), atol=1e-6)
-        ab = EllipseEncoder(res=res).encode(c, arm, base, lay, fi).values.reshape(n_frames, h, w)
-        bb = EllipseEncoder(res=res).encode(c, arm, rotated, lay_r, fi).values.reshape(n_frames, h, w)
+        ab = EllipseEncoder().encode(c, arm, base, lay, fi).values.reshape(n_frames, h, w)
+        bb = EllipseEncoder().encode(c, arm, rotated, lay_r, fi).values.reshape(n_frames, h, w)
         differ = bb != np.roll(ab, -k, axis=2)
         # binary readings may only differ where a cell sits exactly on the threshold or holds a
         # patch centre that lies on a cell boundary

@@ -38,7 +38,7 @@ def fake_sweep(tmp_path: Path) -> tuple[Path, Path, dict]:
                             "overrides": [
                                 f"seed={seed}",
                                 f"sensitivity={variant}",
-                                f"encoder.res={res}",
+                                f"layout.res={res}",
                                 "experiment=despeckle_compare",
                             ],
                         }

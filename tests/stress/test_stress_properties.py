@@ -105,14 +105,14 @@ def test_any_single_patch_encodes_to_valid_readings(p, res, hexgrid):
     contacts = make_contacts([0], point, tilted[None], [radius], 1)
     link = make_link(link_name)
     fi = np.array([0])
-    binary = EllipseEncoder(res=res).encode(contacts, link, surface, lay, fi).values
+    binary = EllipseEncoder().encode(contacts, link, surface, lay, fi).values
     assert binary.dtype == np.uint8 and binary.sum() >= 1  # the centre's taxel is always on
-    frac = EllipseEncoder(res=res, binary=False).encode(contacts, link, surface, lay, fi).values
+    frac = EllipseEncoder(binary=False).encode(contacts, link, surface, lay, fi).values
     assert np.all(np.isfinite(frac)) and frac.min() >= 0 and frac.max() <= 1
     assert np.all(binary[frac >= 0.5 + 1e-6] == 1)  # covered cells are on
-    cov = CoverageEncoder(res=res).encode(contacts, link, surface, lay, fi).values
+    cov = CoverageEncoder().encode(contacts, link, surface, lay, fi).values
     np.testing.assert_allclose(cov, frac, atol=1e-6)
-    prox = ProximityEncoder(res=res, intensity="depth").encode(contacts, link, surface, lay, fi).values
+    prox = ProximityEncoder(intensity="depth").encode(contacts, link, surface, lay, fi).values
     assert np.all(np.isfinite(prox)) and prox.min() >= 0 and prox.max() <= 1
 
 
@@ -133,7 +133,7 @@ def test_every_noise_kind_keeps_readings_in_range(values, grid, seed):
     if grid:
         frames = Frames(values=values, grid_shape=(1, n))
     else:
-        from sphri.encode.common import SkinFrames
+        from sphri.types import SkinFrames
 
         frames = SkinFrames(values=values, grid_shape=None, geometry=geometry)
     for noise in (

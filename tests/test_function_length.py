@@ -1,0 +1,82 @@
+"""Functions of sphri stay short: one over 80 lines is a list of steps to name. The ones still over are listed
+here, each with its length at most; the list may only shrink (split one, then drop its row)."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "sphri"
+LIMIT = 80
+
+#: ``path:function`` -> the most lines it may have, for the functions not yet split.
+STILL_LONG = {
+    "sphri/sessions/study.py:run_study": 236,
+    "sphri/sessions/study.py:write_outputs": 217,
+    "sphri/robots/validate.py:make_link": 187,
+    "sphri/data/synthetic.py:_trial": 137,
+    "sphri/hardware/skin.py:record": 136,
+    "sphri/data/recording_schema.py:markdown": 135,
+    "sphri/analysis/coverage.py:analyze": 135,
+    "sphri/report/sweep.py:load_sweep": 134,
+    "sphri/hardware/skin.py:live": 124,
+    "sphri/analysis/compare.py:paired_swd_tests": 124,
+    "sphri/encode/raster.py:_raster_frame": 122,
+    "sphri/robots/urdf_tree.py:build": 120,
+    "sphri/sessions/skin.py:export_patches": 115,
+    "sphri/contact/_kernels.py:_seg_tri": 109,
+    "sphri/report/saturation.py:certified_saturation": 107,
+    "sphri/contact/_kernels.py:_nearest": 107,
+    "sphri/data/gestures.py:_plan": 103,
+    "sphri/evaluate/cv.py:run": 102,
+    "sphri/contact/mesh.py:_build": 101,
+    "sphri/hardware/sim_skin.py:_run": 98,
+    "sphri/data/vr_gesture.py:_trials_from_table": 98,
+    "sphri/models/cnn_gru.py:_train": 97,
+    "sphri/report/figures.py:plot_curves": 95,
+    "sphri/report/analysis.py:_sentences": 94,
+    "sphri/report/reqmap.py:plot_map": 93,
+    "sphri/data/vr_gesture.py:load": 91,
+    "sphri/contact/_kernels.py:query_rows": 90,
+    "sphri/sessions/synthetic.py:_session": 89,
+    "sphri/robots/urdf_tree.py:parse_urdf": 89,
+    "sphri/sessions/contact.py:body_contacts": 88,
+    "sphri/analysis/coverage.py:write_region": 87,
+    "sphri/args.py:_parse": 84,
+    "sphri/export/model_file.py:load_model": 83,
+    "sphri/hand/capsules.py:load_definition": 81,
+}
+
+
+def long_functions(package: Path = PACKAGE) -> dict[str, int]:
+    """``path:function`` -> lines, of every function of ``package`` longer than :data:`LIMIT` (the longest of
+    a name repeated in one file)."""
+    out: dict[str, int] = {}
+    for path in sorted(package.rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                lines = node.end_lineno - node.lineno + 1
+                key = f"{path.relative_to(package.parent).as_posix()}:{node.name}"
+                if lines > LIMIT:
+                    out[key] = max(lines, out.get(key, 0))
+    return out
+
+
+def test_no_new_function_over_80_lines_and_none_grows():
+    found = long_functions()
+    new = {k: v for k, v in found.items() if k not in STILL_LONG}
+    grown = {k: (v, STILL_LONG[k]) for k, v in found.items() if k in STILL_LONG and v > STILL_LONG[k]}
+    assert not new, f"functions over {LIMIT} lines (name their steps): {new}"
+    assert not grown, f"listed long functions that grew (lines, allowed): {grown}"
+
+
+def test_the_list_only_names_functions_still_long():
+    split = sorted(set(STILL_LONG) - set(long_functions()))
+    assert not split, f"now at most {LIMIT} lines: drop them from STILL_LONG: {split}"
+
+
+def test_the_counter_sees_a_long_function(tmp_path):
+    pkg = tmp_path / "sphri"
+    pkg.mkdir()
+    (pkg / "m.py").write_text("def f():\n" + "    x = 1\n" * LIMIT + "\n\ndef g():\n    return 1\n")
+    assert long_functions(pkg) == {"sphri/m.py:f": LIMIT + 1}
