@@ -20,7 +20,7 @@ $(STAMP): pyproject.toml setup.py
 install: $(STAMP)
 
 run: install          ## the main job on the built-in defaults
-	$(BIN)/python -m sphri +robot=reachy encoder.res=18 $(ARGS)
+	$(BIN)/python -m sphri +robot=reachy layout.res=18 $(ARGS)
 
 lint: install         ## ruff (lint + format check) and mypy on the typed modules (pyproject.toml)
 	$(BIN)/ruff check sphri hydra_plugins tests bench

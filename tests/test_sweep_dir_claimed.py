@@ -19,7 +19,7 @@ REPO = Path(__file__).resolve().parent.parent
 HOLD = """
 import sys, time
 from sphri.tracking.parent import claim_sweep_dir
-claim = claim_sweep_dir(sys.argv[1], [["encoder.res=2"]], sys.argv[2])
+claim = claim_sweep_dir(sys.argv[1], [["layout.res=2"]], sys.argv[2])
 print("held", flush=True)
 time.sleep(120)
 """
@@ -47,7 +47,7 @@ def held(tmp_path: Path):
 def test_a_sweep_folder_another_process_holds_is_refused_naming_the_folder_and_holder(held, tmp_path: Path):
     sweep_dir, out, pid = held
     with pytest.raises(SweepDirInUse) as refused:
-        claim_sweep_dir(sweep_dir, [["encoder.res=2"]], out)
+        claim_sweep_dir(sweep_dir, [["layout.res=2"]], out)
     msg = str(refused.value)
     assert f"hydra.sweep.dir={sweep_dir} is in use by another sweep" in msg and f"pid {pid} (" in msg, msg
     assert "\n" not in msg
@@ -58,7 +58,7 @@ def test_a_sweep_folder_another_process_holds_is_refused_naming_the_folder_and_h
             "sphri",
             "-m",
             "+debug=fast",
-            "encoder.res=2,3",
+            "layout.res=2,3",
             f"output_dir={out}",
             "hydra/launcher=serial",
             f"hydra.sweep.dir={sweep_dir}",
@@ -81,7 +81,7 @@ def test_the_lock_goes_with_its_holder(held, tmp_path: Path):
     deadline = time.time() + 30
     while time.time() < deadline:
         try:
-            claim = claim_sweep_dir(sweep_dir, [["encoder.res=2"]], out)
+            claim = claim_sweep_dir(sweep_dir, [["layout.res=2"]], out)
             break
         except SweepDirInUse:
             time.sleep(0.1)
@@ -110,7 +110,7 @@ def _recorded(sweep_dir: Path, jobs: list[list[str]], out: Path) -> None:
 @pytest.mark.parametrize("left", ["recorded", "statuses"])
 def test_a_sweep_with_other_jobs_into_a_used_folder_is_refused_before_any_job(tmp_path: Path, left: str):
     sweep_dir, out = tmp_path / "sweeps" / "s", tmp_path / "out"
-    first = [["debug=fast", "encoder.res=2"], ["debug=fast", "encoder.res=3"]]
+    first = [["debug=fast", "layout.res=2"], ["debug=fast", "layout.res=3"]]
     if left == "recorded":
         _recorded(sweep_dir, first, out)
     else:
@@ -122,7 +122,7 @@ def test_a_sweep_with_other_jobs_into_a_used_folder_is_refused_before_any_job(tm
             "sphri",
             "-m",
             "+debug=fast",
-            "encoder.res=4,5",
+            "layout.res=4,5",
             f"output_dir={out}",
             "hydra/launcher=serial",
             f"hydra.sweep.dir={sweep_dir}",
@@ -135,7 +135,7 @@ def test_a_sweep_with_other_jobs_into_a_used_folder_is_refused_before_any_job(tm
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr
     assert f"hydra.sweep.dir={sweep_dir} holds another sweep" in lines[0]
-    assert "its job #0 ran debug=fast encoder.res=2, this sweep's job #0 is debug=fast encoder.res=4" in lines[0]
+    assert "its job #0 ran debug=fast layout.res=2, this sweep's job #0 is debug=fast layout.res=4" in lines[0]
     after = {p: p.read_bytes() for p in sweep_dir.rglob("*") if p.is_file() and p.name != LOCK_FILE}
     assert after == before, "the first sweep's files are untouched"
     assert not (out / "mlflow.db").exists()
@@ -145,11 +145,11 @@ def test_the_same_sweep_again_keeps_its_folder(tmp_path: Path):
     """A rerun with other runtime settings (or the overrides in another order) is the same sweep; another
     count of jobs or another output folder is not."""
     sweep_dir, out = tmp_path / "s", tmp_path / "out"
-    _recorded(sweep_dir, [["debug=fast", "encoder.res=2"], ["debug=fast", "encoder.res=3"]], out)
-    again = [["encoder.res=2", "debug=fast", "cv.workers=2", "hydra/launcher=serial"], ["debug=fast", "encoder.res=3"]]
+    _recorded(sweep_dir, [["debug=fast", "layout.res=2"], ["debug=fast", "layout.res=3"]], out)
+    again = [["layout.res=2", "debug=fast", "cv.workers=2", "hydra/launcher=serial"], ["debug=fast", "layout.res=3"]]
     claim_sweep_dir(sweep_dir, again, out).release()
     with pytest.raises(SweepDirInUse, match=r"holds another sweep \(2 jobs, this sweep 3\)"):
-        claim_sweep_dir(sweep_dir, [*again, ["debug=fast", "encoder.res=4"]], out)
+        claim_sweep_dir(sweep_dir, [*again, ["debug=fast", "layout.res=4"]], out)
     with pytest.raises(SweepDirInUse, match=r"holds a sweep recorded in output_dir=.*out, not .*elsewhere"):
         claim_sweep_dir(sweep_dir, again, tmp_path / "elsewhere")
     claim_sweep_dir(tmp_path / "new", again, out).release()  # a new folder: nothing to compare
