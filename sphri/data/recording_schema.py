@@ -308,6 +308,20 @@ def _hand_rows() -> list[tuple]:
     return rows
 
 
+#: The ``sphri import`` command and the frame its logs are in, the first paragraph of the page's log section.
+IMPORT_PARAGRAPH = (
+    "`sphri import KIND LOG out=DIR link=REGION participant=N gesture=G [rate_hz=30] [hand=right]",
+    "[hand_size=1] [link_pose=x,y,z,qx,qy,qz,qw]` (KIND: openxr, ovr, capsules) adds the log as one trial to the gesture-trial dataset `DIR` (made when absent), resampled",
+    "to `rate_hz`. Positions are metres in the link's frame; a log recorded in another frame (the room's, the",
+    "headset's tracking space) gives the link's pose in that frame as `link_pose=x,y,z,qx,qy,qz,qw` (metres, a",
+    "unit quaternion (x, y, z, w)), and the import takes every position and orientation into the link's frame",
+    "(`p_link = R^T (p - t)`): the link must stand still during the log (a robot that moves needs its logs in",
+    "the link's frame). The manifest keeps `link_pose` under the trial's `source`. CSV files have a header row; `.jsonl` files",
+    "hold one object per row with the same keys (OpenXR: `position` [x, y, z] and `orientation`",
+    "[x, y, z, w] instead of px..qw). A frame is the rows sharing one `time`.",
+)
+
+
 def markdown() -> str:
     """``docs/RECORDING_FORMAT.md``: the reference page of every format above."""
     lines = [
@@ -392,15 +406,7 @@ def markdown() -> str:
         "",
         "## Logs `sphri import` reads",
         "",
-        "`sphri import KIND LOG out=DIR link=REGION participant=N gesture=G [rate_hz=30] [hand=right]",
-        "[hand_size=1] [link_pose=x,y,z,qx,qy,qz,qw]` (KIND: openxr, ovr, capsules) adds the log as one trial to the gesture-trial dataset `DIR` (made when absent), resampled",
-        "to `rate_hz`. Positions are metres in the link's frame; a log recorded in another frame (the room's, the",
-        "headset's tracking space) gives the link's pose in that frame as `link_pose=x,y,z,qx,qy,qz,qw` (metres, a",
-        "unit quaternion (x, y, z, w)), and the import takes every position and orientation into the link's frame",
-        "(`p_link = R^T (p - t)`): the link must stand still during the log (a robot that moves needs its logs in",
-        "the link's frame). The manifest keeps `link_pose` under the trial's `source`. CSV files have a header row; `.jsonl` files",
-        "hold one object per row with the same keys (OpenXR: `position` [x, y, z] and `orientation`",
-        "[x, y, z, w] instead of px..qw). A frame is the rows sharing one `time`.",
+        *IMPORT_PARAGRAPH,
         "",
         "Each frame of the output lies at `k / rate_hz` after the log's first time; positions are interpolated",
         "linearly, orientations by slerp. The import says how many source frames it read and their median rate,",

@@ -66,14 +66,16 @@ def test_yaml_matches_schema_and_instantiates(path):
     obj = instantiate(cfg)
     assert type(obj).__module__ + "." + type(obj).__name__ == cfg._target_
     assert isinstance(obj.VERSION, str) and obj.VERSION  # part of every cache key
-    if path.parent.name == "encoder":  # the chain's resolution: in the config, not kept by the encoder
-        assert 1 <= cfg.res <= 1000 and not hasattr(obj, "res")
+    if path.parent.name == "layout":  # the chain's resolution: every layout is given it
+        assert 1 <= cfg.res <= 1000
+    if path.parent.name == "encoder":  # the resolution is the layout's, never an encoder's
+        assert "res" not in cfg
 
 
 @pytest.mark.parametrize(
     "path,key,value",
     [
-        ("encoder/ellipse.yaml", "res", 0),
+        ("layout/grid.yaml", "res", 0),
         ("encoder/proximity.yaml", "intensity", "loud"),
         ("noise/salt_pepper.yaml", "p", 1.5),
         ("window/onset.yaml", "frames", 0),
