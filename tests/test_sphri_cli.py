@@ -8,6 +8,7 @@ from pathlib import Path
 
 import forked_cli
 import pytest
+from time_limit import time_limit
 
 from sphri.cli import components, main
 
@@ -191,23 +192,7 @@ def test_console_completion_starts_afresh_when_a_config_file_changes():
 
 def _within(seconds: int):
     """A harness time limit (SIGALRM), not a speed assertion: a hang fails the test instead of the suite."""
-    import contextlib
-    import signal
-
-    @contextlib.contextmanager
-    def limit():
-        def fire(signum, frame):
-            raise TimeoutError(f"did not return within {seconds} s")
-
-        old = signal.signal(signal.SIGALRM, fire)
-        signal.alarm(seconds)
-        try:
-            yield
-        finally:
-            signal.alarm(0)
-            signal.signal(signal.SIGALRM, old)
-
-    return limit()
+    return time_limit(seconds, "the call")
 
 
 def test_show_returns_for_every_option_of_every_group_in_100_columns(capsys):

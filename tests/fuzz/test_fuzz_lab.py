@@ -18,11 +18,9 @@ import hashlib
 import io
 import json
 import os
-import signal
 import sqlite3
 import subprocess
 import sys
-from collections.abc import Iterator
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +28,7 @@ import pytest
 from fuzz_support import NAMED, UNCHANGED, WARNED, Tally, WarningCatcher, fuzz_settings
 from hypothesis import given
 from hypothesis import strategies as st
+from time_limit import time_limit
 
 from sphri.config import ConfigError
 from tests.robots.test_mesh_paths import urdf_with
@@ -68,20 +67,9 @@ class Hung(BaseException):
     """A case blocked for more than HANG_S seconds (a BaseException: no ``except Exception`` hides it)."""
 
 
-@contextlib.contextmanager
-def no_hang(what: str) -> Iterator[None]:
-    """SIGALRM after HANG_S seconds: a case that blocks fails instead of hanging the suite."""
-
-    def hung(signum, frame):
-        raise Hung(f"{what}: blocked for more than {HANG_S} s")
-
-    previous = signal.signal(signal.SIGALRM, hung)
-    signal.alarm(HANG_S)
-    try:
-        yield
-    finally:
-        signal.alarm(0)
-        signal.signal(signal.SIGALRM, previous)
+def no_hang(what: str) -> contextlib.AbstractContextManager[None]:
+    """SIGALRM after HANG_S seconds: a case that blocks fails (:class:`Hung`) instead of hanging the suite."""
+    return time_limit(HANG_S, what, Hung)
 
 
 def snapshot(root: Path) -> dict[str, str]:
