@@ -64,16 +64,41 @@ def episode_features(overrides: list[str], cache, memo):
     _, _, ds, _, _, _, coded, _, _ = segment(cfg, st, cache, memo)
     n_part = int(ds.sessions["participant"].nunique())
     chain = compose([*training_overrides(overrides, st, n_part), f"data.regions=[{st.gesture_regions[0]}]"])
-    feats, index = [], []
-    for _link, idx, windows in episode_windows(coded, ds, chain, cache, memo):
+    feats, index, links = [], [], []
+    for link, idx, windows in episode_windows(coded, ds, chain, cache, memo):
         model = model_factory(chain)(geometry=windows.geometry)
         feats.append(model.transform(windows.x))
         index.append(idx)
+        links.append(np.full(len(idx), str(link), dtype=object))
     idx = np.concatenate(index)
     sess = coded.loc[idx, "session"].to_numpy()
     y = ds.truth.reset_index(drop=True)["gesture"].to_numpy()[sess].astype(str)
     groups = coded.loc[idx, "participant"].to_numpy().astype(str)
-    return np.concatenate(feats), y, groups, coded
+    return np.concatenate(feats), y, groups, coded, np.concatenate(links)
+
+
+def mixed_agreement(feats: np.ndarray, y: np.ndarray, seed: int, folds: int = 4) -> float:
+    """Agreement of the same Random Forest under stratified k-fold with participants mixed (a participant's
+    episodes on both sides): compared with leave-one-participant-out it shows how much of the gap is the
+    shift between participants rather than gestures the features cannot tell apart."""
+    from sklearn.model_selection import StratifiedKFold
+
+    from sphri.models.rf import RandomForest
+
+    pred = np.empty(len(y), dtype=y.dtype)
+    k = min(folds, int(np.unique(y, return_counts=True)[1].min()))
+    for train, test in StratifiedKFold(n_splits=max(k, 2), shuffle=True, random_state=seed).split(feats, y):
+        pred[test] = RandomForest(seed=seed).fit_features(feats[train], y[train]).predict_features(feats[test])
+    return float((pred == y).mean())
+
+
+def per_link(pred: np.ndarray, y: np.ndarray, links: np.ndarray) -> dict:
+    """Agreement and episode count per dominant link, the most episodes first."""
+    names, counts = np.unique(links, return_counts=True)
+    return {
+        str(n): {"n": int(c), "agreement": float((pred[links == n] == y[links == n]).mean())}
+        for n, c in sorted(zip(names, counts), key=lambda t: -t[1])
+    }
 
 
 def measure(base: list[str], extra: list[str], train: list[str] | None = None) -> dict:
@@ -86,12 +111,12 @@ def measure(base: list[str], extra: list[str], train: list[str] | None = None) -
     cfg = compose(overrides)
     cache, memo = open_cache(cfg), Memo()
     t0 = time.perf_counter()
-    x, y, groups, coded = episode_features(overrides, cache, memo)
+    x, y, groups, coded, links = episode_features(overrides, cache, memo)
     if train is None:
         pred = lopo_agreement(x, y, groups, int(cfg.seed))
         n_train = None
     else:  # trained on the episodes of other generated participants (another data.seed), scored on the study's
-        xt, yt, _, coded_t = episode_features([*overrides, *train], cache, memo)
+        xt, yt, _, _, _ = episode_features([*overrides, *train], cache, memo)
         pred = RandomForest(seed=int(cfg.seed)).fit_features(xt, yt).predict_features(x)
         n_train = len(yt)
     per = {
@@ -106,6 +131,9 @@ def measure(base: list[str], extra: list[str], train: list[str] | None = None) -
         "agreement": float((pred == y).mean()),
         "balanced_agreement": float(np.mean([v["recall"] for v in per.values()])),
         "per_gesture": per,
+        "per_link": per_link(pred, y, links),
+        "mixed_participants_agreement": mixed_agreement(x, y, int(cfg.seed)),
+        "majority_share": float(max((y == g).mean() for g in np.unique(y))),
         "seconds": time.perf_counter() - t0,
     }
 
@@ -147,6 +175,11 @@ def main() -> None:
         out["skins"][name] = r
         print(f"{name}: agreement {100 * r['agreement']:.1f} % over {r['windows']} episodes ({r['seconds']:.0f} s)")
         print("   " + ", ".join(f"{g} {100 * v['recall']:.0f} % (n {v['n']})" for g, v in r["per_gesture"].items()))
+        print("   " + ", ".join(f"{k} {100 * v['agreement']:.0f} % (n {v['n']})" for k, v in r["per_link"].items()))
+        print(
+            f"   participants mixed (stratified folds): {100 * r['mixed_participants_agreement']:.1f} %; "
+            f"most drawn gesture's share {100 * r['majority_share']:.1f} %"
+        )
     out["loadavg_after"] = list(__import__("os").getloadavg())
     name = "study_gesture_coding" + (f"_train{args.train_participants}" if args.train_participants else "")
     print(write_json(name + ("_quick" if args.quick else ""), out))
