@@ -111,15 +111,8 @@ def _env(site: Path) -> dict[str, str]:
 
 
 def test_wheel_finds_its_configs_outside_the_repository(installed, tmp_path):
-    probe = subprocess.run(
-        [sys.executable, "-c", "import sphri, sphri.config as c; print(sphri.__file__); print(c.CONF_DIR)"],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        env=_env(installed),
-    )
-    assert probe.returncode == 0, probe.stderr[-3000:]
-    module_file, conf_dir = probe.stdout.split()
+    code = "import sphri, sphri.config as c; print(sphri.__file__); print(c.CONF_DIR)"
+    module_file, conf_dir = _probe(installed, tmp_path, code).split()
     assert Path(module_file).is_relative_to(installed)
     assert Path(conf_dir) == installed / "sphri" / "conf"
 
@@ -129,6 +122,16 @@ def _sphri(site: Path, cwd: Path, *args: str, timeout: int = 600) -> subprocess.
     return subprocess.run(
         [sys.executable, "-m", *args], capture_output=True, text=True, cwd=cwd, env=_env(site), timeout=timeout
     )
+
+
+def _probe(site: Path, cwd: Path, code: str) -> str:
+    """The standard output of ``python -c <code>`` with only the installed wheel on the path, from ``cwd``
+    (the test fails with its standard error when it exits non-zero)."""
+    proc = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, cwd=cwd, env=_env(site), timeout=600
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc.stdout
 
 
 @pytest.fixture(scope="module")
@@ -322,16 +325,9 @@ def test_wheel_runs_the_vr_logs_tutorial_as_written(installed, tmp_path):
 
 def test_wheel_knows_the_commit_it_was_built_from(installed, tmp_path):
     """No checkout beside an installed wheel: MLflow runs record the commit setup.py wrote into it."""
-    probe = subprocess.run(
-        [sys.executable, "-c", "from sphri.tracking.mlflow_tracker import git_commit; print(git_commit())"],
-        capture_output=True,
-        text=True,
-        cwd=tmp_path,
-        env=_env(installed),
-    )
-    assert probe.returncode == 0, probe.stderr[-3000:]
+    commit = _probe(installed, tmp_path, "from sphri.tracking.mlflow_tracker import git_commit; print(git_commit())")
     head = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True, cwd=REPO).stdout.strip()
-    assert probe.stdout.strip().removesuffix("+dirty") == head
+    assert commit.strip().removesuffix("+dirty") == head
 
 
 def test_wheel_builds_the_packaged_reachy2_from_its_own_data(installed, tmp_path):
@@ -347,11 +343,7 @@ def test_wheel_builds_the_packaged_reachy2_from_its_own_data(installed, tmp_path
         "r = instantiate(compose(['robot=reachy2']).robot).build(); "
         "print(len(r.tree.links), len(r.skipped), r.links['head'].faces.shape[0])"
     )
-    probe = subprocess.run(
-        [sys.executable, "-c", code], capture_output=True, text=True, cwd=tmp_path, env=_env(installed), timeout=600
-    )
-    assert probe.returncode == 0, probe.stderr[-3000:]
-    assert probe.stdout.split() == ["18", "78", "414"]
+    assert _probe(installed, tmp_path, code).split() == ["18", "78", "414"]
 
 
 def test_editable_install_builds_without_a_setuptools_warning(tmp_path):

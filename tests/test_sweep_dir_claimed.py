@@ -52,21 +52,7 @@ def test_a_sweep_folder_another_process_holds_is_refused_naming_the_folder_and_h
     assert f"hydra.sweep.dir={sweep_dir} is in use by another sweep" in msg and f"pid {pid} (" in msg, msg
     assert "\n" not in msg
     # the command line: one line, exit 1, no job started
-    proc = forked_cli.run(
-        [
-            "-m",
-            "sphri",
-            "-m",
-            "+debug=fast",
-            "layout.res=2,3",
-            f"output_dir={out}",
-            "hydra/launcher=serial",
-            f"hydra.sweep.dir={sweep_dir}",
-        ],
-        tmp_path,
-        _env(),
-        300,
-    )
+    proc = _sweep(tmp_path, out, sweep_dir, "layout.res=2,3", 300)
     assert proc.returncode == 1, (proc.stdout + proc.stderr)[-3000:]
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and f"pid {pid} (" in lines[0] and str(sweep_dir) in lines[0], proc.stderr
@@ -107,6 +93,12 @@ def _recorded(sweep_dir: Path, jobs: list[list[str]], out: Path) -> None:
     (sweep_dir / "sphri_sweep.json").write_text(json.dumps(info))
 
 
+def _sweep(tmp_path: Path, out: Path, sweep_dir: Path, grid: str, timeout: int):
+    """``python -m sphri -m +debug=fast GRID`` into ``sweep_dir`` (serial launcher), as a user types it."""
+    args = ["-m", "sphri", "-m", "+debug=fast", grid, f"output_dir={out}", "hydra/launcher=serial"]
+    return forked_cli.run([*args, f"hydra.sweep.dir={sweep_dir}"], tmp_path, _env(), timeout)
+
+
 @pytest.mark.parametrize("left", ["recorded", "statuses"])
 def test_a_sweep_with_other_jobs_into_a_used_folder_is_refused_before_any_job(tmp_path: Path, left: str):
     sweep_dir, out = tmp_path / "sweeps" / "s", tmp_path / "out"
@@ -116,21 +108,7 @@ def test_a_sweep_with_other_jobs_into_a_used_folder_is_refused_before_any_job(tm
     else:
         _legacy_statuses(sweep_dir, first)
     before = {p: p.read_bytes() for p in sweep_dir.rglob("*") if p.is_file()}
-    proc = forked_cli.run(
-        [
-            "-m",
-            "sphri",
-            "-m",
-            "+debug=fast",
-            "layout.res=4,5",
-            f"output_dir={out}",
-            "hydra/launcher=serial",
-            f"hydra.sweep.dir={sweep_dir}",
-        ],
-        tmp_path,
-        _env(),
-        600,
-    )
+    proc = _sweep(tmp_path, out, sweep_dir, "layout.res=4,5", 600)
     assert proc.returncode == 1, (proc.stdout + proc.stderr)[-3000:]
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1, proc.stderr
