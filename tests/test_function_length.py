@@ -20,7 +20,6 @@ STILL_LONG = {
     "sphri/analysis/coverage.py:analyze": 135,
     "sphri/report/sweep.py:load_sweep": 149,
     "sphri/hardware/skin.py:live": 124,
-    "sphri/analysis/compare.py:paired_swd_tests": 124,
     "sphri/encode/raster.py:_raster_frame": 122,
     "sphri/robots/urdf_tree.py:build": 120,
     "sphri/sessions/skin.py:export_patches": 115,
