@@ -38,7 +38,6 @@ STILL_LONG = {
     "sphri/contact/_kernels.py:query_rows": 90,
     "sphri/sessions/synthetic.py:_session": 89,
     "sphri/robots/urdf_tree.py:parse_urdf": 89,
-    "sphri/sessions/contact.py:body_contacts": 88,
     "sphri/args.py:_parse": 84,
     "sphri/export/model_file.py:load_model": 83,
     "sphri/hand/capsules.py:load_definition": 81,
