@@ -36,7 +36,6 @@ STILL_LONG = {
     "sphri/report/reqmap.py:plot_map": 93,
     "sphri/data/vr_gesture.py:load": 91,
     "sphri/contact/_kernels.py:query_rows": 90,
-    "sphri/sessions/synthetic.py:_session": 89,
     "sphri/robots/urdf_tree.py:parse_urdf": 89,
     "sphri/args.py:_parse": 84,
     "sphri/export/model_file.py:load_model": 83,
