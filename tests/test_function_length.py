@@ -21,7 +21,6 @@ STILL_LONG = {
     "sphri/hardware/skin.py:live": 124,
     "sphri/encode/raster.py:_raster_frame": 122,
     "sphri/robots/urdf_tree.py:build": 120,
-    "sphri/sessions/skin.py:export_patches": 115,
     "sphri/contact/_kernels.py:_seg_tri": 109,
     "sphri/report/saturation.py:certified_saturation": 107,
     "sphri/contact/_kernels.py:_nearest": 107,
