@@ -11,8 +11,6 @@ LIMIT = 80
 
 #: ``path:function`` -> the most lines it may have, for the functions not yet split.
 STILL_LONG = {
-    "sphri/sessions/study.py:run_study": 238,
-    "sphri/sessions/study.py:write_outputs": 226,
     "sphri/robots/validate.py:make_link": 187,
     "sphri/data/synthetic.py:_trial": 137,
     "sphri/hardware/skin.py:record": 183,
