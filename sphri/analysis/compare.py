@@ -36,6 +36,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from itertools import combinations
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -153,6 +154,127 @@ def n_rotations(n_trials: int, k: int) -> int:
     return 1 if 2 * k >= n_trials else int(n_trials)
 
 
+@dataclass
+class _PairPlan:
+    """One pair's planned distances: the participants that enter, per split the indices of its four distances
+    (a1-b2, a2-b1, a1-a2, b1-b2) into the flat distance list, and each participant's number of splits."""
+
+    a: str
+    b: str
+    used: list[str]
+    idx4: list[list[int]]
+    n_splits: list[int]
+
+
+def _plan_pairs(
+    sw: SharedSupportSW, participants: Sequence[str], conditions: list[str], halves: HalvesFn
+) -> tuple[list[_PairPlan], list[np.ndarray], list[np.ndarray]]:
+    """Per pair of ``conditions`` (in :func:`itertools.combinations` order) the distances its test needs, each
+    distance listed once: (plans, left masses, right masses), the masses (P,) on ``sw.support``. A
+    within-condition split (the same cached halves, by identity) recurs in each pair it enters."""
+    wa_all: list[np.ndarray] = []
+    wb_all: list[np.ndarray] = []
+    keep: list[object] = []  # keeps the ids below unique while planning
+    jobs: dict[tuple, int] = {}
+
+    def job(key: tuple, x: np.ndarray, y: np.ndarray) -> int:
+        if key not in jobs:
+            jobs[key] = len(wa_all)
+            wa_all.append(x)
+            wb_all.append(y)
+        return jobs[key]
+
+    plan = []
+    for a, b in combinations(conditions, 2):
+        p = _PairPlan(a, b, [], [], [])
+        for part in participants:
+            h = halves(part, a, b)
+            if h is None:
+                continue
+            splits = h if isinstance(h, list) else [h]
+            for split in splits:
+                keep.append(split)
+                ha, hb = (np.asarray(x, dtype=np.float64) for x in split)
+                if ha.shape != (2, sw.support.shape[0]) or hb.shape != ha.shape:
+                    raise ValueError(f"halves({part!r}, {a!r}, {b!r}) must be two (2, {sw.support.shape[0]}) arrays")
+                ia, ib = id(split[0]), id(split[1])
+                p.idx4.append(
+                    [
+                        job(("ab", ia, ib), ha[0], hb[1]),
+                        job(("ba", ia, ib), ha[1], hb[0]),
+                        job(("w", ia), ha[0], ha[1]),
+                        job(("w", ib), hb[0], hb[1]),
+                    ]
+                )
+            p.used.append(part)
+            p.n_splits.append(len(splits))
+        plan.append(p)
+    return plan, wa_all, wb_all
+
+
+def _all_distances(sw: SharedSupportSW, wa_all: list[np.ndarray], wb_all: list[np.ndarray]) -> np.ndarray:
+    """(J,) sliced Wasserstein distance (mm) of each planned (left, right) pair of masses, in chunks of 128
+    (each row is a whole-surface weighting)."""
+    return np.concatenate(
+        [np.zeros(0)]
+        + [
+            sw.distances(np.stack(wa_all[i : i + 128]), np.stack(wb_all[i : i + 128])) * 1e3
+            for i in range(0, len(wa_all), 128)
+        ]
+    )
+
+
+def _test_pair(
+    p: _PairPlan, all_dist: np.ndarray, alternative: str, exact_max: int, n_permutations: int, seed: int
+) -> tuple[dict, list[dict]]:
+    """One pair's table row (without ``p_holm``, ``significant``) and its per-participant rows: the split-half
+    distances (mm) averaged per participant, their between - within differences sign-flip tested with ``seed``."""
+    n = len(p.used)
+    row: dict[str, Any] = {"cond_a": p.a, "cond_b": p.b, "n_participants": n}
+    if n == 0:
+        row.update(
+            mean_between_swd_mm=np.nan,
+            mean_within_swd_mm=np.nan,
+            mean_diff_swd_mm=np.nan,
+            p_value=np.nan,
+            exact=False,
+            n_permutations=0,
+        )
+        return row, []
+    flat = all_dist[np.asarray(p.idx4)]  # one row per split
+    owner = np.repeat(np.arange(n), p.n_splits)
+    dist = (
+        np.stack([np.bincount(owner, flat[:, c], minlength=n) for c in range(4)], axis=1)
+        / np.asarray(p.n_splits)[:, None]
+    )
+    between = dist[:, :2].mean(axis=1)
+    within = dist[:, 2:].mean(axis=1)
+    diff = between - within
+    res = sign_flip_test(diff, alternative=alternative, exact_max=exact_max, n_permutations=n_permutations, seed=seed)
+    row.update(
+        mean_between_swd_mm=float(between.mean()),
+        mean_within_swd_mm=float(within.mean()),
+        mean_diff_swd_mm=res.statistic,
+        p_value=res.p_value,
+        exact=res.exact,
+        n_permutations=res.n_permutations,
+    )
+    prows = [
+        {
+            "participant": part,
+            "cond_a": p.a,
+            "cond_b": p.b,
+            "between_mm": bt,
+            "within_a_mm": wa_,
+            "within_b_mm": wb_,
+            "diff_mm": df,
+            "n_splits": ns,
+        }
+        for part, bt, wa_, wb_, df, ns in zip(p.used, between, dist[:, 2], dist[:, 3], diff, p.n_splits)
+    ]
+    return row, prows
+
+
 def paired_swd_tests(
     sw: SharedSupportSW,
     participants: Sequence[str],
@@ -169,105 +291,18 @@ def paired_swd_tests(
     ``halves(participant, a, b)`` returns the two halves' masses on
     ``sw.support`` for each condition (built with :func:`split_halves` at
     the pair's common ``k``), or None to leave the participant out.
+    The i-th pair's sign-flip test draws with ``seed + i``.
     """
     conditions = list(conditions)
     if len(conditions) < 2:
         raise ValueError(f"need at least two conditions to compare, got {conditions}")
-    # every distance once: a within-condition split (the same cached halves) recurs in each pair it enters
-    wa_all: list[np.ndarray] = []
-    wb_all: list[np.ndarray] = []
-    keep: list[object] = []
-    jobs: dict[tuple, int] = {}
-
-    def job(key: tuple, x: np.ndarray, y: np.ndarray) -> int:
-        if key not in jobs:
-            jobs[key] = len(wa_all)
-            wa_all.append(x)
-            wb_all.append(y)
-        return jobs[key]
-
-    plan = []
-    for a, b in combinations(conditions, 2):
-        used, idx4, n_splits = [], [], []
-        for part in participants:
-            h = halves(part, a, b)
-            if h is None:
-                continue
-            splits = h if isinstance(h, list) else [h]
-            for split in splits:
-                keep.append(split)  # keeps the ids below unique while planning
-                ha, hb = (np.asarray(x, dtype=np.float64) for x in split)
-                if ha.shape != (2, sw.support.shape[0]) or hb.shape != ha.shape:
-                    raise ValueError(f"halves({part!r}, {a!r}, {b!r}) must be two (2, {sw.support.shape[0]}) arrays")
-                ia, ib = id(split[0]), id(split[1])
-                # the four comparisons: a1-b2, a2-b1, a1-a2, b1-b2
-                idx4.append(
-                    [
-                        job(("ab", ia, ib), ha[0], hb[1]),
-                        job(("ba", ia, ib), ha[1], hb[0]),
-                        job(("w", ia), ha[0], ha[1]),
-                        job(("w", ib), hb[0], hb[1]),
-                    ]
-                )
-            used.append(part)
-            n_splits.append(len(splits))
-        plan.append((a, b, used, idx4, n_splits))
-    all_dist = np.concatenate(
-        [np.zeros(0)]
-        + [  # mm; in chunks (each row is a whole-surface weighting)
-            sw.distances(np.stack(wa_all[i : i + 128]), np.stack(wb_all[i : i + 128])) * 1e3
-            for i in range(0, len(wa_all), 128)
-        ]
-    )
+    plan, wa_all, wb_all = _plan_pairs(sw, participants, conditions, halves)
+    all_dist = _all_distances(sw, wa_all, wb_all)
     rows, prows = [], []
-    for idx, (a, b, used, idx4, n_splits) in enumerate(plan):
-        n = len(used)
-        row = {"cond_a": a, "cond_b": b, "n_participants": n}
-        if n == 0:
-            row.update(
-                mean_between_swd_mm=np.nan,
-                mean_within_swd_mm=np.nan,
-                mean_diff_swd_mm=np.nan,
-                p_value=np.nan,
-                exact=False,
-                n_permutations=0,
-            )
-            rows.append(row)
-            continue
-        flat = all_dist[np.asarray(idx4)]  # one row per split
-        owner = np.repeat(np.arange(n), n_splits)
-        dist = (
-            np.stack([np.bincount(owner, flat[:, c], minlength=n) for c in range(4)], axis=1)
-            / np.asarray(n_splits)[:, None]
-        )
-        between = dist[:, :2].mean(axis=1)
-        within = dist[:, 2:].mean(axis=1)
-        diff = between - within
-        res = sign_flip_test(
-            diff, alternative=alternative, exact_max=exact_max, n_permutations=n_permutations, seed=seed + idx
-        )
-        row.update(
-            mean_between_swd_mm=float(between.mean()),
-            mean_within_swd_mm=float(within.mean()),
-            mean_diff_swd_mm=res.statistic,
-            p_value=res.p_value,
-            exact=res.exact,
-            n_permutations=res.n_permutations,
-        )
+    for idx, p in enumerate(plan):
+        row, per_part = _test_pair(p, all_dist, alternative, exact_max, n_permutations, seed + idx)
         rows.append(row)
-        for part, bt, wa_, wb_, df, ns in zip(used, between, dist[:, 2], dist[:, 3], diff, n_splits):
-            prows.append(
-                {
-                    "participant": part,
-                    "cond_a": a,
-                    "cond_b": b,
-                    "between_mm": bt,
-                    "within_a_mm": wa_,
-                    "within_b_mm": wb_,
-                    "diff_mm": df,
-                    "n_splits": ns,
-                }
-            )
+        prows += per_part
     table = pd.DataFrame(rows)
     table["p_holm"] = holm(table["p_value"].to_numpy(float))
     table["significant"] = table["p_holm"].to_numpy(float) <= alpha

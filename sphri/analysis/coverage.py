@@ -125,6 +125,80 @@ def group_order(values: pd.Series, by: str) -> list[str]:
     return sorted(present)
 
 
+@dataclass
+class _Pairs:
+    """The analysed (frame, element) pairs and what each belongs to."""
+
+    frames: np.ndarray
+    """(K,) int64 global frame of each pair."""
+    elements: np.ndarray
+    """(K,) int64 surface element of each pair."""
+    trial_of: np.ndarray
+    """(K,) trial index of each pair."""
+    labels: np.ndarray
+    """(N,) each trial's ``by`` value (str)."""
+    units: np.ndarray
+    """(N,) each trial's ``pair_by`` value (str)."""
+    groups: list[str]
+    """``by`` values of the analysed trials in display order."""
+    code: dict[str, int]
+    """Group -> its index in ``groups``."""
+    group: np.ndarray
+    """(K,) index into ``groups`` of each pair (-1: none)."""
+    unit: np.ndarray
+    """(K,) index into ``unit_names`` of each pair."""
+    unit_names: np.ndarray
+
+
+@dataclass
+class _Curves:
+    """Per group (and ``"all"``): coverage curve, placement regions, sentence; the held-out table."""
+
+    curves: dict[str, CoverageCurve]
+    regions: dict[str, list[dict]]
+    sentences: dict[str, str]
+    heldout: pd.DataFrame
+
+
+def _region_trials(dataset: GestureDataset, region: str | None) -> np.ndarray:
+    """(N,) bool: the trials of ``region`` (all when None or without a ``region`` column); raises ValueError
+    when the region has none."""
+    trials = dataset.trials
+    in_region = np.ones(len(trials), dtype=bool)
+    if region is not None and "region" in trials.columns:
+        in_region = (trials["region"] == region).to_numpy()
+        if not in_region.any():
+            raise ValueError(
+                f"dataset {dataset.name!r} has no trials in region {region!r}; "
+                f"regions: {sorted(pd.unique(trials['region']))}"
+            )
+    return in_region
+
+
+def _densities(
+    kernel: SurfaceKernel, samples: SurfaceSamples, pairs: _Pairs
+) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Per group and ``"all"``: (P,) contact frames touching each of the P ``samples``, and their density smoothed
+    by ``kernel`` (1/m^2)."""
+    n = samples.n
+    counts = {ALL: np.bincount(pairs.elements, minlength=n).astype(float)}
+    for i, g in enumerate(pairs.groups):
+        counts[g] = np.bincount(pairs.elements[pairs.group == i], minlength=n).astype(float)
+    names = [ALL] + pairs.groups
+    dens_mat = kernel.smooth(np.stack([counts[k] for k in names]))
+    return counts, {k: dens_mat[i] for i, k in enumerate(names)}
+
+
+def _chart(surface: SurfaceMap | None, samples: SurfaceSamples) -> tuple[np.ndarray | None, str]:
+    """((P, 2) chart coordinates of the samples, or None without a chart; the surface kind, ``mesh`` without one)."""
+    kind = surface.kind if surface is not None else "mesh"
+    if surface is not None and surface.has_uv:
+        from sphri.surface.charts import to_uv
+
+        return to_uv(surface, samples.points_m), kind
+    return None, kind
+
+
 class CoverageAnalysis(Configured):
     """Contact maps, placement and condition tests on one link (see module)."""
 
@@ -168,6 +242,41 @@ class CoverageAnalysis(Configured):
         the (frame, element) pairs computed from ``contacts`` (which may then be None).
         """
         t0 = time.perf_counter()
+        self._check_inputs(dataset, contacts)
+        in_region = _region_trials(dataset, region)
+        samples = samples if samples is not None else sample_link(link, self.spacing_mm, self.seed)
+        kernel = kernel if kernel is not None else SurfaceKernel(samples, self.bandwidth_mm, self.kernel)
+        t1 = time.perf_counter()
+        pairs = self._touched_pairs(dataset, contacts, samples, touched, in_region)
+        t2 = time.perf_counter()
+        counts, densities = _densities(kernel, samples, pairs)
+        uv, kind = _chart(surface, samples)
+        notes: list[str] = []
+        maps = self._curves(link, samples, kernel, densities, uv, kind, pairs, notes)
+        t3 = time.perf_counter()
+        comparison = self._tests(kernel, dataset.trials, in_region, pairs, notes)
+        t4 = time.perf_counter()
+        return RegionCoverage(
+            region=region or ALL,
+            link=link.name,
+            by=self.by,
+            groups=pairs.groups,
+            samples=samples,
+            uv=uv,
+            surface_kind=kind,
+            counts=counts,
+            densities=densities,
+            curves=maps.curves,
+            regions=maps.regions,
+            sentences=maps.sentences,
+            heldout=maps.heldout,
+            comparison=comparison,
+            notes=notes,
+            seconds={"surface": t1 - t0, "contacts": t2 - t1, "maps_and_curves": t3 - t2, "tests": t4 - t3},
+        )
+
+    def _check_inputs(self, dataset: GestureDataset, contacts: Contacts | None) -> None:
+        """Raise ValueError when ``by``/``pair_by`` is no trial column or ``contacts`` is of another dataset."""
         trials = dataset.trials
         for col, key in ((self.by, "coverage.by"), (self.pair_by, "coverage.pair_by")):
             if col not in trials.columns:
@@ -180,19 +289,19 @@ class CoverageAnalysis(Configured):
                 f"contacts cover {contacts.n_frames} frames but dataset {dataset.name!r} has "
                 f"{dataset.n_frames}: they come from different datasets"
             )
-        notes: list[str] = []
-        in_region = np.ones(len(trials), dtype=bool)
-        if region is not None and "region" in trials.columns:
-            in_region = (trials["region"] == region).to_numpy()
-            if not in_region.any():
-                raise ValueError(
-                    f"dataset {dataset.name!r} has no trials in region {region!r}; "
-                    f"regions: {sorted(pd.unique(trials['region']))}"
-                )
+
+    def _touched_pairs(
+        self,
+        dataset: GestureDataset,
+        contacts: Contacts | None,
+        samples: SurfaceSamples,
+        touched: tuple[np.ndarray, np.ndarray] | None,
+        in_region: np.ndarray,
+    ) -> _Pairs:
+        """The (frame, element) pairs of the trials ``in_region``: ``touched`` as given, else the elements
+        ``contacts`` touch (``footprint``); with each pair's trial, group and ``pair_by`` unit."""
+        trials = dataset.trials
         frame_trial = dataset.frame_trial_index()
-        samples = samples if samples is not None else sample_link(link, self.spacing_mm, self.seed)
-        kernel = kernel if kernel is not None else SurfaceKernel(samples, self.bandwidth_mm, self.kernel)
-        t1 = time.perf_counter()
         if touched is None:
             if contacts is None:
                 raise ValueError("coverage: analyze needs contacts, or the touched (frame, element) pairs")
@@ -209,82 +318,87 @@ class CoverageAnalysis(Configured):
             frames, elements = (np.asarray(x, dtype=np.int64) for x in touched)
             keep = in_region[frame_trial[frames]]
             frames, elements = frames[keep], elements[keep]
-        t2 = time.perf_counter()
         trial_of = frame_trial[frames]
         labels = trials[self.by].astype(str).to_numpy()
         units = trials[self.pair_by].astype(str).to_numpy()
         groups = group_order(trials.loc[in_region, self.by], self.by)
         code = {g: i for i, g in enumerate(groups)}
-        pair_group = np.array([code.get(v, -1) for v in labels], dtype=np.int64)[trial_of]  # group index per pair
         unit_codes, unit_names = pd.factorize(units)
-        pair_unit = unit_codes[trial_of]
+        return _Pairs(
+            frames=frames,
+            elements=elements,
+            trial_of=trial_of,
+            labels=labels,
+            units=units,
+            groups=groups,
+            code=code,
+            group=np.array([code.get(v, -1) for v in labels], dtype=np.int64)[trial_of],
+            unit=unit_codes[trial_of],
+            unit_names=np.asarray(unit_names),
+        )
 
-        counts: dict[str, np.ndarray] = {ALL: np.bincount(elements, minlength=samples.n).astype(float)}
-        for i, g in enumerate(groups):
-            counts[g] = np.bincount(elements[pair_group == i], minlength=samples.n).astype(float)
-        names = [ALL] + groups
-        dens_mat = kernel.smooth(np.stack([counts[n] for n in names]))
-        densities = {n: dens_mat[i] for i, n in enumerate(names)}
-
-        uv = None
-        kind = surface.kind if surface is not None else "mesh"
-        if surface is not None and surface.has_uv:
-            from sphri.surface.charts import to_uv
-
-            uv = to_uv(surface, samples.points_m)
-        curves, regions, sentences, held = {}, {}, {}, []
-        for n in names:
-            m = slice(None) if n == ALL else pair_group == code[n]
-            curve = coverage_curve(densities[n], samples.area_m2, frames[m], elements[m], self.capture, group=n)
-            curves[n] = curve
-            regions[n] = describe_regions(samples, curve.mask, uv, kind, weight=densities[n] * samples.area_m2)
-            sentences[n] = recommendation(curve, regions[n], kind, link.name)
-            if self.heldout and curve.n_frames and np.count_nonzero(np.bincount(pair_unit[m])) >= 2:
-                h = heldout_capture(kernel, frames[m], elements[m], pair_unit[m], self.capture)
-                h["unit"] = np.asarray(unit_names)[h["unit"].to_numpy(dtype=np.int64)]
+    def _curves(
+        self,
+        link: Link,
+        samples: SurfaceSamples,
+        kernel: SurfaceKernel,
+        densities: dict[str, np.ndarray],
+        uv: np.ndarray | None,
+        kind: str,
+        pairs: _Pairs,
+        notes: list[str],
+    ) -> _Curves:
+        """Per group (and ``"all"``): the greedy coverage curve at ``capture``, its regions and sentence, and
+        (``heldout``) the leave-one-unit-out capture; a group without contact frames adds a note."""
+        out = _Curves({}, {}, {}, pd.DataFrame(columns=["group", "unit", "area_share", "captured", "n_frames"]))
+        held = []
+        for n in [ALL] + pairs.groups:
+            m = slice(None) if n == ALL else pairs.group == pairs.code[n]
+            frames, elements, unit = pairs.frames[m], pairs.elements[m], pairs.unit[m]
+            curve = coverage_curve(densities[n], samples.area_m2, frames, elements, self.capture, group=n)
+            out.curves[n] = curve
+            out.regions[n] = describe_regions(samples, curve.mask, uv, kind, weight=densities[n] * samples.area_m2)
+            out.sentences[n] = recommendation(curve, out.regions[n], kind, link.name)
+            if self.heldout and curve.n_frames and np.count_nonzero(np.bincount(unit)) >= 2:
+                h = heldout_capture(kernel, frames, elements, unit, self.capture)
+                h["unit"] = pairs.unit_names[h["unit"].to_numpy(dtype=np.int64)]
                 h.insert(0, "group", n)
                 held.append(h)
             if curve.n_frames == 0:
                 notes.append(f"group {n!r} has no contact frames on {link.name}")
-        heldout = (
-            pd.concat(held, ignore_index=True)
-            if held
-            else pd.DataFrame(columns=["group", "unit", "area_share", "captured", "n_frames"])
-        )
-        t3 = time.perf_counter()
+        if held:
+            out.heldout = pd.concat(held, ignore_index=True)
+        return out
 
-        comparison = None
+    def _tests(
+        self, kernel: SurfaceKernel, trials: pd.DataFrame, in_region: np.ndarray, pairs: _Pairs, notes: list[str]
+    ) -> PairwiseComparison | None:
+        """The paired SWD tests between the groups (:meth:`_compare`), or None (with a note) when ``by`` is
+        ``pair_by`` or there are fewer than two groups; a note when too few units can reach ``alpha``."""
         if self.pair_by == self.by:
             notes.append(f"no condition tests: coverage.by and coverage.pair_by are both {self.by!r}")
-        elif len(groups) < 2:
-            notes.append(f"no condition tests: only {len(groups)} value(s) of {self.by!r}")
-        else:
-            comparison = self._compare(kernel, trials, in_region, frames, elements, trial_of, groups, labels, units)
-            n_max = int(comparison.table["n_participants"].max())
-            if n_max <= self.exact_max and 2.0**-n_max > self.alpha:
-                notes.append(
-                    f"with {n_max} {self.pair_by} value(s) the exact sign-flip test cannot reach "
-                    f"p <= {self.alpha:g} (smallest p = 2^-{n_max} = {2.0**-n_max:.3g})"
-                )
-        t4 = time.perf_counter()
-        return RegionCoverage(
-            region=region or ALL,
-            link=link.name,
-            by=self.by,
-            groups=groups,
-            samples=samples,
-            uv=uv,
-            surface_kind=kind,
-            counts=counts,
-            densities=densities,
-            curves=curves,
-            regions=regions,
-            sentences=sentences,
-            heldout=heldout,
-            comparison=comparison,
-            notes=notes,
-            seconds={"surface": t1 - t0, "contacts": t2 - t1, "maps_and_curves": t3 - t2, "tests": t4 - t3},
+            return None
+        if len(pairs.groups) < 2:
+            notes.append(f"no condition tests: only {len(pairs.groups)} value(s) of {self.by!r}")
+            return None
+        comparison = self._compare(
+            kernel,
+            trials,
+            in_region,
+            pairs.frames,
+            pairs.elements,
+            pairs.trial_of,
+            pairs.groups,
+            pairs.labels,
+            pairs.units,
         )
+        n_max = int(comparison.table["n_participants"].max())
+        if n_max <= self.exact_max and 2.0**-n_max > self.alpha:
+            notes.append(
+                f"with {n_max} {self.pair_by} value(s) the exact sign-flip test cannot reach "
+                f"p <= {self.alpha:g} (smallest p = 2^-{n_max} = {2.0**-n_max:.3g})"
+            )
+        return comparison
 
     def _compare(
         self,
@@ -394,6 +508,19 @@ def write_region(
     """Write a region's files under ``out_dir``; returns their paths."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    paths = _write_tables(result, out)
+    if render:
+        t0 = time.perf_counter()
+        paths += _render_region(result, out, link, surface, views, provenance)
+        result.seconds["render"] = time.perf_counter() - t0
+    (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_json_default))
+    paths.append(out / "summary.json")
+    return paths
+
+
+def _write_tables(result: RegionCoverage, out: Path) -> list[Path]:
+    """A region's data files in ``out``: ``density_<group>.npz`` per group (and ``"all"``), the coverage curves,
+    the held-out table, the recommendation sentences and the SWD tables; returns their paths."""
     names = [ALL] + result.groups
     paths: list[Path] = []
     for n in names:
@@ -409,65 +536,69 @@ def write_region(
     paths.append(out / "recommendation.txt")
     if result.comparison is not None:
         paths += result.comparison.write_csv(out)
-    if render:
-        from sphri.analysis import render as rd
-        from sphri.figures import human
+    return paths
 
-        t0 = time.perf_counter()
-        view = rd.LinkView(link, result.samples)
-        title = f"{result.region} ({result.link})"
-        grid = rd.uv_grid(surface, result.samples) if surface is not None and surface.has_uv else None
-        for n in names:
-            dens = result.densities[n]
-            label = f"{title}: {result.by} = {human(n)}" if n != ALL else f"{title}: all trials"
-            paths.append(view.render(dens, out / f"map_{safe_name(n)}.png", label, views=views, provenance=provenance))
-            paths.append(view.write_ply(dens, out / f"map_{safe_name(n)}.ply"))
-            if grid is not None and surface is not None:  # grid is built only from a surface
-                paths.append(
-                    rd.render_uv(
-                        surface,
-                        result.samples,
-                        dens,
-                        out / f"uv_{safe_name(n)}.png",
-                        label,
-                        grid,
-                        provenance=provenance,
-                    )
-                )
-        small = rd.LinkView(link, result.samples, target_faces=4000)
-        paths.append(
-            rd.plot_overview(
-                small,
-                {n: result.densities[n] for n in names},
-                out / "overview.png",
-                f"{title}: contact density by {result.by}",
-                views=views,
-                surface=surface,
-                samples=result.samples,
-                grid=grid,
-                provenance=provenance,
-            )
-        )
-        paths.append(
-            rd.plot_coverage_curves(
-                [result.curves[n] for n in names],
-                out / "coverage_curve.png",
-                f"{title}: greedy skin placement",
-                provenance=provenance,
-            )
-        )
-        if result.comparison is not None:
+
+def _render_region(
+    result: RegionCoverage,
+    out: Path,
+    link: Link,
+    surface: SurfaceMap | None,
+    views: int,
+    provenance: Provenance | None,
+) -> list[Path]:
+    """A region's figures in ``out``: per group a map (PNG and PLY, a chart PNG where the surface has one),
+    the overview, the coverage curves and the SWD heatmap; returns their paths."""
+    from sphri.analysis import render as rd
+    from sphri.figures import human
+
+    names = [ALL] + result.groups
+    paths: list[Path] = []
+    view = rd.LinkView(link, result.samples)
+    title = f"{result.region} ({result.link})"
+    grid = rd.uv_grid(surface, result.samples) if surface is not None and surface.has_uv else None
+    for n in names:
+        dens = result.densities[n]
+        label = f"{title}: {result.by} = {human(n)}" if n != ALL else f"{title}: all trials"
+        paths.append(view.render(dens, out / f"map_{safe_name(n)}.png", label, views=views, provenance=provenance))
+        paths.append(view.write_ply(dens, out / f"map_{safe_name(n)}.ply"))
+        if grid is not None and surface is not None:  # grid is built only from a surface
             paths.append(
-                rd.plot_swd_heatmap(
-                    result.comparison,
-                    out / "swd_heatmap.png",
-                    f"{title}: touch distributions by {result.by}",
-                    provenance=provenance,
+                rd.render_uv(
+                    surface, result.samples, dens, out / f"uv_{safe_name(n)}.png", label, grid, provenance=provenance
                 )
             )
-        result.seconds["render"] = time.perf_counter() - t0
-    (out / "summary.json").write_text(json.dumps(result.summary(), indent=2, default=_json_default))
-    paths.append(out / "summary.json")
+    small = rd.LinkView(link, result.samples, target_faces=4000)
+    paths.append(
+        rd.plot_overview(
+            small,
+            {n: result.densities[n] for n in names},
+            out / "overview.png",
+            f"{title}: contact density by {result.by}",
+            views=views,
+            surface=surface,
+            samples=result.samples,
+            grid=grid,
+            provenance=provenance,
+        )
+    )
+    paths.append(
+        rd.plot_coverage_curves(
+            [result.curves[n] for n in names],
+            out / "coverage_curve.png",
+            f"{title}: greedy skin placement",
+            provenance=provenance,
+        )
+    )
+    if result.comparison is not None:
+        paths.append(
+            rd.plot_swd_heatmap(
+                result.comparison,
+                out / "swd_heatmap.png",
+                f"{title}: touch distributions by {result.by}",
+                provenance=provenance,
+            )
+        )
     return paths
 
 

@@ -71,6 +71,29 @@ class BodyContacts:
         )
 
 
+@dataclass
+class _Links:
+    """The links' prepared meshes and bounding spheres, and the hand's capsule radii grown by the margin."""
+
+    meshes: list
+    centres: np.ndarray
+    """(L, 3) bounding sphere centres, link frame (m)."""
+    radii: np.ndarray
+    """(L,) bounding sphere radii (m)."""
+    capsule_radius: np.ndarray
+    """(C,) capsule radii plus the contact margin (m)."""
+
+
+@dataclass
+class _Pass:
+    """What the chunks found so far: contact rows per (chunk, link), the reused search buffer, culling counts."""
+
+    record: SearchRecord
+    parts: list[dict] = field(default_factory=list)
+    tested: int = 0
+    passed: int = 0
+
+
 def body_contacts(
     ds: SessionDataset, robot: Robot, contact, chunk_frames: int = 4000, cull: bool = True
 ) -> BodyContacts:
@@ -78,54 +101,72 @@ def body_contacts(
     missing = [ln for ln in ds.links if ln not in robot.links]
     if missing:
         raise ValueError(f"sessions {ds.name!r} pose links {missing} that robot {robot.name!r} lacks")
-    hand = ds.hand
-    c = hand.n_capsules
-    radius = np.asarray(hand.radius_m, dtype=np.float64) + float(getattr(contact, "margin_m", 0.0))
-    reach = float(radius.max())
+    links = _prepare_links(ds, robot, contact)
+    acc = _Pass(SearchRecord.empty(0))
+    for s in range(0, ds.n_frames, chunk_frames):
+        _chunk_contacts(ds, links, contact, np.arange(s, min(s + chunk_frames, ds.n_frames)), chunk_frames, cull, acc)
+    return _assemble(ds, acc)
+
+
+def _prepare_links(ds: SessionDataset, robot: Robot, contact) -> _Links:
+    """Each link of ``ds.links`` prepared for ``contact``'s exact query, with its bounding sphere."""
+    radius = np.asarray(ds.hand.radius_m, dtype=np.float64) + float(getattr(contact, "margin_m", 0.0))
     inside = "none" if getattr(contact, "spheres", 0) else getattr(contact, "inside", "auto")
     meshes = [prepare_mesh(robot.links[ln].vertices, robot.links[ln].faces, inside=inside) for ln in ds.links]
     centres = np.stack([m.shift for m in meshes])  # (L, 3) link frame
     radii = np.array([m.sphere_radius for m in meshes])
-    parts: list[dict] = []
-    record = SearchRecord.empty(0)
-    tested = passed = 0
-    for s in range(0, ds.n_frames, chunk_frames):
-        fr = np.arange(s, min(s + chunk_frames, ds.n_frames))
-        n = fr.size
-        p0, p1 = capsule_segments(ds.hand_poses[fr].reshape(n * 2, c, 7), hand)  # (n*2, C, 3) world
-        ends = np.concatenate([p0, p1], axis=1)
-        lo, hi = ends.min(axis=1), ends.max(axis=1)
-        hc = 0.5 * (lo + hi)  # (n*2, 3)
-        hr = np.sqrt(((ends - hc[:, None]) ** 2).sum(axis=2)).max(axis=1) + reach
-        lp = ds.link_poses[fr].astype(np.float64)  # (n, L, 7)
-        rot = quat_to_matrix(lp[..., 3:])  # (n, L, 3, 3)
-        trans = lp[..., :3]
-        cw = np.einsum("nlij,lj->nli", rot, centres) + trans  # link spheres' centres, world
-        for li in range(len(ds.links)):
-            tested += 2 * n
-            if cull:
-                d = np.linalg.norm(hc.reshape(n, 2, 3) - cw[:, li, None, :], axis=2)
-                units = np.flatnonzero((d <= hr.reshape(n, 2) + radii[li]).ravel())  # frame*2 + hand
-            else:
-                units = np.arange(2 * n)
-            if units.size == 0:
-                continue
-            passed += units.size
-            f_local = units // 2
-            r_t = rot[f_local, li]  # (m, 3, 3) link -> world
-            t_t = trans[f_local, li]
-            a = np.einsum("mji,mcj->mci", r_t, p0[units] - t_t[:, None, :])  # R^T (p - t)
-            b = np.einsum("mji,mcj->mci", r_t, p1[units] - t_t[:, None, :])
-            need = units.size * c
-            if record.d2.size < need:
-                record = SearchRecord.empty(max(need, min(2 * chunk_frames, 2 * ds.n_frames) * c))
-            for part in contact._chunk(meshes[li], a, b, units, radius, record):
-                u = part.pop("frame")
-                part["frame"] = fr[u // 2]
-                part["hand"] = (u % 2).astype(np.int8)
-                part["link"] = np.full(u.size, li, dtype=np.int16)
-                parts.append(part)
-    if not parts:
+    return _Links(meshes, centres, radii, radius)
+
+
+def _chunk_contacts(
+    ds: SessionDataset, links: _Links, contact, fr: np.ndarray, chunk_frames: int, cull: bool, acc: _Pass
+) -> None:
+    """The contacts of frames ``fr`` with every link, added to ``acc``: per link, the (frame, hand) units whose
+    bounding spheres meet the link's (all with ``cull=False``) go to ``contact``'s exact query in the link's
+    frame."""
+    hand = ds.hand
+    c = hand.n_capsules
+    reach = float(links.capsule_radius.max())
+    n = fr.size
+    p0, p1 = capsule_segments(ds.hand_poses[fr].reshape(n * 2, c, 7), hand)  # (n*2, C, 3) world
+    ends = np.concatenate([p0, p1], axis=1)
+    lo, hi = ends.min(axis=1), ends.max(axis=1)
+    hc = 0.5 * (lo + hi)  # (n*2, 3)
+    hr = np.sqrt(((ends - hc[:, None]) ** 2).sum(axis=2)).max(axis=1) + reach
+    lp = ds.link_poses[fr].astype(np.float64)  # (n, L, 7)
+    rot = quat_to_matrix(lp[..., 3:])  # (n, L, 3, 3)
+    trans = lp[..., :3]
+    cw = np.einsum("nlij,lj->nli", rot, links.centres) + trans  # link spheres' centres, world
+    for li in range(len(ds.links)):
+        acc.tested += 2 * n
+        if cull:
+            d = np.linalg.norm(hc.reshape(n, 2, 3) - cw[:, li, None, :], axis=2)
+            units = np.flatnonzero((d <= hr.reshape(n, 2) + links.radii[li]).ravel())  # frame*2 + hand
+        else:
+            units = np.arange(2 * n)
+        if units.size == 0:
+            continue
+        acc.passed += units.size
+        f_local = units // 2
+        r_t = rot[f_local, li]  # (m, 3, 3) link -> world
+        t_t = trans[f_local, li]
+        a = np.einsum("mji,mcj->mci", r_t, p0[units] - t_t[:, None, :])  # R^T (p - t)
+        b = np.einsum("mji,mcj->mci", r_t, p1[units] - t_t[:, None, :])
+        need = units.size * c
+        if acc.record.d2.size < need:
+            acc.record = SearchRecord.empty(max(need, min(2 * chunk_frames, 2 * ds.n_frames) * c))
+        for part in contact._chunk(links.meshes[li], a, b, units, links.capsule_radius, acc.record):
+            u = part.pop("frame")
+            part["frame"] = fr[u // 2]
+            part["hand"] = (u % 2).astype(np.int8)
+            part["link"] = np.full(u.size, li, dtype=np.int16)
+            acc.parts.append(part)
+
+
+def _assemble(ds: SessionDataset, acc: _Pass) -> BodyContacts:
+    """The rows of ``acc`` in one :class:`BodyContacts`, sorted by frame, hand, link, capsule."""
+    stats = {"triples": acc.tested, "tested": acc.passed}
+    if not acc.parts:
         z = np.zeros(0)
         z3 = np.zeros((0, 3))
         return BodyContacts(
@@ -139,10 +180,10 @@ def body_contacts(
             z3.copy(),
             z,
             z.copy(),
-            {"triples": tested, "tested": passed},
+            stats,
         )
     cat = {
-        k: np.concatenate([p[k] for p in parts])
+        k: np.concatenate([p[k] for p in acc.parts])
         for k in ("frame", "hand", "link", "capsule", "point_m", "normal", "patch_radius_m", "depth_m")
     }
     order = np.lexsort((cat["capsule"], cat["link"], cat["hand"], cat["frame"]))
@@ -157,5 +198,5 @@ def body_contacts(
         cat["normal"][order],
         cat["patch_radius_m"][order],
         cat["depth_m"][order],
-        {"triples": tested, "tested": passed},
+        stats,
     )

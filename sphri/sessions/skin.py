@@ -33,7 +33,7 @@ and the links merged into that link.
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -485,101 +485,163 @@ def export_patches(
     Per piece also ``<link>__<piece>_taxels.csv``: taxels at ``pitch_mm`` (:func:`place_taxels`: positions and
     outward normals, link frame, metres), and in ``manifest.json`` its outline (:func:`patch_outline`), the link's
     pose at the rest pose it was cut at (4 x 4, world frame) and the links merged into that link."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    n_frames = max(m.shape[0], 1)
+    ex = _Export(
+        out_dir=out_dir,
+        fmt=fmt,
+        pitch_mm=pitch_mm,
+        min_piece_cm2=min_piece_cm2,
+        n_frames=n_frames,
+        alone=np.asarray(m.sum(axis=0)).ravel() / n_frames,
+        new_counts=new_counts,
+        rank={int(p): i for i, p in enumerate(order)},
+        rest=robot.rest_poses() if hasattr(robot, "rest_poses") else None,
+        tree_links=list(robot.tree.links) if getattr(robot, "tree", None) is not None else [],
+    )
+    chosen = set(order.tolist())
+    for li, link_name in enumerate(body.links):
+        mine = [int(p) for p in np.flatnonzero(patches.table["link"].to_numpy() == link_name) if int(p) in chosen]
+        if mine:
+            _export_link(ex, body, robot, patches, li, link_name, mine)
+    man = _manifest_table(ex.rows)
+    man.to_csv(out_dir / "manifest.csv", index=False, float_format="%.6g")
+    meta = _manifest_meta(ex, man, int(m.shape[0]), robot.name)
+    (out_dir / "manifest.json").write_text(json.dumps(meta, indent=1))
+    return ex.files + [out_dir / "manifest.csv", out_dir / "manifest.json"]
+
+
+@dataclass
+class _Export:
+    """The patch export's settings and what it has written so far (:func:`export_patches`)."""
+
+    out_dir: Path
+    fmt: str
+    pitch_mm: float
+    min_piece_cm2: float
+    n_frames: int
+    """Contact frames (at least 1)."""
+    alone: np.ndarray
+    """(P,) share of the contact frames each patch touches."""
+    new_counts: np.ndarray
+    """Frames each chosen patch adds, in the greedy order."""
+    rank: dict[int, int]
+    """Patch -> its place in the greedy order (0 first)."""
+    rest: np.ndarray | None
+    """(L, 4, 4) link poses at the rest pose (world), or None."""
+    tree_links: list[str]
+    rows: list[dict] = field(default_factory=list)
+    """Manifest rows, one per piece."""
+    files: list[Path] = field(default_factory=list)
+    extra: dict[str, dict] = field(default_factory=dict)
+    """Piece -> its outline, link rest pose and merged links (``manifest.json`` only)."""
+    dropped: int = 0
+    dropped_cm2: float = 0.0
+
+
+def _export_link(ex: _Export, body: BodySurface, robot, patches: Patches, li: int, link_name: str, mine: list[int]):
+    """Export the chosen patches ``mine`` of link ``link_name``: its mesh subdivided to edges of at most the element
+    spacing, each face given the patch of its nearest element (:func:`_face_patches`), each patch cut into its
+    connected pieces."""
     import trimesh
     from trimesh.remesh import subdivide_to_size
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    n_frames = max(m.shape[0], 1)
-    alone = np.asarray(m.sum(axis=0)).ravel() / n_frames
-    chosen = set(order.tolist())
-    rank = {int(p): i for i, p in enumerate(order)}
-    rows, files, extra = [], [], {}
-    dropped, dropped_cm2 = 0, 0.0
-    rest = robot.rest_poses() if hasattr(robot, "rest_poses") else None
-    tree_links = list(robot.tree.links) if getattr(robot, "tree", None) is not None else []
-    for li, link_name in enumerate(body.links):
-        mine = [int(p) for p in np.flatnonzero(patches.table["link"].to_numpy() == link_name) if int(p) in chosen]
-        if not mine:
-            continue
-        link = robot.links[link_name]
-        max_edge = max(float(body.samples.spacing_m), 1e-3)
-        v, f = subdivide_to_size(np.asarray(link.vertices, float), np.asarray(link.faces), max_edge, max_iter=12)
-        fp = _face_patches(body, li, v, f, patches.of_element)
-        pose = rest[tree_links.index(link_name)] if rest is not None and link_name in tree_links else np.eye(4)
-        merged = [c for c, r in getattr(robot, "skipped", ()) if str(r).startswith(f"merged into {link_name!r}")]
-        for p in mine:
-            row = patches.table.iloc[p]
-            sel = f[fp == p]
-            meshes = []
-            for piece in connected_pieces(v, sel):
-                mesh = trimesh.Trimesh(v, sel[piece], process=False)
-                mesh.remove_unreferenced_vertices()
-                if mesh.area * 1e4 < min_piece_cm2:
-                    dropped += 1
-                    dropped_cm2 += float(mesh.area * 1e4)
-                else:
-                    meshes.append(mesh)
-            for k, mesh in enumerate(meshes):
-                piece_name = f"{row['patch']}_{k + 1}" if len(meshes) > 1 else str(row["patch"])
-                name = f"{_safe(link_name)}__{_safe(piece_name)}.{fmt}"
-                mesh.export(out_dir / name)
-                files.append(out_dir / name)
-                area_cm2 = float(mesh.area * 1e4)
-                pts, nrm = place_taxels(mesh, pitch_mm, seed=p)
-                tax_name = f"{_safe(link_name)}__{_safe(piece_name)}_taxels.csv"
-                pd.DataFrame(np.hstack([pts, nrm]), columns=["x_m", "y_m", "z_m", "nx", "ny", "nz"]).to_csv(
-                    out_dir / tax_name, index=False, float_format="%.6g"
-                )
-                files.append(out_dir / tax_name)
-                extra[piece_name] = {
-                    "outline_m": [np.round(loop, 6).tolist() for loop in patch_outline(mesh)],
-                    "link_pose_rest": np.round(pose, 9).tolist(),
-                    "merged_links": merged,
-                }
-                rows.append(
-                    dict(
-                        link=link_name,
-                        part=row["part"],
-                        patch=row["patch"],
-                        piece=piece_name,
-                        file=name,
-                        order=rank[p] + 1,
-                        area_cm2=area_cm2,
-                        sampled_area_cm2=float(row["area_cm2"]),
-                        taxels=int(np.floor(area_cm2 * 100.0 / pitch_mm**2 + 1e-9)),
-                        taxels_placed=int(len(pts)),
-                        taxel_file=tax_name,
-                        share_captured_alone=float(alone[p]),
-                        share_added=float(new_counts[rank[p]] / n_frames),
-                        n_faces=int(len(mesh.faces)),
-                    )
-                )
+    link = robot.links[link_name]
+    max_edge = max(float(body.samples.spacing_m), 1e-3)
+    v, f = subdivide_to_size(np.asarray(link.vertices, float), np.asarray(link.faces), max_edge, max_iter=12)
+    fp = _face_patches(body, li, v, f, patches.of_element)
+    pose = ex.rest[ex.tree_links.index(link_name)] if ex.rest is not None and link_name in ex.tree_links else np.eye(4)
+    merged = [c for c, r in getattr(robot, "skipped", ()) if str(r).startswith(f"merged into {link_name!r}")]
+    for p in mine:
+        row = patches.table.iloc[p]
+        sel = f[fp == p]
+        meshes = []
+        for piece in connected_pieces(v, sel):
+            mesh = trimesh.Trimesh(v, sel[piece], process=False)
+            mesh.remove_unreferenced_vertices()
+            if mesh.area * 1e4 < ex.min_piece_cm2:
+                ex.dropped += 1
+                ex.dropped_cm2 += float(mesh.area * 1e4)
+            else:
+                meshes.append(mesh)
+        for k, mesh in enumerate(meshes):
+            piece_name = f"{row['patch']}_{k + 1}" if len(meshes) > 1 else str(row["patch"])
+            _export_piece(ex, mesh, p, row, link_name, piece_name, pose, merged)
+
+
+def _export_piece(
+    ex: _Export, mesh, p: int, row: pd.Series, link_name: str, piece_name: str, pose: np.ndarray, merged: list[str]
+) -> None:
+    """Write one piece of patch ``p`` (``row``: its row of the patch table): its mesh and its taxels at the pitch
+    (link frame, m); add its manifest row and its outline, link pose at rest (``pose``, 4 x 4, world) and the
+    links ``merged`` into its link."""
+    name = f"{_safe(link_name)}__{_safe(piece_name)}.{ex.fmt}"
+    mesh.export(ex.out_dir / name)
+    ex.files.append(ex.out_dir / name)
+    area_cm2 = float(mesh.area * 1e4)
+    pts, nrm = place_taxels(mesh, ex.pitch_mm, seed=p)
+    tax_name = f"{_safe(link_name)}__{_safe(piece_name)}_taxels.csv"
+    pd.DataFrame(np.hstack([pts, nrm]), columns=["x_m", "y_m", "z_m", "nx", "ny", "nz"]).to_csv(
+        ex.out_dir / tax_name, index=False, float_format="%.6g"
+    )
+    ex.files.append(ex.out_dir / tax_name)
+    ex.extra[piece_name] = {
+        "outline_m": [np.round(loop, 6).tolist() for loop in patch_outline(mesh)],
+        "link_pose_rest": np.round(pose, 9).tolist(),
+        "merged_links": merged,
+    }
+    ex.rows.append(
+        dict(
+            link=link_name,
+            part=row["part"],
+            patch=row["patch"],
+            piece=piece_name,
+            file=name,
+            order=ex.rank[p] + 1,
+            area_cm2=area_cm2,
+            sampled_area_cm2=float(row["area_cm2"]),
+            taxels=int(np.floor(area_cm2 * 100.0 / ex.pitch_mm**2 + 1e-9)),
+            taxels_placed=int(len(pts)),
+            taxel_file=tax_name,
+            share_captured_alone=float(ex.alone[p]),
+            share_added=float(ex.new_counts[ex.rank[p]] / ex.n_frames),
+            n_faces=int(len(mesh.faces)),
+        )
+    )
+
+
+def _manifest_table(rows: list[dict]) -> pd.DataFrame:
+    """The pieces in greedy order, with the cumulative share of contact frames captured (a patch's share counts
+    once however many pieces it has)."""
     man = pd.DataFrame(rows)
     if len(man):
         man = man.sort_values(["order", "piece"]).reset_index(drop=True)
-        first = ~man["patch"].duplicated()  # a patch's share counts once however many pieces it has
+        first = ~man["patch"].duplicated()
         man["cumulative_share"] = (man["share_added"] * first).cumsum()
-    man.to_csv(out_dir / "manifest.csv", index=False, float_format="%.6g")
+    return man
+
+
+def _manifest_meta(ex: _Export, man: pd.DataFrame, n_contact_frames: int, robot_name: str) -> dict:
+    """``manifest.json``: the export's totals (area cm^2, share captured, taxels), what was dropped, and the
+    pieces' rows with their outlines, rest poses and merged links."""
     first = ~man["patch"].duplicated() if len(man) else None
-    meta = {
+    return {
         "frame": "each link's own frame (the robot description's link frame), metres",
-        "pitch_mm": pitch_mm,
-        "n_contact_frames": int(m.shape[0]),
+        "pitch_mm": ex.pitch_mm,
+        "n_contact_frames": n_contact_frames,
         "area_cm2": float(man["area_cm2"].sum()) if len(man) else 0.0,
         "captured": float(man["share_added"][first].sum()) if len(man) else 0.0,
         "taxels": int(man["taxels"].sum()) if len(man) else 0,
         "taxels_placed": int(man["taxels_placed"].sum()) if len(man) else 0,
-        "min_piece_cm2": min_piece_cm2,
-        "dropped_pieces": dropped,
-        "dropped_area_cm2": dropped_cm2,
-        "robot": robot.name,
+        "min_piece_cm2": ex.min_piece_cm2,
+        "dropped_pieces": ex.dropped,
+        "dropped_area_cm2": ex.dropped_cm2,
+        "robot": robot_name,
         "taxel_placement": "taxels no closer than pitch_mm on each piece's surface (x_m, y_m, z_m, nx, ny, nz "
         "in the link's frame); outline_m: the piece's boundary loops; link_pose_rest: the link's pose (world frame) "
         "at the rest pose the patches were cut at; merged_links: links joined into the link at that pose",
-        "patches": [{**r, **extra[r["piece"]]} for r in json.loads(man.to_json(orient="records"))],
+        "patches": [{**r, **ex.extra[r["piece"]]} for r in json.loads(man.to_json(orient="records"))],
     }
-    (out_dir / "manifest.json").write_text(json.dumps(meta, indent=1))
-    return files + [out_dir / "manifest.csv", out_dir / "manifest.json"]
 
 
 def _safe(name: str) -> str:

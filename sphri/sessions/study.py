@@ -27,7 +27,8 @@ import dataclasses
 import json
 import logging
 import time
-from collections.abc import Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -91,18 +92,70 @@ def session_gestures(n_sessions: int, labelled: pd.DataFrame) -> list[str]:
 
 
 def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflow: bool = True) -> StudyResult:
-    """Run the study for the composed ``overrides`` (they must select ``+experiment=scenario_study``)."""
-    from sphri.analysis.coverage import CoverageAnalysis
+    """Run the study for the composed ``overrides`` (they must select ``+experiment=scenario_study``) and write its
+    files under ``out`` (default: ``output_dir/scenario_study/<time>``); each step's time (s) goes to
+    ``timing.json``. With ``log_mlflow``, one MLflow run (:func:`log_study`)."""
+    job = _start(overrides, out)
+    with job.step(None):  # its stages time themselves
+        sess = _sessions(job)
+    with job.step("gestures"):
+        gest = _code_gestures(job, sess)
+    with job.step("maps_and_tests"):
+        maps = _maps_and_tests(job, sess, gest)
+    with job.step("placement"):
+        place = _placement(job, sess, maps)
+    with job.step("skin_design"):
+        design = _skin_design(job, sess, maps, place)
+    result = _result(job, sess, gest, maps, place, design)
+    with job.step("files"), figures.only_formats(job.st.figure_formats):
+        result.files = write_outputs(
+            result, job.cfg, sess.robot, maps.body, sess.ds, gest.model, place.budget, sess.label
+        )
+    job.finish()
+    for s_ in result.sentences:
+        log.info("%s (%s)", s_, sess.label)
+    if log_mlflow:
+        result.mlflow_run_id = log_study(job.cfg, result, job.overrides, sess.ds)
+    return result
+
+
+@dataclass
+class _Job:
+    """The composed run every step reads: config, study settings, output folder, stage cache, the hand and robot
+    the chains share in memory, and each step's time (s) with a progress bar over the steps."""
+
+    overrides: list[str]
+    cfg: Any
+    st: ScenarioStudySchema
+    out_dir: Path
+    cache: Any
+    memo: Any
+    seconds: dict[str, float]
+    shown: Any
+    started: float
+    """``time.perf_counter()`` at the start."""
+
+    @contextmanager
+    def step(self, name: str | None) -> Iterator[None]:
+        """Time the block into ``seconds[name]`` (none when None) and advance the progress bar."""
+        t = time.perf_counter()
+        yield
+        if name is not None:
+            self.seconds[name] = time.perf_counter() - t
+        self.shown.update(1)
+
+    def finish(self) -> None:
+        """The total time (s), the bar closed, ``timing.json`` written."""
+        self.seconds["total"] = time.perf_counter() - self.started
+        self.shown.close()
+        (self.out_dir / "timing.json").write_text(json.dumps(self.seconds, indent=1))
+
+
+def _start(overrides: Sequence[str], out: str | Path | None) -> _Job:
+    """Compose ``overrides``, check they hold the study's settings, make the output folder, open the stage cache."""
     from sphri.config import ConfigError, compose
     from sphri.pipeline import Memo, open_cache
-    from sphri.sessions.body import body_surface, touched_pairs
-    from sphri.sessions.codes import read_codes
-    from sphri.sessions.gestures import gesture_histogram
-    from sphri.sessions.labelling import label as label_gestures
-    from sphri.sessions.labelling import segment
-    from sphri.sessions.placement import frame_part_matrix, mountable_parts, placement_table, rank_parts, sentence
     from sphri.sessions.schema import study_settings
-    from sphri.types import GestureDataset
 
     overrides = list(overrides)
     cfg = compose(overrides)
@@ -112,35 +165,97 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     out_dir = Path(out) if out else Path(cfg.output_dir) / "scenario_study" / time.strftime("%Y-%m-%d_%H-%M-%S")
     out_dir.mkdir(parents=True, exist_ok=True)
     cache = open_cache(cfg)
-    seconds: dict[str, float] = {}
-    t_all = time.perf_counter()
+    started = time.perf_counter()
     shown = bar(6, "scenario study", unit="step")  # sessions, gestures, maps, placement, skin, files
+    return _Job(overrides, cfg, st, out_dir, cache, Memo(), {}, shown, started)
 
-    memo = Memo()  # the sessions' chain and the gesture chains share the hand and robot
-    hand, robot, ds, bc, _row_part, episodes, coded, notes, sec = segment(cfg, st, cache, memo)
-    seconds.update(sec)
-    shown.update(1)
+
+@dataclass
+class _Sessions:
+    """The sessions with their contacts and episodes (:func:`sphri.sessions.labelling.segment`)."""
+
+    hand: Any
+    robot: Any
+    ds: Any
+    """The sessions (:class:`sphri.sessions.format.SessionDataset`)."""
+    bc: Any
+    """Their contacts with the whole robot (:class:`sphri.sessions.contact.BodyContacts`)."""
+    episodes: pd.DataFrame
+    coded: pd.DataFrame
+    """The first coded episode of each session that has one."""
+    notes: list[str]
+    """The study's notes so far; later steps add theirs."""
+    scenarios: list[str]
+    label: str
+    """``SYNTHETIC`` or ``recorded``."""
+
+
+def _sessions(job: _Job) -> _Sessions:
+    """Generate or read the sessions, their whole-body contacts and episodes (stage-cached)."""
+    from sphri.sessions.labelling import segment
+
+    hand, robot, ds, bc, _row_part, episodes, coded, notes, sec = segment(job.cfg, job.st, job.cache, job.memo)
+    job.seconds.update(sec)
     label = "SYNTHETIC" if ds.synthetic else "recorded"
     scenarios = sorted(pd.unique(ds.sessions["scenario"]))
-    codes = (
-        read_codes(st.codes, coded, ds, st.coder) if st.codes else None
-    )  # before the model: a bad file stops at once
+    return _Sessions(hand, robot, ds, bc, episodes, coded, notes, scenarios, label)
 
-    # gesture model, trained in this job on the gesture dataset, labels the coded episodes
-    t = time.perf_counter()
-    gm, labelled, more = label_gestures(coded, ds, overrides, st, cache, memo)
-    notes += more
-    if codes is not None:  # a person's codes replace the model's labels; the model's stay as the suggestion
+
+@dataclass
+class _Gestures:
+    """The coded episodes' gestures and their histogram per scenario."""
+
+    model: Any
+    """The gesture model trained in this job (its LOSO accuracy labels the figures)."""
+    labelled: pd.DataFrame
+    """The coded episodes with their gesture (the model's, or a person's with ``codes=PATH``)."""
+    histogram: pd.DataFrame
+    codes: Any
+    """:class:`sphri.sessions.codes.HumanCodes`, or None."""
+
+
+def _code_gestures(job: _Job, sess: _Sessions) -> _Gestures:
+    """Label the coded episodes with the gesture model trained in this job; a person's codes (``codes=PATH``,
+    read first: a bad file stops at once) replace its labels, the model's stay as the suggestion."""
+    from sphri.sessions.codes import read_codes
+    from sphri.sessions.gestures import gesture_histogram
+    from sphri.sessions.labelling import label as label_gestures
+
+    st = job.st
+    codes = read_codes(st.codes, sess.coded, sess.ds, st.coder) if st.codes else None
+    gm, labelled, more = label_gestures(sess.coded, sess.ds, job.overrides, st, job.cache, job.memo)
+    sess.notes += more
+    if codes is not None:
         labelled = codes.apply(labelled)
-        notes += codes.notes(labelled)
-    hist = gesture_histogram(labelled, scenarios)
-    seconds["gestures"] = time.perf_counter() - t
-    shown.update(1)
+        sess.notes += codes.notes(labelled)
+    return _Gestures(gm, labelled, gesture_histogram(labelled, sess.scenarios), codes)
 
-    # whole-body maps, tests and coverage curves (by scenario, paired by participant)
-    t = time.perf_counter()
+
+@dataclass
+class _Maps:
+    """The whole robot's surface and the coded episodes' contact on it, mapped and tested per group."""
+
+    body: Any
+    """:class:`sphri.sessions.body.BodySurface`: elements of every link at the rest pose."""
+    frame_session: np.ndarray
+    """(F,) session index of each global frame."""
+    frames: np.ndarray
+    """(K,) global frame of each (frame, element) pair touched in a coded episode."""
+    elements: np.ndarray
+    """(K,) its surface element."""
+    coverage: Any
+    """:class:`sphri.analysis.coverage.RegionCoverage`: densities, curves and SWD tests per ``by`` group."""
+
+
+def _maps_and_tests(job: _Job, sess: _Sessions, gest: _Gestures) -> _Maps:
+    """Densities on the whole surface per ``by`` group (default: scenario), coverage curves and the paired SWD
+    tests (paired by participant, Holm), from the contact of the coded episodes; notes on too little power."""
+    from sphri.analysis.coverage import CoverageAnalysis
+    from sphri.sessions.body import body_surface, touched_pairs
+
+    st, ds, bc = job.st, sess.ds, sess.bc
     body = body_surface(
-        robot,
+        sess.robot,
         ds.links,
         st.spacing_mm,
         st.bandwidth_mm,
@@ -148,12 +263,40 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         floor_height_m=st.reach_floor_height_m,
         down_cos=st.reach_down_cos,
     )
-    fsi = ds.frame_session_index()
     in_coded = np.zeros(ds.n_frames, dtype=bool)
-    for e in coded.itertuples():
+    for e in sess.coded.itertuples():
         in_coded[e.start_frame : e.end_frame + 1] = True
-    rows = np.flatnonzero(in_coded[bc.frame])
-    frames, elements = touched_pairs(body, bc, rows)
+    frames, elements = touched_pairs(body, bc, np.flatnonzero(in_coded[bc.frame]))
+    analysis = CoverageAnalysis(
+        by=st.by,
+        pair_by="participant",
+        bandwidth_mm=st.bandwidth_mm,
+        spacing_mm=st.spacing_mm,
+        capture=0.9,
+        n_projections=st.n_projections,
+        alpha=st.alpha,
+        exact_max=st.exact_max,
+        n_permutations=st.n_permutations,
+        seed=st.seed,
+        render=False,
+    )
+    gd = _session_trials(sess, gest.labelled)
+    cov = analysis.analyze(
+        gd, None, body.mesh, None, None, samples=body.samples, kernel=body.kernel, touched=(frames, elements)
+    )
+    sess.notes += cov.notes
+    power = _power_note(cov.comparison, st)
+    if power:
+        sess.notes.append(power)
+    return _Maps(body, ds.frame_session_index(), frames, elements, cov)
+
+
+def _session_trials(sess: _Sessions, labelled: pd.DataFrame):
+    """The sessions as the trials of a :class:`sphri.types.GestureDataset` (one trial per session, region
+    ``body``, its coded gesture and the right hand's poses), the form :class:`CoverageAnalysis` reads."""
+    from sphri.types import GestureDataset
+
+    ds = sess.ds
     trials = pd.DataFrame(
         {
             "participant": ds.sessions["participant"],
@@ -168,51 +311,103 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
             "repetition": ds.sessions["repetition"].astype(str),
         }
     )
-    gd = GestureDataset(
+    return GestureDataset(
         name=ds.name,
         synthetic=ds.synthetic,
-        hand=hand,
+        hand=sess.hand,
         trials=trials,
         poses=ds.hand_poses[:, 1],
         frame_rate_hz=ds.frame_rate_hz,
     )
-    analysis = CoverageAnalysis(
-        by=st.by,
-        pair_by="participant",
-        bandwidth_mm=st.bandwidth_mm,
-        spacing_mm=st.spacing_mm,
-        capture=0.9,
-        n_projections=st.n_projections,
-        alpha=st.alpha,
-        exact_max=st.exact_max,
-        n_permutations=st.n_permutations,
-        seed=st.seed,
-        render=False,
-    )
-    cov = analysis.analyze(
-        gd, None, body.mesh, None, None, samples=body.samples, kernel=body.kernel, touched=(frames, elements)
-    )
-    notes += cov.notes
-    comp = cov.comparison
-    if comp is not None:
-        n_max = int(comp.table["n_participants"].max()) if len(comp.table) else 0
-        m = len(comp.table)
-        if n_max and n_max <= st.exact_max and m * 2.0**-n_max > st.alpha:
-            need = int(np.ceil(np.log2(m / st.alpha)))
-            notes.append(
-                f"power: with {n_max} participants the smallest Holm-corrected p over {m} scenario pairs is "
-                f"{m} x 2^-{n_max} = {m * 2.0**-n_max:.3g} > alpha {st.alpha:g}: no pair can reach "
-                f"significance; at least {need} participants are needed"
-            )
-    seconds["maps_and_tests"] = time.perf_counter() - t
-    shown.update(1)
 
-    # body parts ranked, placement under the budget (pooled and per scenario, held-out participants)
-    t = time.perf_counter()
-    # areas, densities per cm^2 and budgets count only what a skin can cover (sphri.sessions.body.reachable_elements)
+
+def _power_note(comp, st: ScenarioStudySchema) -> str | None:
+    """A note when, with this few participants, even the smallest exact Holm-corrected p over the pairs exceeds
+    ``alpha`` (with the participants needed), else None."""
+    if comp is None:
+        return None
+    n_max = int(comp.table["n_participants"].max()) if len(comp.table) else 0
+    m = len(comp.table)
+    if not (n_max and n_max <= st.exact_max and m * 2.0**-n_max > st.alpha):
+        return None
+    need = int(np.ceil(np.log2(m / st.alpha)))
+    return (
+        f"power: with {n_max} participants the smallest Holm-corrected p over {m} scenario pairs is "
+        f"{m} x 2^-{n_max} = {m * 2.0**-n_max:.3g} > alpha {st.alpha:g}: no pair can reach "
+        f"significance; at least {need} participants are needed"
+    )
+
+
+@dataclass
+class _Parts:
+    """The body parts a skin can reach (reachable area > 0), and which of them can hold one."""
+
+    names: list[str]
+    area_m2: np.ndarray
+    """(N,) reachable area of each part (m^2)."""
+    index: dict[str, int]
+    mountable: pd.DataFrame
+    """Every part of the surface: width, reachable area, whether mountable and why not
+    (:func:`sphri.sessions.placement.mountable_parts`)."""
+    excluded: dict[str, str]
+    """Reachable parts that cannot hold a skin -> why."""
+    allowed: np.ndarray
+    """(N,) bool: mountable."""
+
+
+@dataclass
+class _Placement:
+    """Body parts ranked and the greedy placement under the budget."""
+
+    parts: _Parts
+    ranking: pd.DataFrame
+    """Per part and scenario (and ``all``, with the robot's part groups): frames per cm^2 of reachable area."""
+    table: pd.DataFrame
+    """The placement pooled and per scenario, with the held-out capture."""
+    sentences: list[str]
+    budget: str
+    """The budget in words (cm^2, or taxels at a pitch)."""
+    sensitivity: Any
+    """The priors sensitivity run (per-draw table, summary), or None."""
+
+
+def _placement(job: _Job, sess: _Sessions, maps: _Maps) -> _Placement:
+    """Rank the body parts by contact frames per cm^2 of reachable surface (pooled and per scenario) and place a
+    skin under the budget on the mountable ones (greedy, checked on held-out participants); with generated
+    sessions, the ranking under perturbed priors."""
+    from sphri.sessions.placement import frame_part_matrix, placement_table, sentence
+
+    st, ds, robot, body = job.st, sess.ds, sess.robot, maps.body
+    parts = _reachable_parts(body, robot, st, sess.notes)
+    pidx = np.array([parts.index.get(p, 0) for p in body.part], dtype=np.int64)
+    sel = body.reachable[maps.elements]
+    uf, mat = frame_part_matrix(maps.frames[sel], maps.elements[sel], pidx, len(parts.names))
+    f_scen = ds.sessions["scenario"].to_numpy()[maps.frame_session[uf]]
+    f_unit = ds.sessions["participant"].to_numpy()[maps.frame_session[uf]]
+    ranking = _ranking(mat, f_scen, sess.scenarios, parts, robot.groups)
+    table = placement_table(
+        mat, f_scen, f_unit, sess.scenarios, parts.names, parts.area_m2, st.budget_m2, parts.allowed
+    )
+    sentences = [sentence(r, robot.groups) for _, r in table.iterrows()]
+    budget = (
+        f"{st.budget_taxels} taxels at {st.pitch_mm:g} mm pitch ({st.budget_m2 * 1e4:.0f} cm^2)"
+        if st.budget_taxels
+        else f"{st.budget_cm2:g} cm^2"
+    )
+    sensitivity = _sensitivity(
+        job.cfg, st, ds, robot, mat, maps.frame_session[uf], parts.names, parts.area_m2, parts.allowed
+    )
+    return _Placement(parts, ranking, table, sentences, budget, sensitivity)
+
+
+def _reachable_parts(body, robot, st: ScenarioStudySchema, notes: list[str]) -> _Parts:
+    """The parts with reachable surface (:func:`sphri.sessions.body.reachable_elements`: areas, densities per cm^2
+    and budgets count only what a skin can cover) and which are mountable: no rotating joint, no rod narrower
+    than ``min_diameter_mm``, nothing below ``min_patch_cm2``; a note names those left out."""
+    from sphri.sessions.placement import mountable_parts
+
     reach_area = body.part_area_m2(reachable=True)
     parts = [p for p in body.parts if reach_area[p] > 0]
-    # only mountable parts are ranked first and placed: no rotating joint, no rod, nothing below min_patch_cm2
     mount = mountable_parts(body, robot, reach_area, st.min_diameter_mm, st.min_patch_cm2)
     reasons = dict(zip(mount["part"], mount["reason"]))
     if (mount["reason"] != "").any():
@@ -221,113 +416,101 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
             + "; ".join(f"{r.part}: {r.reason}" for r in mount.itertuples() if r.reason)
         )
     excluded = {p: reasons[p] for p in parts if reasons[p]}
-    allowed = np.array([p not in excluded for p in parts])
-    part_index = {p: i for i, p in enumerate(parts)}
-    pidx = np.array([part_index.get(p, 0) for p in body.part], dtype=np.int64)
-    sel = body.reachable[elements]
-    uf, mat = frame_part_matrix(frames[sel], elements[sel], pidx, len(parts))
-    area = np.array([reach_area[p] for p in parts])
-    f_scen = ds.sessions["scenario"].to_numpy()[fsi[uf]]
-    f_unit = ds.sessions["participant"].to_numpy()[fsi[uf]]
-    ranking = rank_parts(mat, parts, area, excluded)
+    return _Parts(
+        names=parts,
+        area_m2=np.array([reach_area[p] for p in parts]),
+        index={p: i for i, p in enumerate(parts)},
+        mountable=mount,
+        excluded=excluded,
+        allowed=np.array([p not in excluded for p in parts]),
+    )
+
+
+def _ranking(
+    mat: np.ndarray, f_scen: np.ndarray, scenarios: list[str], parts: _Parts, groups: Mapping[str, Sequence[str]]
+) -> pd.DataFrame:
+    """The ranking of the parts (:func:`sphri.sessions.placement.rank_parts`) over all contact frames
+    (``mat``: (U, N) bool, frame touches part), then per scenario, then the robot's part ``groups`` pooled."""
+    from sphri.sessions.placement import rank_parts
+
+    ranking = rank_parts(mat, parts.names, parts.area_m2, parts.excluded)
     ranking.insert(0, "scenario", "all")
     per = [ranking]
     for s in scenarios:
-        r = rank_parts(mat[f_scen == s], parts, area, excluded)
+        r = rank_parts(mat[f_scen == s], parts.names, parts.area_m2, parts.excluded)
         r.insert(0, "scenario", s)
         per.append(r)
     group_rows = []
-    for g, members in robot.groups.items():
-        cols = [part_index[p] for p in members if p in part_index]
+    for g, members in groups.items():
+        cols = [parts.index[p] for p in members if p in parts.index]
         if not cols:
             continue
-        a = float(area[cols].sum())
+        a = float(parts.area_m2[cols].sum())
         n = int(mat[:, cols].any(axis=1).sum())
+        left_out = [p for p in members if p in parts.excluded]
         group_rows.append(
             dict(
                 scenario="all",
                 part=f"group:{g}",
                 area_cm2=a * 1e4,
                 contact_frames=n,
-                frame_share=n / max(len(uf), 1),
+                frame_share=n / max(len(mat), 1),
                 frames_per_cm2=n / (a * 1e4),
-                excluded=(
-                    "holds parts not mountable: " + ", ".join(p for p in members if p in excluded)
-                    if any(p in excluded for p in members)
-                    else ""
-                ),
+                excluded=("holds parts not mountable: " + ", ".join(left_out) if left_out else ""),
             )
         )
-    ranking_all = pd.concat(per + [pd.DataFrame(group_rows)], ignore_index=True)
-    placement = placement_table(mat, f_scen, f_unit, scenarios, parts, area, st.budget_m2, allowed)
-    sentences = [sentence(r, robot.groups) for _, r in placement.iterrows()]
-    budget = (
-        f"{st.budget_taxels} taxels at {st.pitch_mm:g} mm pitch ({st.budget_m2 * 1e4:.0f} cm^2)"
-        if st.budget_taxels
-        else f"{st.budget_cm2:g} cm^2"
-    )
-    sensitivity = _sensitivity(cfg, st, ds, robot, mat, fsi[uf], parts, area, allowed)
-    seconds["placement"] = time.perf_counter() - t
-    shown.update(1)
+    return pd.concat(per + [pd.DataFrame(group_rows)], ignore_index=True)
 
-    # the skin design: patches within parts, greedy by captured contact per cm^2, budget curve, export
-    t = time.perf_counter()
+
+def _skin_design(job: _Job, sess: _Sessions, maps: _Maps, place: _Placement):
+    """The skin design (:func:`sphri.sessions.skin.skin_design`): mountable parts split into patches of about
+    ``patch_cm2``, chosen greedily by captured contact per cm^2 under the budget, the budget curve in-sample and
+    on held-out participants."""
     from sphri.sessions.skin import skin_design
 
-    design = skin_design(
-        body,
-        frames,
-        elements,
-        fsi,
-        ds.sessions,
-        scenarios,
+    st, mount = job.st, place.parts.mountable
+    return skin_design(
+        maps.body,
+        maps.frames,
+        maps.elements,
+        maps.frame_session,
+        sess.ds.sessions,
+        sess.scenarios,
         st.patch_cm2,
         st.design_pitch_mm,
         st.budget_m2,
         st.heldout_splits,
         st.seed,
-        mountable=np.isin(body.part, mount.loc[mount["mountable"], "part"].to_numpy()),
+        mountable=np.isin(maps.body.part, mount.loc[mount["mountable"], "part"].to_numpy()),
     )
-    seconds["skin_design"] = time.perf_counter() - t
-    shown.update(1)
 
-    result = StudyResult(
-        out_dir,
-        st,
-        ds.synthetic,
-        ds.sessions,
-        episodes,
-        labelled,
-        hist,
-        ranking_all,
-        placement,
-        sentences,
-        comp,
-        cov,
-        notes,
+
+def _result(job: _Job, sess: _Sessions, gest: _Gestures, maps: _Maps, place: _Placement, design) -> StudyResult:
+    """The steps' results in one :class:`StudyResult`, with the synthetic hands' plausibility checks."""
+    return StudyResult(
+        job.out_dir,
+        job.st,
+        sess.ds.synthetic,
+        sess.ds.sessions,
+        sess.episodes,
+        gest.labelled,
+        gest.histogram,
+        place.ranking,
+        place.table,
+        place.sentences,
+        maps.coverage.comparison,
+        maps.coverage,
+        sess.notes,
         [],
-        seconds,
-        gm.accuracy_mean,
+        job.seconds,
+        gest.model.accuracy_mean,
         design=design,
-        truth=ds.truth,
-        codes=codes,
-        mountable=mount,
-        plausibility=_plausibility(cfg, ds, bc, robot, notes),
-        sensitivity=sensitivity,
+        truth=sess.ds.truth,
+        codes=gest.codes,
+        mountable=place.parts.mountable,
+        plausibility=_plausibility(job.cfg, sess.ds, sess.bc, sess.robot, sess.notes),
+        sensitivity=place.sensitivity,
     )
-    t = time.perf_counter()
-    with figures.only_formats(st.figure_formats):
-        result.files = write_outputs(result, cfg, robot, body, ds, gm, budget, label)
-    seconds["files"] = time.perf_counter() - t
-    shown.update(1)
-    seconds["total"] = time.perf_counter() - t_all
-    shown.close()
-    (out_dir / "timing.json").write_text(json.dumps(seconds, indent=1))
-    for s_ in sentences:
-        log.info("%s (%s)", s_, label)
-    if log_mlflow:
-        result.mlflow_run_id = log_study(cfg, result, overrides, ds)
-    return result
 
 
 def _mask_npz(body, robot, density: np.ndarray, chosen: set[str], out_dir: Path) -> list[Path]:
@@ -358,14 +541,43 @@ def _mask_npz(body, robot, density: np.ndarray, chosen: set[str], out_dir: Path)
 
 
 def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label: str) -> list[Path]:
-    from sphri.analysis.coverage import ALL, safe_name
-    from sphri.analysis.render import _vmax, plot_swd_heatmap
+    """Write the study's files under ``res.out_dir``: maps, tables, skin design and export, SWD tests,
+    ``placement_<link>.npz``, ``summary.json``; with ``render``, the figures and ``report.html``. Returns
+    their paths."""
+    from sphri.analysis.coverage import ALL
 
     out = res.out_dir
-    files: list[Path] = []
+    files = _write_maps(res, body)
+    areas = body.area_table()
+    files += _write_tables(res, body, robot, areas)
+    files += _design_and_gesture_files(res, body, robot, out)
+    if res.comparison is not None:
+        files += res.comparison.write_csv(out, "swd")
+        _effects(res.comparison).to_csv(out / "swd_effects.csv", index=False, float_format="%.5g")
+        files.append(out / "swd_effects.csv")
+    chosen = set(str(res.placement.loc[res.placement["group"] == "all", "parts"].iat[0]).split(";")) - {""}
+    files += _mask_npz(body, robot, res.coverage.densities[ALL], chosen, out)
+    (out / "placement.txt").write_text("\n".join(res.sentences) + f"\n(budget {budget}; {label})\n")
+    files.append(out / "placement.txt")
+    summary = _summary(res, robot, ds, gm, areas, budget)
+    if res.sensitivity is not None:
+        res.sensitivity[0].to_csv(out / "priors_sensitivity.csv", index=False, float_format="%.4g")
+        files.append(out / "priors_sensitivity.csv")
+    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
+    files.append(out / "summary.json")
+    if res.settings.render:
+        files += _write_figures(res, robot, body, ds, gm, budget, label, summary)
+    return files
+
+
+def _write_maps(res: StudyResult, body) -> list[Path]:
+    """``density_maps.npz`` (elements: points, normals, area, part, link; density (1/m^2) and contact counts per
+    group, pooled density) and ``density_maps.csv`` (per element, densities in 1/cm^2)."""
+    from sphri.analysis.coverage import ALL
+
+    out = res.out_dir
     cov = res.coverage
     scen = cov.groups
-    dens = {s: cov.densities[s] for s in scen}
     np.savez_compressed(
         out / "density_maps.npz",
         points_m=body.samples.points_m,
@@ -378,7 +590,6 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         pooled=cov.densities[ALL],
         counts=np.stack([cov.counts[s] for s in scen]),
     )
-    files.append(out / "density_maps.npz")
     per = pd.DataFrame(
         {
             "element": np.arange(body.samples.n),
@@ -389,17 +600,23 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         }
     )
     per.to_csv(out / "density_maps.csv", index=False, float_format="%.6g")
-    files.append(out / "density_maps.csv")
+    return [out / "density_maps.npz", out / "density_maps.csv"]
+
+
+def _write_tables(res: StudyResult, body, robot, areas: pd.DataFrame) -> list[Path]:
+    """The tables: sessions, episodes, coded episodes, gesture histogram, ranking, placement, mountable parts,
+    body part areas (``areas``, cm^2) and the links a URDF robot has no surface for."""
+    out = res.out_dir
     res.sessions.to_csv(out / "sessions.csv", index=False)
     res.episodes.to_csv(out / "episodes.csv", index=False)
     res.coded.to_csv(out / "coded_episodes.csv", index=False, float_format="%.4g")
     res.histogram.to_csv(out / "gesture_histogram.csv", index=False, float_format="%.4g")
     res.ranking.to_csv(out / "body_part_ranking.csv", index=False, float_format="%.5g")
     res.placement.to_csv(out / "placement.csv", index=False, float_format="%.4g")
+    files = []
     if res.mountable is not None:
         res.mountable.to_csv(out / "mountable_parts.csv", index=False, float_format="%.4g")
         files.append(out / "mountable_parts.csv")
-    areas = body.area_table()
     areas.to_csv(out / "body_part_area.csv", index=False, float_format="%.1f")
     files.append(out / "body_part_area.csv")
     if getattr(robot, "skipped", ()):  # a robot read from a URDF: what has no surface here, and why
@@ -407,7 +624,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
             out / "robot_skipped_links.csv", index=False
         )
         files.append(out / "robot_skipped_links.csv")
-    files += [
+    return files + [
         out / n
         for n in (
             "sessions.csv",
@@ -418,23 +635,20 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
             "placement.csv",
         )
     ]
-    files += _design_and_gesture_files(res, body, robot, out)
-    if res.comparison is not None:
-        files += res.comparison.write_csv(out, "swd")
-        eff = _effects(res.comparison)
-        eff.to_csv(out / "swd_effects.csv", index=False, float_format="%.5g")
-        files.append(out / "swd_effects.csv")
-    chosen = set(str(res.placement.loc[res.placement["group"] == "all", "parts"].iat[0]).split(";")) - {""}
-    files += _mask_npz(body, robot, cov.densities[ALL], chosen, out)
-    (out / "placement.txt").write_text("\n".join(res.sentences) + f"\n(budget {budget}; {label})\n")
-    files.append(out / "placement.txt")
+
+
+def _summary(res: StudyResult, robot, ds, gm, areas: pd.DataFrame, budget: str) -> dict:
+    """``summary.json``: the dataset, the gesture model, the surface's areas (cm^2), the budget, the parts left
+    out, codes, plausibility, sensitivity, the skin design and export, sentences, notes, times and settings;
+    with the generator's draws, how well the episodes' labels agree with them."""
+    st = res.settings
     summary = {
         "dataset": ds.name,
         "synthetic": ds.synthetic,
         "robot": robot.name,
         "n_participants": int(ds.sessions["participant"].nunique()),
         "n_sessions": int(len(ds.sessions)),
-        "scenarios": scen,
+        "scenarios": res.coverage.groups,
         "n_coded_episodes": int(len(res.coded)),
         "gesture_model": {
             "regions": gm.regions,
@@ -449,14 +663,14 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
             "reachable_cm2": float(areas["reachable_cm2"].sum()),
             "floor_facing_cm2": float(areas["floor_facing_cm2"].sum()),
             "buried_cm2": float(areas["buried_cm2"].sum()),
-            "floor_height_m": res.settings.reach_floor_height_m,
-            "down_cos": res.settings.reach_down_cos,
+            "floor_height_m": st.reach_floor_height_m,
+            "down_cos": st.reach_down_cos,
         },
         "budget": budget,
         "mountable": {
             "criterion": "contact frames per cm^2 of a mountable part's reachable surface (ranking and greedy)",
-            "min_diameter_mm": res.settings.min_diameter_mm,
-            "min_patch_cm2": res.settings.min_patch_cm2,
+            "min_diameter_mm": st.min_diameter_mm,
+            "min_patch_cm2": st.min_patch_cm2,
             "excluded": (
                 [
                     {"part": r.part, "reason": r.reason, "width_mm": round(float(r.width_mm), 1)}
@@ -471,44 +685,65 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         "plausibility": res.plausibility,
         "priors_sensitivity": res.sensitivity[1] if res.sensitivity is not None else None,
         "skin_design": _design_summary(res.design),
-        "skin_export": _export_summary(out / "skin_export" / "manifest.json"),
+        "skin_export": _export_summary(res.out_dir / "skin_export" / "manifest.json"),
         "sentences": res.sentences,
         "notes": res.notes,
         "seconds": res.seconds,
-        "settings": dataclasses.asdict(res.settings),
+        "settings": dataclasses.asdict(st),
     }
     if ds.truth is not None and len(res.coded):
-        tr = ds.truth.reset_index(drop=True)
-        c = res.coded
-        truth_g = tr["gesture"].to_numpy()[c["session"].to_numpy()]
-        truth_p = tr["part"].to_numpy()[c["session"].to_numpy()]
-        ok = c["gesture"].to_numpy() != ""
-        summary["against_generator"] = {
-            "gesture_agreement": float((c["gesture"].to_numpy()[ok] == truth_g[ok]).mean()) if ok.any() else None,
-            "dominant_part_agreement": float((c["dominant_part"].to_numpy() == truth_p).mean()),
-        }
-    if res.sensitivity is not None:
-        res.sensitivity[0].to_csv(out / "priors_sensitivity.csv", index=False, float_format="%.4g")
-        files.append(out / "priors_sensitivity.csv")
-    (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
-    files.append(out / "summary.json")
-    if not res.settings.render:
-        return files
-    from sphri.figures import Provenance, human
-    from sphri.sessions.render import (
-        body_view,
-        drawn_shares,
-        plot_atlas,
-        plot_effects,
-        plot_gesture_histogram,
-        plot_placement,
-        plot_views,
-        write_density_ply,
-    )
+        summary["against_generator"] = _against_generator(res.coded, ds.truth)
+    return summary
 
+
+def _against_generator(coded: pd.DataFrame, truth: pd.DataFrame) -> dict:
+    """Share of the coded episodes whose gesture (of those labelled) and dominant part are the generator's."""
+    tr = truth.reset_index(drop=True)
+    truth_g = tr["gesture"].to_numpy()[coded["session"].to_numpy()]
+    truth_p = tr["part"].to_numpy()[coded["session"].to_numpy()]
+    ok = coded["gesture"].to_numpy() != ""
+    return {
+        "gesture_agreement": float((coded["gesture"].to_numpy()[ok] == truth_g[ok]).mean()) if ok.any() else None,
+        "dominant_part_agreement": float((coded["dominant_part"].to_numpy() == truth_p).mean()),
+    }
+
+
+def _write_figures(res: StudyResult, robot, body, ds, gm, budget: str, label: str, summary: dict) -> list[Path]:
+    """The figures (each marked SYNTHETIC or with the dataset's name), the density PLY and ``report.html``."""
+    from sphri.figures import Provenance
+    from sphri.sessions.render import body_view, plot_placement
+
+    out = res.out_dir
     prov = Provenance(synthetic=bool(ds.synthetic), ids=ds.name)  # one banner on every figure (sphri.figures.mark)
     view = body_view(body, res.settings.view_faces)
-    figs = {}
+    figs: dict[str, Path] = {}
+    files = _map_figures(res, body, robot, view, prov, figs)
+    _test_and_gesture_figures(res, ds, gm, prov, figs)
+    if res.design is not None:
+        _design_figures(res, view, budget, prov, figs)
+    figs["placement"] = plot_placement(
+        res.ranking[res.ranking["scenario"] == "all"].query("~part.str.startswith('group:')"),
+        res.placement,
+        out / "placement.png",
+        f"Placement under {budget}",
+        provenance=prov,
+    )
+    files += list(figs.values())
+    files.append(write_report(res, figs, summary, budget, label, out / "report.html"))
+    return files
+
+
+def _map_figures(res: StudyResult, body, robot, view, prov, figs: dict[str, Path]) -> list[Path]:
+    """The density views of every group on one colour scale (``figs["maps"]``), one figure per group on that
+    scale, the pooled atlas (``figs["atlas"]``); returns the per-group figures and the density PLY."""
+    from sphri.analysis.coverage import ALL, safe_name
+    from sphri.analysis.render import _vmax
+    from sphri.figures import human
+    from sphri.sessions.render import plot_atlas, plot_views, write_density_ply
+
+    out, cov = res.out_dir, res.coverage
+    scen = cov.groups
+    dens = {s: cov.densities[s] for s in scen}
     figs["maps"] = plot_views(
         view,
         {**dens, "pooled": cov.densities[ALL]},
@@ -517,12 +752,12 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         provenance=prov,
     )
     top = _vmax([*dens.values(), cov.densities[ALL]])  # every scenario's own figure on the maps' one scale
-    for s in scen:
-        files.append(
-            plot_views(
-                view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{human(s)}", provenance=prov, vmax=top
-            )
+    files = [
+        plot_views(
+            view, {s: cov.densities[s]}, out / f"map_{safe_name(s)}.png", f"{human(s)}", provenance=prov, vmax=top
         )
+        for s in scen
+    ]
     figs["atlas"] = plot_atlas(
         body,
         robot,
@@ -532,13 +767,23 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         provenance=prov,
     )
     files.append(write_density_ply(view, {"pooled": cov.densities[ALL], **dens}, out / "density_mesh.ply"))
+    return files
+
+
+def _test_and_gesture_figures(res: StudyResult, ds, gm, prov, figs: dict[str, Path]) -> None:
+    """``figs["swd"]`` and ``figs["effects"]`` (the SWD tests, when run) and ``figs["gestures"]`` (the coded
+    episodes' gestures per scenario, with the generator's shares for synthetic sessions)."""
+    from sphri.analysis.render import plot_swd_heatmap
+    from sphri.sessions.render import drawn_shares, plot_effects, plot_gesture_histogram
+
+    out = res.out_dir
     if res.comparison is not None:
         figs["swd"] = plot_swd_heatmap(
             res.comparison, out / "swd_matrix.png", "Scenario maps: paired sliced Wasserstein", provenance=prov
         )
         figs["effects"] = plot_effects(
             _effects(res.comparison),
-            scen,
+            res.coverage.groups,
             res.settings.alpha,
             out / "swd_effects.png",
             "Scenario maps differ? Paired effect per pair",
@@ -553,36 +798,31 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
         provenance=prov,
         drawn=drawn_shares(res.coded, ds.truth) if ds.truth is not None and len(res.coded) else None,
     )
-    if res.design is not None:
-        from sphri.sessions.skin_render import plot_budget_curve, plot_skin
 
-        d = res.design
-        figs["budget_curve"] = plot_budget_curve(
-            d.curves,
-            d.pitch_mm,
-            d.budget_m2 * 1e4,
-            out / "budget_curve.png",
-            f"Contact captured against skin area, patches of ~{res.settings.patch_cm2:g} cm$^2$",
-            provenance=prov,
-        )
-        figs["skin"] = plot_skin(
-            view,
-            cov.densities[ALL],
-            d.element_mask,
-            out / "skin_design.png",
-            f"The recommended skin under {budget}: pooled density on the chosen patches",
-            provenance=prov,
-        )
-    figs["placement"] = plot_placement(
-        res.ranking[res.ranking["scenario"] == "all"].query("~part.str.startswith('group:')"),
-        res.placement,
-        out / "placement.png",
-        f"Placement under {budget}",
+
+def _design_figures(res: StudyResult, view, budget: str, prov, figs: dict[str, Path]) -> None:
+    """``figs["budget_curve"]`` (contact captured against skin area) and ``figs["skin"]`` (the pooled density on
+    the chosen patches) of the skin design."""
+    from sphri.analysis.coverage import ALL
+    from sphri.sessions.skin_render import plot_budget_curve, plot_skin
+
+    d, out = res.design, res.out_dir
+    figs["budget_curve"] = plot_budget_curve(
+        d.curves,
+        d.pitch_mm,
+        d.budget_m2 * 1e4,
+        out / "budget_curve.png",
+        f"Contact captured against skin area, patches of ~{res.settings.patch_cm2:g} cm$^2$",
         provenance=prov,
     )
-    files += list(figs.values())
-    files.append(write_report(res, figs, summary, budget, label, out / "report.html"))
-    return files
+    figs["skin"] = plot_skin(
+        view,
+        res.coverage.densities[ALL],
+        d.element_mask,
+        out / "skin_design.png",
+        f"The recommended skin under {budget}: pooled density on the chosen patches",
+        provenance=prov,
+    )
 
 
 def _design_and_gesture_files(res: StudyResult, body, robot, out: Path) -> list[Path]:

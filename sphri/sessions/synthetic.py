@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -481,91 +482,160 @@ class SyntheticSessions:
         return out.astype(np.float64)
 
     def _session(self, rng, style, rig, robot, surfaces, table, scen: str, k: int):
+        """Participant ``k``'s session of scenario ``scen``: (hand poses (T, 2, C, 7), link poses (T, L, 7), both
+        world frame, float32; the generator's draws). Draws from ``rng`` in a fixed order: the session's choices
+        (:func:`_draw_session`), the robot's arm motion, then each touch."""
         s = table["scenarios"][scen]
         fps = self.frame_rate_hz
-        position = s["start_positions"][(k - 1) % len(s["start_positions"])]
-        ang = np.radians(DIRECTIONS[position])
-        d = np.array([np.cos(ang), np.sin(ang), 0.0])
-        side = float(np.round(d[1], 6))
-        gesture = _draw(rng, s["gestures"])
-        part = resolve_part(_draw(rng, s["parts"]), side, rng)
-        two = bool(rng.random() < float(s["two_hands"]))
-        approach = float(rng.uniform(*s["approach_s"]))
-        scale = float(rng.uniform(*s["duration_scale"]))
-        n_app = max(int(round(approach * fps)), 2)
-
-        # robot: scripted motion during the approach, frozen from the touch on
-        tree = robot.tree
-        t = np.arange(n_app) / fps
-        base = np.zeros((n_app, 3))
-        joints: dict[str, np.ndarray] = {}
-        if s["robot_motion"] == "base":
-            base[:, :2] = (float(table["base_speed_m_s"]) * t)[:, None] * d[None, :2]
-        elif s["robot_motion"] == "arm":
-            arm = "l" if side > 0 or (side == 0 and rng.random() < 0.5) else "r"
-            phase = rng.uniform(0, 2 * np.pi)
-            joints[f"{arm}_shoulder_pitch"] = -0.5 - 0.35 * np.sin(2 * np.pi * t / 3.0 + phase)
-            joints[f"{arm}_elbow_pitch"] = -0.9 + 0.3 * np.sin(2 * np.pi * t / 3.0 + phase)
-        poses_app = robot.link_poses(base, joints)  # (n_app, L, 4, 4)
-        final = poses_app[-1]
-
-        # the touch(es), in the world
-        li = {n: i for i, n in enumerate(tree.links)}
-        parts = [part] + ([mirror_part(part)] if two else [])
-        touches = []
-        for p in parts:
-            spec = next(x for x in robot.parts if x.name == p)
-            local = self._touch(
-                rng, style, rig, robot, surfaces, p, gesture, final, position, d, static=s["robot_motion"] == "none"
-            )
-            idx = np.round(np.arange(int(round(len(local) * scale))) / scale).astype(int).clip(0, len(local) - 1)
-            touches.append(transform_poses(local[idx], final[li[spec.link]]))
-        n_touch = max(len(x) for x in touches)
-        touches = [np.concatenate([x, np.repeat(x[-1:], n_touch - len(x), axis=0)]) for x in touches]
+        dr = _draw_session(rng, s, k)
+        n_app = max(int(round(dr.approach_s * fps)), 2)
+        t = np.arange(n_app) / fps  # s, the approach
+        poses_app = _robot_motion(rng, robot, s, float(table["base_speed_m_s"]), dr, t)
+        final = poses_app[-1]  # the robot stops when the touch begins
+        parts = [dr.part] + ([mirror_part(dr.part)] if dr.two_hands else [])
+        touches = self._touches(rng, style, rig, robot, surfaces, s, dr, parts, final)
+        n_touch = len(touches[0])
         n_tail = int(round(float(table["tail_s"]) * fps))
-
-        # the participant: start point at the robot's initial frame; idle hands hang at the sides
-        dist = float(s["start_distance_m"])
-        body = d * dist
-        lateral = np.array([-d[1], d[0], 0.0])  # the participant's right is -lateral seen facing the robot
-        idle = {0: body + 0.22 * lateral * -1 + [0, 0, 0.85], 1: body - 0.22 * lateral * -1 + [0, 0, 0.85]}
-        # hand 1 (right) touches first; a two-handed touch adds hand 0 (left)
-        n = n_app + n_touch + n_tail
-        out = np.empty((n, 2, rig.hand.n_capsules, 7))
-        for h in (0, 1):
-            active = (h == 1) or two
-            tr = touches[0] if h == 1 else (touches[1] if two else None)
-            shape = tr[0] if tr is not None else touches[0][0]
-            centre = shape[:, :3].mean(axis=0)
-            rest = shape.copy()
-            rest[:, :3] += idle[h] - centre
-            if not active:
-                out[:, h] = rest
-                continue
-            w = np.clip(t / t[-1], 0, 1) if n_app > 1 else np.ones(1)
-            w = w**3 * (10 - 15 * w + 6 * w**2)
-            app = np.repeat(shape[None], n_app, axis=0)
-            app[..., :3] += ((1 - w)[:, None] * (idle[h] - centre)[None, :])[:, None, :]
-            out[:n_app, h] = app
-            out[n_app : n_app + n_touch, h] = tr
-            out[n_app + n_touch :, h] = tr[-1]
+        idle = _idle_hands(dr.direction, float(s["start_distance_m"]))
+        out = _hand_paths(rig.hand.n_capsules, touches, idle, t, n_tail)
         lk = np.concatenate([poses_app, np.repeat(final[None], n_touch + n_tail, axis=0)])
+        # hands stop at the skin: up to compliance_mm into the link each touches, backing off towards the participant
+        li = {n: i for i, n in enumerate(robot.tree.links)}
         own = [li[next(x for x in robot.parts if x.name == p).link] for p in parts]
-        own_link = (own[1] if two else -1, own[0])
+        own_link = (own[1] if dr.two_hands else -1, own[0])
         away = np.stack([idle[h] - out[n_app, h, :, :3].mean(axis=0) for h in (0, 1)])
         norm = np.linalg.norm(away, axis=1, keepdims=True)
-        away = np.where(norm > 1e-9, away / np.maximum(norm, 1e-9), d[None, :])
+        away = np.where(norm > 1e-9, away / np.maximum(norm, 1e-9), dr.direction[None, :])
         out, moved = settle_hands(out, lk, robot, rig.hand, own_link, self.compliance_mm * 1e-3, away)
         info = dict(
-            start_position=position,
-            gesture=gesture,
-            part=part,
-            two_hands=two,
-            second_part=parts[1] if two else "",
-            approach_s=approach,
-            duration_scale=scale,
+            start_position=dr.position,
+            gesture=dr.gesture,
+            part=dr.part,
+            two_hands=dr.two_hands,
+            second_part=parts[1] if dr.two_hands else "",
+            approach_s=dr.approach_s,
+            duration_scale=dr.scale,
             touch_start_frame=n_app,
             touch_frames=n_touch,
             settled_frames=moved,
         )
         return out.astype(np.float32), pose7(lk).astype(np.float32), info
+
+    def _touches(self, rng, style, rig, robot, surfaces, s, dr: _SessionDraw, parts: list[str], final: np.ndarray):
+        """Per touched part (the drawn one, then its mirror when two-handed): the gesture trial (T, C, 7) time-scaled
+        by the session's ``duration_scale``, placed in the world by the link poses ``final`` (L, 4, 4); padded
+        to one length by holding the last frame."""
+        li = {n: i for i, n in enumerate(robot.tree.links)}
+        touches = []
+        for p in parts:
+            spec = next(x for x in robot.parts if x.name == p)
+            local = self._touch(
+                rng,
+                style,
+                rig,
+                robot,
+                surfaces,
+                p,
+                dr.gesture,
+                final,
+                dr.position,
+                dr.direction,
+                static=s["robot_motion"] == "none",
+            )
+            scale = dr.scale
+            idx = np.round(np.arange(int(round(len(local) * scale))) / scale).astype(int).clip(0, len(local) - 1)
+            touches.append(transform_poses(local[idx], final[li[spec.link]]))
+        n_touch = max(len(x) for x in touches)
+        return [np.concatenate([x, np.repeat(x[-1:], n_touch - len(x), axis=0)]) for x in touches]
+
+
+@dataclass
+class _SessionDraw:
+    """What a session's random stream chose first (:func:`_draw_session`)."""
+
+    position: str
+    """Starting position (a key of :data:`DIRECTIONS`)."""
+    direction: np.ndarray
+    """(3,) unit vector from the robot's base to the starting position, world frame."""
+    side: float
+    """The direction's y (rounded): > 0 the robot's left, < 0 its right."""
+    gesture: str
+    part: str
+    two_hands: bool
+    approach_s: float
+    """Approach duration (s)."""
+    scale: float
+    """Time scale of the touch (``duration_scale``)."""
+
+
+def _draw_session(rng: np.random.Generator, s: dict, k: int) -> _SessionDraw:
+    """Participant ``k``'s starting position (fixed per participant) and the session's draws from ``rng``, in
+    this order: gesture, body part (its side), one or two hands, approach duration, time scale; ``s`` is the
+    scenario's row of the priors table."""
+    position = s["start_positions"][(k - 1) % len(s["start_positions"])]
+    ang = np.radians(DIRECTIONS[position])
+    d = np.array([np.cos(ang), np.sin(ang), 0.0])
+    side = float(np.round(d[1], 6))
+    gesture = _draw(rng, s["gestures"])
+    part = resolve_part(_draw(rng, s["parts"]), side, rng)
+    two = bool(rng.random() < float(s["two_hands"]))
+    approach = float(rng.uniform(*s["approach_s"]))
+    scale = float(rng.uniform(*s["duration_scale"]))
+    return _SessionDraw(position, d, side, gesture, part, two, approach, scale)
+
+
+def _robot_motion(
+    rng: np.random.Generator, robot: Robot, s: dict, base_speed_m_s: float, dr: _SessionDraw, t: np.ndarray
+) -> np.ndarray:
+    """(n_app, L, 4, 4) link poses during the approach at times ``t`` (s): the scenario's scripted motion (``base``:
+    drives towards the participant at ``base_speed_m_s``; ``arm``: the nearer arm, drawn from ``rng`` when the
+    participant stands straight ahead, follows a sorting trajectory with a drawn phase; ``none``: still)."""
+    n_app = t.size
+    base = np.zeros((n_app, 3))
+    joints: dict[str, np.ndarray] = {}
+    if s["robot_motion"] == "base":
+        base[:, :2] = (base_speed_m_s * t)[:, None] * dr.direction[None, :2]
+    elif s["robot_motion"] == "arm":
+        arm = "l" if dr.side > 0 or (dr.side == 0 and rng.random() < 0.5) else "r"
+        phase = rng.uniform(0, 2 * np.pi)
+        joints[f"{arm}_shoulder_pitch"] = -0.5 - 0.35 * np.sin(2 * np.pi * t / 3.0 + phase)
+        joints[f"{arm}_elbow_pitch"] = -0.9 + 0.3 * np.sin(2 * np.pi * t / 3.0 + phase)
+    return robot.link_poses(base, joints)
+
+
+def _idle_hands(d: np.ndarray, dist: float) -> dict[int, np.ndarray]:
+    """Where each hand (0 left, 1 right) hangs at the participant's side (world, m): the participant stands
+    ``dist`` m from the robot's base along ``d``."""
+    body = d * dist
+    lateral = np.array([-d[1], d[0], 0.0])  # the participant's right is -lateral seen facing the robot
+    return {0: body + 0.22 * lateral * -1 + [0, 0, 0.85], 1: body - 0.22 * lateral * -1 + [0, 0, 0.85]}
+
+
+def _hand_paths(
+    n_capsules: int, touches: list[np.ndarray], idle: dict[int, np.ndarray], t: np.ndarray, n_tail: int
+) -> np.ndarray:
+    """(T, 2, C, 7) both hands over the session (world): hand 1 (right) moves from its ``idle`` point to the first
+    touch during the approach (times ``t``, s; minimum-jerk), touches, then holds its last pose for ``n_tail``
+    frames; hand 0 (left) does the same with the second touch, or hangs idle in a one-handed session."""
+    n_app = t.size
+    two = len(touches) > 1
+    n_touch = len(touches[0])
+    out = np.empty((n_app + n_touch + n_tail, 2, n_capsules, 7))
+    for h in (0, 1):
+        active = (h == 1) or two
+        tr = touches[0] if h == 1 else (touches[1] if two else None)
+        shape = tr[0] if tr is not None else touches[0][0]
+        centre = shape[:, :3].mean(axis=0)
+        rest = shape.copy()
+        rest[:, :3] += idle[h] - centre
+        if not active or tr is None:
+            out[:, h] = rest
+            continue
+        w = np.clip(t / t[-1], 0, 1) if n_app > 1 else np.ones(1)
+        w = w**3 * (10 - 15 * w + 6 * w**2)
+        app = np.repeat(shape[None], n_app, axis=0)
+        app[..., :3] += ((1 - w)[:, None] * (idle[h] - centre)[None, :])[:, None, :]
+        out[:n_app, h] = app
+        out[n_app : n_app + n_touch, h] = tr
+        out[n_app + n_touch :, h] = tr[-1]
+    return out
