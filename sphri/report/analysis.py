@@ -452,49 +452,74 @@ def noise_text(g: GroupReport) -> str:
 
 
 def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[str]]:
-    rec, best, sat = g.recommended, g.best, g.sat
+    """(requirement sentence, facts, bootstrap interval in words, warnings) of the curve ``g``."""
+    return _requirement_sentence(g, rule), _facts_sentence(g, rule), _interval_sentence(g, rule), _warnings(g)
+
+
+def _where(g: GroupReport) -> str:
+    """The link, model and evaluation the curve ran on ("reachy arm, link l_arm; rf, LOSO, SYNTHETIC data")."""
     c = g.context
     where = f"{c['robot']} {c['region']}, link {c['link']}; {c['model']}, {str(c['cv_scheme']).upper()}"
     if c["synthetic"]:
         where += ", SYNTHETIC data"
+    return where
+
+
+def _tolerance_words(g: GroupReport, rule: RuleSettings) -> str:
+    """The tolerance the requirement is stated with, and why when it is larger than the one asked for."""
     cert = g.certificate
-    tol = points_text(sat.tolerance)
+    tol = points_text(g.sat.tolerance)
     if cert.raised:
         tol += (
             f" (the smallest this study certifies with {cert.n_participants} participants and {cert.n_seeds} "
             f"seed{'s' if cert.n_seeds != 1 else ''}; the {rule.primary_tolerance.describe()} asked for cannot be)"
         )
+    return tol
+
+
+def _requirement_sentence(g: GroupReport, rule: RuleSettings) -> str:
+    """The requirement: a pitch (with its interval and area per taxel), else a taxel count, else what one
+    resolution alone measured."""
+    rec, sat, cert = g.recommended, g.sat, g.certificate
+    where, tol = _where(g), _tolerance_words(g, rule)
     if len(g.points) == 1:
         where_pt = (
             f"{_fmt_pitch(rec['pitch_mm'])} mm pitch, {rec['area_per_taxel_cm2']:.2f} cm^2 per taxel"
             if g.has_pitch
             else _taxels(rec["n_taxels"])
         )
-        req = (
+        return (
             f"One resolution only (layout.res={rec['res']}, {where_pt}) on this link ({where}): accuracy "
             f"{rec['accuracy_mean']:.3f} +/- {rec['accuracy_std']:.3f}; no saturation point without a sweep "
             "over layout.res."
         )
-    elif g.has_pitch and np.isfinite(rec["pitch_mm"]):
+    if g.has_pitch and np.isfinite(rec["pitch_mm"]):
         area = rec["area_per_taxel_cm2"]
         area_txt = f"{area:.2f} cm^2 per taxel" if np.isfinite(area) and area > 0 else "area per taxel unknown"
-        req = (
+        return (
             f"A taxel pitch of at most {_fmt_pitch(rec['pitch_mm'])} mm ({_pitch_interval_words(g.pitch_interval_mm, sat, rule)}; "
             f"{area_txt}) keeps accuracy within {tol} of the best at every finer swept pitch, with "
             f"{1 - cert.alpha:.0%} confidence, paired over participants, on this link ({where})."
         )
-    else:
-        res_iv = sat.interval
-        iv_txt = (
-            f"{rule.ci:.0%} interval layout.res {g.points['res'].iloc[res_iv[0]]} to {g.points['res'].iloc[res_iv[1]]}"
-            if res_iv is not None
-            else "no interval: " + (sat.note or "not computed")
-        )
-        req = (
-            f"At least {int(rec['n_taxels']) if np.isfinite(rec['n_taxels']) else rec['res']} taxels "
-            f"(layout.res={rec['res']}; {iv_txt}) keep accuracy within {tol} of the best at every finer "
-            f"swept resolution, with {1 - cert.alpha:.0%} confidence, paired over participants, on this link ({where})."
-        )
+    res_iv = sat.interval
+    iv_txt = (
+        f"{rule.ci:.0%} interval layout.res {g.points['res'].iloc[res_iv[0]]} to {g.points['res'].iloc[res_iv[1]]}"
+        if res_iv is not None
+        else "no interval: " + (sat.note or "not computed")
+    )
+    return (
+        f"At least {int(rec['n_taxels']) if np.isfinite(rec['n_taxels']) else rec['res']} taxels "
+        f"(layout.res={rec['res']}; {iv_txt}) keep accuracy within {tol} of the best at every finer "
+        f"swept resolution, with {1 - cert.alpha:.0%} confidence, paired over participants, on this link ({where})."
+    )
+
+
+def _facts_sentence(g: GroupReport, rule: RuleSettings) -> str:
+    """The saturation point's accuracy against the best's, and the paired gap between them ("" for one
+    resolution)."""
+    if len(g.points) == 1:
+        return ""
+    rec, best, sat = g.recommended, g.best, g.sat
     facts = (
         f"Saturation at layout.res={rec['res']} ({_taxels(rec['n_taxels'])}): accuracy "
         f"{rec['accuracy_mean']:.3f} +/- {rec['accuracy_std']:.3f} vs best {best['accuracy_mean']:.3f} "
@@ -508,10 +533,15 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
             f" Paired over participants, the saturation point is {sat.gap:.3f} below the best "
             f"({rule.ci:.0%} CI {sat.gap_interval[0]:.3f} to {sat.gap_interval[1]:.3f})."
         )
+    return facts
+
+
+def _interval_sentence(g: GroupReport, rule: RuleSettings) -> str:
+    """The bootstrap interval of the saturation point in pitch (and area) or resolution, or why there is none."""
+    sat = g.sat
     if len(g.points) == 1:
-        facts = ""
-        iv = "No interval: one resolution only."
-    elif g.pitch_interval_mm is not None and sat.interval is not None and g.has_pitch:  # the first implies the second
+        return "No interval: one resolution only."
+    if g.pitch_interval_mm is not None and sat.interval is not None and g.has_pitch:  # the first implies the second
         lo, hi = g.pitch_interval_mm
         iv = (
             f"{rule.ci:.0%} bootstrap interval over {sat.n_participants} participants: "
@@ -519,14 +549,19 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
         )
         if g.area_interval_cm2 is not None:
             iv += f" ({g.area_interval_cm2[0]:.2f} to {g.area_interval_cm2[1]:.2f} cm^2 per taxel)"
-        iv += f"; layout.res {g.points['res'].iloc[sat.interval[0]]} to {g.points['res'].iloc[sat.interval[1]]}."
-    elif sat.interval is not None and len(g.points) > 1:
-        iv = (
+        return iv + f"; layout.res {g.points['res'].iloc[sat.interval[0]]} to {g.points['res'].iloc[sat.interval[1]]}."
+    if sat.interval is not None and len(g.points) > 1:
+        return (
             f"{rule.ci:.0%} bootstrap interval over {sat.n_participants} participants: layout.res "
             f"{g.points['res'].iloc[sat.interval[0]]} to {g.points['res'].iloc[sat.interval[1]]}."
         )
-    else:
-        iv = "No bootstrap interval: " + (sat.note or "not computed") + "."
+    return "No bootstrap interval: " + (sat.note or "not computed") + "."
+
+
+def _warnings(g: GroupReport) -> list[str]:
+    """What the reader must know before using the requirement: a saturation point at an end of the sweep,
+    what the rule noted, a curve near chance."""
+    sat = g.sat
     warn = []
     if sat.at_finest:
         warn.append(
@@ -544,7 +579,7 @@ def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[
         warn.append(
             f"the best accuracy ({np.nanmax(sat.stats.mean):.3f}) is near chance ({CHANCE:.3f}): the curve carries little information"
         )
-    return req, facts, iv, warn
+    return warn
 
 
 def _pitch_interval_words(iv: tuple[float, float] | None, sat: Saturation, rule: RuleSettings) -> str:

@@ -20,12 +20,12 @@ the runs did (:class:`sphri.figures.Provenance`; ``marks=false`` turns it off).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from sphri import figures
-from sphri.report.analysis import CHANCE, SweepReport
+from sphri.report.analysis import CHANCE, GroupReport, SweepReport
 from sphri.types import GESTURES
 
 if TYPE_CHECKING:
@@ -151,93 +151,121 @@ def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> P
         fig, axes = figures.new_figure("two", 5.6, nrows=2, sharex=True)
         colors = plt.get_cmap("tab10")
         for i, g in enumerate(report.groups):
-            color = colors(i % 10)
-            x = g.points[xcol].to_numpy(float)
-            for ax, metric in zip(axes, ("accuracy", "macro_f1")):
-                m = g.points[f"{metric}_mean"].to_numpy(float)
-                s = g.points[f"{metric}_std"].to_numpy(float)
-                ax.plot(x, m, "o-", color=color, label=f"{g.label} (n={g.sat.n_participants})")
-                ax.fill_between(x, m - s, m + s, color=color, alpha=0.15, lw=0)
-            rec = g.recommended
-            x0, y0 = float(rec[xcol]), float(rec["accuracy_mean"])
-            xerr = None
-            if g.sat.interval is not None:  # the bootstrap interval: an error bar through the saturation point
-                ends = g.points[xcol].iloc[list(g.sat.interval)].to_numpy(float)
-                xerr = [[max(x0 - ends.min(), 0.0)], [max(ends.max() - x0, 0.0)]]
-            axes[0].errorbar(
-                [x0],
-                [y0],
-                xerr=xerr,
-                fmt="*",
-                ms=11,
-                color=color,
-                mec="black",
-                ecolor=color,
-                elinewidth=2.0,
-                capsize=3,
-                zorder=5,
-                label=f"saturation: {g.label}",
-            )
+            _draw_curve(axes, g, xcol, colors(i % 10))
         xs = _all(report, xcol)
-        for ax, name in zip(axes, ("accuracy", "macro F1")):
-            ax.axhline(CHANCE, color="0.4", ls="--", lw=0.8, label=f"chance ({CHANCE:.3g})")
-            ax.set_ylabel(f"{name}\n(mean +/- std over participants)")
-            ax.set_ylim(*Y_UNIT)
-            ax.grid(True, which="both", alpha=0.3)
-            ax.set_xscale("log")
-            _nice_log_ticks(ax.xaxis, xs)
-            if xs.size:
-                ax.set_xlim(*_log_limits(xs))
-        extra = []  # reference lines named in the legend, never as text over the data
-        if xcol == "pitch_u_mm":
-            from matplotlib.lines import Line2D
-
-            study = 240.0 / STUDY_TAXELS_PER_24CM
-            inside = xs.size > 0 and xs.min() / 1.15 <= study <= xs.max() * 1.15
-            for ax in axes:
-                if inside:
-                    ax.axvline(study, color="0.2", ls=":", lw=1.0)
-            extra.append(
-                (
-                    Line2D([], [], color="0.2", ls=":", lw=1.0),
-                    f"study: 18 taxels / 24 cm ({study:.1f} mm)" + ("" if inside else ", outside the sweep"),
-                )
-            )
-            lo, hi = _log_limits(xs) if xs.size else (None, None)
-            axes[0].set_xlim(hi, lo)  # finer to the right
-            top = axes[0].secondary_xaxis(
-                "top", functions=(lambda p: 240.0 / np.maximum(p, 1e-9), lambda t: 240.0 / np.maximum(t, 1e-9))
-            )
-            top.set_xlabel("taxels per 24 cm along the link (the study's axis)")
-            _nice_log_ticks(top.xaxis, 240.0 / xs)
-            cmap = _shared_count_map(report)
-            if cmap is not None:
-                lp, n = np.log(cmap[0]), np.log(cmap[1])
-
-                def to_count(p: np.ndarray) -> np.ndarray:
-                    return np.exp(_interp_extrap(np.log(np.maximum(p, 1e-9)), lp, n))
-
-                def to_pitch(c: np.ndarray) -> np.ndarray:
-                    return np.exp(_interp_extrap(-np.log(np.maximum(c, 1e-9)), -n, lp))
-
-                bottom = axes[1].secondary_xaxis(-0.32, functions=(to_count, to_pitch))
-                bottom.set_xlabel("taxel count (at the sweep's points)")
-                _count_ticks(bottom.xaxis, cmap[0], cmap[1])
+        _metric_axes(axes, xs)
+        extra = _pitch_axes(report, axes, xs) if xcol == "pitch_u_mm" else []
         axes[1].set_xlabel(xlabel)
-        handles, labels = axes[0].get_legend_handles_labels()
-        handles += [h for h, _ in extra]
-        labels += [lab for _, lab in extra]
-        if any(g.sat.interval is not None for g in report.groups):
-            labels = [
-                f"{lab} ({report.rule.ci:.0%} bootstrap interval)" if lab.startswith("saturation") else lab
-                for lab in labels
-            ]
-        # outside the panels: the legend never hides data
-        # as many columns as the longest label leaves room for (7 pt text: about 0.052 in per character)
-        fits = int(0.95 * fig.get_figwidth() / (0.052 * max(map(len, labels)) + 0.45))
-        fig.legend(handles, labels, loc="outside lower center", ncol=int(np.clip(fits, 1, 4)))
+        _curves_legend(report, fig, axes, extra)
         axes[0].set_title("accuracy against skin resolution", loc="left")
         return _finish(fig, report, path, marks)
+
+
+def _draw_curve(axes: Any, g: GroupReport, xcol: str, color: Any) -> None:
+    """One group's accuracy and macro F1 (mean +/- std band) on ``axes`` and its saturation point (a star on
+    the accuracy panel, its bootstrap interval a horizontal error bar through it)."""
+    x = g.points[xcol].to_numpy(float)
+    for ax, metric in zip(axes, ("accuracy", "macro_f1")):
+        m = g.points[f"{metric}_mean"].to_numpy(float)
+        s = g.points[f"{metric}_std"].to_numpy(float)
+        ax.plot(x, m, "o-", color=color, label=f"{g.label} (n={g.sat.n_participants})")
+        ax.fill_between(x, m - s, m + s, color=color, alpha=0.15, lw=0)
+    rec = g.recommended
+    x0, y0 = float(rec[xcol]), float(rec["accuracy_mean"])
+    xerr = None
+    if g.sat.interval is not None:  # the bootstrap interval: an error bar through the saturation point
+        ends = g.points[xcol].iloc[list(g.sat.interval)].to_numpy(float)
+        xerr = [[max(x0 - ends.min(), 0.0)], [max(ends.max() - x0, 0.0)]]
+    axes[0].errorbar(
+        [x0],
+        [y0],
+        xerr=xerr,
+        fmt="*",
+        ms=11,
+        color=color,
+        mec="black",
+        ecolor=color,
+        elinewidth=2.0,
+        capsize=3,
+        zorder=5,
+        label=f"saturation: {g.label}",
+    )
+
+
+def _metric_axes(axes: Any, xs: np.ndarray) -> None:
+    """Chance line, labels, 0-1 limits, grid and the log x axis spanning ``xs`` on both panels."""
+    for ax, name in zip(axes, ("accuracy", "macro F1")):
+        ax.axhline(CHANCE, color="0.4", ls="--", lw=0.8, label=f"chance ({CHANCE:.3g})")
+        ax.set_ylabel(f"{name}\n(mean +/- std over participants)")
+        ax.set_ylim(*Y_UNIT)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.set_xscale("log")
+        _nice_log_ticks(ax.xaxis, xs)
+        if xs.size:
+            ax.set_xlim(*_log_limits(xs))
+
+
+def _pitch_axes(report: SweepReport, axes: Any, xs: np.ndarray) -> list[tuple[Any, str]]:
+    """On a pitch x axis (``xs``, mm): the study's pitch as a line, finer to the right, taxels per 24 cm on
+    top and the taxel count below when every group shares it; returns the reference lines for the legend
+    (named there, never as text over the data)."""
+    from matplotlib.lines import Line2D
+
+    extra = []
+    study = 240.0 / STUDY_TAXELS_PER_24CM
+    inside = xs.size > 0 and xs.min() / 1.15 <= study <= xs.max() * 1.15
+    for ax in axes:
+        if inside:
+            ax.axvline(study, color="0.2", ls=":", lw=1.0)
+    extra.append(
+        (
+            Line2D([], [], color="0.2", ls=":", lw=1.0),
+            f"study: 18 taxels / 24 cm ({study:.1f} mm)" + ("" if inside else ", outside the sweep"),
+        )
+    )
+    lo, hi = _log_limits(xs) if xs.size else (None, None)
+    axes[0].set_xlim(hi, lo)  # finer to the right
+    top = axes[0].secondary_xaxis(
+        "top", functions=(lambda p: 240.0 / np.maximum(p, 1e-9), lambda t: 240.0 / np.maximum(t, 1e-9))
+    )
+    top.set_xlabel("taxels per 24 cm along the link (the study's axis)")
+    _nice_log_ticks(top.xaxis, 240.0 / xs)
+    cmap = _shared_count_map(report)
+    if cmap is not None:
+        _count_axis(axes[1], cmap)
+    return extra
+
+
+def _count_axis(ax: Any, cmap: tuple[np.ndarray, np.ndarray]) -> None:
+    """The taxel count below ``ax``'s pitch axis, from the shared (pitch, count) map ``cmap``."""
+    lp, n = np.log(cmap[0]), np.log(cmap[1])
+
+    def to_count(p: np.ndarray) -> np.ndarray:
+        return np.exp(_interp_extrap(np.log(np.maximum(p, 1e-9)), lp, n))
+
+    def to_pitch(c: np.ndarray) -> np.ndarray:
+        return np.exp(_interp_extrap(-np.log(np.maximum(c, 1e-9)), -n, lp))
+
+    bottom = ax.secondary_xaxis(-0.32, functions=(to_count, to_pitch))
+    bottom.set_xlabel("taxel count (at the sweep's points)")
+    _count_ticks(bottom.xaxis, cmap[0], cmap[1])
+
+
+def _curves_legend(report: SweepReport, fig: Figure, axes: Any, extra: list[tuple[Any, str]]) -> None:
+    """One legend below the panels (it never hides data): the curves, saturation points and ``extra``
+    reference lines, in as many columns as the longest label leaves room for."""
+    handles, labels = axes[0].get_legend_handles_labels()
+    handles += [h for h, _ in extra]
+    labels += [lab for _, lab in extra]
+    if any(g.sat.interval is not None for g in report.groups):
+        labels = [
+            f"{lab} ({report.rule.ci:.0%} bootstrap interval)" if lab.startswith("saturation") else lab
+            for lab in labels
+        ]
+    # outside the panels: the legend never hides data
+    # as many columns as the longest label leaves room for (7 pt text: about 0.052 in per character)
+    fits = int(0.95 * fig.get_figwidth() / (0.052 * max(map(len, labels)) + 0.45))
+    fig.legend(handles, labels, loc="outside lower center", ncol=int(np.clip(fits, 1, 4)))
 
 
 def plot_recall(report: SweepReport, path: Path, max_groups: int = 6, marks: bool | None = None) -> Path | None:

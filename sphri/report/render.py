@@ -32,6 +32,44 @@ def synthetic_banner(report: SweepReport) -> str:
     }[report.synthetic]
 
 
+def _split_overrides(text: str) -> list[str]:
+    """The overrides of a space-joined command line, each as given: spaces inside quotes or brackets
+    (``b='x y'``, ``c=[1, 2]``) do not split one."""
+    out, token, quote, depth = [], "", "", 0
+    for ch in text:
+        if quote:
+            quote = "" if ch == quote else quote
+        elif ch in "'\"":
+            quote = ch
+        elif ch in "([{":
+            depth += 1
+        elif ch in ")]}":
+            depth = max(depth - 1, 0)
+        elif ch.isspace() and depth == 0:
+            if token:
+                out.append(token)
+            token = ""
+            continue
+        token += ch
+    if token:
+        out.append(token)
+    return out
+
+
+def sweep_command(note: str) -> str | None:
+    """The overrides of a sweep's command line from its parent run's note (``sweep: `` and the overrides: an
+    experiment's ``hydra.sweeper.params``, then the command line's), each key once, as Hydra's basic sweeper
+    applies them: at the key's first place, with its last value (the command line's). None for a note that
+    does not start with ``sweep:``."""
+    if not note.startswith("sweep:"):
+        return None
+    final: dict[str, str] = {}
+    for item in _split_overrides(note[len("sweep:") :].strip()):
+        key = item if item.startswith("-") else item.split("=", 1)[0]
+        final[key] = item
+    return " ".join(final.values())
+
+
 def _facts(report: SweepReport) -> list[str]:
     s = report.sweep
     runs = s.runs
@@ -49,9 +87,9 @@ def _facts(report: SweepReport) -> list[str]:
         f"data: {datasets}; participants per curve: {', '.join(map(str, n_part))}; evaluation: {schemes}",
         f"skin: {where}",
     ]
-    cmd = s.parent_tags.get("sphri.sweep_note") or s.parent_tags.get("mlflow.note.content", "")
-    if cmd.startswith("sweep:"):
-        out.append(f"command: python -m sphri -m {cmd[len('sweep:') :].strip()}")
+    cmd = sweep_command(s.parent_tags.get("sphri.sweep_note") or s.parent_tags.get("mlflow.note.content", ""))
+    if cmd is not None:
+        out.append(f"command: python -m sphri -m {cmd}")
     return out
 
 

@@ -31,6 +31,7 @@ each resolution, paired over participants.
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -291,10 +292,8 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
     against false-on taxels per frame on a symlog axis, so the clean row (rate 0, no false-on taxel) is drawn at
     0; every dip marked.
     """
-    from matplotlib.colors import BoundaryNorm
-
     from sphri import figures
-    from sphri.report.figures import _finish, _nice_log_ticks
+    from sphri.report.figures import _finish
 
     if not report.maps:
         return None
@@ -302,76 +301,103 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
     plt = figures.pyplot()
     with figures.style():
         fig, (ax, ax2) = figures.new_figure("two", 3.8, ncols=2, width_ratios=[1.25, 1.0])
-        deficit, pitch, res = deficit_grid(m)
-        order = np.argsort(pitch)
-        xe = _edges(pitch[order])
-        y = np.arange(len(m.rates), dtype=float)
-        ye = np.arange(len(m.rates) + 1, dtype=float) - 0.5
-        top = int(min(DEFICIT_STEPS, max(1, np.ceil(np.nanmax(deficit)) if np.isfinite(deficit).any() else 1)))
-        bounds = np.arange(0, top + 1, dtype=float)
-        cmap = plt.get_cmap("viridis_r", top + (1 if np.nanmax(deficit) > top else 0))
-        norm = BoundaryNorm(bounds, cmap.N, extend="max" if np.nanmax(deficit) > top else "neither")
-        mesh = ax.pcolormesh(xe, ye, np.ma.masked_invalid(deficit[:, order]), cmap=cmap, norm=norm, shading="flat")
-        ticks = bounds if top <= 10 else bounds[:: int(np.ceil(top / 10))]
-        fig.colorbar(mesh, ax=ax, label="deficit to the row's best\n(points of accuracy)", ticks=ticks, format="%.0f")
-        req = np.array([float(g.recommended["pitch_mm"]) for g in m.curves])
-        lo = np.array([g.pitch_interval_mm[0] if g.pitch_interval_mm else np.nan for g in m.curves])
-        hi = np.array([g.pitch_interval_mm[1] if g.pitch_interval_mm else np.nan for g in m.curves])
-        xerr = np.vstack([np.where(np.isfinite(lo), req - lo, 0.0), np.where(np.isfinite(hi), hi - req, 0.0)])
-        ax.errorbar(
-            req,
-            y,
-            xerr=np.maximum(xerr, 0.0),
-            fmt="o",
-            color="white",
-            mec="black",
-            ecolor="black",
-            elinewidth=1.2,
-            capsize=3,
-            clip_on=False,
-            zorder=5,
-            label=f"required pitch ({report.rule.ci:.0%} interval)",
-        )
-        dips = [(k, m.dip_index(g)) for k, g in enumerate(m.curves)]
-        dips = [(k, d) for k, d in dips if d is not None]
-        if dips:
-            ax.plot(
-                [float(m.curves[k].points["pitch_mm"].iloc[d]) for k, d in dips],
-                [y[k] for k, _ in dips],
-                "v",
-                ms=7,
-                color="red",
-                mec="black",
-                zorder=6,
-                label="dip",
-            )
-        ax.set_xscale("log")
-        ax.set_xlim(xe[-1], xe[0])  # coarse on the left, finer to the right
-        _nice_log_ticks(ax.xaxis, pitch[np.isfinite(pitch)])
-        ax.set_yticks(y, [f"{100 * r:.3g} %" for r in m.rates])
-        ax.set_ylim(ye[0], ye[-1])
-        ax.set_xlabel("taxel pitch (mm; finer to the right)")
-        ax.set_ylabel("false-on rate per taxel and frame\n(one row per rate)")
-        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, framealpha=0.8)
-        ax.set_title(f"required pitch, certified within {_tolerance_text(m)}", loc="left")
-
-        colors = plt.get_cmap("plasma")
-        positive = []
-        for k, (rate, g) in enumerate(zip(m.rates, m.curves)):
-            x = rate * g.points["n_taxels"].to_numpy(float)
-            acc = g.points["accuracy_mean"].to_numpy(float)
-            color = "black" if rate <= 0 else colors(k / max(len(m.rates), 1))
-            ax2.plot(
-                x, acc, "s" if rate <= 0 else "o-", ms=4 if rate <= 0 else 3, color=color, label=f"{100 * rate:.3g} %"
-            )
-            positive.extend(x[x > 0])
-            dip = m.dip_index(g)
-            if dip is not None:
-                ax2.plot([x[dip]], [acc[dip]], "v", ms=8, color=color, mec="black")
-        _symlog_from_zero(ax2.xaxis, np.asarray(positive, dtype=float))
-        ax2.set_xlabel("false-on taxels per frame (symlog)")
-        ax2.set_ylabel("mean accuracy")
-        ax2.grid(True, which="major", alpha=0.3)
-        ax2.legend(title="false-on rate", loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, framealpha=0.8)
-        ax2.set_title("accuracy by false-on count\n(clean row at 0; v: dip)", loc="left")
+        pitch, xe, y, ye = _deficit_cells(fig, ax, m, plt)
+        _required_pitch_marks(ax, m, y, report.rule.ci)
+        _deficit_axes(ax, m, pitch, xe, y, ye)
+        _false_on_panel(ax2, m, plt)
         return _finish(fig, report, path, marks)
+
+
+def _deficit_cells(
+    fig: Any, ax: Any, m: RequirementMap, plt: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The map's cells on ``ax`` (one row per false-on rate, one colour step per point of deficit up to
+    :data:`DEFICIT_STEPS`) and their colour bar; returns (pitch per resolution, pitch cell edges sorted, row
+    centres, row edges)."""
+    from matplotlib.colors import BoundaryNorm
+
+    deficit, pitch, res = deficit_grid(m)
+    order = np.argsort(pitch)
+    xe = _edges(pitch[order])
+    y = np.arange(len(m.rates), dtype=float)
+    ye = np.arange(len(m.rates) + 1, dtype=float) - 0.5
+    top = int(min(DEFICIT_STEPS, max(1, np.ceil(np.nanmax(deficit)) if np.isfinite(deficit).any() else 1)))
+    bounds = np.arange(0, top + 1, dtype=float)
+    cmap = plt.get_cmap("viridis_r", top + (1 if np.nanmax(deficit) > top else 0))
+    norm = BoundaryNorm(bounds, cmap.N, extend="max" if np.nanmax(deficit) > top else "neither")
+    mesh = ax.pcolormesh(xe, ye, np.ma.masked_invalid(deficit[:, order]), cmap=cmap, norm=norm, shading="flat")
+    ticks = bounds if top <= 10 else bounds[:: int(np.ceil(top / 10))]
+    fig.colorbar(mesh, ax=ax, label="deficit to the row's best\n(points of accuracy)", ticks=ticks, format="%.0f")
+    return pitch, xe, y, ye
+
+
+def _required_pitch_marks(ax: Any, m: RequirementMap, y: np.ndarray, ci: float) -> None:
+    """Each rate's required pitch with its ``ci`` interval at row ``y``, and its dip (v) when it has one."""
+    req = np.array([float(g.recommended["pitch_mm"]) for g in m.curves])
+    lo = np.array([g.pitch_interval_mm[0] if g.pitch_interval_mm else np.nan for g in m.curves])
+    hi = np.array([g.pitch_interval_mm[1] if g.pitch_interval_mm else np.nan for g in m.curves])
+    xerr = np.vstack([np.where(np.isfinite(lo), req - lo, 0.0), np.where(np.isfinite(hi), hi - req, 0.0)])
+    ax.errorbar(
+        req,
+        y,
+        xerr=np.maximum(xerr, 0.0),
+        fmt="o",
+        color="white",
+        mec="black",
+        ecolor="black",
+        elinewidth=1.2,
+        capsize=3,
+        clip_on=False,
+        zorder=5,
+        label=f"required pitch ({ci:.0%} interval)",
+    )
+    dips = [(k, m.dip_index(g)) for k, g in enumerate(m.curves)]
+    dips = [(k, d) for k, d in dips if d is not None]
+    if dips:
+        ax.plot(
+            [float(m.curves[k].points["pitch_mm"].iloc[d]) for k, d in dips],
+            [y[k] for k, _ in dips],
+            "v",
+            ms=7,
+            color="red",
+            mec="black",
+            zorder=6,
+            label="dip",
+        )
+
+
+def _deficit_axes(ax: Any, m: RequirementMap, pitch: np.ndarray, xe: np.ndarray, y: np.ndarray, ye: np.ndarray) -> None:
+    """The map panel's axes: log pitch (coarse on the left), one labelled row per rate, legend and title."""
+    from sphri.report.figures import _nice_log_ticks
+
+    ax.set_xscale("log")
+    ax.set_xlim(xe[-1], xe[0])  # coarse on the left, finer to the right
+    _nice_log_ticks(ax.xaxis, pitch[np.isfinite(pitch)])
+    ax.set_yticks(y, [f"{100 * r:.3g} %" for r in m.rates])
+    ax.set_ylim(ye[0], ye[-1])
+    ax.set_xlabel("taxel pitch (mm; finer to the right)")
+    ax.set_ylabel("false-on rate per taxel and frame\n(one row per rate)")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, framealpha=0.8)
+    ax.set_title(f"required pitch, certified within {_tolerance_text(m)}", loc="left")
+
+
+def _false_on_panel(ax2: Any, m: RequirementMap, plt: Any) -> None:
+    """Accuracy against false-on taxels per frame, one curve per rate (the clean one at 0 on a symlog axis),
+    every dip marked (v)."""
+    colors = plt.get_cmap("plasma")
+    positive = []
+    for k, (rate, g) in enumerate(zip(m.rates, m.curves)):
+        x = rate * g.points["n_taxels"].to_numpy(float)
+        acc = g.points["accuracy_mean"].to_numpy(float)
+        color = "black" if rate <= 0 else colors(k / max(len(m.rates), 1))
+        ax2.plot(x, acc, "s" if rate <= 0 else "o-", ms=4 if rate <= 0 else 3, color=color, label=f"{100 * rate:.3g} %")
+        positive.extend(x[x > 0])
+        dip = m.dip_index(g)
+        if dip is not None:
+            ax2.plot([x[dip]], [acc[dip]], "v", ms=8, color=color, mec="black")
+    _symlog_from_zero(ax2.xaxis, np.asarray(positive, dtype=float))
+    ax2.set_xlabel("false-on taxels per frame (symlog)")
+    ax2.set_ylabel("mean accuracy")
+    ax2.grid(True, which="major", alpha=0.3)
+    ax2.legend(title="false-on rate", loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, framealpha=0.8)
+    ax2.set_title("accuracy by false-on count\n(clean row at 0; v: dip)", loc="left")

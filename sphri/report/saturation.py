@@ -274,7 +274,29 @@ def certified_saturation(
     s = s[:, np.isfinite(s).any(axis=(0, 2))]  # participants with no score at all carry no information
     if s.shape[1] == 0:
         raise ValueError("no finite score at any sweep point: nothing to find a requirement on")
-    n_seeds, n_part, n_pts = s.shape
+    sat, cert = _certify(s, tol, ci, alpha)
+    notes = _rule_notes(s, tol, cert)
+    used, n_part = sat.tolerance, cert.n_participants
+    if n_part < 2 or n_boot == 0 or not np.isfinite(used):
+        notes.insert(0, _no_interval_reason(n_part, n_boot))
+        return replace(sat, note="; ".join(notes)), cert
+    boot_sel, boot_gap = _bootstrap_draws(s, alpha, used, sat.best_index, sat.index, n_boot, seed)
+    interval, picked, gap_interval = _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
+    sat = replace(
+        sat,
+        interval=interval,
+        n_boot=int(picked.size),
+        boot_index=picked,
+        gap_interval=gap_interval,
+        note="; ".join(notes),
+    )
+    return sat, cert
+
+
+def _certify(s: np.ndarray, tol: Tolerance, ci: float, alpha: float) -> tuple[Saturation, Certificate]:
+    """The rule on the full data ``s`` (S, P, R): the selected point, its bounds and certificate, without
+    the bootstrap interval (``interval``, ``boot_index``, ``gap_interval`` None, ``note`` "")."""
+    n_seeds, n_part, _ = s.shape
     noise = rerun_noise(s)
     x = _wmean(s, np.ones(1), axis=0)  # (P, R): each participant's mean over the seeds
     bound, best, deficit, dse = _bounds(x[None], alpha)
@@ -287,19 +309,6 @@ def certified_saturation(
     t_q = float(_t_quantile(1.0 - alpha / max(n_valid - 1, 1), np.array([n_part - 1]))[0])
     outside = np.isfinite(stats.mean) & ~(bound[0] <= used + _EPS)
     cert = Certificate(noise, tol.fixed, t_star_v, used, float(alpha), t_q, n_seeds, n_part, outside)
-    notes = []
-    n_missing = int((~np.isfinite(s)).sum())
-    if n_missing:
-        notes.append(f"{n_missing} of {s.size} seed x participant x point scores are missing (NaN) and were skipped")
-    if not np.isfinite(t_star_v):
-        notes.append(
-            "fewer than two participants at the finest point: no bound, nothing certified; the finest point is returned"
-        )
-    elif cert.raised:
-        notes.append(
-            f"the {points_text(tol.fixed)} asked for cannot be certified with {n_part} participants and "
-            f"{n_seeds} seed{'s' if n_seeds != 1 else ''}: the smallest certifiable is {points_text(t_star_v)}"
-        )
     sat = Saturation(
         index,
         best_index,
@@ -318,17 +327,43 @@ def certified_saturation(
         bound=bound[0],
         tolerance_name=tol.name,
     )
-    if n_part < 2 or n_boot == 0 or not np.isfinite(used):
-        why = (
-            "only one participant: no bound and no bootstrap interval"
-            if n_part < 2
-            else (
-                "no bootstrap requested (n_boot=0): no interval" if n_boot == 0 else "no finite tolerance: no interval"
-            )
-        )
-        notes.insert(0, why)
-        return replace(sat, note="; ".join(notes)), cert
+    return sat, cert
 
+
+def _rule_notes(s: np.ndarray, tol: Tolerance, cert: Certificate) -> list[str]:
+    """What the rule on ``s`` (S, P, R) skipped or could not certify, in words."""
+    n_seeds, n_part, _ = s.shape
+    t_star_v = cert.certifiable
+    notes = []
+    n_missing = int((~np.isfinite(s)).sum())
+    if n_missing:
+        notes.append(f"{n_missing} of {s.size} seed x participant x point scores are missing (NaN) and were skipped")
+    if not np.isfinite(t_star_v):
+        notes.append(
+            "fewer than two participants at the finest point: no bound, nothing certified; the finest point is returned"
+        )
+    elif cert.raised:
+        notes.append(
+            f"the {points_text(tol.fixed)} asked for cannot be certified with {n_part} participants and "
+            f"{n_seeds} seed{'s' if n_seeds != 1 else ''}: the smallest certifiable is {points_text(t_star_v)}"
+        )
+    return notes
+
+
+def _no_interval_reason(n_part: int, n_boot: int) -> str:
+    """Why the rule gives no bootstrap interval: one participant, no resamples asked for, or no finite T."""
+    if n_part < 2:
+        return "only one participant: no bound and no bootstrap interval"
+    return "no bootstrap requested (n_boot=0): no interval" if n_boot == 0 else "no finite tolerance: no interval"
+
+
+def _bootstrap_draws(
+    s: np.ndarray, alpha: float, used: float, best_index: int, index: int, n_boot: int, seed: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """(selected point (n_boot,), paired gap of ``index`` to ``best_index`` (n_boot,)) on resamples of the
+    participants of ``s`` (S, P, R) and, with two or more seeds, of the seeds; each redoes the bounds and the
+    envelope at the tolerance ``used``. Resamples are drawn in chunks that keep the pair arrays small."""
+    n_seeds, n_part, n_pts = s.shape
     rng = np.random.default_rng(seed)
     boot_sel = np.empty(n_boot, dtype=np.int64)
     boot_gap = np.empty(n_boot, dtype=np.float64)
@@ -348,16 +383,7 @@ def certified_saturation(
         boot_sel[start : start + b] = sel_b
         with np.errstate(invalid="ignore"), _quiet():
             boot_gap[start : start + b] = np.nanmean(xb[:, :, best_index] - xb[:, :, index], axis=1)
-    interval, picked, gap_interval = _bootstrap_intervals(boot_sel, boot_gap, n_part, ci, notes)
-    sat = replace(
-        sat,
-        interval=interval,
-        n_boot=int(picked.size),
-        boot_index=picked,
-        gap_interval=gap_interval,
-        note="; ".join(notes),
-    )
-    return sat, cert
+    return boot_sel, boot_gap
 
 
 def certify_index(scores: np.ndarray, tolerance: float, alpha: float = CERTIFY_ALPHA) -> tuple[int, float]:

@@ -164,9 +164,8 @@ def load_sweep(
     except Exception as exc:
         raise ReportError(f"parent run {parent_id} not found in {uri}: {exc}") from None
     ptags = dict(parent.data.tags)
-    if sweep_dir is None and ptags.get("sphri.sweep_dir"):
-        d = Path(ptags["sphri.sweep_dir"])
-        sweep_dir = d if d.is_dir() else None
+    if sweep_dir is None:
+        sweep_dir = _recorded_sweep_dir(ptags)
     sweep_id = ptags.get("sphri.sweep_id", parent_id[:8])
 
     runs = _children(client, parent.info.experiment_id, parent_id)
@@ -174,36 +173,65 @@ def load_sweep(
     notes: list[str] = []
     _one_sweep_per_job_dir(runs, sweep_dir, parent_id)
     if sweep_dir is not None:
-        known = {r.info.run_id for r in runs}
-        for status in sorted(sweep_dir.glob(f"*/{STATUS_FILE}")):
-            try:
-                info = json.loads(status.read_text())
-                rid = info.get("mlflow_run_id")
-            except (ValueError, RecursionError, AttributeError):
-                notes.append(f"{status}: unreadable job status file, ignored")
-                continue
-            if rid and rid not in known and info.get("status") != "SKIPPED":
-                # not a job of this parent, and not one the sweep skipped for an earlier run: another sweep's
-                theirs = _parent_of(client, rid)
-                if Path(str(source)).is_dir():
-                    raise ReportError(
-                        f"{sweep_dir} holds the jobs of more than one sweep: {status} names run {rid}"
-                        f"{f' of the sweep with parent run {theirs}' if theirs else ''}, not a job of this folder's "
-                        f"sweep (parent run {parent_id}); the report reads one sweep only: give the parent run id "
-                        f"of the sweep to report (`python -m sphri.report {parent_id}`"
-                        f"{f' or {theirs}' if theirs else ''})"
-                    )
-                notes.append(f"{status}: run {rid} belongs to another sweep (parent run {theirs or 'none'}), left out")
-                continue
-            if rid and rid not in known:
-                try:
-                    runs.append(client.get_run(rid))
-                    known.add(rid)
-                except Exception:
-                    notes.append(f"{status}: run {rid} not found in the tracking store")
+        _add_status_file_runs(client, runs, sweep_dir, Path(str(source)).is_dir(), parent_id, notes)
     if not runs:
         raise ReportError(f"sweep {sweep_id} (parent run {parent_id}) has no job runs in {uri}")
+    finished, failed_runs = _finished_runs(runs, sweep_id, notes)
+    params = {r.info.run_id: dict(r.data.params) for r in finished}
+    table = _latest_per_config(finished, notes)
+    table, keys = _group_table(table, params, own, group_by, notes)
+    table, folds = _with_scores(client, finished, table, sweep_id, notes)
+    _note_joined(table, notes)
+    failed = _failed_jobs(failed_runs, table, keys, notes)
+    return Sweep(parent_id, uri, sweep_id, sweep_dir, ptags, table, folds, keys, failed, notes)
 
+
+def _recorded_sweep_dir(ptags: dict[str, str]) -> Path | None:
+    """The sweep directory the parent run's tags record, when it is on this machine."""
+    if not ptags.get("sphri.sweep_dir"):
+        return None
+    d = Path(ptags["sphri.sweep_dir"])
+    return d if d.is_dir() else None
+
+
+def _add_status_file_runs(
+    client: Any, runs: list[Any], sweep_dir: Path, given_dir: bool, parent_id: str, notes: list[str]
+) -> None:
+    """Add to ``runs`` the runs named by the job status files of ``sweep_dir`` that are not children of the
+    parent: those of jobs the sweep skipped for an earlier finished run. A run of another sweep is refused
+    when the sweep was given as a directory (``given_dir``), else left out with a note."""
+    known = {r.info.run_id for r in runs}
+    for status in sorted(sweep_dir.glob(f"*/{STATUS_FILE}")):
+        try:
+            info = json.loads(status.read_text())
+            rid = info.get("mlflow_run_id")
+        except (ValueError, RecursionError, AttributeError):
+            notes.append(f"{status}: unreadable job status file, ignored")
+            continue
+        if rid and rid not in known and info.get("status") != "SKIPPED":
+            # not a job of this parent, and not one the sweep skipped for an earlier run: another sweep's
+            theirs = _parent_of(client, rid)
+            if given_dir:
+                raise ReportError(
+                    f"{sweep_dir} holds the jobs of more than one sweep: {status} names run {rid}"
+                    f"{f' of the sweep with parent run {theirs}' if theirs else ''}, not a job of this folder's "
+                    f"sweep (parent run {parent_id}); the report reads one sweep only: give the parent run id "
+                    f"of the sweep to report (`python -m sphri.report {parent_id}`"
+                    f"{f' or {theirs}' if theirs else ''})"
+                )
+            notes.append(f"{status}: run {rid} belongs to another sweep (parent run {theirs or 'none'}), left out")
+            continue
+        if rid and rid not in known:
+            try:
+                runs.append(client.get_run(rid))
+                known.add(rid)
+            except Exception:
+                notes.append(f"{status}: run {rid} not found in the tracking store")
+
+
+def _finished_runs(runs: list[Any], sweep_id: str, notes: list[str]) -> tuple[list[Any], list[Any]]:
+    """(finished, failed) runs; notes the interrupted attempts of jobs that finished later and the jobs
+    that did not finish. Raises :class:`ReportError` when none finished."""
     finished = [r for r in runs if r.info.status == "FINISHED"]
     failed_runs = [r for r in runs if r.info.status == "FAILED"]
     finished_hashes = {_config_hash(r) for r in finished}
@@ -221,7 +249,11 @@ def load_sweep(
         )
     if not finished:
         raise ReportError(f"sweep {sweep_id}: none of its {len(runs)} jobs finished; nothing to report")
+    return finished, failed_runs
 
+
+def _latest_per_config(finished: list[Any], notes: list[str]) -> pd.DataFrame:
+    """One row per finished job (:func:`_run_row`), the latest run of each config hash."""
     table = pd.DataFrame([_run_row(r) for r in finished])
     table = table.sort_values("start_time", kind="stable")
     n_before = len(table)
@@ -230,8 +262,18 @@ def load_sweep(
         notes.append(
             f"{n_before - len(table)} duplicate job(s) with the same config hash: the latest run of each is used"
         )
+    return table
 
-    params = {r.info.run_id: dict(r.data.params) for r in finished}
+
+def _group_table(
+    table: pd.DataFrame,
+    params: dict[str, dict[str, str]],
+    own: set[str],
+    group_by: Sequence[str] | None,
+    notes: list[str],
+) -> tuple[pd.DataFrame, list[str]]:
+    """(``table`` with ``joined``, ``key.<k>`` per group key, ``group`` and ``seed`` columns, the latest job of
+    each (group, resolution, seed) kept; the group keys)."""
     table["joined"] = ~table["run_id"].isin(own)
     # the sweep's own jobs say what it varies; a joined run has the config of the point it stands for
     basis = [params[rid] for rid in table.loc[~table["joined"], "run_id"]] or [params[rid] for rid in table["run_id"]]
@@ -250,8 +292,14 @@ def load_sweep(
             f"{n_before - len(table)} job(s) repeat a (group, resolution, seed) with a different config: "
             "the latest is used"
         )
-    table = table.reset_index(drop=True)
+    return table.reset_index(drop=True), keys
 
+
+def _with_scores(
+    client: Any, finished: list[Any], table: pd.DataFrame, sweep_id: str, notes: list[str]
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """(the jobs of ``table`` that logged per-participant scores, their scores (:func:`_fold_rows`)); raises
+    :class:`ReportError` when none did."""
     folds = pd.concat(
         [_fold_rows(client, r) for r in finished if r.info.run_id in set(table["run_id"])], ignore_index=True
     )
@@ -263,7 +311,11 @@ def load_sweep(
         raise ReportError(
             f"sweep {sweep_id}: no finished job has per-participant scores (per_participant.csv or participant/<id>/accuracy)"
         )
+    return table, folds
 
+
+def _note_joined(table: pd.DataFrame, notes: list[str]) -> None:
+    """Name the points joined from earlier jobs outside the sweep (the sweep skipped them)."""
     joined = table[table["joined"]]
     if len(joined):
         points = ", ".join(f"res {r.res} ({r.group}: run {r.run_id[:8]})" for r in joined.itertuples())
@@ -272,6 +324,12 @@ def load_sweep(
             f"skipped them): {points}"
         )
 
+
+def _failed_jobs(
+    failed_runs: list[Any], table: pd.DataFrame, keys: list[str], notes: list[str]
+) -> list[dict[str, Any]]:
+    """The failed jobs (run_id, res, group, error) whose point no finished run of ``table`` stands for; notes
+    how many failed runs a finished run superseded."""
     failed = []
     done = set(zip(table["group"], table["res"].astype(str)))
     n_superseded = 0
@@ -291,7 +349,7 @@ def load_sweep(
         )
     if n_superseded:
         notes.append(f"{n_superseded} failed job run(s) were superseded by a finished run of the same point")
-    return Sweep(parent_id, uri, sweep_id, sweep_dir, ptags, table, folds, keys, failed, notes)
+    return failed
 
 
 def _parent_of(client: Any, run_id: str) -> str | None:

@@ -448,3 +448,25 @@ def test_cli_out_on_a_file_is_one_line_before_reading_the_sweep(tmp_path, capsys
     assert line.startswith("sphri") and line.endswith(
         f": out={tmp_path / out} is invalid: {tmp_path / 'taken'} is a file, not a folder"
     ), line
+
+
+def test_command_line_names_each_key_once_with_the_command_lines_value(store, tmp_path):
+    # the parent's note holds an experiment's sweeper params, then the command line's overrides
+    from mlflow.tracking import MlflowClient
+
+    truth = make_sweep(store, tmp_path / "dup", [1, 3], n_participants=3)
+    note = "sweep: model=rf,cnn_gru layout.res=1,3 +experiment=resolution_sweep model=rf tracking.log_model=false"
+    MlflowClient(truth.uri).set_tag(truth.parent_id, "mlflow.note.content", note)
+    _, files, text = make_report(truth.sweep_dir, rule=RULE, log_to_mlflow=False, formats=PNG_ONLY)
+    line = "command: python -m sphri -m model=rf layout.res=1,3 +experiment=resolution_sweep tracking.log_model=false"
+    assert line in text.splitlines()
+    assert escape(line) in files.html.read_text()
+
+
+def test_sweep_command_keeps_each_keys_first_place_and_last_value_as_hydra_does():
+    from sphri.report.render import sweep_command
+
+    assert sweep_command("sweep: a=1 b='x y' c=[1, 2] a=2 ~d c=[3]") == "a=2 b='x y' c=[3] ~d"
+    assert sweep_command("sweep: +e=x e=y") == "+e=x e=y", "adding a key (+e) and setting it (e) are two overrides"
+    assert sweep_command("sweep: layout.res=1,2") == "layout.res=1,2"
+    assert sweep_command("done in 3 s") is None
