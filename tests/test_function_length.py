@@ -13,16 +13,11 @@ LIMIT = 80
 STILL_LONG = {
     "sphri/sessions/study.py:run_study": 238,
     "sphri/sessions/study.py:write_outputs": 226,
-    "sphri/robots/validate.py:make_link": 187,
     "sphri/data/synthetic.py:_trial": 137,
-    "sphri/hardware/skin.py:record": 183,
-    "sphri/data/recording_schema.py:markdown": 135,
     "sphri/analysis/coverage.py:analyze": 135,
     "sphri/report/sweep.py:load_sweep": 149,
-    "sphri/hardware/skin.py:live": 124,
     "sphri/analysis/compare.py:paired_swd_tests": 124,
     "sphri/encode/raster.py:_raster_frame": 122,
-    "sphri/robots/urdf_tree.py:build": 120,
     "sphri/sessions/skin.py:export_patches": 115,
     "sphri/contact/_kernels.py:_seg_tri": 109,
     "sphri/report/saturation.py:certified_saturation": 107,
@@ -30,7 +25,6 @@ STILL_LONG = {
     "sphri/data/gestures.py:_plan": 103,
     "sphri/evaluate/cv.py:run": 102,
     "sphri/contact/mesh.py:_build": 101,
-    "sphri/hardware/sim_skin.py:_run": 98,
     "sphri/data/vr_gesture.py:_trials_from_table": 98,
     "sphri/models/cnn_gru.py:_train": 97,
     "sphri/report/figures.py:plot_curves": 95,
@@ -39,12 +33,9 @@ STILL_LONG = {
     "sphri/data/vr_gesture.py:load": 91,
     "sphri/contact/_kernels.py:query_rows": 90,
     "sphri/sessions/synthetic.py:_session": 89,
-    "sphri/robots/urdf_tree.py:parse_urdf": 89,
     "sphri/sessions/contact.py:body_contacts": 88,
     "sphri/analysis/coverage.py:write_region": 87,
     "sphri/args.py:_parse": 84,
-    "sphri/export/model_file.py:load_model": 83,
-    "sphri/hand/capsules.py:load_definition": 81,
 }
 
 
