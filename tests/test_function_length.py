@@ -11,27 +11,18 @@ LIMIT = 80
 
 #: ``path:function`` -> the most lines it may have, for the functions not yet split.
 STILL_LONG = {
-    "sphri/robots/validate.py:make_link": 187,
     "sphri/data/synthetic.py:_trial": 137,
-    "sphri/hardware/skin.py:record": 183,
-    "sphri/data/recording_schema.py:markdown": 135,
-    "sphri/hardware/skin.py:live": 124,
     "sphri/encode/raster.py:_raster_frame": 122,
-    "sphri/robots/urdf_tree.py:build": 120,
     "sphri/contact/_kernels.py:_seg_tri": 109,
     "sphri/contact/_kernels.py:_nearest": 107,
     "sphri/data/gestures.py:_plan": 103,
     "sphri/evaluate/cv.py:run": 102,
     "sphri/contact/mesh.py:_build": 101,
-    "sphri/hardware/sim_skin.py:_run": 98,
     "sphri/data/vr_gesture.py:_trials_from_table": 98,
     "sphri/models/cnn_gru.py:_train": 97,
     "sphri/data/vr_gesture.py:load": 91,
     "sphri/contact/_kernels.py:query_rows": 90,
-    "sphri/robots/urdf_tree.py:parse_urdf": 89,
     "sphri/args.py:_parse": 84,
-    "sphri/export/model_file.py:load_model": 83,
-    "sphri/hand/capsules.py:load_definition": 81,
 }
 
 

@@ -266,6 +266,27 @@ def load_model(
     the file may name (:func:`sphri.export.registry.model_class`); sphri's own models need none.
     ``allow_unverified``: load a signed file although no key is configured (its signature unchecked)."""
     path = Path(path)
+    header, payload = _verified_parts(path, key, allow_unverified)
+    _check_header(path, header)
+    geometry, estimator = _read_payload(path, header, payload, plugins)
+    meta = header.get("meta") or {}
+    if not isinstance(meta, dict):
+        raise ModelFileError(f"{path}: header field meta must be an object, got {meta!r}")
+    bundle = ModelBundle(
+        estimator=estimator,
+        geometry=geometry,
+        window_length=int(header["window_length"]),
+        frame_rate_hz=float(header["frame_rate_hz"]),
+        labels=tuple(header["labels"]),
+        meta=dict(meta),
+    )
+    _check_predicts(path, bundle)
+    return bundle
+
+
+def _verified_parts(path: Path, key: Any, allow_unverified: bool) -> tuple[dict[str, Any], bytes]:
+    """``(header, payload)`` of the model file at ``path`` once its plain digest matches and its signature
+    suits ``key`` (as :func:`load_model` takes it); :class:`ModelFileError` naming the file otherwise."""
     header, head_bytes, digest, keyed, payload = _split(path)
     if plain_digest(MAGIC, head_bytes, payload) != digest:
         raise ModelFileError(f"{path}: checksum mismatch over its header and payload (edited, truncated or corrupted)")
@@ -278,7 +299,14 @@ def load_model(
             f"{path}: signed with a model key, but no key is configured to check it (SPHRI_MODEL_KEY or "
             "SPHRI_MODEL_KEY_FILE); set the key, or allow_unverified=true to load it unchecked; refused"
         )
-    _check_header(path, header)
+    return header, payload
+
+
+def _read_payload(
+    path: Path, header: dict[str, Any], payload: bytes, plugins: Sequence[str]
+) -> tuple[TaxelGeometry, Any]:
+    """``(geometry, estimator)`` from a checked ``header`` and the npz ``payload`` bytes; any missing or
+    ill-typed field is a :class:`ModelFileError` naming the file."""
     try:
         geo_head = header["geometry"]
         with np.load(io.BytesIO(payload), allow_pickle=False) as z:
@@ -320,26 +348,20 @@ def load_model(
         zipfile.BadZipFile,
     ) as exc:  # a field missing or of the wrong kind
         raise ModelFileError(f"{path}: malformed model file ({type(exc).__name__}: {exc})") from None
-    meta = header.get("meta") or {}
-    if not isinstance(meta, dict):
-        raise ModelFileError(f"{path}: header field meta must be an object, got {meta!r}")
-    bundle = ModelBundle(
-        estimator=estimator,
-        geometry=geometry,
-        window_length=int(header["window_length"]),
-        frame_rate_hz=float(header["frame_rate_hz"]),
-        labels=tuple(header["labels"]),
-        meta=dict(meta),
-    )
-    # A header signed with the key may still carry estimator parameters of the wrong kind (an empty
-    # threshold): one prediction on a blank window now, so it fails here, in one line, not mid-session.
+    return geometry, estimator
+
+
+def _check_predicts(path: Path, bundle: ModelBundle) -> None:
+    """Refuse (:class:`ModelFileError`) a model that cannot give finite probabilities for a blank window.
+
+    A header signed with the key may still carry estimator parameters of the wrong kind (an empty
+    threshold): one prediction now, so it fails here, in one line, not mid-session."""
     try:
         p = bundle.predict_proba(np.zeros((1, bundle.window_length, bundle.n_taxels), dtype=np.float32))
         if p.shape != (1, len(bundle.labels)) or not np.all(np.isfinite(p)):
             raise ValueError(f"probabilities of shape {p.shape} for {len(bundle.labels)} labels")
     except Exception as exc:  # noqa: BLE001 - whatever the estimator raises, the file is at fault
         raise ModelFileError(f"{path}: the model does not predict ({type(exc).__name__}: {exc})") from None
-    return bundle
 
 
 def is_remote(spec: str) -> bool:

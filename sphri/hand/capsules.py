@@ -54,65 +54,81 @@ def load_definition(path: str | Path) -> list[dict[str, Any]]:
         raise HandDefinitionError(
             f"{path}: expected a non-empty JSON list of capsule entries, got {type(raw).__name__}"
         )
-
-    def fail(i: int, entry: Any, msg: str) -> HandDefinitionError:
-        nm = entry.get("column_prefix", entry.get("name")) if isinstance(entry, dict) else None
-        label = f"entry {i}" + (f" ({nm!r})" if nm is not None else "")
-        return HandDefinitionError(f"{path}: {label}: {msg}")
-
-    def number(i: int, e: dict, key: str) -> float:
-        if key not in e:
-            raise fail(i, e, f"missing {key!r}")
-        v = e[key]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise fail(i, e, f"{key}={v!r} is not a finite number")
-        return float(v)
-
-    specs: list[dict[str, Any]] = []
     seen: dict[str, int] = {}
-    for i, e in enumerate(raw):
-        if not isinstance(e, dict):
-            raise fail(i, e, f"expected an object, got {type(e).__name__}")
-        name = e.get("column_prefix", e.get("name"))
-        if not isinstance(name, str) or not name:
-            raise fail(i, e, "missing capsule name ('column_prefix' or 'name')")
-        if name in seen:
-            raise fail(i, e, f"duplicate name {name!r} (also entry {seen[name]})")
-        seen[name] = i
-        radius = number(i, e, "radius_m")
-        if radius <= 0:
-            raise fail(i, e, f"radius_m={radius} must be > 0")
-        height = number(i, e, "height_m")
-        if height < 0:
-            raise fail(i, e, f"height_m={height} must be >= 0")
-        orient = number(i, e, "orientation")
-        if orient not in (0.0, 1.0, 2.0):
-            raise fail(i, e, f"orientation={e['orientation']!r} must be 0 (X), 1 (Y) or 2 (Z)")
-        off = e.get("center_offset_m", [0.0, 0.0, 0.0])
-        if isinstance(off, dict):
-            if not all(k in off for k in "xyz"):
-                raise fail(i, e, f"center_offset_m={off!r} needs keys x, y, z")
-            off = [off["x"], off["y"], off["z"]]
-        if (
-            not isinstance(off, list)
-            or len(off) != 3
-            or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in off)
-        ):
-            raise fail(i, e, f"center_offset_m={off!r} must be 3 finite numbers (metres)")
-        finger = e.get("finger", finger_of(name))
-        if finger not in FINGERS:
-            raise fail(i, e, f'cannot tell the finger of {name!r}; add "finger": one of {list(FINGERS)}')
-        specs.append(
-            dict(
-                name=name,
-                finger=finger,
-                radius_m=radius,
-                height_m=height,
-                axis=int(orient),
-                center_offset_m=[float(v) for v in off],
-                _index=e.get("capsule_index"),
-            )
-        )
+    specs = [_capsule_spec(path, i, e, seen) for i, e in enumerate(raw)]
+    return _sorted_by_index(path, specs)
+
+
+def _entry_error(path: Path, i: int, entry: Any, msg: str) -> HandDefinitionError:
+    """The error for entry ``i`` of the file at ``path``: the file, the entry (and its name if it has one), ``msg``."""
+    nm = entry.get("column_prefix", entry.get("name")) if isinstance(entry, dict) else None
+    label = f"entry {i}" + (f" ({nm!r})" if nm is not None else "")
+    return HandDefinitionError(f"{path}: {label}: {msg}")
+
+
+def _number(path: Path, i: int, e: dict, key: str) -> float:
+    """Entry ``e``'s field ``key`` as a float; raises :class:`HandDefinitionError` when missing or not finite."""
+    if key not in e:
+        raise _entry_error(path, i, e, f"missing {key!r}")
+    v = e[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise _entry_error(path, i, e, f"{key}={v!r} is not a finite number")
+    return float(v)
+
+
+def _center_offset(path: Path, i: int, e: dict) -> list[float]:
+    """Entry ``e``'s ``center_offset_m`` (``{x, y, z}`` or a 3-list, default zeros) as 3 floats (metres)."""
+    off = e.get("center_offset_m", [0.0, 0.0, 0.0])
+    if isinstance(off, dict):
+        if not all(k in off for k in "xyz"):
+            raise _entry_error(path, i, e, f"center_offset_m={off!r} needs keys x, y, z")
+        off = [off["x"], off["y"], off["z"]]
+    if (
+        not isinstance(off, list)
+        or len(off) != 3
+        or not all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in off)
+    ):
+        raise _entry_error(path, i, e, f"center_offset_m={off!r} must be 3 finite numbers (metres)")
+    return [float(v) for v in off]
+
+
+def _capsule_spec(path: Path, i: int, e: Any, seen: dict[str, int]) -> dict[str, Any]:
+    """Entry ``i`` of the file, checked, as a capsule spec (sizes in metres; ``_index``: its ``capsule_index``
+    or None). ``seen`` maps the names read so far to their entries; this one's is added."""
+    if not isinstance(e, dict):
+        raise _entry_error(path, i, e, f"expected an object, got {type(e).__name__}")
+    name = e.get("column_prefix", e.get("name"))
+    if not isinstance(name, str) or not name:
+        raise _entry_error(path, i, e, "missing capsule name ('column_prefix' or 'name')")
+    if name in seen:
+        raise _entry_error(path, i, e, f"duplicate name {name!r} (also entry {seen[name]})")
+    seen[name] = i
+    radius = _number(path, i, e, "radius_m")
+    if radius <= 0:
+        raise _entry_error(path, i, e, f"radius_m={radius} must be > 0")
+    height = _number(path, i, e, "height_m")
+    if height < 0:
+        raise _entry_error(path, i, e, f"height_m={height} must be >= 0")
+    orient = _number(path, i, e, "orientation")
+    if orient not in (0.0, 1.0, 2.0):
+        raise _entry_error(path, i, e, f"orientation={e['orientation']!r} must be 0 (X), 1 (Y) or 2 (Z)")
+    offset = _center_offset(path, i, e)
+    finger = e.get("finger", finger_of(name))
+    if finger not in FINGERS:
+        raise _entry_error(path, i, e, f'cannot tell the finger of {name!r}; add "finger": one of {list(FINGERS)}')
+    return dict(
+        name=name,
+        finger=finger,
+        radius_m=radius,
+        height_m=height,
+        axis=int(orient),
+        center_offset_m=offset,
+        _index=e.get("capsule_index"),
+    )
+
+
+def _sorted_by_index(path: Path, specs: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """``specs`` without their ``_index``, sorted by it when every one is an int (they must then be unique)."""
     idx = [s.pop("_index") for s in specs]
     if all(isinstance(k, int) and not isinstance(k, bool) for k in idx):
         if len(set(idx)) != len(idx):

@@ -231,6 +231,19 @@ def choose_format(fmt: str, binary: bool) -> ValueFormat:
     return {"u8": ValueFormat.U8, "u16": ValueFormat.U16, "bits": ValueFormat.BITS}[fmt]
 
 
+@dataclass
+class _Playback:
+    """Where the simulator is in its stream: the sequence number, the schedule's start (``time.monotonic``
+    s), and where the intact frames went."""
+
+    t0: float
+    seq: int = 0
+    good_at: dict[int, int] = field(default_factory=dict)
+    """Stream frame -> its position among the intact frames."""
+    trial_good: dict[int, list[int]] = field(default_factory=dict)
+    """Trial -> the positions of its intact frames."""
+
+
 class SkinSimulator:
     """Streams a :class:`SkinStream` over an endpoint with injected faults."""
 
@@ -291,93 +304,40 @@ class SkinSimulator:
         return self.ledger
 
     def _run(self) -> None:
-        s, led, rng = self.s, self.ledger, self.rng
+        """Connect, play every frame slot (paced at the rate when ``realtime``, unplugging once when asked),
+        record each trial's intact frames in the ledger, then hold the port ``hold_s`` seconds."""
+        s, led = self.s, self.ledger
         values = self.stream.values
-        n_taxels = values.shape[1]
-        trial_good: dict[int, list[int]] = {}
-        good_at: dict[int, int] = {}  # stream frame -> position among intact frames
-        first_frame = {}  # trial -> its first stream frame
-        for i, k in enumerate(self.stream.trial.tolist()):
-            if k >= 0:
-                first_frame.setdefault(k, i)
         self._connect()
         self.say(
-            f"skin simulator: streaming {len(values)} frames of {n_taxels} taxels ({self.fmt.name}) at {self.rate_hz:g} Hz"
+            f"skin simulator: streaming {len(values)} frames of {values.shape[1]} taxels ({self.fmt.name}) at {self.rate_hz:g} Hz"
         )
-        seq = 0
-        t0 = time.monotonic()
-        stream_t0 = t0
+        play = _Playback(t0=time.monotonic())
+        stream_t0 = play.t0
         unplug_done = False
         period = 1.0 / self.rate_hz
         for i in range(len(values)):
             if self.stop.is_set():
                 raise Stopped()
             if s.realtime:
-                delay = t0 + i * period - time.monotonic()
+                delay = play.t0 + i * period - time.monotonic()
                 if delay > 0:
                     time.sleep(delay)
             if s.unplug_after_s > 0 and not unplug_done and time.monotonic() - stream_t0 >= s.unplug_after_s:
                 unplug_done = True
                 pause_start = time.monotonic()
-                self._unplug(encode_frame(seq, 0, values[i], self.fmt))
+                self._unplug(encode_frame(play.seq, 0, values[i], self.fmt))
                 led.slots += 1
-                seq = 0  # the device restarts
-                t0 += time.monotonic() - pause_start  # resume the schedule where it was
+                play.seq = 0  # the device restarts
+                play.t0 += time.monotonic() - pause_start  # resume the schedule where it was
                 continue
             # paced: the clock's time; as fast as the link goes: the time the frame has at rate_hz, so
             # that a seed gives the same bytes in every run (a clock-dependent timestamp changed which
             # bytes of a broken frame happened to look like a sync, and with it the decoder's counts)
             t_us = int((time.monotonic() - stream_t0) * 1e6) if s.realtime else round(i * period * 1e6)
-            frame = encode_frame(seq, t_us, values[i], self.fmt)
-            if s.garbage_rate and rng.random() < s.garbage_rate:
-                junk = rng.integers(0, 256, size=int(rng.integers(1, 33)), dtype=np.uint8).tobytes()
-                self._send(junk)
-                led.garbage_bursts += 1
-                led.garbage_bytes += len(junk)
-            r = rng.random()
-            edges = np.cumsum([s.corrupt_rate, s.drop_rate, s.truncate_rate, s.wrong_count_rate])
-            led.slots += 1
-            if r < edges[0]:
-                bad = bytearray(frame)
-                k = int(rng.integers(2, len(bad)))
-                bad[k] ^= int(rng.integers(1, 256))
-                self._send(bytes(bad))
-                if k < 13:
-                    led.corrupt_header += 1
-                else:
-                    led.corrupt_body += 1
-            elif r < edges[1]:
-                led.dropped += 1
-            elif r < edges[2]:
-                self._send(frame[: int(rng.integers(2, len(frame)))])
-                led.truncated += 1
-            elif r < edges[3]:
-                delta = int(rng.integers(1, 4)) * (1 if rng.random() < 0.5 or n_taxels <= 3 else -1)
-                wrong = encode_frame(seq, t_us, rng.random(n_taxels + delta).astype(np.float32), self.fmt)
-                self._send(wrong)
-                led.wrong_count += 1
-                led.wrong_count_bytes += len(wrong)
-            else:
-                self._send(frame)
-                led.good += 1
-                led.good_bytes += len(frame)
-                led.good_index.append(i)
-                led.good_seq.append(seq)
-                good_at[i] = led.good - 1
-                k = int(self.stream.trial[i])
-                if k >= 0:
-                    trial_good.setdefault(k, []).append(led.good - 1)
-            seq = (seq + 1) & 0xFFFF
-        for k, meta in enumerate(self.stream.trials):
-            got = trial_good.get(k, [])
-            entry = {**meta, "good_start": got[0] if got else -1, "good_end": got[-1] + 1 if got else -1}
-            first = first_frame.get(k)
-            onset = meta.get("onset", -1)
-            if (
-                first is not None and onset >= 0
-            ):  # the onset frame's position among intact frames, if it was sent intact
-                entry["good_onset"] = good_at.get(first + onset, -1)
-            led.trials.append(entry)
+            self._play_slot(i, t_us, play)
+            play.seq = (play.seq + 1) & 0xFFFF
+        led.trials.extend(self._trial_entries(play))
         self.endpoint.drain(self.stop)
         self.finished.set()
         self.say(f"skin simulator: done ({led.good} intact of {led.slots} frames); holding the port {s.hold_s:g} s")
@@ -388,6 +348,70 @@ class SkinSimulator:
             except HostGone:
                 break
             time.sleep(0.01)
+
+    def _play_slot(self, i: int, t_us: int, play: _Playback) -> None:
+        """Send stream frame ``i`` (device time ``t_us`` microseconds, sequence ``play.seq``) with the faults
+        the rates draw: garbage before it, then corrupted, dropped, truncated, of a wrong count, or intact
+        (its position among the intact frames kept in ``play``); counted in the ledger."""
+        s, led, rng = self.s, self.ledger, self.rng
+        n_taxels = self.stream.values.shape[1]
+        frame = encode_frame(play.seq, t_us, self.stream.values[i], self.fmt)
+        if s.garbage_rate and rng.random() < s.garbage_rate:
+            junk = rng.integers(0, 256, size=int(rng.integers(1, 33)), dtype=np.uint8).tobytes()
+            self._send(junk)
+            led.garbage_bursts += 1
+            led.garbage_bytes += len(junk)
+        r = rng.random()
+        edges = np.cumsum([s.corrupt_rate, s.drop_rate, s.truncate_rate, s.wrong_count_rate])
+        led.slots += 1
+        if r < edges[0]:
+            bad = bytearray(frame)
+            k = int(rng.integers(2, len(bad)))
+            bad[k] ^= int(rng.integers(1, 256))
+            self._send(bytes(bad))
+            if k < 13:
+                led.corrupt_header += 1
+            else:
+                led.corrupt_body += 1
+        elif r < edges[1]:
+            led.dropped += 1
+        elif r < edges[2]:
+            self._send(frame[: int(rng.integers(2, len(frame)))])
+            led.truncated += 1
+        elif r < edges[3]:
+            delta = int(rng.integers(1, 4)) * (1 if rng.random() < 0.5 or n_taxels <= 3 else -1)
+            wrong = encode_frame(play.seq, t_us, rng.random(n_taxels + delta).astype(np.float32), self.fmt)
+            self._send(wrong)
+            led.wrong_count += 1
+            led.wrong_count_bytes += len(wrong)
+        else:
+            self._send(frame)
+            led.good += 1
+            led.good_bytes += len(frame)
+            led.good_index.append(i)
+            led.good_seq.append(play.seq)
+            play.good_at[i] = led.good - 1
+            k = int(self.stream.trial[i])
+            if k >= 0:
+                play.trial_good.setdefault(k, []).append(led.good - 1)
+
+    def _trial_entries(self, play: _Playback) -> list[dict]:
+        """Each trial's ledger entry: its metadata and the positions among the intact frames of its first,
+        last + 1 and onset frames (-1 when none was sent intact)."""
+        first_frame: dict[int, int] = {}  # trial -> its first stream frame
+        for i, k in enumerate(self.stream.trial.tolist()):
+            if k >= 0:
+                first_frame.setdefault(k, i)
+        entries = []
+        for k, meta in enumerate(self.stream.trials):
+            got = play.trial_good.get(k, [])
+            entry = {**meta, "good_start": got[0] if got else -1, "good_end": got[-1] + 1 if got else -1}
+            first = first_frame.get(k)
+            onset = meta.get("onset", -1)
+            if first is not None and onset >= 0:  # the onset frame's position among intact frames, if sent intact
+                entry["good_onset"] = play.good_at.get(first + onset, -1)
+            entries.append(entry)
+        return entries
 
     def _send(self, data: bytes) -> None:
         self.endpoint.write(data, self.stop)

@@ -18,20 +18,26 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import signal
 import sys
 import threading
 import time
 from collections import Counter
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import IO, TYPE_CHECKING
 
 import numpy as np
 
 from sphri.args import settings_main
-from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, parse_grid
+from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, SkinStreamSettings, parse_grid
 from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, encode_control
 from sphri.hardware.transport import Link, PortLost
+
+if TYPE_CHECKING:
+    from sphri.hardware.live import LiveClassifier
+    from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording
 
 log = logging.getLogger(__name__)
 
@@ -304,6 +310,156 @@ class _StopSignals:
         return self.received is not None
 
 
+def _reader_for(settings: SkinStreamSettings, taxels: int, consensus_frames: int = CONSENSUS_FRAMES) -> SkinReader:
+    """The reader of ``settings``' port (baud, reconnection, START) expecting ``taxels`` per frame
+    (0 = a consensus over the first ``consensus_frames`` frames)."""
+    return SkinReader(
+        settings.port,
+        settings.baud,
+        taxels,
+        settings.reconnect,
+        settings.reconnect_timeout_s,
+        start_command=settings.start_command,
+        consensus_frames=consensus_frames,
+    )
+
+
+@dataclass
+class _Recorder:
+    """One recording under way: the reader, the partial file its frames go to, and what went wrong."""
+
+    reader: SkinReader
+    partial: PartialWriter
+    signals: _StopSignals
+    n_read: int = 0
+    unwritten: list[ReceivedFrame] = field(default_factory=list)
+    """Frames read but not in the partial file: after a failed write (a full disk) the frames already read
+    (the rest of that read, the held ones) are kept here, a bounded few, and saved after the file's."""
+    write_error: RecordingError | None = None
+    error: BaseException | None = None
+
+    def keep(self, rf: ReceivedFrame) -> None:
+        """Write ``rf`` to the partial file, or keep it in memory once a write failed."""
+        from sphri.hardware.recording import RecordingError
+
+        self.n_read += 1
+        if self.write_error is not None:
+            self.unwritten.append(rf)
+            return
+        before = self.partial.n_written
+        try:
+            self.partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
+        except RecordingError as exc:
+            self.write_error = exc
+            if self.partial.n_written == before:  # not in the file (a failed fsync comes after the frame's write)
+                self.unwritten.append(rf)
+
+    def stop(self) -> bool:
+        """True once a signal asked to stop or a write failed (checked after each read: its frames are all kept first)."""
+        return self.signals() or self.write_error is not None
+
+    def read(self, settings: SkinRecordSettings, until: Callable[[], bool] | None, out: Callable[[str], None]) -> None:
+        """Read and keep frames until a stop condition, then the held ones, and flush the partial file; a
+        lost port, a stream mismatch or a failed write end the reading with :attr:`error` set."""
+        from sphri.hardware.recording import RecordingError
+
+        reader = self.reader
+        try:
+            try:
+                with reader:
+                    for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until, self.stop):
+                        self.keep(rf)
+                        if self.n_read % 500 == 0:
+                            out(f"  {self.n_read} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
+            except KeyboardInterrupt:
+                reader.stop_reason = "interrupted"
+            except (PortLost, StreamMismatch) as exc:
+                self.error = exc
+                reader.stop_reason = str(exc)
+            if self.error is None or isinstance(self.error, PortLost):  # frames held for the count consensus
+                for rf in reader.release_held():
+                    self.keep(rf)
+            if self.write_error is None:
+                self.partial.flush()
+        except RecordingError as exc:  # the last fsync failed (a full disk): the frames stay in the file
+            self.write_error = exc
+        except KeyboardInterrupt:  # a second signal while releasing the held frames
+            reader.stop_reason = "interrupted"
+        except BaseException:
+            self.partial.close()
+            raise
+        if self.write_error is not None:  # writing the partial file failed: keep what was read
+            self.error = self.write_error
+            reader.stop_reason = str(self.write_error)
+        if self.signals.received:
+            reader.stop_reason = f"{self.signals.received} received"
+
+    def tail(self, n: int) -> SkinRecording:
+        """The frames kept in memory (:attr:`unwritten`, ``n`` taxels each) as a recording without a grid."""
+        from sphri.hardware.recording import SkinRecording
+
+        unwritten = self.unwritten
+        return SkinRecording(
+            np.asarray([rf.frame.values for rf in unwritten], dtype=np.float32).reshape(len(unwritten), n),
+            np.asarray([rf.host_time_s for rf in unwritten]),
+            np.asarray([rf.frame.device_time_us for rf in unwritten]),
+            np.asarray([rf.frame.seq for rf in unwritten]),
+            np.asarray([rf.segment for rf in unwritten]),
+            None,
+        )
+
+
+@dataclass
+class _Saved:
+    """Where a recording went: ``path``, its frame count, rate (Hz), and the error of a first failed try
+    (``lost``: it could not be saved anywhere, ``path`` is then the partial file)."""
+
+    path: str | os.PathLike
+    n_frames: int
+    rate_hz: float = 0.0
+    error: BaseException | None = None
+    lost: bool = False
+
+
+def _save(
+    rec: _Recorder, out_path: str, tail: SkinRecording, grid: tuple[int, int] | None, meta: dict, say: Callable
+) -> _Saved:
+    """Save the frames of the partial file (memory-mapped) and then ``tail`` to ``out_path`` (or a fallback
+    file) and remove the partial file; when no file can be written, say where the frames are."""
+    from sphri.hardware.recording import SkinRecording, save_with_fallback
+
+    partial = rec.partial
+    n = tail.values.shape[1]
+    n_frames = partial.n_written + tail.n_frames
+    try:
+        # the frames in the partial file, mapped from it: memory does not grow with the recording
+        records = partial.records()
+        recording = SkinRecording(
+            records["values"] if len(records) else np.zeros((0, n), dtype=np.float32),
+            records["host_time_s"],
+            records["device_time_us"],
+            records["seq"],
+            records["segment"],
+            grid,
+            meta,
+        )
+        n_frames = recording.n_frames + tail.n_frames
+        path, save_error = save_with_fallback(recording, out_path, say=say, tail=tail)
+    except Exception as exc:  # the fallback failed too: the partial file holds what was written
+        say(
+            f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {n_frames - tail.n_frames} "
+            f'of {n_frames} frames are in {partial.path} (python -c "from sphri.hardware.recording import '
+            f"load_recording; load_recording('{partial.path}')\" reads it)"
+        )
+        return _Saved(partial.path, n_frames, error=exc, lost=True)
+    finally:
+        partial.close()
+    rate = recording.rate_hz
+    del recording, records  # the memory map of the partial file, before it is removed
+    partial.remove()
+    return _Saved(path, n_frames, rate, save_error)
+
+
 def record(
     settings: SkinRecordSettings, out: Callable[[str], None] = print, until: Callable[[], bool] | None = None
 ) -> dict:
@@ -328,161 +484,65 @@ def record(
     ones), keeps those in memory and saves them after the file's; the
     summary's ``not_written`` counts them.
     """
-    from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording, save_with_fallback
+    from sphri.hardware.recording import PartialWriter
 
     grid = parse_grid(settings.grid)
     taxels = settings.taxels or (grid[0] * grid[1] if grid else 0)
-    started = time.time()
+    started = time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(time.time()))
     partial = PartialWriter(
         settings.out,
         settings.chunk_frames,
-        {
-            "port": settings.port,
-            "grid_shape": list(grid) if grid else None,
-            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
-        },
+        {"port": settings.port, "grid_shape": list(grid) if grid else None, "started": started},
         sync_interval_s=settings.sync_interval_s,
     )
-    reader = SkinReader(
-        settings.port,
-        settings.baud,
-        taxels,
-        settings.reconnect,
-        settings.reconnect_timeout_s,
-        start_command=settings.start_command,
-        consensus_frames=settings.consensus_frames,
-    )
-    n_read = 0
-    # frames read but not in the partial file: after a failed write (a full disk) the frames already read
-    # (the rest of that read, the held ones) are kept here, a bounded few, and saved after the file's
-    unwritten: list[ReceivedFrame] = []
-    write_error: RecordingError | None = None
-    error: BaseException | None = None
+    reader = _reader_for(settings, taxels, settings.consensus_frames)
     out(
         f"recording {settings.port} -> {settings.out} (Ctrl+C to stop; frames written to {partial.path} as they arrive)"
     )
-
-    def keep(rf: ReceivedFrame) -> None:
-        nonlocal n_read, write_error
-        n_read += 1
-        if write_error is not None:
-            unwritten.append(rf)
-            return
-        before = partial.n_written
-        try:
-            partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
-        except RecordingError as exc:
-            write_error = exc
-            if partial.n_written == before:  # not in the file (a failed fsync comes after the frame's write)
-                unwritten.append(rf)
-
-    def stop() -> bool:  # checked after each read: its frames are all kept first
-        return signals() or write_error is not None
-
-    signals = _StopSignals()
-    with signals:
-        try:
-            try:
-                with reader:
-                    for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until, stop=stop):
-                        keep(rf)
-                        if n_read % 500 == 0:
-                            out(f"  {n_read} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
-            except KeyboardInterrupt:
-                reader.stop_reason = "interrupted"
-            except (PortLost, StreamMismatch) as exc:
-                error = exc
-                reader.stop_reason = str(exc)
-            if error is None or isinstance(error, PortLost):  # frames held for the count consensus
-                for rf in reader.release_held():
-                    keep(rf)
-            if write_error is None:
-                partial.flush()
-        except RecordingError as exc:  # the last fsync failed (a full disk): the frames stay in the file
-            write_error = exc
-        except KeyboardInterrupt:  # a second signal while releasing the held frames
-            reader.stop_reason = "interrupted"
-        except BaseException:
-            partial.close()
-            raise
-        if write_error is not None:  # writing the partial file failed: keep what was read
-            error = write_error
-            reader.stop_reason = str(write_error)
-        if signals.received:
-            reader.stop_reason = f"{signals.received} received"
+    rec = _Recorder(reader, partial, _StopSignals())
+    with rec.signals:
+        rec.read(settings, until, out)
         n = partial.n_taxels or (
-            int(unwritten[0].frame.values.shape[0]) if unwritten else reader.decoder.expected_taxels or taxels
+            int(rec.unwritten[0].frame.values.shape[0]) if rec.unwritten else reader.decoder.expected_taxels or taxels
         )
         if grid is not None and n != grid[0] * grid[1]:  # only with no frame read
             grid = None
         stats = reader.stats.as_dict()
         meta = {
             "port": settings.port,
-            "started": time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(started)),
+            "started": started,
             "stop_reason": reader.stop_reason,
             "reconnects": reader.link.reconnects,
             "decoder": stats,
             "protocol": "sphri-skin/1",
         }
-        tail = SkinRecording(
-            np.asarray([rf.frame.values for rf in unwritten], dtype=np.float32).reshape(len(unwritten), n),
-            np.asarray([rf.host_time_s for rf in unwritten]),
-            np.asarray([rf.frame.device_time_us for rf in unwritten]),
-            np.asarray([rf.frame.seq for rf in unwritten]),
-            np.asarray([rf.segment for rf in unwritten]),
-            None,
-        )
-        n_frames = partial.n_written + tail.n_frames
-        try:
-            # the frames in the partial file, mapped from it: memory does not grow with the recording
-            records = partial.records()
-            rec = SkinRecording(
-                records["values"] if len(records) else np.zeros((0, n), dtype=np.float32),
-                records["host_time_s"],
-                records["device_time_us"],
-                records["seq"],
-                records["segment"],
-                grid,
-                meta,
-            )
-            n_frames = rec.n_frames + tail.n_frames
-            path, save_error = save_with_fallback(rec, settings.out, say=out, tail=tail)
-        except Exception as exc:  # the fallback failed too: the partial file holds what was written
-            out(
-                f"could not save the recording anywhere ({type(exc).__name__}: {exc}); {n_frames - tail.n_frames} "
-                f'of {n_frames} frames are in {partial.path} (python -c "from sphri.hardware.recording import '
-                f"load_recording; load_recording('{partial.path}')\" reads it)"
-            )
-            return {
-                "frames": n_frames,
-                "not_written": tail.n_frames,
-                "path": str(partial.path),
-                "decoder": stats,
-                "error": str(exc),
-                "reconnects": reader.link.reconnects,
-            }
-        finally:
-            partial.close()
-        rate = rec.rate_hz
-        del rec, records  # the memory map of the partial file, before it is removed
-        partial.remove()
+        tail = rec.tail(n)
+        saved = _save(rec, settings.out, tail, grid, meta, out)
+        if saved.lost:
+            return _record_summary(saved, tail.n_frames, stats, reader, saved.error)
     out(
-        f"saved {n_frames} frames x {n} taxels to {path} ({reader.stop_reason}); "
-        f"rate {rate:.1f} Hz; reconnects {reader.link.reconnects}"
+        f"saved {saved.n_frames} frames x {n} taxels to {saved.path} ({reader.stop_reason}); "
+        f"rate {saved.rate_hz:.1f} Hz; reconnects {reader.link.reconnects}"
     )
     out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}")
     if tail.n_frames:
         out(
             f"{tail.n_frames} frame(s) read but not written to {partial.path} (the write failed); "
-            f"saved from memory with the other {n_frames - tail.n_frames}"
+            f"saved from memory with the other {saved.n_frames - tail.n_frames}"
         )
-    if error is not None:
-        out(f"stopped early: {error}")
-    error = error or save_error
+    if rec.error is not None:
+        out(f"stopped early: {rec.error}")
+    return _record_summary(saved, tail.n_frames, stats, reader, rec.error or saved.error)
+
+
+def _record_summary(
+    saved: _Saved, not_written: int, stats: dict, reader: SkinReader, error: BaseException | None
+) -> dict:
+    """``record``'s summary: frames saved, those saved from memory, where, the decoder's counts, the error."""
     return {
-        "frames": n_frames,
-        "not_written": tail.n_frames,
-        "path": str(path),
+        "frames": saved.n_frames,
+        "not_written": not_written,
+        "path": str(saved.path),
         "decoder": stats,
         "error": str(error) if error else None,
         "reconnects": reader.link.reconnects,
@@ -497,6 +557,88 @@ def default_tracking_uri() -> str | None:
         return default_uri("outputs")
     except Exception:  # tracking not importable: plain MLflow defaults
         return None
+
+
+@dataclass
+class _LiveRun:
+    """The state of ``skin live`` over a stream: the classifier, its predictions, and what was seen."""
+
+    clf: LiveClassifier
+    settings: SkinLiveSettings
+    out: Callable[[str], None]
+    sink: IO[str] | None = None
+    """Where each prediction goes as a JSON line (``settings.out``), or None."""
+    preds: list = field(default_factory=list)
+    n_frames: int = 0
+    first_t: float | None = None
+    """Unix time (s) of the first frame; :attr:`last_t` of the last one."""
+    last_t: float | None = None
+    segment: int = 0
+    announced: bool = False
+    last_seq: int | None = None
+    last_values: np.ndarray | None = None
+    filled: int = 0
+    """Lost frames filled by holding the previous one."""
+
+    def push(self, rf: ReceivedFrame) -> None:
+        """Feed one received frame (and, before it, copies of the last one for the frames lost between
+        them) to the classifier; say and write the predictions it gives."""
+        s, clf = self.settings, self.clf
+        if rf.segment != self.segment:
+            self.segment = rf.segment
+            clf.reset()
+            self.last_seq = self.last_values = None
+            self.out("(reconnected: window restarted)")
+        self.n_frames += 1
+        self.first_t = rf.host_time_s if self.first_t is None else self.first_t
+        self.last_t = rf.host_time_s
+        got = []
+        if self.last_seq is not None and s.fill_gaps:
+            # frames lost on the way: hold the last one so windows keep the stream's timing
+            lost = ((rf.frame.seq - self.last_seq) & 0xFFFF) - 1
+            if 0 < lost <= s.fill_gaps:
+                for _ in range(lost):
+                    got += clf.push(self.last_values, rf.received)
+                self.filled += lost
+        self.last_seq, self.last_values = rf.frame.seq, rf.frame.values
+        got += clf.push(rf.frame.values, rf.received)
+        if not self.announced and clf.threshold is not None:
+            self.announced = True
+            how = "calibrated from the first frames" if s.onset_taxels == 0 else "set"
+            self.out(f"touch onset at activity >= {clf.threshold:.2f} ({how})")
+        for p in got:
+            self.preds.append(p)
+            if s.show == "all" or (s.show == "touches" and p.kind == "touch"):
+                self.out(p.line())
+            if self.sink is not None:
+                self.sink.write(json.dumps({**p.as_dict(), "seq": rf.frame.seq, "host_time_s": rf.host_time_s}) + "\n")
+
+    def summary(self, wall_s: float, reader: SkinReader, error: BaseException | None) -> dict:
+        """``skin live``'s summary after ``wall_s`` seconds: counts, rates (Hz, per s), latencies (ms)."""
+        preds, n_frames, first_t, last_t = self.preds, self.n_frames, self.first_t, self.last_t
+        lat = np.asarray([p.latency_ms for p in preds])
+        comp = np.asarray(self.clf.compute_ms)
+        stream_rate = (
+            (n_frames - 1) / (last_t - first_t)
+            if n_frames > 1 and last_t is not None and first_t is not None and last_t > first_t
+            else 0.0
+        )
+        return {
+            "frames": n_frames,
+            "predictions": len(preds),
+            "touches": sum(p.kind == "touch" for p in preds),
+            "filled_frames": self.filled,
+            "stream_rate_hz": stream_rate,
+            "predictions_per_s": len(preds) / wall_s if wall_s > 0 else 0.0,
+            "latency_ms_median": float(np.median(lat)) if lat.size else float("nan"),
+            "latency_ms_p95": float(np.percentile(lat, 95)) if lat.size else float("nan"),
+            "model_ms_mean": float(comp.mean()) if comp.size else float("nan"),
+            "capacity_predictions_per_s": float(1000.0 / comp.mean())
+            if comp.size and comp.mean() > 0
+            else float("nan"),
+            "decoder": reader.stats.as_dict(),
+            "error": str(error) if error else None,
+        }
 
 
 def live(
@@ -529,96 +671,37 @@ def live(
         f"model {bundle.meta.get('model', type(bundle.estimator).__name__)}: {bundle.n_taxels} taxels, "
         f"window {bundle.window_length} frames at {bundle.frame_rate_hz:g} Hz; a prediction every {stride} frames"
     )
-    reader = SkinReader(
-        settings.port,
-        settings.baud,
-        bundle.n_taxels,
-        settings.reconnect,
-        settings.reconnect_timeout_s,
-        start_command=settings.start_command,
-    )
-    sink = open(settings.out, "w") if settings.out else None
-    preds = []
+    reader = _reader_for(settings, bundle.n_taxels)
+    run = _LiveRun(clf, settings, out, open(settings.out, "w") if settings.out else None)
     error: BaseException | None = None
     t0 = time.perf_counter()
-    n_frames = 0
-    first_t = last_t = None
-    segment = 0
-    announced = False
-    last_seq: int | None = None
-    last_values: np.ndarray | None = None
-    filled = 0
     try:
         with reader:
             for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until):
-                if rf.segment != segment:
-                    segment = rf.segment
-                    clf.reset()
-                    last_seq = last_values = None
-                    out("(reconnected: window restarted)")
-                n_frames += 1
-                first_t = rf.host_time_s if first_t is None else first_t
-                last_t = rf.host_time_s
-                got = []
-                if last_seq is not None and settings.fill_gaps:
-                    # frames lost on the way: hold the last one so windows keep the stream's timing
-                    lost = ((rf.frame.seq - last_seq) & 0xFFFF) - 1
-                    if 0 < lost <= settings.fill_gaps:
-                        for _ in range(lost):
-                            got += clf.push(last_values, rf.received)
-                        filled += lost
-                last_seq, last_values = rf.frame.seq, rf.frame.values
-                got += clf.push(rf.frame.values, rf.received)
-                if not announced and clf.threshold is not None:
-                    announced = True
-                    how = "calibrated from the first frames" if settings.onset_taxels == 0 else "set"
-                    out(f"touch onset at activity >= {clf.threshold:.2f} ({how})")
-                for p in got:
-                    preds.append(p)
-                    if settings.show == "all" or (settings.show == "touches" and p.kind == "touch"):
-                        out(p.line())
-                    if sink is not None:
-                        sink.write(
-                            json.dumps({**p.as_dict(), "seq": rf.frame.seq, "host_time_s": rf.host_time_s}) + "\n"
-                        )
+                run.push(rf)
     except KeyboardInterrupt:
         reader.stop_reason = "interrupted"
     except (PortLost, StreamMismatch) as exc:
         error = exc
     finally:
-        if sink is not None:
-            sink.close()
+        if run.sink is not None:
+            run.sink.close()
     wall = time.perf_counter() - t0
-    lat = np.asarray([p.latency_ms for p in preds])
-    comp = np.asarray(clf.compute_ms)
-    stream_rate = (n_frames - 1) / (last_t - first_t) if n_frames > 1 and last_t > first_t else 0.0
-    summary = {
-        "frames": n_frames,
-        "predictions": len(preds),
-        "touches": sum(p.kind == "touch" for p in preds),
-        "filled_frames": filled,
-        "stream_rate_hz": stream_rate,
-        "predictions_per_s": len(preds) / wall if wall > 0 else 0.0,
-        "latency_ms_median": float(np.median(lat)) if lat.size else float("nan"),
-        "latency_ms_p95": float(np.percentile(lat, 95)) if lat.size else float("nan"),
-        "model_ms_mean": float(comp.mean()) if comp.size else float("nan"),
-        "capacity_predictions_per_s": float(1000.0 / comp.mean()) if comp.size and comp.mean() > 0 else float("nan"),
-        "decoder": reader.stats.as_dict(),
-        "error": str(error) if error else None,
-    }
+    summary = run.summary(wall, reader, error)
+    stream_rate = summary["stream_rate_hz"]
     if bundle.frame_rate_hz and stream_rate and abs(stream_rate / bundle.frame_rate_hz - 1) > 0.2:
         out(
             f"warning: the skin streams at {stream_rate:.1f} Hz but the model was trained at {bundle.frame_rate_hz:g} Hz"
         )
     out(
-        f"{n_frames} frames, {len(preds)} predictions ({summary['touches']} touches) in {wall:.1f} s: "
+        f"{run.n_frames} frames, {len(run.preds)} predictions ({summary['touches']} touches) in {wall:.1f} s: "
         f"{summary['predictions_per_s']:.1f} predictions/s; latency median {summary['latency_ms_median']:.1f} ms, "
         f"p95 {summary['latency_ms_p95']:.1f} ms; model {summary['model_ms_mean']:.1f} ms per window "
         f"(up to {summary['capacity_predictions_per_s']:.0f} predictions/s)"
     )
     out(
         f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}; "
-        f"{filled} lost frame(s) filled by holding the previous one"
+        f"{run.filled} lost frame(s) filled by holding the previous one"
     )
     if error is not None:
         out(f"stopped early: {error}")

@@ -195,6 +195,22 @@ def _geometries(link: ET.Element, tag: str, name: str, path: Path) -> list[Geome
 def parse_urdf(path: str | Path) -> UrdfModel:
     """Read a URDF strictly (see the module docstring); :class:`RobotFileError` names the file on any defect."""
     path = Path(path).expanduser()
+    root = _robot_element(path)
+    skipped: list[tuple[str, str]] = []
+    notes: list[str] = []
+    links = _read_links(root, path, skipped, notes)
+    joint_of: dict[str, UrdfJoint] = {}
+    for el in root.findall("joint"):
+        joint = _read_joint(el, path, links, joint_of, notes)
+        if joint is not None:
+            joint_of[joint.child] = joint
+    _refuse_cycles(path, links, joint_of)
+    root_link = _root_link(links, joint_of, skipped)
+    return UrdfModel(path, str(root.get("name", path.stem)), links, joint_of, root_link, skipped, notes)
+
+
+def _robot_element(path: Path) -> ET.Element:
+    """The ``<robot>`` element of the URDF file at ``path``; FileNotFoundError or :class:`RobotFileError`."""
     if not path.is_file():
         raise FileNotFoundError(f"robot.path: URDF file not found: {path}")
     try:
@@ -205,8 +221,12 @@ def parse_urdf(path: str | Path) -> UrdfModel:
         raise RobotFileError(f"{path}: not a readable URDF ({exc})") from None
     if root.tag != "robot":
         raise RobotFileError(f"{path}: the root element is <{root.tag}>, a URDF's is <robot>")
-    skipped: list[tuple[str, str]] = []
-    notes: list[str] = []
+    return root
+
+
+def _read_links(root: ET.Element, path: Path, skipped: list[tuple[str, str]], notes: list[str]) -> dict[str, UrdfLink]:
+    """The ``<link>`` elements of ``root`` by name; unnamed, xacro-named and repeated ones are skipped
+    (appended to ``notes`` or ``skipped``). Refuses a file without links."""
     links: dict[str, UrdfLink] = {}
     for el in root.findall("link"):
         name = str(el.get("name", ""))
@@ -222,45 +242,54 @@ def parse_urdf(path: str | Path) -> UrdfModel:
         links[name] = UrdfLink(name, _geometries(el, "collision", name, path), _geometries(el, "visual", name, path))
     if not links:
         raise RobotFileError(f"{path}: no <link> elements")
-    joint_of: dict[str, UrdfJoint] = {}
-    for el in root.findall("joint"):
-        name = str(el.get("name", ""))
-        kind = str(el.get("type", ""))
-        p, c = el.find("parent"), el.find("child")
-        parent = p.get("link") if p is not None else None
-        child = c.get("link") if c is not None else None
-        if kind not in JOINT_TYPES:
-            raise RobotFileError(f"{path}: joint {name!r} has type={kind!r}; URDF types: {list(JOINT_TYPES)}")
-        if parent not in links or child not in links:
-            bad = parent if parent not in links else child
-            notes.append(f"joint {name!r} ignored: link {bad!r} is not a loaded link")
-            continue
-        if child in joint_of:
-            notes.append(f"joint {name!r} ignored: link {child!r} already has a parent joint {joint_of[child].name!r}")
-            continue
-        axis = _floats(
-            el.find("axis").get("xyz") if el.find("axis") is not None else None,
-            3,
-            f"joint {name!r} axis",
-            path,
-            (1, 0, 0),
-        )
-        if kind in MOVABLE and not np.linalg.norm(axis) > 0:
-            notes.append(f"joint {name!r}: zero axis, held fixed")
-            kind = "fixed"
-        if kind in ("floating", "planar"):
-            notes.append(f"joint {name!r}: {kind} joint held fixed at its origin")
-            kind = "fixed"
-        mim = el.find("mimic")
-        mimic = None
-        if mim is not None and kind in MOVABLE:
-            mult = _floats(mim.get("multiplier"), 1, f"joint {name!r} mimic multiplier", path, (1,))[0]
-            off = _floats(mim.get("offset"), 1, f"joint {name!r} mimic offset", path, (0,))[0]
-            mimic = (str(mim.get("joint", "")), mult, off)
-        joint_of[child] = UrdfJoint(
-            name, kind, parent, child, _origin(el.find("origin"), f"joint {name!r}", path), axis, mimic
-        )
-    # a cycle would leave every link of it with a parent: walk up from each link
+    return links
+
+
+def _read_joint(
+    el: ET.Element, path: Path, links: Mapping[str, UrdfLink], joint_of: Mapping[str, UrdfJoint], notes: list[str]
+) -> UrdfJoint | None:
+    """The ``<joint>`` element ``el`` (floating, planar and zero-axis joints held fixed), or None when it is
+    ignored (a link not loaded, a child that already has a parent joint in ``joint_of``): said in ``notes``."""
+    name = str(el.get("name", ""))
+    kind = str(el.get("type", ""))
+    p, c = el.find("parent"), el.find("child")
+    parent = p.get("link") if p is not None else None
+    child = c.get("link") if c is not None else None
+    if kind not in JOINT_TYPES:
+        raise RobotFileError(f"{path}: joint {name!r} has type={kind!r}; URDF types: {list(JOINT_TYPES)}")
+    if parent not in links or child not in links:
+        bad = parent if parent not in links else child
+        notes.append(f"joint {name!r} ignored: link {bad!r} is not a loaded link")
+        return None
+    if child in joint_of:
+        notes.append(f"joint {name!r} ignored: link {child!r} already has a parent joint {joint_of[child].name!r}")
+        return None
+    axis = _floats(
+        el.find("axis").get("xyz") if el.find("axis") is not None else None,
+        3,
+        f"joint {name!r} axis",
+        path,
+        (1, 0, 0),
+    )
+    if kind in MOVABLE and not np.linalg.norm(axis) > 0:
+        notes.append(f"joint {name!r}: zero axis, held fixed")
+        kind = "fixed"
+    if kind in ("floating", "planar"):
+        notes.append(f"joint {name!r}: {kind} joint held fixed at its origin")
+        kind = "fixed"
+    mim = el.find("mimic")
+    mimic = None
+    if mim is not None and kind in MOVABLE:
+        mult = _floats(mim.get("multiplier"), 1, f"joint {name!r} mimic multiplier", path, (1,))[0]
+        off = _floats(mim.get("offset"), 1, f"joint {name!r} mimic offset", path, (0,))[0]
+        mimic = (str(mim.get("joint", "")), mult, off)
+    origin = _origin(el.find("origin"), f"joint {name!r}", path)
+    return UrdfJoint(name, kind, parent, child, origin, axis, mimic)
+
+
+def _refuse_cycles(path: Path, links: Mapping[str, UrdfLink], joint_of: Mapping[str, UrdfJoint]) -> None:
+    """Raise :class:`RobotFileError` when the joints form a cycle (every link of it would have a parent):
+    walks up from each link."""
     for start in links:
         seen, cur = set(), start
         while cur in joint_of:
@@ -268,9 +297,13 @@ def parse_urdf(path: str | Path) -> UrdfModel:
                 raise RobotFileError(f"{path}: the joints form a cycle through link {cur!r}")
             seen.add(cur)
             cur = joint_of[cur].parent
+
+
+def _root_link(links: Mapping[str, UrdfLink], joint_of: Mapping[str, UrdfJoint], skipped: list[tuple[str, str]]) -> str:
+    """The root: the parentless link with the largest subtree; the links under other parentless links are
+    appended to ``skipped``."""
     roots = [n for n in links if n not in joint_of]
 
-    # the root: the parentless link with the largest subtree
     def size(r: str) -> int:
         return sum(1 for n in links if _root_of(n, joint_of) == r)
 
@@ -280,7 +313,7 @@ def parse_urdf(path: str | Path) -> UrdfModel:
             for n in links:
                 if _root_of(n, joint_of) == r:
                     skipped.append((n, f"not connected to the root link {root_link!r}"))
-    return UrdfModel(path, str(root.get("name", path.stem)), links, joint_of, root_link, skipped, notes)
+    return root_link
 
 
 def _root_of(link: str, joint_of: Mapping[str, UrdfJoint]) -> str:
@@ -486,6 +519,48 @@ def load_parts_spec(parts: Any) -> dict[str, Any]:
     return {"parts": parts}
 
 
+@dataclass
+class _Surfaces:
+    """The links of a robot being built: each kept link's mesh (link frame, metres) and notes, and the
+    skipped links with the reason."""
+
+    geom: dict[str, trimesh.Trimesh] = field(default_factory=dict)
+    notes: dict[str, list[str]] = field(default_factory=dict)
+    skipped: list[tuple[str, str]] = field(default_factory=list)
+
+
+def _validated_link(model: UrdfModel, n: str, built: _Surfaces) -> Link:
+    """Link ``n``'s mesh as a validated :class:`Link` (metres): a single mesh file moved rigidly keeps its
+    validation (no second repair); any other mesh goes through ``make_link``."""
+    mesh = built.geom[n]
+    rep = mesh.metadata.get("sphri_link")
+    if rep is not None:
+        return Link(
+            name=n,
+            vertices=np.asarray(mesh.vertices, dtype=np.float64),
+            faces=np.asarray(mesh.faces, dtype=np.int64),
+            watertight=rep.watertight,
+            notes=tuple(built.notes[n]) + tuple(rep.notes),
+        )
+    return make_link(n, mesh.vertices, mesh.faces, units="m", source=f"{model.path.name} {n}", notes=built.notes[n])
+
+
+def _regions(
+    links: Mapping[str, Link], part_list: Sequence[Any], groups: Mapping[str, Sequence[str]]
+) -> dict[str, str]:
+    """Region name -> link: every link its own, each body part its link, and each group whose parts all lie
+    on one link that link."""
+    regions = {n: n for n in links}
+    for p in part_list:
+        regions[p.name] = p.link
+    by_part = {p.name: p.link for p in part_list}
+    for g, members in groups.items():
+        owners = {by_part[x] for x in members}
+        if len(owners) == 1:
+            regions[g] = owners.pop()
+    return regions
+
+
 class UrdfWholeBody:
     """A whole robot from a URDF (see the module docstring); ``build()`` -> :class:`WholeBodyRobot`.
     ``parts=None``: each link with a surface is a body part of its own (``sphri robot check`` without a parts file)."""
@@ -522,14 +597,46 @@ class UrdfWholeBody:
         self.units = str(units)
 
     def build(self) -> WholeBodyRobot:
+        """The robot: its links with a surface (metres), regions, joint tree, parts and groups, and every
+        skipped link with the reason; :class:`ConfigError` or :class:`RobotFileError` naming the setting or file."""
         model = parse_urdf(self.path)
         root_dir = self.mesh_root if self.mesh_root is not None else model.path.parent
         if not root_dir.is_dir():
             raise FileNotFoundError(f"robot.mesh_root: folder not found: {root_dir} (meshes of {model.path})")
-        resolver = MeshResolver(root_dir, model.path)
-        skipped = list(model.skipped)
-        gone = {n for n, r in skipped if r.startswith("not connected")}  # (a repeated name's first link stays)
-        connected = [n for n in model.links if n not in gone]
+        merged_into = self._check_names(model)
+        built = self._surfaces(model, MeshResolver(root_dir, model.path), merged_into)
+        if model.root not in built.geom:
+            raise ConfigError(
+                f"{model.path}: the root link {model.root!r} has no loadable geometry; the whole-body tree "
+                "needs its root (the base) to have a surface"
+            )
+        actuated = [j.name for j in model.joint_of.values() if j.kind in MOVABLE and j.mimic is None]
+        self._merge_at_rest(model, merged_into, built)
+        surface = [n for n in model.links if n in built.geom]  # file order; sorted topologically below
+        bad_rest = sorted(set(self.rest) - set(actuated))
+        if bad_rest:
+            raise ConfigError(f"robot.rest: {bad_rest} are not movable joints of {model.path}; they are: {actuated}")
+        tree = self._tree(model, surface)
+        self._check_part_links(model, built)
+        spec = self.parts_spec if self.parts_spec is not None else {n: {"link": n} for n in tree.links}
+        part_list = check_parts(spec, {n: None for n in tree.links})
+        groups = check_groups(self.groups_spec, [p.name for p in part_list])
+        links = {n: _validated_link(model, n, built) for n in tree.links}
+        self._log_built(model, links, built.skipped)
+        return WholeBodyRobot(
+            name=self.name,
+            links=links,
+            regions=_regions(links, part_list, groups),
+            tree=tree,
+            parts=tuple(part_list),
+            groups={k: tuple(v) for k, v in groups.items()},
+            rest=dict(self.rest),
+            skipped=tuple(built.skipped),
+        )
+
+    def _check_names(self, model: UrdfModel) -> dict[str, str]:
+        """Check the link names the settings give against ``model``; returns merged link -> the link it joins
+        (each below its target, else :class:`ConfigError`)."""
         check_link_names(model.links, model.path, self.links, self.exclude, self.merge, self.parts_spec)
         merged_into = {c: t for t, cs in self.merge.items() for c in cs}
         for child, target in merged_into.items():
@@ -537,35 +644,41 @@ class UrdfWholeBody:
                 model.path_from(target, child)
             except ValueError:
                 raise ConfigError(f"robot.merge.{target}: {child!r} is not below {target!r} in {model.path}") from None
-        geom: dict[str, trimesh.Trimesh] = {}
-        notes: dict[str, list[str]] = {}
-        for n in connected:
+        return merged_into
+
+    def _surfaces(self, model: UrdfModel, resolver: MeshResolver, merged_into: Mapping[str, str]) -> _Surfaces:
+        """The mesh (link frame, metres; files found by ``resolver``) and notes of every connected link that is
+        kept and has geometry; the others in ``skipped`` with the reason (after the model's own skipped links)."""
+        built = _Surfaces(skipped=list(model.skipped))
+        gone = {n for n, r in built.skipped if r.startswith("not connected")}  # (a repeated name's first link stays)
+        for n in (n for n in model.links if n not in gone):
             if n in self.exclude:
-                skipped.append((n, "excluded (robot.exclude)"))
+                built.skipped.append((n, "excluded (robot.exclude)"))
                 continue
             if self.links is not None and n not in self.links and n not in merged_into and n != model.root:
-                skipped.append((n, "not in robot.links"))
+                built.skipped.append((n, "not in robot.links"))
                 continue
             mesh, what, nn = link_geometry(model.links[n], resolver, GEOMETRY_ORDER[self.geometry], self.units)
             if mesh is None:
-                skipped.append((n, nn[0] if nn else "no geometry"))
+                built.skipped.append((n, nn[0] if nn else "no geometry"))
                 continue
-            geom[n] = mesh
-            notes[n] = [f"geometry: {what}"] + nn
-        if model.root not in geom:
-            raise ConfigError(
-                f"{model.path}: the root link {model.root!r} has no loadable geometry; the whole-body tree "
-                "needs its root (the base) to have a surface"
-            )
+            built.geom[n] = mesh
+            built.notes[n] = [f"geometry: {what}"] + nn
+        return built
+
+    def _rest_value(self, mimic: Mapping[str, tuple[str, float, float]], name: str, depth: int = 0) -> float:
+        """Joint ``name``'s rest value (rad or m): ``robot.rest``'s (0 by default), or, for a joint in
+        ``mimic`` (joint -> (source, multiplier, offset)), its source's times the multiplier plus the offset."""
+        if name in mimic and depth < 16:
+            src, mult, off = mimic[name]
+            return mult * self._rest_value(mimic, src, depth + 1) + off
+        return self.rest.get(name, 0.0)
+
+    def _merge_at_rest(self, model: UrdfModel, merged_into: Mapping[str, str], built: _Surfaces) -> None:
+        """Move each merged link's mesh (``merged_into``: link -> target) into its target's, placed at the rest
+        pose; the merged link is then skipped, named."""
         mimic = {j.name: j.mimic for j in model.joint_of.values() if j.mimic is not None}
-        actuated = [j.name for j in model.joint_of.values() if j.kind in MOVABLE and j.mimic is None]
-
-        def rest_value(name: str, depth: int = 0) -> float:
-            if name in mimic and depth < 16:
-                src, mult, off = mimic[name]
-                return mult * rest_value(src, depth + 1) + off
-            return self.rest.get(name, 0.0)
-
+        geom = built.geom
         for child, target in merged_into.items():
             if child not in geom:
                 continue
@@ -573,50 +686,24 @@ class UrdfWholeBody:
                 raise ConfigError(f"robot.merge.{target}: {target!r} has no loadable geometry to merge into")
             tf = np.eye(4)
             for j in model.path_from(target, child):
-                tf = tf @ j.origin @ _motion(j, rest_value(j.name))
+                tf = tf @ j.origin @ _motion(j, self._rest_value(mimic, j.name))
             mesh = geom.pop(child).copy()
             mesh.apply_transform(tf)
             geom[target] = trimesh.util.concatenate([geom[target], mesh])
             geom[target].metadata.pop("sphri_link", None)
-            notes[target].append(f"merged link {child!r} at the rest pose")
-            skipped.append((child, f"merged into {target!r} at the rest pose (robot.merge)"))
-        surface = [n for n in model.links if n in geom]  # file order; sorted topologically below
-        bad_rest = sorted(set(self.rest) - set(actuated))
-        if bad_rest:
-            raise ConfigError(f"robot.rest: {bad_rest} are not movable joints of {model.path}; they are: {actuated}")
-        tree = self._tree(model, surface)
-        why = dict(skipped)
+            built.notes[target].append(f"merged link {child!r} at the rest pose")
+            built.skipped.append((child, f"merged into {target!r} at the rest pose (robot.merge)"))
+
+    def _check_part_links(self, model: UrdfModel, built: _Surfaces) -> None:
+        """Refuse (:class:`ConfigError`) a body part on a link that was skipped, saying why it was."""
+        why = dict(built.skipped)
         for name, spec in self.parts_spec.items() if hasattr(self.parts_spec, "items") else ():
             link = spec.get("link") if hasattr(spec, "get") else None
-            if link in why and link not in geom:
+            if link in why and link not in built.geom:
                 raise ConfigError(f"robot.parts.{name}.link={link!r} has no surface in {model.path}: {why[link]}")
-        spec = self.parts_spec if self.parts_spec is not None else {n: {"link": n} for n in tree.links}
-        part_list = check_parts(spec, {n: None for n in tree.links})
-        groups = check_groups(self.groups_spec, [p.name for p in part_list])
-        links = {}
-        for n in tree.links:
-            mesh = geom[n]
-            rep = mesh.metadata.get("sphri_link")
-            if rep is not None:  # one validated mesh file, moved rigidly: no second repair
-                links[n] = Link(
-                    name=n,
-                    vertices=np.asarray(mesh.vertices, dtype=np.float64),
-                    faces=np.asarray(mesh.faces, dtype=np.int64),
-                    watertight=rep.watertight,
-                    notes=tuple(notes[n]) + tuple(rep.notes),
-                )
-            else:
-                links[n] = make_link(
-                    n, mesh.vertices, mesh.faces, units="m", source=f"{model.path.name} {n}", notes=notes[n]
-                )
-        regions = {n: n for n in links}
-        for p in part_list:
-            regions[p.name] = p.link
-        by_part = {p.name: p.link for p in part_list}
-        for g, members in groups.items():
-            owners = {by_part[x] for x in members}
-            if len(owners) == 1:
-                regions[g] = owners.pop()
+
+    def _log_built(self, model: UrdfModel, links: Mapping[str, Link], skipped: Sequence[tuple[str, str]]) -> None:
+        """Log how many links have a surface, the skipped ones counted by reason, and the model's notes."""
         reasons: dict[str, int] = {}
         for _, r in skipped:
             key = r.split(" (")[0].split(":")[0]
@@ -631,16 +718,6 @@ class UrdfWholeBody:
         )
         for note in model.notes:
             log.info("robot %s: %s", self.name, note)
-        return WholeBodyRobot(
-            name=self.name,
-            links=links,
-            regions=regions,
-            tree=tree,
-            parts=tuple(part_list),
-            groups={k: tuple(v) for k, v in groups.items()},
-            rest=dict(self.rest),
-            skipped=tuple(skipped),
-        )
 
     @staticmethod
     def _tree(model: UrdfModel, surface: list[str]) -> JointTree:

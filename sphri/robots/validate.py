@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -148,7 +149,50 @@ def make_link(
     unusable input.
     """
     require_choice("robot.units", units, UNITS)
-    where = f"link {name!r}" + (f" ({source})" if source else "")
+    note = _Notes(f"link {name!r}" + (f" ({source})" if source else ""), list(notes))
+    v, f = _checked_arrays(note.where, vertices, faces)
+    v = _in_metres(v, f, units, note)
+    extent = float((v.max(axis=0) - v.min(axis=0)).max())
+    if extent <= 0:
+        raise MeshError(f"{note.where}: all vertices coincide")
+    lo, hi = PLAUSIBLE_EXTENT_M
+    if plausible and not lo <= extent <= hi:
+        raise MeshError(
+            f"{note.where}: its largest extent is {extent:.3g} m with robot.units={units}, outside a robot link's "
+            f"{lo * 100:g} cm to {hi:g} m: set robot.units to the file's units (m, cm or mm)"
+        )
+    v, f = _merge_vertices(v, f, extent, note)
+    f = _drop_bad_faces(v, f, extent, note)
+    v, f = _drop_unused_vertices(v, f, note)
+    # a skin needs a 3-D surface: a flat mesh (one triangle, a planar sheet) has no inside or axis
+    centred = v - v.mean(axis=0)
+    thickness = float(np.linalg.svd(centred, compute_uv=False)[-1] / np.sqrt(len(v)))
+    if thickness <= extent * 1e-6:
+        raise MeshError(
+            f"{note.where}: the mesh is flat ({len(f)} face(s), all {len(v)} vertices in one plane); a link needs a "
+            "3-D surface, e.g. its closed collision mesh or convex hull"
+        )
+    closed = is_closed(f)
+    f = _orient_closed(v, f, note) if closed else _orient_open(v, f, extent, note)
+    return Link(name=name, vertices=v, faces=f, watertight=closed, notes=tuple(note.notes))
+
+
+@dataclass
+class _Notes:
+    """What validating one mesh found and did: ``where`` names the mesh in errors and the log."""
+
+    where: str
+    notes: list[str]
+
+    def __call__(self, msg: str, level: int = logging.INFO) -> None:
+        """Keep ``msg`` for ``Link.notes`` and log it at ``level``."""
+        self.notes.append(msg)
+        log.log(level, "%s: %s", self.where, msg)
+
+
+def _checked_arrays(where: str, vertices: np.ndarray, faces: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices (V, 3) float64, faces (F, 3) int64)`` once their shapes, indices and values are usable;
+    :class:`MeshError` naming ``where`` otherwise."""
     v = np.asarray(vertices, dtype=np.float64)
     f = np.asarray(faces)
     if v.ndim != 2 or v.shape[1] != 3 or len(v) == 0:
@@ -164,60 +208,61 @@ def make_link(
     bad_v = ~np.isfinite(v).all(axis=1)
     if bad_v.any():
         raise MeshError(f"{where}: {int(bad_v.sum())} vertices are NaN/inf (first at index {int(np.argmax(bad_v))})")
-    out: list[str] = list(notes)
+    return v, f
 
-    def note(msg: str, level: int = logging.INFO) -> None:
-        out.append(msg)
-        log.log(level, "%s: %s", where, msg)
 
-    # units
+def _in_metres(v: np.ndarray, f: np.ndarray, units: str, note: _Notes) -> np.ndarray:
+    """The vertices ``v`` (file units) in metres by ``units`` (see :func:`make_link`); :class:`MeshError`
+    when ``auto`` cannot tell."""
     extent = float((v.max(axis=0) - v.min(axis=0)).max())
     if units in UNIT_SCALE:
-        v = v * UNIT_SCALE[units]
         note(f"scaled by {UNIT_SCALE[units]:g} (units={units})")
-    elif units == "auto" and extent > MM_EXTENT_THRESHOLD_M:
-        parts = component_extents(v, f)
-        main_faces, main_extent = parts[0]
-        major = [(n, e) for n, e in parts if n >= MAJOR_COMPONENT_FRACTION * len(f)]
-        if len({e > MM_EXTENT_THRESHOLD_M for _, e in major}) > 1:
-            sizes = ", ".join(f"{n} faces {e:.3g} across" for n, e in major)
-            raise MeshError(
-                f"{where}: units are ambiguous: its major parts ({sizes}) read as both metres and millimetres "
-                f"(threshold {MM_EXTENT_THRESHOLD_M:g}); set robot.units=m or robot.units=mm"
-            )
-        if main_extent > MM_EXTENT_THRESHOLD_M:
-            if main_extent * 1e-3 < AMBIGUOUS_MM_BELOW_M:
-                raise MeshError(
-                    f"{where}: units are ambiguous: its main part is {main_extent:.3g} across, "
-                    f"{main_extent * 1e-3 * 100:.3g} cm as millimetres (a small link) or {main_extent:.3g} cm as "
-                    f"centimetres; set robot.units=mm or robot.units=cm"
-                )
-            v = v * 1e-3
-            note(
-                f"largest extent {main_extent:g} of its main part > {MM_EXTENT_THRESHOLD_M:g} m: taken as millimetres "
-                f"and scaled by 0.001 (set units=m to keep it)",
-                logging.WARNING,
-            )
-        else:  # metres by its main part, yet over 5 m across: a stray part far away would distort the skin
-            raise MeshError(
-                f"{where}: its main part ({main_faces} of {len(f)} faces, {main_extent:.3g} across) reads as metres "
-                f"but {len(parts) - 1} other part(s) stretch the mesh to {extent:.3g} across: a stray part far from "
-                f"the link? Remove it from the file, or set robot.units=m to use the mesh as it is (robot.units=mm "
-                f"if it is in millimetres)"
-            )
-    elif extent > MM_EXTENT_THRESHOLD_M:
+        return v * UNIT_SCALE[units]
+    if units == "auto" and extent > MM_EXTENT_THRESHOLD_M:
+        return _auto_millimetres(v, f, extent, note)
+    if extent > MM_EXTENT_THRESHOLD_M:
         note(f"largest extent {extent:g} m with units=m: kept; is it in millimetres?", logging.WARNING)
-    extent = float((v.max(axis=0) - v.min(axis=0)).max())
-    if extent <= 0:
-        raise MeshError(f"{where}: all vertices coincide")
-    lo, hi = PLAUSIBLE_EXTENT_M
-    if plausible and not lo <= extent <= hi:
-        raise MeshError(
-            f"{where}: its largest extent is {extent:.3g} m with robot.units={units}, outside a robot link's "
-            f"{lo * 100:g} cm to {hi:g} m: set robot.units to the file's units (m, cm or mm)"
-        )
+    return v
 
-    # duplicate vertices (exact after rounding to 1e-9 of the extent), then unreferenced ones
+
+def _auto_millimetres(v: np.ndarray, f: np.ndarray, extent: float, note: _Notes) -> np.ndarray:
+    """``units=auto`` for a mesh ``extent`` (file units) across, over the threshold: ``v`` scaled from mm
+    to metres when its major parts agree it is in millimetres; :class:`MeshError` when they disagree, or
+    when the main part reads as metres (or may be centimetres)."""
+    where = note.where
+    parts = component_extents(v, f)
+    main_faces, main_extent = parts[0]
+    major = [(n, e) for n, e in parts if n >= MAJOR_COMPONENT_FRACTION * len(f)]
+    if len({e > MM_EXTENT_THRESHOLD_M for _, e in major}) > 1:
+        sizes = ", ".join(f"{n} faces {e:.3g} across" for n, e in major)
+        raise MeshError(
+            f"{where}: units are ambiguous: its major parts ({sizes}) read as both metres and millimetres "
+            f"(threshold {MM_EXTENT_THRESHOLD_M:g}); set robot.units=m or robot.units=mm"
+        )
+    if main_extent <= MM_EXTENT_THRESHOLD_M:  # metres by its main part, yet over 5 m across: a stray part
+        raise MeshError(
+            f"{where}: its main part ({main_faces} of {len(f)} faces, {main_extent:.3g} across) reads as metres "
+            f"but {len(parts) - 1} other part(s) stretch the mesh to {extent:.3g} across: a stray part far from "
+            f"the link? Remove it from the file, or set robot.units=m to use the mesh as it is (robot.units=mm "
+            f"if it is in millimetres)"
+        )
+    if main_extent * 1e-3 < AMBIGUOUS_MM_BELOW_M:
+        raise MeshError(
+            f"{where}: units are ambiguous: its main part is {main_extent:.3g} across, "
+            f"{main_extent * 1e-3 * 100:.3g} cm as millimetres (a small link) or {main_extent:.3g} cm as "
+            f"centimetres; set robot.units=mm or robot.units=cm"
+        )
+    note(
+        f"largest extent {main_extent:g} of its main part > {MM_EXTENT_THRESHOLD_M:g} m: taken as millimetres "
+        f"and scaled by 0.001 (set units=m to keep it)",
+        logging.WARNING,
+    )
+    return v * 1e-3
+
+
+def _merge_vertices(v: np.ndarray, f: np.ndarray, extent: float, note: _Notes) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, faces)`` with duplicate vertices (equal after rounding to 1e-9 of ``extent``, metres)
+    merged, the first occurrences kept in their order."""
     key = np.round(v / (extent * 1e-9)).astype(np.int64)
     _, first, inverse = np.unique(key, axis=0, return_index=True, return_inverse=True)
     inverse = inverse.reshape(-1)
@@ -226,10 +271,12 @@ def make_link(
     order = np.argsort(first)  # keep the original order of first occurrences
     rank = np.empty_like(order)
     rank[order] = np.arange(len(order))
-    v = v[first[order]]
-    f = rank[inverse[f]]
+    return v[first[order]], rank[inverse[f]]
 
-    # degenerate faces: repeated vertex or (near) zero area
+
+def _drop_bad_faces(v: np.ndarray, f: np.ndarray, extent: float, note: _Notes) -> np.ndarray:
+    """The faces without degenerate ones (a repeated vertex, or an area at most (1e-7 ``extent``)^2, m^2) and
+    duplicates (same vertex set, either winding: the first kept); :class:`MeshError` when none is left."""
     _, area = triangle_normals_areas(v, f)
     repeated = (f[:, 0] == f[:, 1]) | (f[:, 1] == f[:, 2]) | (f[:, 0] == f[:, 2])
     degenerate = repeated | (area <= (extent * 1e-7) ** 2)
@@ -237,14 +284,16 @@ def make_link(
         note(f"removed {int(degenerate.sum())} degenerate faces (repeated vertex or zero area)")
         f = f[~degenerate]
     if len(f) == 0:
-        raise MeshError(f"{where}: no faces left after removing degenerate ones")
-
-    # duplicate faces (same vertex set, either winding): keep the first
+        raise MeshError(f"{note.where}: no faces left after removing degenerate ones")
     _, keep = np.unique(np.sort(f, axis=1), axis=0, return_index=True)
     if len(keep) < len(f):
         note(f"removed {len(f) - len(keep)} duplicate faces")
         f = f[np.sort(keep)]
+    return f
 
+
+def _drop_unused_vertices(v: np.ndarray, f: np.ndarray, note: _Notes) -> tuple[np.ndarray, np.ndarray]:
+    """``(vertices, faces)`` without the vertices no face uses (faces renumbered)."""
     used = np.zeros(len(v), dtype=bool)
     used[f.ravel()] = True
     if not used.all():
@@ -252,66 +301,64 @@ def make_link(
         remap = np.cumsum(used) - 1
         v = v[used]
         f = remap[f]
+    return v, f
 
-    # a skin needs a 3-D surface: a flat mesh (one triangle, a planar sheet) has no inside or axis
-    centred = v - v.mean(axis=0)
-    thickness = float(np.linalg.svd(centred, compute_uv=False)[-1] / np.sqrt(len(v)))
-    if thickness <= extent * 1e-6:
-        raise MeshError(
-            f"{where}: the mesh is flat ({len(f)} face(s), all {len(v)} vertices in one plane); a link needs a "
-            "3-D surface, e.g. its closed collision mesh or convex hull"
-        )
 
-    # orientation
+def _orient_closed(v: np.ndarray, f: np.ndarray, note: _Notes) -> np.ndarray:
+    """The faces of a closed mesh wound consistently, enclosing a positive volume."""
     import trimesh
 
-    closed = is_closed(f)
     before = f.copy()
-    if closed:
-        mesh = trimesh.Trimesh(v, f, process=False)
-        trimesh.repair.fix_normals(mesh, multibody=True)
-        f = np.asarray(mesh.faces, dtype=np.int64)
-        if signed_volume(v, f) < 0:
-            f = f[:, ::-1].copy()
-        changed = int((f != before).any(axis=1).sum())
-        if changed:
-            note(f"closed mesh: re-oriented {changed} faces outward (consistent winding, positive volume)")
-    else:
-        nb, nm = edge_defects(f)
-        n_edges = len(np.unique(_edges_sorted(f), axis=0))
-        share = nb / max(n_edges, 1)
-        what = f"{nb} of {n_edges} edges ({share:.1%}) are boundary edges (holes)" + (
-            f", {nm} shared by more than two faces" if nm else ""
-        )
-        damaged = share > DAMAGED_BOUNDARY_SHARE or nm > 0
-        note(
-            f"not closed: {what}; kept as is (watertight=False)"
-            + ("; the mesh looks damaged (faces missing?)" if damaged else ""),
-            logging.WARNING if damaged else logging.INFO,
-        )
-        normals, area = triangle_normals_areas(v, f)
-        convex, inner = _on_convex_hull(v, f, tol=extent * CONVEX_TOL)
-        if convex:
-            away = np.einsum("ij,ij->i", normals, v[f].mean(axis=1) - inner) < 0
-            if away.any():
-                f[away] = f[away][:, ::-1]
-                note(f"open (near-)convex surface: turned {int(away.sum())} inward faces away from its interior")
-        else:
-            mesh = trimesh.Trimesh(v, f, process=False)
-            if not mesh.is_winding_consistent:
-                trimesh.repair.fix_winding(mesh)
-                f = np.asarray(mesh.faces, dtype=np.int64).copy()
-            normals, area = triangle_normals_areas(v, f)
-            centroid = (v[f].mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
-            outward = np.einsum("ij,ij->i", normals, v[f].mean(axis=1) - centroid)
-            if float((np.sign(outward) * area).sum()) < 0:  # most area faces the centroid: inverted
-                f = f[:, ::-1].copy()
-            changed = int((f != before).any(axis=1).sum())
-            if changed:
-                note(
-                    f"open surface: re-oriented {changed} faces (consistent winding, most area facing away from the centroid)"
-                )
-    return Link(name=name, vertices=v, faces=f, watertight=closed, notes=tuple(out))
+    mesh = trimesh.Trimesh(v, f, process=False)
+    trimesh.repair.fix_normals(mesh, multibody=True)
+    f = np.asarray(mesh.faces, dtype=np.int64)
+    if signed_volume(v, f) < 0:
+        f = f[:, ::-1].copy()
+    changed = int((f != before).any(axis=1).sum())
+    if changed:
+        note(f"closed mesh: re-oriented {changed} faces outward (consistent winding, positive volume)")
+    return f
+
+
+def _orient_open(v: np.ndarray, f: np.ndarray, extent: float, note: _Notes) -> np.ndarray:
+    """The faces of an open mesh (``extent`` metres across) oriented outward (see the module docstring);
+    its holes are noted, with a warning when it looks damaged."""
+    nb, nm = edge_defects(f)
+    n_edges = len(np.unique(_edges_sorted(f), axis=0))
+    share = nb / max(n_edges, 1)
+    what = f"{nb} of {n_edges} edges ({share:.1%}) are boundary edges (holes)" + (
+        f", {nm} shared by more than two faces" if nm else ""
+    )
+    damaged = share > DAMAGED_BOUNDARY_SHARE or nm > 0
+    note(
+        f"not closed: {what}; kept as is (watertight=False)"
+        + ("; the mesh looks damaged (faces missing?)" if damaged else ""),
+        logging.WARNING if damaged else logging.INFO,
+    )
+    normals, _ = triangle_normals_areas(v, f)
+    convex, inner = _on_convex_hull(v, f, tol=extent * CONVEX_TOL)
+    if convex:
+        away = np.einsum("ij,ij->i", normals, v[f].mean(axis=1) - inner) < 0
+        if away.any():
+            f[away] = f[away][:, ::-1]
+            note(f"open (near-)convex surface: turned {int(away.sum())} inward faces away from its interior")
+        return f
+    import trimesh
+
+    before = f.copy()
+    mesh = trimesh.Trimesh(v, f, process=False)
+    if not mesh.is_winding_consistent:
+        trimesh.repair.fix_winding(mesh)
+        f = np.asarray(mesh.faces, dtype=np.int64).copy()
+    normals, area = triangle_normals_areas(v, f)
+    centroid = (v[f].mean(axis=1) * area[:, None]).sum(axis=0) / area.sum()
+    outward = np.einsum("ij,ij->i", normals, v[f].mean(axis=1) - centroid)
+    if float((np.sign(outward) * area).sum()) < 0:  # most area faces the centroid: inverted
+        f = f[:, ::-1].copy()
+    changed = int((f != before).any(axis=1).sum())
+    if changed:
+        note(f"open surface: re-oriented {changed} faces (consistent winding, most area facing away from the centroid)")
+    return f
 
 
 def load_mesh_file(path, name: str, units: str = "auto", key: str = "") -> Link:
