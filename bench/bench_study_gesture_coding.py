@@ -23,6 +23,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pandas as pd
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
@@ -50,9 +51,28 @@ def lopo_agreement(feats: np.ndarray, y: np.ndarray, groups: np.ndarray, seed: i
     return pred
 
 
-def episode_features(overrides: list[str], cache, memo):
+def touch_episodes(ds, robot) -> pd.DataFrame:
+    """One episode per generated touch, cut where the generator drew it (the drawing hand, the drawn part's link,
+    the touch's frames): the segmentation an oracle would give, in the columns of the study's coded episodes."""
+    truth, sess = ds.truth.reset_index(drop=True), ds.sessions.reset_index(drop=True)
+    link_of = {p.name: p.link for p in robot.parts}
+    start = sess["start"].to_numpy(np.int64) + truth["touch_start_frame"].to_numpy(np.int64)
+    return pd.DataFrame(
+        {
+            "session": np.arange(len(sess)),
+            "participant": sess["participant"].to_numpy(),
+            "start_frame": start,
+            "end_frame": start + truth["touch_frames"].to_numpy(np.int64) - 1,
+            "dominant_hand": 1,
+            "dominant_link": [link_of[p] for p in truth["part"]],
+        }
+    )
+
+
+def episode_features(overrides: list[str], cache, memo, segmentation: str = "episodes"):
     """(features, drawn gestures, participants, coded episodes) of a study config's coded episodes, windows from
-    the gesture chain on each episode's dominant link."""
+    the gesture chain on each episode's dominant link; ``segmentation="touch"``: of the generator's touches
+    instead (:func:`touch_episodes`)."""
     from sphri.config import compose
     from sphri.pipeline import model_factory
     from sphri.sessions.gestures import episode_windows
@@ -61,7 +81,9 @@ def episode_features(overrides: list[str], cache, memo):
 
     cfg = compose(overrides)
     st = study_settings(cfg)
-    _, _, ds, _, _, _, coded, _, _ = segment(cfg, st, cache, memo)
+    _, robot, ds, _, _, _, coded, _, _ = segment(cfg, st, cache, memo)
+    if segmentation == "touch":
+        coded = touch_episodes(ds, robot)
     n_part = int(ds.sessions["participant"].nunique())
     chain = compose([*training_overrides(overrides, st, n_part), f"data.regions=[{st.gesture_regions[0]}]"])
     feats, index, links = [], [], []
@@ -101,7 +123,7 @@ def per_link(pred: np.ndarray, y: np.ndarray, links: np.ndarray) -> dict:
     }
 
 
-def measure(base: list[str], extra: list[str], train: list[str] | None = None) -> dict:
+def measure(base: list[str], extra: list[str], train: list[str] | None = None, segmentation: str = "episodes") -> dict:
     from sphri.config import compose
     from sphri.models.rf import RandomForest
     from sphri.pipeline import Memo, open_cache
@@ -111,7 +133,7 @@ def measure(base: list[str], extra: list[str], train: list[str] | None = None) -
     cfg = compose(overrides)
     cache, memo = open_cache(cfg), Memo()
     t0 = time.perf_counter()
-    x, y, groups, coded, links = episode_features(overrides, cache, memo)
+    x, y, groups, coded, links = episode_features(overrides, cache, memo, segmentation)
     if train is None:
         pred = lopo_agreement(x, y, groups, int(cfg.seed))
         n_train = None
@@ -126,6 +148,7 @@ def measure(base: list[str], extra: list[str], train: list[str] | None = None) -
         "overrides": extra,
         "training": "leave-one-participant-out on the study's episodes" if train is None else train,
         "training_episodes": n_train,
+        "segmentation": segmentation,
         "episodes": len(coded),
         "windows": len(y),
         "agreement": float((pred == y).mean()),
@@ -149,6 +172,12 @@ def main() -> None:
         default=0,
         help="train instead on the episodes of this many other generated participants (data.seed=1)",
     )
+    ap.add_argument(
+        "--segmentation",
+        choices=("episodes", "touch"),
+        default="episodes",
+        help="episodes: the study's coded episodes; touch: the generator's touches, cut where it drew them",
+    )
     args = ap.parse_args()
     base = ["+experiment=scenario_study", "robot=reachy2", f"cache.dir={args.cache}", "tracking.enabled=false"]
     if args.quick:
@@ -164,13 +193,14 @@ def main() -> None:
         ),
         "command": "python bench/bench_study_gesture_coding.py --cache DIR"
         + (" --quick" if args.quick else "")
-        + (f" --train-participants {args.train_participants}" if args.train_participants else ""),
+        + (f" --train-participants {args.train_participants}" if args.train_participants else "")
+        + (" --segmentation touch" if args.segmentation == "touch" else ""),
         "skins": {},
     }
     for name in args.skins:
         extra, what = SKINS[name]
         train = [f"data.participants={args.train_participants}", "data.seed=1"] if args.train_participants else None
-        r = measure(base, extra, train)
+        r = measure(base, extra, train, args.segmentation)
         r["skin"] = what
         out["skins"][name] = r
         print(f"{name}: agreement {100 * r['agreement']:.1f} % over {r['windows']} episodes ({r['seconds']:.0f} s)")
@@ -182,6 +212,7 @@ def main() -> None:
         )
     out["loadavg_after"] = list(__import__("os").getloadavg())
     name = "study_gesture_coding" + (f"_train{args.train_participants}" if args.train_participants else "")
+    name += "_touch" if args.segmentation == "touch" else ""
     print(write_json(name + ("_quick" if args.quick else ""), out))
 
 
