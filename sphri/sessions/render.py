@@ -50,12 +50,18 @@ NONE_SHARE = 1e-3
 CMAP_FLOOR = 0.15
 
 
-def contact_colours(view: LinkView, density: np.ndarray, vmax: float) -> np.ndarray:
+def contact_colours(view: LinkView, density: np.ndarray, vmax: float, smooth: bool = False) -> np.ndarray:
     """(F, 4) RGBA per display face: the colour scale from 0 to ``vmax`` (% per cm^2) starting at CMAP_FLOOR, and
-    :data:`NO_CONTACT` grey where the density is under NONE_SHARE x ``vmax`` (no contact)."""
+    :data:`NO_CONTACT` grey where the density is under NONE_SHARE x ``vmax`` (no contact).
+
+    ``smooth``: (F, 3, 4) per face corner for Gouraud shading (:meth:`LinkView.corner_values`): a face with
+    contact goes from corner to corner on the scale (never grey: at least its lowest colour), a face without
+    contact is grey throughout."""
     vals = view.face_values(np.asarray(density)) * PERCENT_PER_CM2
-    out = plt.get_cmap(CMAP)(CMAP_FLOOR + (1.0 - CMAP_FLOOR) * np.clip(vals / vmax, 0.0, 1.0))
-    out[vals < NONE_SHARE * vmax] = NO_CONTACT
+    none = vals < NONE_SHARE * vmax
+    scale = view.corner_values(vals, flat=none) if smooth else vals
+    out = plt.get_cmap(CMAP)(CMAP_FLOOR + (1.0 - CMAP_FLOOR) * np.clip(scale / vmax, 0.0, 1.0))
+    out[none] = NO_CONTACT
     return out
 
 
@@ -88,7 +94,7 @@ def plot_views(
 ) -> Path:
     """Rows: maps; columns: front, left, back, right, top, each cropped to the robot; one colour scale and bar
     (``vmax``, % per cm^2: the top of the scale, e.g. shared by every scenario's figure; default from these
-    maps); surface without contact grey (:func:`contact_colours`). Rows shrink so that the figure fits a page
+    maps); colour smooth within faces, surface without contact grey (:func:`contact_colours`). Rows shrink so that the figure fits a page
     (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
     names = list(densities)
     vmax = vmax if vmax is not None and vmax > 0 else _vmax(list(densities.values()))
@@ -97,7 +103,7 @@ def plot_views(
             "two", figures.fit_page(1.6 * len(names) + 0.7), nrows=len(names), ncols=len(VIEWS), squeeze=False
         )
         for r, n in enumerate(names):
-            colours = contact_colours(view, densities[n], vmax)
+            colours = contact_colours(view, densities[n], vmax, smooth=True)
             for c, (vt, az, el) in enumerate(VIEWS):
                 ax = axes[r, c]
                 view.draw(ax, None, az, vmax, elev_deg=el, colours=colours.copy())

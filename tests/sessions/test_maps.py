@@ -106,3 +106,25 @@ def test_atlas_titles_give_the_reachable_area_the_ranking_counts(small, view, tm
     assert said[-1].endswith("(cm$^2$: reachable area)")
     assert any(reach[p] < body.part_area_m2()[p] * 0.99 for p in body.parts)  # some area is out of reach
     plt.close("all")
+
+
+def test_views_shade_smoothly_within_faces_and_keep_no_contact_grey(view):
+    from matplotlib.collections import TriMesh
+
+    v, body = view
+    d = np.zeros(body.samples.n)
+    d[body.part == body.parts[0]] = np.linspace(0.0, 1.0, int((body.part == body.parts[0]).sum()))
+    vmax = float(d.max() * render.PERCENT_PER_CM2)
+    flat = render.contact_colours(v, d, vmax)
+    c = render.contact_colours(v, d, vmax, smooth=True)
+    assert c.shape == (len(v.faces), 3, 4)
+    none = np.all(np.isclose(flat, render.NO_CONTACT), axis=1)
+    assert none.any() and (~none).any()
+    assert np.allclose(c[none], render.NO_CONTACT)  # no contact: grey at every corner
+    grey = np.abs(c[~none] - np.array(render.NO_CONTACT)).max(axis=2) < 1e-9
+    assert not grey.any()  # contact: on the colour scale at every corner, never grey
+    assert (np.ptp(c[~none], axis=1).max(axis=1) > 0.01).mean() > 0.2  # colour varies within faces
+    fig, ax = plt.subplots()
+    v.draw(ax, None, 0.0, vmax, colours=c)
+    assert isinstance(ax.collections[0], TriMesh)
+    plt.close(fig)
