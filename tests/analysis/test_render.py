@@ -69,3 +69,16 @@ def test_flat_colours_per_face_are_still_drawn_flat(square):
 
     assert isinstance(ax.collections[0], PolyCollection)
     plt.close(fig)
+
+
+def test_coarse_faces_are_split_even_among_many_small_ones():
+    # one 1 m triangle beside 400 tiny ones (a torso among detailed joints): already more faces than the target
+    tiny = np.array([[0.0, 0.0, 0.0], [0.001, 0.0, 0.0], [0.0, 0.001, 0.0]])
+    v = np.concatenate(
+        [[[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]] + [tiny + [0.0, 0.0, 0.01 * i] for i in range(400)]
+    )
+    f = np.arange(len(v)).reshape(-1, 3)
+    v2, f2 = render._subdivide(v, f, area=0.5, target_faces=200)
+    edges = np.linalg.norm(v2[f2][:, [1, 2, 0]] - v2[f2], axis=2).max(axis=1)
+    limit = np.sqrt(4.0 * 0.5 / (np.sqrt(3.0) * 200)) * 1.2
+    assert len(f2) > len(f) and edges.max() <= limit + 1e-12
