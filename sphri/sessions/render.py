@@ -94,8 +94,8 @@ def plot_views(
 ) -> Path:
     """Rows: maps; columns: front, left, back, right, top, each cropped to the robot; one colour scale and bar
     (``vmax``, % per cm^2: the top of the scale, e.g. shared by every scenario's figure; default from these
-    maps); colour smooth within faces, surface without contact grey (:func:`contact_colours`). Rows shrink so that the figure fits a page
-    (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
+    maps); colour smooth within faces, surface without contact grey (:func:`contact_colours`). Rows shrink so
+    that the figure fits a page (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
     names = list(densities)
     vmax = vmax if vmax is not None and vmax > 0 else _vmax(list(densities.values()))
     with figures.style():
