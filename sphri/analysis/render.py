@@ -12,6 +12,20 @@
 - :func:`plot_coverage_curves`, :func:`plot_swd_heatmap`.
 
 Densities are shown as % of contact per cm^2 (density in 1/m^2 times 0.01).
+
+Colour varies smoothly within faces. A robot's collision meshes are coarse (Reachy 2's torso: triangles with
+40 cm edges), so a view is first subdivided until no edge is longer than the one that gives the target number of
+faces (meshes that already have that many faces included: their few coarse faces are split too), and each face's
+density is read from the samples at its centre. The face values are then spread to the vertices (the area-weighted
+mean of the faces around each vertex) and every face is drawn with Gouraud shading between its corners'
+colours (:meth:`LinkView.corner_values`). The shading uses matplotlib's Gouraud triangles (the renderer
+``tripcolor(shading='gouraud')`` draws with), given one RGBA colour per face corner in the view's own depth order:
+back faces culled and faces painted far to near exactly as the flat drawing does, each corner's colour darkened by
+its face's angle to the viewer, and colours other than the colour scale (the study's grey for no contact) kept.
+``tripcolor`` itself would take one scalar per shared vertex, with no per-face lighting or colour outside the
+scale, and subdividing further would multiply the faces to draw instead. A face whose own value is zero (or, in
+the study's maps, under the no-contact share) stays flat in the zero colour: interpolation fades a touched face
+towards its untouched neighbour but never tints the untouched face.
 """
 
 from __future__ import annotations
@@ -103,11 +117,11 @@ def _bisect(v: np.ndarray, f: np.ndarray, max_edge: float, max_faces: int) -> tu
 
 
 def _subdivide(v: np.ndarray, f: np.ndarray, area: float, target_faces: int) -> tuple[np.ndarray, np.ndarray]:
-    """Faces small enough to show a density: about ``target_faces`` of them."""
-    if f.shape[0] >= target_faces:
-        return v, f
+    """Faces small enough to show a density: no edge longer than that of ``target_faces`` equal faces. A mesh
+    with that many faces already still has its coarse ones split (a torso of a few large triangles among
+    detailed joints), up to ``4 x target_faces`` more faces (Reachy 2's whole body: 36,201 faces, 96,946 split)."""
     edge = float(np.sqrt(4.0 * area / (np.sqrt(3.0) * target_faces))) * 1.2
-    return _bisect(v, f, edge, 2 * target_faces)
+    return _bisect(v, f, edge, f.shape[0] + 4 * target_faces)
 
 
 class LinkView:
@@ -129,6 +143,7 @@ class LinkView:
         self.display = (v - centre) @ rot.T
         tri = v[f]
         self.face_normal = np.asarray(mesh.face_normals)
+        self.face_area = np.asarray(mesh.area_faces)
         self.face_idx, self.face_w = samples.interpolation(tri.mean(axis=1), self.face_normal)
         self.vert_idx, self.vert_w = samples.interpolation(v, np.asarray(mesh.vertex_normals))
 
@@ -138,6 +153,30 @@ class LinkView:
 
     def vertex_values(self, density: np.ndarray) -> np.ndarray:
         return np.einsum("vk,vk->v", np.asarray(density)[self.vert_idx], self.vert_w)
+
+    def spread_to_vertices(self, face_vals: np.ndarray) -> np.ndarray:
+        """(V,) the area-weighted mean of ``face_vals`` (F,) over the faces around each vertex (0 where none)."""
+        n = self.vertices.shape[0]
+        w = np.repeat(self.face_area, 3)
+        num = np.bincount(self.faces.ravel(), weights=w * np.repeat(np.asarray(face_vals, float), 3), minlength=n)
+        den = np.bincount(self.faces.ravel(), weights=w, minlength=n)
+        return np.divide(num, den, out=np.zeros(n), where=den > 0)
+
+    def corner_values(self, face_vals: np.ndarray, flat: np.ndarray | None = None) -> np.ndarray:
+        """(F, 3) values at each face's corners for Gouraud shading: its vertices' values
+        (:meth:`spread_to_vertices`); faces in ``flat`` ((F,) bool; default: value 0) keep their own value at
+        every corner, so that a face without density is drawn in the zero colour, not tinted by a neighbour."""
+        face_vals = np.asarray(face_vals, dtype=np.float64)
+        out = self.spread_to_vertices(face_vals)[self.faces]
+        flat = face_vals == 0 if flat is None else np.asarray(flat, dtype=bool)
+        out[flat] = face_vals[flat, None]
+        return out
+
+    def density_colours(self, density: np.ndarray, vmax: float) -> np.ndarray:
+        """(F, 3, 4) RGBA at each face's corners of ``density`` (per sample) on the scale 0..``vmax``
+        (% per cm^2), smooth within faces (:meth:`corner_values`)."""
+        vals = self.corner_values(self.face_values(np.asarray(density)) * PERCENT_PER_CM2)
+        return plt.get_cmap(CMAP)(np.clip(vals / vmax, 0.0, 1.0) if vmax > 0 else np.zeros_like(vals))
 
     @staticmethod
     def _eye(azim_deg: float, elev_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -167,37 +206,45 @@ class LinkView:
     ) -> None:
         """Orthographic view from ``azim_deg`` around the long axis (vertical) on a 2-D axis.
 
-        Back faces are culled and the rest painted far to near, faces
-        coloured by density (or ``colours``, (F, 4) RGBA per display face) and lightly shaded by their angle
-        to the viewer.
+        Back faces are culled and the rest painted far to near, faces coloured by density, smooth within
+        faces (:meth:`density_colours`), or by ``colours``: (F, 4) RGBA per display face (flat) or (F, 3, 4) per
+        face corner (Gouraud); lightly shaded by their angle to the viewer.
         """
-        from matplotlib.collections import PolyCollection
+        from matplotlib.collections import PolyCollection, TriMesh
+        from matplotlib.tri import Triangulation
 
         if colours is None:
-            vals = self.face_values(np.asarray(density)) * PERCENT_PER_CM2
-            cmap = plt.get_cmap(CMAP)
-            colours = cmap(np.clip(vals / vmax, 0.0, 1.0) if vmax > 0 else np.zeros_like(vals))
+            colours = self.density_colours(np.asarray(density), vmax)
         colours = np.array(colours, dtype=np.float64)
         eye, right, up = self._eye(azim_deg, elev_deg)
         facing = (self.face_normal @ self.rotation.T) @ eye
-        colours[:, :3] *= (0.72 + 0.28 * np.clip(facing, 0.0, 1.0))[:, None]
+        shade = 0.72 + 0.28 * np.clip(facing, 0.0, 1.0)
+        colours[..., :3] *= shade.reshape((-1,) + (1,) * (colours.ndim - 1))
         tris = self.display[self.faces]
         depth = tris.mean(axis=1) @ eye
         keep = np.flatnonzero(facing > -0.02)
         keep = keep[np.argsort(depth[keep], kind="stable")]
         xy = np.stack([tris[keep] @ right, tris[keep] @ up], axis=-1)
-        # rasterized: thousands of faces as one bitmap inside the PDF/SVG (text and axes stay vector); filled
-        # without antialiasing, so neighbouring faces meet without seams and need no stroked edges (half the time)
-        ax.add_collection(
-            PolyCollection(
-                xy,  # type: ignore[arg-type]  # the stub wants a Sequence; matplotlib takes a (K, 3, 2) array as is
-                facecolors=colours[keep],
-                edgecolors="none",
-                linewidths=0.0,
-                antialiased=False,
-                rasterized=True,
+        # rasterized: thousands of faces as one bitmap inside the PDF/SVG (text and axes stay vector)
+        if colours.ndim == 3:
+            # Gouraud triangles in this depth order, each with its own three corners (one colour each)
+            k = len(keep)
+            tri = Triangulation(xy[..., 0].ravel(), xy[..., 1].ravel(), np.arange(3 * k).reshape(k, 3))
+            mesh = TriMesh(tri, rasterized=True)
+            mesh.set_facecolor(colours[keep].reshape(-1, 4))  # type: ignore[arg-type]  # (N, 4) RGBA array, one per corner
+            ax.add_collection(mesh, autolim=False)
+        else:
+            # filled without antialiasing, so neighbouring faces meet without seams and need no stroked edges
+            ax.add_collection(
+                PolyCollection(
+                    xy,  # type: ignore[arg-type]  # the stub wants a Sequence; matplotlib takes (K, 3, 2) as is
+                    facecolors=colours[keep],
+                    edgecolors="none",
+                    linewidths=0.0,
+                    antialiased=False,
+                    rasterized=True,
+                )
             )
-        )
         span_x = np.abs(self.display[:, :2]).max() * 1.05
         span_z = np.abs(self.display[:, 2]).max() * 1.05
         ax.set_xlim(-span_x, span_x)

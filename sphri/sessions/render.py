@@ -50,12 +50,18 @@ NONE_SHARE = 1e-3
 CMAP_FLOOR = 0.15
 
 
-def contact_colours(view: LinkView, density: np.ndarray, vmax: float) -> np.ndarray:
+def contact_colours(view: LinkView, density: np.ndarray, vmax: float, smooth: bool = False) -> np.ndarray:
     """(F, 4) RGBA per display face: the colour scale from 0 to ``vmax`` (% per cm^2) starting at CMAP_FLOOR, and
-    :data:`NO_CONTACT` grey where the density is under NONE_SHARE x ``vmax`` (no contact)."""
+    :data:`NO_CONTACT` grey where the density is under NONE_SHARE x ``vmax`` (no contact).
+
+    ``smooth``: (F, 3, 4) per face corner for Gouraud shading (:meth:`LinkView.corner_values`): a face with
+    contact goes from corner to corner on the scale (never grey: at least its lowest colour), a face without
+    contact is grey throughout."""
     vals = view.face_values(np.asarray(density)) * PERCENT_PER_CM2
-    out = plt.get_cmap(CMAP)(CMAP_FLOOR + (1.0 - CMAP_FLOOR) * np.clip(vals / vmax, 0.0, 1.0))
-    out[vals < NONE_SHARE * vmax] = NO_CONTACT
+    none = vals < NONE_SHARE * vmax
+    scale = view.corner_values(vals, flat=none) if smooth else vals
+    out = plt.get_cmap(CMAP)(CMAP_FLOOR + (1.0 - CMAP_FLOOR) * np.clip(scale / vmax, 0.0, 1.0))
+    out[none] = NO_CONTACT
     return out
 
 
@@ -88,8 +94,8 @@ def plot_views(
 ) -> Path:
     """Rows: maps; columns: front, left, back, right, top, each cropped to the robot; one colour scale and bar
     (``vmax``, % per cm^2: the top of the scale, e.g. shared by every scenario's figure; default from these
-    maps); surface without contact grey (:func:`contact_colours`). Rows shrink so that the figure fits a page
-    (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
+    maps); colour smooth within faces, surface without contact grey (:func:`contact_colours`). Rows shrink so
+    that the figure fits a page (:data:`sphri.figures.PAGE_HEIGHT_IN`)."""
     names = list(densities)
     vmax = vmax if vmax is not None and vmax > 0 else _vmax(list(densities.values()))
     with figures.style():
@@ -97,7 +103,7 @@ def plot_views(
             "two", figures.fit_page(1.6 * len(names) + 0.7), nrows=len(names), ncols=len(VIEWS), squeeze=False
         )
         for r, n in enumerate(names):
-            colours = contact_colours(view, densities[n], vmax)
+            colours = contact_colours(view, densities[n], vmax, smooth=True)
             for c, (vt, az, el) in enumerate(VIEWS):
                 ax = axes[r, c]
                 view.draw(ax, None, az, vmax, elev_deg=el, colours=colours.copy())
@@ -117,6 +123,44 @@ def plot_views(
         return _finish(fig, title, path, provenance)
 
 
+#: A link whose surface's largest second moment is under ELONGATED times the next is round (a ball, a box): its
+#: principal axis is set by sampling noise, and its chart runs along the vertical instead.
+ELONGATED = 1.5
+
+
+def chart_frame(points: np.ndarray, area: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """``(centre, axes)`` of the atlas chart of a link's rest-pose surface samples (world frame: the robot faces
+    +x, its left is +y, up is +z; ``area`` weighs them): ``axes`` rows are the long axis and the directions at 0
+    and +90 degrees around it.
+
+    The long axis is the surface's first principal axis (the vertical for a round link, :data:`ELONGATED`), signed
+    so that its largest component points up, forward or away from the robot's midplane (y = 0); 0 degrees is the
+    front (+x, or up for a link lying front to back) and +90 degrees the side away from the midplane (the robot's
+    left for a link on it). A link and its mirror image across the midplane (left and right arm) get the same
+    chart, axes in the same orientation."""
+    pts = np.asarray(points, dtype=np.float64)
+    w = np.ones(len(pts)) if area is None else np.asarray(area, dtype=np.float64)
+    centre = (pts * w[:, None]).sum(axis=0) / w.sum()
+    _, sv, vt = np.linalg.svd((pts - centre) * np.sqrt(w)[:, None], full_matrices=False)
+    along = vt[0] if len(sv) > 1 and sv[0] ** 2 >= ELONGATED * sv[1] ** 2 else np.array([0.0, 0.0, 1.0])
+    side = -1.0 if centre[1] < -1e-2 else 1.0  # +y: left of the midplane (or on it)
+    outward = along * np.array([1.0, side, 1.0])
+    along = along * (1.0 if outward[np.argmax(np.abs(outward))] >= 0 else -1.0)
+    ref = np.array([1.0, 0.0, 0.0]) if abs(along[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+    zero = ref - (ref @ along) * along
+    zero /= np.linalg.norm(zero)
+    ninety = side * np.cross(along, zero)
+    return centre, np.stack([along, zero, ninety])
+
+
+def unroll(points: np.ndarray, frame: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """``(angle_deg, along_cm)`` of points in a :func:`chart_frame`: angle around the long axis, position along it
+    from the link's centre."""
+    centre, axes = frame
+    local = np.asarray(points, dtype=np.float64) - centre
+    return np.degrees(np.arctan2(local @ axes[2], local @ axes[1])), local @ axes[0] * 100
+
+
 def plot_atlas(
     body: BodySurface,
     robot,
@@ -125,19 +169,21 @@ def plot_atlas(
     title: str,
     provenance: figures.Provenance | None = None,
 ) -> Path:
-    """One unrolled chart per body part: angle around the link's long axis vs position along it (cm); the title
-    gives the part's reachable area (the area the ranking and the placement count), as the figure's title says."""
+    """One unrolled chart per body part: angle around its link's long axis vs position along it (cm), at the rest
+    pose, in one orientation for every part (:func:`chart_frame`: 0 deg front, +90 deg away from the midplane,
+    along up, forward or outward), so that a left part and its right counterpart read alike; each title gives the
+    part's reachable area in cm^2 (the area the ranking and the placement count), as the figure's title says."""
     parts = body.parts
     cols = 5
     rows = int(np.ceil(len(parts) / cols))
     vals = np.asarray(density) * PERCENT_PER_CM2
     vmax = _vmax([density])
-    axis_of = {}
-    for li, _name in enumerate(body.links):
-        s = body.local[li]
-        d = s.points_m - s.points_m.mean(axis=0)
-        _, _, vt = np.linalg.svd(d, full_matrices=False)
-        axis_of[li] = (s.points_m.mean(axis=0), vt)
+    world = body.samples.points_m
+    area = body.samples.area_m2
+    frame_of = {
+        li: chart_frame(world[body.offset[li] : body.offset[li + 1]], area[body.offset[li] : body.offset[li + 1]])
+        for li in range(len(body.links))
+    }
     with figures.style():
         fig, axes = figures.new_figure(
             "two", figures.fit_page(1.45 * rows + 0.8), nrows=rows, ncols=cols, squeeze=False
@@ -145,11 +191,7 @@ def plot_atlas(
         for k, p in enumerate(parts):
             ax = axes[k // cols, k % cols]
             idx = np.flatnonzero(body.part == p)
-            li = int(body.link_of[idx[0]])
-            centre, vt = axis_of[li]
-            local = body.local[li].points_m[idx - body.offset[li]] - centre
-            along = local @ vt[0] * 100
-            ang = np.degrees(np.arctan2(local @ vt[2], local @ vt[1]))
+            ang, along = unroll(world[idx], frame_of[int(body.link_of[idx[0]])])
             ax.scatter(
                 ang, along, c=vals[idx], cmap=CMAP, vmin=0, vmax=vmax, s=2, marker="s", linewidths=0, rasterized=True
             )
@@ -164,7 +206,12 @@ def plot_atlas(
         for k in range(len(parts), rows * cols):
             axes[k // cols, k % cols].set_axis_off()
         _colourbar(fig, vmax, ax=axes)
-        return _finish(fig, f"{title} (cm$^2$: reachable area)", path, provenance)
+        return _finish(
+            fig,
+            f"{title} (around: 0 deg front, +90 deg outer side; along: up or outward; cm$^2$: reachable area)",
+            path,
+            provenance,
+        )
 
 
 def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: str | Path) -> Path:

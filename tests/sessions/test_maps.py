@@ -103,6 +103,82 @@ def test_atlas_titles_give_the_reachable_area_the_ranking_counts(small, view, tm
     assert len(titles) == len(body.parts)
     for p, title in zip(body.parts, titles):
         assert title.endswith(f"({reach[p] * 1e4:.0f} cm$^2$)"), (p, title)
-    assert said[-1].endswith("(cm$^2$: reachable area)")
+    assert said[-1].endswith("cm$^2$: reachable area)")
     assert any(reach[p] < body.part_area_m2()[p] * 0.99 for p in body.parts)  # some area is out of reach
+    plt.close("all")
+
+
+def test_views_shade_smoothly_within_faces_and_keep_no_contact_grey(view):
+    from matplotlib.collections import TriMesh
+
+    v, body = view
+    d = np.zeros(body.samples.n)
+    d[body.part == body.parts[0]] = np.linspace(0.0, 1.0, int((body.part == body.parts[0]).sum()))
+    vmax = float(d.max() * render.PERCENT_PER_CM2)
+    flat = render.contact_colours(v, d, vmax)
+    c = render.contact_colours(v, d, vmax, smooth=True)
+    assert c.shape == (len(v.faces), 3, 4)
+    none = np.all(np.isclose(flat, render.NO_CONTACT), axis=1)
+    assert none.any() and (~none).any()
+    assert np.allclose(c[none], render.NO_CONTACT)  # no contact: grey at every corner
+    grey = np.abs(c[~none] - np.array(render.NO_CONTACT)).max(axis=2) < 1e-9
+    assert not grey.any()  # contact: on the colour scale at every corner, never grey
+    assert (np.ptp(c[~none], axis=1).max(axis=1) > 0.01).mean() > 0.2  # colour varies within faces
+    fig, ax = plt.subplots()
+    v.draw(ax, None, 0.0, vmax, colours=c)
+    assert isinstance(ax.collections[0], TriMesh)
+    plt.close(fig)
+
+
+def test_chart_frame_gives_a_part_and_its_mirror_image_the_same_chart():
+    rng = np.random.default_rng(0)
+    # an arm on the robot's left: long axis tilted down and forward, off the midplane
+    pts = rng.normal(size=(400, 3)) * [0.03, 0.03, 0.15] @ np.array([[1, 0, 0], [0, 1, 0.2], [0.3, 0, 1]])
+    left = pts + [0.05, 0.25, 0.8]
+    right = left * [1.0, -1.0, 1.0]
+    (cl, al), (cr, ar) = render.chart_frame(left), render.chart_frame(right)
+    assert np.allclose(ar, al * [1.0, -1.0, 1.0]) and np.allclose(cr, cl * [1.0, -1.0, 1.0])
+    for a, b in zip(render.unroll(left, (cl, al)), render.unroll(right, (cr, ar))):
+        assert np.allclose(a, b)
+    assert al[0][2] > 0  # along: up
+    ang, _ = render.unroll(cl + np.array([[0.1, 0.0, 0.0], [0.0, 0.1, 0.0]]), (cl, al))
+    assert ang[0] == pytest.approx(0.0, abs=1.0) and ang[1] == pytest.approx(90.0, abs=20.0)  # front, outer side
+    ang, _ = render.unroll(cr + np.array([[0.0, -0.1, 0.0]]), (cr, ar))
+    assert ang[0] == pytest.approx(90.0, abs=20.0)  # the right arm's outer side (-y) is +90 too
+    # a round link (a ball) runs along the vertical, whatever its sampling
+    ball = rng.normal(size=(500, 3))
+    ball /= np.linalg.norm(ball, axis=1, keepdims=True)
+    assert np.allclose(render.chart_frame(ball * 0.05 + [0, 0.2, 1.0])[1][0], [0, 0, 1])
+
+
+def test_atlas_draws_left_and_right_parts_alike(view, small, tmp_path, monkeypatch):
+    _, _, robot, _ = small
+    _, body = view
+    figs = []
+    monkeypatch.setattr(render, "_finish", lambda fig, title, path, provenance: figs.append(fig) or path)
+    render.plot_atlas(body, robot, np.ones(body.samples.n), tmp_path / "a.png", "Atlas")
+    axes = {p: ax for p, ax in zip(body.parts, [a for a in figs[-1].axes if a.get_title()])}
+    pairs = [(p, p[:-2] + "_r") for p in body.parts if p.endswith("_l") and p[:-2] + "_r" in axes]
+    assert len(pairs) >= 4
+    world, area = body.samples.points_m, body.samples.area_m2
+    for left, right in pairs:  # the links' charts: mirror images of each other
+        (_, al), (_, ar) = (
+            render.chart_frame(
+                world[body.offset[li] : body.offset[li + 1]], area[body.offset[li] : body.offset[li + 1]]
+            )
+            for li in (int(body.link_of[body.part == p][0]) for p in (left, right))
+        )
+        assert np.abs(ar - al * [1.0, -1.0, 1.0]).max() < 0.1, (left, right)
+    for left, right in pairs:
+        a, b = (np.asarray(axes[p].collections[0].get_offsets()) for p in (left, right))
+        # the same along-axis range (not mirrored: -10..-5 against 5..10)
+        assert np.percentile(a[:, 1], [10, 90]) == pytest.approx(np.percentile(b[:, 1], [10, 90]), abs=2.5)
+        assert axes[left].get_ylim() == pytest.approx(axes[right].get_ylim(), abs=2.0), (left, right)
+        # around: the front at 0 deg and the outer side (away from the midplane) at +90 deg on both sides
+        for p, off in ((left, a), (right, b)):
+            pts = world[body.part == p]
+            for coord, deg in ((np.abs(pts[:, 1]), 90.0), (pts[:, 0], 0.0)):
+                top = coord >= np.percentile(coord, 75)
+                mean = np.degrees(np.angle(np.exp(1j * np.radians(off[top, 0])).mean()))
+                assert abs((mean - deg + 180) % 360 - 180) < 45, (p, deg, mean)
     plt.close("all")
