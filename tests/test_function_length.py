@@ -42,7 +42,6 @@ STILL_LONG = {
     "sphri/robots/urdf_tree.py:parse_urdf": 89,
     "sphri/sessions/contact.py:body_contacts": 88,
     "sphri/analysis/coverage.py:write_region": 87,
-    "sphri/args.py:_parse": 84,
     "sphri/export/model_file.py:load_model": 83,
     "sphri/hand/capsules.py:load_definition": 81,
 }
