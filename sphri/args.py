@@ -1,38 +1,32 @@
 """One ``key=value`` parser for sphri's commands (every verb but ``run``/``sweep``, which Hydra parses).
 
-A command declares its arguments once, as a dataclass whose fields are made with :func:`arg`; the
-field's type is the value's type and its ``help`` the line ``--help`` prints. :func:`parse` reads
+A command declares its arguments once, as a dataclass whose fields are made with :func:`arg` (or a
+:class:`sphri.config.Schema`: field docstrings are the help, ``"???"`` a required key, a
+:func:`sphri.config.setting` range the check). :func:`parse` builds an :class:`argparse.ArgumentParser`
+from the fields, which tokenises, matches ``--key value``, ``--key=value``, ``--some-key`` and the extra
+``flags`` (``--no-log``), fills the ``positional`` fields with the bare words and lays out ``--help``;
+``key=value`` reaches it as ``--key=value``. What is not a key goes to the ``rest`` field (a command's
+Hydra overrides), or beside the instance (:func:`parse_known`), else it is an error.
 
-- ``key=value``, ``--key value``, ``--key=value`` (``--some-key`` for ``some_key``), and the
-  field's extra spellings (``flags``, e.g. ``--no-log`` for ``mlflow=false``);
-- bare words, for the ``positional`` fields in order (a list field takes every remaining word);
-- anything else, into the ``rest`` field when there is one (the Hydra overrides of a command that
-  composes a config, e.g. ``data.participants=4`` or ``-m``), or returned beside the arguments by
-  :func:`parse_known`, else it is an error.
-
-The dataclass may also be a :class:`sphri.config.Schema` (the hardware commands' and the model
-export's settings): its fields' docstrings are their help, ``"???"`` marks a required key, a
-:func:`sphri.config.setting` range checks the value (naming the key) and lists the choices, and
-``Schema.check`` runs on the instance.
-
-Values are converted to the field's type: ``str``, ``int``, ``float``, ``bool`` (true/false, yes/no,
-on/off, 1/0), ``Path``, a ``Literal``'s choices, ``X | None`` (``none`` for a non-string ``X``), and
-``list[X]`` (comma-separated, or repeated keys, or words). A field's ``check`` returns what the value
-must be, or None. Each problem is :class:`ArgsError`: one line naming the key and what it allows
-(:func:`run` prints it and returns 2). Standard library only (:mod:`sphri.config` is imported only
-for a Schema's fields): the TAB completion reads the schemas.
+Values are converted here, to the field's type: ``str``, ``int``, ``float``, ``bool`` (true/false,
+yes/no, on/off, 1/0), ``Path``, a ``Literal``'s choices, ``X | None`` (``none``), ``list[X]``
+(comma-separated, repeated keys, or words); then the field's ``check``. Every problem is one line naming
+the key and the value (:class:`ArgsError`; :func:`run` prints it and returns 2). Standard library only:
+the TAB completion reads the schemas.
 """
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import difflib
+import functools
 import re
 import sys
 import textwrap
 import types
 import typing
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Collection, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
@@ -42,6 +36,7 @@ _TRUE = ("true", "yes", "on", "1")
 _FALSE = ("false", "no", "off", "0")
 _KEY = re.compile(r"[A-Za-z_][\w.\-]*")
 HELP_FLAGS = ("-h", "--help")
+_META = ("help", "positional", "rest", "flags", "check", "metavar", "choices")  # what arg() records
 
 
 class ArgsError(ValueError):
@@ -71,15 +66,7 @@ def arg(
     may take: checked (an unknown one is named, with the close matches) and offered by the TAB completion.
     ``rest`` marks a ``list[str]`` field that collects every argument that is not one of the command's
     keys (for Hydra overrides)."""
-    meta = {
-        "help": help,
-        "positional": positional,
-        "rest": rest,
-        "flags": dict(flags or {}),
-        "check": check,
-        "metavar": metavar,
-        "choices": tuple(choices),
-    }
+    meta = dict(zip(_META, (help, positional, rest, dict(flags or {}), check, metavar, tuple(choices))))
     if isinstance(default, (list, tuple)):
         items = list(default)
         return dataclasses.field(default_factory=lambda: list(items), metadata=meta)
@@ -94,12 +81,12 @@ class Key:
     type: Any
     default: Any
     required: bool
-    help: str
-    positional: bool
-    rest: bool
-    flags: dict[str, str | None]
-    check: Callable[[Any], str | None] | None
-    metavar: str
+    help: str = ""
+    positional: bool = False
+    rest: bool = False
+    flags: dict[str, str | None] = dataclasses.field(default_factory=dict)
+    check: Callable[[Any], str | None] | None = None
+    metavar: str = ""
     allowed: tuple[str, ...] = ()  # arg(choices=...), or a Schema setting's choices
 
     @property
@@ -122,8 +109,9 @@ class Key:
         return ()
 
     def spellings(self) -> list[str]:
-        dashed = "--" + self.name.replace("_", "-")
-        return list(dict.fromkeys([f"--{self.name}", dashed, *self.flags]))
+        """``--key``, ``--some-key`` and the extra spellings that take a value (not those of a fixed value)."""
+        extra = [s for s, value in self.flags.items() if value is None]
+        return list(dict.fromkeys([f"--{self.name}", "--" + self.name.replace("_", "-"), *extra]))
 
 
 def keys(cls: type) -> list[Key]:
@@ -139,32 +127,16 @@ def keys(cls: type) -> list[Key]:
         ranges = {f.name: f.metadata[RANGE_META] for f in fields if RANGE_META in f.metadata}
     out = []
     for f in fields:
-        m = f.metadata
         rng = ranges.get(f.name)
-        allowed = tuple(m.get("choices", ())) or tuple(str(c) for c in getattr(rng, "choices", None) or ())
-        if f.default == "???":  # OmegaConf's MISSING: a Schema's required setting
-            default, required = None, True
-        elif f.default is not dataclasses.MISSING:
-            default, required = f.default, False
-        elif f.default_factory is not dataclasses.MISSING:
-            default, required = f.default_factory(), False
-        else:
-            default, required = None, True
-        out.append(
-            Key(
-                name=f.name,
-                type=hints[f.name],
-                default=default,
-                required=required,
-                help=m.get("help", docs.get(f.name, "")),
-                positional=m.get("positional", False),
-                rest=m.get("rest", False),
-                flags=m.get("flags", {}),
-                check=m.get("check") or _choice_check(m, f.name) or _range_check(f.name, rng),
-                metavar=m.get("metavar", ""),
-                allowed=allowed,
-            )
+        m = {"help": docs.get(f.name, ""), **{k: v for k, v in f.metadata.items() if k in _META}}
+        allowed = tuple(m.pop("choices", ())) or tuple(str(c) for c in getattr(rng, "choices", None) or ())
+        check = (
+            m.pop("check", None) or _choice_check(f.metadata, f.name) or (rng and functools.partial(rng.check, f.name))
         )
+        default = f.default if f.default_factory is dataclasses.MISSING else f.default_factory()
+        required = default is dataclasses.MISSING or isinstance(default, str) and default == "???"  # a Schema's
+        default = None if required else default
+        out.append(Key(f.name, hints[f.name], default, required, check=check, allowed=allowed, **m))
     return out
 
 
@@ -182,17 +154,6 @@ def _choice_check(meta: Mapping[str, Any], name: str) -> Callable[[Any], str | N
                 close = difflib.get_close_matches(str(item), choices, n=3)
                 hint = f" (did you mean {' or '.join(close)}?)" if close else ""
                 raise ValueError(f"unknown {name} {item!r}{hint}; {name} is one of: {', '.join(choices)}")
-
-    return check
-
-
-def _range_check(name: str, rng: Any) -> Callable[[Any], str | None] | None:
-    """A Schema setting's range (:class:`sphri.config.Range`) as a key's ``check`` (its ConfigError names the key)."""
-    if rng is None:
-        return None
-
-    def check(value: Any) -> None:
-        rng.check(name, value)
 
     return check
 
@@ -240,38 +201,24 @@ def _scalar(key: Key, t: Any, text: str, shown: str) -> Any:
                 return choice
         close = difflib.get_close_matches(text, [str(c) for c in typing.get_args(t)], n=1)
         raise ArgsError(str(bad) + (f" (did you mean {close[0]}?)" if close else ""))
-    if t is bool:
-        if text.lower() in _TRUE:
-            return True
-        if text.lower() in _FALSE:
-            return False
+    try:
+        if t is bool:
+            return {**dict.fromkeys(_TRUE, True), **dict.fromkeys(_FALSE, False)}[text.lower()]
+        if t in (int, float) and t(text) == t(text):  # nan passes every range check
+            return t(text)
+    except (KeyError, ValueError):
+        raise bad from None
+    if t in (int, float):
         raise bad
-    if t is int:
-        try:
-            return int(text)
-        except ValueError:
-            raise bad from None
-    if t is float:
-        try:
-            value = float(text)
-        except ValueError:
-            raise bad from None
-        if value != value:  # nan passes every range check
-            raise bad
-        return value
     if t is Path:
         return Path(text)
     return text
 
 
 def _convert(key: Key, words: list[str], shown: str) -> Any:
-    """The value of ``key`` from its words (one word unless the key is a list)."""
+    """The value of ``key`` from its words (the last one unless the key is a list)."""
     if key.is_list:
-        if not key.positional:  # Hydra's spelling plugins=[a,b] too
-            words = [w[1:-1] if w.startswith("[") and w.endswith("]") else w for w in words]
-        items = [w.strip() for word in words for w in (word.split(",") if not key.positional else [word])]
-        items = [w for w in items if w]
-        value: Any = [_scalar(key, _item(key.type), w, f"{key.name}={w}") for w in items]
+        value: Any = [_scalar(key, _item(key.type), w, f"{key.name}={w}") for w in words]
         if typing.get_origin(_base(key.type)) is tuple:
             value = tuple(value)
     else:
@@ -317,43 +264,86 @@ def usage(cls: type, prog: str, overrides: bool = False) -> str:
     return " ".join(["usage:", prog, *words])
 
 
+def _help_line(k: Key) -> tuple[str, str]:
+    """A key's line of ``--help``: how it is written (``n=INT``, ``SOURCE``) and what it means, its
+    default and its fixed spellings."""
+    if k.rest or k.positional:
+        head = k.metavar or ("overrides" if k.rest else k.name.upper())
+    else:
+        head = f"{k.name}={_metavar(k)}"
+    if k.required:
+        tail = " (required)"
+    elif k.rest or k.default in (None, "", [], ()):
+        tail = ""
+    else:
+        d = ",".join(map(str, k.default)) if isinstance(k.default, (list, tuple)) else k.default
+        tail = f" (default {str(d).lower() if isinstance(d, bool) else d})"
+    fixed = [s for s in k.flags if k.flags[s] is not None]
+    alias = f"; {', '.join(fixed)} for {k.name}={'/'.join(str(k.flags[s]) for s in fixed)}" if fixed else ""
+    return head, (k.help + tail + alias).strip()
+
+
+class _Formatter(argparse.HelpFormatter):
+    """sphri's ``--help`` layout: each argument as it is written (``n=INT``), its meaning from column 30."""
+
+    def __init__(self, prog: str) -> None:
+        super().__init__(prog, width=100, max_help_position=30)
+        self._action_max_length = 28  # the meaning starts at column 30 however short the keys
+
+    def _format_action_invocation(self, action: argparse.Action) -> str:
+        return str(action.metavar)
+
+    def _split_lines(self, text: str, width: int) -> list[str]:
+        return textwrap.wrap(text, width, break_on_hyphens=False)
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> typing.NoReturn:
+        raise ArgsError(message)
+
+
+def _parser(
+    ks: list[Key], cls: type, prog: str, summary: str, overrides: bool, named: Collection[str] = ()
+) -> argparse.ArgumentParser:
+    """The argparse parser of the keys ``ks`` of ``cls``: ``--key`` (``dest`` the key) for every key, a
+    positional (``dest`` ``_key``) for each positional one (not a one-word key ``named`` by ``--key``/``key=``);
+    ``rest`` keys and ``overrides`` are lines of ``--help`` only."""
+    parser = _Parser(
+        prog=prog,
+        usage=usage(cls, prog, overrides).removeprefix("usage: "),
+        description=" ".join(summary.split()) or None,
+        formatter_class=_Formatter,
+        add_help=False,
+        allow_abbrev=False,
+        exit_on_error=False,
+        argument_default=argparse.SUPPRESS,
+    )
+    group = parser.add_argument_group("arguments (key=value, or --key value)")
+    for k in ks:
+        head, text = _help_line(k)
+        kw: dict[str, Any] = {"metavar": head, "help": text.replace("%", "%%")}
+        if k.rest:
+            group._group_actions.append(argparse.Action([], k.name, **kw))
+            continue
+        if k.positional and (k.is_list or k.name not in named):
+            group.add_argument(f"_{k.name}", nargs="*" if k.is_list else "?", **kw)
+            kw["help"] = argparse.SUPPRESS
+        how = {"action": "append"} if k.is_list else {"nargs": "?", "const": "true"} if k.is_bool else {}
+        group.add_argument(*k.spellings(), dest=k.name, **how, **kw)
+        for flag, value in k.flags.items():
+            if value is not None:
+                const = "append_const" if k.is_list else "store_const"
+                group.add_argument(flag, dest=k.name, action=const, const=value, help=argparse.SUPPRESS)
+    if overrides:
+        line = "any other key=value: a config override (+debug=fast, robot=nao_child)"
+        group._group_actions.append(argparse.Action([], "overrides", metavar="overrides", help=line))
+    return parser
+
+
 def help_text(cls: type, prog: str, summary: str = "", overrides: bool = False) -> str:
     """``--help`` of a command: usage, summary, then one line per key (type, default, meaning);
     ``overrides``: it passes the other ``key=value`` arguments to the config (a closing line says so)."""
-    lines = [usage(cls, prog, overrides)]
-    if summary:
-        lines += ["", textwrap.fill(" ".join(summary.split()), width=100)]
-    ks = keys(cls)
-    if ks:
-        lines += ["", "arguments (key=value, or --key value):"]
-    for k in ks:
-        if k.rest:
-            head = f"  {k.metavar or 'overrides'}"
-        elif k.positional:
-            head = f"  {k.metavar or k.name.upper()}"
-        else:
-            head = f"  {k.name}={_metavar(k)}"
-        if k.required:
-            tail = " (required)"
-        elif k.rest or k.default in (None, "", [], ()):
-            tail = ""
-        else:
-            d = ",".join(map(str, k.default)) if isinstance(k.default, (list, tuple)) else k.default
-            tail = f" (default {str(d).lower() if isinstance(d, bool) else d})"
-        extra = [s for s in k.flags if k.flags[s] is not None]
-        alias = f"; {', '.join(extra)} for {k.name}={'/'.join(str(k.flags[s]) for s in extra)}" if extra else ""
-        text = (k.help + tail + alias).strip()
-        if len(head) > 28:
-            lines.append(head)
-            head = ""
-        lines.append(
-            textwrap.fill(
-                text, width=100, initial_indent=f"{head:<30}", subsequent_indent=" " * 30, break_on_hyphens=False
-            )
-        )
-    if overrides:
-        lines += ["  overrides                   any other key=value: a config override (+debug=fast, robot=nao_child)"]
-    return "\n".join(lines)
+    return _parser(keys(cls), cls, prog, summary, overrides).format_help().rstrip()
 
 
 def parse(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary: str = "") -> T:
@@ -369,89 +359,81 @@ def parse_known(cls: type[T], argv: Sequence[str], prog: str = "sphri", summary:
 
 
 def _parse(cls: type[T], argv: Sequence[str], prog: str, summary: str, known: bool) -> tuple[T, list[str]]:
-    ks = keys(cls)
-    by_name = {k.name: k for k in ks}
-    by_flag: dict[str, tuple[Key, str | None]] = {}
-    for k in ks:
-        if not k.rest:
-            for s in k.spellings():
-                by_flag[s] = (k, k.flags.get(s))
-    rest_key = next((k for k in ks if k.rest), None)
-    collect = rest_key is not None or known
-    positional = [k for k in ks if k.positional]
-    words: dict[str, list[str]] = {}
-    shown: dict[str, str] = {}
-    rest: list[str] = []
-
-    def put(k: Key, value: str, spelled: str) -> None:
-        words[k.name] = [*words.get(k.name, []), value] if k.is_list else [value]  # a repeated key: last wins
-        shown[k.name] = spelled
-
-    args = list(argv)
-    if any(a in HELP_FLAGS for a in args):
+    if any(a in HELP_FLAGS for a in argv):
         raise HelpRequested(help_text(cls, prog, summary, known))
-    i = 0
-    while i < len(args):
-        a = args[i]
-        i += 1
-        if a.startswith("--") or a in by_flag:
-            flag, eq, inline = a.partition("=")
-            if flag in by_flag:
-                k, fixed = by_flag[flag]
-                if fixed is not None and not eq:
-                    put(k, fixed, f"{flag}")
-                    continue
-                if eq:
-                    put(k, inline, f"{k.name}={inline}")
-                    continue
-                if k.is_bool and not (i < len(args) and args[i].lower() in (*_TRUE, *_FALSE)):
-                    put(k, "true", flag)
-                    continue
-                if i >= len(args) or args[i].partition("=")[0] in by_flag:  # at the end, or another flag follows
-                    raise ArgsError(f"{flag} needs a value ({k.help or _type_words(k.type)})")
-                put(k, args[i], f"{k.name}={args[i]}")
-                i += 1
-                continue
-            if collect:
-                rest.append(a)
-                continue
-            raise ArgsError(_unknown(flag, ks))
+    ks = keys(cls)
+    collect = known or any(k.rest for k in ks)
+    names = {k.name for k in ks if not k.rest}
+    spelled = {s: k.name for k in ks if not k.rest for s in [*k.spellings(), *k.flags]}
+    bools = {s for k in ks if k.is_bool for s in k.spellings()}
+    takes = {s for k in ks if not k.rest and not k.is_bool for s in k.spellings()}  # --key VALUE
+    tokens: list[tuple[int, str]] = []  # (index in argv, the word argparse reads)
+    aside: list[int] = []  # overrides that are not keys (argparse would take them for words)
+    for i, a in enumerate(argv):
         key, eq, value = a.partition("=")
-        if eq and _KEY.fullmatch(key) and key in by_name and not by_name[key].rest:
-            put(by_name[key], value, a)
-            continue
-        if eq and _KEY.fullmatch(key.lstrip("+~")):
-            if collect:
-                rest.append(a)
+        if i and argv[i - 1] in takes:
+            pass  # the value of --key, as it is
+        elif eq and _KEY.fullmatch(key.lstrip("+~")) and not a.startswith("-"):
+            if key not in names:
+                if not collect:
+                    raise ArgsError(_unknown(key, ks))
+                aside.append(i)
                 continue
-            raise ArgsError(_unknown(key, ks))
-        if a.startswith(("-", "+", "~")) and collect:
-            rest.append(a)
+            a = f"--{key}={value}"
+        elif collect and a.startswith(("-", "+", "~")) and a.partition("=")[0] not in spelled:  # -m, --cfg, +x
+            aside.append(i)
             continue
-        slot = next((k for k in positional if k.is_list or k.name not in words), None)
-        if slot is not None:
-            put(slot, a, f"{slot.name}={a}")
-            continue
-        if collect:
-            rest.append(a)
-            continue
-        raise ArgsError(f"unexpected argument {a!r}: {usage(cls, prog).removeprefix('usage: ')}")
-
-    values: dict[str, Any] = {}
-    for k in ks:
-        if k.rest:
-            values[k.name] = rest
-        elif k.name in words:
-            values[k.name] = _convert(k, words[k.name], shown[k.name])
-        elif k.required:
-            what = f" ({k.help})" if k.help else ""
-            raise ArgsError(f"missing {_usage_word(k).strip('[]')}{what}; {usage(cls, prog)}")
+        elif a in bools and (i + 1 == len(argv) or argv[i + 1].lower() not in (*_TRUE, *_FALSE)):
+            a += "=true"  # a bool flag alone is true (never takes the next word)
+        tokens.append((i, a))
+    named = {spelled.get(t.partition("=")[0]) for _, t in tokens}  # a positional named so takes no words
+    parser = _parser(ks, cls, prog, summary, known, {n for n in named if n})
     try:
-        return cls(**values), ([] if rest_key is not None else rest)
+        ns, extras = parser.parse_known_intermixed_args([t for _, t in tokens])
+    except argparse.ArgumentError as exc:
+        k = next((k for k in ks if exc.argument_name in ("/".join(k.spellings()), k.spellings()[0])), None)
+        raise ArgsError(
+            f"{k.spellings()[0]} needs a value ({k.help or _type_words(k.type)})" if k else str(exc)
+        ) from None
+    if extras and not collect:
+        a = extras[0]
+        raise ArgsError(
+            _unknown(a.partition("=")[0], ks)
+            if a.startswith("-")
+            else f"unexpected argument {a!r}: {usage(cls, prog).removeprefix('usage: ')}"
+        )
+    values = _values(ks, vars(ns), prog, cls)
+    left = set(aside)  # the argv indices of the rest: put aside, or left by argparse
+    for i, token in tokens:
+        if extras and extras[0] == token:
+            left.add(i)
+            extras.pop(0)
+    rest = [argv[i] for i in sorted(left)]
+    values.update({k.name: rest for k in ks if k.rest})
+    try:
+        return cls(**values), ([] if any(k.rest for k in ks) else rest)
     except ArgsError:
         raise
     except (TypeError, ValueError) as exc:  # a __post_init__ check across keys
         raise ArgsError(" ".join(str(exc).split())) from None
+
+
+def _values(ks: list[Key], ns: dict[str, Any], prog: str, cls: type) -> dict[str, Any]:
+    """Each given key's value, converted and checked, from argparse's words (``--key`` words are split at
+    commas for a list key; a positional's words are not); a required key not given is an error."""
+    values: dict[str, Any] = {}
+    for k in ks:
+        given, bare = ns.get(k.name), ns.get(f"_{k.name}")
+        if given is not None:  # Hydra's spelling plugins=[a,b] too
+            given = [i.strip() for w in given for i in w.strip("[]").split(",") if i.strip()] if k.is_list else [given]
+        bare = [bare] if isinstance(bare, str) else bare or []
+        if given is not None or bare:
+            words = [*bare, *(given or [])]
+            values[k.name] = _convert(k, words, f"{k.name}={words[-1] if words else ''}")
+        elif k.required and not k.rest:
+            what = f" ({k.help})" if k.help else ""
+            raise ArgsError(f"missing {_usage_word(k).strip('[]')}{what}; {usage(cls, prog)}")
+    return values
 
 
 def _unknown(key: str, ks: list[Key]) -> str:
@@ -471,29 +453,21 @@ def run(
     usage_prog: str = "",
 ) -> int:
     """Parse ``argv`` into ``cls`` and call ``body`` with it. A bad argument (:class:`ArgsError`, from
-    the parser or raised by ``body``) is one line on stderr (``<prog>: <problem>``) and exit code 2;
-    ``--help`` prints the help and returns 0."""
-    args = _or_exit_code(prog, lambda: parse(cls, argv, usage_prog or prog, summary))
-    if isinstance(args, int):
-        return args
+    the parser or raised by ``body``: a folder or stage that is not there) is one line on stderr
+    (``<prog>: <problem>``) and exit code 2; ``--help`` prints the help and returns 0."""
     try:
-        return body(args)
-    except ArgsError as exc:  # found by the command itself (a folder or stage that is not there)
-        print(f"{prog}: {exc}", file=sys.stderr)
-        return 2
+        return body(parse(cls, argv, usage_prog or prog, summary))
+    except (HelpRequested, ArgsError) as exc:
+        return _exit_code(prog, exc)
 
 
-def _or_exit_code(prog: str, parse_call: Callable[[], T]) -> T | int:
-    """``parse_call()``'s value (never an int), or the exit code after printing the help (0) or one
-    line ``<prog>: <problem>`` on stderr (2)."""
-    try:
-        return parse_call()
-    except HelpRequested as h:
-        print(h)
+def _exit_code(prog: str, exc: HelpRequested | ArgsError) -> int:
+    """0 after printing the help, or 2 after one line ``<prog>: <problem>`` on stderr."""
+    if isinstance(exc, HelpRequested):
+        print(exc)
         return 0
-    except ArgsError as exc:
-        print(f"{prog}: {exc}", file=sys.stderr)
-        return 2
+    print(f"{prog}: {exc}", file=sys.stderr)
+    return 2
 
 
 def first_paragraph(doc: str | None) -> str:
@@ -548,16 +522,13 @@ def read_settings(
         print("\n\n".join(texts), file=sys.stdout if argv else sys.stderr)
         return 0 if argv else 2
     word = argv.pop(0) if words else ""
-    if word not in commands:
-        close = difflib.get_close_matches(word, words, n=1)
-        hint = f" (did you mean {close[0]}?)" if close else ""
-        print(f"{prog}: unknown command {word!r}{hint}; commands: {', '.join(words)}", file=sys.stderr)
-        return 2
-    cls, known = commands[word]
-    parsed: tuple[Any, list[str]] | int = _or_exit_code(
-        prog, lambda: _parse(cls, argv, f"{usage_prog} {word}".strip(), summary(cls), known)
-    )
-    if isinstance(parsed, int):
-        return parsed
-    settings, overrides = parsed
-    return word, settings, overrides
+    try:
+        if word not in commands:
+            close = difflib.get_close_matches(word, words, n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise ArgsError(f"unknown command {word!r}{hint}; commands: {', '.join(words)}")
+        cls, known = commands[word]
+        settings, overrides = _parse(cls, argv, f"{usage_prog} {word}".strip(), summary(cls), known)
+        return word, settings, overrides
+    except (HelpRequested, ArgsError) as exc:
+        return _exit_code(prog, exc)

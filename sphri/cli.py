@@ -26,7 +26,7 @@ from pathlib import Path
 import yaml
 
 from sphri.args import arg
-from sphri.config import CONF_DIR, DEFAULT_GROUPS, ConfigError, check_inputs, compose, validate
+from sphri.config import CONF_DIR, DEFAULT_GROUPS, RENAMED_KEYS, ConfigError, check_inputs, compose, validate
 from sphri.stages import PARAM_GROUPS, STAGE_GROUPS
 
 
@@ -148,7 +148,8 @@ def cmd_list(groups: list[str]) -> int:
 
 def cmd_show(overrides: list[str], groups: list[str] | None = None) -> int:
     """Print each setting of the chosen components: its value, the schema default when the value
-    differs, and its meaning (the schema's field docstring: defaults and docs live there once)."""
+    differs, and its meaning (the schema's field docstring: defaults and docs live there once). The groups
+    are those named (a renamed key's old group and its owner: ``encoder.res`` shows encoder and layout)."""
     from omegaconf import OmegaConf
 
     from sphri.config import field_docs
@@ -159,7 +160,8 @@ def cmd_show(overrides: list[str], groups: list[str] | None = None) -> int:
         problem = ""
     except ConfigError as exc:
         problem = str(exc)
-    named = [o.lstrip("+").split("=", 1)[0].split(".", 1)[0] for o in overrides if "=" in o]
+    keys = [o.lstrip("+").split("=", 1)[0] for o in overrides if "=" in o]
+    named = [k.split(".", 1)[0] for k in [*keys, *(RENAMED_KEYS[k] for k in keys if k in RENAMED_KEYS)]]
     shown = groups or [g for g in STAGE_GROUPS if g in named] or list(STAGE_GROUPS)
     for group in shown:
         if group not in STAGE_GROUPS:

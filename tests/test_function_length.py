@@ -22,7 +22,6 @@ STILL_LONG = {
     "sphri/models/cnn_gru.py:_train": 97,
     "sphri/data/vr_gesture.py:load": 91,
     "sphri/contact/_kernels.py:query_rows": 90,
-    "sphri/args.py:_parse": 84,
 }
 
 

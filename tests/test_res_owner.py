@@ -116,3 +116,15 @@ def test_a_report_reads_the_resolution_under_either_name():
     assert res_param({}, "?") == "?"
     runs = [{"encoder.res": "4", "model": "rf"}, {"layout.res": "6", "model": "rf"}]
     assert varying_params(runs) == []
+
+
+def test_show_of_the_old_key_shows_its_group_and_the_owners(fresh_alias, capsys):
+    """``sphri show encoder.res=7``: the encoder group, and the layout group that holds the value."""
+    from sphri.command import main
+
+    assert main(["show", "encoder.res=7"]) == 0
+    out = capsys.readouterr()
+    groups = [line.split(":")[0] for line in out.out.splitlines() if line and not line.startswith(" ")]
+    assert {"encoder", "layout"} <= set(groups), out.out
+    assert re.search(r"^  res +7 ", out.out, re.M) and "[changed; default 18]" in out.out, out.out
+    assert "encoder.res is deprecated, write layout.res" in out.err
