@@ -11,16 +11,9 @@ LIMIT = 80
 
 #: ``path:function`` -> the most lines it may have, for the functions not yet split.
 STILL_LONG = {
-    "sphri/data/synthetic.py:_trial": 137,
     "sphri/encode/raster.py:_raster_frame": 122,
     "sphri/contact/_kernels.py:_seg_tri": 109,
     "sphri/contact/_kernels.py:_nearest": 107,
-    "sphri/data/gestures.py:_plan": 103,
-    "sphri/evaluate/cv.py:run": 102,
-    "sphri/contact/mesh.py:_build": 101,
-    "sphri/data/vr_gesture.py:_trials_from_table": 98,
-    "sphri/models/cnn_gru.py:_train": 97,
-    "sphri/data/vr_gesture.py:load": 91,
     "sphri/contact/_kernels.py:query_rows": 90,
 }
 

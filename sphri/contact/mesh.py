@@ -329,14 +329,24 @@ def _seed_grid(lo, hi, tri, deg, nodes_box, nodes_int):
     return np.array([lo[0], lo[1], lo[2], 1.0 / cell]), dim, seed
 
 
-def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:
-    lo_w = v.min(axis=0)
-    hi_w = v.max(axis=0)
-    shift = 0.5 * (lo_w + hi_w)
-    lv = v - shift
-    scale = float(np.linalg.norm(hi_w - lo_w)) or 1.0
-    notes: list[str] = []
+@dataclass
+class _Faces:
+    """Per-face geometry of a mesh in local coordinates (metres): the corners ``t`` (F, 3, 3) and ``a``, ``b``,
+    ``c`` (F, 3), the unit normal ``geo_n`` (zeros when degenerate), the edges' in-plane outward unit normals
+    ``side`` (F, 3, 3) and offsets ``side_off`` (F, 3; +inf when degenerate), and ``deg`` (F,) bool."""
 
+    t: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    c: np.ndarray
+    geo_n: np.ndarray
+    side: np.ndarray
+    side_off: np.ndarray
+    deg: np.ndarray
+
+
+def _faces(lv: np.ndarray, f: np.ndarray, notes: list[str]) -> _Faces:
+    """The :class:`_Faces` of local vertices ``lv`` (V, 3) m and faces ``f`` (F, 3); degenerate faces are noted."""
     t = lv[f]
     a, b, c = t[:, 0], t[:, 1], t[:, 2]
     cr = np.cross(b - a, c - a)
@@ -356,7 +366,24 @@ def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:
     side_off[deg] = np.inf
     if deg.any():
         notes.append(f"{int(deg.sum())} degenerate faces are treated as their edges")
+    return _Faces(t, a, b, c, geo_n, side, side_off, deg)
 
+
+@dataclass
+class _Inside:
+    """How a mesh's inside is decided: its hull planes (unit normals ``hull_n`` (P, 3), offsets ``hull_d`` (P,)
+    m, vertex rows ``hull_vi``), whether the surface is convex, and the mode (hull, winding or none)."""
+
+    hull_n: np.ndarray
+    hull_d: np.ndarray
+    hull_vi: np.ndarray
+    convex: bool
+    mode: str
+
+
+def _inside_test(lv: np.ndarray, f: np.ndarray, scale: float, inside: str, notes: list[str]) -> _Inside:
+    """The :class:`_Inside` of local vertices ``lv`` (m), faces ``f``, mesh size ``scale`` (m) and the asked
+    ``inside`` mode (``auto``: hull when convex, else winding)."""
     hull_n, hull_d, hull_vi = _hull_planes(lv, scale)
     tol = min(CONVEX_TOL_M, CONVEX_REL_TOL * scale)
     convex = bool(hull_n.shape[0] > 0 and _is_convex_surface(lv, f, hull_n, hull_d, tol))
@@ -364,28 +391,39 @@ def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:
     if mode in ("hull", "winding") and hull_n.shape[0] == 0:
         notes.append("the vertices span no volume: nothing is inside")
         mode = "none"
-    out_n = geo_n.copy()
-    if convex and mode == "hull":
-        # report normals pointing away from the hull's interior (open hulls may have faces wound inward)
-        centre = lv[hull_vi].mean(axis=0)
-        flip = np.einsum("ij,ij->i", out_n, a - centre) < 0
+    return _Inside(hull_n, hull_d, hull_vi, convex, mode)
+
+
+def _outward_normals(lv: np.ndarray, fc: _Faces, ins: _Inside, notes: list[str]) -> np.ndarray:
+    """(F, 3) normals reported in results: pointing away from the hull's interior on a convex mesh tested
+    by its hull (open hulls may have faces wound inward), else the faces' own."""
+    out_n = fc.geo_n.copy()
+    if ins.convex and ins.mode == "hull":
+        centre = lv[ins.hull_vi].mean(axis=0)
+        flip = np.einsum("ij,ij->i", out_n, fc.a - centre) < 0
         if flip.any():
             out_n[flip] *= -1.0
             notes.append(f"{int(flip.sum())} faces wound inward get outward normals")
-    # hull plane nearest to each face (the first one tried by the inside test)
-    tri_plane = np.zeros(f.shape[0], dtype=np.int64)
-    if hull_n.shape[0]:
-        cen = t.mean(axis=1)
-        step = max(1, 4_000_000 // hull_n.shape[0])
-        for s in range(0, f.shape[0], step):
-            tri_plane[s : s + step] = np.argmax(cen[s : s + step] @ hull_n.T - hull_d, axis=1)
+    return out_n
 
-    lo = np.minimum(np.minimum(a, b), c)
-    hi = np.maximum(np.maximum(a, b), c)
-    order, node_lo, node_hi, left, right, start, count = _build_bvh(lo, hi)
 
-    tri = np.concatenate([a, b, c, geo_n, side.reshape(-1, 9), side_off], axis=1)[order]
-    m = node_lo.shape[0]
+def _nearest_planes(fc: _Faces, ins: _Inside) -> np.ndarray:
+    """(F,) int64 hull plane nearest to each face's centroid (the first one tried by the inside test)."""
+    n_faces = fc.t.shape[0]
+    tri_plane = np.zeros(n_faces, dtype=np.int64)
+    if ins.hull_n.shape[0]:
+        cen = fc.t.mean(axis=1)
+        step = max(1, 4_000_000 // ins.hull_n.shape[0])
+        for s in range(0, n_faces, step):
+            tri_plane[s : s + step] = np.argmax(cen[s : s + step] @ ins.hull_n.T - ins.hull_d, axis=1)
+    return tri_plane
+
+
+def _closure_arrays(
+    mode: str, lv: np.ndarray, f: np.ndarray, order: np.ndarray, start: np.ndarray, count: np.ndarray, m: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(closure start (M,), closure count (M,), edge starts (E, 3), edge ends (E, 3) m) of the ``m`` BVH nodes
+    for the winding test; empty closures in the other modes."""
     if mode == "winding":
         # merge vertices at identical positions so that shared edges cancel
         _, vid = np.unique(lv, axis=0, return_inverse=True)
@@ -393,15 +431,38 @@ def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:
         tri_v = vid[f][order]
         uniq_pos = np.zeros((int(vid.max()) + 1, 3))
         uniq_pos[vid] = lv
-        close_start, close_count, cu, cv = _closures(tri_v, start, count, uniq_pos)
-    else:
-        close_start = np.full(m, -1, dtype=np.int64)
-        close_count = np.zeros(m, dtype=np.int64)
-        cu = np.zeros((0, 3))
-        cv = np.zeros((0, 3))
-    hull = np.concatenate([hull_n, hull_d[:, None]], axis=1) if hull_n.shape[0] else np.zeros((0, 4))
+        return _closures(tri_v, start, count, uniq_pos)
+    close_start = np.full(m, -1, dtype=np.int64)
+    close_count = np.zeros(m, dtype=np.int64)
+    cu = np.zeros((0, 3))
+    cv = np.zeros((0, 3))
+    return close_start, close_count, cu, cv
+
+
+def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:
+    """The :class:`MeshAccel` of vertices ``v`` (V, 3) m and faces ``f`` (F, 3) with the ``inside`` mode asked."""
+    lo_w = v.min(axis=0)
+    hi_w = v.max(axis=0)
+    shift = 0.5 * (lo_w + hi_w)
+    lv = v - shift
+    scale = float(np.linalg.norm(hi_w - lo_w)) or 1.0
+    notes: list[str] = []
+    fc = _faces(lv, f, notes)
+    ins = _inside_test(lv, f, scale, inside, notes)
+    out_n = _outward_normals(lv, fc, ins, notes)
+    tri_plane = _nearest_planes(fc, ins)
+
+    a, b, c = fc.a, fc.b, fc.c
+    lo = np.minimum(np.minimum(a, b), c)
+    hi = np.maximum(np.maximum(a, b), c)
+    order, node_lo, node_hi, left, right, start, count = _build_bvh(lo, hi)
+
+    tri = np.concatenate([a, b, c, fc.geo_n, fc.side.reshape(-1, 9), fc.side_off], axis=1)[order]
+    close_start, close_count, cu, cv = _closure_arrays(ins.mode, lv, f, order, start, count, node_lo.shape[0])
+    hull_n = ins.hull_n
+    hull = np.concatenate([hull_n, ins.hull_d[:, None]], axis=1) if hull_n.shape[0] else np.zeros((0, 4))
     tri = np.ascontiguousarray(tri)
-    deg_o = np.ascontiguousarray(deg[order])
+    deg_o = np.ascontiguousarray(fc.deg[order])
     nodes_box = np.ascontiguousarray(np.concatenate([node_lo, node_hi], axis=1))
     nodes_int = np.ascontiguousarray(np.stack([left, right, start, count], axis=1))
     grid, grid_dim, grid_seed = _seed_grid(lv.min(axis=0), lv.max(axis=0), tri, deg_o, nodes_box, nodes_int)
@@ -410,8 +471,8 @@ def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:
         shift=shift,
         n_vertices=int(v.shape[0]),
         n_faces=int(f.shape[0]),
-        inside_mode=mode,
-        convex=convex,
+        inside_mode=ins.mode,
+        convex=ins.convex,
         box=np.concatenate([lv.min(axis=0), lv.max(axis=0)]),
         sphere_radius=float(np.sqrt((lv**2).sum(axis=1).max())),
         tri=tri,

@@ -344,108 +344,185 @@ def plan_contact(
     return add_brush_and_retouch(plan, rng, spread)
 
 
+@dataclass
+class _Draws:
+    """What every gesture's contact plan starts from, drawn for one trial (in this order): the depth below
+    the surface (m), hand yaw, tilt and tilt azimuth (radians), the fingers' spread (5, 4 radians), the
+    contact duration (s), and the participant-gesture factors on ramp time (``slow``), repetition rate and
+    slide extent. Its methods draw the rest from the same ``rng``."""
+
+    gesture: str
+    rng: np.random.Generator
+    style: Style
+    depth: float
+    yaw: float
+    tilt: float
+    az: float
+    spread: np.ndarray
+    dur: float
+    slow: float
+    rate: float
+    extent: float
+
+    @classmethod
+    def draw(cls, gesture: str, rng: np.random.Generator, style: Style, sp: Spread) -> _Draws:
+        """The common draws of one ``gesture`` trial for ``style`` under ``sp``."""
+        depth = penetration_depth(rng, gesture, style, sp)
+        yaw = style.yaw + rng.normal(0.0, np.radians(20.0))
+        tilt = float(rng.uniform(0.0, np.radians(10.0)))
+        az = float(rng.uniform(0.0, 2 * np.pi))
+        spread = np.zeros((5, 4))
+        spread[1:, 0] = np.array([1.0, 0.0, -1.0, -2.0]) * (style.spread + rng.normal(0.0, 0.02)) * 0.5
+        dur = contact_duration(rng, gesture, style, sp)
+        slow = 1.0 / style.speed_g.get(gesture, 1.0)  # pressing speed: ramps take longer for a slow participant-gesture
+        rate = style.rate_g.get(gesture, 1.0)
+        extent = style.extent_g.get(gesture, 1.0)
+        return cls(gesture, rng, style, depth, yaw, tilt, az, spread, dur, slow, rate, extent)
+
+    @property
+    def one(self) -> list[tuple[float, float, float]]:
+        """A single touch: (0 s, the duration in s, the depth in m)."""
+        return [(0.0, self.dur, self.depth)]
+
+    def hover(self, lo: float, hi: float) -> float:
+        """A hover height (m) drawn uniformly in [lo, hi)."""
+        return float(self.rng.uniform(lo, hi))
+
+    def multi(self, g: str) -> list[tuple[float, float, float]]:
+        """A train of (start s, end s, depth m) touches of a repeated gesture ``g``."""
+        choices, expected = TOUCH_COUNTS[g]
+        n = int(self.rng.choice(choices, p=self.style.counts[g]))
+        return _touch_train(self.dur * n / expected / self.rate, n, CONTACT_FRACTION[g], self.depth, self.rng)
+
+    def plan(self, effector: str, fingers: np.ndarray, touches, hover_m: float, ramp_s: float, **kw) -> ContactPlan:
+        """The :class:`ContactPlan` of these draws; ``ramp_s`` (s) is scaled by ``slow``, ``kw`` may override
+        ``yaw`` and ``tilt`` (radians) and set the other fields."""
+        # ``hover_m`` is drawn by the caller before the draws in ``kw`` (the random stream's order)
+        kw = {"yaw": self.yaw, "tilt": self.tilt, **kw}
+        return ContactPlan(
+            self.gesture, effector, fingers, touches, hover_m, ramp_s * self.slow, tilt_azimuth=self.az, **kw
+        )
+
+    def pads_or_palm(self, habit: str) -> tuple[str, np.ndarray]:
+        """(effector, (5, 4) finger angles in radians): finger pads with the probability of ``habit``, else the palm."""
+        fingers = self.rng.random() < self.style.habit(habit)
+        return ("fingers", SLIDE_FINGERS) if fingers else ("palm", FLAT + self.spread)
+
+
+def _poke(d: _Draws) -> ContactPlan:
+    """A poke: the index tip, one touch, tilted up to 25 degrees."""
+    return d.plan(
+        "index_tip",
+        POINT + 0.5 * d.spread,
+        d.one,
+        d.hover(0.03, 0.05),
+        0.15,
+        tilt=float(d.rng.uniform(0.0, np.radians(25.0))),
+    )
+
+
+def _tap_or_pat(d: _Draws) -> ContactPlan:
+    """A tap (index tip, or two fingers) or a pat (pads or palm): a train of touches, each jittered along the surface."""
+    rng, style, spread = d.rng, d.style, d.spread
+    if d.gesture == "tap":
+        effector, shape = "index_tip", (TAP2 if rng.random() < style.habit("tap_two") else TAP) + 0.5 * spread
+        heights, ramp, jitter = (0.015, 0.025), 0.08, 0.004
+    else:
+        (effector, shape), heights, ramp, jitter = d.pads_or_palm("pat_fingers"), (0.03, 0.05), 0.10, 0.006
+    touches = d.multi(d.gesture)
+    out = d.plan(effector, shape, touches, d.hover(*heights), ramp, slide_angle=float(rng.uniform(0, 2 * np.pi)))
+    out.slide = [(a, float(rng.normal(0.0, jitter))) for a, _, _ in touches]
+    return out
+
+
+def _hit(d: _Draws) -> ContactPlan:
+    """A hit: fist or palm, one fast touch."""
+    fist = d.rng.random() < d.style.habit("hit_fist")
+    effector, shape = ("fist", FIST) if fist else ("palm", FLAT + d.spread)
+    return d.plan(effector, shape, d.one, d.hover(0.08, 0.12), 0.05)
+
+
+def _push(d: _Draws) -> ContactPlan:
+    """A push: index tip or palm, one slow touch."""
+    tip = d.rng.random() < d.style.habit("push_tip")
+    effector, shape = ("index_tip", POINT + 0.5 * d.spread) if tip else ("palm", FLAT + d.spread)
+    return d.plan(effector, shape, d.one, d.hover(0.03, 0.05), 0.25)
+
+
+def _rub(d: _Draws) -> ContactPlan:
+    """A rub: pads or palm sliding back and forth (1.5-3 Hz, 1.5-3 cm) along or across the link."""
+    rng, dur = d.rng, d.dur
+    effector, shape = d.pads_or_palm("slide_fingers")
+    across = rng.random() < d.style.habit("rub_across")
+    angle = (np.pi / 2 if across else 0.0) + rng.normal(0.0, np.radians(20.0))
+    amp = float(rng.uniform(0.015, 0.03)) * d.extent
+    freq = float(rng.uniform(1.5, 3.0)) * d.rate
+    out = d.plan(effector, shape, d.one, d.hover(0.02, 0.04), 0.15, slide_angle=float(angle))
+    half = 0.5 / freq
+    k = np.arange(1, max(int(dur / half), 1) + 1)
+    out.slide = [(0.0, 0.0)] + [(float(t), float(amp * (1 if i % 2 else -1))) for i, t in zip(k, k * half) if t < dur]
+    return out
+
+
+def _stroke(d: _Draws) -> ContactPlan:
+    """A stroke: pads or palm sliding 6-12 cm (times hand scale) one way, once or more."""
+    rng = d.rng
+    effector, shape = d.pads_or_palm("slide_fingers")
+    touches = d.multi("stroke")
+    length = float(rng.uniform(0.06, 0.12)) * d.style.scale * d.extent
+    sign = 1.0 if rng.random() < d.style.habit("stroke_sign") else -1.0
+    angle = (0.0 if sign > 0 else np.pi) + rng.normal(0.0, np.radians(10.0))
+    out = d.plan(effector, shape, touches, d.hover(0.02, 0.04), 0.12, slide_angle=float(angle))
+    for a, b, _ in touches:
+        out.slide += [(a, -0.5 * length), (b, 0.5 * length)]
+    return out
+
+
+def _grab(d: _Draws, rho: float) -> ContactPlan:
+    """A grab: the palm on the link, fingers closing around a cylinder of radius ``rho`` (m) and opening again."""
+    rng, dur = d.rng, d.dur
+    side = 1.0 if rng.random() < d.style.habit("grab_side") else -1.0
+    closed = _grab_fingers(rho, d.style.scale) * float(rng.uniform(1.2, 1.4))
+    out = d.plan(
+        "palm",
+        GRAB_OPEN,
+        d.one,
+        d.hover(0.03, 0.05),
+        0.2,
+        yaw=np.pi / 2 * side + rng.normal(0.0, np.radians(10.0)),
+        grab=True,
+    )
+    close = min(0.25, 0.3 * dur)
+    out.finger_knots = [
+        (0.0, GRAB_OPEN),
+        (close, closed),
+        (max(dur - close, close), closed),
+        (dur + 0.1, GRAB_OPEN),
+    ]
+    return out
+
+
+#: The plan of each gesture but the grab (which also takes the link's radius).
+_PLANS = {
+    "poke": _poke,
+    "tap": _tap_or_pat,
+    "pat": _tap_or_pat,
+    "hit": _hit,
+    "push": _push,
+    "rub": _rub,
+    "stroke": _stroke,
+}
+
+
 def _plan(
     gesture: str, rng: np.random.Generator, style: Style, wrap_radius_m: float, finger_radius_m: float, sp: Spread
 ) -> ContactPlan:
-    depth = penetration_depth(rng, gesture, style, sp)
-    yaw = style.yaw + rng.normal(0.0, np.radians(20.0))
-    tilt = float(rng.uniform(0.0, np.radians(10.0)))
-    az = float(rng.uniform(0.0, 2 * np.pi))
-    spread = np.zeros((5, 4))
-    spread[1:, 0] = np.array([1.0, 0.0, -1.0, -2.0]) * (style.spread + rng.normal(0.0, 0.02)) * 0.5
-    dur = contact_duration(rng, gesture, style, sp)
-    slow = 1.0 / style.speed_g.get(gesture, 1.0)  # pressing speed: ramps take longer for a slow participant-gesture
-    rate = style.rate_g.get(gesture, 1.0)
-    extent = style.extent_g.get(gesture, 1.0)
-
-    def hover(lo: float, hi: float) -> float:
-        return float(rng.uniform(lo, hi))
-
-    def multi(g: str) -> list[tuple[float, float, float]]:
-        choices, expected = TOUCH_COUNTS[g]
-        n = int(rng.choice(choices, p=style.counts[g]))
-        return _touch_train(dur * n / expected / rate, n, CONTACT_FRACTION[g], depth, rng)
-
-    def plan(effector: str, fingers: np.ndarray, touches, hover_m: float, ramp_s: float, **kw) -> ContactPlan:
-        # ``hover_m`` is drawn by the caller before the draws in ``kw`` (the random stream's order)
-        kw = {"yaw": yaw, "tilt": tilt, **kw}
-        return ContactPlan(gesture, effector, fingers, touches, hover_m, ramp_s * slow, tilt_azimuth=az, **kw)
-
-    def pads_or_palm(habit: str) -> tuple[str, np.ndarray]:
-        fingers = rng.random() < style.habit(habit)
-        return ("fingers", SLIDE_FINGERS) if fingers else ("palm", FLAT + spread)
-
-    one = [(0.0, dur, depth)]
-    if gesture == "poke":
-        return plan(
-            "index_tip",
-            POINT + 0.5 * spread,
-            one,
-            hover(0.03, 0.05),
-            0.15,
-            tilt=float(rng.uniform(0.0, np.radians(25.0))),
-        )
-    if gesture in ("tap", "pat"):
-        if gesture == "tap":
-            effector, shape = "index_tip", (TAP2 if rng.random() < style.habit("tap_two") else TAP) + 0.5 * spread
-            heights, ramp, jitter = (0.015, 0.025), 0.08, 0.004
-        else:
-            (effector, shape), heights, ramp, jitter = pads_or_palm("pat_fingers"), (0.03, 0.05), 0.10, 0.006
-        touches = multi(gesture)
-        out = plan(effector, shape, touches, hover(*heights), ramp, slide_angle=float(rng.uniform(0, 2 * np.pi)))
-        out.slide = [(a, float(rng.normal(0.0, jitter))) for a, _, _ in touches]
-        return out
-    if gesture == "hit":
-        fist = rng.random() < style.habit("hit_fist")
-        effector, shape = ("fist", FIST) if fist else ("palm", FLAT + spread)
-        return plan(effector, shape, one, hover(0.08, 0.12), 0.05)
-    if gesture == "push":
-        tip = rng.random() < style.habit("push_tip")
-        effector, shape = ("index_tip", POINT + 0.5 * spread) if tip else ("palm", FLAT + spread)
-        return plan(effector, shape, one, hover(0.03, 0.05), 0.25)
-    if gesture == "rub":
-        effector, shape = pads_or_palm("slide_fingers")
-        across = rng.random() < style.habit("rub_across")
-        angle = (np.pi / 2 if across else 0.0) + rng.normal(0.0, np.radians(20.0))
-        amp = float(rng.uniform(0.015, 0.03)) * extent
-        freq = float(rng.uniform(1.5, 3.0)) * rate
-        out = plan(effector, shape, one, hover(0.02, 0.04), 0.15, slide_angle=float(angle))
-        half = 0.5 / freq
-        k = np.arange(1, max(int(dur / half), 1) + 1)
-        out.slide = [(0.0, 0.0)] + [
-            (float(t), float(amp * (1 if i % 2 else -1))) for i, t in zip(k, k * half) if t < dur
-        ]
-        return out
-    if gesture == "stroke":
-        effector, shape = pads_or_palm("slide_fingers")
-        touches = multi("stroke")
-        length = float(rng.uniform(0.06, 0.12)) * style.scale * extent
-        sign = 1.0 if rng.random() < style.habit("stroke_sign") else -1.0
-        angle = (0.0 if sign > 0 else np.pi) + rng.normal(0.0, np.radians(10.0))
-        out = plan(effector, shape, touches, hover(0.02, 0.04), 0.12, slide_angle=float(angle))
-        for a, b, _ in touches:
-            out.slide += [(a, -0.5 * length), (b, 0.5 * length)]
-        return out
+    """The contact phase of one ``gesture`` trial before accidental touches (see :func:`plan_contact`)."""
+    d = _Draws.draw(gesture, rng, style, sp)
     if gesture == "grab":
-        side = 1.0 if rng.random() < style.habit("grab_side") else -1.0
-        closed = _grab_fingers(wrap_radius_m + finger_radius_m, style.scale) * float(rng.uniform(1.2, 1.4))
-        out = plan(
-            "palm",
-            GRAB_OPEN,
-            one,
-            hover(0.03, 0.05),
-            0.2,
-            yaw=np.pi / 2 * side + rng.normal(0.0, np.radians(10.0)),
-            grab=True,
-        )
-        close = min(0.25, 0.3 * dur)
-        out.finger_knots = [
-            (0.0, GRAB_OPEN),
-            (close, closed),
-            (max(dur - close, close), closed),
-            (dur + 0.1, GRAB_OPEN),
-        ]
-        return out
+        return _grab(d, wrap_radius_m + finger_radius_m)
+    if gesture in _PLANS:
+        return _PLANS[gesture](d)
     raise ValueError(f"unknown gesture {gesture!r}")
 
 

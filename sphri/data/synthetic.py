@@ -146,6 +146,43 @@ class _TrialMotion:
     joint_noise: np.ndarray  # (T, C, 3) metres
 
 
+@dataclass
+class _TouchSite:
+    """Where one trial touches: its contact plan, the touch point ``p`` (3,) m with outward normal ``n`` and
+    tangents ``t1``, ``t2`` (link frame), and the plan's (time s, effector height m) knots."""
+
+    plan: ContactPlan
+    p: np.ndarray
+    n: np.ndarray
+    t1: np.ndarray
+    t2: np.ndarray
+    hk: list[tuple[float, float]]
+
+
+@dataclass
+class _Timeline:
+    """Phase times of one trial (seconds): first rest ends, hover reached, contact-plan time 0 (``shift``),
+    leaving the surface, back away, end; the first frame's time and the number of frames."""
+
+    rest1: float
+    t_hover: float
+    shift: float
+    t_leave: float
+    t_gone: float
+    t_end: float
+    t_start: float
+    n_frames: int
+
+
+@dataclass
+class _Tracking:
+    """Per frame: the time its pose shows (s, ``t``) and the tracking sample it holds (``held``), of ``n_samples``."""
+
+    t: np.ndarray
+    held: np.ndarray
+    n_samples: int
+
+
 class SyntheticData:
     """Synthetic gesture trials (see the module docstring); ``load`` returns a :class:`GestureDataset`.
 
@@ -313,24 +350,33 @@ class SyntheticData:
         m_l: np.ndarray,
         f_l: np.ndarray,
     ) -> _TrialMotion:
-        from sphri.data.handfk import EFFECTORS, rotvec_to_matrix
+        """The motion of one trial touching ``surf`` at its point ``i`` with ``plan``; ``m_l``/``f_l`` (3,): the
+        touching effector's normal and forward in the hand frame."""
+        from sphri.data.handfk import EFFECTORS
 
-        hand = rig.hand
-        gesture = plan.gesture
         p, n, t1, t2 = surf.frame_at(i)
+        site = _TouchSite(plan, p, n, t1, t2, height_knots(plan))
+        r_contact = _contact_rotation(site, m_l, f_l)
+        tl = self._timeline(rng, style, region, site)
+        tr = self._tracking(rng, tl)
+        target = _target_track(rng, style, surf, site, tl, tr.t)
+        fingers = _finger_track(rng, plan, tl, tr.t)
+        rot, fingers, pos_noise, joint_noise = self._tracked(rng, tl, tr, r_contact, fingers, rig.hand.n_capsules)
+        return _TrialMotion(
+            fingers=fingers,
+            rot=rot,
+            target=target,
+            effector=EFFECTORS.index(plan.effector),
+            pos_noise=pos_noise,
+            joint_noise=joint_noise,
+        )
 
-        # hand orientation while touching: effector normal against the (tilted) surface normal
-        tilt_axis = np.cos(plan.tilt_azimuth) * t1 + np.sin(plan.tilt_azimuth) * t2
-        press = _rotate(-n, tilt_axis, plan.tilt)
-        tau = np.cos(plan.yaw) * t1 + np.sin(plan.yaw) * t2
-        tau = _unit(tau - (tau @ press) * press)
-        world = np.stack([press, tau, _cross(press, tau)], axis=1)
-        local = np.stack([m_l, f_l, _cross(m_l, f_l)], axis=1)
-        r_contact = world @ local.T
-
-        # timeline (seconds): rest, approach, contact phase, retreat, rest
+    def _timeline(self, rng: np.random.Generator, style: Style, region: str, site: _TouchSite) -> _Timeline:
+        """The phase times (s) and frame count of one trial: its whole length, approach and retreat, the idle
+        time split before and after, and mis-timed boundaries."""
+        plan, hk = site.plan, site.hk
+        gesture = plan.gesture
         sp = self.spread
-        hk = height_knots(plan)
         c0, c1 = hk[0][0], hk[-1][0]
         # whole-trial length: the study's median for the gesture, times the participant's, the participant x
         # gesture and a heavy-tailed trial factor; now and then a trial nobody ended (tens of seconds)
@@ -363,9 +409,13 @@ class SyntheticData:
             first_touch = shift + plan.touches[0][0]
             t_stop = float(rng.uniform(first_touch + 0.5 * (plan.touches[0][1] - plan.touches[0][0]), t_gone))
         n_frames = max(int(round((t_stop - t_start) * self.frame_rate_hz)), 2)
+        return _Timeline(rest1, t_hover, shift, t_leave, t_gone, t_end, t_start, n_frames)
 
+    def _tracking(self, rng: np.random.Generator, tl: _Timeline) -> _Tracking:
+        """Which tracking sample each frame of the trial ``tl`` holds, and the time (s) it shows."""
         # tracking: jittered ~tracking_rate_hz samples held between frames, seen with a latency;
         # dropouts freeze the hand, jumps throw it a few centimetres for a sample or three
+        t_start, n_frames = tl.t_start, tl.n_frames
         frame_t = t_start + np.arange(n_frames) / self.frame_rate_hz
         period = 1.0 / self.tracking_rate_hz
         n_samples = int(n_frames * self.tracking_rate_hz / self.frame_rate_hz * 1.6) + 8
@@ -377,50 +427,30 @@ class SyntheticData:
             held[a : a + int(rng.integers(3, self.dropout_max_frames + 1))] = held[a]
         latency = (self.latency_ms + self.latency_sd_ms * rng.standard_normal(n_samples)) / 1000.0
         t = np.minimum(sample_t[held], frame_t) - latency[held]
+        return _Tracking(t, held, n_samples)
 
-        # tracks
-        beta = interpolate(t, [rest1, t_hover, t_leave, t_gone], np.array([0.0, 1.0, 1.0, 0.0]))[:, 0]
-        h = interpolate(t, [k + shift for k, _ in hk], np.array([v for _, v in hk]))[:, 0]
-        angle = plan.slide_angle
-        slide_dir = np.cos(angle) * t1 + np.sin(angle) * t2
-        if plan.slide:
-            s = interpolate(t, [k + shift for k, _ in plan.slide], np.array([v for _, v in plan.slide]))[:, 0]
-            ext = plan.slide_extent_m + 0.01
-            grid = np.linspace(-ext, ext, 17)
-            s_h = np.interp(s, grid, surf.height_profile(p, n, slide_dir, grid))
-        else:
-            s = np.zeros(n_frames)
-            s_h = np.zeros(n_frames)
-        tilt_app = style.tilt + rng.normal(0.0, np.radians(8.0))
-        az = style.tilt_azimuth + rng.normal(0.0, np.radians(25.0))
-        d_app = _rotate(n, np.cos(az) * t1 + np.sin(az) * t2, tilt_app)
-        rest = p + d_app * style.rest_m * float(rng.uniform(0.9, 1.1))
-        drift = rng.normal(0.0, 0.015, size=(3, 3))
-        rest_t = [0.0, rest1, t_gone, t_end]
-        rest_v = np.stack([rest, rest + drift[0], rest + drift[1], rest + drift[1] + drift[2]])
-        rest_track = interpolate(t, rest_t, rest_v)
-        touch = p + n * (h + s_h)[:, None] + slide_dir * s[:, None]
-        target = (1.0 - beta)[:, None] * rest_track + beta[:, None] * touch
+    def _tracked(
+        self,
+        rng: np.random.Generator,
+        tl: _Timeline,
+        tr: _Tracking,
+        r_contact: np.ndarray,
+        fingers: np.ndarray,
+        n_capsules: int,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """(rotation (T, 3, 3), fingers (T, 5, 4) radians, position noise (T, 3) m, joint noise (T, C, 3) m) of
+        the trial: the hand's wobble at rest around ``r_contact`` and the tracking noise, one draw per sample."""
+        from sphri.data.handfk import rotvec_to_matrix
 
-        relaxed = RELAXED + rng.normal(0.0, 0.05, size=RELAXED.shape)
-        f_t = [0.0, rest1, t_hover]
-        f_v = [relaxed, relaxed, plan.fingers]
-        for k, v in plan.finger_knots:
-            f_t.append(k + shift)
-            f_v.append(v)
-        f_t += [t_leave, t_gone]
-        f_v += [plan.fingers if not plan.finger_knots else plan.finger_knots[-1][1], relaxed]
-        order = np.argsort(f_t, kind="stable")
-        fingers = interpolate(t, np.asarray(f_t)[order], np.stack(f_v)[order].reshape(len(f_t), -1)).reshape(-1, 5, 4)
-
+        t, held = tr.t, tr.held
         w_rest1 = rng.normal(0.0, 0.3, size=3)
         w_rest2 = rng.normal(0.0, 0.3, size=3)
         omega = interpolate(
-            t, [rest1, t_hover, t_leave, t_gone], np.stack([w_rest1, np.zeros(3), np.zeros(3), w_rest2])
+            t, [tl.rest1, tl.t_hover, tl.t_leave, tl.t_gone], np.stack([w_rest1, np.zeros(3), np.zeros(3), w_rest2])
         )
 
         # tracking noise, one draw per tracking sample (held with it)
-        ns = n_samples
+        ns = tr.n_samples
         omega = omega + np.radians(0.4) * rng.standard_normal((ns, 3))[held]
         fingers = fingers + np.radians(1.0) * rng.standard_normal((ns, 5, 4))[held]
         rot = r_contact[None] @ rotvec_to_matrix(omega)
@@ -429,12 +459,64 @@ class SyntheticData:
             j = int(rng.integers(0, ns))
             sample_noise[j : j + int(rng.integers(1, 4))] += self.jump_mm / 1000.0 * rng.standard_normal(3)
         pos_noise = sample_noise[held]
-        joint_noise = 0.0003 * rng.standard_normal((ns, hand.n_capsules, 3))[held]
-        return _TrialMotion(
-            fingers=fingers,
-            rot=rot,
-            target=target,
-            effector=EFFECTORS.index(plan.effector),
-            pos_noise=pos_noise,
-            joint_noise=joint_noise,
-        )
+        joint_noise = 0.0003 * rng.standard_normal((ns, n_capsules, 3))[held]
+        return rot, fingers, pos_noise, joint_noise
+
+
+def _contact_rotation(site: _TouchSite, m_l: np.ndarray, f_l: np.ndarray) -> np.ndarray:
+    """(3, 3) hand frame -> link frame while touching: the effector's normal ``m_l`` against the (tilted)
+    surface normal, its forward ``f_l`` along the plan's yaw."""
+    plan, n, t1, t2 = site.plan, site.n, site.t1, site.t2
+    tilt_axis = np.cos(plan.tilt_azimuth) * t1 + np.sin(plan.tilt_azimuth) * t2
+    press = _rotate(-n, tilt_axis, plan.tilt)
+    tau = np.cos(plan.yaw) * t1 + np.sin(plan.yaw) * t2
+    tau = _unit(tau - (tau @ press) * press)
+    world = np.stack([press, tau, _cross(press, tau)], axis=1)
+    local = np.stack([m_l, f_l, _cross(m_l, f_l)], axis=1)
+    return world @ local.T
+
+
+def _target_track(
+    rng: np.random.Generator, style: Style, surf: LinkSurface, site: _TouchSite, tl: _Timeline, t: np.ndarray
+) -> np.ndarray:
+    """(T, 3) where the effector goes at times ``t`` (s), metres in the link frame: from a drifting rest point
+    to the touch (height and slide over the surface) and back."""
+    plan, p, n, t1, t2, hk = site.plan, site.p, site.n, site.t1, site.t2, site.hk
+    rest1, t_hover, shift, t_leave, t_gone = tl.rest1, tl.t_hover, tl.shift, tl.t_leave, tl.t_gone
+    beta = interpolate(t, [rest1, t_hover, t_leave, t_gone], np.array([0.0, 1.0, 1.0, 0.0]))[:, 0]
+    h = interpolate(t, [k + shift for k, _ in hk], np.array([v for _, v in hk]))[:, 0]
+    angle = plan.slide_angle
+    slide_dir = np.cos(angle) * t1 + np.sin(angle) * t2
+    if plan.slide:
+        s = interpolate(t, [k + shift for k, _ in plan.slide], np.array([v for _, v in plan.slide]))[:, 0]
+        ext = plan.slide_extent_m + 0.01
+        grid = np.linspace(-ext, ext, 17)
+        s_h = np.interp(s, grid, surf.height_profile(p, n, slide_dir, grid))
+    else:
+        s = np.zeros(tl.n_frames)
+        s_h = np.zeros(tl.n_frames)
+    tilt_app = style.tilt + rng.normal(0.0, np.radians(8.0))
+    az = style.tilt_azimuth + rng.normal(0.0, np.radians(25.0))
+    d_app = _rotate(n, np.cos(az) * t1 + np.sin(az) * t2, tilt_app)
+    rest = p + d_app * style.rest_m * float(rng.uniform(0.9, 1.1))
+    drift = rng.normal(0.0, 0.015, size=(3, 3))
+    rest_t = [0.0, rest1, t_gone, tl.t_end]
+    rest_v = np.stack([rest, rest + drift[0], rest + drift[1], rest + drift[1] + drift[2]])
+    rest_track = interpolate(t, rest_t, rest_v)
+    touch = p + n * (h + s_h)[:, None] + slide_dir * s[:, None]
+    return (1.0 - beta)[:, None] * rest_track + beta[:, None] * touch
+
+
+def _finger_track(rng: np.random.Generator, plan: ContactPlan, tl: _Timeline, t: np.ndarray) -> np.ndarray:
+    """(T, 5, 4) finger angles (radians) at times ``t`` (s): relaxed at rest, the plan's shape (and knots) in contact."""
+    rest1, t_hover, shift = tl.rest1, tl.t_hover, tl.shift
+    relaxed = RELAXED + rng.normal(0.0, 0.05, size=RELAXED.shape)
+    f_t = [0.0, rest1, t_hover]
+    f_v = [relaxed, relaxed, plan.fingers]
+    for k, v in plan.finger_knots:
+        f_t.append(k + shift)
+        f_v.append(v)
+    f_t += [tl.t_leave, tl.t_gone]
+    f_v += [plan.fingers if not plan.finger_knots else plan.finger_knots[-1][1], relaxed]
+    order = np.argsort(f_t, kind="stable")
+    return interpolate(t, np.asarray(f_t)[order], np.stack(f_v)[order].reshape(len(f_t), -1)).reshape(-1, 5, 4)

@@ -49,6 +49,7 @@ import difflib
 import logging
 from collections import Counter
 from collections.abc import Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -196,6 +197,22 @@ def column_problems(ppath: Path, schema: pa.Schema, hand: HandModel) -> list[str
     return problems
 
 
+@dataclass
+class _Read:
+    """What :meth:`VRGestureData.load` has read so far: repairs, trial records and their poses (F, C, 7) in
+    metres, the next trial's first frame (``start``), whether each manifest was sphri-generated, the manifests'
+    frame rates (Hz), usable trials per participant and the trials' fingerprints (for duplicates)."""
+
+    repairs: Counter[str] = field(default_factory=Counter)
+    records: list[dict] = field(default_factory=list)
+    chunks: list[np.ndarray] = field(default_factory=list)
+    generators: set[bool] = field(default_factory=set)
+    rates: set[float] = field(default_factory=set)
+    start: int = 0
+    n_usable: Counter[str] = field(default_factory=Counter)
+    prints: list = field(default_factory=list)
+
+
 class _Notes:
     """Repairs of one file: counted in ``repairs`` and logged as one warning per kind."""
 
@@ -293,6 +310,40 @@ class VRGestureData:
     # ------------------------------------------------------------------ public
     def load(self, hand: HandModel, robot: Robot | None = None) -> GestureDataset:
         """Read the selected trials into a :class:`GestureDataset` (poses float32, link frames)."""
+        pids = self._participant_ids(robot)
+        read = _Read()
+        for pid in pids:
+            for region in self.regions:
+                if not (self.root / region / pid).is_dir():
+                    log.info("%s has no %s folder; skipped", pid, region)
+                    continue
+                self._read_participant(pid, region, hand, robot, read)
+        self._note_empty(pids, read)
+        self._check_duplicates(read)
+        if len(read.generators) > 1:
+            raise DatasetError(f"{self.root}: mixes sphri-generated and recorded manifests ('{GENERATOR_KEY}' key)")
+        synthetic = read.generators == {True}
+        if len(read.rates) > 1:
+            raise DatasetError(f"{self.root}: manifests disagree on frame_rate_hz: {sorted(read.rates)}")
+        rate = self._frame_rate(read.rates)
+        c = hand.n_capsules
+        poses = np.concatenate(read.chunks, axis=0) if read.chunks else np.zeros((0, c, 7), np.float32)
+        repairs = read.repairs
+        if repairs:
+            log.warning("%s: repairs applied on load: %s", self.root, dict(repairs))
+        return GestureDataset(
+            name="synthetic" if synthetic else "vr_gesture",
+            synthetic=synthetic,
+            hand=hand,
+            trials=make_trials_frame(read.records),
+            poses=np.ascontiguousarray(poses, dtype=np.float32),
+            frame_rate_hz=rate,
+            repairs=dict(repairs),
+        )
+
+    # --------------------------------------------------------------- internals
+    def _participant_ids(self, robot: Robot | None) -> list[str]:
+        """The participant ids to read (the first ``participants`` found), after checking the robot has the regions."""
         if robot is not None:
             for region in self.regions:
                 robot.link_for(region)  # UnknownRegion naming the robot's regions
@@ -301,48 +352,42 @@ class VRGestureData:
             raise DatasetError(f"{self.root}: no participant_XX folders under {self.regions}")
         if self.participants is not None:
             pids = pids[: self.participants]
-        repairs: Counter[str] = Counter()
-        records: list[dict] = []
-        chunks: list[np.ndarray] = []
-        generators: set[bool] = set()
-        rates: set[float] = set()
-        start = 0
-        n_usable: Counter[str] = Counter()
-        prints: list = []
-        for pid in pids:
-            for region in self.regions:
-                if not (self.root / region / pid).is_dir():
-                    log.info("%s has no %s folder; skipped", pid, region)
-                    continue
-                manifest, trials, poses = self.load_participant(pid, region, hand, repairs)
-                check_position_scale(
-                    str(parquet_path(self.root, region, pid)), pid, poses, hand, robot, region, self.units, trials
+        return pids
+
+    def _read_participant(self, pid: str, region: str, hand: HandModel, robot: Robot | None, read: _Read) -> None:
+        """Read one participant's trials in ``region`` (positions checked for scale) and add them to ``read``."""
+        manifest, trials, poses = self.load_participant(pid, region, hand, read.repairs)
+        check_position_scale(
+            str(parquet_path(self.root, region, pid)), pid, poses, hand, robot, region, self.units, trials
+        )
+        read.n_usable[pid] += len(trials)
+        read.generators.add(manifest.get(GENERATOR_KEY) == GENERATOR_VALUE)
+        if "frame_rate_hz" in manifest:
+            read.rates.add(float(manifest["frame_rate_hz"]))
+        for t, p in zip(trials, poses):
+            read.records.append(
+                dict(
+                    participant=pid,
+                    region=region,
+                    trial_ordinal=t["trial_ordinal"],
+                    trial_id=t["trial_id"],
+                    gesture=t["gesture_label"],
+                    start=read.start,
+                    n_frames=len(p),
                 )
-                n_usable[pid] += len(trials)
-                generators.add(manifest.get(GENERATOR_KEY) == GENERATOR_VALUE)
-                if "frame_rate_hz" in manifest:
-                    rates.add(float(manifest["frame_rate_hz"]))
-                for t, p in zip(trials, poses):
-                    records.append(
-                        dict(
-                            participant=pid,
-                            region=region,
-                            trial_ordinal=t["trial_ordinal"],
-                            trial_id=t["trial_id"],
-                            gesture=t["gesture_label"],
-                            start=start,
-                            n_frames=len(p),
-                        )
-                    )
-                    chunks.append(p)
-                    start += len(p)
-                    if self.duplicates != "off":
-                        prints.append((pid, (region, t["gesture_label"], len(p)), fingerprint(p)))
+            )
+            read.chunks.append(p)
+            read.start += len(p)
+            if self.duplicates != "off":
+                read.prints.append((pid, (region, t["gesture_label"], len(p)), fingerprint(p)))
+
+    def _note_empty(self, pids: list[str], read: _Read) -> None:
+        """Count and warn about the participants (with a folder) left without a usable trial."""
         empty = [
-            pid for pid in pids if n_usable[pid] == 0 and any((self.root / r / pid).is_dir() for r in self.regions)
+            pid for pid in pids if read.n_usable[pid] == 0 and any((self.root / r / pid).is_dir() for r in self.regions)
         ]
         if empty:
-            repairs["participant_without_trials"] += len(empty)
+            read.repairs["participant_without_trials"] += len(empty)
             log.warning(
                 "%s: participant(s) %s have no usable trial (gestures %s, min_frames %d): left out of the dataset",
                 self.root,
@@ -350,40 +395,23 @@ class VRGestureData:
                 self.gestures,
                 self.min_frames,
             )
-        for pair in find_duplicates(prints):
+
+    def _check_duplicates(self, read: _Read) -> None:
+        """Refuse (or, under ``duplicates=warn``, count and warn about) participants holding near-identical trials."""
+        for pair in find_duplicates(read.prints):
             if self.duplicates == "refuse":
                 raise DatasetError(
                     f"{self.root}: {describe(pair)}: a copied participant folder? Remove one, or set "
                     "data.duplicates=warn to load both"
                 )
-            repairs["duplicate_participants"] += 1
+            read.repairs["duplicate_participants"] += 1
             log.warning(
                 "%s: duplicate_participants: %s: both loaded (data.duplicates=warn); they are not independent "
                 "people, so leave-one-subject-out overstates accuracy",
                 self.root,
                 describe(pair),
             )
-        if len(generators) > 1:
-            raise DatasetError(f"{self.root}: mixes sphri-generated and recorded manifests ('{GENERATOR_KEY}' key)")
-        synthetic = generators == {True}
-        if len(rates) > 1:
-            raise DatasetError(f"{self.root}: manifests disagree on frame_rate_hz: {sorted(rates)}")
-        rate = self._frame_rate(rates)
-        c = hand.n_capsules
-        poses = np.concatenate(chunks, axis=0) if chunks else np.zeros((0, c, 7), np.float32)
-        if repairs:
-            log.warning("%s: repairs applied on load: %s", self.root, dict(repairs))
-        return GestureDataset(
-            name="synthetic" if synthetic else "vr_gesture",
-            synthetic=synthetic,
-            hand=hand,
-            trials=make_trials_frame(records),
-            poses=np.ascontiguousarray(poses, dtype=np.float32),
-            frame_rate_hz=rate,
-            repairs=dict(repairs),
-        )
 
-    # --------------------------------------------------------------- internals
     def _frame_rate(self, rates: set[float]) -> float:
         if self.frame_rate_hz is not None:
             if rates and float(self.frame_rate_hz) not in rates:
@@ -472,6 +500,23 @@ class VRGestureData:
     def _trials_from_table(
         self, ppath: Path, table: pa.Table, wanted: list[dict], hand: HandModel, notes: _Notes
     ) -> tuple[list[dict], list[np.ndarray]]:
+        """The ``wanted`` manifest trials that survive repair and their poses (F, C, 7) in metres, read from
+        ``table`` (the rows of ``ppath`` selected for them); every row and trial checked against the manifest."""
+        rows = self._sorted_rows(table, hand)
+        _check_frame_index(ppath, rows)
+        _check_frame_order(ppath, rows)
+        out_trials: list[dict] = []
+        out_poses: list[np.ndarray] = []
+        for t in wanted:
+            o, s, n = _check_trial(ppath, rows, t, notes)
+            p, ok = self._repair(o, rows.poses[s : s + n], hand, notes)
+            if ok:
+                out_trials.append(t)
+                out_poses.append(p)
+        return out_trials, out_poses
+
+    def _sorted_rows(self, table: pa.Table, hand: HandModel) -> _Rows:
+        """The rows of ``table`` in (trial_ordinal, frame_index_in_trial) order, poses scaled to metres."""
         c = hand.n_capsules
         ordinal = table.column("trial_ordinal").to_numpy().astype(np.int64)
         fidx = table.column("frame_index_in_trial").to_numpy().astype(np.int64)
@@ -490,83 +535,7 @@ class VRGestureData:
 
         uniq, first, counts = np.unique(ordinal, return_index=True, return_counts=True)
         where = {int(o): (int(s), int(n)) for o, s, n in zip(uniq, first, counts)}
-
-        # frame_index_in_trial must be 0..n-1 in every trial
-        pos_in_trial = np.arange(len(ordinal)) - np.repeat(first, counts)
-        broken = np.unique(ordinal[fidx != pos_in_trial])
-        if broken.size:
-            o = int(broken[0])
-            s, n = where[o]
-            idx = fidx[s : s + n]
-            dup = np.unique(idx[np.r_[False, np.diff(idx) == 0]])
-            missing = np.setdiff1d(np.arange(idx.max() + 1 if n else 0), idx)
-            what = []
-            if dup.size:
-                what.append(f"duplicated values {dup[:10].tolist()}")
-            if missing.size:
-                what.append(f"missing values {missing[:10].tolist()}")
-            if idx.min() < 0:
-                what.append("negative values")
-            raise DatasetError(
-                f"{ppath}: trial {o}: column frame_index_in_trial has {'; '.join(what)} "
-                f"(expected 0..{n - 1}; {broken.size} trial(s) affected)"
-            )
-
-        # in frame_index_in_trial order the recording's own frame numbers must not go backwards: a
-        # reversed or shuffled index would silently reorder the poses
-        back = np.flatnonzero((np.diff(frame) < 0) & (ordinal[1:] == ordinal[:-1])) + 1
-        if back.size:
-            r = int(back[0])
-            o = int(ordinal[r])
-            raise DatasetError(
-                f"{ppath}: trial {o}: column frame goes backwards ({int(frame[r - 1])} -> {int(frame[r])}) at "
-                f"frame_index_in_trial={int(fidx[r])}: the index disagrees with the recording order "
-                f"({np.unique(ordinal[back]).size} trial(s) affected)"
-            )
-
-        out_trials: list[dict] = []
-        out_poses: list[np.ndarray] = []
-        for t in wanted:
-            o = int(t["trial_ordinal"])
-            if o not in where:
-                raise ManifestError(f"{ppath}: trial {o} ({t['trial_id']}) is in the manifest but has no rows")
-            s, n = where[o]
-            if n != t["frame_count"]:
-                raise ManifestError(
-                    f"{ppath}: trial {o}: {n} rows but the manifest's frame_count is {t['frame_count']}"
-                )
-            lab = set(labels[s : s + n].tolist())
-            if len(lab) != 1:
-                raise DatasetError(
-                    f"{ppath}: trial {o}: column gesture_label has several values {sorted(map(str, lab))}"
-                )
-            g = lab.pop()
-            if g not in GESTURES:
-                raise DatasetError(
-                    f"{ppath}: trial {o}: column gesture_label={g!r} is not a known gesture ({list(GESTURES)})"
-                )
-            if g != t["gesture_label"]:
-                raise ManifestError(
-                    f"{ppath}: trial {o}: gesture_label {g!r} but the manifest says {t['gesture_label']!r}"
-                )
-            ids = set(tids[s : s + n].tolist())
-            if ids != {t["trial_id"]}:
-                raise ManifestError(
-                    f"{ppath}: trial {o}: column trial_id {sorted(map(str, ids))} but the manifest says {t['trial_id']!r}"
-                )
-            if "start_frame" in t and "end_frame" in t and n:
-                if frame[s] != t["start_frame"] or frame[s + n - 1] != t["end_frame"]:
-                    notes.add(
-                        "frame_range_mismatch",
-                        1,
-                        f"trial {o}: column frame spans {frame[s]}..{frame[s + n - 1]}, "
-                        f"the manifest says {t['start_frame']}..{t['end_frame']} (kept)",
-                    )
-            p, ok = self._repair(o, poses[s : s + n], hand, notes)
-            if ok:
-                out_trials.append(t)
-                out_poses.append(p)
-        return out_trials, out_poses
+        return _Rows(ordinal, fidx, frame, labels, tids, poses, first, counts, where)
 
     def _repair(self, o: int, p: np.ndarray, hand: HandModel, notes: _Notes) -> tuple[np.ndarray, bool]:
         """Hold invalid capsule poses, normalize off-unit quaternions; False when unrepairable."""
@@ -609,3 +578,93 @@ class VRGestureData:
                 f"off 1 by > {self.quat_tolerance:g} (capsules {caps}, columns *_rot_*) normalized",
             )
         return p, True
+
+
+@dataclass
+class _Rows:
+    """A participant file's selected rows in (trial_ordinal, frame_index_in_trial) order: those columns, the
+    ``frame`` column, labels and trial ids, poses (R, C, 7) float32 in metres, and where each trial starts
+    (``first``), how many rows it has (``counts``) and both by ordinal (``where``: ordinal -> (start, rows))."""
+
+    ordinal: np.ndarray
+    fidx: np.ndarray
+    frame: np.ndarray
+    labels: np.ndarray
+    tids: np.ndarray
+    poses: np.ndarray
+    first: np.ndarray
+    counts: np.ndarray
+    where: dict[int, tuple[int, int]]
+
+
+def _check_frame_index(ppath: Path, rows: _Rows) -> None:
+    """Refuse (:class:`DatasetError`) a trial whose frame_index_in_trial is not 0..n-1."""
+    ordinal, fidx, first, counts = rows.ordinal, rows.fidx, rows.first, rows.counts
+    pos_in_trial = np.arange(len(ordinal)) - np.repeat(first, counts)
+    broken = np.unique(ordinal[fidx != pos_in_trial])
+    if broken.size:
+        o = int(broken[0])
+        s, n = rows.where[o]
+        idx = fidx[s : s + n]
+        dup = np.unique(idx[np.r_[False, np.diff(idx) == 0]])
+        missing = np.setdiff1d(np.arange(idx.max() + 1 if n else 0), idx)
+        what = []
+        if dup.size:
+            what.append(f"duplicated values {dup[:10].tolist()}")
+        if missing.size:
+            what.append(f"missing values {missing[:10].tolist()}")
+        if idx.min() < 0:
+            what.append("negative values")
+        raise DatasetError(
+            f"{ppath}: trial {o}: column frame_index_in_trial has {'; '.join(what)} "
+            f"(expected 0..{n - 1}; {broken.size} trial(s) affected)"
+        )
+
+
+def _check_frame_order(ppath: Path, rows: _Rows) -> None:
+    """Refuse (:class:`DatasetError`) a trial whose ``frame`` column goes backwards in frame_index_in_trial order:
+    a reversed or shuffled index would silently reorder the poses."""
+    ordinal, fidx, frame = rows.ordinal, rows.fidx, rows.frame
+    back = np.flatnonzero((np.diff(frame) < 0) & (ordinal[1:] == ordinal[:-1])) + 1
+    if back.size:
+        r = int(back[0])
+        o = int(ordinal[r])
+        raise DatasetError(
+            f"{ppath}: trial {o}: column frame goes backwards ({int(frame[r - 1])} -> {int(frame[r])}) at "
+            f"frame_index_in_trial={int(fidx[r])}: the index disagrees with the recording order "
+            f"({np.unique(ordinal[back]).size} trial(s) affected)"
+        )
+
+
+def _check_trial(ppath: Path, rows: _Rows, t: dict, notes: _Notes) -> tuple[int, int, int]:
+    """(ordinal, first row, rows) of the manifest trial ``t`` in ``rows``, after checking its row count, label
+    and id against the manifest (errors) and its frame range (noted in ``notes``)."""
+    where, labels, tids, frame = rows.where, rows.labels, rows.tids, rows.frame
+    o = int(t["trial_ordinal"])
+    if o not in where:
+        raise ManifestError(f"{ppath}: trial {o} ({t['trial_id']}) is in the manifest but has no rows")
+    s, n = where[o]
+    if n != t["frame_count"]:
+        raise ManifestError(f"{ppath}: trial {o}: {n} rows but the manifest's frame_count is {t['frame_count']}")
+    lab = set(labels[s : s + n].tolist())
+    if len(lab) != 1:
+        raise DatasetError(f"{ppath}: trial {o}: column gesture_label has several values {sorted(map(str, lab))}")
+    g = lab.pop()
+    if g not in GESTURES:
+        raise DatasetError(f"{ppath}: trial {o}: column gesture_label={g!r} is not a known gesture ({list(GESTURES)})")
+    if g != t["gesture_label"]:
+        raise ManifestError(f"{ppath}: trial {o}: gesture_label {g!r} but the manifest says {t['gesture_label']!r}")
+    ids = set(tids[s : s + n].tolist())
+    if ids != {t["trial_id"]}:
+        raise ManifestError(
+            f"{ppath}: trial {o}: column trial_id {sorted(map(str, ids))} but the manifest says {t['trial_id']!r}"
+        )
+    if "start_frame" in t and "end_frame" in t and n:
+        if frame[s] != t["start_frame"] or frame[s + n - 1] != t["end_frame"]:
+            notes.add(
+                "frame_range_mismatch",
+                1,
+                f"trial {o}: column frame spans {frame[s]}..{frame[s + n - 1]}, "
+                f"the manifest says {t['start_frame']}..{t['end_frame']} (kept)",
+            )
+    return o, s, n

@@ -315,6 +315,47 @@ class RayFolds:
             self.connected = False
 
 
+def _kept_folds(resume: FoldStore | None, folds: list[Fold], y: np.ndarray) -> dict[str, FoldRecord]:
+    """Fold name -> the record ``resume`` keeps of it, for the folds whose record still fits labels ``y``."""
+    kept: dict[str, FoldRecord] = {}
+    if resume is not None:
+        for f in folds:
+            record = resume.load(f.name)
+            if record is not None and _usable(record, f, y):
+                kept[f.name] = record
+    return kept
+
+
+@dataclass
+class _Jobs:
+    """The folds to compute (``todo``) and what each needs: the model factory, windows x (n, L, N) or their
+    per-trial features, labels y (n,), groups (n,), threads per fold, whether x holds features, and the store
+    each computed fold is saved in (or None)."""
+
+    make_model: Callable[[], Any]
+    x: np.ndarray
+    y: np.ndarray
+    groups: np.ndarray
+    todo: list[Fold]
+    threads: int
+    featurized: bool
+    resume: FoldStore | None
+
+    def computed(self, workers: int, ray_run: RayFolds | None) -> Iterator[tuple[FoldResult, dict[str, float]]]:
+        """(result, timing) of each fold of ``todo`` in order: Ray tasks, this process, or ``workers`` processes."""
+        make_model, x, y, groups, todo = self.make_model, self.x, self.y, self.groups, self.todo
+        threads, featurized, resume = self.threads, self.featurized, self.resume
+        if ray_run is not None:
+            return ray_run.submit(make_model, x, y, groups, todo, threads, featurized, resume)
+        if workers == 1:
+            return (run_fold(make_model, x, y, groups, f, threads, featurized, resume) for f in todo)
+        from joblib import Parallel, delayed
+
+        return Parallel(n_jobs=workers, backend="loky", return_as="generator")(
+            delayed(run_fold)(make_model, x, y, groups, f, threads, featurized, resume) for f in todo
+        )
+
+
 class CrossValidation(Configured):
     """Runs a model over folds; subclasses define :meth:`splits`, ``SCHEME`` and ``SCHEMA``.
 
@@ -356,20 +397,9 @@ class CrossValidation(Configured):
         ``resume``: a :class:`FoldStore`; its folds are not recomputed and
         every fold computed here is saved in it.
         """
-        _check_windows(windows)
-        folds = self.splits(windows, seed)
-        if self.max_folds is not None:
-            folds = folds[: self.max_folds]
-        groups = np.asarray(windows.groups)
-        for f in folds:
-            self._check_fold(f, groups)
+        folds, groups = self._checked_folds(windows, seed)
         x, y = windows.x, np.asarray(windows.y, dtype=np.int64)
-        kept: dict[str, FoldRecord] = {}
-        if resume is not None:
-            for f in folds:
-                record = resume.load(f.name)
-                if record is not None and _usable(record, f, y):
-                    kept[f.name] = record
+        kept = _kept_folds(resume, folds, y)
         todo = [f for f in folds if f.name not in kept]
         probe = make_model()
         name = model_name(probe)
@@ -388,16 +418,47 @@ class CrossValidation(Configured):
             threads = self.threads_per_worker or 1
         featurized = transforms_per_trial(probe)
         if featurized and todo:
-            x, timing = transform_once(probe, x, threads=self.threads_per_worker or available_cores())
-            log.info(
-                "%s %s: per-trial features %s computed once in %.1f s (%.1f CPU s)",
-                self.SCHEME,
-                name,
-                x.shape,
-                timing["wall_s"],
-                timing["cpu_s"],
-            )
+            x = self._features_once(probe, x, name)
         del probe
+        jobs = _Jobs(make_model, x, y, groups, todo, threads, featurized, resume)
+        results = self._collect(jobs, folds, kept, workers, name, on_fold)
+        return CVResult(scheme=self.SCHEME, model=name, folds=results)
+
+    def _checked_folds(self, windows: WindowedFrames, seed: int) -> tuple[list[Fold], np.ndarray]:
+        """(the folds to run: the first ``max_folds`` of :meth:`splits`, each checked; the windows' groups)."""
+        _check_windows(windows)
+        folds = self.splits(windows, seed)
+        if self.max_folds is not None:
+            folds = folds[: self.max_folds]
+        groups = np.asarray(windows.groups)
+        for f in folds:
+            self._check_fold(f, groups)
+        return folds, groups
+
+    def _features_once(self, probe: Any, x: np.ndarray, name: str) -> np.ndarray:
+        """The per-trial features of windows ``x`` by the model ``probe`` (computed once for all folds)."""
+        x, timing = transform_once(probe, x, threads=self.threads_per_worker or available_cores())
+        log.info(
+            "%s %s: per-trial features %s computed once in %.1f s (%.1f CPU s)",
+            self.SCHEME,
+            name,
+            x.shape,
+            timing["wall_s"],
+            timing["cpu_s"],
+        )
+        return x
+
+    def _collect(
+        self,
+        jobs: _Jobs,
+        folds: list[Fold],
+        kept: dict[str, FoldRecord],
+        workers: int,
+        name: str,
+        on_fold: Callable[[FoldResult, dict[str, float]], None] | None,
+    ) -> list[FoldResult]:
+        """Every fold's result in fold order: kept folds in place, computed ones (by ``workers`` processes or
+        Ray) as they come; ``on_fold`` and the progress bar see each."""
         bar = tqdm(
             total=len(folds),
             desc=f"{self.SCHEME} {name}",
@@ -405,18 +466,9 @@ class CrossValidation(Configured):
             disable=not (self.progress and sys.stderr.isatty()),
         )
         results: list[FoldResult] = []
-        ray_run = RayFolds(x.nbytes) if self.backend == "ray" and todo else None
+        ray_run = RayFolds(jobs.x.nbytes) if self.backend == "ray" and jobs.todo else None
         try:
-            if ray_run is not None:
-                computed = ray_run.submit(make_model, x, y, groups, todo, threads, featurized, resume)
-            elif workers == 1:
-                computed = (run_fold(make_model, x, y, groups, f, threads, featurized, resume) for f in todo)
-            else:
-                from joblib import Parallel, delayed
-
-                computed = Parallel(n_jobs=workers, backend="loky", return_as="generator")(
-                    delayed(run_fold)(make_model, x, y, groups, f, threads, featurized, resume) for f in todo
-                )
+            computed = jobs.computed(workers, ray_run)
             for f in folds:  # in fold order: kept folds in place, computed ones as they come
                 record = kept.get(f.name)
                 if record is not None:
@@ -441,7 +493,7 @@ class CrossValidation(Configured):
             bar.close()
             if ray_run is not None:
                 ray_run.close()
-        return CVResult(scheme=self.SCHEME, model=name, folds=results)
+        return results
 
 
 class LeaveOneSubjectOut(CrossValidation):

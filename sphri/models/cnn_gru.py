@@ -46,6 +46,7 @@ import logging
 import math
 from collections.abc import Iterator
 from contextlib import contextmanager
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -375,6 +376,38 @@ def validation_split(
     return idx[~is_val], idx[is_val]
 
 
+def _standardize(net: CnnGruNet, x: np.ndarray, tr: np.ndarray) -> None:
+    """Set the network's input mean and standard deviation to those of the training windows ``x[tr]`` (an SD
+    under 1e-6, or a single value, gives 1)."""
+    x_tr_np = x[tr]
+    mean = float(x_tr_np.mean(dtype=np.float64))
+    std = float(x_tr_np.astype(np.float64).std(ddof=1)) if x_tr_np.size > 1 else 1.0
+    del x_tr_np
+    net.x_mean.fill_(mean)
+    net.x_std.fill_(std if std > 1e-6 else 1.0)
+
+
+@dataclass
+class _TrainRun:
+    """One training run: the network and its trainable parameters, optimizer, learning-rate schedule (or
+    None), batch-order generator, device, precision, frame table (or None), training and validation inputs
+    and labels, and whether there is a validation split."""
+
+    net: CnnGruNet
+    params: list[torch.Tensor]
+    opt: torch.optim.AdamW
+    sched: torch.optim.lr_scheduler.OneCycleLR | None
+    gen: torch.Generator
+    dev: torch.device
+    precision: str
+    table: torch.Tensor | None
+    x_tr: torch.Tensor
+    y_tr: torch.Tensor
+    x_va: torch.Tensor
+    y_va: torch.Tensor
+    has_val: bool
+
+
 class CnnGru(ClassifierMixin, BaseEstimator):
     """CNN-GRU gesture classifier on windows (n_trials, L, N_taxels).
 
@@ -603,88 +636,108 @@ class CnnGru(ClassifierMixin, BaseEstimator):
             gen = torch.Generator().manual_seed(self.seed)
             net = self._network(x.shape[2], len(self.classes_))
             yt = torch.from_numpy(y_idx.astype(np.int64))
-            x_tr_np = x[tr]
-            mean = float(x_tr_np.mean(dtype=np.float64))
-            std = float(x_tr_np.astype(np.float64).std(ddof=1)) if x_tr_np.size > 1 else 1.0
-            del x_tr_np
-            net.x_mean.fill_(mean)
-            net.x_std.fill_(std if std > 1e-6 else 1.0)
+            _standardize(net, x, tr)
             net.to(dev)
-            if self.dedupe_frames:
-                # distinct frames once (uint8 while binary); windows become frame ids
-                table_np, ids = unique_frames(x)
-                table: torch.Tensor | None = torch.from_numpy(compact(table_np)).to(dev)
-                xt = torch.from_numpy(ids)
-            else:
-                table = None
-                xt = torch.from_numpy(np.ascontiguousarray(x))
+            table, xt = self._inputs(x, dev)
             params = [p for p in net.parameters() if p.requires_grad]
-            opt = torch.optim.AdamW(params, lr=self.lr, weight_decay=self.weight_decay)
-            steps_per_epoch = math.ceil(tr.size / int(self.batch_size))
-            total_steps = steps_per_epoch * int(self.max_epochs)
-            sched = None
-            if self.schedule == "onecycle" and total_steps >= 3:
-                # a warm-up of a quarter of the steps, at least 2 (torch divides by the warm-up's length
-                # minus one); fewer than 3 steps in all leave nothing to schedule: constant lr
-                sched = torch.optim.lr_scheduler.OneCycleLR(
-                    opt,
-                    max_lr=self.lr,
-                    total_steps=total_steps,
-                    pct_start=max(0.25, 2.0 / total_steps),
-                    anneal_strategy="cos",
-                    cycle_momentum=False,
-                )
+            opt, sched = self._optimizer(params, tr.size)
             has_val = va.size > 0
             x_tr = xt[torch.from_numpy(tr)]
             x_va, y_va = xt[torch.from_numpy(va)], yt[torch.from_numpy(va)]
             y_tr = yt[torch.from_numpy(tr)]
-            best, best_state, best_epoch, stale = math.inf, None, 0, 0
-            history = []
-            for epoch in range(1, int(self.max_epochs) + 1):
-                net.train()
-                run_loss = 0.0
-                for step, b in enumerate(self._batches(x_tr.shape[0], gen), 1):
-                    yb = y_tr[b].to(dev)
-                    with self._autocast(dev, precision):
-                        logits = self._logits(net, x_tr[b], dev, table)
-                    loss = F.cross_entropy(logits, yb)
-                    opt.zero_grad(set_to_none=True)
-                    loss.backward()
-                    loss_value = loss.detach().item()
-                    grad_norm = float(torch.nn.utils.get_total_norm([p.grad for p in params if p.grad is not None]))
-                    if not (math.isfinite(loss_value) and math.isfinite(grad_norm)):
-                        raise NonFiniteError(
-                            f"CNN-GRU training: non-finite {'loss' if not math.isfinite(loss_value) else 'gradient'} "
-                            f"at epoch {epoch}, step {step} ({self._where(precision)})"
-                        )
-                    opt.step()
-                    if sched is not None:
-                        sched.step()
-                    run_loss += loss_value * b.numel()
-                train_loss = run_loss / max(1, x_tr.shape[0])
-                if has_val:
-                    val_loss, val_acc = self._loss_acc(net, x_va, y_va, dev, table, precision)
-                    if not math.isfinite(val_loss):
-                        raise NonFiniteError(
-                            f"CNN-GRU training: non-finite validation loss at epoch {epoch} ({self._where(precision)})"
-                        )
-                else:
-                    val_loss, val_acc = float("nan"), float("nan")
-                history.append(
-                    {"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss, "val_accuracy": val_acc}
-                )
-                score = val_loss if has_val else train_loss
-                if score < best - 1e-4:
-                    best, best_epoch, stale = score, epoch, 0
-                    best_state = copy.deepcopy(net.state_dict())
-                else:
-                    stale += 1
-                    if has_val and stale >= int(self.patience):
-                        break
-            if best_state is not None:
-                net.load_state_dict(best_state)
+            run = _TrainRun(net, params, opt, sched, gen, dev, precision, table, x_tr, y_tr, x_va, y_va, has_val)
+            history, best_epoch = self._epochs(run)
         net.eval()
         return net, history, best_epoch
+
+    def _inputs(self, x: np.ndarray, dev: torch.device) -> tuple[torch.Tensor | None, torch.Tensor]:
+        """(frame table on ``dev`` or None, inputs): with ``dedupe_frames`` the distinct frames once (uint8
+        while binary) and the windows as frame ids (n, L); else no table and the windows x (n, L, N)."""
+        if self.dedupe_frames:
+            table_np, ids = unique_frames(x)
+            return torch.from_numpy(compact(table_np)).to(dev), torch.from_numpy(ids)
+        return None, torch.from_numpy(np.ascontiguousarray(x))
+
+    def _optimizer(
+        self, params: list[torch.Tensor], n_train: int
+    ) -> tuple[torch.optim.AdamW, torch.optim.lr_scheduler.OneCycleLR | None]:
+        """(AdamW over ``params``, the one-cycle learning-rate schedule or None) for ``n_train`` training windows."""
+        opt = torch.optim.AdamW(params, lr=self.lr, weight_decay=self.weight_decay)
+        steps_per_epoch = math.ceil(n_train / int(self.batch_size))
+        total_steps = steps_per_epoch * int(self.max_epochs)
+        sched = None
+        if self.schedule == "onecycle" and total_steps >= 3:
+            # a warm-up of a quarter of the steps, at least 2 (torch divides by the warm-up's length
+            # minus one); fewer than 3 steps in all leave nothing to schedule: constant lr
+            sched = torch.optim.lr_scheduler.OneCycleLR(
+                opt,
+                max_lr=self.lr,
+                total_steps=total_steps,
+                pct_start=max(0.25, 2.0 / total_steps),
+                anneal_strategy="cos",
+                cycle_momentum=False,
+            )
+        return opt, sched
+
+    def _epochs(self, run: _TrainRun) -> tuple[list[dict[str, float]], int]:
+        """(per-epoch history, best epoch) of training ``run`` up to ``max_epochs``, stopping early after
+        ``patience`` epochs without a better validation loss; the network is left at its best epoch."""
+        best, best_state, best_epoch, stale = math.inf, None, 0, 0
+        history = []
+        for epoch in range(1, int(self.max_epochs) + 1):
+            train_loss = self._epoch(run, epoch)
+            val_loss, val_acc = self._validate(run, epoch)
+            history.append({"epoch": epoch, "train_loss": train_loss, "val_loss": val_loss, "val_accuracy": val_acc})
+            score = val_loss if run.has_val else train_loss
+            if score < best - 1e-4:
+                best, best_epoch, stale = score, epoch, 0
+                best_state = copy.deepcopy(run.net.state_dict())
+            else:
+                stale += 1
+                if run.has_val and stale >= int(self.patience):
+                    break
+        if best_state is not None:
+            run.net.load_state_dict(best_state)
+        return history, best_epoch
+
+    def _epoch(self, run: _TrainRun, epoch: int) -> float:
+        """One pass over the training windows in shuffled batches; the mean training loss. A non-finite loss or
+        gradient raises :class:`~sphri.finite.NonFiniteError`."""
+        net, dev, precision, params = run.net, run.dev, run.precision, run.params
+        x_tr, y_tr = run.x_tr, run.y_tr
+        net.train()
+        run_loss = 0.0
+        for step, b in enumerate(self._batches(x_tr.shape[0], run.gen), 1):
+            yb = y_tr[b].to(dev)
+            with self._autocast(dev, precision):
+                logits = self._logits(net, x_tr[b], dev, run.table)
+            loss = F.cross_entropy(logits, yb)
+            run.opt.zero_grad(set_to_none=True)
+            loss.backward()
+            loss_value = loss.detach().item()
+            grad_norm = float(torch.nn.utils.get_total_norm([p.grad for p in params if p.grad is not None]))
+            if not (math.isfinite(loss_value) and math.isfinite(grad_norm)):
+                raise NonFiniteError(
+                    f"CNN-GRU training: non-finite {'loss' if not math.isfinite(loss_value) else 'gradient'} "
+                    f"at epoch {epoch}, step {step} ({self._where(precision)})"
+                )
+            run.opt.step()
+            if run.sched is not None:
+                run.sched.step()
+            run_loss += loss_value * b.numel()
+        return run_loss / max(1, x_tr.shape[0])
+
+    def _validate(self, run: _TrainRun, epoch: int) -> tuple[float, float]:
+        """(validation loss, accuracy) after an epoch, NaN without a validation split; a non-finite loss raises
+        :class:`~sphri.finite.NonFiniteError`."""
+        if not run.has_val:
+            return float("nan"), float("nan")
+        val_loss, val_acc = self._loss_acc(run.net, run.x_va, run.y_va, run.dev, run.table, run.precision)
+        if not math.isfinite(val_loss):
+            raise NonFiniteError(
+                f"CNN-GRU training: non-finite validation loss at epoch {epoch} ({self._where(run.precision)})"
+            )
+        return val_loss, val_acc
 
     def predict_proba(self, x: np.ndarray) -> np.ndarray:
         """(n, n_classes) softmax probabilities, columns in ``classes_`` order; a
