@@ -382,7 +382,8 @@ def plot_tornado(report: SweepReport, path: Path, marks: bool | None = None) -> 
             ax.set_title(sens.label or "assumption variants", loc="left")
         if pitch_all:
             fig.supxlabel(
-                f"dot: the rule ({report.rule.primary_tolerance.describe()}); bar: {report.rule.ci:.0%} "
+                f"dot: the rule ({report.rule.primary_tolerance.describe()}, or what each variant's data certify "
+                f"if larger);\nbar: {report.rule.ci:.0%} "
                 "bootstrap interval; dashed: reference; red: finest point swept",
                 color="0.3",
                 fontsize=figures.MIN_FONT_PT,
