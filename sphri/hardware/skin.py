@@ -338,10 +338,13 @@ class _Recorder:
     write_error: RecordingError | None = None
     error: BaseException | None = None
 
-    def keep(self, rf: ReceivedFrame) -> None:
-        """Write ``rf`` to the partial file, or keep it in memory once a write failed."""
+    def __post_init__(self) -> None:
         from sphri.hardware.recording import RecordingError
 
+        self._write_failed: type[RecordingError] = RecordingError  # looked up once, not per frame
+
+    def keep(self, rf: ReceivedFrame) -> None:
+        """Write ``rf`` to the partial file, or keep it in memory once a write failed."""
         self.n_read += 1
         if self.write_error is not None:
             self.unwritten.append(rf)
@@ -349,7 +352,7 @@ class _Recorder:
         before = self.partial.n_written
         try:
             self.partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
-        except RecordingError as exc:
+        except self._write_failed as exc:
             self.write_error = exc
             if self.partial.n_written == before:  # not in the file (a failed fsync comes after the frame's write)
                 self.unwritten.append(rf)
