@@ -10,7 +10,7 @@
     sphri validate -m layout.res=0,4    # a sweep: every job is checked
     sphri validate +experiment=resolution_sweep   # its 100 jobs
 
-``python -m sphri.cli VERB ...`` is the same command (an alias). ``validate`` composes the config
+``python -m sphri.cli VERB ...`` is ``sphri VERB ...`` (an alias, any verb). ``validate`` composes the config
 exactly as ``sphri run`` would, runs every schema's checks, and prints the chosen components; it exits
 2 with a message naming the key on any problem. Arguments are read by :mod:`sphri.args`.
 """
@@ -374,24 +374,15 @@ def warmup_command(args: WarmupArgs) -> int:
     return cmd_warmup()
 
 
-#: The verbs ``python -m sphri.cli`` answers (``sphri list`` and so on; :mod:`sphri.command`).
-CLI_VERBS = ("list", "show", "validate", "warmup")
-
-
 def main(argv: list[str] | None = None) -> int:
-    """``python -m sphri.cli VERB ...``: the same verbs as ``sphri VERB ...``."""
-    from sphri.command import UnknownVerb, call, find, help_text
+    """``python -m sphri.cli VERB ...``: ``sphri VERB ...`` (:func:`sphri.command.main`)."""
+    from sphri.command import main as sphri
 
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help", "help"):
-        print(help_text(CLI_VERBS, prog="python -m sphri.cli"))
-        return 0 if argv else 2
-    try:
-        verb = find(argv[0], CLI_VERBS)
-    except UnknownVerb as exc:
-        print(f"sphri: {exc}", file=sys.stderr)
+    if not argv:  # a usage error here: the verbs, exit 2 (a bare `sphri` runs a job)
+        sphri(["help"])
         return 2
-    return call(verb, argv[1:], prog="sphri", usage_prog=f"python -m sphri.cli {verb.name}")
+    return sphri(argv)
 
 
 if __name__ == "__main__":

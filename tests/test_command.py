@@ -11,8 +11,9 @@ from typing import Literal
 import forked_cli
 import pytest
 
+import sphri.command
 from sphri.args import ArgsError, HelpRequested, arg, keys, parse
-from sphri.command import BY_NAME, VERBS, find, help_text, main
+from sphri.command import BY_NAME, VERBS, main, parser
 from sphri.config import setting
 from sphri.hardware.settings import SkinLiveSettings
 
@@ -120,7 +121,7 @@ def test_help_lists_every_key_with_its_type_default_and_meaning():
 
 # --------------------------------------------------------------------------- the dispatcher
 def test_every_verb_is_listed_with_one_line_and_loads_its_command():
-    text = help_text()
+    text = parser().format_help()
     for v in VERBS:
         assert f"  {v.name} " in text, v.name
         assert v.summary and "\n" not in v.summary
@@ -142,8 +143,27 @@ def test_help_and_unknown_verbs(capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("sphri: unknown verb 'repot' (did you mean report")
     assert "verbs: run, sweep, report" in err[0]
-    with pytest.raises(ValueError, match="did you mean validate"):
-        find("validat")
+    assert main(["validat"]) == 2 and "(did you mean validate" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv, verb, rest",
+    [
+        ([], "run", []),  # no verb is a job
+        (["+debug=fast", "layout.res=6"], "run", ["+debug=fast", "layout.res=6"]),  # an override: `run`
+        (["-m", "layout.res=2,4"], "run", ["-m", "layout.res=2,4"]),
+        (["--cfg", "job"], "run", ["--cfg", "job"]),
+        (["sweep", "layout.res=2,4"], "sweep", ["layout.res=2,4"]),
+        (["--help"], "help", []),
+        (["help", "list"], "help", ["list"]),
+        (["list", "--groups", "-h", "--", "x"], "list", ["--groups", "-h", "--", "x"]),  # unchanged to the verb
+        (["report", "DIR", "--n-boot", "-1", "--no-log"], "report", ["DIR", "--n-boot", "-1", "--no-log"]),
+    ],
+)
+def test_argparse_picks_the_verb_and_the_verb_gets_the_rest_unchanged(argv, verb, rest, monkeypatch):
+    called = []
+    monkeypatch.setattr(sphri.command, "call", lambda v, args: called.append((v.name, args)) or 0)
+    assert main(argv) == 0 and called == [(verb, rest)]
 
 
 def test_each_verb_answers_help_through_the_dispatcher(capsys):

@@ -8,12 +8,13 @@
     sphri list robot
     sphri help                           # every verb with one line; `sphri VERB --help` its arguments
 
-``run`` and ``sweep`` hand their arguments to Hydra; every other verb reads ``key=value`` arguments
-through one parser (:mod:`sphri.args`), typed by a dataclass beside the verb's code, which
-also takes the ``--key value`` spellings. Each verb's module keeps its ``python -m sphri.<module>``
-spelling as an alias (:attr:`Verb.module`). A first word that is not a verb but looks like an
-override (``key=value``, ``+group=x``, ``~key``, ``-m``, ``--cfg``) is the ``run`` verb; any other
-word is an unknown verb: one line naming the close matches, exit 2.
+The verb is picked by argparse (:func:`parser`: one subparser per verb of :data:`VERBS`); the words
+after it go unchanged to the verb's own parser. ``run`` and ``sweep`` hand them to Hydra; every other
+verb reads ``key=value`` arguments through one parser (:mod:`sphri.args`), typed by a dataclass beside
+the verb's code, which also takes the ``--key value`` spellings. Each verb's module keeps its
+``python -m sphri.<module>`` spelling as an alias (:attr:`Verb.module`). A first word that is not a verb
+but looks like an override (``key=value``, ``+group=x``, ``~key``, ``-m``, ``--cfg``) is the ``run``
+verb; any other word is an unknown verb: one line naming the close matches, exit 2.
 
 Standard library only at import: the console script (:mod:`sphri.completion`) reads :data:`VERBS`
 to complete the first word on every TAB.
@@ -21,13 +22,14 @@ to complete the first word on every TAB.
 
 from __future__ import annotations
 
+import argparse
 import difflib
 import importlib
 import os
 import sys
-import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NoReturn
 
 
 @dataclass(frozen=True)
@@ -212,11 +214,35 @@ VERBS: tuple[Verb, ...] = (
 )
 
 BY_NAME: dict[str, Verb] = {v.name: v for v in VERBS}
-HELP_WORDS = ("help", "-h", "--help")
 
 
 class UnknownVerb(ValueError):
-    """A first word that is neither a verb nor an override."""
+    """A first word that is neither a verb nor an override (argparse's ``invalid choice``)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> NoReturn:  # the one error here: a first word that is no verb
+        raise UnknownVerb(message)
+
+
+def parser(prog: str = "sphri") -> argparse.ArgumentParser:
+    """``sphri``'s parser: one subparser per verb, its help line the verb's summary. A subparser declares no
+    argument: :func:`main` takes the words after the verb unchanged from ``parse_known_args`` and the verb's
+    own parser reads them (:func:`call`; ``argparse.REMAINDER`` would refuse a first word like ``--help``)."""
+    top = _Parser(
+        prog=prog,
+        usage=f"{prog} [VERB] [arguments]",
+        description="sphri: design robot tactile skins from interaction data.",
+        epilog=f"No verb is `run` (Hydra overrides: {prog} +debug=fast). {prog} VERB --help: a verb's arguments "
+        f"({prog} run --help: the config groups).",
+        add_help=False,
+        formatter_class=lambda prog: argparse.HelpFormatter(prog, width=100),
+    )
+    # argparse aligns the verbs' lines by the heading's width (the metavar's): as wide as the longest verb + 2
+    verbs = top.add_subparsers(dest="verb", title="verbs", metavar="VERB [arguments]")
+    for v in VERBS:
+        verbs.add_parser(v.name, help=v.summary, add_help=False)
+    return top
 
 
 def is_override(word: str) -> bool:
@@ -224,47 +250,13 @@ def is_override(word: str) -> bool:
     return "=" in word or word.startswith(("-", "+", "~"))
 
 
-def find(word: str, names: Sequence[str] | None = None) -> Verb:
-    """The verb named ``word`` (among ``names``), or :class:`UnknownVerb` naming the close matches."""
-    names = list(names or BY_NAME)
-    if word in names:
-        return BY_NAME[word]
-    close = difflib.get_close_matches(word, names, n=3, cutoff=0.5)
-    hint = f" (did you mean {' or '.join(close)}?)" if close else ""
-    raise UnknownVerb(f"unknown verb {word!r}{hint}; verbs: {', '.join(names)}")
-
-
-def help_text(names: Sequence[str] | None = None, prog: str = "sphri") -> str:
-    """Every verb (of ``names``) with its one-line description."""
-    verbs = [BY_NAME[n] for n in (names or BY_NAME)]
-    width = max(len(v.name) for v in verbs) + 4
-    lines = []
-    if names is None:
-        lines += [
-            "sphri: design robot tactile skins from interaction data.",
-            "",
-            f"usage: {prog} [VERB] [arguments]      no verb is `run` (Hydra overrides: {prog} +debug=fast)",
-            f"       {prog} VERB --help             a verb's arguments ({prog} run --help: the config groups)",
-        ]
-    else:
-        lines += [f"usage: {prog} VERB [arguments]      ({prog} VERB --help: its arguments)"]
-    lines += ["", "verbs:"]
-    for v in verbs:
-        lines.append(
-            textwrap.fill(v.summary, 100, initial_indent=f"  {v.name:<{width}}", subsequent_indent=" " * (width + 2))
-        )
-    return "\n".join(lines)
-
-
-def call(verb: Verb, argv: Sequence[str], prog: str = "", usage_prog: str = "") -> int:
-    """Run ``verb`` with its arguments; its exit code. ``prog`` prefixes its one-line errors
-    (default ``sphri VERB``), ``usage_prog`` names it in its usage line (default ``prog``)."""
-    argv = list(argv)
-    prog = prog or f"sphri {verb.name}"
+def call(verb: Verb, argv: Sequence[str]) -> int:
+    """Run ``verb`` with its arguments (``sphri VERB`` prefixes its one-line errors); its exit code."""
+    argv, prog = list(argv), f"sphri {verb.name}"
     if verb.kind == "help":
         if argv and argv[0] in BY_NAME and argv[0] != "help":
             return call(BY_NAME[argv[0]], ["--help"])
-        _print(help_text())
+        _print(parser().format_help())
         return 0
     if verb.kind == "hydra":
         if verb.name == "sweep" and not any(a in ("-m", "--multirun") for a in argv):
@@ -283,7 +275,7 @@ def call(verb: Verb, argv: Sequence[str], prog: str = "", usage_prog: str = "") 
 
     @clean_errors(prog)
     def main(args: list[str]) -> int:
-        return run(schema, args, body, prog, summary, usage_prog or prog)
+        return run(schema, args, body, prog, summary, prog)
 
     return main(argv)
 
@@ -298,13 +290,15 @@ def _print(text: str) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     """``sphri [VERB] [arguments]``: the console script's dispatcher (see the module docstring)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if argv and argv[0] in ("-h", "--help"):
+    if argv[:1] in (["-h"], ["--help"]):
         argv[0] = "help"
     if not argv or is_override(argv[0]):
         return call(BY_NAME["run"], argv)
     try:
-        verb = find(argv[0])
-    except UnknownVerb as exc:
-        print(f"sphri: {exc}", file=sys.stderr)
+        verb, rest = parser().parse_known_args(argv)
+    except UnknownVerb:  # one line with the close matches, not argparse's usage block
+        close = difflib.get_close_matches(argv[0], BY_NAME, n=3, cutoff=0.5)
+        hint = f" (did you mean {' or '.join(close)}?)" if close else ""
+        print(f"sphri: unknown verb {argv[0]!r}{hint}; verbs: {', '.join(BY_NAME)}", file=sys.stderr)
         return 2
-    return call(verb, argv[1:])
+    return call(BY_NAME[verb.verb], rest)
