@@ -275,7 +275,7 @@ def call(verb: Verb, argv: Sequence[str]) -> int:
 
     @clean_errors(prog)
     def main(args: list[str]) -> int:
-        return run(schema, args, body, prog, summary, prog)
+        return run(schema, args, body, prog, summary)
 
     return main(argv)
 
