@@ -169,7 +169,12 @@ def _build_bvh(lo: np.ndarray, hi: np.ndarray):
     """Median-split BVH over boxes (lo, hi) (F, 3); nodes in depth-first order."""
     cen = 0.5 * (lo + hi)
     order = np.arange(lo.shape[0], dtype=np.int64)
-    node_lo, node_hi, left, right, start, count = [], [], [], [], [], []
+    node_lo: list[np.ndarray] = []
+    node_hi: list[np.ndarray] = []
+    left: list[int] = []
+    right: list[int] = []
+    start: list[int] = []
+    count: list[int] = []
 
     def new_node(idx: np.ndarray, first: int) -> int:
         k = len(node_lo)

@@ -27,6 +27,7 @@ class SphereContact(Configured, ContactStage):
     VERSION = "1"
 
     SCHEMA = SphereContactSchema
+    k: int  # set from SCHEMA by Configured
 
     def configured(self) -> None:
         self.spheres = int(self.k)

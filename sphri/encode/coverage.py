@@ -72,6 +72,8 @@ class CoverageEncoder(Configured):
     VERSION = "1"
 
     SCHEMA = CoverageEncoderSchema
+    subsamples: int  # these two set from SCHEMA by Configured
+    samples_per_taxel: int
 
     def encode(
         self, contacts: Contacts, link: Link, surface: SurfaceMap, layout: Layout, frame_index: np.ndarray

@@ -56,6 +56,8 @@ def encode_grid(
     from sphri.encode.raster import patch_ellipses, rasterize  # numba: loaded where frames are encoded
 
     h, w = require_chart_grid(layout, surface, who)
+    if layout.uv is None:
+        raise AssertionError(f"{who}: require_chart_grid passed a layout without uv")  # it refuses one
     fi = check_frame_index(contacts, frame_index, who)
     rows, start = select_rows(contacts, fi)
     check_contact_rows(contacts, rows, who)
@@ -78,6 +80,9 @@ class EllipseEncoder(Configured):
     VERSION = "1"
 
     SCHEMA = EllipseEncoderSchema
+    binary: bool  # these three set from SCHEMA by Configured
+    threshold: float
+    subsamples: int
 
     def encode(
         self, contacts: Contacts, link: Link, surface: SurfaceMap, layout: Layout, frame_index: np.ndarray

@@ -34,6 +34,9 @@ class ProximityEncoder(Configured):
     VERSION = "1"
 
     SCHEMA = ProximityEncoderSchema
+    sensing_distance_m: float  # these three set from SCHEMA by Configured
+    intensity: str
+    depth_scale_m: float
 
     def encode(
         self, contacts: Contacts, link: Link, surface: SurfaceMap, layout: Layout, frame_index: np.ndarray

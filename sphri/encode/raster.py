@@ -303,9 +303,15 @@ def rasterize(
     if m == 0 or start[-1] == 0:
         return out_u8 if binary else out_f32
     n_chunks = int(min(max(1, m // 256), 64))
+    start_c = np.ascontiguousarray(start, dtype=np.int64)
+    cu_c, cv_c, qa_c, qb_c, qc_c = (np.ascontiguousarray(x, dtype=np.float64) for x in (cu, cv, qa, qb, qc))
     _raster_all(
-        np.ascontiguousarray(start, dtype=np.int64),
-        *(np.ascontiguousarray(x, dtype=np.float64) for x in (cu, cv, qa, qb, qc)),
+        start_c,
+        cu_c,
+        cv_c,
+        qa_c,
+        qb_c,
+        qc_c,
         int(h),
         int(w),
         int(subsamples),

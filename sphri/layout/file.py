@@ -177,6 +177,11 @@ class FileLayout(Configured):
     VERSION = "1"
 
     SCHEMA = FileLayoutSchema
+    path: str  # these five set from SCHEMA by Configured
+    transform: list[float]
+    scale: float
+    dedupe_mm: float
+    max_offset_mm: float
 
     def configured(self) -> None:
         self.transform = [float(x) for x in self.transform]

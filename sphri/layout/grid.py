@@ -72,6 +72,8 @@ class GridLayout(Configured):
     VERSION = "1"
 
     SCHEMA = GridLayoutSchema
+    aspect: float  # these two set from SCHEMA by Configured
+    seed: int
 
     def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
         """Taxels of a ``res``-row grid on ``link`` through ``surface``'s chart."""
@@ -84,6 +86,8 @@ class HexLayout(Configured):
     VERSION = "2"
 
     SCHEMA = HexLayoutSchema
+    aspect: float  # these two set from SCHEMA by Configured
+    seed: int
 
     def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
         """An equilateral lattice on ``link`` with the ``res`` grid's area per taxel."""

@@ -219,6 +219,9 @@ class RandomLayout(Configured):
     VERSION = "1"
 
     SCHEMA = RandomLayoutSchema
+    aspect: float  # these three set from SCHEMA by Configured
+    seed: int
+    candidates: int
 
     def build(self, link: Link, surface: SurfaceMap, res: int) -> Layout:
         """As many taxels as the grid at ``res``, Poisson-disk on the surface."""
@@ -237,6 +240,12 @@ class DensityLayout(Configured):
     VERSION = "3"
 
     SCHEMA = DensityLayoutSchema
+    density_path: str  # these six set from SCHEMA by Configured
+    bandwidth_mm: float
+    aspect: float
+    seed: int
+    candidates: int
+    min_density_fraction: float
 
     @property
     def uses_contacts(self) -> bool:

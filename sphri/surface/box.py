@@ -82,6 +82,9 @@ class BoxSurface(Configured):
     VERSION = "1"
 
     SCHEMA = BoxSurfaceSchema
+    n_samples: int  # these three set from SCHEMA by Configured
+    seed: int
+    warn_residual_mm: float
 
     def fit(self, link: Link) -> SurfaceMap:
         """Fit the box to ``link`` -> its chart."""

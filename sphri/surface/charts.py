@@ -227,7 +227,7 @@ def chart_of(surface: SurfaceMap | str) -> Chart:
 class CylinderChart:
     """``surface=cylinder``: u along the axis (the paper's h), v the angle around it (a), wrapping."""
 
-    every_cell_valid = True
+    every_cell_valid: ClassVar[bool] = True
 
     def to_uv(self, surface, p):
         return _cyl_to_uv(surface, p)
@@ -264,7 +264,7 @@ class CylinderChart:
 class BoxChart:
     """``surface=box``: the oriented box unfolded into a net (a band around the long axis and two caps)."""
 
-    every_cell_valid = False
+    every_cell_valid: ClassVar[bool] = False
 
     def to_uv(self, surface, p):
         return _box_to_uv(surface, p)
@@ -295,7 +295,7 @@ class BoxChart:
 class MeshChart:
     """``surface=mesh``: no 2-D chart; the link itself is the surface (distance 0)."""
 
-    every_cell_valid = False
+    every_cell_valid: ClassVar[bool] = False
 
     def _none(self, surface, *_):
         _require_chart(surface)

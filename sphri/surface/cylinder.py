@@ -181,6 +181,12 @@ class CylinderSurface(Configured):
     VERSION = "2"
 
     SCHEMA = CylinderSurfaceSchema
+    axis: str  # these six set from SCHEMA by Configured
+    refine_axis: bool
+    seam: list[float]
+    n_samples: int
+    seed: int
+    warn_residual_mm: float
 
     def configured(self) -> None:
         self.seam = [float(s) for s in self.seam]

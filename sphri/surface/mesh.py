@@ -41,6 +41,8 @@ class MeshSurface(Configured):
     VERSION = "2"
 
     SCHEMA = MeshSurfaceSchema
+    n_samples: int  # these two set from SCHEMA by Configured
+    seed: int
 
     def fit(self, link: Link) -> SurfaceMap:
         """Record the link's long axis and area (no chart)."""

@@ -57,10 +57,10 @@ def reference_raster(
                 hit |= qa[k] * dy * dy + 2 * qb[k] * dy * dx + qc[k] * dx * dx <= 1.0
             inside[r_lo * ss : (r_hi + 1) * ss] |= hit
         cov[f] = inside.reshape(h, ss, w, ss).mean(axis=(1, 3))
-    cov = cov.reshape(m, h * w)
+    flat = cov.reshape(m, h * w)
     if not binary:
-        return cov.astype(np.float32)
-    return ((cov >= threshold - 1e-9) | forced.reshape(m, h * w)).astype(np.uint8)
+        return flat.astype(np.float32)
+    return ((flat >= threshold - 1e-9) | forced.reshape(m, h * w)).astype(np.uint8)
 
 
 def iou(a: np.ndarray, b: np.ndarray) -> float:

@@ -150,6 +150,8 @@ def blob_windows(
                 groups[i] = f"participant_{p + 1:02d}"
                 i += 1
     ca = np.clip(ca, 0.0, ARM_LENGTH_M)
+    if geom.uv is None:
+        raise AssertionError("arm_geometry gave a layout without uv")  # it always sets uv
     a_t = geom.uv[:, 0] * ARM_LENGTH_M
     b_t = geom.uv[:, 1] * ARM_CIRCUMFERENCE_M
     if geom.grid_shape is not None:
