@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 AXIS_VECTORS = {"x": np.array([1.0, 0.0, 0.0]), "y": np.array([0.0, 1.0, 0.0]), "z": np.array([0.0, 0.0, 1.0])}
 
 
-def rotation_about(axis: str, angle: np.ndarray) -> np.ndarray:
+def rotation_about(axis: str, angle: np.ndarray | float) -> np.ndarray:
     """(..., 3, 3) rotations by ``angle`` (...,) radians about link axis x, y or z."""
     a = np.asarray(angle, dtype=np.float64)
     c, s = np.cos(a), np.sin(a)
@@ -166,6 +166,8 @@ class WholeBodyRobot(Robot):
         ``joints``: joint name -> (F,) angles (missing joints take the rest pose).
         """
         tree = self.tree
+        if tree is None:
+            raise ValueError(f"robot {self.name!r} has no kinematic tree: it cannot pose its links")
         base = np.atleast_2d(np.asarray(base, dtype=np.float64))
         if base.ndim != 2 or base.shape[1] != 3:
             raise ValueError(f"base must be (F, 3) x, y, yaw, got {base.shape}")

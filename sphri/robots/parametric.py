@@ -74,14 +74,14 @@ def loft_mesh(
     vertices = np.concatenate(rings + [caps]) + centre
     j = np.arange(n)
     jn = (j + 1) % n
-    faces = []
+    blocks: list[np.ndarray] = []
     for s in range(s_count - 1):
         a0, a1, b0, b1 = s * n + j, s * n + jn, (s + 1) * n + j, (s + 1) * n + jn
-        faces += [np.stack([a0, a1, b1], 1), np.stack([a0, b1, b0], 1)]
+        blocks += [np.stack([a0, a1, b1], 1), np.stack([a0, b1, b0], 1)]
     bottom, top = s_count * n, s_count * n + 1
     last = (s_count - 1) * n
-    faces += [np.stack([np.full(n, bottom), jn, j], 1), np.stack([np.full(n, top), last + j, last + jn], 1)]
-    faces = np.concatenate(faces).astype(np.int64)
+    blocks += [np.stack([np.full(n, bottom), jn, j], 1), np.stack([np.full(n, top), last + j, last + jn], 1)]
+    faces = np.concatenate(blocks).astype(np.int64)
     if signed_volume(vertices, faces) < 0:  # the (a, b, axis) frame is left-handed for axis y
         faces = faces[:, ::-1].copy()
     return vertices, faces

@@ -33,6 +33,7 @@ import shutil
 import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import trimesh
@@ -71,7 +72,7 @@ def decimate_to(mesh: trimesh.Trimesh, budget: int) -> trimesh.Trimesh:
     if len(mesh.faces) <= budget:
         return mesh.copy()
     lo, hi = 1e-5, float(mesh.extents.max())
-    best = None
+    best: tuple[np.ndarray, np.ndarray] | None = None
     for _ in range(40):
         mid = np.sqrt(lo * hi)
         v, f = cluster_decimate(mesh.vertices, mesh.faces, mid)
@@ -81,6 +82,10 @@ def decimate_to(mesh: trimesh.Trimesh, budget: int) -> trimesh.Trimesh:
             lo = mid
         if hi / lo < 1.01:
             break
+    if best is None:
+        raise ValueError(
+            f"cannot decimate the mesh to {budget} faces: no cell size up to its extent clusters it that far"
+        )
     v, f = best
     return trimesh.Trimesh(v, f, process=False)
 
@@ -143,7 +148,8 @@ def derive(src: Path, out: Path = OUT, budget: int = FACE_BUDGET) -> dict:
         _strip(joint, {"origin", "parent", "child", "axis", "mimic"})
         new.append(joint)
     for key, info in meshes.items():
-        m = trimesh.load(str(src / "obj_meshes" / info["source"]), process=False, force="mesh")
+        # trimesh annotates load as returning a Geometry; force="mesh" gives a Trimesh
+        m = cast(trimesh.Trimesh, trimesh.load(str(src / "obj_meshes" / info["source"]), process=False, force="mesh"))
         d = decimate_to(m, budget)
         d.export(str(out / "meshes" / f"{key}.ply"), file_type="ply", encoding="binary")
         info.update(

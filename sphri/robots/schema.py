@@ -90,9 +90,9 @@ def check_parametric_link(spec: Any, key: str) -> None:
 
 def loft_spec(spec: Any, key: str) -> dict[str, Any]:
     """A link spec (mapping, DictConfig or ParametricLinkSpec) as a plain dict with defaults filled."""
-    defaults = {"center_m": [0.0, 0.0, 0.0], "axis": "z", "exponent": 2.0, "n_around": 32}
+    defaults: dict[str, Any] = {"center_m": [0.0, 0.0, 0.0], "axis": "z", "exponent": 2.0, "n_around": 32}
     mapping = isinstance(spec, Mapping) or hasattr(spec, "keys")
-    out = {}
+    out: dict[str, Any] = {}
     for k in ("size_m", "center_m", "axis", "profile", "exponent", "n_around"):
         has = (k in spec) if mapping else hasattr(spec, k)
         if not has and k not in defaults:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import trimesh
@@ -260,7 +260,8 @@ class UrdfRobot:
                 raise MeshError(
                     f"link {name!r} of {path} has no usable {self.geometry} geometry (nor collision primitives)"
                 )
-            mesh = trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
+            # trimesh annotates concatenate as returning a Geometry; meshes concatenate to a Trimesh
+            mesh = cast(trimesh.Trimesh, trimesh.util.concatenate(parts)) if len(parts) > 1 else parts[0]
             if len(parts) > 1:
                 notes.append(f"{len(parts)} geometry elements concatenated (they may overlap)")
             links[name] = make_link(
@@ -296,10 +297,11 @@ class UrdfRobot:
                     scale = np.broadcast_to(np.asarray(g.mesh.scale, dtype=np.float64), (3,))
                     m.apply_transform(np.diag(np.append(scale, 1.0)))
             else:
-                m = primitive_mesh(g)
-                if m is None:
+                prim = primitive_mesh(g)
+                if prim is None:
                     notes.append(f"skipped a zero-size {_kind(g)} primitive")
                     continue
+                m = prim
             if el.origin is not None:
                 m.apply_transform(np.asarray(el.origin, dtype=np.float64))
             parts.append(m)
@@ -307,11 +309,11 @@ class UrdfRobot:
             fallback = []
             for el in link.collisions:
                 if el.geometry is not None and el.geometry.mesh is None:
-                    m = primitive_mesh(el.geometry)
-                    if m is not None:
+                    fb = primitive_mesh(el.geometry)
+                    if fb is not None:
                         if el.origin is not None:
-                            m.apply_transform(np.asarray(el.origin, dtype=np.float64))
-                        fallback.append(m)
+                            fb.apply_transform(np.asarray(el.origin, dtype=np.float64))
+                        fallback.append(fb)
             if not fallback and parts:
                 msg = (
                     f"{self.geometry} mesh file(s) missing ({'; '.join(missing)}) and no collision primitives: "

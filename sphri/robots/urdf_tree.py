@@ -45,7 +45,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 import trimesh
@@ -148,6 +148,12 @@ def _floats(text: str | None, n: int, where: str, path: Path, default: Sequence[
     return vals
 
 
+def _floats3(text: str | None, where: str, path: Path, default: Sequence[float]) -> tuple[float, float, float]:
+    """:func:`_floats` of three numbers (it checks the count), typed as a triple."""
+    x, y, z = _floats(text, 3, where, path, default)
+    return x, y, z
+
+
 def _origin(el: ET.Element | None, where: str, path: Path) -> np.ndarray:
     m = np.eye(4)
     if el is None:
@@ -174,7 +180,7 @@ def _geometries(link: ET.Element, tag: str, name: str, path: Path) -> list[Geome
                     "mesh",
                     origin,
                     filename=str(shape.get("filename", "")),
-                    scale=_floats(shape.get("scale"), 3, f"{where} mesh scale", path, (1, 1, 1)),
+                    scale=_floats3(shape.get("scale"), f"{where} mesh scale", path, (1, 1, 1)),
                 )
             )
         elif shape.tag == "box":
@@ -257,20 +263,15 @@ def _read_joint(
     child = c.get("link") if c is not None else None
     if kind not in JOINT_TYPES:
         raise RobotFileError(f"{path}: joint {name!r} has type={kind!r}; URDF types: {list(JOINT_TYPES)}")
-    if parent not in links or child not in links:
+    if parent is None or child is None or parent not in links or child not in links:  # None: no such element
         bad = parent if parent not in links else child
         notes.append(f"joint {name!r} ignored: link {bad!r} is not a loaded link")
         return None
     if child in joint_of:
         notes.append(f"joint {name!r} ignored: link {child!r} already has a parent joint {joint_of[child].name!r}")
         return None
-    axis = _floats(
-        el.find("axis").get("xyz") if el.find("axis") is not None else None,
-        3,
-        f"joint {name!r} axis",
-        path,
-        (1, 0, 0),
-    )
+    ax = el.find("axis")
+    axis = _floats3(ax.get("xyz") if ax is not None else None, f"joint {name!r} axis", path, (1, 0, 0))
     if kind in MOVABLE and not np.linalg.norm(axis) > 0:
         notes.append(f"joint {name!r}: zero axis, held fixed")
         kind = "fixed"
@@ -473,15 +474,17 @@ def link_geometry(
                 if np.linalg.det(g.origin[:3, :3]) > 0:
                     m.metadata["sphri_link"] = rep  # already validated; a rigid motion keeps its orientation
             else:
-                m = _primitive(g)
-                if m is None:
+                prim = _primitive(g)
+                if prim is None:
                     problems.append(f"zero-size {which} {g.kind}")
                     continue
+                m = prim
             m.apply_transform(g.origin)
             parts.append(m)
         if parts:
             notes += [f"not used: {p}" for p in problems]
-            mesh = trimesh.util.concatenate(parts) if len(parts) > 1 else parts[0]
+            # trimesh annotates concatenate as returning a Geometry; meshes concatenate to a Trimesh
+            mesh = cast(trimesh.Trimesh, trimesh.util.concatenate(parts)) if len(parts) > 1 else parts[0]
             if len(parts) == 1 and "sphri_link" in parts[0].metadata:
                 mesh.metadata["sphri_link"] = parts[0].metadata["sphri_link"]
             return mesh, f"{which} {kind}{'es' if kind == 'mesh' and len(parts) > 1 else ''} ({len(parts)})", notes
@@ -689,7 +692,8 @@ class UrdfWholeBody:
                 tf = tf @ j.origin @ _motion(j, self._rest_value(mimic, j.name))
             mesh = geom.pop(child).copy()
             mesh.apply_transform(tf)
-            geom[target] = trimesh.util.concatenate([geom[target], mesh])
+            # trimesh annotates concatenate as returning a Geometry; meshes concatenate to a Trimesh
+            geom[target] = cast(trimesh.Trimesh, trimesh.util.concatenate([geom[target], mesh]))
             geom[target].metadata.pop("sphri_link", None)
             built.notes[target].append(f"merged link {child!r} at the rest pose")
             built.skipped.append((child, f"merged into {target!r} at the rest pose (robot.merge)"))
@@ -742,14 +746,15 @@ class UrdfWholeBody:
         origins = np.tile(np.eye(4), (len(order), 1, 1))
         steps: list[tuple[JointStep, ...]] = []
         for i, n in enumerate(order):
-            if parent[n] is None:
+            above = parent[n]
+            if above is None:
                 steps.append(())
                 continue
             origin = np.eye(4)
             chain: list[JointStep] = []
             cur: UrdfJoint | None = None
             after = np.eye(4)
-            for j in model.path_from(parent[n], n):
+            for j in model.path_from(above, n):
                 if cur is None:
                     origin = origin @ j.origin
                 else:
@@ -764,7 +769,7 @@ class UrdfWholeBody:
             steps.append(tuple(chain))
         return JointTree(
             links=tuple(order),
-            parent=tuple(-1 if parent[n] is None else order.index(parent[n]) for n in order),
+            parent=tuple(-1 if (up := parent[n]) is None else order.index(up) for n in order),
             origin=origins,
             joints=tuple(() for _ in order),
             steps=tuple(steps),
@@ -773,4 +778,5 @@ class UrdfWholeBody:
 
 def _step(j: UrdfJoint, after: np.ndarray) -> JointStep:
     kind = "prismatic" if j.kind == "prismatic" else "revolute"
-    return JointStep(j.name, kind, tuple(float(x) for x in j.axis), after, j.mimic)
+    x, y, z = j.axis
+    return JointStep(j.name, kind, (float(x), float(y), float(z)), after, j.mimic)
