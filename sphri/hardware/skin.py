@@ -26,7 +26,6 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from types import FrameType
 from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
@@ -37,8 +36,14 @@ from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, enco
 from sphri.hardware.transport import Link, PortLost
 
 if TYPE_CHECKING:
+    from types import FrameType
+    from typing import TypeAlias
+
     from sphri.hardware.live import LiveClassifier
     from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording
+
+    #: What :func:`signal.signal` takes and returns: a handler, SIG_DFL/SIG_IGN, or None (not set from Python).
+    SignalHandler: TypeAlias = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
 
 log = logging.getLogger(__name__)
 
@@ -287,12 +292,10 @@ class _StopSignals:
     KeyboardInterrupt (a recorder stuck waiting for a port still ends, saving what it has)."""
 
     SIGNALS = (signal.SIGTERM, signal.SIGINT)
-    #: What :func:`signal.signal` takes and returns: a handler, SIG_DFL/SIG_IGN, or None (not set from Python).
-    Handler = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
 
     def __init__(self) -> None:
         self.received: str | None = None
-        self._old: dict[int, _StopSignals.Handler] = {}
+        self._old: dict[int, SignalHandler] = {}
 
     def _handle(self, signum, frame) -> None:
         if self.received is not None:
