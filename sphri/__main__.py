@@ -25,7 +25,7 @@ import traceback
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import hydra
 from hydra.core.hydra_config import HydraConfig
@@ -221,7 +221,7 @@ def _log(cfg: DictConfig, job: _Job, tracker: Any, result: Any) -> tuple[str | N
         # log_model None (the default): a single job logs its model, a sweep's jobs do not
         if tracker.log_model or (tracker.log_model is None and not job.multirun):
             model_note = _log_model(cfg, tracker, run_id)
-    elif tracker.enabled and tracker.log_model:  # asked for explicitly (true)
+    elif tracker.enabled and tracker.log_model and run_id is not None:  # asked for explicitly (true); run found
         # already recorded: log the model into that run unless it holds one (never silently nothing)
         held = tracker.logged_models(cfg.output_dir, run_id)
         model_note = f"model already logged in that run: {held[0]}" if held else _log_model(cfg, tracker, run_id)
@@ -289,7 +289,7 @@ def run_job(cfg: DictConfig) -> dict | None:
 
 def _log_model(cfg: DictConfig, tracker, run_id: str) -> str:
     """Fit the job's model on every participant and log it into ``run_id``; the line the summary prints."""
-    from sphri.hardware.train_export import log_job_model
+    from sphri.export.train import log_job_model  # sphri.hardware.train_export is this module under its old name
 
     t0 = time.perf_counter()
     uri = log_job_model(cfg, run_id, tracker.register_model)
@@ -339,7 +339,8 @@ def _fixed_overrides(args: list[str]) -> list[str] | None:
             parsed += parser.parse_overrides([arg])
         except Exception as exc:  # Hydra's lexer and parser: a caret under the position, over several lines
             raise ConfigError(override_parse_error(arg, exc)) from None
-    return [o.input_line for o in parsed if not o.is_sweep_override()]
+    # Override.input_line is Optional, but parse_overrides sets it on every override it returns
+    return [cast(str, o.input_line) for o in parsed if not o.is_sweep_override()]
 
 
 def override_parse_error(arg: str, exc: BaseException) -> str:

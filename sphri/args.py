@@ -328,7 +328,9 @@ def _parser(
         if k.positional and (k.is_list or k.name not in named):
             group.add_argument(f"_{k.name}", nargs="*" if k.is_list else "?", **kw)
             kw["help"] = argparse.SUPPRESS
-        how = {"action": "append"} if k.is_list else {"nargs": "?", "const": "true"} if k.is_bool else {}
+        how: dict[str, Any] = (
+            {"action": "append"} if k.is_list else {"nargs": "?", "const": "true"} if k.is_bool else {}
+        )
         group.add_argument(*k.spellings(), dest=k.name, **how, **kw)
         for flag, value in k.flags.items():
             if value is not None:
@@ -528,6 +530,7 @@ def read_settings(
             hint = f" (did you mean {close[0]}?)" if close else ""
             raise ArgsError(f"unknown command {word!r}{hint}; commands: {', '.join(words)}")
         cls, known = commands[word]
+        settings: Any  # an instance of cls (commands' classes are not one type)
         settings, overrides = _parse(cls, argv, f"{usage_prog} {word}".strip(), summary(cls), known)
         return word, settings, overrides
     except (HelpRequested, ArgsError) as exc:

@@ -22,6 +22,7 @@ import re
 import sys
 import textwrap
 from pathlib import Path
+from typing import Any
 
 import yaml
 
@@ -138,6 +139,13 @@ def help_text() -> str:
     return "\n".join(lines)
 
 
+def _mapping(container: object, what: str) -> dict[str, Any]:
+    """``container`` (``OmegaConf.to_container`` of a config group or its schema: a dict) typed as one."""
+    if not isinstance(container, dict):
+        raise ConfigError(f"{what}: expected a mapping, got {type(container).__name__}")
+    return container
+
+
 def cmd_list(groups: list[str]) -> int:
     for group in groups or list(DEFAULT_GROUPS):
         print(f"{group}:")
@@ -170,10 +178,12 @@ def cmd_show(overrides: list[str], groups: list[str] | None = None) -> int:
         schema = OmegaConf.get_type(node)
         docs = field_docs(schema) if isinstance(schema, type) else {}
         try:
-            default = OmegaConf.to_container(OmegaConf.structured(schema)) if dataclasses.is_dataclass(schema) else {}
+            default: dict[str, Any] = {}
+            if dataclasses.is_dataclass(schema):
+                default = _mapping(OmegaConf.to_container(OmegaConf.structured(schema)), group)
         except Exception:  # a schema without defaults for every field
             default = {}
-        values = OmegaConf.to_container(node, resolve=True)
+        values = _mapping(OmegaConf.to_container(node, resolve=True), group)
         print(f"{group}: {str(values.pop('_target_', '')).rsplit('.', 1)[-1]}")
         for key, value in values.items():
             mark = "" if key not in default or default[key] == value else f" [changed; default {_short(default[key])}]"
@@ -221,7 +231,7 @@ def cmd_validate(overrides: list[str]) -> int:
     check_inputs(cfg)
     print("config OK")
     for group in PARAM_GROUPS:
-        node = OmegaConf.to_container(cfg[group], resolve=True)
+        node = _mapping(OmegaConf.to_container(cfg[group], resolve=True), group)
         target = str(node.pop("_target_", "")).rsplit(".", 1)[-1]
         scalars = ", ".join(f"{k}={v}" for k, v in node.items() if not isinstance(v, (dict, list)))
         print(f"  {group:<8} {target}({scalars})")

@@ -31,13 +31,16 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from sphri.analysis.coverage import ALL, CoverageAnalysis, RegionCoverage, write_region
 from sphri.analysis.schema import CoverageSchema
 from sphri.args import ArgsError, arg, first_paragraph, help_text, parse, parse_known
 from sphri.config import ConfigError, check_out_apart, check_output_dir, compose
 from sphri.errors import clean_errors
+
+if TYPE_CHECKING:
+    from sphri.sessions.study import StudyResult
 
 log = logging.getLogger(__name__)
 
@@ -99,8 +102,9 @@ def run(
     settings: CoverageSchema | None = None,
     out: str | Path | None = None,
     log_mlflow: bool = True,
-) -> CoverageRun:
-    """Analyse every region of the composed config's data; write files; log MLflow."""
+) -> CoverageRun | StudyResult:
+    """Analyse every region of the composed config's data; write files; log MLflow (``+experiment=scenario_study``:
+    the whole-body study's result)."""
     from sphri.pipeline import make_pipeline, open_cache
 
     settings = settings or CoverageSchema()
@@ -159,10 +163,10 @@ def run(
             f"[{r}]\n" + "\n".join(res.sentences[n] for n in [ALL] + res.groups) + "\n\n" for r, res in results.items()
         )
     )
-    result = CoverageRun(out_dir, results, files, None, seconds)
+    cov = CoverageRun(out_dir, results, files, None, seconds)
     if log_mlflow:
-        result.mlflow_run_id = log_coverage(base, settings, result, overrides, meta)
-    return result
+        cov.mlflow_run_id = log_coverage(base, settings, cov, overrides, meta)
+    return cov
 
 
 def log_coverage(cfg, settings: CoverageSchema, cov: CoverageRun, overrides: Sequence[str], meta: dict) -> str | None:
@@ -201,7 +205,7 @@ def log_coverage(cfg, settings: CoverageSchema, cov: CoverageRun, overrides: Seq
                 ):
                     if key in entry:
                         metrics.append(Metric(f"{region}/{key}/{_metric_name(g)}", float(entry[key]), now, 0))
-            if "comparison" in summ:
+            if res.comparison is not None:  # summary() has "comparison" exactly then
                 metrics.append(
                     Metric(f"{region}/n_significant_pairs", float(summ["comparison"]["n_significant"]), now, 0)
                 )

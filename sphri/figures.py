@@ -335,7 +335,8 @@ def _check_and_write_png(fig, out: Path) -> list[str]:
 
 def _tick_labels(fig) -> tuple[set[int], set[int]]:
     """ids of the tick labels drawn (tick inside the axis' view interval) and of those not drawn."""
-    drawn, hidden = set(), set()
+    drawn: set[int] = set()
+    hidden: set[int] = set()
     for ax in fig.findobj(lambda a: hasattr(a, "xaxis") and hasattr(a, "yaxis")):
         for axis in (ax.xaxis, ax.yaxis):
             if not ax.axison or not ax.get_visible() or not axis.get_visible():  # axes drawn without ticks

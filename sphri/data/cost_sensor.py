@@ -70,6 +70,8 @@ def sensor_grid(link, surface: SurfaceMap):
     """
     rows = max(1, int(round(long_axis_length_m(surface) / COST_PITCH_M)))
     layout = build_grid(link, surface, rows)
+    if layout.grid_shape is None:
+        raise RuntimeError(f"link {link.name!r}: build_grid returned a layout without a grid shape")
     h, w = layout.grid_shape
     if h < COST_CELLS or w < COST_CELLS:
         raise ValueError(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 from sphri.config import ComponentSchema, require, setting, store
 from sphri.data.duplicates import DUPLICATE_POLICIES
@@ -23,6 +24,14 @@ POSITION_UNITS: dict[str, float] = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 @dataclass
 class DataSchema(ComponentSchema, group="data"):
     """Base of the data group's schemas."""
+
+    if TYPE_CHECKING:
+        # Every concrete data schema declares these as dataclass fields; named here for check_common.
+        @property
+        def regions(self) -> list[str]: ...
+
+        @property
+        def gestures(self) -> list[str]: ...
 
     def check_root(self, hint: str) -> None:
         """A data component that reads files needs its folder (``root``); ``hint`` says which one."""

@@ -83,7 +83,7 @@ def inverse_smoothstep(y: float) -> float:
     return float(np.interp(y, _SMOOTH, _S_GRID))
 
 
-def interpolate(t: np.ndarray, knot_t: Sequence[float], knot_v: np.ndarray) -> np.ndarray:
+def interpolate(t: np.ndarray, knot_t: Sequence[float] | np.ndarray, knot_v: np.ndarray) -> np.ndarray:
     """(T, D) min-jerk interpolation of knots (K,) -> (K, D) at times ``t`` (T,); held outside the knots."""
     kt = np.asarray(knot_t, dtype=np.float64)
     kv = np.asarray(knot_v, dtype=np.float64).reshape(len(kt), -1)

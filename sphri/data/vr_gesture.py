@@ -250,7 +250,15 @@ def find_participants(root: Path, regions: Sequence[str]) -> list[str]:
             have = sorted(p.name for p in root.iterdir() if p.is_dir() and p.name != "assets")
             raise DatasetError(f"{rdir}: no such region folder (data.regions={list(regions)}; found {have})")
         found.update(p.name for p in rdir.iterdir() if p.is_dir() and PARTICIPANT_RE.match(p.name))
-    return sorted(found, key=lambda s: (int(PARTICIPANT_RE.match(s).group(1)), s))
+    return sorted(found, key=_participant_order)
+
+
+def _participant_order(name: str) -> tuple[int, str]:
+    """Sort key of a participant folder name (one :data:`PARTICIPANT_RE` matches): its number, then the name."""
+    m = PARTICIPANT_RE.match(name)
+    if m is None:
+        raise DatasetError(f"{name!r} is not a participant folder name")
+    return int(m.group(1)), name
 
 
 class VRGestureData:

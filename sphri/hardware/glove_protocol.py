@@ -154,7 +154,7 @@ class GloveDecoder(StreamDecoder):
             return False
         return True
 
-    def feed(self, data: bytes | bytearray | memoryview) -> list[ActuateCommand | Ack]:  # type: ignore[override]
+    def feed(self, data: bytes | bytearray | memoryview) -> list[ActuateCommand | Ack]:
         out: list[ActuateCommand | Ack] = []
         for payload in super().feed(data):
             mtype = payload[1]

@@ -300,6 +300,8 @@ class PartialWriter:
                 self._write_all(PARTIAL_MAGIC + struct.pack("<I", len(head)) + head)
                 self._data_start = len(PARTIAL_MAGIC) + 4 + len(head)
             row = self._row
+            if row is None:  # set together with self._dtype above
+                raise RecordingError(f"{self.path}: frame buffer missing after the header was written")
             row["values"][0] = values
             row["host_time_s"][0] = host_time_s
             row["device_time_us"][0] = device_time_us
@@ -393,7 +395,10 @@ def _load_partial(path: Path, blob: bytes) -> SkinRecording:
     grid_shape = (int(grid[0]), int(grid[1])) if grid and int(grid[0]) * int(grid[1]) == n_tax else None
     return SkinRecording(
         rec["values"],
-        *(rec[name] for name in _TIMING),
+        rec["host_time_s"],
+        rec["device_time_us"],
+        rec["seq"],
+        rec["segment"],
         grid_shape,
         {**head, "partial": True, "torn_bytes": len(body) - k * dtype.itemsize},
     )

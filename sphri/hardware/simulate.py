@@ -57,7 +57,7 @@ COMMANDS = {"skin": (SkinSimSettings, True), "glove": (GloveSimSettings, False)}
 def main(device: str, settings: SkinSimSettings | GloveSimSettings, overrides: list[str]) -> int:
     """``sphri simulate skin|glove key=value ...`` (``python -m sphri.hardware.simulate`` by default)."""
     sim: SkinSimulator | GloveSimulator
-    if device == "skin":
+    if isinstance(settings, SkinSimSettings):  # read_settings builds COMMANDS[device]'s class: skin's only here
         sim = skin_simulator(settings, overrides)
     else:
         sim = GloveSimulator(settings, make_endpoint(settings), verbose=True)

@@ -26,7 +26,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import IO, TYPE_CHECKING
+from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -36,8 +36,14 @@ from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, enco
 from sphri.hardware.transport import Link, PortLost
 
 if TYPE_CHECKING:
+    from types import FrameType
+    from typing import TypeAlias
+
     from sphri.hardware.live import LiveClassifier
     from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording
+
+    #: What :func:`signal.signal` takes and returns: a handler, SIG_DFL/SIG_IGN, or None (not set from Python).
+    SignalHandler: TypeAlias = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
 
 log = logging.getLogger(__name__)
 
@@ -289,7 +295,7 @@ class _StopSignals:
 
     def __init__(self) -> None:
         self.received: str | None = None
-        self._old: dict[int, object] = {}
+        self._old: dict[int, SignalHandler] = {}
 
     def _handle(self, signum, frame) -> None:
         if self.received is not None:
@@ -596,7 +602,7 @@ class _LiveRun:
         self.first_t = rf.host_time_s if self.first_t is None else self.first_t
         self.last_t = rf.host_time_s
         got = []
-        if self.last_seq is not None and s.fill_gaps:
+        if self.last_seq is not None and self.last_values is not None and s.fill_gaps:  # set together
             # frames lost on the way: hold the last one so windows keep the stream's timing
             lost = ((rf.frame.seq - self.last_seq) & 0xFFFF) - 1
             if 0 < lost <= s.fill_gaps:
@@ -718,7 +724,8 @@ COMMANDS = {"record": (SkinRecordSettings, False), "live": (SkinLiveSettings, Fa
 @settings_main("sphri.hardware.skin", COMMANDS)
 def main(cmd: str, settings: SkinRecordSettings | SkinLiveSettings, _overrides: list[str]) -> int:
     """``sphri skin record|live key=value ...`` (``python -m sphri.hardware.skin`` is ``prog`` by default)."""
-    summary = record(settings) if cmd == "record" else live(settings)
+    # read_settings builds COMMANDS[cmd]'s class: SkinRecordSettings for record only
+    summary = record(settings) if isinstance(settings, SkinRecordSettings) else live(settings)
     # port, model-file and recording errors: one line from @clean_errors
     return 1 if summary.get("error") else 0
 

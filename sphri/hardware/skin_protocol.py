@@ -260,5 +260,5 @@ class SkinDecoder(StreamDecoder):
     def _reset_sequence(self) -> None:
         self.last_seq = None
 
-    def feed(self, data: bytes | bytearray | memoryview) -> list[SkinFrame]:  # type: ignore[override]
+    def feed(self, data: bytes | bytearray | memoryview) -> list[SkinFrame]:
         return super().feed(data)

@@ -73,7 +73,7 @@ def outside_keys(trial_key: int, slot: np.ndarray) -> np.ndarray:
     return np.where(slot < 0, trial_key ^ PRE_ONSET_KEY, trial_key).astype(np.int64)
 
 
-def encode_trials(pipeline, rows: Sequence[int], gap_s: float = 0.5) -> EncodedTrials:
+def encode_trials(pipeline, rows: Sequence[int] | np.ndarray, gap_s: float = 0.5) -> EncodedTrials:
     """Encode (and add the configured noise to) every frame of the trials ``rows``.
 
     The frames inside a trial's window are the chain's ``noise`` stage for these trials (the plan

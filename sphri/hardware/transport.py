@@ -222,6 +222,11 @@ class PtyEndpoint:
     def url(self) -> str:
         return self.link or self.name
 
+    def _master_fd(self) -> int:
+        if self.master is None:
+            raise RuntimeError("pty endpoint is not open (open() not called, or unplugged)")
+        return self.master
+
     def open(self, stop: threading.Event) -> None:
         self.master, self.slave = os.openpty()
         tty.setraw(self.slave)  # no echo, no line editing, before any host opens it
@@ -239,21 +244,23 @@ class PtyEndpoint:
         while view:
             if stop.is_set():
                 raise Stopped()
-            _, w, _ = select.select([], [self.master], [], 0.1)
+            fd = self._master_fd()
+            _, w, _ = select.select([], [fd], [], 0.1)
             if not w:
                 continue
             try:
-                n = os.write(self.master, view)
+                n = os.write(fd, view)
             except BlockingIOError:
                 continue
             view = view[n:]
 
     def read(self) -> bytes:
-        r, _, _ = select.select([self.master], [], [], 0)
+        fd = self._master_fd()
+        r, _, _ = select.select([fd], [], [], 0)
         if not r:
             return b""
         try:
-            return os.read(self.master, 4096)
+            return os.read(fd, 4096)
         except BlockingIOError:
             return b""
         except OSError as exc:  # EIO: no slave open (cannot happen while we hold one)

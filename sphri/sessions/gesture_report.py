@@ -46,12 +46,12 @@ def gesture_counts(labelled: pd.DataFrame, scenarios: list[str], n_boot: int = 1
     u_idx = {u: i for i, u in enumerate(units)}
     pcols = [f"p_{g}" for g in GESTURES]
     for r in ok.itertuples(index=False):
-        s = scen_idx.get(r.scenario)
-        if s is None:
+        k = scen_idx.get(r.scenario)
+        if k is None:
             continue
         u = u_idx[r.participant]
-        hard[u, s, g_idx[r.gesture]] += 1
-        soft[u, s] += np.nan_to_num(np.array([getattr(r, c) for c in pcols], dtype=float))
+        hard[u, k, g_idx[r.gesture]] += 1
+        soft[u, k] += np.nan_to_num(np.array([getattr(r, c) for c in pcols], dtype=float))
     rng = np.random.default_rng(seed)
     draws = rng.integers(0, units.size, size=(n_boot, units.size)) if units.size else np.zeros((0, 0), int)
     bh = hard[draws].sum(axis=1) if units.size else np.zeros((0,) + hard.shape[1:])  # (B, S, G)

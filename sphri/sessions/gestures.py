@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -34,7 +35,8 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class GestureModel:
-    model: object
+    model: Any
+    """The fitted model (made by :func:`sphri.pipeline.model_factory`: ``classes_``, ``geometry``, ``predict_proba``)."""
     regions: list[str]
     """Body parts the model was trained on (one chain each)."""
     res: int
@@ -63,7 +65,10 @@ def train_gesture_model(overrides: list[str], regions: list[str], cache, memo=No
     from sphri.config import compose
     from sphri.pipeline import make_pipeline, model_factory
 
-    feats, labels, accs, first = [], [], {}, None
+    feats: list[np.ndarray] = []
+    labels: list[np.ndarray] = []
+    accs: dict[str, float] = {}
+    first: tuple[Any, Any, Any] | None = None  # the first region's (config, model, windows)
     for _k, region in enumerate(regions):
         cfg = compose([*overrides, f"data.regions=[{region}]"])
         p = make_pipeline(cfg, cache, memo=memo)
@@ -84,6 +89,8 @@ def train_gesture_model(overrides: list[str], regions: list[str], cache, memo=No
             break
         feats.append(model.transform(windows.x))
         labels.append(windows.y)
+    if first is None:
+        raise ValueError("train_gesture_model: no regions to train on")
     cfg, model, windows = first
     if feats:
         model.fit_features(np.concatenate(feats), np.concatenate(labels))
@@ -117,7 +124,9 @@ def episode_windows(episodes: pd.DataFrame, ds: SessionDataset, cfg, cache, memo
     pad = int(round(0.5 * ds.frame_rate_hz))
     li = {n: i for i, n in enumerate(ds.links)}
     for link_name, eps in episodes.groupby("dominant_link", sort=True):
-        chunks, records, start = [], [], 0
+        chunks: list[np.ndarray] = []
+        records: list[dict[str, Any]] = []
+        start = 0
         for _k, e in eps.iterrows():
             a = max(int(ds.sessions["start"].iat[e.session]), int(e.start_frame) - pad)
             b = int(e.end_frame) + pad + 1

@@ -105,6 +105,8 @@ def check_robot(s: RobotCheckSettings) -> tuple[str, Path]:
     check_output_file(s.out, key="out")
     kw = robot_settings(s)
     robot = UrdfWholeBody(**kw).build()
+    if robot.tree is None:
+        raise RuntimeError(f"robot {robot.name}: the URDF model built without a joint tree")
     links = tuple(robot.tree.links)
     surface = rest_surface(robot, links, s.spacing_mm)
     area = surface.samples.area_m2 * 1e4
@@ -119,9 +121,9 @@ def check_robot(s: RobotCheckSettings) -> tuple[str, Path]:
     for p, a in areas.items():
         where = f"link {own[p]}" if p in own else "its link's surface outside every part"
         lines.append(f"  {p:<{width}}  {a:>9,.0f} cm^2  {where}")
-    for p in robot.parts:
-        if p.name not in areas:
-            lines.append(f"  {p.name:<{width}}  {0:>9,.0f} cm^2  link {p.link}: no element of the link is in it")
+    for part in robot.parts:
+        if part.name not in areas:
+            lines.append(f"  {part.name:<{width}}  {0:>9,.0f} cm^2  link {part.link}: no element of the link is in it")
     for g, members in robot.groups.items():
         total = sum(areas.get(m, 0.0) for m in members)
         lines.append(f"group {g}: {', '.join(members)} ({total:,.0f} cm^2)")

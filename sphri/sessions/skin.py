@@ -35,6 +35,7 @@ from __future__ import annotations
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -78,7 +79,7 @@ def make_patches(body: BodySurface, patch_cm2: float, seed: int = 0, mountable: 
     of = np.full(body.samples.n, -1, dtype=np.int64)
     reach = body.reachable if mountable is None else body.reachable & np.asarray(mountable, dtype=bool)
     area_cm2 = body.samples.area_m2 * 1e4
-    rows = []
+    rows: list[dict[str, Any]] = []
     # normals weigh as much as half a patch's width: the two faces of a thin part fall into different patches
     normal_scale = 0.5 * np.sqrt(patch_cm2) * 1e-2
     for li, link in enumerate(body.links):
@@ -411,10 +412,10 @@ def connected_pieces(vertices: np.ndarray, faces: np.ndarray, touch_m: float = T
                 if (mj.nearest.on_surface(vi)[1] <= touch_m).any():
                     join.append((i, j))
         if join:
-            j = np.asarray(join)
+            joined = np.asarray(join)
             k = len(pieces)
             comp = connected_components(
-                sparse.coo_matrix((np.ones(len(j)), (j[:, 0], j[:, 1])), shape=(k, k)), directed=False
+                sparse.coo_matrix((np.ones(len(joined)), (joined[:, 0], joined[:, 1])), shape=(k, k)), directed=False
             )[1]
             pieces = [np.concatenate([pieces[i] for i in range(k) if comp[i] == c]) for c in np.unique(comp)]
     tri = v[f]
