@@ -1,0 +1,135 @@
+"""Held gestures on non-limb parts: how far the drawing hand is off its own link during the contact phase.
+
+Picks the first ``--n`` sessions of the full ``robot=reachy2`` scenario study whose touch is a held gesture (rub,
+grab) on a part other than the upper arm or forearm, generates each (the study's own random streams) and measures,
+over the frames of the gesture trial's contact phase, the gap (mm) between the drawing hand's nearest capsule and
+its own link (exact capsule-vs-mesh distance minus radius; <= 0: touching): as the gesture generator places the
+hand (before :func:`settle_hands`) and after it, with the generator as it is (``hold_contact`` on) and with
+``--no-hold`` (the hands as before it existed).
+
+    python bench/bench_hold_contact_gap.py [--n 8] [--no-hold]
+
+Writes ``outputs/bench/hold_contact_gap[_nohold].json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from _common import machine, write_json  # noqa: E402
+
+HELD = ("rub", "grab")
+ARM_LIKE = ("upper_arm", "forearm")
+
+
+def _gaps(poses, link_poses, robot, hand, link, mask) -> np.ndarray:
+    from sphri.sessions.synthetic import HOLD_MAX_GAP_M, own_link_gap
+
+    gap, _ = own_link_gap(poses[mask], link_poses[mask, link], robot, hand, link, 4 * HOLD_MAX_GAP_M)
+    return gap * 1e3
+
+
+def _stats(g: np.ndarray) -> dict:
+    fin = np.where(np.isfinite(g), g, 200.0)
+    return {
+        "off_share": round(float((g > 0).mean()), 3) if g.size else None,
+        "gap_median_mm": round(float(np.median(fin)), 1) if g.size else None,
+        "gap_p90_mm": round(float(np.percentile(fin, 90)), 1) if g.size else None,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=8)
+    ap.add_argument("--no-hold", action="store_true", help="measure the generator without hold_contact")
+    args = ap.parse_args()
+    from hydra.utils import instantiate
+
+    from sphri.config import compose
+    from sphri.data.gestures import Style
+    from sphri.data.handfk import HandRig
+    from sphri.hand.kinematics import quat_to_matrix
+    from sphri.sessions import synthetic as syn
+
+    t0 = time.perf_counter()
+    cfg = compose(["+experiment=scenario_study", "robot=reachy2"])
+    hand, robot = instantiate(cfg.hand).build(), instantiate(cfg.robot).build()
+    gen = instantiate(cfg.data)
+    table = syn.load_priors(gen.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
+    names = list(table["scenarios"])
+    rig = HandRig.from_hand(hand)
+    captured: dict = {}
+    real_hold = syn.hold_contact
+
+    def hold(out, lk, robot_, hand_, own, phase, away, **kw):
+        captured.update(before=np.array(out), phase=phase, own=own)
+        return (out, 0) if args.no_hold else real_hold(out, lk, robot_, hand_, own, phase, away, **kw)
+
+    syn.hold_contact = hold
+    rows = []
+    for k in range(1, gen.participants + 1):
+        style = Style.draw(np.random.default_rng([gen.seed, k, 0]), gen.spread)
+        for rep in range(1, gen.repetitions + 1):
+            for si, scen in enumerate(names):
+                if len(rows) >= args.n:
+                    break
+                dr = syn._draw_session(np.random.default_rng([gen.seed, k, si + 1, rep]), table["scenarios"][scen], k)
+                if dr.gesture not in HELD or dr.part.startswith(ARM_LIKE):
+                    continue
+                rng = np.random.default_rng([gen.seed, k, si + 1, rep])
+                out, lk7, info = gen._session(rng, style, rig, robot, {}, table, scen, k)
+                lk = np.zeros((*lk7.shape[:2], 4, 4))
+                lk[..., :3, :3] = quat_to_matrix(lk7[..., 3:].astype(np.float64))
+                lk[..., :3, 3] = lk7[..., :3]
+                lk[..., 3, 3] = 1.0
+                m = captured["phase"][:, 1]
+                link = captured["own"][1]
+                pre = _gaps(captured["before"][:, 1], lk, robot, hand, link, m)
+                post = _gaps(out[:, 1].astype(np.float64), lk, robot, hand, link, m)
+                on = post <= 0
+                runs = int((np.diff(np.r_[0, on.astype(np.int8)]) == 1).sum())
+                rows.append(
+                    {
+                        "participant": k,
+                        "scenario": scen,
+                        "repetition": rep,
+                        "gesture": dr.gesture,
+                        "part": dr.part,
+                        "contact_phase_frames": int(m.sum()),
+                        "generator": _stats(pre),
+                        "settled": _stats(post),
+                        "settled_contact_runs_in_phase": runs,
+                        "held_frames": int(info.get("held_frames", 0)),
+                        "settled_frames": int(info["settled_frames"]),
+                    }
+                )
+                r = rows[-1]
+                print(
+                    f"P{k} {scen} r{rep} {dr.gesture} {dr.part}: {r['contact_phase_frames']} phase frames; generator "
+                    f"off {r['generator']['off_share']}, gap median {r['generator']['gap_median_mm']} mm, p90 "
+                    f"{r['generator']['gap_p90_mm']}; settled off {r['settled']['off_share']}, median "
+                    f"{r['settled']['gap_median_mm']} mm; runs {runs}",
+                    flush=True,
+                )
+    result = {
+        "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        "machine": machine(),
+        "command": "python bench/bench_hold_contact_gap.py" + (" --no-hold" if args.no_hold else ""),
+        "what": __doc__.splitlines()[0],
+        "hold_contact": not args.no_hold,
+        "touches": rows,
+        "seconds": round(time.perf_counter() - t0, 1),
+    }
+    print(write_json("hold_contact_gap" + ("_nohold" if args.no_hold else ""), result))
+
+
+if __name__ == "__main__":
+    main()
