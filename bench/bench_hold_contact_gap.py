@@ -4,8 +4,9 @@ Picks the first ``--n`` sessions of the full ``robot=reachy2`` scenario study wh
 grab) on a part other than the upper arm or forearm, generates each (the study's own random streams) and measures,
 over the frames of the gesture trial's contact phase, the gap (mm) between the drawing hand's nearest capsule and
 its own link (exact capsule-vs-mesh distance minus radius; <= 0: touching): as the gesture generator places the
-hand (before :func:`settle_hands`) and after it, with the generator as it is (``hold_contact`` on) and with
-``--no-hold`` (the hands as before it existed).
+hand (before :func:`settle_hands`), after settling, and as generated (after ``hold_contact`` and settling again;
+with ``--no-hold`` without ``hold_contact``: the hands as before it existed). A contact run: consecutive
+contact-phase frames touching the own link.
 
     python bench/bench_hold_contact_gap.py [--n 8] [--no-hold]
 
@@ -67,13 +68,17 @@ def main() -> None:
     names = list(table["scenarios"])
     rig = HandRig.from_hand(hand)
     captured: dict = {}
-    real_hold = syn.hold_contact
+    real_hold, real_settle = syn.hold_contact, syn.settle_hands
 
-    def hold(out, lk, robot_, hand_, own, phase, away, **kw):
-        captured.update(before=np.array(out), phase=phase, own=own)
-        return (out, 0) if args.no_hold else real_hold(out, lk, robot_, hand_, own, phase, away, **kw)
+    def settle(out, *a, **kw):
+        captured.setdefault("generator", np.array(out))
+        return real_settle(out, *a, **kw)
 
-    syn.hold_contact = hold
+    def hold(out, lk, robot_, hand_, own, phase, away, *a, **kw):
+        captured.update(settled=np.array(out), phase=phase, own=own)
+        return (out, 0) if args.no_hold else real_hold(out, lk, robot_, hand_, own, phase, away, *a, **kw)
+
+    syn.hold_contact, syn.settle_hands = hold, settle
     rows = []
     for k in range(1, gen.participants + 1):
         style = Style.draw(np.random.default_rng([gen.seed, k, 0]), gen.spread)
@@ -85,6 +90,7 @@ def main() -> None:
                 if dr.gesture not in HELD or dr.part.startswith(ARM_LIKE):
                     continue
                 rng = np.random.default_rng([gen.seed, k, si + 1, rep])
+                captured.clear()
                 out, lk7, info = gen._session(rng, style, rig, robot, {}, table, scen, k)
                 lk = np.zeros((*lk7.shape[:2], 4, 4))
                 lk[..., :3, :3] = quat_to_matrix(lk7[..., 3:].astype(np.float64))
@@ -92,7 +98,8 @@ def main() -> None:
                 lk[..., 3, 3] = 1.0
                 m = captured["phase"][:, 1]
                 link = captured["own"][1]
-                pre = _gaps(captured["before"][:, 1], lk, robot, hand, link, m)
+                pre = _gaps(captured["generator"][:, 1], lk, robot, hand, link, m)
+                mid = _gaps(captured["settled"][:, 1], lk, robot, hand, link, m)
                 post = _gaps(out[:, 1].astype(np.float64), lk, robot, hand, link, m)
                 on = post <= 0
                 runs = int((np.diff(np.r_[0, on.astype(np.int8)]) == 1).sum())
@@ -105,8 +112,9 @@ def main() -> None:
                         "part": dr.part,
                         "contact_phase_frames": int(m.sum()),
                         "generator": _stats(pre),
-                        "settled": _stats(post),
-                        "settled_contact_runs_in_phase": runs,
+                        "settled": _stats(mid),
+                        "final": _stats(post),
+                        "final_contact_runs_in_phase": runs,
                         "held_frames": int(info.get("held_frames", 0)),
                         "settled_frames": int(info["settled_frames"]),
                     }
@@ -116,7 +124,8 @@ def main() -> None:
                     f"P{k} {scen} r{rep} {dr.gesture} {dr.part}: {r['contact_phase_frames']} phase frames; generator "
                     f"off {r['generator']['off_share']}, gap median {r['generator']['gap_median_mm']} mm, p90 "
                     f"{r['generator']['gap_p90_mm']}; settled off {r['settled']['off_share']}, median "
-                    f"{r['settled']['gap_median_mm']} mm; runs {runs}",
+                    f"{r['settled']['gap_median_mm']} mm; final off {r['final']['off_share']}, median "
+                    f"{r['final']['gap_median_mm']} mm; runs {runs}",
                     flush=True,
                 )
     result = {

@@ -411,6 +411,7 @@ def hold_contact(
     own_link: tuple[int, int],
     phase: np.ndarray,
     away: np.ndarray,
+    compliance_m: float,
     depth_m: float = HOLD_DEPTH_M,
     rounds: int = HOLD_ROUNDS,
 ) -> tuple[np.ndarray, int]:
@@ -420,34 +421,46 @@ def hold_contact(
     does not touch its own link (``own_link[h]``; -1: none) but comes within :data:`HOLD_MAX_GAP_M` of it, the
     whole hand is moved towards the robot along its approach (``-away[h]``, the reverse of :func:`settle_hands`)
     until its nearest capsule presses ``depth_m`` in (gap over the cosine between that capsule's normal and the
-    approach, at least :data:`SETTLE_MIN_COS`); ``rounds`` times at most. Only positions change (no time stretch:
-    the gesture keeps its timing). Returns the poses and the number of (frame, hand) pairs moved."""
+    approach, at least :data:`SETTLE_MIN_COS`); ``rounds`` times at most. A frame whose deepest capsule would then
+    press more than ``compliance_m`` into the link keeps its pose before the pull. Only positions change (no time
+    stretch: the gesture keeps its timing). Other links are not checked: run :func:`settle_hands` after it.
+    Returns the poses and the number of (frame, hand) pairs moved."""
     out = np.array(hand_poses, dtype=np.float64)
     moved = np.zeros(phase.shape, dtype=bool)
     for h in (0, 1):
         if own_link[h] < 0:
             continue
         frames = np.flatnonzero(phase[:, h])
-        for _ in range(rounds):
+        before = out[:, h, :, :3].copy()
+        pulled = np.zeros(len(out), dtype=bool)
+        for r in range(rounds + 1):
             if frames.size == 0:
                 break
             gap, nrm = own_link_gap(
                 out[frames, h], link_poses[frames, own_link[h]], robot, hand, own_link[h], HOLD_MAX_GAP_M
             )
-            off = (gap >= 0) & (gap <= HOLD_MAX_GAP_M)
+            back = frames[(gap < -compliance_m) | (gap > HOLD_MAX_GAP_M)]
+            out[back, h, :, :3] = before[back]  # pulled too deep (or not reached): back to where it was
+            pulled[back] = False
+            off = (gap > 0) & (gap <= HOLD_MAX_GAP_M)
             frames, gap, nrm = frames[off], gap[off], nrm[off]
-            if frames.size == 0:
+            if frames.size == 0 or r == rounds:
                 break
             step = (gap + depth_m) / np.maximum(np.abs(nrm @ away[h]), SETTLE_MIN_COS)
             out[frames, h, :, :3] -= (step[:, None] * away[h][None, :])[:, None, :]
-            moved[frames, h] = True
+            pulled[frames] = True
+        out[frames, h, :, :3] = before[frames]  # still off its link after the last round: as it was
+        pulled[frames] = False
+        moved[:, h] = pulled
     return out, int(moved.sum())
 
 
 class SyntheticSessions:
     """``data=synthetic_sessions`` (see module). ``load(hand, robot)`` -> :class:`SessionDataset`."""
 
-    VERSION = "3"
+    #: 4: held contact follows the surface (:func:`hold_contact`): in a gesture's contact phase a hand that
+    #: settling moved off its own link is pulled back onto it along its approach, then settled again.
+    VERSION = "4"
 
     def __init__(
         self,
@@ -586,13 +599,17 @@ class SyntheticSessions:
         away = np.stack([idle[h] - out[n_app, h, :, :3].mean(axis=0) for h in (0, 1)])
         norm = np.linalg.norm(away, axis=1, keepdims=True)
         away = np.where(norm > 1e-9, away / np.maximum(norm, 1e-9), dr.direction[None, :])
-        # held contact follows the surface: in the contact phase a hand off its own link is pulled onto it
         phase = np.zeros(out.shape[:2], dtype=bool)
         phase[n_app : n_app + n_touch, 1] = phases[0]
         if dr.two_hands:
             phase[n_app : n_app + n_touch, 0] = phases[1]
-        out, held = hold_contact(out, lk, robot, rig.hand, own_link, phase, away)
-        out, moved = settle_hands(out, lk, robot, rig.hand, own_link, self.compliance_mm * 1e-3, away)
+        comp = self.compliance_mm * 1e-3
+        out, moved = settle_hands(out, lk, robot, rig.hand, own_link, comp, away)
+        # held contact follows the surface: in its contact phase a hand that settling moved off its own link is
+        # pulled back onto it (within the compliance); settling again clears other links it then touches
+        out, held = hold_contact(out, lk, robot, rig.hand, own_link, phase, away, comp)
+        if held:
+            out, _ = settle_hands(out, lk, robot, rig.hand, own_link, comp, away)
         info = dict(
             start_position=dr.position,
             gesture=dr.gesture,
