@@ -8,9 +8,9 @@ hand (before :func:`settle_hands`), after settling, and as generated (after ``ho
 with ``--no-hold`` without ``hold_contact``: the hands as before it existed). A contact run: consecutive
 contact-phase frames touching the own link.
 
-    python bench/bench_hold_contact_gap.py [--n 8] [--no-hold]
+    python bench/bench_hold_contact_gap.py [--n 8] [--no-hold] [--gestures rub,grab] [--all-parts]
 
-Writes ``outputs/bench/hold_contact_gap[_nohold].json``.
+Writes ``outputs/bench/hold_contact_gap[_GESTURES][_all][_nohold].json``.
 """
 
 from __future__ import annotations
@@ -51,6 +51,8 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=8)
     ap.add_argument("--no-hold", action="store_true", help="measure the generator without hold_contact")
+    ap.add_argument("--gestures", default=",".join(HELD), help="comma-separated gestures to pick (default rub,grab)")
+    ap.add_argument("--all-parts", action="store_true", help="also touches on the upper arm and forearm")
     args = ap.parse_args()
     from hydra.utils import instantiate
 
@@ -87,7 +89,7 @@ def main() -> None:
                 if len(rows) >= args.n:
                     break
                 dr = syn._draw_session(np.random.default_rng([gen.seed, k, si + 1, rep]), table["scenarios"][scen], k)
-                if dr.gesture not in HELD or dr.part.startswith(ARM_LIKE):
+                if dr.gesture not in args.gestures.split(",") or (dr.part.startswith(ARM_LIKE) and not args.all_parts):
                     continue
                 rng = np.random.default_rng([gen.seed, k, si + 1, rep])
                 captured.clear()
@@ -131,13 +133,14 @@ def main() -> None:
     result = {
         "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
         "machine": machine(),
-        "command": "python bench/bench_hold_contact_gap.py" + (" --no-hold" if args.no_hold else ""),
+        "command": "python bench/bench_hold_contact_gap.py " + " ".join(sys.argv[1:]),
         "what": __doc__.splitlines()[0],
         "hold_contact": not args.no_hold,
         "touches": rows,
         "seconds": round(time.perf_counter() - t0, 1),
     }
-    print(write_json("hold_contact_gap" + ("_nohold" if args.no_hold else ""), result))
+    tag = ("" if args.gestures == ",".join(HELD) else "_" + args.gestures.replace(",", "_")) + ("_all" if args.all_parts else "")
+    print(write_json("hold_contact_gap" + tag + ("_nohold" if args.no_hold else ""), result))
 
 
 if __name__ == "__main__":

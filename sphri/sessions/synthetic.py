@@ -369,9 +369,9 @@ def settle_hands(
 #: compliance; :func:`hold_contact`).
 HOLD_DEPTH_M = 2e-3
 #: Largest gap (m) :func:`hold_contact` closes: a hand farther off its link in a contact phase is left where it is.
-HOLD_MAX_GAP_M = 0.05
+HOLD_MAX_GAP_M = 0.15
 #: Rounds of :func:`hold_contact` (each pulls every hand still off its link once, by its smallest gap).
-HOLD_ROUNDS = 4
+HOLD_ROUNDS = 6
 
 
 def own_link_gap(
