@@ -136,10 +136,25 @@ def main() -> None:
         "command": "python bench/bench_hold_contact_gap.py " + " ".join(sys.argv[1:]),
         "what": __doc__.splitlines()[0],
         "hold_contact": not args.no_hold,
+        "summary": {
+            stage: {
+                "off_share_median": float(np.median([r[stage]["off_share"] for r in rows])) if rows else None,
+                "touches_all_on": int(sum(r[stage]["off_share"] == 0 for r in rows)),
+            }
+            for stage in ("generator", "settled", "final")
+        }
+        | {
+            "final_contact_runs_median": float(np.median([r["final_contact_runs_in_phase"] for r in rows]))
+            if rows
+            else None
+        },
         "touches": rows,
         "seconds": round(time.perf_counter() - t0, 1),
     }
-    tag = ("" if args.gestures == ",".join(HELD) else "_" + args.gestures.replace(",", "_")) + ("_all" if args.all_parts else "")
+    tag = ("" if args.gestures == ",".join(HELD) else "_" + args.gestures.replace(",", "_")) + (
+        "_all" if args.all_parts else ""
+    )
+    print(result["summary"])
     print(write_json("hold_contact_gap" + tag + ("_nohold" if args.no_hold else ""), result))
 
 
