@@ -6,7 +6,9 @@ over the frames of the gesture trial's contact phase, the gap (mm) between the d
 its own link (exact capsule-vs-mesh distance minus radius; <= 0: touching): as the gesture generator places the
 hand (before :func:`settle_hands`), after settling, and as generated (after ``hold_contact`` and settling again;
 with ``--no-hold`` without ``hold_contact``: the hands as before it existed). A contact run: consecutive
-contact-phase frames touching the own link.
+contact-phase frames touching the own link. ``phase_span_ratio_to_arm``: the contact phase's first to last frame over
+the touch, against the arm study's contact fraction (what the plausibility check's contact fraction would read if
+the hand touched exactly during the phase).
 
     python bench/bench_hold_contact_gap.py [--n 8] [--no-hold] [--gestures rub,grab] [--all-parts]
 
@@ -61,6 +63,7 @@ def main() -> None:
     from sphri.data.handfk import HandRig
     from sphri.hand.kinematics import quat_to_matrix
     from sphri.sessions import synthetic as syn
+    from sphri.sessions.plausibility import arm_reference
 
     t0 = time.perf_counter()
     cfg = compose(["+experiment=scenario_study", "robot=reachy2"])
@@ -104,6 +107,9 @@ def main() -> None:
                 mid = _gaps(captured["settled"][:, 1], lk, robot, hand, link, m)
                 post = _gaps(out[:, 1].astype(np.float64), lk, robot, hand, link, m)
                 on = post <= 0
+                n_app, n_touch = info["touch_start_frame"], info["touch_frames"]
+                f = np.flatnonzero(captured["phase"][n_app : n_app + n_touch, 1])
+                phase_span = (f.max() - f.min() + 1) / n_touch if f.size else 0.0
                 runs = int((np.diff(np.r_[0, on.astype(np.int8)]) == 1).sum())
                 rows.append(
                     {
@@ -113,6 +119,8 @@ def main() -> None:
                         "gesture": dr.gesture,
                         "part": dr.part,
                         "contact_phase_frames": int(m.sum()),
+                        "touch_frames": int(n_touch),
+                        "phase_span_ratio_to_arm": round(phase_span / arm_reference(dr.gesture)[1], 3),
                         "generator": _stats(pre),
                         "settled": _stats(mid),
                         "final": _stats(post),
@@ -146,7 +154,8 @@ def main() -> None:
         | {
             "final_contact_runs_median": float(np.median([r["final_contact_runs_in_phase"] for r in rows]))
             if rows
-            else None
+            else None,
+            "phase_span_ratio_median": float(np.median([r["phase_span_ratio_to_arm"] for r in rows])) if rows else None,
         },
         "touches": rows,
         "seconds": round(time.perf_counter() - t0, 1),
