@@ -8,7 +8,8 @@ hand (before :func:`settle_hands`), after settling, and as generated (after ``ho
 with ``--no-hold`` without ``hold_contact``: the hands as before it existed). A contact run: consecutive
 contact-phase frames touching the own link. ``phase_span_ratio_to_arm``: the contact phase's first to last frame over
 the touch, against the arm study's contact fraction (what the plausibility check's contact fraction would read if
-the hand touched exactly during the phase).
+the hand touched exactly during the phase). ``duration_factor``: the participant's and the participant x gesture
+factors on the contact duration (:func:`sphri.data.gestures.contact_duration`; median 1 over participants).
 
     python bench/bench_hold_contact_gap.py [--n 8] [--no-hold] [--gestures rub,grab] [--all-parts]
 
@@ -120,6 +121,7 @@ def main() -> None:
                         "part": dr.part,
                         "contact_phase_frames": int(m.sum()),
                         "touch_frames": int(n_touch),
+                        "duration_factor": round(style.duration * style.duration_g.get(dr.gesture, 1.0), 3),
                         "phase_span_ratio_to_arm": round(phase_span / arm_reference(dr.gesture)[1], 3),
                         "generator": _stats(pre),
                         "settled": _stats(mid),
@@ -156,6 +158,7 @@ def main() -> None:
             if rows
             else None,
             "phase_span_ratio_median": float(np.median([r["phase_span_ratio_to_arm"] for r in rows])) if rows else None,
+            "duration_factor_median": float(np.median([r["duration_factor"] for r in rows])) if rows else None,
         },
         "touches": rows,
         "seconds": round(time.perf_counter() - t0, 1),
