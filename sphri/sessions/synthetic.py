@@ -17,7 +17,11 @@ A session, in the world frame (the robot's base starts at the origin facing +x):
    (:class:`sphri.data.synthetic.SyntheticData`: rest, approach, contact,
    retreat) on the drawn body part's surface, in that link's frame, placed
    in the world by the link's pose (the robot stops when the touch begins,
-   as in the study), time-scaled by ``duration_scale``;
+   as in the study), time-scaled by ``duration_scale``; every frame each hand is
+   moved back along its approach until it presses at most ``compliance_mm`` into
+   its part's link and touches no other (:func:`settle_hands`), and in the
+   gesture's contact phase a hand this left off its link is pulled back onto it
+   (:func:`hold_contact`), then settled again;
 4. the hands stay off the robot for ``tail_s`` (>= 2 s ends the episode).
 
 The other hand hangs at the participant's side unless the session is two-handed
@@ -424,7 +428,12 @@ def hold_contact(
     approach, at least :data:`SETTLE_MIN_COS`); ``rounds`` times at most. A frame whose deepest capsule would then
     press more than ``compliance_m`` into the link keeps its pose before the pull. Only positions change (no time
     stretch: the gesture keeps its timing). Other links are not checked: run :func:`settle_hands` after it.
-    Returns the poses and the number of (frame, hand) pairs moved."""
+    Returns the poses and the number of (frame, hand) pairs moved.
+
+    Why along the approach and not along the surface normal at the closest point: the pull and
+    :func:`settle_hands`' push then act on one line per hand, so neither drifts the hand sideways over the
+    surface (where on the part the gesture touches, and its slide, stay the generator's), and settling again
+    takes back exactly a pull that ran the hand into another link."""
     out = np.array(hand_poses, dtype=np.float64)
     moved = np.zeros(phase.shape, dtype=bool)
     for h in (0, 1):
