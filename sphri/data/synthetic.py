@@ -144,6 +144,7 @@ class _TrialMotion:
     effector: int  # index into EFFECTORS
     pos_noise: np.ndarray  # (T, 3) metres
     joint_noise: np.ndarray  # (T, C, 3) metres
+    contact: np.ndarray  # (T,) bool: the frame shows a time inside one of the plan's touches (the contact phase)
 
 
 @dataclass
@@ -284,6 +285,17 @@ class SyntheticData:
     def _participant_region(
         self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str
     ) -> tuple[list[str], np.ndarray, list[int]]:
+        """The trials of one participant on one region: (gestures in order, poses (T, C, 7) float32 link frame,
+        frames per trial)."""
+        order, poses, lengths, _ = self._participant_region_phases(rng, style, rig, surf, region)
+        return order, poses, lengths
+
+    def _participant_region_phases(
+        self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str
+    ) -> tuple[list[str], np.ndarray, list[int], np.ndarray]:
+        """:meth:`_participant_region` and, per frame (T,) bool, whether it lies in its trial's contact phase
+        (the time it shows is inside one of the plan's touches: surface crossed on the way in, not yet on the way
+        out; pauses between re-touches are outside). Same draws."""
         from sphri.data.handfk import EFFECTORS, effectors_from_bones
 
         sp = self.spread
@@ -306,7 +318,7 @@ class SyntheticData:
         order = [g for g in self.gestures for _ in range(self.repetitions)]
         order = [order[i] for i in rng.permutation(len(order))]
         if not order:
-            return [], np.zeros((0, rig.hand.n_capsules, 7), np.float32), []
+            return [], np.zeros((0, rig.hand.n_capsules, 7), np.float32), [], np.zeros(0, dtype=bool)
         finger_r = float(rig.hand.radius_m[rig.chain_slot[2, 0]])
         plans, points = [], []
         for g in order:
@@ -336,7 +348,8 @@ class SyntheticData:
         pos = target - np.einsum("tij,tj->ti", rot, e) + np.concatenate([m.pos_noise for m in motions])
         poses = rig.poses_from_bones(start, frame, length, rot, pos)
         poses[..., :3] += np.concatenate([m.joint_noise for m in motions])
-        return order, poses.astype(np.float32), [len(m.fingers) for m in motions]
+        contact = np.concatenate([m.contact for m in motions])
+        return order, poses.astype(np.float32), [len(m.fingers) for m in motions], contact
 
     def _trial(
         self,
@@ -369,6 +382,7 @@ class SyntheticData:
             effector=EFFECTORS.index(plan.effector),
             pos_noise=pos_noise,
             joint_noise=joint_noise,
+            contact=contact_phase(plan, tl.shift, tr.t),
         )
 
     def _timeline(self, rng: np.random.Generator, style: Style, region: str, site: _TouchSite) -> _Timeline:
@@ -461,6 +475,14 @@ class SyntheticData:
         pos_noise = sample_noise[held]
         joint_noise = 0.0003 * rng.standard_normal((ns, n_capsules, 3))[held]
         return rot, fingers, pos_noise, joint_noise
+
+
+def contact_phase(plan: ContactPlan, shift: float, t: np.ndarray) -> np.ndarray:
+    """(T,) bool: the times ``t`` (s, trial time) inside one of ``plan``'s touches (plan time + ``shift``)."""
+    inside = np.zeros(t.shape, dtype=bool)
+    for a, b, _ in plan.touches:
+        inside |= (t >= a + shift) & (t <= b + shift)
+    return inside
 
 
 def _contact_rotation(site: _TouchSite, m_l: np.ndarray, f_l: np.ndarray) -> np.ndarray:

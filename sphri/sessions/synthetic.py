@@ -17,7 +17,11 @@ A session, in the world frame (the robot's base starts at the origin facing +x):
    (:class:`sphri.data.synthetic.SyntheticData`: rest, approach, contact,
    retreat) on the drawn body part's surface, in that link's frame, placed
    in the world by the link's pose (the robot stops when the touch begins,
-   as in the study), time-scaled by ``duration_scale``;
+   as in the study), time-scaled by ``duration_scale``; every frame each hand is
+   moved back along its approach until it presses at most ``compliance_mm`` into
+   its part's link and touches no other (:func:`settle_hands`), and in the
+   gesture's contact phase a hand this left off its link is pulled back onto it
+   (:func:`hold_contact`), then settled again;
 4. the hands stay off the robot for ``tail_s`` (>= 2 s ends the episode).
 
 The other hand hangs at the participant's side unless the session is two-handed
@@ -365,10 +369,107 @@ def settle_hands(
     return out, int(moved.sum())
 
 
+#: Depth (m) into its own link a hand pulled back onto the surface during a contact phase presses (within the
+#: compliance; :func:`hold_contact`).
+HOLD_DEPTH_M = 2e-3
+#: Largest gap (m) :func:`hold_contact` closes: a hand farther off its link in a contact phase is left where it is.
+HOLD_MAX_GAP_M = 0.15
+#: Rounds of :func:`hold_contact` (each pulls every hand still off its link once, by its smallest gap).
+HOLD_ROUNDS = 6
+
+
+def own_link_gap(
+    hand_poses: np.ndarray, link_poses: np.ndarray, robot: Robot, hand: HandModel, link: int, margin_m: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """(gap m (F,), outward normal (F, 3) world) of hand poses (F, C, 7) world to link ``link`` (index into
+    ``robot.tree.links``) at its poses ``link_poses`` (F, 4, 4): the least over the capsules of (distance of the
+    capsule's segment to the link's surface - its radius), negative when pressing in (exact capsule-vs-mesh
+    query, :func:`sphri.contact.query.capsule_mesh_query`), with that capsule's normal; ``inf`` beyond
+    ``margin_m``."""
+    from sphri.contact.query import capsule_mesh_query
+    from sphri.hand.kinematics import capsule_segments
+
+    n, c = hand_poses.shape[:2]
+    if n == 0:
+        return np.zeros(0), np.zeros((0, 3))
+    lk = robot.links[tuple(robot.tree.links)[link]]
+    p0, p1 = capsule_segments(hand_poses, hand)  # (F, C, 3) world
+    rot, tr = link_poses[:, None, :3, :3], link_poses[:, None, :3, 3]
+    a = np.einsum("fcji,fcj->fci", rot, p0 - tr).reshape(-1, 3)  # R^T (p - t): the link's frame
+    b = np.einsum("fcji,fcj->fci", rot, p1 - tr).reshape(-1, 3)
+    radius = np.tile(np.asarray(hand.radius_m, dtype=np.float64), n)
+    q = capsule_mesh_query(lk.vertices, lk.faces, a, b, radius, margin=margin_m)
+    gap = -np.asarray(q.depth, dtype=np.float64).reshape(n, c)
+    gap[~np.isfinite(gap) | (np.asarray(q.triangle).reshape(n, c) < 0)] = np.inf
+    best = gap.argmin(axis=1)
+    rows = np.arange(n)
+    nrm = np.asarray(q.normal).reshape(n, c, 3)[rows, best]
+    return gap[rows, best], np.einsum("fij,fj->fi", link_poses[:, :3, :3], nrm)
+
+
+def hold_contact(
+    hand_poses: np.ndarray,
+    link_poses: np.ndarray,
+    robot: Robot,
+    hand: HandModel,
+    own_link: tuple[int, int],
+    phase: np.ndarray,
+    away: np.ndarray,
+    compliance_m: float,
+    depth_m: float = HOLD_DEPTH_M,
+    rounds: int = HOLD_ROUNDS,
+) -> tuple[np.ndarray, int]:
+    """Held contact follows the surface: ``hand_poses`` (F, 2, C, 7) world, ``link_poses`` (F, L, 4, 4) world.
+
+    In the frames of a hand's contact phase (``phase`` (F, 2) bool: the gesture trial's touches) where the hand
+    does not touch its own link (``own_link[h]``; -1: none) but comes within :data:`HOLD_MAX_GAP_M` of it, the
+    whole hand is moved towards the robot along its approach (``-away[h]``, the reverse of :func:`settle_hands`)
+    until its nearest capsule presses ``depth_m`` in (gap over the cosine between that capsule's normal and the
+    approach, at least :data:`SETTLE_MIN_COS`); ``rounds`` times at most. A frame whose deepest capsule would then
+    press more than ``compliance_m`` into the link keeps its pose before the pull. Only positions change (no time
+    stretch: the gesture keeps its timing). Other links are not checked: run :func:`settle_hands` after it.
+    Returns the poses and the number of (frame, hand) pairs moved.
+
+    Why along the approach and not along the surface normal at the closest point: the pull and
+    :func:`settle_hands`' push then act on one line per hand, so neither drifts the hand sideways over the
+    surface (where on the part the gesture touches, and its slide, stay the generator's), and settling again
+    takes back exactly a pull that ran the hand into another link."""
+    out = np.array(hand_poses, dtype=np.float64)
+    moved = np.zeros(phase.shape, dtype=bool)
+    for h in (0, 1):
+        if own_link[h] < 0:
+            continue
+        frames = np.flatnonzero(phase[:, h])
+        before = out[:, h, :, :3].copy()
+        pulled = np.zeros(len(out), dtype=bool)
+        for r in range(rounds + 1):
+            if frames.size == 0:
+                break
+            gap, nrm = own_link_gap(
+                out[frames, h], link_poses[frames, own_link[h]], robot, hand, own_link[h], HOLD_MAX_GAP_M
+            )
+            back = frames[(gap < -compliance_m) | (gap > HOLD_MAX_GAP_M)]
+            out[back, h, :, :3] = before[back]  # pulled too deep (or not reached): back to where it was
+            pulled[back] = False
+            off = (gap > 0) & (gap <= HOLD_MAX_GAP_M)
+            frames, gap, nrm = frames[off], gap[off], nrm[off]
+            if frames.size == 0 or r == rounds:
+                break
+            step = (gap + depth_m) / np.maximum(np.abs(nrm @ away[h]), SETTLE_MIN_COS)
+            out[frames, h, :, :3] -= (step[:, None] * away[h][None, :])[:, None, :]
+            pulled[frames] = True
+        out[frames, h, :, :3] = before[frames]  # still off its link after the last round: as it was
+        pulled[frames] = False
+        moved[:, h] = pulled
+    return out, int(moved.sum())
+
+
 class SyntheticSessions:
     """``data=synthetic_sessions`` (see module). ``load(hand, robot)`` -> :class:`SessionDataset`."""
 
-    VERSION = "3"
+    #: 4: held contact follows the surface (:func:`hold_contact`): in a gesture's contact phase a hand that
+    #: settling moved off its own link is pulled back onto it along its approach, then settled again.
+    VERSION = "4"
 
     def __init__(
         self,
@@ -461,8 +562,9 @@ class SyntheticSessions:
         position: str,
         towards: np.ndarray,
         static: bool,
-    ) -> np.ndarray:
-        """One gesture-generator trial on ``part`` (T, C, 7) in the part's link frame."""
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """One gesture-generator trial on ``part``: poses (T, C, 7) in the part's link frame and (T,) bool, the
+        frames of its contact phase."""
         key = (part, position)
         surf = surfaces.get(key) if static else None
         if surf is None:
@@ -478,8 +580,8 @@ class SyntheticSessions:
             frame_rate_hz=self.frame_rate_hz,
             variability=self.variability,
         )
-        _, out, _ = gen._participant_region(rng, style, rig, surf, part)
-        return out.astype(np.float64)
+        _, out, _, phase = gen._participant_region_phases(rng, style, rig, surf, part)
+        return out.astype(np.float64), phase
 
     def _session(self, rng, style, rig, robot, surfaces, table, scen: str, k: int):
         """Participant ``k``'s session of scenario ``scen``: (hand poses (T, 2, C, 7), link poses (T, L, 7), both
@@ -493,7 +595,7 @@ class SyntheticSessions:
         poses_app = _robot_motion(rng, robot, s, float(table["base_speed_m_s"]), dr, t)
         final = poses_app[-1]  # the robot stops when the touch begins
         parts = [dr.part] + ([mirror_part(dr.part)] if dr.two_hands else [])
-        touches = self._touches(rng, style, rig, robot, surfaces, s, dr, parts, final)
+        touches, phases = self._touches(rng, style, rig, robot, surfaces, s, dr, parts, final)
         n_touch = len(touches[0])
         n_tail = int(round(float(table["tail_s"]) * fps))
         idle = _idle_hands(dr.direction, float(s["start_distance_m"]))
@@ -506,7 +608,17 @@ class SyntheticSessions:
         away = np.stack([idle[h] - out[n_app, h, :, :3].mean(axis=0) for h in (0, 1)])
         norm = np.linalg.norm(away, axis=1, keepdims=True)
         away = np.where(norm > 1e-9, away / np.maximum(norm, 1e-9), dr.direction[None, :])
-        out, moved = settle_hands(out, lk, robot, rig.hand, own_link, self.compliance_mm * 1e-3, away)
+        phase = np.zeros(out.shape[:2], dtype=bool)
+        phase[n_app : n_app + n_touch, 1] = phases[0]
+        if dr.two_hands:
+            phase[n_app : n_app + n_touch, 0] = phases[1]
+        comp = self.compliance_mm * 1e-3
+        out, moved = settle_hands(out, lk, robot, rig.hand, own_link, comp, away)
+        # held contact follows the surface: in its contact phase a hand that settling moved off its own link is
+        # pulled back onto it (within the compliance); settling again clears other links it then touches
+        out, held = hold_contact(out, lk, robot, rig.hand, own_link, phase, away, comp)
+        if held:
+            out, _ = settle_hands(out, lk, robot, rig.hand, own_link, comp, away)
         info = dict(
             start_position=dr.position,
             gesture=dr.gesture,
@@ -518,18 +630,20 @@ class SyntheticSessions:
             touch_start_frame=n_app,
             touch_frames=n_touch,
             settled_frames=moved,
+            held_frames=held,
         )
         return out.astype(np.float32), pose7(lk).astype(np.float32), info
 
     def _touches(self, rng, style, rig, robot, surfaces, s, dr: _SessionDraw, parts: list[str], final: np.ndarray):
         """Per touched part (the drawn one, then its mirror when two-handed): the gesture trial (T, C, 7) time-scaled
         by the session's ``duration_scale``, placed in the world by the link poses ``final`` (L, 4, 4); padded
-        to one length by holding the last frame."""
+        to one length by holding the last frame; and per part (T,) bool, the frames of the trial's contact phase
+        (none in the padding)."""
         li = {n: i for i, n in enumerate(robot.tree.links)}
-        touches = []
+        touches, phases = [], []
         for p in parts:
             spec = next(x for x in robot.parts if x.name == p)
-            local = self._touch(
+            local, phase = self._touch(
                 rng,
                 style,
                 rig,
@@ -545,8 +659,10 @@ class SyntheticSessions:
             scale = dr.scale
             idx = np.round(np.arange(int(round(len(local) * scale))) / scale).astype(int).clip(0, len(local) - 1)
             touches.append(transform_poses(local[idx], final[li[spec.link]]))
+            phases.append(phase[idx])
         n_touch = max(len(x) for x in touches)
-        return [np.concatenate([x, np.repeat(x[-1:], n_touch - len(x), axis=0)]) for x in touches]
+        padded = [np.concatenate([x, np.repeat(x[-1:], n_touch - len(x), axis=0)]) for x in touches]
+        return padded, [np.r_[x, np.zeros(n_touch - len(x), dtype=bool)] for x in phases]
 
 
 @dataclass
