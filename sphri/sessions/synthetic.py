@@ -50,6 +50,7 @@ from sphri.data.linkgeom import LinkSurface
 from sphri.data.people import Spread
 from sphri.data.synthetic import SyntheticData
 from sphri.hand.kinematics import quat_to_matrix
+from sphri.robots.kinematic import JointTree, WholeBodyRobot
 from sphri.sessions.format import SessionDataset, make_sessions_frame
 from sphri.types import GESTURES, HandModel, Link, Robot
 
@@ -237,7 +238,16 @@ CLEARANCE_M = 0.035
 RAY_M = (0.02, 0.05, 0.08, 0.12, 0.16)
 
 
-def part_link(robot: Robot, part: str, poses: np.ndarray | None = None, towards: np.ndarray | None = None) -> Link:
+def tree_of(robot: WholeBodyRobot) -> JointTree:
+    """``robot``'s kinematic tree; a robot without one cannot hold a session."""
+    if robot.tree is None:
+        raise ValueError(f"robot {robot.name!r} has no kinematic tree (a scenario study needs robot=reachy_full)")
+    return robot.tree
+
+
+def part_link(
+    robot: WholeBodyRobot, part: str, poses: np.ndarray | None = None, towards: np.ndarray | None = None
+) -> Link:
     """The touchable faces of ``part`` as an open :class:`Link` in its link's frame.
 
     With the robot's link ``poses`` (L, 4, 4): only faces with free space along
@@ -259,7 +269,7 @@ def part_link(robot: Robot, part: str, poses: np.ndarray | None = None, towards:
     if poses is not None:
         from scipy.spatial import cKDTree
 
-        names = list(robot.tree.links)
+        names = list(tree_of(robot).links)
         m = poses[names.index(spec.link)]
         c_w = centres @ m[:3, :3].T + m[:3, 3]
         n_w = normals @ m[:3, :3].T
@@ -309,7 +319,7 @@ SETTLE_CLEARANCE_M = 1e-3
 def settle_hands(
     hand_poses: np.ndarray,
     link_poses: np.ndarray,
-    robot: Robot,
+    robot: WholeBodyRobot,
     hand: HandModel,
     own_link: tuple[int, int],
     compliance_m: float,
@@ -320,7 +330,7 @@ def settle_hands(
 
     Per frame and hand, the contact rows with every link (:func:`sphri.sessions.contact.body_contacts`, exact
     capsule vs mesh) give a depth (m) and the surface's outward normal; the allowed depth is ``compliance_m`` on
-    the hand's own link (``own_link[h]``, index into ``robot.tree.links``; -1: none) and none elsewhere. The
+    the hand's own link (``own_link[h]``, index into ``tree_of(robot).links``; -1: none) and none elsewhere. The
     whole hand is moved back along its approach (``away[h]``, unit vector towards the participant) until its
     row with the largest excess would leave the surface along that row's outward normal (excess over the
     cosine between normal and approach, at least :data:`SETTLE_MIN_COS`; :data:`SETTLE_CLEARANCE_M` off
@@ -331,7 +341,7 @@ def settle_hands(
 
     out = np.array(hand_poses, dtype=np.float64)
     n = len(out)
-    links = tuple(robot.tree.links)
+    links = tuple(tree_of(robot).links)
     rot = link_poses[..., :3, :3]
     lk7 = pose7(link_poses)
     contact = ExactContact()
@@ -379,10 +389,10 @@ HOLD_ROUNDS = 6
 
 
 def own_link_gap(
-    hand_poses: np.ndarray, link_poses: np.ndarray, robot: Robot, hand: HandModel, link: int, margin_m: float
+    hand_poses: np.ndarray, link_poses: np.ndarray, robot: WholeBodyRobot, hand: HandModel, link: int, margin_m: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """(gap m (F,), outward normal (F, 3) world) of hand poses (F, C, 7) world to link ``link`` (index into
-    ``robot.tree.links``) at its poses ``link_poses`` (F, 4, 4): the least over the capsules of (distance of the
+    ``tree_of(robot).links``) at its poses ``link_poses`` (F, 4, 4): the least over the capsules of (distance of the
     capsule's segment to the link's surface - its radius), negative when pressing in (exact capsule-vs-mesh
     query, :func:`sphri.contact.query.capsule_mesh_query`), with that capsule's normal; ``inf`` beyond
     ``margin_m``."""
@@ -392,7 +402,7 @@ def own_link_gap(
     n, c = hand_poses.shape[:2]
     if n == 0:
         return np.zeros(0), np.zeros((0, 3))
-    lk = robot.links[tuple(robot.tree.links)[link]]
+    lk = robot.links[tuple(tree_of(robot).links)[link]]
     p0, p1 = capsule_segments(hand_poses, hand)  # (F, C, 3) world
     rot, tr = link_poses[:, None, :3, :3], link_poses[:, None, :3, 3]
     a = np.einsum("fcji,fcj->fci", rot, p0 - tr).reshape(-1, 3)  # R^T (p - t): the link's frame
@@ -410,7 +420,7 @@ def own_link_gap(
 def hold_contact(
     hand_poses: np.ndarray,
     link_poses: np.ndarray,
-    robot: Robot,
+    robot: WholeBodyRobot,
     hand: HandModel,
     own_link: tuple[int, int],
     phase: np.ndarray,
@@ -494,7 +504,7 @@ class SyntheticSessions:
         self.compliance_mm = float(compliance_mm)
 
     def load(self, hand: HandModel, robot: Robot) -> SessionDataset:
-        if getattr(robot, "tree", None) is None:
+        if not isinstance(robot, WholeBodyRobot) or robot.tree is None:
             raise ValueError(
                 f"data=synthetic_sessions needs a whole robot with a kinematic tree (robot=reachy_full); "
                 f"robot {robot.name!r} has none"
@@ -541,7 +551,7 @@ class SyntheticSessions:
             hand=hand,
             sessions=make_sessions_frame(records),
             hand_poses=np.concatenate(hands).astype(np.float32),
-            links=tuple(robot.tree.links),
+            links=tuple(tree_of(robot).links),
             link_poses=np.concatenate(lposes).astype(np.float32),
             frame_rate_hz=self.frame_rate_hz,
             robot=robot.name,
@@ -602,7 +612,7 @@ class SyntheticSessions:
         out = _hand_paths(rig.hand.n_capsules, touches, idle, t, n_tail)
         lk = np.concatenate([poses_app, np.repeat(final[None], n_touch + n_tail, axis=0)])
         # hands stop at the skin: up to compliance_mm into the link each touches, backing off towards the participant
-        li = {n: i for i, n in enumerate(robot.tree.links)}
+        li = {n: i for i, n in enumerate(tree_of(robot).links)}
         own = [li[next(x for x in robot.parts if x.name == p).link] for p in parts]
         own_link = (own[1] if dr.two_hands else -1, own[0])
         away = np.stack([idle[h] - out[n_app, h, :, :3].mean(axis=0) for h in (0, 1)])
@@ -639,7 +649,7 @@ class SyntheticSessions:
         by the session's ``duration_scale``, placed in the world by the link poses ``final`` (L, 4, 4); padded
         to one length by holding the last frame; and per part (T,) bool, the frames of the trial's contact phase
         (none in the padding)."""
-        li = {n: i for i, n in enumerate(robot.tree.links)}
+        li = {n: i for i, n in enumerate(tree_of(robot).links)}
         touches, phases = [], []
         for p in parts:
             spec = next(x for x in robot.parts if x.name == p)
@@ -701,7 +711,7 @@ def _draw_session(rng: np.random.Generator, s: dict, k: int) -> _SessionDraw:
 
 
 def _robot_motion(
-    rng: np.random.Generator, robot: Robot, s: dict, base_speed_m_s: float, dr: _SessionDraw, t: np.ndarray
+    rng: np.random.Generator, robot: WholeBodyRobot, s: dict, base_speed_m_s: float, dr: _SessionDraw, t: np.ndarray
 ) -> np.ndarray:
     """(n_app, L, 4, 4) link poses during the approach at times ``t`` (s): the scenario's scripted motion (``base``:
     drives towards the participant at ``base_speed_m_s``; ``arm``: the nearer arm, drawn from ``rng`` when the
