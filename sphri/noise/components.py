@@ -174,6 +174,8 @@ class SaltPepperNoise(Configured):
     def apply(self, frames: Frames, frame_index: np.ndarray, trial_key: np.ndarray, seed: int) -> Frames:
         """Noisy copy of ``frames`` (M, N), same dtype."""
         v, fi, tk, seed = _check(frames, frame_index, trial_key, seed, "noise=salt_pepper")
+        if self.p == 0.0:  # nothing is corrupted: the kernel would copy every reading (seconds at fine grids)
+            return _like(frames, v.copy())
         out = np.empty_like(v)
         if v.size:
             _salt_pepper(

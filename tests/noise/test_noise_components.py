@@ -81,6 +81,21 @@ def test_salt_pepper_rates():
     assert SaltPepperNoise().apply(fl, fi, tk, 0).values.dtype == np.float32
 
 
+def test_salt_pepper_at_zero_skips_the_kernel_with_the_kernels_answer():
+    """p = 0 returns a copy without running the kernel; the kernel itself gives the same readings."""
+    from sphri.noise.components import _salt_pepper
+
+    rng = np.random.default_rng(3)
+    for v in ((rng.random((300, 40)) < 0.3).astype(np.uint8), rng.random((300, 40)).astype(np.float32)):
+        fi, tk = np.arange(300, dtype=np.int64), np.arange(300, dtype=np.int64) // 50
+        for mode in ("replace", "flip"):
+            got = SaltPepperNoise(p=0.0, mode=mode).apply(Frames(v, None), fi, tk, 7).values
+            ref = np.empty_like(v)
+            _salt_pepper(v, ref, fi, tk, np.uint64(7), 0.0, 0.5, mode == "flip")
+            np.testing.assert_array_equal(got, ref)
+            assert got.dtype == v.dtype and got is not v and not np.shares_memory(got, v)
+
+
 def test_gaussian_statistics():
     v = np.full((1000, 200), 0.5, dtype=np.float32)
     out = GaussianNoise(sigma=0.1).apply(Frames(v, None), np.arange(1000), np.zeros(1000, np.int64), 3).values
