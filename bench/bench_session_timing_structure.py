@@ -12,9 +12,12 @@ reference (:func:`~sphri.sessions.plausibility.arm_reference`). This measures th
    rest pose, facing the participant); per surface the median of phase span / trial length over the reference;
 2. ``study``: the full study's own touches (``data=synthetic_sessions`` defaults, ``robot=reachy2``), redrawn up to
    their touch (session draws, robot motion, the touch trials; no settling): per gesture the median phase fraction of
-   the drawing hand over the padded touch length (as the check measures it) and over its own trial's length.
+   the drawing hand over the padded touch length (as the check measures it) and over its own trial's length,
+   and the same with ``--participants`` participants;
+3. ``arm_like_parts_check``: pat and tap with ``--participants`` participants for ``--seeds`` seeds, touches on
+   arm-like parts (upper arm, forearm) against the others, on the session's own random stream and a fresh one.
 
-    python bench/bench_session_timing_structure.py [--participants 60] [--trials 5]
+    python bench/bench_session_timing_structure.py [--participants 120] [--trials 5] [--seeds 10]
 
 Writes ``outputs/bench/session_timing_structure.json``.
 """
@@ -152,10 +155,72 @@ def redraw_study(sess, participants: int, table: dict, style_of, rig, robot, arm
     return out
 
 
+def arm_like_check(sess, participants: int, seeds: int, table: dict, rig, robot, arm_surface) -> dict[str, dict]:
+    """Pat and tap touches of the study redrawn with ``participants`` participants for each seed 0..``seeds``-1:
+    the median contact-phase fraction (over the reference) of touches drawn on arm-like parts (upper arm, forearm)
+    and on the others, each trial drawn on ``arm_surface`` from the session's own stream at the touch (what the
+    session draws: the phase does not depend on the surface) and from a fresh stream (``(seed, k, scenario,
+    repetition, 99)``); Mann-Whitney p of arm-like against other (touches as independent: participants' touches are
+    not, so p is a lower bound)."""
+    from scipy.stats import mannwhitneyu
+
+    from sphri.data.gestures import Style
+    from sphri.data.synthetic import SyntheticData
+    from sphri.sessions import synthetic as ss
+    from sphri.sessions.plausibility import arm_reference
+
+    names = list(table["scenarios"])
+    out: dict[str, dict] = {}
+    for g in ("pat", "tap"):
+        ref = arm_reference(g)[1]
+        rows = []
+        per_seed = []
+        for seed in range(seeds):
+            gen = SyntheticData(seed=seed, participants=1, repetitions=1, regions=["arm"], gestures=[g])
+            n0 = len(rows)
+            for k in range(1, participants + 1):
+                style = Style.draw(np.random.default_rng([seed, k, 0]), sess.spread)
+                for rep in range(1, sess.repetitions + 1):
+                    for pos in range(len(names)):
+                        si = (k - 1 + pos) % len(names)
+                        rng = np.random.default_rng([seed, k, si + 1, rep])
+                        dr = ss._draw_session(rng, table["scenarios"][names[si]], k)
+                        if dr.gesture != g:
+                            continue
+                        n_app = max(int(round(dr.approach_s * sess.frame_rate_hz)), 2)
+                        t = np.arange(n_app) / sess.frame_rate_hz
+                        ss._robot_motion(rng, robot, table["scenarios"][names[si]], 0.25, dr, t)  # its draws
+                        _, _, n, ph = gen._participant_region_phases(rng, style, rig, arm_surface, "arm")
+                        fresh = np.random.default_rng([seed, k, si + 1, rep, 99])
+                        _, _, n2, ph2 = gen._participant_region_phases(fresh, style, rig, arm_surface, "arm")
+                        arm_like = dr.part.startswith(("upper_arm", "forearm"))
+                        rows.append((arm_like, span_fraction(ph, n[0]), span_fraction(ph2, n2[0])))
+            r = np.array(rows[n0:], dtype=np.float64)
+            a = r[:, 0] > 0
+            per_seed.append([round(float(np.median(r[a, 1])) / ref, 3), round(float(np.median(r[~a, 1])) / ref, 3)])
+        r = np.array(rows, dtype=np.float64)
+        a = r[:, 0] > 0
+        e: dict = {
+            "touches_arm_like": int(a.sum()),
+            "touches_other": int((~a).sum()),
+            "per_seed_arm_like_other": per_seed,
+        }
+        for j, name in ((1, "session_stream"), (2, "fresh_stream")):
+            e[name] = {
+                "arm_like": round(float(np.median(r[a, j])) / ref, 3),
+                "other": round(float(np.median(r[~a, j])) / ref, 3),
+                "mann_whitney_p": float(f"{mannwhitneyu(r[a, j], r[~a, j]).pvalue:.3g}"),
+            }
+        out[g] = e
+        print(f"arm-like check {g}: {e}", flush=True)
+    return out
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--participants", type=int, default=60)
+    ap.add_argument("--participants", type=int, default=120)
     ap.add_argument("--trials", type=int, default=5)
+    ap.add_argument("--seeds", type=int, default=10, help="seeds of the arm-like parts check (pat, tap)")
     args = ap.parse_args()
     from hydra.utils import instantiate
 
@@ -236,6 +301,7 @@ def main() -> None:
     table = ss.load_priors(sess.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
     study = redraw_study(sess, sess.participants, table, Style.draw, rig, robot, surfaces["arm"])
     many = redraw_study(sess, args.participants, table, Style.draw, rig, robot, surfaces["arm"])
+    arm_like = arm_like_check(sess, args.participants, args.seeds, table, rig, robot, surfaces["arm"])
     result = {
         "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
         "machine": machine(),
@@ -247,6 +313,7 @@ def main() -> None:
         "surfaces": surf_out,
         "study_touches_generator_phase": study,
         "study_redrawn_many_participants": many,
+        "arm_like_parts_check": arm_like,
         "seconds": round(time.perf_counter() - t0, 1),
     }
     print(write_json("session_timing_structure", result))
