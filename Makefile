@@ -22,7 +22,7 @@ install: $(STAMP)
 run: install          ## the main job on the built-in defaults
 	$(BIN)/python -m sphri +robot=reachy layout.res=18 $(ARGS)
 
-lint: install         ## ruff (lint + format check) and mypy on the whole sphri package (pyproject.toml)
+lint: install         ## ruff (lint + format check) and mypy on sphri/ and hydra_plugins/ (pyproject.toml)
 	$(BIN)/ruff check sphri hydra_plugins tests bench
 	$(BIN)/ruff format --check sphri hydra_plugins tests bench
 	$(BIN)/mypy

@@ -101,10 +101,20 @@ def _empty_sweeps(arguments: Sequence[str]) -> list[str]:
     for o in OverridesParser.create().parse_overrides(list(arguments)):
         try:
             if o.is_sweep_override() and not list(o.sweep_string_iterator()):
-                empty.append(o.input_line)
+                empty.append(str(o.input_line))
         except Exception:  # a glob: expanded (and checked) before the sweep
             continue
     return empty
+
+
+def _container(node: Any) -> dict:
+    """``node`` (a DictConfig) as a plain dict, unresolved."""
+    from omegaconf import OmegaConf
+
+    out = OmegaConf.to_container(node, resolve=False)
+    if not isinstance(out, dict):
+        raise TypeError(f"expected a mapping in the sweep's config, got {type(out).__name__}")
+    return out
 
 
 class SkippingLauncher:
@@ -198,6 +208,7 @@ class SphriSweeper(BasicSweeper):
 
         assert self.hydra_context is not None and self.config is not None
         loader = self.hydra_context.config_loader
+        config = self.config
         groups: dict[str, bool] = {}
         bases: dict[tuple[str, ...], Any] = {}
 
@@ -212,11 +223,11 @@ class SphriSweeper(BasicSweeper):
         def compose(job: list[str]) -> Any:
             split = split_overrides(job, is_group)
             if split is None:  # Hydra's parser refuses an override: Hydra's composition says which
-                return loader.load_sweep_config(self.config, list(job))
+                return loader.load_sweep_config(config, list(job))
             structural, plain = split
             rest = tuple(structural)
             if rest not in bases:
-                bases[rest] = loader.load_sweep_config(self.config, list(rest))
+                bases[rest] = loader.load_sweep_config(config, list(rest))
             cfg = copy.deepcopy(bases[rest])
             set_values(cfg, plain)
             return cfg
@@ -229,7 +240,7 @@ class SphriSweeper(BasicSweeper):
         starts for them, so a rerun of a finished sweep is answered by this process alone. Done only
         where a job's folder is the default ``<sweep dir>/<job number>``; elsewhere the jobs skip
         themselves (the same check, in each job)."""
-        from omegaconf import OmegaConf, open_dict
+        from omegaconf import open_dict
 
         from sphri.pipeline import build, config_hash
         from sphri.tracking.parent import progress_line, write_status
@@ -238,7 +249,7 @@ class SphriSweeper(BasicSweeper):
         if (
             not self.config.get("resume")
             or not self.config.tracking.enabled
-            or OmegaConf.to_container(self.config.hydra.sweep, resolve=False).get("subdir") != "${hydra.job.num}"
+            or _container(self.config.hydra.sweep).get("subdir") != "${hydra.job.num}"
         ):
             return {}
         tracker = build(self.config.tracking)
@@ -319,7 +330,7 @@ class SphriSweeper(BasicSweeper):
             open_parent(self.config, overrides)
             finished = self.finished_jobs(jobs)  # answered here: no worker starts for them
             if finished:
-                self.launcher = SkippingLauncher(self.launcher, finished)
+                self.launcher = SkippingLauncher(self.launcher, finished)  # type: ignore[assignment]  # Hydra types it Launcher; ours duck-types launch()
             returns = super().sweep(arguments)
             if KILLED:  # the signal's exception was swallowed inside a job; the next job stopped the sweep
                 raise SweepKilled(KILLED[0])
