@@ -5,7 +5,9 @@ each gesture's median contact fraction (first to last contact frame of the drawi
 arm study's. This breaks that number down for the sessions of a full study (sessions and contacts from the stage
 cache in ``--cache``): per gesture and drawn body part, the touches, the median contact fraction, the share of
 touches with no contact at all, and the median number of contact runs (a run: consecutive frames in contact; a
-held gesture that keeps contact has one). Parts are grouped by the shape of their link: ``arm-like`` (upper arm,
+held gesture that keeps contact has one), and, on version-5 sessions (the planned contact phase in the truth
+table), the paired ratio the check judges (contact span over the planned phase's), how many frames contact starts
+before the plan and ends after it, and which hand capsules touch outside the plan. Parts are grouped by the shape of their link: ``arm-like`` (upper arm,
 forearm, whose surface the arm study's generator was built for) and ``other`` (torso, head, shoulders, grippers,
 wrists).
 
@@ -52,20 +54,31 @@ def touches(cache_dir: str) -> list[dict]:
     n_touch = truth["touch_frames"].to_numpy(np.int64)
     rows = []
     for s in range(len(truth)):
-        frames = np.unique(bc.frame[(bc.hand == 1) & (fsi[bc.frame] == s)]) - start[s]
-        frames = frames[(frames >= 0) & (frames < n_touch[s])]
+        mine = (bc.hand == 1) & (fsi[bc.frame] == s)
+        rel, caps = bc.frame[mine] - start[s], bc.capsule[mine]
+        keep = (rel >= 0) & (rel < n_touch[s])
+        rel, caps = rel[keep], caps[keep]
+        frames = np.unique(rel)
         on = np.zeros(n_touch[s], dtype=bool)
         on[frames] = True
-        rows.append(
-            {
-                "gesture": str(truth.loc[s, "gesture"]),
-                "part": str(truth.loc[s, "part"]),
-                "touch_frames": int(n_touch[s]),
-                "span_frames": int(frames.max() - frames.min() + 1) if frames.size else 0,
-                "runs": _runs(on),
-                "settled_frames": int(truth.loc[s, "settled_frames"]),
+        row = {
+            "gesture": str(truth.loc[s, "gesture"]),
+            "part": str(truth.loc[s, "part"]),
+            "touch_frames": int(n_touch[s]),
+            "span_frames": int(frames.max() - frames.min() + 1) if frames.size else 0,
+            "runs": _runs(on),
+            "settled_frames": int(truth.loc[s, "settled_frames"]),
+        }
+        if "plan_first_frame" in truth and frames.size and truth.loc[s, "plan_first_frame"] >= 0:
+            a, b = int(truth.loc[s, "plan_first_frame"]), int(truth.loc[s, "plan_last_frame"])
+            out = (rel < a) | (rel > b)
+            row |= {
+                "plan_frames": b - a + 1,
+                "early_frames": a - int(frames.min()),
+                "late_frames": int(frames.max()) - b,
+                "capsules_outside_plan": sorted({int(c) for c in caps[out]}),
             }
-        )
+        rows.append(row)
     return rows
 
 
@@ -93,6 +106,17 @@ def summarize(rows: list[dict]) -> dict:
                 "no_contact_share": round(float(np.mean([r["span_frames"] == 0 for r in sel])), 3),
                 "contact_runs_median": float(np.median([r["runs"] for r in sel])),
             }
+            paired = [r for r in sel if "plan_frames" in r]
+            if paired:
+                entry[kind] |= {
+                    "touches_with_plan_and_contact": len(paired),
+                    "contact_plan_ratio_median": round(
+                        float(np.median([r["span_frames"] / r["plan_frames"] for r in paired])), 3
+                    ),
+                    "early_frames_median": float(np.median([r["early_frames"] for r in paired])),
+                    "late_frames_median": float(np.median([r["late_frames"] for r in paired])),
+                    "capsules_outside_plan": sorted({c for r in paired for c in r["capsules_outside_plan"]}),
+                }
         out[g] = entry
     return out
 

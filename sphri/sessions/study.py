@@ -854,10 +854,11 @@ def _design_and_gesture_files(res: StudyResult, body, robot, out: Path) -> list[
 
 def _plausibility(cfg, ds, bc, robot, notes: list[str]) -> dict | None:
     """The ``plausibility`` block of generated sessions (with the generator's draws), else None; a failed check
-    adds a note."""
-    if not ds.synthetic or ds.truth is None or "touch_frames" not in ds.truth:
+    adds a note. Sessions generated before version 5 (no planned contact phase in the truth table) get none."""
+    from sphri.sessions.plausibility import TRUTH_COLUMNS, plausibility
+
+    if not ds.synthetic or ds.truth is None or any(c not in ds.truth for c in TRUTH_COLUMNS):
         return None
-    from sphri.sessions.plausibility import plausibility
 
     block = plausibility(ds, bc, robot, float(cfg.data.get("compliance_mm", 5.0)))
     failed = [k[:-3] for k in ("penetration_ok", "on_drawn_part_ok", "timing_ok") if not block[k]]

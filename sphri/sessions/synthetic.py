@@ -479,7 +479,10 @@ class SyntheticSessions:
 
     #: 4: held contact follows the surface (:func:`hold_contact`): in a gesture's contact phase a hand that
     #: settling moved off its own link is pulled back onto it along its approach, then settled again.
-    VERSION = "4"
+    #: 5: the truth table also records the drawing hand's own trial (``trial_frames``, time-scaled, without the
+    #: padding to a two-handed touch's longer trial) and its planned contact phase (``plan_first_frame``,
+    #: ``plan_last_frame``, within the touch), for the paired timing check; hand and link poses unchanged.
+    VERSION = "5"
 
     def __init__(
         self,
@@ -605,7 +608,7 @@ class SyntheticSessions:
         poses_app = _robot_motion(rng, robot, s, float(table["base_speed_m_s"]), dr, t)
         final = poses_app[-1]  # the robot stops when the touch begins
         parts = [dr.part] + ([mirror_part(dr.part)] if dr.two_hands else [])
-        touches, phases = self._touches(rng, style, rig, robot, surfaces, s, dr, parts, final)
+        touches, phases, lengths = self._touches(rng, style, rig, robot, surfaces, s, dr, parts, final)
         n_touch = len(touches[0])
         n_tail = int(round(float(table["tail_s"]) * fps))
         idle = _idle_hands(dr.direction, float(s["start_distance_m"]))
@@ -639,6 +642,7 @@ class SyntheticSessions:
             duration_scale=dr.scale,
             touch_start_frame=n_app,
             touch_frames=n_touch,
+            **_plan_of(phases[0], lengths[0]),
             settled_frames=moved,
             held_frames=held,
         )
@@ -647,8 +651,8 @@ class SyntheticSessions:
     def _touches(self, rng, style, rig, robot, surfaces, s, dr: _SessionDraw, parts: list[str], final: np.ndarray):
         """Per touched part (the drawn one, then its mirror when two-handed): the gesture trial (T, C, 7) time-scaled
         by the session's ``duration_scale``, placed in the world by the link poses ``final`` (L, 4, 4); padded
-        to one length by holding the last frame; and per part (T,) bool, the frames of the trial's contact phase
-        (none in the padding)."""
+        to one length by holding the last frame; per part (T,) bool, the frames of the trial's contact phase
+        (none in the padding); and per part the trial's own length (frames, before the padding)."""
         li = {n: i for i, n in enumerate(tree_of(robot).links)}
         touches, phases = [], []
         for p in parts:
@@ -672,7 +676,16 @@ class SyntheticSessions:
             phases.append(phase[idx])
         n_touch = max(len(x) for x in touches)
         padded = [np.concatenate([x, np.repeat(x[-1:], n_touch - len(x), axis=0)]) for x in touches]
-        return padded, [np.r_[x, np.zeros(n_touch - len(x), dtype=bool)] for x in phases]
+        phases = [np.r_[x, np.zeros(n_touch - len(x), dtype=bool)] for x in phases]
+        return padded, phases, [len(x) for x in touches]
+
+
+def _plan_of(phase: np.ndarray, n_trial: int) -> dict[str, int]:
+    """The truth table's record of the drawing hand's trial: its own length (frames) and the first and last frame
+    of its planned contact phase ``phase`` (T,) bool within the touch (-1 when the plan has none)."""
+    on = np.flatnonzero(phase)
+    first, last = (int(on[0]), int(on[-1])) if on.size else (-1, -1)
+    return dict(trial_frames=int(n_trial), plan_first_frame=first, plan_last_frame=last)
 
 
 @dataclass
