@@ -13,6 +13,12 @@ starts before the plan and ends after it, and the share of trials with no contac
 
     python bench/bench_arm_contact_plan.py [--participants 18] [--repetitions 10] [--name NAME] [overrides ...]
 
+The same generator on Reachy 2's left upper arm (the link alone, as the arm study's single region):
+
+    python bench/bench_arm_contact_plan.py --repetitions 3 --name arm_contact_plan_reachy2_upper_arm robot=reachy2 \
+        robot.parts=null robot.groups=null robot.merge=null robot.exclude=null robot.geometry=collision \
+        'robot.links=[l_elbow_arm_link]' 'robot.regions={arm:l_elbow_arm_link}'
+
 Writes ``outputs/bench/arm_contact_plan.json`` (``NAME.json``). Trials whose planned touches fall between frames
 (no frame inside the plan) are counted, not judged, as the sessions' check skips them.
 """
