@@ -9,7 +9,8 @@ check compares with): ``--participants`` participants x ``--repetitions`` trials
 pipeline's contact stage (``contact`` of the config, ``contact=exact`` by default) against the arm link; per trial
 the span from the first to the last frame with any hand capsule in contact over the span from the first to the last
 frame of the planned phase. Per gesture: trials, the median ratio and its 25-75 % range, the median frames contact
-starts before the plan and ends after it, and the share of trials with no contact.
+starts before the plan and ends after it, the share of trials with no contact, and the same split by the planned
+phase's length (``by_planned_length``).
 
     python bench/bench_arm_contact_plan.py [--participants 18] [--repetitions 10] [--name NAME] [overrides ...]
 
@@ -110,6 +111,29 @@ def per_trial(ds, phase: np.ndarray, contacts) -> list[dict]:
     return rows
 
 
+#: Planned contact phase lengths (s) the ratio is also split by: the whole-body study's rub plans are short.
+PLAN_BINS_S = ((0.0, 1.0), (1.0, 2.0), (2.0, float("inf")))
+
+
+def by_plan_length(rs: list[dict], fps: float) -> dict[str, dict]:
+    """Per planned-length bin (:data:`PLAN_BINS_S`): trials, median ratio, share above 1.4, frames before/after."""
+    out = {}
+    for lo, hi in PLAN_BINS_S:
+        sel = [r for r in rs if lo * fps <= r["plan"] < hi * fps]
+        if not sel:
+            continue
+        ratio = np.array([r["span"] / r["plan"] for r in sel])
+        hit = [r for r in sel if r["span"] > 0]
+        out[f"{lo:g}-{hi:g} s"] = {
+            "trials": len(sel),
+            "contact_plan_ratio_median": round(float(np.median(ratio)), 3),
+            "share_above_1_4": round(float(np.mean(ratio > 1.4)), 3),
+            "frames_before_plan_median": float(np.median([r["before"] for r in hit])) if hit else None,
+            "frames_after_plan_median": float(np.median([r["after"] for r in hit])) if hit else None,
+        }
+    return out
+
+
 def summarize(rows: list[dict], fps: float) -> dict[str, dict]:
     out = {}
     for g in sorted({r["gesture"] for r in rows}):
@@ -129,6 +153,7 @@ def summarize(rows: list[dict], fps: float) -> dict[str, dict]:
             "no_contact_share": round(1.0 - len(hit) / len(rs), 3),
             "share_above_1_4": round(float(np.mean(ratio > 1.4)), 3),
             "share_below_0_7": round(float(np.mean(ratio < 0.7)), 3),
+            "by_planned_length": by_plan_length(rs, fps),
         }
     return out
 
