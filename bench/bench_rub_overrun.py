@@ -17,6 +17,13 @@ one step the session generator adds around the gesture trial switched off (monke
 - ``one_handed``: two-handed sessions drawn one-handed (no second hand, no padding to a longer trial);
 - ``raw``: all of the above off: the gesture generator's trial alone, placed on the part.
 
+and two variants of what the gesture generator is given (not a session step; the arm study gives it the whole
+link, sampled 20000 times, and measures contact against that same link):
+
+- ``whole_link`` (``raw_whole_link``: with ``raw``'s steps off): the generator places the hand on the part's whole
+  link (:func:`part_link` returning every face), not on the touchable patch of the drawn part;
+- ``samples_20000``: the part's patch sampled 20000 times (:class:`LinkSurface`'s default) instead of 6000.
+
 Per touch also: frames before / after the plan, the capsules in contact outside the plan, and (``full``) how many
 of those out-of-plan contact frames the hand was moved by settling and how far the raw placement's hand was from
 its own link there (``raw_gap_mm``: <= 0 already touching before any session step).
@@ -40,7 +47,19 @@ sys.path.insert(0, str(HERE))
 
 from _common import machine, write_json  # noqa: E402
 
-VARIANTS = ("full", "no_hold", "no_settle", "no_settle_no_hold", "scale_1", "robot_still", "one_handed", "raw")
+VARIANTS = (
+    "full",
+    "no_hold",
+    "no_settle",
+    "no_settle_no_hold",
+    "scale_1",
+    "robot_still",
+    "one_handed",
+    "raw",
+    "whole_link",
+    "raw_whole_link",
+    "samples_20000",
+)
 
 
 def _contact_rows(out, lk7, hand, robot, contact):
@@ -110,7 +129,10 @@ def main() -> None:
     table = syn.load_priors(gen.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
     names = list(table["scenarios"])
     rig = HandRig.from_hand(hand)
-    real = {k: getattr(syn, k) for k in ("settle_hands", "hold_contact", "_draw_session", "_robot_motion")}
+    real = {
+        k: getattr(syn, k)
+        for k in ("settle_hands", "hold_contact", "_draw_session", "_robot_motion", "part_link", "LinkSurface")
+    }
     cap: dict = {}
     off: set[str] = set()
 
@@ -137,6 +159,17 @@ def main() -> None:
         poses = real["_robot_motion"](*a, **kw)
         return np.repeat(poses[-1:], len(poses), axis=0) if "motion" in off else poses
 
+    def patch(robot_, part, *a, **kw):
+        if "patch" not in off:
+            return real["part_link"](robot_, part, *a, **kw)
+        from sphri.types import Link
+
+        lk = robot_.links[next(p for p in robot_.parts if p.name == part).link]
+        return Link(name=part, vertices=lk.vertices, faces=lk.faces, watertight=lk.watertight)
+
+    def surface(link, n_samples=20000, **kw):
+        return real["LinkSurface"](link, n_samples=20000 if "samples" in off else n_samples, **kw)
+
     switch = {
         "full": set(),
         "no_hold": {"hold"},
@@ -146,8 +179,12 @@ def main() -> None:
         "robot_still": {"motion"},
         "one_handed": {"two"},
         "raw": {"settle", "hold", "scale", "motion", "two"},
+        "whole_link": {"patch"},
+        "raw_whole_link": {"settle", "hold", "scale", "motion", "two", "patch"},
+        "samples_20000": {"samples"},
     }
     syn.settle_hands, syn.hold_contact, syn._draw_session, syn._robot_motion = settle, hold, draw, motion
+    syn.part_link, syn.LinkSurface = patch, surface
     rows = []
     for k in range(1, gen.participants + 1):
         style = Style.draw(np.random.default_rng([gen.seed, k, 0]), gen.spread)
@@ -205,6 +242,7 @@ def main() -> None:
         real["_draw_session"],
         real["_robot_motion"],
     )
+    syn.part_link, syn.LinkSurface = real["part_link"], real["LinkSurface"]
 
     def med(v, key):
         x = [r[v][key] for r in rows if r[v].get("ratio") is not None]
