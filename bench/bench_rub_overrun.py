@@ -24,7 +24,7 @@ link, sampled 20000 times, and measures contact against that same link):
   link (:func:`part_link` returning every face), not on the touchable patch of the drawn part;
 - ``samples_20000``: the part's patch sampled 20000 times (:class:`LinkSurface`'s default) instead of 6000.
 
-Per touch also: frames before / after the plan, the capsules in contact outside the plan, and (``full``) how many
+Per touch also: the plan's effector (palm or finger pads), frames before / after the plan, the capsules in contact outside the plan, and (``full``) how many
 of those out-of-plan contact frames the hand was moved by settling and how far the raw placement's hand was from
 its own link there (``raw_gap_mm``: <= 0 already touching before any session step).
 
@@ -185,6 +185,16 @@ def main() -> None:
     }
     syn.settle_hands, syn.hold_contact, syn._draw_session, syn._robot_motion = settle, hold, draw, motion
     syn.part_link, syn.LinkSurface = patch, surface
+    from sphri.data import gestures as gmod
+
+    real_plan = gmod._PLANS[args.gesture]
+
+    def plan_of(d):
+        out = real_plan(d)
+        cap.setdefault("effector", out.effector)
+        return out
+
+    gmod._PLANS[args.gesture] = plan_of
     rows = []
     for k in range(1, gen.participants + 1):
         style = Style.draw(np.random.default_rng([gen.seed, k, 0]), gen.spread)
@@ -209,6 +219,7 @@ def main() -> None:
                     cap.clear()
                     out, lk7, info = gen._session(np.random.default_rng(seed), style, rig, robot, {}, table, scen, k)
                     row[v] = _measure(out, lk7, info, hand, robot, contact)
+                    row.setdefault("effector", cap.get("effector"))
                     if v == "full" and row[v].get("outside_frames"):
                         # out-of-plan contact frames: moved by settling? the raw placement's gap to the own link there
                         n_app = int(info["touch_start_frame"])
@@ -243,6 +254,7 @@ def main() -> None:
         real["_robot_motion"],
     )
     syn.part_link, syn.LinkSurface = real["part_link"], real["LinkSurface"]
+    gmod._PLANS[args.gesture] = real_plan
 
     def med(v, key):
         x = [r[v][key] for r in rows if r[v].get("ratio") is not None]
