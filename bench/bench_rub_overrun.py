@@ -24,7 +24,8 @@ link, sampled 20000 times, and measures contact against that same link):
   link (:func:`part_link` returning every face), not on the touchable patch of the drawn part;
 - ``samples_20000``: the part's patch sampled 20000 times (:class:`LinkSurface`'s default) instead of 6000.
 
-Per touch also: the plan's effector (palm or finger pads), frames before / after the plan, the capsules in contact outside the plan, and (``full``) how many
+``arm_study_by_effector``: the arm study's own trials of the gesture (18 participants x 10, as
+``bench/bench_arm_contact_plan.py``) split by the plan's effector. Per touch also: the plan's effector (palm or finger pads), frames before / after the plan, the capsules in contact outside the plan, and (``full``) how many
 of those out-of-plan contact frames the hand was moved by settling and how far the raw placement's hand was from
 its own link there (``raw_gap_mm``: <= 0 already touching before any session step).
 
@@ -107,6 +108,44 @@ def _measure(out, lk7, info, hand, robot, contact) -> dict:
         "links_outside_plan": sorted({int(x) for x in lnk[outside]}),
         "outside_frames": sorted({int(x) for x in rel[outside]}),
     }
+
+
+def arm_by_effector(gesture: str, participants: int, repetitions: int) -> dict:
+    """The arm study's own trials of ``gesture`` (``bench/bench_arm_contact_plan.py``'s trials: ``data=synthetic`` on
+    the default robot's arm) split by the plan's effector (palm, finger pads): trials, median contact/plan ratio,
+    share above 1.4x, median frames before / after the plan."""
+    from bench_arm_contact_plan import arm_trials, per_trial
+
+    from sphri.data import gestures as gmod
+
+    real_plan, effectors = gmod._PLANS[gesture], []
+
+    def plan_of(d):
+        out = real_plan(d)
+        effectors.append(out.effector)
+        return out
+
+    gmod._PLANS[gesture] = plan_of
+    try:
+        ds, phase, contacts, _ = arm_trials(participants, repetitions, [])
+    finally:
+        gmod._PLANS[gesture] = real_plan
+    rows = [r for r in per_trial(ds, phase, contacts) if r["gesture"] == gesture]
+    out: dict = {"participants": participants, "repetitions": repetitions, "plans_drawn": len(effectors)}
+    if len(effectors) != len(rows):  # plans not one per trial in trial order: no split
+        return out | {"trials": len(rows), "split": None}
+    for eff in sorted(set(effectors)):
+        rs = [r for r, e in zip(rows, effectors) if e == eff and r["plan"] > 0]
+        ratio = np.array([r["span"] / r["plan"] for r in rs])
+        hit = [r for r in rs if r["span"] > 0]
+        out[eff] = {
+            "trials": len(rs),
+            "contact_plan_ratio_median": round(float(np.median(ratio)), 3) if rs else None,
+            "share_above_1_4": round(float(np.mean(ratio > 1.4)), 3) if rs else None,
+            "frames_before_plan_median": float(np.median([r["before"] for r in hit])) if hit else None,
+            "frames_after_plan_median": float(np.median([r["after"] for r in hit])) if hit else None,
+        }
+    return out
 
 
 def main() -> None:
@@ -279,11 +318,13 @@ def main() -> None:
         "gesture": args.gesture,
         "variants": {v: sorted(s) for v, s in switch.items()},
         "summary": summary,
+        "arm_study_by_effector": arm_by_effector(args.gesture, 18, 10),
         "touches": rows,
         "seconds": round(time.perf_counter() - t0, 1),
     }
     for v, s in summary.items():
         print(v, s)
+    print("arm study by effector:", result["arm_study_by_effector"])
     print(write_json("rub_overrun" + ("" if args.gesture == "rub" else "_" + args.gesture), result))
 
 
