@@ -44,11 +44,11 @@ def arm_trials(participants: int, repetitions: int, overrides: list[str]):
     from hydra.utils import instantiate
 
     from sphri.config import compose
-    from sphri.data.format import make_trials_frame, participant_id, trial_id
+    from sphri.data.format import make_trials_frame, participant_id
     from sphri.data.gestures import Style
     from sphri.data.handfk import HandRig
     from sphri.data.linkgeom import LinkSurface
-    from sphri.data.synthetic import region_stream
+    from sphri.data.synthetic import region_stream, trial_records
     from sphri.types import GESTURES, GestureDataset
 
     cfg = compose(
@@ -62,19 +62,7 @@ def arm_trials(participants: int, repetitions: int, overrides: list[str]):
         style = Style.draw(np.random.default_rng([gen.seed, k, 0]), gen.spread, GESTURES)
         rng = np.random.default_rng([gen.seed, k, region_stream("arm")])
         order, poses, lengths, phase = gen._participant_region_phases(rng, style, rig, surf, "arm")
-        for o, (g, n) in enumerate(zip(order, lengths), 1):
-            records.append(
-                dict(
-                    participant=participant_id(k),
-                    region="arm",
-                    trial_ordinal=o,
-                    trial_id=trial_id(o, g),
-                    gesture=g,
-                    start=start,
-                    n_frames=int(n),
-                )
-            )
-            start += int(n)
+        start = trial_records(records, participant_id(k), "arm", order, lengths, start)
         chunks.append(poses)
         phases.append(phase)
     ds = GestureDataset(

@@ -184,6 +184,26 @@ class _Tracking:
     n_samples: int
 
 
+def trial_records(
+    records: list[dict], pid: str, region: str, gestures: Sequence[str], lengths: Sequence[int], start: int
+) -> int:
+    """Append one trials-table row per generated trial (ordinals 1..n, frames from ``start``); the next start."""
+    for o, (g, n) in enumerate(zip(gestures, lengths), 1):
+        records.append(
+            dict(
+                participant=pid,
+                region=region,
+                trial_ordinal=o,
+                trial_id=trial_id(o, g),
+                gesture=g,
+                start=start,
+                n_frames=int(n),
+            )
+        )
+        start += int(n)
+    return start
+
+
 class SyntheticData:
     """Synthetic gesture trials (see the module docstring); ``load`` returns a :class:`GestureDataset`.
 
@@ -256,19 +276,7 @@ class SyntheticData:
             for region in self.regions:
                 rng = np.random.default_rng([self.seed, k, region_stream(region)])
                 gestures, poses, lengths = self._participant_region(rng, style, rig, surfaces[region], region)
-                for o, (g, n) in enumerate(zip(gestures, lengths), 1):
-                    records.append(
-                        dict(
-                            participant=pid,
-                            region=region,
-                            trial_ordinal=o,
-                            trial_id=trial_id(o, g),
-                            gesture=g,
-                            start=start,
-                            n_frames=int(n),
-                        )
-                    )
-                    start += int(n)
+                start = trial_records(records, pid, region, gestures, lengths, start)
                 chunks.append(poses)
         poses = np.concatenate(chunks, axis=0) if chunks else np.zeros((0, hand.n_capsules, 7), np.float32)
         return GestureDataset(
