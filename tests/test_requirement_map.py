@@ -97,6 +97,7 @@ def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
     assert "measured between the sweep's seeds" in rep.stdout and "smallest certifiable tolerance" in rep.stdout
     # the figure machinery's layout check logs any clipped or overlapping text as a warning naming the file
     assert "requirement_map.png:" not in rep.stderr, rep.stderr[-3000:]
+    assert "filter_map.png:" not in rep.stderr, rep.stderr[-3000:]
     d = sweep / "report"
     table = pd.read_csv(d / "requirement_map.csv")
     assert MAP_COLUMNS <= set(table.columns)
@@ -122,6 +123,11 @@ def test_quick_map_runs_end_to_end_and_reports_the_map(sweep_then_report):
         assert req["tolerance"] >= max(0.01, req["tolerance_certifiable"]) - 1e-12
     for fmt in ("png", "pdf", "svg"):
         assert (d / f"requirement_map.{fmt}").stat().st_size > 1000
+        assert (d / f"filter_map.{fmt}").stat().st_size > 1000
+    # the (pitch, filter) figure: one panel per filter, the best pair and each filter's required pitch marked
+    fsvg = (d / "filter_map.svg").read_text()
+    assert "filter: none" in fsvg and "filter: persistence" in fsvg and "best pair at the rate" in fsvg
+    assert "required pitch" in fsvg and "(pitch, filter) pair" in fsvg
     # the figure: the certified tolerance in the title, one discrete row per rate, the clean row on a symlog axis
     svg = (d / "requirement_map.svg").read_text()
     tol = table[table["map"] == table["map"].iloc[0]].groupby("false_on_rate")["tolerance"].first().round(3)

@@ -28,7 +28,7 @@ from sphri.report.compute import COLUMNS as COMPUTE_COLUMNS
 from sphri.report.compute import compute_rows
 from sphri.report.figures import plot_bootstrap, plot_curves, plot_recall, plot_tornado
 from sphri.report.render import comparison_rows, render_html, render_text, sensitivity_rows, tolerance_rows
-from sphri.report.reqmap import filter_rows, map_rows, plot_map
+from sphri.report.reqmap import filter_rows, map_rows, plot_filter_map, plot_map
 from sphri.report.sweep import ReportError, Sweep, load_sweep
 
 log = logging.getLogger(__name__)
@@ -43,6 +43,7 @@ FIGURE_FILES = (
     "saturation_bootstrap.png",
     "sensitivity_tornado.png",
     "requirement_map.png",
+    "filter_map.png",
 )
 
 
@@ -154,6 +155,7 @@ def write_report(
             ("bootstrap", plot_bootstrap(report, out_dir / "saturation_bootstrap.png", marks=marks)),
             ("tornado", plot_tornado(report, out_dir / "sensitivity_tornado.png", marks=marks)),
             ("map", plot_map(report, out_dir / "requirement_map.png", marks=marks)),
+            ("filter_map", plot_filter_map(report, out_dir / "filter_map.png", marks=marks)),
         ):
             if fig is not None:
                 figures[name] = fig

@@ -354,16 +354,14 @@ def _required_pitch_marks(ax: Any, m: RequirementMap, y: np.ndarray, ci: float) 
     dips = [(k, m.dip_index(g)) for k, g in enumerate(m.curves)]
     dips = [(k, d) for k, d in dips if d is not None]
     if dips:
-        ax.plot(
-            [float(m.curves[k].points["pitch_mm"].iloc[d]) for k, d in dips],
-            [y[k] for k, _ in dips],
-            "v",
-            ms=7,
-            color="red",
-            mec="black",
-            zorder=6,
-            label="dip",
+        _red_marks(
+            ax, [float(m.curves[k].points["pitch_mm"].iloc[d]) for k, d in dips], [y[k] for k, _ in dips], "v", 7, "dip"
         )
+
+
+def _red_marks(ax: Any, x: list[float], y: list[float], marker: str, size: float, label: str) -> None:
+    """Red ``marker`` points outlined in black above the map's cells and required-pitch marks."""
+    ax.plot(x, y, marker, ms=size, color="red", mec="black", zorder=6, label=label)
 
 
 def _deficit_axes(ax: Any, m: RequirementMap, pitch: np.ndarray, xe: np.ndarray, y: np.ndarray, ye: np.ndarray) -> None:
@@ -401,3 +399,94 @@ def _false_on_panel(ax2: Any, m: RequirementMap, plt: Any) -> None:
     ax2.grid(True, which="major", alpha=0.3)
     ax2.legend(title="false-on rate", loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=3, framealpha=0.8)
     ax2.set_title("accuracy by false-on count\n(clean row at 0; v: dip)", loc="left")
+
+
+def filter_grid(maps: dict[str, RequirementMap]) -> tuple[list[float], list[str], np.ndarray, np.ndarray, np.ndarray]:
+    """(rates, filters, deficit, pitch_mm, required) of one filter set (:func:`filter_sets`): ``deficit[f, k, j]``
+    is the best mean accuracy over every (pitch, filter) pair at rate k minus filter f's mean accuracy at
+    resolution j, in points of accuracy (NaN where not swept); ``pitch_mm[j]`` sorted coarse to fine;
+    ``required[f, k]`` the index j of filter f's required pitch at rate k."""
+    rates = _rates(maps)
+    names = sorted(maps, key=lambda f: (f != "none", f))
+    res = sorted({int(r) for m in maps.values() for g in m.curves for r in g.points["res"]})
+    acc = np.full((len(names), len(rates), len(res)), np.nan)
+    pitch = np.full(len(res), np.nan)
+    required = np.zeros((len(names), len(rates)), dtype=int)
+    for a, f in enumerate(names):
+        for k, rate in enumerate(rates):
+            g = maps[f].curves[maps[f].rates.index(rate)]
+            for _, p in g.points.iterrows():
+                j = res.index(int(p["res"]))
+                acc[a, k, j] = p["accuracy_mean"]
+                pitch[j] = p["pitch_mm"]
+            required[a, k] = res.index(int(g.recommended["res"]))
+    best = np.nanmax(np.where(np.isfinite(acc), acc, -np.inf), axis=(0, 2), keepdims=True)
+    return rates, names, 100.0 * (best - acc), pitch, required
+
+
+def plot_filter_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path | None:
+    """The (pitch, filter) figure -> ``path`` (+ PDF, SVG); None without a filter axis.
+
+    One panel per filter (the first filter set of :func:`filter_sets`), one discrete row per false-on rate, each
+    cell the deficit of that (pitch, filter) pair to the rate's best pair over every filter, in points of
+    accuracy, one colour step per point up to :data:`DEFICIT_STEPS` (the same scale in every panel): a designer
+    reads off which filter reaches the best at which pitch. Marked: each filter's required pitch by the
+    certified rule (o) and the best pair per rate (*); the tolerance each filter's rule certifies in its
+    panel's title."""
+    from matplotlib.colors import BoundaryNorm
+
+    from sphri import figures
+    from sphri.report.figures import _finish, _nice_log_ticks
+
+    sets = filter_sets(report)
+    if not sets:
+        return None
+    label, maps = sets[0]
+    rates, names, deficit, pitch, required = filter_grid(maps)
+    if not rates:
+        return None
+    order = np.argsort(pitch)
+    xe = _edges(pitch[order])
+    y = np.arange(len(rates), dtype=float)
+    ye = np.arange(len(rates) + 1, dtype=float) - 0.5
+    deepest = float(np.nanmax(deficit)) if np.isfinite(deficit).any() else 1.0
+    top = int(min(DEFICIT_STEPS, max(1, np.ceil(deepest))))
+    plt = figures.pyplot()
+    cmap = plt.get_cmap("viridis_r", top + (1 if deepest > top else 0))
+    norm = BoundaryNorm(np.arange(0, top + 1, dtype=float), cmap.N, extend="max" if deepest > top else "neither")
+    flat = np.where(np.isfinite(deficit), deficit, np.inf)
+    best = [np.unravel_index(int(np.argmin(flat[:, k, :])), (len(names), len(pitch))) for k in range(len(rates))]
+    with figures.style():
+        fig, axes = figures.new_figure("two", 1.2 + 0.42 * len(rates), ncols=len(names), sharey=True, squeeze=False)
+        axes = axes[0]
+        mesh = None
+        for a, (ax, f) in enumerate(zip(axes, names)):
+            mesh = ax.pcolormesh(xe, ye, np.ma.masked_invalid(deficit[a][:, order]), cmap=cmap, norm=norm)
+            ax.plot(pitch[required[a]], y, "o", ms=6, color="white", mec="black", zorder=5, label="required pitch")
+            mine = [(k, j) for k, (b, j) in enumerate(best) if b == a]
+            if mine:
+                _red_marks(ax, [pitch[j] for _, j in mine], [y[k] for k, _ in mine], "*", 11, "best pair at the rate")
+            ax.set_xscale("log")
+            ax.set_xlim(xe[-1], xe[0])  # coarse on the left, finer to the right
+            _nice_log_ticks(ax.xaxis, pitch[np.isfinite(pitch)])
+            tol = sorted({round(float(maps[f].curves[maps[f].rates.index(r)].sat.tolerance) * 100, 1) for r in rates})
+            ttxt = f"T = {tol[0]:g}" if len(tol) == 1 else f"T = {tol[0]:g}-{tol[-1]:g}"
+            ax.set_title(f"filter: {f}\ncertified {ttxt} pts", loc="left")
+            ax.set_xlabel("taxel pitch (mm)")
+        axes[0].set_yticks(y, [f"{100 * r:.3g} %" for r in rates])
+        axes[0].set_ylim(ye[0], ye[-1])
+        axes[0].set_ylabel("false-on rate per taxel and frame")
+        ticks = np.arange(0, top + 1, dtype=float)
+        fig.colorbar(
+            mesh,
+            ax=list(axes),
+            label="deficit to the rate's best\n(pitch, filter) pair (points)",
+            ticks=ticks if top <= 10 else ticks[:: int(np.ceil(top / 10))],
+            format="%.0f",
+        )
+        handles: dict[str, Any] = {}
+        for ax in axes:
+            for h, lab in zip(*ax.get_legend_handles_labels()):
+                handles.setdefault(lab, h)
+        fig.legend(list(handles.values()), list(handles.keys()), loc="outside lower center", ncol=2, framealpha=0.8)
+        return _finish(fig, report, path, marks)

@@ -20,7 +20,10 @@ draws (``SessionDataset.truth``):
     The arm study itself holds 1.00-1.03x for every gesture (its own trials with the exact contact stage,
     ``outputs/bench/arm_contact_plan.json``), so the ratio is judged as it stands, not over the arm study's.
 
-  Reported, not judged: the calibration against CoST, the median contact fraction (span over the drawing
+  Reported, not judged: ``touches_reached_share``, the share of touches in which the drawing hand touches any
+  link at all (``n_reached`` per gesture): a touch whose drawn spot other links block (the hand is moved back
+  along its approach until it clears them, and held contact gives up beyond :data:`sphri.sessions.synthetic.HOLD_MAX_GAP_M`) has none;
+  and the calibration against CoST, the median contact fraction (span over the drawing
   hand's own trial) over the arm study's (:func:`arm_reference`: CoST's median contact duration, lognormal
   with CoST's mean and SD, over the VR median trial), with beside it the 2.5-97.5 % range of the median of
   the gesture's count of draws from that lognormal over its median (:func:`cost_sampling_interval`). It is not
@@ -131,6 +134,7 @@ def plausibility(ds, bc, robot, compliance_mm: float) -> dict:
         "on_drawn_part_share": round(share, 4),
         "on_drawn_part_target": ON_PART_TARGET,
         "on_drawn_part_ok": bool(share >= ON_PART_TARGET),
+        "touches_reached_share": round(float((span > 0).mean()), 4) if n_s else float("nan"),
         "timing_band": [lo, hi],
         "timing_judges": "duration_ratio and contact_plan_ratio; contact_fraction_ratio (CoST) is reported",
         "gestures": gestures,
@@ -156,6 +160,7 @@ def _gesture_timing(g: str, idx: np.ndarray, truth: pd.DataFrame, span: np.ndarr
     judged = paired.size >= MIN_TOUCHES
     return {
         "n_touches": int(idx.size),
+        "n_reached": int((span[idx] > 0).sum()),
         "duration_s": round(dur, 3),
         "arm_duration_s": round(ref_s, 3),
         "duration_ratio": round(dur / ref_s, 3),

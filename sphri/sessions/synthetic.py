@@ -325,12 +325,18 @@ def settle_hands(
     compliance_m: float,
     away: np.ndarray,
     rounds: int = SETTLE_ROUNDS,
+    phase: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int]:
     """Hands that stop at the skin: ``hand_poses`` (F, 2, C, 7) world, ``link_poses`` (F, L, 4, 4) world.
 
     Per frame and hand, the contact rows with every link (:func:`sphri.sessions.contact.body_contacts`, exact
     capsule vs mesh) give a depth (m) and the surface's outward normal; the allowed depth is ``compliance_m`` on
-    the hand's own link (``own_link[h]``, index into ``tree_of(robot).links``; -1: none) and none elsewhere. The
+    the hand's own link (``own_link[h]``, index into ``tree_of(robot).links``; -1: none) and none elsewhere;
+    with ``phase`` (F, 2) bool (the frames of each hand's planned contact phase) only inside that phase: before
+    and after it the hand keeps clear of its own link too (a hand on its way to a touch does not touch yet,
+    whichever capsule comes first; the gesture generator plans the phase by its effector point, and a finger-pad
+    rub's other finger capsules reach the surface about 7 frames before and after it,
+    ``outputs/bench/rub_overrun.json``). The
     whole hand is moved back along its approach (``away[h]``, unit vector towards the participant) until its
     row with the largest excess would leave the surface along that row's outward normal (excess over the
     cosine between normal and approach, at least :data:`SETTLE_MIN_COS`; :data:`SETTLE_CLEARANCE_M` off
@@ -364,6 +370,8 @@ def settle_hands(
         if bc.n_contacts == 0:
             break
         mine = bc.link == own[bc.hand]
+        if phase is not None:
+            mine &= phase[bc.frame, bc.hand]
         excess = bc.depth_m - np.where(mine, compliance_m, -SETTLE_CLEARANCE_M)
         bad = excess > 0
         if not bad.any():
@@ -482,7 +490,9 @@ class SyntheticSessions:
     #: 5: the truth table also records the drawing hand's own trial (``trial_frames``, time-scaled, without the
     #: padding to a two-handed touch's longer trial) and its planned contact phase (``plan_first_frame``,
     #: ``plan_last_frame``, within the touch), for the paired timing check; hand and link poses unchanged.
-    VERSION = "5"
+    #: 6: outside its planned contact phase a hand keeps clear of its own link too (:func:`settle_hands`'
+    #: ``phase``): a finger-pad rub no longer touches ~7 frames before and after its plan.
+    VERSION = "6"
 
     def __init__(
         self,
@@ -626,12 +636,12 @@ class SyntheticSessions:
         if dr.two_hands:
             phase[n_app : n_app + n_touch, 0] = phases[1]
         comp = self.compliance_mm * 1e-3
-        out, moved = settle_hands(out, lk, robot, rig.hand, own_link, comp, away)
+        out, moved = settle_hands(out, lk, robot, rig.hand, own_link, comp, away, phase=phase)
         # held contact follows the surface: in its contact phase a hand that settling moved off its own link is
         # pulled back onto it (within the compliance); settling again clears other links it then touches
         out, held = hold_contact(out, lk, robot, rig.hand, own_link, phase, away, comp)
         if held:
-            out, _ = settle_hands(out, lk, robot, rig.hand, own_link, comp, away)
+            out, _ = settle_hands(out, lk, robot, rig.hand, own_link, comp, away, phase=phase)
         info = dict(
             start_position=dr.position,
             gesture=dr.gesture,

@@ -13,6 +13,46 @@ from sphri.config import compose
 SMALL = ["data=synthetic_sessions", "robot=reachy_full", "data.participants=2", "data.repetitions=1"]
 
 
+def study_touches(keep, n: int):
+    """The full study's generator, hand, robot, priors table and its first ``n`` sessions (participant k,
+    repetition, scenario index, scenario) whose session draw satisfies ``keep(draw)``, in the study's order."""
+    import numpy as np
+
+    from sphri.sessions import synthetic as syn
+
+    cfg = compose(["+experiment=scenario_study", "robot=reachy2"])
+    hand, robot = instantiate(cfg.hand).build(), instantiate(cfg.robot).build()
+    gen = instantiate(cfg.data)
+    table = syn.load_priors(gen.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
+    picks = []
+    names = list(table["scenarios"])
+    for k in range(1, gen.participants + 1):
+        for rep in range(1, gen.repetitions + 1):
+            for si, scen in enumerate(names):
+                dr = syn._draw_session(np.random.default_rng([gen.seed, k, si + 1, rep]), table["scenarios"][scen], k)
+                if keep(dr):
+                    picks.append((k, rep, si, scen))
+    return gen, hand, robot, table, picks[:n]
+
+
+def generated(study):
+    """Yield (hand poses, truth row) of each session picked by :func:`study_touches`, generated one at a time with
+    the study's random streams (a spy set on the generator sees each in turn)."""
+    import numpy as np
+
+    from sphri.data.gestures import Style
+    from sphri.data.handfk import HandRig
+
+    gen, hand, robot, table, picks = study
+    rig = HandRig.from_hand(hand)
+    for k, rep, si, scen in picks:
+        style = Style.draw(np.random.default_rng([gen.seed, k, 0]), gen.spread)
+        out, _, info = gen._session(
+            np.random.default_rng([gen.seed, k, si + 1, rep]), style, rig, robot, {}, table, scen, k
+        )
+        yield out, info
+
+
 @pytest.fixture(scope="module")
 def small():
     cfg = compose(SMALL)

@@ -32,9 +32,9 @@ def test_synthesizer_command_writes_sessions_that_load_back_identically(small, t
     ea = segment_episodes(ds, a, part_of_rows(a, robot))
     eb = segment_episodes(loaded, b, part_of_rows(b, robot))
     pd.testing.assert_frame_equal(ea, eb)
-    # most sessions have an episode: a hand moved clear of the other links can end with no contact (14 of the
-    # full study's 180 sessions have no coded episode)
-    assert len(ea) >= 0.75 * len(ds.sessions)
+    # most sessions have an episode: a hand whose drawn spot other links block is moved clear of them and ends
+    # with no contact (sessions v6: 23 of the full study's 180 sessions, 3 of these 10)
+    assert len(ea) >= 0.6 * len(ds.sessions)
 
 
 def test_loader_selects_participants_scenarios_and_repetitions(small, written):

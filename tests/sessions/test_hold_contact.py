@@ -10,12 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hydra.utils import instantiate
 
-from sphri.config import compose
-from sphri.data.gestures import Style
-from sphri.data.handfk import HandRig
 from sphri.sessions import synthetic as syn
+from tests.sessions.conftest import generated, study_touches
 
 N_TOUCHES = 6
 
@@ -26,19 +23,9 @@ def _runs(on: np.ndarray) -> int:
 
 @pytest.fixture(scope="module")
 def study():
-    cfg = compose(["+experiment=scenario_study", "robot=reachy2"])
-    hand, robot = instantiate(cfg.hand).build(), instantiate(cfg.robot).build()
-    gen = instantiate(cfg.data)
-    table = syn.load_priors(gen.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
-    picks = []
-    names = list(table["scenarios"])
-    for k in range(1, gen.participants + 1):
-        for rep in range(1, gen.repetitions + 1):
-            for si, scen in enumerate(names):
-                dr = syn._draw_session(np.random.default_rng([gen.seed, k, si + 1, rep]), table["scenarios"][scen], k)
-                if dr.gesture in ("rub", "grab") and not dr.part.startswith(("upper_arm", "forearm")):
-                    picks.append((k, rep, si, scen))
-    return gen, hand, robot, table, picks[:N_TOUCHES]
+    return study_touches(
+        lambda dr: dr.gesture in ("rub", "grab") and not dr.part.startswith(("upper_arm", "forearm")), N_TOUCHES
+    )
 
 
 def _held_touches(study, monkeypatch, hold: bool) -> list[dict]:
@@ -52,13 +39,8 @@ def _held_touches(study, monkeypatch, hold: bool) -> list[dict]:
         return real(out, lk, robot_, hand_, own, phase, *a, **kw) if hold else (out, 0)
 
     monkeypatch.setattr(syn, "hold_contact", spy)
-    rig = HandRig.from_hand(hand)
     rows = []
-    for k, rep, si, scen in picks:
-        style = Style.draw(np.random.default_rng([gen.seed, k, 0]), gen.spread)
-        out, _, info = gen._session(
-            np.random.default_rng([gen.seed, k, si + 1, rep]), style, rig, robot, {}, table, scen, k
-        )
+    for out, info in generated(study):
         m = seen["phase"]
         gap, _ = syn.own_link_gap(
             out[m, 1].astype(np.float64), seen["lk"][m, seen["own"]], robot, hand, seen["own"], 0.2

@@ -29,6 +29,10 @@ def test_settled_hands_pass_penetration_and_drawn_part(small):
     assert p["penetration_max_mm"] <= 5.0 + 0.5
     assert p["on_drawn_part_share"] >= 0.9 and p["on_drawn_part_ok"]
     assert (ds.truth["duration_scale"] == 1.0).all()
+    # reported, not judged: the touches in which the drawing hand reaches the robot at all
+    reached = sum(g["n_reached"] for g in p["gestures"].values())
+    assert p["touches_reached_share"] == pytest.approx(reached / len(ds.truth), abs=1e-4)
+    assert 0.5 <= p["touches_reached_share"] < 1.0  # the small sample has touches blocked by other links
 
 
 def test_unsettled_stretched_hands_fail(small, tmp_path, monkeypatch):
