@@ -131,6 +131,11 @@ class RandomForest(ClassifierMixin, BaseEstimator):
         feats = self._check_features(self.transform(x))
         return require_finite(self.forest_.predict_proba(feats), "Random Forest probabilities")
 
+    def predict_proba_features(self, feats: np.ndarray) -> np.ndarray:
+        """(n, n_classes) class probabilities from precomputed features (n, 32), columns in ``classes_`` order."""
+        check_is_fitted(self, "forest_")
+        return require_finite(self.forest_.predict_proba(self._check_features(feats)), "Random Forest probabilities")
+
     def predict(self, x: np.ndarray) -> np.ndarray:
         """(n,) predicted labels."""
         return self.predict_features(self.transform(x))

@@ -47,7 +47,11 @@ class GestureModel:
     config: object
     """The composed config of the first region's chain (its components label episodes)."""
     accuracy: dict = field(default_factory=dict)
-    """Region -> that chain's LOSO accuracy."""
+    """Region -> that chain's LOSO accuracy (``training="episodes"``: participant -> agreement on their episodes)."""
+    training: str = "trials"
+    """What the model learnt from: ``trials`` (the synthetic gesture study on ``regions``) or ``episodes`` (the
+    study's own episodes, each participant's labelled by a model of the others': :mod:`sphri.sessions.episode_coder`;
+    ``regions`` are then the body parts touched)."""
 
     @property
     def region(self) -> str:

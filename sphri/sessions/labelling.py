@@ -7,7 +7,9 @@ the stages of :data:`sphri.stages.SESSION_STAGES`), segments the episodes
 one, trains the gesture model in the same job
 (:func:`sphri.sessions.gestures.train_gesture_model`, on the synthetic gesture
 study with the study's robot) and labels the coded episodes with it
-(:func:`sphri.sessions.gestures.label_episodes`). The scenario study
+(:func:`sphri.sessions.gestures.label_episodes`); for generated sessions, by
+default, each participant's episodes are labelled by a model trained on the
+other participants' episodes instead (:mod:`sphri.sessions.episode_coder`). The scenario study
 (:func:`sphri.sessions.study.run_study`) maps them; ``sphri code``
 (:mod:`sphri.sessions.coding_sheet`) shows them to a person to code by hand.
 """
@@ -162,21 +164,42 @@ def segment(cfg, st, cache, memo=None) -> tuple[Any, ...]:
     return hand, robot, ds, bc, row_part, episodes, coded, notes, seconds
 
 
+def training_mode(st, ds) -> str:
+    """``trials`` or ``episodes``: the study's ``gesture_training`` with ``auto`` resolved (``episodes`` for
+    generated sessions with the generator's drawn gestures, else ``trials``)."""
+    if st.gesture_training != "auto":
+        return str(st.gesture_training)
+    truth = getattr(ds, "truth", None)
+    return "episodes" if truth is not None and "gesture" in truth else "trials"
+
+
 def label(coded: pd.DataFrame, ds, overrides: Sequence[str], st, cache, memo=None) -> tuple[Any, pd.DataFrame, list]:
-    """(gesture model, labelled episodes, notes): the model trained in this job on the synthetic gesture study
-    labels the coded episodes; a note warns of episodes on body parts it never saw."""
+    """(gesture model, labelled episodes, notes): the coded episodes labelled by a model trained in this job, on the
+    synthetic gesture study (``gesture_training=trials``) or on the other participants' episodes (``episodes``,
+    :func:`sphri.sessions.episode_coder.code_by_other_participants`); a note warns of episodes on body parts it
+    never saw."""
     from sphri.sessions.gestures import label_episodes, train_gesture_model
 
     n_part = int(ds.sessions["participant"].nunique())
-    gm = train_gesture_model(training_overrides(overrides, st, n_part), list(st.gesture_regions), cache, memo)
-    labelled = label_episodes(coded, ds, gm, cache, memo)
+    train = training_overrides(overrides, st, n_part)
+    if training_mode(st, ds) == "episodes":
+        from sphri.config import compose
+        from sphri.sessions.episode_coder import code_by_other_participants
+
+        chain = compose([*train, f"data.regions=[{st.gesture_regions[0]}]"])
+        gm, labelled = code_by_other_participants(coded, ds, chain, cache, memo)
+        trained_on = "the other participants' episodes"
+    else:
+        gm = train_gesture_model(train, list(st.gesture_regions), cache, memo)
+        labelled = label_episodes(coded, ds, gm, cache, memo)
+        trained_on = gm.region
     notes = []
-    outside = labelled[~labelled["in_training"]]
+    outside = labelled[~labelled["in_training"].astype(bool)]
     if len(outside):
         parts = outside["dominant_part"].value_counts()
         msg = (
             f"{len(outside)} of {len(labelled)} coded episodes lie on body parts the gesture model never saw "
-            f"(trained on {gm.region}): "
+            f"(trained on {trained_on}): "
             + ", ".join(f"{p} ({n})" for p, n in parts.items())
             + "; their labels are extrapolated"
         )

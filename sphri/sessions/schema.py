@@ -104,14 +104,21 @@ class ScenarioStudySchema(Schema):
     exact_max: int = setting(12, lo=0, hi=20)
     n_permutations: int = setting(9999, lo=99)
     seed: int = 0
+    gesture_training: str = setting("auto", choices=["auto", "trials", "episodes"])
+    """What the gesture model that labels the coded episodes learns from: ``trials``, the synthetic gesture study
+    on ``gesture_regions`` (its chain on each part, ``gesture_res``, ``gesture_repetitions``); ``episodes``, the
+    study's own coded episodes, each participant's labelled by a model trained on every other participant's
+    episodes with the generator's drawn gestures (generated sessions only; :mod:`sphri.sessions.episode_coder`);
+    ``auto``: ``episodes`` for generated sessions, ``trials`` for recorded ones."""
     gesture_regions: list[str] = field(
         default_factory=lambda: ["torso_front_upper", "shoulder_r", "upper_arm_r", "gripper_r"]
     )
-    """Body parts the gesture model is trained on (synthetic gesture study, data=synthetic; one chain each)."""
+    """``gesture_training=trials``: body parts the gesture model is trained on (synthetic gesture study,
+    data=synthetic; one chain each)."""
     gesture_res: int = setting(12, lo=1, hi=100)
-    """Skin resolution (layout.res) of the gesture model."""
+    """Skin resolution (layout.res) of the gesture chain (both ``gesture_training`` modes)."""
     gesture_repetitions: int = setting(10, lo=1)
-    """Training trials per gesture and participant (participants: data.participants)."""
+    """``gesture_training=trials``: training trials per gesture and participant (participants: data.participants)."""
     reach_floor_height_m: float = setting(0.3, lo=0.0, hi=3.0)
     """Surface turned to the floor (normal within acos(reach_down_cos) of straight down) below this height (m,
     rest pose) is out of a hand's reach; so is surface buried inside another link. Areas, densities per cm^2 and

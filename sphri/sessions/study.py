@@ -651,6 +651,7 @@ def _summary(res: StudyResult, robot, ds, gm, areas: pd.DataFrame, budget: str) 
         "scenarios": res.coverage.groups,
         "n_coded_episodes": int(len(res.coded)),
         "gesture_model": {
+            "training": gm.training,
             "regions": gm.regions,
             "loso_accuracy": gm.accuracy,
             "res": gm.res,
@@ -794,10 +795,17 @@ def _test_and_gesture_figures(res: StudyResult, ds, gm, prov, figs: dict[str, Pa
         out / "gesture_histogram.png",
         f"Gestures of the coded episodes per scenario, coded by {res.codes.coder}"
         if res.codes is not None
-        else f"Gestures of the coded episodes per scenario (model LOSO accuracy {100 * gm.accuracy_mean:.0f} %)",
+        else f"Gestures of the coded episodes per scenario ({_model_words(gm)})",
         provenance=prov,
         drawn=drawn_shares(res.coded, ds.truth) if ds.truth is not None and len(res.coded) else None,
     )
+
+
+def _model_words(gm) -> str:
+    """How the gesture model was trained and how well it did, for a figure title."""
+    if gm.training == "episodes":
+        return f"model of the other participants' episodes: {100 * gm.accuracy_mean:.0f} % agreement"
+    return f"model LOSO accuracy {100 * gm.accuracy_mean:.0f} %"
 
 
 def _design_figures(res: StudyResult, view, budget: str, prov, figs: dict[str, Path]) -> None:

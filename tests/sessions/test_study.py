@@ -110,6 +110,9 @@ def test_writes_the_report_and_every_table(study):
     assert (place["area_cm2"] <= 2000 + 1e-6).all() and place["captured"].between(0, 1).all()
     summary = json.loads((study / "summary.json").read_text())
     assert summary["synthetic"] and summary["n_sessions"] == 3 * 5 * 2
+    # generated sessions: each participant's episodes coded by a model of the other participants' episodes
+    assert summary["gesture_model"]["training"] == "episodes"
+    assert summary["gesture_model"]["n_trials"] == summary["n_coded_episodes"]
     block = summary["plausibility"]  # the paired timing check and the CoST calibration beside it
     assert block["gestures"] and {"penetration_ok", "on_drawn_part_ok", "timing_ok", "ok"} <= set(block)
     for g in block["gestures"].values():
