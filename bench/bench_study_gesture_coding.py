@@ -1,7 +1,7 @@
 """How well the scenario study's coded episodes can be labelled with gestures, per gesture, against the generator.
 
-For each skin (the study's default for coding: ``gesture_res`` 12 with the chain's noise, 2 % salt-and-pepper;
-and skins that can carry more: more taxels, no noise), the coded episodes of the full built-in study
+For each skin (the study's default for coding: ``gesture_res`` 12 without noise; with the chain's noise, 2 %
+salt-and-pepper, with and without a filter; 24 taxels), the coded episodes of the full built-in study
 (``robot=reachy2``, 12 participants x 5 scenarios x 3 repetitions, sessions and contacts from the stage cache
 in ``--cache``) are turned into windows by the gesture chain on each episode's dominant link
 (:func:`sphri.sessions.gestures.episode_windows`), and a Random Forest (the chain's ``model=rf``, its 32
@@ -32,10 +32,29 @@ from _common import machine, write_json  # noqa: E402
 
 #: name -> (the study's overrides of the skin, what it is)
 SKINS = {
-    "default": ([], "the study's default for coding: gesture_res 12, noise 2 % salt-and-pepper (the chain's)"),
-    "res24": (["experiment.scenario_study.gesture_res=24"], "24 taxels along the link, noise as default"),
-    "res12_no_noise": (["noise=none"], "gesture_res 12, no noise"),
-    "res24_no_noise": (["experiment.scenario_study.gesture_res=24", "noise=none"], "24 taxels, no noise"),
+    "default": ([], "the study's default for coding: gesture_res 12, no noise (gesture_noise false)"),
+    "res12_noise": (["experiment.scenario_study.gesture_noise=true"], "gesture_res 12, the chain's noise (2 % s&p)"),
+    "res24": (["experiment.scenario_study.gesture_res=24"], "24 taxels along the link, no noise"),
+    "res24_noise": (
+        ["experiment.scenario_study.gesture_res=24", "experiment.scenario_study.gesture_noise=true"],
+        "24 taxels, the chain's noise",
+    ),
+    "res12_noise_despeckle": (
+        ["experiment.scenario_study.gesture_noise=true", "filter=despeckle"],
+        "gesture_res 12, the chain's noise, despeckle filter",
+    ),
+    "res24_noise_despeckle": (
+        [
+            "experiment.scenario_study.gesture_res=24",
+            "experiment.scenario_study.gesture_noise=true",
+            "filter=despeckle",
+        ],
+        "24 taxels, the chain's noise, despeckle filter",
+    ),
+    "res12_noise_persistence": (
+        ["experiment.scenario_study.gesture_noise=true", "filter=persistence"],
+        "gesture_res 12, the chain's noise, persistence filter",
+    ),
 }
 
 

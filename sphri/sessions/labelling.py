@@ -36,6 +36,7 @@ TRAINING_KEYS = (
     "seed",
     "model",
     "noise",
+    "filter",
     "encoder",
     "layout",
     "surface",
@@ -104,10 +105,23 @@ def load_sessions_and_contacts(cfg, cache, memo=None):
     return hand, robot, ds, bc, {"sessions": t1 - t0, "contact": time.perf_counter() - t1}
 
 
+def _override_key(o: str) -> str:
+    """The key of a command-line override (``+noise.p=0.1`` -> ``noise.p``)."""
+    return o.lstrip("+~").split("=")[0]
+
+
 def training_overrides(overrides: Sequence[str], st, n_participants: int) -> list[str]:
-    """The gesture model's job: the study's shared overrides (:data:`TRAINING_KEYS`), its robot, and the
-    synthetic gesture study at the study's ``gesture_res`` and ``gesture_repetitions``."""
-    out = [o for o in overrides if o.lstrip("+").split("=")[0] in TRAINING_KEYS]
+    """The gesture model's job: the study's shared overrides (:data:`TRAINING_KEYS`, a group's choice or any of
+    its settings: ``noise=gaussian``, ``noise.p=0.05``), its robot, and the synthetic gesture study at the study's
+    ``gesture_res`` and ``gesture_repetitions``; without noise (and none of the noise overrides) unless the
+    study's ``gesture_noise`` is set."""
+    noisy = bool(getattr(st, "gesture_noise", False))
+    out = [
+        o
+        for o in overrides
+        if (_override_key(o) in TRAINING_KEYS or _override_key(o).split(".")[0] in TRAINING_KEYS)
+        and (noisy or _override_key(o).split(".")[0] != "noise")
+    ]
     out += robot_overrides(overrides)
     out += [
         "data=synthetic",
@@ -116,6 +130,8 @@ def training_overrides(overrides: Sequence[str], st, n_participants: int) -> lis
         f"layout.res={st.gesture_res}",
         "tracking.enabled=false",
     ]
+    if not noisy:
+        out.append("noise=none")  # the coding chain's skin is noiseless unless asked (the setting says why)
     return out
 
 

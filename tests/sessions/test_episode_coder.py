@@ -104,3 +104,17 @@ def test_a_wrong_training_mode_fails_at_composition():
 
     with pytest.raises(ConfigError, match="gesture_training"):
         compose(["+experiment=scenario_study", "experiment.scenario_study.gesture_training=people"])
+
+
+def test_the_coding_chain_is_noiseless_unless_asked_and_gets_the_skin_settings():
+    st = SimpleNamespace(gesture_repetitions=2, gesture_res=8, gesture_noise=False)
+    given = ["+experiment=scenario_study", "noise.p=0.05", "filter=despeckle", "model.n_estimators=50"]
+    quiet = training_overrides(given, st, 3)
+    assert quiet[-1] == "noise=none" and "noise.p=0.05" not in quiet
+    cfg = compose([*quiet, "data.regions=[shoulder_r]"])
+    assert cfg.noise._target_.endswith("NoNoise")
+    # a setting inside a group reaches the coding chain, not only the group's choice
+    assert cfg.filter._target_.endswith("DespeckleFilter") and cfg.model.n_estimators == 50
+    st.gesture_noise = True
+    noisy = training_overrides(given, st, 3)
+    assert "noise=none" not in noisy and compose([*noisy, "data.regions=[shoulder_r]"]).noise.p == 0.05
