@@ -47,6 +47,21 @@ def test_full_map_sweeps_six_false_on_rates_sixteen_resolutions_three_seeds():
     assert len(q["noise.p"]) >= 2 and len(q["layout.res"]) >= 2 and len(q["seed"]) == 2
 
 
+def test_full_threshold_map_lines_its_rates_up_with_the_salt_and_pepper_map():
+    from sphri.noise.components import threshold_false_on_rate
+
+    params = swept("requirement_map_threshold")
+    assert params["layout.res"] == swept("requirement_map")["layout.res"] and params["seed"] == ["0", "1"]
+    cfg = compose(["+experiment=requirement_map_threshold"])
+    assert cfg.encoder._target_.endswith("CoverageEncoder") and cfg.noise.threshold_mm2 == 10.0
+    rates = [
+        threshold_false_on_rate(float(s), cfg.noise.threshold_mm2, cfg.noise.drift_sigma_mm2)
+        for s in params["noise.sigma_mm2"]
+    ]
+    salt = [float(p) for p in swept("requirement_map")["noise.p"]]
+    assert rates == pytest.approx(salt, rel=0.002, abs=1e-12)
+
+
 def test_false_on_rate_is_range_checked_and_read_back_from_the_noise_params():
     with pytest.raises(Exception, match="noise.p"):
         compose(["+experiment=requirement_map", "noise.p=1.5"])
