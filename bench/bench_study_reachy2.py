@@ -2,6 +2,7 @@
 
     python bench/bench_study_reachy2.py --label after              # runs the study (about 2-4 minutes)
     python bench/bench_study_reachy2.py --label after --cold-numba  # ... after deleting this checkout's numba cache
+    python bench/bench_study_reachy2.py --label after --out DIR     # ... keeping the study's outputs in DIR
     python bench/bench_study_reachy2.py --label before --import-run DIR   # a run made by hand: DIR/log.txt from
                                                                           # /usr/bin/time -v, DIR/out/timing.json
 
@@ -47,15 +48,16 @@ def clear_numba_cache(root: Path) -> int:
     return n
 
 
-def run(cold_numba: bool) -> dict:
+def run(cold_numba: bool, keep: Path | None = None) -> dict:
     root = HERE.parent
     cleared = clear_numba_cache(root / "sphri") if cold_numba else 0
     with tempfile.TemporaryDirectory() as tmp:
+        out = keep.resolve() if keep is not None else Path(tmp) / "out"
         load0 = os.getloadavg()
         r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
         t0 = time.perf_counter()
         proc = subprocess.run(
-            [sys.executable, *COMMAND, f"out={tmp}/out", f"cache.dir={tmp}/cache"],
+            [sys.executable, *COMMAND, f"out={out}", f"cache.dir={tmp}/cache"],
             cwd=root,
             capture_output=True,
             text=True,
@@ -64,8 +66,8 @@ def run(cold_numba: bool) -> dict:
         r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
         if proc.returncode:
             raise SystemExit(f"the study failed (rc {proc.returncode}): {proc.stderr[-2000:]}")
-        phases = json.loads((Path(tmp) / "out" / "timing.json").read_text())
-        summary = json.loads((Path(tmp) / "out" / "summary.json").read_text())
+        phases = json.loads((out / "timing.json").read_text())
+        summary = json.loads((out / "summary.json").read_text())
     return {
         "wall_s": wall,
         "cpu_s": (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime),
@@ -98,8 +100,9 @@ def main() -> None:
     ap.add_argument("--cold-numba", action="store_true", help="delete this checkout's numba cache first")
     ap.add_argument("--import-run", type=Path, help="record a run made by hand instead of running one")
     ap.add_argument("--note", default="", help="what else to say about this entry")
+    ap.add_argument("--out", type=Path, help="keep the study's outputs in this directory (default: a temporary one)")
     args = ap.parse_args()
-    entry = imported(args.import_run) if args.import_run else run(args.cold_numba)
+    entry = imported(args.import_run) if args.import_run else run(args.cold_numba, args.out)
     entry.update(
         {
             "machine": machine(),

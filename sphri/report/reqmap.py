@@ -283,6 +283,12 @@ def _tolerance_text(m: RequirementMap) -> str:
     return f"T = {tol[0]:.3f}" if len(tol) == 1 else f"T = {tol[0]:.3f}-{tol[-1]:.3f} by row"
 
 
+def drawn_map(report: SweepReport) -> RequirementMap:
+    """The map :func:`plot_map` draws: the unfiltered one when the sweep has a filter axis (the filters are
+    :func:`plot_filter_map`'s), else the first."""
+    return next((m for m in report.maps if m.keys.get(FILTER_KEY) == "none"), report.maps[0])
+
+
 def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path | None:
     """The map's figure -> ``path`` (+ PDF, SVG); None without a map.
 
@@ -297,7 +303,7 @@ def plot_map(report: SweepReport, path: Path, marks: bool | None = None) -> Path
 
     if not report.maps:
         return None
-    m = report.maps[0]
+    m = drawn_map(report)
     plt = figures.pyplot()
     with figures.style():
         fig, (ax, ax2) = figures.new_figure("two", 3.8, ncols=2, width_ratios=[1.25, 1.0])
@@ -376,7 +382,8 @@ def _deficit_axes(ax: Any, m: RequirementMap, pitch: np.ndarray, xe: np.ndarray,
     ax.set_xlabel("taxel pitch (mm; finer to the right)")
     ax.set_ylabel("false-on rate per taxel and frame\n(one row per rate)")
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2, framealpha=0.8)
-    ax.set_title(f"required pitch, certified within {_tolerance_text(m)}", loc="left")
+    which = f" ({m.label})" if m.label else ""
+    ax.set_title(f"required pitch{which}, certified within {_tolerance_text(m)}", loc="left")
 
 
 def _false_on_panel(ax2: Any, m: RequirementMap, plt: Any) -> None:
