@@ -114,3 +114,18 @@ def run_info(start: dict[str, Any], quick: bool, t0: float, **extra: Any) -> dic
         "loadavg_1min_end": machine()["loadavg_1min"],
         **extra,
     }
+
+
+def scenario_study(overrides: tuple[str, ...] = ("+experiment=scenario_study", "robot=reachy2")):
+    """(hand, robot, session generator, priors table) of the scenario study composed from ``overrides``: what the
+    session benches regenerate touches with, with the study's own random streams."""
+    from hydra.utils import instantiate
+
+    from sphri.config import compose
+    from sphri.sessions import synthetic as syn
+
+    cfg = compose(list(overrides))
+    hand, robot = instantiate(cfg.hand).build(), instantiate(cfg.robot).build()
+    gen = instantiate(cfg.data)
+    table = syn.load_priors(gen.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
+    return hand, robot, gen, table

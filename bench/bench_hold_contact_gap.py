@@ -28,7 +28,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from _common import machine, write_json  # noqa: E402
+from _common import machine, scenario_study, write_json  # noqa: E402
 
 HELD = ("rub", "grab")
 ARM_LIKE = ("upper_arm", "forearm")
@@ -57,9 +57,7 @@ def main() -> None:
     ap.add_argument("--gestures", default=",".join(HELD), help="comma-separated gestures to pick (default rub,grab)")
     ap.add_argument("--all-parts", action="store_true", help="also touches on the upper arm and forearm")
     args = ap.parse_args()
-    from hydra.utils import instantiate
 
-    from sphri.config import compose
     from sphri.data.gestures import Style
     from sphri.data.handfk import HandRig
     from sphri.hand.kinematics import quat_to_matrix
@@ -67,10 +65,7 @@ def main() -> None:
     from sphri.sessions.plausibility import arm_reference
 
     t0 = time.perf_counter()
-    cfg = compose(["+experiment=scenario_study", "robot=reachy2"])
-    hand, robot = instantiate(cfg.hand).build(), instantiate(cfg.robot).build()
-    gen = instantiate(cfg.data)
-    table = syn.load_priors(gen.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
+    hand, robot, gen, table = scenario_study()
     names = list(table["scenarios"])
     rig = HandRig.from_hand(hand)
     captured: dict = {}

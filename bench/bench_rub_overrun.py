@@ -66,23 +66,9 @@ VARIANTS = (
 def _contact_rows(out, lk7, hand, robot, contact):
     """Contacts of hand 1 (drawing hand) of one session: (frames, capsules, links)."""
     from sphri.sessions.contact import body_contacts
-    from sphri.sessions.format import SessionDataset, make_sessions_frame
-    from sphri.sessions.synthetic import tree_of
+    from sphri.sessions.synthetic import one_session, tree_of
 
-    n = len(out)
-    ds = SessionDataset(
-        name="rub",
-        synthetic=True,
-        hand=hand,
-        sessions=make_sessions_frame(
-            [dict(participant="P01", scenario="-", repetition=1, order=0, start_position="-", start=0, n_frames=n)]
-        ),
-        hand_poses=np.asarray(out, dtype=np.float32),
-        links=tuple(tree_of(robot).links),
-        link_poses=np.asarray(lk7, dtype=np.float32),
-        frame_rate_hz=30.0,
-    )
-    bc = body_contacts(ds, robot, contact)
+    bc = body_contacts(one_session(out, lk7, hand, tree_of(robot).links, "rub"), robot, contact)
     m = bc.hand == 1
     return bc.frame[m].astype(np.int64), bc.capsule[m].astype(np.int64), bc.link[m].astype(np.int64)
 

@@ -64,7 +64,6 @@ def redraw_study(sess, participants: int, table: dict, style_of, rig, robot, arm
     its median fraction over the same sessions (``..._same_stream_on_arm``)."""
     import copy
 
-    from sphri.data.synthetic import SyntheticData
     from sphri.sessions import synthetic as ss
     from sphri.sessions.plausibility import arm_reference
 
@@ -84,15 +83,7 @@ def redraw_study(sess, participants: int, table: dict, style_of, rig, robot, arm
                 t = np.arange(n_app) / fps
                 final = ss._robot_motion(rng, robot, s, float(table["base_speed_m_s"]), dr, t)[-1]
                 parts = [dr.part] + ([ss.mirror_part(dr.part)] if dr.two_hands else [])
-                gen = SyntheticData(
-                    seed=sess.seed,
-                    participants=1,
-                    repetitions=1,
-                    regions=["arm"],
-                    gestures=[dr.gesture],
-                    frame_rate_hz=fps,
-                    variability=sess.variability,
-                )
+                gen = sess.trial_generator("arm", dr.gesture)
                 _, _, n_arm, ph_arm = gen._participant_region_phases(copy.deepcopy(rng), style, rig, arm_surface, "arm")
                 lengths, phases = [], []
                 for p in parts:  # as _touches, without placing the poses in the world
@@ -228,7 +219,6 @@ def main() -> None:
     from sphri.data.gestures import Style
     from sphri.data.handfk import HandRig
     from sphri.data.linkgeom import LinkSurface
-    from sphri.data.synthetic import SyntheticData
     from sphri.sessions import synthetic as ss
     from sphri.sessions.plausibility import TIMING_BAND, arm_reference
 
@@ -254,15 +244,7 @@ def main() -> None:
         style = Style.draw(np.random.default_rng([sess.seed, k, 0]), sess.spread)
         for gi, g in enumerate(GESTURES_MEASURED):
             for si, (name, surf) in enumerate(surfaces.items()):
-                gen = SyntheticData(
-                    seed=sess.seed,
-                    participants=1,
-                    repetitions=1,
-                    regions=[name],
-                    gestures=[g],
-                    frame_rate_hz=sess.frame_rate_hz,
-                    variability=sess.variability,
-                )
+                gen = sess.trial_generator(name, g)
                 for r in range(args.trials):
                     rng = np.random.default_rng([sess.seed, k, 7000 + gi, si, r])
                     _, out, lengths, phase = gen._participant_region_phases(rng, style, rig, surf, name)

@@ -23,22 +23,17 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from _common import machine, write_json  # noqa: E402
+from _common import machine, scenario_study, write_json  # noqa: E402
 
 
 def main() -> None:
-    from hydra.utils import instantiate
 
-    from sphri.config import compose
     from sphri.data.gestures import Style
     from sphri.data.handfk import HandRig
     from sphri.sessions import synthetic as syn
 
     t0 = time.perf_counter()
-    cfg = compose(["+experiment=scenario_study", "robot=reachy2"])
-    hand, robot = instantiate(cfg.hand).build(), instantiate(cfg.robot).build()
-    gen = instantiate(cfg.data)
-    table = syn.load_priors(gen.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
+    hand, robot, gen, table = scenario_study()
     names = list(table["scenarios"])
     links = syn.tree_of(robot).links
     rig = HandRig.from_hand(hand)

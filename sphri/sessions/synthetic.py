@@ -316,6 +316,33 @@ SETTLE_MIN_COS = 0.25
 SETTLE_CLEARANCE_M = 1e-3
 
 
+def one_session(hand_poses: np.ndarray, link_poses7: np.ndarray, hand: HandModel, links, name: str) -> SessionDataset:
+    """One session of poses as a :class:`SessionDataset` (participant P01, 30 Hz): hand poses (F, 2, C, 7) and link
+    poses (F, L, 7), world frame, ``links`` the link names; what the contact query of a few frames reads."""
+    return SessionDataset(
+        name=name,
+        synthetic=True,
+        hand=hand,
+        sessions=make_sessions_frame(
+            [
+                dict(
+                    participant="P01",
+                    scenario="-",
+                    repetition=1,
+                    order=0,
+                    start_position="-",
+                    start=0,
+                    n_frames=len(hand_poses),
+                )
+            ]
+        ),
+        hand_poses=np.asarray(hand_poses, dtype=np.float32),
+        links=tuple(links),
+        link_poses=np.asarray(link_poses7, dtype=np.float32),
+        frame_rate_hz=30.0,
+    )
+
+
 def settle_hands(
     hand_poses: np.ndarray,
     link_poses: np.ndarray,
@@ -354,19 +381,7 @@ def settle_hands(
     own = np.asarray(own_link)
     moved = np.zeros((n, 2), dtype=bool)
     for _ in range(rounds):
-        ds = SessionDataset(
-            name="settle",
-            synthetic=True,
-            hand=hand,
-            sessions=make_sessions_frame(
-                [dict(participant="P01", scenario="-", repetition=1, order=0, start_position="-", start=0, n_frames=n)]
-            ),
-            hand_poses=out.astype(np.float32),
-            links=links,
-            link_poses=lk7.astype(np.float32),
-            frame_rate_hz=30.0,
-        )
-        bc = body_contacts(ds, robot, contact)
+        bc = body_contacts(one_session(out, lk7, hand, links, "settle"), robot, contact)
         if bc.n_contacts == 0:
             break
         mine = bc.link == own[bc.hand]
@@ -571,6 +586,19 @@ class SyntheticSessions:
             truth=pd.DataFrame(truth),
         )
 
+    def trial_generator(self, part: str, gesture: str) -> SyntheticData:
+        """The gesture generator of one touch: one participant, one trial of ``gesture`` on ``part``, this
+        generator's seed, frame rate and variability."""
+        return SyntheticData(
+            seed=self.seed,
+            participants=1,
+            repetitions=1,
+            regions=[part],
+            gestures=[gesture],
+            frame_rate_hz=self.frame_rate_hz,
+            variability=self.variability,
+        )
+
     # ------------------------------------------------------------------ internals
     def _touch(
         self,
@@ -594,15 +622,7 @@ class SyntheticSessions:
             surf = LinkSurface(part_link(robot, part, poses, towards), n_samples=6000)
             if static:
                 surfaces[key] = surf
-        gen = SyntheticData(
-            seed=self.seed,
-            participants=1,
-            repetitions=1,
-            regions=[part],
-            gestures=[gesture],
-            frame_rate_hz=self.frame_rate_hz,
-            variability=self.variability,
-        )
+        gen = self.trial_generator(part, gesture)
         _, out, _, phase = gen._participant_region_phases(rng, style, rig, surf, part)
         return out.astype(np.float64), phase
 
