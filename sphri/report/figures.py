@@ -143,17 +143,34 @@ def _count_ticks(axis: Axis, pitch: np.ndarray, count: np.ndarray, max_ticks: in
     axis.set_minor_formatter(NullFormatter())
 
 
+#: Groups above which the curves' legend names each saturation star once for all and the figure grows with it.
+MANY_GROUPS = 4
+
+
 def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> Path:
     """Accuracy and macro F1 against resolution (two panels) -> ``path`` (+ PDF, SVG)."""
     plt = figures.pyplot()
     xcol, xlabel = _x(report)
+    n = len(report.groups)
+    # many groups (a map's rates x filters): one legend row per two curves below the panels, so the figure grows
+    legend_rows = int(np.ceil((n + 3) / 2)) if n > MANY_GROUPS else 0
     with figures.style():
-        fig, axes = figures.new_figure("two", 5.6, nrows=2, sharex=True)
-        colors = plt.get_cmap("tab10")
+        fig, axes = figures.new_figure("two", 5.6 + 0.16 * max(legend_rows - 4, 0), nrows=2, sharex=True)
+        colors = plt.get_cmap("tab10" if n <= 10 else "tab20")
         for i, g in enumerate(report.groups):
-            _draw_curve(axes, g, xcol, colors(i % 10))
+            _draw_curve(axes, g, xcol, colors(i % colors.N))
         xs = _all(report, xcol)
         _metric_axes(axes, xs)
+        if all(not np.isfinite(g.points["macro_f1_mean"].to_numpy(float)).any() for g in report.groups):
+            axes[1].text(
+                0.5,
+                0.5,
+                "no macro F1 per participant in these runs (swept with tracking.artifacts=false: no per-participant table)",
+                transform=axes[1].transAxes,
+                ha="center",
+                va="center",
+                wrap=True,
+            )
         extra = _pitch_axes(report, axes, xs) if xcol == "pitch_u_mm" else []
         axes[1].set_xlabel(xlabel)
         _curves_legend(report, fig, axes, extra)
@@ -254,10 +271,17 @@ def _count_axis(ax: Any, cmap: tuple[np.ndarray, np.ndarray]) -> None:
 def _curves_legend(report: SweepReport, fig: Figure, axes: Any, extra: list[tuple[Any, str]]) -> None:
     """One legend below the panels (it never hides data): the curves, saturation points and ``extra``
     reference lines, in as many columns as the longest label leaves room for."""
+    from matplotlib.lines import Line2D
+
     handles, labels = axes[0].get_legend_handles_labels()
+    if len(report.groups) > MANY_GROUPS:  # one entry for every group's saturation star (its colour is its curve's)
+        keep = [i for i, lab in enumerate(labels) if not lab.startswith("saturation")]
+        handles = [handles[i] for i in keep] + [Line2D([], [], marker="*", ls="", ms=11, color="0.6", mec="black")]
+        ci = f", {report.rule.ci:.0%} interval" if any(g.sat.interval is not None for g in report.groups) else ""
+        labels = [labels[i] for i in keep] + [f"saturation (curve's colour{ci})"]
     handles += [h for h, _ in extra]
     labels += [lab for _, lab in extra]
-    if any(g.sat.interval is not None for g in report.groups):
+    if len(report.groups) <= MANY_GROUPS and any(g.sat.interval is not None for g in report.groups):
         labels = [
             f"{lab} ({report.rule.ci:.0%} bootstrap interval)" if lab.startswith("saturation") else lab
             for lab in labels
@@ -327,9 +351,10 @@ def plot_bootstrap(report: SweepReport, path: Path, marks: bool | None = None) -
     if not groups:
         return None
     plt = figures.pyplot()
+    many = len(groups) > MANY_GROUPS
     with figures.style():
-        fig, ax = figures.new_figure("two", 2.4)
-        colors = plt.get_cmap("tab10")
+        fig, ax = figures.new_figure("two", 2.4 + (0.16 * np.ceil(len(groups) / 3) if many else 0.0))
+        colors = plt.get_cmap("tab10" if len(report.groups) <= 10 else "tab20")
         width = 0.8 / len(groups)
         union = sorted({int(r) for g in groups for r in g.points["res"]})
         where = {r: k for k, r in enumerate(union)}
@@ -338,12 +363,15 @@ def plot_bootstrap(report: SweepReport, path: Path, marks: bool | None = None) -
             assert boot is not None  # groups without one are left out above
             counts = np.bincount(boot, minlength=len(g.points)) / len(boot)
             pos = np.array([where[int(r)] for r in g.points["res"]]) + (i - (len(groups) - 1) / 2) * width
-            ax.bar(pos, counts, width=width, color=colors(report.groups.index(g) % 10), label=g.label)
+            ax.bar(pos, counts, width=width, color=colors(report.groups.index(g) % colors.N), label=g.label)
         step = max(1, int(np.ceil(len(union) / 20)))
         ax.set_xticks(np.arange(len(union))[::step], [str(r) for r in union][::step])
         ax.set_xlabel("taxels along the link (layout.res)")
         ax.set_ylabel("share of resamples")
-        ax.legend(loc="upper left")
+        if many:  # below the panel, in columns: inside it, a long list would hide the bars
+            fig.legend(loc="outside lower center", ncol=3)
+        else:
+            ax.legend(loc="upper left")
         ax.grid(True, axis="y", alpha=0.3)
         ax.set_title("saturation point over bootstrap resamples of participants", loc="left")
         return _finish(fig, report, path, marks)

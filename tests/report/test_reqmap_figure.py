@@ -50,3 +50,33 @@ def test_the_count_axis_shows_zero_and_the_positive_counts_on_a_log_scale():
     ticks = ax.xaxis.get_majorticklocs()
     assert ticks[0] == 0.0 and 0.01 in ticks and 1.0 in ticks
     plt.close(fig)
+
+
+def test_filter_grid_measures_every_pair_against_the_best_pair_over_filters():
+    from sphri.report.reqmap import filter_grid
+
+    def fcurve(res, pitch, acc, required):
+        c = curve(res, pitch, acc)
+        c.recommended = {"res": required}
+        return c
+
+    maps = {
+        "persistence": SimpleNamespace(
+            rates=[0.0, 0.01],
+            curves=[fcurve([2, 12], [120.0, 20.0], [0.50, 0.70], 12), fcurve([2, 12], [120.0, 20.0], [0.55, 0.58], 2)],
+        ),
+        "none": SimpleNamespace(
+            rates=[0.0, 0.01, 0.05],  # a rate the other filter lacks is left out
+            curves=[
+                fcurve([2, 12], [120.0, 20.0], [0.52, 0.75], 12),
+                fcurve([2, 12], [120.0, 20.0], [0.45, 0.50], 12),
+                fcurve([2, 12], [120.0, 20.0], [0.3, 0.3], 2),
+            ],
+        ),
+    }
+    rates, names, d, pitch, required = filter_grid(maps)
+    assert rates == [0.0, 0.01] and names == ["none", "persistence"] and pitch.tolist() == [120.0, 20.0]
+    # rate 0: the best pair is none at 20 mm (0.75); rate 1 %: persistence at 20 mm (0.58), across filters
+    assert d[0, 0] == pytest.approx([23.0, 0.0]) and d[1, 0] == pytest.approx([25.0, 5.0])
+    assert d[0, 1] == pytest.approx([13.0, 8.0]) and d[1, 1] == pytest.approx([3.0, 0.0])
+    assert required.tolist() == [[1, 1], [1, 0]]
