@@ -129,3 +129,16 @@ def scenario_study(overrides: tuple[str, ...] = ("+experiment=scenario_study", "
     gen = instantiate(cfg.data)
     table = syn.load_priors(gen.priors, [p.name for p in robot.parts], list(robot.tree.joint_names))
     return hand, robot, gen, table
+
+
+def header(script: str, doc: str | None) -> dict[str, Any]:
+    """The first keys of a benchmark JSON: date, :func:`machine`, the command that made it (``script`` with this
+    process's arguments) and what it measures (the first line of the script's ``doc``)."""
+    import sys
+
+    return {
+        "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
+        "machine": machine(),
+        "command": f"python bench/{script} " + " ".join(sys.argv[1:]),
+        "what": (doc or "").splitlines()[0],
+    }

@@ -36,7 +36,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from _common import machine, write_json  # noqa: E402
+from _common import header, write_json  # noqa: E402
 
 
 def arm_trials(participants: int, repetitions: int, overrides: list[str]):
@@ -163,10 +163,7 @@ def main() -> None:
             f"{e['frames_before_plan_median']} frames before, {e['frames_after_plan_median']} after"
         )
     result = {
-        "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
-        "machine": machine(),
-        "command": "python bench/bench_arm_contact_plan.py " + " ".join(sys.argv[1:]),
-        "what": __doc__.splitlines()[0],
+        **header("bench_arm_contact_plan.py", __doc__),
         "robot": str(cfg.robot.name),
         "contact": str(cfg.contact._target_),
         "participants": args.participants,

@@ -24,7 +24,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from _common import machine, write_json  # noqa: E402
+from _common import header, write_json  # noqa: E402
 
 #: (touches, distinct participants) per gesture in the full robot=reachy2 study (summary.json, generator truth).
 STUDY_COUNTS = {
@@ -94,10 +94,7 @@ def main() -> None:
             f"{e['median_ratio_p5']:.2f}-{e['median_ratio_p95']:.2f}x"
         )
     result = {
-        "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),
-        "machine": machine(),
-        "command": "python bench/bench_timing_band_noise.py " + " ".join(sys.argv[1:]),
-        "what": __doc__.splitlines()[0],
+        **header("bench_timing_band_noise.py", __doc__),
         "band": [lo, hi],
         "per_gesture": out,
         "seconds": round(time.perf_counter() - t0, 1),
