@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 
 from sphri.sessions.format import SessionDataset
-from sphri.sessions.gestures import GestureModel, episode_windows
+from sphri.sessions.gestures import GestureModel, argmax_labels, episode_windows
 from sphri.types import GESTURES
 
 
@@ -30,8 +30,8 @@ class EpisodeTrainingError(ValueError):
 
 
 def episode_features(coded: pd.DataFrame, ds: SessionDataset, chain, cache, memo=None):
-    """(features (n, k), row labels of ``coded`` per feature row, the fitted-model factory's first model) of the
-    coded episodes' windows on their dominant links (``chain``: the gesture chain's composed config)."""
+    """(features (n, k), the row label in ``coded`` of each feature row) of the coded episodes' windows on their
+    dominant links (``chain``: the gesture chain's composed config), link by link."""
     from sphri.pipeline import model_factory
 
     feats, rows = [], []
@@ -92,10 +92,7 @@ def code_by_other_participants(
     for j, g in enumerate(GESTURES):
         out.loc[rows, f"p_{g}"] = proba[:, j]
     out.loc[rows, "in_training"] = seen
-    p = out[[f"p_{g}" for g in GESTURES]].to_numpy(float)
-    ok = np.isfinite(p).all(axis=1)
-    out["gesture"] = np.where(ok, np.array(GESTURES, dtype=object)[np.nan_to_num(p, nan=-1).argmax(axis=1)], "")
-    out["confidence"] = np.where(ok, np.nanmax(np.where(ok[:, None], p, 0.0), axis=1), np.nan)
+    argmax_labels(out)
     acc = np.array(list(per.values()))
     final = model_factory(chain)(geometry=None).fit_features(x, y)
     gm = GestureModel(

@@ -178,17 +178,22 @@ def label_episodes(episodes: pd.DataFrame, ds: SessionDataset, gm: GestureModel,
         proba = gm.model.predict_proba(windows.x)
         for j, g in enumerate(classes):
             out.loc[idx, f"p_{g}"] = proba[:, j]
-    pcols = [f"p_{g}" for g in GESTURES]
-    p = out[pcols].to_numpy(float)
-    ok = np.isfinite(p).all(axis=1)
-    out["gesture"] = np.where(ok, np.array(GESTURES, dtype=object)[np.nan_to_num(p, nan=-1).argmax(axis=1)], "")
-    out["confidence"] = np.where(ok, np.nanmax(np.where(ok[:, None], p, 0.0), axis=1), np.nan)
+    argmax_labels(out)
     # a part counts as seen when the model was trained on it or on its mirror image (same geometry)
     from sphri.sessions.synthetic import mirror_part
 
     seen = set(gm.regions) | {mirror_part(r) for r in gm.regions}
     out["in_training"] = out["dominant_part"].astype(str).isin(seen)
     return out
+
+
+def argmax_labels(out: pd.DataFrame) -> None:
+    """Set ``gesture`` (the most probable, "" where any ``p_<gesture>`` is missing) and ``confidence`` (its
+    probability) of episodes ``out`` in place, from their ``p_<gesture>`` columns."""
+    p = out[[f"p_{g}" for g in GESTURES]].to_numpy(float)
+    ok = np.isfinite(p).all(axis=1)
+    out["gesture"] = np.where(ok, np.array(GESTURES, dtype=object)[np.nan_to_num(p, nan=-1).argmax(axis=1)], "")
+    out["confidence"] = np.where(ok, np.nanmax(np.where(ok[:, None], p, 0.0), axis=1), np.nan)
 
 
 def gesture_histogram(labelled: pd.DataFrame, scenarios: list[str]) -> pd.DataFrame:
