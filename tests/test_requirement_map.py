@@ -62,6 +62,17 @@ def test_full_threshold_map_lines_its_rates_up_with_the_salt_and_pepper_map():
     assert rates == pytest.approx(salt, rel=0.002, abs=1e-12)
 
 
+@pytest.mark.parametrize("effect", ["crosstalk", "drift"])
+def test_the_noise_effect_rows_keep_the_1_percent_false_on_rate(effect):
+    from sphri.noise.components import threshold_false_on_rate
+
+    cfg = compose([f"+experiment=requirement_map_{effect}"])
+    n = cfg.noise
+    assert threshold_false_on_rate(n.sigma_mm2, n.threshold_mm2, n.drift_sigma_mm2) == pytest.approx(0.01, rel=0.002)
+    assert (n.crosstalk > 0) == (effect == "crosstalk") and (n.drift_sigma_mm2 > 0) == (effect == "drift")
+    assert swept(f"requirement_map_{effect}")["layout.res"] == swept("requirement_map_threshold")["layout.res"]
+
+
 def test_false_on_rate_is_range_checked_and_read_back_from_the_noise_params():
     with pytest.raises(Exception, match="noise.p"):
         compose(["+experiment=requirement_map", "noise.p=1.5"])
