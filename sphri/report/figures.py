@@ -147,6 +147,12 @@ def _count_ticks(axis: Axis, pitch: np.ndarray, count: np.ndarray, max_ticks: in
 MANY_GROUPS = 4
 
 
+def _group_colors(report: SweepReport, plt: Any) -> Any:
+    """The colour map of the report's groups (``colors(i % colors.N)`` is group i's colour in every figure):
+    ten colours up to ten groups, twenty beyond."""
+    return plt.get_cmap("tab10" if len(report.groups) <= 10 else "tab20")
+
+
 def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> Path:
     """Accuracy and macro F1 against resolution (two panels) -> ``path`` (+ PDF, SVG)."""
     plt = figures.pyplot()
@@ -156,7 +162,7 @@ def plot_curves(report: SweepReport, path: Path, marks: bool | None = None) -> P
     legend_rows = int(np.ceil((n + 3) / 2)) if n > MANY_GROUPS else 0
     with figures.style():
         fig, axes = figures.new_figure("two", 5.6 + 0.16 * max(legend_rows - 4, 0), nrows=2, sharex=True)
-        colors = plt.get_cmap("tab10" if n <= 10 else "tab20")
+        colors = _group_colors(report, plt)
         for i, g in enumerate(report.groups):
             _draw_curve(axes, g, xcol, colors(i % colors.N))
         xs = _all(report, xcol)
@@ -354,7 +360,7 @@ def plot_bootstrap(report: SweepReport, path: Path, marks: bool | None = None) -
     many = len(groups) > MANY_GROUPS
     with figures.style():
         fig, ax = figures.new_figure("two", 2.4 + (0.16 * np.ceil(len(groups) / 3) if many else 0.0))
-        colors = plt.get_cmap("tab10" if len(report.groups) <= 10 else "tab20")
+        colors = _group_colors(report, plt)
         width = 0.8 / len(groups)
         union = sorted({int(r) for g in groups for r in g.points["res"]})
         where = {r: k for k, r in enumerate(union)}

@@ -105,9 +105,10 @@ def load_sessions_and_contacts(cfg, cache, memo=None):
     return hand, robot, ds, bc, {"sessions": t1 - t0, "contact": time.perf_counter() - t1}
 
 
-def _override_key(o: str) -> str:
-    """The key of a command-line override (``+noise.p=0.1`` -> ``noise.p``)."""
-    return o.lstrip("+~").split("=")[0]
+def _override_key(o: str) -> tuple[str, str]:
+    """(key, its config group) of a command-line override: ``+noise.p=0.1`` -> (``noise.p``, ``noise``)."""
+    key = o.lstrip("+~").split("=")[0]
+    return key, key.split(".")[0]
 
 
 def training_overrides(overrides: Sequence[str], st, n_participants: int) -> list[str]:
@@ -116,12 +117,11 @@ def training_overrides(overrides: Sequence[str], st, n_participants: int) -> lis
     ``gesture_res`` and ``gesture_repetitions``; without noise (and none of the noise overrides) unless the
     study's ``gesture_noise`` is set."""
     noisy = bool(getattr(st, "gesture_noise", False))
-    out = [
-        o
-        for o in overrides
-        if (_override_key(o) in TRAINING_KEYS or _override_key(o).split(".")[0] in TRAINING_KEYS)
-        and (noisy or _override_key(o).split(".")[0] != "noise")
-    ]
+    out = []
+    for o in overrides:
+        key, group = _override_key(o)
+        if (key in TRAINING_KEYS or group in TRAINING_KEYS) and (noisy or group != "noise"):
+            out.append(o)
     out += robot_overrides(overrides)
     out += [
         "data=synthetic",
