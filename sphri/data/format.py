@@ -182,35 +182,3 @@ def write_obj(link: Link, path: Path) -> None:
     lines += [f"v {x:.9g} {y:.9g} {z:.9g}" for x, y, z in np.asarray(link.vertices, dtype=np.float64)]
     lines += [f"f {a + 1} {b + 1} {c + 1}" for a, b, c in np.asarray(link.faces, dtype=np.int64)]
     Path(path).write_text("\n".join(lines) + "\n")
-
-
-def read_obj(path: Path) -> tuple[np.ndarray, np.ndarray]:
-    """(vertices (V, 3) float64, faces (F, 3) int64) of a triangle OBJ; polygons are fanned."""
-    path = Path(path)
-    verts: list[list[float]] = []
-    faces: list[list[int]] = []
-    for lineno, line in enumerate(path.read_text().splitlines(), 1):
-        parts = line.split()
-        if not parts:
-            continue
-        if parts[0] == "v":
-            try:
-                verts.append([float(v) for v in parts[1:4]])
-            except ValueError:
-                raise ValueError(f"{path}:{lineno}: bad vertex line {line!r}") from None
-        elif parts[0] == "f":
-            try:
-                idx = [int(p.split("/")[0]) for p in parts[1:]]
-            except ValueError:
-                raise ValueError(f"{path}:{lineno}: bad face line {line!r}") from None
-            idx = [i - 1 if i > 0 else len(verts) + i for i in idx]
-            faces += [[idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1)]
-    v = np.asarray(verts, dtype=np.float64).reshape(-1, 3)
-    f = np.asarray(faces, dtype=np.int64).reshape(-1, 3)
-    if len(v) == 0 or len(f) == 0:
-        raise ValueError(f"{path}: no vertices or faces")
-    if f.min() < 0 or f.max() >= len(v):
-        raise ValueError(f"{path}: face index out of range (1..{len(v)})")
-    if not np.isfinite(v).all():
-        raise ValueError(f"{path}: non-finite vertex coordinates")
-    return v, f

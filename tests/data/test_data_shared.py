@@ -7,10 +7,11 @@ from collections import defaultdict
 import numpy as np
 import pytest
 
-from sphri.data.format import PARTICIPANT_RE, read_manifest, read_obj
+from sphri.data.format import PARTICIPANT_RE, read_manifest
 from sphri.data.reference_stats import VR_MEDIAN_TRIAL_FRAMES
 from sphri.data.vr_gesture import VRGestureData, find_participants
 from sphri.hand.capsules import load_definition
+from sphri.robots.validate import read_mesh
 from sphri.types import GESTURES
 
 pytestmark = pytest.mark.shared
@@ -41,10 +42,12 @@ def test_assets_load(shared_dir, hand):
     specs = load_definition(assets / "hand_capsule_definition.json")
     assert tuple(s["name"] for s in specs) == hand.names
     assert np.allclose([s["radius_m"] for s in specs], hand.radius_m)
-    v, f = read_obj(assets / "arm_mesh.obj")
+    arm = read_mesh(assets / "arm_mesh.obj")
+    v, f = arm.vertices, arm.faces
     ext = v.max(axis=0) - v.min(axis=0)
     assert len(f) == 197 and np.allclose(ext, [0.0718, 0.0928, 0.2408], atol=5e-4)
-    v, f = read_obj(assets / "torso_mesh.obj")
+    torso = read_mesh(assets / "torso_mesh.obj")
+    v, f = torso.vertices, torso.faces
     assert len(f) == 84 and np.allclose(v.max(axis=0) - v.min(axis=0), [0.1484, 0.3465, 0.2764], atol=5e-4)
 
 
