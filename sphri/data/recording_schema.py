@@ -251,11 +251,6 @@ def required(fields: Sequence[Field]) -> tuple[str, ...]:
     return tuple(f.name for f in fields if f.required)
 
 
-def split_names(columns: Sequence[Column]) -> tuple[str, ...]:
-    """Every column name of a log spec (``px, py, pz`` is three columns)."""
-    return tuple(n.strip() for c in columns for n in c.name.split(","))
-
-
 # ----------------------------------------------------------------------------------------------- the page
 def _table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> list[str]:
     out = ["| " + " | ".join(header) + " |", "|" + "|".join(" --- " for _ in header) + "|"]

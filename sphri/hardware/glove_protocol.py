@@ -41,8 +41,6 @@ _ACTUATE = struct.Struct("<BBBB6B6H")  # version, type, seq, glove_id, intensity
 _ACK = struct.Struct("<BBBBB")  # version, type, seq, glove_id, status
 #: Payload length of each message type.
 PAYLOAD_LEN = {TYPE_ACTUATE: _ACTUATE.size, TYPE_ACK: _ACK.size}
-#: Bytes on the wire of each message type (start, length, payload, CRC).
-WIRE_LEN = {t: 4 + n for t, n in PAYLOAD_LEN.items()}
 
 
 class AckStatus(enum.IntEnum):

@@ -119,7 +119,7 @@ class GroupReport:
     accuracy_mean/std/se, macro_f1_mean/std, n (participants), recall_<g> (mean)."""
     participants: list[str]
     accuracy: np.ndarray
-    """(P, R) float64 per-participant accuracy (NaN = missing)."""
+    """(P, R) float64 per-participant accuracy, the mean over the replicate seeds (NaN = missing)."""
     macro_f1: np.ndarray
     """(P, R) float64 per-participant macro F1."""
     recall: dict[str, np.ndarray]
@@ -133,8 +133,6 @@ class GroupReport:
     rerun noise."""
     seeds: list[str]
     """The replicate seeds of this curve (one entry when the sweep has no replicates)."""
-    accuracy_seeds: np.ndarray
-    """(S, P, R) float64 per-seed per-participant accuracy (``accuracy`` is its mean over seeds)."""
     context: dict[str, Any]
     """robot, region, link, dataset, synthetic, cv_scheme, model."""
     requirement: str
@@ -421,7 +419,6 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
         gesture_sat,
         certificate,
         seeds,
-        acc_s,
         context,
         "",
         "",

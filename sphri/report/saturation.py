@@ -100,8 +100,6 @@ class Saturation:
     """(R,) paired standard error of ``deficit``."""
     bound: np.ndarray
     """(R,) upper confidence bound of each point's gap to the best (any candidate best; inf when unknown)."""
-    tolerance_name: str = ""
-    """The tolerance asked for, as written (``0.01``)."""
     rule: str = "certified"
 
     @property
@@ -325,7 +323,6 @@ def _certify(s: np.ndarray, tol: Tolerance, ci: float, alpha: float) -> tuple[Sa
         deficit=deficit[0],
         deficit_se=dse[0],
         bound=bound[0],
-        tolerance_name=tol.name,
     )
     return sat, cert
 
@@ -378,7 +375,7 @@ def _bootstrap_draws(
         else:
             wb = np.ones((b, 1))
         xb = _wmean(sb, wb[:, :, None, None], axis=1)  # (b, P, R)
-        bound_b, best_b, _, _ = _bounds(xb, alpha)
+        bound_b = _bounds(xb, alpha)[0]
         sel_b, _ = _envelope(bound_b, np.full(b, used))
         boot_sel[start : start + b] = sel_b
         with np.errstate(invalid="ignore"), _quiet():

@@ -115,12 +115,6 @@ class UrdfModel:
     skipped: list[tuple[str, str]]
     notes: list[str]
 
-    def children(self) -> dict[str, list[str]]:
-        out: dict[str, list[str]] = {n: [] for n in self.links}
-        for child, j in self.joint_of.items():
-            out[j.parent].append(child)
-        return out
-
     def path_from(self, ancestor: str, link: str) -> list[UrdfJoint]:
         """Joints from ``ancestor`` down to ``link`` (top first); ValueError when ``ancestor`` is not above it."""
         out = []

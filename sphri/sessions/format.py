@@ -253,7 +253,7 @@ def read_header(root: Path) -> dict:
     return h
 
 
-def read_manifest(path: Path, rate_tol: float = 1e-6) -> list[dict]:
+def read_manifest(path: Path) -> list[dict]:
     m = _read_json(path, "the participant manifest")
     if "sessions" not in m or not isinstance(m["sessions"], list):
         raise SessionFormatError(f"{path}: missing field 'sessions' (a list)")
