@@ -21,8 +21,6 @@ measure by ``d * e`` gives the same (``SW_2 = d / sqrt(dim)``).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit, prange
 
@@ -41,13 +39,6 @@ def projection_directions(n_projections: int, dim: int, seed: int = 0) -> np.nda
         g[bad] = rng.standard_normal((int(bad.sum()), int(dim)))
         n = np.linalg.norm(g, axis=1, keepdims=True)
     return g / n
-
-
-def mean_abs_cosine(dim: int) -> float:
-    """E|<theta, e>| for theta uniform on S^(dim-1) and a fixed unit vector e."""
-    if dim < 1:
-        raise ValueError(f"dim={dim} must be >= 1")
-    return math.gamma(dim / 2.0) / (math.sqrt(math.pi) * math.gamma((dim + 1) / 2.0))
 
 
 @njit(cache=True)

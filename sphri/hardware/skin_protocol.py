@@ -74,11 +74,6 @@ def payload_len(fmt: ValueFormat | int, n: int) -> int:
     return (n + 7) // 8
 
 
-def frame_len(fmt: ValueFormat | int, n: int) -> int:
-    """Bytes on the wire of one frame of ``n`` taxels."""
-    return HEADER_LEN + payload_len(fmt, n) + 2
-
-
 @dataclass(frozen=True)
 class SkinFrame:
     """One decoded scan: ``values`` (N,) float32 in [0, 1]."""

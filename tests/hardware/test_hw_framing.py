@@ -26,7 +26,7 @@ from sphri.hardware.skin_protocol import (
     encode_control,
     encode_frame,
     find_control,
-    frame_len,
+    payload_len,
 )
 
 
@@ -112,7 +112,7 @@ def test_skin_round_trip_any_chunking(n, fmt, seq, t_us, seed, cuts):
     if fmt is ValueFormat.BITS:
         values = (values > 0.5).astype(float)
     data = encode_frame(seq, t_us, values, fmt)
-    assert len(data) == frame_len(fmt, n)
+    assert len(data) == HEADER_LEN + payload_len(fmt, n) + 2  # header, payload, CRC-16
     dec = SkinDecoder()
     (f,) = feed_chunks(dec, data, cuts)
     assert (f.seq, f.device_time_us, f.fmt, f.n_taxels) == (seq, t_us, fmt, n)
