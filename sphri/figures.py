@@ -147,9 +147,9 @@ class Provenance:
         return self.synthetic if self.show is None else bool(self.show)
 
 
-def mark(fig, provenance: Provenance) -> None:
-    """Draw the provenance marks in the figure's top-right corner (inside the canvas)."""
-    if not provenance.visible:
+def mark(fig, provenance: Provenance | None) -> None:
+    """Draw the provenance marks in the figure's top-right corner (inside the canvas); None draws none."""
+    if provenance is None or not provenance.visible:
         return
     parts = []
     if provenance.synthetic:

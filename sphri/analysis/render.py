@@ -282,8 +282,7 @@ class LinkView:
             axes[0, 0].text(0.02, 0.01, bottom, transform=axes[0, 0].transAxes, ha="left", va="bottom", color="0.25")
             _colourbar(fig, vmax, ax=axes[0, :])
             fig.suptitle(title)
-            if provenance is not None:
-                figures.mark(fig, provenance)
+            figures.mark(fig, provenance)
             figures.save(fig, path)
         return Path(path)
 
@@ -374,8 +373,7 @@ def render_uv(
         draw_uv(ax, grid, surface, density, vmax)
         _colourbar(fig, vmax, ax=ax)
         ax.set_title(title, loc="left", wrap=True)
-        if provenance is not None:
-            figures.mark(fig, provenance)
+        figures.mark(fig, provenance)
         figures.save(fig, path)
     return Path(path)
 
@@ -423,8 +421,7 @@ def plot_overview(
                     ax.set_title("unwrapped (cm)")
         _colourbar(fig, vmax, ax=axes)
         fig.suptitle(title)
-        if provenance is not None:
-            figures.mark(fig, provenance)
+        figures.mark(fig, provenance)
         figures.save(fig, path)
     return Path(path)
 
@@ -457,8 +454,7 @@ def plot_coverage_curves(
         ax.set_ylim(0, 1.01)
         ax.set_title(title, loc="left", wrap=True)
         ax.legend(title="group (area for the target)", loc="lower right")  # below the uniform diagonal: no data there
-        if provenance is not None:
-            figures.mark(fig, provenance)
+        figures.mark(fig, provenance)
         figures.save(fig, path)
     return Path(path)
 
@@ -517,7 +513,6 @@ def plot_swd_heatmap(
             cax.xaxis.set_label_position("top")
         ax.set_title(title, loc="left", wrap=True)
         ax.set_xlabel(f"Holm-corrected p (* <= {comp.alpha:g})\ngrey diagonal: split-half baseline")
-        if provenance is not None:
-            figures.mark(fig, provenance)
+        figures.mark(fig, provenance)
         figures.save(fig, path)
     return Path(path)

@@ -32,8 +32,7 @@ def _finish(fig, title: str, path: str | Path, provenance: figures.Provenance | 
     ``path`` (PNG, PDF, SVG) and close it."""
     with figures.style():
         fig.suptitle(figures.typeset(title), wrap=True)
-        if provenance is not None:
-            figures.mark(fig, provenance)
+        figures.mark(fig, provenance)
         figures.save(fig, path)
     return Path(path)
 

@@ -100,7 +100,6 @@ def draw_confusion(
                     )
         ax.set_title(title, loc="left")
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="share of the true gesture's trials")
-        if provenance is not None:
-            figures.mark(fig, provenance)
+        figures.mark(fig, provenance)
         figures.save(fig, path, formats=formats, check=check)
     return path
