@@ -44,7 +44,7 @@ PROGRESS_MIN_FRAMES = 50_000
 #: Say when a link's mesh preparation starts and ends from this many faces (it takes a while).
 ANNOUNCE_MIN_FACES = 100_000
 #: Peak bytes per mesh face of preparing a link for the queries (:func:`sphri.contact.prepare_mesh`,
-#: ``inside=auto``): 76.6 MB on a 20480-face icosphere (tracemalloc, 2026-12-01; one size measured).
+#: ``inside=auto``): 76.6 MB on a 20480-face icosphere (tracemalloc; one size measured).
 BYTES_PER_FACE = 3750
 #: Bytes per capsule query of a chunk: the search record (73) and the capsule's segment ends (48).
 BYTES_PER_QUERY = 121

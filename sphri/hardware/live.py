@@ -32,9 +32,7 @@ of the 120 trials whose touch reaches the defaults' limits (a taxel held
 ``persist`` frames, or ``cluster_taxels`` connected taxels in a frame), none
 of the 4 trials without contact, and 1 of the 20 fainter pokes, taps and pats
 (noise). ``persist=2`` finds 131 with 57 false touches, ``cluster_taxels=3``
-129 with 50 (tests/hardware/test_hw_acceptance.py checks the limits; the
-share found at the exact onset frame was measured before data v3, 84 %, and
-not since).
+129 with 50 (tests/hardware/test_hw_acceptance.py checks the limits).
 
 Latency is measured from the arrival of the newest frame in the window
 (the caller's ``received`` time, ``time.perf_counter()`` clock) to the

@@ -12,7 +12,7 @@ Why not the default for every study: recorded sessions have no drawn gesture to 
 trained on the synthetic gesture study (``gesture_training=trials``) or a person codes the episodes
 (``codes=PATH``). Why for generated sessions: the model trained on synthetic arm trials agreed with the generator
 on 8 % of the full study's episodes (it called 108 of 157 poke), the one trained on other participants' episodes
-on 46 % (``outputs/bench/study_gesture_coding.json``, sessions version 6, 2026-12-02).
+on 46 % (``outputs/bench/study_gesture_coding.json``).
 """
 
 from __future__ import annotations

@@ -500,13 +500,6 @@ def hold_contact(
 class SyntheticSessions:
     """``data=synthetic_sessions`` (see module). ``load(hand, robot)`` -> :class:`SessionDataset`."""
 
-    #: 4: held contact follows the surface (:func:`hold_contact`): in a gesture's contact phase a hand that
-    #: settling moved off its own link is pulled back onto it along its approach, then settled again.
-    #: 5: the truth table also records the drawing hand's own trial (``trial_frames``, time-scaled, without the
-    #: padding to a two-handed touch's longer trial) and its planned contact phase (``plan_first_frame``,
-    #: ``plan_last_frame``, within the touch), for the paired timing check; hand and link poses unchanged.
-    #: 6: outside its planned contact phase a hand keeps clear of its own link too (:func:`settle_hands`'
-    #: ``phase``): a finger-pad rub no longer touches ~7 frames before and after its plan.
     VERSION = "6"
 
     def __init__(
