@@ -38,6 +38,16 @@ NO_KEY = bytes(DIGEST_SIZE)
 KEY_ENV = {"cache": "SPHRI_CACHE_KEY", "model": "SPHRI_MODEL_KEY"}
 
 
+class _FromEnv:
+    def __repr__(self) -> str:
+        return "FROM_ENV"
+
+
+#: Default of the ``key`` arguments of the cache and the model files: the key in the environment for that
+#: purpose (:func:`load_key`), if any.
+FROM_ENV: Any = _FromEnv()
+
+
 def stable_hash(obj: Any) -> str:
     """Hex digest (20 chars) of a JSON-able object, independent of dict order (cache keys, sweep hashes)."""
     text = json.dumps(obj, sort_keys=True, default=str, separators=(",", ":"))

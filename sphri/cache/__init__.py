@@ -50,7 +50,7 @@ import numpy as np
 
 from sphri.codec import DecodeError, EncodeError, check_contract, decode, encode
 from sphri.fsutil import write_atomic
-from sphri.integrity import DIGEST_SIZE, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest, stable_hash
+from sphri.integrity import DIGEST_SIZE, FROM_ENV, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest, stable_hash
 
 log = logging.getLogger(__name__)
 
@@ -61,15 +61,6 @@ SUFFIX = ".entry"
 META = "__meta__"
 _DIGEST = DIGEST_SIZE
 T = TypeVar("T")
-
-
-class _FromEnv:
-    def __repr__(self) -> str:
-        return "FROM_ENV"
-
-
-#: Default of the ``key`` arguments: the key in the environment (:func:`sphri.integrity.load_key`), if any.
-FROM_ENV: Any = _FromEnv()
 
 
 def _key(key: Any) -> bytes | None:

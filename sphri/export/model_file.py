@@ -57,7 +57,7 @@ import numpy as np
 
 from sphri.export import registry
 from sphri.fsutil import write_atomic
-from sphri.integrity import DIGEST_SIZE, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest
+from sphri.integrity import DIGEST_SIZE, FROM_ENV, NO_KEY, keyed_digest, keyed_ok, load_key, plain_digest
 from sphri.types import GESTURES, TaxelGeometry
 
 MAGIC = b"SPHRIMODEL3\n"
@@ -145,15 +145,6 @@ def seal_model(head_bytes: bytes, payload: bytes, key: bytes | None = None) -> b
         + keyed_digest(key, MAGIC, head_bytes, payload)
         + payload
     )
-
-
-class _FromEnv:
-    def __repr__(self) -> str:
-        return "FROM_ENV"
-
-
-#: Default of the ``key`` arguments: ``SPHRI_MODEL_KEY`` / ``SPHRI_MODEL_KEY_FILE`` if set.
-FROM_ENV: Any = _FromEnv()
 
 
 def save_model(bundle: ModelBundle, path: str | os.PathLike, key: Any = FROM_ENV) -> Path:
