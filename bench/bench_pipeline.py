@@ -139,7 +139,7 @@ class StageProbe:
         orig = type(pipeline).get.__get__(pipeline)
 
         def get(name: str) -> Any:
-            node = pipeline.nodes[name]
+            node = pipeline.node(name)  # wired when first asked for
             if node.done:
                 return node.value
             self._charge()

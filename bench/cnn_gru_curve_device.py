@@ -75,7 +75,8 @@ def stages(res: int, overrides: list[str], cache_dir: str) -> dict[str, str]:
     cfg = compose(_overrides(res, overrides, cache_dir))
     p = pipeline.make_pipeline(cfg, pipeline.open_cache(cfg))
     keys = {}
-    for st in [s.name for s in p.stages if s.name != "evaluate"]:
+    p.key("evaluate")  # wires the chain (a pipeline keys a stage when first asked for)
+    for st in [name for name in p.nodes if name != "evaluate"]:
         try:
             keys[st] = pipeline.content_key(st, p.get(st))
         except TypeError as exc:  # a value the codec cannot key

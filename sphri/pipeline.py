@@ -3,13 +3,16 @@ and its config subtree, with outputs cached on disk.
 
 Every stage's cache key is known *before* anything runs (it hashes the
 stage's config subtree, the keys of its inputs and the component's
-``VERSION``), so evaluation is lazy: the runner asks for the final result
-and only computes, or loads, what a missing entry needs. Running the same
+``VERSION``), so evaluation is lazy: the runner asks for the final result,
+keys it and what it reads, and only computes, or loads, what a missing entry
+needs; a stage nothing asks for is not even keyed (a gesture job never wires
+the scenario study's rows, the study never the encoder's). Running the same
 command twice loads one small entry; changing ``layout.res`` recomputes the
 layout, encoder and below, never data or contact.
 
 The stages, their inputs and which are kept on disk are the table in
-:mod:`sphri.stages`; how each is computed is :data:`COMPUTE`, once, and
+:mod:`sphri.stages`; how each is computed is :data:`COMPUTE`, once (the
+study's rows declared by the module their row names), and
 :func:`make_pipeline` is the one wiring every caller uses (jobs, streaming,
 episode coding, the scenario study, model export), handing data in memory as
 ``inputs=`` where it has it (keyed by content, :func:`content_key`). Which stages are kept on disk is a cost decision: data,
@@ -46,7 +49,6 @@ from sphri.stages import (
     STAGE_BY_NAME,
     STAGE_GROUPS,
     STAGES,
-    Stage,
     stage_inputs,
 )
 from sphri.types import CVResult, FoldRecord, GestureDataset, RunMeta, TaxelGeometry, WindowPlan
@@ -125,10 +127,9 @@ class Pipeline:
     """The robot link the skin covers, by name (None: the link of the config's one region)."""
     memo: Memo | None = None
     """Stage values shared in memory with other pipelines of the process."""
-    stages: tuple[Stage, ...] = STAGES
-    """The table it was wired from."""
-    compute: dict[str, StageCompute] | None = None
-    """How each of its stages is computed (None: :data:`COMPUTE`)."""
+    fingerprints: dict[str, dict[str, str]] | None = None
+    """``{group: {path: fingerprint}}`` of the files its components read; None: no stage is wired from the
+    table (only those declared with :meth:`add`)."""
     _upstream_s: list[float] = field(default_factory=list, repr=False)
     """Per stage being computed (a stack): wall seconds its upstream stages took."""
     _computing: list[str] = field(default_factory=list, repr=False)
@@ -165,7 +166,21 @@ class Pipeline:
 
     def key(self, name: str) -> str:
         """The cache key of stage ``name``."""
-        return self.nodes[name].key
+        return self.node(name).key
+
+    def node(self, name: str) -> _Node:
+        """Stage ``name``, wired from its row of :data:`sphri.stages.STAGES` (its inputs first) when first asked
+        for: its component built, its key computed; nothing is computed."""
+        if name in self.nodes or self.fingerprints is None:
+            return self.nodes[name]  # wired already, or declared with add() only
+        stage = STAGE_BY_NAME[name]
+        for dep in stage_inputs(stage, self.components.get(stage.groups[0])):  # its component's capabilities
+            self.node(dep)
+        how = compute_of(name)
+        config = how.config(self) if how.config else result_config(self.cfg[stage.groups[0]])
+        files = {path: fp for g in stage.groups for path, fp in self.fingerprints.get(g, {}).items()}
+        self.add(name, config, functools.partial(how.compute, self), how.extra(self) if how.extra else None, files)
+        return self.nodes[name]
 
     def given(self, inputs: dict[str, Any]) -> Pipeline:
         """The same chain with ``inputs`` standing for some of its stages (see :func:`make_pipeline`).
@@ -173,12 +188,10 @@ class Pipeline:
         Stages whose key is unchanged (those not below an input) keep the values this pipeline
         already holds: nothing upstream is loaded or computed twice.
         """
-        q = make_pipeline(
-            self.cfg, self.cache, inputs, stages=self.stages, compute=self.compute, link=self.link_name, memo=self.memo
-        )
-        for name, node in q.nodes.items():
-            mine = self.nodes.get(name)
-            if mine is not None and mine.done and not node.done and mine.key == node.key:
+        q = make_pipeline(self.cfg, self.cache, inputs, link=self.link_name, memo=self.memo)
+        for name, mine in self.nodes.items():
+            node = q.node(name)
+            if mine.done and not node.done and mine.key == node.key:
                 node.value, node.done = mine.value, True
                 q.records[name] = StageRecord(name, node.key, "memory")
         return q
@@ -245,7 +258,7 @@ class Pipeline:
                 f"stage {self._computing[-1]!r} read stage {name!r}, which is not among its inputs or upstream of "
                 "them in sphri.stages.STAGES: its cache key would not change with it"
             )
-        node = self.nodes[name]
+        node = self.node(name)
         if node.done:
             return node.value
         memo = self.memo if self.memo is not None and name in self.memo.stages else None
@@ -436,7 +449,9 @@ def _evaluate(p: Pipeline) -> Any:
     return result, meta
 
 
-#: The compute of every stage of :data:`sphri.stages.STAGES`: the one place each is written.
+#: The compute of every stage of :data:`sphri.stages.STAGES`: the one place each is written. The chain's are
+#: here; a row whose ``compute_module`` is another module (the scenario study's, :mod:`sphri.sessions.labelling`)
+#: is declared there, ``COMPUTE[name] = StageCompute(...)`` at its import (:func:`compute_of` imports it).
 COMPUTE: dict[str, StageCompute] = {
     "hand": StageCompute(lambda p: p.components["hand"].build()),
     "robot": StageCompute(lambda p: p.components["robot"].build()),
@@ -458,8 +473,44 @@ COMPUTE: dict[str, StageCompute] = {
         config=lambda p: {"model": result_config(p.cfg.model), "cv": result_config(p.cfg.cv), "seed": p.seed},
     ),
 }
-if set(COMPUTE) != {s.name for s in STAGES}:  # pragma: no cover - a row without its compute, or the reverse
-    raise AssertionError(f"sphri.pipeline.COMPUTE {sorted(COMPUTE)} != the stages of sphri.stages.STAGES")
+if set(COMPUTE) != {s.name for s in STAGES if s.compute_module == __name__}:  # pragma: no cover - a row without
+    raise AssertionError(f"sphri.pipeline.COMPUTE {sorted(COMPUTE)} != the chain's stages of sphri.stages.STAGES")
+
+
+def compute_of(name: str) -> StageCompute:
+    """How stage ``name`` is computed: :data:`COMPUTE`, after importing the module its row names."""
+    if name not in COMPUTE:
+        import importlib
+
+        module = STAGE_BY_NAME[name].compute_module
+        importlib.import_module(module)  # declares it (a name, not an import: the study is above the chain)
+        if name not in COMPUTE:  # pragma: no cover - a row whose module does not declare it
+            raise AssertionError(f"stage {name!r}: {module} declares no sphri.pipeline.COMPUTE[{name!r}]")
+    return COMPUTE[name]
+
+
+class _Components(dict):
+    """The built component of each config group, built when a stage of its group is first wired (or asked for)."""
+
+    def __init__(self, cfg: DictConfig) -> None:
+        super().__init__()
+        self.cfg = cfg
+
+    def __missing__(self, group: str) -> Any:
+        if group not in _BUILT_GROUPS:
+            raise KeyError(group)
+        self[group] = component = build(self.cfg[group])
+        return component
+
+    def get(self, group: str, default: Any = None) -> Any:
+        try:
+            return self[group]
+        except KeyError:
+            return default
+
+
+#: The groups whose component a pipeline builds (per-fit ones, the model, are built for each fit).
+_BUILT_GROUPS = frozenset(g for s in STAGES for g in s.groups if g not in PER_FIT_GROUPS)
 
 
 def content_key(stage: str, value: Any) -> str:
@@ -486,44 +537,33 @@ def make_pipeline(
     cache: StageCache,
     inputs: dict[str, Any] | None = None,
     *,
-    stages: tuple[Stage, ...] = STAGES,
-    compute: dict[str, StageCompute] | None = None,
     link: str | None = None,
     memo: Memo | None = None,
 ) -> Pipeline:
-    """Wire the stages for ``cfg``; nothing is computed until :meth:`Pipeline.get`.
+    """The stages of :data:`sphri.stages.STAGES` for ``cfg``; nothing is wired until asked for, nothing computed
+    until :meth:`Pipeline.get`.
 
-    The one wiring of the chain: jobs, sweeps, streaming (:mod:`sphri.hardware.source`), episode
-    coding (:mod:`sphri.sessions.gestures`), the scenario study and model export all call it.
+    The one wiring of the table: jobs, sweeps, streaming (:mod:`sphri.hardware.source`), episode
+    coding (:mod:`sphri.sessions.gestures`), the scenario study (its ``sessions`` and ``body_contact``)
+    and model export all call it. A stage is wired when it, or a stage below it, is first asked for
+    (:meth:`Pipeline.node`): a gesture job keys only the chain, the study only its rows.
 
     ``inputs``: values in memory that stand for stages (``{"data": dataset}``): the stages below them
     are computed by the same code, each keyed by the given value's content (:func:`content_key`),
-    and cached like any other. ``stages``/``compute``: another table of the same shape
-    (:data:`sphri.stages.SESSION_STAGES`). ``link``: the robot link the skin covers, by link name
+    and cached like any other. ``link``: the robot link the skin covers, by link name
     (default: the link of the config's one region, ``data.regions``). ``memo``: stage values shared
     in memory with other pipelines of the process (:class:`Memo`).
     """
-    compute = COMPUTE if compute is None else compute
     inputs = dict(inputs or {})
-    names = [s.name for s in stages]
+    names = [s.name for s in STAGES]
     unknown = sorted(set(inputs) - set(names))
     if unknown:
         raise ValueError(f"inputs {unknown} are not stages of the chain {names}")
-    lacking = [n for n in names if n not in compute and n not in inputs]
-    if lacking:
-        raise ValueError(f"stages {lacking} have no compute (sphri.pipeline.COMPUTE or the caller's table)")
-    groups = list(dict.fromkeys(g for s in stages for g in s.groups if g not in PER_FIT_GROUPS))
-    p = Pipeline(cfg, cache, components={g: build(cfg[g]) for g in groups}, versions=component_versions(cfg))
-    p.link_name, p.memo, p.stages, p.compute = link, memo, stages, compute
-    fingerprints = input_fingerprints(cfg, memo_at(cache.root if cache.enabled else None, cache.key))
-    for stage in stages:
-        if stage.name in inputs:
-            p.give(stage.name, inputs[stage.name])
-            continue
-        how = compute[stage.name]
-        config = how.config(p) if how.config else result_config(cfg[stage.groups[0]])
-        files = {path: fp for g in stage.groups for path, fp in fingerprints.get(g, {}).items()}
-        p.add(stage.name, config, functools.partial(how.compute, p), how.extra(p) if how.extra else None, files)
+    p = Pipeline(cfg, cache, components=_Components(cfg), versions=component_versions(cfg), link_name=link, memo=memo)
+    p.fingerprints = input_fingerprints(cfg, memo_at(cache.root if cache.enabled else None, cache.key))
+    for name in names:
+        if name in inputs:
+            p.give(name, inputs[name])
     return p
 
 
@@ -618,9 +658,9 @@ def run(cfg: DictConfig, cache: StageCache | None = None) -> RunResult:
     done = p.records.get("evaluate")
     if cache.enabled and done is not None and done.source == "computed" and cache.path("evaluate", done.key).is_file():
         FoldCache(cache, done.key).discard([f.fold for f in cv.folds])  # the evaluation's entry holds them now
-    for name, node in p.nodes.items():
-        if name not in p.records:
-            p.records[name] = StageRecord(name, node.key, "skipped")
+    for stage in STAGES:  # the stages the evaluation's key reads, in table order
+        if stage.name in p.nodes and stage.name not in p.records:
+            p.records[stage.name] = StageRecord(stage.name, p.nodes[stage.name].key, "skipped")
     cached = [n for n, r in p.records.items() if r.source == "cache"]
     skipped = [n for n, r in p.records.items() if r.source == "skipped"]
     if cached:

@@ -8,21 +8,29 @@ Two tables, read by everything that needs to know the chain's shape:
   :mod:`sphri.config` (group list, protocol check, schema registration,
   cache-key hashing), ``python -m sphri.cli list`` / ``validate`` and the
   MLflow tracker derive from it.
-- :data:`STAGES`: one row per stage of the chain the runner caches: the
-  group whose component computes it, the stages whose results it reads
-  (their cache keys enter its key), whether it is kept on disk and what its
-  cache entry must decode into. :func:`sphri.pipeline.make_pipeline` wires
-  the stages from it (the one wiring every caller uses: jobs, streaming,
-  episode coding, model export), and :meth:`sphri.pipeline.Pipeline.get`
-  refuses a stage that reads a result its row does not lead to, so the
-  table and the cache keys cannot drift apart.
-- :data:`SESSION_STAGES`: the scenario study's chain (hand, robot, the
-  sessions and their whole-body contacts), wired by the same function.
+- :data:`STAGES`: one row per stage the runner caches: the group whose
+  component computes it, the stages whose results it reads (their cache keys
+  enter its key), whether it is kept on disk, what its cache entry must
+  decode into and which module declares its compute. The gesture chain (hand
+  to evaluate) and the scenario study's two rows (``sessions``, generated or
+  read by the ``data`` component; ``body_contact``, their contacts with every
+  link by the ``contact`` component's settings) share this one table and its
+  hand and robot rows. :func:`sphri.pipeline.make_pipeline` wires the stages
+  from it (the one wiring every caller uses: jobs, streaming, episode coding,
+  the scenario study, model export) lazily: a stage is keyed and computed
+  only when it, or a stage below it, is asked for, so a gesture job never
+  touches the study's rows nor the study the encoder's.
+  :meth:`sphri.pipeline.Pipeline.get` refuses a stage that reads a result its
+  row does not lead to, so the table and the cache keys cannot drift apart.
 
 Adding a component to an existing group needs no change here (one module,
-one YAML). A new stage is a row here plus its compute, declared once beside
-the table (:data:`sphri.pipeline.COMPUTE`; the study's in
-:mod:`sphri.sessions.labelling`).
+one YAML). A new stage is a row here plus its compute, a
+:class:`sphri.pipeline.StageCompute` in the one registry
+:data:`sphri.pipeline.COMPUTE`, declared by the module the row's
+``compute_module`` names: :mod:`sphri.pipeline` for the chain's rows,
+:mod:`sphri.sessions.labelling` for the study's (above the chain: the runner
+imports it by name when such a row is first wired, as :mod:`sphri.config`
+imports a component's ``schema_module``).
 """
 
 from __future__ import annotations
@@ -53,10 +61,10 @@ class Component:
 
 @dataclass(frozen=True)
 class Stage:
-    """A cached stage of the chain."""
+    """A cached stage (of the gesture chain or the scenario study)."""
 
     name: str
-    """Stage name (cache folder, log lines, ``time/<name>_s`` in MLflow)."""
+    """Stage name (cache folder, log lines, a job's ``time/<name>_s`` in MLflow)."""
     groups: tuple[str, ...]
     """Config groups whose components compute it (their ``VERSION`` enters the key)."""
     inputs: tuple[str, ...] = ()
@@ -70,6 +78,8 @@ class Stage:
     """Type(s) a persisted entry must decode into, else it is recomputed."""
     revision: str = ""
     """Appended to the components' ``VERSION`` in the key: a change of the stage's own compute."""
+    compute_module: str = "sphri.pipeline"
+    """Module whose import declares the stage's compute in :data:`sphri.pipeline.COMPUTE`."""
 
 
 #: Config groups of the chain, in stage order.
@@ -89,7 +99,7 @@ COMPONENTS: tuple[Component, ...] = (
     Component("tracking", ("log_job",), "sphri.tracking.schema", params=False, result=False),
 )
 
-#: The cached stages, in the order the chain computes them.
+#: The cached stages, each after its inputs: the gesture chain in the order it computes them, then the study's.
 STAGES: tuple[Stage, ...] = (
     Stage("hand", ("hand",)),
     Stage("robot", ("robot",)),
@@ -118,15 +128,24 @@ STAGES: tuple[Stage, ...] = (
     Stage("noise", ("noise",), ("encode", "plan")),
     Stage("filter", ("filter",), ("noise",)),
     Stage("evaluate", ("cv", "model"), ("filter", "plan", "layout"), persisted=True, contract=(CVResult, RunMeta)),
-)
-
-#: The scenario study's cached stages: free-interaction sessions and their contacts with every link
-#: (:mod:`sphri.sessions`), on the hand and robot rows of :data:`STAGES`.
-SESSION_STAGES: tuple[Stage, ...] = (
-    STAGES[0],
-    STAGES[1],
-    Stage("sessions", ("data",), ("hand", "robot"), optional={"robot": ("USES_ROBOT", True)}, persisted=True),
-    Stage("body_contact", ("contact",), ("sessions", "robot", "hand"), persisted=True, revision="wb1"),
+    # the scenario study (sphri.sessions): free-interaction sessions, generated or read by the data component
+    # (data=synthetic_sessions | sessions), and their contacts with every link of the whole robot
+    Stage(
+        "sessions",
+        ("data",),
+        ("hand", "robot"),
+        optional={"robot": ("USES_ROBOT", True)},
+        persisted=True,
+        compute_module="sphri.sessions.labelling",
+    ),
+    Stage(
+        "body_contact",
+        ("contact",),
+        ("sessions", "robot", "hand"),
+        persisted=True,
+        revision="wb1",
+        compute_module="sphri.sessions.labelling",
+    ),
 )
 
 #: Config groups of the chain, in stage order (from :data:`COMPONENTS`).
@@ -144,11 +163,11 @@ RESULT_GROUPS: tuple[str, ...] = tuple(c.group for c in COMPONENTS if c.result)
 #: Groups whose component is instantiated per fit, not once per chain (from :data:`COMPONENTS`).
 PER_FIT_GROUPS: frozenset[str] = frozenset(c.group for c in COMPONENTS if c.per_fit)
 
-#: Stages kept on disk, and what their entries must decode into (from :data:`STAGES`).
+#: Stages kept on disk, and what their entries must decode into (from :data:`STAGES`; the study's rows have no contract).
 PERSISTED: frozenset[str] = frozenset(s.name for s in STAGES if s.persisted)
 CONTRACTS: dict[str, Any] = {s.name: s.contract for s in STAGES if s.contract is not None}
 
-STAGE_BY_NAME: dict[str, Stage] = {s.name: s for chain in (STAGES, SESSION_STAGES) for s in chain}
+STAGE_BY_NAME: dict[str, Stage] = {s.name: s for s in STAGES}
 
 
 def stage_inputs(stage: Stage, component: Any) -> tuple[str, ...]:
@@ -188,4 +207,3 @@ def _check_table(stages: tuple[Stage, ...]) -> None:
 
 
 _check_table(STAGES)
-_check_table(SESSION_STAGES)

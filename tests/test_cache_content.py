@@ -171,7 +171,7 @@ def _npz(arrays: dict) -> bytes:
 def test_crafted_entry_executes_nothing_and_is_recomputed(tmp_path: Path, kind: str, caplog):
     marker = tmp_path / "PWNED"
     p, _ = make(tmp_path, "layout.res=3")
-    key = p.nodes["data"].key
+    key = p.key("data")
     if kind == "pickle":
         payload = pickle.dumps(_Payload(str(marker)))
     elif kind == "npz_object_array":
@@ -203,7 +203,7 @@ def test_entry_of_the_wrong_contract_is_recomputed_not_a_crash(tmp_path: Path, c
     p, _ = make(tmp_path, "layout.res=3")
     contacts = p.get("contact")
     other, _ = make(tmp_path, "layout.res=3", "data.seed=9")
-    key = other.nodes["data"].key
+    key = other.key("data")
     other.cache.write("data", key, contacts)
     dataset = other.get("data")
     assert isinstance(dataset, GestureDataset) and other.records["data"].source == "computed"

@@ -52,6 +52,7 @@ def test_resolution_change_reuses_data_and_contact(tmp_path: Path):
     assert again["evaluate"] == "cache"
     assert "computed" not in again.values()
     assert again["contact"] == "skipped" and again["data"] == "skipped"
+    assert not {"sessions", "body_contact"} & set(again), "the study's rows are no stage of a gesture job"
 
 
 def test_contact_change_recomputes_contact_and_below(tmp_path: Path):

@@ -24,6 +24,8 @@ REPO = Path(__file__).resolve().parents[1]
 def _keys(overrides: list[str], tmp_path: Path) -> tuple[str, dict[str, str]]:
     cfg = compose(["+debug=fast", f"output_dir={tmp_path}", *overrides])
     p = make_pipeline(cfg, StageCache(tmp_path / "cache", enabled=False))
+    for last in ("evaluate", "body_contact"):  # wires the chain and the study's rows
+        p.key(last)
     return config_hash(cfg), {name: node.key for name, node in p.nodes.items()}
 
 

@@ -8,6 +8,8 @@ from sphri.config import CONF_DIR, SCHEMA_MODULES, STAGE_GROUPS, STAGE_METHODS, 
 from sphri.pipeline import Pipeline, make_pipeline
 from sphri.stages import COMPONENTS, CONTRACTS, PERSISTED, STAGES, stage_inputs, upstream
 
+STUDY = {"sessions", "body_contact"}  # the scenario study's rows
+
 
 def test_config_defaults_list_every_group_of_the_table():
     defaults = yaml.safe_load((CONF_DIR / "config.yaml").read_text())["defaults"]
@@ -20,16 +22,36 @@ def test_config_defaults_list_every_group_of_the_table():
 def test_the_pipeline_has_the_tables_stages_with_keys_from_their_inputs(tmp_path):
     cfg = compose(["+debug=fast"])
     p = make_pipeline(cfg, StageCache(root=tmp_path, enabled=False))
-    assert list(p.nodes) == [s.name for s in STAGES]
-    assert {n for n, node in p.nodes.items() if node.persist} == set(PERSISTED) == set(CONTRACTS)
+    assert p.nodes == {}, "nothing is wired before it is asked for"
+    p.key("evaluate")
+    # a gesture job wires the chain, in table order, and never the study's rows
+    assert list(p.nodes) == [s.name for s in STAGES if s.name not in STUDY]
+    assert {n for n, node in p.nodes.items() if node.persist} == set(PERSISTED) - STUDY == set(CONTRACTS)
     # what each stage may read is exactly its table closure
     comps = p.components
     for s in STAGES:
-        assert p.nodes[s.name].reads == upstream(s.name, comps), s.name
+        if s.name in p.nodes:
+            assert p.nodes[s.name].reads == upstream(s.name, comps), s.name
     # changing a stage's config changes it and everything downstream, nothing upstream
     q = make_pipeline(compose(["+debug=fast", "window.frames=40"]), StageCache(root=tmp_path, enabled=False))
-    changed = {n for n in p.nodes if p.nodes[n].key != q.nodes[n].key}
+    changed = {n for n in p.nodes if p.nodes[n].key != q.key(n)}
     assert changed == {"plan", "encode", "noise", "filter", "evaluate"}
+
+
+def test_the_study_wires_only_its_rows_of_the_one_table(tmp_path):
+    """The scenario study's sessions and whole-body contacts are rows of STAGES, with their compute in the one
+    registry (declared by the module the row names): its pipeline keys and builds nothing of the gesture chain."""
+    from sphri.pipeline import COMPUTE
+
+    cfg = compose(["+experiment=scenario_study", "+debug=fast"])
+    p = make_pipeline(cfg, StageCache(root=tmp_path, enabled=False))
+    p.key("body_contact")
+    assert list(p.nodes) == ["hand", "robot", "sessions", "body_contact"]
+    assert sorted(p.components) == ["contact", "data", "hand", "robot"]
+    assert STUDY <= set(COMPUTE) and all(
+        s.compute_module == "sphri.sessions.labelling" for s in STAGES if s.name in STUDY
+    )
+    assert p.nodes["body_contact"].reads == {"sessions", "robot", "hand"} == upstream("body_contact", p.components)
 
 
 def test_optional_inputs_follow_the_components_capabilities():

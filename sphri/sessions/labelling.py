@@ -2,7 +2,8 @@
 
 :func:`code_episodes` reads a composed study config's sessions and their
 whole-body contacts through the stage cache (:func:`load_sessions_and_contacts`,
-the stages of :data:`sphri.stages.SESSION_STAGES`), segments the episodes
+the ``sessions`` and ``body_contact`` rows of :data:`sphri.stages.STAGES`, whose
+compute this module declares in :data:`sphri.pipeline.COMPUTE`), segments the episodes
 (:func:`sphri.sessions.episodes.segment_episodes`), keeps each session's coded
 one, trains the gesture model in the same job
 (:func:`sphri.sessions.gestures.train_gesture_model`, on the synthetic gesture
@@ -24,6 +25,8 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
+
+from sphri.pipeline import COMPUTE, StageCompute
 
 log = logging.getLogger(__name__)
 
@@ -68,16 +71,9 @@ def _body_contact(p) -> Any:
     return body_contacts(p.get("sessions"), p.get("robot"), p.components["contact"])
 
 
-def session_compute() -> dict[str, Any]:
-    """The compute of every stage of :data:`sphri.stages.SESSION_STAGES` (hand and robot: the chain's own)."""
-    from sphri.pipeline import COMPUTE, StageCompute
-
-    return {
-        "hand": COMPUTE["hand"],
-        "robot": COMPUTE["robot"],
-        "sessions": StageCompute(_sessions, config=_sessions_config),
-        "body_contact": StageCompute(_body_contact),
-    }
+# the study's rows of sphri.stages.STAGES (their compute_module): declared in the one registry of stage computes
+COMPUTE["sessions"] = StageCompute(_sessions, config=_sessions_config)
+COMPUTE["body_contact"] = StageCompute(_body_contact)
 
 
 def robot_overrides(overrides: Sequence[str]) -> list[str]:
@@ -93,10 +89,9 @@ def robot_overrides(overrides: Sequence[str]) -> list[str]:
 
 def load_sessions_and_contacts(cfg, cache, memo=None):
     """(hand, robot, sessions, body contacts, seconds) of a composed study config, through the stage cache."""
-    from sphri.pipeline import make_pipeline
-    from sphri.stages import SESSION_STAGES
+    from sphri.pipeline import make_pipeline  # looked up when called (a test may stand in for it)
 
-    p = make_pipeline(cfg, cache, stages=SESSION_STAGES, compute=session_compute(), memo=memo)
+    p = make_pipeline(cfg, cache, memo=memo)
     hand, robot = p.get("hand"), p.get("robot")
     t0 = time.perf_counter()
     ds = p.get("sessions")

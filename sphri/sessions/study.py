@@ -13,9 +13,9 @@ Data flow (each step a module of :mod:`sphri.sessions`)::
       -> skin_design (sphri.sessions.skin)                patches within parts, budget curve, patch placement, export
       -> files, HTML report, MLflow run (sphri.kind=scenario_study)
 
-Sessions and contacts are the stages of :data:`sphri.stages.SESSION_STAGES` (computed in
-:mod:`sphri.sessions.labelling`), wired by
-:func:`sphri.pipeline.make_pipeline` like every chain (keys: data, hand, robot and
+Sessions and contacts are the ``sessions`` and ``body_contact`` rows of :data:`sphri.stages.STAGES`
+(their compute declared in :mod:`sphri.sessions.labelling`), wired by
+:func:`sphri.pipeline.make_pipeline` like every stage (keys: data, hand, robot and
 contact configs, component versions and input-file fingerprints), so re-running with
 other study settings recomputes neither; the gesture chains of the same job share
 their hand and robot in memory (:class:`sphri.pipeline.Memo`).
