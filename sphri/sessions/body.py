@@ -84,6 +84,26 @@ DOWN_COS = 0.5
 FLOOR_HEIGHT_M = 0.3
 
 
+def winding_numbers(points: np.ndarray, vertices: np.ndarray, faces: np.ndarray, chunk: int = 512) -> np.ndarray:
+    """(P,) generalized winding number of a triangle mesh at each point (1 inside a closed mesh, 0 outside;
+    fractional near holes, so it also judges the open meshes real descriptions hold)."""
+    tri = vertices[faces]
+    out = np.empty(len(points))
+    for i in range(0, len(points), chunk):
+        p = points[i : i + chunk]
+        a, b, c = (tri[None, :, k, :] - p[:, None, :] for k in range(3))
+        la, lb, lc = (np.linalg.norm(x, axis=2) for x in (a, b, c))
+        det = np.einsum("pfi,pfi->pf", a, np.cross(b, c))
+        den = (
+            la * lb * lc
+            + np.einsum("pfi,pfi->pf", a, b) * lc
+            + np.einsum("pfi,pfi->pf", b, c) * la
+            + np.einsum("pfi,pfi->pf", c, a) * lb
+        )
+        out[i : i + chunk] = np.arctan2(det, den).sum(axis=1) / (2 * np.pi)
+    return out
+
+
 def reachable_elements(
     robot,
     links: tuple[str, ...],
@@ -95,8 +115,6 @@ def reachable_elements(
 ) -> np.ndarray:
     """(P,) object: '' where a hand can reach the element (world ``points`` / ``normals`` at the rest pose),
     'buried' for one inside another link, else 'floor' for one turned to the floor below ``floor_height_m``."""
-    from sphri.contact.query import winding_number
-
     out = np.full(len(points), "", dtype=object)
     rest = robot.rest_poses()
     order = list(robot.tree.links)
@@ -107,9 +125,7 @@ def reachable_elements(
         lo, hi = v.min(axis=0) - 1e-3, v.max(axis=0) + 1e-3
         cand = np.flatnonzero((link_of != li) & (out == "") & np.all((points >= lo) & (points <= hi), axis=1))
         if cand.size:
-            # the generalized winding number: fractional near holes, so it also judges the open meshes real
-            # descriptions hold
-            w = winding_number(v, link.faces, points[cand])
+            w = winding_numbers(points[cand], v, link.faces)
             out[cand[np.abs(w) > 0.5]] = "buried"
     out[(out == "") & (normals[:, 2] < -down_cos) & (points[:, 2] < floor_height_m)] = "floor"
     return out

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import trimesh
 
 from sphri.robots.urdf_tree import UrdfWholeBody
-from sphri.sessions.body import body_surface
+from sphri.sessions.body import body_surface, winding_numbers
 
 URDF = """<robot name="blocks">
   <link name="base"><collision><origin xyz="0 0 0.1"/><geometry><box size="0.4 0.4 0.2"/></geometry></collision></link>
@@ -15,6 +16,13 @@ URDF = """<robot name="blocks">
   <joint name="s" type="revolute"><parent link="base"/><child link="shelf"/><origin xyz="0 0 1.0"/><axis xyz="0 0 1"/></joint>
 </robot>
 """
+
+
+def test_winding_number_is_one_inside_zero_outside():
+    box = trimesh.creation.box(extents=[1, 2, 3])
+    pts = np.array([[0, 0, 0], [0.49, 0.99, 1.49], [0.51, 0, 0], [0, 0, 1.6], [2, 2, 2]])
+    w = winding_numbers(pts, box.vertices, box.faces)
+    assert np.allclose(w, [1, 1, 0, 0, 0], atol=1e-6)
 
 
 def test_reachable_area_drops_floor_facing_low_faces_and_buried_ones(tmp_path):
