@@ -353,6 +353,7 @@ def require_range(
 
 
 def require_choice(key: str, value: Any, choices: Iterable[Any]) -> None:
+    """Raise :class:`ConfigError` unless ``value`` is one of ``choices``: ``key=value is invalid: allowed values``."""
     choices = list(choices)
     require(value in choices, key, value, f"allowed values: {choices}")
 

@@ -176,9 +176,11 @@ def component_schema(group: str, name: str, conf_dir: Path | None = None) -> tup
 
 def config_reference(groups: Iterable[str] | None = None, conf_dir: Path | None = None) -> str:
     """The config reference page: the top-level settings, then each group's components and their settings."""
+    from sphri import COMPONENTS
     from sphri.cli import _defaults, _describe
-    from sphri.config import CONF_DIR, STAGE_GROUPS, RootConfig
+    from sphri.config import CONF_DIR, RootConfig
 
+    stage_groups = [c.group for c in COMPONENTS]
     conf = conf_dir or CONF_DIR
     defaults = _defaults() if conf_dir is None else {}
     lines = [
@@ -195,10 +197,10 @@ def config_reference(groups: Iterable[str] | None = None, conf_dir: Path | None 
         "",
     ]
     if conf_dir is None:
-        root_groups = set(STAGE_GROUPS) | {"debug", "experiment", "variant"}
+        root_groups = set(stage_groups) | {"debug", "experiment", "variant"}
         root = [r for r in setting_rows(RootConfig) if r.name not in root_groups]
         lines += ["## Top-level settings", "", settings_table(root), ""]
-    for group in STAGE_GROUPS if groups is None else groups:
+    for group in stage_groups if groups is None else groups:
         folder = conf / group
         if not folder.is_dir():
             continue

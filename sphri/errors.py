@@ -41,7 +41,6 @@ EXPECTED: tuple[tuple[str, str, str], ...] = (
     ("sphri.robots.urdf_tree", "RobotFileError", "robot file error"),
     ("sphri.robots.validate", "MeshError", "mesh error"),
     ("sphri.layout.common", "LayoutFileError", "layout file error"),
-    ("sphri.cache", "CacheError", "cache error"),
     ("sphri.cache", "CorruptEntry", "cache error"),
     ("sphri.hardware.transport", "PortError", "port error"),
     ("sphri.hardware.skin", "StreamMismatch", "port error"),

@@ -49,13 +49,20 @@ def _parsed(package: Path = PACKAGE) -> dict[Path, ast.Module]:
 
 
 def dependency_graph() -> dict[str, set[str]]:
-    """unit -> units of sphri it imports at run time (itself excluded)."""
+    """unit -> units of sphri it imports at run time (itself excluded).
+
+    ``from sphri import make_pipeline`` (the published API, lazy exports of ``sphri/__init__.py``) is an
+    import of the unit that defines the name (``pipeline``), not of ``sphri`` itself: the package imports
+    none of its exports, so the foundation's ``sphri`` row never stands for the chain or the stages."""
     graph: dict[str, set[str]] = defaultdict(set)
     units = {_unit(p) for p in PACKAGE.rglob("*.py")}
+    published = _lazy_exports(_parsed()[PACKAGE / "__init__.py"])
     for path in PACKAGE.rglob("*.py"):
         src = _unit(path)
         for module in _runtime_imports(_parsed()[path]):
             parts = module.split(".")
+            if len(parts) == 2 and parts[0] == "sphri" and parts[1] in published:
+                parts = published[parts[1]].split(".")
             if parts[0] == "sphri" and len(parts) > 1 and parts[1] in units and parts[1] != src:
                 graph[src].add(parts[1])
     return graph
@@ -166,8 +173,10 @@ def module_graph(package: Path = PACKAGE) -> dict[str, dict[str, str]]:
     (computed once; copy it before changing it).
 
     ``from sphri.robots import schema`` is an edge to ``sphri.robots.schema``; ``from sphri.contact import
-    capsule_mesh_query`` goes through the package's lazy exports to the module that defines the name; any other
-    name imported from a package is an edge to the package (its ``__init__``)."""
+    capsule_mesh_query`` goes through the package's lazy exports to the module that defines the name, and so does
+    ``from sphri import make_pipeline`` (the published API: an edge to ``sphri.pipeline``, never to the
+    foundation's ``sphri``, whose ``__init__`` imports none of its exports); any other name imported from a
+    package is an edge to the package (its ``__init__``)."""
     root = package.parent
     files = {module_name(p, root): p for p in _parsed(package)}
     trees = {module_name(p, root): tree for p, tree in _parsed(package).items()}
@@ -325,9 +334,11 @@ def test_module_graph_counts_every_kind_of_import(tmp_path):
     edge to the file it loads; a typing-only import is not."""
     pkg = tmp_path / "sphri"
     (pkg / "pkg").mkdir(parents=True)
-    (pkg / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text(
+        "from sphri._lazy import lazy_exports\n__getattr__, __all__ = lazy_exports('sphri', {'X': 'sphri.low'})\n"
+    )
     (pkg / "low.py").write_text("X = 1\n")
-    (pkg / "cmd.py").write_text("def main():\n    return 0\n")
+    (pkg / "cmd.py").write_text("from sphri import X\ndef main():\n    return X\n")
     (pkg / "pkg" / "__init__.py").write_text(
         "from sphri._lazy import lazy_exports\n__getattr__, __all__ = lazy_exports('sphri.pkg', {'Thing': 'sphri.pkg.impl'})\n"
     )
@@ -343,6 +354,9 @@ def test_module_graph_counts_every_kind_of_import(tmp_path):
     assert graph["sphri.high"] == {"sphri.pkg.impl": "sphri/high.py:6", "sphri.cmd": "sphri/high.py:9"}
     assert graph["sphri.pkg.impl"] == {"sphri.low": "sphri/pkg/impl.py:1", "sphri.pkg.other": "sphri/pkg/impl.py:2"}
     assert graph["sphri.pkg"] == {"sphri._lazy": "sphri/pkg/__init__.py:1"}
+    # the published API: an edge to the module that defines the name; the package itself imports only _lazy
+    assert graph["sphri.cmd"] == {"sphri.low": "sphri/cmd.py:1"}
+    assert graph["sphri"] == {"sphri._lazy": "sphri/__init__.py:1"}
 
 
 def test_the_two_loops_of_issue_30_stay_broken():

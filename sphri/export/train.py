@@ -195,7 +195,7 @@ def log_to_mlflow(pipeline, bundle: ModelBundle) -> str:
     """Log ``bundle`` as the pyfunc model ``model`` of a new run; returns its ``runs:/`` URI."""
     from mlflow import MlflowClient
 
-    from sphri.pipeline import build
+    from sphri import build
 
     tracker = build(pipeline.cfg.tracking)
     uri = tracker.resolve_uri(pipeline.cfg.output_dir)
@@ -213,7 +213,7 @@ def log_to_mlflow(pipeline, bundle: ModelBundle) -> str:
 def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
     """Fit the job's model on every participant's windows (from the stage cache the job just filled)
     and log it into the job's run ``run_id`` as a pyfunc model; returns its ``runs:/`` URI."""
-    from sphri.pipeline import build, make_pipeline, open_cache
+    from sphri import build, make_pipeline, open_cache
 
     p = make_pipeline(cfg, open_cache(cfg))
     bundle = fit_bundle(p, None)
