@@ -47,8 +47,8 @@ def logged(tmp_path_factory) -> tuple[Path, str, list[str], list[str]]:
 
 
 def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windows(logged, tmp_path):
+    from sphri.export.train import training_windows
     from sphri.hardware.source import open_pipeline
-    from sphri.hardware.train_export import training_windows
     from sphri.tracking.mlflow_tracker import default_uri
 
     out, run_id, _, _ = logged
