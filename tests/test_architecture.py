@@ -401,13 +401,12 @@ def test_the_layer_rules_of_the_core_are_written_and_hold():
                 rule(bad, table)
 
 
-def test_skin_frames_live_with_the_types_and_keep_their_encode_names():
+def test_skin_frames_live_with_the_types():
     import sphri.encode
-    import sphri.encode.common
     import sphri.types
 
     assert sphri.types.SkinFrames.__module__ == "sphri.types"
-    assert sphri.encode.SkinFrames is sphri.encode.common.SkinFrames is sphri.types.SkinFrames
+    assert not hasattr(sphri.encode, "SkinFrames")  # no second name for it (issue 53)
 
 
 def test_layer_rules_table_rejects_an_unknown_layer():

@@ -525,7 +525,7 @@ def test_a_fifo_where_a_file_is_read_never_blocks(where, tmp_path, monkeypatch):
                 fifo.rename(path)
                 assert cache.get_or_compute("evaluate", "k1", lambda: {"x": 2}) == {"x": 2}
             elif where == "model file":
-                from sphri.hardware.model_file import load_model
+                from sphri.export.model_file import load_model
 
                 load_model(fifo)
             elif where == "mlflow.db":
