@@ -14,7 +14,7 @@ $(STAMP): pyproject.toml setup.py
 	$(BIN)/python -m pip install -q --upgrade pip
 	$(BIN)/python -m pip install -q "torch==2.13.0"
 	$(BIN)/python -m pip install -q -e ".[dev]"
-	$(BIN)/python -m sphri.cli warmup  # numba kernels compiled once here, not in the first job
+	$(BIN)/python -m sphri warmup  # numba kernels compiled once here, not in the first job
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -59,7 +59,7 @@ profile-tests: install  ## the suite under py-spy: its CPU time by kind of work,
 
 sweep: install        ## the resolution sweep (Random Forest, 50 resolutions)
 	$(BIN)/python -m sphri -m +experiment=resolution_sweep model=rf hydra.sweep.dir=outputs/sweeps/resolution_rf $(ARGS)
-	$(BIN)/python -m sphri.report outputs/sweeps/resolution_rf
+	$(BIN)/python -m sphri report outputs/sweeps/resolution_rf
 
 ui: install           ## MLflow UI on http://127.0.0.1:5000
 	$(BIN)/mlflow ui --backend-store-uri sqlite:///$(CURDIR)/outputs/mlflow.db --host 127.0.0.1 --port 5000

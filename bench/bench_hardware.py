@@ -57,10 +57,10 @@ def bench_decoder(n_frames: int, n_taxels: int = 306) -> dict:
 
 
 def bench_model(overrides: list[str], reps: int) -> tuple[dict, Path]:
+    from sphri.export.model_file import save_model
+    from sphri.export.train import fit_bundle, training_windows
     from sphri.hardware.live import LiveClassifier, auto_stride
-    from sphri.hardware.model_file import save_model
     from sphri.hardware.source import open_pipeline
-    from sphri.hardware.train_export import fit_bundle, training_windows
 
     p = open_pipeline(overrides)
     t0 = time.perf_counter()

@@ -5,7 +5,7 @@
    against the same pass without culling and against the arm-only contact
    stage (one hand, one link: ``contact=exact`` on the synthetic gesture
    study's arm trials), in microseconds per frame, after a warm-up.
-2. The study. ``python -m sphri.coverage +experiment=scenario_study`` from an
+2. The study. ``sphri coverage +experiment=scenario_study`` from an
    empty cache (12 participants x 5 scenarios x 3 repetitions; ``--quick``:
    +debug=fast, 3 x 5 x 2), per phase, MLflow off.
 

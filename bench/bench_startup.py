@@ -13,9 +13,9 @@ Each measurement is a fresh ``python`` process on the ``+debug=fast`` job
 - ``cached_rerun_no_tracking_s``: the same with ``tracking.enabled=false``:
   the difference is what MLflow logging costs per job;
 - ``import_s``: ``import sphri.__main__`` and the interpreter start;
-- ``validate_s``: ``python -m sphri.cli validate +debug=fast`` (imports, schema
+- ``validate_s``: ``python -m sphri validate +debug=fast`` (imports, schema
   registration, composition, validation; no stage);
-- ``validate_100_jobs_s``: ``python -m sphri.cli validate +experiment=resolution_sweep``
+- ``validate_100_jobs_s``: ``python -m sphri validate +experiment=resolution_sweep``
   (its 100 jobs, through the check a sweep runs);
 - ``skipped_sweep_s``: a finished 2-job ``+debug=fast`` sweep run again into a
   new sweep folder (every job answered by the launching process);
@@ -88,7 +88,7 @@ def main() -> int:
             rerun.append(timed(JOB, d, env)[0])
             rerun_nt.append(timed([*JOB, "tracking.enabled=false"], d, env)[0])
             imp.append(timed(["-c", "import sphri.__main__"], d, env)[0])
-            val.append(timed(["-m", "sphri.cli", "validate", "+debug=fast"], d, env)[0])
+            val.append(timed(["-m", "sphri", "validate", "+debug=fast"], d, env)[0])
         out["warm_kernels_s"] = min(warm)
         out["cached_rerun_s"] = min(rerun)
         out["cached_rerun_no_tracking_s"] = min(rerun_nt)
@@ -100,8 +100,7 @@ def main() -> int:
         d = tmp / "extra"
         d.mkdir()
         out["validate_100_jobs_s"] = min(
-            timed(["-m", "sphri.cli", "validate", "+experiment=resolution_sweep"], d, env)[0]
-            for _ in range(args.repeat)
+            timed(["-m", "sphri", "validate", "+experiment=resolution_sweep"], d, env)[0] for _ in range(args.repeat)
         )
         sweep = ["-m", "sphri", "-m", "+debug=fast", "layout.res=2,3", "hydra/launcher=serial"]
         timed([*sweep, "hydra.sweep.dir=s0"], d, env)

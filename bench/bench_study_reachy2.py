@@ -6,7 +6,7 @@
     python bench/bench_study_reachy2.py --label before --import-run DIR   # a run made by hand: DIR/log.txt from
                                                                           # /usr/bin/time -v, DIR/out/timing.json
 
-The command is ``python -m sphri.coverage +experiment=scenario_study robot=reachy2 out=... cache.dir=<empty>
+The command is ``python -m sphri coverage +experiment=scenario_study robot=reachy2 out=... cache.dir=<empty>
 mlflow=false``. Each label's entry holds the wall and CPU seconds (user + system of the study's process and
 its children: on 2 idle cores the wall time is at most about this when the run is mostly serial), the
 study's own phase times (``timing.json``), the load average before and after, and the machine
@@ -33,7 +33,7 @@ sys.path.insert(0, str(HERE))
 from _common import OUT, machine, write_json  # noqa: E402
 
 NAME = "scenario_study_reachy2"
-COMMAND = ["-m", "sphri.coverage", "+experiment=scenario_study", "robot=reachy2", "mlflow=false"]
+COMMAND = ["-m", "sphri", "coverage", "+experiment=scenario_study", "robot=reachy2", "mlflow=false"]
 SHARED = (
     "The machine (2 cores) was shared with other agents' jobs while this ran: see loadavg_before/after "
     "(1, 5, 15 min); wall times are inflated by that load, CPU seconds much less."

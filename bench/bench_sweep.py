@@ -3,7 +3,7 @@
 Runs ``python -m sphri -m +experiment=resolution_sweep model=rf`` through the
 default launcher (joblib, 2 parallel jobs, each limited to its share of the
 cores) on an empty stage cache and MLflow store in a temporary directory, then
-the report (``python -m sphri.report``), then the same sweep again, which must
+the report (``sphri report``), then the same sweep again, which must
 skip every job (resume by config hash). From every job's MLflow run it reads
 the stage times (``time/<stage>_s``: exclusive wall seconds, upstream stages
 not counted) and which stages were computed or loaded from the cache:
@@ -172,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sweep: {size['n_resolutions']} resolutions into {work}", flush=True)
         cold_s = timed(cmd, work / "sweep_cold.log", timeout_s=3 * 3600)
         runs = job_runs(work / "sweep")
-        report_s = timed([sys.executable, "-m", "sphri.report", str(work / "sweep")], work / "report.log", 1800)
+        report_s = timed([sys.executable, "-m", "sphri", "report", str(work / "sweep")], work / "report.log", 1800)
         resume_s = timed(cmd, work / "sweep_resume.log", timeout_s=1800)
         statuses = job_statuses(work / "sweep")
         parallel = 2  # conf/hydra/launcher/local.yaml: n_jobs

@@ -22,7 +22,7 @@ accelerator's points marked:
 - the accelerator's results at resolutions the CPU sweep has not finished.
 
 No saturation point is computed on a curve mixed from two machines: the report
-(``python -m sphri.report``) gives it for the CPU sweep's own jobs.
+(``sphri report``) gives it for the CPU sweep's own jobs.
 
     python bench/cnn_gru_curve_device.py compare CPU_OUTPUT_DIR --device-json outputs/bench/cnn_gru_curve_h100.json \\
         --figure docs/figures/resolution_rf_cnn_gru_cpu_h100.png

@@ -3,7 +3,7 @@
     python bench/study_figures.py                 # runs the study (PNG, PDF, SVG; about 4-8 minutes on 2 cores)
     python bench/study_figures.py --from-run DIR  # copies the figures of a run already made with all three formats
 
-The run is ``python -m sphri.coverage +experiment=scenario_study robot=reachy2 mlflow=false
+The run is ``sphri coverage +experiment=scenario_study robot=reachy2 mlflow=false
 'experiment.scenario_study.figure_formats=[png,pdf,svg]' out=DIR``; each of its figures below is copied to
 ``docs/figures/`` under the name the documentation uses, and ``outputs/bench/study_figures.json`` records the run
 (date, machine, sessions version, command).
@@ -37,7 +37,8 @@ FIGURES = {
 FORMATS = ("png", "pdf", "svg")
 COMMAND = [
     "-m",
-    "sphri.coverage",
+    "sphri",
+    "coverage",
     "+experiment=scenario_study",
     "robot=reachy2",
     "mlflow=false",

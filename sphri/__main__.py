@@ -289,7 +289,7 @@ def run_job(cfg: DictConfig) -> dict | None:
 
 def _log_model(cfg: DictConfig, tracker, run_id: str) -> str:
     """Fit the job's model on every participant and log it into ``run_id``; the line the summary prints."""
-    from sphri.export.train import log_job_model  # sphri.hardware.train_export is this module under its old name
+    from sphri.export.train import log_job_model
 
     t0 = time.perf_counter()
     uri = log_job_model(cfg, run_id, tracker.register_model)
@@ -394,14 +394,15 @@ def main() -> None:
 
 
 def module_main() -> None:
-    """``python -m sphri [VERB] ...``: a first word that is a verb other than ``run`` goes to
-    :mod:`sphri.command` (as ``sphri VERB ...``); anything else (overrides, ``-m``, Hydra's flags,
-    ``run ...``) to Hydra exactly as before."""
-    from sphri.command import BY_NAME, call
+    """``python -m sphri [VERB] ...``: a first word other than ``run`` that is no override goes to
+    :mod:`sphri.command` exactly as ``sphri VERB ...`` does (a verb, or one line naming the close verbs);
+    anything else (overrides, ``-m``, Hydra's flags, ``run ...``) to Hydra exactly as before."""
+    from sphri.command import is_override
+    from sphri.command import main as dispatch
 
     args = sys.argv[1:]
-    if args and args[0] in BY_NAME and args[0] != "run":
-        sys.exit(call(BY_NAME[args[0]], args[1:]))
+    if args and args[0] != "run" and not is_override(args[0]):
+        sys.exit(dispatch(args))
     if args and args[0] == "run":
         sys.argv = [sys.argv[0], *args[1:]]
     main()

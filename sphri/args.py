@@ -452,13 +452,12 @@ def run(
     body: Callable[[T], int],
     prog: str,
     summary: str = "",
-    usage_prog: str = "",
 ) -> int:
     """Parse ``argv`` into ``cls`` and call ``body`` with it. A bad argument (:class:`ArgsError`, from
     the parser or raised by ``body``: a folder or stage that is not there) is one line on stderr
     (``<prog>: <problem>``) and exit code 2; ``--help`` prints the help and returns 0."""
     try:
-        return body(parse(cls, argv, usage_prog or prog, summary))
+        return body(parse(cls, argv, prog, summary))
     except (HelpRequested, ArgsError) as exc:
         return _exit_code(prog, exc)
 
@@ -478,22 +477,21 @@ def first_paragraph(doc: str | None) -> str:
 
 
 def settings_main(
-    module: str, commands: Mapping[str, tuple[type, bool]]
+    prog: str, commands: Mapping[str, tuple[type, bool]]
 ) -> Callable[[Callable[[str, Any, list[str]], int]], Callable[..., int]]:
-    """Make ``run(command, settings, overrides) -> int`` a module's ``main(argv=None, prog="")`` (the
-    hardware commands, the model export): ``--verbose`` and one-line errors
+    """Make ``run(command, settings, overrides) -> int`` a verb's ``main(argv=None, prog=prog)`` (the
+    hardware commands, the model export, the robot check): ``--verbose`` and one-line errors
     (:func:`sphri.errors.clean_errors`), the settings read by :func:`read_settings` from ``argv``
     (None: ``sys.argv[1:]``), help or a bad argument answered with its exit code, INFO logging on.
-    Without ``prog`` (``sphri VERB`` when dispatched) errors name ``module`` and usage says
-    ``python -m module``."""
+    ``prog`` (the verb, ``sphri skin``) names the command in its errors and its usage."""
     import logging
 
     from sphri.errors import clean_errors
 
     def wrap(run: Callable[[str, Any, list[str]], int]) -> Callable[..., int]:
-        @clean_errors(module)
-        def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
-            got = read_settings(commands, list(argv or ()), prog or module, prog or f"python -m {module}")
+        @clean_errors(prog)
+        def main(argv: Sequence[str] | None = None, prog: str = prog) -> int:
+            got = read_settings(commands, list(argv or ()), prog)
             if isinstance(got, int):
                 return got
             logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
@@ -506,21 +504,21 @@ def settings_main(
 
 
 def read_settings(
-    commands: Mapping[str, tuple[type, bool]], argv: Sequence[str], prog: str, usage_prog: str = ""
+    commands: Mapping[str, tuple[type, bool]], argv: Sequence[str], prog: str
 ) -> tuple[str, Any, list[str]] | int:
     """``PROG [COMMAND] key=value ...`` of a command whose settings are dataclasses (the hardware
     commands, the model export): ``commands`` maps each command word to its dataclass and whether it
     takes config overrides (``""``: no command word). Returns (command, settings, overrides), or
     the exit code after printing the help (0) or one line ``<prog>: <problem>`` on stderr (2)."""
-    argv, usage_prog = list(argv), usage_prog or prog
+    argv = list(argv)
     words = [w for w in commands if w]
 
-    def summary(cls: type) -> str:  # "``python -m sphri.hardware.skin record``: save ..." -> "save ..."
+    def summary(cls: type) -> str:  # "``sphri skin record``: save ..." -> "save ..."
         text = first_paragraph(cls.__doc__)
         return text.split("``: ", 1)[1] if text.startswith("``") and "``: " in text else text
 
     if words and (not argv or argv[0] in (*HELP_FLAGS, "help")):
-        texts = [help_text(c, f"{usage_prog} {w}", summary(c), k) for w, (c, k) in commands.items()]
+        texts = [help_text(c, f"{prog} {w}", summary(c), k) for w, (c, k) in commands.items()]
         print("\n\n".join(texts), file=sys.stdout if argv else sys.stderr)
         return 0 if argv else 2
     word = argv.pop(0) if words else ""
@@ -531,7 +529,7 @@ def read_settings(
             raise ArgsError(f"unknown command {word!r}{hint}; commands: {', '.join(words)}")
         cls, known = commands[word]
         settings: Any  # an instance of cls (commands' classes are not one type)
-        settings, overrides = _parse(cls, argv, f"{usage_prog} {word}".strip(), summary(cls), known)
+        settings, overrides = _parse(cls, argv, f"{prog} {word}".strip(), summary(cls), known)
         return word, settings, overrides
     except (HelpRequested, ArgsError) as exc:
         return _exit_code(prog, exc)

@@ -10,7 +10,7 @@
     sphri validate -m layout.res=0,4    # a sweep: every job is checked
     sphri validate +experiment=resolution_sweep   # its 100 jobs
 
-``python -m sphri.cli VERB ...`` is ``sphri VERB ...`` (an alias, any verb). ``validate`` composes the config
+``validate`` composes the config
 exactly as ``sphri run`` would, runs every schema's checks, and prints the chosen components; it exits
 2 with a message naming the key on any problem. Arguments are read by :mod:`sphri.args`.
 """
@@ -382,18 +382,3 @@ def warmup_command(args: WarmupArgs) -> int:
     """Run the +debug=fast chain once (tracking off, in a temporary folder) so that every numba kernel is
     compiled into numba's cache; later jobs load them (`make install` runs it)."""
     return cmd_warmup()
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m sphri.cli VERB ...``: ``sphri VERB ...`` (:func:`sphri.command.main`)."""
-    from sphri.command import main as sphri
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv:  # a usage error here: the verbs, exit 2 (a bare `sphri` runs a job)
-        sphri(["help"])
-        return 2
-    return sphri(argv)
-
-
-if __name__ == "__main__":
-    sys.exit(main())

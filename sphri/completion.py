@@ -234,7 +234,3 @@ def main() -> int:
     from sphri.command import main as dispatch
 
     return dispatch()
-
-
-if __name__ == "__main__":  # `python -m sphri.completion`: the console script's entry, as `sphri` runs it
-    sys.exit(main())

@@ -1,10 +1,10 @@
-"""``python -m sphri.coverage``: contact maps, placement and condition tests for a dataset.
+"""``sphri coverage``: contact maps, placement and condition tests for a dataset.
 
 ::
 
-    python -m sphri.coverage                                   # every region of the default data
-    python -m sphri.coverage +debug=fast data.regions=[torso] by=gesture out=DIR
-    python -m sphri.coverage data=vr_gesture data.root=... bandwidth_mm=8 mlflow=false
+    sphri coverage                                   # every region of the default data
+    sphri coverage +debug=fast data.regions=[torso] by=gesture out=DIR
+    sphri coverage data=vr_gesture data.root=... bandwidth_mm=8 mlflow=false
 
 Arguments are ``key=value`` (or ``--key value``, :mod:`sphri.args`). Keys of :class:`~sphri.analysis.schema.CoverageSchema`
 (``by``, ``bandwidth_mm``, ..., also as ``coverage.<key>``) set the
@@ -58,7 +58,7 @@ class CoverageRunArgs:
 
 @dataclass
 class CoverageRun:
-    """What one ``python -m sphri.coverage`` produced."""
+    """What one ``sphri coverage`` produced."""
 
     out_dir: Path
     regions: dict[str, RegionCoverage]
@@ -67,7 +67,7 @@ class CoverageRun:
     seconds: dict[str, float] = field(default_factory=dict)
 
 
-def split_args(argv: Sequence[str], prog: str = "sphri.coverage") -> tuple[list[str], CoverageSchema, CoverageRunArgs]:
+def split_args(argv: Sequence[str], prog: str = "sphri coverage") -> tuple[list[str], CoverageSchema, CoverageRunArgs]:
     """(config overrides, analysis settings, run arguments) from the command line, through
     :mod:`sphri.args` (typed, range-checked; :class:`ArgsError` names the key)."""
     words = []
@@ -85,7 +85,7 @@ def split_args(argv: Sequence[str], prog: str = "sphri.coverage") -> tuple[list[
 
 def load_settings(args: Sequence[str] = ()) -> CoverageSchema:
     """The analysis settings: schema defaults with ``key=value`` ``args`` applied and checked."""
-    return parse(CoverageSchema, args, "sphri.coverage")
+    return parse(CoverageSchema, args, "sphri coverage")
 
 
 #: Settings of the figures only (not of the analysis).
@@ -227,24 +227,23 @@ def _metric_name(value: str) -> str:
     return re.sub(r"[^\w.\- /]+", "_", str(value))
 
 
-@clean_errors("sphri.coverage")
-def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
+@clean_errors("sphri coverage")
+def main(argv: Sequence[str] | None = None, prog: str = "sphri coverage") -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    usage_prog = prog or "python -m sphri.coverage"
     if any(a in ("-h", "--help") for a in argv):
-        print(help_text(CoverageSchema, usage_prog, first_paragraph(__doc__), overrides=True))
-        print("\n" + help_text(CoverageRunArgs, usage_prog).split("\n", 2)[2].replace("arguments", "run arguments", 1))
+        print(help_text(CoverageSchema, prog, first_paragraph(__doc__), overrides=True))
+        print("\n" + help_text(CoverageRunArgs, prog).split("\n", 2)[2].replace("arguments", "run arguments", 1))
         return 0
     try:
-        overrides, settings, run_args = split_args(argv, usage_prog)
+        overrides, settings, run_args = split_args(argv, prog)
     except ArgsError as exc:
-        print(f"{prog or 'sphri.coverage'}: {exc}", file=sys.stderr)
+        print(f"{prog}: {exc}", file=sys.stderr)
         return 2
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     try:
         res = run(overrides, settings, run_args.out or None, run_args.mlflow)
     except ConfigError as exc:
-        print(f"{prog or 'sphri.coverage'}: {exc}", file=sys.stderr)
+        print(f"{prog}: {exc}", file=sys.stderr)
         return 2
     if not isinstance(res, CoverageRun):  # the scenario study
         for s in res.sentences:
@@ -275,7 +274,3 @@ def main(argv: Sequence[str] | None = None, prog: str = "") -> int:
             print(f"  note: {note}")
     print(f"files: {res.out_dir}" + (f"; MLflow run {res.mlflow_run_id}" if res.mlflow_run_id else ""))
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -4,6 +4,9 @@
 
     python -m sphri.docs_gen OUT_DIR         # writes OUT_DIR/reference/config.md and OUT_DIR/reference/cli.md
 
+A maintainer's tool, not a verb of ``sphri``: the documentation site makes the same pages at build
+time (``docs/hooks.py``, ``mkdocs build``); ``python -m sphri.docs_gen`` writes them alone, as Markdown.
+
 The pages are read from what the commands themselves read, so they cannot drift from them:
 
 - the config reference from the schemas ``sphri show`` prints (each component's YAML merged onto
@@ -312,8 +315,6 @@ def cli_reference(verbs: Sequence[Any] | None = None) -> str:
     for v in verbs:
         summary = markdown_text(v.summary)
         lines += [f"## {v.name}", "", summary[:1].upper() + summary[1:] + ".", ""]
-        if v.module:
-            lines += [f"Also `python -m {v.module}`.", ""]
         if v.kind == "hydra":
             lines += [
                 "Takes Hydra's overrides: `group=name`, `group.key=value`, `+experiment=NAME`, `-m` for a sweep;",

@@ -367,7 +367,7 @@ def chain_region(cfg: DictConfig) -> str:
     if "regions" not in cfg.data:  # session data (data=synthetic_sessions, sessions) has no trials of one region
         raise ConfigError(
             f"data={str(cfg.data._target_).rsplit('.', 1)[-1]} holds free-interaction sessions, not gesture trials: "
-            "run the scenario study (python -m sphri.coverage +experiment=scenario_study)"
+            "run the scenario study (sphri coverage +experiment=scenario_study)"
         )
     regions = list(cfg.data.regions)
     if len(regions) != 1:

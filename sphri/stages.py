@@ -6,7 +6,7 @@ Two tables, read by everything that needs to know the chain's shape:
   (``encoder=ellipse``): the protocol its class must implement, the module
   that registers its schemas, and whether its settings are MLflow params.
   :mod:`sphri.config` (group list, protocol check, schema registration,
-  cache-key hashing), ``python -m sphri.cli list`` / ``validate`` and the
+  cache-key hashing), ``sphri list`` / ``validate`` and the
   MLflow tracker derive from it.
 - :data:`STAGES`: one row per stage the runner caches: the group whose
   component computes it, the stages whose results it reads (their cache keys

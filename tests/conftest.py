@@ -99,7 +99,7 @@ def failing_mesh_sweep(tmp_path: Path) -> list[str]:
 @pytest.fixture()
 def sweep_then_report(tmp_path: Path):
     """``run(sweep_args, n_jobs, report_args)``: ``python -m sphri -m <sweep_args>`` into
-    ``tmp_path/outputs/sweep`` (serial launcher), checked to finish all ``n_jobs``, then ``python -m sphri.report``
+    ``tmp_path/outputs/sweep`` (serial launcher), checked to finish all ``n_jobs``, then ``python -m sphri report``
     on it, checked to exit 0; returns ``(sweep_dir, report_process)``."""
     env = {
         **os.environ,
@@ -125,7 +125,7 @@ def sweep_then_report(tmp_path: Path):
             timeout,
         )
         assert job.returncode == 0 and f"{n_jobs} of {n_jobs} jobs finished" in job.stdout, job.stderr[-3000:]
-        rep = _python(["-m", "sphri.report", str(sweep), *report_args], tmp_path, env, 300)
+        rep = _python(["-m", "sphri", "report", str(sweep), *report_args], tmp_path, env, 300)
         assert rep.returncode == 0, rep.stderr[-3000:]
         return sweep, rep
 
@@ -134,7 +134,7 @@ def sweep_then_report(tmp_path: Path):
 
 @pytest.fixture()
 def study_error_line(tmp_path: Path):
-    """``run(*overrides)``: ``python -m sphri.coverage +experiment=scenario_study <overrides>`` (outputs, runs and
+    """``run(*overrides)``: ``python -m sphri coverage +experiment=scenario_study <overrides>`` (outputs, runs and
     cache under ``tmp_path``, no tracking), checked to exit 1 with no traceback and exactly one line starting
     with ``sphri``; returns that line."""
 
@@ -142,7 +142,8 @@ def study_error_line(tmp_path: Path):
         res = _python(
             [
                 "-m",
-                "sphri.coverage",
+                "sphri",
+                "coverage",
                 "+experiment=scenario_study",
                 *overrides,
                 f"out={tmp_path / 'out'}",

@@ -1,4 +1,4 @@
-"""``python -m sphri...`` for the tests, in a new process that skips the interpreter's imports.
+"""``python -m sphri ...`` for the tests, in a new process that skips the interpreter's imports.
 
 Each call forks a child from a server process (``multiprocessing``'s forkserver, one per pytest worker)
 that imported sphri's heavy dependencies once (MLflow, scikit-learn, SciPy, numba, trimesh, torch,

@@ -16,12 +16,8 @@ PACKAGE = Path(__file__).resolve().parents[1] / "sphri"
 
 
 def _unit(path: Path) -> str:
-    """The package (``sphri/<name>/``) or top-level module (``sphri/<name>.py``) a file belongs to; a package's
-    ``__main__.py`` is a unit of its own."""
-    rel = path.relative_to(PACKAGE)
-    if len(rel.parts) > 1 and rel.name == "__main__.py":  # a package's command is not the package (sphri.cache)
-        return f"{rel.parts[0]}.__main__"
-    return rel.parts[0].removesuffix(".py")
+    """The package (``sphri/<name>/``) or top-level module (``sphri/<name>.py``) a file belongs to."""
+    return path.relative_to(PACKAGE).parts[0].removesuffix(".py")
 
 
 def _runtime_imports(tree: ast.AST):
@@ -363,8 +359,8 @@ def test_the_two_loops_of_issue_30_stay_broken():
     graph = module_graph()
     # the robot schema is the bottom of sphri.robots: it imports no robot implementation, not even in a function
     assert not [m for m in graph["sphri.robots.schema"] if m.startswith("sphri.robots.")]
-    # `python -m sphri.cache` runs sphri/cache/__main__.py; the cache itself imports no command
-    assert "sphri.cache_cli" in graph["sphri.cache.__main__"] and "sphri.cache_cli" not in graph["sphri.cache"]
+    # the `sphri cache` verb is sphri/cache/command.py; the cache itself imports no command
+    assert "sphri.cache" in graph["sphri.cache.command"] and "sphri.cache.command" not in graph["sphri.cache"]
 
 
 def check_bans(
@@ -419,13 +415,12 @@ def test_the_layer_rules_of_the_core_are_written_and_hold():
                 rule(bad, table)
 
 
-def test_skin_frames_live_with_the_types_and_keep_their_encode_names():
+def test_skin_frames_live_with_the_types():
     import sphri.encode
-    import sphri.encode.common
     import sphri.types
 
     assert sphri.types.SkinFrames.__module__ == "sphri.types"
-    assert sphri.encode.SkinFrames is sphri.encode.common.SkinFrames is sphri.types.SkinFrames
+    assert not hasattr(sphri.encode, "SkinFrames")  # no second name for it (issue 53)
 
 
 def test_layer_rules_table_rejects_an_unknown_layer():

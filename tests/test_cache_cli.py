@@ -1,4 +1,4 @@
-"""python -m sphri.cache: see and trim the stage cache without touching MLflow."""
+"""sphri cache: see and trim the stage cache without touching MLflow."""
 
 from __future__ import annotations
 
@@ -11,9 +11,14 @@ import forked_cli
 import numpy as np
 
 from sphri.cache import StageCache
-from sphri.cache_cli import main
+from sphri.command import main as sphri_main
 
 REPO = Path(__file__).resolve().parents[1]
+
+
+def main(argv: list[str]) -> int:
+    """``sphri cache ARGV``."""
+    return sphri_main(["cache", *argv])
 
 
 def _cache(tmp_path):
@@ -58,15 +63,15 @@ def test_bad_arguments_name_the_problem(tmp_path, capsys):
 
 
 def test_python_m_sphri_cache_runs_the_command(tmp_path):
-    """The documented spelling: ``python -m sphri.cache`` (``sphri/cache/__main__.py``) runs the same command."""
+    """``python -m sphri cache``, in a process of its own: the same command, its errors named by the verb."""
     root = _cache(tmp_path)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(REPO), os.environ.get("PYTHONPATH", "")])}
 
     def cache(*args: str) -> subprocess.CompletedProcess:
-        return forked_cli.run(["-m", "sphri.cache", *args], tmp_path, env, 120)
+        return forked_cli.run(["-m", "sphri", "cache", *args], tmp_path, env, 120)
 
     run = cache("info", f"dir={root}")
     assert run.returncode == 0, run.stderr
     assert "evaluate       2 entries" in run.stdout
     bad = cache("info", f"dir={tmp_path / 'none'}")
-    assert bad.returncode == 2 and bad.stderr.strip() == f"sphri.cache: dir={tmp_path / 'none'}: no cache folder there"
+    assert bad.returncode == 2 and bad.stderr.strip() == f"sphri cache: dir={tmp_path / 'none'}: no cache folder there"

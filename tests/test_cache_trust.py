@@ -231,8 +231,9 @@ def test_the_fingerprint_memo_follows_the_umask(tmp_path):
 
 def test_an_entry_naming_a_module_to_import_is_discarded_not_an_exit(tmp_path, monkeypatch, caplog):
     """An entry with a valid plain digest naming ``sphri.cache.__main__:X`` as its dataclass: importing
-    that module runs the cache command (``sys.exit(main())``). Only sphri's data types are rebuilt;
-    the name is refused, the module never imported, and the entry discarded and recomputed."""
+    that module ran the cache command (``sys.exit(main())``) while it existed (issue 53 removed it; any
+    module that acts on import is the same case). Only sphri's data types are rebuilt; the name is
+    refused, the module never imported, and the entry discarded and recomputed."""
     import sys
 
     monkeypatch.delitem(sys.modules, "sphri.cache.__main__", raising=False)

@@ -1,9 +1,10 @@
-"""``sphri <verb>`` (issue 30, point 6): one dispatcher, one ``key=value`` parser, the old spellings as aliases."""
+"""``sphri <verb>`` (issue 30, point 6): one dispatcher, one ``key=value`` parser; one spelling per verb (issue 53)."""
 
 from __future__ import annotations
 
 import dataclasses
 import os
+import re
 import subprocess
 from pathlib import Path
 from typing import Literal
@@ -237,36 +238,31 @@ def test_a_wrong_type_or_a_missing_value_is_one_line_and_exit_2(argv, line, tmp_
     assert len(err) == 1 and err[0].startswith(line), err
 
 
-# --------------------------------------------------------------------------- the console script and the aliases
-def test_the_old_module_spellings_still_work(tmp_path):
-    """Every documented ``python -m sphri.<module>`` spelling is an alias of its verb, with its error prefix."""
-    (tmp_path / "cache" / "evaluate").mkdir(parents=True)
-    cache = _python(["-m", "sphri.cache", "info", f"dir={tmp_path / 'cache'}"], tmp_path)
-    assert cache.returncode == 0 and "evaluate       0 entries" in cache.stdout, cache.stderr
-    report = _python(["-m", "sphri.report", str(tmp_path), "--n-boot", "10", "--no-log"], tmp_path)
-    assert report.returncode == 2 and report.stderr.strip().startswith("sphri.report: "), report.stderr
-    assert "mlflow_parent_run.json" in report.stderr
-    derive = _python(["-m", "sphri.robots.reachy2_derivative", "--src", str(tmp_path), "--faces", "x"], tmp_path)
-    assert derive.returncode == 2
-    assert derive.stderr.strip() == "sphri.robots.reachy2_derivative: faces=x is invalid: must be an integer"
-    cli = _python(["-m", "sphri.cli", "list", "noise"], tmp_path)
-    assert cli.returncode == 0 and "  crosstalk " in cli.stdout
-    verb = _python(["-m", "sphri.command", "list", "noise"], tmp_path)  # the console script without the script
-    assert verb.returncode == 0 and verb.stdout == cli.stdout
-    assert _python(["-m", "sphri.cli", "lists"], tmp_path).stderr.startswith("sphri: unknown verb 'lists'")
-    skin = _python(["-m", "sphri.hardware.skin", "live", "port=p", "model=m", "--stride", "-1"], tmp_path)
-    assert (
-        skin.returncode == 2
-        and skin.stderr.strip() == "sphri.hardware.skin: stride=-1 is invalid: must be in [0, 10000]"
-    )
-    export = _python(["-m", "sphri.hardware.train_export", "--help"], tmp_path)
-    assert export.returncode == 0 and export.stdout.startswith("usage: python -m sphri.export.train out=TEXT")
+# --------------------------------------------------------------------------- the console script, one spelling per verb
+#: The modules that run under ``python -m``: the package (``python -m sphri VERB``) and two maintainer tools
+#: that regenerate documentation (no verb: ``docs/development.md``).
+MODULE_COMMANDS = {"sphri/__main__.py", "sphri/docs_gen.py", "sphri/data/recording_schema.py"}
+
+
+def test_a_verb_has_one_spelling_no_module_is_a_command_of_its_own():
+    """``sphri VERB`` (``python -m sphri VERB``) is a verb's one spelling (issue 53): no module of sphri but the
+    package and the maintainer tools has a ``__main__`` block or is a package's ``__main__.py``."""
+    package = REPO / "sphri"
+    found = {
+        p.relative_to(REPO).as_posix()
+        for p in package.rglob("*.py")
+        if p.name == "__main__.py" or re.search(r"^if __name__ == .__main__.:", p.read_text(), re.M)
+    }
+    assert found == MODULE_COMMANDS
 
 
 def test_python_m_sphri_takes_a_verb_like_the_console_script(tmp_path):
-    """``python -m sphri VERB`` is ``sphri VERB``; overrides, ``run``, ``-m`` and Hydra's flags go to Hydra as before."""
+    """``python -m sphri VERB`` is ``sphri VERB`` (an unknown verb too); overrides, ``run``, ``-m`` and Hydra's flags
+    go to Hydra as before."""
     verb = _python(["-m", "sphri", "list", "noise"], tmp_path)
-    assert verb.returncode == 0 and verb.stdout == _python(["-m", "sphri.cli", "list", "noise"], tmp_path).stdout
+    assert verb.returncode == 0 and "  crosstalk " in verb.stdout
+    unknown = _python(["-m", "sphri", "lists"], tmp_path)  # a word that is no verb nor override: as `sphri lists`
+    assert unknown.returncode == 2 and unknown.stderr.startswith("sphri: unknown verb 'lists' (did you mean list")
     skin = _python(["-m", "sphri", "skin", "live", "port=p", "model=m", "stride=-1"], tmp_path)
     assert skin.returncode == 2 and skin.stderr.strip() == "sphri skin: stride=-1 is invalid: must be in [0, 10000]"
     for argv in (["+debug=fast", "layout.res=abc"], ["run", "+debug=fast", "layout.res=abc"]):
@@ -311,7 +307,8 @@ def test_the_console_script_imports_only_the_standard_library():
 def _tab(line: str, cache: Path) -> list[str]:
     """What the console script's TAB query (``sphri -sc query=bash`` with ``COMP_LINE``) prints, its words
     (in a forked process: whether a cached answer imports anything heavy is checked in a fresh one below)."""
-    run = _python(["-m", "sphri.completion", "-sc", "query=bash"], REPO, 300, COMP_LINE=line, XDG_CACHE_HOME=str(cache))
+    probe = "import sys; from sphri.completion import main; sys.exit(main())"
+    run = _python(["-c", probe, "-sc", "query=bash"], REPO, 300, COMP_LINE=line, XDG_CACHE_HOME=str(cache))
     assert run.returncode == 0, run.stderr[-2000:]
     return run.stdout.split()
 

@@ -18,9 +18,9 @@ def _fresh(args: list[str], cwd: Path, env: dict[str, str]) -> subprocess.Comple
 def test_exit_codes_stdout_and_stderr_equal_a_fresh_interpreters(tmp_path: Path):
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     for args in (
-        ["-m", "sphri.cli", "list", "noise"],  # 0, a table on stdout
+        ["-m", "sphri", "list", "noise"],  # 0, a table on stdout
         ["-m", "sphri", "layout.res=abc", f"output_dir={tmp_path / 'o'}"],  # 2, one line on stderr
-        ["-m", "sphri.cli", "lists"],  # an unknown verb
+        ["-m", "sphri", "lists"],  # an unknown verb
     ):
         forked, fresh = forked_cli.run(args, tmp_path, env), _fresh(args, tmp_path, env)
         assert (forked.returncode, forked.stdout, forked.stderr) == (fresh.returncode, fresh.stdout, fresh.stderr), args

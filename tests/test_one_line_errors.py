@@ -36,7 +36,7 @@ def test_bad_run_settings_stop_in_one_line_before_any_stage(tmp_path: Path, over
 
 def test_glob_sweep_expands_to_components_only(tmp_path: Path):
     """`noise=glob(*)` raised "ConfigLoader is not set"; then it swept the internal *_schema entries too."""
-    ok = _run(["sphri.cli", "validate", "-m", "+debug=fast", "noise=glob(*)"], tmp_path)
+    ok = _run(["sphri", "validate", "-m", "+debug=fast", "noise=glob(*)"], tmp_path)
     assert ok.returncode == 0, ok.stderr[-2000:]
     components = len(list((Path(__file__).resolve().parents[1] / "conf" / "noise").glob("*.yaml")))
     assert f"all {components} jobs compose" in ok.stdout and "_schema" not in ok.stdout, ok.stdout
@@ -58,7 +58,7 @@ def test_cache_clear_leaves_a_folder_named_like_an_entry(tmp_path: Path):
     """`cache clear` on a folder named *.entry raised IsADirectoryError."""
     folder = tmp_path / "cache" / "contact" / "x.entry"
     folder.mkdir(parents=True)
-    proc = _run(["sphri.cache", "clear", f"dir={tmp_path / 'cache'}"], tmp_path)
+    proc = _run(["sphri", "cache", "clear", f"dir={tmp_path / 'cache'}"], tmp_path)
     assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr[-2000:]
     assert "removed 0 entries" in proc.stdout and folder.is_dir()
 
@@ -66,7 +66,7 @@ def test_cache_clear_leaves_a_folder_named_like_an_entry(tmp_path: Path):
 def test_store_repair_on_a_revision_mlflow_does_not_know(tmp_path: Path):
     """`store repair` on a store whose alembic revision is unknown ended in alembic's CommandError traceback."""
     db = tmp_path / "mlflow.db"
-    made = _run(["sphri.tracking.store", "repair", str(db)], tmp_path)  # no file: a new, healthy store
+    made = _run(["sphri", "store", "repair", str(db)], tmp_path)  # no file: a new, healthy store
     from mlflow.tracking import MlflowClient
 
     client = MlflowClient(tracking_uri=f"sqlite:///{db}")
@@ -76,7 +76,7 @@ def test_store_repair_on_a_revision_mlflow_does_not_know(tmp_path: Path):
     con.execute("UPDATE alembic_version SET version_num = 'deadbeef'")
     con.commit()
     con.close()
-    proc = _run(["sphri.tracking.store", "repair", str(db)], tmp_path)
+    proc = _run(["sphri", "store", "repair", str(db)], tmp_path)
     line = [ln for ln in proc.stderr.strip().splitlines() if ln.startswith("sphri:")]
     assert proc.returncode == 1 and "Traceback" not in proc.stderr, (made.stderr + proc.stderr)[-2000:]
     assert len(line) == 1 and "deadbeef" in line[0] and "the original is at" in line[0], proc.stderr

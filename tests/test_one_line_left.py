@@ -49,9 +49,9 @@ def test_each_is_one_line_before_any_stage(tmp_path: Path, override: str, words:
 
 
 def test_validate_refuses_a_target_outside_the_registered_components(tmp_path: Path):
-    proc = _run(["sphri.cli", "validate", "model._target_=sphri.models.rf.RandomForst"], tmp_path)
+    proc = _run(["sphri", "validate", "model._target_=sphri.models.rf.RandomForst"], tmp_path)
     _one_line(proc, 2, "invalid config", "not a registered model component", "RandomForest")
-    ok = _run(["sphri.cli", "validate", "model._target_=sphri.models.rf.RandomForest"], tmp_path)
+    ok = _run(["sphri", "validate", "model._target_=sphri.models.rf.RandomForest"], tmp_path)
     assert ok.returncode == 0, ok.stderr[-2000:]
 
 

@@ -4,10 +4,11 @@ a link, ``sphri coverage out=`` holding the MLflow store."""
 
 from __future__ import annotations
 
-import importlib
 import os
 
 import pytest
+
+from sphri.command import main as sphri_main
 
 SMALL = ["+debug=fast", "data.participants=2", "data.repetitions=1", "data.regions=[arm]"]
 
@@ -17,8 +18,8 @@ def _line(err: str) -> str:
     return line
 
 
-@pytest.mark.parametrize("module", ["sphri.data.synthesize", "sphri.sessions.synthesize"])
-def test_synthesize_into_an_existing_folder_is_refused_before_generating(module, tmp_path, capsys, monkeypatch):
+@pytest.mark.parametrize("what", ["gestures", "sessions"])
+def test_synthesize_into_an_existing_folder_is_refused_before_generating(what, tmp_path, capsys, monkeypatch):
     """``sphri synthesize out=EXISTING`` wrote the new dataset's files among the old ones (the mix then
     loads without a word): refused in one line naming ``out`` and ``overwrite=true``, nothing generated."""
     import sphri.data.synthetic
@@ -32,7 +33,7 @@ def test_synthesize_into_an_existing_folder_is_refused_before_generating(module,
     out = tmp_path / "ds"
     out.mkdir()
     (out / "kept.txt").write_text("an earlier dataset\n")
-    code = importlib.import_module(module).main([f"out={out}", "+debug=fast"])
+    code = sphri_main(["synthesize", f"what={what}", f"out={out}", "+debug=fast"])
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err, err
     line = _line(err)
@@ -41,14 +42,12 @@ def test_synthesize_into_an_existing_folder_is_refused_before_generating(module,
 
 
 def test_synthesize_with_overwrite_replaces_the_folder_whole(tmp_path, capsys):
-    from sphri.data import synthesize
-
     out = tmp_path / "ds"
     out.mkdir()
     (out / "kept.txt").write_text("an earlier dataset\n")
     (out / "arm").mkdir()
     (out / "arm" / "participant_09").mkdir()  # a participant the new dataset does not have
-    assert synthesize.main([f"out={out}", "overwrite=true", *SMALL]) == 0
+    assert sphri_main(["synthesize", f"out={out}", "overwrite=true", *SMALL]) == 0
     names = sorted(p.name for p in out.iterdir())
     assert "kept.txt" not in names and "assets" in names, names
     assert sorted(p.name for p in (out / "arm").iterdir()) == ["participant_01", "participant_02"]
@@ -105,7 +104,6 @@ def test_cache_clear_never_follows_a_link_out_of_the_cache(tmp_path, capsys):
     """A stage folder (or its by-path index) that is a link to another folder: ``sphri cache clear``
     deleted the files there. Links are left alone; only the cache's own entries go."""
     from sphri.cache.__init__ import SUFFIX
-    from sphri.cache_cli import main
 
     root = tmp_path / "cache"
     (root / "evaluate" / "by-path").mkdir(parents=True)
@@ -119,10 +117,10 @@ def test_cache_clear_never_follows_a_link_out_of_the_cache(tmp_path, capsys):
     (root / "contact").mkdir()
     (root / "contact" / "by-path").symlink_to(elsewhere)
     (root / "contact" / f"e{SUFFIX}").symlink_to(elsewhere / f"results{SUFFIX}")
-    assert main(["clear", f"dir={root}"]) == 0
+    assert sphri_main(["cache", "clear", f"dir={root}"]) == 0
     assert all(p.read_text() == "not the cache's\n" for p in precious)
     assert not (root / "evaluate" / f"k{SUFFIX}").exists()
-    assert main(["clear", "data", f"dir={root}"]) == 2
+    assert sphri_main(["cache", "clear", "data", f"dir={root}"]) == 2
     assert "is a link; links in the cache are never followed" in capsys.readouterr().err
     assert all(p.exists() for p in precious)
 

@@ -161,20 +161,20 @@ def test_wheel_ships_the_sweeper(installed):
 
 
 def test_wheel_sweep_then_its_report(installed, wheel_sweep):
-    report = _sphri(installed, wheel_sweep.parent, "sphri.report", str(wheel_sweep), "formats=png")
+    report = _sphri(installed, wheel_sweep.parent, "sphri", "report", str(wheel_sweep), "formats=png")
     assert report.returncode == 0, (report.stdout + report.stderr)[-3000:]
     assert (wheel_sweep / "report" / "report.html").is_file()
 
 
 def test_wheel_validates_a_sweep_as_a_checkout_does(installed, tmp_path):
-    check = _sphri(installed, tmp_path, "sphri.cli", "validate", "-m", "layout.res=0,4,18")
+    check = _sphri(installed, tmp_path, "sphri", "validate", "-m", "layout.res=0,4,18")
     assert check.returncode == 2, (check.stdout + check.stderr)[-3000:]
     assert "1 of 3 points fail validation" in check.stderr and "layout.res=0" in check.stderr
     assert "Traceback" not in check.stderr
 
 
 def test_wheel_cli_show_returns(installed, tmp_path):
-    show = _sphri(installed, tmp_path, "sphri.cli", "show", timeout=120)
+    show = _sphri(installed, tmp_path, "sphri", "show", timeout=120)
     assert show.returncode == 0, show.stderr[-3000:]
     assert "hand: HandCapsules" in show.stdout and max(map(len, show.stdout.splitlines())) <= 100
 
@@ -220,7 +220,8 @@ def test_wheel_runs_the_scenario_study_at_debug_size(installed, tmp_path):
     study = _sphri(
         installed,
         tmp_path,
-        "sphri.coverage",
+        "sphri",
+        "coverage",
         "+experiment=scenario_study",
         "+debug=fast",
         "out=study",
@@ -234,14 +235,15 @@ def test_wheel_runs_the_scenario_study_at_debug_size(installed, tmp_path):
 @pytest.mark.slow  # `make test-all`: export and live from the checkout in `make test` (tests/hardware/test_hw_plugin_model.py)
 def test_wheel_exports_a_model_and_runs_skin_live_on_the_simulator(installed, tmp_path):
     small = ["+debug=fast", "data.participants=1", "data.repetitions=1"]
-    export = _sphri(installed, tmp_path, "sphri.hardware.train_export", "out=m.sphrimodel", *small, "model.n_jobs=1")
+    export = _sphri(installed, tmp_path, "sphri", "export", "out=m.sphrimodel", *small, "model.n_jobs=1")
     assert export.returncode == 0, (export.stdout + export.stderr)[-3000:]
     link = tmp_path / "skin.tty"
     sim = subprocess.Popen(
         [
             sys.executable,
             "-m",
-            "sphri.hardware.simulate",
+            "sphri",
+            "simulate",
             "skin",
             *small,
             f"link={link}",
@@ -265,7 +267,8 @@ def test_wheel_exports_a_model_and_runs_skin_live_on_the_simulator(installed, tm
         live = _sphri(
             installed,
             tmp_path,
-            "sphri.hardware.skin",
+            "sphri",
+            "skin",
             "live",
             f"port={link}",
             "model=m.sphrimodel",

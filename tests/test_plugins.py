@@ -42,7 +42,7 @@ def test_user_components_run_end_to_end(lab, tmp_path):
 
 def test_user_components_are_refused_unless_their_package_is_listed(lab, tmp_path):
     search = f"hydra.searchpath=[file://{lab / 'conf'}]"
-    out = _run(lab, "-m", "sphri.cli", "validate", search, "encoder=nearest", cwd=tmp_path)
+    out = _run(lab, "-m", "sphri", "validate", search, "encoder=nearest", cwd=tmp_path)
     assert out.returncode == 2
     assert "encoder._target_='labext.skin.NearestTaxelEncoder'" in out.stderr and "plugins=[labext]" in out.stderr
 
@@ -59,7 +59,7 @@ def test_a_user_class_missing_its_stage_method_fails_at_composition(lab, tmp_pat
     out = _run(
         lab,
         "-m",
-        "sphri.cli",
+        "sphri",
         "validate",
         "plugins=[labext]",
         search,

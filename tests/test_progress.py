@@ -53,7 +53,7 @@ def _stderr_on_a_terminal(args: list[str], cwd: Path) -> tuple[int, str]:
 
 
 def test_checking_a_sweeps_jobs_shows_its_progress_on_a_terminal(tmp_path):
-    args = ["-m", "sphri.cli", "validate", "-m", "+debug=fast", "layout.res=2,4,8"]
+    args = ["-m", "sphri", "validate", "-m", "+debug=fast", "layout.res=2,4,8"]
     rc, shown = _stderr_on_a_terminal(args, tmp_path)
     assert rc == 0, shown[-2000:]
     assert "checking the sweep's jobs" in shown and re.search(r"\d/3 \[", shown), shown[-2000:]
@@ -70,7 +70,7 @@ def test_checking_a_sweeps_jobs_shows_its_progress_on_a_terminal(tmp_path):
 
 def test_warmup_shows_its_commands_done_on_a_terminal(monkeypatch):
     """`sphri warmup` runs its commands with their output captured: on a terminal a bar counts them."""
-    from sphri import cli
+    from sphri.command import main
 
     def fake(cmd, **kwargs):
         return subprocess.CompletedProcess(cmd, 0, stdout="", stderr="")
@@ -78,5 +78,5 @@ def test_warmup_shows_its_commands_done_on_a_terminal(monkeypatch):
     tty = _Terminal()
     monkeypatch.setattr(subprocess, "run", fake)
     monkeypatch.setattr(sys, "stderr", tty)
-    assert cli.main(["warmup"]) == 0
+    assert main(["warmup"]) == 0
     assert "warmup:" in tty.getvalue() and "/3 [" in tty.getvalue()

@@ -85,9 +85,7 @@ def test_encoder_res_is_layout_res_and_says_so_once(fresh_alias, capsys):
 def test_the_command_line_says_the_deprecation_once():
     """``python -m sphri ... encoder.res=...`` (here ``sphri validate``, which composes like a run) prints the
     line once and runs the job of ``layout.res``."""
-    code = (
-        "import sys; from sphri.cli import main; sys.exit(main(['validate', '-m', '+debug=fast', 'encoder.res=2,3']))"
-    )
+    code = "import sys; from sphri.command import main; sys.exit(main(['validate', '-m', '+debug=fast', 'encoder.res=2,3']))"
     out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stderr.count("encoder.res is deprecated, write layout.res") == 1, out.stderr[-2000:]

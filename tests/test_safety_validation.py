@@ -34,7 +34,7 @@ def test_unknown_keys_are_refused_at_composition(override, match):
 
 
 def test_cli_validate_refuses_a_typo(capsys):
-    from sphri.cli import main
+    from sphri.command import main
 
     assert main(["validate", "+model.n_estimator=5"]) == 2
     assert "model.n_estimator" in capsys.readouterr().err
@@ -216,37 +216,28 @@ def test_a_region_the_robot_lacks_is_one_line_naming_it_and_the_robots_regions(t
 
 
 @pytest.mark.parametrize(
-    "module, argv, kind",
+    "verb, argv, kind",
     [
-        ("sphri.data.stats", ["data=vr_gesture", "data.root=/nonexistent/ds"], "data error"),
-        ("sphri.data.synthesize", ["out=/proc/sphri-ds", "data.participants=2", "+debug=fast"], "invalid config"),
-        ("sphri.coverage", ["data=vr_gesture", "data.root=/nonexistent/ds", "mlflow=false"], "data error"),
-        (
-            "sphri.hardware.train_export",
-            ["out=m.sphrimodel", "data=vr_gesture", "data.root=/nonexistent/ds"],
-            "data error",
-        ),
-        (
-            "sphri.hardware.skin",
-            ["live", "port=socket://127.0.0.1:9", "model=/nonexistent/m.sphrimodel"],
-            "model file error",
-        ),
-        ("sphri.cli", ["validate", "+seeed=3"], "invalid config"),
-        ("sphri.coverage", ["robot=reachy_full", "+debug=fast", "mlflow=false", "out=cov"], "invalid config"),
+        ("stats", ["data=vr_gesture", "data.root=/nonexistent/ds"], "data error"),
+        ("synthesize", ["out=/proc/sphri-ds", "data.participants=2", "+debug=fast"], "invalid config"),
+        ("coverage", ["data=vr_gesture", "data.root=/nonexistent/ds", "mlflow=false"], "data error"),
+        ("export", ["out=m.sphrimodel", "data=vr_gesture", "data.root=/nonexistent/ds"], "data error"),
+        ("skin", ["live", "port=socket://127.0.0.1:9", "model=/nonexistent/m.sphrimodel"], "model file error"),
+        ("validate", ["+seeed=3"], "invalid config"),
+        ("coverage", ["robot=reachy_full", "+debug=fast", "mlflow=false", "out=cov"], "invalid config"),
     ],
 )
-def test_every_entry_point_prints_one_line(module, argv, kind, capsys, tmp_path, monkeypatch):
-    import importlib
+def test_every_entry_point_prints_one_line(verb, argv, kind, capsys, tmp_path, monkeypatch):
+    from sphri.command import main
 
     monkeypatch.chdir(tmp_path)
     monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
-    main = importlib.import_module(module).main
-    code = main(argv)
+    code = main([verb, *argv])
     err = capsys.readouterr().err
     assert code in (1, 2)
     lines = [ln for ln in err.splitlines() if ln.startswith(("sphri", "Traceback"))]
     assert len(lines) == 1 and "Traceback" not in err, err
-    assert kind in lines[0] or module == "sphri.cli", lines
+    assert lines[0].startswith(f"sphri {verb}: ") and (kind in lines[0] or verb == "validate"), lines
 
 
 @pytest.mark.parametrize("study", [[], ["+experiment=scenario_study"]], ids=["coverage", "scenario_study"])
@@ -275,24 +266,23 @@ def test_coverage_out_on_a_file_is_one_line_before_any_computing(study, out, cap
 
 
 @pytest.mark.parametrize(
-    "module, argv, named",
+    "verb, argv, named",
     [
-        ("sphri.data.synthesize", ["out=taken"], "taken is a file, not a folder"),
-        ("sphri.data.synthesize", ["out=taken/ds"], "taken is a file, not a folder"),
-        ("sphri.sessions.synthesize", ["out=taken/sessions"], "taken is a file, not a folder"),
-        ("sphri.export.train", ["out=folder"], "folder is a folder; give a file name (e.g. folder/model.sphrimodel)"),
-        ("sphri.export.train", ["out=taken/m.sphrimodel"], "taken is a file, not a folder"),
+        ("synthesize", ["out=taken"], "taken is a file, not a folder"),
+        ("synthesize", ["out=taken/ds"], "taken is a file, not a folder"),
+        ("synthesize", ["out=taken/sessions", "what=sessions"], "taken is a file, not a folder"),
+        ("export", ["out=folder"], "folder is a folder; give a file name (e.g. folder/model.sphrimodel)"),
+        ("export", ["out=taken/m.sphrimodel"], "taken is a file, not a folder"),
     ],
 )
-def test_an_output_path_in_the_way_is_one_line_before_any_computing(module, argv, named, capsys, tmp_path, monkeypatch):
+def test_an_output_path_in_the_way_is_one_line_before_any_computing(verb, argv, named, capsys, tmp_path, monkeypatch):
     """``sphri synthesize`` / ``sphri export`` with ``out=`` on a file (or a folder where a file is written):
     one line naming ``out``, exit 2, before generating or training; they failed after the work was done
     (``[Errno 20] Not a directory``, ``[Errno 21] Is a directory``), the trained model lost."""
-    import importlib
-
     import sphri.data.synthetic
     import sphri.pipeline
     import sphri.sessions.synthetic
+    from sphri.command import main
 
     def refuse(*_a, **_k):
         raise AssertionError("computing started")
@@ -303,7 +293,7 @@ def test_an_output_path_in_the_way_is_one_line_before_any_computing(module, argv
     monkeypatch.chdir(tmp_path)
     (tmp_path / "taken").write_text("a file\n")
     (tmp_path / "folder").mkdir()
-    code = importlib.import_module(module).main([*argv, "+debug=fast"])
+    code = main([verb, *argv, "+debug=fast"])
     err = capsys.readouterr().err
     assert code == 2 and "Traceback" not in err, err
     (line,) = [ln for ln in err.splitlines() if ln.startswith("sphri")]

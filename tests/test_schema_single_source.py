@@ -10,7 +10,7 @@ import yaml
 from hydra.core.config_store import ConfigStore
 from omegaconf import OmegaConf
 
-from sphri.cli import main as cli_main
+from sphri.command import main as cli_main
 from sphri.config import CONF_DIR, SCHEMA_MODULES, field_docs
 
 #: ``(group, option, key)`` a YAML may write although it equals the schema's default, with the reason.

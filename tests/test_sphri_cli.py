@@ -1,4 +1,4 @@
-"""python -m sphri.cli: list components, validate configs without running."""
+"""sphri list|show|validate|warmup: list components, show and validate configs without running."""
 
 from __future__ import annotations
 
@@ -10,7 +10,8 @@ import forked_cli
 import pytest
 from time_limit import time_limit
 
-from sphri.cli import components, main
+from sphri.cli import components
+from sphri.command import main
 
 
 def test_list_robot_shows_builtins(capsys):
@@ -76,7 +77,7 @@ def test_validate_checks_every_job_of_a_sweep_and_runs_none(tmp_path):
     }
 
     def validate(*args):
-        return forked_cli.run(["-m", "sphri.cli", "validate", *args], tmp_path, env, 300)
+        return forked_cli.run(["-m", "sphri", "validate", *args], tmp_path, env, 300)
 
     bad = validate("-m", "+debug=fast", "layout.res=0,4,abc")
     assert bad.returncode == 2
@@ -272,11 +273,11 @@ def test_row_never_hangs_on_a_head_wider_than_the_width():
     assert text.startswith("x" * 120) and all(len(line) <= 100 for line in text.splitlines()[1:])
 
 
-def _run(args: list[str], cwd: Path, module: str = "sphri") -> subprocess.CompletedProcess:
+def _run(args: list[str], cwd: Path) -> subprocess.CompletedProcess:
     import os
 
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}  # as a user runs it: not verbose
-    return forked_cli.run(["-m", module, *args], cwd, env, 600)
+    return forked_cli.run(["-m", "sphri", *args], cwd, env, 600)
 
 
 def test_an_unknown_key_or_a_wrong_type_is_one_line_with_or_without_plus(tmp_path):
@@ -296,14 +297,12 @@ def test_an_unknown_key_or_a_wrong_type_is_one_line_with_or_without_plus(tmp_pat
 
 
 def test_a_missing_input_path_fails_validation_and_starts_nothing(tmp_path):
-    proc = _run(["validate", "data=vr_gesture", f"data.root={tmp_path / 'nope'}"], tmp_path, module="sphri.cli")
+    proc = _run(["validate", "data=vr_gesture", f"data.root={tmp_path / 'nope'}"], tmp_path)
     assert proc.returncode == 2 and "data.root=" in proc.stderr and "no such folder" in proc.stderr
     proc = _run(["data=vr_gesture", f"data.root={tmp_path / 'nope'}", f"output_dir={tmp_path / 'out'}"], tmp_path)
     assert proc.returncode == 2 and proc.stderr.count("no such folder") == 1, proc.stderr  # said once
     assert not (tmp_path / "out" / "mlflow.db").exists()  # no FAILED run left behind
-    proc = _run(
-        ["validate", "-m", "data=vr_gesture", f"data.root={tmp_path / 'nope'},{tmp_path}"], tmp_path, module="sphri.cli"
-    )
+    proc = _run(["validate", "-m", "data=vr_gesture", f"data.root={tmp_path / 'nope'},{tmp_path}"], tmp_path)
     assert proc.returncode == 2 and "1 of 2 points fail validation" in proc.stderr
 
 
@@ -349,7 +348,7 @@ def test_warmup_reports_what_it_compiled_and_fails_in_one_line(monkeypatch: pyte
         "run",
         lambda cmd, **kw: subprocess.CompletedProcess(cmd, 1, stdout="", stderr="Traceback ...\nValueError: boom\n"),
     )
-    assert cli.main(["warmup"]) == 1
+    assert main(["warmup"]) == 1
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("sphri: warmup failed") and "ValueError: boom" in err[0]
 
@@ -372,7 +371,7 @@ def test_warmup_runs_its_two_lanes_side_by_side(monkeypatch: pytest.MonkeyPatch)
         return subprocess.CompletedProcess(cmd, 0, stdout="", stderr="")
 
     monkeypatch.setattr(subprocess, "run", fake)
-    assert cli.main(["warmup"]) == 0
+    assert main(["warmup"]) == 0
 
 
 def test_the_analysis_kernels_warm_on_tiny_inputs():

@@ -13,6 +13,8 @@ from pathlib import Path
 
 import pytest
 
+from sphri.command import main as sphri_main
+
 HOLD = """
 import sqlite3, sys, time
 con = sqlite3.connect(sys.argv[1], isolation_level=None)
@@ -60,7 +62,7 @@ def test_a_store_another_process_holds_locked_is_busy_not_broken(tmp_path, monke
         text = str(err.value)
         assert f"MLflow store {db} is busy" in text and "more than 0.5 s" in text and "not broken" in text, text
         assert f"pid {proc.pid}" in text and "repair" not in text, text
-        assert store.main(["check", str(db)]) == 1
+        assert sphri_main(["store", "check", str(db)]) == 1
         err_text = capsys.readouterr().err
         assert "is busy" in err_text and "repair" not in err_text, err_text
     store.ensure_store(f"sqlite:///{db}")  # free again: used as it is
@@ -70,25 +72,23 @@ def test_a_store_another_process_holds_locked_is_busy_not_broken(tmp_path, monke
 def test_repair_refuses_a_store_another_process_holds(how, tmp_path, capsys):
     """``repair`` moved a live store aside (its lock read as "not a readable SQLite database", so "no
     runs"): it refuses a store another process has locked or open, and leaves the file as it is."""
-    from sphri.tracking import store
 
     db = new_store(tmp_path / "mlflow.db", broken=True)
     before = db.read_bytes()
     with held(db, how):
-        assert store.main(["repair", str(db)]) == 1
+        assert sphri_main(["store", "repair", str(db)]) == 1
     err = capsys.readouterr().err
     assert str(db) in err and ("is open in pid" in err or "is busy" in err) and "broken-" not in err, err
     assert db.read_bytes() == before
     assert not [p.name for p in tmp_path.iterdir() if "broken-" in p.name or "bak-" in p.name]
-    assert store.main(["repair", str(db)]) == 0  # once free, repaired
-    assert store.main(["check", str(db)]) == 0
+    assert sphri_main(["store", "repair", str(db)]) == 0  # once free, repaired
+    assert sphri_main(["store", "check", str(db)]) == 0
 
 
 @pytest.mark.parametrize("kind", ["passwd", "text", "sqlite"])
 def test_check_and_repair_touch_only_mlflow_stores(kind, tmp_path, capsys):
     """``sphri store check /etc/passwd`` suggested repairing it, and ``repair`` would move it aside and
     put a new store in its place; a SQLite database of another program read as a store to upgrade."""
-    from sphri.tracking import store
 
     if kind == "passwd":
         path = Path("/etc/passwd")
@@ -101,11 +101,11 @@ def test_check_and_repair_touch_only_mlflow_stores(kind, tmp_path, capsys):
             con.execute("CREATE TABLE notes (body TEXT)")
             con.execute("INSERT INTO notes VALUES ('mine')")
     before = path.read_bytes()
-    assert store.main(["check", str(path)]) == 1
+    assert sphri_main(["store", "check", str(path)]) == 1
     out = capsys.readouterr()
     assert f"{path} is not an MLflow store" in out.err and "store repair" not in out.out + out.err, out
     if kind != "passwd":
-        assert store.main(["repair", str(path)]) == 1
+        assert sphri_main(["store", "repair", str(path)]) == 1
         assert f"{path} is not an MLflow store" in capsys.readouterr().err
         assert path.read_bytes() == before
         assert not [p.name for p in tmp_path.iterdir() if "broken-" in p.name or "bak-" in p.name]

@@ -104,7 +104,7 @@ def test_new_stores_start_from_a_migrated_template_equal_to_a_fresh_migration(tm
 
 
 def test_store_left_broken_by_a_migration_is_refused_before_computing(tmp_path: Path):
-    from sphri.tracking.store import main as store_main
+    from sphri.command import main as sphri_main
 
     out = tmp_path / "out"
     out.mkdir()
@@ -120,8 +120,8 @@ def test_store_left_broken_by_a_migration_is_refused_before_computing(tmp_path: 
     assert f"sphri store repair {db}" in proc.stderr
     assert "computing" not in proc.stdout + proc.stderr, "nothing is computed into a broken store"
     assert not (out / "cache").exists()
-    assert store_main(["repair", str(db)]) == 0
-    assert store_main(["check", str(db)]) == 0
+    assert sphri_main(["store", "repair", str(db)]) == 0
+    assert sphri_main(["store", "check", str(db)]) == 0
 
 
 # ------------------------------------------------------------------ sweeps

@@ -47,8 +47,8 @@ def logged(tmp_path_factory) -> tuple[Path, str, list[str], list[str]]:
 
 
 def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windows(logged, tmp_path):
+    from sphri.export.train import training_windows
     from sphri.hardware.source import open_pipeline
-    from sphri.hardware.train_export import training_windows
     from sphri.tracking.mlflow_tracker import default_uri
 
     out, run_id, _, _ = logged
@@ -71,7 +71,7 @@ def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windo
     assert len(got["labels"]) == 6 and set(got["labels"]) <= set(GESTURES)
 
     # the same labels as sphri's own loader gives for the model file inside that MLflow model
-    from sphri.hardware.model_file import load_model, resolve_model_path
+    from sphri.export.model_file import load_model, resolve_model_path
 
     bundle = load_model(resolve_model_path(f"runs:/{run_id}/model", default_uri(out), allow_remote=True))
     mine = np.asarray(bundle.labels)[bundle.predict_proba(windows.x[:6]).argmax(1)]
@@ -79,7 +79,7 @@ def test_logged_model_loads_with_pyfunc_in_a_fresh_process_and_predicts_on_windo
 
 
 def test_registered_model_resolves_for_skin_live_only_when_remote_is_allowed(logged):
-    from sphri.hardware.model_file import ModelFileError, load_model, resolve_model_path
+    from sphri.export.model_file import ModelFileError, load_model, resolve_model_path
     from sphri.tracking.mlflow_tracker import default_uri
 
     out, _, _, _ = logged

@@ -23,11 +23,11 @@ _one_line = forked_cli.one_line
 
 def test_a_million_participants_is_refused_at_validate_with_the_estimate(tmp_path: Path):
     """`data.participants=1000000` ran 40 min to 12 GB with no estimate."""
-    proc = _run(["sphri.cli", "validate", "data.participants=1000000"], tmp_path)
+    proc = _run(["sphri", "validate", "data.participants=1000000"], tmp_path)
     _one_line(
         proc, 2, "invalid config", "data.participants=1000000", "GiB, more than SPHRI_MAX_MEMORY_GIB=64", "frames"
     )
-    ok = _run(["sphri.cli", "validate", "data.participants=18"], tmp_path, limit_gib="1")
+    ok = _run(["sphri", "validate", "data.participants=18"], tmp_path, limit_gib="1")
     assert ok.returncode == 0, ok.stderr[-2000:]
 
 
@@ -39,14 +39,14 @@ def test_the_same_run_refuses_before_computing(tmp_path: Path):
 
 def test_a_report_bootstrap_past_the_limit_is_one_line(tmp_path: Path):
     """`sphri report DIR n_boot=10^12` died with numpy's ArrayMemoryError."""
-    proc = _run(["sphri.report", str(tmp_path / "sweep"), "n_boot=1000000000000"], tmp_path)
+    proc = _run(["sphri", "report", str(tmp_path / "sweep"), "n_boot=1000000000000"], tmp_path)
     _one_line(proc, 2, "n_boot=1000000000000", "1.49e+04 GiB", "SPHRI_MAX_MEMORY_GIB")
 
 
 def test_a_skin_grid_larger_than_a_frame_holds_is_one_line(tmp_path: Path):
     """`skin record grid=1000x1000` printed a traceback from the decoder."""
     proc = _run(
-        ["sphri.hardware.skin", "record", "port=sim://", f"out={tmp_path / 'r.npz'}", "grid=1000x1000", "frames=5"],
+        ["sphri", "skin", "record", "port=sim://", f"out={tmp_path / 'r.npz'}", "grid=1000x1000", "frames=5"],
         tmp_path,
     )
     _one_line(proc, 2, "grid='1000x1000'", "1000000 taxels", "4096")

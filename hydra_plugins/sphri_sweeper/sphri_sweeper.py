@@ -9,7 +9,7 @@
   (:func:`~sphri.tracking.parent.close_parent`): FINISHED, FAILED when a job
   failed or the sweep raised, KILLED on SIGINT/SIGTERM.
 - With the environment variable ``SPHRI_VALIDATE_ONLY=1`` (what
-  ``python -m sphri.cli validate -m ...`` sets) the sweep stops after that
+  ``sphri validate -m ...`` sets) the sweep stops after that
   check: it prints how many jobs it checked and exits 0, or 2 with the
   failing points, without running anything.
 - A sweep with a failed job exits with status 1 naming the jobs; a killed
@@ -39,7 +39,7 @@ from sphri.tracking.parent import KILLED, SweepKilled
 
 log = logging.getLogger(__name__)
 
-#: Environment variable: validate every job of the sweep, then stop (``python -m sphri.cli validate -m``).
+#: Environment variable: validate every job of the sweep, then stop (``sphri validate -m``).
 VALIDATE_ONLY = "SPHRI_VALIDATE_ONLY"
 #: Jobs listed by a validate-only sweep.
 MAX_LISTED = 12

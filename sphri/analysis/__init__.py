@@ -10,7 +10,7 @@
   participants for every pair of conditions.
 - :mod:`sphri.analysis.coverage`: :class:`CoverageAnalysis` for one link and
   the files it writes; :mod:`sphri.analysis.render`: PNG / PLY output.
-- ``python -m sphri.coverage`` (:mod:`sphri.coverage`) is the command line over this library.
+- ``sphri coverage`` (:mod:`sphri.coverage`) is the command line over this library.
 """
 
 from sphri._lazy import lazy_exports

@@ -1,4 +1,4 @@
-"""Config schema of the coverage analysis (``python -m sphri.coverage``).
+"""Config schema of the coverage analysis (``sphri coverage``).
 
 Not a pipeline stage: the analysis reads the data and contact stages of a
 composed sphri config; its own settings are given on the same command line
@@ -71,7 +71,7 @@ class CoverageAnalysisSchema(ComponentSchema, group="coverage"):
 
 @dataclass
 class CoverageSchema(CoverageAnalysisSchema):
-    """Where on the link people touch, per group, and whether groups differ (``python -m sphri.coverage``:
+    """Where on the link people touch, per group, and whether groups differ (``sphri coverage``:
     the analysis's settings and the figures')."""
 
     marks: bool | None = None

@@ -11,10 +11,11 @@
 The verb is picked by argparse (:func:`parser`: one subparser per verb of :data:`VERBS`); the words
 after it go unchanged to the verb's own parser. ``run`` and ``sweep`` hand them to Hydra; every other
 verb reads ``key=value`` arguments through one parser (:mod:`sphri.args`), typed by a dataclass beside
-the verb's code, which also takes the ``--key value`` spellings. Each verb's module keeps its
-``python -m sphri.<module>`` spelling as an alias (:attr:`Verb.module`). A first word that is not a verb
-but looks like an override (``key=value``, ``+group=x``, ``~key``, ``-m``, ``--cfg``) is the ``run``
-verb; any other word is an unknown verb: one line naming the close matches, exit 2.
+the verb's code, which also takes the ``--key value`` spellings. ``sphri VERB`` is a verb's one spelling
+(``python -m sphri VERB`` runs the same where the script is not on the PATH; no module of sphri is a
+command of its own). A first word that is not a verb but looks like an override (``key=value``,
+``+group=x``, ``~key``, ``-m``, ``--cfg``) is the ``run`` verb; any other word is an unknown verb: one
+line naming the close matches, exit 2.
 
 Standard library only at import: the console script (:mod:`sphri.completion`) reads :data:`VERBS`
 to complete the first word on every TAB.
@@ -47,7 +48,6 @@ class Verb:
     kind: str
     target: str
     schema: str = ""
-    module: str = ""  # the `python -m` alias, where one exists
 
     def load(self, ref: str):
         module, _, attr = ref.partition(":")
@@ -60,32 +60,25 @@ VERBS: tuple[Verb, ...] = (
         "run one job (the default verb: `sphri +debug=fast` is `sphri run +debug=fast`)",
         "hydra",
         "sphri.__main__:main",
-        "",
-        "sphri",
     ),
     Verb(
         "sweep",
         "run a sweep, one job per point (`sphri sweep layout.res=2,4` is `sphri -m layout.res=2,4`)",
         "hydra",
         "sphri.__main__:main",
-        "",
-        "sphri",
     ),
     Verb(
         "report",
         "the report of a finished sweep: figures, tables, the requirement sentence",
         "args",
-        "sphri.report.__main__:command",
-        "sphri.report.__main__:ReportArgs",
-        "sphri.report",
+        "sphri.report.command:command",
+        "sphri.report.command:ReportArgs",
     ),
     Verb(
         "coverage",
         "where people touch the robot: coverage maps, the scenario study",
         "main",
         "sphri.coverage:main",
-        "",
-        "sphri.coverage",
     ),
     Verb(
         "code",
@@ -120,9 +113,8 @@ VERBS: tuple[Verb, ...] = (
         "cache",
         "see (info) and trim (clear) the stage cache, never the MLflow store",
         "args",
-        "sphri.cache_cli:command",
-        "sphri.cache_cli:CacheArgs",
-        "sphri.cache",
+        "sphri.cache.command:command",
+        "sphri.cache.command:CacheArgs",
     ),
     Verb(
         "store",
@@ -130,7 +122,6 @@ VERBS: tuple[Verb, ...] = (
         "args",
         "sphri.tracking.store:command",
         "sphri.tracking.store:StoreArgs",
-        "sphri.tracking.store",
     ),
     Verb(
         "synthesize",
@@ -138,7 +129,6 @@ VERBS: tuple[Verb, ...] = (
         "args",
         "sphri.recordings.synthesize:command",
         "sphri.recordings.synthesize:SynthesizeAnyArgs",
-        "sphri.data.synthesize",
     ),
     Verb(
         "stats",
@@ -146,7 +136,6 @@ VERBS: tuple[Verb, ...] = (
         "args",
         "sphri.data.stats:command",
         "sphri.data.stats:StatsArgs",
-        "sphri.data.stats",
     ),
     Verb(
         "check-data",
@@ -168,7 +157,6 @@ VERBS: tuple[Verb, ...] = (
         "main",
         "sphri.export.train:main",
         "sphri.export.train:COMMANDS",
-        "sphri.export.train",
     ),
     Verb(
         "skin",
@@ -176,7 +164,6 @@ VERBS: tuple[Verb, ...] = (
         "main",
         "sphri.hardware.skin:main",
         "sphri.hardware.skin:COMMANDS",
-        "sphri.hardware.skin",
     ),
     Verb(
         "glove",
@@ -184,7 +171,6 @@ VERBS: tuple[Verb, ...] = (
         "main",
         "sphri.hardware.glove:main",
         "sphri.hardware.glove:COMMANDS",
-        "sphri.hardware.glove",
     ),
     Verb(
         "simulate",
@@ -192,7 +178,6 @@ VERBS: tuple[Verb, ...] = (
         "main",
         "sphri.hardware.simulate:main",
         "sphri.hardware.simulate:COMMANDS",
-        "sphri.hardware.simulate",
     ),
     Verb(
         "robot",
@@ -200,7 +185,6 @@ VERBS: tuple[Verb, ...] = (
         "main",
         "sphri.sessions.robot_check:main",
         "sphri.sessions.robot_check:COMMANDS",
-        "sphri.sessions.robot_check",
     ),
     Verb(
         "derive-reachy2",
@@ -208,7 +192,6 @@ VERBS: tuple[Verb, ...] = (
         "args",
         "sphri.robots.reachy2_derivative:command",
         "sphri.robots.reachy2_derivative:DeriveArgs",
-        "sphri.robots.reachy2_derivative",
     ),
     Verb("help", "this list; `sphri help VERB` (or `sphri VERB --help`) a verb's arguments", "help", ""),
 )

@@ -27,7 +27,7 @@ from sphri.contact.stage import ContactStage
 class ExactContact(Configured, ContactStage):
     """Exact contact of every capsule with the link of its trial's region.
 
-    ``compute(dataset, robot) -> Contacts``. Config: ``ExactContactSchema`` (``python -m sphri.cli show contact=exact``).
+    ``compute(dataset, robot) -> Contacts``. Config: ``ExactContactSchema`` (``sphri show contact=exact``).
     """
 
     VERSION = "1"

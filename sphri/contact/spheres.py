@@ -21,7 +21,7 @@ class SphereContact(Configured, ContactStage):
     """k-sphere approximation of every capsule against the link of its trial's region.
 
     ``compute(dataset, robot) -> Contacts`` (``inside`` is always False).
-    Config: ``python -m sphri.cli show contact=spheres``.
+    Config: ``sphri show contact=spheres``.
     """
 
     VERSION = "1"

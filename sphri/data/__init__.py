@@ -6,8 +6,8 @@ Components (``data=...``): :class:`~sphri.data.synthetic.SyntheticData`
 VR study, parquet + manifests). :func:`~sphri.data.writer.write_dataset`
 writes any dataset in the recorded layout; :mod:`sphri.data.stats` compares
 contact statistics with published references
-(:mod:`sphri.data.reference_stats`). CLIs: ``python -m sphri.data.synthesize``
-and ``python -m sphri.data.stats``.
+(:mod:`sphri.data.reference_stats`). CLIs: ``sphri synthesize``
+and ``sphri stats``.
 """
 
 from sphri._lazy import lazy_exports

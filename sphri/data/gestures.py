@@ -56,7 +56,7 @@ DURATION_CALIBRATION: dict[str, float] = {
 #: Median penetration of the effector below the surface per gesture (metres), before the participant,
 #: participant x gesture and trial factors and the deep tail (:func:`penetration_depth`). Nothing stops a
 #: virtual hand, so the depth sets the touch footprint. Calibrated (data version 3) so the simulated CoST
-#: sensor (:mod:`sphri.data.cost_sensor`, ``python -m sphri.data.stats``) reads each gesture's contact-area
+#: sensor (:mod:`sphri.data.cost_sensor`, ``sphri stats``) reads each gesture's contact-area
 #: fraction within its band of CoST's Table 4 row (Jung et al. 2017; fraction of the 8 x 8 sensor). Numbers:
 #: the full default study (18 participants, arm, seed 0), before and after:
 #:

@@ -14,6 +14,9 @@ The loaders (:mod:`sphri.data.format`, :mod:`sphri.data.vr_gesture`, :mod:`sphri
 take their column and field lists from here, and ``docs/RECORDING_FORMAT.md`` is generated from it::
 
     python -m sphri.data.recording_schema --markdown > docs/RECORDING_FORMAT.md
+
+(a maintainer's tool, not a verb of ``sphri``; ``tests/data/test_recording_schema.py`` fails when the
+page is stale).
 """
 
 from __future__ import annotations

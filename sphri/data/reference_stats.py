@@ -105,7 +105,7 @@ _VR_GESTURES: dict[str, tuple[tuple[float, ...], tuple[float, ...]]] = {
     "grab": ((320, 0.333, 76.95, 92.0, 111.0, 127.25, 206.35), (300, 0.381, 66.95, 90.0, 113.0, 137.25, 200.05)),
 }
 
-#: The VR manifests' trial-length spread (``python -m sphri.data.stats`` with the manifests, see
+#: The VR manifests' trial-length spread (``sphri stats`` with the manifests, see
 #: :mod:`sphri.data.lengths` for the definitions): region -> statistics, per gesture ``n``, ``sd_log``
 #: and quantiles q05..q95 (frames). Trials under 10 frames left out. Copied so stats runs without the files.
 VR_LENGTH_SPREAD: dict[str, dict] = {

@@ -58,14 +58,14 @@ class SyntheticDataSchema(Spread, DataSchema):
     Calibrated to the VR study's trial lengths (centre AND spread, within and
     between participants), CoST's contact durations and, on a simulated CoST
     sensor, CoST's contact areas (penetration depths,
-    ``sphri.data.gestures.DEPTH_M``); ``python -m sphri.data.stats`` prints
+    ``sphri.data.gestures.DEPTH_M``); ``sphri stats`` prints
     every comparison and flags what falls outside. The variability fields
     (``variability``, ``length_*``, ``duration_*``, ``depth_*``, ...) come
     from :class:`sphri.data.people.Spread`. Each field's docstring names its
-    source (``python -m sphri.cli show data=synthetic`` prints them):
+    source (``sphri show data=synthetic`` prints them):
     [VR] = the manifests of the VR gesture dataset (Crowder et al.,
     dakaraisc/VR-gesture-dataset 6a08504), arm, all 18 participants,
-    measured with ``python -m sphri.data.stats data.root=...``; [CoST] = Jung
+    measured with ``sphri stats data.root=...``; [CoST] = Jung
     et al. 2017, J. Multimodal User Interfaces 11, Table 4; [Q2] = Abdlkarim
     et al. 2024, Behav. Res. Methods 56:1052-1063 (Meta Quest 2 hand tracking
     against motion capture); [assumption] = no published value, chosen so the

@@ -1,6 +1,6 @@
 """Contact statistics of any gesture dataset, side by side with published references.
 
-``python -m sphri.data.stats [overrides]`` composes the config (e.g.
+``sphri stats [overrides]`` composes the config (e.g.
 ``data=vr_gesture data.root=DIR``, ``data.participants=4``), loads the
 dataset, runs the configured contact stage and prints, per region and
 gesture:
@@ -59,14 +59,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from sphri.args import arg, first_paragraph, run
+from sphri.args import arg
 from sphri.data.cost_sensor import CELL_THRESHOLD, describe_sensor, sensor_trials
 from sphri.data.lengths import (
     COMPARISON_COLUMNS,
@@ -93,7 +92,6 @@ from sphri.data.reference_stats import (
     VR_LENGTH_SPREAD,
     median_trial_frames,
 )
-from sphri.errors import clean_errors
 from sphri.types import GESTURES, Contacts, GestureDataset, Robot
 
 log = logging.getLogger(__name__)
@@ -445,15 +443,6 @@ class StatsArgs:
     )
 
 
-@clean_errors("sphri.data.stats")
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m sphri.data.stats``: the ``sphri stats`` verb."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    return run(
-        StatsArgs, argv, command, "sphri.data.stats", first_paragraph(command.__doc__), "python -m sphri.data.stats"
-    )
-
-
 def command(args: StatsArgs) -> int:
     """Compose the config, load the dataset, run the contact stage and print per region and gesture the trial
     lengths, contact durations and areas against the VR manifests and CoST, each row flagged ok or OUTSIDE."""
@@ -497,7 +486,3 @@ def command(args: StatsArgs) -> int:
         spread = {"reference": source, "rows": table.to_dict(orient="records")}
         path.with_name(f"{path.stem}_spread{path.suffix}").write_text(json.dumps(spread, indent=2) + "\n")
     return 0
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -1,7 +1,7 @@
 """``sphri synthesize out=DIR [overrides]``: write a synthetic dataset to disk.
 
-``python -m sphri.data.synthesize`` is the same command (:class:`SynthesizeArgs`);
-``sphri synthesize what=sessions`` writes the scenario sessions (:mod:`sphri.sessions.synthesize`).
+Its arguments are :class:`SynthesizeArgs`; ``sphri synthesize what=sessions`` writes the scenario
+sessions (:mod:`sphri.sessions.synthesize`).
 
 Composes the config with the overrides (``data.participants=4
 data.repetitions=4 data.regions=[arm,torso] robot=...``), generates the
@@ -16,14 +16,12 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import sys
 import time
 from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
-from sphri.args import arg, first_paragraph, run
-from sphri.errors import clean_errors
+from sphri.args import arg
 from sphri.types import GestureDataset
 
 
@@ -78,15 +76,3 @@ def write_dataset(make: Callable[..., Any], args: SynthesizeArgs, units: str) ->
         f"to {Path(args.out).resolve()} in {time.perf_counter() - t:.1f} s"
     )
     return 0
-
-
-@clean_errors("sphri.data.synthesize")
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m sphri.data.synthesize``: the ``sphri synthesize`` verb."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    summary = first_paragraph(command.__doc__)
-    return run(SynthesizeArgs, argv, command, "sphri.data.synthesize", summary, "python -m sphri.data.synthesize")
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

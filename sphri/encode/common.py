@@ -1,8 +1,7 @@
 """Shared by the encoders: wrapping values as the output type, contact row selection, checks.
 
 The output type, :class:`~sphri.types.SkinFrames` (Frames plus the taxel geometry), lives with the
-other data types; ``sphri.encode.SkinFrames`` and ``sphri.encode.common.SkinFrames`` name the same
-class for one release.
+other data types (:mod:`sphri.types`).
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@
 - :mod:`~sphri.export.model_file`: ``.sphrimodel`` files (signed JSON header + npz, no pickle);
 - :mod:`~sphri.export.pyfunc_model`: a model file served as an MLflow ``pyfunc`` model;
 - :mod:`~sphri.export.train`: fit the configured model on the pipeline's windows and save a model
-  file (``python -m sphri.export.train out=m.sphrimodel ...``; also ``python -m sphri.hardware.train_export``).
+  file (``sphri export out=m.sphrimodel ...``).
 """
 
 from sphri._lazy import lazy_exports

@@ -175,7 +175,7 @@ def save_model(bundle: ModelBundle, path: str | os.PathLike, key: Any = FROM_ENV
     return path
 
 
-_EXPORT = "export it again with python -m sphri.export.train"
+_EXPORT = "export it again with sphri export"
 
 
 def _split(path: Path) -> tuple[dict[str, Any], bytes, bytes, bytes, bytes]:
@@ -193,7 +193,7 @@ def _split(path: Path) -> tuple[dict[str, Any], bytes, bytes, bytes, bytes]:
             f"{path}: a sphri-model/2 file, whose checksum does not cover its header (labels, window length); {_EXPORT}"
         )
     if not blob.startswith(MAGIC) or len(blob) < len(MAGIC) + 4:
-        raise ModelFileError(f"{path}: not a sphri model file (make one with python -m sphri.export.train)")
+        raise ModelFileError(f"{path}: not a sphri model file (make one with sphri export)")
     (n,) = struct.unpack_from("<I", blob, len(MAGIC))
     h0 = len(MAGIC) + 4
     if len(blob) < h0 + n + 2 * _DIGEST:

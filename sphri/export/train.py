@@ -2,9 +2,8 @@
 
 ::
 
-    python -m sphri.export.train out=outputs/models/rf.sphrimodel +robot=reachy layout.res=18
-    python -m sphri.export.train out=m.sphrimodel holdout=participant_03 +debug=fast mlflow=true
-    python -m sphri.hardware.train_export ...   # the same command under its earlier name
+    sphri export out=outputs/models/rf.sphrimodel +robot=reachy layout.res=18
+    sphri export out=m.sphrimodel holdout=participant_03 +debug=fast mlflow=true
 
 The windows are exactly those the cross-validation sees (data, contact,
 layout, encoder, noise and window stages, all cached), but the model is fit
@@ -232,9 +231,9 @@ def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
 COMMANDS = {"": (TrainExportSettings, True)}
 
 
-@settings_main("sphri.export.train", COMMANDS)
+@settings_main("sphri export", COMMANDS)
 def main(_cmd: str, settings: TrainExportSettings, overrides: list[str]) -> int:
-    """``sphri export out=FILE ... [overrides ...]`` (``python -m sphri.export.train`` by default)."""
+    """``sphri export out=FILE ... [overrides ...]``."""
     from sphri.config import check_output_file, compose
     from sphri.pipeline import make_pipeline, open_cache
 
@@ -252,7 +251,3 @@ def main(_cmd: str, settings: TrainExportSettings, overrides: list[str]) -> int:
     if settings.mlflow:
         print(f"logged to MLflow: model={log_to_mlflow(p, bundle)}")
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -2,11 +2,11 @@
 
 Entry points (``key=value`` arguments, pipeline overrides passed through):
 
-- ``python -m sphri.hardware.glove replay``: play a trial's contacts to the glove;
-- ``python -m sphri.hardware.skin record|live``: save a skin's frames, or
+- ``sphri glove replay``: play a trial's contacts to the glove;
+- ``sphri skin record|live``: save a skin's frames, or
   classify touch live with a model file (:mod:`sphri.export`, which also
-  trains and saves one: ``python -m sphri.export.train``);
-- ``python -m sphri.hardware.simulate skin|glove``: emulate a device on a
+  trains and saves one: ``sphri export``);
+- ``sphri simulate skin|glove``: emulate a device on a
   pseudo-terminal or socket (:mod:`~sphri.hardware.sim_skin`,
   :mod:`~sphri.hardware.sim_glove`).
 

@@ -2,8 +2,8 @@
 
 ::
 
-    python -m sphri.hardware.glove replay port=loop:// trial=0 participant=participant_01 +debug=fast
-    python -m sphri.hardware.glove replay port=/dev/rfcomm0 trial=3 robot=nao_child realtime=true
+    sphri glove replay port=loop:// trial=0 participant=participant_01 +debug=fast
+    sphri glove replay port=/dev/rfcomm0 trial=3 robot=nao_child realtime=true
 
 ``replay`` composes the pipeline config from the remaining overrides, takes
 the trial's contacts (``contact`` stage, cached), maps them to the glove's
@@ -351,20 +351,16 @@ def replay(settings: GloveReplaySettings, overrides: Sequence[str], out: Callabl
 COMMANDS = {"replay": (GloveReplaySettings, True)}
 
 
-@settings_main("sphri.hardware.glove", COMMANDS)
+@settings_main("sphri glove", COMMANDS)
 def main(_cmd: str, settings: GloveReplaySettings, overrides: list[str]) -> int:
-    """``sphri glove replay key=value ... [overrides ...]`` (``python -m sphri.hardware.glove`` by default);
-    the keys of :class:`GloveReplaySettings`, any other ``key=value`` a config override (+debug=fast)."""
+    """``sphri glove replay key=value ... [overrides ...]``: the keys of :class:`GloveReplaySettings`, any
+    other ``key=value`` a config override (+debug=fast)."""
     try:
         report = replay(settings, overrides)
     except PortError as exc:
-        print(f"sphri.hardware.glove: {exc}", file=sys.stderr)
+        print(f"sphri glove: {exc}", file=sys.stderr)
         return 1
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
     return 1 if report.missing_acks or report.echo_mismatch else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

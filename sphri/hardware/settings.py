@@ -1,6 +1,6 @@
 """Settings of the hardware commands (their ``key=value`` parser is :mod:`sphri.args`).
 
-The hardware commands (``python -m sphri.hardware.glove|skin``) are
+The hardware commands (``sphri glove|skin``) are
 entry points beside the pipeline, not stages. Each has a settings dataclass
 below (a :class:`sphri.config.Schema` like the pipeline's: typed fields with
 defaults, units in the names, ranges as field metadata (:func:`sphri.config.setting`)
@@ -47,7 +47,7 @@ def parse_grid(text: str) -> tuple[int, int] | None:
 
 @dataclass
 class GloveReplaySettings(Schema):
-    """``python -m sphri.hardware.glove replay``: play one trial's contacts to a glove."""
+    """``sphri glove replay``: play one trial's contacts to a glove."""
 
     port: str = "loop://"
     """Device or pyserial URL; ``loop://`` is a dry run that prints the command stream."""
@@ -118,7 +118,7 @@ class SkinStreamSettings(Schema):
 
 @dataclass
 class SkinRecordSettings(SkinStreamSettings):
-    """``python -m sphri.hardware.skin record``: save a skin's frames to a file."""
+    """``sphri skin record``: save a skin's frames to a file."""
 
     out: str = "???"
     """Output recording (.npz), written atomically; also on Ctrl+C, SIGTERM or a lost port. Checked before
@@ -155,10 +155,10 @@ class SkinRecordSettings(SkinStreamSettings):
 
 @dataclass
 class SkinLiveSettings(SkinStreamSettings):
-    """``python -m sphri.hardware.skin live``: classify touch on a streaming skin."""
+    """``sphri skin live``: classify touch on a streaming skin."""
 
     model: str = "???"
-    """Model file (from train_export), or with allow_remote=true an MLflow artifact URI runs:/<run_id>/<path>."""
+    """Model file (from sphri export), or with allow_remote=true an MLflow artifact URI runs:/<run_id>/<path>."""
     tracking_uri: str | None = None
     """MLflow tracking URI for runs:/ models (None = sqlite:///outputs/mlflow.db, the pipeline's default)."""
     allow_remote: bool = False

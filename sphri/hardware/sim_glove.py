@@ -2,7 +2,7 @@
 
 ::
 
-    python -m sphri.hardware.simulate glove ack_drop_rate=0.1
+    sphri simulate glove ack_drop_rate=0.1
 
 It can drop or delay ACKs, and keeps a ledger of what it received and answered (``report=file.json``),
 so tests check the real driver (:mod:`sphri.hardware.glove`) against it. Endpoints:
@@ -28,7 +28,7 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class GloveSimSettings(DeviceSettings):
-    """``python -m sphri.hardware.simulate glove``: the glove's settings (and the endpoint's)."""
+    """``sphri simulate glove``: the glove's settings (and the endpoint's)."""
 
     ack_drop_rate: float = setting(0.0, lo=0.0, hi=1.0)
     """Probability of not acknowledging a command."""

@@ -2,8 +2,8 @@
 
 ::
 
-    python -m sphri.hardware.simulate skin +debug=fast trials=8 corrupt_rate=0.05
-    python -m sphri.hardware.simulate skin source=pattern grid=18x6 port=socket://127.0.0.1:7777
+    sphri simulate skin +debug=fast trials=8 corrupt_rate=0.05
+    sphri simulate skin source=pattern grid=18x6 port=socket://127.0.0.1:7777
 
 The frames are encoded synthetic trials of the composed pipeline config
 (``source=pipeline``: the encoder's output with its noise, untouched gaps
@@ -36,7 +36,7 @@ log = logging.getLogger(__name__)
 
 @dataclass
 class SkinSimSettings(DeviceSettings):
-    """``python -m sphri.hardware.simulate skin``: the skin's settings (and the endpoint's)."""
+    """``sphri simulate skin``: the skin's settings (and the endpoint's)."""
 
     source: str = setting("pipeline", choices=("pipeline", "pattern"))
     """pipeline (encoded synthetic trials of the composed config) or pattern (moving blobs)."""

@@ -1,10 +1,10 @@
-"""``python -m sphri.hardware.simulate skin|glove``: emulate a device on a pseudo-terminal or socket.
+"""``sphri simulate skin|glove``: emulate a device on a pseudo-terminal or socket.
 
 ::
 
-    python -m sphri.hardware.simulate skin +debug=fast trials=8 corrupt_rate=0.05
-    python -m sphri.hardware.simulate skin source=pattern grid=18x6 port=socket://127.0.0.1:7777
-    python -m sphri.hardware.simulate glove ack_drop_rate=0.1
+    sphri simulate skin +debug=fast trials=8 corrupt_rate=0.05
+    sphri simulate skin source=pattern grid=18x6 port=socket://127.0.0.1:7777
+    sphri simulate glove ack_drop_rate=0.1
 
 The command line only: the skin simulator is :mod:`sphri.hardware.sim_skin`, the glove simulator
 :mod:`sphri.hardware.sim_glove`, their endpoints :mod:`sphri.hardware.transport`. ``port=pty``
@@ -15,7 +15,6 @@ replug, like a udev name). ``port=socket://HOST:PORT`` listens there (port 0 = a
 from __future__ import annotations
 
 import json
-import sys
 import threading
 from pathlib import Path
 
@@ -53,9 +52,9 @@ __all__ = [
 COMMANDS = {"skin": (SkinSimSettings, True), "glove": (GloveSimSettings, False)}
 
 
-@settings_main("sphri.hardware.simulate", COMMANDS)
+@settings_main("sphri simulate", COMMANDS)
 def main(device: str, settings: SkinSimSettings | GloveSimSettings, overrides: list[str]) -> int:
-    """``sphri simulate skin|glove key=value ...`` (``python -m sphri.hardware.simulate`` by default)."""
+    """``sphri simulate skin|glove key=value ...``."""
     sim: SkinSimulator | GloveSimulator
     if isinstance(settings, SkinSimSettings):  # read_settings builds COMMANDS[device]'s class: skin's only here
         sim = skin_simulator(settings, overrides)
@@ -84,7 +83,3 @@ def main(device: str, settings: SkinSimSettings | GloveSimSettings, overrides: l
         flush=True,
     )
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

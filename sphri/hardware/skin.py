@@ -2,9 +2,9 @@
 
 ::
 
-    python -m sphri.hardware.skin record port=/dev/ttyACM0 out=rec.npz grid=18x6 duration_s=60
-    python -m sphri.hardware.skin live port=/dev/ttyACM0 model=outputs/models/rf.sphrimodel
-    python -m sphri.hardware.skin live port=socket://127.0.0.1:7777 model=runs:/<run_id>/model/rf.sphrimodel allow_remote=true
+    sphri skin record port=/dev/ttyACM0 out=rec.npz grid=18x6 duration_s=60
+    sphri skin live port=/dev/ttyACM0 model=outputs/models/rf.sphrimodel
+    sphri skin live port=socket://127.0.0.1:7777 model=runs:/<run_id>/model/rf.sphrimodel allow_remote=true
 
 :class:`SkinReader` turns a port into a stream of :class:`ReceivedFrame`
 (decoded by :class:`~sphri.hardware.skin_protocol.SkinDecoder`: garbage,
@@ -20,7 +20,6 @@ import json
 import logging
 import os
 import signal
-import sys
 import threading
 import time
 from collections import Counter
@@ -721,14 +720,10 @@ def live(
 COMMANDS = {"record": (SkinRecordSettings, False), "live": (SkinLiveSettings, False)}
 
 
-@settings_main("sphri.hardware.skin", COMMANDS)
+@settings_main("sphri skin", COMMANDS)
 def main(cmd: str, settings: SkinRecordSettings | SkinLiveSettings, _overrides: list[str]) -> int:
-    """``sphri skin record|live key=value ...`` (``python -m sphri.hardware.skin`` is ``prog`` by default)."""
+    """``sphri skin record|live key=value ...``."""
     # read_settings builds COMMANDS[cmd]'s class: SkinRecordSettings for record only
     summary = record(settings) if isinstance(settings, SkinRecordSettings) else live(settings)
     # port, model-file and recording errors: one line from @clean_errors
     return 1 if summary.get("error") else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

@@ -185,7 +185,7 @@ class Link:
 # =========================================================================== device side (simulators)
 @dataclass
 class DeviceSettings(Schema):
-    """What every simulated device takes (``python -m sphri.hardware.simulate skin|glove``)."""
+    """What every simulated device takes (``sphri simulate skin|glove``)."""
 
     port: str = "pty"
     """pty (a pseudo-terminal; its path is printed and linked at ``link``) or socket://HOST:PORT to listen on."""

@@ -9,7 +9,7 @@ candidates in proportion to a contact-density map and shrinks the Poisson
 radius where contact is frequent, so taxels crowd there. Seeded.
 
 The density map is either a file (``layout.density_path``, e.g. exported by
-``python -m sphri.coverage``) or, with ``density_path`` empty, the run's own
+``sphri coverage``) or, with ``density_path`` empty, the run's own
 contacts: the same density the coverage analysis exports (frames touching
 each surface element, smoothed along the surface by ``bandwidth_mm``;
 :func:`density_from_contacts`). The latter is built from every
@@ -163,7 +163,7 @@ def nearest_density(points_m: np.ndarray, density: np.ndarray, link: Link, sourc
 
 
 def density_from_contacts(contacts: Contacts, link: Link, bandwidth_mm: float, seed: int = 0) -> DensityAt:
-    """The coverage analysis's contact density of ``contacts`` on ``link`` (``python -m sphri.coverage``'s map).
+    """The coverage analysis's contact density of ``contacts`` on ``link`` (``sphri coverage``'s map).
 
     Surface samples about 4 mm apart; each frame counts once per element its
     contact patches touch; geodesic Gaussian smoothing of ``bandwidth_mm``
@@ -257,7 +257,7 @@ class DensityLayout(Configured):
         if self.uses_contacts:
             if contacts is None:
                 raise ValueError(
-                    "layout=density needs layout.density_path (an .npz from python -m sphri.coverage) "
+                    "layout=density needs layout.density_path (an .npz from sphri coverage) "
                     "or the run's contacts (the pipeline passes them when density_path is empty)"
                 )
             density_at = density_from_contacts(contacts, link, self.bandwidth_mm, self.seed)

@@ -411,7 +411,7 @@ class _TrainRun:
 class CnnGru(ClassifierMixin, BaseEstimator):
     """CNN-GRU gesture classifier on windows (n_trials, L, N_taxels).
 
-    Hyperparameters: ``CnnGruSchema`` (``python -m sphri.cli show model=cnn_gru``). ``geometry`` gives the
+    Hyperparameters: ``CnnGruSchema`` (``sphri show model=cnn_gru``). ``geometry`` gives the
     grid shape and wrap (None: a per-frame MLP over the N taxels).
     ``fit(x, y, groups=None)``: ``groups`` (participants of the training
     trials) make the early-stopping split group-wise. After ``fit``:

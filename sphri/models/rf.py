@@ -27,7 +27,7 @@ class RandomForest(ClassifierMixin, BaseEstimator):
     ``fit(x, y)`` / ``predict(x)`` / ``predict_proba(x)`` take windows x of
     shape (n_trials, L, N_taxels) (``WindowedFrames.x``) and labels y (n,)
     int64. The features need the skin's ``geometry`` (taxel positions).
-    Hyperparameters: ``RandomForestSchema`` (``python -m sphri.cli show model=rf``). ``seed`` seeds the forest.
+    Hyperparameters: ``RandomForestSchema`` (``sphri show model=rf``). ``seed`` seeds the forest.
 
     The features are a fixed function of each trial alone (nothing in them
     is fitted), so ``TRANSFORM_PER_TRIAL`` is set: cross-validation computes

@@ -1,6 +1,6 @@
 """The sweep report: from a resolution sweep to "this skin needs a taxel every N mm".
 
-``python -m sphri.report SWEEP_DIR`` (or a parent run id) reads the sweep's
+``sphri report SWEEP_DIR`` (or a parent run id) reads the sweep's
 MLflow runs and writes ``SWEEP_DIR/report/``: a self-contained
 ``report.html`` (figures embedded), the PNG figures, ``summary.txt``,
 ``saturation.csv``/``saturation.json``/``points.csv``; it logs them to the

@@ -1,7 +1,7 @@
 """Write a sweep's report: HTML, PNG figures, text and tables in ``<sweep_dir>/report/``,
 logged to the sweep's MLflow parent run.
 
-:func:`make_report` is what ``python -m sphri.report`` runs: load the sweep
+:func:`make_report` is what ``sphri report`` runs: load the sweep
 (:mod:`sphri.report.sweep`), analyse it (:mod:`sphri.report.analysis`),
 draw (:mod:`sphri.report.figures`), render (:mod:`sphri.report.render`),
 then log the folder to the parent run under ``report/``, set the parent's

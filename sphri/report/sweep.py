@@ -216,7 +216,7 @@ def _add_status_file_runs(
                     f"{sweep_dir} holds the jobs of more than one sweep: {status} names run {rid}"
                     f"{f' of the sweep with parent run {theirs}' if theirs else ''}, not a job of this folder's "
                     f"sweep (parent run {parent_id}); the report reads one sweep only: give the parent run id "
-                    f"of the sweep to report (`python -m sphri.report {parent_id}`"
+                    f"of the sweep to report (`sphri report {parent_id}`"
                     f"{f' or {theirs}' if theirs else ''})"
                 )
             notes.append(f"{status}: run {rid} belongs to another sweep (parent run {theirs or 'none'}), left out")

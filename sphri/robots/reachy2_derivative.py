@@ -1,7 +1,6 @@
 """Regenerate sphri's packaged Reachy 2 (``sphri/robots/data/reachy2/``) from Pollen Robotics' description.
 
     sphri derive-reachy2 src=../shared/robots/reachy2 [faces=4000] [out=DIR]
-    python -m sphri.robots.reachy2_derivative --src ../shared/robots/reachy2   # the same
 
 Reads ``reachy2.urdf`` and ``obj_meshes/`` of the source folder (Apache-2.0,
 pollen-robotics/reachy2_mujoco; see its SOURCE.md) and writes:
@@ -12,7 +11,7 @@ pollen-robotics/reachy2_mujoco; see its SOURCE.md) and writes:
   collision primitives, else visual primitives); no comments, inertials,
   limits, materials, ``<gazebo>``, ``<transmission>``, ``<ros2_control>``;
 - ``meshes/*.ply``: those meshes as binary PLY, each decimated to at most
-  ``--faces`` faces (meshes already within the budget are converted only);
+  ``faces`` faces (meshes already within the budget are converted only);
 - ``derivative.json`` and ``SOURCE.md``: per mesh the faces before/after and
   the surface error of the decimated mesh (max and mean distance in mm, both
   ways, between 20,000 area-weighted samples and the other surface);
@@ -30,7 +29,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import shutil
-import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import cast
@@ -204,7 +202,7 @@ decimated by vertex clustering to at most {manifest["face_budget"]} faces each.
 
 Regenerate (needs the full description, e.g. ../shared/robots/reachy2):
 
-    python -m sphri.robots.reachy2_derivative --src ../shared/robots/reachy2 --faces {manifest["face_budget"]}
+    sphri derive-reachy2 src=../shared/robots/reachy2 faces={manifest["face_budget"]}
 
 Surface error of each shipped mesh against its source, from
 {manifest["error_samples"]} area-weighted samples on each surface to the other
@@ -236,16 +234,3 @@ def command(args: DeriveArgs) -> int:
             f"{k}: {v['faces_source']} -> {v['faces']} faces, error max {v['max_mm']:.2f} mm, mean {v['mean_mm']:.3f} mm"
         )
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m sphri.robots.reachy2_derivative``: the ``sphri derive-reachy2`` verb."""
-    from sphri.args import first_paragraph, run
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    prog = "python -m sphri.robots.reachy2_derivative"
-    return run(DeriveArgs, argv, command, "sphri.robots.reachy2_derivative", first_paragraph(command.__doc__), prog)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -19,7 +19,6 @@ have, is one line, exit 2.
 
 from __future__ import annotations
 
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -150,9 +149,9 @@ def _png_only():
 COMMANDS = {"check": (RobotCheckSettings, False)}
 
 
-@settings_main("sphri.sessions.robot_check", COMMANDS)
+@settings_main("sphri robot", COMMANDS)
 def main(_cmd: str, settings: RobotCheckSettings, _overrides: list[str]) -> int:
-    """``sphri robot check URDF [parts=FILE] ...`` (``python -m sphri.sessions.robot_check`` by default)."""
+    """``sphri robot check URDF [parts=FILE] ...``."""
     from sphri.robots.validate import MeshError
 
     try:
@@ -161,7 +160,3 @@ def main(_cmd: str, settings: RobotCheckSettings, _overrides: list[str]) -> int:
         raise ConfigError(str(exc)) from None
     print(text)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

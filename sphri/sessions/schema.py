@@ -2,7 +2,7 @@
 
 ``data=synthetic_sessions`` (:class:`sphri.sessions.synthetic.SyntheticSessions`)
 and ``data=sessions`` (:class:`sphri.sessions.format.SessionData`) feed the
-scenario study (``python -m sphri.coverage +experiment=scenario_study``), not
+scenario study (``sphri coverage +experiment=scenario_study``), not
 the classification chain. :class:`ScenarioStudySchema` holds the study's own
 settings (``experiment.scenario_study.*`` in ``conf/experiment/scenario_study.yaml``).
 """

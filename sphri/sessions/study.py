@@ -1,4 +1,4 @@
-"""The whole-body scenario study: ``python -m sphri.coverage +experiment=scenario_study``.
+"""The whole-body scenario study: ``sphri coverage +experiment=scenario_study``.
 
 Data flow (each step a module of :mod:`sphri.sessions`)::
 

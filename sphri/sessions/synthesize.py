@@ -1,24 +1,19 @@
 """``sphri synthesize what=sessions out=DIR [overrides]``: write the synthetic scenario sessions to disk.
 
-``python -m sphri.sessions.synthesize out=DIR [overrides]`` is the same command.
-
 Composes ``data=synthetic_sessions robot=reachy_full`` plus the overrides
 (``data.participants=4 data.repetitions=1 +debug=fast ...``), generates the
 sessions exactly as the scenario study does, and writes them in the session
 format (:mod:`sphri.sessions.format`). The folder then loads with
 ``data=sessions data.root=DIR`` (labelled synthetic), e.g.
-``python -m sphri.coverage +experiment=scenario_study data=sessions data.root=DIR``.
+``sphri coverage +experiment=scenario_study data=sessions data.root=DIR``.
 """
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-from sphri.args import first_paragraph, run
 from sphri.data.synthesize import SynthesizeArgs, write_dataset
-from sphri.errors import clean_errors
 from sphri.sessions.format import SessionDataset
 
 
@@ -45,16 +40,3 @@ def write_sessions(args: SynthesizeArgs) -> int:
     """Generate the scenario sessions (data=synthetic_sessions robot=reachy_full plus the overrides) exactly as
     the scenario study does and write them under out=DIR (they load with data=sessions data.root=DIR)."""
     return write_dataset(synthesize, args, "sessions")
-
-
-@clean_errors("sphri.sessions.synthesize")
-def main(argv: Sequence[str] | None = None) -> int:
-    """``python -m sphri.sessions.synthesize``: ``sphri synthesize what=sessions``."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    summary = first_paragraph(write_sessions.__doc__)
-    usage = "python -m sphri.sessions.synthesize"
-    return run(SynthesizeArgs, argv, write_sessions, "sphri.sessions.synthesize", summary, usage)
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

@@ -390,7 +390,7 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
     msg += (
         f"; report: {reports / 'report.html'}"
         if (reports / "report.html").is_file()
-        else f"; its report: python -m sphri.report {sweep_dir}"
+        else f"; its report: sphri report {sweep_dir}"
     )
     print(msg)
     return status, failed

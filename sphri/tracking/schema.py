@@ -69,6 +69,3 @@ class MlflowTrackingSchema(TrackingSchema):
 
 
 store(group="tracking", name="mlflow_schema", node=MlflowTrackingSchema)
-
-#: Another name of :class:`MlflowTrackingSchema`, deprecated: removed in the next release.
-MlflowTrackingConfig = MlflowTrackingSchema

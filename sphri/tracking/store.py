@@ -32,7 +32,7 @@ the OS offers it). A file that is not an MLflow store (not SQLite, or
 without MLflow's ``alembic_version``, ``experiments`` and ``runs`` tables) is
 :class:`NotAStore`: never offered for repair, never touched.
 
-``sphri store repair PATH/mlflow.db`` (or ``python -m sphri.tracking.store repair ...``) repairs one,
+``sphri store repair PATH/mlflow.db`` repairs one,
 refusing a store another process has open or locked, and anything that is not
 an MLflow store: a store without runs is moved aside (``mlflow.db.broken-<time>``) and created anew;
 otherwise a backup is taken (``mlflow.db.bak-<time>``), each leftover
@@ -517,16 +517,3 @@ def command(args: StoreArgs) -> int:
         print(f"sphri: {exc}", file=sys.stderr)
         return 1
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m sphri.tracking.store``: the ``sphri store`` verb."""
-    from sphri.args import first_paragraph, run
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    summary = first_paragraph(command.__doc__)
-    return run(StoreArgs, argv, command, "sphri.tracking.store", summary, "python -m sphri.tracking.store")
-
-
-if __name__ == "__main__":
-    raise SystemExit(main())

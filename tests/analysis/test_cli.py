@@ -1,4 +1,4 @@
-"""``python -m sphri.coverage``: argument split, settings checks, a run logged to MLflow."""
+"""``sphri coverage``: argument split, settings checks, a run logged to MLflow."""
 
 from __future__ import annotations
 
@@ -49,7 +49,7 @@ def test_settings_defaults_and_overrides():
 
 def test_main_reports_config_errors(capsys):
     assert cli.main(["kernel=manhattan"]) == 2
-    assert capsys.readouterr().err.startswith("sphri.coverage: kernel='manhattan' is invalid")
+    assert capsys.readouterr().err.startswith("sphri coverage: kernel='manhattan' is invalid")
     assert cli.main(["--help"]) == 0
     out = capsys.readouterr().out
     assert "bandwidth_mm=NUMBER" in out and "mlflow=true|false" in out and "overrides" in out

@@ -39,8 +39,8 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from sphri.cache import MAGIC, StageCache, seal
-from sphri.hardware.model_file import MAGIC as MODEL_MAGIC
-from sphri.hardware.model_file import ModelBundle, load_model, save_model, seal_model
+from sphri.export.model_file import MAGIC as MODEL_MAGIC
+from sphri.export.model_file import ModelBundle, load_model, save_model, seal_model
 from sphri.types import GESTURES, CVResult, FoldResult, RunMeta
 
 CONTRACT = (CVResult, RunMeta)
@@ -220,7 +220,7 @@ def test_a_signed_header_whose_grid_does_not_hold_the_taxels_is_named(model_file
     """Found by this campaign: a header (signed with the key) with ``grid_shape=[0, 2]`` or ``[2]`` loaded,
     then the first prediction raised ValueError/IndexError from the feature code (a traceback in
     ``skin live``). ``load_model`` now checks the geometry: one ``model file error`` line."""
-    from sphri.hardware.model_file import ModelFileError
+    from sphri.export.model_file import ModelFileError
 
     blob, _, x, _, _ = model_files
     head, payload = _split(blob)
@@ -238,7 +238,7 @@ def test_a_signed_header_with_malformed_parameters_is_named_at_load(model_files,
     """Found by this campaign: a header signed with the key whose ``estimator.params.active_threshold`` is
     ``""`` or ``null`` loaded, then every prediction raised (numpy's UFuncNoLoopError, TypeError); ``meta``
     as a list raised ValueError from ``load_model``. Now one ``model file error`` line when loading."""
-    from sphri.hardware.model_file import ModelFileError
+    from sphri.export.model_file import ModelFileError
 
     blob, _, x, _, _ = model_files
     head, payload = _split(blob)

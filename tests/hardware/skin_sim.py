@@ -68,10 +68,10 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def record_in_child(sim, out, cwd, *settings: str, stdout=subprocess.DEVNULL) -> subprocess.Popen:
-    """``python -m sphri.hardware.skin record`` from ``sim`` into ``out`` (grid 18x6 and ``settings``,
+    """``python -m sphri skin record`` from ``sim`` into ``out`` (grid 18x6 and ``settings``,
     key=value) in a child process, its stderr piped."""
     env = {**os.environ, "PYTHONPATH": f"{REPO}{os.pathsep}{os.environ.get('PYTHONPATH', '')}"}
-    cmd = [sys.executable, "-m", "sphri.hardware.skin", "record", f"port={sim.endpoint.url}", f"out={out}", "grid=18x6"]
+    cmd = [sys.executable, "-m", "sphri", "skin", "record", f"port={sim.endpoint.url}", f"out={out}", "grid=18x6"]
     return subprocess.Popen([*cmd, *settings], cwd=cwd, env=env, stdout=stdout, stderr=subprocess.PIPE)
 
 

@@ -14,9 +14,9 @@ from sphri.hardware.recording import load_recording
 
 
 def start_simulator(args: list[str], timeout_s: float = 60.0) -> tuple[subprocess.Popen, str]:
-    """Start ``python -m sphri.hardware.simulate ...``; return it and the URL it announces."""
+    """Start ``python -m sphri simulate ...``; return it and the URL it announces."""
     proc = subprocess.Popen(
-        [sys.executable, "-m", "sphri.hardware.simulate", *args],
+        [sys.executable, "-m", "sphri", "simulate", *args],
         stdout=subprocess.PIPE,
         stderr=subprocess.DEVNULL,
         text=True,
@@ -58,7 +58,8 @@ def test_simulate_then_record_from_the_command_line(tmp_path, port):
             [
                 sys.executable,
                 "-m",
-                "sphri.hardware.skin",
+                "sphri",
+                "skin",
                 "record",
                 f"port={url}",
                 f"out={out}",
@@ -82,7 +83,7 @@ def test_simulate_then_record_from_the_command_line(tmp_path, port):
 
 def test_record_names_a_missing_port_and_exits_1(tmp_path):
     proc = subprocess.run(
-        [sys.executable, "-m", "sphri.hardware.skin", "record", "port=/dev/ttyNOPE9", f"out={tmp_path / 'r.npz'}"],
+        [sys.executable, "-m", "sphri", "skin", "record", "port=/dev/ttyNOPE9", f"out={tmp_path / 'r.npz'}"],
         capture_output=True,
         text=True,
         timeout=60,
@@ -93,14 +94,14 @@ def test_record_names_a_missing_port_and_exits_1(tmp_path):
 
 def test_bad_settings_exit_2_naming_the_key():
     proc = subprocess.run(
-        [sys.executable, "-m", "sphri.hardware.skin", "live", "port=loop://", "model=m", "stride=-1"],
+        [sys.executable, "-m", "sphri", "skin", "live", "port=loop://", "model=m", "stride=-1"],
         capture_output=True,
         text=True,
         timeout=60,
     )
     assert proc.returncode == 2 and "stride" in proc.stderr
     proc = subprocess.run(
-        [sys.executable, "-m", "sphri.hardware.simulate", "skin", "corrupt_rate=2"],
+        [sys.executable, "-m", "sphri", "simulate", "skin", "corrupt_rate=2"],
         capture_output=True,
         text=True,
         timeout=60,

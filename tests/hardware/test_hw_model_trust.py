@@ -140,7 +140,9 @@ def test_a_previous_format_file_is_refused_with_the_command_to_export_it_again(r
     path, _, _ = rf_file
     blob = path.read_bytes()
     path.write_bytes(b"SPHRIMODEL2\n" + blob[len(MAGIC) :])
-    with pytest.raises(ModelFileError, match=r"rf\.sphrimodel: a sphri-model/2 file.*sphri\.export\.train"):
+    with pytest.raises(
+        ModelFileError, match=r"rf\.sphrimodel: a sphri-model/2 file.*export it again with sphri export"
+    ):
         load_model(path)
 
 

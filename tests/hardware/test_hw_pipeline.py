@@ -1,4 +1,4 @@
-"""The hardware commands on the real pipeline (small synthetic config): replay, train_export, live."""
+"""The hardware commands on the real pipeline (small synthetic config): replay, export, live."""
 
 from __future__ import annotations
 
@@ -58,8 +58,8 @@ def test_replay_cli_refuses_bad_settings(out_dir, capsys):
 def test_train_export_then_live_on_streamed_trials(out_dir):
     from skin_sim import live_on_simulator
 
+    from sphri.export import train as train_export
     from sphri.export.model_file import load_model
-    from sphri.hardware import train_export
     from sphri.hardware.sim_skin import SkinSimSettings, pipeline_stream
 
     overrides = [*SMALL, f"output_dir={out_dir}", "model.n_jobs=1"]

@@ -63,7 +63,7 @@ def test_a_plugin_model_exports_loads_and_runs_live(lab, tmp_path, monkeypatch, 
     job = python_m("sphri", *overrides, "tracking.enabled=false")  # a job cross-validates it like any model
     assert job.returncode == 0, (job.stdout + job.stderr)[-3000:]
     assert "model       lab_prototype, LOSO over 2 folds" in job.stdout and "accuracy    " in job.stdout
-    export = python_m("sphri.export.train", f"out={model_path}", *overrides)
+    export = python_m("sphri", "export", f"out={model_path}", *overrides)
     assert export.returncode == 0, (export.stdout + export.stderr)[-3000:]
     assert "saved NearestPrototype (16 windows" in export.stdout
 

@@ -12,10 +12,16 @@ import pytest
 from fake_sweep import grid_resolution, make_sweep
 from markupsafe import escape  # the page's autoescape (' as &#39;)
 
+from sphri.command import main as sphri_main
 from sphri.report import RuleSettings, load_sweep, make_report
-from sphri.report.__main__ import main
 from sphri.report.saturation import certified_saturation, points_text
 from sphri.report.sweep import ReportError, group_keys
+
+
+def main(argv: list[str]) -> int:
+    """``sphri report ARGV``."""
+    return sphri_main(["report", *argv])
+
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 RULE = RuleSettings(n_boot=400, seed=0)
@@ -307,7 +313,7 @@ def test_one_resolution_per_group_is_a_comparison_without_saturation(store, tmp_
 
 @pytest.mark.slow
 def test_real_sweep_end_to_end(sweep_then_report):
-    """A real (tiny) multirun of the pipeline, then ``python -m sphri.report`` on its directory."""
+    """A real (tiny) multirun of the pipeline, then ``python -m sphri report`` on its directory."""
     sweep, rep = sweep_then_report(["+debug=fast", "layout.res=1,3,6"], 3, ["--n-boot", "200"], timeout=900)
     assert "A taxel pitch of at most" in rep.stdout and "SYNTHETIC" in rep.stdout
     parser = _Page()
@@ -436,14 +442,14 @@ def test_html_escapes_group_names_taken_from_the_sweep(store, tmp_path):
 def test_cli_out_on_a_file_is_one_line_before_reading_the_sweep(tmp_path, capsys, monkeypatch, out):
     """``sphri report DIR out=PATH`` where PATH (or a folder above it) is a file: one line naming ``out``,
     exit 2, before the sweep is read (it was ``file error: [Errno 17] File exists`` after the report's work)."""
-    import sphri.report.__main__ as report_main
+    import sphri.report.command as report_command
 
     def refuse(*_a, **_k):
         raise AssertionError("the sweep was read")
 
-    monkeypatch.setattr(report_main, "make_report", refuse)
+    monkeypatch.setattr(report_command, "make_report", refuse)
     (tmp_path / "taken").write_text("a file\n")
-    assert report_main.main([str(tmp_path), f"out={tmp_path / out}"]) == 2
+    assert main([str(tmp_path), f"out={tmp_path / out}"]) == 2
     (line,) = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
     assert line.startswith("sphri") and line.endswith(
         f": out={tmp_path / out} is invalid: {tmp_path / 'taken'} is a file, not a folder"

@@ -9,9 +9,15 @@ from pathlib import Path
 import forked_cli
 import pytest
 
+from sphri.command import main as sphri_main
 from sphri.report import load_sweep
-from sphri.report.__main__ import main
 from sphri.report.grouping import chosen_keys, group_keys
+
+
+def main(argv: list[str]) -> int:
+    """``sphri report ARGV``."""
+    return sphri_main(["report", *argv])
+
 
 REPO = Path(__file__).resolve().parents[2]
 
@@ -62,7 +68,7 @@ def test_the_tour_single_job_then_sweep_then_report_is_one_curve(tmp_path: Path)
     )
     assert multi.returncode == 0, multi.stderr[-3000:]
     assert "skipped: MLflow run" in multi.stdout + multi.stderr, "res 18 is the single job's point"
-    rep = forked_cli.run(["-m", "sphri.report", str(sweep), "n_boot=50", "formats=png"], tmp_path, env)
+    rep = forked_cli.run(["-m", "sphri", "report", str(sweep), "n_boot=50", "formats=png"], tmp_path, env)
     assert rep.returncode == 0, rep.stderr[-3000:]
     assert "grouped by nothing (one curve)" in rep.stdout, rep.stdout
     assert "joined from earlier jobs outside this sweep" in rep.stdout and "res 18" in rep.stdout

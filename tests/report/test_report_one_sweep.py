@@ -6,9 +6,14 @@ from __future__ import annotations
 import pytest
 from fake_sweep import make_sweep
 
-from sphri.report.__main__ import main
+from sphri.command import main as sphri_main
 from sphri.report.sweep import ReportError, load_sweep
 from sphri.tracking.mlflow_tracker import default_uri
+
+
+def main(argv: list[str]) -> int:
+    """``sphri report ARGV``."""
+    return sphri_main(["report", *argv])
 
 
 def test_a_folder_holding_two_sweeps_is_refused_or_read_for_the_parent_named(store, tmp_path, capsys):

@@ -8,7 +8,6 @@ import re
 
 import pytest
 
-from sphri.cli import main as cli_main
 from sphri.command import main as sphri_main
 from sphri.config import ConfigError, compose
 from sphri.robots.urdf import UrdfRobot
@@ -111,11 +110,11 @@ def test_check_the_packaged_robot(tmp_path, capsys):
 
 
 def test_validate_names_the_closest_link_of_the_urdf(capsys):
-    assert cli_main(["validate", "robot=reachy2", "robot.links=[l_elbw_arm_link]"]) == 2
+    assert sphri_main(["validate", "robot=reachy2", "robot.links=[l_elbw_arm_link]"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
     assert "robot.links: 'l_elbw_arm_link' (did you mean l_elbow_arm_link?) is not a link of" in err[0]
-    assert cli_main(["validate", "robot=reachy2", "robot.exclude=[lidr_link]"]) == 2
+    assert sphri_main(["validate", "robot=reachy2", "robot.exclude=[lidr_link]"]) == 2
     assert "did you mean lidar_link?" in capsys.readouterr().err
 
 

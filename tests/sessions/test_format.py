@@ -9,16 +9,18 @@ import pandas as pd
 import pytest
 from hydra.utils import instantiate
 
+from sphri.command import main as sphri_main
 from sphri.config import ConfigError, compose
 from sphri.sessions.contact import body_contacts
 from sphri.sessions.episodes import part_of_rows, segment_episodes
 from sphri.sessions.format import SessionData
-from sphri.sessions.synthesize import main as synthesize_main
 
 
 def test_synthesizer_command_writes_sessions_that_load_back_identically(small, tmp_path):
     cfg, hand, robot, ds = small
-    assert synthesize_main([f"out={tmp_path}", "data.participants=2", "data.repetitions=1"]) == 0
+    assert (
+        sphri_main(["synthesize", "what=sessions", f"out={tmp_path}", "data.participants=2", "data.repetitions=1"]) == 0
+    )
     loaded = instantiate(compose(["data=sessions", f"data.root={tmp_path}", "robot=reachy_full"]).data).load(
         hand, robot
     )

@@ -1,4 +1,4 @@
-"""python -m sphri.coverage +experiment=scenario_study +debug=fast: every output, and layout=density reads the placement."""
+"""sphri coverage +experiment=scenario_study +debug=fast: every output, and layout=density reads the placement."""
 
 from __future__ import annotations
 

@@ -8,10 +8,9 @@
     sphri cache clear older_than_days=14      # drop entries not read or written for two weeks
     sphri cache clear                         # drop every entry (asks nothing: it is only a cache)
 
-``python -m sphri.cache`` is the same command. Arguments are ``key=value`` (``dir``, default
-``outputs/cache``; ``older_than_days``) plus stage names (:class:`CacheArgs`). Entries are removed under their lock,
-so a job computing the same entry is not disturbed; orphan lock and
-temporary files go with them. Runs, reports and ``mlflow.db`` are never
+Arguments are ``key=value`` (``dir``, default ``outputs/cache``; ``older_than_days``) plus stage names
+(:class:`CacheArgs`). Entries are removed under their lock, so a job computing the same entry is not
+disturbed; orphan lock and temporary files go with them. Runs, reports and ``mlflow.db`` are never
 touched (``make clean`` removes everything). Links inside the cache (a stage
 folder, an entry, an index folder) are never followed, so nothing outside it
 is removed.
@@ -20,12 +19,11 @@ is removed.
 from __future__ import annotations
 
 import dataclasses
-import sys
 import time
 from pathlib import Path
 from typing import Literal
 
-from sphri.args import ArgsError, arg, run
+from sphri.args import ArgsError, arg
 from sphri.cache import SUFFIX
 
 
@@ -134,13 +132,3 @@ def command(args: CacheArgs) -> int:
         n, freed = clear(args.dir, args.stages, args.older_than_days)
         print(f"removed {n} entries ({_human(freed)}) from {args.dir.resolve()}")
     return 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m sphri.cache``: the ``sphri cache`` verb."""
-    from sphri.errors import clean_errors
-
-    argv = list(sys.argv[1:] if argv is None else argv)
-    return clean_errors("sphri.cache")(
-        lambda a: run(CacheArgs, a, command, "sphri.cache", "", "python -m sphri.cache")
-    )(argv)

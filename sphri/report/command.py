@@ -11,10 +11,10 @@
     sphri report DIR formats=png                        # PNG figures only (default png,pdf,svg)
     sphri report DIR group_by=model                     # one curve per model (none: one curve)
 
-``python -m sphri.report`` is the same command. Arguments are ``key=value`` as in every sphri
-command (:class:`ReportArgs`: ``uri``, ``output_dir``, ``out``, ``tolerances``, ``tolerance``,
-``n_boot``, ``ci``, ``seed``, ``marks=auto|true|false``, ``formats=png,pdf,svg``,
-``mlflow=true|false``, ``group_by``); the ``--key value`` spellings (``--n-boot 100``, ``--no-log``) are accepted too.
+Arguments are ``key=value`` as in every sphri command (:class:`ReportArgs`: ``uri``, ``output_dir``,
+``out``, ``tolerances``, ``tolerance``, ``n_boot``, ``ci``, ``seed``, ``marks=auto|true|false``,
+``formats=png,pdf,svg``, ``mlflow=true|false``, ``group_by``); the ``--key value`` spellings
+(``--n-boot 100``, ``--no-log``) are accepted too.
 
 Writes ``DIR/report/`` (report.html, figures as PNG + PDF + SVG, summary.txt, CSV/JSON
 tables), logs it to the sweep's MLflow parent run and prints the summary.
@@ -25,11 +25,9 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-import sys
 from typing import Literal
 
-from sphri.args import ArgsError, arg, first_paragraph, run
-from sphri.errors import clean_errors
+from sphri.args import ArgsError, arg
 from sphri.limits import over_limit
 from sphri.report.analysis import RuleSettings
 from sphri.report.build import check_formats, make_report
@@ -131,14 +129,3 @@ def command(args: ReportArgs) -> int:
     if files.logged_to:
         print(f"logged to MLflow parent run {files.logged_to} (artifacts under report/)")
     return 0
-
-
-@clean_errors("sphri.report")
-def main(argv: list[str] | None = None) -> int:
-    """``python -m sphri.report``: the ``sphri report`` verb."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    return run(ReportArgs, argv, command, "sphri.report", first_paragraph(command.__doc__), "python -m sphri.report")
-
-
-if __name__ == "__main__":
-    sys.exit(main())
