@@ -425,3 +425,17 @@ def test_the_architecture_names_the_core_the_apps_and_the_toolkit():
     section = text.split("\n## Core and apps\n", 1)[1].split("\n## ", 1)[0]
     missing = [m for m in (*TOOLKIT, *CORE_LAYERS, *APPS) if m not in section]
     assert not missing, f"docs/ARCHITECTURE.md, 'Core and apps', does not name {missing}"
+
+
+@pytest.mark.parametrize("page", [API_DOC, ROOT / "README.md"], ids=["api.md", "README"])
+def test_the_api_example_runs_as_written(page, tmp_path, monkeypatch):
+    """The first Python block of docs/reference/api.md and of the README, run as a reader would (in an empty
+    folder: its cache and outputs go under it), gives the filter stage's windows: the published names are
+    enough to drive the chain."""
+    block = page.read_text().split("```python\n", 1)[1].split("```", 1)[0]
+    monkeypatch.chdir(tmp_path)
+    scope: dict = {}
+    exec(compile(block, str(page), "exec"), scope)
+    windows = scope["windows"]
+    assert type(windows).__name__ == "WindowedFrames" and windows.x.shape[0] == len(windows.y) > 0
+    assert list((tmp_path / "outputs" / "cache" / "plan").glob("*.entry"))  # persisted stages, in the reader's folder
