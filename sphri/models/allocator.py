@@ -4,9 +4,8 @@ Each training step allocates its activations and gradients (buffers up to a few 
 frees them at its end. With glibc's default settings, freed memory at the top of the heap beyond the
 trim threshold (twice the largest mmapped buffer freed so far) goes back to the kernel, buffers above
 the mmap threshold are mapped and unmapped on every use, and the next step faults the same pages in
-again: at res 18 about 6,400 minor page faults (25 MiB) per step and 17 % of the step's CPU time in
-the kernel on a 2-core AMD EPYC; with this setting, about 110 faults and 1.23x less CPU per step
-(``bench/bench_cnn_levers.py``, docs/BENCHMARKS.md).
+again (the faults per step and the CPU time with and without this setting are measured by
+``bench/bench_cnn_levers.py``: ``outputs/bench/cnn_levers.json``, with the machine, and docs/BENCHMARKS.md).
 
 :func:`keep_freed_memory` sets glibc's ``M_MMAP_THRESHOLD`` to 32 MiB (the largest glibc accepts) and
 ``M_TRIM_THRESHOLD`` to 1 GiB with ``mallopt``, once per process: buffers below 32 MiB come from the

@@ -11,7 +11,7 @@ the repair command, and otherwise opens the store (creating and migrating it
 when new) before releasing the lock. It runs before a job computes anything,
 so nothing is computed into a store it cannot log to.
 
-Migrating a new store takes 2 to 3 s. The first new store on a machine also
+Migrating a new store takes seconds. The first new store on a machine also
 leaves a migrated, empty copy (no experiment) per MLflow version in the user's
 cache (``$XDG_CACHE_HOME/sphri``, else ``~/.cache/sphri``); later new stores
 start as a copy of it, and MLflow adds its Default experiment on first open,
