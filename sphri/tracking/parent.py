@@ -80,9 +80,7 @@ def sweep_id_of(sweep_dir: str | Path) -> str:
 
 def read_parent(sweep_dir: str | Path) -> dict[str, Any] | None:
     path = Path(sweep_dir) / PARENT_FILE
-    if not path.exists():
-        return None
-    return json.loads(path.read_text())
+    return json.loads(path.read_text()) if path.exists() else None
 
 
 def sweep_hash(overrides: Sequence[str]) -> str:
@@ -191,15 +189,10 @@ def _recorded_jobs(sweep_dir: Path) -> tuple[dict[int, list[str]] | None, int | 
     if isinstance(info, dict) and isinstance(info.get("jobs"), list):
         jobs = [[str(o) for o in j] for j in info["jobs"] if isinstance(j, list)]
         return dict(enumerate(jobs)), len(jobs), info.get("output_dir")
-    statuses = job_statuses(sweep_dir)
-    if not statuses:
-        return None, None, None
     neutral = runtime_keys()
-    return (
-        {int(s.get("job", 0)): job_identity([str(o) for o in s.get("overrides") or []], neutral) for s in statuses},
-        None,
-        None,
-    )
+    statuses = job_statuses(sweep_dir)
+    jobs = {int(s.get("job", 0)): job_identity([str(o) for o in s.get("overrides") or []], neutral) for s in statuses}
+    return jobs or None, None, None
 
 
 def claim_sweep_dir(sweep_dir: str | Path, jobs: Sequence[Sequence[str]], output_dir: str | Path) -> SweepClaim:
@@ -365,11 +358,7 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
         msg += "; FAILED: " + ", ".join(f"#{s['job']}: {s.get('error', '?')}" for s in failed)
     if interrupted:
         msg += f"; sweep {interrupted}"
-    reports = sweep_dir / "report"
-    msg += (
-        f"; report: {reports / 'report.html'}"
-        if (reports / "report.html").is_file()
-        else f"; its report: sphri report {sweep_dir}"
-    )
+    report = sweep_dir / "report" / "report.html"
+    msg += f"; report: {report}" if report.is_file() else f"; its report: sphri report {sweep_dir}"
     print(msg)
     return status, failed

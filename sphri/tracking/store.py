@@ -221,7 +221,7 @@ def problems(db: Path, timeout: float | None = None) -> list[str]:
         raise NotAStore(f"{db} is not an MLflow store (not a SQLite database: {exc})") from None
     if not tables:
         return []
-    plain = {t[len(TMP_PREFIX) :] if t.startswith(TMP_PREFIX) else t for t in tables}
+    plain = {t.removeprefix(TMP_PREFIX) for t in tables}
     lacking = [t for t in ("alembic_version", *MLFLOW_TABLES) if t not in plain]
     if lacking:
         raise NotAStore(f"{db} is not an MLflow store (a SQLite database without the table(s) {', '.join(lacking)})")
@@ -446,12 +446,9 @@ def repair(db: Path, timeout: float = 5.0) -> str:
         shutil.copy2(db, backup)
         with contextlib.closing(sqlite3.connect(db)) as con:
             for t in _tables(db):
-                if t.startswith(TMP_PREFIX):
-                    real = t[len(TMP_PREFIX) :]
-                    if real in _tables(db):
-                        con.execute(f'DROP TABLE "{t}"')
-                    else:
-                        con.execute(f'ALTER TABLE "{t}" RENAME TO "{real}"')
+                real = t.removeprefix(TMP_PREFIX)
+                if real != t:  # dropped where the migration made the table, else renamed to it
+                    con.execute(f'DROP TABLE "{t}"' if real in _tables(db) else f'ALTER TABLE "{t}" RENAME TO "{real}"')
             con.commit()
         import sqlalchemy
         from mlflow.store.db.utils import _upgrade_db
