@@ -12,10 +12,8 @@ after every job's config is validated and before any worker starts) with the
 jobs as children.
 
 The default store is SQLite at an absolute path (``<output_dir>/mlflow.db``),
-artifacts beside it in ``<output_dir>/mlartifacts``. It is created and
-migrated under an inter-process lock the first time a tracker opens it, and
-a store left broken by an interrupted migration is refused
-(:mod:`sphri.tracking.store`).
+artifacts beside it in ``<output_dir>/mlartifacts``; :mod:`sphri.tracking.store`
+creates it, or refuses a broken one, the first time a tracker opens it.
 """
 
 from __future__ import annotations
