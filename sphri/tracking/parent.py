@@ -191,8 +191,8 @@ def _recorded_jobs(sweep_dir: Path) -> tuple[dict[int, list[str]] | None, int | 
         return dict(enumerate(jobs)), len(jobs), info.get("output_dir")
     neutral = runtime_keys()
     statuses = job_statuses(sweep_dir)
-    jobs = {int(s.get("job", 0)): job_identity([str(o) for o in s.get("overrides") or []], neutral) for s in statuses}
-    return jobs or None, None, None
+    found = {int(s.get("job", 0)): job_identity([str(o) for o in s.get("overrides") or []], neutral) for s in statuses}
+    return found or None, None, None
 
 
 def claim_sweep_dir(sweep_dir: str | Path, jobs: Sequence[Sequence[str]], output_dir: str | Path) -> SweepClaim:
