@@ -63,21 +63,15 @@ def _array(arr: np.ndarray, arrays: dict[str, np.ndarray]) -> dict[str, Any]:
     return {"__nd__": ref}
 
 
-def _float(x: float) -> Any:
-    return x if math.isfinite(x) else {"__float__": repr(x)}
-
-
 def encode(value: Any, arrays: dict[str, np.ndarray] | None = None) -> tuple[Any, dict[str, np.ndarray]]:
     """``(tree, arrays)``: ``value`` as a JSON-able tree whose arrays are named in ``arrays``."""
     arrays = {} if arrays is None else arrays
 
     def enc(v: Any) -> Any:
-        if v is None or isinstance(v, (bool, str)):
-            return v
-        if isinstance(v, int) and not isinstance(v, bool):
+        if v is None or isinstance(v, (bool, int, str)):
             return v
         if isinstance(v, float):
-            return _float(v)
+            return v if math.isfinite(v) else {"__float__": repr(v)}
         if isinstance(v, np.ndarray):
             return _array(v, arrays)
         if isinstance(v, np.generic):
@@ -97,11 +91,7 @@ def encode(value: Any, arrays: dict[str, np.ndarray] | None = None) -> tuple[Any
                 raise EncodeError("DataFrame must have a default RangeIndex (reset_index first)")
             return {"__df__": [[c, _array(v[c].to_numpy(), arrays), str(v[c].dtype)] for c in v.columns], "n": len(v)}
         if dataclasses.is_dataclass(v) and not isinstance(v, type):
-            cls = type(v)
-            return {
-                "__dc__": f"{cls.__module__}:{cls.__qualname__}",
-                "f": {f.name: enc(getattr(v, f.name)) for f in dataclasses.fields(v)},
-            }
+            return {"__dc__": _name(type(v)), "f": {f.name: enc(getattr(v, f.name)) for f in dataclasses.fields(v)}}
         raise EncodeError(f"cannot store a {type(v).__module__}.{type(v).__qualname__} as arrays + JSON")
 
     return enc(value), arrays

@@ -22,6 +22,7 @@ import math
 import os
 import re
 import sys
+import tempfile
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -90,12 +91,9 @@ def schema_name(group: str, name: str) -> str:
 
 
 def store(group: str, name: str, node: type) -> None:
-    """Register a component schema ``node`` as ``schema_<group>_<name>``, and the group's base schema
-    (the class of ``node``'s bases that sets ``GROUP``) as ``schema_<group>_base``.
-
-    A YAML of ``conf/<group>/`` opts in with ``defaults: [/schema_<group>_<name>@_here_, _self_]``
-    and holds only what differs from it; ``_target_`` lives in the schema.
-    """
+    """Register a component schema ``node`` as ``schema_<group>_<name>`` (a YAML opts in as the module
+    docstring says; ``_target_`` lives in the schema), and the group's base schema (the class of ``node``'s
+    bases that sets ``GROUP``) as ``schema_<group>_base``."""
     cs = ConfigStore.instance()
     cs.store(name=schema_name(group, name.removesuffix("_schema")), node=node)
     base = next((c for c in getattr(node, "__mro__", ()) if "GROUP" in vars(c) and c is not Schema), None)
@@ -158,26 +156,17 @@ class Range:
     def check(self, key: str, value: Any) -> None:
         if value is None and self.optional:
             return
+        bounds = (self.lo, self.hi, self.lo_open, self.hi_open)
         if self.choices is not None:
             require_choice(key, value, self.choices)
-            return
-        if self.integer:
+        elif not self.integer:
+            require_range(key, value, *bounds)
+        else:
             try:
                 whole = not isinstance(value, bool) and int(value) == value
             except (TypeError, ValueError, OverflowError):
                 whole = False
-            try:
-                require_range(key, value if whole else float("nan"), self.lo, self.hi, self.lo_open, self.hi_open)
-            except ConfigError:
-                lb, rb = (
-                    "(" if self.lo_open or self.lo is None else "[",
-                    ")" if self.hi_open or self.hi is None else "]",
-                )
-                lo = "-inf" if self.lo is None else f"{self.lo:g}"
-                hi = "inf" if self.hi is None else f"{self.hi:g}"
-                raise ConfigError(f"{key}={value!r} is invalid: must be an integer in {lb}{lo}, {hi}{rb}") from None
-            return
-        require_range(key, value, self.lo, self.hi, self.lo_open, self.hi_open)
+            require(whole and _within(value, *bounds), key, value, f"must be an integer in {_interval(*bounds)}")
 
 
 def setting(
@@ -287,16 +276,20 @@ NOT_RESULT_KEYS: tuple[str, ...] = ("cache", "output_dir", "resume", "plugins", 
 def runtime_keys() -> frozenset[str]:
     """``<group>.<field>`` of every runtime setting (``setting(..., runtime=True)``) of the registered schemas:
     the MLflow params two jobs may differ in while computing the same result (``cv.progress``, ``model.n_jobs``)."""
-    register_schemas()
     out: set[str] = set()
-    for name, entry in ConfigStore.instance().repo.items():
-        if not (isinstance(name, str) and name.startswith("schema_")) or not hasattr(entry, "node"):
-            continue
-        schema = OmegaConf.get_type(entry.node)
+    for node in _schema_nodes():
+        schema = OmegaConf.get_type(node)
         group = getattr(schema, "GROUP", None)
         if isinstance(group, str):
             out.update(f"{group}.{f}" for f in runtime_fields(schema))
     return frozenset(out)
+
+
+def _schema_nodes(prefix: str = "schema_") -> list[Any]:
+    """The nodes of the registered schemas (:func:`store`) whose ConfigStore name starts with ``prefix``."""
+    register_schemas()
+    repo = ConfigStore.instance().repo
+    return [e.node for n, e in repo.items() if isinstance(n, str) and n.startswith(prefix) and hasattr(e, "node")]
 
 
 def result_neutral(param: str, runtime: frozenset[str] | None = None) -> bool:
@@ -337,19 +330,27 @@ def require_range(
 ) -> None:
     """Check ``lo <= value <= hi`` (open ends with ``*_open``); NaN and +-inf are always refused
     (no physical setting is infinite: an unbounded side is written as ``lo``/``hi`` None)."""
-    ok = True
-    if isinstance(value, float) and not math.isfinite(value):
-        ok = False
-    if lo is not None:
-        ok &= value > lo if lo_open else value >= lo
-    if hi is not None:
-        ok &= value < hi if hi_open else value <= hi
-    lb = "(" if lo_open or lo is None else "["
-    rb = ")" if hi_open or hi is None else "]"
-    lo_s = "-inf" if lo is None else f"{lo:g}"
-    hi_s = "inf" if hi is None else f"{hi:g}"
     finite = "a finite number " if isinstance(value, float) and not math.isfinite(value) else ""
-    require(bool(ok), key, value, f"must be {finite}in {lb}{lo_s}, {hi_s}{rb}")
+    require(
+        _within(value, lo, hi, lo_open, hi_open),
+        key,
+        value,
+        f"must be {finite}in {_interval(lo, hi, lo_open, hi_open)}",
+    )
+
+
+def _within(value: Any, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> bool:
+    if isinstance(value, float) and not math.isfinite(value):
+        return False
+    above = lo is None or (value > lo if lo_open else value >= lo)
+    below = hi is None or (value < hi if hi_open else value <= hi)
+    return bool(above and below)
+
+
+def _interval(lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> str:
+    """``[lo, hi]`` as the errors write it: an open or unbounded end in parentheses, unbounded as ``inf``."""
+    lb, rb = "(" if lo_open or lo is None else "[", ")" if hi_open or hi is None else "]"
+    return f"{lb}{'-inf' if lo is None else f'{lo:g}'}, {'inf' if hi is None else f'{hi:g}'}{rb}"
 
 
 def require_choice(key: str, value: Any, choices: Iterable[Any]) -> None:
@@ -399,18 +400,12 @@ class RootConfig:
     report computes the requirement per variant). None outside a sensitivity study."""
 
 
-_registered = False
-
-
+@functools.cache
 def register_schemas() -> None:
-    """Import every stage's schema module (idempotent)."""
-    global _registered
-    if _registered:
-        return
+    """Import every stage's schema module (once per process)."""
     ConfigStore.instance().store(name="sphri_root", node=RootConfig)
     for mod in SCHEMA_MODULES:
         importlib.import_module(mod)
-    _registered = True
 
 
 _PLUS_GROUP = re.compile(r"^\+(?P<group>[A-Za-z_][\w/]*)=(?P<value>.*)$")
@@ -436,14 +431,11 @@ def _renamed(override: str) -> str:
 
 
 def normalize_overrides(overrides: Sequence[str]) -> list[str]:
-    """Accept ``+robot=reachy`` as well as ``robot=reachy``, and a deprecated key as its owner's.
+    """Accept ``+robot=reachy`` as well as ``robot=reachy``, and a deprecated key as its owner's (:data:`RENAMED_KEYS`).
 
-    ``robot`` (like every stage group and ``debug``) is in the primary
-    defaults list so that plain ``python -m sphri`` runs on the built-in
-    robot. Hydra refuses to *append* a group that is already there, so
-    ``+group=value`` for such a group is rewritten to ``group=value``;
-    ``encoder.res=18`` is ``layout.res=18`` (:data:`RENAMED_KEYS`);
-    anything else passes through untouched.
+    ``robot`` (like every group of :data:`DEFAULT_GROUPS`) is in the primary defaults list so that plain
+    ``python -m sphri`` runs on the built-in robot; Hydra refuses to *append* a group that is already there,
+    so ``+group=value`` for such a group is rewritten to ``group=value``. Anything else passes through.
     """
     out = []
     for o in overrides:
@@ -539,23 +531,19 @@ def compose_with_hydra(config_name: str, overrides: Sequence[str]) -> DictConfig
 
 class _ComposeMemo:
     """Hydra's compositions by structural overrides, per process: composing is most of a warm
-    in-process job (docs/BENCHMARKS.md), and the callers that compose many configs (tests, ``sphri validate``, the scenario study, notebooks)
-    mostly change plain values. The config files fingerprinted are every YAML under the search path's
-    folders (sphri's conf/ and each ``hydra.searchpath`` folder), so a search path is a config folder.
+    in-process job (docs/BENCHMARKS.md), and the callers that compose many configs (tests, ``sphri validate``,
+    the scenario study, notebooks) mostly change plain values. Hand-written because Hydra has no cache of its
+    own across compositions; it uses Hydra's compose API only.
 
-    The overrides are split by :func:`split_overrides`; the structural ones are part of the memo's key,
-    with the config files' paths, sizes and modification times, the ConfigStore's nodes and, for a
-    relative search path, the working directory. The plain ones are set on a deep copy by
-    :func:`set_values`, so the one-line errors are Hydra's. ``tests/test_compose_memo.py`` compares
-    both paths, configs and errors.
-    Hand-written because Hydra has no cache of its own across compositions; this sits outside Hydra
-    (its compose API only), not a patch of it.
+    The key: the structural overrides (:func:`split_overrides`) and what else a composition reads
+    (:meth:`sources`; every YAML under the search path's folders counts, so a search path is a config folder).
+    The plain overrides are set on a deep copy by :func:`set_values`, so the one-line errors are Hydra's
+    (``tests/test_compose_memo.py`` compares both paths, configs and errors).
 
     ``size``: the compositions kept, least recently used dropped first. A composed config holds about
     0.28 MB (tracemalloc, the default config), so 128 keep at most about 36 MB; 128 rather than 32
     because one process that checks every component (``sphri show``, the tests of every YAML, every
-    schema's defaults and every experiment's jobs) composes 114 distinct ones (the time it saves:
-    docs/BENCHMARKS.md).
+    schema's defaults and every experiment's jobs) composes 114 distinct ones.
     """
 
     def __init__(self, size: int = 128) -> None:
@@ -590,7 +578,8 @@ class _ComposeMemo:
 
     @staticmethod
     def sources(overrides: Sequence[str]) -> tuple:
-        """What else a composition reads: each config file (path, size, mtime), the ConfigStore's nodes."""
+        """What else a composition reads: each config file (path, size, mtime), the ConfigStore's nodes and,
+        for a relative search path, the working directory."""
         dirs = _search_dirs(overrides)
         files = tuple(
             (str(p), st.st_size, st.st_mtime_ns) for d in dirs for p in sorted(d.rglob("*.yaml")) for st in [p.stat()]
@@ -657,16 +646,13 @@ def set_values(cfg: DictConfig, overrides: Sequence[Any]) -> None:
 
     for o in overrides:
         try:
-            try:
-                OmegaConf.update(cfg, o.key_or_group, o.value(), merge=True)
-            except (ConfigAttributeError, ConfigKeyError) as ex:
-                raise ConfigCompositionException(
-                    f"Could not override '{o.key_or_group}'.\nTo append to your config use +{o.input_line}"
-                ) from ex
+            OmegaConf.update(cfg, o.key_or_group, o.value(), merge=True)
+        except (ConfigAttributeError, ConfigKeyError) as ex:
+            append = f"Could not override '{o.key_or_group}'.\nTo append to your config use +{o.input_line}"
+            raise ConfigCompositionException(append) from ex
         except OmegaConfBaseException as ex:
-            raise ConfigCompositionException(f"Error merging override {o.input_line}").with_traceback(
-                ex.__traceback__
-            ) from ex
+            merging = ConfigCompositionException(f"Error merging override {o.input_line}")
+            raise merging.with_traceback(ex.__traceback__) from ex
 
 
 _MEMO = _ComposeMemo()
@@ -698,15 +684,8 @@ def _check_bool_overrides(cfg: DictConfig, overrides: Sequence[str]) -> None:
 def registered_targets(group: str) -> list[str]:
     """The ``_target_`` classes of sphri's components registered in ``group`` (their schemas in Hydra's
     ConfigStore), sorted."""
-    register_schemas()
-    prefix = schema_name(group, "")
-    out = set()
-    for name, entry in ConfigStore.instance().repo.items():
-        node = getattr(entry, "node", None) if name.startswith(prefix) else None
-        target = node.get("_target_") if isinstance(node, DictConfig) else None
-        if isinstance(target, str) and target.startswith("sphri."):
-            out.add(target)
-    return sorted(out)
+    targets = {n.get("_target_") for n in _schema_nodes(schema_name(group, "")) if isinstance(n, DictConfig)}
+    return sorted(t for t in targets if isinstance(t, str) and t.startswith("sphri."))
 
 
 def check_target(group: str, target: Any, plugins: Sequence[str] = ()) -> None:
@@ -790,30 +769,16 @@ def resolved_setting(cfg: DictConfig, key: str) -> str:
         raise ConfigError(f"{key}={raw} is invalid: {why}") from None
 
 
-def _probe_folder(parent: Path, key: str, shown: str) -> None:
-    """Make and remove an empty folder in ``parent``: some file systems (``/proc``, ``/sys``) refuse new
-    folders although their permissions allow them."""
-    import tempfile
-
-    try:
-        os.rmdir(tempfile.mkdtemp(prefix=".sphri-probe-", dir=parent))
-    except OSError as exc:
-        raise ConfigError(
-            f"{key}={shown} is invalid: no folder can be made in {parent} ({exc.strerror or exc}); "
-            "give a writable folder"
-        ) from None
-
-
 def check_output_dir(
     output_dir: str, key: str = "output_dir", shown: str | None = None, overwrite: bool | None = None
 ) -> None:
     """``output_dir`` can hold runs, the cache and the MLflow store: not empty (``cache.dir`` would be
     ``/cache``), not an existing file or below one, every name within the file system's limit, and a folder
     not there yet one its nearest existing parent lets be made (probed with an empty folder, removed at
-    once; nothing else is created here). ``key``: the setting the errors name (``out`` of ``sphri coverage``), ``shown`` the value
-    they quote (default ``output_dir``). ``overwrite``: for a folder written whole (a dataset), False
-    refuses a folder that exists and is not empty (new files are never mixed with old ones), True lets
-    the writer replace it (:func:`sphri.fsutil.replace_dir`); None (a folder that accumulates) neither."""
+    once; nothing else is created here). ``key``: the setting the errors name (``out`` of ``sphri coverage``),
+    ``shown`` the value they quote (default ``output_dir``). ``overwrite``: for a folder written whole (a
+    dataset), False refuses a folder that exists and is not empty (new files are never mixed with old ones),
+    True lets the writer replace it (:func:`sphri.fsutil.replace_dir`); None (a folder that accumulates) neither."""
     shown = output_dir if shown is None else shown
     if not output_dir.strip():
         raise ConfigError(
@@ -840,8 +805,12 @@ def check_output_dir(
                 raise ConfigError(f"{key}={shown} is invalid: {p} is a file, not a folder")
             if not os.access(p, os.W_OK | os.X_OK):
                 raise ConfigError(f"{key}={shown} is invalid: {p} is read-only; give a writable folder")
-            if p != path:
-                _probe_folder(p, key, shown)
+            try:  # some file systems (/proc, /sys) refuse new folders although their permissions allow them
+                if p != path:
+                    os.rmdir(tempfile.mkdtemp(prefix=".sphri-probe-", dir=p))
+            except OSError as exc:
+                why = f"no folder can be made in {p} ({exc.strerror or exc}); give a writable folder"
+                raise ConfigError(f"{key}={shown} is invalid: {why}") from None
             break
     if overwrite is False and path.is_dir() and any(path.iterdir()):
         raise ConfigError(
@@ -951,21 +920,16 @@ def check_known_keys(cfg: DictConfig, prefix: str = "") -> None:
     every node typed by a dataclass schema may hold only that schema's
     fields. Untyped nodes (``Any`` fields such as ``debug``) are not checked.
     """
+    keys = [k for k in cfg.keys() if prefix or k != "hydra"]  # Hydra's own node (compose with return_hydra_config)
     typ = OmegaConf.get_type(cfg)
-    if dataclasses.is_dataclass(typ):
-        names = [f.name for f in dataclasses.fields(typ)]
-        for key in cfg.keys():
-            if key not in names and not (
-                prefix == "" and key == "hydra"
-            ):  # Hydra's own node (compose with return_hydra_config)
-                full = f"{prefix}{key!s}"
-                raise ConfigError(
-                    f"{full} is not a known key{close_match(str(key), names)}; "
-                    f"{(prefix.rstrip('.') or 'the top level')} has: {', '.join(n for n in names if n != '_target_')}"
-                )
-    for key in cfg.keys():
-        if prefix == "" and key == "hydra":
-            continue
+    names = [f.name for f in dataclasses.fields(typ)] if dataclasses.is_dataclass(typ) else None
+    unknown = next((k for k in keys if names is not None and k not in names), None)
+    if names is not None and unknown is not None:
+        raise ConfigError(
+            f"{prefix}{unknown!s} is not a known key{close_match(str(unknown), names)}; "
+            f"{(prefix.rstrip('.') or 'the top level')} has: {', '.join(n for n in names if n != '_target_')}"
+        )
+    for key in keys:
         node = cfg._get_node(key)
         if isinstance(node, DictConfig) and not node._is_missing() and not node._is_none():
             check_known_keys(node, f"{prefix}{key!s}.")
@@ -974,10 +938,8 @@ def check_known_keys(cfg: DictConfig, prefix: str = "") -> None:
 def field_docs(schema: type) -> dict[str, str]:
     """``{field: docstring}`` of a schema dataclass (the string literal under each field, bases included).
 
-    Python keeps no attribute docstrings at run time, so they are read from
-    the classes' source; a class without source (or without docstrings)
-    gives an empty dict for its fields. Each class is read once per process
-    (:func:`_own_field_docs`): ``inspect.getsource`` parses the class's whole module.
+    Python keeps no attribute docstrings at run time, so they are read from the classes' source; a class
+    without source (or without docstrings) gives an empty dict for its fields.
     """
     out: dict[str, str] = {}
     for cls in reversed(getattr(schema, "__mro__", (schema,))):
@@ -991,8 +953,7 @@ def _own_field_docs(cls: type) -> tuple[tuple[str, str], ...]:
     """``(field, docstring)`` pairs written in ``cls``'s own body (not its bases'), read from its source.
 
     Cached per class object: ``show`` and the verbs' help read the same bases' docstrings for every
-    group, and finding a class's source parses its whole module (docs/BENCHMARKS.md says how long).
-    A class defined anew (a reloaded module) is another object, read again."""
+    group, and finding a class's source parses its whole module (docs/BENCHMARKS.md says how long)."""
     import ast
     import inspect
     import textwrap

@@ -13,11 +13,10 @@ field::
 each group's structured-config type) and fingerprints every file: a blake2b
 hash of its bytes, rehashed only when its size, modification time, inode or
 change time differ from the :class:`FingerprintMemo` (a small JSON file in the
-cache folder; with a cache key, ``SPHRI_CACHE_KEY``, it is signed as the cache
-entries are, and a memo whose HMAC does not verify is ignored: every file is
-hashed again). The pipeline puts the fingerprints into the stage keys
-(:mod:`sphri.pipeline`) and the config hash, so a file replaced at the same
-path recomputes the stages that read it and everything below.
+cache folder, signed with the cache key ``SPHRI_CACHE_KEY`` when there is one).
+The pipeline puts the fingerprints into the stage keys (:mod:`sphri.pipeline`)
+and the config hash, so a file replaced at the same path recomputes the stages
+that read it and everything below.
 """
 
 from __future__ import annotations
@@ -30,7 +29,7 @@ import json
 import logging
 import os
 import stat
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -43,7 +42,6 @@ log = logging.getLogger(__name__)
 INPUT_META = "sphri_input"
 KINDS = ("file", "dir", "map")
 MEMO_NAME = "fingerprints.json"
-_CHUNK = 1 << 20
 
 
 def input_path(
@@ -121,14 +119,11 @@ class FingerprintMemo:
         old = self.entries.get(key)
         if isinstance(old, list) and len(old) == 5 and old[:4] == sig:
             return old[4]
-        h = hashlib.blake2b(digest_size=16)
         try:
             with open(path, "rb") as fh:
-                while chunk := fh.read(_CHUNK):
-                    h.update(chunk)
+                digest = "blake2b:" + hashlib.file_digest(fh, lambda: hashlib.blake2b(digest_size=16)).hexdigest()
         except OSError as exc:
             return f"unreadable:{exc.errno}"
-        digest = "blake2b:" + h.hexdigest()
         self.entries[key] = [*sig, digest]
         self.dirty = True
         self.hashed.append(key)
@@ -210,9 +205,22 @@ def _files_below(root: Path, exclude: frozenset[Path] = frozenset()) -> list[Pat
     return out
 
 
-def _function(spec: str) -> Callable[[Path], Iterable[Path]]:
+def _function(spec: str) -> Callable[..., Any]:
+    """The function ``"module:name"`` names (a schema's ``references`` or ``INPUT_CHECK``)."""
     module, _, name = spec.partition(":")
     return getattr(importlib.import_module(module), name)
+
+
+def _inputs_of(node: Any, resolve: bool) -> tuple[list[tuple[str, dict]], dict]:
+    """``([(field, its input_path metadata)], the node's values)`` of the inputs the schema of ``node`` declares
+    (none for a node without a schema, and then no values)."""
+    schema = OmegaConf.get_type(node) if isinstance(node, DictConfig) else None
+    if schema is None or not dataclasses.is_dataclass(schema):
+        return [], {}
+    specs = [(f.name, f.metadata[INPUT_META]) for f in dataclasses.fields(schema) if INPUT_META in f.metadata]
+    values = OmegaConf.to_container(node, resolve=resolve) if specs else {}
+    assert isinstance(values, dict)  # a DictConfig's container
+    return specs, values
 
 
 def declared_files(node: Any, exclude: frozenset[Path] = frozenset()) -> list[tuple[str, Path]]:
@@ -220,17 +228,8 @@ def declared_files(node: Any, exclude: frozenset[Path] = frozenset()) -> list[tu
 
     ``exclude``: folders never descended into (sphri's own output and cache
     folders, should a dataset folder hold them)."""
-    if not isinstance(node, DictConfig):
-        return []
-    schema = OmegaConf.get_type(node)
-    if schema is None or not dataclasses.is_dataclass(schema):
-        return []
+    specs, values = _inputs_of(node, resolve=True)
     out: list[tuple[str, Path]] = []
-    specs = [(f.name, f.metadata[INPUT_META]) for f in dataclasses.fields(schema) if INPUT_META in f.metadata]
-    if not specs:
-        return out
-    values = OmegaConf.to_container(node, resolve=True)
-    assert isinstance(values, dict)  # a DictConfig's container
     for name, spec in specs:
         value = values.get(name)
         if value in (None, "", "???"):
@@ -271,8 +270,7 @@ def check_contents(node: Any) -> None:
         return
     spec = getattr(OmegaConf.get_type(node), "INPUT_CHECK", "")
     if spec:
-        module, _, name = spec.partition(":")
-        getattr(importlib.import_module(module), name)(OmegaConf.to_container(node, resolve=True))
+        _function(spec)(OmegaConf.to_container(node, resolve=True))
 
 
 def missing_inputs(node: Any) -> list[tuple[str, Path, str]]:
@@ -280,16 +278,7 @@ def missing_inputs(node: Any) -> list[tuple[str, Path, str]]:
     field that names no file, a ``dir`` field that names no folder, a ``map`` entry that names no file
     (relative entries from their ``relative_to`` folder). Files a file refers to (a URDF's meshes) are
     the component's to check: some have fallbacks."""
-    if not isinstance(node, DictConfig):
-        return []
-    schema = OmegaConf.get_type(node)
-    if schema is None or not dataclasses.is_dataclass(schema):
-        return []
-    specs = [(f.name, f.metadata[INPUT_META]) for f in dataclasses.fields(schema) if INPUT_META in f.metadata]
-    if not specs:
-        return []
-    values = OmegaConf.to_container(node, resolve=False)
-    assert isinstance(values, dict)  # a DictConfig's container
+    specs, values = _inputs_of(node, resolve=False)
     out = []
     for name, spec in specs:
         value = values.get(name)

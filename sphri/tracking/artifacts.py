@@ -18,11 +18,11 @@ def write_fold_csv(cv: CVResult, path: Path) -> Path:
     """One row per fold (participant): n_test, accuracy, macro F1, per-gesture recall."""
     import pandas as pd
 
-    rows = []
-    for f in cv.folds:
-        row = {"fold": f.fold, "n_test": f.n_test, "accuracy": f.accuracy, "macro_f1": f.macro_f1}
-        row.update({f"recall_{g}": float(r) for g, r in zip(cv.labels, f.recall)})
-        rows.append(row)
+    rows = [
+        {"fold": f.fold, "n_test": f.n_test, "accuracy": f.accuracy, "macro_f1": f.macro_f1}
+        | {f"recall_{g}": float(r) for g, r in zip(cv.labels, f.recall)}
+        for f in cv.folds
+    ]
     pd.DataFrame(rows).to_csv(path, index=False, float_format="%.6g")
     return path
 
@@ -53,15 +53,8 @@ def write_confusion_png(
     ``formats``: files written beside ``path``; ``provenance``: a :class:`sphri.figures.Provenance`;
     ``check``: run the layout check (:func:`sphri.figures.save`).
     """
-    return draw_confusion(
-        confusion_counts(cv),
-        list(cv.labels),
-        path,
-        title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)",
-        provenance,
-        formats,
-        check,
-    )
+    title = title or f"{cv.model} ({cv.scheme.upper()}, {len(cv.folds)} folds)"
+    return draw_confusion(confusion_counts(cv), list(cv.labels), path, title, provenance, formats, check)
 
 
 def draw_confusion(
@@ -86,18 +79,11 @@ def draw_confusion(
         ax.set_yticks(range(len(labels)), labels)
         ax.set_xlabel("predicted gesture")
         ax.set_ylabel("true gesture")
-        for i in range(norm.shape[0]):
-            for j in range(norm.shape[1]):
-                if total[i].sum() > 0:
-                    ax.text(
-                        j,
-                        i,
-                        f"{norm[i, j]:.2f}".lstrip("0") if norm[i, j] < 1 else "1",
-                        ha="center",
-                        va="center",
-                        fontsize=figures.MIN_FONT_PT,
-                        color="white" if norm[i, j] > 0.5 else "black",
-                    )
+        for i, j in np.ndindex(norm.shape):
+            if total[i].sum() > 0:
+                text = f"{norm[i, j]:.2f}".lstrip("0") if norm[i, j] < 1 else "1"
+                color = "white" if norm[i, j] > 0.5 else "black"
+                ax.text(j, i, text, ha="center", va="center", fontsize=figures.MIN_FONT_PT, color=color)
         ax.set_title(title, loc="left")
         fig.colorbar(im, ax=ax, fraction=0.046, pad=0.03, label="share of the true gesture's trials")
         figures.mark(fig, provenance)

@@ -17,19 +17,7 @@ from importlib import metadata
 from pathlib import Path
 
 #: The CPU flags that change which kernels numpy, MKL/oneDNN and torch run (AVX2 vs AVX-512, native bf16).
-SIMD_FLAGS = (
-    "avx",
-    "avx2",
-    "fma",
-    "avx512f",
-    "avx512bw",
-    "avx512_vnni",
-    "avx512_bf16",
-    "amx_bf16",
-    "amx_tile",
-    "asimd",
-    "sve",
-)
+SIMD_FLAGS = tuple("avx avx2 fma avx512f avx512bw avx512_vnni avx512_bf16 amx_bf16 amx_tile asimd sve".split())
 
 #: Libraries whose version can change a job's numbers or its speed.
 LIBRARIES = ("numpy", "scipy", "scikit-learn", "torch", "numba")
@@ -55,13 +43,14 @@ def cpu() -> dict[str, str | int]:
 
 def libraries() -> dict[str, str]:
     """Installed version of each of :data:`LIBRARIES` (``"absent"`` when not installed) and Python's."""
-    out = {"python": platform.python_version()}
-    for name in LIBRARIES:
+
+    def version(name: str) -> str:
         try:
-            out[name] = metadata.version(name)
+            return metadata.version(name)
         except metadata.PackageNotFoundError:
-            out[name] = "absent"
-    return out
+            return "absent"
+
+    return {"python": platform.python_version(), **{name: version(name) for name in LIBRARIES}}
 
 
 def gpu() -> str:

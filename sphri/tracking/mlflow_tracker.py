@@ -12,10 +12,8 @@ after every job's config is validated and before any worker starts) with the
 jobs as children.
 
 The default store is SQLite at an absolute path (``<output_dir>/mlflow.db``),
-artifacts beside it in ``<output_dir>/mlartifacts``. It is created and
-migrated under an inter-process lock the first time a tracker opens it, and
-a store left broken by an interrupted migration is refused
-(:mod:`sphri.tracking.store`).
+artifacts beside it in ``<output_dir>/mlartifacts``; :mod:`sphri.tracking.store`
+creates it, or refuses a broken one, the first time a tracker opens it.
 """
 
 from __future__ import annotations
@@ -78,25 +76,17 @@ def git_commit() -> str:
     files), else the commit an installed wheel was built from (``sphri/_build_info.json``, written by
     setup.py), else ``"unknown"``."""
     here = Path(__file__).resolve().parent
+    git = partial(subprocess.run, capture_output=True, text=True, timeout=5, cwd=here)
     try:
-        out = subprocess.run(
-            ["git", "rev-parse", "--show-toplevel", "HEAD"], capture_output=True, text=True, timeout=5, cwd=here
-        )
+        out = git(["git", "rev-parse", "--show-toplevel", "HEAD"])
         top, commit = (out.stdout.split() + ["", ""])[:2]
         if out.returncode == 0 and commit and here.is_relative_to(Path(top).resolve()):
-            dirty = subprocess.run(
-                ["git", "status", "--porcelain", "--untracked-files=no"],
-                capture_output=True,
-                text=True,
-                timeout=5,
-                cwd=here,
-            ).stdout.strip()
+            dirty = git(["git", "status", "--porcelain", "--untracked-files=no"]).stdout.strip()
             return commit + ("+dirty" if dirty else "")
     except (OSError, subprocess.SubprocessError, ValueError):
         pass
-    info = here.parent / "_build_info.json"
     try:
-        data = json.loads(info.read_text())
+        data = json.loads((here.parent / "_build_info.json").read_text())
         return str(data["git_commit"]) + ("+dirty" if data.get("dirty") else "")
     except (OSError, ValueError, KeyError, TypeError):
         return "unknown"
@@ -143,26 +133,23 @@ def sweep_params(overrides: list[str]) -> dict[str, str]:
     a group choice ``+experiment=resolution_sweep`` -> ``experiment``), flags such as ``-m`` left out."""
     out = {}
     for item in overrides:
-        if item.startswith("-") or "=" not in item:
-            continue
-        key, value = item.split("=", 1)
+        key, sep, value = item.partition("=")
         key = key.lstrip("+~")
-        if key.startswith("hydra."):
-            continue
-        out[key[:250]] = value[:500]
+        if sep and not item.startswith("-") and not key.startswith("hydra."):
+            out[key[:250]] = value[:500]
     return out
 
 
 def model_runtime(cfg: DictConfig) -> dict[str, str]:
     """``run.<key>`` params from the model's ``runtime()`` (device, precision as resolved on this
     machine: ``model.device=auto`` -> ``cuda`` or ``cpu``); empty for a model without one."""
-    from hydra.utils import get_class, instantiate
+    from hydra.utils import get_class
 
     target = cfg.model.get("_target_") if hasattr(cfg.model, "get") else None
     try:
         if not isinstance(target, str) or not callable(getattr(get_class(target), "runtime", None)):
             return {}
-        runtime = instantiate(cfg.model, _convert_="all").runtime()
+        runtime = build(cfg.model).runtime()
     except Exception as exc:  # noqa: BLE001 - the job's record matters more than this detail
         log.warning("could not tell the model's device (%s: %s)", type(exc).__name__, exc)
         return {"run.device": f"unknown ({type(exc).__name__})"}
@@ -173,17 +160,13 @@ def fold_runtime(cv: CVResult) -> dict[str, str]:
     """``run.<key>`` params from what the folds' models recorded after ``fit`` (the CNN-GRU's device,
     precision and why): one value where every fold agrees, else each value with its folds."""
     out: dict[str, str] = {}
-    keys = sorted({k for f in cv.folds for k in f.runtime})
-    for key in keys:
+    for key in sorted({k for f in cv.folds for k in f.runtime}):
         by_value: dict[str, list[str]] = {}
         for f in cv.folds:
             if key in f.runtime:
                 by_value.setdefault(f.runtime[key], []).append(f.fold)
-        if len(by_value) == 1:
-            out[f"run.{key}"] = next(iter(by_value))
-        else:
-            out[f"run.{key}"] = "; ".join(f"{v} (folds {', '.join(folds)})" for v, folds in by_value.items())
-        out[f"run.{key}"] = out[f"run.{key}"][:500]
+        said = [f"{v} (folds {', '.join(folds)})" for v, folds in by_value.items()]
+        out[f"run.{key}"] = (next(iter(by_value)) if len(by_value) == 1 else "; ".join(said))[:500]
     return out
 
 
@@ -215,11 +198,9 @@ def flatten_params(cfg: DictConfig, choices: dict[str, str] | None = None) -> di
         node = cfg[group]
         params[group] = component_name(node, choices.get(group))
         for key, value in node_settings(node).items():
-            if key in _SKIP_PARAM_KEYS or isinstance(value, dict):
-                continue
-            if isinstance(value, list) and len(value) > 12:
-                continue
-            params[f"{group}.{key}"] = str(value)[:500]
+            too_big = isinstance(value, dict) or (isinstance(value, list) and len(value) > 12)
+            if key not in _SKIP_PARAM_KEYS and not too_big:
+                params[f"{group}.{key}"] = str(value)[:500]
     return params
 
 
@@ -232,17 +213,24 @@ def log_analysis_run(
     out_dir: str | os.PathLike,
 ) -> str | None:
     """One MLflow run of an analysis of ``cfg`` (coverage, scenario study), tagged ``sphri.kind=<kind>``,
-    ``tags`` and the git commit, holding ``numbers()`` (metrics, params) and every file of ``out_dir``;
-    its id, or None where ``cfg.tracking`` turns tracking off."""
+    ``tags`` and the git commit, holding ``numbers()`` (metrics, params) and every file of ``out_dir``,
+    ended FINISHED (FAILED on error); its id, or None where ``cfg.tracking`` turns tracking off."""
     tracker = build(cfg.tracking)
     if not getattr(tracker, "enabled", True):
         return None
     client = tracker.client(cfg.output_dir)
     exp = tracker.experiment_id(cfg.output_dir)
     tags = {"sphri.kind": kind, **tags, "sphri.git_commit": git_commit()}
-    run = tracker._retry(lambda: client.create_run(exp, tags=tags, run_name=run_name))
-    tracker.finish_analysis_run(client, run.info.run_id, numbers, out_dir)
-    return run.info.run_id
+    run_id = tracker._retry(client.create_run, exp, tags=tags, run_name=run_name).info.run_id
+    try:
+        metrics, params = numbers()
+        tracker.log_batches(client, run_id, metrics, params)
+        tracker._retry(client.log_artifacts, run_id, str(out_dir))
+        tracker._retry(client.set_terminated, run_id, "FINISHED")
+    except Exception:
+        tracker._retry(client.set_terminated, run_id, "FAILED")
+        raise
+    return run_id
 
 
 def _lost_race(exc: Exception) -> bool:
@@ -276,15 +264,14 @@ class MlflowTracker(Configured):
         """The MLflow client; opening it creates (or checks) the store, so call it before computing."""
         if self._client is None:
             uri = self.resolve_uri(output_dir)
-            client = _CLIENTS.get(uri)
-            if client is None:  # one per store and process: opening a SQL store costs about 0.6 s
+            if uri not in _CLIENTS:  # one per store and process: opening a SQL store costs about 0.6 s
                 from mlflow.tracking import MlflowClient
 
                 from sphri.tracking.store import ensure_store
 
                 ensure_store(uri)  # a new SQLite store is created once, under a lock; a broken one raises BrokenStore
-                client = _CLIENTS[uri] = MlflowClient(tracking_uri=uri)
-            self._client = client
+                _CLIENTS[uri] = MlflowClient(tracking_uri=uri)
+            self._client = _CLIENTS[uri]
         return self._client
 
     def experiment_id(self, output_dir: str | os.PathLike) -> str:
@@ -310,39 +297,27 @@ class MlflowTracker(Configured):
 
     def log_batches(self, client: MlflowClient, run_id: str, metrics: list, params: list) -> None:
         """Log metrics and params in MLflow's batches of 100, retrying a locked store."""
-        for start in range(0, max(len(metrics), len(params)), 100):
-            self._retry(
-                partial(
-                    client.log_batch, run_id, metrics=metrics[start : start + 100], params=params[start : start + 100]
-                )
-            )
+        for i in range(0, max(len(metrics), len(params)), 100):
+            self._retry(client.log_batch, run_id, metrics=metrics[i : i + 100], params=params[i : i + 100])
 
-    def finish_analysis_run(
-        self, client: MlflowClient, run_id: str, numbers: Callable[[], tuple[list, list]], out_dir: str | os.PathLike
-    ) -> None:
-        """Log an analysis run's ``numbers()`` (metrics, params) and every file of ``out_dir``, then end it
-        FINISHED (FAILED on error)."""
-        try:
-            metrics, params = numbers()
-            self.log_batches(client, run_id, metrics, params)
-            self._retry(lambda: client.log_artifacts(run_id, str(out_dir)))
-            self._retry(lambda: client.set_terminated(run_id, "FINISHED"))
-        except Exception:
-            self._retry(lambda: client.set_terminated(run_id, "FAILED"))
-            raise
-
-    def _retry(self, fn: Callable[[], T]) -> T:
-        """Retry a write that lost a race with another job writing the same store: a locked SQLite
-        database, or a dataset row another job inserted between MLflow's lookup and its insert
+    def _retry(self, fn: Callable[..., T], *args: Any, **kwargs: Any) -> T:
+        """``fn(*args, **kwargs)``, retried when it lost a race with another job writing the same store: a
+        locked SQLite database, or a dataset row another job inserted between MLflow's lookup and its insert
         (two parallel jobs logging the same dataset input into a new store: the retry finds the row)."""
         for attempt in range(self.retries + 1):
             try:
-                return fn()
+                return fn(*args, **kwargs)
             except Exception as exc:  # sqlalchemy's OperationalError/IntegrityError, wrapped by MLflow
                 if not _lost_race(exc) or attempt == self.retries:
                     raise
                 time.sleep(0.2 * (2**attempt) * (0.5 + random.random()))
         raise AssertionError("unreachable")
+
+    def _search(self, output_dir: str, query: str, **kwargs: Any) -> list:
+        """The experiment's runs matching ``query`` (none while the experiment does not exist)."""
+        client = self.client(output_dir)
+        exp = self._retry(client.get_experiment_by_name, self.experiment)
+        return [] if exp is None else self._retry(client.search_runs, [exp.experiment_id], query, **kwargs)
 
     # -- sweeps --------------------------------------------------------------
     def start_parent(
@@ -358,6 +333,8 @@ class MlflowTracker(Configured):
         """Create a sweep's parent run with MLflow's source tags and the sweep's params: the settings
         every job shares (``base``, the composed sweep config), then each swept key with its values as
         given (the command line's overrides and an experiment's ``hydra.sweeper.params``)."""
+        from mlflow.entities import Param
+
         client = self.client(output_dir)
         exp_id = self.experiment_id(output_dir)
         tags = {
@@ -368,15 +345,12 @@ class MlflowTracker(Configured):
             **source_tags(),
             "mlflow.note.content": "sweep: " + " ".join(overrides),
         }
-        run = self._retry(lambda: client.create_run(exp_id, tags=tags, run_name=f"sweep-{sweep_id}"))
-        from mlflow.entities import Param
-
+        run_id = self._retry(client.create_run, exp_id, tags=tags, run_name=f"sweep-{sweep_id}").info.run_id
         values = flatten_params(base) if base is not None else {}
         values.update(sweep_params(overrides))
         values.update({k: v[:500] for k, v in (swept or {}).items()})
-        params = [Param(k, v) for k, v in values.items()]
-        self.log_batches(client, run.info.run_id, [], params)
-        return run.info.run_id
+        self.log_batches(client, run_id, [], [Param(k, v) for k, v in values.items()])
+        return run_id
 
     def end_parent(
         self,
@@ -393,34 +367,25 @@ class MlflowTracker(Configured):
         on the parent (tag ``sphri.skipped_jobs``), so the parent accounts for every job."""
         client = self.client(output_dir)
         status = status or ("FAILED" if n_failed else "FINISHED")
-        self._retry(lambda: client.set_tag(run_id, "sphri.jobs", f"{n_jobs - n_failed}/{n_jobs} finished"))
-        elsewhere = {}
-        for job, done in sorted((skipped or {}).items()):
-            tags = self._retry(partial(client.get_run, done)).data.tags
-            if tags.get("mlflow.parentRunId") != run_id:
-                elsewhere[job] = done
+        self._retry(client.set_tag, run_id, "sphri.jobs", f"{n_jobs - n_failed}/{n_jobs} finished")
+        elsewhere = [
+            f"job {job}: run {done}"
+            for job, done in sorted((skipped or {}).items())
+            if self._retry(client.get_run, done).data.tags.get("mlflow.parentRunId") != run_id
+        ]
         if elsewhere:
-            text = ", ".join(f"job {j}: run {r}" for j, r in elsewhere.items())
-            self._retry(lambda: client.set_tag(run_id, "sphri.skipped_jobs", text[:5000]))
+            self._retry(client.set_tag, run_id, "sphri.skipped_jobs", ", ".join(elsewhere)[:5000])
         if status == "KILLED":  # jobs interrupted while logging end with their sweep
-            exp_id = self._retry(lambda: client.get_run(run_id)).info.experiment_id
+            exp_id = self._retry(client.get_run, run_id).info.experiment_id
             query = f"tags.`mlflow.parentRunId` = '{run_id}' and attributes.status = 'RUNNING'"
-            for child in self._retry(lambda: client.search_runs([exp_id], query)):
-                self._retry(partial(client.set_terminated, child.info.run_id, "KILLED"))
-        self._retry(lambda: client.set_terminated(run_id, status))
+            for child in self._retry(client.search_runs, [exp_id], query):
+                self._retry(client.set_terminated, child.info.run_id, "KILLED")
+        self._retry(client.set_terminated, run_id, status)
 
     def find_parent(self, output_dir: str, sweep_hash: str) -> dict[str, str] | None:
         """``{run_id, sweep_id}`` of the latest parent run of a sweep with these overrides, if any."""
-        client = self.client(output_dir)
-        exp = self._retry(lambda: client.get_experiment_by_name(self.experiment))
-        if exp is None:
-            return None
         query = f"tags.`sphri.sweep_hash` = '{sweep_hash}' and tags.`sphri.kind` = 'sweep'"
-        runs = self._retry(
-            lambda: client.search_runs(
-                [exp.experiment_id], query, max_results=1, order_by=["attributes.start_time DESC"]
-            )
-        )
+        runs = self._search(output_dir, query, max_results=1, order_by=["attributes.start_time DESC"])
         if not runs:
             return None
         run = runs[0]
@@ -430,46 +395,37 @@ class MlflowTracker(Configured):
         """Mark an existing parent run RUNNING again (a resumed sweep); False if gone."""
         client = self.client(output_dir)
         try:
-            self._retry(lambda: client.get_run(run_id))
+            self._retry(client.get_run, run_id)
         except Exception:
             return False
-        self._retry(lambda: client.update_run(run_id, status="RUNNING"))
+        self._retry(client.update_run, run_id, status="RUNNING")
         return True
 
     def find_finished(self, output_dir: str, config_hash: str) -> str | None:
         """Run id of a FINISHED job with this config hash, if any (sweep resume)."""
-        client = self.client(output_dir)
-        exp = self._retry(lambda: client.get_experiment_by_name(self.experiment))
-        if exp is None:
-            return None
         query = (
             f"tags.`sphri.config_hash` = '{config_hash}' and tags.`sphri.kind` = 'job' "
             "and attributes.status = 'FINISHED'"
         )
-        runs = self._retry(lambda: client.search_runs([exp.experiment_id], query, max_results=1))
+        runs = self._search(output_dir, query, max_results=1)
         return runs[0].info.run_id if runs else None
 
     def mark_rerun(self, output_dir: str, run_id: str, job_dir: Path) -> int:
         """Record on the FINISHED run ``run_id`` that the same experiment ran again (a single run whose
         config hash it already holds: no new run is made). Returns how many reruns it has seen."""
         client = self.client(output_dir)
-        tags = self._retry(lambda: client.get_run(run_id)).data.tags
-        n = int(tags.get("sphri.reruns", "0") or 0) + 1
+        n = int(self._retry(client.get_run, run_id).data.tags.get("sphri.reruns", "0") or 0) + 1
         stamp = time.strftime("%Y-%m-%dT%H:%M:%S%z")
-        for key, value in (
-            ("sphri.reruns", str(n)),
-            ("sphri.last_rerun", stamp),
-            ("sphri.last_rerun_dir", str(job_dir)),
-        ):
-            self._retry(partial(client.set_tag, run_id, key, value))
+        for key, value in (("sphri.reruns", str(n)), ("sphri.last_rerun", stamp), ("sphri.last_rerun_dir", job_dir)):
+            self._retry(client.set_tag, run_id, key, str(value))
         return n
 
     def logged_models(self, output_dir: str, run_id: str) -> list[str]:
         """``models:/<model_id>`` of every model logged from run ``run_id`` (MLflow's logged models)."""
         client = self.client(output_dir)
-        exp_id = self._retry(lambda: client.get_run(run_id)).info.experiment_id
+        exp_id = self._retry(client.get_run, run_id).info.experiment_id
         found = self._retry(
-            lambda: client.search_logged_models(experiment_ids=[exp_id], filter_string=f"source_run_id = '{run_id}'")
+            client.search_logged_models, experiment_ids=[exp_id], filter_string=f"source_run_id = '{run_id}'"
         )
         return [f"models:/{m.model_id}" for m in found]
 
@@ -477,20 +433,14 @@ class MlflowTracker(Configured):
     def _start_job(
         self, cfg: DictConfig, job_dir: Path, parent: dict | None, run_name: str, tags: dict[str, str]
     ) -> str:
-        output_dir = cfg.output_dir
-        client = self.client(output_dir)
-        exp_id = self.experiment_id(output_dir)
-        tags = {
-            "sphri.kind": "job",
-            **source_tags(),  # MLflow's own fields (user, source, commit): the UI shows them
-            "sphri.job_dir": str(job_dir),
-            **tags,
-        }
+        client = self.client(cfg.output_dir)
+        exp_id = self.experiment_id(cfg.output_dir)
+        # MLflow's own fields (user, source, commit) first: the UI shows them
+        tags = {"sphri.kind": "job", **source_tags(), "sphri.job_dir": str(job_dir), **tags}
         if parent:
             tags["mlflow.parentRunId"] = parent["run_id"]
             tags["sphri.sweep_id"] = parent["sweep_id"]
-        run = self._retry(lambda: client.create_run(exp_id, tags=tags, run_name=run_name))
-        return run.info.run_id
+        return self._retry(client.create_run, exp_id, tags=tags, run_name=run_name).info.run_id
 
     def log_job(
         self,
@@ -502,27 +452,22 @@ class MlflowTracker(Configured):
         choices: dict[str, str] | None = None,
     ) -> str:
         """Log a finished job; returns the MLflow run id."""
-        from mlflow.entities import Metric, Param
+        from mlflow.entities import Param
 
-        from sphri.evaluate.metrics import summarize
-
-        meta = result.meta
+        meta, stages = result.meta, result.stages
+        evaluated_here = "evaluate" not in stages or stages["evaluate"].source == "computed"
         tags = {
             "sphri.config_hash": result.config_hash,
             "sphri.dataset": meta.dataset,
             "sphri.synthetic": str(meta.synthetic).lower(),
             "sphri.cv_scheme": result.cv.scheme,
-            "sphri.from_cache": ",".join(n for n, r in result.stages.items() if r.source == "cache") or "none",
+            "sphri.from_cache": ",".join(n for n, r in stages.items() if r.source == "cache") or "none",
             "sphri.debug": str(bool((choices or {}).get("debug"))).lower(),
             **machine.tags(),  # CPU model and SIMD flags, GPU, library versions of this process
-        }
-        evaluate = result.stages.get("evaluate")
-        evaluated_here = evaluate is None or evaluate.source == "computed"
-        tags["sphri.evaluated"] = (
-            "in this run"
+            "sphri.evaluated": "in this run"
             if evaluated_here
-            else "earlier (the evaluation came from the cache: sphri.machine.* is this run's machine)"
-        )
+            else "earlier (the evaluation came from the cache: sphri.machine.* is this run's machine)",
+        }
         run_id = self._start_job(cfg, job_dir, parent, run_name or self._run_name(cfg, meta, choices), tags)
         client = self.client(cfg.output_dir)
         params = flatten_params(cfg, choices)
@@ -532,43 +477,15 @@ class MlflowTracker(Configured):
         params.update(runtime if runtime or not evaluated_here else model_runtime(cfg))
         for k, v in meta.resolution.items():
             params[f"resolution.{k}"] = f"{v:.6g}" if isinstance(v, float) else str(v)
-        for k in (
-            "robot",
-            "region",
-            "link",
-            "n_participants",
-            "n_trials",
-            "n_windows",
-            "n_dropped_no_contact",
-            "frame_rate_hz",
-        ):
-            params[f"meta.{k}"] = str(getattr(meta, k))
-        now = int(time.time() * 1000)
-        derived = [
-            Metric(f"resolution/{k}", float(v), now, 0)
-            for k, v in meta.resolution.items()
-            if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
-        ]  # the UI plots and sorts these
-        metrics = derived
-        for i, fold in enumerate(result.cv.folds):
-            metrics += [
-                Metric("fold_accuracy", float(fold.accuracy), now, i),
-                Metric("fold_macro_f1", float(fold.macro_f1), now, i),
-                Metric(f"participant/{fold.fold}/accuracy", float(fold.accuracy), now, 0),
-            ]
-        summary = summarize(result.cv)
-        for k, v in summary.items():
-            if isinstance(v, (int, float)) and np.isfinite(v):
-                metrics.append(Metric(k, float(v), now, 0))
-        for name, rec in result.stages.items():
-            metrics.append(Metric(f"time/{name}_s", float(rec.seconds), now, 0))
+        meta_keys = "robot region link n_participants n_trials n_windows n_dropped_no_contact frame_rate_hz"
+        params.update({f"meta.{k}": str(getattr(meta, k)) for k in meta_keys.split()})
         plist = [Param(k, v) for k, v in params.items()]
-        self.log_batches(client, run_id, metrics, plist)
-        self._retry(lambda: client.log_inputs(run_id, datasets=[dataset_input(cfg, result)]))
-        self._retry(lambda: client.set_tag(run_id, "mlflow.note.content", summary_text(result)))
+        self.log_batches(client, run_id, _job_metrics(result), plist)
+        self._retry(client.log_inputs, run_id, datasets=[dataset_input(cfg, result)])
+        self._retry(client.set_tag, run_id, "mlflow.note.content", summary_text(result))
         if self.artifacts:
             self._log_artifacts(client, run_id, cfg, result)
-        self._retry(lambda: client.set_terminated(run_id, "FINISHED"))
+        self._retry(client.set_terminated, run_id, "FINISHED")
         return run_id
 
     def log_failure(
@@ -587,8 +504,8 @@ class MlflowTracker(Configured):
             run_id = self._start_job(cfg, job_dir, parent, self._failed_name(cfg, choices), tags)
             client = self.client(cfg.output_dir)
             params = [Param(k, v) for k, v in flatten_params(cfg, choices).items()]
-            self._retry(lambda: client.log_batch(run_id, params=params[:100]))
-            self._retry(lambda: client.set_terminated(run_id, "FAILED"))
+            self._retry(client.log_batch, run_id, params=params[:100])
+            self._retry(client.set_terminated, run_id, "FAILED")
             return run_id
         except Exception as log_exc:  # never mask the job's own error
             log.error("could not record the failure in MLflow: %s", log_exc)
@@ -614,40 +531,55 @@ class MlflowTracker(Configured):
     def _log_artifacts(self, client: MlflowClient, run_id: str, cfg: DictConfig, result: RunResult) -> None:
         from omegaconf import OmegaConf
 
+        from sphri.figures import Provenance
         from sphri.tracking.artifacts import write_confusion_csv, write_confusion_png, write_fold_csv
 
+        cv = result.cv
         with tempfile.TemporaryDirectory(prefix="sphri-artifacts-") as tmp:
             tmp_path = Path(tmp)
             (tmp_path / "config.yaml").write_text(OmegaConf.to_yaml(cfg, resolve=True))
-            write_fold_csv(result.cv, tmp_path / "per_participant.csv")
-            from sphri.figures import Provenance
-
+            write_fold_csv(cv, tmp_path / "per_participant.csv")
             # The report redraws the matrix from the counts (PNG, PDF, SVG, layout-checked); the job's own
             # PNG is for browsing runs in the MLflow UI, so it skips the vector files and the check.
-            write_confusion_csv(result.cv, tmp_path / "confusion.csv")
+            write_confusion_csv(cv, tmp_path / "confusion.csv")
             if self.confusion_png:
-                write_confusion_png(
-                    result.cv,
-                    tmp_path / "confusion.png",
-                    formats=("png",),
-                    check=False,
-                    title=f"{result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
-                    provenance=Provenance(synthetic=result.meta.synthetic, ids=f"res {layout_res(cfg)}"),
-                )
+                title = f"{cv.model}, {cv.scheme.upper()} over {len(cv.folds)} folds"
+                provenance = Provenance(synthetic=result.meta.synthetic, ids=f"res {layout_res(cfg)}")
+                write_confusion_png(cv, tmp_path / "confusion.png", title, provenance, ("png",), check=False)
             (tmp_path / "summary.txt").write_text(summary_text(result) + "\n")
             (tmp_path / "meta.json").write_text(json.dumps(dataclasses.asdict(result.meta), indent=2, default=str))
-            self._retry(lambda: client.log_artifacts(run_id, str(tmp_path)))
+            self._retry(client.log_artifacts, run_id, str(tmp_path))
 
 
-def _count(n: int, noun: str) -> str:
-    """``"1 trial"``, ``"2 trials"``."""
-    return f"{n} {noun}{'' if n == 1 else 's'}"
+def _job_metrics(result: RunResult) -> list:
+    """A job's MLflow metrics: the resolution (``resolution/<key>``: the UI plots and sorts these), each fold's
+    accuracy and macro-F1 (step = fold index) and accuracy per participant, the summary and each stage's time."""
+    from mlflow.entities import Metric
+
+    from sphri.evaluate.metrics import summarize
+
+    now = int(time.time() * 1000)
+    metrics = [
+        Metric(f"resolution/{k}", float(v), now, 0)
+        for k, v in result.meta.resolution.items()
+        if isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v)
+    ]
+    for i, fold in enumerate(result.cv.folds):
+        metrics += [
+            Metric("fold_accuracy", float(fold.accuracy), now, i),
+            Metric("fold_macro_f1", float(fold.macro_f1), now, i),
+            Metric(f"participant/{fold.fold}/accuracy", float(fold.accuracy), now, 0),
+        ]
+    metrics += [
+        Metric(k, float(v), now, 0)
+        for k, v in summarize(result.cv).items()
+        if isinstance(v, (int, float)) and np.isfinite(v)
+    ]
+    return metrics + [Metric(f"time/{name}_s", float(rec.seconds), now, 0) for name, rec in result.stages.items()]
 
 
 def ui_hint(uri: str) -> str:
     """The command that shows ``uri`` in the MLflow UI (``make ui`` only for the repository's default store)."""
-    from pathlib import Path
-
     if uri.startswith(("http://", "https://")):
         return f"open {uri}"  # a tracking server serves its own UI
     default = f"sqlite:///{(Path.cwd() / 'outputs' / 'mlflow.db').resolve()}"
@@ -662,22 +594,20 @@ def summary_text(result: RunResult) -> str:
 
     m = result.meta
     s = summarize(result.cv)
-    r = m.resolution
-    label = "SYNTHETIC" if m.synthetic else "real"
+    dropped = f"{m.n_dropped_no_contact} trial{'' if m.n_dropped_no_contact == 1 else 's'}"
     lines = [
-        f"dataset     {m.dataset} ({label}): {m.n_participants} participants, {m.n_trials} trials, "
-        f"{m.n_windows} windows of {m.window_frames} frames ({_count(m.n_dropped_no_contact, 'trial')} without contact dropped)",
+        f"dataset     {m.dataset} ({'SYNTHETIC' if m.synthetic else 'real'}): {m.n_participants} participants, "
+        f"{m.n_trials} trials, {m.n_windows} windows of {m.window_frames} frames ({dropped} without contact dropped)",
         f"robot       {m.robot}, region {m.region} (link {m.link}), surface {m.surface} "
         f"(fit residual {m.surface_fit_residual_mm:.1f} mm)",
-        "resolution  " + ", ".join(_fmt_resolution(r)),
+        "resolution  " + ", ".join(_fmt_resolution(m.resolution)),
         f"model       {result.cv.model}, {result.cv.scheme.upper()} over {len(result.cv.folds)} folds",
         f"accuracy    {s['accuracy_mean']:.3f} +/- {s['accuracy_std']:.3f}   "
         f"(95% CI {s.get('accuracy_ci_low', float('nan')):.3f}-{s.get('accuracy_ci_high', float('nan')):.3f})",
         f"macro-F1    {s['macro_f1_mean']:.3f} +/- {s['macro_f1_std']:.3f}   (mean +/- std over participants; "
         f"chance {chance_level(result.cv):.3f})",
     ]
-    lines += [f"warning     {w}" for w in m.warnings]
-    return "\n".join(lines)
+    return "\n".join(lines + [f"warning     {w}" for w in m.warnings])
 
 
 def _fmt_resolution(r: dict[str, Any]) -> list[str]:

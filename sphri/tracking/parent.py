@@ -44,6 +44,8 @@ from typing import Any
 
 from omegaconf import DictConfig
 
+from sphri.config import build, runtime_keys
+from sphri.fsutil import write_atomic
 from sphri.tracking.mlflow_tracker import PARENT_FILE
 
 log = logging.getLogger(__name__)
@@ -78,9 +80,7 @@ def sweep_id_of(sweep_dir: str | Path) -> str:
 
 def read_parent(sweep_dir: str | Path) -> dict[str, Any] | None:
     path = Path(sweep_dir) / PARENT_FILE
-    if not path.exists():
-        return None
-    return json.loads(path.read_text())
+    return json.loads(path.read_text()) if path.exists() else None
 
 
 def sweep_hash(overrides: Sequence[str]) -> str:
@@ -106,41 +106,27 @@ def write_status(
 ) -> None:
     """``sphri_status.json``: the job's end state (and, for the sweep's table, its swept values, accuracy,
     macro-F1, seconds and whether its evaluation came from the cache)."""
-    job_dir.mkdir(parents=True, exist_ok=True)
     info = {"job": job, "status": status, "error": error, "mlflow_run_id": run_id, **details}
-    tmp = job_dir / "sphri_status.json.tmp"
-    tmp.write_text(json.dumps(info, default=float))
-    tmp.replace(job_dir / "sphri_status.json")  # a parallel job's progress line never reads half a file
+    # a parallel job's progress line never reads half a file
+    write_atomic(job_dir / STATUS_FILE, json.dumps(info, default=float).encode())
 
 
 class SweepDirInUse(RuntimeError):
     """A sweep folder another sweep holds (running now) or holds the jobs of (another sweep's folder)."""
 
 
-def _identity_key(override: str) -> str:
-    return override.lstrip("+~").partition("=")[0]
-
-
 def job_identity(overrides: Sequence[str], neutral: frozenset[str]) -> list[str]:
     """What identifies a sweep's job in its folder: its overrides, sorted, without ``hydra.*`` and the
     settings in ``neutral`` (runtime settings, the tracking group: they cannot change its result)."""
-    out = []
-    for o in overrides:
-        key = _identity_key(o)
-        if (
-            key.startswith("hydra")
-            or key in neutral
-            or key.split(".", 1)[0] in ("tracking", "cache", "resume", "output_dir")
-        ):
-            continue
-        out.append(o)
-    return sorted(out)
+
+    def kept(key: str) -> bool:
+        return not key.startswith("hydra") and key not in neutral and key.split(".", 1)[0] not in _NOT_JOB
+
+    return sorted(o for o in overrides if kept(o.lstrip("+~").partition("=")[0]))
 
 
-def _neutral_keys() -> frozenset[str]:
-    from sphri.config import runtime_keys
-
-    return runtime_keys()
+#: Root keys and groups that say how a job is run or recorded: never part of a job's identity.
+_NOT_JOB = ("tracking", "cache", "resume", "output_dir")
 
 
 class SweepClaim:
@@ -203,15 +189,10 @@ def _recorded_jobs(sweep_dir: Path) -> tuple[dict[int, list[str]] | None, int | 
     if isinstance(info, dict) and isinstance(info.get("jobs"), list):
         jobs = [[str(o) for o in j] for j in info["jobs"] if isinstance(j, list)]
         return dict(enumerate(jobs)), len(jobs), info.get("output_dir")
+    neutral = runtime_keys()
     statuses = job_statuses(sweep_dir)
-    if not statuses:
-        return None, None, None
-    neutral = _neutral_keys()
-    return (
-        {int(s.get("job", 0)): job_identity([str(o) for o in s.get("overrides") or []], neutral) for s in statuses},
-        None,
-        None,
-    )
+    found = {int(s.get("job", 0)): job_identity([str(o) for o in s.get("overrides") or []], neutral) for s in statuses}
+    return found or None, None, None
 
 
 def claim_sweep_dir(sweep_dir: str | Path, jobs: Sequence[Sequence[str]], output_dir: str | Path) -> SweepClaim:
@@ -224,7 +205,7 @@ def claim_sweep_dir(sweep_dir: str | Path, jobs: Sequence[Sequence[str]], output
         raise SweepDirInUse(f"hydra.sweep.dir={path} cannot be made ({exc.strerror or exc})") from None
     claim = _lock_sweep_dir(path)
     try:
-        neutral = _neutral_keys()
+        neutral = runtime_keys()
         mine = [job_identity(j, neutral) for j in jobs]
         theirs, n_theirs, their_out = _recorded_jobs(path)
         out = str(Path(output_dir).resolve())
@@ -260,17 +241,13 @@ def start_sweep_file(
 ) -> None:
     """Record the job count and start time (the progress lines' denominator and ETA), and the sweep's jobs
     (:func:`job_identity`) and output folder, which a later sweep into the folder must share."""
-    path = Path(sweep_dir)
-    path.mkdir(parents=True, exist_ok=True)
     info: dict[str, Any] = {"n_jobs": int(n_jobs), "started": time.time()}
     if jobs is not None:
-        neutral = _neutral_keys()
+        neutral = runtime_keys()
         info["jobs"] = [job_identity(j, neutral) for j in jobs]
     if output_dir is not None:
         info["output_dir"] = str(Path(output_dir).resolve())
-    tmp = path / f"{SWEEP_FILE}.tmp"
-    tmp.write_text(json.dumps(info))
-    tmp.replace(path / SWEEP_FILE)
+    write_atomic(Path(sweep_dir) / SWEEP_FILE, json.dumps(info).encode())
 
 
 def progress_line(sweep_dir: str | Path, job: int, what: str) -> str:
@@ -320,8 +297,6 @@ def results_table(statuses: Sequence[dict[str, Any]]) -> str:
 
 def open_parent(config: DictConfig, overrides: Sequence[str]) -> dict[str, Any] | None:
     """Reopen this sweep's earlier parent run, or create one; writes the sweep dir's parent file."""
-    from sphri.config import build
-
     sweep_dir = Path(config.hydra.sweep.dir)
     sweep_dir.mkdir(parents=True, exist_ok=True)
     for old in sweep_dir.glob(f"*/{STATUS_FILE}"):  # statuses of an earlier attempt
@@ -338,17 +313,16 @@ def open_parent(config: DictConfig, overrides: Sequence[str]) -> dict[str, Any] 
     earlier = tracker.find_parent(config.output_dir, h)
     if earlier is not None and tracker.reopen_parent(config.output_dir, earlier["run_id"]):
         info = {**earlier, "uri": uri}
-        (sweep_dir / PARENT_FILE).write_text(json.dumps(info))
         log.info("resuming sweep %s (same overrides) in its MLflow parent run %s", info["sweep_id"], info["run_id"])
-        return info
-    sweep_id = sweep_id_of(sweep_dir)
-    swept = {str(k): str(v) for k, v in (config.hydra.sweeper.get("params") or {}).items()}
-    run_id = tracker.start_parent(
-        config.output_dir, str(sweep_dir), sweep_id, list(overrides), sweep_hash=h, base=config, swept=swept
-    )
-    info = {"run_id": run_id, "sweep_id": sweep_id, "uri": uri}
+    else:
+        sweep_id = sweep_id_of(sweep_dir)
+        swept = {str(k): str(v) for k, v in (config.hydra.sweeper.get("params") or {}).items()}
+        run_id = tracker.start_parent(
+            config.output_dir, str(sweep_dir), sweep_id, list(overrides), sweep_hash=h, base=config, swept=swept
+        )
+        info = {"run_id": run_id, "sweep_id": sweep_id, "uri": uri}
+        log.info("MLflow parent run %s for sweep %s", run_id, sweep_id)
     (sweep_dir / PARENT_FILE).write_text(json.dumps(info))
-    log.info("MLflow parent run %s for sweep %s", run_id, sweep_id)
     return info
 
 
@@ -364,8 +338,6 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
     status = interrupted or ("FAILED" if failed else "FINISHED")
     parent = read_parent(sweep_dir)
     if parent and config.tracking.enabled:
-        from sphri.config import build
-
         try:
             skipped = {
                 int(s["job"]): s["mlflow_run_id"]
@@ -386,11 +358,7 @@ def close_parent(config: DictConfig, interrupted: str | None = None) -> tuple[st
         msg += "; FAILED: " + ", ".join(f"#{s['job']}: {s.get('error', '?')}" for s in failed)
     if interrupted:
         msg += f"; sweep {interrupted}"
-    reports = sweep_dir / "report"
-    msg += (
-        f"; report: {reports / 'report.html'}"
-        if (reports / "report.html").is_file()
-        else f"; its report: sphri report {sweep_dir}"
-    )
+    report = sweep_dir / "report" / "report.html"
+    msg += f"; report: {report}" if report.is_file() else f"; its report: sphri report {sweep_dir}"
     print(msg)
     return status, failed

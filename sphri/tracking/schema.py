@@ -43,29 +43,14 @@ class MlflowTrackingSchema(TrackingSchema):
     def check(self) -> None:
         require(bool(self.experiment.strip()), self.key("experiment"), self.experiment, "must be a non-empty name")
         require(self.retries >= 0, self.key("retries"), self.retries, "must be >= 0")
-        if self.register_model is not None:
-            require(
-                bool(self.register_model.strip()),
-                self.key("register_model"),
-                self.register_model,
-                "must be a non-empty model name (or null)",
-            )
-            require(
-                self.log_model is not False,
-                self.key("register_model"),
-                self.register_model,
-                "needs tracking.log_model=true (or null)",
-            )
+        name, key = self.register_model, self.key("register_model")
+        if name is not None:
+            require(bool(name.strip()), key, name, "must be a non-empty model name (or null)")
+            require(self.log_model is not False, key, name, "needs tracking.log_model=true (or null)")
+        schemes = ("sqlite:///", "http://", "https://", "postgresql", "mysql", "databricks", "file:")
         if self.uri is not None:
-            ok = self.uri.startswith(
-                ("sqlite:///", "http://", "https://", "postgresql", "mysql", "databricks", "file:")
-            )
-            require(
-                ok,
-                self.key("uri"),
-                self.uri,
-                "must be an MLflow tracking URI (sqlite:///ABS.db, http://127.0.0.1:PORT, ...)",
-            )
+            expected = "must be an MLflow tracking URI (sqlite:///ABS.db, http://127.0.0.1:PORT, ...)"
+            require(self.uri.startswith(schemes), self.key("uri"), self.uri, expected)
 
 
 store(group="tracking", name="mlflow_schema", node=MlflowTrackingSchema)

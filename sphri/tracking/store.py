@@ -59,6 +59,7 @@ from pathlib import Path
 from typing import Literal
 
 from sphri.args import arg
+from sphri.fsutil import write_atomic
 
 log = logging.getLogger(__name__)
 
@@ -94,21 +95,20 @@ class StoreNotCreated(StoreError):
 def holders(db: Path) -> list[str]:
     """``pid N (command)`` of every other process with ``db`` (or its journal) open, from ``/proc/*/fd``;
     empty where the OS does not tell."""
-    names = {str(Path(db).resolve()), str(Path(db).resolve()) + "-journal", str(Path(db).resolve()) + "-wal"}
+    names = {str(Path(db).resolve()) + side for side in ("", "-journal", "-wal")}
+
+    def target(fd: Path) -> str:
+        try:
+            return os.readlink(fd)
+        except OSError:  # closed meanwhile
+            return ""
+
     out = []
     for proc in Path("/proc").glob("[0-9]*"):
-        if proc.name == str(os.getpid()):
-            continue
         try:
-            fds = list((proc / "fd").iterdir())
+            hit = proc.name != str(os.getpid()) and any(target(fd) in names for fd in (proc / "fd").iterdir())
         except OSError:  # gone, or another user's
             continue
-        hit = False
-        for fd in fds:
-            with contextlib.suppress(OSError):
-                if os.readlink(fd) in names:
-                    hit = True
-                    break
         if hit:
             try:
                 cmd = " ".join((proc / "cmdline").read_bytes().decode(errors="replace").replace("\0", " ").split())
@@ -148,26 +148,28 @@ def store_lock(db: Path) -> Iterator[None]:
         yield
 
 
-def _tables(db: Path, timeout: float = BUSY_TIMEOUT_S) -> list[str]:
-    """The store's tables; waits up to ``timeout`` s for another process's lock, then :class:`StoreBusy`."""
+def _read(db: Path, sql: str, timeout: float = BUSY_TIMEOUT_S) -> list:
+    """The rows of ``sql`` on the store opened read-only; waits up to ``timeout`` s for another process's lock,
+    then :class:`StoreBusy`."""
     try:
         with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=timeout)) as con:
-            return [r[0] for r in con.execute("SELECT name FROM sqlite_master WHERE type='table'")]
+            return con.execute(sql).fetchall()
     except sqlite3.Error as exc:
         if _is_lock(exc):
             raise _busy(db, timeout) from None
         raise
 
 
+def _tables(db: Path, timeout: float = BUSY_TIMEOUT_S) -> list[str]:
+    return [r[0] for r in _read(db, "SELECT name FROM sqlite_master WHERE type='table'", timeout)]
+
+
 def _revision(db: Path) -> str | None:
-    with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True, timeout=BUSY_TIMEOUT_S)) as con:
-        try:
-            row = con.execute("SELECT version_num FROM alembic_version").fetchone()
-        except sqlite3.OperationalError as exc:
-            if _is_lock(exc):
-                raise _busy(db, BUSY_TIMEOUT_S) from None
-            return None
-    return row[0] if row else None
+    try:
+        rows = _read(db, "SELECT version_num FROM alembic_version")
+    except sqlite3.OperationalError:  # no such table
+        return None
+    return rows[0][0] if rows else None
 
 
 def head_revision(memo_dir: Path | None = None) -> str:
@@ -188,12 +190,8 @@ def head_revision(memo_dir: Path | None = None) -> str:
 
     head = _get_latest_schema_revision()
     if memo is not None:
-        try:
-            tmp = memo.with_suffix(f".{os.getpid()}.tmp")
-            tmp.write_text(json.dumps({"mlflow": mlflow.__version__, "head": head}))
-            tmp.replace(memo)
-        except OSError:  # a read-only folder: recompute next time
-            pass
+        with contextlib.suppress(OSError):  # a read-only folder: recompute next time
+            write_atomic(memo, json.dumps({"mlflow": mlflow.__version__, "head": head}).encode())
     return head
 
 
@@ -223,7 +221,7 @@ def problems(db: Path, timeout: float | None = None) -> list[str]:
         raise NotAStore(f"{db} is not an MLflow store (not a SQLite database: {exc})") from None
     if not tables:
         return []
-    plain = {t[len(TMP_PREFIX) :] if t.startswith(TMP_PREFIX) else t for t in tables}
+    plain = {t.removeprefix(TMP_PREFIX) for t in tables}
     lacking = [t for t in ("alembic_version", *MLFLOW_TABLES) if t not in plain]
     if lacking:
         raise NotAStore(f"{db} is not an MLflow store (a SQLite database without the table(s) {', '.join(lacking)})")
@@ -266,11 +264,8 @@ def template_path() -> Path:
 
 
 def _sha256(path: Path) -> str:
-    digest = hashlib.sha256()
     with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            digest.update(block)
-    return digest.hexdigest()
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def checksum_path(tpl: Path) -> Path:
@@ -278,32 +273,23 @@ def checksum_path(tpl: Path) -> Path:
     return tpl.with_name(tpl.name + ".sha256")
 
 
-def _recorded_sha256(tpl: Path) -> str | None:
-    try:
-        info = json.loads(checksum_path(tpl).read_text())
-    except (OSError, ValueError, RecursionError):
-        return None
-    value = info.get("sha256") if isinstance(info, dict) else None
-    return value if isinstance(value, str) else None
-
-
 def _verified_template(tpl: Path) -> str | None:
     """The template's SHA-256 when it matches the recorded one; None (with a warning naming what is wrong)
     when it is missing, unrecorded, changed or not a store at MLflow's head revision."""
     if not tpl.exists():
         return None
-    recorded = _recorded_sha256(tpl)
+    try:
+        info = json.loads(checksum_path(tpl).read_text())
+    except (OSError, ValueError, RecursionError):
+        info = None
+    recorded = info.get("sha256") if isinstance(info, dict) else None
     actual = _sha256(tpl)
-    if recorded is None:
+    if not isinstance(recorded, str):
         log.warning("MLflow store template %s has no recorded checksum (%s); made anew", tpl, checksum_path(tpl))
         return None
     if actual != recorded:
-        log.warning(
-            "MLflow store template %s changed since it was made (SHA-256 %s..., recorded %s...); made anew",
-            tpl,
-            actual[:12],
-            recorded[:12],
-        )
+        changed = "MLflow store template %s changed since it was made (SHA-256 %s..., recorded %s...); made anew"
+        log.warning(changed, tpl, actual[:12], recorded[:12])
         return None
     try:
         if problems(tpl) or _revision(tpl) is None:
@@ -357,22 +343,19 @@ def _copy_template(db: Path) -> None:
         if _sha256(tmp) != digest:
             raise OSError(f"the copy of {tpl} does not match its checksum")
         tmp.replace(db)
-    except OSError as exc:
+    except Exception as exc:  # an unwritable cache, a changed MLflow schema...: migrate from scratch instead
         with contextlib.suppress(OSError):
             tmp.unlink(missing_ok=True)
-        if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        if isinstance(exc, OSError) and exc.errno in (errno.ENOSPC, errno.EDQUOT):
             raise  # a full disk: migrating from scratch cannot succeed either
-    except Exception:  # an unwritable cache, a changed MLflow schema...: migrate from scratch instead
-        with contextlib.suppress(OSError):
-            tmp.unlink(missing_ok=True)
 
 
 def _remove_half_made(db: Path, existed: bool) -> None:
     """Undo a store creation that failed: remove the new file and its journal (an empty file that was
     there is left empty)."""
-    for side in (db.with_name(db.name + "-journal"), db.with_name(db.name + "-wal"), db.with_name(db.name + "-shm")):
+    for side in ("-journal", "-wal", "-shm"):
         with contextlib.suppress(OSError):
-            side.unlink(missing_ok=True)
+            db.with_name(db.name + side).unlink(missing_ok=True)
     with contextlib.suppress(OSError):
         if existed:
             os.truncate(db, 0)
@@ -420,16 +403,11 @@ def ensure_store(uri: str) -> None:
 
 
 def _n_runs(db: Path) -> int:
-    with contextlib.closing(sqlite3.connect(f"file:{db}?mode=ro", uri=True)) as con:
-        try:
-            return int(con.execute("SELECT count(*) FROM runs").fetchone()[0])
-        except sqlite3.OperationalError as exc:
-            if _is_lock(exc):
-                raise _busy(db, 0) from None
-            try:
-                return int(con.execute(f"SELECT count(*) FROM {TMP_PREFIX}runs").fetchone()[0])
-            except sqlite3.OperationalError:
-                return 0
+    """The runs the store holds (in ``runs``, else in an interrupted migration's copy of it)."""
+    for table in ("runs", f"{TMP_PREFIX}runs"):
+        with contextlib.suppress(sqlite3.OperationalError):  # no such table
+            return int(_read(db, f"SELECT count(*) FROM {table}", 5.0)[0][0])
+    return 0
 
 
 def _check_free(db: Path, timeout: float) -> None:
@@ -468,12 +446,9 @@ def repair(db: Path, timeout: float = 5.0) -> str:
         shutil.copy2(db, backup)
         with contextlib.closing(sqlite3.connect(db)) as con:
             for t in _tables(db):
-                if t.startswith(TMP_PREFIX):
-                    real = t[len(TMP_PREFIX) :]
-                    if real in _tables(db):
-                        con.execute(f'DROP TABLE "{t}"')
-                    else:
-                        con.execute(f'ALTER TABLE "{t}" RENAME TO "{real}"')
+                real = t.removeprefix(TMP_PREFIX)
+                if real != t:  # dropped where the migration made the table, else renamed to it
+                    con.execute(f'DROP TABLE "{t}"' if real in _tables(db) else f'ALTER TABLE "{t}" RENAME TO "{real}"')
             con.commit()
         import sqlalchemy
         from mlflow.store.db.utils import _upgrade_db
