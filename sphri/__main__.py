@@ -55,14 +55,11 @@ def limit_threads(n: int) -> None:
     numba and torch are capped here only where they are imported already; otherwise each sizes its pool from
     the variables set here when the job first imports it, so a job that never uses torch (a Random Forest's)
     does not import it (what that saves a sweep: docs/BENCHMARKS.md)."""
+    from threadpoolctl import threadpool_limits  # scikit-learn's dependency, imported by sphri.evaluate.cv too
+
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "SPHRI_THREADS"):
         os.environ[var] = str(n)
-    try:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(n)
-    except ImportError:  # pragma: no cover - threadpoolctl ships with scikit-learn
-        pass
+    threadpool_limits(n)
     numba = sys.modules.get("numba")
     if numba is not None:  # its pool was sized at import: cap it (within that size)
         numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
@@ -322,9 +319,9 @@ def find_sweeper_plugin() -> None:
 
 
 def _fixed_overrides(args: list[str]) -> list[str] | None:
-    """The overrides every job shares (a sweep's swept ones left out: its sweeper checks each job),
-    for a composition check before Hydra's; None when a Hydra flag (``--cfg``, ``-sc``, ``--info``,
-    ...) composes the config its own way, or the overrides do not parse (Hydra says why)."""
+    """The overrides every job shares (a sweep's swept ones left out: its sweeper checks each job), for a
+    composition check before Hydra's; None when a Hydra flag (``--cfg``, ``-sc``, ``--info``, ...) composes the
+    config its own way. An override that does not parse is a :class:`ConfigError` naming it."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     if any(a.startswith("-") and a not in ("-m", "--multirun") for a in args):

@@ -203,16 +203,12 @@ def show_command(args: ShowArgs) -> int:
     keys = [o.lstrip("+").split("=", 1)[0] for o in overrides if "=" in o]
     named = [k.split(".", 1)[0] for k in [*keys, *(RENAMED_KEYS[k] for k in keys if k in RENAMED_KEYS)]]
     shown = args.group or [g for g in STAGE_GROUPS if g in named] or list(STAGE_GROUPS)
-    for group in shown:
-        if group not in STAGE_GROUPS:
-            raise ConfigError(f"unknown config group {group!r}; groups: {', '.join(STAGE_GROUPS)}")
+    for group in shown:  # each of STAGE_GROUPS: the parser checks a group named
         node = cfg[group]
         schema = OmegaConf.get_type(node)
         docs = field_docs(schema) if isinstance(schema, type) else {}
         try:
-            default: dict[str, Any] = {}
-            if dataclasses.is_dataclass(schema):
-                default = _mapping(OmegaConf.structured(schema))
+            default = _mapping(OmegaConf.structured(schema)) if dataclasses.is_dataclass(schema) else {}
         except Exception:  # a schema without defaults for every field
             default = {}
         values = _mapping(node)
