@@ -33,6 +33,7 @@ from typing import Any, Literal, TypeVar
 T = TypeVar("T")
 
 _BOOL = {**dict.fromkeys(("true", "yes", "on", "1"), True), **dict.fromkeys(("false", "no", "off", "0"), False)}
+_CONVERT: dict[Any, Callable[[str], Any]] = {bool: lambda w: _BOOL[w.lower()], int: int, float: float, Path: Path}
 _KEY = re.compile(r"[A-Za-z_][\w.\-]*")
 HELP_FLAGS = ("-h", "--help")
 _META = ("help", "positional", "rest", "flags", "check", "metavar", "choices")  # what arg() records
@@ -188,7 +189,7 @@ def _scalar(t: Any, text: str, shown: str) -> Any:
         close = difflib.get_close_matches(text, [str(c) for c in typing.get_args(t)], n=1)
         raise ArgsError(bad + (f" (did you mean {close[0]}?)" if close else ""))
     try:
-        value = {bool: lambda w: _BOOL[w.lower()], int: int, float: float, Path: Path}.get(t, str)(text)
+        value = _CONVERT.get(t, str)(text)
     except (KeyError, ValueError):
         raise ArgsError(bad) from None
     if value != value:  # nan passes every range check
