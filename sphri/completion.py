@@ -165,18 +165,14 @@ def answer(line: str) -> str:
     context, stem = split_line(line)
     key = hashlib.sha256(json.dumps([fingerprint(), context, stem]).encode()).hexdigest()[:32]
     path = cache_dir() / f"{key}.txt"
-    try:
+    with contextlib.suppress(OSError):
         return path.read_text()
-    except OSError:
-        pass
     text = _compute(context + stem)
-    try:
+    with contextlib.suppress(OSError):  # a read-only home: answer without keeping it
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(text)
         tmp.replace(path)  # a TAB in another shell never reads half an answer
-    except OSError:  # a read-only home: answer without keeping it
-        pass
     return text
 
 
