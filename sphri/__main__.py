@@ -52,19 +52,14 @@ log = logging.getLogger("sphri")
 def limit_threads(n: int) -> None:
     """Cap BLAS/OpenMP/numba/torch threads and sphri's own (parallel sweep jobs share the cores).
 
-    numba and torch are capped here only where they are imported already; otherwise each sizes its
-    pool from the variables set here when the job first imports it (``NUMBA_NUM_THREADS``,
-    ``OMP_NUM_THREADS``), so a job that never uses torch (a Random Forest's) does not import it (what
-    that saves a sweep: docs/BENCHMARKS.md).
-    """
+    numba and torch are capped here only where they are imported already; otherwise each sizes its pool from
+    the variables set here when the job first imports it, so a job that never uses torch (a Random Forest's)
+    does not import it (what that saves a sweep: docs/BENCHMARKS.md)."""
+    from threadpoolctl import threadpool_limits  # scikit-learn's dependency, imported by sphri.evaluate.cv too
+
     for var in ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "NUMBA_NUM_THREADS", "SPHRI_THREADS"):
         os.environ[var] = str(n)
-    try:
-        from threadpoolctl import threadpool_limits
-
-        threadpool_limits(n)
-    except ImportError:  # pragma: no cover - threadpoolctl ships with scikit-learn
-        pass
+    threadpool_limits(n)
     numba = sys.modules.get("numba")
     if numba is not None:  # its pool was sized at import: cap it (within that size)
         numba.set_num_threads(min(n, numba.config.NUMBA_NUM_THREADS))
@@ -75,10 +70,9 @@ def limit_threads(n: int) -> None:
 
 def passive_openmp() -> None:
     """OpenMP threads that wait for work sleep instead of spinning (``OMP_WAIT_POLICY=PASSIVE``), unless the
-    environment sets a policy. On cores other processes share, two spinning torch threads cost the CNN-GRU
-    2.4x the CPU per training step at res 18 (2.2-3.0x over 3 rounds), with the same numbers (2-core AMD
-    EPYC; docs/BENCHMARKS.md). The OpenMP runtime reads the variable when torch loads, so this runs before any
-    job imports torch; fold processes inherit it."""
+    environment sets a policy: on cores other processes share, spinning torch threads cost the CNN-GRU several
+    times the CPU per training step for the same numbers (docs/BENCHMARKS.md). The OpenMP runtime reads the
+    variable when torch loads, so this runs before any job imports torch; fold processes inherit it."""
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
 
@@ -325,9 +319,9 @@ def find_sweeper_plugin() -> None:
 
 
 def _fixed_overrides(args: list[str]) -> list[str] | None:
-    """The overrides every job shares (a sweep's swept ones left out: its sweeper checks each job),
-    for a composition check before Hydra's; None when a Hydra flag (``--cfg``, ``-sc``, ``--info``,
-    ...) composes the config its own way, or the overrides do not parse (Hydra says why)."""
+    """The overrides every job shares (a sweep's swept ones left out: its sweeper checks each job), for a
+    composition check before Hydra's; None when a Hydra flag (``--cfg``, ``-sc``, ``--info``, ...) composes the
+    config its own way. An override that does not parse is a :class:`ConfigError` naming it."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     if any(a.startswith("-") and a not in ("-m", "--multirun") for a in args):
@@ -370,11 +364,9 @@ def main() -> None:
     )
     if any(a in ("--help", "-h") for a in sys.argv[1:]):
         from sphri.cli import help_text
+        from sphri.command import print_help
 
-        try:
-            print(help_text())  # sphri's own help: Hydra's would print every schema entry and the whole config
-        except BrokenPipeError:  # `--help | head`: the reader went away
-            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        print_help(help_text())  # sphri's own help: Hydra's would print every schema entry and the whole config
         return
     register_schemas()
     sys.argv = [sys.argv[0], *normalize_overrides(take_verbose_flag(sys.argv[1:]))]
@@ -383,10 +375,8 @@ def main() -> None:
         fixed = _fixed_overrides(sys.argv[1:])
         if fixed is not None:
             # an unknown key or a value of the wrong type: sphri's one line, before Hydra's own message
-            cfg = compose(fixed, check=False)
-            check_output_dir(
-                resolved_setting(cfg, "output_dir")
-            )  # Hydra makes the run folder inside it before any check of ours
+            # Hydra makes the run folder inside output_dir before any check of ours
+            check_output_dir(resolved_setting(compose(fixed, check=False), "output_dir"))
     except ConfigError as exc:
         print(f"sphri: invalid config: {exc}", file=sys.stderr)
         sys.exit(2)
@@ -394,18 +384,12 @@ def main() -> None:
 
 
 def module_main() -> None:
-    """``python -m sphri [VERB] ...``: a first word other than ``run`` that is no override goes to
-    :mod:`sphri.command` exactly as ``sphri VERB ...`` does (a verb, or one line naming the close verbs);
-    anything else (overrides, ``-m``, Hydra's flags, ``run ...``) to Hydra exactly as before."""
-    from sphri.command import is_override
+    """``python -m sphri [VERB] ...`` is ``sphri VERB ...`` (:mod:`sphri.command`), but for ``--help`` first:
+    the ``run`` verb's help (the config groups), not the list of verbs."""
     from sphri.command import main as dispatch
 
     args = sys.argv[1:]
-    if args and args[0] != "run" and not is_override(args[0]):
-        sys.exit(dispatch(args))
-    if args and args[0] == "run":
-        sys.argv = [sys.argv[0], *args[1:]]
-    main()
+    sys.exit(dispatch(["run", *args] if args[:1] in (["-h"], ["--help"]) else args))
 
 
 if __name__ == "__main__":

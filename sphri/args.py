@@ -32,8 +32,8 @@ from typing import Any, Literal, TypeVar
 
 T = TypeVar("T")
 
-_TRUE = ("true", "yes", "on", "1")
-_FALSE = ("false", "no", "off", "0")
+_BOOL = {**dict.fromkeys(("true", "yes", "on", "1"), True), **dict.fromkeys(("false", "no", "off", "0"), False)}
+_CONVERT: dict[Any, Callable[[str], Any]] = {bool: lambda w: _BOOL[w.lower()], int: int, float: float, Path: Path}
 _KEY = re.compile(r"[A-Za-z_][\w.\-]*")
 HELP_FLAGS = ("-h", "--help")
 _META = ("help", "positional", "rest", "flags", "check", "metavar", "choices")  # what arg() records
@@ -53,24 +53,31 @@ def arg(
     help: str = "",
     positional: bool = False,
     rest: bool = False,
-    flags: dict[str, str | None] | None = None,
+    flags: dict[str, str] | None = None,
     check: Callable[[Any], str | None] | None = None,
     metavar: str = "",
     choices: Sequence[str] = (),
 ) -> Any:
     """A field of a command's argument dataclass.
 
-    ``flags`` maps extra spellings to a fixed value (``{"--no-log": "false"}``) or to None (the
-    spelling takes the next word as its value). ``check(value)`` returns what a valid value must
-    be (``"must be >= 0"``) or None. ``choices`` are the values a text key (or each item of a list key)
-    may take: checked (an unknown one is named, with the close matches) and offered by the TAB completion.
-    ``rest`` marks a ``list[str]`` field that collects every argument that is not one of the command's
-    keys (for Hydra overrides)."""
+    ``flags`` maps extra spellings to a fixed value (``{"--no-log": "false"}``). ``check(value)`` returns
+    what a valid value must be (``"must be >= 0"``) or None. ``choices`` are the values a text key (or each
+    item of a list key) may take: checked (an unknown one is named, with the close matches) and offered by the
+    TAB completion. ``rest`` marks a ``list[str]`` field that collects every argument that is not one of the
+    command's keys (for Hydra overrides)."""
     meta = dict(zip(_META, (help, positional, rest, dict(flags or {}), check, metavar, tuple(choices))))
     if isinstance(default, (list, tuple)):
         items = list(default)
         return dataclasses.field(default_factory=lambda: list(items), metadata=meta)
     return dataclasses.field(default=default, metadata=meta)
+
+
+def _base(t: Any) -> Any:
+    """``X`` of ``X | None``."""
+    if typing.get_origin(t) in (typing.Union, types.UnionType) and type(None) in typing.get_args(t):
+        (inner,) = [a for a in typing.get_args(t) if a is not type(None)]
+        return inner
+    return t
 
 
 @dataclasses.dataclass(frozen=True)
@@ -84,34 +91,36 @@ class Key:
     help: str = ""
     positional: bool = False
     rest: bool = False
-    flags: dict[str, str | None] = dataclasses.field(default_factory=dict)
+    flags: dict[str, str] = dataclasses.field(default_factory=dict)
     check: Callable[[Any], str | None] | None = None
     metavar: str = ""
     allowed: tuple[str, ...] = ()  # arg(choices=...), or a Schema setting's choices
 
     @property
     def is_list(self) -> bool:
-        return _is_list(self.type)
+        return typing.get_origin(_base(self.type)) is list
 
     @property
     def is_bool(self) -> bool:
         return _base(self.type) is bool
 
+    @property
+    def item(self) -> Any:
+        """The type of the value (of each item of a list)."""
+        return (typing.get_args(_base(self.type)) or (str,))[0] if self.is_list else self.type
+
     def choices(self) -> tuple[str, ...]:
         """The allowed values of a ``Literal`` (or bool) key, or its declared choices, else ()."""
+        t = _base(self.item)
         if self.allowed:
             return self.allowed
-        t = _base(_item(self.type) if self.is_list else self.type)
         if typing.get_origin(t) is Literal:
             return tuple(str(c) for c in typing.get_args(t))
-        if t is bool:
-            return ("true", "false")
-        return ()
+        return ("true", "false") if t is bool else ()
 
     def spellings(self) -> list[str]:
-        """``--key``, ``--some-key`` and the extra spellings that take a value (not those of a fixed value)."""
-        extra = [s for s, value in self.flags.items() if value is None]
-        return list(dict.fromkeys([f"--{self.name}", "--" + self.name.replace("_", "-"), *extra]))
+        """``--key`` and ``--some-key``."""
+        return list(dict.fromkeys([f"--{self.name}", "--" + self.name.replace("_", "-")]))
 
 
 def keys(cls: type) -> list[Key]:
@@ -158,27 +167,6 @@ def _choice_check(meta: Mapping[str, Any], name: str) -> Callable[[Any], str | N
     return check
 
 
-def _is_optional(t: Any) -> bool:
-    return typing.get_origin(t) in (typing.Union, types.UnionType) and type(None) in typing.get_args(t)
-
-
-def _base(t: Any) -> Any:
-    """``X`` of ``X | None``."""
-    if _is_optional(t):
-        (inner,) = [a for a in typing.get_args(t) if a is not type(None)]
-        return inner
-    return t
-
-
-def _is_list(t: Any) -> bool:
-    return typing.get_origin(_base(t)) in (list, tuple)
-
-
-def _item(t: Any) -> Any:
-    args = typing.get_args(_base(t))
-    return args[0] if args else str
-
-
 def _type_words(t: Any) -> str:
     """What a value of type ``t`` must be, in words."""
     t = _base(t)
@@ -187,42 +175,35 @@ def _type_words(t: Any) -> str:
     return {int: "an integer", float: "a number", bool: "true or false", Path: "a path", str: "text"}.get(t, str(t))
 
 
-def _scalar(key: Key, t: Any, text: str, shown: str) -> Any:
+def _scalar(t: Any, text: str, shown: str) -> Any:
     """``text`` as a value of type ``t`` (``shown`` is how the argument is quoted in an error)."""
-    if _is_optional(t):
-        inner = _base(t)
-        if inner is not str and text.lower() in ("none", "null", ""):
+    if _base(t) is not t:  # X | None
+        t = _base(t)
+        if t is not str and text.lower() in ("none", "null", ""):
             return None
-        t = inner
-    bad = ArgsError(f"{shown} is invalid: must be {_type_words(t)}")
+    bad = f"{shown} is invalid: must be {_type_words(t)}"
     if typing.get_origin(t) is Literal:
         for choice in typing.get_args(t):
             if text == str(choice):
                 return choice
         close = difflib.get_close_matches(text, [str(c) for c in typing.get_args(t)], n=1)
-        raise ArgsError(str(bad) + (f" (did you mean {close[0]}?)" if close else ""))
+        raise ArgsError(bad + (f" (did you mean {close[0]}?)" if close else ""))
     try:
-        if t is bool:
-            return {**dict.fromkeys(_TRUE, True), **dict.fromkeys(_FALSE, False)}[text.lower()]
-        if t in (int, float) and t(text) == t(text):  # nan passes every range check
-            return t(text)
+        value = _CONVERT.get(t, str)(text)
     except (KeyError, ValueError):
-        raise bad from None
-    if t in (int, float):
-        raise bad
-    if t is Path:
-        return Path(text)
-    return text
+        raise ArgsError(bad) from None
+    if value != value:  # nan passes every range check
+        raise ArgsError(bad)
+    return value
 
 
-def _convert(key: Key, words: list[str], shown: str) -> Any:
-    """The value of ``key`` from its words (the last one unless the key is a list)."""
+def _convert(key: Key, words: list[str]) -> Any:
+    """The value of ``key`` from its words (the last one unless the key is a list), checked."""
+    shown = f"{key.name}={words[-1] if words else ''}"
     if key.is_list:
-        value: Any = [_scalar(key, _item(key.type), w, f"{key.name}={w}") for w in words]
-        if typing.get_origin(_base(key.type)) is tuple:
-            value = tuple(value)
+        value: Any = [_scalar(key.item, w, f"{key.name}={w}") for w in words]
     else:
-        value = _scalar(key, key.type, words[-1], shown)
+        value = _scalar(key.type, words[-1], shown)
     if key.check is not None:
         try:
             problem = key.check(value)
@@ -233,44 +214,38 @@ def _convert(key: Key, words: list[str], shown: str) -> Any:
     return value
 
 
-def _usage_word(key: Key) -> str:
-    name = key.metavar or key.name.upper()
-    if key.positional:
-        word = f"{name} ..." if key.is_list else name
-        return word if key.required else f"[{word}]"
+def _metavar(key: Key) -> str:
+    """How a key's value is shown in the usage and help: its metavar, choices, or type."""
+    word = "|".join(key.choices()) or {int: "INT", float: "NUMBER", bool: "BOOL", Path: "PATH"}.get(
+        _base(key.item), "TEXT"
+    )
+    return key.metavar or word + (",..." if key.is_list else "")
+
+
+def _head(key: Key) -> str:
+    """How a key is written in the usage and help: ``n=INT``, ``SOURCE``, ``overrides``."""
+    if key.rest or key.positional:
+        return key.metavar or ("overrides" if key.rest else key.name.upper())
     return f"{key.name}={_metavar(key)}"
 
 
-def _metavar(key: Key) -> str:
-    """How a key's value is shown in the usage and help: its metavar, choices, or type."""
-    if key.metavar:
-        return key.metavar
-    if key.choices():
-        return "|".join(key.choices()) + (",..." if key.is_list else "")
-    t = _base(_item(key.type) if key.is_list else key.type)
-    word = {int: "INT", float: "NUMBER", bool: "BOOL", Path: "PATH"}.get(t, "TEXT")
-    return f"{word},..." if key.is_list else word
+def _usage_word(key: Key) -> str:
+    word = f"{_head(key)} ..." if key.positional and key.is_list else _head(key)
+    return word if key.required or not key.positional else f"[{word}]"
 
 
 def usage(cls: type, prog: str, overrides: bool = False) -> str:
-    """``usage: PROG POSITIONAL [key=value ...]`` of a command (``overrides``: it takes Hydra's too)."""
+    """``PROG POSITIONAL [key=value ...]`` of a command (``overrides``: it takes Hydra's too)."""
     ks = keys(cls)
     words = [_usage_word(k) for k in ks if k.positional]
     words += [_usage_word(k) for k in ks if k.required and not k.positional and not k.rest]
-    if any(not k.positional and not k.rest and not k.required for k in ks):
-        words.append("[key=value ...]")
-    words += [f"[{k.metavar or 'overrides'} ...]" for k in ks if k.rest]
-    words += ["[overrides ...]"] if overrides else []
-    return " ".join(["usage:", prog, *words])
+    words += ["[key=value ...]"] if any(not (k.positional or k.rest or k.required) for k in ks) else []
+    words += [f"[{_head(k)} ...]" for k in ks if k.rest] + (["[overrides ...]"] if overrides else [])
+    return " ".join([prog, *words])
 
 
-def _help_line(k: Key) -> tuple[str, str]:
-    """A key's line of ``--help``: how it is written (``n=INT``, ``SOURCE``) and what it means, its
-    default and its fixed spellings."""
-    if k.rest or k.positional:
-        head = k.metavar or ("overrides" if k.rest else k.name.upper())
-    else:
-        head = f"{k.name}={_metavar(k)}"
+def _help_line(k: Key) -> str:
+    """A key's meaning in ``--help``: its help, its default and its fixed spellings."""
     if k.required:
         tail = " (required)"
     elif k.rest or k.default in (None, "", [], ()):
@@ -278,9 +253,8 @@ def _help_line(k: Key) -> tuple[str, str]:
     else:
         d = ",".join(map(str, k.default)) if isinstance(k.default, (list, tuple)) else k.default
         tail = f" (default {str(d).lower() if isinstance(d, bool) else d})"
-    fixed = [s for s in k.flags if k.flags[s] is not None]
-    alias = f"; {', '.join(fixed)} for {k.name}={'/'.join(str(k.flags[s]) for s in fixed)}" if fixed else ""
-    return head, (k.help + tail + alias).strip()
+    alias = f"; {', '.join(k.flags)} for {k.name}={'/'.join(k.flags.values())}" if k.flags else ""
+    return (k.help + tail + alias).strip()
 
 
 class _Formatter(argparse.HelpFormatter):
@@ -310,7 +284,7 @@ def _parser(
     ``rest`` keys and ``overrides`` are lines of ``--help`` only."""
     parser = _Parser(
         prog=prog,
-        usage=usage(cls, prog, overrides).removeprefix("usage: "),
+        usage=usage(cls, prog, overrides),
         description=" ".join(summary.split()) or None,
         formatter_class=_Formatter,
         add_help=False,
@@ -320,8 +294,7 @@ def _parser(
     )
     group = parser.add_argument_group("arguments (key=value, or --key value)")
     for k in ks:
-        head, text = _help_line(k)
-        kw: dict[str, Any] = {"metavar": head, "help": text.replace("%", "%%")}
+        kw: dict[str, Any] = {"metavar": _head(k), "help": _help_line(k).replace("%", "%%")}
         if k.rest:
             group._group_actions.append(argparse.Action([], k.name, **kw))
             continue
@@ -333,9 +306,8 @@ def _parser(
         )
         group.add_argument(*k.spellings(), dest=k.name, **how, **kw)
         for flag, value in k.flags.items():
-            if value is not None:
-                const = "append_const" if k.is_list else "store_const"
-                group.add_argument(flag, dest=k.name, action=const, const=value, help=argparse.SUPPRESS)
+            const = "append_const" if k.is_list else "store_const"
+            group.add_argument(flag, dest=k.name, action=const, const=value, help=argparse.SUPPRESS)
     if overrides:
         line = "any other key=value: a config override (+debug=fast, robot=nao_child)"
         group._group_actions.append(argparse.Action([], "overrides", metavar="overrides", help=line))
@@ -382,10 +354,10 @@ def _parse(cls: type[T], argv: Sequence[str], prog: str, summary: str, known: bo
                 aside.append(i)
                 continue
             a = f"--{key}={value}"
-        elif collect and a.startswith(("-", "+", "~")) and a.partition("=")[0] not in spelled:  # -m, --cfg, +x
+        elif collect and a.startswith(("-", "+", "~")) and key not in spelled:  # -m, --cfg, +x
             aside.append(i)
             continue
-        elif a in bools and (i + 1 == len(argv) or argv[i + 1].lower() not in (*_TRUE, *_FALSE)):
+        elif a in bools and (i + 1 == len(argv) or argv[i + 1].lower() not in _BOOL):
             a += "=true"  # a bool flag alone is true (never takes the next word)
         tokens.append((i, a))
     named = {spelled.get(t.partition("=")[0]) for _, t in tokens}  # a positional named so takes no words
@@ -400,9 +372,7 @@ def _parse(cls: type[T], argv: Sequence[str], prog: str, summary: str, known: bo
     if extras and not collect:
         a = extras[0]
         raise ArgsError(
-            _unknown(a.partition("=")[0], ks)
-            if a.startswith("-")
-            else f"unexpected argument {a!r}: {usage(cls, prog).removeprefix('usage: ')}"
+            _unknown(a.partition("=")[0], ks) if a.startswith("-") else f"unexpected argument {a!r}: {usage(cls, prog)}"
         )
     values = _values(ks, vars(ns), prog, cls)
     left = set(aside)  # the argv indices of the rest: put aside, or left by argparse
@@ -430,11 +400,10 @@ def _values(ks: list[Key], ns: dict[str, Any], prog: str, cls: type) -> dict[str
             given = [i.strip() for w in given for i in w.strip("[]").split(",") if i.strip()] if k.is_list else [given]
         bare = [bare] if isinstance(bare, str) else bare or []
         if given is not None or bare:
-            words = [*bare, *(given or [])]
-            values[k.name] = _convert(k, words, f"{k.name}={words[-1] if words else ''}")
+            values[k.name] = _convert(k, [*bare, *(given or [])])
         elif k.required and not k.rest:
             what = f" ({k.help})" if k.help else ""
-            raise ArgsError(f"missing {_usage_word(k).strip('[]')}{what}; {usage(cls, prog)}")
+            raise ArgsError(f"missing {_usage_word(k)}{what}; usage: {usage(cls, prog)}")
     return values
 
 
@@ -446,13 +415,7 @@ def _unknown(key: str, ks: list[Key]) -> str:
     return f"unknown argument {key!r}{hint}; keys: {', '.join(names) or 'none'}"
 
 
-def run(
-    cls: type[T],
-    argv: Sequence[str],
-    body: Callable[[T], int],
-    prog: str,
-    summary: str = "",
-) -> int:
+def run(cls: type[T], argv: Sequence[str], body: Callable[[T], int], prog: str, summary: str = "") -> int:
     """Parse ``argv`` into ``cls`` and call ``body`` with it. A bad argument (:class:`ArgsError`, from
     the parser or raised by ``body``: a folder or stage that is not there) is one line on stderr
     (``<prog>: <problem>``) and exit code 2; ``--help`` prints the help and returns 0."""

@@ -10,9 +10,9 @@
     sphri validate -m layout.res=0,4    # a sweep: every job is checked
     sphri validate +experiment=resolution_sweep   # its 100 jobs
 
-``validate`` composes the config
-exactly as ``sphri run`` would, runs every schema's checks, and prints the chosen components; it exits
-2 with a message naming the key on any problem. Arguments are read by :mod:`sphri.args`.
+``validate`` composes the config exactly as ``sphri run`` would, runs every schema's checks, and prints the
+chosen components; it exits 2 with a message naming the key on any problem. Arguments are read by
+:mod:`sphri.args`.
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import re
 import sys
 import textwrap
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import yaml
 
@@ -36,16 +36,12 @@ def components(group: str) -> list[tuple[str, str]]:
     folder = CONF_DIR / group
     if not folder.is_dir():
         raise ConfigError(f"unknown config group {group!r}; groups: {', '.join(DEFAULT_GROUPS)}")
-    out = []
-    for path in sorted(folder.glob("*.yaml")):
-        out.append((path.stem, _describe(path)))
-    return out
+    return [(path.stem, _describe(path)) for path in sorted(folder.glob("*.yaml"))]
 
 
 def _describe(path: Path) -> str:
-    """One line about a config file: its first comment block (wherever it
-    starts, e.g. after the defaults list), up to the end of its first
-    sentence; else its ``_target_``."""
+    """One line about a config file: its first comment block (wherever it starts, e.g. after the defaults
+    list), up to the end of its first sentence; else its ``_target_``."""
     text = path.read_text()
     block: list[str] = []
     for line in text.splitlines():
@@ -58,7 +54,6 @@ def _describe(path: Path) -> str:
         words = " ".join(w for w in block if w)
         end = re.search(r"(?<!e\.g)(?<!i\.e)[.!?](\s|$)", words)
         return words[: end.start() + 1] if end else words
-    # no comment block: fall through to the target
     try:
         data = yaml.safe_load(text) or {}
     except yaml.YAMLError as exc:
@@ -98,13 +93,12 @@ def _short(value: object, limit: int = 40) -> str:
 def _defaults() -> dict[str, str]:
     """The default option of each group, from ``conf/config.yaml``'s defaults list."""
     data = yaml.safe_load((CONF_DIR / "config.yaml").read_text()) or {}
-    out = {}
-    for item in data.get("defaults", []):
-        if isinstance(item, dict):
-            for k, v in item.items():
-                if isinstance(k, str) and not k.startswith(("override ", "optional ")) and isinstance(v, str):
-                    out[k] = v
-    return out
+    items = [kv for item in data.get("defaults", []) if isinstance(item, dict) for kv in item.items()]
+    return {
+        k: v
+        for k, v in items
+        if isinstance(k, str) and not k.startswith(("override ", "optional ")) and isinstance(v, str)
+    }
 
 
 def help_text() -> str:
@@ -130,199 +124,18 @@ def help_text() -> str:
         "config groups (group=option; * marks the default; `sphri list GROUP` says what each option is,",
         "`sphri show GROUP=OPTION` every setting of it):",
     ]
-    for group in DEFAULT_GROUPS:
-        if not (CONF_DIR / group).is_dir():
-            continue
+    for group in DEFAULT_GROUPS:  # each has its folder in conf/ (tests/test_sphri_cli.py reads them all)
         names = [("*" if defaults.get(group) == name else "") + name for name, _ in components(group)]
         lines.append(_row(f"  {group:<12} ", "  ".join(names)))
     lines += ["", "top-level keys: seed, output_dir, resume, cache.enabled, cache.dir (see README.md)"]
     return "\n".join(lines)
 
 
-def _mapping(container: object, what: str) -> dict[str, Any]:
-    """``container`` (``OmegaConf.to_container`` of a config group or its schema: a dict) typed as one."""
-    if not isinstance(container, dict):
-        raise ConfigError(f"{what}: expected a mapping, got {type(container).__name__}")
-    return container
-
-
-def cmd_list(groups: list[str]) -> int:
-    for group in groups or list(DEFAULT_GROUPS):
-        print(f"{group}:")
-        for name, desc in components(group):
-            print(_row(f"  {name:<20} ", desc))
-    return 0
-
-
-def cmd_show(overrides: list[str], groups: list[str] | None = None) -> int:
-    """Print each setting of the chosen components: its value, the schema default when the value
-    differs, and its meaning (the schema's field docstring: defaults and docs live there once). The groups
-    are those named (a renamed key's old group and its owner: ``encoder.res`` shows encoder and layout)."""
+def _mapping(node: Any) -> dict[str, Any]:
+    """A config group's node (or its schema's) as a plain dict."""
     from omegaconf import OmegaConf
 
-    from sphri.config import field_docs
-
-    cfg = compose(overrides, check=False)
-    try:
-        validate(cfg)
-        problem = ""
-    except ConfigError as exc:
-        problem = str(exc)
-    keys = [o.lstrip("+").split("=", 1)[0] for o in overrides if "=" in o]
-    named = [k.split(".", 1)[0] for k in [*keys, *(RENAMED_KEYS[k] for k in keys if k in RENAMED_KEYS)]]
-    shown = groups or [g for g in STAGE_GROUPS if g in named] or list(STAGE_GROUPS)
-    for group in shown:
-        if group not in STAGE_GROUPS:
-            raise ConfigError(f"unknown config group {group!r}; groups: {', '.join(STAGE_GROUPS)}")
-        node = cfg[group]
-        schema = OmegaConf.get_type(node)
-        docs = field_docs(schema) if isinstance(schema, type) else {}
-        try:
-            default: dict[str, Any] = {}
-            if dataclasses.is_dataclass(schema):
-                default = _mapping(OmegaConf.to_container(OmegaConf.structured(schema)), group)
-        except Exception:  # a schema without defaults for every field
-            default = {}
-        values = _mapping(OmegaConf.to_container(node, resolve=True), group)
-        print(f"{group}: {str(values.pop('_target_', '')).rsplit('.', 1)[-1]}")
-        for key, value in values.items():
-            mark = "" if key not in default or default[key] == value else f" [changed; default {_short(default[key])}]"
-            print(_row(f"  {key:<24} {_short(value):<14} ", docs.get(key, "") + mark))
-    if problem:
-        print(_row("note: ", f"this config does not run as it stands: {problem}"))
-    return 0
-
-
-def is_sweep(overrides: list[str]) -> bool:
-    """True for the arguments of a multirun: ``-m``, a comma list, ``range()``/``choice()``, or an experiment
-    (experiments sweep through ``hydra.sweeper.params``)."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    if any(a in ("-m", "--multirun") for a in overrides):
-        return True
-    plain = [a for a in overrides if not a.startswith("-")]
-    try:
-        parsed = OverridesParser.create().parse_overrides(plain)
-    except Exception:  # composition reports the bad override with its key
-        return False
-    return any(o.is_sweep_override() or o.key_or_group == "experiment" for o in parsed)
-
-
-def cmd_validate_sweep(overrides: list[str]) -> int:
-    """Compose and validate every job of the sweep through ``hydra/sweeper=sphri`` (the code path a real
-    sweep takes), running none of them. In a child process: Hydra's app sets up logging and global state."""
-    import os
-    import subprocess
-
-    argv = ["-m", *[a for a in overrides if a not in ("-m", "--multirun")], "hydra/launcher=basic"]
-    env = {**os.environ, "SPHRI_VALIDATE_ONLY": "1"}
-    return subprocess.run([sys.executable, "-m", "sphri", *argv], env=env).returncode
-
-
-def cmd_validate(overrides: list[str]) -> int:
-    from omegaconf import OmegaConf
-
-    from sphri.pipeline import chain_region
-
-    if is_sweep(overrides):
-        return cmd_validate_sweep(overrides)
-    cfg = compose(overrides)
-    chain_region(cfg)
-    check_inputs(cfg)
-    print("config OK")
-    for group in PARAM_GROUPS:
-        node = _mapping(OmegaConf.to_container(cfg[group], resolve=True), group)
-        target = str(node.pop("_target_", "")).rsplit(".", 1)[-1]
-        scalars = ", ".join(f"{k}={v}" for k, v in node.items() if not isinstance(v, (dict, list)))
-        print(f"  {group:<8} {target}({scalars})")
-    return 0
-
-
-#: Components whose numba kernels the ``+debug=fast`` chain does not reach: a serial sweep over them
-#: compiles the spatial encoders', the Gaussian and crosstalk noise's and the Poisson/density layouts'.
-WARMUP_SWEEP = ("encoder=coverage,proximity", "noise=gaussian,crosstalk", "layout=random,density")
-
-
-def warm_analysis_kernels() -> None:
-    """Call the scenario study's numba kernels (sliced Wasserstein, placement, winding number) once on
-    tiny inputs of the dtypes the study passes, so that they compile into numba's cache."""
-    import numpy as np
-    import trimesh
-
-    from sphri.analysis.placement import _min_rank_per_frame
-    from sphri.analysis.swd import SharedSupportSW, sliced_wasserstein, wasserstein_1d
-    from sphri.contact.query import winding_number
-
-    rng = np.random.default_rng(0)
-    a, b, w = rng.random((5, 3)), rng.random((6, 3)), rng.random((2, 5)) + 0.1
-    sliced_wasserstein(a, b, n_projections=4)
-    wasserstein_1d(a[:, 0], b[:, 0])
-    SharedSupportSW(a, n_projections=4).distances(w, w[::-1])
-    SharedSupportSW(a, n_projections=4, p=2.0).distances(w, w[::-1])
-    _min_rank_per_frame(np.arange(5, dtype=np.int64), np.array([0, 3, 1], dtype=np.int64), np.array([0, 2, 3]))
-    box = trimesh.creation.box()  # a closed, outward-wound unit cube
-    winding_number(box.vertices, box.faces, np.array([[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]))
-
-
-def warmup_lanes(tmp: str) -> list[list[list[str]]]:
-    """The commands of :func:`cmd_warmup`, in two lanes that run side by side (each lane's commands one
-    after the other, each in a process of its own, like a job): the ``+debug=fast`` chain then the
-    study's analysis kernels, and a serial sweep over the components that chain does not use
-    (:data:`WARMUP_SWEEP`); tracking off, everything written under ``tmp``."""
-    sphri, chain = [sys.executable, "-m", "sphri"], ["+debug=fast", "tracking.enabled=false", f"output_dir={tmp}"]
-    return [
-        [
-            [*sphri, *chain, f"hydra.run.dir={tmp}/run"],
-            [sys.executable, "-c", "from sphri.cli import warm_analysis_kernels; warm_analysis_kernels()"],
-        ],
-        [[*sphri, "-m", *chain, "hydra/launcher=serial", *WARMUP_SWEEP, f"hydra.sweep.dir={tmp}/sweep"]],
-    ]
-
-
-def cmd_warmup() -> int:
-    """Compile every numba kernel into numba's on-disk cache, so later jobs load them: the commands of
-    :func:`warmup_lanes`, its two lanes side by side (numba's compiler runs on one core; numba writes its
-    cache files whole, so two processes may store the same kernel). Says what it compiled; a failed
-    command is one line (the first failure in the lanes' order), exit 1."""
-    import subprocess
-    import tempfile
-    import time
-    from concurrent.futures import ThreadPoolExecutor
-
-    from sphri.progress import bar
-
-    print("compiling sphri's numba kernels into numba's cache (once per machine and sphri version)...", flush=True)
-    t0 = time.perf_counter()
-
-    with tempfile.TemporaryDirectory(prefix="sphri-warmup-") as tmp:
-        lanes = warmup_lanes(tmp)
-        shown = bar(sum(len(lane) for lane in lanes), "warmup", unit="command")
-
-        def run_lane(lane: list[list[str]]) -> list[subprocess.CompletedProcess]:
-            done = []
-            for cmd in lane:
-                done.append(subprocess.run(cmd, cwd=tmp, capture_output=True, text=True))
-                shown.update(1)
-                if done[-1].returncode != 0:
-                    break
-            return done
-
-        with shown, ThreadPoolExecutor(len(lanes)) as pool:
-            runs = [run for lane_runs in pool.map(run_lane, lanes) for run in lane_runs]
-    seconds = time.perf_counter() - t0
-    for run in runs:
-        if run.returncode != 0:
-            tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
-            print(f"sphri: warmup failed after {seconds:.0f} s: {tail[0]}", file=sys.stderr)
-            return 1
-    chain_output = runs[0].stdout + runs[0].stderr
-    compiled = [line.split("compiled ", 1)[1] for line in chain_output.splitlines() if "numba kernels in" in line]
-    print(
-        f"done in {seconds:.1f} s: "
-        + (f"compiled {compiled[-1]}" if compiled else "the chain's kernels were already in the cache")
-        + "; the other components' and the study's kernels compiled or loaded"
-    )
-    return 0
+    return cast(dict[str, Any], OmegaConf.to_container(node, resolve=True))
 
 
 @dataclasses.dataclass
@@ -364,21 +177,177 @@ class WarmupArgs:
 
 def list_command(args: ListArgs) -> int:
     """The components of each config group (of the groups named), one line each."""
-    return cmd_list(args.groups)
+    for group in args.groups or list(DEFAULT_GROUPS):
+        print(f"{group}:")
+        for name, desc in components(group):
+            print(_row(f"  {name:<20} ", desc))
+    return 0
 
 
 def show_command(args: ShowArgs) -> int:
-    """Every setting of the chosen components: its value, the default where it differs, its meaning."""
-    return cmd_show(args.overrides, args.group or None)
+    """Every setting of the chosen components: its value, the default where it differs, its meaning.
+
+    The default and the meaning are the schema's (its field docstring: defaults and docs live there once). The
+    groups are those named (a renamed key's old group and its owner: ``encoder.res`` shows encoder and layout)."""
+    from omegaconf import OmegaConf
+
+    from sphri.config import field_docs
+
+    overrides = args.overrides
+    cfg = compose(overrides, check=False)
+    try:
+        validate(cfg)
+        problem = ""
+    except ConfigError as exc:
+        problem = str(exc)
+    keys = [o.lstrip("+").split("=", 1)[0] for o in overrides if "=" in o]
+    named = [k.split(".", 1)[0] for k in [*keys, *(RENAMED_KEYS[k] for k in keys if k in RENAMED_KEYS)]]
+    shown = args.group or [g for g in STAGE_GROUPS if g in named] or list(STAGE_GROUPS)
+    for group in shown:  # each of STAGE_GROUPS: the parser checks a group named
+        node = cfg[group]
+        schema = OmegaConf.get_type(node)
+        docs = field_docs(schema) if isinstance(schema, type) else {}
+        try:
+            default = _mapping(OmegaConf.structured(schema)) if dataclasses.is_dataclass(schema) else {}
+        except Exception:  # a schema without defaults for every field
+            default = {}
+        values = _mapping(node)
+        print(f"{group}: {str(values.pop('_target_', '')).rsplit('.', 1)[-1]}")
+        for key, value in values.items():
+            mark = "" if key not in default or default[key] == value else f" [changed; default {_short(default[key])}]"
+            print(_row(f"  {key:<24} {_short(value):<14} ", docs.get(key, "") + mark))
+    if problem:
+        print(_row("note: ", f"this config does not run as it stands: {problem}"))
+    return 0
+
+
+def is_sweep(overrides: list[str]) -> bool:
+    """True for the arguments of a multirun: ``-m``, a comma list, ``range()``/``choice()``, or an experiment
+    (experiments sweep through ``hydra.sweeper.params``)."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    if any(a in ("-m", "--multirun") for a in overrides):
+        return True
+    plain = [a for a in overrides if not a.startswith("-")]
+    try:
+        parsed = OverridesParser.create().parse_overrides(plain)
+    except Exception:  # composition reports the bad override with its key
+        return False
+    return any(o.is_sweep_override() or o.key_or_group == "experiment" for o in parsed)
 
 
 def validate_command(args: ValidateArgs) -> int:
     """Compose the config exactly as `sphri run` would and run every check without running a stage; a sweep
-    checks every job. Exits 2 with a line naming the key on any problem."""
-    return cmd_validate(args.overrides)
+    checks every job. Exits 2 with a line naming the key on any problem.
+
+    A sweep's jobs are composed and validated through ``hydra/sweeper=sphri`` (the code path a real sweep takes),
+    running none of them, in a child process: Hydra's app sets up logging and global state."""
+    import os
+    import subprocess
+
+    from sphri.pipeline import chain_region
+
+    overrides = args.overrides
+    if is_sweep(overrides):
+        argv = ["-m", *[a for a in overrides if a not in ("-m", "--multirun")], "hydra/launcher=basic"]
+        env = {**os.environ, "SPHRI_VALIDATE_ONLY": "1"}
+        return subprocess.run([sys.executable, "-m", "sphri", *argv], env=env).returncode
+    cfg = compose(overrides)
+    chain_region(cfg)
+    check_inputs(cfg)
+    print("config OK")
+    for group in PARAM_GROUPS:
+        node = _mapping(cfg[group])
+        target = str(node.pop("_target_", "")).rsplit(".", 1)[-1]
+        scalars = ", ".join(f"{k}={v}" for k, v in node.items() if not isinstance(v, (dict, list)))
+        print(f"  {group:<8} {target}({scalars})")
+    return 0
+
+
+#: Components whose numba kernels the ``+debug=fast`` chain does not reach: a serial sweep over them
+#: compiles the spatial encoders', the Gaussian and crosstalk noise's and the Poisson/density layouts'.
+WARMUP_SWEEP = ("encoder=coverage,proximity", "noise=gaussian,crosstalk", "layout=random,density")
+
+
+def warm_analysis_kernels() -> None:
+    """Call the scenario study's numba kernels (sliced Wasserstein, placement, winding number) once on
+    tiny inputs of the dtypes the study passes, so that they compile into numba's cache."""
+    import numpy as np
+    import trimesh
+
+    from sphri.analysis.placement import _min_rank_per_frame
+    from sphri.analysis.swd import SharedSupportSW, sliced_wasserstein, wasserstein_1d
+    from sphri.contact.query import winding_number
+
+    rng = np.random.default_rng(0)
+    a, b, w = rng.random((5, 3)), rng.random((6, 3)), rng.random((2, 5)) + 0.1
+    sliced_wasserstein(a, b, n_projections=4)
+    wasserstein_1d(a[:, 0], b[:, 0])
+    SharedSupportSW(a, n_projections=4).distances(w, w[::-1])
+    SharedSupportSW(a, n_projections=4, p=2.0).distances(w, w[::-1])
+    _min_rank_per_frame(np.arange(5, dtype=np.int64), np.array([0, 3, 1], dtype=np.int64), np.array([0, 2, 3]))
+    box = trimesh.creation.box()  # a closed, outward-wound unit cube
+    winding_number(box.vertices, box.faces, np.array([[0.0, 0.0, 0.0], [2.0, 2.0, 2.0]]))
+
+
+def warmup_lanes(tmp: str) -> list[list[list[str]]]:
+    """The commands of :func:`warmup_command`, in two lanes that run side by side (each lane's commands one
+    after the other, each in a process of its own, like a job): the ``+debug=fast`` chain then the
+    study's analysis kernels, and a serial sweep over the components that chain does not use
+    (:data:`WARMUP_SWEEP`); tracking off, everything written under ``tmp``."""
+    sphri, chain = [sys.executable, "-m", "sphri"], ["+debug=fast", "tracking.enabled=false", f"output_dir={tmp}"]
+    return [
+        [
+            [*sphri, *chain, f"hydra.run.dir={tmp}/run"],
+            [sys.executable, "-c", "from sphri.cli import warm_analysis_kernels; warm_analysis_kernels()"],
+        ],
+        [[*sphri, "-m", *chain, "hydra/launcher=serial", *WARMUP_SWEEP, f"hydra.sweep.dir={tmp}/sweep"]],
+    ]
 
 
 def warmup_command(args: WarmupArgs) -> int:
     """Run the +debug=fast chain once (tracking off, in a temporary folder) so that every numba kernel is
-    compiled into numba's cache; later jobs load them (`make install` runs it)."""
-    return cmd_warmup()
+    compiled into numba's cache; later jobs load them (`make install` runs it).
+
+    The commands of :func:`warmup_lanes` run in their two lanes side by side (numba's compiler runs on one core;
+    numba writes its cache files whole, so two processes may store the same kernel). Says what it compiled; a
+    failed command is one line (the first failure in the lanes' order), exit 1."""
+    import subprocess
+    import tempfile
+    import time
+    from concurrent.futures import ThreadPoolExecutor
+
+    from sphri.progress import bar
+
+    print("compiling sphri's numba kernels into numba's cache (once per machine and sphri version)...", flush=True)
+    t0 = time.perf_counter()
+
+    with tempfile.TemporaryDirectory(prefix="sphri-warmup-") as tmp:
+        lanes = warmup_lanes(tmp)
+        shown = bar(sum(len(lane) for lane in lanes), "warmup", unit="command")
+
+        def run_lane(lane: list[list[str]]) -> list[subprocess.CompletedProcess]:
+            done = []
+            for cmd in lane:
+                done.append(subprocess.run(cmd, cwd=tmp, capture_output=True, text=True))
+                shown.update(1)
+                if done[-1].returncode != 0:
+                    break
+            return done
+
+        with shown, ThreadPoolExecutor(len(lanes)) as pool:
+            runs = [run for lane_runs in pool.map(run_lane, lanes) for run in lane_runs]
+    seconds = time.perf_counter() - t0
+    for run in runs:
+        if run.returncode != 0:
+            tail = (run.stderr or run.stdout).strip().splitlines()[-1:] or ["no output"]
+            print(f"sphri: warmup failed after {seconds:.0f} s: {tail[0]}", file=sys.stderr)
+            return 1
+    chain_output = runs[0].stdout + runs[0].stderr
+    compiled = [line.split("compiled ", 1)[1] for line in chain_output.splitlines() if "numba kernels in" in line]
+    print(
+        f"done in {seconds:.1f} s: "
+        + (f"compiled {compiled[-1]}" if compiled else "the chain's kernels were already in the cache")
+        + "; the other components' and the study's kernels compiled or loaded"
+    )
+    return 0

@@ -1,29 +1,22 @@
 """Fast shell completion: Hydra's answers, kept per command-line context.
 
-Hydra answers a TAB (``sphri -sc query=bash``, with the line in ``COMP_LINE``)
-by importing sphri, registering every schema and composing the config, for
-every TAB (how long: docs/BENCHMARKS.md, ``startup.json``). The answer depends only on the words before the
-cursor, the part of the current word up to its last ``.``, ``=`` or ``/`` (the
-*stem*; bash's ``compgen`` filters the rest), sphri's version and its config
-and schema files. This module keeps Hydra's answer for each such context in
-``$XDG_CACHE_HOME/sphri/completion/`` (else ``~/.cache/sphri/completion/``)
-and answers later TABs from there, importing nothing but the standard
-library; the first TAB in a new context asks Hydra. Editing any file under
-sphri's ``conf/`` or ``sphri/`` package starts afresh; file paths (``key=./``)
-always go to Hydra. Hand-written (no library offers a completion cache for
-Hydra apps) for measured speed: ``bench/bench_startup.py`` times both.
+Hydra answers a TAB (``sphri -sc query=bash``, with the line in ``COMP_LINE``) by importing sphri, registering
+every schema and composing the config, for every TAB (how long: docs/BENCHMARKS.md, ``startup.json``). The
+answer depends only on the words before the cursor, the current word up to its last ``.``, ``=`` or ``/`` (the
+*stem*; bash's ``compgen`` filters the rest), sphri's version and its config and source files. This module
+keeps each context's answer in ``$XDG_CACHE_HOME/sphri/completion/`` (else ``~/.cache/sphri/completion/``) and
+answers later TABs from there, importing nothing but the standard library; editing a file under ``conf/`` or
+``sphri/`` starts afresh, and file paths (``key=./``) always go to Hydra, never kept. Hand-written (no library
+offers a completion cache for Hydra apps) for measured speed: ``bench/bench_startup.py`` times both.
 
-The first word completes to a verb of ``sphri <verb>`` (:data:`sphri.command.VERBS`, read without
-importing anything heavy) as well as to Hydra's overrides (no verb is ``run``); after ``run`` or
-``sweep`` Hydra answers as before, after a ``key=value`` verb its keys (and their choices) from its
-argument dataclass, plus Hydra's overrides where the verb takes them (``validate``, ``show``,
-``stats``, ...). The hardware verbs and ``export`` (skin, glove, simulate, export) offer their
-command word, then the keys of its settings schema, from the mapping their ``main`` hands
-:func:`sphri.args.read_settings` (:attr:`sphri.command.Verb.schema`). Every answer but a
-path's is kept the same way.
+The first word completes to a verb (:data:`sphri.command.VERBS`) or to Hydra's overrides (no verb is
+``run``); after ``run`` or ``sweep`` Hydra answers; after another verb, its keys and their choices, read from
+its argument dataclass or, for the verbs whose ``main`` hands :func:`sphri.args.read_settings` a
+``{command word: settings}`` mapping (:attr:`sphri.command.Verb.schema`), its command word then that
+command's keys; plus Hydra's overrides where the verb takes them (``validate``, ``show``, ``stats``, ...).
 
-This module is the console script's entry (``sphri``): it must stay light. Anything but a TAB goes
-to the verb dispatcher :func:`sphri.command.main`.
+This module is the console script's entry (``sphri``): it must stay light. Anything but a TAB goes to the
+verb dispatcher :func:`sphri.command.main`.
 """
 
 from __future__ import annotations
@@ -44,6 +37,7 @@ if TYPE_CHECKING:
 
 _PACKAGE = Path(__file__).resolve().parent
 _PATH_START = (".", "/", "\\", "~")
+_QUERY = ("-sc query=bash", "--shell-completion query=bash")
 
 
 def cache_dir() -> Path:
@@ -90,55 +84,38 @@ def is_path_word(line: str) -> bool:
 
 def _hydra_answer(line: str) -> str:
     """Hydra's own completion output for ``line`` (sphri's full entry point, stdout captured)."""
+    from unittest import mock
+
     from sphri.__main__ import main
 
-    env_line = os.environ.get("COMP_LINE")
-    os.environ["COMP_LINE"] = line
-    argv = sys.argv
-    sys.argv = [argv[0], "-sc", "query=bash"]
     out = io.StringIO()
-    try:
-        with contextlib.redirect_stdout(out):
-            main()
-    finally:
-        sys.argv = argv
-        if env_line is None:
-            os.environ.pop("COMP_LINE", None)
-        else:
-            os.environ["COMP_LINE"] = env_line
+    with (
+        mock.patch.dict(os.environ, COMP_LINE=line),
+        mock.patch.object(sys, "argv", [sys.argv[0], "-sc", "query=bash"]),
+        contextlib.redirect_stdout(out),
+    ):
+        main()
     return out.getvalue()
 
 
-def _verb_line(line: str) -> tuple[Verb | None, str]:
-    """(the verb of ``line`` when its first word is complete and names one, else None; for ``run`` and
-    ``sweep``, the line as Hydra would see it: the verb left out, ``sweep`` as ``-m``)."""
-    from sphri.command import BY_NAME
-
-    words = line.split(" ")
-    if len(words) < 3 or words[1] not in BY_NAME:  # the first word is still being typed, or is an override
-        return None, line
-    verb = BY_NAME[words[1]]
-    return verb, " ".join([words[0], *(["-m"] if verb.name == "sweep" else []), *words[2:]])
-
-
-def _takes(verb: Verb, context: list[str]) -> tuple[list[Key], tuple[str, ...], bool]:
-    """What ``verb`` takes after the words ``context`` (those between the verb and the current word): its
-    ``key=value`` keys, what a bare word may be there, and whether it takes Hydra's overrides. An ``args``
-    verb's keys come from its argument dataclass; a ``main`` verb's (skin, glove, simulate, export) from
-    the settings of its command word, in the mapping its ``main`` hands
-    :func:`sphri.args.read_settings` (:attr:`Verb.schema`): one source for the parser, ``--help``
-    and TAB."""
+def _verb_answer(verb: Verb, line: str) -> str:
+    """The words a ``key=value`` verb offers after ``line``: the choices of the bare word being typed (a
+    positional argument, a command word), its keys (``key=`` and ``key=choice``, as the parser and ``--help``
+    read them: :attr:`Verb.schema`) and, where it takes overrides, Hydra's answer for the other words."""
     from sphri.args import keys
     from sphri.command import is_override
 
+    head, _, current = line.rpartition(" ")
+    prog, _, after = head.partition(" ")  # "sphri", "VERB word ..."
+    context = [w for w in after.split(" ")[1:] if w]  # the words between the verb and the current one
     if verb.kind == "args":
         ks = keys(verb.load(verb.schema))
         overrides = any(k.rest for k in ks)
-    else:
+    else:  # the command word comes first, then the keys of its settings
         commands = verb.load(verb.schema)
         word = context[0] if context and "" not in commands else ""
-        if word not in commands:  # the command word comes first (nothing fits after a wrong one)
-            return [], () if context else tuple(commands), False
+        if word not in commands:  # nothing fits after a wrong one
+            return "\n".join([] if context else commands) + "\n"
         cls, overrides = commands[word]
         ks, context = keys(cls), context[1:] if word else context
     bare = [w for w in context if not is_override(w)]  # the positional arguments so far
@@ -149,23 +126,10 @@ def _takes(verb: Verb, context: list[str]) -> tuple[list[Key], tuple[str, ...], 
         slot = slots[-1]
     else:
         slot = None
-    return [k for k in ks if not k.rest], slot.choices() if slot else (), overrides
-
-
-def _verb_answer(verb: Verb, line: str) -> str:
-    """The words a ``key=value`` verb offers after ``line``: the choices of the bare word being typed (a
-    positional argument, a command word), its keys (``key=`` and ``key=choice``) and, where it takes
-    overrides, Hydra's answer for the other words."""
-    from sphri.command import is_override
-
-    head, _, current = line.rpartition(" ")
-    prog, _, after = head.partition(" ")  # "sphri", "VERB word ..."
-    context = [w for w in after.split(" ")[1:] if w]
-    ks, bare, overrides = _takes(verb, context)
-    words = [*bare]
+    ks = [k for k in ks if not k.rest]
+    words = [*(slot.choices() if slot else ())]
     for k in ks:
-        words.append(f"{k.name}=")
-        words += [f"{k.name}={c}" for c in k.choices()]
+        words += [f"{k.name}=", *(f"{k.name}={c}" for c in k.choices())]
     text = "\n".join(words) + "\n"
     if overrides:  # Hydra sees the words that are not the verb's: no key of it, no command or positional word
         own = tuple(f"{k.name}=" for k in ks)
@@ -176,17 +140,17 @@ def _verb_answer(verb: Verb, line: str) -> str:
 
 def _compute(line: str) -> str:
     """The completion output for ``line``: verbs and Hydra's overrides for the first word, then what the
-    verb takes."""
-    from sphri.command import VERBS
+    verb takes (``run`` and ``sweep``: Hydra's answer for the line without the verb, ``sweep`` as ``-m``)."""
+    from sphri.command import BY_NAME, VERBS
 
-    verb, hydra_line = _verb_line(line)
+    words = line.split(" ")
+    verb = BY_NAME.get(words[1]) if len(words) > 2 else None  # None: the first word is being typed, or no verb
     if verb is None:
-        words = line.split(" ")
         if len(words) == 2 and not any(c in words[1] for c in "=./") and not words[1].startswith(("+", "~", "-")):
             return "\n".join(v.name for v in VERBS) + "\n" + _hydra_answer(line)  # a verb, or an override of run
         return _hydra_answer(line)
     if verb.kind == "hydra":
-        return _hydra_answer(hydra_line)
+        return _hydra_answer(" ".join([words[0], *(["-m"] if verb.name == "sweep" else []), *words[2:]]))
     if verb.kind == "help":
         return "\n".join(v.name for v in VERBS) + "\n"
     if verb.kind == "args" or verb.schema:
@@ -201,28 +165,20 @@ def answer(line: str) -> str:
     context, stem = split_line(line)
     key = hashlib.sha256(json.dumps([fingerprint(), context, stem]).encode()).hexdigest()[:32]
     path = cache_dir() / f"{key}.txt"
-    try:
+    with contextlib.suppress(OSError):
         return path.read_text()
-    except OSError:
-        pass
     text = _compute(context + stem)
-    try:
+    with contextlib.suppress(OSError):  # a read-only home: answer without keeping it
         path.parent.mkdir(parents=True, exist_ok=True)
         tmp = path.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(text)
         tmp.replace(path)  # a TAB in another shell never reads half an answer
-    except OSError:  # a read-only home: answer without keeping it
-        pass
     return text
 
 
 def _is_query(args: list[str]) -> bool:
-    for i, a in enumerate(args):
-        if re.fullmatch(r"(-sc|--shell-completion)=?query=bash", a):
-            return True
-        if a in ("-sc", "--shell-completion") and i + 1 < len(args) and args[i + 1] == "query=bash":
-            return True
-    return False
+    pairs = zip(args, [*args[1:], ""])
+    return any(re.fullmatch(r"(-sc|--shell-completion)=?query=bash", a) or f"{a} {b}" in _QUERY for a, b in pairs)
 
 
 def main() -> int:
