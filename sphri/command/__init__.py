@@ -96,7 +96,7 @@ _SUMMARIES = {
     "import": "convert a hand-tracking log (OpenXR joints, OVR or generic capsules) into a gesture trial",
     "export": "train a model on the configured data and write a model file for live use",
     "skin": "record from or classify live a tactile skin on a serial port",
-    "glove": "record from a sensing glove on a serial port",
+    "glove": "replay a trial's contacts on the haptic glove (six actuators) over a serial port",
     "simulate": "a simulated skin or glove on a local link, for live sessions without hardware",
     "robot": "check a robot description: its body parts and their areas, skipped links, a picture of the parts",
     "derive-reachy2": "regenerate the packaged Reachy 2 from Pollen Robotics' description",
