@@ -28,7 +28,7 @@ from sphri.report.saturation import (
     physical_interval,
     points_text,
 )
-from sphri.report.sweep import GEOMETRY_PARAMS, Sweep
+from sphri.report.sweep import GEOMETRY_PARAMS, Sweep, natural_key
 from sphri.types import GESTURES
 
 #: Chance accuracy of the 8-gesture task.
@@ -135,11 +135,11 @@ class GroupReport:
     """The replicate seeds of this curve (one entry when the sweep has no replicates)."""
     context: dict[str, Any]
     """robot, region, link, dataset, synthetic, cv_scheme, model."""
-    requirement: str
+    requirement: str = ""
     """The requirement sentence (physical units)."""
-    facts: str
+    facts: str = ""
     """Saturation vs best accuracy, and the paired gap."""
-    interval_text: str
+    interval_text: str = ""
     """The bootstrap interval in words (or why there is none)."""
     warnings: list[str] = field(default_factory=list)
     by_tolerance: list[ToleranceRow] = field(default_factory=list)
@@ -365,7 +365,7 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
     run_ids = list(rows["run_id"])
     folds = sweep.folds[sweep.folds["run_id"].isin(run_ids)]
     participants = sorted(folds["participant"].unique(), key=str)
-    seeds = sorted(rows["seed"].unique(), key=_natural_key)
+    seeds = sorted(rows["seed"].unique(), key=natural_key)
     res = sorted(int(r) for r in rows["res"].unique())
     acc_s = _seed_matrix(folds, rows, res, seeds, "accuracy", participants)
     acc = _seed_mean(acc_s)
@@ -377,11 +377,11 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
         (t, *certified_saturation(acc_s, t, n_boot=rule.n_boot, ci=rule.ci, seed=rule.seed, alpha=rule.alpha))
         for t in rule.parsed()
     ]
-    sat, certificate = next((st, env) for t, st, env in tol_env if t.name == rule.primary_tolerance.name)
-    by_tol = [(t, st) for t, st, _ in tol_env]
+    primary = rule.primary_tolerance.name
+    sat, certificate = next((st, env) for t, st, env in tol_env if t.name == primary)
     st = sat.stats
     # One row per resolution: the lowest seed's job names the point (its confusion matrix, its geometry).
-    first_seed = rows.sort_values("seed", key=lambda c: c.map(_natural_key), kind="stable").drop_duplicates("res")
+    first_seed = rows.sort_values("seed", key=lambda c: c.map(natural_key), kind="stable").drop_duplicates("res")
     first_seed = first_seed.set_index("res").loc[res].reset_index()
     pts = first_seed[["res", "run_id", *GEOMETRY_PARAMS]].copy()
     pts["false_on_rate"] = first_seed["false_on_rate"].to_numpy(float) if "false_on_rate" in first_seed else np.nan
@@ -401,56 +401,40 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
             gesture_sat[gest] = certified_saturation(m, rule.primary_tolerance, n_boot=0, alpha=rule.alpha)[0]
 
     first = rows.iloc[0]
-    context = {k: first[k] for k in ("robot", "region", "link", "dataset", "synthetic", "cv_scheme", "model")}
-    keys = {k: str(first[f"key.{k}"]) for k in sweep.group_keys}
-    pitch_iv = physical_interval(pts["pitch_mm"].to_numpy(float), sat)
-    area_iv = physical_interval(pts["area_per_taxel_cm2"].to_numpy(float), sat)
+    pitch, area = pts["pitch_mm"].to_numpy(float), pts["area_per_taxel_cm2"].to_numpy(float)
     g = GroupReport(
         label,
-        keys,
-        pts,
-        participants,
-        acc,
-        f1,
-        recall,
-        sat,
-        pitch_iv,
-        area_iv,
-        gesture_sat,
-        certificate,
-        seeds,
-        context,
-        "",
-        "",
-        "",
+        keys={k: str(first[f"key.{k}"]) for k in sweep.group_keys},
+        points=pts,
+        participants=participants,
+        accuracy=acc,
+        macro_f1=f1,
+        recall=recall,
+        sat=sat,
+        pitch_interval_mm=physical_interval(pitch, sat),
+        area_interval_cm2=physical_interval(area, sat),
+        gesture_sat=gesture_sat,
+        certificate=certificate,
+        seeds=seeds,
+        context={k: first[k] for k in ("robot", "region", "link", "dataset", "synthetic", "cv_scheme", "model")},
+        by_tolerance=[
+            ToleranceRow(t, st_, physical_interval(pitch, st_), physical_interval(area, st_), t.name == primary)
+            for t, st_, _ in tol_env
+        ],
     )
-    pitch = pts["pitch_mm"].to_numpy(float)
-    area = pts["area_per_taxel_cm2"].to_numpy(float)
-    g.by_tolerance = [
-        ToleranceRow(
-            t, st_, physical_interval(pitch, st_), physical_interval(area, st_), t.name == rule.primary_tolerance.name
-        )
-        for t, st_ in by_tol
-    ]
-    g.requirement, g.facts, g.interval_text, g.warnings = _sentences(g, rule)
+    g.requirement, g.facts, g.interval_text = (
+        _requirement_sentence(g, rule),
+        _facts_sentence(g, rule),
+        _interval_sentence(g, rule),
+    )
+    g.warnings = _warnings(g)
     return g
-
-
-def _natural_key(s: str) -> list[Any]:
-    import re
-
-    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", str(s))]
 
 
 def noise_text(g: GroupReport) -> str:
     """The rerun noise and the tolerance the rule certified, in words."""
     cert = g.certificate
     return f"{cert.noise.describe()}; {cert.describe()}"
-
-
-def _sentences(g: GroupReport, rule: RuleSettings) -> tuple[str, str, str, list[str]]:
-    """(requirement sentence, facts, bootstrap interval in words, warnings) of the curve ``g``."""
-    return _requirement_sentence(g, rule), _facts_sentence(g, rule), _interval_sentence(g, rule), _warnings(g)
 
 
 def _where(g: GroupReport) -> str:

@@ -161,39 +161,32 @@ def write_report(
                 figures[name] = fig
     confusions = _confusions(report.sweep, report, out_dir, marks, formats)
 
-    tables = {
-        "comparison": out_dir / "saturation.csv",
-        "points": out_dir / "points.csv",
-        "json": out_dir / "saturation.json",
-    }
-    pd.DataFrame(comparison_rows(report)).to_csv(tables["comparison"], index=False, float_format="%.6g")
-    tables["tolerances"] = out_dir / "tolerances.csv"
-    pd.DataFrame(tolerance_rows(report)).to_csv(tables["tolerances"], index=False, float_format="%.6g")
-    (out_dir / "sensitivity.csv").unlink(missing_ok=True)
-    if report.sensitivity:
-        tables["sensitivity"] = out_dir / "sensitivity.csv"
-        pd.DataFrame(sensitivity_rows(report)).to_csv(tables["sensitivity"], index=False, float_format="%.6g")
-    (out_dir / "requirement_map.csv").unlink(missing_ok=True)
-    if report.maps:
-        tables["requirement_map"] = out_dir / "requirement_map.csv"
-        pd.DataFrame(map_rows(report)).to_csv(tables["requirement_map"], index=False, float_format="%.6g")
-    (out_dir / "filter_pairs.csv").unlink(missing_ok=True)
-    pairs = filter_rows(report)
-    if pairs:
-        tables["filter_pairs"] = out_dir / "filter_pairs.csv"
-        pd.DataFrame(pairs).to_csv(tables["filter_pairs"], index=False, float_format="%.6g")
-    tables["compute"] = out_dir / "compute.csv"
-    pd.DataFrame(compute_rows(report.sweep), columns=COMPUTE_COLUMNS).to_csv(
-        tables["compute"], index=False, float_format="%.6g"
+    points = pd.concat(
+        [
+            g.points.assign(saturation=np.arange(len(g.points)) == g.sat.index, synthetic=bool(g.context["synthetic"]))
+            for g in report.groups
+        ],
+        ignore_index=True,
     )
-    pts = []
-    for g in report.groups:
-        p = g.points.copy()
-        p.insert(0, "group", g.label)
-        p["saturation"] = np.arange(len(p)) == g.sat.index
-        p["synthetic"] = bool(g.context["synthetic"])
-        pts.append(p)
-    pd.concat(pts, ignore_index=True).to_csv(tables["points"], index=False, float_format="%.6g")
+    points.insert(0, "group", [g.label for g in report.groups for _ in range(len(g.points))])
+    # an optional table without rows is not written, and an earlier report's copy of it is removed
+    frames = {
+        "comparison": ("saturation.csv", pd.DataFrame(comparison_rows(report))),
+        "tolerances": ("tolerances.csv", pd.DataFrame(tolerance_rows(report))),
+        "sensitivity": ("sensitivity.csv", pd.DataFrame(sensitivity_rows(report)) if report.sensitivity else None),
+        "requirement_map": ("requirement_map.csv", pd.DataFrame(map_rows(report)) if report.maps else None),
+        "filter_pairs": ("filter_pairs.csv", pd.DataFrame(pairs) if (pairs := filter_rows(report)) else None),
+        "compute": ("compute.csv", pd.DataFrame(compute_rows(report.sweep), columns=COMPUTE_COLUMNS)),
+        "points": ("points.csv", points),
+    }
+    tables = {}
+    for key, (name, frame) in frames.items():
+        if frame is None:
+            (out_dir / name).unlink(missing_ok=True)
+        else:
+            tables[key] = out_dir / name
+            frame.to_csv(tables[key], index=False, float_format="%.6g")
+    tables["json"] = out_dir / "saturation.json"
     tables["json"].write_text(json.dumps(_json(report), indent=2))
 
     html_path = out_dir / "report.html"

@@ -99,9 +99,10 @@ def comparison_rows(report: SweepReport) -> list[dict[str, Any]]:
     for g in report.groups:
         rec, best = g.recommended, g.best
         iv = g.pitch_interval_mm
-        row: dict[str, Any] = {"group": g.label, **g.keys}
-        row.update(
+        rows.append(
             {
+                "group": g.label,
+                **g.keys,
                 "robot": g.context["robot"],
                 "region": g.context["region"],
                 "model": g.context["model"],
@@ -132,7 +133,6 @@ def comparison_rows(report: SweepReport) -> list[dict[str, Any]]:
                 "synthetic": bool(g.context["synthetic"]),
             }
         )
-        rows.append(row)
     return rows
 
 
@@ -220,6 +220,14 @@ def gesture_cells(report: SweepReport) -> list[tuple[str, list[dict[str, object]
     return rows
 
 
+def _notes(report: SweepReport) -> list[str]:
+    """The report's notes, then one per failed job."""
+    failed = report.sweep.failed
+    return report.notes + [
+        f"FAILED job {f['run_id']} ({f['group']}, layout.res={f['res']}): {f['error']}" for f in failed
+    ]
+
+
 def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[str, Path]) -> str:
     """The whole report page. ``figures``: name -> PNG (curves, recall, bootstrap); ``confusions``: group -> PNG."""
     s = report.sweep
@@ -229,9 +237,6 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
 
         map_text = "\n".join(_map_text(report)).strip()
     sens_rows = sensitivity_rows(report)
-    notes = list(report.notes) + [
-        f"FAILED job {f['run_id']} ({f['group']}, layout.res={f['res']}): {f['error']}" for f in s.failed
-    ]
     noise = [noise_text(g) for g in report.groups]
     return render_page(
         "sweep_report.html.j2",
@@ -250,7 +255,7 @@ def render_html(report: SweepReport, figures: dict[str, Path], confusions: dict[
         comparison=list(zip(report.groups, comparison_rows(report))),
         gestures=gesture_cells(report) if "recall" in figures else [],
         compute=compute_rows(s),
-        notes=notes,
+        notes=_notes(report),
     )
 
 
@@ -263,9 +268,7 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
     lines += _facts(report)
     lines.append("rule: " + report.rule.describe())
     for sens in report.sensitivity:
-        lines.append("")
-        lines.append("[sensitivity" + (f": {sens.label}" if sens.label else "") + "]")
-        lines.append("  " + sens.sentence)
+        lines += ["", "[sensitivity" + (f": {sens.label}" if sens.label else "") + "]", "  " + sens.sentence]
         for r in (r for r in sensitivity_rows(report) if r["others"] == sens.label):
             iv = (
                 f"{r['pitch_low_mm']:.1f}-{r['pitch_high_mm']:.1f} mm"
@@ -281,11 +284,7 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
 
         lines += map_text(report)
     for g in report.groups:
-        lines.append("")
-        lines.append(f"[{g.label}]")
-        lines.append("  " + g.requirement)
-        lines.append("  " + g.interval_text)
-        lines.append("  " + noise_text(g))
+        lines += ["", f"[{g.label}]", "  " + g.requirement, "  " + g.interval_text, "  " + noise_text(g)]
         if g.facts:
             lines.append("  " + g.facts)
         for t in g.by_tolerance:
@@ -314,16 +313,10 @@ def render_text(report: SweepReport, html_path: Path | None = None) -> str:
             lines.append("  gestures never recognised above chance: " + ", ".join(never))
         for w in g.warnings:
             lines.append("  WARNING: " + w)
-    lines.append("")
-    lines.append("[compute: where and how long each curve ran]")
-    lines += compute_lines(compute_rows(report.sweep))
-    notes = list(report.notes) + [
-        f"FAILED job {f['run_id']} ({f['group']}, layout.res={f['res']}): {f['error']}" for f in report.sweep.failed
-    ]
+    lines += ["", "[compute: where and how long each curve ran]", *compute_lines(compute_rows(report.sweep))]
+    notes = _notes(report)
     if notes:
-        lines.append("")
-        lines += ["note: " + n for n in notes]
+        lines += ["", *("note: " + n for n in notes)]
     if html_path is not None:
-        lines.append("")
-        lines.append(f"report: {html_path}")
+        lines += ["", f"report: {html_path}"]
     return "\n".join(lines)

@@ -236,12 +236,47 @@ def deficit_grid(m: RequirementMap) -> tuple[np.ndarray, np.ndarray, list[int]]:
     acc = np.full((len(m.rates), len(res)), np.nan)
     pitch = np.full(len(res), np.nan)
     for k, g in enumerate(m.curves):
-        for _, p in g.points.iterrows():
-            j = res.index(int(p["res"]))
-            acc[k, j] = p["accuracy_mean"]
-            pitch[j] = p["pitch_mm"]
+        _fill(acc[k], pitch, res, g)
     best = np.nanmax(np.where(np.isfinite(acc), acc, -np.inf), axis=1, keepdims=True)
     return 100.0 * (best - acc), pitch, res
+
+
+def _fill(acc: np.ndarray, pitch: np.ndarray, res: list[int], g: GroupReport) -> None:
+    """Write the curve ``g``'s mean accuracy into ``acc`` and its pitch into ``pitch``, at its resolutions'
+    places in ``res``."""
+    for _, p in g.points.iterrows():
+        j = res.index(int(p["res"]))
+        acc[j] = p["accuracy_mean"]
+        pitch[j] = p["pitch_mm"]
+
+
+def _cells(pitch: np.ndarray, n_rates: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(the order sorting ``pitch``, the pitch cells' edges, the row centres, the row edges) of a map with
+    ``n_rates`` rows."""
+    order = np.argsort(pitch)
+    return order, _edges(pitch[order]), np.arange(n_rates, dtype=float), np.arange(n_rates + 1, dtype=float) - 0.5
+
+
+def _deficit_scale(deficit: np.ndarray, plt: Any) -> tuple[Any, Any, np.ndarray]:
+    """(colour map, norm, colour-bar ticks) of deficits in points: one colour step per point up to
+    :data:`DEFICIT_STEPS`, one more colour shared by every deeper cell."""
+    from matplotlib.colors import BoundaryNorm
+
+    deepest = float(np.nanmax(deficit)) if np.isfinite(deficit).any() else 1.0
+    top = int(min(DEFICIT_STEPS, max(1, np.ceil(deepest))))
+    bounds = np.arange(0, top + 1, dtype=float)
+    cmap = plt.get_cmap("viridis_r", top + (1 if deepest > top else 0))
+    norm = BoundaryNorm(bounds, cmap.N, extend="max" if deepest > top else "neither")
+    return cmap, norm, bounds if top <= 10 else bounds[:: int(np.ceil(top / 10))]
+
+
+def _pitch_axis(ax: Any, xe: np.ndarray, pitch: np.ndarray) -> None:
+    """A log pitch x axis over the cell edges ``xe``, coarse on the left, finer to the right."""
+    from sphri.report.figures import _nice_log_ticks
+
+    ax.set_xscale("log")
+    ax.set_xlim(xe[-1], xe[0])
+    _nice_log_ticks(ax.xaxis, pitch[np.isfinite(pitch)])
 
 
 def _edges(x: np.ndarray) -> np.ndarray:
@@ -320,19 +355,10 @@ def _deficit_cells(
     """The map's cells on ``ax`` (one row per false-on rate, one colour step per point of deficit up to
     :data:`DEFICIT_STEPS`) and their colour bar; returns (pitch per resolution, pitch cell edges sorted, row
     centres, row edges)."""
-    from matplotlib.colors import BoundaryNorm
-
-    deficit, pitch, res = deficit_grid(m)
-    order = np.argsort(pitch)
-    xe = _edges(pitch[order])
-    y = np.arange(len(m.rates), dtype=float)
-    ye = np.arange(len(m.rates) + 1, dtype=float) - 0.5
-    top = int(min(DEFICIT_STEPS, max(1, np.ceil(np.nanmax(deficit)) if np.isfinite(deficit).any() else 1)))
-    bounds = np.arange(0, top + 1, dtype=float)
-    cmap = plt.get_cmap("viridis_r", top + (1 if np.nanmax(deficit) > top else 0))
-    norm = BoundaryNorm(bounds, cmap.N, extend="max" if np.nanmax(deficit) > top else "neither")
+    deficit, pitch, _ = deficit_grid(m)
+    order, xe, y, ye = _cells(pitch, len(m.rates))
+    cmap, norm, ticks = _deficit_scale(deficit, plt)
     mesh = ax.pcolormesh(xe, ye, np.ma.masked_invalid(deficit[:, order]), cmap=cmap, norm=norm, shading="flat")
-    ticks = bounds if top <= 10 else bounds[:: int(np.ceil(top / 10))]
     fig.colorbar(mesh, ax=ax, label="deficit to the row's best\n(points of accuracy)", ticks=ticks, format="%.0f")
     return pitch, xe, y, ye
 
@@ -372,11 +398,7 @@ def _red_marks(ax: Any, x: list[float], y: list[float], marker: str, size: float
 
 def _deficit_axes(ax: Any, m: RequirementMap, pitch: np.ndarray, xe: np.ndarray, y: np.ndarray, ye: np.ndarray) -> None:
     """The map panel's axes: log pitch (coarse on the left), one labelled row per rate, legend and title."""
-    from sphri.report.figures import _nice_log_ticks
-
-    ax.set_xscale("log")
-    ax.set_xlim(xe[-1], xe[0])  # coarse on the left, finer to the right
-    _nice_log_ticks(ax.xaxis, pitch[np.isfinite(pitch)])
+    _pitch_axis(ax, xe, pitch)
     ax.set_yticks(y, [f"{100 * r:.3g} %" for r in m.rates])
     ax.set_ylim(ye[0], ye[-1])
     ax.set_xlabel("taxel pitch (mm; finer to the right)")
@@ -422,10 +444,7 @@ def filter_grid(maps: dict[str, RequirementMap]) -> tuple[list[float], list[str]
     for a, f in enumerate(names):
         for k, rate in enumerate(rates):
             g = maps[f].curves[maps[f].rates.index(rate)]
-            for _, p in g.points.iterrows():
-                j = res.index(int(p["res"]))
-                acc[a, k, j] = p["accuracy_mean"]
-                pitch[j] = p["pitch_mm"]
+            _fill(acc[a, k], pitch, res, g)
             required[a, k] = res.index(int(g.recommended["res"]))
     best = np.nanmax(np.where(np.isfinite(acc), acc, -np.inf), axis=(0, 2), keepdims=True)
     return rates, names, 100.0 * (best - acc), pitch, required
@@ -440,10 +459,8 @@ def plot_filter_map(report: SweepReport, path: Path, marks: bool | None = None) 
     reads off which filter reaches the best at which pitch. Marked: each filter's required pitch by the
     certified rule (o) and the best pair per rate (*); the tolerance each filter's rule certifies in its
     panel's title."""
-    from matplotlib.colors import BoundaryNorm
-
     from sphri import figures
-    from sphri.report.figures import _finish, _nice_log_ticks
+    from sphri.report.figures import _finish
 
     sets = filter_sets(report)
     if not sets:
@@ -452,15 +469,8 @@ def plot_filter_map(report: SweepReport, path: Path, marks: bool | None = None) 
     rates, names, deficit, pitch, required = filter_grid(maps)
     if not rates:
         return None
-    order = np.argsort(pitch)
-    xe = _edges(pitch[order])
-    y = np.arange(len(rates), dtype=float)
-    ye = np.arange(len(rates) + 1, dtype=float) - 0.5
-    deepest = float(np.nanmax(deficit)) if np.isfinite(deficit).any() else 1.0
-    top = int(min(DEFICIT_STEPS, max(1, np.ceil(deepest))))
-    plt = figures.pyplot()
-    cmap = plt.get_cmap("viridis_r", top + (1 if deepest > top else 0))
-    norm = BoundaryNorm(np.arange(0, top + 1, dtype=float), cmap.N, extend="max" if deepest > top else "neither")
+    order, xe, y, ye = _cells(pitch, len(rates))
+    cmap, norm, ticks = _deficit_scale(deficit, figures.pyplot())
     flat = np.where(np.isfinite(deficit), deficit, np.inf)
     best = [np.unravel_index(int(np.argmin(flat[:, k, :])), (len(names), len(pitch))) for k in range(len(rates))]
     with figures.style():
@@ -473,9 +483,7 @@ def plot_filter_map(report: SweepReport, path: Path, marks: bool | None = None) 
             mine = [(k, j) for k, (b, j) in enumerate(best) if b == a]
             if mine:
                 _red_marks(ax, [pitch[j] for _, j in mine], [y[k] for k, _ in mine], "*", 11, "best pair at the rate")
-            ax.set_xscale("log")
-            ax.set_xlim(xe[-1], xe[0])  # coarse on the left, finer to the right
-            _nice_log_ticks(ax.xaxis, pitch[np.isfinite(pitch)])
+            _pitch_axis(ax, xe, pitch)
             tol = sorted({round(float(maps[f].curves[maps[f].rates.index(r)].sat.tolerance) * 100, 1) for r in rates})
             ttxt = f"T = {tol[0]:g}" if len(tol) == 1 else f"T = {tol[0]:g}-{tol[-1]:g}"
             ax.set_title(f"filter: {f}\ncertified {ttxt} pts", loc="left")
@@ -483,14 +491,8 @@ def plot_filter_map(report: SweepReport, path: Path, marks: bool | None = None) 
         axes[0].set_yticks(y, [f"{100 * r:.3g} %" for r in rates])
         axes[0].set_ylim(ye[0], ye[-1])
         axes[0].set_ylabel("false-on rate per taxel and frame")
-        ticks = np.arange(0, top + 1, dtype=float)
-        fig.colorbar(
-            mesh,
-            ax=list(axes),
-            label="deficit to the rate's best\n(pitch, filter) pair (points)",
-            ticks=ticks if top <= 10 else ticks[:: int(np.ceil(top / 10))],
-            format="%.0f",
-        )
+        bar_label = "deficit to the rate's best\n(pitch, filter) pair (points)"
+        fig.colorbar(mesh, ax=list(axes), label=bar_label, ticks=ticks, format="%.0f")
         handles: dict[str, Any] = {}
         for ax in axes:
             for h, lab in zip(*ax.get_legend_handles_labels()):

@@ -102,15 +102,15 @@ class Sweep:
 
     def groups(self) -> list[tuple[str, pd.DataFrame]]:
         """(label, its jobs sorted by res) for each group, labels in natural sort order."""
-        out = []
-        for label in sorted(self.runs["group"].unique(), key=_natural):
-            rows = self.runs[self.runs["group"] == label].sort_values("res", kind="stable")
-            out.append((label, rows.reset_index(drop=True)))
-        return out
+        return [
+            (label, self.runs[self.runs["group"] == label].sort_values("res", kind="stable").reset_index(drop=True))
+            for label in sorted(self.runs["group"].unique(), key=natural_key)
+        ]
 
 
-def _natural(s: str) -> list[Any]:
-    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", s)]
+def natural_key(s: str) -> list[Any]:
+    """Sort key putting ``seed=2`` before ``seed=10``."""
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", str(s))]
 
 
 def resolve_source(
@@ -513,10 +513,7 @@ def _fold_rows(client: Any, run: Any) -> pd.DataFrame:
             if (m := pat.match(k))
         ]
         df = pd.DataFrame(rows, columns=["participant", "accuracy"])
-    for c in cols:
-        if c not in df.columns:
-            df[c] = np.nan
-    df = df[cols].copy()
+    df = df.reindex(columns=cols)  # a column the job did not log: NaN
     df["participant"] = df["participant"].astype(str)
     for c in cols[1:]:
         df[c] = pd.to_numeric(df[c], errors="coerce").astype(float)
