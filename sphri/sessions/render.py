@@ -16,10 +16,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-import trimesh  # noqa: E402
 
 from sphri import figures  # noqa: E402
-from sphri.analysis.render import CMAP, PERCENT_PER_CM2, LinkView, _colourbar, _vmax  # noqa: E402
+from sphri.analysis.render import CMAP, PERCENT_PER_CM2, LinkView, _colourbar, _save, _triangle_colourbar, _vmax  # noqa: E402
 from sphri.sessions.body import BodySurface  # noqa: E402
 from sphri.types import GESTURES  # noqa: E402
 
@@ -32,9 +31,7 @@ def _finish(fig, title: str, path: str | Path, provenance: figures.Provenance | 
     ``path`` (PNG, PDF, SVG) and close it."""
     with figures.style():
         fig.suptitle(figures.typeset(title), wrap=True)
-        figures.mark(fig, provenance)
-        figures.save(fig, path)
-    return Path(path)
+        return _save(fig, path, provenance)
 
 
 def body_view(body: BodySurface, faces: int = 20000) -> LinkView:
@@ -78,9 +75,7 @@ def _contact_bar(fig, vmax: float, ax) -> None:
     from matplotlib.colors import ListedColormap
 
     cmap = ListedColormap(plt.get_cmap(CMAP)(np.linspace(CMAP_FLOOR, 1.0, 256)))
-    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, vmax))
-    cb = fig.colorbar(sm, ax=ax, shrink=0.8, pad=0.02)
-    cb.set_label("contact, % per cm$^2$\ngrey: no contact")
+    _colourbar(fig, vmax, ax, cmap=cmap, label="contact, % per cm$^2$\ngrey: no contact")
 
 
 def plot_views(
@@ -216,10 +211,7 @@ def plot_atlas(
 def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: str | Path) -> Path:
     """PLY of the rest-pose robot with one float vertex attribute per map (``density_<name>``, % per cm^2) and colours of the first."""
     first = next(iter(densities.values()))
-    vals = view.vertex_values(first) * PERCENT_PER_CM2
-    vmax = _vmax([first])
-    rgba = (plt.get_cmap(CMAP)(np.clip(vals / vmax, 0, 1)) * 255).astype(np.uint8)
-    mesh = trimesh.Trimesh(view.vertices, view.faces, vertex_colors=rgba, process=False, validate=False)
+    mesh = view.coloured_mesh(first, _vmax([first]))
     for name, d in densities.items():
         mesh.vertex_attributes[f"density_{name}"] = (view.vertex_values(d) * PERCENT_PER_CM2).astype(np.float32)
     path = Path(path)
@@ -372,12 +364,7 @@ def plot_effects(
                     )
         ax.set_xticks(range(k), names[:-1] if n > 1 else names, rotation=45, ha="right")
         ax.set_yticks(range(k), names[1:] if n > 1 else names)
-        # the colour bar in the empty upper triangle
-        cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if k >= 3 else None
-        cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical", shrink=0.8)
-        cb.set_label("effect size d$_z$\n(between - within SWD)")
-        if cax is not None:
-            cax.xaxis.set_label_position("top")
+        _triangle_colourbar(fig, ax, im, k, "effect size d$_z$\n(between - within SWD)")
         ax.set_xlabel(f"Holm-corrected p (* <= {alpha:g})")
         return _finish(fig, title, path, provenance)
 
