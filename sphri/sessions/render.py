@@ -157,7 +157,6 @@ def unroll(points: np.ndarray, frame: tuple[np.ndarray, np.ndarray]) -> tuple[np
 
 def plot_atlas(
     body: BodySurface,
-    robot,
     density: np.ndarray,
     path: str | Path,
     title: str,
