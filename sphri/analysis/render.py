@@ -328,7 +328,7 @@ def _save(fig: Figure, path: str | Path, provenance: figures.Provenance | None) 
 
 def _triangle_colourbar(fig: Figure, ax: Axes, im: AxesImage, n: int, label: str) -> None:
     """The colour bar of an n x n lower-triangle matrix: in its empty upper triangle (n >= 3), not beside it."""
-    cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if n >= 3 else None
+    cax = ax.inset_axes((0.55, 0.82, 0.42, 0.04)) if n >= 3 else None
     cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical", shrink=0.8)
     cb.set_label(label)
     if cax is not None:

@@ -222,10 +222,11 @@ def drawn_shares(coded: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     """Per scenario and gesture: the share of the coded episodes whose session the generator drew with that
     gesture (``scenario``, ``gesture``, ``share``), for the histogram's drawn bars."""
     g = truth.reset_index(drop=True)["gesture"].to_numpy()[coded["session"].to_numpy()]
-    rows = []
-    for s, idx in coded.groupby("scenario").indices.items():
-        for gest in GESTURES:
-            rows.append(dict(scenario=s, gesture=gest, share=float((g[idx] == gest).mean())))
+    rows = [
+        (s, gest, float((g[idx] == gest).mean()))
+        for s, idx in coded.groupby("scenario").indices.items()
+        for gest in GESTURES
+    ]
     return pd.DataFrame(rows, columns=["scenario", "gesture", "share"])
 
 
@@ -340,8 +341,8 @@ def plot_effects(
         dz[i, j] = dz[j, i] = r.effect_dz
         text[i][j] = text[j][i] = t
     lim = max(float(np.nanmax(np.abs(dz))) if np.isfinite(dz).any() else 1.0, 0.5)
-    k = max(n - 1, 1)  # rows 1..n-1 against columns 0..n-2: the strict lower triangle as a k x k triangle
-    sub = dz[1:, :-1] if n > 1 else dz
+    k = n - 1  # rows 1..n-1 against columns 0..n-2 (n >= 2: a study tests two groups or more): a k x k triangle
+    sub = dz[1:, :-1]
     names = [figures.human(s) for s in scenarios]
     with figures.style():
         side = float(np.clip(0.75 * k + 2.6, figures.ONE_COLUMN_IN, figures.TWO_COLUMN_IN))
@@ -350,7 +351,7 @@ def plot_effects(
         figures.lower_triangle(ax, im, k)
         for i in range(k):
             for j in range(i + 1):
-                t = text[i + 1][j] if n > 1 else ""
+                t = text[i + 1][j]
                 if t:
                     ax.text(
                         j,
@@ -361,8 +362,8 @@ def plot_effects(
                         fontsize=figures.MIN_FONT_PT,
                         color="white" if abs(sub[i, j]) > 0.6 * lim else "black",
                     )
-        ax.set_xticks(range(k), names[:-1] if n > 1 else names, rotation=45, ha="right")
-        ax.set_yticks(range(k), names[1:] if n > 1 else names)
+        ax.set_xticks(range(k), names[:-1], rotation=45, ha="right")
+        ax.set_yticks(range(k), names[1:])
         _triangle_colourbar(fig, ax, im, k, "effect size d$_z$\n(between - within SWD)")
         ax.set_xlabel(f"Holm-corrected p (* <= {alpha:g})")
         return _finish(fig, title, path, provenance)
