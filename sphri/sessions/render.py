@@ -242,8 +242,7 @@ def plot_gesture_histogram(
     ends a little above the highest bar."""
     scen = list(pd.unique(hist["scenario"]))
     x = np.arange(len(GESTURES))
-    w = 0.4 if drawn is not None else 0.8
-    off = -0.2 if drawn is not None else 0.0
+    w, off = (0.4, -0.2) if drawn is not None else (0.8, 0.0)  # bar width, offset of the coded bars
     top = 0.0
     with figures.style():
         fig, axes = figures.new_figure("two", 2.6, ncols=len(scen), sharey=True, squeeze=False)

@@ -157,9 +157,7 @@ def frame_patch_matrix(
     keep = p[c] >= 0
     inv, p = inv[keep], p[c][keep]
     m = sparse.csr_matrix((np.ones(inv.size, dtype=np.float64), (inv, p)), shape=(uf.size, n_patches))
-    m.data[:] = 1.0  # duplicates summed by the constructor
-    m.sum_duplicates()
-    m.data[:] = 1.0
+    m.data[:] = 1.0  # duplicates were summed by the constructor (its conversion to CSR sums them)
     return uf, m
 
 

@@ -649,10 +649,7 @@ def _summary(res: StudyResult, robot, ds, gm, areas: pd.DataFrame, budget: str) 
             "n_trials": gm.n_trials,
         },
         "surface": {
-            "area_cm2": float(areas["area_cm2"].sum()),
-            "reachable_cm2": float(areas["reachable_cm2"].sum()),
-            "floor_facing_cm2": float(areas["floor_facing_cm2"].sum()),
-            "buried_cm2": float(areas["buried_cm2"].sum()),
+            **{c: float(areas[c].sum()) for c in ("area_cm2", "reachable_cm2", "floor_facing_cm2", "buried_cm2")},
             "floor_height_m": st.reach_floor_height_m,
             "down_cos": st.reach_down_cos,
         },
