@@ -138,13 +138,11 @@ class LinkView:
         self.vertices = v
         self.faces = f
         self.centre = centre
-        rot = display_rotation(samples.points_m)
-        self.rotation = rot
-        self.display = (v - centre) @ rot.T
-        tri = v[f]
+        self.rotation = display_rotation(samples.points_m)
+        self.display = (v - centre) @ self.rotation.T
         self.face_normal = np.asarray(mesh.face_normals)
         self.face_area = np.asarray(mesh.area_faces)
-        self.face_idx, self.face_w = samples.interpolation(tri.mean(axis=1), self.face_normal)
+        self.face_idx, self.face_w = samples.interpolation(v[f].mean(axis=1), self.face_normal)
         self.vert_idx, self.vert_w = samples.interpolation(v, np.asarray(mesh.vertex_normals))
 
     def face_values(self, density: np.ndarray) -> np.ndarray:
