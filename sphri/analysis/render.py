@@ -32,7 +32,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import matplotlib
 
@@ -138,13 +138,11 @@ class LinkView:
         self.vertices = v
         self.faces = f
         self.centre = centre
-        rot = display_rotation(samples.points_m)
-        self.rotation = rot
-        self.display = (v - centre) @ rot.T
-        tri = v[f]
+        self.rotation = display_rotation(samples.points_m)
+        self.display = (v - centre) @ self.rotation.T
         self.face_normal = np.asarray(mesh.face_normals)
         self.face_area = np.asarray(mesh.area_faces)
-        self.face_idx, self.face_w = samples.interpolation(tri.mean(axis=1), self.face_normal)
+        self.face_idx, self.face_w = samples.interpolation(v[f].mean(axis=1), self.face_normal)
         self.vert_idx, self.vert_w = samples.interpolation(v, np.asarray(mesh.vertex_normals))
 
     def face_values(self, density: np.ndarray) -> np.ndarray:
@@ -282,26 +280,27 @@ class LinkView:
             axes[0, 0].text(0.02, 0.01, bottom, transform=axes[0, 0].transAxes, ha="left", va="bottom", color="0.25")
             _colourbar(fig, vmax, ax=axes[0, :])
             fig.suptitle(title)
-            figures.mark(fig, provenance)
-            figures.save(fig, path)
-        return Path(path)
+            return _save(fig, path, provenance)
 
     @staticmethod
     def azimuths(views: int) -> list[float]:
         """View azimuths (degrees) around the long axis, starting at display +x."""
         return [360.0 * i / views for i in range(views)]
 
-    def write_ply(self, density: np.ndarray, path: str | Path, vmax: float | None = None) -> Path:
-        """Vertex-coloured PLY (link frame, metres) of ``density``."""
+    def coloured_mesh(self, density: np.ndarray, vmax: float | None = None) -> trimesh.Trimesh:
+        """The mesh (link frame, metres) with vertex colours of ``density`` on the scale 0..``vmax`` (% per cm^2;
+        default: its maximum)."""
         vals = self.vertex_values(density) * PERCENT_PER_CM2
         vmax = vmax if vmax is not None else float(vals.max())
-        rgba = (plt.get_cmap(CMAP)(np.clip(vals / vmax, 0, 1) if vmax > 0 else np.zeros_like(vals)) * 255).astype(
-            np.uint8
+        rgba = plt.get_cmap(CMAP)(np.clip(vals / vmax, 0, 1) if vmax > 0 else np.zeros_like(vals))
+        return trimesh.Trimesh(
+            self.vertices, self.faces, vertex_colors=(rgba * 255).astype(np.uint8), process=False, validate=False
         )
-        mesh = trimesh.Trimesh(self.vertices, self.faces, vertex_colors=rgba, process=False, validate=False)
-        path = Path(path)
-        mesh.export(path)
-        return path
+
+    def write_ply(self, density: np.ndarray, path: str | Path, vmax: float | None = None) -> Path:
+        """Vertex-coloured PLY (link frame, metres) of ``density``."""
+        self.coloured_mesh(density, vmax).export(Path(path))
+        return Path(path)
 
 
 def _vmax(densities: Sequence[np.ndarray]) -> float:
@@ -311,13 +310,27 @@ def _vmax(densities: Sequence[np.ndarray]) -> float:
     return v if v > 0 else float(vals.max(initial=0.0)) or 1.0
 
 
-def _colourbar(fig: Figure, vmax: float, ax: Axes | np.ndarray | None = None, cax: Axes | None = None) -> None:
-    sm = plt.cm.ScalarMappable(cmap=CMAP, norm=plt.Normalize(0, vmax))
+def _colourbar(
+    fig: Figure, vmax: float, ax: Axes | np.ndarray, cmap: Any = CMAP, label: str = "contact density (% per cm$^2$)"
+) -> None:
+    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, vmax))
+    fig.colorbar(sm, ax=ax, shrink=0.8, pad=0.02).set_label(label)
+
+
+def _save(fig: Figure, path: str | Path, provenance: figures.Provenance | None) -> Path:
+    """Draw the provenance banner (:func:`sphri.figures.mark`) and write the figure to ``path`` (PNG, PDF, SVG)."""
+    figures.mark(fig, provenance)
+    figures.save(fig, path)
+    return Path(path)
+
+
+def _triangle_colourbar(fig: Figure, ax: Axes, im: AxesImage, n: int, label: str) -> None:
+    """The colour bar of an n x n lower-triangle matrix: in its empty upper triangle (n >= 3), not beside it."""
+    cax = ax.inset_axes((0.55, 0.82, 0.42, 0.04)) if n >= 3 else None
+    cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical", shrink=0.8)
+    cb.set_label(label)
     if cax is not None:
-        cb = fig.colorbar(sm, cax=cax)
-    else:
-        cb = fig.colorbar(sm, ax=ax if ax is not None else fig.axes, shrink=0.8, pad=0.02)
-    cb.set_label("contact density (% per cm$^2$)")
+        cax.xaxis.set_label_position("top")
 
 
 def uv_grid(surface: SurfaceMap, samples: SurfaceSamples, n_u: int = 120) -> dict:
@@ -373,9 +386,7 @@ def render_uv(
         draw_uv(ax, grid, surface, density, vmax)
         _colourbar(fig, vmax, ax=ax)
         ax.set_title(title, loc="left", wrap=True)
-        figures.mark(fig, provenance)
-        figures.save(fig, path)
-    return Path(path)
+        return _save(fig, path, provenance)
 
 
 def plot_overview(
@@ -421,9 +432,7 @@ def plot_overview(
                     ax.set_title("unwrapped (cm)")
         _colourbar(fig, vmax, ax=axes)
         fig.suptitle(title)
-        figures.mark(fig, provenance)
-        figures.save(fig, path)
-    return Path(path)
+        return _save(fig, path, provenance)
 
 
 def plot_coverage_curves(
@@ -454,9 +463,7 @@ def plot_coverage_curves(
         ax.set_ylim(0, 1.01)
         ax.set_title(title, loc="left", wrap=True)
         ax.legend(title="group (area for the target)", loc="lower right")  # below the uniform diagonal: no data there
-        figures.mark(fig, provenance)
-        figures.save(fig, path)
-    return Path(path)
+        return _save(fig, path, provenance)
 
 
 def plot_swd_heatmap(
@@ -505,14 +512,7 @@ def plot_swd_heatmap(
                 )
         ax.set_xticks(range(n), names, rotation=45, ha="right")
         ax.set_yticks(range(n), names)
-        # the colour bar in the empty upper triangle, not beside the matrix
-        cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if n >= 3 else None
-        cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical", shrink=0.8)
-        cb.set_label(f"mean paired SW{comp.swd_p:g}\ndistance (mm)")
-        if cax is not None:
-            cax.xaxis.set_label_position("top")
+        _triangle_colourbar(fig, ax, im, n, f"mean paired SW{comp.swd_p:g}\ndistance (mm)")
         ax.set_title(title, loc="left", wrap=True)
         ax.set_xlabel(f"Holm-corrected p (* <= {comp.alpha:g})\ngrey diagonal: split-half baseline")
-        figures.mark(fig, provenance)
-        figures.save(fig, path)
-    return Path(path)
+        return _save(fig, path, provenance)

@@ -54,8 +54,7 @@ def gesture_counts(labelled: pd.DataFrame, scenarios: list[str], n_boot: int = 1
         soft[u, k] += np.nan_to_num(np.array([getattr(r, c) for c in pcols], dtype=float))
     rng = np.random.default_rng(seed)
     draws = rng.integers(0, units.size, size=(n_boot, units.size)) if units.size else np.zeros((0, 0), int)
-    bh = hard[draws].sum(axis=1) if units.size else np.zeros((0,) + hard.shape[1:])  # (B, S, G)
-    bs = soft[draws].sum(axis=1) if units.size else np.zeros_like(bh)
+    bh, bs = hard[draws].sum(axis=1), soft[draws].sum(axis=1)  # (B, S, G); (0, S, G) without participants
     tot = bh.sum(axis=2, keepdims=True)
     bshare = np.divide(bh, tot, out=np.full_like(bh, np.nan), where=tot > 0)
     q = lambda a: (np.nanpercentile(a, 2.5, axis=0), np.nanpercentile(a, 97.5, axis=0))  # noqa: E731

@@ -16,10 +16,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-import trimesh  # noqa: E402
 
 from sphri import figures  # noqa: E402
-from sphri.analysis.render import CMAP, PERCENT_PER_CM2, LinkView, _colourbar, _vmax  # noqa: E402
+from sphri.analysis.render import CMAP, PERCENT_PER_CM2, LinkView, _colourbar, _save, _triangle_colourbar, _vmax  # noqa: E402
 from sphri.sessions.body import BodySurface  # noqa: E402
 from sphri.types import GESTURES  # noqa: E402
 
@@ -32,9 +31,7 @@ def _finish(fig, title: str, path: str | Path, provenance: figures.Provenance | 
     ``path`` (PNG, PDF, SVG) and close it."""
     with figures.style():
         fig.suptitle(figures.typeset(title), wrap=True)
-        figures.mark(fig, provenance)
-        figures.save(fig, path)
-    return Path(path)
+        return _save(fig, path, provenance)
 
 
 def body_view(body: BodySurface, faces: int = 20000) -> LinkView:
@@ -78,9 +75,7 @@ def _contact_bar(fig, vmax: float, ax) -> None:
     from matplotlib.colors import ListedColormap
 
     cmap = ListedColormap(plt.get_cmap(CMAP)(np.linspace(CMAP_FLOOR, 1.0, 256)))
-    sm = plt.cm.ScalarMappable(cmap=cmap, norm=plt.Normalize(0, vmax))
-    cb = fig.colorbar(sm, ax=ax, shrink=0.8, pad=0.02)
-    cb.set_label("contact, % per cm$^2$\ngrey: no contact")
+    _colourbar(fig, vmax, ax, cmap=cmap, label="contact, % per cm$^2$\ngrey: no contact")
 
 
 def plot_views(
@@ -162,7 +157,6 @@ def unroll(points: np.ndarray, frame: tuple[np.ndarray, np.ndarray]) -> tuple[np
 
 def plot_atlas(
     body: BodySurface,
-    robot,
     density: np.ndarray,
     path: str | Path,
     title: str,
@@ -216,10 +210,7 @@ def plot_atlas(
 def write_density_ply(view: LinkView, densities: dict[str, np.ndarray], path: str | Path) -> Path:
     """PLY of the rest-pose robot with one float vertex attribute per map (``density_<name>``, % per cm^2) and colours of the first."""
     first = next(iter(densities.values()))
-    vals = view.vertex_values(first) * PERCENT_PER_CM2
-    vmax = _vmax([first])
-    rgba = (plt.get_cmap(CMAP)(np.clip(vals / vmax, 0, 1)) * 255).astype(np.uint8)
-    mesh = trimesh.Trimesh(view.vertices, view.faces, vertex_colors=rgba, process=False, validate=False)
+    mesh = view.coloured_mesh(first, _vmax([first]))
     for name, d in densities.items():
         mesh.vertex_attributes[f"density_{name}"] = (view.vertex_values(d) * PERCENT_PER_CM2).astype(np.float32)
     path = Path(path)
@@ -231,10 +222,11 @@ def drawn_shares(coded: pd.DataFrame, truth: pd.DataFrame) -> pd.DataFrame:
     """Per scenario and gesture: the share of the coded episodes whose session the generator drew with that
     gesture (``scenario``, ``gesture``, ``share``), for the histogram's drawn bars."""
     g = truth.reset_index(drop=True)["gesture"].to_numpy()[coded["session"].to_numpy()]
-    rows = []
-    for s, idx in coded.groupby("scenario").indices.items():
-        for gest in GESTURES:
-            rows.append(dict(scenario=s, gesture=gest, share=float((g[idx] == gest).mean())))
+    rows = [
+        (s, gest, float((g[idx] == gest).mean()))
+        for s, idx in coded.groupby("scenario").indices.items()
+        for gest in GESTURES
+    ]
     return pd.DataFrame(rows, columns=["scenario", "gesture", "share"])
 
 
@@ -250,8 +242,7 @@ def plot_gesture_histogram(
     ends a little above the highest bar."""
     scen = list(pd.unique(hist["scenario"]))
     x = np.arange(len(GESTURES))
-    w = 0.4 if drawn is not None else 0.8
-    off = -0.2 if drawn is not None else 0.0
+    w, off = (0.4, -0.2) if drawn is not None else (0.8, 0.0)  # bar width, offset of the coded bars
     top = 0.0
     with figures.style():
         fig, axes = figures.new_figure("two", 2.6, ncols=len(scen), sharey=True, squeeze=False)
@@ -349,8 +340,8 @@ def plot_effects(
         dz[i, j] = dz[j, i] = r.effect_dz
         text[i][j] = text[j][i] = t
     lim = max(float(np.nanmax(np.abs(dz))) if np.isfinite(dz).any() else 1.0, 0.5)
-    k = max(n - 1, 1)  # rows 1..n-1 against columns 0..n-2: the strict lower triangle as a k x k triangle
-    sub = dz[1:, :-1] if n > 1 else dz
+    k = n - 1  # rows 1..n-1 against columns 0..n-2 (n >= 2: a study tests two groups or more): a k x k triangle
+    sub = dz[1:, :-1]
     names = [figures.human(s) for s in scenarios]
     with figures.style():
         side = float(np.clip(0.75 * k + 2.6, figures.ONE_COLUMN_IN, figures.TWO_COLUMN_IN))
@@ -359,7 +350,7 @@ def plot_effects(
         figures.lower_triangle(ax, im, k)
         for i in range(k):
             for j in range(i + 1):
-                t = text[i + 1][j] if n > 1 else ""
+                t = text[i + 1][j]
                 if t:
                     ax.text(
                         j,
@@ -370,14 +361,9 @@ def plot_effects(
                         fontsize=figures.MIN_FONT_PT,
                         color="white" if abs(sub[i, j]) > 0.6 * lim else "black",
                     )
-        ax.set_xticks(range(k), names[:-1] if n > 1 else names, rotation=45, ha="right")
-        ax.set_yticks(range(k), names[1:] if n > 1 else names)
-        # the colour bar in the empty upper triangle
-        cax = ax.inset_axes([0.55, 0.82, 0.42, 0.04]) if k >= 3 else None
-        cb = fig.colorbar(im, ax=ax, cax=cax, orientation="horizontal" if cax is not None else "vertical", shrink=0.8)
-        cb.set_label("effect size d$_z$\n(between - within SWD)")
-        if cax is not None:
-            cax.xaxis.set_label_position("top")
+        ax.set_xticks(range(k), names[:-1], rotation=45, ha="right")
+        ax.set_yticks(range(k), names[1:])
+        _triangle_colourbar(fig, ax, im, k, "effect size d$_z$\n(between - within SWD)")
         ax.set_xlabel(f"Holm-corrected p (* <= {alpha:g})")
         return _finish(fig, title, path, provenance)
 

@@ -33,6 +33,7 @@ and the links merged into that link.
 from __future__ import annotations
 
 import json
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -71,7 +72,7 @@ class Patches:
         return self.table["area_cm2"].to_numpy(float) * 1e-4
 
 
-def make_patches(body: BodySurface, patch_cm2: float, seed: int = 0, mountable: np.ndarray | None = None) -> Patches:
+def make_patches(body: BodySurface, patch_cm2: float, mountable: np.ndarray | None = None) -> Patches:
     """Split each body part's reachable elements (per link; only where ``mountable``, (P,) bool, when given) into
     patches of about ``patch_cm2``."""
     if not patch_cm2 > 0:
@@ -156,9 +157,7 @@ def frame_patch_matrix(
     keep = p[c] >= 0
     inv, p = inv[keep], p[c][keep]
     m = sparse.csr_matrix((np.ones(inv.size, dtype=np.float64), (inv, p)), shape=(uf.size, n_patches))
-    m.data[:] = 1.0  # duplicates summed by the constructor
-    m.sum_duplicates()
-    m.data[:] = 1.0
+    m.data[:] = 1.0  # duplicates were summed by the constructor (its conversion to CSR sums them)
     return uf, m
 
 
@@ -226,6 +225,25 @@ def _on_grid(cum_area: np.ndarray, captured_at: np.ndarray, grid: np.ndarray) ->
     return captured_at[n - 1]
 
 
+def _captured_curve(train: sparse.csr_matrix, test: sparse.csr_matrix, area: np.ndarray, grid: np.ndarray):
+    """Share of ``test``'s frames captured at each grid area by the patches in ``train``'s greedy order."""
+    order, _ = greedy_patches(train, area)
+    rank = first_rank(test, order)
+    cap = np.r_[0, np.cumsum(np.bincount(rank, minlength=len(order) + 1)[: len(order)])] / rank.size
+    return _on_grid(np.r_[0.0, np.cumsum(area[order])], cap, grid)
+
+
+def _halves(rng: np.random.Generator, unit: np.ndarray, splits: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """(train, test) frame masks: the participants (``unit`` per frame) split in half at random ``splits`` times,
+    each half choosing for the other (none with fewer than two participants; no empty half)."""
+    units = np.asarray(pd.unique(unit))
+    for _ in range(splits if units.size >= 2 else 0):
+        in_a = np.isin(unit, rng.permutation(units)[: units.size // 2])
+        for train, test in ((in_a, ~in_a), (~in_a, in_a)):
+            if train.any() and test.any():
+                yield train, test
+
+
 def budget_curves(
     m: sparse.csr_matrix,
     frame_group: np.ndarray,
@@ -273,27 +291,11 @@ def budget_curves(
         n = mg.shape[0]
         if n == 0:
             continue
-        order, _ = greedy_patches(mg, area)
-        cum = np.r_[0.0, np.cumsum(area[order])]
-        fr = first_rank(mg, order)
-        cap = np.r_[0, np.cumsum(np.bincount(fr, minlength=len(order) + 1)[: len(order)])] / n
-        add(g, "in_sample", _on_grid(cum, cap, grid), np.nan, n, 0)
-        units = np.asarray(pd.unique(ug))
-        if units.size < 2 or heldout_splits < 1:
-            continue
-        scores = []
-        for _ in range(heldout_splits):
-            perm = rng.permutation(units)
-            half = set(perm[: units.size // 2].tolist())
-            in_a = np.array([u in half for u in ug])
-            for train, test in ((in_a, ~in_a), (~in_a, in_a)):
-                if not train.any() or not test.any():
-                    continue
-                o, _ = greedy_patches(mg[np.flatnonzero(train)], area)
-                c = np.r_[0.0, np.cumsum(area[o])]
-                f = first_rank(mg[np.flatnonzero(test)], o)
-                cp = np.r_[0, np.cumsum(np.bincount(f, minlength=len(o) + 1)[: len(o)])] / f.size
-                scores.append(_on_grid(c, cp, grid))
+        add(g, "in_sample", _captured_curve(mg, mg, area, grid), np.nan, n, 0)
+        scores = [
+            _captured_curve(mg[np.flatnonzero(train)], mg[np.flatnonzero(test)], area, grid)
+            for train, test in _halves(rng, ug, heldout_splits)
+        ]
         if scores:
             s = np.stack(scores)
             add(g, "heldout", s.mean(axis=0), s.std(axis=0, ddof=1) if len(s) > 1 else np.nan, n, len(s))
@@ -322,14 +324,9 @@ def patch_placement(
         order, new = greedy_patches(mg, area, budget_m2)
         n = mg.shape[0]
         held = []
-        units = np.asarray(pd.unique(ug))
-        for _ in range(heldout_splits if units.size >= 2 else 0):
-            perm = rng.permutation(units)
-            in_a = np.isin(ug, perm[: units.size // 2])
-            for train, test in ((in_a, ~in_a), (~in_a, in_a)):
-                if train.any() and test.any():
-                    o, _ = greedy_patches(mg[np.flatnonzero(train)], area, budget_m2)
-                    held.append(float((first_rank(mg[np.flatnonzero(test)], o) < len(o)).mean()))
+        for train, test in _halves(rng, ug, heldout_splits):
+            o, _ = greedy_patches(mg[np.flatnonzero(train)], area, budget_m2)
+            held.append(float((first_rank(mg[np.flatnonzero(test)], o) < len(o)).mean()))
         chosen_parts = patches.table["part"].to_numpy()[order]
         rows.append(
             dict(
@@ -693,7 +690,7 @@ def skin_design(
 ) -> SkinDesign:
     """Patches (on the ``mountable`` elements when given), budget curves and the patch-level placement from the
     study's (frame, element) pairs; a frame counts when it touches reachable surface."""
-    patches = make_patches(body, patch_cm2, seed, mountable)
+    patches = make_patches(body, patch_cm2, mountable)
     uf, m = frame_patch_matrix(frames, elements, patches.of_element, len(patches.table), body.reachable)
     f_scen = sessions["scenario"].to_numpy()[frame_session[uf]]
     f_unit = sessions["participant"].to_numpy()[frame_session[uf]]

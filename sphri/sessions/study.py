@@ -108,9 +108,7 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         design = _skin_design(job, sess, maps, place)
     result = _result(job, sess, gest, maps, place, design)
     with job.step("files"), figures.only_formats(job.st.figure_formats):
-        result.files = write_outputs(
-            result, job.cfg, sess.robot, maps.body, sess.ds, gest.model, place.budget, sess.label
-        )
+        result.files = write_outputs(result, sess.robot, maps.body, sess.ds, gest.model, place.budget, sess.label)
     job.finish()
     for s_ in result.sentences:
         log.info("%s (%s)", s_, sess.label)
@@ -513,7 +511,7 @@ def _result(job: _Job, sess: _Sessions, gest: _Gestures, maps: _Maps, place: _Pl
     )
 
 
-def _mask_npz(body, robot, density: np.ndarray, chosen: set[str], out_dir: Path) -> list[Path]:
+def _mask_npz(body, density: np.ndarray, chosen: set[str], out_dir: Path) -> list[Path]:
     """Per link holding chosen parts: ``placement_<link>.npz`` for ``layout=density layout.density_path=...``
     (``points_m``/``normal`` in the link frame, ``density`` = the pooled density on the chosen parts (a
     floor of 5 % of its peak keeps every chosen element), 0 elsewhere; ``mask``, ``area_m2``, ``part``)."""
@@ -540,7 +538,7 @@ def _mask_npz(body, robot, density: np.ndarray, chosen: set[str], out_dir: Path)
     return files
 
 
-def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label: str) -> list[Path]:
+def write_outputs(res: StudyResult, robot, body, ds, gm, budget: str, label: str) -> list[Path]:
     """Write the study's files under ``res.out_dir``: maps, tables, skin design and export, SWD tests,
     ``placement_<link>.npz``, ``summary.json``; with ``render``, the figures and ``report.html``. Returns
     their paths."""
@@ -549,14 +547,14 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     out = res.out_dir
     files = _write_maps(res, body)
     areas = body.area_table()
-    files += _write_tables(res, body, robot, areas)
+    files += _write_tables(res, robot, areas)
     files += _design_and_gesture_files(res, body, robot, out)
     if res.comparison is not None:
         files += res.comparison.write_csv(out, "swd")
         _effects(res.comparison).to_csv(out / "swd_effects.csv", index=False, float_format="%.5g")
         files.append(out / "swd_effects.csv")
     chosen = set(str(res.placement.loc[res.placement["group"] == "all", "parts"].iat[0]).split(";")) - {""}
-    files += _mask_npz(body, robot, res.coverage.densities[ALL], chosen, out)
+    files += _mask_npz(body, res.coverage.densities[ALL], chosen, out)
     (out / "placement.txt").write_text("\n".join(res.sentences) + f"\n(budget {budget}; {label})\n")
     files.append(out / "placement.txt")
     summary = _summary(res, robot, ds, gm, areas, budget)
@@ -566,7 +564,7 @@ def write_outputs(res: StudyResult, cfg, robot, body, ds, gm, budget: str, label
     (out / "summary.json").write_text(json.dumps(summary, indent=1, default=str))
     files.append(out / "summary.json")
     if res.settings.render:
-        files += _write_figures(res, robot, body, ds, gm, budget, label, summary)
+        files += _write_figures(res, body, ds, gm, budget, label, summary)
     return files
 
 
@@ -603,45 +601,36 @@ def _write_maps(res: StudyResult, body) -> list[Path]:
     return [out / "density_maps.npz", out / "density_maps.csv"]
 
 
-def _write_tables(res: StudyResult, body, robot, areas: pd.DataFrame) -> list[Path]:
-    """The tables: sessions, episodes, coded episodes, gesture histogram, ranking, placement, mountable parts,
-    body part areas (``areas``, cm^2) and the links a URDF robot has no surface for."""
+def _write_tables(res: StudyResult, robot, areas: pd.DataFrame) -> list[Path]:
+    """The tables: mountable parts, body part areas (``areas``, cm^2), the links a URDF robot has no surface for,
+    sessions, episodes, coded episodes, gesture histogram, ranking and placement."""
     out = res.out_dir
-    res.sessions.to_csv(out / "sessions.csv", index=False)
-    res.episodes.to_csv(out / "episodes.csv", index=False)
-    res.coded.to_csv(out / "coded_episodes.csv", index=False, float_format="%.4g")
-    res.histogram.to_csv(out / "gesture_histogram.csv", index=False, float_format="%.4g")
-    res.ranking.to_csv(out / "body_part_ranking.csv", index=False, float_format="%.5g")
-    res.placement.to_csv(out / "placement.csv", index=False, float_format="%.4g")
-    files = []
-    if res.mountable is not None:
-        res.mountable.to_csv(out / "mountable_parts.csv", index=False, float_format="%.4g")
-        files.append(out / "mountable_parts.csv")
+    res.mountable.to_csv(out / "mountable_parts.csv", index=False, float_format="%.4g")
     areas.to_csv(out / "body_part_area.csv", index=False, float_format="%.1f")
-    files.append(out / "body_part_area.csv")
+    files = [out / "mountable_parts.csv", out / "body_part_area.csv"]
     if getattr(robot, "skipped", ()):  # a robot read from a URDF: what has no surface here, and why
         pd.DataFrame(list(robot.skipped), columns=["link", "reason"]).to_csv(
             out / "robot_skipped_links.csv", index=False
         )
         files.append(out / "robot_skipped_links.csv")
-    return files + [
-        out / n
-        for n in (
-            "sessions.csv",
-            "episodes.csv",
-            "coded_episodes.csv",
-            "gesture_histogram.csv",
-            "body_part_ranking.csv",
-            "placement.csv",
-        )
-    ]
+    for name, table, fmt in (
+        ("sessions", res.sessions, None),
+        ("episodes", res.episodes, None),
+        ("coded_episodes", res.coded, "%.4g"),
+        ("gesture_histogram", res.histogram, "%.4g"),
+        ("body_part_ranking", res.ranking, "%.5g"),
+        ("placement", res.placement, "%.4g"),
+    ):
+        table.to_csv(out / f"{name}.csv", index=False, float_format=fmt)
+        files.append(out / f"{name}.csv")
+    return files
 
 
 def _summary(res: StudyResult, robot, ds, gm, areas: pd.DataFrame, budget: str) -> dict:
     """``summary.json``: the dataset, the gesture model, the surface's areas (cm^2), the budget, the parts left
     out, codes, plausibility, sensitivity, the skin design and export, sentences, notes, times and settings;
     with the generator's draws, how well the episodes' labels agree with them."""
-    st = res.settings
+    st, manifest = res.settings, res.out_dir / "skin_export" / "manifest.json"
     summary = {
         "dataset": ds.name,
         "synthetic": ds.synthetic,
@@ -660,10 +649,7 @@ def _summary(res: StudyResult, robot, ds, gm, areas: pd.DataFrame, budget: str) 
             "n_trials": gm.n_trials,
         },
         "surface": {
-            "area_cm2": float(areas["area_cm2"].sum()),
-            "reachable_cm2": float(areas["reachable_cm2"].sum()),
-            "floor_facing_cm2": float(areas["floor_facing_cm2"].sum()),
-            "buried_cm2": float(areas["buried_cm2"].sum()),
+            **{c: float(areas[c].sum()) for c in ("area_cm2", "reachable_cm2", "floor_facing_cm2", "buried_cm2")},
             "floor_height_m": st.reach_floor_height_m,
             "down_cos": st.reach_down_cos,
         },
@@ -672,21 +658,17 @@ def _summary(res: StudyResult, robot, ds, gm, areas: pd.DataFrame, budget: str) 
             "criterion": "contact frames per cm^2 of a mountable part's reachable surface (ranking and greedy)",
             "min_diameter_mm": st.min_diameter_mm,
             "min_patch_cm2": st.min_patch_cm2,
-            "excluded": (
-                [
-                    {"part": r.part, "reason": r.reason, "width_mm": round(float(r.width_mm), 1)}
-                    for r in res.mountable.itertuples()
-                    if r.reason
-                ]
-                if res.mountable is not None
-                else []
-            ),
+            "excluded": [
+                {"part": r.part, "reason": r.reason, "width_mm": round(float(r.width_mm), 1)}
+                for r in res.mountable.itertuples()
+                if r.reason
+            ],
         },
         "human_codes": res.codes.summary(res.coded) if res.codes is not None else None,
         "plausibility": res.plausibility,
         "priors_sensitivity": res.sensitivity[1] if res.sensitivity is not None else None,
         "skin_design": _design_summary(res.design),
-        "skin_export": _export_summary(res.out_dir / "skin_export" / "manifest.json"),
+        "skin_export": {k: v for k, v in json.loads(manifest.read_text()).items() if k != "patches"},  # totals
         "sentences": res.sentences,
         "notes": res.notes,
         "seconds": res.seconds,
@@ -709,7 +691,7 @@ def _against_generator(coded: pd.DataFrame, truth: pd.DataFrame) -> dict:
     }
 
 
-def _write_figures(res: StudyResult, robot, body, ds, gm, budget: str, label: str, summary: dict) -> list[Path]:
+def _write_figures(res: StudyResult, body, ds, gm, budget: str, label: str, summary: dict) -> list[Path]:
     """The figures (each marked SYNTHETIC or with the dataset's name), the density PLY and ``report.html``."""
     from sphri.figures import Provenance
     from sphri.sessions.render import body_view, plot_placement
@@ -718,10 +700,9 @@ def _write_figures(res: StudyResult, robot, body, ds, gm, budget: str, label: st
     prov = Provenance(synthetic=bool(ds.synthetic), ids=ds.name)  # one banner on every figure (sphri.figures.mark)
     view = body_view(body, res.settings.view_faces)
     figs: dict[str, Path] = {}
-    files = _map_figures(res, body, robot, view, prov, figs)
+    files = _map_figures(res, body, view, prov, figs)
     _test_and_gesture_figures(res, ds, gm, prov, figs)
-    if res.design is not None:
-        _design_figures(res, view, budget, prov, figs)
+    _design_figures(res, view, budget, prov, figs)
     figs["placement"] = plot_placement(
         res.ranking[res.ranking["scenario"] == "all"].query("~part.str.startswith('group:')"),
         res.placement,
@@ -734,7 +715,7 @@ def _write_figures(res: StudyResult, robot, body, ds, gm, budget: str, label: st
     return files
 
 
-def _map_figures(res: StudyResult, body, robot, view, prov, figs: dict[str, Path]) -> list[Path]:
+def _map_figures(res: StudyResult, body, view, prov, figs: dict[str, Path]) -> list[Path]:
     """The density views of every group on one colour scale (``figs["maps"]``), one figure per group on that
     scale, the pooled atlas (``figs["atlas"]``); returns the per-group figures and the density PLY."""
     from sphri.analysis.coverage import ALL, safe_name
@@ -761,7 +742,6 @@ def _map_figures(res: StudyResult, body, robot, view, prov, figs: dict[str, Path
     ]
     figs["atlas"] = plot_atlas(
         body,
-        robot,
         cov.densities[ALL],
         out / "atlas_pooled.png",
         "Atlas of the whole surface, pooled over scenarios",
@@ -839,16 +819,14 @@ def _design_and_gesture_files(res: StudyResult, body, robot, out: Path) -> list[
     from sphri.sessions.gesture_report import confusion_against_generator, gesture_counts
     from sphri.sessions.skin import write_design
 
-    files = []
-    if res.design is not None:
-        files += write_design(res.design, body, robot, out, res.settings.export_format, res.settings.min_patch_cm2)
-        meta = json.loads((out / "skin_export" / "manifest.json").read_text())
-        if meta["dropped_pieces"]:
-            res.notes.append(
-                f"skin export: {meta['dropped_pieces']} piece(s) of chosen patches below min_patch_cm2="
-                f"{res.settings.min_patch_cm2:g} dropped ({meta['dropped_area_cm2']:.1f} cm^2); "
-                f"{len(meta['patches'])} connected pieces exported"
-            )
+    files = write_design(res.design, body, robot, out, res.settings.export_format, res.settings.min_patch_cm2)
+    meta = json.loads((out / "skin_export" / "manifest.json").read_text())
+    if meta["dropped_pieces"]:
+        res.notes.append(
+            f"skin export: {meta['dropped_pieces']} piece(s) of chosen patches below min_patch_cm2="
+            f"{res.settings.min_patch_cm2:g} dropped ({meta['dropped_area_cm2']:.1f} cm^2); "
+            f"{len(meta['patches'])} connected pieces exported"
+        )
     scen = sorted(pd.unique(res.sessions["scenario"]))
     gesture_counts(res.coded, scen, seed=res.settings.seed).to_csv(
         out / "gesture_counts.csv", index=False, float_format="%.4g"
@@ -891,9 +869,7 @@ def _sensitivity(cfg, st, ds, robot, mat, frame_session, parts, area, allowed):
     )
 
 
-def _design_summary(design) -> dict | None:
-    if design is None:
-        return None
+def _design_summary(design) -> dict:
     row = design.placement.iloc[0]
     pooled = design.curves[(design.curves["scenario"] == "all")]
     out = {
@@ -911,13 +887,6 @@ def _design_summary(design) -> dict | None:
             hit = c[c["captured"] >= 0.9]
             out[f"area_cm2_for_90pct_{kind}"] = float(hit["area_cm2"].iat[0]) if len(hit) else None
     return out
-
-
-def _export_summary(path: Path) -> dict | None:
-    """The patch export's totals (``skin_export/manifest.json``), without the per-piece rows."""
-    if not path.is_file():
-        return None
-    return {k: v for k, v in json.loads(path.read_text()).items() if k != "patches"}
 
 
 def _effects(comp) -> pd.DataFrame:

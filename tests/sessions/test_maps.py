@@ -97,7 +97,7 @@ def test_atlas_titles_give_the_reachable_area_the_ranking_counts(small, view, tm
     monkeypatch.setattr(
         render, "_finish", lambda fig, title, path, provenance: figs.append(fig) or said.append(title) or path
     )
-    render.plot_atlas(body, robot, np.zeros(body.samples.n), tmp_path / "a.png", "Atlas")
+    render.plot_atlas(body, np.zeros(body.samples.n), tmp_path / "a.png", "Atlas")
     reach = body.part_area_m2(reachable=True)
     titles = [ax.get_title() for ax in figs[-1].axes if ax.get_title()]
     assert len(titles) == len(body.parts)
@@ -156,7 +156,7 @@ def test_atlas_draws_left_and_right_parts_alike(view, small, tmp_path, monkeypat
     _, body = view
     figs = []
     monkeypatch.setattr(render, "_finish", lambda fig, title, path, provenance: figs.append(fig) or path)
-    render.plot_atlas(body, robot, np.ones(body.samples.n), tmp_path / "a.png", "Atlas")
+    render.plot_atlas(body, np.ones(body.samples.n), tmp_path / "a.png", "Atlas")
     axes = {p: ax for p, ax in zip(body.parts, [a for a in figs[-1].axes if a.get_title()])}
     pairs = [(p, p[:-2] + "_r") for p in body.parts if p.endswith("_l") and p[:-2] + "_r" in axes]
     assert len(pairs) >= 4
