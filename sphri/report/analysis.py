@@ -410,12 +410,12 @@ def _group(sweep: Sweep, label: str, rows: pd.DataFrame, rule: RuleSettings) -> 
         accuracy=acc,
         macro_f1=f1,
         recall=recall,
-        sat=sat,
         pitch_interval_mm=physical_interval(pitch, sat),
-        area_interval_cm2=physical_interval(area, sat),
+        sat=sat,
         gesture_sat=gesture_sat,
         certificate=certificate,
         seeds=seeds,
+        area_interval_cm2=physical_interval(area, sat),
         context={k: first[k] for k in ("robot", "region", "link", "dataset", "synthetic", "cv_scheme", "model")},
         by_tolerance=[
             ToleranceRow(t, st_, physical_interval(pitch, st_), physical_interval(area, st_), t.name == primary)
