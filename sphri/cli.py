@@ -21,6 +21,7 @@ import dataclasses
 import re
 import sys
 import textwrap
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, cast
 
@@ -138,26 +139,22 @@ def _mapping(node: Any) -> dict[str, Any]:
     return cast(dict[str, Any], OmegaConf.to_container(node, resolve=True))
 
 
+def _group_words(choices: Sequence[str], help: str) -> Any:
+    """Config groups named as bare words (``sphri list robot layout``), each one of ``choices``."""
+    return arg([], positional=True, choices=choices, metavar="GROUP", help=help)
+
+
 @dataclasses.dataclass
 class ListArgs:
-    groups: list[str] = arg(
-        [],
-        positional=True,
-        choices=DEFAULT_GROUPS,
-        metavar="GROUP",
-        help="config groups to list (default: every group)",
-    )
+    groups: list[str] = _group_words(DEFAULT_GROUPS, "config groups to list (default: every group)")
 
 
 @dataclasses.dataclass
 class ShowArgs:
     overrides: list[str] = arg([], rest=True, help="choices and overrides, e.g. encoder=coverage noise.p=0.05")
-    group: list[str] = arg(
-        [],
-        positional=True,
-        choices=STAGE_GROUPS,
-        metavar="GROUP",
-        help="groups to show, as bare words or group=NAME (default: those named in the overrides, else every group)",
+    group: list[str] = _group_words(
+        STAGE_GROUPS,
+        "groups to show, as bare words or group=NAME (default: those named in the overrides, else every group)",
     )
 
 
