@@ -45,6 +45,17 @@ __getattr__, __all__ = lazy_exports(
         "require_range": "sphri.config",
         "require_choice": "sphri.config",
         "Configured": "sphri.config",
+        # services the core offers its apps: where the built-in configs are, output paths checked before any
+        # computing, the resolution a config asks for, MLflow runs of an analysis
+        "CONF_DIR": "sphri.config",
+        "check_output_dir": "sphri.config",
+        "check_output_file": "sphri.config",
+        "check_out_apart": "sphri.config",
+        "layout_res": "sphri.layout.schema",
+        "default_uri": "sphri.tracking.mlflow_tracker",
+        "flatten_params": "sphri.tracking.mlflow_tracker",
+        "log_analysis_run": "sphri.tracking.mlflow_tracker",
+        "no_artifact_bars": "sphri.tracking.mlflow_tracker",
         # the stage table
         "STAGES": "sphri.stages",
         "COMPONENTS": "sphri.stages",
@@ -97,11 +108,15 @@ __getattr__, __all__ = lazy_exports(
 if TYPE_CHECKING:  # the same names for type checkers (tests/test_api.py checks that both lists agree)
     from sphri.cache import CorruptEntry as CorruptEntry
     from sphri.cache import StageCache as StageCache
+    from sphri.config import CONF_DIR as CONF_DIR
     from sphri.config import ComponentSchema as ComponentSchema
     from sphri.config import ConfigError as ConfigError
     from sphri.config import Configured as Configured
     from sphri.config import Schema as Schema
     from sphri.config import build as build
+    from sphri.config import check_out_apart as check_out_apart
+    from sphri.config import check_output_dir as check_output_dir
+    from sphri.config import check_output_file as check_output_file
     from sphri.config import compose as compose
     from sphri.config import require as require
     from sphri.config import require_choice as require_choice
@@ -117,6 +132,7 @@ if TYPE_CHECKING:  # the same names for type checkers (tests/test_api.py checks 
     from sphri.finite import NonFiniteError as NonFiniteError
     from sphri.hand.capsules import HandDefinitionError as HandDefinitionError
     from sphri.layout.common import LayoutFileError as LayoutFileError
+    from sphri.layout.schema import layout_res as layout_res
     from sphri.noise.components import NoiseModel as NoiseModel
     from sphri.pipeline import Memo as Memo
     from sphri.pipeline import Pipeline as Pipeline
@@ -135,6 +151,10 @@ if TYPE_CHECKING:  # the same names for type checkers (tests/test_api.py checks 
     from sphri.surface.charts import Chart as Chart
     from sphri.surface.charts import chart_of as chart_of
     from sphri.surface.charts import register_chart as register_chart
+    from sphri.tracking.mlflow_tracker import default_uri as default_uri
+    from sphri.tracking.mlflow_tracker import flatten_params as flatten_params
+    from sphri.tracking.mlflow_tracker import log_analysis_run as log_analysis_run
+    from sphri.tracking.mlflow_tracker import no_artifact_bars as no_artifact_bars
     from sphri.tracking.store import StoreError as StoreError
     from sphri.types import GESTURES as GESTURES
     from sphri.types import Contacts as Contacts

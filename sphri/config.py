@@ -50,8 +50,8 @@ def _find_conf_dir() -> Path:
     )
 
 
-#: The config directory: ``conf/`` of the checkout, or the copy inside the installed package.
 CONF_DIR = _find_conf_dir()
+"""The config directory: ``conf/`` of the checkout, or the copy inside the installed package."""
 
 # The chain's groups and their protocols are stated once, in sphri.stages.
 STAGE_GROUPS = _stages.STAGE_GROUPS

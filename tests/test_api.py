@@ -92,27 +92,24 @@ ALLOWANCE: dict[str, dict[str, str]] = {
     "commands": {
         "sphri.cache": "SUFFIX",
         "sphri.config": (
-            "CONF_DIR DEFAULT_GROUPS RANGE_META RENAMED_KEYS RUNTIME_META RootConfig check_choices "
-            "check_inputs check_out_apart check_output_dir component_node field_docs "
-            "normalize_overrides register_schemas resolved_setting"
+            "DEFAULT_GROUPS RANGE_META RENAMED_KEYS RUNTIME_META RootConfig check_choices check_inputs "
+            "component_node field_docs normalize_overrides register_schemas resolved_setting"
         ),
         "sphri.contact.query": "winding_number",
         "sphri.pipeline": "(module) chain_region",
         "sphri.stages": "PARAM_GROUPS STAGE_GROUPS",
-        "sphri.tracking.mlflow_tracker": "flatten_params log_analysis_run summary_text ui_hint",
+        "sphri.tracking.mlflow_tracker": "summary_text ui_hint",
         "sphri.tracking.parent": "progress_line read_parent stop_if_killed write_status",
     },
     "report": {
-        "sphri.config": "check_output_dir result_neutral runtime_keys",
+        "sphri.config": "result_neutral runtime_keys",
         "sphri.noise.components": "threshold_false_on_rate",
         "sphri.noise.schema": "ThresholdNoiseSchema",
         "sphri.tracking.artifacts": "draw_confusion",
-        "sphri.tracking.mlflow_tracker": "PARENT_FILE default_uri no_artifact_bars",
+        "sphri.tracking.mlflow_tracker": "PARENT_FILE",
     },
     "scenario study": {
-        "sphri.config": (
-            "CONF_DIR check_output_dir check_output_file component_node cross_check load_schema plain result_config"
-        ),
+        "sphri.config": "component_node cross_check load_schema plain result_config",
         "sphri.contact.exact": "ExactContact",
         "sphri.contact.mesh": "prepare_mesh",
         "sphri.contact.query": "SearchRecord capsule_mesh_query",
@@ -131,36 +128,29 @@ ALLOWANCE: dict[str, dict[str, str]] = {
         "sphri.geometry.samples": "SurfaceSamples sample_link",
         "sphri.hand.kinematics": "capsule_segments quat_to_matrix",
         "sphri.integrity": "stable_hash",
-        "sphri.layout.schema": "layout_res",
         "sphri.pipeline": "COMPUTE StageCompute",
         "sphri.robots.kinematic": "JointTree WholeBodyRobot",
         "sphri.robots.schema": "BUILTIN",
         "sphri.robots.urdf_tree": "UrdfWholeBody",
         "sphri.surface.charts": "from_uv to_uv",
         "sphri.surface.density": "SurfaceKernel SurfaceSamples sample_link touched_elements",
-        "sphri.tracking.mlflow_tracker": "log_analysis_run",
     },
     "hardware": {
         "sphri.adjacency": "Adjacency taxel_adjacency",
         "sphri.pipeline": "trial_keys",
-        "sphri.tracking.mlflow_tracker": "default_uri",
     },
     "export": {
         "sphri.adjacency": "metric_coords",
-        "sphri.config": "CONF_DIR check_output_file",
         "sphri.integrity": "DIGEST_SIZE FROM_ENV NO_KEY keyed_digest keyed_ok load_key plain_digest",
-        "sphri.layout.schema": "layout_res",
-        "sphri.tracking.mlflow_tracker": "no_artifact_bars",
     },
     "recordings": {
-        "sphri.config": "check_output_dir",
         "sphri.data.duplicates": "describe find_duplicates fingerprint",
         "sphri.data.format": (
             "GENERATOR_KEY PARTICIPANT_RE manifest_path parquet_path participant_id write_hand_definition"
         ),
         "sphri.data.recording_schema": (
-            "CAPSULE_LOG Column GAP_FACTOR HANDS LOG_KINDS OPENXR_CAPSULES OPENXR_JOINTS OPENXR_LOG "
-            "OVR_BONES OVR_CAPSULE_LOG documented_capsules"
+            "CAPSULE_LOG Column GAP_FACTOR HANDS LOG_KINDS OPENXR_CAPSULES OPENXR_JOINTS OPENXR_LOG OVR_BONES "
+            "OVR_CAPSULE_LOG documented_capsules"
         ),
         "sphri.data.schema": "POSITION_UNITS",
         "sphri.data.synthesize": "SynthesizeArgs command write_dataset",

@@ -60,6 +60,7 @@ _SKIP_PARAM_KEYS = {"_target_", "root", "path", "definition_path", "density_path
 
 
 def default_uri(output_dir: str | os.PathLike) -> str:
+    """The MLflow tracking URI of ``output_dir``'s store: ``sqlite:///<output_dir, absolute>/mlflow.db``."""
     return f"sqlite:///{Path(output_dir).resolve() / 'mlflow.db'}"
 
 
