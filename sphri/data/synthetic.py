@@ -275,7 +275,7 @@ class SyntheticData:
             pid = participant_id(k)
             for region in self.regions:
                 rng = np.random.default_rng([self.seed, k, region_stream(region)])
-                gestures, poses, lengths = self._participant_region(rng, style, rig, surfaces[region], region)
+                gestures, poses, lengths, _ = self._participant_region_phases(rng, style, rig, surfaces[region], region)
                 start = trial_records(records, pid, region, gestures, lengths, start)
                 chunks.append(poses)
         poses = np.concatenate(chunks, axis=0) if chunks else np.zeros((0, hand.n_capsules, 7), np.float32)
@@ -290,20 +290,13 @@ class SyntheticData:
         )
 
     # --------------------------------------------------------------- internals
-    def _participant_region(
-        self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str
-    ) -> tuple[list[str], np.ndarray, list[int]]:
-        """The trials of one participant on one region: (gestures in order, poses (T, C, 7) float32 link frame,
-        frames per trial)."""
-        order, poses, lengths, _ = self._participant_region_phases(rng, style, rig, surf, region)
-        return order, poses, lengths
-
     def _participant_region_phases(
         self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str
     ) -> tuple[list[str], np.ndarray, list[int], np.ndarray]:
-        """:meth:`_participant_region` and, per frame (T,) bool, whether it lies in its trial's contact phase
+        """The trials of one participant on one region: (gestures in order, poses (T, C, 7) float32 link frame,
+        frames per trial) and, per frame (T,) bool, whether it lies in its trial's contact phase
         (the time it shows is inside one of the plan's touches: surface crossed on the way in, not yet on the way
-        out; pauses between re-touches are outside). Same draws."""
+        out; pauses between re-touches are outside)."""
         from sphri.data.handfk import EFFECTORS, effectors_from_bones
 
         sp = self.spread
