@@ -123,15 +123,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.sqrt(v @ v)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
 def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
     """``v`` (3,) rotated by ``angle`` radians about ``axis`` (Rodrigues)."""
     k = _unit(axis)
     c, s = np.cos(angle), np.sin(angle)
-    return v * c + _cross(k, v) * s + k * (k @ v) * (1.0 - c)
+    return v * c + np.cross(k, v) * s + k * (k @ v) * (1.0 - c)
 
 
 @dataclass
@@ -494,8 +490,8 @@ def _contact_rotation(site: _TouchSite, m_l: np.ndarray, f_l: np.ndarray) -> np.
     press = _rotate(-n, tilt_axis, plan.tilt)
     tau = np.cos(plan.yaw) * t1 + np.sin(plan.yaw) * t2
     tau = _unit(tau - (tau @ press) * press)
-    world = np.stack([press, tau, _cross(press, tau)], axis=1)
-    local = np.stack([m_l, f_l, _cross(m_l, f_l)], axis=1)
+    world = np.stack([press, tau, np.cross(press, tau)], axis=1)
+    local = np.stack([m_l, f_l, np.cross(m_l, f_l)], axis=1)
     return world @ local.T
 
 
