@@ -255,10 +255,7 @@ def find_participants(root: Path, regions: Sequence[str]) -> list[str]:
 
 def _participant_order(name: str) -> tuple[int, str]:
     """Sort key of a participant folder name (one :data:`PARTICIPANT_RE` matches): its number, then the name."""
-    m = PARTICIPANT_RE.match(name)
-    if m is None:
-        raise DatasetError(f"{name!r} is not a participant folder name")
-    return int(m.group(1)), name
+    return int(name.removeprefix("participant_")), name
 
 
 class VRGestureData:
@@ -456,12 +453,6 @@ class VRGestureData:
             out.append(t)
         return out
 
-    def _check_columns(self, ppath: Path, schema: pa.Schema, hand: HandModel) -> list[str]:
-        problems = column_problems(ppath, schema, hand)
-        if problems:
-            raise DatasetError(problems[0])
-        return list(META_COLUMNS) + pose_columns(hand.names)
-
     def load_participant(
         self, pid: str, region: str, hand: HandModel, repairs: Counter
     ) -> tuple[dict, list[dict], list[np.ndarray]]:
@@ -485,7 +476,9 @@ class VRGestureData:
                 schema, n_rows = pf.schema_arrow, pf.metadata.num_rows
         except (pa.ArrowException, OSError) as exc:
             raise DatasetError(f"{ppath}: not a readable parquet file ({exc})") from None
-        columns = self._check_columns(ppath, schema, hand)
+        problems = column_problems(ppath, schema, hand)
+        if problems:
+            raise DatasetError(problems[0])
         if n_rows != manifest["num_frames_total"]:
             raise ManifestError(
                 f"{mpath}: num_frames_total={manifest['num_frames_total']} but {ppath.name} has {n_rows} rows"
@@ -493,6 +486,7 @@ class VRGestureData:
         if not wanted:
             return manifest, [], []
         ordinals = [int(t["trial_ordinal"]) for t in wanted]
+        columns = list(META_COLUMNS) + pose_columns(hand.names)
         try:
             table = pq.read_table(
                 ppath, columns=columns, filters=[("trial_ordinal", "in", ordinals)], page_checksum_verification=True
