@@ -60,15 +60,13 @@ def write_dataset(
     # every skin region's mesh, like the study's assets (arm_mesh.obj, torso_mesh.obj), touched or not
     regions = list(dict.fromkeys(list(robot.regions) + trials["region"].tolist()))
     for region in regions:
-        link = robot.link_for(region)
         path = assets / f"{region}_mesh.obj"
-        write_obj(link, path)
+        write_obj(robot.link_for(region), path)
         written.append(path)
-    names = dataset.hand.names
-    cols = pose_columns(names)
+    cols = pose_columns(dataset.hand.names)
     for (pid, region), group in trials.groupby(["participant", "region"], sort=False):
-        link = robot.link_for(region)
-        written += _write_participant(dataset, group, out, str(pid), str(region), link.name, cols, meta)
+        link_name = robot.link_for(region).name
+        written += _write_participant(dataset, group, out, str(pid), str(region), link_name, cols, meta)
     log.info("wrote %d trials (%d frames) to %s", len(trials), dataset.n_frames, out)
     return written
 
