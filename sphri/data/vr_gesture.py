@@ -331,11 +331,9 @@ class VRGestureData:
         if len(read.rates) > 1:
             raise DatasetError(f"{self.root}: manifests disagree on frame_rate_hz: {sorted(read.rates)}")
         rate = self._frame_rate(read.rates)
-        c = hand.n_capsules
-        poses = np.concatenate(read.chunks, axis=0) if read.chunks else np.zeros((0, c, 7), np.float32)
-        repairs = read.repairs
-        if repairs:
-            log.warning("%s: repairs applied on load: %s", self.root, dict(repairs))
+        poses = np.concatenate(read.chunks, axis=0) if read.chunks else np.zeros((0, hand.n_capsules, 7), np.float32)
+        if read.repairs:
+            log.warning("%s: repairs applied on load: %s", self.root, dict(read.repairs))
         return GestureDataset(
             name="synthetic" if synthetic else "vr_gesture",
             synthetic=synthetic,
@@ -343,7 +341,7 @@ class VRGestureData:
             trials=make_trials_frame(read.records),
             poses=np.ascontiguousarray(poses, dtype=np.float32),
             frame_rate_hz=rate,
-            repairs=dict(repairs),
+            repairs=dict(read.repairs),
         )
 
     # --------------------------------------------------------------- internals
