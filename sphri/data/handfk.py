@@ -244,11 +244,6 @@ class HandRig:
             )
         return cls(hand=hand, chain_slot=chain_slot, palm_slot=palm_slot, axis_perm=axis_perm, palm_scale=palm_scale)
 
-    def bone_lengths(self, scale: float) -> tuple[np.ndarray, np.ndarray]:
-        """(chain (5, 3), palm (4,)) bone lengths in metres for a hand scaled by ``scale``."""
-        seg = self.hand.segment_length_m
-        return seg[self.chain_slot] * scale, seg[self.palm_slot] * scale
-
     def bones(self, fingers: np.ndarray, scale: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Bone frames in the hand frame for finger angles ``fingers`` (T, 5, 4).
 
@@ -259,7 +254,8 @@ class HandRig:
         fingers = np.asarray(fingers, dtype=np.float64)
         t = fingers.shape[0]
         c = self.hand.n_capsules
-        lc, lp = self.bone_lengths(scale)
+        seg = self.hand.segment_length_m
+        lc, lp = seg[self.chain_slot] * scale, seg[self.palm_slot] * scale  # chain (5, 3), palm (4,) bones (m)
         start = np.empty((t, c, 3))
         frame = np.empty((t, c, 3, 3))
         length = np.empty(c)

@@ -340,67 +340,53 @@ def _intro_lines() -> list[str]:
     ]
 
 
+def _format_lines(
+    title: str,
+    tree: Sequence[str],
+    columns_intro: str,
+    columns: Sequence[Column],
+    field_tables: Sequence[tuple[str, Sequence[Field]]],
+    versions: Sequence[Version],
+) -> list[str]:
+    """The lines of one recording format: its title, folder ``tree`` (below ``ROOT/``), parquet columns, each
+    ``(label, fields)`` of its JSON files and its versions; each section ends with a blank line."""
+    lines = [title, "", "```", "ROOT/", *tree, "```", "", columns_intro, "", *_columns(columns), ""]
+    for label, fields in field_tables:
+        lines += [label, "", *_fields(fields), ""]
+    return lines + ["Versions:", "", *_table(("version", "what it is"), [(v.number, v.changes) for v in versions]), ""]
+
+
 def _gesture_lines() -> list[str]:
-    """The lines of the gesture-trial format: folder, parquet columns, manifest and versions; each section ends with a blank line."""
-    return [
+    """The gesture-trial format: folder, parquet columns, manifest and versions."""
+    return _format_lines(
         f"## Gesture trials (format version {GESTURE_FORMAT_VERSION})",
-        "",
-        "```",
-        "ROOT/",
-        "  assets/hand_capsule_definition.json         the hand model (below), Unity convention",
-        "  assets/{region}_mesh.obj                    the link's mesh (metres, link frame)",
-        "  {region}/participant_XX/participant_XX.parquet            one row per (trial, frame)",
-        "  {region}/participant_XX/participant_XX_manifest.json      one entry per trial",
-        "```",
-        "",
+        [
+            "  assets/hand_capsule_definition.json         the hand model (below), Unity convention",
+            "  assets/{region}_mesh.obj                    the link's mesh (metres, link frame)",
+            "  {region}/participant_XX/participant_XX.parquet            one row per (trial, frame)",
+            "  {region}/participant_XX/participant_XX_manifest.json      one entry per trial",
+        ],
         "Parquet columns, in this order; `{capsule}` is every capsule of the hand model, in its order:",
-        "",
-        *_columns(GESTURE_COLUMNS),
-        "",
-        "Manifest (`participant_XX_manifest.json`):",
-        "",
-        *_fields(GESTURE_MANIFEST),
-        "",
-        "Each entry of `trials`:",
-        "",
-        *_fields(GESTURE_TRIAL),
-        "",
-        "Versions:",
-        "",
-        *_table(("version", "what it is"), [(v.number, v.changes) for v in GESTURE_VERSIONS]),
-        "",
-    ]
+        GESTURE_COLUMNS,
+        [("Manifest (`participant_XX_manifest.json`):", GESTURE_MANIFEST), ("Each entry of `trials`:", GESTURE_TRIAL)],
+        GESTURE_VERSIONS,
+    )
 
 
 def _session_lines() -> list[str]:
-    """The lines of the whole-body session format: folder, parquet columns, header, manifest and versions; each section ends with a blank line."""
-    return [
+    """The whole-body session format: folder, parquet columns, header, manifest and versions."""
+    return _format_lines(
         f"## Whole-body sessions (`{SESSION_FORMAT}` version {SESSION_FORMAT_VERSION})",
-        "",
-        "```",
-        "ROOT/",
-        "  sessions.json                       the dataset header",
-        "  participant_XX/manifest.json        {participant, sessions: [one entry per session]}",
-        "  participant_XX/<scenario>.parquet   one row per (repetition, frame)",
-        "```",
-        "",
+        [
+            "  sessions.json                       the dataset header",
+            "  participant_XX/manifest.json        {participant, sessions: [one entry per session]}",
+            "  participant_XX/<scenario>.parquet   one row per (repetition, frame)",
+        ],
         "Parquet columns; `{hand}` is left then right, `{link}` every name of the header's `links`:",
-        "",
-        *_columns(SESSION_COLUMNS),
-        "",
-        "Header (`sessions.json`):",
-        "",
-        *_fields(SESSION_HEADER),
-        "",
-        "Each entry of a manifest's `sessions`:",
-        "",
-        *_fields(SESSION_MANIFEST),
-        "",
-        "Versions:",
-        "",
-        *_table(("version", "what it is"), [(v.number, v.changes) for v in SESSION_VERSIONS]),
-        "",
-    ]
+        SESSION_COLUMNS,
+        [("Header (`sessions.json`):", SESSION_HEADER), ("Each entry of a manifest's `sessions`:", SESSION_MANIFEST)],
+        SESSION_VERSIONS,
+    )
 
 
 def _hand_lines() -> list[str]:

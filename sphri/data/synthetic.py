@@ -123,15 +123,11 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / np.sqrt(v @ v)
 
 
-def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
 def _rotate(v: np.ndarray, axis: np.ndarray, angle: float) -> np.ndarray:
     """``v`` (3,) rotated by ``angle`` radians about ``axis`` (Rodrigues)."""
     k = _unit(axis)
     c, s = np.cos(angle), np.sin(angle)
-    return v * c + _cross(k, v) * s + k * (k @ v) * (1.0 - c)
+    return v * c + np.cross(k, v) * s + k * (k @ v) * (1.0 - c)
 
 
 @dataclass
@@ -275,7 +271,7 @@ class SyntheticData:
             pid = participant_id(k)
             for region in self.regions:
                 rng = np.random.default_rng([self.seed, k, region_stream(region)])
-                gestures, poses, lengths = self._participant_region(rng, style, rig, surfaces[region], region)
+                gestures, poses, lengths, _ = self._participant_region_phases(rng, style, rig, surfaces[region], region)
                 start = trial_records(records, pid, region, gestures, lengths, start)
                 chunks.append(poses)
         poses = np.concatenate(chunks, axis=0) if chunks else np.zeros((0, hand.n_capsules, 7), np.float32)
@@ -290,20 +286,13 @@ class SyntheticData:
         )
 
     # --------------------------------------------------------------- internals
-    def _participant_region(
-        self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str
-    ) -> tuple[list[str], np.ndarray, list[int]]:
-        """The trials of one participant on one region: (gestures in order, poses (T, C, 7) float32 link frame,
-        frames per trial)."""
-        order, poses, lengths, _ = self._participant_region_phases(rng, style, rig, surf, region)
-        return order, poses, lengths
-
     def _participant_region_phases(
         self, rng: np.random.Generator, style: Style, rig: HandRig, surf: LinkSurface, region: str
     ) -> tuple[list[str], np.ndarray, list[int], np.ndarray]:
-        """:meth:`_participant_region` and, per frame (T,) bool, whether it lies in its trial's contact phase
+        """The trials of one participant on one region: (gestures in order, poses (T, C, 7) float32 link frame,
+        frames per trial) and, per frame (T,) bool, whether it lies in its trial's contact phase
         (the time it shows is inside one of the plan's touches: surface crossed on the way in, not yet on the way
-        out; pauses between re-touches are outside). Same draws."""
+        out; pauses between re-touches are outside)."""
         from sphri.data.handfk import EFFECTORS, effectors_from_bones
 
         sp = self.spread
@@ -501,8 +490,8 @@ def _contact_rotation(site: _TouchSite, m_l: np.ndarray, f_l: np.ndarray) -> np.
     press = _rotate(-n, tilt_axis, plan.tilt)
     tau = np.cos(plan.yaw) * t1 + np.sin(plan.yaw) * t2
     tau = _unit(tau - (tau @ press) * press)
-    world = np.stack([press, tau, _cross(press, tau)], axis=1)
-    local = np.stack([m_l, f_l, _cross(m_l, f_l)], axis=1)
+    world = np.stack([press, tau, np.cross(press, tau)], axis=1)
+    local = np.stack([m_l, f_l, np.cross(m_l, f_l)], axis=1)
     return world @ local.T
 
 

@@ -255,10 +255,7 @@ def find_participants(root: Path, regions: Sequence[str]) -> list[str]:
 
 def _participant_order(name: str) -> tuple[int, str]:
     """Sort key of a participant folder name (one :data:`PARTICIPANT_RE` matches): its number, then the name."""
-    m = PARTICIPANT_RE.match(name)
-    if m is None:
-        raise DatasetError(f"{name!r} is not a participant folder name")
-    return int(m.group(1)), name
+    return int(name.removeprefix("participant_")), name
 
 
 class VRGestureData:
@@ -334,11 +331,9 @@ class VRGestureData:
         if len(read.rates) > 1:
             raise DatasetError(f"{self.root}: manifests disagree on frame_rate_hz: {sorted(read.rates)}")
         rate = self._frame_rate(read.rates)
-        c = hand.n_capsules
-        poses = np.concatenate(read.chunks, axis=0) if read.chunks else np.zeros((0, c, 7), np.float32)
-        repairs = read.repairs
-        if repairs:
-            log.warning("%s: repairs applied on load: %s", self.root, dict(repairs))
+        poses = np.concatenate(read.chunks, axis=0) if read.chunks else np.zeros((0, hand.n_capsules, 7), np.float32)
+        if read.repairs:
+            log.warning("%s: repairs applied on load: %s", self.root, dict(read.repairs))
         return GestureDataset(
             name="synthetic" if synthetic else "vr_gesture",
             synthetic=synthetic,
@@ -346,7 +341,7 @@ class VRGestureData:
             trials=make_trials_frame(read.records),
             poses=np.ascontiguousarray(poses, dtype=np.float32),
             frame_rate_hz=rate,
-            repairs=dict(repairs),
+            repairs=dict(read.repairs),
         )
 
     # --------------------------------------------------------------- internals
@@ -456,12 +451,6 @@ class VRGestureData:
             out.append(t)
         return out
 
-    def _check_columns(self, ppath: Path, schema: pa.Schema, hand: HandModel) -> list[str]:
-        problems = column_problems(ppath, schema, hand)
-        if problems:
-            raise DatasetError(problems[0])
-        return list(META_COLUMNS) + pose_columns(hand.names)
-
     def load_participant(
         self, pid: str, region: str, hand: HandModel, repairs: Counter
     ) -> tuple[dict, list[dict], list[np.ndarray]]:
@@ -485,7 +474,9 @@ class VRGestureData:
                 schema, n_rows = pf.schema_arrow, pf.metadata.num_rows
         except (pa.ArrowException, OSError) as exc:
             raise DatasetError(f"{ppath}: not a readable parquet file ({exc})") from None
-        columns = self._check_columns(ppath, schema, hand)
+        problems = column_problems(ppath, schema, hand)
+        if problems:
+            raise DatasetError(problems[0])
         if n_rows != manifest["num_frames_total"]:
             raise ManifestError(
                 f"{mpath}: num_frames_total={manifest['num_frames_total']} but {ppath.name} has {n_rows} rows"
@@ -493,6 +484,7 @@ class VRGestureData:
         if not wanted:
             return manifest, [], []
         ordinals = [int(t["trial_ordinal"]) for t in wanted]
+        columns = list(META_COLUMNS) + pose_columns(hand.names)
         try:
             table = pq.read_table(
                 ppath, columns=columns, filters=[("trial_ordinal", "in", ordinals)], page_checksum_verification=True

@@ -21,6 +21,7 @@ from sphri.data.format import (
     FORMAT_VERSION,
     GENERATOR_KEY,
     GENERATOR_VALUE,
+    META_COLUMNS,
     ManifestError,
     manifest_path,
     parquet_path,
@@ -59,15 +60,13 @@ def write_dataset(
     # every skin region's mesh, like the study's assets (arm_mesh.obj, torso_mesh.obj), touched or not
     regions = list(dict.fromkeys(list(robot.regions) + trials["region"].tolist()))
     for region in regions:
-        link = robot.link_for(region)
         path = assets / f"{region}_mesh.obj"
-        write_obj(link, path)
+        write_obj(robot.link_for(region), path)
         written.append(path)
-    names = dataset.hand.names
-    cols = pose_columns(names)
+    cols = pose_columns(dataset.hand.names)
     for (pid, region), group in trials.groupby(["participant", "region"], sort=False):
-        link = robot.link_for(region)
-        written += _write_participant(dataset, group, out, str(pid), str(region), link.name, cols, meta)
+        link_name = robot.link_for(region).name
+        written += _write_participant(dataset, group, out, str(pid), str(region), link_name, cols, meta)
     log.info("wrote %d trials (%d frames) to %s", len(trials), dataset.n_frames, out)
     return written
 
@@ -78,30 +77,23 @@ def _write_participant(
     group = group.sort_values("trial_ordinal")
     starts = group["start"].to_numpy(np.int64)
     counts = group["n_frames"].to_numpy(np.int64)
-    rows = (
-        np.concatenate([np.arange(s, s + n) for s, n in zip(starts, counts)]) if len(group) else np.zeros(0, np.int64)
-    )
+    rows = np.concatenate([np.arange(s, s + n) for s, n in zip(starts, counts)])  # a group is never empty
     poses = dataset.poses[rows].reshape(len(rows), -1).astype(np.float32, copy=False)
     ordinals = group["trial_ordinal"].to_numpy(np.int64)
+    offsets = np.concatenate([[0], np.cumsum(counts)[:-1]])
     # session frame numbers: trials back to back from 1, like the study's manifests
-    first = 1 + np.concatenate([[0], np.cumsum(counts)[:-1]]) if len(group) else np.zeros(0, np.int64)
-    within = (
-        np.arange(len(rows)) - np.repeat(np.concatenate([[0], np.cumsum(counts)[:-1]]), counts) if len(group) else rows
+    first = 1 + offsets
+    within = np.arange(len(rows)) - np.repeat(offsets, counts)
+    columns = (
+        np.repeat(group["trial_id"].to_numpy(object), counts).tolist(),
+        np.repeat(ordinals, counts),
+        np.repeat(group["gesture"].to_numpy(object), counts).tolist(),
+        np.repeat(first, counts) + within,
+        within,
     )
-    arrays = {
-        "trial_id": pa.array(np.repeat(group["trial_id"].to_numpy(object), counts).tolist(), pa.string()),
-        "trial_ordinal": pa.array(np.repeat(ordinals, counts), pa.int64()),
-        "gesture_label": pa.array(np.repeat(group["gesture"].to_numpy(object), counts).tolist(), pa.string()),
-        "frame": pa.array(np.repeat(first, counts) + within, pa.int64()),
-        "frame_index_in_trial": pa.array(within, pa.int64()),
-    }
-    for j, c in enumerate(cols):
-        arrays[c] = pa.array(poses[:, j], pa.float32())
-    table = pa.table(arrays)
+    table = _table(columns, poses, cols)
     ppath = parquet_path(out, region, pid)
-    ppath.parent.mkdir(parents=True, exist_ok=True)
-    # page CRCs: a flipped bit in a data page is an error when read, not a silently changed pose
-    pq.write_table(table, ppath, row_group_size=ROW_GROUP_ROWS, compression="zstd", write_page_checksum=True)
+    _write_parquet(table, ppath)
     manifest: dict[str, Any] = {
         "participant_id": pid,
         "body_region": region,
@@ -179,17 +171,8 @@ def append_trial(
     first = max((int(t.get("end_frame", 0)) for t in trials), default=0) + 1
     n = len(poses)
     tid = trial_id(ordinal, gesture)
-    arrays: dict[str, pa.Array] = {
-        "trial_id": pa.array([tid] * n, pa.string()),
-        "trial_ordinal": pa.array(np.full(n, ordinal), pa.int64()),
-        "gesture_label": pa.array([gesture] * n, pa.string()),
-        "frame": pa.array(first + np.arange(n), pa.int64()),
-        "frame_index_in_trial": pa.array(np.arange(n), pa.int64()),
-    }
-    flat = poses.reshape(n, -1)
-    for j, c in enumerate(cols):
-        arrays[c] = pa.array(flat[:, j], pa.float32())
-    table = pa.table(arrays)
+    columns = ([tid] * n, np.full(n, ordinal), [gesture] * n, first + np.arange(n), np.arange(n))
+    table = _table(columns, poses.reshape(n, -1), cols)
     if old is not None:
         table = pa.concat_tables([old.select(table.column_names).cast(table.schema), table])
     entry: dict[str, Any] = {
@@ -209,7 +192,22 @@ def append_trial(
         num_frames_total=int(sum(int(t["frame_count"]) for t in trials)),
         frame_rate_hz=float(frame_rate_hz),
     )
-    ppath.parent.mkdir(parents=True, exist_ok=True)
-    pq.write_table(table, ppath, row_group_size=ROW_GROUP_ROWS, compression="zstd", write_page_checksum=True)
+    _write_parquet(table, ppath)
     mpath.write_text(json.dumps(manifest, indent=2) + "\n")
     return ordinal, [ppath, mpath]
+
+
+def _table(columns: tuple, poses: np.ndarray, cols: list[str]) -> pa.Table:
+    """A participant file's table: ``columns``, the per-row values of :data:`META_COLUMNS` in their order, then the
+    pose columns ``cols`` of ``poses`` (R, 7 * C) float32."""
+    types = (pa.string(), pa.int64(), pa.string(), pa.int64(), pa.int64())
+    arrays = {c: pa.array(v, t) for c, v, t in zip(META_COLUMNS, columns, types)}
+    for j, c in enumerate(cols):
+        arrays[c] = pa.array(poses[:, j], pa.float32())
+    return pa.table(arrays)
+
+
+def _write_parquet(table: pa.Table, ppath: Path) -> None:
+    ppath.parent.mkdir(parents=True, exist_ok=True)
+    # page CRCs: a flipped bit in a data page is an error when read, not a silently changed pose
+    pq.write_table(table, ppath, row_group_size=ROW_GROUP_ROWS, compression="zstd", write_page_checksum=True)

@@ -72,18 +72,7 @@ def import_command(args: ImportArgs) -> int:
     from sphri.recordings.importer import DEFINITION, import_log
 
     logging.basicConfig(level=logging.WARNING, format="%(levelname)s %(name)s: %(message)s")
-    done = import_log(
-        args.kind,
-        args.log,
-        args.out,
-        args.link,
-        args.participant,
-        args.gesture,
-        args.rate_hz,
-        args.hand,
-        args.hand_size,
-        args.link_pose,
-    )
+    done = import_log(**dataclasses.asdict(args))  # the fields are import_log's parameters
     tid = f"{done.ordinal:04d}_{done.gesture}"
     print(f"imported {args.log} ({args.kind}, {args.hand} hand) as trial {tid} of {done.participant} on {done.region}")
     print(f"  {describe(done.report)}")

@@ -130,19 +130,13 @@ def resample(frames: Frames, rate_hz: float, quat: slice | None = None) -> tuple
     quaternion components ``quat`` of the last axis. Returns the frames and a report: source frames, their
     median rate, output frames, tracking gaps (intervals over :data:`GAP_FACTOR` median intervals) and the
     output frames interpolated across them, and how many frames fewer downsampling made."""
-    t = frames.time_s
+    t, v = frames.time_s, frames.values
     n = len(t)
     if n == 1:
-        out_t = t.copy()
+        out_t, out, gaps, in_gap = t.copy(), v.copy(), np.zeros(0, bool), 0
     else:
         count = int(np.floor((t[-1] - t[0]) * rate_hz + 1e-6)) + 1
         out_t = t[0] + np.arange(count) / rate_hz
-    v = frames.values
-    if n == 1:
-        out = v.copy()
-        gaps = np.zeros(0, bool)
-        in_gap = 0
-    else:
         i = np.clip(np.searchsorted(t, out_t, side="right") - 1, 0, n - 2)
         w = ((out_t - t[i]) / (t[i + 1] - t[i]))[:, None, None]
         out = (1 - w) * v[i] + w * v[i + 1]

@@ -123,16 +123,7 @@ def _ovr_names(path: Path, df: pd.DataFrame) -> pd.DataFrame:
             f"{rows['bone_id'].iat[i]}, which already has capsule_index {rows['capsule_index'].iat[0]}: one capsule "
             "per finger bone"
         )
-    return df.rename(
-        columns={
-            "start_x": "p0_x",
-            "start_y": "p0_y",
-            "start_z": "p0_z",
-            "end_x": "p1_x",
-            "end_y": "p1_y",
-            "end_z": "p1_z",
-        }
-    )
+    return df.rename(columns={f"{a}_{x}": f"{b}_{x}" for a, b in (("start", "p0"), ("end", "p1")) for x in "xyz"})
 
 
 def _segments(path: Path, df: pd.DataFrame) -> Frames:
@@ -199,13 +190,7 @@ def import_log(
         if link_pose:
             frames = to_link_frame(frames, link_pose, (slice(0, 3),), quat=slice(3, 7))
         frames, report = resample(frames, rate_hz, quat=slice(3, 7))
-        use = existing if existing is not None else model
-        note = (
-            _size_note("the dataset's hand model", model, existing)
-            if existing is not None
-            else f"the documented hand model times hand_size={hand_size:g}"
-        )
-        poses = openxr_poses(frames.values, use)
+        made, note = model, f"the documented hand model times hand_size={hand_size:g}"
     else:
         frames = _segments(path, _ovr_names(path, df) if kind == "ovr" else df)
         v = frames.values
@@ -214,13 +199,14 @@ def import_log(
         if link_pose:
             frames = to_link_frame(frames, link_pose, (slice(0, 3), slice(3, 6)))
         frames, report = resample(frames, rate_hz)
-        use = existing if existing is not None else logged
         spread = np.abs(np.linalg.norm(v[..., 3:6] - v[..., :3], axis=-1) - logged.segment_length_m).max() * 1000
-        note = (
-            _size_note("the dataset's hand model", logged, existing)
-            if existing is not None
-            else f"the log's median capsule sizes (a capsule's length varies by up to {spread:.2f} mm)"
-        )
+        made, note = logged, f"the log's median capsule sizes (a capsule's length varies by up to {spread:.2f} mm)"
+    use = made if existing is None else existing
+    if existing is not None:
+        note = _size_note("the dataset's hand model", made, existing)
+    if kind == "openxr":
+        poses = openxr_poses(frames.values, use)
+    else:
         poses = segment_poses(frames.values[..., :3], frames.values[..., 3:6], use)
     pid = participant_id(participant)
     files: list[Path] = []
