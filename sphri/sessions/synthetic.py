@@ -770,7 +770,7 @@ def _idle_hands(d: np.ndarray, dist: float) -> dict[int, np.ndarray]:
     ``dist`` m from the robot's base along ``d``."""
     body = d * dist
     lateral = np.array([-d[1], d[0], 0.0])  # the participant's right is -lateral seen facing the robot
-    return {0: body + 0.22 * lateral * -1 + [0, 0, 0.85], 1: body - 0.22 * lateral * -1 + [0, 0, 0.85]}
+    return {0: body - 0.22 * lateral + [0, 0, 0.85], 1: body + 0.22 * lateral + [0, 0, 0.85]}
 
 
 def _hand_paths(
@@ -784,14 +784,12 @@ def _hand_paths(
     n_touch = len(touches[0])
     out = np.empty((n_app + n_touch + n_tail, 2, n_capsules, 7))
     for h in (0, 1):
-        active = (h == 1) or two
         tr = touches[0] if h == 1 else (touches[1] if two else None)
         shape = tr[0] if tr is not None else touches[0][0]
         centre = shape[:, :3].mean(axis=0)
-        rest = shape.copy()
-        rest[:, :3] += idle[h] - centre
-        if not active or tr is None:
-            out[:, h] = rest
+        if tr is None:
+            out[:, h] = shape
+            out[:, h, :, :3] += idle[h] - centre
             continue
         w = np.clip(t / t[-1], 0, 1) if n_app > 1 else np.ones(1)
         w = w**3 * (10 - 15 * w + 6 * w**2)
