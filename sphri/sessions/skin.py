@@ -573,12 +573,15 @@ def _export_piece(
     """Write one piece of patch ``p`` (``row``: its row of the patch table): its mesh and its taxels at the pitch
     (link frame, m); add its manifest row and its outline, link pose at rest (``pose``, 4 x 4, world) and the
     links ``merged`` into its link."""
-    name = f"{_safe(link_name)}__{_safe(piece_name)}.{ex.fmt}"
+    from sphri.analysis.coverage import safe_name
+
+    stem = f"{safe_name(link_name, 'x')}__{safe_name(piece_name, 'x')}"
+    name = f"{stem}.{ex.fmt}"
     mesh.export(ex.out_dir / name)
     ex.files.append(ex.out_dir / name)
     area_cm2 = float(mesh.area * 1e4)
     pts, nrm = place_taxels(mesh, ex.pitch_mm, seed=p)
-    tax_name = f"{_safe(link_name)}__{_safe(piece_name)}_taxels.csv"
+    tax_name = f"{stem}_taxels.csv"
     pd.DataFrame(np.hstack([pts, nrm]), columns=["x_m", "y_m", "z_m", "nx", "ny", "nz"]).to_csv(
         ex.out_dir / tax_name, index=False, float_format="%.6g"
     )
@@ -640,12 +643,6 @@ def _manifest_meta(ex: _Export, man: pd.DataFrame, n_contact_frames: int, robot_
         "at the rest pose the patches were cut at; merged_links: links joined into the link at that pose",
         "patches": [{**r, **ex.extra[r["piece"]]} for r in json.loads(man.to_json(orient="records"))],
     }
-
-
-def _safe(name: str) -> str:
-    import re
-
-    return re.sub(r"[^\w.-]+", "_", str(name)).strip("_") or "x"
 
 
 @dataclass
