@@ -357,7 +357,7 @@ class CoverageAnalysis(Configured):
             frames, elements, unit = pairs.frames[m], pairs.elements[m], pairs.unit[m]
             curve = coverage_curve(densities[n], samples.area_m2, frames, elements, self.capture, group=n)
             out.curves[n] = curve
-            out.regions[n] = describe_regions(samples, curve.mask, uv, kind, weight=densities[n] * samples.area_m2)
+            out.regions[n] = describe_regions(samples, curve.mask, uv, weight=densities[n] * samples.area_m2)
             out.sentences[n] = recommendation(curve, out.regions[n], kind, link.name)
             if self.heldout and curve.n_frames and np.count_nonzero(np.bincount(unit)) >= 2:
                 h = heldout_capture(kernel, frames, elements, unit, self.capture)
@@ -591,6 +591,4 @@ def _json_default(o: Any) -> Any:
         return float(o)
     if isinstance(o, np.ndarray):
         return o.tolist()
-    if isinstance(o, tuple):
-        return list(o)
     return str(o)
