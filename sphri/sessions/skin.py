@@ -219,18 +219,14 @@ def first_rank(m: sparse.csr_matrix, order: np.ndarray) -> np.ndarray:
     return out
 
 
-def _on_grid(cum_area: np.ndarray, captured_at: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    """Captured share at each grid area: that of the longest prefix whose area fits (a step function)."""
-    n = np.searchsorted(cum_area, grid * (1 + 1e-9) + 1e-12, side="right")
-    return captured_at[n - 1]
-
-
 def _captured_curve(train: sparse.csr_matrix, test: sparse.csr_matrix, area: np.ndarray, grid: np.ndarray):
     """Share of ``test``'s frames captured at each grid area by the patches in ``train``'s greedy order."""
     order, _ = greedy_patches(train, area)
     rank = first_rank(test, order)
     cap = np.r_[0, np.cumsum(np.bincount(rank, minlength=len(order) + 1)[: len(order)])] / rank.size
-    return _on_grid(np.r_[0.0, np.cumsum(area[order])], cap, grid)
+    # at each grid area, the share of the longest prefix whose area fits (a step function)
+    fits = np.searchsorted(np.r_[0.0, np.cumsum(area[order])], grid * (1 + 1e-9) + 1e-12, side="right")
+    return cap[fits - 1]
 
 
 def _halves(rng: np.random.Generator, unit: np.ndarray, splits: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
