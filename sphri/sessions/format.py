@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from sphri.data import recording_schema as schema
-from sphri.data.duplicates import describe, find_duplicates, fingerprint
+from sphri.data.duplicates import DUPLICATE_POLICIES, describe, find_duplicates, fingerprint
 from sphri.data.format import POSE_SUFFIXES, participant_id, pose_columns
 from sphri.errors import read_json
 from sphri.types import HandModel
@@ -321,8 +321,6 @@ class SessionData:
         self.repetitions = repetitions
         self.scenarios = None if scenarios is None else [str(s) for s in scenarios]
         self.quat_tolerance = float(quat_tolerance)
-        from sphri.data.duplicates import DUPLICATE_POLICIES
-
         if duplicates not in DUPLICATE_POLICIES:
             raise SessionFormatError(
                 f"data.duplicates={duplicates!r} is invalid: allowed values: {list(DUPLICATE_POLICIES)}"
