@@ -136,17 +136,6 @@ def link_columns(links: Sequence[str]) -> list[str]:
     return [f"link/{c}" for c in pose_columns(links)]
 
 
-def _hand_json(hand: HandModel) -> dict[str, Any]:
-    return {
-        "names": list(hand.names),
-        "fingers": list(hand.fingers),
-        "radius_m": hand.radius_m.tolist(),
-        "height_m": hand.height_m.tolist(),
-        "axis": hand.axis.tolist(),
-        "center_offset_m": hand.center_offset_m.tolist(),
-    }
-
-
 def write_sessions(ds: SessionDataset, out: str | Path) -> list[Path]:
     """Write ``ds`` in the session format under ``out``; returns the files written."""
     out = Path(out)
@@ -159,7 +148,14 @@ def write_sessions(ds: SessionDataset, out: str | Path) -> list[Path]:
         "robot": ds.robot,
         "links": list(ds.links),
         "hands": list(HANDS),
-        "hand": _hand_json(ds.hand),
+        "hand": {
+            "names": list(ds.hand.names),
+            "fingers": list(ds.hand.fingers),
+            "radius_m": ds.hand.radius_m.tolist(),
+            "height_m": ds.hand.height_m.tolist(),
+            "axis": ds.hand.axis.tolist(),
+            "center_offset_m": ds.hand.center_offset_m.tolist(),
+        },
         "frame_rate_hz": float(ds.frame_rate_hz),
     }
     files = [out / "sessions.json"]
