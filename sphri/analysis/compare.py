@@ -132,11 +132,7 @@ def split_halves(ordinals: Sequence[int] | np.ndarray, k: int) -> tuple[np.ndarr
     Trials are ordered by ``ordinals`` (ties by position); the first ``2 k``
     are dealt alternately to half 0 and half 1.
     """
-    o = np.asarray(ordinals)
-    if k < 1 or 2 * k > o.size:
-        raise ValueError(f"cannot split {o.size} trials into two halves of {k}")
-    pos = np.argsort(o, kind="stable")[: 2 * k]
-    return pos[0::2], pos[1::2]
+    return rotated_halves(ordinals, k, 0)
 
 
 def rotated_halves(ordinals: Sequence[int] | np.ndarray, k: int, r: int) -> tuple[np.ndarray, np.ndarray]:

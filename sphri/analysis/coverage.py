@@ -357,7 +357,7 @@ class CoverageAnalysis(Configured):
             frames, elements, unit = pairs.frames[m], pairs.elements[m], pairs.unit[m]
             curve = coverage_curve(densities[n], samples.area_m2, frames, elements, self.capture, group=n)
             out.curves[n] = curve
-            out.regions[n] = describe_regions(samples, curve.mask, uv, kind, weight=densities[n] * samples.area_m2)
+            out.regions[n] = describe_regions(samples, curve.mask, uv, weight=densities[n] * samples.area_m2)
             out.sentences[n] = recommendation(curve, out.regions[n], kind, link.name)
             if self.heldout and curve.n_frames and np.count_nonzero(np.bincount(unit)) >= 2:
                 h = heldout_capture(kernel, frames, elements, unit, self.capture)
@@ -381,17 +381,7 @@ class CoverageAnalysis(Configured):
         if len(pairs.groups) < 2:
             notes.append(f"no condition tests: only {len(pairs.groups)} value(s) of {self.by!r}")
             return None
-        comparison = self._compare(
-            kernel,
-            trials,
-            in_region,
-            pairs.frames,
-            pairs.elements,
-            pairs.trial_of,
-            pairs.groups,
-            pairs.labels,
-            pairs.units,
-        )
+        comparison = self._compare(kernel, trials, in_region, pairs)
         n_max = int(comparison.table["n_participants"].max())
         if n_max <= self.exact_max and 2.0**-n_max > self.alpha:
             notes.append(
@@ -401,19 +391,11 @@ class CoverageAnalysis(Configured):
         return comparison
 
     def _compare(
-        self,
-        kernel: SurfaceKernel,
-        trials: pd.DataFrame,
-        in_region: np.ndarray,
-        frames: np.ndarray,
-        elements: np.ndarray,
-        trial_of: np.ndarray,
-        groups: list[str],
-        labels: np.ndarray,
-        units: np.ndarray,
+        self, kernel: SurfaceKernel, trials: pd.DataFrame, in_region: np.ndarray, pairs: _Pairs
     ) -> PairwiseComparison:
         """Split-half paired SWD tests between every pair of groups (see :mod:`sphri.analysis.compare`)."""
         s = kernel.samples
+        elements, trial_of, labels, units = pairs.elements, pairs.trial_of, pairs.labels, pairs.units
         n_trials = len(trials)
         # per-trial element counts, only for trials with contact
         has = np.zeros(n_trials, dtype=bool)
@@ -457,7 +439,7 @@ class CoverageAnalysis(Configured):
         return paired_swd_tests(
             sw,
             participants,
-            groups,
+            pairs.groups,
             halves,
             alpha=self.alpha,
             alternative=self.alternative,
@@ -470,9 +452,9 @@ class CoverageAnalysis(Configured):
 # ----------------------------------------------------------------------------- files
 
 
-def safe_name(value: str) -> str:
-    """A group value usable in file names."""
-    return re.sub(r"[^\w.-]+", "_", str(value)).strip("_") or "group"
+def safe_name(value: str, empty: str = "group") -> str:
+    """A group value usable in file names (``empty`` when nothing of it is)."""
+    return re.sub(r"[^\w.-]+", "_", str(value)).strip("_") or empty
 
 
 def write_density_npz(result: RegionCoverage, group: str, path: str | Path) -> Path:
@@ -609,6 +591,4 @@ def _json_default(o: Any) -> Any:
         return float(o)
     if isinstance(o, np.ndarray):
         return o.tolist()
-    if isinstance(o, tuple):
-        return list(o)
     return str(o)

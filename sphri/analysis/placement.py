@@ -202,7 +202,6 @@ def describe_regions(
     samples: SurfaceSamples,
     mask: np.ndarray,
     uv: np.ndarray | None = None,
-    surface_kind: str = "mesh",
     weight: np.ndarray | None = None,
     max_regions: int = 3,
     min_share: float = 0.05,

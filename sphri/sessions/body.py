@@ -28,7 +28,9 @@ from sphri.types import Link
 
 
 @dataclass
-class BodySurface:
+class RestSurface:
+    """Every link's samples, their body parts, and the robot's mesh at the rest pose (no kernel, no reachability)."""
+
     links: tuple[str, ...]
     local: list[SurfaceSamples]
     """Per link: its samples in the link frame."""
@@ -36,14 +38,21 @@ class BodySurface:
     """(L + 1,) first element of each link in the joined samples."""
     samples: SurfaceSamples
     """All elements at the rest pose (world frame)."""
-    kernel: SurfaceKernel
     part: np.ndarray
-    """(P,) object: body part of each element."""
+    """(P,) object: body part of each element (its link's name where no part holds it)."""
     link_of: np.ndarray
     """(P,) int64 link index of each element."""
     mesh: Link
-    """Every link's mesh at the rest pose, joined (for display)."""
+    """Every link's mesh at the rest pose, joined."""
     parts: list[str]
+    """The body parts (the robot's order), then the links with elements no part holds."""
+
+
+@dataclass
+class BodySurface(RestSurface):
+    """A :class:`RestSurface` with the kernel that smooths within links and the reachability of each element."""
+
+    kernel: SurfaceKernel
     reach: np.ndarray | None = None
     """(P,) object: '' for an element a hand can reach, else why not ('floor', 'buried'); None: not assessed."""
 
@@ -131,27 +140,6 @@ def reachable_elements(
     return out
 
 
-@dataclass
-class RestSurface:
-    """Every link's samples, their body parts, and the robot's mesh at the rest pose (no kernel, no reachability)."""
-
-    links: tuple[str, ...]
-    local: list[SurfaceSamples]
-    """Per link: its samples in the link frame."""
-    offset: np.ndarray
-    """(L + 1,) first element of each link in the joined samples."""
-    samples: SurfaceSamples
-    """All elements at the rest pose (world frame)."""
-    part: np.ndarray
-    """(P,) object: body part of each element (its link's name where no part holds it)."""
-    link_of: np.ndarray
-    """(P,) int64 link index of each element."""
-    mesh: Link
-    """Every link's mesh at the rest pose, joined."""
-    parts: list[str]
-    """The body parts (the robot's order), then the links with elements no part holds."""
-
-
 def rest_surface(robot, links: tuple[str, ...], spacing_mm: float, seed: int = 0) -> RestSurface:
     """Sample each of ``links`` (``spacing_mm`` elements, link frame), label the samples with their body parts
     and place them and the meshes at the rest pose."""
@@ -224,7 +212,7 @@ def body_surface(
         reach = reachable_elements(
             robot, tuple(links), r.samples.points_m, r.samples.normal, r.link_of, floor_height_m, down_cos
         )
-    return BodySurface(r.links, r.local, r.offset, r.samples, kernel, r.part, r.link_of, r.mesh, r.parts, reach)
+    return BodySurface(**vars(r), kernel=kernel, reach=reach)
 
 
 def touched_pairs(body: BodySurface, bc: BodyContacts, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -57,18 +57,14 @@ class BodyContacts:
 
     def take(self, rows: np.ndarray) -> BodyContacts:
         return BodyContacts(
-            self.n_frames,
-            self.links,
-            self.frame[rows],
-            self.hand[rows],
-            self.link[rows],
-            self.capsule[rows],
-            self.point_m[rows],
-            self.normal[rows],
-            self.patch_radius_m[rows],
-            self.depth_m[rows],
-            dict(self.stats),
+            self.n_frames, self.links, **{k: getattr(self, k)[rows] for k in ROW_FIELDS}, stats=dict(self.stats)
         )
+
+
+#: The per-row fields of :class:`BodyContacts`, in order.
+ROW_FIELDS = ("frame", "hand", "link", "capsule", "point_m", "normal", "patch_radius_m", "depth_m")
+#: The integer types its index fields are stored as.
+ROW_TYPES = {"frame": np.int64, "hand": np.int8, "link": np.int16, "capsule": np.int16}
 
 
 @dataclass
@@ -165,38 +161,10 @@ def _chunk_contacts(
 
 def _assemble(ds: SessionDataset, acc: _Pass) -> BodyContacts:
     """The rows of ``acc`` in one :class:`BodyContacts`, sorted by frame, hand, link, capsule."""
-    stats = {"triples": acc.tested, "tested": acc.passed}
-    if not acc.parts:
-        z = np.zeros(0)
-        z3 = np.zeros((0, 3))
-        return BodyContacts(
-            ds.n_frames,
-            tuple(ds.links),
-            np.zeros(0, np.int64),
-            np.zeros(0, np.int8),
-            np.zeros(0, np.int16),
-            np.zeros(0, np.int16),
-            z3,
-            z3.copy(),
-            z,
-            z.copy(),
-            stats,
-        )
-    cat = {
-        k: np.concatenate([p[k] for p in acc.parts])
-        for k in ("frame", "hand", "link", "capsule", "point_m", "normal", "patch_radius_m", "depth_m")
-    }
+    if acc.parts:
+        cat = {k: np.concatenate([p[k] for p in acc.parts]) for k in ROW_FIELDS}
+    else:  # no contact: no rows
+        cat = {k: np.zeros((0, 3) if k in ("point_m", "normal") else 0) for k in ROW_FIELDS}
     order = np.lexsort((cat["capsule"], cat["link"], cat["hand"], cat["frame"]))
-    return BodyContacts(
-        ds.n_frames,
-        tuple(ds.links),
-        cat["frame"][order].astype(np.int64),
-        cat["hand"][order],
-        cat["link"][order],
-        cat["capsule"][order].astype(np.int16),
-        cat["point_m"][order],
-        cat["normal"][order],
-        cat["patch_radius_m"][order],
-        cat["depth_m"][order],
-        stats,
-    )
+    rows = {k: cat[k][order].astype(ROW_TYPES[k]) if k in ROW_TYPES else cat[k][order] for k in ROW_FIELDS}
+    return BodyContacts(ds.n_frames, tuple(ds.links), **rows, stats={"triples": acc.tested, "tested": acc.passed})

@@ -32,7 +32,7 @@ import json
 import logging
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -40,7 +40,7 @@ import numpy as np
 import pandas as pd
 
 from sphri.data import recording_schema as schema
-from sphri.data.duplicates import describe, find_duplicates, fingerprint
+from sphri.data.duplicates import DUPLICATE_POLICIES, describe, find_duplicates, fingerprint
 from sphri.data.format import POSE_SUFFIXES, participant_id, pose_columns
 from sphri.errors import read_json
 from sphri.types import HandModel
@@ -78,13 +78,13 @@ class SessionFormatError(ValueError):
 
 @dataclass
 class _Participant:
-    """One participant's sessions as :meth:`SessionData.load_participant` reads them."""
+    """One participant's sessions as :meth:`SessionData.load_participant` reads them (or several's, joined)."""
 
-    records: list[dict]
-    hands: list[np.ndarray]
-    link_poses: list[np.ndarray]
-    prints: list
-    rates: set[float]
+    records: list[dict] = field(default_factory=list)
+    hands: list[np.ndarray] = field(default_factory=list)
+    link_poses: list[np.ndarray] = field(default_factory=list)
+    prints: list = field(default_factory=list)
+    rates: set[float] = field(default_factory=set)
 
 
 @dataclass
@@ -136,17 +136,6 @@ def link_columns(links: Sequence[str]) -> list[str]:
     return [f"link/{c}" for c in pose_columns(links)]
 
 
-def _hand_json(hand: HandModel) -> dict[str, Any]:
-    return {
-        "names": list(hand.names),
-        "fingers": list(hand.fingers),
-        "radius_m": hand.radius_m.tolist(),
-        "height_m": hand.height_m.tolist(),
-        "axis": hand.axis.tolist(),
-        "center_offset_m": hand.center_offset_m.tolist(),
-    }
-
-
 def write_sessions(ds: SessionDataset, out: str | Path) -> list[Path]:
     """Write ``ds`` in the session format under ``out``; returns the files written."""
     out = Path(out)
@@ -159,7 +148,14 @@ def write_sessions(ds: SessionDataset, out: str | Path) -> list[Path]:
         "robot": ds.robot,
         "links": list(ds.links),
         "hands": list(HANDS),
-        "hand": _hand_json(ds.hand),
+        "hand": {
+            "names": list(ds.hand.names),
+            "fingers": list(ds.hand.fingers),
+            "radius_m": ds.hand.radius_m.tolist(),
+            "height_m": ds.hand.height_m.tolist(),
+            "axis": ds.hand.axis.tolist(),
+            "center_offset_m": ds.hand.center_offset_m.tolist(),
+        },
         "frame_rate_hz": float(ds.frame_rate_hz),
     }
     files = [out / "sessions.json"]
@@ -321,8 +317,6 @@ class SessionData:
         self.repetitions = repetitions
         self.scenarios = None if scenarios is None else [str(s) for s in scenarios]
         self.quat_tolerance = float(quat_tolerance)
-        from sphri.data.duplicates import DUPLICATE_POLICIES
-
         if duplicates not in DUPLICATE_POLICIES:
             raise SessionFormatError(
                 f"data.duplicates={duplicates!r} is invalid: allowed values: {list(DUPLICATE_POLICIES)}"
@@ -352,21 +346,15 @@ class SessionData:
             raise SessionFormatError(f"{root}: no participant folder with a manifest.json")
         if self.participants is not None:
             pids = pids[: int(self.participants)]
-        records: list[dict] = []
-        hands: list[np.ndarray] = []
-        lposes: list[np.ndarray] = []
-        prints: list = []
-        rates: set[float] = set()
-        start = 0
+        got = _Participant()
         for pid in pids:
-            part = self.load_participant(root, pid, shand, links, start)
-            records += part.records
-            hands += part.hands
-            lposes += part.link_poses
-            prints += part.prints
-            rates |= part.rates
-            start += sum(r["n_frames"] for r in part.records)
-        for pair in find_duplicates(prints):
+            part = self.load_participant(root, pid, shand, links, sum(r["n_frames"] for r in got.records))
+            got.records += part.records
+            got.hands += part.hands
+            got.link_poses += part.link_poses
+            got.prints += part.prints
+            got.rates |= part.rates
+        for pair in find_duplicates(got.prints):
             if self.duplicates == "refuse":
                 raise SessionFormatError(
                     f"{root}: {describe(pair, 'sessions')}: a copied participant folder? "
@@ -377,7 +365,7 @@ class SessionData:
                 root,
                 describe(pair, "sessions"),
             )
-        if not records:
+        if not got.records:
             raise SessionFormatError(f"{root}: no session left after selecting participants/scenarios/repetitions")
         if robot is not None:
             absent = [ln for ln in robot.links if ln not in links]
@@ -388,8 +376,8 @@ class SessionData:
                     robot.name,
                     absent,
                 )
-        if len(rates) != 1:
-            raise SessionFormatError(f"{root}: manifests mix frame rates {sorted(rates)}; one rate per dataset")
+        if len(got.rates) != 1:
+            raise SessionFormatError(f"{root}: manifests mix frame rates {sorted(got.rates)}; one rate per dataset")
         truth = None
         tpath = root / "generator_truth.csv"
         if header["synthetic"] and tpath.is_file():
@@ -398,11 +386,11 @@ class SessionData:
             name=str(header["name"]),
             synthetic=bool(header["synthetic"]),
             hand=shand,
-            sessions=make_sessions_frame(records),
-            hand_poses=np.concatenate(hands),
+            sessions=make_sessions_frame(got.records),
+            hand_poses=np.concatenate(got.hands),
             links=tuple(links),
-            link_poses=np.concatenate(lposes),
-            frame_rate_hz=rates.pop(),
+            link_poses=np.concatenate(got.link_poses),
+            frame_rate_hz=got.rates.pop(),
             robot=str(header["robot"]),
             truth=truth,
         )
@@ -414,11 +402,7 @@ class SessionData:
         and field); frames are numbered from ``start``."""
         hcols, lcols = hand_columns(shand), link_columns(links)
         c, nl = len(shand.names), len(links)
-        records: list[dict] = []
-        hands: list[np.ndarray] = []
-        lposes: list[np.ndarray] = []
-        prints: list = []
-        rates: set[float] = set()
+        got = _Participant()
         mpath = root / pid / "manifest.json"
         entries = read_manifest(mpath)
         named = {str(e["file"]) for e in entries}
@@ -462,12 +446,12 @@ class SessionData:
             lk = rows[lcols].to_numpy(np.float32).reshape(len(rows), nl, 7)
             self._check_values(ppath, e, h, lk, hcols, lcols)
             self._check_units(ppath, e, h, lk)
-            hands.append(h)
-            lposes.append(lk)
+            got.hands.append(h)
+            got.link_poses.append(lk)
             if self.duplicates != "off":
-                prints.append((pid, (str(e["scenario"]), len(h)), fingerprint(h)))
-            rates.add(float(e["frame_rate_hz"]))
-            records.append(
+                got.prints.append((pid, (str(e["scenario"]), len(h)), fingerprint(h)))
+            got.rates.add(float(e["frame_rate_hz"]))
+            got.records.append(
                 dict(
                     participant=pid,
                     scenario=str(e["scenario"]),
@@ -479,7 +463,7 @@ class SessionData:
                 )
             )
             start += int(e["n_frames"])
-        return _Participant(records, hands, lposes, prints, rates)
+        return got
 
     @staticmethod
     def _check_units(path: Path, e: dict, h: np.ndarray, lk: np.ndarray) -> None:

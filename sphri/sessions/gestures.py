@@ -73,14 +73,13 @@ def train_gesture_model(overrides: list[str], regions: list[str], cache, memo=No
     labels: list[np.ndarray] = []
     accs: dict[str, float] = {}
     first: tuple[Any, Any, Any] | None = None  # the first region's (config, model, windows)
-    for _k, region in enumerate(regions):
+    for region in regions:
         cfg = compose([*overrides, f"data.regions=[{region}]"])
         p = make_pipeline(cfg, cache, memo=memo)
         result, _ = p.get("evaluate")
         accs[region] = float(result.summary()["accuracy_mean"])
-        windows = p.get(
-            "filter"
-        )  # the windows the model was evaluated on: noise on the windows, then the skin's filter
+        # the windows the model was evaluated on: noise on the windows, then the skin's filter
+        windows = p.get("filter")
         model = model_factory(cfg)(geometry=windows.geometry)
         if first is None:
             first = (cfg, model, windows)

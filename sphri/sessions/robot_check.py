@@ -96,6 +96,7 @@ def robot_settings(s: RobotCheckSettings) -> dict[str, Any]:
 
 def check_robot(s: RobotCheckSettings) -> tuple[str, Path]:
     """Build the robot, write the picture; (the text to print, the picture's path)."""
+    from sphri import figures
     from sphri.analysis.render import LinkView
     from sphri.robots.urdf_tree import UrdfWholeBody
     from sphri.sessions.body import rest_surface
@@ -133,16 +134,10 @@ def check_robot(s: RobotCheckSettings) -> tuple[str, Path]:
         lines.append(f"skipped links ({len(robot.skipped)}):")
         lines += [f"  {why} ({len(names)}): {', '.join(names)}" for why, names in by_reason.items()]
     view = LinkView(surface.mesh, surface.samples, target_faces=20000)
-    with _png_only():
+    with figures.only_formats(("png",)):
         picture = plot_parts(view, view.face_labels(surface.part), areas, s.out, f"{robot.name}: body parts")
     lines.append(f"picture: {picture}")
     return "\n".join(lines), picture
-
-
-def _png_only():
-    from sphri import figures
-
-    return figures.only_formats(("png",))
 
 
 #: The command and its settings (``sphri robot --help``).

@@ -131,15 +131,14 @@ def priors_sensitivity(
     for d in range(draws):
         w = session_weights(table, perturb(table, rng), truth)
         score = (w[frame_session] @ m) / area
-        tau = kendalltau(base, score).statistic
-        top = set(np.lexsort((names, -score))[:k])
+        order = np.lexsort((names, -score))
         rows.append(
             dict(
                 draw=d,
-                tau=float(tau),
-                top_k_overlap=len(top & base_top) / k,
-                same_first=bool(np.lexsort((names, -score))[0] == base_order[0]),
-                first=str(names[np.lexsort((names, -score))[0]]),
+                tau=float(kendalltau(base, score).statistic),
+                top_k_overlap=len(set(order[:k]) & base_top) / k,
+                same_first=bool(order[0] == base_order[0]),
+                first=str(names[order[0]]),
                 ess_share=float(w.sum() ** 2 / (w**2).sum() / len(w)),
             )
         )

@@ -219,18 +219,14 @@ def first_rank(m: sparse.csr_matrix, order: np.ndarray) -> np.ndarray:
     return out
 
 
-def _on_grid(cum_area: np.ndarray, captured_at: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    """Captured share at each grid area: that of the longest prefix whose area fits (a step function)."""
-    n = np.searchsorted(cum_area, grid * (1 + 1e-9) + 1e-12, side="right")
-    return captured_at[n - 1]
-
-
 def _captured_curve(train: sparse.csr_matrix, test: sparse.csr_matrix, area: np.ndarray, grid: np.ndarray):
     """Share of ``test``'s frames captured at each grid area by the patches in ``train``'s greedy order."""
     order, _ = greedy_patches(train, area)
     rank = first_rank(test, order)
     cap = np.r_[0, np.cumsum(np.bincount(rank, minlength=len(order) + 1)[: len(order)])] / rank.size
-    return _on_grid(np.r_[0.0, np.cumsum(area[order])], cap, grid)
+    # at each grid area, the share of the longest prefix whose area fits (a step function)
+    fits = np.searchsorted(np.r_[0.0, np.cumsum(area[order])], grid * (1 + 1e-9) + 1e-12, side="right")
+    return cap[fits - 1]
 
 
 def _halves(rng: np.random.Generator, unit: np.ndarray, splits: int) -> Iterator[tuple[np.ndarray, np.ndarray]]:
@@ -573,12 +569,15 @@ def _export_piece(
     """Write one piece of patch ``p`` (``row``: its row of the patch table): its mesh and its taxels at the pitch
     (link frame, m); add its manifest row and its outline, link pose at rest (``pose``, 4 x 4, world) and the
     links ``merged`` into its link."""
-    name = f"{_safe(link_name)}__{_safe(piece_name)}.{ex.fmt}"
+    from sphri.analysis.coverage import safe_name
+
+    stem = f"{safe_name(link_name, 'x')}__{safe_name(piece_name, 'x')}"
+    name = f"{stem}.{ex.fmt}"
     mesh.export(ex.out_dir / name)
     ex.files.append(ex.out_dir / name)
     area_cm2 = float(mesh.area * 1e4)
     pts, nrm = place_taxels(mesh, ex.pitch_mm, seed=p)
-    tax_name = f"{_safe(link_name)}__{_safe(piece_name)}_taxels.csv"
+    tax_name = f"{stem}_taxels.csv"
     pd.DataFrame(np.hstack([pts, nrm]), columns=["x_m", "y_m", "z_m", "nx", "ny", "nz"]).to_csv(
         ex.out_dir / tax_name, index=False, float_format="%.6g"
     )
@@ -640,12 +639,6 @@ def _manifest_meta(ex: _Export, man: pd.DataFrame, n_contact_frames: int, robot_
         "at the rest pose the patches were cut at; merged_links: links joined into the link at that pose",
         "patches": [{**r, **ex.extra[r["piece"]]} for r in json.loads(man.to_json(orient="records"))],
     }
-
-
-def _safe(name: str) -> str:
-    import re
-
-    return re.sub(r"[^\w.-]+", "_", str(name)).strip("_") or "x"
 
 
 @dataclass

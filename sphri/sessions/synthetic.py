@@ -351,7 +351,6 @@ def settle_hands(
     own_link: tuple[int, int],
     compliance_m: float,
     away: np.ndarray,
-    rounds: int = SETTLE_ROUNDS,
     phase: np.ndarray | None = None,
 ) -> tuple[np.ndarray, int]:
     """Hands that stop at the skin: ``hand_poses`` (F, 2, C, 7) world, ``link_poses`` (F, L, 4, 4) world.
@@ -367,7 +366,7 @@ def settle_hands(
     whole hand is moved back along its approach (``away[h]``, unit vector towards the participant) until its
     row with the largest excess would leave the surface along that row's outward normal (excess over the
     cosine between normal and approach, at least :data:`SETTLE_MIN_COS`; :data:`SETTLE_CLEARANCE_M` off
-    other links); ``rounds`` times at most. Returns the poses and the number
+    other links); :data:`SETTLE_ROUNDS` times at most. Returns the poses and the number
     of (frame, hand) pairs moved."""
     from sphri.contact.exact import ExactContact
     from sphri.sessions.contact import body_contacts
@@ -380,7 +379,7 @@ def settle_hands(
     contact = ExactContact()
     own = np.asarray(own_link)
     moved = np.zeros((n, 2), dtype=bool)
-    for _ in range(rounds):
+    for _ in range(SETTLE_ROUNDS):
         bc = body_contacts(one_session(out, lk7, hand, links, "settle"), robot, contact)
         if bc.n_contacts == 0:
             break
@@ -449,16 +448,14 @@ def hold_contact(
     phase: np.ndarray,
     away: np.ndarray,
     compliance_m: float,
-    depth_m: float = HOLD_DEPTH_M,
-    rounds: int = HOLD_ROUNDS,
 ) -> tuple[np.ndarray, int]:
     """Held contact follows the surface: ``hand_poses`` (F, 2, C, 7) world, ``link_poses`` (F, L, 4, 4) world.
 
     In the frames of a hand's contact phase (``phase`` (F, 2) bool: the gesture trial's touches) where the hand
     does not touch its own link (``own_link[h]``; -1: none) but comes within :data:`HOLD_MAX_GAP_M` of it, the
     whole hand is moved towards the robot along its approach (``-away[h]``, the reverse of :func:`settle_hands`)
-    until its nearest capsule presses ``depth_m`` in (gap over the cosine between that capsule's normal and the
-    approach, at least :data:`SETTLE_MIN_COS`); ``rounds`` times at most. A frame whose deepest capsule would then
+    until its nearest capsule presses :data:`HOLD_DEPTH_M` in (gap over the cosine between that capsule's normal and
+    the approach, at least :data:`SETTLE_MIN_COS`); :data:`HOLD_ROUNDS` times at most. A frame whose deepest capsule would then
     press more than ``compliance_m`` into the link keeps its pose before the pull. Only positions change (no time
     stretch: the gesture keeps its timing). Other links are not checked: run :func:`settle_hands` after it.
     Returns the poses and the number of (frame, hand) pairs moved.
@@ -475,7 +472,7 @@ def hold_contact(
         frames = np.flatnonzero(phase[:, h])
         before = out[:, h, :, :3].copy()
         pulled = np.zeros(len(out), dtype=bool)
-        for r in range(rounds + 1):
+        for r in range(HOLD_ROUNDS + 1):
             if frames.size == 0:
                 break
             gap, nrm = own_link_gap(
@@ -486,9 +483,9 @@ def hold_contact(
             pulled[back] = False
             off = (gap > 0) & (gap <= HOLD_MAX_GAP_M)
             frames, gap, nrm = frames[off], gap[off], nrm[off]
-            if frames.size == 0 or r == rounds:
+            if frames.size == 0 or r == HOLD_ROUNDS:
                 break
-            step = (gap + depth_m) / np.maximum(np.abs(nrm @ away[h]), SETTLE_MIN_COS)
+            step = (gap + HOLD_DEPTH_M) / np.maximum(np.abs(nrm @ away[h]), SETTLE_MIN_COS)
             out[frames, h, :, :3] -= (step[:, None] * away[h][None, :])[:, None, :]
             pulled[frames] = True
         out[frames, h, :, :3] = before[frames]  # still off its link after the last round: as it was
@@ -770,7 +767,7 @@ def _idle_hands(d: np.ndarray, dist: float) -> dict[int, np.ndarray]:
     ``dist`` m from the robot's base along ``d``."""
     body = d * dist
     lateral = np.array([-d[1], d[0], 0.0])  # the participant's right is -lateral seen facing the robot
-    return {0: body + 0.22 * lateral * -1 + [0, 0, 0.85], 1: body - 0.22 * lateral * -1 + [0, 0, 0.85]}
+    return {0: body - 0.22 * lateral + [0, 0, 0.85], 1: body + 0.22 * lateral + [0, 0, 0.85]}
 
 
 def _hand_paths(
@@ -784,14 +781,12 @@ def _hand_paths(
     n_touch = len(touches[0])
     out = np.empty((n_app + n_touch + n_tail, 2, n_capsules, 7))
     for h in (0, 1):
-        active = (h == 1) or two
         tr = touches[0] if h == 1 else (touches[1] if two else None)
         shape = tr[0] if tr is not None else touches[0][0]
         centre = shape[:, :3].mean(axis=0)
-        rest = shape.copy()
-        rest[:, :3] += idle[h] - centre
-        if not active or tr is None:
-            out[:, h] = rest
+        if tr is None:
+            out[:, h] = shape
+            out[:, h, :, :3] += idle[h] - centre
             continue
         w = np.clip(t / t[-1], 0, 1) if n_app > 1 else np.ones(1)
         w = w**3 * (10 - 15 * w + 6 * w**2)
