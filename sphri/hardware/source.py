@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sphri.types import TaxelGeometry
+from sphri.types import SkinFrames, TaxelGeometry
 
 
 def open_pipeline(overrides: Sequence[str]):
@@ -84,7 +84,6 @@ def encode_trials(pipeline, rows: Sequence[int] | np.ndarray, gap_s: float = 0.5
     are made for each trial, to stream before it.
     """
     from sphri.pipeline import trial_keys
-    from sphri.types import SkinFrames
 
     dataset = pipeline.get("data")
     contacts = pipeline.get("contact")
