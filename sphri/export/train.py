@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from sphri.args import settings_main
-from sphri.config import ConfigError, Schema, require
+from sphri.config import CONF_DIR, ConfigError, Schema, check_output_file, compose, require
 from sphri.export.model_file import ModelBundle, save_model
 from sphri.layout.schema import layout_res
 from sphri.types import GESTURES, WindowedFrames
@@ -152,7 +152,6 @@ def _sphri_code(dest: Path) -> Path:
     import shutil
 
     import sphri
-    from sphri.config import CONF_DIR
 
     src = Path(sphri.__file__).resolve().parent
     skip = shutil.ignore_patterns("__pycache__", "*.pyc")
@@ -234,7 +233,6 @@ COMMANDS = {"": (TrainExportSettings, True)}
 @settings_main("sphri export", COMMANDS)
 def main(_cmd: str, settings: TrainExportSettings, overrides: list[str]) -> int:
     """``sphri export out=FILE ... [overrides ...]``."""
-    from sphri.config import check_output_file, compose
     from sphri.pipeline import make_pipeline, open_cache
 
     cfg = compose(overrides)  # an invalid override: one line from @clean_errors, exit 2
