@@ -115,14 +115,6 @@ class ModelBundle:
         }
 
 
-def _estimator_state(estimator: Any) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """(JSON header part, arrays) of a fitted model: its own ``save_state()`` through the registry."""
-    try:
-        return registry.state_of(estimator)
-    except registry.NotExportable as exc:
-        raise ModelFileError(str(exc)) from None
-
-
 def _restore_estimator(path: Path, head: dict[str, Any], z: Any, geometry: TaxelGeometry, plugins) -> Any:
     """The model of a file's ``estimator`` header part and npz arrays: its class (from the registry, by
     ``kind``) reads its own state with ``load_state``."""
@@ -153,7 +145,10 @@ def save_model(bundle: ModelBundle, path: str | os.PathLike, key: Any = FROM_ENV
     if not hasattr(bundle.estimator, "predict_proba"):
         raise ModelFileError(f"{type(bundle.estimator).__name__} has no predict_proba; live classification needs it")
     path = Path(path)
-    est_head, arrays = _estimator_state(bundle.estimator)
+    try:  # the model's own save_state() through the registry
+        est_head, arrays = registry.state_of(bundle.estimator)
+    except registry.NotExportable as exc:
+        raise ModelFileError(str(exc)) from None
     g = bundle.geometry
     header = bundle.header()
     header["estimator"] = est_head

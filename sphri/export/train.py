@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from sphri.args import settings_main
-from sphri.config import ConfigError, Schema, require
+from sphri.config import CONF_DIR, ConfigError, Schema, check_output_file, compose, require
 from sphri.export.model_file import ModelBundle, save_model
 from sphri.layout.schema import layout_res
 from sphri.types import GESTURES, WindowedFrames
@@ -94,19 +94,14 @@ def fit_bundle(pipeline, holdout: str | None = None, overrides: Sequence[str] = 
 
 
 def log_pyfunc_model(
-    tracking_uri: str,
-    run_id: str,
-    bundle: ModelBundle,
-    example: np.ndarray,
-    registered_name: str | None = None,
-    plugins: Sequence[str] = (),
+    tracking_uri: str, run_id: str, bundle: ModelBundle, pipeline, registered_name: str | None = None
 ) -> str:
     """Log ``bundle`` into run ``run_id`` as an MLflow pyfunc model (artifact ``model``) with a signature
-    and ``example`` (one window, (1, L, N) float32) as its input example; register it as
+    and ``pipeline``'s first window ((1, L, N) float32) as its input example; register it as
     ``registered_name`` if given. Returns its ``runs:/`` URI.
 
     The model is :mod:`sphri.export.pyfunc_model` (MLflow "models from code") with the ``.sphrimodel``
-    file as its artifact: loading it unpickles nothing. ``plugins`` (the job's): packages whose model class
+    file as its artifact: loading it unpickles nothing. The job's ``plugins``: packages whose model class
     the pyfunc model may import back when it loads the file (stored in its ``model_config``).
     """
     import tempfile
@@ -117,7 +112,8 @@ def log_pyfunc_model(
     from sphri.export import pyfunc_model
     from sphri.tracking.mlflow_tracker import no_artifact_bars
 
-    example = np.asarray(example, dtype=np.float32)
+    example = np.asarray(training_windows(pipeline).x[:1], dtype=np.float32)
+    plugins = pipeline.cfg.get("plugins") or ()
     labels = np.asarray(bundle.labels)[np.argmax(bundle.predict_proba(example), axis=1)]
     no_artifact_bars()  # MLflow reads the logged model back to check the input example
     mlflow.set_tracking_uri(tracking_uri)
@@ -152,7 +148,6 @@ def _sphri_code(dest: Path) -> Path:
     import shutil
 
     import sphri
-    from sphri.config import CONF_DIR
 
     src = Path(sphri.__file__).resolve().parent
     skip = shutil.ignore_patterns("__pycache__", "*.pyc")
@@ -203,8 +198,7 @@ def log_to_mlflow(pipeline, bundle: ModelBundle) -> str:
     run = client.create_run(
         exp, run_name=f"train_export {bundle.meta.get('model', 'model')}", tags={"sphri.kind": "model_export"}
     )
-    plugins = list(pipeline.cfg.get("plugins") or ())
-    model_uri = log_pyfunc_model(uri, run.info.run_id, bundle, training_windows(pipeline).x[:1], plugins=plugins)
+    model_uri = log_pyfunc_model(uri, run.info.run_id, bundle, pipeline)
     client.set_terminated(run.info.run_id)
     return model_uri
 
@@ -216,15 +210,7 @@ def log_job_model(cfg, run_id: str, registered_name: str | None = None) -> str:
 
     p = make_pipeline(cfg, open_cache(cfg))
     bundle = fit_bundle(p, None)
-    tracker = build(cfg.tracking)
-    return log_pyfunc_model(
-        tracker.resolve_uri(cfg.output_dir),
-        run_id,
-        bundle,
-        training_windows(p).x[:1],
-        registered_name,
-        plugins=list(cfg.get("plugins") or ()),
-    )
+    return log_pyfunc_model(build(cfg.tracking).resolve_uri(cfg.output_dir), run_id, bundle, p, registered_name)
 
 
 #: The settings of ``sphri export`` (no command word; other ``key=value`` are config overrides).
@@ -234,7 +220,6 @@ COMMANDS = {"": (TrainExportSettings, True)}
 @settings_main("sphri export", COMMANDS)
 def main(_cmd: str, settings: TrainExportSettings, overrides: list[str]) -> int:
     """``sphri export out=FILE ... [overrides ...]``."""
-    from sphri.config import check_output_file, compose
     from sphri.pipeline import make_pipeline, open_cache
 
     cfg = compose(overrides)  # an invalid override: one line from @clean_errors, exit 2

@@ -62,6 +62,10 @@ class Parse(enum.Enum):
     BAD_CHECKSUM = 3
 
 
+#: The counters of traffic; the others count problems.
+TRAFFIC = ("bytes_in", "frames", "good_bytes")
+
+
 @dataclass
 class DecoderStats:
     """What a :class:`StreamDecoder` has seen (counts since creation).
@@ -111,6 +115,10 @@ class DecoderStats:
         """One-line summary of the non-zero counters."""
         d = {k: v for k, v in self.as_dict().items() if v}
         return ", ".join(f"{k}={v}" for k, v in d.items()) or "nothing received"
+
+    def problems(self) -> str:
+        """Every problem counter (all but :data:`TRAFFIC`), zeros included, on one line."""
+        return ", ".join(f"{k}={v}" for k, v in self.as_dict().items() if k not in TRAFFIC)
 
 
 #: Per kind of problem, how many are logged at WARNING before switching to DEBUG.
@@ -224,10 +232,6 @@ class StreamDecoder:
         Afterwards ``bytes_in == good_bytes + skipped_bytes``. Use :meth:`finish` instead where the
         stream itself ended and frames decodable from the buffer should still be returned."""
         self._discard_buffered("the reader stopped with a partial frame buffered")
-        self._resolve_before(None)
-
-    def flush(self) -> None:
-        """Settle pending problem classifications; keeps buffered bytes (more may come)."""
         self._resolve_before(None)
 
     def finish(self) -> list[Any]:

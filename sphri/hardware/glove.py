@@ -28,6 +28,7 @@ import numpy as np
 from sphri.args import settings_main
 from sphri.config import ConfigError
 from sphri.hardware.actuators import ActuatorMap, part_depths
+from sphri.hardware.framing import TRAFFIC
 from sphri.hardware.glove_protocol import (
     ACTUATORS,
     N_ACTUATORS,
@@ -58,7 +59,6 @@ def schedule(
     remaining_ms: np.ndarray,
     frame_rate_hz: float,
     rate_hz: float | None = None,
-    refresh_ms: float | None = None,
 ) -> list[PlannedMessage]:
     """Messages that make the glove follow the desired actuator states.
 
@@ -66,10 +66,10 @@ def schedule(
     state at each frame (:meth:`ActuatorMap.desired`). The glove runs each
     pulse out by itself, so a message is sent only when its predicted state
     differs from the desired one: an intensity change (on, off, level), or
-    a pulse about to end (within ``refresh_ms``, default 1.5 frames) while it
-    should go on. At most one message per ``1 / rate_hz`` seconds of stream
-    time (default: the frame rate); a deferred change goes out with the
-    next allowed frame. After the last frame, anything still on is stopped.
+    a pulse about to end (within 1.5 frames) while it should go on. At most
+    one message per ``1 / rate_hz`` seconds of stream time (default: the
+    frame rate); a deferred change goes out with the next allowed frame.
+    After the last frame, anything still on is stopped.
     """
     intensity = np.asarray(intensity)
     remaining_ms = np.asarray(remaining_ms, dtype=np.float64)
@@ -81,7 +81,7 @@ def schedule(
         raise ValueError(f"frame_rate_hz={frame_rate_hz} must be > 0")
     rate_hz = frame_rate_hz if not rate_hz else float(rate_hz)
     frame_ms = 1000.0 / frame_rate_hz
-    refresh = 1.5 * frame_ms if refresh_ms is None else float(refresh_ms)
+    refresh = 1.5 * frame_ms
     min_gap_ms = 1000.0 / rate_hz - 1e-6
     glove_level = np.zeros(N_ACTUATORS, dtype=np.int64)
     glove_until = np.zeros(N_ACTUATORS, dtype=np.float64)  # stream time (ms) each pulse ends
@@ -141,7 +141,7 @@ class GloveReport:
                 f"acks: {self.acked} ok, {self.refused} refused, {self.missing_acks} missing, "
                 f"{self.unexpected_acks} unexpected{med}"
             )
-        errors = {k: v for k, v in self.decoder.items() if v and k not in ("bytes_in", "frames", "good_bytes")}
+        errors = {k: v for k, v in self.decoder.items() if v and k not in TRAFFIC}
         if errors:
             out.append("receive errors: " + ", ".join(f"{k}={v}" for k, v in errors.items()))
         return out
@@ -198,7 +198,7 @@ class GloveDriver:
 
     def poll(self) -> None:
         """Read and account for whatever arrived; expire overdue ACKs."""
-        data = self.link.poll()
+        data = self.link.read(wait=False)
         if data:
             self._handle(self.decoder.feed(data))
         self._expire(time.monotonic())

@@ -231,12 +231,8 @@ class LiveClassifier:
         if not self._armed and self._quiet >= self.release_frames and self._onset is None:
             self._armed = True
 
-    def _window(self, start: int) -> np.ndarray:
-        idx = np.arange(start, start + self.length) % self._cap
-        return self._ring[idx]
-
     def _predict(self, kind: str, start: int, end: int) -> Prediction:
-        x = self._window(start)[None]
+        x = self._ring[np.arange(start, start + self.length) % self._cap][None]
         t0 = time.perf_counter()
         p = self.bundle.predict_proba(x)[0]
         t1 = time.perf_counter()

@@ -315,9 +315,10 @@ class PartialWriter:
             ):
                 self._sync()
         except OSError as exc:
-            raise RecordingError(
-                f"writing {self.path} failed after {self.n_synced} frames ({exc.strerror or exc})"
-            ) from None
+            raise self._failed(exc) from None
+
+    def _failed(self, exc: OSError) -> RecordingError:
+        return RecordingError(f"writing {self.path} failed after {self.n_synced} frames ({exc.strerror or exc})")
 
     def _write_all(self, data: bytes) -> None:
         view = memoryview(data)
@@ -340,9 +341,7 @@ class PartialWriter:
         try:
             self._sync()
         except OSError as exc:
-            raise RecordingError(
-                f"writing {self.path} failed after {self.n_synced} frames ({exc.strerror or exc})"
-            ) from None
+            raise self._failed(exc) from None
 
     @property
     def n_taxels(self) -> int:
@@ -394,13 +393,10 @@ def _load_partial(path: Path, blob: bytes) -> SkinRecording:
     n_tax = int(head["n_taxels"])
     grid_shape = (int(grid[0]), int(grid[1])) if grid and int(grid[0]) * int(grid[1]) == n_tax else None
     return SkinRecording(
-        rec["values"],
-        rec["host_time_s"],
-        rec["device_time_us"],
-        rec["seq"],
-        rec["segment"],
-        grid_shape,
-        {**head, "partial": True, "torn_bytes": len(body) - k * dtype.itemsize},
+        values=rec["values"],
+        **{name: rec[name] for name in _TIMING},
+        grid_shape=grid_shape,
+        meta={**head, "partial": True, "torn_bytes": len(body) - k * dtype.itemsize},
     )
 
 

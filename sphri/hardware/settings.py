@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from sphri.config import Schema, require, require_choice, setting
+from sphri.hardware.skin_protocol import MAX_TAXELS
 
 
 def _port(value: str) -> None:
@@ -140,8 +141,6 @@ class SkinRecordSettings(SkinStreamSettings):
         require(self.out not in ("", "???"), "out", self.out, "an output path, e.g. out=recording.npz")
         grid = parse_grid(self.grid)
         if grid is not None:
-            from sphri.hardware.skin_protocol import MAX_TAXELS
-
             n = grid[0] * grid[1]
             require(
                 n <= MAX_TAXELS,

@@ -20,7 +20,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from sphri.config import setting
-from sphri.hardware.glove_protocol import Ack, ActuateCommand, GloveDecoder, encode_ack
+from sphri.hardware.glove_protocol import ACTUATORS, Ack, ActuateCommand, GloveDecoder, encode_ack
 from sphri.hardware.transport import DeviceSettings, HostGone, Stopped, open_endpoint
 
 log = logging.getLogger(__name__)
@@ -71,8 +71,6 @@ class GloveSimulator:
         self.ready = threading.Event()
 
     def run(self) -> GloveLedger:
-        from sphri.hardware.glove_protocol import ACTUATORS
-
         t0 = time.monotonic()
         try:
             open_endpoint(self.endpoint, self.stop, self.ready)

@@ -219,16 +219,13 @@ class SkinLedger:
         return self.corrupt + self.dropped + self.truncated
 
     def to_json(self) -> dict:
-        d = asdict(self)
-        d["corrupt"] = self.corrupt
-        d["lost"] = self.lost
-        return d
+        return {**asdict(self), "corrupt": self.corrupt, "lost": self.lost}
 
 
 def choose_format(fmt: str, binary: bool) -> ValueFormat:
     if fmt == "auto":
         return ValueFormat.BITS if binary else ValueFormat.U8
-    return {"u8": ValueFormat.U8, "u16": ValueFormat.U16, "bits": ValueFormat.BITS}[fmt]
+    return ValueFormat[fmt.upper()]
 
 
 @dataclass

@@ -30,6 +30,7 @@ from typing import IO, TYPE_CHECKING, Any
 import numpy as np
 
 from sphri.args import settings_main
+from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording, save_with_fallback
 from sphri.hardware.settings import SkinLiveSettings, SkinRecordSettings, SkinStreamSettings, parse_grid
 from sphri.hardware.skin_protocol import CMD_START, SkinDecoder, SkinFrame, encode_control
 from sphri.hardware.transport import Link, PortLost
@@ -39,7 +40,6 @@ if TYPE_CHECKING:
     from typing import TypeAlias
 
     from sphri.hardware.live import LiveClassifier
-    from sphri.hardware.recording import PartialWriter, RecordingError, SkinRecording
 
     #: What :func:`signal.signal` takes and returns: a handler, SIG_DFL/SIG_IGN, or None (not set from Python).
     SignalHandler: TypeAlias = Callable[[int, FrameType | None], Any] | int | signal.Handlers | None
@@ -94,9 +94,7 @@ class SkinReader:
         taxels: int = 0,
         reconnect: bool = False,
         reconnect_timeout_s: float = 30.0,
-        reconnect_interval_s: float = 0.2,
         start_command: bool = True,
-        read_timeout_s: float = 0.02,
         consensus_frames: int = CONSENSUS_FRAMES,
     ) -> None:
         self.consensus_frames = max(1, int(consensus_frames))
@@ -106,9 +104,9 @@ class SkinReader:
         self.link = Link(
             port,
             baud,
-            read_timeout_s=read_timeout_s,
+            read_timeout_s=0.02,
             reconnect=reconnect,
-            reconnect_interval_s=reconnect_interval_s,
+            reconnect_interval_s=0.2,
             reconnect_timeout_s=reconnect_timeout_s,
             on_connect=self._on_connect,
         )
@@ -266,24 +264,6 @@ class SkinReader:
                 return
 
 
-def _error_line(stats) -> str:
-    keys = (
-        "skipped_bytes",
-        "bad_header",
-        "bad_checksum",
-        "truncated",
-        "wrong_count",
-        "bad_message",
-        "duplicates",
-        "seq_gaps",
-        "seq_missing",
-        "seq_restarts",
-        "resets",
-    )
-    d = stats.as_dict()
-    return ", ".join(f"{k}={d[k]}" for k in keys)
-
-
 # --------------------------------------------------------------------------- record
 class _StopSignals:
     """While active (main thread only): the first SIGTERM or SIGINT asks the recorder to stop (a flag it
@@ -343,11 +323,6 @@ class _Recorder:
     write_error: RecordingError | None = None
     error: BaseException | None = None
 
-    def __post_init__(self) -> None:
-        from sphri.hardware.recording import RecordingError
-
-        self._write_failed: type[RecordingError] = RecordingError  # looked up once, not per frame
-
     def keep(self, rf: ReceivedFrame) -> None:
         """Write ``rf`` to the partial file, or keep it in memory once a write failed."""
         self.n_read += 1
@@ -357,7 +332,7 @@ class _Recorder:
         before = self.partial.n_written
         try:
             self.partial.append(rf.frame.values, rf.host_time_s, rf.frame.device_time_us, rf.frame.seq, rf.segment)
-        except self._write_failed as exc:
+        except RecordingError as exc:
             self.write_error = exc
             if self.partial.n_written == before:  # not in the file (a failed fsync comes after the frame's write)
                 self.unwritten.append(rf)
@@ -369,8 +344,6 @@ class _Recorder:
     def read(self, settings: SkinRecordSettings, until: Callable[[], bool] | None, out: Callable[[str], None]) -> None:
         """Read and keep frames until a stop condition, then the held ones, and flush the partial file; a
         lost port, a stream mismatch or a failed write end the reading with :attr:`error` set."""
-        from sphri.hardware.recording import RecordingError
-
         reader = self.reader
         try:
             try:
@@ -378,7 +351,7 @@ class _Recorder:
                     for rf in reader.frames(settings.frames, settings.duration_s, settings.idle_s, until, self.stop):
                         self.keep(rf)
                         if self.n_read % 500 == 0:
-                            out(f"  {self.n_read} frames; {reader.stats.errors} bad; {_error_line(reader.stats)}")
+                            out(f"  {self.n_read} frames; {reader.stats.errors} bad; {reader.stats.problems()}")
             except KeyboardInterrupt:
                 reader.stop_reason = "interrupted"
             except (PortLost, StreamMismatch) as exc:
@@ -404,8 +377,6 @@ class _Recorder:
 
     def tail(self, n: int) -> SkinRecording:
         """The frames kept in memory (:attr:`unwritten`, ``n`` taxels each) as a recording without a grid."""
-        from sphri.hardware.recording import SkinRecording
-
         unwritten = self.unwritten
         return SkinRecording(
             np.asarray([rf.frame.values for rf in unwritten], dtype=np.float32).reshape(len(unwritten), n),
@@ -434,8 +405,6 @@ def _save(
 ) -> _Saved:
     """Save the frames of the partial file (memory-mapped) and then ``tail`` to ``out_path`` (or a fallback
     file) and remove the partial file; when no file can be written, say where the frames are."""
-    from sphri.hardware.recording import SkinRecording, save_with_fallback
-
     partial = rec.partial
     n = tail.values.shape[1]
     n_frames = partial.n_written + tail.n_frames
@@ -492,8 +461,6 @@ def record(
     ones), keeps those in memory and saves them after the file's; the
     summary's ``not_written`` counts them.
     """
-    from sphri.hardware.recording import PartialWriter
-
     grid = parse_grid(settings.grid)
     taxels = settings.taxels or (grid[0] * grid[1] if grid else 0)
     started = time.strftime("%Y-%m-%dT%H:%M:%S%z", time.localtime(time.time()))
@@ -532,7 +499,7 @@ def record(
         f"saved {saved.n_frames} frames x {n} taxels to {saved.path} ({reader.stop_reason}); "
         f"rate {saved.rate_hz:.1f} Hz; reconnects {reader.link.reconnects}"
     )
-    out(f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}")
+    out(f"skipped: {reader.stats.errors} bad frame(s): {reader.stats.problems()}")
     if tail.n_frames:
         out(
             f"{tail.n_frames} frame(s) read but not written to {partial.path} (the write failed); "
@@ -708,7 +675,7 @@ def live(
         f"(up to {summary['capacity_predictions_per_s']:.0f} predictions/s)"
     )
     out(
-        f"skipped: {reader.stats.errors} bad frame(s): {_error_line(reader.stats)}; "
+        f"skipped: {reader.stats.errors} bad frame(s): {reader.stats.problems()}; "
         f"{run.filled} lost frame(s) filled by holding the previous one"
     )
     if error is not None:

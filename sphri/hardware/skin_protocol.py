@@ -254,6 +254,3 @@ class SkinDecoder(StreamDecoder):
 
     def _reset_sequence(self) -> None:
         self.last_seq = None
-
-    def feed(self, data: bytes | bytearray | memoryview) -> list[SkinFrame]:
-        return super().feed(data)

@@ -19,12 +19,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from sphri.types import TaxelGeometry
+from sphri.config import ConfigError, compose
+from sphri.types import SkinFrames, TaxelGeometry
 
 
 def open_pipeline(overrides: Sequence[str]):
     """Compose the config from ``overrides`` and wire the (lazy, cached) pipeline."""
-    from sphri.config import compose
     from sphri.pipeline import make_pipeline, open_cache
 
     cfg = compose(list(overrides))
@@ -84,7 +84,6 @@ def encode_trials(pipeline, rows: Sequence[int] | np.ndarray, gap_s: float = 0.5
     are made for each trial, to stream before it.
     """
     from sphri.pipeline import trial_keys
-    from sphri.types import SkinFrames
 
     dataset = pipeline.get("data")
     contacts = pipeline.get("contact")
@@ -157,8 +156,6 @@ def encode_trials(pipeline, rows: Sequence[int] | np.ndarray, gap_s: float = 0.5
 
 def pick_rows(trials, count: int, participant: str | None, seed: int) -> np.ndarray:
     """Rows to stream: ``count`` trials (-1 = all) of ``participant`` (or of anyone), shuffled by ``seed``."""
-    from sphri.config import ConfigError
-
     rows = np.arange(len(trials))
     if participant is not None:
         rows = np.flatnonzero(trials["participant"].to_numpy() == participant)

@@ -120,12 +120,9 @@ class Link:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    @property
-    def is_open(self) -> bool:
-        return self._ser is not None and self._ser.is_open
-
-    def read(self) -> bytes:
-        """Bytes that arrived (blocks up to the read timeout for the first one).
+    def read(self, wait: bool = True) -> bytes:
+        """Bytes that arrived (blocks up to the read timeout for the first one; ``wait=False``: only
+        the bytes already waiting, ``b""`` if none).
 
         Raises :class:`PortLost` when the port vanished; with ``reconnect``
         it reconnects first and returns ``b""`` (callers reset their decoder
@@ -134,17 +131,7 @@ class Link:
         try:
             ser = self._require()
             n = ser.in_waiting
-            return ser.read(n if n > 0 else 1)
-        except (serial.SerialException, OSError) as exc:
-            self._lost(exc)
-            return b""
-
-    def poll(self) -> bytes:
-        """Bytes already waiting, without blocking (``b""`` if none)."""
-        try:
-            ser = self._require()
-            n = ser.in_waiting
-            return ser.read(n) if n > 0 else b""
+            return ser.read(max(n, 1)) if n > 0 or wait else b""
         except (serial.SerialException, OSError) as exc:
             self._lost(exc)
             return b""
@@ -387,12 +374,7 @@ def make_endpoint(settings: DeviceSettings) -> PtyEndpoint | SocketEndpoint:
 def start_in_thread(sim: Any, timeout_s: float = 10.0) -> threading.Thread:
     """Run a simulator (``run()``, a ``ready`` event) in a daemon thread; returns once its endpoint is open
     (``sim.endpoint.url``)."""
-    result: dict = {}
-
-    def target() -> None:
-        result["ledger"] = sim.run()
-
-    th = threading.Thread(target=target, name=f"sphri-{type(sim).__name__}", daemon=True)
+    th = threading.Thread(target=sim.run, name=f"sphri-{type(sim).__name__}", daemon=True)
     th.start()
     if not sim.ready.wait(timeout_s):
         raise TimeoutError(f"{type(sim).__name__} did not open its endpoint within {timeout_s} s")
