@@ -437,11 +437,7 @@ def _closure_arrays(
         uniq_pos = np.zeros((int(vid.max()) + 1, 3))
         uniq_pos[vid] = lv
         return _closures(tri_v, start, count, uniq_pos)
-    close_start = np.full(m, -1, dtype=np.int64)
-    close_count = np.zeros(m, dtype=np.int64)
-    cu = np.zeros((0, 3))
-    cv = np.zeros((0, 3))
-    return close_start, close_count, cu, cv
+    return np.full(m, -1, dtype=np.int64), np.zeros(m, dtype=np.int64), np.zeros((0, 3)), np.zeros((0, 3))
 
 
 def _build(v: np.ndarray, f: np.ndarray, inside: str) -> MeshAccel:

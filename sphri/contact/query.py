@@ -74,22 +74,6 @@ class ContactQuery:
     """(N,) float64 radius - distance outside, radius + distance inside."""
 
 
-def _out_tuple(res: ContactQuery) -> tuple:
-    return (
-        res.distance,
-        res.inside,
-        res.in_contact,
-        res.triangle,
-        res.segment_t,
-        res.point,
-        res.barycentric,
-        res.segment_point,
-        res.normal,
-        res.patch_radius,
-        res.depth,
-    )
-
-
 def _as_points(x, name: str, n: int | None = None) -> np.ndarray:
     a = np.asarray(x)
     if a.ndim != 2 or a.shape[1] != 3:
@@ -155,12 +139,10 @@ class SearchRecord:
 
     def head(self, n: int) -> SearchRecord:
         """Views of the first n rows (buffers are reused across chunks)."""
-        return SearchRecord(self.d2[:n], self.inside[:n], self.tri[:n], self.t[:n], self.q[:n], self.bary[:n])
+        return self.take(slice(n))
 
-    def take(self, rows: np.ndarray) -> SearchRecord:
-        return SearchRecord(
-            self.d2[rows], self.inside[rows], self.tri[rows], self.t[rows], self.q[rows], self.bary[rows]
-        )
+    def take(self, rows: np.ndarray | slice) -> SearchRecord:
+        return SearchRecord(*(a[rows] for a in vars(self).values()))
 
     def in_contact(self, radius: np.ndarray) -> np.ndarray:
         """(n,) bool: distance < radius or inside."""
@@ -214,8 +196,9 @@ def finish(mesh: MeshAccel, p0: np.ndarray, p1: np.ndarray, radius: np.ndarray, 
         depth=np.empty(n),
     )
     if n:
+        # the output arrays go last, in field order: the kernel's order
         _kernels.finish_rows(
-            p0, p1, radius, mesh.tri, mesh.tri_deg, mesh.tri_normal, mesh.tri_id, mesh.shift, *_out_tuple(res)
+            p0, p1, radius, mesh.tri, mesh.tri_deg, mesh.tri_normal, mesh.tri_id, mesh.shift, *vars(res).values()
         )
     return res
 

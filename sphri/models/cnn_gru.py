@@ -264,9 +264,9 @@ def resolve_device(device: str) -> torch.device:
     raise ValueError(f"model.device={device!r} is invalid: allowed values: auto, cpu, cuda, cuda:K")
 
 
-#: Allowed values of ``schedule``: constant lr, or one-cycle (warm-up to ``lr``, cosine down to ~0).
 log = logging.getLogger(__name__)
 
+#: Allowed values of ``schedule``: constant lr, or one-cycle (warm-up to ``lr``, cosine down to ~0).
 SCHEDULES: tuple[str, ...] = ("constant", "onecycle")
 
 #: Warnings already given in this process (the folds of a job share one).

@@ -230,9 +230,14 @@ def _span_a(active: np.ndarray, c: TaxelCoords) -> np.ndarray:
         pos = c.a_m.reshape(h, w).mean(axis=1)
     else:
         occ, pos = active, c.a_m
+    return _extent(occ, pos, c.pitch_a_m)
+
+
+def _extent(occ: np.ndarray, pos: np.ndarray, pitch: float) -> np.ndarray:
+    """(M,) extent of the occupied positions ``pos`` (metres) of each row of ``occ``, ``pitch`` added; 0 if none."""
     hi = np.where(occ, pos[None, :], -np.inf).max(axis=1)
     lo = np.where(occ, pos[None, :], np.inf).min(axis=1)
-    return np.where(occ.any(axis=1), hi - lo + c.pitch_a_m, 0.0)
+    return np.where(occ.any(axis=1), hi - lo + pitch, 0.0)
 
 
 def _span_b(active: np.ndarray, c: TaxelCoords) -> np.ndarray:
@@ -247,11 +252,9 @@ def _span_b(active: np.ndarray, c: TaxelCoords) -> np.ndarray:
         pos = c.b_m.reshape(h, w)[0]
     else:
         occ, pos = active, c.b_m
-    anyocc = occ.any(axis=1)
     if not c.wraps:
-        hi = np.where(occ, pos[None, :], -np.inf).max(axis=1)
-        lo = np.where(occ, pos[None, :], np.inf).min(axis=1)
-        return np.where(anyocc, hi - lo + c.pitch_b_m, 0.0)
+        return _extent(occ, pos, c.pitch_b_m)
+    anyocc = occ.any(axis=1)
     order = np.argsort(pos, kind="stable")
     ps = pos[order]
     occ = occ[:, order]

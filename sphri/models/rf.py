@@ -128,8 +128,7 @@ class RandomForest(ClassifierMixin, BaseEstimator):
     def predict_proba(self, x: np.ndarray) -> np.ndarray:
         """(n, n_classes) class probabilities, columns in ``classes_`` order."""
         check_is_fitted(self, "forest_")
-        feats = self._check_features(self.transform(x))
-        return require_finite(self.forest_.predict_proba(feats), "Random Forest probabilities")
+        return self.predict_proba_features(self.transform(x))
 
     def predict_proba_features(self, feats: np.ndarray) -> np.ndarray:
         """(n, n_classes) class probabilities from precomputed features (n, 32), columns in ``classes_`` order."""

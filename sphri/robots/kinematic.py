@@ -20,7 +20,7 @@ resolution study runs on any of them (``data.regions=[upper_arm_l]``).
 from __future__ import annotations
 
 import logging
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -65,6 +65,26 @@ def rpy_matrix(rpy: Sequence[float]) -> np.ndarray:
     """(3, 3) URDF fixed-axis roll-pitch-yaw rotation: Rz(yaw) Ry(pitch) Rx(roll)."""
     r, p, y = (float(v) for v in rpy)
     return rotation_about("z", y) @ rotation_about("y", p) @ rotation_about("x", r)
+
+
+def joint_motion(kind: str, axis: Sequence[float], q: np.ndarray) -> np.ndarray:
+    """(F, 4, 4) motions of a joint by its values ``q`` (F,): translation along ``axis`` (``prismatic``,
+    metres), rotation about it (``revolute``, ``continuous``; radians), none (other kinds)."""
+    m = np.tile(np.eye(4), (len(q), 1, 1))
+    if kind == "prismatic":
+        m[:, :3, 3] = q[:, None] * np.asarray(axis, dtype=np.float64)[None, :]
+    elif kind in ("revolute", "continuous"):
+        m[:, :3, :3] = axis_rotation(np.asarray(axis), q)
+    return m
+
+
+def mimic_value(name: str, mimic: Mapping[str, tuple[str, float, float]], own: Callable[[str], Any], depth: int = 0):
+    """Joint ``name``'s value: ``own(name)``, or for a joint in ``mimic`` (joint -> (source, multiplier,
+    offset)) its source's value times the multiplier plus the offset (chains followed 16 deep)."""
+    if name in mimic and depth < 16:
+        src, mult, off = mimic[name]
+        return mult * mimic_value(src, mimic, own, depth + 1) + off
+    return own(name)
 
 
 @dataclass(frozen=True)
@@ -180,35 +200,18 @@ class WholeBodyRobot(Robot):
         root[:, :3, :3] = rotation_about("z", base[:, 2])
         root[:, 0, 3], root[:, 1, 3] = base[:, 0], base[:, 1]
         out = np.empty((f, len(tree.links), 4, 4))
-        if tree.steps is not None:
-            mimic = tree.mimic
+        mimic = tree.mimic
 
-            def value(name: str, depth: int = 0) -> np.ndarray:
-                if name in mimic and depth < 16:
-                    src, mult, off = mimic[name]
-                    return mult * value(src, depth + 1) + off
-                return np.broadcast_to(np.asarray(joints.get(name, self.rest.get(name, 0.0)), dtype=np.float64), (f,))
+        def given(name: str) -> np.ndarray:
+            return np.broadcast_to(np.asarray(joints.get(name, self.rest.get(name, 0.0)), dtype=np.float64), (f,))
 
-            for i, _name in enumerate(tree.links):
-                m = (root if tree.parent[i] < 0 else out[:, tree.parent[i]]) @ tree.origin[i]
-                for step in tree.steps[i]:
-                    mot = np.tile(np.eye(4), (f, 1, 1))
-                    q = value(step.name)
-                    if step.kind == "prismatic":
-                        mot[:, :3, 3] = q[:, None] * np.asarray(step.axis, dtype=np.float64)[None, :]
-                    else:
-                        mot[:, :3, :3] = axis_rotation(np.asarray(step.axis), q)
-                    m = m @ mot @ step.after
-                out[:, i] = m
-            return out
         for i, _name in enumerate(tree.links):
             m = (root if tree.parent[i] < 0 else out[:, tree.parent[i]]) @ tree.origin[i]
+            for step in tree.steps[i] if tree.steps is not None else ():
+                m = m @ joint_motion(step.kind, step.axis, mimic_value(step.name, mimic, given)) @ step.after
             for jname, axis in tree.joints[i]:
-                angle = np.broadcast_to(
-                    np.asarray(joints.get(jname, self.rest.get(jname, 0.0)), dtype=np.float64), (f,)
-                )
                 rot = np.tile(np.eye(4), (f, 1, 1))
-                rot[:, :3, :3] = rotation_about(axis, angle)
+                rot[:, :3, :3] = rotation_about(axis, given(jname))
                 m = m @ rot
             out[:, i] = m
         return out
@@ -255,18 +258,10 @@ class KinematicRobot:
         for name, spec in self.specs.items():
             v, f = loft_mesh(**spec["shape"])
             links[name] = make_link(name, v, f, units="m", source=f"kinematic {self.name}")
-        regions = {name: name for name in links}
-        for p in self.parts:
-            regions[p.name] = p.link
-        by_part = {p.name: p.link for p in self.parts}
-        for g, members in self.groups.items():
-            owners = {by_part[m] for m in members}
-            if len(owners) == 1:
-                regions[g] = owners.pop()
         return WholeBodyRobot(
             name=self.name,
             links=links,
-            regions=regions,
+            regions=part_regions(links, self.parts, self.groups),
             tree=self.tree,
             parts=tuple(self.parts),
             groups={k: tuple(v) for k, v in self.groups.items()},
@@ -288,6 +283,22 @@ def build_tree(specs: Mapping[str, dict]) -> JointTree:
         origin=origin,
         joints=tuple(tuple(specs[n]["joints"]) for n in order),
     )
+
+
+def part_regions(
+    links: Mapping[str, Any], parts: Sequence[BodyPart], groups: Mapping[str, Sequence[str]]
+) -> dict[str, str]:
+    """Region name -> link: every link its own, each body part its link, and each group whose parts all lie
+    on one link that link."""
+    regions = {n: n for n in links}
+    for p in parts:
+        regions[p.name] = p.link
+    by_part = {p.name: p.link for p in parts}
+    for g, members in groups.items():
+        owners = {by_part[x] for x in members}
+        if len(owners) == 1:
+            regions[g] = owners.pop()
+    return regions
 
 
 def check_parts(parts: Any, specs: Mapping[str, Any]) -> list[BodyPart]:

@@ -45,23 +45,25 @@ BUILTIN: dict[str, Path] = {"reachy2": Path(__file__).with_name("data") / "reach
 SIDES: tuple[str, ...] = ("+x", "-x", "+y", "-y", "+z", "-z")
 
 
-def _get(spec: Any, key: str) -> Any:
-    return spec[key] if isinstance(spec, Mapping) or hasattr(spec, "keys") else getattr(spec, key)
+def _opt(spec: Any, key: str, default: Any = None) -> Any:
+    if isinstance(spec, Mapping) or hasattr(spec, "keys"):
+        return spec[key] if key in spec else default
+    return getattr(spec, key, default)
 
 
 def check_parametric_link(spec: Any, key: str) -> None:
     """Range-check one parametric link (mapping or :class:`ParametricLinkSpec`); ``key`` e.g. ``robot.links.l_arm``."""
-    size = list(_get(spec, "size_m"))
+    size = list(_opt(spec, "size_m"))
     require(
         len(size) == 3 and all(s > 0 for s in size), f"{key}.size_m", size, "3 extents (x, y, z) in metres, all > 0"
     )
-    centre = list(_get(spec, "center_m"))
+    centre = list(_opt(spec, "center_m"))
     require(len(centre) == 3, f"{key}.center_m", centre, "3 coordinates (x, y, z) in metres")
-    require_choice(f"{key}.axis", _get(spec, "axis"), AXES)
-    require_range(f"{key}.exponent", float(_get(spec, "exponent")), lo=1.0)
-    n = int(_get(spec, "n_around"))
+    require_choice(f"{key}.axis", _opt(spec, "axis"), AXES)
+    require_range(f"{key}.exponent", float(_opt(spec, "exponent")), lo=1.0)
+    n = int(_opt(spec, "n_around"))
     require(n >= 8 and n % 4 == 0, f"{key}.n_around", n, "a multiple of 4, >= 8 (vertices per cross-section ring)")
-    prof = [list(row) for row in _get(spec, "profile")]
+    prof = [list(row) for row in _opt(spec, "profile")]
     require(len(prof) >= 2, f"{key}.profile", prof, "at least 2 stations [t, scale_a, scale_b]")
     for i, row in enumerate(prof):
         require(len(row) == 3, f"{key}.profile[{i}]", row, "[t, scale_a, scale_b]: 3 numbers")
@@ -356,12 +358,6 @@ def check_merge(merge: Any, links: list[str]) -> dict[str, list[str]]:
 store(group="robot", name="parametric_schema", node=ParametricRobotSchema)
 store(group="robot", name="mesh_schema", node=MeshRobotSchema)
 store(group="robot", name="urdf_schema", node=UrdfRobotSchema)
-
-
-def _opt(spec: Any, key: str, default: Any = None) -> Any:
-    if isinstance(spec, Mapping) or hasattr(spec, "keys"):
-        return spec[key] if key in spec else default
-    return getattr(spec, key, default)
 
 
 def check_tree_link(spec: Any, key: str) -> dict[str, Any]:

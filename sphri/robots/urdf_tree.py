@@ -52,7 +52,16 @@ import trimesh
 import yaml
 
 from sphri.config import ConfigError, require_choice
-from sphri.robots.kinematic import JointStep, JointTree, WholeBodyRobot, axis_rotation, check_parts, rpy_matrix
+from sphri.robots.kinematic import (
+    JointStep,
+    JointTree,
+    WholeBodyRobot,
+    check_parts,
+    joint_motion,
+    mimic_value,
+    part_regions,
+    rpy_matrix,
+)
 from sphri.robots.schema import check_groups, check_link_names
 from sphri.robots.validate import MeshError, make_link, read_mesh
 from sphri.types import Link
@@ -487,15 +496,6 @@ def link_geometry(
     return None, "", ["a frame without geometry (dummy, camera or tip frame)"]
 
 
-def _motion(j: UrdfJoint, q: float) -> np.ndarray:
-    m = np.eye(4)
-    if j.kind == "prismatic":
-        m[:3, 3] = q * np.asarray(j.axis, dtype=np.float64)
-    elif j.kind in ("revolute", "continuous"):
-        m[:3, :3] = axis_rotation(np.asarray(j.axis), np.asarray(q))
-    return m
-
-
 def load_parts_spec(parts: Any) -> dict[str, Any]:
     """``robot.parts`` (a mapping of parts, or a YAML file with parts / groups / rest / exclude / merge) as a dict."""
     if isinstance(parts, (str, Path)):
@@ -540,22 +540,6 @@ def _validated_link(model: UrdfModel, n: str, built: _Surfaces) -> Link:
             notes=tuple(built.notes[n]) + tuple(rep.notes),
         )
     return make_link(n, mesh.vertices, mesh.faces, units="m", source=f"{model.path.name} {n}", notes=built.notes[n])
-
-
-def _regions(
-    links: Mapping[str, Link], part_list: Sequence[Any], groups: Mapping[str, Sequence[str]]
-) -> dict[str, str]:
-    """Region name -> link: every link its own, each body part its link, and each group whose parts all lie
-    on one link that link."""
-    regions = {n: n for n in links}
-    for p in part_list:
-        regions[p.name] = p.link
-    by_part = {p.name: p.link for p in part_list}
-    for g, members in groups.items():
-        owners = {by_part[x] for x in members}
-        if len(owners) == 1:
-            regions[g] = owners.pop()
-    return regions
 
 
 class UrdfWholeBody:
@@ -623,7 +607,7 @@ class UrdfWholeBody:
         return WholeBodyRobot(
             name=self.name,
             links=links,
-            regions=_regions(links, part_list, groups),
+            regions=part_regions(links, part_list, groups),
             tree=tree,
             parts=tuple(part_list),
             groups={k: tuple(v) for k, v in groups.items()},
@@ -663,14 +647,6 @@ class UrdfWholeBody:
             built.notes[n] = [f"geometry: {what}"] + nn
         return built
 
-    def _rest_value(self, mimic: Mapping[str, tuple[str, float, float]], name: str, depth: int = 0) -> float:
-        """Joint ``name``'s rest value (rad or m): ``robot.rest``'s (0 by default), or, for a joint in
-        ``mimic`` (joint -> (source, multiplier, offset)), its source's times the multiplier plus the offset."""
-        if name in mimic and depth < 16:
-            src, mult, off = mimic[name]
-            return mult * self._rest_value(mimic, src, depth + 1) + off
-        return self.rest.get(name, 0.0)
-
     def _merge_at_rest(self, model: UrdfModel, merged_into: Mapping[str, str], built: _Surfaces) -> None:
         """Move each merged link's mesh (``merged_into``: link -> target) into its target's, placed at the rest
         pose; the merged link is then skipped, named."""
@@ -683,7 +659,8 @@ class UrdfWholeBody:
                 raise ConfigError(f"robot.merge.{target}: {target!r} has no loadable geometry to merge into")
             tf = np.eye(4)
             for j in model.path_from(target, child):
-                tf = tf @ j.origin @ _motion(j, self._rest_value(mimic, j.name))
+                q = np.array([mimic_value(j.name, mimic, lambda n: self.rest.get(n, 0.0))])
+                tf = tf @ j.origin @ joint_motion(j.kind, j.axis, q)[0]
             mesh = geom.pop(child).copy()
             mesh.apply_transform(tf)
             # trimesh annotates concatenate as returning a Geometry; meshes concatenate to a Trimesh

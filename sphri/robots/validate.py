@@ -72,10 +72,7 @@ def edge_defects(faces: np.ndarray) -> tuple[int, int]:
 
 def is_closed(faces: np.ndarray) -> bool:
     """True when every edge is shared by exactly two faces."""
-    if len(faces) == 0:
-        return False
-    _, counts = np.unique(_edges_sorted(faces), axis=0, return_counts=True)
-    return bool((counts == 2).all())
+    return len(faces) > 0 and edge_defects(faces) == (0, 0)
 
 
 def signed_volume(vertices: np.ndarray, faces: np.ndarray) -> float:

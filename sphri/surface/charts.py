@@ -54,34 +54,59 @@ def _cyl_local(surface: SurfaceMap, p: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return d @ pr["axis"], d @ pr["ref"], d @ pr["binormal"]
 
 
-def _cyl_to_uv(surface: SurfaceMap, p: np.ndarray) -> np.ndarray:
-    pr = surface.params
-    t, x, y = _cyl_local(surface, p)
-    length = pr["u_max"] - pr["u_min"]
-    u = np.clip((t - pr["u_min"]) / length, 0.0, 1.0)
-    v = np.mod(np.arctan2(y, x) / TWO_PI, 1.0)
-    v[v >= 1.0] = 0.0
-    return np.stack([u, v], axis=1)
+class CylinderChart:
+    """``surface=cylinder``: u along the axis (the paper's h), v the angle around it (a), wrapping."""
 
+    every_cell_valid: ClassVar[bool] = True
 
-def _cyl_jacobian(surface: SurfaceMap, p: np.ndarray) -> np.ndarray:
-    pr = surface.params
-    _, x, y = _cyl_local(surface, p)
-    length = pr["u_max"] - pr["u_min"]
-    rho2 = np.maximum(x * x + y * y, (1e-3 * pr["radius"]) ** 2)
-    j = np.empty((p.shape[0], 2, 3))
-    j[:, 0, :] = pr["axis"] / length
-    j[:, 1, :] = (x[:, None] * pr["binormal"] - y[:, None] * pr["ref"]) / (TWO_PI * rho2[:, None])
-    return j
+    def to_uv(self, surface: SurfaceMap, p: np.ndarray) -> np.ndarray:
+        pr = surface.params
+        t, x, y = _cyl_local(surface, p)
+        length = pr["u_max"] - pr["u_min"]
+        u = np.clip((t - pr["u_min"]) / length, 0.0, 1.0)
+        v = np.mod(np.arctan2(y, x) / TWO_PI, 1.0)
+        v[v >= 1.0] = 0.0
+        return np.stack([u, v], axis=1)
 
+    def jacobian(self, surface: SurfaceMap, p: np.ndarray) -> np.ndarray:
+        pr = surface.params
+        _, x, y = _cyl_local(surface, p)
+        length = pr["u_max"] - pr["u_min"]
+        rho2 = np.maximum(x * x + y * y, (1e-3 * pr["radius"]) ** 2)
+        j = np.empty((p.shape[0], 2, 3))
+        j[:, 0, :] = pr["axis"] / length
+        j[:, 1, :] = (x[:, None] * pr["binormal"] - y[:, None] * pr["ref"]) / (TWO_PI * rho2[:, None])
+        return j
 
-def _cyl_from_uv(surface: SurfaceMap, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    pr = surface.params
-    t = pr["u_min"] + uv[:, 0] * (pr["u_max"] - pr["u_min"])
-    a = TWO_PI * uv[:, 1]
-    radial = np.cos(a)[:, None] * pr["ref"] + np.sin(a)[:, None] * pr["binormal"]
-    pts = pr["origin"] + t[:, None] * pr["axis"] + pr["radius"] * radial
-    return pts, radial, np.ones(uv.shape[0], dtype=bool)
+    def from_uv(self, surface: SurfaceMap, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        pr = surface.params
+        t = pr["u_min"] + uv[:, 0] * (pr["u_max"] - pr["u_min"])
+        a = TWO_PI * uv[:, 1]
+        radial = np.cos(a)[:, None] * pr["ref"] + np.sin(a)[:, None] * pr["binormal"]
+        pts = pr["origin"] + t[:, None] * pr["axis"] + pr["radius"] * radial
+        return pts, radial, np.ones(uv.shape[0], dtype=bool)
+
+    def primitive_distance(self, surface, p):
+        """Distance to the closed finite cylinder (lateral surface and the two end discs)."""
+        pr = surface.params
+        t, x, y = _cyl_local(surface, p)
+        rho = np.hypot(x, y)
+        r = pr["radius"]
+        lo, hi = pr["u_min"], pr["u_max"]
+        dt_out = np.maximum(np.maximum(lo - t, t - hi), 0.0)
+        inside_slab = dt_out == 0
+        return np.where(
+            inside_slab,
+            np.where(rho <= r, np.minimum(r - rho, np.minimum(t - lo, hi - t)), rho - r),
+            np.where(rho <= r, dt_out, np.hypot(dt_out, rho - r)),
+        )
+
+    def long_axis_length_m(self, surface):
+        return float(surface.metres_per_u)
+
+    def describe_uv(self, u, v, around):
+        angle = "all around" if around else f"a {360 * v[0]:.0f}-{360 * v[1]:.0f} deg"
+        return f"h {u[0]:.2f}-{u[1]:.2f}, {angle}"
 
 
 # --------------------------------------------------------------------------- box
@@ -106,76 +131,95 @@ def box_face(surface: SurfaceMap, points: np.ndarray) -> np.ndarray:
     return (2 * axis + neg).astype(np.int64)
 
 
-def _box_to_uv(surface: SurfaceMap, p: np.ndarray) -> np.ndarray:
-    pr = surface.params
-    e0, e1, e2 = pr["extents"]
-    big_u, per = pr["U"], pr["P"]
-    q = (p - pr["centre"]) @ pr["rotation"].T
-    face = box_face(surface, p)
-    x = np.clip(q[:, 0], -e0 / 2, e0 / 2)
-    y = np.clip(q[:, 1], -e1 / 2, e1 / 2)
-    z = np.clip(q[:, 2], -e2 / 2, e2 / 2)
-    um = e2 + x + e0 / 2
-    s = np.empty_like(um)
-    f = face
-    s[f == 2] = (z + e2 / 2)[f == 2]
-    s[f == 4] = (e2 + e1 / 2 - y)[f == 4]
-    s[f == 3] = (e2 + e1 + e2 / 2 - z)[f == 3]
-    s[f == 5] = (2 * e2 + e1 + y + e1 / 2)[f == 5]
-    cap = (f == 0) | (f == 1)
-    s[cap] = (e2 + e1 / 2 - y)[cap]
-    um[f == 0] = (e2 + e0 + e2 / 2 - z)[f == 0]
-    um[f == 1] = (z + e2 / 2)[f == 1]
-    u = np.clip(um / big_u, 0.0, 1.0)
-    v = np.mod(s / per, 1.0)
-    v[v >= 1.0] = 0.0
-    return np.stack([u, v], axis=1)
+class BoxChart:
+    """``surface=box``: the oriented box unfolded into a net (a band around the long axis and two caps)."""
 
+    every_cell_valid: ClassVar[bool] = False
 
-def _box_jacobian(surface: SurfaceMap, p: np.ndarray) -> np.ndarray:
-    pr = surface.params
-    face = box_face(surface, p)
-    rot = pr["rotation"]
-    j = np.empty((p.shape[0], 2, 3))
-    j[:, 0, :] = (_BOX_DU[face] / pr["U"]) @ rot
-    j[:, 1, :] = (_BOX_DV[face] / pr["P"]) @ rot
-    return j
+    def to_uv(self, surface: SurfaceMap, p: np.ndarray) -> np.ndarray:
+        pr = surface.params
+        e0, e1, e2 = pr["extents"]
+        big_u, per = pr["U"], pr["P"]
+        q = (p - pr["centre"]) @ pr["rotation"].T
+        face = box_face(surface, p)
+        x = np.clip(q[:, 0], -e0 / 2, e0 / 2)
+        y = np.clip(q[:, 1], -e1 / 2, e1 / 2)
+        z = np.clip(q[:, 2], -e2 / 2, e2 / 2)
+        um = e2 + x + e0 / 2
+        s = np.empty_like(um)
+        f = face
+        s[f == 2] = (z + e2 / 2)[f == 2]
+        s[f == 4] = (e2 + e1 / 2 - y)[f == 4]
+        s[f == 3] = (e2 + e1 + e2 / 2 - z)[f == 3]
+        s[f == 5] = (2 * e2 + e1 + y + e1 / 2)[f == 5]
+        cap = (f == 0) | (f == 1)
+        s[cap] = (e2 + e1 / 2 - y)[cap]
+        um[f == 0] = (e2 + e0 + e2 / 2 - z)[f == 0]
+        um[f == 1] = (z + e2 / 2)[f == 1]
+        u = np.clip(um / big_u, 0.0, 1.0)
+        v = np.mod(s / per, 1.0)
+        v[v >= 1.0] = 0.0
+        return np.stack([u, v], axis=1)
 
+    def jacobian(self, surface: SurfaceMap, p: np.ndarray) -> np.ndarray:
+        pr = surface.params
+        face = box_face(surface, p)
+        rot = pr["rotation"]
+        j = np.empty((p.shape[0], 2, 3))
+        j[:, 0, :] = (_BOX_DU[face] / pr["U"]) @ rot
+        j[:, 1, :] = (_BOX_DV[face] / pr["P"]) @ rot
+        return j
 
-def _box_from_uv(surface: SurfaceMap, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    pr = surface.params
-    e0, e1, e2 = pr["extents"]
-    um = uv[:, 0] * pr["U"]
-    s = np.mod(uv[:, 1], 1.0) * pr["P"]
-    k = uv.shape[0]
-    q = np.zeros((k, 3))
-    nl = np.zeros((k, 3))
-    band = (um >= e2) & (um <= e2 + e0)
-    q[:, 0] = um - e2 - e0 / 2
-    # band faces by perimeter position
-    f2 = band & (s < e2)
-    f4 = band & (s >= e2) & (s < e2 + e1)
-    f3 = band & (s >= e2 + e1) & (s < 2 * e2 + e1)
-    f5 = band & (s >= 2 * e2 + e1)
-    q[f2, 1], q[f2, 2], nl[f2, 1] = e1 / 2, s[f2] - e2 / 2, 1
-    q[f4, 1], q[f4, 2], nl[f4, 2] = e2 + e1 / 2 - s[f4], e2 / 2, 1
-    q[f3, 1], q[f3, 2], nl[f3, 1] = -e1 / 2, e2 + e1 + e2 / 2 - s[f3], -1
-    q[f5, 1], q[f5, 2], nl[f5, 2] = s[f5] - 2 * e2 - e1 - e1 / 2, -e2 / 2, -1
-    # caps (void net cells are clamped onto the nearest cap edge and flagged)
-    cap = ~band
-    in_cap = cap & (s >= e2) & (s <= e2 + e1)
-    sc = np.clip(s, e2, e2 + e1)
-    top = cap & (um > e2 + e0)
-    bot = cap & (um < e2)
-    q[cap, 1] = e2 + e1 / 2 - sc[cap]
-    q[top, 0], q[top, 2], nl[top, 0] = e0 / 2, e2 / 2 - (um[top] - e2 - e0), 1
-    q[bot, 0], q[bot, 2], nl[bot, 0] = -e0 / 2, um[bot] - e2 / 2, -1
-    q[:, 2] = np.clip(q[:, 2], -e2 / 2, e2 / 2)
-    rot = pr["rotation"]
-    pts = pr["centre"] + q @ rot
-    normals = nl @ rot
-    valid = band | in_cap
-    return pts, normals, valid
+    def from_uv(self, surface: SurfaceMap, uv: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        pr = surface.params
+        e0, e1, e2 = pr["extents"]
+        um = uv[:, 0] * pr["U"]
+        s = np.mod(uv[:, 1], 1.0) * pr["P"]
+        k = uv.shape[0]
+        q = np.zeros((k, 3))
+        nl = np.zeros((k, 3))
+        band = (um >= e2) & (um <= e2 + e0)
+        q[:, 0] = um - e2 - e0 / 2
+        # band faces by perimeter position
+        f2 = band & (s < e2)
+        f4 = band & (s >= e2) & (s < e2 + e1)
+        f3 = band & (s >= e2 + e1) & (s < 2 * e2 + e1)
+        f5 = band & (s >= 2 * e2 + e1)
+        q[f2, 1], q[f2, 2], nl[f2, 1] = e1 / 2, s[f2] - e2 / 2, 1
+        q[f4, 1], q[f4, 2], nl[f4, 2] = e2 + e1 / 2 - s[f4], e2 / 2, 1
+        q[f3, 1], q[f3, 2], nl[f3, 1] = -e1 / 2, e2 + e1 + e2 / 2 - s[f3], -1
+        q[f5, 1], q[f5, 2], nl[f5, 2] = s[f5] - 2 * e2 - e1 - e1 / 2, -e2 / 2, -1
+        # caps (void net cells are clamped onto the nearest cap edge and flagged)
+        cap = ~band
+        in_cap = cap & (s >= e2) & (s <= e2 + e1)
+        sc = np.clip(s, e2, e2 + e1)
+        top = cap & (um > e2 + e0)
+        bot = cap & (um < e2)
+        q[cap, 1] = e2 + e1 / 2 - sc[cap]
+        q[top, 0], q[top, 2], nl[top, 0] = e0 / 2, e2 / 2 - (um[top] - e2 - e0), 1
+        q[bot, 0], q[bot, 2], nl[bot, 0] = -e0 / 2, um[bot] - e2 / 2, -1
+        q[:, 2] = np.clip(q[:, 2], -e2 / 2, e2 / 2)
+        rot = pr["rotation"]
+        pts = pr["centre"] + q @ rot
+        normals = nl @ rot
+        valid = band | in_cap
+        return pts, normals, valid
+
+    def primitive_distance(self, surface, p):
+        """Distance to the box's surface."""
+        pr = surface.params
+        q = (p - pr["centre"]) @ pr["rotation"].T
+        h = 0.5 * pr["extents"]
+        over = np.abs(q) - h
+        outside = np.linalg.norm(np.maximum(over, 0.0), axis=1)
+        inside = np.minimum(np.max(over, axis=1), 0.0)
+        return np.where(outside > 0, outside, -inside)
+
+    def long_axis_length_m(self, surface):
+        return float(surface.params["extents"][0])
+
+    def describe_uv(self, u, v, around):
+        return f"u {u[0]:.2f}-{u[1]:.2f}, " + ("v all around" if around else f"v {v[0]:.2f}-{v[1]:.2f}")
 
 
 # --------------------------------------------------------------------------- charts
@@ -222,74 +266,6 @@ def chart_of(surface: SurfaceMap | str) -> Chart:
             f"surface kind {kind!r} has no registered chart; known: {sorted(_CHARTS)} "
             "(register one with sphri.surface.charts.register_chart)"
         ) from None
-
-
-class CylinderChart:
-    """``surface=cylinder``: u along the axis (the paper's h), v the angle around it (a), wrapping."""
-
-    every_cell_valid: ClassVar[bool] = True
-
-    def to_uv(self, surface, p):
-        return _cyl_to_uv(surface, p)
-
-    def jacobian(self, surface, p):
-        return _cyl_jacobian(surface, p)
-
-    def from_uv(self, surface, uv):
-        return _cyl_from_uv(surface, uv)
-
-    def primitive_distance(self, surface, p):
-        """Distance to the closed finite cylinder (lateral surface and the two end discs)."""
-        pr = surface.params
-        t, x, y = _cyl_local(surface, p)
-        rho = np.hypot(x, y)
-        r = pr["radius"]
-        lo, hi = pr["u_min"], pr["u_max"]
-        dt_out = np.maximum(np.maximum(lo - t, t - hi), 0.0)
-        inside_slab = dt_out == 0
-        return np.where(
-            inside_slab,
-            np.where(rho <= r, np.minimum(r - rho, np.minimum(t - lo, hi - t)), rho - r),
-            np.where(rho <= r, dt_out, np.hypot(dt_out, rho - r)),
-        )
-
-    def long_axis_length_m(self, surface):
-        return float(surface.metres_per_u)
-
-    def describe_uv(self, u, v, around):
-        angle = "all around" if around else f"a {360 * v[0]:.0f}-{360 * v[1]:.0f} deg"
-        return f"h {u[0]:.2f}-{u[1]:.2f}, {angle}"
-
-
-class BoxChart:
-    """``surface=box``: the oriented box unfolded into a net (a band around the long axis and two caps)."""
-
-    every_cell_valid: ClassVar[bool] = False
-
-    def to_uv(self, surface, p):
-        return _box_to_uv(surface, p)
-
-    def jacobian(self, surface, p):
-        return _box_jacobian(surface, p)
-
-    def from_uv(self, surface, uv):
-        return _box_from_uv(surface, uv)
-
-    def primitive_distance(self, surface, p):
-        """Distance to the box's surface."""
-        pr = surface.params
-        q = (p - pr["centre"]) @ pr["rotation"].T
-        h = 0.5 * pr["extents"]
-        over = np.abs(q) - h
-        outside = np.linalg.norm(np.maximum(over, 0.0), axis=1)
-        inside = np.minimum(np.max(over, axis=1), 0.0)
-        return np.where(outside > 0, outside, -inside)
-
-    def long_axis_length_m(self, surface):
-        return float(surface.params["extents"][0])
-
-    def describe_uv(self, u, v, around):
-        return f"u {u[0]:.2f}-{u[1]:.2f}, " + ("v all around" if around else f"v {v[0]:.2f}-{v[1]:.2f}")
 
 
 class MeshChart:
