@@ -342,13 +342,7 @@ def geometry_of(link: Link) -> LinkGeometry:
 
 
 def check_link(link: Link) -> None:
-    """Raise ``ValueError`` naming the link when its mesh is unusable."""
-    v = np.asarray(link.vertices)
-    f = np.asarray(link.faces)
-    if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 3:
-        raise ValueError(f"link {link.name!r}: vertices must be (V>=3, 3), got {v.shape}")
-    if f.ndim != 2 or f.shape[1] != 3 or f.shape[0] < 1:
-        raise ValueError(f"link {link.name!r}: faces must be (F>=1, 3), got {f.shape}")
+    """Raise ``ValueError`` naming the link when its mesh is unusable (:meth:`LinkGeometry.check`)."""
     geometry_of(link).check()
 
 
