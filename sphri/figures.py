@@ -151,11 +151,7 @@ def mark(fig, provenance: Provenance | None) -> None:
     """Draw the provenance marks in the figure's top-right corner (inside the canvas); None draws none."""
     if provenance is None or not provenance.visible:
         return
-    parts = []
-    if provenance.synthetic:
-        parts.append(SYNTHETIC_TEXT)
-    if provenance.ids:
-        parts.append(provenance.ids)
+    parts = [p for p in (SYNTHETIC_TEXT if provenance.synthetic else "", provenance.ids) if p]
     if parts:
         fig.text(
             0.995,

@@ -103,12 +103,11 @@ def _cap_threads(est: Any, threads: int) -> None:
     if not hasattr(est, "get_params") or not hasattr(est, "set_params"):
         return
     params = est.get_params(deep=False)
-    updates = {}
-    for key in ("n_jobs", "threads"):
-        if key in params:
-            v = params[key]
-            if v is None or not isinstance(v, (int, np.integer)) or v <= 0 or v > threads:
-                updates[key] = threads
+    updates = {  # None, -1 (all cores) or more than ``threads``: capped
+        key: threads
+        for key in ("n_jobs", "threads")
+        if key in params and not (isinstance(params[key], (int, np.integer)) and 0 < params[key] <= threads)
+    }
     if updates:
         est.set_params(**updates)
 
