@@ -118,11 +118,6 @@ class LinkGeometry:
         self._derived = _Lru()
         self._checked = False
 
-    @classmethod
-    def of(cls, link: Link) -> LinkGeometry:
-        """The (shared, cached) geometry of ``link``: :func:`geometry_of`."""
-        return geometry_of(link)
-
     # ------------------------------------------------------------------ per face
 
     @cached_property

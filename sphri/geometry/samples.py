@@ -111,13 +111,6 @@ class SurfaceSamples:
         w /= w.sum(axis=1, keepdims=True)
         return idx, w
 
-    def interpolate(
-        self, values: np.ndarray, points: np.ndarray, normals: np.ndarray | None = None, k: int = 6
-    ) -> np.ndarray:
-        """Values (..., P) at the samples -> (..., K) at (K, 3) points (see :meth:`interpolation`)."""
-        idx, w = self.interpolation(points, normals, k)
-        return np.einsum("...kj,kj->...k", np.asarray(values, dtype=np.float64)[..., idx], w)
-
     def neighbours(self, radius_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Same-facing sample pairs within ``radius_m`` as CSR ``(indptr (P+1,), neighbour, distance)``, each row
         sorted by distance (built once per radius)."""
