@@ -278,13 +278,13 @@ def _component_weight_grid(
     return out
 
 
-def _component_weight_graph(active: np.ndarray, tw: np.ndarray, pairs: np.ndarray) -> np.ndarray:
-    """Graph path of :meth:`Adjacency.component_weight` (any layout)."""
+def _graph_components(active: np.ndarray, pairs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Graph path (any layout): the flat indices of the active taxels of (M, N) ``active`` and the connected
+    group of each (groups never span frames; both empty when nothing is active)."""
     m, n_tax = active.shape
-    out = np.zeros((m, n_tax))
     flat = np.flatnonzero(active.ravel())
     if flat.size == 0:
-        return out
+        return flat, flat
     node = np.full(m * n_tax, -1, dtype=np.int64)
     node[flat] = np.arange(flat.size)
     both = active[:, pairs[:, 0]] & active[:, pairs[:, 1]] if pairs.size else np.zeros((m, 0), bool)
@@ -293,27 +293,22 @@ def _component_weight_graph(active: np.ndarray, tw: np.ndarray, pairs: np.ndarra
     dst = node[f * n_tax + pairs[k, 1]]
     g = coo_matrix((np.ones(src.size), (src, dst)), shape=(flat.size, flat.size))
     _, comp = connected_components(g, directed=False)
-    total = np.bincount(comp, weights=tw[flat % n_tax])
-    out.ravel()[flat] = total[comp]
+    return flat, comp
+
+
+def _component_weight_graph(active: np.ndarray, tw: np.ndarray, pairs: np.ndarray) -> np.ndarray:
+    """Graph path of :meth:`Adjacency.component_weight` (any layout)."""
+    out = np.zeros(active.shape)
+    flat, comp = _graph_components(active, pairs)
+    if flat.size:
+        out.ravel()[flat] = np.bincount(comp, weights=tw[flat % active.shape[1]])[comp]
     return out
 
 
 def _largest_component_graph(w: np.ndarray, pairs: np.ndarray) -> np.ndarray:
     """Graph path of :meth:`Adjacency.largest_component` (any layout)."""
-    m, n_tax = w.shape
-    active = w > 0
-    flat = np.flatnonzero(active.ravel())
-    out = np.zeros(m)
-    if flat.size == 0:
-        return out
-    node = np.full(m * n_tax, -1, dtype=np.int64)
-    node[flat] = np.arange(flat.size)
-    both = active[:, pairs[:, 0]] & active[:, pairs[:, 1]]
-    f, k = np.nonzero(both)
-    src = node[f * n_tax + pairs[k, 0]]
-    dst = node[f * n_tax + pairs[k, 1]]
-    g = coo_matrix((np.ones(src.size), (src, dst)), shape=(flat.size, flat.size))
-    _, comp = connected_components(g, directed=False)
-    comp_weight = np.bincount(comp, weights=w.ravel()[flat])
-    np.maximum.at(out, flat // n_tax, comp_weight[comp])
+    out = np.zeros(w.shape[0])
+    flat, comp = _graph_components(w > 0, pairs)
+    if flat.size:
+        np.maximum.at(out, flat // w.shape[1], np.bincount(comp, weights=w.ravel()[flat])[comp])
     return out

@@ -151,11 +151,7 @@ def mark(fig, provenance: Provenance | None) -> None:
     """Draw the provenance marks in the figure's top-right corner (inside the canvas); None draws none."""
     if provenance is None or not provenance.visible:
         return
-    parts = []
-    if provenance.synthetic:
-        parts.append(SYNTHETIC_TEXT)
-    if provenance.ids:
-        parts.append(provenance.ids)
+    parts = [p for p in (SYNTHETIC_TEXT if provenance.synthetic else "", provenance.ids) if p]
     if parts:
         fig.text(
             0.995,
@@ -339,15 +335,12 @@ def _tick_labels(fig) -> tuple[set[int], set[int]]:
     hidden: set[int] = set()
     for ax in fig.findobj(lambda a: hasattr(a, "xaxis") and hasattr(a, "yaxis")):
         for axis in (ax.xaxis, ax.yaxis):
-            if not ax.axison or not ax.get_visible() or not axis.get_visible():  # axes drawn without ticks
-                for tick in axis.get_major_ticks() + axis.get_minor_ticks():
-                    hidden.update((id(tick.label1), id(tick.label2)))
-                continue
+            shown = ax.axison and ax.get_visible() and axis.get_visible()  # else the axes are drawn without ticks
             lo, hi = sorted(axis.get_view_interval())
             span = (hi - lo) * 1e-9
             for tick in axis.get_major_ticks() + axis.get_minor_ticks():
                 loc = tick.get_loc()
-                inside = loc is not None and lo - span <= loc <= hi + span
+                inside = shown and loc is not None and lo - span <= loc <= hi + span
                 (drawn if inside else hidden).update((id(tick.label1), id(tick.label2)))
     return drawn, hidden
 

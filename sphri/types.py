@@ -418,14 +418,12 @@ class CVResult:
                 raise ValueError(f"{where}: macro_f1 {f.macro_f1!r} outside [0, 1]")
 
     def summary(self) -> dict[str, float]:
-        acc = np.array([f.accuracy for f in self.folds], dtype=float)
-        f1 = np.array([f.macro_f1 for f in self.folds], dtype=float)
-        return {
-            "accuracy_mean": float(acc.mean()),
-            "accuracy_std": float(acc.std(ddof=1)) if acc.size > 1 else 0.0,
-            "macro_f1_mean": float(f1.mean()),
-            "macro_f1_std": float(f1.std(ddof=1)) if f1.size > 1 else 0.0,
-        }
+        out = {}
+        for key in ("accuracy", "macro_f1"):
+            v = np.array([getattr(f, key) for f in self.folds], dtype=float)
+            out[f"{key}_mean"] = float(v.mean())
+            out[f"{key}_std"] = float(v.std(ddof=1)) if v.size > 1 else 0.0
+        return out
 
 
 @dataclass

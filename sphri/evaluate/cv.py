@@ -103,12 +103,11 @@ def _cap_threads(est: Any, threads: int) -> None:
     if not hasattr(est, "get_params") or not hasattr(est, "set_params"):
         return
     params = est.get_params(deep=False)
-    updates = {}
-    for key in ("n_jobs", "threads"):
-        if key in params:
-            v = params[key]
-            if v is None or not isinstance(v, (int, np.integer)) or v <= 0 or v > threads:
-                updates[key] = threads
+    updates = {  # None, -1 (all cores) or more than ``threads``: capped
+        key: threads
+        for key in ("n_jobs", "threads")
+        if key in params and not (isinstance(params[key], (int, np.integer)) and 0 < params[key] <= threads)
+    }
     if updates:
         est.set_params(**updates)
 
@@ -183,17 +182,14 @@ def run_fold(
     return res, timing
 
 
-def _usable(record: FoldRecord | None, fold: Fold, y: np.ndarray) -> bool:
+def _usable(record: FoldRecord, fold: Fold, y: np.ndarray) -> bool:
     """A kept record belongs to this fold: same name, as many test trials, the same true labels."""
-    if record is None:
-        return False
     r = record.result
+    cm = np.asarray(r.confusion)
     ok = (
         r.fold == fold.name
         and r.n_test == fold.test.size
-        and np.array_equal(
-            np.asarray(r.confusion).sum(axis=1), np.bincount(y[fold.test], minlength=np.asarray(r.confusion).shape[0])
-        )
+        and np.array_equal(cm.sum(axis=1), np.bincount(y[fold.test], minlength=cm.shape[0]))
     )
     if not ok:
         log.warning(
@@ -343,16 +339,15 @@ class _Jobs:
 
     def computed(self, workers: int, ray_run: RayFolds | None) -> Iterator[tuple[FoldResult, dict[str, float]]]:
         """(result, timing) of each fold of ``todo`` in order: Ray tasks, this process, or ``workers`` processes."""
-        make_model, x, y, groups, todo = self.make_model, self.x, self.y, self.groups, self.todo
-        threads, featurized, resume = self.threads, self.featurized, self.resume
+        data, run = (self.make_model, self.x, self.y, self.groups), (self.threads, self.featurized, self.resume)
         if ray_run is not None:
-            return ray_run.submit(make_model, x, y, groups, todo, threads, featurized, resume)
+            return ray_run.submit(*data, self.todo, *run)
         if workers == 1:
-            return (run_fold(make_model, x, y, groups, f, threads, featurized, resume) for f in todo)
+            return (run_fold(*data, f, *run) for f in self.todo)
         from joblib import Parallel, delayed
 
         return Parallel(n_jobs=workers, backend="loky", return_as="generator")(
-            delayed(run_fold)(make_model, x, y, groups, f, threads, featurized, resume) for f in todo
+            delayed(run_fold)(*data, f, *run) for f in self.todo
         )
 
 

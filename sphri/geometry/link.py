@@ -118,11 +118,6 @@ class LinkGeometry:
         self._derived = _Lru()
         self._checked = False
 
-    @classmethod
-    def of(cls, link: Link) -> LinkGeometry:
-        """The (shared, cached) geometry of ``link``: :func:`geometry_of`."""
-        return geometry_of(link)
-
     # ------------------------------------------------------------------ per face
 
     @cached_property
@@ -342,13 +337,7 @@ def geometry_of(link: Link) -> LinkGeometry:
 
 
 def check_link(link: Link) -> None:
-    """Raise ``ValueError`` naming the link when its mesh is unusable."""
-    v = np.asarray(link.vertices)
-    f = np.asarray(link.faces)
-    if v.ndim != 2 or v.shape[1] != 3 or v.shape[0] < 3:
-        raise ValueError(f"link {link.name!r}: vertices must be (V>=3, 3), got {v.shape}")
-    if f.ndim != 2 or f.shape[1] != 3 or f.shape[0] < 1:
-        raise ValueError(f"link {link.name!r}: faces must be (F>=1, 3), got {f.shape}")
+    """Raise ``ValueError`` naming the link when its mesh is unusable (:meth:`LinkGeometry.check`)."""
     geometry_of(link).check()
 
 

@@ -111,13 +111,6 @@ class SurfaceSamples:
         w /= w.sum(axis=1, keepdims=True)
         return idx, w
 
-    def interpolate(
-        self, values: np.ndarray, points: np.ndarray, normals: np.ndarray | None = None, k: int = 6
-    ) -> np.ndarray:
-        """Values (..., P) at the samples -> (..., K) at (K, 3) points (see :meth:`interpolation`)."""
-        idx, w = self.interpolation(points, normals, k)
-        return np.einsum("...kj,kj->...k", np.asarray(values, dtype=np.float64)[..., idx], w)
-
     def neighbours(self, radius_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Same-facing sample pairs within ``radius_m`` as CSR ``(indptr (P+1,), neighbour, distance)``, each row
         sorted by distance (built once per radius)."""
@@ -132,12 +125,10 @@ class SurfaceSamples:
 def neighbour_csr(s: SurfaceSamples, radius_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Same-facing sample pairs within ``radius_m``, CSR sorted by distance per row (see
     :meth:`SurfaceSamples.neighbours`, which keeps it)."""
-    pairs = s.tree.query_pairs(radius_m, output_type="ndarray")
-    if pairs.size:
-        same = np.einsum("kc,kc->k", s.normal[pairs[:, 0]], s.normal[pairs[:, 1]]) > 0
-        pairs = pairs[same]
-    i = np.concatenate([pairs[:, 0], pairs[:, 1]]) if pairs.size else np.zeros(0, np.int64)
-    j = np.concatenate([pairs[:, 1], pairs[:, 0]]) if pairs.size else np.zeros(0, np.int64)
+    pairs = s.tree.query_pairs(radius_m, output_type="ndarray")  # (E, 2) int64, (0, 2) when none
+    pairs = pairs[np.einsum("kc,kc->k", s.normal[pairs[:, 0]], s.normal[pairs[:, 1]]) > 0]
+    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
     d = np.linalg.norm(s.points_m[i] - s.points_m[j], axis=1)
     order = np.lexsort((d, i))
     i, j, d = i[order], j[order], d[order]
@@ -195,9 +186,6 @@ def build_samples(geom: LinkGeometry, spacing_mm: float, seed: int, max_samples:
 def sample_link(link: Link, spacing_mm: float = 4.0, seed: int = 0, max_samples: int = 80_000) -> SurfaceSamples:
     """Area-weighted samples about ``spacing_mm`` apart, with their cells' areas (kept on the link's geometry:
     a second call with the same arguments returns the same object)."""
-    from sphri.geometry.link import check_link
-
-    check_link(link)
     if not spacing_mm > 0:
         raise ValueError(f"spacing_mm={spacing_mm} is invalid: must be > 0")
     geom = geometry_of(link)

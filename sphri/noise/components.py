@@ -116,7 +116,7 @@ def _like(frames: Frames, values: np.ndarray) -> Frames:
 def _salt_pepper(values, out, fi, tk, seed, p, svp, flip):  # pragma: no cover - numba
     m, n = values.shape
     for i in prange(m):
-        key = frame_key(seed, 1, tk[i], fi[i])
+        key = frame_key(seed, STREAM_SALT_PEPPER, tk[i], fi[i])
         for j in range(n):
             u = uniform(key, j)
             if u < p:
@@ -135,7 +135,7 @@ def _gaussian(values, out, fi, tk, seed, sigma):  # pragma: no cover - numba
     zero = np.float32(0.0)
     two_pi = np.float32(2.0 * np.pi)
     for i in prange(m):
-        key = frame_key(seed, 2, tk[i], fi[i])
+        key = frame_key(seed, STREAM_GAUSSIAN, tk[i], fi[i])
         for j in range(0, n, 2):  # Box-Muller in float32: one pair of uniforms -> two normals
             u1 = uniform24(key, j)
             u2 = uniform24(key, j + 1)
@@ -387,8 +387,7 @@ class ThresholdNoise(Configured):
                 raise ValueError("noise=threshold with drift_sigma_mm2 > 0 needs the frame rate (frame_rate_hz)")
             rho = float(np.exp(-1000.0 / (float(frame_rate_hz) * self.drift_tau_ms)))
             order = np.lexsort((fi, tk)).astype(np.int64)
-            key_sorted = tk[order]
-            cut = np.flatnonzero(key_sorted[1:] != key_sorted[:-1]) + 1
+            cut = np.flatnonzero(tk[order][1:] != tk[order][:-1]) + 1  # each trial's block of rows
             starts = np.concatenate([[0], cut, [len(order)]]).astype(np.int64)
             _drift(
                 signal, order, starts, fi, tk, np.uint64(seed), STREAM_THRESHOLD_DRIFT, float(self.drift_sigma_mm2), rho

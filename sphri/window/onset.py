@@ -75,10 +75,8 @@ def trial_onsets(contacts: Contacts, dataset: GestureDataset) -> np.ndarray:
         return onset
     # first contact row at or after each trial's start, kept when inside the trial
     pos = np.searchsorted(fr, starts, side="left")
-    ok = pos < fr.size
-    first = np.full(len(trials), -1, dtype=np.int64)
-    first[ok] = fr[pos[ok]]
-    inside = ok & (first < starts + counts)
+    first = fr[np.minimum(pos, fr.size - 1)]
+    inside = (pos < fr.size) & (first < starts + counts)
     onset[inside] = first[inside] - starts[inside]
     return onset
 
