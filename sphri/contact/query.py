@@ -27,7 +27,7 @@ keep full precision). Tests compare it with the brute-force reference
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -142,7 +142,7 @@ class SearchRecord:
         return self.take(slice(n))
 
     def take(self, rows: np.ndarray | slice) -> SearchRecord:
-        return SearchRecord(*(a[rows] for a in vars(self).values()))
+        return SearchRecord(*(getattr(self, f.name)[rows] for f in fields(self)))
 
     def in_contact(self, radius: np.ndarray) -> np.ndarray:
         """(n,) bool: distance < radius or inside."""
@@ -196,10 +196,8 @@ def finish(mesh: MeshAccel, p0: np.ndarray, p1: np.ndarray, radius: np.ndarray, 
         depth=np.empty(n),
     )
     if n:
-        # the output arrays go last, in field order: the kernel's order
-        _kernels.finish_rows(
-            p0, p1, radius, mesh.tri, mesh.tri_deg, mesh.tri_normal, mesh.tri_id, mesh.shift, *vars(res).values()
-        )
+        out = (getattr(res, f.name) for f in fields(res))  # the output arrays in field order: the kernel's order
+        _kernels.finish_rows(p0, p1, radius, mesh.tri, mesh.tri_deg, mesh.tri_normal, mesh.tri_id, mesh.shift, *out)
     return res
 
 

@@ -17,7 +17,7 @@ areas, densities per cm^2 and budgets count the reachable elements only.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from scipy import sparse
@@ -212,7 +212,8 @@ def body_surface(
         reach = reachable_elements(
             robot, tuple(links), r.samples.points_m, r.samples.normal, r.link_of, floor_height_m, down_cos
         )
-    return BodySurface(**vars(r), kernel=kernel, reach=reach)
+    rest = {f.name: getattr(r, f.name) for f in fields(r)}
+    return BodySurface(**rest, kernel=kernel, reach=reach)
 
 
 def touched_pairs(body: BodySurface, bc: BodyContacts, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
