@@ -339,15 +339,16 @@ class _Jobs:
 
     def computed(self, workers: int, ray_run: RayFolds | None) -> Iterator[tuple[FoldResult, dict[str, float]]]:
         """(result, timing) of each fold of ``todo`` in order: Ray tasks, this process, or ``workers`` processes."""
-        data, run = (self.make_model, self.x, self.y, self.groups), (self.threads, self.featurized, self.resume)
+        make_model, x, y, groups, todo = self.make_model, self.x, self.y, self.groups, self.todo
+        threads, featurized, resume = self.threads, self.featurized, self.resume
         if ray_run is not None:
-            return ray_run.submit(*data, self.todo, *run)
+            return ray_run.submit(make_model, x, y, groups, todo, threads, featurized, resume)
         if workers == 1:
-            return (run_fold(*data, f, *run) for f in self.todo)
+            return (run_fold(make_model, x, y, groups, f, threads, featurized, resume) for f in todo)
         from joblib import Parallel, delayed
 
         return Parallel(n_jobs=workers, backend="loky", return_as="generator")(
-            delayed(run_fold)(*data, f, *run) for f in self.todo
+            delayed(run_fold)(make_model, x, y, groups, f, threads, featurized, resume) for f in todo
         )
 
 
