@@ -6,7 +6,9 @@ then ``--steps`` measured steps of batch 32 on the built-in synthetic study's wi
 step: user and system CPU seconds (``resource.getrusage``, all threads of the process), minor and major
 page faults (``ru_minflt``, ``ru_majflt``), voluntary and involuntary context switches, wall seconds;
 its peak resident memory; and every step's loss with a checksum of the final weights, so the file
-says whether a lever changes the numbers.
+says whether a lever changes the numbers. It also counts a step's floating-point operations and
+measures, in the same run, the one-thread matrix-product peak in float32 and bf16, so each variant's
+GFLOP per CPU second is read as a share of its precision's peak (``share_of_peak``).
 
 Levers (``--levers``), each a set of variants measured in ``--rounds`` interleaved rounds (the order
 alternates: A B C, C B A, ...) so that a change in the machine's load hits every variant alike:
@@ -18,7 +20,11 @@ alternates: A B C, C B A, ...) so that a change in the machine's load hits every
   ``OMP_WAIT_POLICY=PASSIVE`` (read when the OpenMP runtime starts: a fresh process), 1 thread;
   once on the otherwise idle cores (``threads``) and once while a competing process spins on one
   core (``threads_contended``: another fold, a test worker, another engineer's job);
-* ``channels_last``: the CNN's convolutions on channels-last (NHWC) tensors.
+* ``channels_last``: the CNN's convolutions on channels-last (NHWC) tensors;
+* ``channels_last_fit``: channels-last on top of the allocator ``fit`` sets (what adopting it would save
+  in a fold);
+* ``precision``: float32 against ``model.precision=auto`` (bf16 where the CPU has it natively and the
+  grid is not in the defect class), both with the allocator ``fit`` sets: the ratio is what bf16 saves.
 
 ``alloc`` and ``channels_last`` run with ``--threads`` threads (default 1: a fold process's share of
 2 cores, and the least disturbed by other work on the machine). Ratios are baseline / variant of the
@@ -74,6 +80,14 @@ LEVERS: dict[str, list[dict[str, Any]]] = {
         {"name": "1_thread", "threads": 1},
     ],
     "channels_last": [{"name": "base"}, {"name": "channels_last", "args": ["--channels-last"]}],
+    "channels_last_fit": [
+        {"name": "allocator", "args": ["--mallopt"]},
+        {"name": "allocator_channels_last", "args": ["--mallopt", "--channels-last"]},
+    ],
+    "precision": [
+        {"name": "float32", "args": ["--mallopt", "--precision", "float32"]},
+        {"name": "auto", "args": ["--mallopt"]},
+    ],
 }
 LEVERS["threads_contended"] = [{**v, "competitor": True} for v in LEVERS["threads"]]
 
@@ -95,6 +109,23 @@ def usage() -> tuple[float, float, int, int, int, int, float]:
     return r.ru_utime, r.ru_stime, r.ru_minflt, r.ru_majflt, r.ru_nvcsw, r.ru_nivcsw, time.perf_counter()
 
 
+def flops_per_window(net, m, dev, precision: str, xb, yb) -> float:
+    """Floating-point operations of one training step's forward and backward per window
+    (``torch.utils.flop_counter``: convolutions and matrix products, the GRU's included), counted on a
+    copy of the network so that the measured steps and their numbers are untouched."""
+    import copy
+
+    import torch.nn.functional as F
+    from torch.utils.flop_counter import FlopCounterMode
+
+    clone = copy.deepcopy(net)
+    with FlopCounterMode(display=False) as counter:
+        with m._autocast(dev, precision):
+            logits = clone(xb).float()
+        F.cross_entropy(logits, yb).backward()
+    return counter.get_total_flops() / xb.shape[0]
+
+
 def child(args: argparse.Namespace) -> dict[str, Any]:
     applied = keep_freed_memory() if args.mallopt else None  # what CnnGru.fit sets
     import torch
@@ -106,7 +137,7 @@ def child(args: argparse.Namespace) -> dict[str, Any]:
     win = load_windows(args.windows)
     x, y = win.x, np.asarray(win.y)
     classes, y_idx = np.unique(y, return_inverse=True)
-    m = CnnGru(geometry=win.geometry, threads=args.threads)
+    m = CnnGru(geometry=win.geometry, threads=args.threads, precision=args.precision)
     dev = torch.device("cpu")
     precision, why = m._choose(dev)
     torch.set_num_threads(args.threads)
@@ -124,7 +155,8 @@ def child(args: argparse.Namespace) -> dict[str, Any]:
     batches: list[torch.Tensor] = []
     while len(batches) < args.warmup + args.steps:
         batches += m._batches(xt.shape[0], gen)
-    losses, rows = [], []
+    fpw = flops_per_window(net, m, dev, precision, xt[batches[0]], yt[batches[0]])
+    losses, rows, windows = [], [], []
     for i, b in enumerate(batches[: args.warmup + args.steps]):
         u0 = usage()
         with m._autocast(dev, precision):
@@ -137,6 +169,7 @@ def child(args: argparse.Namespace) -> dict[str, Any]:
         u1 = usage()
         if i >= args.warmup:
             rows.append([b - a for a, b in zip(u0, u1)])
+            windows.append(len(b))
     d = np.array(rows)
     checksum = float(sum(p.detach().double().abs().sum() for p in net.parameters()))
     return {
@@ -159,12 +192,23 @@ def child(args: argparse.Namespace) -> dict[str, Any]:
         "nivcsw": d[:, 5].astype(int).tolist(),
         "wall_s": d[:, 6].tolist(),
         "maxrss_mib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+        "flops_per_window": fpw,
+        "windows_per_step": float(np.mean(windows)),
         "losses": losses,
         "weights_checksum": checksum,
     }
 
 
 # -- the parent: variants interleaved, ratios -------------------------------------------------------------
+
+
+def matmul_peaks() -> dict[str, float]:
+    """GFLOP per CPU s of a one-thread 1024 x 1024 matrix product in float32 and in bf16: the practical
+    peak each precision's training steps are read against (``share_of_peak``)."""
+    import torch
+    from profile_cnn_gru import matmul_gflops
+
+    return {"float32": round(matmul_gflops(), 1), "bf16": round(matmul_gflops(dtype=torch.bfloat16), 1)}
 
 
 def run_variant(variant: dict, windows: Path, args: argparse.Namespace) -> dict[str, Any]:
@@ -197,9 +241,11 @@ def run_variant(variant: dict, windows: Path, args: argparse.Namespace) -> dict[
 
 
 def per_step(row: dict) -> dict[str, float]:
-    """Means per measured step: user, sys and total CPU s, wall s, minor faults, context switches."""
+    """Means per measured step: user, sys and total CPU s, wall s, minor faults, context switches, and
+    the GFLOP the step computed per CPU second."""
     user, sys_ = float(np.mean(row["user_s"])), float(np.mean(row["sys_s"]))
     return {
+        "gflop_per_cpu_s": row["flops_per_window"] * row["windows_per_step"] / 1e9 / (user + sys_),
         "cpu_s": user + sys_,
         "user_s": user,
         "sys_s": sys_,
@@ -211,17 +257,20 @@ def per_step(row: dict) -> dict[str, float]:
     }
 
 
-def summarize(rows: list[dict], variants: list[dict]) -> dict[str, Any]:
+def summarize(rows: list[dict], variants: list[dict], peak: dict[str, float] | None = None) -> dict[str, Any]:
     """Per variant: median over rounds of the per-step means; ratios baseline / variant (median and range
-    of the per-round ratios); whether its losses and weights equal the baseline's bit for bit."""
+    of the per-round ratios); whether its losses and weights equal the baseline's bit for bit; with
+    ``peak`` (GFLOP per CPU s of a one-thread matrix product, per precision), the share of it reached."""
     base = variants[0]["name"]
     by = {v["name"]: [r for r in rows if r["variant"] == v["name"]] for v in variants}
-    out: dict[str, Any] = {"baseline": base, "variants": {}}
+    out: dict[str, Any] = {"baseline": base, "variants": {}, "peak": peak}
     for name, rs in by.items():
         steps = [per_step(r) for r in rs]
         entry: dict[str, Any] = {
             k: round(float(np.median([s[k] for s in steps])), 5 if k.endswith("_s") else 3) for k in steps[0]
         }
+        if out.get("peak"):
+            entry["share_of_peak"] = round(entry["gflop_per_cpu_s"] / out["peak"][rs[0]["precision"]], 3)
         entry["maxrss_mib"] = round(float(np.median([r["maxrss_mib"] for r in rs])), 1)
         entry["precision"] = rs[0]["precision"]
         entry["threads"] = rs[0]["threads"]
@@ -267,6 +316,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--windows", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--mallopt", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--channels-last", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--precision", default="auto", help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
     if args.child:
         args.steps = args.steps or 20
@@ -292,8 +342,10 @@ def main(argv: list[str] | None = None) -> int:
         "machine": {**machine(), "affinity_cores": len(os.sched_getaffinity(0))},
         "levers": {lv: LEVERS[lv] for lv in levers},
         "rounds": rounds,
+        "peak": matmul_peaks(),
         "res": {},
     }
+    log.info("one-thread matrix-product peak, GFLOP per CPU s: %s", out["peak"])
     with tempfile.TemporaryDirectory(prefix="bench_cnn_levers_") as tmp:
         for res in res_list:
             win, source, note = get_windows("pipeline", res, args.participants, args.repetitions, seed=0)
@@ -323,7 +375,7 @@ def main(argv: list[str] | None = None) -> int:
                             s["wall_s"],
                             s["minflt"],
                         )
-                entry["levers"][lever] = {"summary": summarize(rows, variants), "rows": rows}
+                entry["levers"][lever] = {"summary": summarize(rows, variants, out["peak"]), "rows": rows}
                 out["wall_s"] = round(time.perf_counter() - t0, 1)
                 out["loadavg_1min_end"] = os.getloadavg()[0]
                 write_json(name, out)
@@ -334,6 +386,7 @@ def main(argv: list[str] | None = None) -> int:
                 print(
                     f"res {res} {lever:18s} {vname:18s} CPU s/step {v['cpu_s']:.4f} (sys {100 * v['sys_share']:.0f} %)"
                     f" faults/step {v['minflt']:.0f}"
+                    + f" {v['gflop_per_cpu_s']:.1f} GFLOP/CPU s ({100 * v.get('share_of_peak', 0):.1f} % of peak)"
                     + (f"  CPU ratio {v['cpu_s_ratio']} wall ratio {v['wall_s_ratio']}" if "cpu_s_ratio" in v else "")
                 )
     print(f"wrote {path_out}")

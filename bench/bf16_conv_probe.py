@@ -3,7 +3,8 @@ stride-2, 3x3 convolution over inputs 1 wide, with the zero padding along W insi
 (``pw1``) and explicit before it (what sphri's CNN-GRU does), against float32 on the same inputs.
 
 Prints, per variant, how many of ``--calls`` calls gave a NaN gradient and how many a finite one off
-float32 by more than 0.5 + 5 % of its largest entry, with the CPU model and flags. Writes
+float32 by more than 0.5 + 5 % of its largest entry, and how many forward outputs were off float32 by
+more than 0.05 + 2 % of its largest entry (bf16 rounding is about 0.4 %), with the CPU model and flags. Writes
 ``outputs/bench/bf16_conv_probe.json``. Run: ``python bench/bf16_conv_probe.py [--calls 100]``.
 """
 
@@ -21,13 +22,17 @@ from _common import machine, write_json  # noqa: E402
 
 def probe(calls: int, explicit: bool, shape: tuple[int, int]) -> dict[str, int]:
     torch.manual_seed(0)
-    nan = wrong = 0
+    nan = wrong = fwd_wrong = 0
     for _ in range(calls):
         conv = torch.nn.Conv2d(1, 16, 3, stride=2, padding=(1, 0) if explicit else (1, 1))
         x = torch.randn(64, 1, *shape)
         xin = F.pad(x, (1, 1)) if explicit else x
         with torch.autocast("cpu", dtype=torch.bfloat16):
             y = conv(xin)
+        with torch.no_grad():
+            y_ref = conv(xin)
+        if not torch.isfinite(y).all() or (y.float() - y_ref).abs().max() > 0.05 + 0.02 * y_ref.abs().max():
+            fwd_wrong += 1
         y.float().sum().backward()
         g = conv.weight.grad.clone()
         conv.weight.grad = None
@@ -37,7 +42,7 @@ def probe(calls: int, explicit: bool, shape: tuple[int, int]) -> dict[str, int]:
             nan += 1
         elif (g - ref).abs().max() > 0.5 + 0.05 * ref.abs().max():
             wrong += 1
-    return {"calls": calls, "nan": nan, "wrong": wrong}
+    return {"calls": calls, "nan": nan, "wrong": wrong, "forward_wrong": fwd_wrong}
 
 
 def main() -> None:
@@ -56,7 +61,10 @@ def main() -> None:
             row = {"input": list(shape), "padding_w": "explicit" if explicit else "in the convolution"}
             row.update(probe(calls, explicit, shape))
             out["rows"].append(row)
-            print(f"input {shape}, W padding {row['padding_w']}: {row['nan']} NaN, {row['wrong']} wrong of {calls}")
+            print(
+                f"input {shape}, W padding {row['padding_w']}: {row['nan']} NaN, {row['wrong']} wrong of {calls} weight gradients; "
+                f"{row['forward_wrong']} wrong outputs"
+            )
     print(write_json("bf16_conv_probe", out))
 
 

@@ -20,13 +20,15 @@ it). ``"auto"`` (default) picks bf16 only where it is native *and* the
 network has no degenerate stride-2 convolution (:func:`bf16_hazard`), else
 float32. oneDNN 3.12 (torch 2.13.0's CPU build) computes wrong or NaN weight
 gradients for a bf16 stride-2 convolution over an input 1 wide with zero
-padding inside the convolution (AVX512-BF16 and AMX kernels), and wrong
-outputs on AMX for stride 2 over inputs at most 2 wide; float32 and stride 1
-are clean. So the padding along v is always explicit (zeros, or circular when
-v wraps) and the convolution pads along u only, which removed the defect in
-100 of 100 calls on an AMX CPU; a grid whose stride-2 convolutions see a side
-of at most 2 taxels trains in float32 under ``auto`` (such grids are tiny:
-float32 costs nothing there).
+padding inside the convolution (AVX512-BF16 and AMX kernels), and, on AMX,
+wrong or NaN outputs for stride 2 over an input 1 or 2 wide and 9 or more
+long, whatever the padding; float32 and stride 1 are clean. So the padding
+along v is always explicit (zeros, or circular when v wraps) and the
+convolution pads along u only (no wrong weight gradient in 100 calls on an
+AMX CPU), and a grid whose stride-2 convolutions see a side of at most 2
+taxels trains in float32 under ``auto``: on an AMX CPU that rule covered
+every one of the 22 grids (of 302 probed) the default network computed wrong
+in bf16 (``bench/bf16_grid_sweep.py``; docs/BENCHMARKS.md).
 
 Training stops on the first non-finite loss or gradient. Under ``auto`` with
 bf16 chosen, the model is retrained from the start in float32 and the reason
