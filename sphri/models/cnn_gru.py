@@ -14,9 +14,9 @@ training data (whole participants when ``groups`` are given), best epoch
 restored. Inputs are standardised with the mean and standard deviation of
 the training split only. Deterministic for a seed on a given CPU.
 
-``precision="bf16"`` runs the network under bfloat16 autocast (about 1.8x
-faster on CPUs with native bf16, AVX512-BF16 or AMX; slow on CPUs without
-it). ``"auto"`` (default) picks bf16 only where it is native *and* the
+``precision="bf16"`` runs the network under bfloat16 autocast (less CPU per
+step on CPUs with native bf16, AVX512-BF16 or AMX: 1.45x at res 18 on an AMX
+Xeon, docs/BENCHMARKS.md; slow on CPUs without it). ``"auto"`` (default) picks bf16 only where it is native *and* the
 network has no degenerate stride-2 convolution (:func:`bf16_hazard`), else
 float32. oneDNN 3.12 (torch 2.13.0's CPU build) computes wrong or NaN weight
 gradients for a bf16 stride-2 convolution over an input 1 wide with zero
