@@ -18,7 +18,7 @@ writes ``outputs/bench/bf16_parity.json`` and a Markdown table on stdout:
 The verdict is printed as measured: "within the seed spread" when both ends of the paired
 difference's interval lie inside +/- the largest float32 seed difference; with one seed in both
 precisions there is no spread and no verdict. Usage:
-``python bench/bf16_parity.py OUTPUT_DIR [--res 18]``.
+``python bench/bf16_parity.py OUTPUT_DIR [--res 18] [--name bf16_parity]``.
 """
 
 from __future__ import annotations
@@ -144,10 +144,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("output_dir", type=Path, help="the sweep's output_dir (holds mlflow.db)")
     parser.add_argument("--res", type=int, default=18, help="layout.res of the jobs to compare (default 18)")
+    parser.add_argument("--name", default="bf16_parity", help="outputs/bench/NAME.json (default bf16_parity)")
     args = parser.parse_args(argv)
     result = compare(collect(args.output_dir, args.res))
     result["res"] = args.res
-    path = write_json("bf16_parity", result)
+    path = write_json(args.name, result)
     print(table(result))
     for name, m in result["metrics"].items():
         if m["within_seed_spread"] is None:
