@@ -1,15 +1,14 @@
 """Which grid shapes the CNN-GRU's convolutions get wrong in bf16 on this CPU, against the rule
 ``model.precision=auto`` follows (:func:`sphri.models.cnn_gru.bf16_hazard`).
 
-For every grid H x W in 1..``--max-side`` (and, with the default, the arm grids of res 18 and 50),
-with and without wrap along v, the default network's :class:`~sphri.models.cnn_gru.GridEncoder`
+For every grid H x W in 1..``--max-side``, and on 18 x 1, 18 x 2, 1 x 18, 2 x 18, 50 x 1 and the arm
+grids of res 18 and 50 (18 x 17, 50 x 47), with and without wrap along v, the default network's :class:`~sphri.models.cnn_gru.GridEncoder`
 (channels 16/32/64, strides 2/2/1, embed 2) runs ``--calls`` forward and backward passes on random
 batches of 64 frames, once under bf16 autocast and once in float32 with the same weights and inputs.
 A call is **wrong** when the bf16 embeddings or any weight gradient are non-finite, or differ from
-float32 by more than a quarter of (1 + float32's largest entry): bf16's own rounding stays below an
-eighth of it on every shape (the largest error of the shapes judged right is printed), the defect's
-errors are NaN or orders of magnitude larger. A shape is **bad** when any
-call is wrong. The script prints and writes (``outputs/bench/bf16_grid_sweep.json``) the bad shapes,
+float32 by more than a quarter of (1 + float32's largest entry): bf16's own rounding stayed within an
+eighth of it on every shape on an AMX Xeon (the largest error of the shapes judged right is printed),
+the defect's errors are NaN or orders of magnitude larger. A shape is **bad** when any call is wrong. The script prints and writes (``outputs/bench/bf16_grid_sweep.json``) the bad shapes,
 whether the rule flags each, and the largest error of the shapes judged right; it exits 1 when a bad
 shape is not flagged (the rule would train it in bf16). Run:
 ``python bench/bf16_grid_sweep.py [--max-side 12] [--calls 20]``.
