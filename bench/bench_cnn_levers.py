@@ -23,8 +23,8 @@ alternates: A B C, C B A, ...) so that a change in the machine's load hits every
 * ``channels_last``: the CNN's convolutions on channels-last (NHWC) tensors;
 * ``channels_last_fit``: channels-last on top of the allocator ``fit`` sets (what adopting it would save
   in a fold);
-* ``precision``: float32 against ``model.precision=auto`` (bf16 where the CPU has it natively and the
-  grid is not in the defect class), both with the allocator ``fit`` sets: the ratio is what bf16 saves.
+* ``precision``: float32 against bf16, both with the allocator ``fit`` sets: the ratio is what bf16
+  saves (run it where the CPU has bf16 natively and at a grid outside the defect class, e.g. res 18).
 
 ``alloc`` and ``channels_last`` run with ``--threads`` threads (default 1: a fold process's share of
 2 cores, and the least disturbed by other work on the machine). Ratios are baseline / variant of the
@@ -34,6 +34,7 @@ ratios' range is the run-to-run spread to read them against.
     python bench/bench_cnn_levers.py                  # res 18 and res 1, 3 rounds
     python bench/bench_cnn_levers.py --quick          # res 18, alloc and channels_last, 15 steps, 2 rounds
     python bench/bench_cnn_levers.py --levers alloc --res 18 --rounds 5
+    python bench/bench_cnn_levers.py --precision bf16  # the bf16 levers where auto picks float32 (AMX)
 
 Writes ``outputs/bench/cnn_levers.json`` (``cnn_levers_quick.json`` with ``--quick``), with the machine
 (CPU model and SIMD flags, cores, load average at the start and end, torch) and the date.
@@ -86,7 +87,7 @@ LEVERS: dict[str, list[dict[str, Any]]] = {
     ],
     "precision": [
         {"name": "float32", "args": ["--mallopt", "--precision", "float32"]},
-        {"name": "auto", "args": ["--mallopt"]},
+        {"name": "bf16", "args": ["--mallopt", "--precision", "bf16"]},
     ],
 }
 LEVERS["threads_contended"] = [{**v, "competitor": True} for v in LEVERS["threads"]]
@@ -216,6 +217,7 @@ def run_variant(variant: dict, windows: Path, args: argparse.Namespace) -> dict[
     threads = int(variant.get("threads", args.threads))
     cmd = [sys.executable, str(Path(__file__).resolve()), "--child", "--windows", str(windows)]
     cmd += ["--threads", str(threads), "--steps", str(args.steps), "--warmup", str(args.warmup)]
+    cmd += ["--precision", args.precision]  # a variant's own --precision, after it, wins
     cmd += list(variant.get("args", []))
     env = {**os.environ, **variant.get("env", {})}
     for var in ("OMP_WAIT_POLICY", "MALLOC_MMAP_THRESHOLD_", "MALLOC_TRIM_THRESHOLD_"):
@@ -316,7 +318,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--windows", default=None, help=argparse.SUPPRESS)
     ap.add_argument("--mallopt", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--channels-last", action="store_true", help=argparse.SUPPRESS)
-    ap.add_argument("--precision", default="auto", help=argparse.SUPPRESS)
+    ap.add_argument(
+        "--precision",
+        default="auto",
+        choices=["auto", "float32", "bf16"],
+        help="model.precision of every variant but the precision lever's (default auto, as fit does; bf16 "
+        "measures the bf16 levers on a CPU where auto picks float32, e.g. one with AMX tiles)",
+    )
     args = ap.parse_args(argv)
     if args.child:
         args.steps = args.steps or 20
