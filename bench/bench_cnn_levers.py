@@ -34,7 +34,7 @@ ratios' range is the run-to-run spread to read them against.
     python bench/bench_cnn_levers.py                  # res 18 and res 1, 3 rounds
     python bench/bench_cnn_levers.py --quick          # res 18, alloc and channels_last, 15 steps, 2 rounds
     python bench/bench_cnn_levers.py --levers alloc --res 18 --rounds 5
-    python bench/bench_cnn_levers.py --precision bf16  # the bf16 levers where auto picks float32 (AMX)
+    python bench/bench_cnn_levers.py --precision bf16  # every variant in bf16, whatever auto picks
 
 Writes ``outputs/bench/cnn_levers.json`` (``cnn_levers_quick.json`` with ``--quick``), with the machine
 (CPU model and SIMD flags, cores, load average at the start and end, torch) and the date.
@@ -322,8 +322,7 @@ def main(argv: list[str] | None = None) -> int:
         "--precision",
         default="auto",
         choices=["auto", "float32", "bf16"],
-        help="model.precision of every variant but the precision lever's (default auto, as fit does; bf16 "
-        "measures the bf16 levers on a CPU where auto picks float32, e.g. one with AMX tiles)",
+        help="model.precision of every variant but the precision lever's (default auto, as fit does)",
     )
     args = ap.parse_args(argv)
     if args.child:

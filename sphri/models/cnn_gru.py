@@ -16,12 +16,9 @@ the training split only. Deterministic for a seed on a given CPU.
 
 ``precision="bf16"`` runs the network under bfloat16 autocast (less CPU per
 step on CPUs with native bf16, AVX512-BF16 or AMX: 1.45x at res 18 on an AMX
-Xeon, docs/BENCHMARKS.md; slow on CPUs without it). ``"auto"`` (default)
-picks bf16 only where it is native, the CPU has no AMX tiles (in the res-18
-parity runs, bf16 was not shown equivalent to float32 on an AMX Xeon by the
-rule of ``bench/bf16_parity.py``: :data:`AMX_NOT_SHOWN`) *and*
-the network has no degenerate stride-2 convolution (:func:`bf16_hazard`),
-else float32. oneDNN 3.12 (torch 2.13.0's CPU build) computes wrong or NaN weight
+Xeon, docs/BENCHMARKS.md; slow on CPUs without it). ``"auto"`` (default) picks bf16 only where it is native *and* the
+network has no degenerate stride-2 convolution (:func:`bf16_hazard`), else
+float32. oneDNN 3.12 (torch 2.13.0's CPU build) computes wrong or NaN weight
 gradients for a bf16 stride-2 convolution over an input 1 wide with zero
 padding inside the convolution (AVX512-BF16 and AMX kernels), and, on AMX,
 wrong or NaN outputs for stride 2 over an input 1 or 2 wide and 9 or more
@@ -292,19 +289,6 @@ def native_bf16(device: torch.device) -> bool:
     return False
 
 
-#: Why ``auto`` trains in float32 on a CPU with AMX tiles: the rule set before the runs (the paired
-#: bf16 - float32 interval within the largest float32 seed gap) did not show bf16 equivalent there.
-AMX_NOT_SHOWN = (
-    "bf16 not shown equivalent to float32 on CPUs with AMX tiles (the res-18 parity runs, docs/BENCHMARKS.md)"
-)
-
-
-def amx_tiles() -> bool:
-    """Whether this CPU has AMX tiles (torch's own check; False where torch lacks it)."""
-    check = getattr(torch.cpu, "_is_amx_tile_supported", None)
-    return bool(check is not None and check())
-
-
 def conv_inputs(grid_shape: tuple[int, int], strides: list[int] | tuple[int, ...]) -> list[tuple[int, int, int]]:
     """(H, W, stride) of the input each convolution of a :class:`GridEncoder` sees, before padding."""
     h, w = grid_shape
@@ -337,14 +321,12 @@ def choose_precision(
 ) -> tuple[str, str]:
     """(precision, why) for a network of ``grid_shape`` and ``strides`` on ``device``.
 
-    ``"auto"`` is bf16 only where :func:`native_bf16` and, on a CPU, neither AMX tiles (:data:`AMX_NOT_SHOWN`)
-    nor a :func:`bf16_hazard`; an explicit ``"float32"`` or ``"bf16"`` is kept as the user's choice."""
+    ``"auto"`` is bf16 only where :func:`native_bf16` and, on a CPU, no :func:`bf16_hazard`; an explicit
+    ``"float32"`` or ``"bf16"`` is kept as the user's choice."""
     if precision != "auto":
         return precision, "chosen (model.precision)"
     if not native_bf16(device):
         return "float32", f"auto: {device.type} without native bf16"
-    if device.type == "cpu" and amx_tiles():
-        return "float32", f"auto: {AMX_NOT_SHOWN}"
     hazard = bf16_hazard(grid_shape, strides) if device.type == "cpu" else None
     if hazard is not None:
         return "float32", f"auto: {hazard}, where oneDNN's bf16 kernels are not known to be right"

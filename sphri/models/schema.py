@@ -78,9 +78,9 @@ class CnnGruSchema(ModelSchema):
     """"auto" (CUDA when torch sees a GPU, else the CPU; the device used is recorded in MLflow,
     ``run.device``), "cpu", "cuda" or "cuda:K"."""
     precision: str = setting("auto", choices=["auto", "float32", "bf16"])
-    """"float32", "bf16" (bfloat16 autocast, faster where the CPU has native bf16: ``bench/bf16_parity.py``) or "auto": bf16 where native, the
-    CPU has no AMX tiles (bf16 was not shown equivalent to float32 there: docs/BENCHMARKS.md) and no stride-2
-    convolution sees a side of at most 2 taxels (oneDNN's bf16 kernels are wrong there), else float32; a non-finite loss under auto's bf16 retrains in float32. The choice and why are recorded on
+    """"float32", "bf16" (bfloat16 autocast, faster where the CPU has native bf16: ``bench/bf16_parity.py``) or "auto": bf16 where native and
+    no stride-2 convolution sees a side of at most 2 taxels (oneDNN's bf16 kernels are wrong there), else
+    float32; a non-finite loss under auto's bf16 retrains in float32. The choice and why are recorded on
     the MLflow run (``run.precision``, ``run.precision_reason``)."""
     seed: int = setting(0, lo=0)
     """Seeds weights, batch order and the validation split."""

@@ -11,10 +11,8 @@ from sklearn.base import clone
 
 from sphri.finite import NonFiniteError
 from sphri.models.cnn_gru import (
-    AMX_NOT_SHOWN,
     CnnGru,
     GridEncoder,
-    amx_tiles,
     bf16_hazard,
     choose_precision,
     native_bf16,
@@ -111,27 +109,10 @@ def test_auto_avoids_bf16_where_a_stride_2_convolution_sees_a_side_of_two(shape,
     precision, why = choose_precision("auto", cpu, shape, [2, 2, 1])
     if not native_bf16(cpu):
         assert (precision, why) == ("float32", "auto: cpu without native bf16")
-    elif amx_tiles():
-        assert (precision, why) == ("float32", f"auto: {AMX_NOT_SHOWN}")
     else:
         assert precision == ("float32" if hazard else "bf16")
         assert ("at most 2 taxels" in why) == hazard
     assert choose_precision("bf16", cpu, shape, [2, 2, 1]) == ("bf16", "chosen (model.precision)")
-
-
-@pytest.mark.parametrize("amx", [False, True])
-def test_auto_trains_in_float32_on_a_cpu_with_amx_tiles(monkeypatch, amx):
-    """bf16 was not shown equivalent to float32 on an AMX CPU (docs/BENCHMARKS.md): ``auto`` picks float32
-    there, on any grid, and says why; an explicit bf16 is still the user's to ask for."""
-    from sphri.models import cnn_gru
-
-    monkeypatch.setattr(cnn_gru, "native_bf16", lambda device: True)
-    monkeypatch.setattr(cnn_gru, "amx_tiles", lambda: amx)
-    cpu = torch.device("cpu")
-    want = ("float32", f"auto: {AMX_NOT_SHOWN}") if amx else ("bf16", "auto: native bf16 on cpu")
-    assert choose_precision("auto", cpu, (18, 17), [2, 2, 1]) == want
-    assert choose_precision("bf16", cpu, (18, 17), [2, 2, 1]) == ("bf16", "chosen (model.precision)")
-    assert CnnGru(geometry=geometry((18, 17), 306, True)).runtime()["precision"] == want[0]
 
 
 def bf16_calls_wrong(shape: tuple[int, int], wrap: bool, calls: int) -> int:
@@ -216,7 +197,6 @@ def test_auto_bf16_that_goes_non_finite_retrains_in_float32_and_says_so(monkeypa
     from sphri.models import cnn_gru
 
     monkeypatch.setattr(cnn_gru, "native_bf16", lambda device: True)  # any CPU: autocast runs without it
-    monkeypatch.setattr(cnn_gru, "amx_tiles", lambda: False)
     x, y = toy_xy(36)
     g = geometry((6, 6), 36, True)
     m = CnnGru(geometry=g, **TINY)
@@ -299,9 +279,7 @@ def test_each_precision_runs_and_is_deterministic(precision):
     expected = resolve_precision(precision, torch.device("cpu"), (5, 6), [2, 2, 1])
     assert a.precision_ == expected == a.runtime_["precision"]
     assert expected == (
-        "bf16"
-        if precision == "bf16" or (precision == "auto" and native_bf16(torch.device("cpu")) and not amx_tiles())
-        else "float32"
+        "bf16" if precision == "bf16" or (precision == "auto" and native_bf16(torch.device("cpu"))) else "float32"
     )
     b = clone(a).fit(x, y)
     p = a.predict_proba(x)
