@@ -16,9 +16,10 @@ the training split only. Deterministic for a seed on a given CPU.
 
 ``precision="bf16"`` runs the network under bfloat16 autocast (less CPU per
 step on CPUs with native bf16, AVX512-BF16 or AMX: 1.45x at res 18 on an AMX
-Xeon, docs/BENCHMARKS.md; slow on CPUs without it). ``"auto"`` (default) picks bf16 only where it is native *and* the
-network has no degenerate stride-2 convolution (:func:`bf16_hazard`), else
-float32. oneDNN 3.12 (torch 2.13.0's CPU build) computes wrong or NaN weight
+Xeon, docs/BENCHMARKS.md; slow on CPUs without it). ``"auto"`` (default)
+picks bf16 only where it is native *and* the network has no degenerate
+stride-2 convolution (:func:`bf16_hazard`; its accuracy equivalent to float32's by the rule
+of ``bench/bf16_parity.py`` on an AMD EPYC and an AMX Xeon), else float32. oneDNN 3.12 (torch 2.13.0's CPU build) computes wrong or NaN weight
 gradients for a bf16 stride-2 convolution over an input 1 wide with zero
 padding inside the convolution (AVX512-BF16 and AMX kernels), and, on AMX,
 wrong or NaN outputs for stride 2 over an input 1 or 2 wide and 9 or more
