@@ -25,27 +25,9 @@ import torch  # noqa: E402
 from _common import machine, write_json  # noqa: E402
 
 from sphri.models.cnn_gru import GridEncoder, bf16_hazard, native_bf16  # noqa: E402
+from sphri.testing.bf16 import WRONG, bf16_error  # noqa: E402
 
 CHANNELS, STRIDES, EMBED = [16, 32, 64], [2, 2, 1], 2
-WRONG = 0.25
-
-
-def errors(enc: GridEncoder, x: torch.Tensor) -> float:
-    """The largest of the embeddings' and the weight gradients' bf16 error, |bf16 - float32| / (1 +
-    |float32|) at their largest (inf when bf16 gave a non-finite value); above WRONG the call is wrong."""
-    out = []
-    for bf16 in (True, False):
-        enc.zero_grad(set_to_none=True)
-        with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
-            y = enc(x)
-        y.float().sum().backward()
-        out.append([y.detach().float()] + [c.weight.grad.clone() for c in enc.convs])
-    worst = 0.0
-    for got, ref in zip(*out):
-        if not torch.isfinite(got).all():
-            return float("inf")
-        worst = max(worst, float((got - ref).abs().max() / (1.0 + ref.abs().max())))
-    return worst
 
 
 def sweep(shapes: list[tuple[int, int]], calls: int) -> list[dict]:
@@ -54,7 +36,7 @@ def sweep(shapes: list[tuple[int, int]], calls: int) -> list[dict]:
         for wrap in (False, True):
             torch.manual_seed(0)
             enc = GridEncoder((h, w), CHANNELS, STRIDES, wrap, EMBED)
-            errs = [errors(enc, torch.randn(64, 1, h, w)) for _ in range(calls)]
+            errs = [bf16_error(enc, torch.randn(64, 1, h, w)) for _ in range(calls)]
             rows.append(
                 {
                     "grid": [h, w],

@@ -8,6 +8,7 @@
   realistic statistics, made without the contact stage.
 - :mod:`sphri.testing.toy_windows`: gesture windows drawn directly (no hands,
   no contact), for model tests and benchmarks.
+- :mod:`sphri.testing.bf16`: how far a grid encoder's bf16 pass is from float32 (oneDNN's defect).
 - :mod:`sphri.testing.runs`: a :class:`~sphri.types.RunMeta` for tests that
   log or report runs without running a job.
 

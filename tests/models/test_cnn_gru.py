@@ -19,6 +19,7 @@ from sphri.models.cnn_gru import (
     resolve_precision,
     validation_split,
 )
+from sphri.testing.bf16 import WRONG, bf16_error
 from sphri.testing.toy_windows import blob_windows
 from sphri.types import TaxelGeometry
 
@@ -118,24 +119,10 @@ def test_auto_avoids_bf16_where_a_stride_2_convolution_sees_a_side_of_two(shape,
 def bf16_calls_wrong(shape: tuple[int, int], wrap: bool, calls: int) -> int:
     """How many of ``calls`` forward and backward passes of the default encoder on ``shape`` give bf16
     embeddings or weight gradients that are non-finite or off float32 by more than a quarter of
-    (1 + float32's largest entry); bf16's own rounding stays below an eighth of it
-    (``bench/bf16_grid_sweep.py``)."""
+    (1 + float32's largest entry) (:func:`sphri.testing.bf16.bf16_error`)."""
     torch.manual_seed(0)
     enc = GridEncoder(shape, [16, 32, 64], [2, 2, 1], wrap, 2)
-    wrong = 0
-    for _ in range(calls):
-        x = torch.randn(64, 1, *shape)
-        got = []
-        for bf16 in (True, False):
-            enc.zero_grad(set_to_none=True)
-            with torch.autocast("cpu", dtype=torch.bfloat16, enabled=bf16):
-                y = enc(x)
-            y.float().sum().backward()
-            got.append([y.detach().float()] + [conv.weight.grad.clone() for conv in enc.convs])
-        wrong += any(
-            not torch.isfinite(a).all() or (a - b).abs().max() > 0.25 * (1 + b.abs().max()) for a, b in zip(*got)
-        )
-    return wrong
+    return sum(bf16_error(enc, torch.randn(64, 1, *shape)) > WRONG for _ in range(calls))
 
 
 @pytest.mark.skipif(not native_bf16(torch.device("cpu")), reason="bf16 runs need a CPU with native bf16")
