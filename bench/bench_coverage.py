@@ -6,7 +6,11 @@ contact stages come from the built-in synthetic study through the pipeline
 (cached under ``outputs/cache``; their time is reported apart), then the
 analysis is timed by phase: surface samples and kernel, contact footprints,
 maps + curves (+ held-out check), the 28 paired SWD tests, and the files
-(PNG renders, PLY, .npz, CSV).
+(PNG renders, PLY, .npz, CSV). The files are then written again, in turn with
+``formats=png`` and with the default PNG, PDF and SVG (``--format-rounds``
+rounds, A B A B ...), and the ratio of the two medians is reported: what the
+quick-look setting saves, measured in the same run. The machine (CPU model,
+SIMD flags, load) is recorded beside the numbers.
 
     python bench/bench_coverage.py            # 18 participants x 20 repetitions, arm
     python bench/bench_coverage.py --quick    # 18 participants x 4 repetitions
@@ -19,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import sys
 import tempfile
 import time
@@ -28,6 +33,9 @@ HERE = Path(__file__).resolve().parent
 OUT = HERE.parent / "outputs" / "bench"
 TARGET_S = 120.0
 
+sys.path.insert(0, str(HERE))
+from _common import machine  # noqa: E402
+
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -35,12 +43,16 @@ def main() -> int:
     parser.add_argument("--region", default="arm", help="skin region (arm or torso)")
     parser.add_argument("--participants", type=int, default=18)
     parser.add_argument("--no-render", action="store_true", help="skip PNG/PLY output")
+    parser.add_argument(
+        "--format-rounds", type=int, default=2, help="rounds of the formats=png vs PNG+PDF+SVG comparison (0: none)"
+    )
     args = parser.parse_args()
 
     from sphri.analysis.coverage import ALL, write_region
     from sphri.cache import StageCache
     from sphri.config import compose
     from sphri.coverage import analysis_from, load_settings
+    from sphri.figures import FORMATS, only_formats
     from sphri.pipeline import make_pipeline
 
     reps = 4 if args.quick else 20
@@ -63,9 +75,25 @@ def main() -> int:
         n_files = len(files)
     t3 = time.perf_counter()
 
+    def files_s(formats: tuple[str, ...]) -> float:
+        with tempfile.TemporaryDirectory(prefix="sphri-bench-coverage-") as tmp, only_formats(formats):
+            t = time.perf_counter()
+            write_region(result, tmp, link, surface, True, settings.views)
+            return time.perf_counter() - t
+
+    rounds: dict[str, list[float]] = {"png": [], "png_pdf_svg": []}
+    for _ in range(args.format_rounds if not args.no_render else 0):
+        rounds["png"].append(files_s(("png",)))
+        rounds["png_pdf_svg"].append(files_s(FORMATS))
+    formats = {k: [round(v, 3) for v in vs] for k, vs in rounds.items()}
+    if rounds["png"]:
+        median = {k: statistics.median(vs) for k, vs in rounds.items()}
+        formats["ratio_png_pdf_svg_to_png"] = round(median["png_pdf_svg"] / median["png"], 2)
+
     total = t3 - t1
     table = result.comparison.table if result.comparison is not None else None
     out = {
+        "machine": machine(),
         "mode": "quick" if args.quick else "full",
         "region": args.region,
         "link": link.name,
@@ -89,6 +117,7 @@ def main() -> int:
             "render": round(result.seconds.get("render", 0.0), 3),
             "total_maps_tests_files": round(total, 3),
         },
+        "files_seconds_by_formats": formats,
         "n_files": n_files,
         "target_s": TARGET_S,
         "meets_target": bool(total < TARGET_S),

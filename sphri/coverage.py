@@ -89,7 +89,7 @@ def load_settings(args: Sequence[str] = ()) -> CoverageSchema:
 
 
 #: Settings of the figures only (not of the analysis).
-FIGURE_KEYS = ("marks",)
+FIGURE_KEYS = ("marks", "formats")
 
 
 def analysis_from(settings: CoverageSchema) -> CoverageAnalysis:
@@ -139,10 +139,13 @@ def run(
         link = robot.link_for(region)
         t1 = time.perf_counter()
         result = analysis.analyze(dataset, contacts, link, surface, region)
-        from sphri.figures import Provenance
+        from sphri.figures import Provenance, only_formats
 
         marks = Provenance(synthetic=bool(dataset.synthetic), ids=dataset.name, show=settings.marks)
-        files[region] = write_region(result, out_dir / region, link, surface, settings.render, settings.views, marks)
+        with only_formats(settings.formats):
+            files[region] = write_region(
+                result, out_dir / region, link, surface, settings.render, settings.views, marks
+            )
         results[region] = result
         seconds[f"{region}.stages"] = t1 - t0
         seconds[f"{region}.analysis"] = time.perf_counter() - t1

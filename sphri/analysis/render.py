@@ -318,7 +318,8 @@ def _colourbar(
 
 
 def _save(fig: Figure, path: str | Path, provenance: figures.Provenance | None) -> Path:
-    """Draw the provenance banner (:func:`sphri.figures.mark`) and write the figure to ``path`` (PNG, PDF, SVG)."""
+    """Draw the provenance banner (:func:`sphri.figures.mark`) and write the figure to ``path`` (PNG, PDF, SVG, or
+    the formats of the enclosing :func:`sphri.figures.only_formats`)."""
     figures.mark(fig, provenance)
     figures.save(fig, path)
     return Path(path)

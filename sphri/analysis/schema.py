@@ -8,9 +8,10 @@ naming the full key (``coverage.bandwidth_mm``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from sphri.config import ComponentSchema, require, setting, store
+from sphri.figures import FORMATS as FIGURE_FORMATS
 
 KERNELS = ("geodesic", "euclidean")
 FOOTPRINTS = ("patch", "point")
@@ -54,7 +55,7 @@ class CoverageAnalysisSchema(ComponentSchema, group="coverage"):
     views: int = setting(4, lo=1, hi=8)
     """Views around the long axis in the PNG renders."""
     render: bool = True
-    """Write the figures (PNG, PDF, SVG) and PLY meshes (False: numbers and .npz only)."""
+    """Write the figures (in the formats of ``formats``) and PLY meshes (False: numbers and .npz only)."""
     heldout: bool = True
     """Also score each participant's frames with the placement chosen from the others."""
 
@@ -76,6 +77,18 @@ class CoverageSchema(CoverageAnalysisSchema):
 
     marks: bool | None = None
     """The SYNTHETIC DATA banner on the figures: None = for synthetic data only, true = always, false = never."""
+    formats: list[str] = field(default_factory=lambda: list(FIGURE_FORMATS))
+    """Files per figure, any of png, pdf, svg (``formats=png`` for a quick look: the vector formats take
+    most of a run's time, docs/BENCHMARKS.md)."""
+
+    def check(self) -> None:
+        super().check()
+        require(
+            len(self.formats) > 0 and set(self.formats) <= set(FIGURE_FORMATS),
+            self.key("formats"),
+            self.formats,
+            f"must be one or more of {', '.join(FIGURE_FORMATS)}",
+        )
 
 
 store(group="coverage", name="coverage_schema", node=CoverageSchema)

@@ -34,6 +34,8 @@ def test_split_args_routes_each_key():
         ("capture=1.5", "capture=1.5 is invalid: must be in (0, 1]"),
         ("n_permutations=5", "n_permutations=5 is invalid: must be in [99, "),
         ("exact_max=25", "exact_max=25 is invalid: must be in [0, 20]"),
+        ("formats=[png,jpg]", "coverage.formats=['png', 'jpg'] is invalid: must be one or more of png, pdf, svg"),
+        ("formats=[]", "coverage.formats=[] is invalid: must be one or more of png, pdf, svg"),
     ],
 )
 def test_bad_settings_name_the_key(arg, line):
@@ -123,6 +125,22 @@ def test_run_writes_region_files_and_logs_an_mlflow_run(study, tmp_path, monkeyp
     assert run.data.metrics["arm/n_significant_pairs"] == 3
     artifacts = {a.path for a in client.list_artifacts(res.mlflow_run_id, "arm")}
     assert "arm/density_poke.npz" in artifacts and "arm/summary.json" in artifacts
+
+
+def test_formats_png_writes_each_figure_as_png_alone(study, tmp_path, monkeypatch):
+    """``formats=png`` (a quick look): every figure of the run is a PNG, none a PDF or SVG; the default writes all three."""
+    from sphri.surface.cylinder import CylinderSurface
+
+    surface = CylinderSurface().fit(study.link)
+    monkeypatch.setattr(cli, "compose", lambda overrides: fake_cfg(tmp_path))
+    monkeypatch.setattr("sphri.pipeline.make_pipeline", lambda cfg, cache: FakePipeline(study, surface))
+    assert cli.load_settings([]).formats == ["png", "pdf", "svg"]
+    settings = cli.load_settings(["formats=png", "views=1", "n_projections=32", "heldout=false"])
+    res = cli.run(["data.regions=[arm]"], settings, tmp_path / "cov", log_mlflow=False)
+    suffixes = {p.suffix for p in res.files["arm"]}
+    assert ".png" in suffixes and not suffixes & {".pdf", ".svg"}, sorted(suffixes)
+    on_disk = {p.suffix for p in (tmp_path / "cov" / "arm").iterdir()}
+    assert ".png" in on_disk and not on_disk & {".pdf", ".svg"}, sorted(on_disk)
 
 
 def test_real_pipeline_debug_fast(tmp_path):
