@@ -119,6 +119,8 @@ def run(
     if study_settings(base) is not None:  # +experiment=scenario_study: the whole-body study
         from sphri.sessions.study import run_study
 
+        refuse_link_settings(settings)
+
         return run_study(overrides, out, log_mlflow)
     regions = [str(r) for r in base.data.regions]
     if not regions:
@@ -170,6 +172,35 @@ def run(
     if log_mlflow:
         cov.mlflow_run_id = log_coverage(base, settings, cov, overrides, meta)
     return cov
+
+
+#: Settings of one link's analysis and the study's setting of the same meaning (``experiment.scenario_study.<key>``).
+STUDY_KEYS = {"formats": "figure_formats"}
+
+
+def refuse_link_settings(settings: CoverageSchema) -> None:
+    """The scenario study reads its settings from ``experiment.scenario_study``, none of one link's analysis:
+    a link setting given with ``+experiment=scenario_study`` is refused, naming the study's key when it has one
+    (:class:`ConfigError`), never ignored."""
+    from sphri.sessions.schema import ScenarioStudySchema
+
+    default = CoverageSchema()
+    study_keys = {f.name for f in dataclasses.fields(ScenarioStudySchema)}
+    for key in ANALYSIS_KEYS:
+        value = getattr(settings, key)
+        if value == getattr(default, key):
+            continue
+        other = STUDY_KEYS.get(key, key)
+        where = (
+            f"set experiment.scenario_study.{other} instead"
+            if other in study_keys
+            else "it has no such setting (its settings: conf/experiment/scenario_study.yaml)"
+        )
+        shown = ",".join(map(str, value)) if isinstance(value, list) else value
+        raise ConfigError(
+            f"coverage.{key}={shown} is a setting of one link's analysis; the scenario study "
+            f"(+experiment=scenario_study) does not read it: {where}"
+        )
 
 
 def log_coverage(cfg, settings: CoverageSchema, cov: CoverageRun, overrides: Sequence[str], meta: dict) -> str | None:

@@ -143,6 +143,25 @@ def test_formats_png_writes_each_figure_as_png_alone(study, tmp_path, monkeypatc
     assert ".png" in on_disk and not on_disk & {".pdf", ".svg"}, sorted(on_disk)
 
 
+@pytest.mark.parametrize(
+    "arg,hint",
+    [
+        ("by=scenario", "set experiment.scenario_study.by instead"),
+        ("formats=png", "set experiment.scenario_study.figure_formats instead"),
+        ("marks=false", "it has no such setting (its settings: conf/experiment/scenario_study.yaml)"),
+    ],
+)
+def test_the_scenario_study_refuses_a_link_setting_it_would_ignore(tmp_path, capsys, arg, hint):
+    """With +experiment=scenario_study the link analysis' settings are not read: one line names the key and
+    where the study's own setting is, and nothing is written."""
+    argv = ["+experiment=scenario_study", "+debug=fast", f"output_dir={tmp_path}", arg, f"out={tmp_path / 'o'}"]
+    assert cli.main([*argv, "mlflow=false"]) == 2
+    err = capsys.readouterr().err.strip()
+    key = arg.split("=")[0]
+    assert err.startswith(f"sphri coverage: coverage.{key}=") and err.endswith(hint), err
+    assert "\n" not in err and not any((tmp_path / "o").iterdir() if (tmp_path / "o").exists() else [])
+
+
 def test_real_pipeline_debug_fast(tmp_path):
     """The built-in data and contact stages, end to end."""
     overrides = [f"output_dir={tmp_path}", "+debug=fast", "data.regions=[arm]"]
