@@ -87,7 +87,7 @@ _SUMMARIES = {
     "list": "the components of each config group",
     "show": "every setting of the chosen components: value, default, meaning",
     "validate": "compose and check a config (every job of a sweep) without running it",
-    "warmup": "compile sphri's numba kernels into numba's cache now, so the first job does not",
+    "warmup": "compile sphri's numba kernels into numba's cache now, so the first job does not wait for them",
     "cache": "see (info) and trim (clear) the stage cache, never the MLflow store",
     "store": "check or repair an MLflow store (mlflow.db)",
     "synthesize": "write a synthetic gesture dataset, the scenario sessions or example OpenXR logs to disk",
