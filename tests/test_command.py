@@ -145,6 +145,9 @@ def test_help_and_unknown_verbs(capsys):
     assert len(err) == 1 and err[0].startswith("sphri: unknown verb 'repot' (did you mean report")
     assert "verbs: run, sweep, report" in err[0]
     assert main(["validat"]) == 2 and "(did you mean validate" in capsys.readouterr().err
+    assert main(["help", "warmpu"]) == 2  # a verb's help asked for by a wrong name: the same line, not the list
+    out, err = capsys.readouterr()
+    assert not out and err.startswith("sphri: unknown verb 'warmpu' (did you mean warmup") and err.count("\n") == 1
 
 
 @pytest.mark.parametrize(

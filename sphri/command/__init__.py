@@ -136,7 +136,9 @@ def call(verb: Verb, argv: Sequence[str]) -> int:
     """Run ``verb`` with its arguments (``sphri VERB`` prefixes its one-line errors); its exit code."""
     argv, prog = list(argv), f"sphri {verb.name}"
     if verb.kind == "help":
-        if argv and argv[0] in BY_NAME and argv[0] != "help":
+        if argv and argv[0] not in BY_NAME:
+            return unknown_verb(argv[0])
+        if argv and argv[0] != "help":
             return call(BY_NAME[argv[0]], ["--help"])
         print_help(parser().format_help())
         return 0
@@ -171,9 +173,14 @@ def main(argv: Sequence[str] | None = None) -> int:
         argv[0] = "help"
     if not argv or is_override(argv[0]):
         return call(BY_NAME["run"], argv)
-    if argv[0] not in BY_NAME:  # one line with the close matches
-        close = difflib.get_close_matches(argv[0], BY_NAME, n=3, cutoff=0.5)
-        hint = f" (did you mean {' or '.join(close)}?)" if close else ""
-        print(f"sphri: unknown verb {argv[0]!r}{hint}; verbs: {', '.join(BY_NAME)}", file=sys.stderr)
-        return 2
+    if argv[0] not in BY_NAME:
+        return unknown_verb(argv[0])
     return call(BY_NAME[argv[0]], argv[1:])
+
+
+def unknown_verb(word: str) -> int:
+    """One line naming ``word`` and the close verbs (``sphri WORD``, ``sphri help WORD``); exit code 2."""
+    close = difflib.get_close_matches(word, BY_NAME, n=3, cutoff=0.5)
+    hint = f" (did you mean {' or '.join(close)}?)" if close else ""
+    print(f"sphri: unknown verb {word!r}{hint}; verbs: {', '.join(BY_NAME)}", file=sys.stderr)
+    return 2
