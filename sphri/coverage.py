@@ -54,6 +54,7 @@ class CoverageRunArgs:
 
     out: str = arg("", help="folder of the files (default <output_dir>/coverage/<timestamp>)", metavar="DIR")
     mlflow: bool = arg(True, help="log one MLflow run tagged sphri.kind=coverage")
+    overwrite: bool = arg(False, help="replace an existing, non-empty out folder whole (refused otherwise)")
 
 
 @dataclass
@@ -102,10 +103,13 @@ def run(
     settings: CoverageSchema | None = None,
     out: str | Path | None = None,
     log_mlflow: bool = True,
+    overwrite: bool = False,
 ) -> CoverageRun | StudyResult:
     """Analyse every region of the composed config's data; write files; log MLflow (``+experiment=scenario_study``:
-    the whole-body study's result)."""
-    from sphri.pipeline import make_pipeline, open_cache
+    the whole-body study's result). An ``out`` that exists and is not empty is refused unless ``overwrite``, and
+    then replaced whole when the files are written (:func:`sphri.fsutil.into_dir`): old and new files never mix,
+    and the MLflow run logs only this run's."""
+    from sphri.fsutil import into_dir, moved
 
     settings = settings or CoverageSchema()
     analysis = analysis_from(settings)
@@ -113,20 +117,36 @@ def run(
     base = compose(overrides)
     from sphri.sessions.schema import study_settings
 
-    if out:
-        check_output_dir(str(out), key="out")  # before any computing: a file there is one line, not a traceback
+    if out:  # before any computing: a file there, or an old run's files, is one line, not a traceback or a mix
         check_out_apart(str(out), base)  # every file of out is logged: never the store, artifacts or cache
+        check_output_dir(str(out), key="out", overwrite=overwrite)
     if study_settings(base) is not None:  # +experiment=scenario_study: the whole-body study
         from sphri.sessions.study import run_study
 
         refuse_link_settings(settings)
-
         return run_study(overrides, out, log_mlflow)
     regions = [str(r) for r in base.data.regions]
     if not regions:
         raise ConfigError("data.regions=[] is invalid: name at least one skin region")
     out_dir = Path(out) if out else Path(base.output_dir) / "coverage" / time.strftime("%Y-%m-%d_%H-%M-%S")
-    out_dir.mkdir(parents=True, exist_ok=True)
+    with into_dir(out_dir) as write_dir:
+        cov, meta = _analyse_regions(analysis, settings, overrides, regions, write_dir)
+    cov.files = {region: moved(paths, write_dir, out_dir) for region, paths in cov.files.items()}
+    cov.out_dir = out_dir
+    if log_mlflow:
+        cov.mlflow_run_id = log_coverage(base, settings, cov, overrides, meta)
+    return cov
+
+
+def _analyse_regions(
+    analysis: CoverageAnalysis, settings: CoverageSchema, overrides: list[str], regions: list[str], out_dir: Path
+) -> tuple[CoverageRun, dict[str, Any]]:
+    """Each region analysed on its own link (one composition per region; data and contact from the stage cache),
+    its files under ``out_dir/<region>``, then ``settings.json`` and ``recommendation.txt``; the run and what the
+    MLflow run records of the data."""
+    from sphri.figures import Provenance, only_formats
+    from sphri.pipeline import make_pipeline, open_cache
+
     rest = [o for o in overrides if not o.lstrip("+").startswith("data.regions=")]
     results: dict[str, RegionCoverage] = {}
     files: dict[str, list[Path]] = {}
@@ -141,8 +161,6 @@ def run(
         link = robot.link_for(region)
         t1 = time.perf_counter()
         result = analysis.analyze(dataset, contacts, link, surface, region)
-        from sphri.figures import Provenance, only_formats
-
         marks = Provenance(synthetic=bool(dataset.synthetic), ids=dataset.name, show=settings.marks)
         with only_formats(settings.formats):
             files[region] = write_region(
@@ -168,10 +186,7 @@ def run(
             f"[{r}]\n" + "\n".join(res.sentences[n] for n in [ALL] + res.groups) + "\n\n" for r, res in results.items()
         )
     )
-    cov = CoverageRun(out_dir, results, files, None, seconds)
-    if log_mlflow:
-        cov.mlflow_run_id = log_coverage(base, settings, cov, overrides, meta)
-    return cov
+    return CoverageRun(out_dir, results, files, None, seconds), meta
 
 
 #: Settings of one link's analysis and the study's setting of the same meaning (``experiment.scenario_study.<key>``).
@@ -275,7 +290,7 @@ def main(argv: Sequence[str] | None = None, prog: str = "sphri coverage") -> int
         return 2
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     try:
-        res = run(overrides, settings, run_args.out or None, run_args.mlflow)
+        res = run(overrides, settings, run_args.out or None, run_args.mlflow, run_args.overwrite)
     except ConfigError as exc:
         print(f"{prog}: {exc}", file=sys.stderr)
         return 2

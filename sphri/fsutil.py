@@ -14,7 +14,7 @@ import os
 import shutil
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 _lock = threading.Lock()
@@ -88,3 +88,23 @@ def replace_dir(target: str | os.PathLike) -> Iterator[Path]:
         raise
     if aside is not None:
         shutil.rmtree(aside, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def into_dir(target: str | os.PathLike) -> Iterator[Path]:
+    """Where to write a folder whole: ``target`` itself when it is absent or empty, else a new folder beside it
+    that takes its place when the block ends (:func:`replace_dir`: on a failure ``target`` is untouched, and
+    the old files are never mixed with the new). Callers refuse a non-empty ``target`` beforehand unless the
+    user asked to replace it (:func:`sphri.config.check_output_dir` with ``overwrite``)."""
+    target = Path(target)
+    if target.is_dir() and any(target.iterdir()):
+        with replace_dir(target) as fresh:
+            yield fresh
+    else:
+        target.mkdir(parents=True, exist_ok=True)
+        yield target
+
+
+def moved(paths: Iterable[Path], src: Path, dst: Path) -> list[Path]:
+    """``paths`` under ``src`` as they lie once ``src`` has become ``dst`` (:func:`into_dir`)."""
+    return [dst / Path(p).relative_to(src) for p in paths]

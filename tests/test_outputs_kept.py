@@ -1,6 +1,6 @@
 """Outputs that never mix with or silently replace what is there, and commands that never reach outside
 their folders: ``sphri synthesize``/``sphri export`` on an existing target, ``sphri cache clear`` through
-a link, ``sphri coverage out=`` holding the MLflow store."""
+a link, ``sphri coverage out=`` holding the MLflow store or an earlier run's files."""
 
 from __future__ import annotations
 
@@ -73,6 +73,51 @@ def test_replace_dir_leaves_the_target_untouched_when_writing_fails(tmp_path):
         (fresh / "new").write_text("new")
     assert not target.is_symlink() and [p.name for p in target.iterdir()] == ["new"]
     assert (outside / "precious").read_text() == "x"
+
+
+def test_into_dir_writes_into_an_empty_target_and_replaces_a_full_one_only_on_success(tmp_path):
+    from sphri.fsutil import into_dir, moved
+
+    fresh_target = tmp_path / "new"
+    with into_dir(fresh_target) as d:
+        assert d == fresh_target and d.is_dir()  # absent (or empty): written in place
+    full = tmp_path / "full"
+    full.mkdir()
+    (full / "old").write_text("old")
+    with pytest.raises(RuntimeError), into_dir(full) as d:
+        assert d != full
+        (d / "new").write_text("new")
+        raise RuntimeError("writing failed")
+    assert [p.name for p in full.iterdir()] == ["old"]  # untouched by a failed run
+    with into_dir(full) as d:
+        (d / "new").write_text("new")
+        paths = [d / "new"]
+    assert [p.name for p in full.iterdir()] == ["new"] and moved(paths, d, full) == [full / "new"]
+    assert sorted(os.listdir(tmp_path)) == ["full", "new"], "no temporary folder left beside the target"
+
+
+@pytest.mark.parametrize("study", [False, True], ids=["link", "scenario_study"])
+def test_coverage_into_a_folder_holding_files_is_refused_before_computing(study, tmp_path, capsys, monkeypatch):
+    """``sphri coverage out=EXISTING`` wrote its files among an earlier run's (a ``by=gesture`` run's maps stayed
+    beside a ``by=participant`` run's) and logged them all as the new run's MLflow artifacts: refused in one line
+    naming ``out`` and ``overwrite=true``, before anything is computed, the folder untouched."""
+    import sphri.pipeline
+    from sphri.coverage import main
+
+    def refuse(*_a, **_k):
+        raise AssertionError("computing started")
+
+    monkeypatch.setattr(sphri.pipeline, "make_pipeline", refuse)
+    out = tmp_path / "cov"
+    out.mkdir()
+    (out / "density_hit.npz").write_text("an earlier run's map\n")
+    argv = ["+experiment=scenario_study"] * study + ["+debug=fast", f"output_dir={tmp_path / 'o'}", f"out={out}"]
+    code = main([*argv, "mlflow=false"])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err, err
+    line = _line(err)
+    assert f"out={out} is invalid: {out} exists and is not empty" in line and "overwrite=true" in line, line
+    assert [p.name for p in out.iterdir()] == ["density_hit.npz"]
 
 
 def test_export_onto_an_existing_model_file_is_refused_before_training(tmp_path, capsys, monkeypatch):

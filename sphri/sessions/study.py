@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from sphri import figures
+from sphri.fsutil import into_dir, moved
 from sphri.progress import bar
 from sphri.sessions.schema import ScenarioStudySchema
 
@@ -94,22 +95,27 @@ def session_gestures(n_sessions: int, labelled: pd.DataFrame) -> list[str]:
 def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflow: bool = True) -> StudyResult:
     """Run the study for the composed ``overrides`` (they must select ``+experiment=scenario_study``) and write its
     files under ``out`` (default: ``output_dir/scenario_study/<time>``); each step's time (s) goes to
-    ``timing.json``. With ``log_mlflow``, one MLflow run (:func:`log_study`)."""
+    ``timing.json``. An ``out`` holding files is replaced whole once the study's files are written
+    (:func:`sphri.fsutil.into_dir`; ``sphri coverage`` refuses it first unless ``overwrite=true``): old and new
+    files never mix, and on a failure it is untouched. With ``log_mlflow``, one MLflow run (:func:`log_study`)."""
     job = _start(overrides, out)
-    with job.step(None):  # its stages time themselves
-        sess = _sessions(job)
-    with job.step("gestures"):
-        gest = _code_gestures(job, sess)
-    with job.step("maps_and_tests"):
-        maps = _maps_and_tests(job, sess, gest)
-    with job.step("placement"):
-        place = _placement(job, sess, maps)
-    with job.step("skin_design"):
-        design = _skin_design(job, sess, maps, place)
-    result = _result(job, sess, gest, maps, place, design)
-    with job.step("files"), figures.only_formats(job.st.figure_formats):
-        result.files = write_outputs(result, sess.robot, maps.body, sess.ds, gest.model, place.budget, sess.label)
-    job.finish()
+    final = job.out_dir
+    with into_dir(final) as job.out_dir:
+        with job.step(None):  # its stages time themselves
+            sess = _sessions(job)
+        with job.step("gestures"):
+            gest = _code_gestures(job, sess)
+        with job.step("maps_and_tests"):
+            maps = _maps_and_tests(job, sess, gest)
+        with job.step("placement"):
+            place = _placement(job, sess, maps)
+        with job.step("skin_design"):
+            design = _skin_design(job, sess, maps, place)
+        result = _result(job, sess, gest, maps, place, design)
+        with job.step("files"), figures.only_formats(job.st.figure_formats):
+            files = write_outputs(result, sess.robot, maps.body, sess.ds, gest.model, place.budget, sess.label)
+        job.finish()
+    result.files, result.out_dir = moved(files, job.out_dir, final), final
     for s_ in result.sentences:
         log.info("%s (%s)", s_, sess.label)
     if log_mlflow:
@@ -161,7 +167,6 @@ def _start(overrides: Sequence[str], out: str | Path | None) -> _Job:
     if st is None:
         raise ConfigError("the scenario study needs +experiment=scenario_study (experiment.scenario_study settings)")
     out_dir = Path(out) if out else Path(cfg.output_dir) / "scenario_study" / time.strftime("%Y-%m-%d_%H-%M-%S")
-    out_dir.mkdir(parents=True, exist_ok=True)
     cache = open_cache(cfg)
     started = time.perf_counter()
     shown = bar(6, "scenario study", unit="step")  # sessions, gestures, maps, placement, skin, files

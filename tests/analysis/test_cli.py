@@ -10,6 +10,7 @@ from omegaconf import OmegaConf
 
 from sphri import coverage as cli
 from sphri.args import ArgsError
+from sphri.config import ConfigError
 from sphri.types import Robot
 
 
@@ -160,6 +161,33 @@ def test_the_scenario_study_refuses_a_link_setting_it_would_ignore(tmp_path, cap
     key = arg.split("=")[0]
     assert err.startswith(f"sphri coverage: coverage.{key}=") and err.endswith(hint), err
     assert "\n" not in err and not any((tmp_path / "o").iterdir() if (tmp_path / "o").exists() else [])
+
+
+def test_overwrite_replaces_out_whole_and_the_run_logs_only_its_own_files(study, tmp_path, monkeypatch):
+    """``overwrite=true``: an earlier run's files in ``out`` are gone once this run's are written, none of them is
+    among this run's files or MLflow artifacts, and no temporary folder is left beside ``out``."""
+    from mlflow.tracking import MlflowClient
+
+    from sphri.surface.cylinder import CylinderSurface
+    from sphri.tracking.mlflow_tracker import default_uri
+
+    surface = CylinderSurface().fit(study.link)
+    monkeypatch.setattr(cli, "compose", lambda overrides: fake_cfg(tmp_path))
+    monkeypatch.setattr("sphri.pipeline.make_pipeline", lambda cfg, cache: FakePipeline(study, surface))
+    out = tmp_path / "runs" / "cov"
+    (out / "arm").mkdir(parents=True)
+    (out / "arm" / "density_participant_09.npz").write_text("an earlier run's map\n")
+    settings = cli.load_settings(["render=false", "n_projections=32", "heldout=false"])
+    with pytest.raises(ConfigError, match="exists and is not empty"):
+        cli.run(["data.regions=[arm]"], settings, out)
+    res = cli.run(["data.regions=[arm]"], settings, out, overwrite=True)
+    assert res.out_dir == out and all(p.is_file() and out in p.parents for p in res.files["arm"])
+    assert not (out / "arm" / "density_participant_09.npz").exists() and (out / "arm" / "density_poke.npz").is_file()
+    assert sorted(p.name for p in out.parent.iterdir()) == ["cov"]
+    client = MlflowClient(default_uri(tmp_path))
+    logged = {a.path for a in client.list_artifacts(res.mlflow_run_id, "arm")}
+    assert "arm/density_poke.npz" in logged and "arm/density_participant_09.npz" not in logged
+    assert client.get_run(res.mlflow_run_id).data.tags["sphri.coverage_dir"] == str(out.resolve())
 
 
 def test_real_pipeline_debug_fast(tmp_path):
