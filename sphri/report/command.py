@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from pathlib import Path
 from typing import Literal
 
 from sphri.args import ArgsError, arg
@@ -63,7 +64,10 @@ class ReportArgs:
         None, help="MLflow tracking URI (default: the sweep's, else sqlite:///<output_dir>/mlflow.db)"
     )
     output_dir: str = arg("outputs", help="the runs' output_dir, for the default store")
-    out: str | None = arg(None, help="where to write the report (default: <sweep dir>/report)")
+    out: str | None = arg(
+        None,
+        help="where to write the report: a new or empty folder, or an earlier report's (default: <sweep dir>/report)",
+    )
     tolerances: list[str] = arg(
         ["0.01", "0.02", "0.03"],
         check=_tolerances,
@@ -100,6 +104,16 @@ class ReportArgs:
         return RuleSettings(tolerances=tuple(names), primary=primary, n_boot=self.n_boot, ci=self.ci, seed=self.seed)
 
 
+def check_report_folder(out: Path) -> None:
+    """``out`` is absent, empty or an earlier report's folder (its ``report.html`` there): the report is logged to
+    MLflow as the whole folder, so a folder of other files would be uploaded with it (:class:`ArgsError`)."""
+    if out.is_dir() and any(out.iterdir()) and not (out / "report.html").is_file():
+        raise ArgsError(
+            f"out={out} is invalid: {out} holds files and no earlier report (report.html); the report is logged to "
+            "MLflow as the whole folder: give a new or empty folder"
+        )
+
+
 def command(args: ReportArgs) -> int:
     """Write SOURCE/report/ (report.html, figures, summary.txt, CSV/JSON tables), log it to the sweep's
     MLflow parent run and print the summary; exit 2 with a message when the sweep cannot be reported on."""
@@ -111,6 +125,7 @@ def command(args: ReportArgs) -> int:
             check_output_dir(args.out, key="out")
         except ConfigError as exc:
             raise ArgsError(str(exc)) from None
+        check_report_folder(Path(args.out))
     try:
         _, files, text = make_report(
             args.source,

@@ -456,6 +456,34 @@ def test_cli_out_on_a_file_is_one_line_before_reading_the_sweep(tmp_path, capsys
     ), line
 
 
+def test_cli_out_holding_other_files_is_refused_before_reading_the_sweep(tmp_path, capsys, monkeypatch):
+    """``sphri report DIR out=FOLDER`` logs the whole folder to MLflow: a folder holding other files (not an earlier
+    report) would be uploaded with it, so it is refused in one line before the sweep is read; an earlier report's
+    folder is written again."""
+    import sphri.report.command as report_command
+
+    calls = []
+
+    def record(*_a, **kw):
+        calls.append(kw["out_dir"])
+        raise ValueError("stop here")
+
+    monkeypatch.setattr(report_command, "make_report", record)
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "thesis.tex").write_text("not a report\n")
+    assert main([str(tmp_path), f"out={out}"]) == 2
+    (line,) = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert line.endswith(
+        f"out={out} is invalid: {out} holds files and no earlier report (report.html); the report "
+        "is logged to MLflow as the whole folder: give a new or empty folder"
+    ), line
+    assert not calls and [p.name for p in out.iterdir()] == ["thesis.tex"]
+    (out / "report.html").write_text("<html></html>")  # an earlier report's folder: written again
+    main([str(tmp_path), f"out={out}"])
+    assert calls == [str(out)]
+
+
 def test_command_line_names_each_key_once_with_the_command_lines_value(store, tmp_path):
     # the parent's note holds an experiment's sweeper params, then the command line's overrides
     from mlflow.tracking import MlflowClient
