@@ -109,7 +109,7 @@ def run(
     the whole-body study's result). An ``out`` that exists and is not empty is refused unless ``overwrite``, and
     then replaced whole when the files are written (:func:`sphri.fsutil.into_dir`): old and new files never mix,
     and the MLflow run logs only this run's."""
-    from sphri.fsutil import into_dir, moved
+    from sphri.fsutil import into_dir, moved, new_run_dir
 
     settings = settings or CoverageSchema()
     analysis = analysis_from(settings)
@@ -128,7 +128,7 @@ def run(
     regions = [str(r) for r in base.data.regions]
     if not regions:
         raise ConfigError("data.regions=[] is invalid: name at least one skin region")
-    out_dir = Path(out) if out else Path(base.output_dir) / "coverage" / time.strftime("%Y-%m-%d_%H-%M-%S")
+    out_dir = Path(out) if out else new_run_dir(Path(base.output_dir) / "coverage")
     with into_dir(out_dir) as write_dir:
         cov, meta = _analyse_regions(analysis, settings, overrides, regions, write_dir)
     cov.files = {region: moved(paths, write_dir, out_dir) for region, paths in cov.files.items()}

@@ -10,10 +10,12 @@ with ``os.fchmod`` before renaming (:func:`write_atomic` does both).
 from __future__ import annotations
 
 import contextlib
+import itertools
 import os
 import shutil
 import tempfile
 import threading
+import time
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
@@ -108,3 +110,19 @@ def into_dir(target: str | os.PathLike) -> Iterator[Path]:
 def moved(paths: Iterable[Path], src: Path, dst: Path) -> list[Path]:
     """``paths`` under ``src`` as they lie once ``src`` has become ``dst`` (:func:`into_dir`)."""
     return [dst / Path(p).relative_to(src) for p in paths]
+
+
+def new_run_dir(parent: str | os.PathLike) -> Path:
+    """A new folder under ``parent`` named by the local time (``2026-12-03_07-16-11``; ``_2``, ``_3``, ... when a
+    run that started in the same second holds that name), made here so that two runs never share one."""
+    parent = Path(parent)
+    parent.mkdir(parents=True, exist_ok=True)
+    stem = time.strftime("%Y-%m-%d_%H-%M-%S")
+    for n in itertools.count(1):
+        path = parent / (stem if n == 1 else f"{stem}_{n}")
+        try:
+            path.mkdir()
+        except FileExistsError:
+            continue
+        return path
+    raise AssertionError("unreachable")

@@ -96,6 +96,24 @@ def test_into_dir_writes_into_an_empty_target_and_replaces_a_full_one_only_on_su
     assert sorted(os.listdir(tmp_path)) == ["full", "new"], "no temporary folder left beside the target"
 
 
+def test_runs_started_in_the_same_second_never_share_a_default_folder(tmp_path, monkeypatch):
+    """The default ``out`` of ``sphri coverage`` and of the scenario study is named by the second: a second run in
+    that second got the same folder (then its files replaced the first run's); each now gets its own."""
+    import time as time_module
+
+    from sphri.fsutil import new_run_dir
+
+    monkeypatch.setattr(time_module, "strftime", lambda fmt, *a: "2026-12-03_07-16-11")
+    (tmp_path / "cov" / "2026-12-03_07-16-11_2").mkdir(parents=True)  # a name already taken, empty or not
+    first, second, third = (new_run_dir(tmp_path / "cov") for _ in range(3))
+    assert [first.name, second.name, third.name] == [
+        "2026-12-03_07-16-11",
+        "2026-12-03_07-16-11_3",
+        "2026-12-03_07-16-11_4",
+    ]
+    assert all(p.is_dir() and not any(p.iterdir()) for p in (first, second, third))
+
+
 @pytest.mark.parametrize("study", [False, True], ids=["link", "scenario_study"])
 def test_coverage_into_a_folder_holding_files_is_refused_before_computing(study, tmp_path, capsys, monkeypatch):
     """``sphri coverage out=EXISTING`` wrote its files among an earlier run's (a ``by=gesture`` run's maps stayed

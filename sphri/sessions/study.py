@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from sphri import figures
-from sphri.fsutil import into_dir, moved
+from sphri.fsutil import into_dir, moved, new_run_dir
 from sphri.progress import bar
 from sphri.sessions.schema import ScenarioStudySchema
 
@@ -166,7 +166,7 @@ def _start(overrides: Sequence[str], out: str | Path | None) -> _Job:
     st = study_settings(cfg)
     if st is None:
         raise ConfigError("the scenario study needs +experiment=scenario_study (experiment.scenario_study settings)")
-    out_dir = Path(out) if out else Path(cfg.output_dir) / "scenario_study" / time.strftime("%Y-%m-%d_%H-%M-%S")
+    out_dir = Path(out) if out else new_run_dir(Path(cfg.output_dir) / "scenario_study")
     cache = open_cache(cfg)
     started = time.perf_counter()
     shown = bar(6, "scenario study", unit="step")  # sessions, gestures, maps, placement, skin, files
