@@ -355,12 +355,16 @@ def _overlap_area(a, b) -> float:
 _formats: list[tuple[str, ...]] = [FORMATS]
 
 
+def valid_formats(formats: Sequence[str]) -> bool:
+    """``formats`` names one or more of :data:`FORMATS` and nothing else (the rule of every ``formats`` setting)."""
+    return len(formats) > 0 and set(formats) <= set(FORMATS)
+
+
 @contextmanager
 def only_formats(formats: Sequence[str]) -> Iterator[None]:
     """Within the block, :func:`save` writes ``formats`` (e.g. ``("png",)`` for a quick look) unless a
     call names its own."""
-    bad = [f for f in formats if f not in FORMATS]
-    if bad or not formats:
+    if not valid_formats(formats):
         raise ValueError(f"figure formats {list(formats)} are invalid: choose from {list(FORMATS)}")
     _formats.append(tuple(formats))
     try:

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 from sphri.config import ComponentSchema, require, setting, store
 from sphri.figures import FORMATS as FIGURE_FORMATS
+from sphri.figures import valid_formats
 
 KERNELS = ("geodesic", "euclidean")
 FOOTPRINTS = ("patch", "point")
@@ -84,7 +85,7 @@ class CoverageSchema(CoverageAnalysisSchema):
     def check(self) -> None:
         super().check()
         require(
-            len(self.formats) > 0 and set(self.formats) <= set(FIGURE_FORMATS),
+            valid_formats(self.formats),
             self.key("formats"),
             self.formats,
             f"must be one or more of {', '.join(FIGURE_FORMATS)}",

@@ -14,6 +14,7 @@ from typing import ClassVar
 
 from sphri.config import Schema, cross_check, load_schema, require, require_choice, setting, store
 from sphri.data.schema import DataSchema
+from sphri.figures import valid_formats
 
 
 def check_scenarios(key: str, scenarios: list[str] | None) -> None:
@@ -184,7 +185,7 @@ class ScenarioStudySchema(Schema):
             len(self.gesture_regions) > 0, self.key("gesture_regions"), self.gesture_regions, "at least one body part"
         )
         require(
-            len(self.figure_formats) > 0 and set(self.figure_formats) <= {"png", "pdf", "svg"},
+            valid_formats(self.figure_formats),
             self.key("figure_formats"),
             self.figure_formats,
             "one or more of png, pdf, svg",

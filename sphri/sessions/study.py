@@ -100,7 +100,8 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
     files never mix, and on a failure it is untouched. With ``log_mlflow``, one MLflow run (:func:`log_study`)."""
     job = _start(overrides, out)
     final = job.out_dir
-    with into_dir(final) as job.out_dir:
+    with into_dir(final) as write_dir:
+        job.out_dir = write_dir  # every step writes there; it becomes final once the files are written
         with job.step(None):  # its stages time themselves
             sess = _sessions(job)
         with job.step("gestures"):
@@ -115,7 +116,8 @@ def run_study(overrides: Sequence[str], out: str | Path | None = None, log_mlflo
         with job.step("files"), figures.only_formats(job.st.figure_formats):
             files = write_outputs(result, sess.robot, maps.body, sess.ds, gest.model, place.budget, sess.label)
         job.finish()
-    result.files, result.out_dir = moved(files, job.out_dir, final), final
+    job.out_dir = result.out_dir = final
+    result.files = moved(files, write_dir, final)
     for s_ in result.sentences:
         log.info("%s (%s)", s_, sess.label)
     if log_mlflow:
